@@ -1,0 +1,72 @@
+"""The pinhole camera and the per-frame basis every backend's kernel reads.
+
+Convention (design.md): forward = normalize(look_at - position),
+right = normalize(cross(forward, up)), true_up = cross(right, forward); the view
+plane sits at distance 1 along forward, plane_h = 2 tan(fov/2) high and
+plane_w = plane_h * W / H wide. Row 0 of the image is the top.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import RaybenchError
+
+
+def _vector(value, name: str) -> tuple[float, float, float]:
+    try:
+        vec = tuple(float(c) for c in value)
+    except (TypeError, ValueError):
+        raise RaybenchError(f"{name}: must be 3 numbers [x, y, z], got {value!r}") from None
+    if len(vec) != 3 or not all(math.isfinite(c) for c in vec):
+        raise RaybenchError(f"{name}: must be 3 finite numbers [x, y, z], got {value!r}")
+    return vec
+
+
+@dataclass(frozen=True)
+class Camera:
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    look_at: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    up: tuple[float, float, float] = (0.0, 1.0, 0.0)
+    fov_deg: float = 60.0
+
+    def __post_init__(self):
+        # Validate once, here, so every later stage may trust the camera.
+        pos = _vector(self.position, "camera.position")
+        look = _vector(self.look_at, "camera.look_at")
+        up = _vector(self.up, "camera.up")
+        object.__setattr__(self, "position", pos)
+        object.__setattr__(self, "look_at", look)
+        object.__setattr__(self, "up", up)
+        try:
+            fov = float(self.fov_deg)
+        except (TypeError, ValueError):
+            raise RaybenchError(f"camera.fov_deg: must be a number of degrees in (0, 180), got {self.fov_deg!r}") from None
+        if not (0.0 < fov < 180.0):
+            raise RaybenchError(f"camera.fov_deg: must be in (0, 180) degrees, got {self.fov_deg!r}")
+        object.__setattr__(self, "fov_deg", fov)
+        forward = np.subtract(look, pos)
+        if not np.linalg.norm(forward) > 0.0:
+            raise RaybenchError("camera.look_at: must differ from camera.position")
+        if not np.linalg.norm(np.cross(forward, up)) > 1e-12 * np.linalg.norm(forward) * max(np.linalg.norm(up), 1e-300):
+            raise RaybenchError("camera.up: must not be zero or parallel to the view direction (look_at - position)")
+
+    def basis(self, width: int, height: int) -> np.ndarray:
+        """The (4, 3) float32 array [origin, forward, right * plane_w, true_up * plane_h]
+        from which a kernel makes the ray of any pixel."""
+        pos = np.array(self.position, dtype=np.float64)
+        forward = np.array(self.look_at, dtype=np.float64) - pos
+        forward /= np.linalg.norm(forward)
+        right = np.cross(forward, np.array(self.up, dtype=np.float64))
+        right /= np.linalg.norm(right)
+        true_up = np.cross(right, forward)
+        plane_h = 2.0 * math.tan(math.radians(self.fov_deg) / 2.0)
+        plane_w = plane_h * width / height
+        return np.array([pos, forward, right * plane_w, true_up * plane_h], dtype=np.float32)
+
+    def to_dict(self) -> dict:
+        return {"position": list(self.position), "look_at": list(self.look_at),
+                "up": list(self.up), "fov_deg": self.fov_deg}

@@ -1,0 +1,178 @@
+"""The command line: raybench render | info.
+
+Every mistake a user can make ends as one line on stderr and exit code 2; no
+traceback reaches the terminal for input we can name.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import click
+
+from .errors import RaybenchError
+
+SIZE_HELP = "image size as WIDTHxHEIGHT, e.g. 1680x1050"
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    from .backends.memory import check_size
+
+    parts = text.lower().split("x")
+    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+        raise RaybenchError(f"--size: must be WIDTHxHEIGHT in pixels, e.g. 800x600, got {text!r}")
+    width, height = (int(p) for p in parts)
+    check_size(width, height)
+    return width, height
+
+
+def parse_block(text: str) -> tuple[int, int]:
+    parts = text.lower().split("x")
+    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+        raise RaybenchError(f"--block: must be XxY threads, e.g. 16x16, got {text!r}")
+    return int(parts[0]), int(parts[1])
+
+
+def check_output(path: Path) -> None:
+    """Refuse an output we could not write before spending time on a render."""
+    if path.suffix.lower() != ".png":
+        raise RaybenchError(f"-o {path}: the output must be a .png file")
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise RaybenchError(f"-o {path}: folder {folder} does not exist")
+    if path.is_dir():
+        raise RaybenchError(f"-o {path}: is a folder; give a file name")
+    if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise RaybenchError(f"-o {path}: not writable; choose another path")
+
+
+def load_scene(scene_file, spheres, seed):
+    from .scene import Scene, random_spheres
+
+    if (scene_file is None) == (spheres is None):
+        raise RaybenchError("give exactly one of --scene FILE or --spheres N")
+    if scene_file is not None:
+        if seed is not None:
+            raise RaybenchError("--seed applies to --spheres only")
+        return Scene.load(scene_file)
+    return random_spheres(spheres, 0 if seed is None else seed)
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="raybench")
+def main():
+    """raybench: the thesis's ray tracer on CPU and GPU, and what the GPU buys."""
+
+
+@main.command()
+@click.option("--scene", "scene_file", type=click.Path(dir_okay=False), help="scene JSON file to render")
+@click.option("--spheres", type=int, help="render N random spheres instead of a scene file")
+@click.option("--seed", type=int, help="seed of the random spheres (default 0)")
+@click.option("--size", default="800x600", show_default=True, help=SIZE_HELP)
+@click.option("--device", default="auto", show_default=True, type=click.Choice(["auto", "cpu", "cuda"]),
+              help="where to trace: auto picks cuda when a usable GPU is present")
+@click.option("--threads", type=int, help="cpu: number of threads (default: all cores)")
+@click.option("--block", help="cuda: thread block shape XxY (default 16x16)")
+@click.option("-o", "--output", default="render.png", show_default=True, type=click.Path(path_type=Path),
+              help="PNG file to write")
+def render(scene_file, spheres, seed, size, device, threads, block, output):
+    """Trace one frame and save it as a PNG."""
+    from .backends import resolve
+    from .render import render as render_frame
+
+    scene = load_scene(scene_file, spheres, seed)
+    width, height = parse_size(size)
+    check_output(output)
+    device = resolve(device)
+    options = {}
+    if threads is not None:
+        options["threads"] = threads
+    if block is not None:
+        options["block"] = parse_block(block)
+    start = time.perf_counter()
+    frame = render_frame(scene, width=width, height=height, device=device, **options)
+    elapsed = time.perf_counter() - start
+    frame.save(output)
+    click.echo(f"wrote {output}: {width}x{height}, {len(scene):,} spheres, {frame.device}, "
+               f"{elapsed:.2f} s including compilation")
+
+
+@main.command()
+@click.option("--json", "as_json", is_flag=True, help="print the machine description as JSON")
+def info(as_json):
+    """Describe this machine: processors, their FP32 rates, library versions."""
+    from .machine import describe
+
+    desc = describe()
+    if as_json:
+        click.echo(json.dumps(desc, indent=2))
+        return
+    c = desc["cpu"]
+    click.echo(f"OS        {desc['os']}")
+    click.echo(f"CPU       {c['model']} ({c['arch']})")
+    click.echo(f"          {c['physical_cores']} cores, {c['logical_cpus']} logical CPUs, {c['clock_ghz']} GHz, "
+               f"{c['memory_gib']} GiB memory")
+    click.echo(f"          SIMD {c['simd']} ({c['simd_bits']} bits = {c['fp32_lanes']} float32 lanes), "
+               f"{c['fma_units_per_core']} FMA units per core (assumed)")
+    click.echo(f"          FP32 peak {c['fp32_gflops']:,} GFLOP/s = {c['physical_cores']} cores x {c['clock_ghz']} GHz "
+               f"x {c['fp32_lanes']} lanes x 2 x {c['fma_units_per_core']} FMA units")
+    if not desc["gpus"]:
+        from .backends import cuda_available
+
+        click.echo("GPU       none usable" + ("" if cuda_available() else f": {_cuda_reason()}"))
+    for g in desc["gpus"]:
+        if g.get("simulated"):
+            click.echo("GPU       numba's CUDA simulator (NUMBA_ENABLE_CUDASIM=1): correct, not fast")
+            continue
+        click.echo(f"GPU       {g['name']} (compute capability {g['compute_capability']}, driver {g['driver']})")
+        click.echo(f"          {g['multiprocessors']} multiprocessors x {g['fp32_lanes_per_sm']} FP32 lanes, "
+                   f"{g['clock_ghz']} GHz, memory {g['memory_gib']} GiB at {g['memory_clock_ghz']} GHz")
+        if g["fp32_gflops"]:
+            click.echo(f"          FP32 peak {g['fp32_gflops']:,} GFLOP/s = {g['multiprocessors']} x "
+                       f"{g['fp32_lanes_per_sm']} x 2 x {g['clock_ghz']} GHz")
+    versions = ", ".join(f"{k} {v}" for k, v in desc["versions"].items() if v)
+    click.echo(f"Versions  {versions}")
+
+
+def _cuda_reason() -> str:
+    try:
+        from .backends import cuda
+
+        return " ".join((cuda.cuda.cuda_error() or "no CUDA device was found").split())
+    except ImportError as exc:
+        return f"numba-cuda is not installed: {exc}"
+
+
+def run(argv=None) -> int:
+    """Entry point: turn every user error into one line and exit code 2."""
+    try:
+        main.main(args=argv, prog_name="raybench", standalone_mode=False)
+    except RaybenchError as exc:
+        click.echo(f"raybench: error: {exc}", err=True)
+        return 2
+    except click.exceptions.NoArgsIsHelpError as exc:
+        click.echo(exc.ctx.get_help() if exc.ctx else str(exc))
+        return 2
+    except click.UsageError as exc:
+        hint = f" (see 'raybench {exc.ctx.command_path.split(' ', 1)[1]} --help')" \
+            if exc.ctx and " " in exc.ctx.command_path else " (see 'raybench --help')"
+        click.echo(f"raybench: error: {exc.format_message()}{hint}", err=True)
+        return 2
+    except click.ClickException as exc:
+        click.echo(f"raybench: error: {exc.format_message()}", err=True)
+        return exc.exit_code
+    except click.exceptions.Abort:
+        click.echo("raybench: interrupted", err=True)
+        return 130
+    except KeyboardInterrupt:
+        click.echo("raybench: interrupted", err=True)
+        return 130
+    return 0
+
+
+def entry() -> None:
+    sys.exit(run())

@@ -1,0 +1,34 @@
+"""Shading: the thesis's colour rule, and colour to bytes."""
+
+import math
+
+import numpy as np
+
+ZERO = np.float32(0.0)
+ONE = np.float32(1.0)
+HALF = np.float32(0.5)
+BYTE = np.float32(255.0)
+MISS_XY = np.float32(1024.0)
+MISS_Z = np.float32(786.0)
+
+
+def build(jit):
+    @jit
+    def shade_hit(red, green, blue, r, d):
+        """The thesis's colour: the sphere's colour darkened towards its rim,
+        colour - (r - d) / r on every channel."""
+        fade = (r - d) / r
+        return red - fade, green - fade, blue - fade
+
+    @jit
+    def shade_miss(fx, fy):
+        """The thesis's background gradient, (x / 1024, y / 1024, x / 786)."""
+        return fx / MISS_XY, fy / MISS_XY, fx / MISS_Z
+
+    @jit
+    def to_byte(c):
+        """floor(clamp(c, 0, 1) * 255 + 0.5), the design's colour-to-byte rule."""
+        c = min(max(c, ZERO), ONE)
+        return np.uint8(math.floor(c * BYTE + HALF))
+
+    return shade_hit, shade_miss, to_byte

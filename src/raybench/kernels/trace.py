@@ -1,0 +1,67 @@
+"""The per-pixel program: make the primary ray, find the nearest sphere, shade.
+
+Every backend runs render_pixel for each pixel; they differ only in how pixels
+are spread over threads.
+"""
+
+import math
+
+import numpy as np
+
+from . import intersect, shade
+
+ZERO = np.float32(0.0)
+ONE = np.float32(1.0)
+HALF = np.float32(0.5)
+# Farther than any hit: the validated scene keeps coordinates under 1e15.
+FAR = np.float32(3.0e38)
+
+
+def build(jit):
+    intersect_sphere = intersect.build(jit)
+    shade_hit, shade_miss, to_byte = shade.build(jit)
+
+    @jit
+    def primary_ray(x, y, width, height, basis):
+        """Unit direction of the ray through the centre of pixel (x, y), row 0 at
+        the top; basis is Camera.basis(): origin, forward, right*plane_w, up*plane_h."""
+        fx = np.float32(x)
+        fy = np.float32(y)
+        u = (fx + HALF) / np.float32(width) - HALF
+        v = HALF - (fy + HALF) / np.float32(height)
+        dx = basis[1, 0] + basis[2, 0] * u + basis[3, 0] * v
+        dy = basis[1, 1] + basis[2, 1] * u + basis[3, 1] * v
+        dz = basis[1, 2] + basis[2, 2] * u + basis[3, 2] * v
+        inv = ONE / np.float32(math.sqrt(dx * dx + dy * dy + dz * dz))
+        return dx * inv, dy * inv, dz * inv
+
+    @jit
+    def nearest_hit(ox, oy, oz, dx, dy, dz, spheres, count):
+        """Index of the sphere with the smallest t > 0 (the first on a tie, -1
+        if none) and its half-chord d."""
+        closest = FAR
+        hit = -1
+        hit_d = ZERO
+        for i in range(count):
+            t, d = intersect_sphere(ox, oy, oz, dx, dy, dz,
+                                    spheres[0, i], spheres[1, i], spheres[2, i], spheres[3, i])
+            if t < closest and t > ZERO:
+                closest = t
+                hit = i
+                hit_d = d
+        return hit, hit_d
+
+    @jit
+    def render_pixel(x, y, width, height, basis, spheres, count, image, hits):
+        dx, dy, dz = primary_ray(x, y, width, height, basis)
+        hit, d = nearest_hit(basis[0, 0], basis[0, 1], basis[0, 2], dx, dy, dz, spheres, count)
+        if hit >= 0:
+            red, green, blue = shade_hit(spheres[4, hit], spheres[5, hit], spheres[6, hit], spheres[3, hit], d)
+        else:
+            red, green, blue = shade_miss(np.float32(x), np.float32(y))
+        image[y, x, 0] = to_byte(red)
+        image[y, x, 1] = to_byte(green)
+        image[y, x, 2] = to_byte(blue)
+        hits[y, x] = hit
+
+    return render_pixel

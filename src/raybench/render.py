@@ -1,0 +1,65 @@
+"""render(): scene and camera in, a Frame out, on the chosen device."""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import backends
+from .backends.memory import check_size
+from .camera import Camera
+from .errors import RaybenchError
+from .files import write_atomic
+from .scene import Scene
+
+
+@dataclass
+class Frame:
+    """A traced picture: image is (H, W, 3) uint8 RGB, row 0 at the top; hits
+    holds the index of the sphere seen in each pixel, -1 where the ray missed."""
+
+    image: np.ndarray
+    hits: np.ndarray
+    device: str
+
+    @property
+    def width(self) -> int:
+        return self.image.shape[1]
+
+    @property
+    def height(self) -> int:
+        return self.image.shape[0]
+
+    def png_bytes(self) -> bytes:
+        from PIL import Image
+
+        buf = io.BytesIO()
+        Image.fromarray(self.image, "RGB").save(buf, format="PNG")
+        return buf.getvalue()
+
+    def _repr_png_(self) -> bytes:
+        return self.png_bytes()
+
+    def save(self, path) -> None:
+        """Write the image as PNG, atomically."""
+        path = Path(path)
+        if path.suffix.lower() != ".png":
+            raise RaybenchError(f"{path}: the output must be a .png file")
+        write_atomic(path, self.png_bytes())
+
+
+def render(scene: Scene, camera: Camera | None = None, width: int = 800, height: int = 600,
+           device: str = "auto", **options) -> Frame:
+    """Trace one frame of scene as seen by camera (default: the scene's own
+    camera, else Camera()). device is "cpu", "cuda" or "auto"; options go to the
+    device (cpu: threads=N; cuda: block=(x, y))."""
+    if not isinstance(scene, Scene):
+        raise RaybenchError(f"scene: must be a raybench.Scene, got {type(scene).__name__}")
+    check_size(width, height)
+    camera = camera or scene.camera or Camera()
+    tracer = backends.tracer(device, scene.spheres, width, height, **options)
+    image, hits = tracer.trace(camera.basis(width, height))
+    return Frame(image=image.copy(), hits=hits.copy(), device=tracer.name)

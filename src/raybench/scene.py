@@ -1,0 +1,198 @@
+"""Scenes of spheres: structure-of-arrays float32, JSON load/save, a generator.
+
+The kernels read one (7, n) float32 array: rows x, y, z, radius, red, green,
+blue. Keeping the rows contiguous lets a kernel stream one field for all spheres
+and hands every backend the same buffer without repacking.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .camera import Camera
+from .errors import RaybenchError
+from .files import write_atomic
+
+FORMAT = "raybench-scene"
+VERSION = 1
+# Coordinates and radii are squared in float32 inside the kernels; beyond this
+# magnitude the squares overflow or swamp every other term.
+MAX_MAGNITUDE = 1e15
+MAX_GENERATED = 100_000_000
+
+_TOP_KEYS = {"format", "version", "spheres", "camera"}
+_SPHERE_KEYS = {"center", "radius", "color"}
+_CAMERA_KEYS = {"position", "look_at", "up", "fov_deg"}
+
+
+class Scene:
+    """n spheres, and optionally the camera the scene was saved with."""
+
+    def __init__(self, centers, radii, colors, camera: Camera | None = None):
+        centers = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
+        radii = np.asarray(radii, dtype=np.float64).reshape(-1)
+        colors = np.asarray(colors, dtype=np.float64).reshape(-1, 3)
+        if not (len(centers) == len(radii) == len(colors)):
+            raise RaybenchError(f"scene: {len(centers)} centers, {len(radii)} radii and {len(colors)} colors: "
+                                "each sphere needs one of each")
+        for name, values in (("center", centers), ("radius", radii)):
+            bad = ~(np.isfinite(values) & (np.abs(values) <= MAX_MAGNITUDE))
+            if bad.any():
+                i = int(np.argwhere(bad)[0][0])
+                raise RaybenchError(f"spheres[{i}].{name}: must be finite and at most {MAX_MAGNITUDE:g} in magnitude, "
+                                    f"got {values[i].tolist()}")
+        bad = ~(radii > 0)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise RaybenchError(f"spheres[{i}].radius: must be > 0, got {radii[i]!r}")
+        bad = ~((colors >= 0.0) & (colors <= 1.0))
+        if bad.any():
+            i = int(np.argwhere(bad)[0][0])
+            raise RaybenchError(f"spheres[{i}].color: each channel must be in [0, 1], got {colors[i].tolist()}")
+        self.spheres = np.ascontiguousarray(
+            np.concatenate([centers.T, radii[None, :], colors.T]).astype(np.float32))
+        self.camera = camera
+
+    def __len__(self) -> int:
+        return self.spheres.shape[1]
+
+    def __repr__(self) -> str:
+        return f"Scene({len(self)} spheres, camera={self.camera!r})"
+
+    @property
+    def centers(self) -> np.ndarray:
+        return self.spheres[0:3].T
+
+    @property
+    def radii(self) -> np.ndarray:
+        return self.spheres[3]
+
+    @property
+    def colors(self) -> np.ndarray:
+        return self.spheres[4:7].T
+
+    def head(self, n: int) -> "Scene":
+        """The first n spheres (the benchmark's growing scenes are prefixes of one scene)."""
+        return Scene(self.centers[:n], self.radii[:n], self.colors[:n], self.camera)
+
+    def to_dict(self) -> dict:
+        doc = {"format": FORMAT, "version": VERSION}
+        if self.camera is not None:
+            doc["camera"] = self.camera.to_dict()
+        # float32 -> float keeps the file exact: reloading gives the same bits.
+        doc["spheres"] = [
+            {"center": [float(v) for v in c], "radius": float(r), "color": [float(v) for v in k]}
+            for c, r, k in zip(self.centers, self.radii, self.colors)
+        ]
+        return doc
+
+    def save(self, path) -> None:
+        write_atomic(path, json.dumps(self.to_dict(), indent=1).encode())
+
+    @classmethod
+    def from_dict(cls, doc) -> "Scene":
+        if not isinstance(doc, dict):
+            raise RaybenchError(f"scene: must be a JSON object with \"format\": \"{FORMAT}\", got {type(doc).__name__}")
+        if doc.get("format") != FORMAT:
+            raise RaybenchError(f"format: must be \"{FORMAT}\", got {doc.get('format')!r}")
+        if doc.get("version") != VERSION or isinstance(doc.get("version"), bool):
+            raise RaybenchError(f"version: this raybench reads version {VERSION}, got {doc.get('version')!r}")
+        _no_unknown(doc, _TOP_KEYS, "")
+        if "spheres" not in doc:
+            raise RaybenchError("spheres: missing (a list of {\"center\", \"radius\", \"color\"} objects)")
+        spheres = doc["spheres"]
+        if not isinstance(spheres, list):
+            raise RaybenchError("spheres: must be a list of {\"center\", \"radius\", \"color\"} objects")
+        n = len(spheres)
+        centers = np.empty((n, 3))
+        radii = np.empty(n)
+        colors = np.empty((n, 3))
+        for i, s in enumerate(spheres):
+            where = f"spheres[{i}]"
+            if not isinstance(s, dict):
+                raise RaybenchError(f"{where}: must be an object with \"center\", \"radius\" and \"color\"")
+            _no_unknown(s, _SPHERE_KEYS, where + ".")
+            for key in ("center", "radius", "color"):
+                if key not in s:
+                    raise RaybenchError(f"{where}.{key}: missing")
+            centers[i] = _numbers(s["center"], 3, f"{where}.center")
+            radii[i] = _numbers(s["radius"], None, f"{where}.radius")
+            colors[i] = _numbers(s["color"], 3, f"{where}.color")
+        camera = None
+        if "camera" in doc:
+            cam = doc["camera"]
+            if not isinstance(cam, dict):
+                raise RaybenchError("camera: must be an object with position, look_at, up, fov_deg")
+            _no_unknown(cam, _CAMERA_KEYS, "camera.")
+            for key in ("position", "look_at", "up"):
+                if key in cam:
+                    _numbers(cam[key], 3, f"camera.{key}")
+            if "fov_deg" in cam:
+                _numbers(cam["fov_deg"], None, "camera.fov_deg")
+            camera = Camera(**cam)
+        return cls(centers, radii, colors, camera)
+
+    @classmethod
+    def load(cls, path) -> "Scene":
+        path = Path(path)
+        try:
+            text = path.read_text(encoding="utf-8")
+        except FileNotFoundError:
+            raise RaybenchError(f"{path}: no such scene file") from None
+        except (OSError, UnicodeDecodeError) as exc:
+            raise RaybenchError(f"{path}: cannot read the scene file ({exc.__class__.__name__}: {exc})") from None
+        try:
+            doc = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise RaybenchError(f"{path}: not valid JSON: {exc.msg} at line {exc.lineno} column {exc.colno}") from None
+        try:
+            return cls.from_dict(doc)
+        except RaybenchError as exc:
+            raise RaybenchError(f"{path}: {exc}") from None
+
+
+def _no_unknown(obj: dict, allowed: set, prefix: str) -> None:
+    unknown = sorted(set(obj) - allowed)
+    if unknown:
+        raise RaybenchError(f"{prefix}{unknown[0]}: unknown field (allowed: {', '.join(sorted(allowed))})")
+
+
+def _numbers(value, count, where):
+    """Check a JSON number (count None) or a list of count numbers; return floats."""
+    values = [value] if count is None else value
+    if count is not None and (not isinstance(value, list) or len(value) != count):
+        raise RaybenchError(f"{where}: must be a list of {count} numbers, got {json.dumps(value)}")
+    for v in values:
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise RaybenchError(f"{where}: must be a finite number, got {json.dumps(v)}")
+    return values[0] if count is None else values
+
+
+def random_spheres(n: int, seed: int = 0) -> Scene:
+    """n spheres inside the default camera's view, sized so that any n from 10
+    to 1,000,000 covers the picture about twice over: a full, varied image.
+
+    Centres are spread uniformly over the 4:3 view (so they stay in view at
+    every benchmark resolution, all of which are 4:3 or wider) at depths 5 to
+    25; the angular radius shrinks as 1/sqrt(n) to keep the coverage constant.
+    """
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not (0 <= n <= MAX_GENERATED):
+        raise RaybenchError(f"sphere count: must be an integer from 0 to {MAX_GENERATED:,}, got {n!r}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise RaybenchError(f"seed: must be a non-negative integer, got {seed!r}")
+    rng = np.random.default_rng(seed)
+    plane_h = 2.0 * math.tan(math.radians(30.0))
+    plane_w = plane_h * 4.0 / 3.0
+    depth = rng.uniform(5.0, 25.0, n)
+    u = rng.uniform(-0.5, 0.5, n) * plane_w
+    v = rng.uniform(-0.5, 0.5, n) * plane_h
+    centers = np.stack([u * depth, v * depth, depth], axis=1)
+    coverage = 2.0
+    angular = math.sqrt(coverage * plane_w * plane_h / (math.pi * max(n, 1)))
+    radii = depth * angular * rng.uniform(0.5, 1.5, n)
+    colors = rng.uniform(0.25, 1.0, (n, 3))
+    return Scene(centers, radii, colors)
