@@ -125,9 +125,6 @@ def info(as_json):
 
         click.echo("GPU       none usable" + ("" if cuda_available() else f": {_cuda_reason()}"))
     for g in desc["gpus"]:
-        if g.get("simulated"):
-            click.echo("GPU       numba's CUDA simulator (NUMBA_ENABLE_CUDASIM=1): correct, not fast")
-            continue
         click.echo(f"GPU       {g['name']} (compute capability {g['compute_capability']}, driver {g['driver']})")
         click.echo(f"          {g['multiprocessors']} multiprocessors x {g['fp32_lanes_per_sm']} FP32 lanes, "
                    f"{g['clock_ghz']} GHz, memory {g['memory_gib']} GiB at {g['memory_clock_ghz']} GHz")

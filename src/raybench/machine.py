@@ -67,8 +67,6 @@ def gpus() -> list[dict]:
         return []
     from numba import cuda
 
-    if backends.module("cuda").simulated():
-        return [{"name": "numba CUDA simulator", "simulated": True}]
     out = []
     driver = _driver_version()
     for gpu in cuda.gpus:

@@ -21,16 +21,18 @@ def module(name: str):
 
 
 def cuda_available() -> bool:
+    """A real CUDA GPU is usable (numba's simulator does not count)."""
     try:
-        return module("cuda").available()
+        mod = module("cuda")
     except ImportError:
         return False
+    return mod.available() and not mod.simulated()
 
 
 def resolve(device: str) -> str:
     """The concrete device for a name: "auto" is cuda where a usable GPU is
     present, else cpu. Asking for cuda where there is none is an error, never a
-    silent fallback."""
+    silent fallback; asking for it under NUMBA_ENABLE_CUDASIM=1 runs the simulator."""
     if device == "auto":
         return "cuda" if cuda_available() else "cpu"
     if device == "cuda":

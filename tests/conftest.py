@@ -1,0 +1,20 @@
+import os
+import shutil
+
+import numpy as np
+import pytest
+
+# Without a GPU, the CUDA kernel runs under numba's simulator; with one (the GPU
+# machine), the same tests run it for real. This must be decided before numba.cuda
+# is first imported.
+if "NUMBA_ENABLE_CUDASIM" not in os.environ:
+    os.environ["NUMBA_ENABLE_CUDASIM"] = "0" if shutil.which("nvidia-smi") else "1"
+
+
+@pytest.fixture
+def rng(request):
+    """A fresh random generator per test; its seed is printed when the test fails."""
+    seed = int(np.random.SeedSequence().entropy % 2**63)
+    request.node.user_properties.append(("seed", seed))
+    print(f"random seed: {seed}")
+    return np.random.default_rng(seed)

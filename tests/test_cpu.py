@@ -1,0 +1,42 @@
+"""The CPU backend against the float64 reference, on fresh random scenes."""
+
+import numpy as np
+import pytest
+
+import raybench
+from reference import check_frame, trace
+from scenes import KINDS
+
+
+@pytest.mark.parametrize("kind", sorted(KINDS))
+@pytest.mark.parametrize("n,size", [(1, (40, 30)), (12, (57, 41)), (150, (96, 64)), (600, (80, 60))])
+def test_cpu_matches_reference(rng, kind, n, size):
+    scene, camera = KINDS[kind](rng, n)
+    width, height = size
+    frame = raybench.render(scene, camera, width, height, device="cpu")
+    ref = trace(scene, camera, width, height)
+    check_frame(frame, ref, context=f"{kind} n={n} {width}x{height}")
+
+
+def test_scene_is_mostly_hit(rng):
+    """Guard against a vacuous reference: the generated scenes show spheres."""
+    scene, camera = KINDS["generated"](rng, 300)
+    frame = raybench.render(scene, camera, 64, 48, device="cpu")
+    assert (frame.hits >= 0).mean() > 0.5
+    assert len(np.unique(frame.hits)) > 50
+
+
+def test_empty_scene_is_background(rng):
+    scene = raybench.random_spheres(0)
+    frame = raybench.render(scene, width=33, height=17, device="cpu")
+    assert (frame.hits == -1).all()
+    ys, xs = np.mgrid[0:17, 0:33]
+    expected = np.floor(np.clip(np.stack([xs / 1024, ys / 1024, xs / 786], -1), 0, 1) * 255 + 0.5)
+    assert np.abs(frame.image.astype(int) - expected).max() <= 1
+
+
+def test_threads_do_not_change_the_picture(rng):
+    scene, camera = KINDS["cloud"](rng, 80)
+    one = raybench.render(scene, camera, 50, 40, device="cpu", threads=1)
+    all_ = raybench.render(scene, camera, 50, 40, device="cpu")
+    assert np.array_equal(one.image, all_.image) and np.array_equal(one.hits, all_.hits)

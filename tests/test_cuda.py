@@ -1,0 +1,56 @@
+"""The CUDA kernel: under numba's simulator where there is no GPU (CI), for real
+on a machine with one. Same scenes, same reference as the CPU tests."""
+
+import numpy as np
+import pytest
+
+import raybench
+from raybench.backends import cuda as cuda_backend
+from reference import check_frame, trace
+from scenes import KINDS
+
+SIM = cuda_backend.simulated()
+pytestmark = pytest.mark.skipif(not cuda_backend.available(), reason="no CUDA GPU and the simulator is off")
+
+# The simulator runs every GPU thread as Python: keep its images small.
+SIZES = [(24, 16), (19, 13)] if SIM else [(320, 200), (257, 129)]
+COUNTS = [1, 25] if SIM else [1, 100, 1000]
+
+
+@pytest.mark.parametrize("kind", sorted(KINDS))
+@pytest.mark.parametrize("n", COUNTS)
+def test_cuda_matches_reference_and_cpu(rng, kind, n):
+    scene, camera = KINDS[kind](rng, n)
+    for (width, height), block in zip(SIZES, [(8, 8), (5, 3)]):
+        context = f"{kind} n={n} {width}x{height} block {block}"
+        gpu = raybench.render(scene, camera, width, height, device="cuda", block=block)
+        assert gpu.device == "cuda"
+        ref = trace(scene, camera, width, height)
+        check_frame(gpu, ref, context=context)
+        cpu = raybench.render(scene, camera, width, height, device="cpu")
+        if SIM:
+            # Both run IEEE float32 without contraction: bit for bit the same.
+            assert np.array_equal(gpu.hits, cpu.hits), context
+            assert np.array_equal(gpu.image, cpu.image), context
+        else:
+            # The GPU compiler fuses multiply-adds; the pictures may differ only
+            # where rounding decides, by at most one step.
+            same = (gpu.hits == cpu.hits) | ref.ambiguous
+            assert same.all(), context
+            assert np.abs(gpu.image.astype(int) - cpu.image.astype(int)).max() <= 1, context
+
+
+def test_every_pixel_is_written(rng):
+    """Blocks that overhang the image must neither skip nor spill pixels."""
+    scene, camera = KINDS["generated"](rng, 10)
+    width, height = SIZES[1]
+    for block in [(1, 1), (7, 5), (32, 4)] if SIM else [(1, 1), (7, 5), (32, 32), (16, 8)]:
+        frame = raybench.render(scene, camera, width, height, device="cuda", block=block)
+        ref = trace(scene, camera, width, height)
+        check_frame(frame, ref, context=f"block {block}")
+
+
+@pytest.mark.parametrize("block", [(0, 4), (64, 64), "ab"])
+def test_bad_block_is_refused(block):
+    with pytest.raises(raybench.RaybenchError, match="block"):
+        raybench.render(raybench.random_spheres(3), width=8, height=8, device="cuda", block=block)
