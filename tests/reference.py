@@ -43,11 +43,15 @@ def to_bytes(c):
     return np.floor(np.clip(c, 0.0, 1.0) * 255 + 0.5).astype(np.uint8)
 
 
-def trace(scene, camera, width, height) -> Reference:
+def trace(scene, camera, width, height, pixels=None) -> Reference:
+    """The reference frame; with pixels (flat indices y * width + x), only those
+    pixels, as flat arrays in that order."""
     s = scene.spheres.astype(np.float64)
     centers, radii, colors = s[0:3].T, s[3], s[4:7].T
     pos, d = rays(camera, width, height)
     dirs = d.reshape(-1, 3)
+    flat = np.arange(len(dirs)) if pixels is None else np.asarray(pixels)
+    dirs = dirs[flat]
     n = len(radii)
     npix = len(dirs)
     hits = np.full(npix, -1)
@@ -97,11 +101,13 @@ def trace(scene, camera, width, height) -> Reference:
                 got, err_dist[rows, win] / radii[win] + 4 * EPS32, 1e-6)
     color = np.empty((npix, 3))
     miss = hits < 0
-    ys, xs = np.divmod(np.arange(npix), width)
+    ys, xs = np.divmod(flat, width)
     color[miss] = np.stack([xs / 1024, ys / 1024, xs / 786], axis=1)[miss]
     h = hits[~miss]
     fade = (radii[h] - best_d[~miss]) / radii[h]
     color[~miss] = colors[h] - fade[:, None]
+    if pixels is not None:
+        return Reference(hits, color, candidates, ambiguous, color_tol)
     cand2d = {(p // width, p % width): c for p, c in candidates.items()}
     return Reference(hits.reshape(height, width), color.reshape(height, width, 3), cand2d,
                      ambiguous.reshape(height, width), color_tol.reshape(height, width))

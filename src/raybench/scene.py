@@ -23,6 +23,9 @@ VERSION = 1
 # magnitude the squares overflow or swamp every other term.
 MAX_MAGNITUDE = 1e15
 MAX_GENERATED = 100_000_000
+# random_spheres fills the view of a picture this wide, about this many times over.
+ASPECT = 16 / 10
+COVERAGE = 2.0
 
 _TOP_KEYS = {"format", "version", "spheres", "camera"}
 _SPHERE_KEYS = {"center", "radius", "color"}
@@ -76,7 +79,7 @@ class Scene:
         return self.spheres[4:7].T
 
     def head(self, n: int) -> "Scene":
-        """The first n spheres (the benchmark's growing scenes are prefixes of one scene)."""
+        """The first n spheres of this scene."""
         return Scene(self.centers[:n], self.radii[:n], self.colors[:n], self.camera)
 
     def to_dict(self) -> dict:
@@ -173,12 +176,13 @@ def _numbers(value, count, where):
 
 
 def random_spheres(n: int, seed: int = 0) -> Scene:
-    """n spheres inside the default camera's view, sized so that any n from 10
-    to 1,000,000 covers the picture about twice over: a full, varied image.
+    """n spheres in front of the default camera, sized so that any n from 10 to
+    1,000,000 covers the picture about twice over: a full, varied image.
 
-    Centres are spread uniformly over the 4:3 view (so they stay in view at
-    every benchmark resolution, all of which are 4:3 or wider) at depths 5 to
+    Centres are uniform over the view of a 16:10 picture (the widest of the
+    benchmark's resolutions; at 4:3 some fall outside the sides) at depths 5 to
     25; the angular radius shrinks as 1/sqrt(n) to keep the coverage constant.
+    The same seed gives the same spheres on every machine.
     """
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not (0 <= n <= MAX_GENERATED):
         raise RaybenchError(f"sphere count: must be an integer from 0 to {MAX_GENERATED:,}, got {n!r}")
@@ -186,13 +190,12 @@ def random_spheres(n: int, seed: int = 0) -> Scene:
         raise RaybenchError(f"seed: must be a non-negative integer, got {seed!r}")
     rng = np.random.default_rng(seed)
     plane_h = 2.0 * math.tan(math.radians(30.0))
-    plane_w = plane_h * 4.0 / 3.0
+    plane_w = plane_h * ASPECT
     depth = rng.uniform(5.0, 25.0, n)
     u = rng.uniform(-0.5, 0.5, n) * plane_w
     v = rng.uniform(-0.5, 0.5, n) * plane_h
     centers = np.stack([u * depth, v * depth, depth], axis=1)
-    coverage = 2.0
-    angular = math.sqrt(coverage * plane_w * plane_h / (math.pi * max(n, 1)))
+    angular = math.sqrt(COVERAGE * plane_w * plane_h / (math.pi * max(n, 1)))
     radii = depth * angular * rng.uniform(0.5, 1.5, n)
     colors = rng.uniform(0.25, 1.0, (n, 3))
     return Scene(centers, radii, colors)

@@ -8,9 +8,11 @@ numba's simulator, which is how the tests check it on machines without a GPU.
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 from numba import config, cuda
+from numba.cuda.core.errors import NumbaPerformanceWarning
 
 from .. import kernels
 from ..errors import RaybenchError
@@ -88,8 +90,11 @@ class Tracer:
 
     def launch(self, basis: np.ndarray) -> None:
         """Start the kernel for one frame; it runs asynchronously."""
-        _render_kernel[self.grid, self.block](self.width, self.height, cuda.to_device(basis), self.d_spheres,
-                                              self.count, self.d_image, self.d_hits)
+        with warnings.catch_warnings():
+            # Small frames cannot fill the GPU; that is the user's choice, not news.
+            warnings.simplefilter("ignore", NumbaPerformanceWarning)
+            _render_kernel[self.grid, self.block](self.width, self.height, cuda.to_device(basis), self.d_spheres,
+                                                  self.count, self.d_image, self.d_hits)
 
     def fetch(self) -> tuple[np.ndarray, np.ndarray]:
         """Copy the last frame to the host (waits for the kernel)."""
