@@ -15,14 +15,21 @@ import numpy as np
 
 from .errors import RaybenchError
 
+# Coordinates and radii are squared in float32 inside the kernels; beyond this
+# magnitude the squares overflow or swamp every other term.
+MAX_MAGNITUDE = 1e15
+
 
 def _vector(value, name: str) -> tuple[float, float, float]:
     try:
+        if any(isinstance(c, bool) for c in value):
+            raise TypeError
         vec = tuple(float(c) for c in value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise RaybenchError(f"{name}: must be 3 numbers [x, y, z], got {value!r}") from None
-    if len(vec) != 3 or not all(math.isfinite(c) for c in vec):
-        raise RaybenchError(f"{name}: must be 3 finite numbers [x, y, z], got {value!r}")
+    if len(vec) != 3 or not all(math.isfinite(c) and abs(c) <= MAX_MAGNITUDE for c in vec):
+        raise RaybenchError(f"{name}: must be 3 finite numbers [x, y, z], each at most {MAX_MAGNITUDE:g} "
+                            f"in magnitude, got {value!r}")
     return vec
 
 
@@ -42,8 +49,10 @@ class Camera:
         object.__setattr__(self, "look_at", look)
         object.__setattr__(self, "up", up)
         try:
+            if isinstance(self.fov_deg, bool):
+                raise TypeError
             fov = float(self.fov_deg)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise RaybenchError(f"camera.fov_deg: must be a number of degrees in (0, 180), got {self.fov_deg!r}") from None
         if not (0.0 < fov < 180.0):
             raise RaybenchError(f"camera.fov_deg: must be in (0, 180) degrees, got {self.fov_deg!r}")

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import sys
 import time
 from pathlib import Path
@@ -19,22 +20,24 @@ from .errors import RaybenchError
 SIZE_HELP = "image size as WIDTHxHEIGHT, e.g. 1680x1050"
 
 
-def parse_size(text: str) -> tuple[int, int]:
-    from .backends.memory import check_size
+def parse_pair(text: str, option: str, example: str) -> tuple[int, int]:
+    """'AxB' -> (A, B), for --size and --block."""
+    match = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text, re.ASCII)
+    if not match:
+        raise RaybenchError(f"{option}: must be two whole numbers joined by x, e.g. {example}, got {text!r}")
+    return int(match[1]), int(match[2])
 
-    parts = text.lower().split("x")
-    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
-        raise RaybenchError(f"--size: must be WIDTHxHEIGHT in pixels, e.g. 800x600, got {text!r}")
-    width, height = (int(p) for p in parts)
+
+def parse_size(text: str) -> tuple[int, int]:
+    from .backends.limits import check_size
+
+    width, height = parse_pair(text, "--size", "800x600")
     check_size(width, height)
     return width, height
 
 
 def parse_block(text: str) -> tuple[int, int]:
-    parts = text.lower().split("x")
-    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
-        raise RaybenchError(f"--block: must be XxY threads, e.g. 16x16, got {text!r}")
-    return int(parts[0]), int(parts[1])
+    return parse_pair(text, "--block", "16x16")
 
 
 def check_output(path: Path) -> None:

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from . import backends
-from .backends.memory import check_size
+from .backends.limits import check_size
 from .camera import Camera
 from .errors import RaybenchError
 from .files import write_atomic
@@ -61,5 +61,8 @@ def render(scene: Scene, camera: Camera | None = None, width: int = 800, height:
     check_size(width, height)
     camera = camera or scene.camera or Camera()
     tracer = backends.tracer(device, scene.spheres, width, height, **options)
-    image, hits = tracer.trace(camera.basis(width, height))
-    return Frame(image=image.copy(), hits=hits.copy(), device=tracer.name)
+    try:
+        image, hits = tracer.trace(camera.basis(width, height))
+        return Frame(image=image.copy(), hits=hits.copy(), device=tracer.name)
+    finally:
+        tracer.close()

@@ -13,15 +13,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .camera import Camera
+from .camera import MAX_MAGNITUDE, Camera
 from .errors import RaybenchError
 from .files import write_atomic
 
 FORMAT = "raybench-scene"
 VERSION = 1
-# Coordinates and radii are squared in float32 inside the kernels; beyond this
-# magnitude the squares overflow or swamp every other term.
-MAX_MAGNITUDE = 1e15
 MAX_GENERATED = 100_000_000
 # random_spheres fills the view of a picture this wide, about this many times over.
 ASPECT = 16 / 10
@@ -36,9 +33,12 @@ class Scene:
     """n spheres, and optionally the camera the scene was saved with."""
 
     def __init__(self, centers, radii, colors, camera: Camera | None = None):
-        centers = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
-        radii = np.asarray(radii, dtype=np.float64).reshape(-1)
-        colors = np.asarray(colors, dtype=np.float64).reshape(-1, 3)
+        try:
+            centers = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
+            radii = np.asarray(radii, dtype=np.float64).reshape(-1)
+            colors = np.asarray(colors, dtype=np.float64).reshape(-1, 3)
+        except (TypeError, ValueError) as exc:
+            raise RaybenchError(f"scene: centers (n, 3), radii (n,) and colors (n, 3) must be numbers ({exc})") from None
         if not (len(centers) == len(radii) == len(colors)):
             raise RaybenchError(f"scene: {len(centers)} centers, {len(radii)} radii and {len(colors)} colors: "
                                 "each sphere needs one of each")
@@ -48,7 +48,8 @@ class Scene:
                 i = int(np.argwhere(bad)[0][0])
                 raise RaybenchError(f"spheres[{i}].{name}: must be finite and at most {MAX_MAGNITUDE:g} in magnitude, "
                                     f"got {values[i].tolist()}")
-        bad = ~(radii > 0)
+        # Checked as stored: a radius that rounds to 0 in float32 is no sphere.
+        bad = ~(radii.astype(np.float32) > 0)
         if bad.any():
             i = int(np.argmax(bad))
             raise RaybenchError(f"spheres[{i}].radius: must be > 0, got {radii[i]!r}")
@@ -170,9 +171,20 @@ def _numbers(value, count, where):
     if count is not None and (not isinstance(value, list) or len(value) != count):
         raise RaybenchError(f"{where}: must be a list of {count} numbers, got {json.dumps(value)}")
     for v in values:
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise RaybenchError(f"{where}: must be a finite number, got {json.dumps(v)}")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not _finite(v):
+            raise RaybenchError(f"{where}: must be a finite number, got {_short(json.dumps(v))}")
     return values[0] if count is None else values
+
+
+def _finite(v) -> bool:
+    try:
+        return math.isfinite(v)
+    except OverflowError:  # a JSON integer too large for a float
+        return False
+
+
+def _short(text: str) -> str:
+    return text if len(text) <= 40 else text[:37] + "..."
 
 
 def random_spheres(n: int, seed: int = 0) -> Scene:
@@ -196,6 +208,7 @@ def random_spheres(n: int, seed: int = 0) -> Scene:
     v = rng.uniform(-0.5, 0.5, n) * plane_h
     centers = np.stack([u * depth, v * depth, depth], axis=1)
     angular = math.sqrt(COVERAGE * plane_w * plane_h / (math.pi * max(n, 1)))
-    radii = depth * angular * rng.uniform(0.5, 1.5, n)
+    # Few spheres are large; none may reach the camera.
+    radii = np.minimum(depth * angular * rng.uniform(0.5, 1.5, n), 0.5 * depth)
     colors = rng.uniform(0.25, 1.0, (n, 3))
     return Scene(centers, radii, colors)

@@ -16,7 +16,7 @@ from numba.cuda.core.errors import NumbaPerformanceWarning
 
 from .. import kernels
 from ..errors import RaybenchError
-from .memory import check_fits
+from .limits import HOST_PIXEL_BYTES, check_count, check_fits, host_available_bytes
 
 DEFAULT_BLOCK = (16, 16)
 
@@ -77,6 +77,7 @@ class Tracer:
         self.block = _check_block(block)
         free, _total = cuda.current_context().get_memory_info()
         check_fits("cuda GPU", width, height, spheres.shape[1], free)
+        check_fits("host", width, height, 0, host_available_bytes(), HOST_PIXEL_BYTES)
         self.width, self.height = width, height
         self.count = spheres.shape[1]
         self.grid = (math.ceil(width / self.block[0]), math.ceil(height / self.block[1]))
@@ -88,13 +89,15 @@ class Tracer:
         self.hits = cuda.pinned_array((height, width), dtype=np.int32) if not simulated() else \
             np.empty((height, width), np.int32)
 
-    def launch(self, basis: np.ndarray) -> None:
-        """Start the kernel for one frame; it runs asynchronously."""
+    def launch(self, basis: np.ndarray, count: int | None = None) -> None:
+        """Start the kernel for one frame of the first `count` spheres (default
+        all); it runs asynchronously."""
+        count = self.count if count is None else check_count(count, self.count)
         with warnings.catch_warnings():
             # Small frames cannot fill the GPU; that is the user's choice, not news.
             warnings.simplefilter("ignore", NumbaPerformanceWarning)
             _render_kernel[self.grid, self.block](self.width, self.height, cuda.to_device(basis), self.d_spheres,
-                                                  self.count, self.d_image, self.d_hits)
+                                                  count, self.d_image, self.d_hits)
 
     def fetch(self) -> tuple[np.ndarray, np.ndarray]:
         """Copy the last frame to the host (waits for the kernel)."""
@@ -102,6 +105,9 @@ class Tracer:
         self.d_hits.copy_to_host(self.hits)
         return self.image, self.hits
 
-    def trace(self, basis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        self.launch(basis)
+    def trace(self, basis: np.ndarray, count: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        self.launch(basis, count)
         return self.fetch()
+
+    def close(self) -> None:
+        """Device buffers go with the object; nothing to release by hand."""

@@ -1,0 +1,39 @@
+"""Limits checked before anything is allocated or launched: sizes, memory, counts."""
+
+import psutil
+
+from ..errors import RaybenchError
+
+MAX_SIDE = 65536
+# Per pixel: 3 colour bytes and a 4-byte hit index, on the device; the host
+# holds them twice (the tracer's buffers and the Frame's copy). Per sphere: 7 float32.
+PIXEL_BYTES = 3 + 4
+HOST_PIXEL_BYTES = 2 * PIXEL_BYTES
+SPHERE_BYTES = 7 * 4
+
+
+def check_size(width, height) -> None:
+    for name, value in (("width", width), ("height", height)):
+        if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_SIDE:
+            raise RaybenchError(f"size: {name} must be an integer from 1 to {MAX_SIDE}, got {value!r}")
+
+
+def check_fits(device: str, width: int, height: int, spheres: int, available: float,
+               pixel_bytes: int = PIXEL_BYTES) -> None:
+    check_size(width, height)
+    need = width * height * pixel_bytes + spheres * SPHERE_BYTES
+    if need > available:
+        raise RaybenchError(f"size: {width}x{height} with {spheres:,} spheres needs {need / 2**30:.2f} GiB, "
+                            f"more than the {available / 2**30:.2f} GiB available on the {device}; choose a smaller size")
+
+
+def check_count(count, loaded: int) -> int:
+    """A frame may trace the first `count` of the spheres a tracer holds, never more:
+    the kernels do not check bounds."""
+    if isinstance(count, bool) or not isinstance(count, int) or not 0 <= count <= loaded:
+        raise RaybenchError(f"sphere count: must be an integer from 0 to {loaded} (the spheres loaded), got {count!r}")
+    return count
+
+
+def host_available_bytes() -> int:
+    return psutil.virtual_memory().available
