@@ -138,6 +138,93 @@ def info(as_json):
     click.echo(f"Versions  {versions}")
 
 
+@main.command()
+@click.option("--suite", "suites", multiple=True, default=("thesis",), show_default=True,
+              help="thesis, constant-vs-runtime, tuning, or all; repeat for several")
+@click.option("--device", "devices", multiple=True, help="cpu or cuda; repeat for several (default: every device present)")
+@click.option("--duration", type=float, help="seconds of timed frames per point, after warm-up (default 10; 0.5 with --quick)")
+@click.option("--quick", is_flag=True, help="a reduced set of points: about a minute on a 2-core laptop")
+@click.option("--out", "out_dir", type=click.Path(path_type=Path),
+              help="folder for the results and the report (default: raybench-results/<machine>)")
+@click.option("--label", help="short machine name used in the report (default: from the GPU or CPU name)")
+@click.option("--seed", type=int, default=0, show_default=True, help="seed of the random scenes")
+@click.option("--no-report", is_flag=True, help="only write the results; skip the report")
+def bench(suites, devices, duration, quick, out_dir, label, seed, no_report):
+    """Run the thesis's experiments on this machine, then write a report.
+
+    Results go to a JSON Lines file, one record per point as soon as it is
+    measured: an interrupted run (Ctrl-C) keeps every finished point.
+    """
+    import datetime
+
+    from . import backends
+    from .bench import runner, suites as suites_mod
+    from .bench.results import ResultsWriter
+    from .machine import describe
+
+    chosen = suites_mod.SUITES if "all" in suites else tuple(dict.fromkeys(suites))
+    for s in chosen:
+        if s not in suites_mod.SUITES:
+            raise RaybenchError(f"--suite: unknown suite {s!r}; choose from {', '.join(suites_mod.SUITES)} or all")
+    devices = tuple(dict.fromkeys(devices)) or tuple(backends.present())
+    for d in devices:
+        if d not in backends.DEVICES:
+            raise RaybenchError(f"--device: unknown device {d!r}; choose from {', '.join(backends.DEVICES)}")
+        backends.resolve(d)
+    if duration is None:
+        duration = 0.5 if quick else 10.0
+    if not 0.05 <= duration <= 3600:
+        raise RaybenchError(f"--duration: must be from 0.05 to 3600 seconds, got {duration:g}")
+    if seed < 0:
+        raise RaybenchError(f"--seed: must be >= 0, got {seed}")
+    machine = describe()
+    label = label or runner.machine_label(machine)
+    if not re.fullmatch(r"[A-Za-z0-9._-]+", label):
+        raise RaybenchError(f"--label: use letters, digits, '.', '_' and '-' only, got {label!r}")
+    out_dir = out_dir or Path("raybench-results") / label
+    if out_dir.exists() and not out_dir.is_dir():
+        raise RaybenchError(f"--out {out_dir}: is a file, not a folder")
+    points = suites_mod.points(chosen, devices, quick=quick)
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    results_path = out_dir / f"results-{stamp}.jsonl"
+    settings = {"suites": list(chosen), "devices": list(devices), "duration_s": duration, "quick": quick,
+                "seed": seed}
+    info = runner.run_info(machine, label, settings)
+    click.echo(f"{len(points)} points on {', '.join(devices)}, {duration:g} s each; results: {results_path}")
+    with ResultsWriter(results_path) as writer:
+        try:
+            runner.run(points, writer, info, duration, seed, progress=sys.stderr.isatty())
+        except KeyboardInterrupt:
+            click.echo(f"raybench: interrupted; the {writer.count} finished points are in {results_path}", err=True)
+            raise SystemExit(130) from None
+    click.echo(f"wrote {writer.count} results to {results_path}")
+    if not no_report:
+        from .bench import report
+
+        path = report.write_report([results_path], out_dir / f"report-{stamp}")
+        click.echo(f"report: {path}")
+
+
+@main.command(name="report")
+@click.argument("results", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option("-o", "--out", "out_dir", type=click.Path(path_type=Path), default=Path("raybench-report"),
+              show_default=True, help="folder for report.md and its plots")
+def report_cmd(results, out_dir):
+    """Turn result files (JSON Lines from `raybench bench`) into a Markdown report
+    with plots and a verdict on each of the thesis's claims. Several files (two
+    machines, say) go side by side in one report."""
+    import warnings
+
+    from .bench import report
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        path = report.write_report(list(results), out_dir)
+    for w in caught:
+        click.echo(f"raybench: warning: {w.message}", err=True)
+    click.echo(f"report: {path}")
+
+
 def _cuda_reason() -> str:
     try:
         from .backends import cuda

@@ -11,7 +11,7 @@ from ..errors import RaybenchError
 
 DEVICES = ("cpu", "cuda")
 CHOICES = ("auto",) + DEVICES
-OPTIONS = {"cpu": ("threads",), "cuda": ("block",)}
+OPTIONS = {"cpu": ("threads", "constant_count"), "cuda": ("block", "constant_count")}
 
 
 def module(name: str):

@@ -11,7 +11,9 @@ can hold the two to equality rather than to a tolerance.
 
 from __future__ import annotations
 
+import functools
 import os
+import time
 from concurrent.futures import ThreadPoolExecutor
 
 import numba
@@ -33,6 +35,20 @@ def _render_band(first_row, end_row, width, height, basis, spheres, count, image
             _render_pixel(x, y, width, height, basis, spheres, count, image, hits)
 
 
+@functools.lru_cache(maxsize=None)
+def _constant_band(count: int):
+    """_render_band with the sphere count frozen into the code (a compile-time
+    constant, as in the thesis's tests 1 to 6); one compilation per count."""
+
+    @numba.njit(nogil=True)
+    def render_band(first_row, end_row, width, height, basis, spheres, _count, image, hits):
+        for y in range(first_row, end_row):
+            for x in range(width):
+                _render_pixel(x, y, width, height, basis, spheres, count, image, hits)
+
+    return render_band
+
+
 def default_threads() -> int:
     return os.cpu_count() or 1
 
@@ -52,7 +68,8 @@ class Tracer:
 
     name = "cpu"
 
-    def __init__(self, spheres: np.ndarray, width: int, height: int, threads: int | None = None):
+    def __init__(self, spheres: np.ndarray, width: int, height: int, threads: int | None = None,
+                 constant_count: bool = False):
         if threads is None:
             threads = default_threads()
         if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or not 1 <= threads <= MAX_THREADS:
@@ -66,18 +83,34 @@ class Tracer:
         self.hits = np.empty((height, width), dtype=np.int32)
         self.bands = bands(height, self.threads)
         self._pool = ThreadPoolExecutor(len(self.bands)) if len(self.bands) > 1 else None
+        self.constant_count = bool(constant_count)
+        self._kernel = _constant_band(self.count) if self.constant_count else _render_band
+
+    def _args(self, basis, count):
+        return (self.width, self.height, basis, self.spheres, count, self.image, self.hits)
+
+    def compile(self) -> float:
+        """Compile the kernel if needed, tracing nothing; the seconds it took."""
+        start = time.perf_counter()
+        self._kernel(0, 0, *self._args(np.zeros((4, 3), np.float32), self.count))
+        return time.perf_counter() - start
 
     def trace(self, basis: np.ndarray, count: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Trace a frame of the first `count` spheres (default all) into
         self.image and self.hits, which are reused between frames."""
-        count = self.count if count is None else check_count(count, self.count)
-        args = (self.width, self.height, basis, self.spheres, count, self.image, self.hits)
+        count = self.count if count is None else check_count(count, self.count, self.constant_count)
+        args = self._args(basis, count)
         if self._pool is None:
-            _render_band(0, self.height, *args)
+            self._kernel(0, self.height, *args)
         else:
-            for job in [self._pool.submit(_render_band, a, b, *args) for a, b in self.bands]:
+            for job in [self._pool.submit(self._kernel, a, b, *args) for a, b in self.bands]:
                 job.result()
         return self.image, self.hits
+
+    def timed_trace(self, basis: np.ndarray, count: int | None = None) -> None:
+        """trace(); the CPU has no separate kernel time to report."""
+        self.trace(basis, count)
+        return None
 
     def close(self) -> None:
         if self._pool is not None:

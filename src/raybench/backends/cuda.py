@@ -7,7 +7,9 @@ numba's simulator, which is how the tests check it on machines without a GPU.
 
 from __future__ import annotations
 
+import functools
 import math
+import time
 import warnings
 
 import numpy as np
@@ -28,6 +30,20 @@ def _render_kernel(width, height, basis, spheres, count, image, hits):
     x, y = cuda.grid(2)
     if x < width and y < height:
         _render_pixel(x, y, width, height, basis, spheres, count, image, hits)
+
+
+@functools.lru_cache(maxsize=None)
+def _constant_kernel(count: int):
+    """_render_kernel with the sphere count frozen into the code (a compile-time
+    constant, as in the thesis's tests 1 to 6); one compilation per count."""
+
+    @cuda.jit
+    def render_kernel(width, height, basis, spheres, _count, image, hits):
+        x, y = cuda.grid(2)
+        if x < width and y < height:
+            _render_pixel(x, y, width, height, basis, spheres, count, image, hits)
+
+    return render_kernel
 
 
 def simulated() -> bool:
@@ -72,7 +88,8 @@ class Tracer:
 
     name = "cuda"
 
-    def __init__(self, spheres: np.ndarray, width: int, height: int, block=DEFAULT_BLOCK):
+    def __init__(self, spheres: np.ndarray, width: int, height: int, block=DEFAULT_BLOCK,
+                 constant_count: bool = False):
         require()
         self.block = _check_block(block)
         free, _total = cuda.current_context().get_memory_info()
@@ -88,16 +105,33 @@ class Tracer:
             np.empty((height, width, 3), np.uint8)
         self.hits = cuda.pinned_array((height, width), dtype=np.int32) if not simulated() else \
             np.empty((height, width), np.int32)
+        self.d_basis = cuda.device_array((4, 3), dtype=np.float32)
+        self.constant_count = bool(constant_count)
+        self._kernel = _constant_kernel(self.count) if self.constant_count else _render_kernel
+
+    def compile(self) -> float:
+        """Compile the kernel if needed (one empty launch); the seconds it took."""
+        start = time.perf_counter()
+        self._launch((1, 1), 0, 0, self.count)
+        cuda.synchronize()
+        return time.perf_counter() - start
+
+    def _launch(self, grid, width, height, count) -> None:
+        with warnings.catch_warnings():
+            # Small frames cannot fill the GPU; that is the user's choice, not news.
+            warnings.simplefilter("ignore", NumbaPerformanceWarning)
+            self._kernel[grid, self.block](width, height, self.d_basis, self.d_spheres, count,
+                                           self.d_image, self.d_hits)
+
+    def _prepare(self, basis: np.ndarray, count: int | None) -> int:
+        """Upload the camera; the sphere count to trace."""
+        self.d_basis.copy_to_device(basis)
+        return self.count if count is None else check_count(count, self.count, self.constant_count)
 
     def launch(self, basis: np.ndarray, count: int | None = None) -> None:
         """Start the kernel for one frame of the first `count` spheres (default
         all); it runs asynchronously."""
-        count = self.count if count is None else check_count(count, self.count)
-        with warnings.catch_warnings():
-            # Small frames cannot fill the GPU; that is the user's choice, not news.
-            warnings.simplefilter("ignore", NumbaPerformanceWarning)
-            _render_kernel[self.grid, self.block](self.width, self.height, cuda.to_device(basis), self.d_spheres,
-                                                  count, self.d_image, self.d_hits)
+        self._launch(self.grid, self.width, self.height, self._prepare(basis, count))
 
     def fetch(self) -> tuple[np.ndarray, np.ndarray]:
         """Copy the last frame to the host (waits for the kernel)."""
@@ -108,6 +142,18 @@ class Tracer:
     def trace(self, basis: np.ndarray, count: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         self.launch(basis, count)
         return self.fetch()
+
+    def timed_trace(self, basis: np.ndarray, count: int | None = None) -> float:
+        """trace(), returning the kernel's own time in ms (CUDA events around the
+        launch alone; the camera upload and the copy back are outside)."""
+        count = self._prepare(basis, count)
+        start, end = cuda.event(), cuda.event()
+        start.record()
+        self._launch(self.grid, self.width, self.height, count)
+        end.record()
+        self.fetch()
+        end.synchronize()
+        return cuda.event_elapsed_time(start, end)
 
     def close(self) -> None:
         """Device buffers go with the object; nothing to release by hand."""

@@ -27,9 +27,12 @@ def check_fits(device: str, width: int, height: int, spheres: int, available: fl
                             f"more than the {available / 2**30:.2f} GiB available on the {device}; choose a smaller size")
 
 
-def check_count(count, loaded: int) -> int:
+def check_count(count, loaded: int, constant: bool = False) -> int:
     """A frame may trace the first `count` of the spheres a tracer holds, never more:
-    the kernels do not check bounds."""
+    the kernels do not check bounds. A kernel compiled for a constant count traces
+    exactly that many."""
+    if constant and count != loaded:
+        raise RaybenchError(f"sphere count: this kernel was compiled for exactly {loaded} spheres, got {count!r}")
     if isinstance(count, bool) or not isinstance(count, int) or not 0 <= count <= loaded:
         raise RaybenchError(f"sphere count: must be an integer from 0 to {loaded} (the spheres loaded), got {count!r}")
     return count

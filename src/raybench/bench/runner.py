@@ -1,0 +1,142 @@
+"""Time the points of a suite and append one record per point as it finishes."""
+
+from __future__ import annotations
+
+import datetime
+import re
+import subprocess
+import sys
+import time
+import uuid
+from pathlib import Path
+
+from .. import backends
+from ..camera import Camera
+from ..scene import random_spheres
+from .results import ResultsWriter
+from .stats import summarize
+from .suites import Point
+
+MIN_FRAMES = 3
+WARMUP_S = 1.0
+
+
+def tracer_options(point: Point) -> dict:
+    """The backend options of a point (its label and count mode are bookkeeping)."""
+    opts = {}
+    if "threads" in point.options:
+        opts["threads"] = point.options["threads"]
+    if "block" in point.options:
+        opts["block"] = tuple(point.options["block"])
+    if point.options.get("count") == "constant":
+        opts["constant_count"] = True
+    return opts
+
+
+class Scenes:
+    """The benchmark's scenes: random_spheres(n, seed), made once each, the same on every device."""
+
+    def __init__(self, seed: int):
+        self.seed = seed
+        self._cache = {}
+
+    def get(self, n: int):
+        if n not in self._cache:
+            self._cache[n] = random_spheres(n, self.seed)
+        return self._cache[n]
+
+
+def _frame(tracer, basis, count=None) -> tuple[float, float | None]:
+    start = time.perf_counter()
+    kernel_ms = tracer.timed_trace(basis, count)
+    return (time.perf_counter() - start) * 1e3, kernel_ms
+
+
+def measure(point: Point, scenes: Scenes, duration: float) -> dict:
+    """Time one point: compile, one first frame, warm-up, then frames for
+    `duration` seconds (at least MIN_FRAMES). The ramp (test 7) instead traces
+    one frame per sphere count and keeps all but the first."""
+    scene = scenes.get(point.spheres)
+    basis = Camera().basis(point.width, point.height)
+    tracer = backends.tracer(point.device, scene.spheres, point.width, point.height, **tracer_options(point))
+    try:
+        compile_s = tracer.compile()
+        if point.ramp:
+            first_ms, _ = _frame(tracer, basis, point.ramp[0])
+            frames = [_frame(tracer, basis, n) for n in point.ramp[1:]]
+        else:
+            first_ms, _ = _frame(tracer, basis)
+            end_warmup = time.perf_counter() + min(WARMUP_S, duration / 2)
+            while time.perf_counter() < end_warmup:
+                _frame(tracer, basis)
+            frames = []
+            end = time.perf_counter() + duration
+            while time.perf_counter() < end or len(frames) < MIN_FRAMES:
+                frames.append(_frame(tracer, basis))
+    finally:
+        tracer.close()
+    frame_ms = [f for f, _ in frames]
+    kernel_ms = [k for _, k in frames if k is not None]
+    record = {
+        "suite": point.suite, "test": point.test, "device": point.device,
+        "width": point.width, "height": point.height, "spheres": point.spheres,
+        "options": point.options, "frames": len(frames),
+        "frame_ms": summarize(frame_ms), "kernel_ms": summarize(kernel_ms) if kernel_ms else None,
+        "first_frame_s": first_ms / 1e3, "compile_s": compile_s,
+    }
+    if point.ramp:
+        record["series"] = {"spheres": list(point.ramp[1:]), "frame_ms": frame_ms,
+                            "kernel_ms": kernel_ms or None}
+        rays = point.width * point.height
+        record["rays_per_s"] = rays * len(frames) / (sum(frame_ms) / 1e3)
+        record["tests_per_s"] = rays * sum(point.ramp[1:]) / (sum(frame_ms) / 1e3)
+    else:
+        median_s = record["frame_ms"]["median"] / 1e3
+        record["rays_per_s"] = point.width * point.height / median_s
+        record["tests_per_s"] = point.width * point.height * point.spheres / median_s
+    return record
+
+
+def git_commit() -> str | None:
+    try:
+        out = subprocess.run(["git", "describe", "--always", "--dirty", "--abbrev=12"], capture_output=True,
+                             text=True, timeout=10, cwd=Path(__file__).resolve().parent)
+        return out.stdout.strip() or None if out.returncode == 0 else None
+    except (OSError, subprocess.SubprocessError):
+        return None
+
+
+def machine_label(machine: dict) -> str:
+    """A short name for the machine, for folders and report columns."""
+    if machine["gpus"]:
+        name = machine["gpus"][0]["name"]
+    else:
+        name = f"{machine['cpu']['model']} {machine['cpu']['physical_cores']}c"
+    slug = re.sub(r"[^a-z0-9]+", "-", name.lower().replace("(r)", "").replace("(tm)", "")).strip("-")
+    return slug or "machine"
+
+
+def run_info(machine: dict, label: str, settings: dict) -> dict:
+    return {"id": uuid.uuid4().hex[:12], "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+            "git_commit": git_commit(), "label": label, "argv": sys.argv[1:], "settings": settings,
+            "machine": machine}
+
+
+def run(points: list[Point], writer: ResultsWriter, run: dict, duration: float, seed: int,
+        progress: bool = True) -> int:
+    """Measure every point in order, writing each record as soon as it is done.
+    Returns how many points were written; Ctrl-C stops between frames and
+    propagates, with every finished point already on disk."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    scenes = Scenes(seed)
+    weights = [duration + WARMUP_S + (duration if p.ramp else 0) for p in points]
+    columns = [TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[done]}/{task.fields[count]} points"),
+               TimeElapsedColumn(), TextColumn("left"), TimeRemainingColumn()]
+    with Progress(*columns, disable=not progress, transient=False) as bar:
+        task = bar.add_task("", total=sum(weights), done=0, count=len(points))
+        for i, (point, weight) in enumerate(zip(points, weights)):
+            bar.update(task, description=point.describe())
+            writer.write({**measure(point, scenes, duration), "run": run})
+            bar.update(task, advance=weight, done=i + 1)
+    return writer.count

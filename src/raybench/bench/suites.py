@@ -1,0 +1,101 @@
+"""Which points each suite measures.
+
+A Point is one thing to time: a device, a size, a scene of n spheres, and the
+device options. The thesis's tests 1 to 6 are the sweep of sphere counts at
+three resolutions (1-3 on the GPU, 4-6 on the CPU); test 7 is the ramp.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+
+from ..errors import RaybenchError
+
+SUITES = ("thesis", "constant-vs-runtime", "tuning")
+THESIS_SIZES = ((800, 600), (1280, 800), (1680, 1050))
+THESIS_COUNTS = tuple(range(100, 1001, 100))
+TUNING_SIZE = (1680, 1050)
+TUNING_SPHERES = 1000
+BLOCKS = ((2, 2), (4, 4), (8, 8), (16, 16), (32, 32), (32, 8), (8, 32), (64, 4), (128, 2), (256, 1))
+CONSTANT_COUNTS = (100, 250, 500, 1000)
+RAMP_SIZE = (800, 600)
+RAMP = (10, 1000, 10)  # first, last, step: the thesis's test 7
+
+
+@dataclass(frozen=True)
+class Point:
+    suite: str
+    device: str
+    width: int
+    height: int
+    spheres: int
+    options: dict = field(default_factory=dict, hash=False)
+    test: int | None = None
+    # test7 only: the sphere counts of its frames, one per frame
+    ramp: tuple[int, ...] | None = None
+
+    def describe(self) -> str:
+        extra = "".join(f" {k}={_fmt(v)}" for k, v in self.options.items() if k != "label")
+        label = f" ({self.options['label']})" if "label" in self.options else ""
+        what = f"test 7 ramp {self.ramp[0]}..{self.ramp[-1]}" if self.ramp else f"{self.spheres} spheres"
+        test = f"test {self.test} " if self.test and not self.ramp else ""
+        return f"{self.suite} {test}{self.device} {self.width}x{self.height} {what}{extra}{label}"
+
+
+def _fmt(value) -> str:
+    return "x".join(map(str, value)) if isinstance(value, (list, tuple)) else str(value)
+
+
+def thread_settings(cores: int, height: int) -> list[tuple[str, int]]:
+    """The thesis's CPU tuning: 1 thread, half the cores, all cores, twice the
+    cores, and one thread per image row."""
+    settings = [("1 thread", 1), ("half the cores", max(1, cores // 2)), ("all cores", cores),
+                ("2x cores", 2 * cores), ("one per row", height)]
+    seen, out = set(), []
+    for label, n in settings:
+        if n not in seen:
+            seen.add(n)
+            out.append((label, n))
+    return out
+
+
+def points(suites, devices, quick: bool = False, cores: int | None = None) -> list[Point]:
+    """Every point of the chosen suites on the chosen devices, in run order."""
+    for suite in suites:
+        if suite not in SUITES:
+            raise RaybenchError(f"suite: unknown suite {suite!r}; choose from {', '.join(SUITES)}")
+    cores = cores or os.cpu_count() or 1
+    out: list[Point] = []
+    if "thesis" in suites:
+        sizes = THESIS_SIZES[:1] if quick else THESIS_SIZES
+        counts = (100, 500, 1000) if quick else THESIS_COUNTS
+        for device in devices:
+            for i, (w, h) in enumerate(sizes):
+                test = (1 if device == "cuda" else 4) + i
+                out += [Point("thesis", device, w, h, n, test=test) for n in counts]
+        first, last, step = (10, 200, 10) if quick else RAMP
+        ramp = tuple(range(first, last + 1, step))
+        w, h = (320, 240) if quick else RAMP_SIZE
+        out += [Point("test7", device, w, h, ramp[-1], test=7, ramp=ramp) for device in devices]
+    if "constant-vs-runtime" in suites:
+        counts = (100, 500) if quick else CONSTANT_COUNTS
+        w, h = (640, 480) if quick else THESIS_SIZES[-1]
+        for device in devices:
+            for n in counts:
+                for mode in ("constant", "runtime"):
+                    out.append(Point("constant-vs-runtime", device, w, h, n, {"count": mode}))
+    if "tuning" in suites:
+        w, h = (640, 480) if quick else TUNING_SIZE
+        n = 300 if quick else TUNING_SPHERES
+        for device in devices:
+            if device == "cpu":
+                settings = thread_settings(cores, h)
+                if quick:
+                    settings = [s for s in settings if s[0] in ("1 thread", "all cores", "2x cores")]
+                out += [Point("tuning", "cpu", w, h, n, {"threads": t, "label": label}) for label, t in settings]
+            else:
+                blocks = ((8, 8), (16, 16), (32, 32), (32, 8)) if quick else BLOCKS
+                out += [Point("tuning", device, w, h, n, {"block": list(b), "label": f"{b[0]}x{b[1]}"})
+                        for b in blocks]
+    return out
