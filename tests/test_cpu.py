@@ -40,3 +40,28 @@ def test_threads_do_not_change_the_picture(rng):
     one = raybench.render(scene, camera, 50, 40, device="cpu", threads=1)
     all_ = raybench.render(scene, camera, 50, 40, device="cpu")
     assert np.array_equal(one.image, all_.image) and np.array_equal(one.hits, all_.hits)
+
+
+def test_constant_count_and_prefix(rng):
+    from raybench import backends
+
+    scene, camera = KINDS["generated"](rng, 40)
+    runtime = raybench.render(scene, camera, 48, 32, device="cpu")
+    constant = raybench.render(scene, camera, 48, 32, device="cpu", constant_count=True)
+    assert np.array_equal(runtime.image, constant.image) and np.array_equal(runtime.hits, constant.hits)
+    tracer = backends.tracer("cpu", scene.spheres, 48, 32, threads=3)
+    tracer.trace(camera.basis(48, 32), 15)
+    prefix = raybench.render(scene.head(15), camera, 48, 32, device="cpu")
+    assert np.array_equal(tracer.hits, prefix.hits) and np.array_equal(tracer.image, prefix.image)
+    with pytest.raises(raybench.RaybenchError, match="sphere count"):
+        tracer.trace(camera.basis(48, 32), 41)
+
+
+@pytest.mark.parametrize("height,threads", [(7, 3), (10, 10), (5, 64), (1050, 16)])
+def test_bands_cover_every_row_once(height, threads):
+    from raybench.backends.cpu import bands
+
+    rows = [y for a, b in bands(height, threads) for y in range(a, b)]
+    assert rows == list(range(height))
+    sizes = [b - a for a, b in bands(height, threads)]
+    assert max(sizes) - min(sizes) <= 1

@@ -54,3 +54,28 @@ def test_every_pixel_is_written(rng):
 def test_bad_block_is_refused(block):
     with pytest.raises(raybench.RaybenchError, match="block"):
         raybench.render(raybench.random_spheres(3), width=8, height=8, device="cuda", block=block)
+
+
+def test_constant_count_kernel_draws_the_same(rng):
+    scene, camera = KINDS["generated"](rng, 12)
+    width, height = SIZES[0]
+    runtime = raybench.render(scene, camera, width, height, device="cuda")
+    constant = raybench.render(scene, camera, width, height, device="cuda", constant_count=True)
+    assert np.array_equal(runtime.image, constant.image) and np.array_equal(runtime.hits, constant.hits)
+
+
+def test_timed_frames_and_sphere_prefix(rng):
+    """What the benchmark uses: kernel time from CUDA events (None under the
+    simulator) and frames of the first k spheres."""
+    from raybench import Camera, backends
+
+    scene, camera = KINDS["generated"](rng, 30)
+    width, height = SIZES[0]
+    tracer = backends.tracer("cuda", scene.spheres, width, height)
+    assert tracer.compile() >= 0
+    kernel_ms = tracer.timed_trace(camera.basis(width, height), 10)
+    assert (kernel_ms is None) if SIM else kernel_ms > 0
+    prefix = raybench.render(scene.head(10), camera, width, height, device="cpu")
+    assert np.array_equal(tracer.hits, prefix.hits) if SIM else (tracer.hits == prefix.hits).mean() > 0.999
+    with pytest.raises(raybench.RaybenchError, match="sphere count"):
+        tracer.trace(camera.basis(width, height), 31)

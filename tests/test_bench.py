@@ -1,0 +1,187 @@
+"""The benchmark: suite points, statistics, the results file under interruption,
+and a --quick run end to end on the CPU."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from raybench import RaybenchError
+from raybench.bench import results, stats, suites
+from raybench.bench.results import ResultsWriter
+from raybench.cli import run
+
+
+def test_thesis_points_cover_tests_1_to_7():
+    pts = suites.points(["thesis"], ["cpu", "cuda"])
+    thesis = [p for p in pts if p.suite == "thesis"]
+    assert len(thesis) == 2 * 3 * 10
+    assert {p.test for p in thesis if p.device == "cuda"} == {1, 2, 3}
+    assert {p.test for p in thesis if p.device == "cpu"} == {4, 5, 6}
+    assert {(p.width, p.height) for p in thesis} == {(800, 600), (1280, 800), (1680, 1050)}
+    assert sorted({p.spheres for p in thesis}) == list(range(100, 1001, 100))
+    ramps = [p for p in pts if p.suite == "test7"]
+    assert [p.device for p in ramps] == ["cpu", "cuda"]
+    assert ramps[0].ramp == tuple(range(10, 1001, 10))
+
+
+def test_tuning_points_follow_the_thesis():
+    pts = suites.points(["tuning"], ["cpu", "cuda"], cores=4)
+    cpu = {p.options["label"]: p.options["threads"] for p in pts if p.device == "cpu"}
+    assert cpu == {"1 thread": 1, "half the cores": 2, "all cores": 4, "2x cores": 8, "one per row": 1050}
+    blocks = [tuple(p.options["block"]) for p in pts if p.device == "cuda"]
+    assert {(2, 2), (4, 4), (8, 8), (16, 16), (32, 32)} <= set(blocks)
+    assert any(x != y for x, y in blocks), "some non-square shapes"
+    # One core: half the cores and all cores are the same setting, measured once.
+    assert [p.options["threads"] for p in suites.points(["tuning"], ["cpu"], cores=1)] == [1, 2, 1050]
+
+
+def test_constant_vs_runtime_pairs():
+    pts = suites.points(["constant-vs-runtime"], ["cpu"])
+    modes = {(p.spheres, p.options["count"]) for p in pts}
+    assert modes == {(n, m) for n in suites.CONSTANT_COUNTS for m in ("constant", "runtime")}
+
+
+def test_quick_is_smaller_and_unknown_suite_refused():
+    assert len(suites.points(suites.SUITES, ["cpu"], quick=True)) < len(suites.points(suites.SUITES, ["cpu"])) / 3
+    with pytest.raises(RaybenchError, match="unknown suite"):
+        suites.points(["thesys"], ["cpu"])
+
+
+def test_summary_statistics(rng):
+    samples = rng.lognormal(2.0, 0.3, 1001)
+    s = stats.summarize(samples)
+    assert s["median"] == pytest.approx(np.median(samples))
+    assert s["mean"] == pytest.approx(samples.mean())
+    assert s["p5"] == pytest.approx(np.percentile(samples, 5))
+    assert s["p95"] == pytest.approx(np.percentile(samples, 95))
+    assert s["min"] <= s["p5"] <= s["median"] <= s["p95"] <= s["max"]
+    assert stats.summarize([7.0]) == {"mean": 7.0, "median": 7.0, "p5": 7.0, "p95": 7.0, "min": 7.0, "max": 7.0}
+
+
+def test_linear_fit_recovers_a_known_line(rng):
+    slope, intercept = rng.uniform(0.01, 5), rng.uniform(-3, 30)
+    x = np.arange(100, 1001, 100)
+    fit = stats.linear_fit(x, slope * x + intercept)
+    assert fit["slope"] == pytest.approx(slope) and fit["intercept"] == pytest.approx(intercept, abs=1e-9)
+    assert fit["r2"] == pytest.approx(1.0)
+    curved = stats.linear_fit(x, (x / 100.0) ** 4)
+    assert curved["r2"] < 0.95
+
+
+def test_results_round_trip_and_damage(tmp_path):
+    path = tmp_path / "r.jsonl"
+    with ResultsWriter(path) as w:
+        for i in range(3):
+            w.write({"suite": "thesis", "i": i})
+    assert [r["i"] for r in results.read(path)] == [0, 1, 2]
+    # A half-written last line (a crash mid-write) is skipped with a warning.
+    with open(path, "a") as f:
+        f.write('{"format": "raybench-results", "version": 1, "suite": "th')
+    with pytest.warns(UserWarning, match="cut short"):
+        assert len(results.read(path)) == 3
+    # Damage before the end, or a file that is not ours, is an error.
+    lines = path.read_text().split("\n")
+    (tmp_path / "mid.jsonl").write_text("\n".join([lines[0], "{oops", lines[1]]) + "\n")
+    with pytest.raises(RaybenchError, match="line 2"):
+        results.read(tmp_path / "mid.jsonl")
+    (tmp_path / "other.jsonl").write_text('{"hello": 1}\n')
+    with pytest.raises(RaybenchError, match="not a raybench result"):
+        results.read(tmp_path / "other.jsonl")
+    (tmp_path / "empty.jsonl").write_text("")
+    with pytest.raises(RaybenchError, match="no results"):
+        results.read(tmp_path / "empty.jsonl")
+
+
+def _bench_subprocess(out, *extra):
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="0", PYTHONUNBUFFERED="1")
+    return subprocess.Popen([sys.executable, "-m", "raybench", "bench", "--quick", "--device", "cpu",
+                             "--no-report", "--out", str(out), *extra],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+
+
+def _wait_for_lines(folder, n, proc, timeout=120):
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        files = list(folder.glob("*.jsonl"))
+        if files and files[0].read_text().count("\n") >= n:
+            return files[0]
+        if proc.poll() is not None:
+            pytest.fail(f"bench ended early: {proc.communicate()}")
+        time.sleep(0.05)
+    proc.kill()
+    pytest.fail("no results appeared")
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGKILL])
+def test_interrupted_run_keeps_every_finished_point(tmp_path, sig):
+    proc = _bench_subprocess(tmp_path, "--suite", "thesis", "--duration", "0.3")
+    path = _wait_for_lines(tmp_path, 2, proc)
+    proc.send_signal(sig)
+    out, err = proc.communicate(timeout=60)
+    if sig == signal.SIGINT:
+        assert proc.returncode == 130, (out, err)
+        assert "interrupted" in err and "Traceback" not in err, err
+    else:
+        assert proc.returncode == -signal.SIGKILL
+    records = results.read(path)  # every line whole: no warning, no error
+    assert len(records) >= 2
+    assert all(r["frame_ms"]["median"] > 0 for r in records)
+    assert path.read_text().endswith("\n")
+
+
+def test_quick_run_end_to_end(tmp_path, capsys):
+    """`raybench bench --quick` on the CPU: every suite, every record complete,
+    and the report written."""
+    code = run(["bench", "--quick", "--suite", "all", "--device", "cpu", "--duration", "0.2",
+                "--out", str(tmp_path), "--label", "ci"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    (path,) = tmp_path.glob("results-*.jsonl")
+    records = results.read(path)
+    expected = suites.points(suites.SUITES, ["cpu"], quick=True)
+    assert len(records) == len(expected)
+    for rec, point in zip(records, expected):
+        assert (rec["suite"], rec["device"], rec["width"], rec["height"], rec["spheres"]) == \
+               (point.suite, point.device, point.width, point.height, point.spheres)
+        assert rec["frames"] >= 3 or rec["suite"] == "test7"
+        f = rec["frame_ms"]
+        assert 0 < f["p5"] <= f["median"] <= f["p95"]
+        assert rec["kernel_ms"] is None  # the CPU has no separate kernel time
+        assert rec["run"]["label"] == "ci" and rec["run"]["machine"]["cpu"]["physical_cores"] >= 1
+        assert rec["run"]["settings"]["duration_s"] == 0.2
+        assert rec["first_frame_s"] > 0 and rec["compile_s"] >= 0
+    ramp = next(r for r in records if r["suite"] == "test7")
+    assert ramp["series"]["spheres"] == list(range(20, 201, 10))  # the first frame (10 spheres) excluded
+    assert len(ramp["series"]["frame_ms"]) == len(ramp["series"]["spheres"])
+    assert "report:" in out
+    report = next(tmp_path.glob("report-*/report.md"))
+    assert "Verdict" in report.read_text() or "verdict" in report.read_text()
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--suite", "thesys"], "--suite"),
+    (["--device", "tpu"], "--device"),
+    (["--duration", "0"], "--duration"),
+    (["--duration", "99999"], "--duration"),
+    (["--label", "a b"], "--label"),
+])
+def test_bench_bad_input(tmp_path, capsys, args, needle):
+    code = run(["bench", "--out", str(tmp_path / "r"), *args])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and needle in err and "Traceback" not in err, err
+    assert not (tmp_path / "r").exists()
+
+
+def test_report_bad_input(tmp_path, capsys):
+    (tmp_path / "x.jsonl").write_text("not json\n")
+    code = run(["report", str(tmp_path / "x.jsonl"), "-o", str(tmp_path / "rep")])
+    err = capsys.readouterr().err
+    assert code == 2 and "x.jsonl" in err and err.count("\n") == 1, err
+    code = run(["report", str(tmp_path / "missing.jsonl"), "-o", str(tmp_path / "rep")])
+    assert code == 2 and "no such results file" in capsys.readouterr().err
