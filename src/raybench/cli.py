@@ -15,6 +15,7 @@ from pathlib import Path
 
 import click
 
+from . import __version__
 from .errors import RaybenchError
 
 SIZE_HELP = "image size as WIDTHxHEIGHT, e.g. 1680x1050"
@@ -66,7 +67,7 @@ def load_scene(scene_file, spheres, seed):
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
-@click.version_option(package_name="raybench")
+@click.version_option(version=__version__, prog_name="raybench")
 def main():
     """raybench: the thesis's ray tracer on CPU and GPU, and what the GPU buys."""
 

@@ -102,8 +102,11 @@ def _driver_version() -> str | None:
 
 
 def versions() -> dict:
-    out = {"python": platform.python_version()}
-    for dist in ("raybench", "numpy", "numba", "numba-cuda", "llvmlite", "pillow", "click", "rich"):
+    from . import __version__
+
+    # raybench's own version from the code that runs, which may be a checkout on PYTHONPATH
+    out = {"python": platform.python_version(), "raybench": __version__}
+    for dist in ("numpy", "numba", "numba-cuda", "llvmlite", "pillow", "click", "rich"):
         try:
             out[dist] = metadata.version(dist)
         except metadata.PackageNotFoundError:

@@ -599,7 +599,7 @@ def _plot_tuning(label: str, cpu: list[dict], gpu: list[dict]) -> bytes:
         r0 = rows[0]
         where = f"{r0['width']}x{r0['height']}, {r0['spheres']} spheres"
         if device == "cpu":
-            _bars(ax, [f"{r['label']}\n{r['threads']} threads" for r in rows], [[r["ms"] for r in rows]], [""],
+            _bars(ax, [f"{r['label']}\n{r['threads']} thread{'s' if r['threads'] != 1 else ''}" for r in rows], [[r["ms"] for r in rows]], [""],
                   "median frame time (ms)")
             ax.set_title(f"CPU threads ({where})", fontsize=10)
         else:
