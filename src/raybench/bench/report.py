@@ -94,6 +94,9 @@ def _check(record: dict, path, number: int) -> None:
         if not isinstance(stats, dict) or not all(isinstance(stats.get(k), (int, float))
                                                   for k in ("median", "p5", "p95")):
             _bad(path, number, f"field {key!r} lacks median/p5/p95")
+        # every ratio in the report divides by a time; a real frame never takes 0 ms
+        if not all(math.isfinite(stats[k]) and stats[k] > 0 for k in ("median", "p5", "p95")):
+            _bad(path, number, f"field {key!r} has a time that is not a positive number")
     if not isinstance(record.get("options", {}), dict):
         _bad(path, number, "field 'options' is not an object")
     run = record.get("run")
@@ -269,6 +272,9 @@ def gpu_tuning(records: list[dict]) -> list[dict]:
     """GPU block shapes in the order measured: label ("32x32"), block, frame and
     kernel median ms, and ms, the time judged (kernel where measured)."""
     rs, _ = _largest_group(records, "tuning", "cuda")
+    # kernel times only if every shape has one: a simulator run merged with a
+    # real one must not pit one shape's kernel time against another's frame time
+    kernel = all(r.get("kernel_ms") for r in rs)
     out = []
     for r in rs:
         opts = r.get("options") or {}
@@ -276,7 +282,7 @@ def gpu_tuning(records: list[dict]) -> list[dict]:
         label = f"{block[0]}x{block[1]}" if isinstance(block, list) and len(block) == 2 else opts.get("label", "?")
         out.append({"label": label, "block": block, "frame_ms": _median(r),
                     "kernel_ms": r["kernel_ms"]["median"] if r.get("kernel_ms") else None,
-                    "ms": _median(r, prefer_kernel=True),
+                    "ms": _median(r, prefer_kernel=kernel),
                     "width": r["width"], "height": r["height"], "spheres": r["spheres"]})
     return out
 
@@ -373,7 +379,7 @@ def _claim4(records):
         return NOT_MEASURED, "needs GPU tuning with a 32x32 block", {}
     fastest = min(shapes, key=lambda s: s["ms"])
     rel = big["ms"] / fastest["ms"]
-    timing = "kernel" if big["kernel_ms"] is not None else "frame"
+    timing = "kernel" if all(s["kernel_ms"] is not None for s in shapes) else "frame"
     if fastest is big:
         text = f"32x32 is the fastest of {len(shapes)} shapes ({_ms(big['ms'])} ms {timing})"
     else:

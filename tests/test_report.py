@@ -1,0 +1,427 @@
+"""The report (raybench.bench.report): its verdicts on synthetic records, on
+both sides of every claim's threshold, loading results files, and the
+report folder end to end. The timings are random (a fresh seed per test, see
+the rng fixture) so that the rules are tested, not one hand-picked dataset."""
+
+import functools
+import re
+import statistics
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from raybench import RaybenchError
+from raybench.bench import report
+from raybench.bench.report import FAILS, HOLDS, NOT_MEASURED
+from raybench.bench.results import ResultsWriter
+from raybench.cli import run
+
+SIZES = [(800, 600), (1280, 800), (1680, 1050)]
+COUNTS = list(range(100, 1001, 100))
+RAMP = list(range(20, 1001, 10))
+BLOCKS = [[2, 2], [4, 4], [8, 8], [16, 16], [32, 32], [32, 8], [8, 32], [16, 32]]
+THREADS = {"1 thread": 1, "half the cores": 2, "all cores": 4, "2x cores": 8, "one per row": 1050}
+DATE = "2024-05-01T12:00:00+00:00"
+
+
+def machine(cpu_gflops=200.0, gpu_gflops=10000.0):
+    return {"cpu": {"model": "Synthetic CPU", "physical_cores": 4, "logical_cpus": 8, "fp32_gflops": cpu_gflops},
+            "gpus": [{"name": "Synthetic GPU", "multiprocessors": 40, "fp32_gflops": gpu_gflops}]}
+
+
+def ms(median):
+    return {"median": float(median), "p5": 0.9 * float(median), "p95": 1.1 * float(median)}
+
+
+def rec(suite, device, spheres, median, *, size=(800, 600), kernel=None, options=None, test=None,
+        label="alpha", date=DATE, mach=None, series=None):
+    """One record with every field report._check requires (and what the runner writes besides)."""
+    r = {"suite": suite, "test": test, "device": device, "width": size[0], "height": size[1],
+         "spheres": spheres, "options": options or {}, "frame_ms": ms(median),
+         "kernel_ms": ms(kernel) if kernel is not None else None,
+         "run": {"id": f"{label}-{date}", "date": date, "label": label, "machine": mach or machine()}}
+    if series is not None:
+        r["series"] = series
+    return r
+
+
+def thesis(rng, **kw):
+    """Tests 1-6: CPU and GPU frame times exactly linear in the sphere count, the
+    GPU 5 to 50 times faster in slope and intercept (so faster at every point)."""
+    out = []
+    for size in SIZES:
+        cs, ci = rng.uniform(0.05, 0.5), rng.uniform(1, 20)
+        gs, gi = cs / rng.uniform(5, 50), ci / rng.uniform(5, 50)
+        for n in COUNTS:
+            out.append(rec("thesis", "cpu", n, cs * n + ci, size=size, options={"threads": 8}, **kw))
+            out.append(rec("thesis", "cuda", n, gs * n + gi, size=size, kernel=0.8 * (gs * n + gi),
+                           options={"block": [32, 32]}, **kw))
+    return out
+
+
+def ramp(rng, device="cuda", kink=False, **kw):
+    """Test 7's ramp: one frame per sphere count, linear, or with the slope
+    multiplied by 30 past 500 spheres (a hockey stick no line fits)."""
+    slope, icpt = rng.uniform(0.001, 0.1), rng.uniform(0.5, 5)
+    x = np.array(RAMP, dtype=float)
+    y = slope * x + icpt + (30 * slope * np.maximum(x - 500, 0) if kink else 0)
+    return rec("test7", device, 1000, float(np.median(y)), test=7,
+               series={"spheres": RAMP, "frame_ms": y.tolist(), "kernel_ms": None}, **kw)
+
+
+def gpu_tuning(frame, kernel=None, **kw):
+    return [rec("tuning", "cuda", 1000, f, size=(1680, 1050), kernel=None if kernel is None else kernel[i],
+                options={"block": b}, **kw) for i, (b, f) in enumerate(zip(BLOCKS, frame))]
+
+
+def cpu_tuning(times, **kw):
+    return [rec("tuning", "cpu", 1000, t, size=(1680, 1050), options={"threads": THREADS[name], "label": name}, **kw)
+            for name, t in times.items()]
+
+
+def constant(device, ratios, rng, kernel_ratios=None, **kw):
+    """Constant-vs-runtime pairs at three counts, runtime = constant x ratio
+    (frame times), and kernel times with kernel_ratios where given."""
+    kernel_ratios = [None] * 3 if kernel_ratios is None else kernel_ratios
+    out = []
+    for n, ratio, kr in zip([100, 500, 1000], ratios, kernel_ratios):
+        c, k = rng.uniform(5, 50), rng.uniform(1, 4)
+        for mode, f in (("constant", 1.0), ("runtime", ratio)):
+            kernel = None if kr is None else k * (1.0 if mode == "constant" else kr)
+            out.append(rec("constant-vs-runtime", device, n, c * f, kernel=kernel, options={"count": mode}, **kw))
+    return out
+
+
+def verdict(records, claim):
+    return report.verdicts(records)[claim - 1]
+
+
+def ref_r2(x, y):
+    """R² of the least-squares line, from numpy.polyfit: the independent reference."""
+    slope, icpt = np.polyfit(x, y, 1)
+    y = np.asarray(y)
+    return 1 - ((y - (slope * np.asarray(x) + icpt)) ** 2).sum() / ((y - y.mean()) ** 2).sum()
+
+
+# --- the pure functions ---------------------------------------------------------------
+
+def test_speedups_are_cpu_over_gpu_medians_of_matched_points(rng):
+    """Speedups match CPU to GPU by (width, height, spheres) within the thesis suite
+    only; a GPU point with no CPU twin, and other suites' points, are ignored."""
+    records = thesis(rng)
+    records.append(rec("thesis", "cuda", 1100, 1.0))
+    records.append(rec("constant-vs-runtime", "cuda", 500, 1e6, options={"count": "runtime"}))
+    sp = report.speedups(records)
+    medians = {(r["device"], r["width"], r["height"], r["spheres"]): r["frame_ms"]["median"]
+               for r in records if r["suite"] == "thesis"}
+    assert [(p["width"], p["height"], p["spheres"]) for p in sp] == [(w, h, n) for w, h in SIZES for n in COUNTS]
+    for p in sp:
+        key = (p["width"], p["height"], p["spheres"])
+        assert p["speedup"] == pytest.approx(medians[("cpu", *key)] / medians[("cuda", *key)])
+
+
+def test_series_fits_agree_with_numpy_polyfit(rng):
+    """The lines drawn and judged for claim 2 are numpy's own least squares."""
+    records = thesis(rng)
+    for r in records:  # noise, so that the fit is not trivially exact
+        r["frame_ms"]["median"] *= rng.uniform(0.9, 1.1)
+    series = report.thesis_series(records)
+    assert len(series) == 2 * len(SIZES)
+    for s in series:
+        assert s["spheres"] == COUNTS
+        slope, icpt = np.polyfit(s["spheres"], s["median"], 1)
+        assert s["fit"]["slope"] == pytest.approx(slope) and s["fit"]["intercept"] == pytest.approx(icpt)
+        assert s["fit"]["r2"] == pytest.approx(ref_r2(s["spheres"], s["median"]))
+
+
+@pytest.mark.parametrize("gpu_over_cpu", ["equal", "slower"])
+def test_claim1_gpu_faster_everywhere(rng, gpu_over_cpu):
+    records = thesis(rng)
+    v = verdict(records, 1)
+    assert v["verdict"] == HOLDS and v["values"]["n"] == len(SIZES) * len(COUNTS)
+    # One point where the GPU is as slow as the CPU, or slower: the claim fails.
+    gpu = rng.choice([r for r in records if r["device"] == "cuda"])
+    cpu = next(r for r in records if r["device"] == "cpu" and r["width"] == gpu["width"]
+               and r["spheres"] == gpu["spheres"])
+    gpu["frame_ms"]["median"] = cpu["frame_ms"]["median"] * (1.0 if gpu_over_cpu == "equal" else rng.uniform(1.01, 3))
+    v = verdict(records, 1)
+    assert v["verdict"] == FAILS and v["values"]["not_faster"] == 1 and v["values"]["min"] <= 1
+
+
+@pytest.mark.parametrize("where", ["thesis", "test7"])
+def test_claim2_linear_holds_kink_fails(rng, where):
+    """Exactly linear data holds; one hockey-stick series (R² well below 0.98
+    by numpy's own fit) fails, and is the one named as least linear."""
+    records = thesis(rng) + [ramp(rng, "cpu"), ramp(rng, "cuda")]
+    v = verdict(records, 2)
+    assert v["verdict"] == HOLDS and v["values"]["min_r2"] == pytest.approx(1.0)
+    assert v["values"]["n"] == 2 * len(SIZES) + 2
+    if where == "test7":
+        records[-1] = ramp(rng, "cuda", kink=True)
+        x, y = RAMP, records[-1]["series"]["frame_ms"]
+    else:
+        w, h = SIZES[rng.integers(len(SIZES))]
+        kinked = [r for r in records if r["suite"] == "thesis" and r["device"] == "cuda" and r["width"] == w]
+        slope = kinked[1]["frame_ms"]["median"] - kinked[0]["frame_ms"]["median"]
+        for r in kinked:
+            r["frame_ms"]["median"] += 0.3 * slope * max(r["spheres"] - 500, 0)
+        x, y = COUNTS, [r["frame_ms"]["median"] for r in kinked]
+    expected = ref_r2(x, y)
+    assert expected < report.R2_MIN  # the data really are on the failing side
+    v = verdict(records, 2)
+    assert v["verdict"] == FAILS and len(v["values"]["below"]) == 1
+    assert v["values"]["min_r2"] == pytest.approx(expected)
+
+
+@pytest.mark.parametrize("share,expected", [(0.67, HOLDS), (1.49, HOLDS), ("inside", HOLDS),
+                                            (0.66, FAILS), (1.51, FAILS), ("far", FAILS)])
+def test_claim3_speedup_against_theoretical_ratio(rng, share, expected):
+    """The machine's GPU FP32 rate is set so that median speedup / theoretical
+    ratio is `share`: inside [2/3, 3/2] holds, outside fails."""
+    if share == "inside":
+        share = rng.uniform(0.7, 1.45)
+    elif share == "far":
+        share = rng.choice([rng.uniform(0.05, 0.6), rng.uniform(1.6, 20)])
+    mach = machine(cpu_gflops=rng.uniform(50, 500))
+    records = thesis(rng, mach=mach)
+    median = statistics.median(p["cpu_ms"] / p["cuda_ms"] for p in report.speedups(records))
+    mach["gpus"][0]["fp32_gflops"] = mach["cpu"]["fp32_gflops"] * median / share
+    v = verdict(records, 3)
+    assert v["verdict"] == expected and v["values"]["share"] == pytest.approx(share)
+    mach["gpus"][0]["fp32_gflops"] = None  # no rate: no verdict
+    assert verdict(records, 3)["verdict"] == NOT_MEASURED
+
+
+@pytest.mark.parametrize("with_kernel", [False, True])
+@pytest.mark.parametrize("rel,expected", [("fastest", HOLDS), ("within 5%", HOLDS), (1.06, FAILS), (1.10, FAILS)])
+def test_claim4_32x32_near_the_fastest(rng, rel, expected, with_kernel):
+    """32x32 at most 5% slower than the fastest shape holds. The kernel time is
+    judged where measured, even when the frame times say the opposite; and a
+    smaller tuning size where 32x32 is slow is ignored (the largest is judged)."""
+    rel = {"fastest": rng.uniform(0.5, 1), "within 5%": rng.uniform(1.001, 1.049)}.get(rel, rel)
+    judged, opposite = rng.uniform(5, 20, len(BLOCKS)), rng.uniform(1, 40, len(BLOCKS))
+    i = BLOCKS.index([32, 32])
+    judged[i] = np.delete(judged, i).min() * rel
+    opposite[i] = np.delete(opposite, i).min() * (1.2 if expected == HOLDS else 0.9)
+    records = gpu_tuning(opposite, kernel=judged) if with_kernel else gpu_tuning(judged)
+    small = [rec("tuning", "cuda", 100, 1.0 if b != [32, 32] else 9.0, options={"block": b}) for b in BLOCKS]
+    v = verdict(records + small, 4)
+    assert v["verdict"] == expected and v["values"]["relative"] == pytest.approx(max(rel, 1.0))
+    no_32 = [r for r in records if r["options"]["block"] != [32, 32]]
+    assert verdict(no_32, 4)["verdict"] == NOT_MEASURED
+
+
+def test_claim4_does_not_mix_kernel_and_frame_times(rng):
+    """Kernel times decide only where every shape has one: a 32x32 whose frame
+    is 2x the fastest's must not 'hold' because only it has a (much smaller)
+    kernel time."""
+    frame = rng.uniform(5, 20, len(BLOCKS))
+    i = BLOCKS.index([32, 32])
+    frame[i] = 2 * np.delete(frame, i).min()
+    records = gpu_tuning(frame)
+    records[i]["kernel_ms"] = ms(0.1 * frame[i])
+    assert verdict(records, 4)["verdict"] == FAILS
+
+
+def cpu_times(rng, two_x_ok=True, per_row_ok=True):
+    """CPU tuning times with "all cores" fastest; "2x cores" 0.1-4.9% or 10-50%
+    slower than it, "one per row" slower or faster than "1 thread"."""
+    one = rng.uniform(50, 100)
+    t = {"1 thread": one, "half the cores": one / rng.uniform(1.5, 2), "all cores": one / rng.uniform(3, 4)}
+    t["2x cores"] = t["all cores"] * (rng.uniform(1.001, 1.049) if two_x_ok else rng.uniform(1.1, 1.5))
+    t["one per row"] = one * (rng.uniform(1.05, 3) if per_row_ok else rng.uniform(0.5, 0.95))
+    return t
+
+
+@pytest.mark.parametrize("two_x_ok", [True, False])
+@pytest.mark.parametrize("per_row_ok", [True, False])
+def test_claim5_both_halves(rng, two_x_ok, per_row_ok):
+    """Both halves measured: the claim holds only if both do."""
+    v = verdict(cpu_tuning(cpu_times(rng, two_x_ok, per_row_ok)), 5)
+    assert v["verdict"] == (HOLDS if two_x_ok and per_row_ok else FAILS)
+    assert v["values"]["two_x_ok"] == two_x_ok and v["values"]["per_row_ok"] == per_row_ok
+
+
+@pytest.mark.parametrize("missing", ["one per row", "1 thread", "2x cores"])
+@pytest.mark.parametrize("ok", [True, False])
+def test_claim5_one_half_measured(rng, missing, ok):
+    """With one half unmeasured the claim cannot hold: the measured half
+    failing makes it fail, holding leaves it not measured."""
+    times = cpu_times(rng, two_x_ok=ok, per_row_ok=ok)
+    del times[missing]
+    v = verdict(cpu_tuning(times), 5)
+    assert v["verdict"] == (NOT_MEASURED if ok else FAILS)
+    assert "not measured" in v["measured"]
+
+
+@pytest.mark.parametrize("with_kernel", [False, True])
+@pytest.mark.parametrize("gpu_ok", [True, False])
+def test_claim6_gpu_ratios_decide_cpu_ratios_do_not(rng, gpu_ok, with_kernel):
+    """Every GPU runtime/constant ratio must be above 1.02, in kernel time where
+    measured (even when the frame times say the opposite); the CPU's ratios,
+    either side of 1, change nothing."""
+    ratios = rng.uniform(1.021, 2, 3)
+    if not gpu_ok:  # slower at runtime, but by less than 2%, at one count
+        ratios[rng.integers(3)] = rng.uniform(1.0, 1.019)
+    opposite = rng.uniform(0.7, 0.99, 3) if gpu_ok else rng.uniform(1.1, 2, 3)
+    gpu = constant("cuda", opposite, rng, kernel_ratios=ratios) if with_kernel else constant("cuda", ratios, rng)
+    cpu_ratios = rng.uniform(0.5, 2, 3)
+    for cpu in (cpu_ratios, 1 / cpu_ratios):
+        v = verdict(gpu + constant("cpu", cpu, rng), 6)
+        assert v["verdict"] == (HOLDS if gpu_ok else FAILS)
+        assert v["values"]["gpu"] == pytest.approx(ratios) and v["values"]["cpu"] == pytest.approx(cpu)
+    assert verdict(constant("cpu", ratios, rng), 6)["verdict"] == NOT_MEASURED
+
+
+def test_every_claim_not_measured_without_its_data(rng):
+    assert [v["verdict"] for v in report.verdicts([])] == [NOT_MEASURED] * 6
+    # CPU-only data, a GPU tuning without 32x32, an unpaired constant point: only claim 2 measurable.
+    records = [r for r in thesis(rng) if r["device"] == "cpu"]
+    records += [rec("tuning", "cuda", 1000, 5.0, options={"block": [16, 16]}),
+                rec("constant-vs-runtime", "cuda", 500, 5.0, options={"count": "constant"})]
+    assert [v["verdict"] for v in report.verdicts(records)] == [NOT_MEASURED, HOLDS] + [NOT_MEASURED] * 4
+
+
+# --- loading -----------------------------------------------------------------------------
+
+def write(path, records):
+    with ResultsWriter(path) as w:
+        for r in records:
+            w.write(r)
+    return path
+
+
+def test_load_keeps_the_later_run_of_a_point(tmp_path, rng):
+    """A point measured twice under one label: the later run by date wins,
+    whichever file comes first; at equal dates, the later file."""
+    t_early, t_late = rng.uniform(1, 100, 2)
+    late = write(tmp_path / "late.jsonl", [rec("thesis", "cpu", 500, t_late, date="2024-05-02T09:00:00+00:00"),
+                                           rec("thesis", "cpu", 600, 1.0, label="beta")])
+    early = write(tmp_path / "early.jsonl", [rec("thesis", "cpu", 500, t_early, date="2024-05-01T23:00:00+00:00"),
+                                             rec("thesis", "cpu", 100, 1.0)])
+    for paths in ([late, early], [early, late]):
+        machines, notes = report.load(paths)
+        at = {r["spheres"]: r["frame_ms"]["median"] for r in machines["alpha"]}
+        assert at == {500: t_late, 100: 1.0}
+        assert len(machines["beta"]) == 1 and any("more than once" in n for n in notes)
+    assert list(report.load([late, early])[0]) == ["alpha", "beta"]  # labels in the order first seen
+    same = write(tmp_path / "same.jsonl", [rec("thesis", "cpu", 500, t_early, date="2024-05-02T09:00:00+00:00")])
+    assert report.load([late, same])[0]["alpha"][0]["frame_ms"]["median"] == t_early
+
+
+def test_load_skips_a_truncated_last_line(tmp_path, rng):
+    path = write(tmp_path / "r.jsonl", thesis(rng)[:3])
+    with open(path, "a") as f:
+        f.write('{"format": "raybench-results", "version": 1, "suite": "th')
+    with pytest.warns(UserWarning, match="cut short"):
+        machines, notes = report.load([path])
+    assert len(machines["alpha"]) == 3 and any("cut short" in n for n in notes)
+
+
+def _drop(*keys):
+    return lambda r: functools.reduce(dict.get, keys[:-1], r).pop(keys[-1])
+
+
+@pytest.mark.parametrize("change,needle", [
+    (_drop("suite"), "suite"), (_drop("device"), "device"), (_drop("width"), "width"),
+    (_drop("height"), "height"), (_drop("spheres"), "spheres"), (_drop("frame_ms"), "frame_ms"),
+    (_drop("frame_ms", "p95"), "frame_ms"), (_drop("run", "label"), "run"), (_drop("run"), "run"),
+    (lambda r: r.update(kernel_ms={"median": 1.0}), "kernel_ms"),
+    (lambda r: r.update(spheres=500.0), "spheres"), (lambda r: r.update(options=[1]), "options"),
+    (_drop("series"), "series"), (lambda r: r["series"]["frame_ms"].pop(), "series"),
+])
+def test_load_names_a_missing_field(tmp_path, rng, change, needle):
+    records = [thesis(rng)[0], ramp(rng)]
+    change(records[1])
+    path = write(tmp_path / "bad.jsonl", records)
+    with pytest.raises(RaybenchError) as info:
+        report.load([path])
+    message = str(info.value)
+    assert "\n" not in message and needle in message and "bad.jsonl" in message and "record 2" in message
+
+
+# --- the report folder ---------------------------------------------------------------------
+
+def two_machines(rng, tmp_path):
+    """alpha: every claim holds. beta: 1 fails (one point), 2 fails (test 7 kinked),
+    3 not measured (no GPU rate), 4 fails, 5 not measured (half measured), 6 fails."""
+    mach = machine()
+    alpha = thesis(rng, mach=mach) + [ramp(rng, "cpu", mach=mach), ramp(rng, "cuda", mach=mach)]
+    median = statistics.median(p["speedup"] for p in report.speedups(alpha))
+    mach["gpus"][0]["fp32_gflops"] = mach["cpu"]["fp32_gflops"] * median / rng.uniform(0.8, 1.2)
+    frame = rng.uniform(5, 20, len(BLOCKS))
+    frame[BLOCKS.index([32, 32])] = frame.min() * 0.95
+    alpha += gpu_tuning(frame, mach=mach) + cpu_tuning(cpu_times(rng), mach=mach)
+    alpha += constant("cuda", rng.uniform(1.1, 2, 3), rng, mach=mach)
+    alpha += constant("cpu", rng.uniform(0.5, 2, 3), rng, mach=mach)
+
+    kw = {"label": "beta", "mach": machine(gpu_gflops=None)}
+    beta = thesis(rng, **kw) + [ramp(rng, "cpu", kink=True, **kw)]
+    beta[1]["frame_ms"]["median"] = 2 * beta[0]["frame_ms"]["median"]  # the GPU slower at one point
+    frame[BLOCKS.index([32, 32])] = np.delete(frame, BLOCKS.index([32, 32])).min() * 1.1
+    times = cpu_times(rng)
+    del times["one per row"]
+    beta += gpu_tuning(frame, **kw) + cpu_tuning(times, **kw) + constant("cuda", [1.5, 1.0, 1.5], rng, **kw)
+    return write(tmp_path / "alpha.jsonl", alpha), write(tmp_path / "beta.jsonl", beta)
+
+
+def test_write_report_end_to_end(tmp_path, rng):
+    """Two machines in one report, beta's file cut short at its end (a run
+    interrupted mid-write): a warning, a note, and everything else intact."""
+    paths = two_machines(rng, tmp_path)
+    with open(paths[1], "a") as f:
+        f.write('{"format": "raybench-results", "vers')
+    out = tmp_path / "rep"
+    with pytest.warns(UserWarning, match="cut short"):
+        path = report.write_report(list(paths), out)
+    assert path == out / "report.md" and path.is_file()
+    text = path.read_text(encoding="utf-8")
+    lines = text.splitlines()
+    header = next(line for line in lines if line.startswith("| # |"))
+    assert header.endswith("| alpha | beta |")  # the two machines side by side
+    expected = [(HOLDS, FAILS), (HOLDS, FAILS), (HOLDS, NOT_MEASURED), (HOLDS, FAILS), (HOLDS, NOT_MEASURED),
+                (HOLDS, FAILS)]
+    for number, want in enumerate(expected, 1):
+        row = next(line for line in lines if line.startswith(f"| {number} |"))
+        got = tuple(re.findall(r"\*\*(holds|does not hold|not measured)\*\*", row))
+        assert got == want, (number, row)
+    assert "## alpha" in lines and "## beta" in lines
+    assert all(str(p) in text for p in paths) and "## Notes" in text and "cut short" in text
+    # Every plot referenced exists and is a PNG; nothing else is in the folder (no temporary files).
+    pngs = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", text)
+    assert len(pngs) == 12 and len(set(pngs)) == 12  # 6 plots per machine, none overwritten
+    for name in pngs:
+        with Image.open(out / name) as im:
+            assert im.format == "PNG" and im.width > 100
+            im.verify()
+    assert sorted(p.name for p in out.iterdir()) == sorted(pngs + ["report.md"])
+
+
+def test_zero_time_is_an_error_line_or_a_verdict_not_a_traceback(tmp_path, rng):
+    frame, kernel = rng.uniform(5, 20, len(BLOCKS)), rng.uniform(1, 4, len(BLOCKS))
+    kernel[0] = 0.0  # 2x2 "took no time", e.g. a hand-edited file
+    path = write(tmp_path / "zero.jsonl", gpu_tuning(frame, kernel))
+    try:
+        report.write_report([path], tmp_path / "rep")
+    except RaybenchError as exc:
+        assert "\n" not in str(exc)
+    else:
+        row = next(line for line in (tmp_path / "rep" / "report.md").read_text().splitlines()
+                   if line.startswith("| 4 |"))
+        assert f"**{FAILS}**" in row
+
+
+# --- the command line (test_bench.py covers not-JSON and a missing file) ---------------------
+
+def test_cli_report_bad_record_writes_nothing(tmp_path, rng, capsys):
+    good = write(tmp_path / "good.jsonl", thesis(rng))
+    r = ramp(rng)
+    del r["frame_ms"]
+    bad = write(tmp_path / "bad.jsonl", [r])
+    (tmp_path / "rep").mkdir()
+    code = run(["report", str(good), str(bad), "-o", str(tmp_path / "rep")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "bad.jsonl" in err and "frame_ms" in err, err
+    assert "Traceback" not in err and list((tmp_path / "rep").iterdir()) == []
+
