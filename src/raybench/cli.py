@@ -196,7 +196,8 @@ def bench(suites, devices, duration, quick, out_dir, label, seed, no_report):
         try:
             runner.run(points, writer, info, duration, seed, progress=sys.stderr.isatty())
         except KeyboardInterrupt:
-            click.echo(f"raybench: interrupted; the {writer.count} finished points are in {results_path}", err=True)
+            click.echo(f"raybench: interrupted; the {writer.count} finished points are in {results_path} "
+                       f"(report them with: raybench report {results_path})", err=True)
             raise SystemExit(130) from None
     click.echo(f"wrote {writer.count} results to {results_path}")
     if not no_report:
