@@ -120,7 +120,9 @@ def _wait_for_lines(folder, n, proc, timeout=120):
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGKILL])
 def test_interrupted_run_keeps_every_finished_point(tmp_path, sig):
-    proc = _bench_subprocess(tmp_path, "--suite", "thesis", "--duration", "0.3")
+    # 1.5 s per point leaves seconds between the 2nd record and the end of the
+    # run, so the signal lands mid-run even on a loaded machine
+    proc = _bench_subprocess(tmp_path, "--suite", "thesis", "--duration", "1.5")
     path = _wait_for_lines(tmp_path, 2, proc)
     proc.send_signal(sig)
     out, err = proc.communicate(timeout=60)
