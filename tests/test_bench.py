@@ -100,9 +100,12 @@ def test_results_round_trip_and_damage(tmp_path):
 
 def _bench_subprocess(out, *extra):
     env = dict(os.environ, NUMBA_ENABLE_CUDASIM="0", PYTHONUNBUFFERED="1")
+    # A shell that runs the tests in the background starts them with SIGINT
+    # ignored, and Python then never turns it into KeyboardInterrupt: restore it.
     return subprocess.Popen([sys.executable, "-m", "raybench", "bench", "--quick", "--device", "cpu",
                              "--no-report", "--out", str(out), *extra],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
 def _wait_for_lines(folder, n, proc, timeout=120):
@@ -120,9 +123,7 @@ def _wait_for_lines(folder, n, proc, timeout=120):
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGKILL])
 def test_interrupted_run_keeps_every_finished_point(tmp_path, sig):
-    # 1.5 s per point leaves seconds between the 2nd record and the end of the
-    # run, so the signal lands mid-run even on a loaded machine
-    proc = _bench_subprocess(tmp_path, "--suite", "thesis", "--duration", "1.5")
+    proc = _bench_subprocess(tmp_path, "--suite", "thesis", "--duration", "0.5")
     path = _wait_for_lines(tmp_path, 2, proc)
     proc.send_signal(sig)
     out, err = proc.communicate(timeout=60)
