@@ -8,12 +8,13 @@ from reference import check_frame, trace
 from scenes import KINDS
 
 
+@pytest.mark.parametrize("kernel", ["simple", "fast"])
 @pytest.mark.parametrize("kind", sorted(KINDS))
 @pytest.mark.parametrize("n,size", [(1, (40, 30)), (12, (57, 41)), (150, (96, 64)), (600, (80, 60))])
-def test_cpu_matches_reference(rng, kind, n, size):
+def test_cpu_matches_reference(rng, kind, n, size, kernel):
     scene, camera = KINDS[kind](rng, n)
     width, height = size
-    frame = raybench.render(scene, camera, width, height, device="cpu")
+    frame = raybench.render(scene, camera, width, height, device="cpu", kernel=kernel)
     ref = trace(scene, camera, width, height)
     check_frame(frame, ref, context=f"{kind} n={n} {width}x{height}")
 
@@ -47,7 +48,7 @@ def test_constant_count_and_prefix(rng):
 
     scene, camera = KINDS["generated"](rng, 40)
     runtime = raybench.render(scene, camera, 48, 32, device="cpu")
-    constant = raybench.render(scene, camera, 48, 32, device="cpu", constant_count=True)
+    constant = raybench.render(scene, camera, 48, 32, device="cpu", kernel="simple", constant_count=True)
     assert np.array_equal(runtime.image, constant.image) and np.array_equal(runtime.hits, constant.hits)
     tracer = backends.tracer("cpu", scene.spheres, 48, 32, threads=3)
     tracer.trace(camera.basis(48, 32), 15)

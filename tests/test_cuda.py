@@ -17,17 +17,18 @@ SIZES = [(24, 16), (19, 13)] if SIM else [(320, 200), (257, 129)]
 COUNTS = [1, 25] if SIM else [1, 100, 1000]
 
 
+@pytest.mark.parametrize("kernel", ["simple", "fast"])
 @pytest.mark.parametrize("kind", sorted(KINDS))
 @pytest.mark.parametrize("n", COUNTS)
-def test_cuda_matches_reference_and_cpu(rng, kind, n):
+def test_cuda_matches_reference_and_cpu(rng, kind, n, kernel):
     scene, camera = KINDS[kind](rng, n)
     for (width, height), block in zip(SIZES, [(8, 8), (5, 3)]):
-        context = f"{kind} n={n} {width}x{height} block {block}"
-        gpu = raybench.render(scene, camera, width, height, device="cuda", block=block)
+        context = f"{kernel} kernel, {kind} n={n} {width}x{height} block {block}"
+        gpu = raybench.render(scene, camera, width, height, device="cuda", block=block, kernel=kernel)
         assert gpu.device == "cuda"
         ref = trace(scene, camera, width, height)
         check_frame(gpu, ref, context=context)
-        cpu = raybench.render(scene, camera, width, height, device="cpu")
+        cpu = raybench.render(scene, camera, width, height, device="cpu", kernel=kernel)
         if SIM:
             # Both run IEEE float32 without contraction: bit for bit the same.
             assert np.array_equal(gpu.hits, cpu.hits), context
@@ -60,7 +61,7 @@ def test_constant_count_kernel_draws_the_same(rng):
     scene, camera = KINDS["generated"](rng, 12)
     width, height = SIZES[0]
     runtime = raybench.render(scene, camera, width, height, device="cuda")
-    constant = raybench.render(scene, camera, width, height, device="cuda", constant_count=True)
+    constant = raybench.render(scene, camera, width, height, device="cuda", kernel="simple", constant_count=True)
     assert np.array_equal(runtime.image, constant.image) and np.array_equal(runtime.hits, constant.hits)
 
 

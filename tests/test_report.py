@@ -25,6 +25,9 @@ THREADS = {"1 thread": 1, "half the cores": 2, "all cores": 4, "2x cores": 8, "o
 DATE = "2024-05-01T12:00:00+00:00"
 
 
+# report columns: machine label and kernel (records without one are simple-kernel records)
+A, B = "alpha, simple kernel", "beta, simple kernel"
+
 def machine(cpu_gflops=200.0, gpu_gflops=10000.0):
     return {"cpu": {"model": "Synthetic CPU", "physical_cores": 4, "logical_cpus": 8, "fp32_gflops": cpu_gflops},
             "gpus": [{"name": "Synthetic GPU", "multiprocessors": 40, "fp32_gflops": gpu_gflops}]}
@@ -302,12 +305,12 @@ def test_load_keeps_the_later_run_of_a_point(tmp_path, rng):
                                              rec("thesis", "cpu", 100, 1.0)])
     for paths in ([late, early], [early, late]):
         machines, notes = report.load(paths)
-        at = {r["spheres"]: r["frame_ms"]["median"] for r in machines["alpha"]}
+        at = {r["spheres"]: r["frame_ms"]["median"] for r in machines[A]}
         assert at == {500: t_late, 100: 1.0}
-        assert len(machines["beta"]) == 1 and any("more than once" in n for n in notes)
-    assert list(report.load([late, early])[0]) == ["alpha", "beta"]  # labels in the order first seen
+        assert len(machines[B]) == 1 and any("more than once" in n for n in notes)
+    assert list(report.load([late, early])[0]) == [A, B]  # columns in the order first seen
     same = write(tmp_path / "same.jsonl", [rec("thesis", "cpu", 500, t_early, date="2024-05-02T09:00:00+00:00")])
-    assert report.load([late, same])[0]["alpha"][0]["frame_ms"]["median"] == t_early
+    assert report.load([late, same])[0][A][0]["frame_ms"]["median"] == t_early
 
 
 def test_load_skips_a_truncated_last_line(tmp_path, rng):
@@ -316,7 +319,7 @@ def test_load_skips_a_truncated_last_line(tmp_path, rng):
         f.write('{"format": "raybench-results", "version": 1, "suite": "th')
     with pytest.warns(UserWarning, match="cut short"):
         machines, notes = report.load([path])
-    assert len(machines["alpha"]) == 3 and any("cut short" in n for n in notes)
+    assert len(machines[A]) == 3 and any("cut short" in n for n in notes)
 
 
 def _drop(*keys):
@@ -379,14 +382,14 @@ def test_write_report_end_to_end(tmp_path, rng):
     text = path.read_text(encoding="utf-8")
     lines = text.splitlines()
     header = next(line for line in lines if line.startswith("| # |"))
-    assert header.endswith("| alpha | beta |")  # the two machines side by side
+    assert header.endswith(f"| {A} | {B} |")  # the two machines side by side
     expected = [(HOLDS, FAILS), (HOLDS, FAILS), (HOLDS, NOT_MEASURED), (HOLDS, FAILS), (HOLDS, NOT_MEASURED),
                 (HOLDS, FAILS)]
     for number, want in enumerate(expected, 1):
         row = next(line for line in lines if line.startswith(f"| {number} |"))
         got = tuple(re.findall(r"\*\*(holds|does not hold|not measured)\*\*", row))
         assert got == want, (number, row)
-    assert "## alpha" in lines and "## beta" in lines
+    assert f"## {A}" in lines and f"## {B}" in lines
     assert all(str(p) in text for p in paths) and "## Notes" in text and "cut short" in text
     # Every plot referenced exists and is a PNG; nothing else is in the folder (no temporary files).
     pngs = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", text)

@@ -16,6 +16,7 @@ from pathlib import Path
 import click
 
 from . import __version__
+from .backends.limits import KERNELS
 from .errors import RaybenchError
 
 SIZE_HELP = "image size as WIDTHxHEIGHT, e.g. 1680x1050"
@@ -80,10 +81,13 @@ def main():
 @click.option("--device", default="auto", show_default=True, type=click.Choice(["auto", "cpu", "cuda"]),
               help="where to trace: auto picks cuda when a usable GPU is present")
 @click.option("--threads", type=int, help="cpu: number of threads (default: all cores)")
-@click.option("--block", help="cuda: thread block shape XxY (default 16x16)")
+@click.option("--block", help="cuda: thread block shape XxY (default 32x4 fast, 16x16 simple)")
+@click.option("--kernel", type=click.Choice(KERNELS), default="fast", show_default=True,
+              help="simple: the thesis's loop, a pixel at a time; fast: rays grouped and certain misses "
+                   "skipped, the same picture")
 @click.option("-o", "--output", default="render.png", show_default=True, type=click.Path(path_type=Path),
               help="PNG file to write")
-def render(scene_file, spheres, seed, size, device, threads, block, output):
+def render(scene_file, spheres, seed, size, device, threads, block, kernel, output):
     """Trace one frame and save it as a PNG."""
     from .backends import resolve
     from .render import render as render_frame
@@ -92,7 +96,7 @@ def render(scene_file, spheres, seed, size, device, threads, block, output):
     width, height = parse_size(size)
     check_output(output)
     device = resolve(device)
-    options = {}
+    options = {"kernel": kernel}
     if threads is not None:
         options["threads"] = threads
     if block is not None:
@@ -144,13 +148,16 @@ def info(as_json):
               help="thesis, constant-vs-runtime, tuning, or all; repeat for several")
 @click.option("--device", "devices", multiple=True, help="cpu or cuda; repeat for several (default: every device present)")
 @click.option("--duration", type=float, help="seconds of timed frames per point, after warm-up (default 10; 0.5 with --quick)")
+@click.option("--kernel", "kernels", multiple=True, type=click.Choice(KERNELS),
+              help="kernels for the thesis and tuning suites; repeat for both (default fast; "
+                   "constant-vs-runtime always uses simple, the only one with a compile-time count)")
 @click.option("--quick", is_flag=True, help="a reduced set of points: about a minute on a 2-core laptop")
 @click.option("--out", "out_dir", type=click.Path(path_type=Path),
               help="folder for the results and the report (default: raybench-results/<machine>)")
 @click.option("--label", help="short machine name used in the report (default: from the GPU or CPU name)")
 @click.option("--seed", type=int, default=0, show_default=True, help="seed of the random scenes")
 @click.option("--no-report", is_flag=True, help="only write the results; skip the report")
-def bench(suites, devices, duration, quick, out_dir, label, seed, no_report):
+def bench(suites, devices, kernels, duration, quick, out_dir, label, seed, no_report):
     """Run the thesis's experiments on this machine, then write a report.
 
     Results go to a JSON Lines file, one record per point as soon as it is
@@ -185,11 +192,12 @@ def bench(suites, devices, duration, quick, out_dir, label, seed, no_report):
     out_dir = out_dir or Path("raybench-results") / label
     if out_dir.exists() and not out_dir.is_dir():
         raise RaybenchError(f"--out {out_dir}: is a file, not a folder")
-    points = suites_mod.points(chosen, devices, quick=quick)
+    kernels = tuple(dict.fromkeys(kernels)) or ("fast",)
+    points = suites_mod.points(chosen, devices, quick=quick, kernels=kernels)
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
     results_path = out_dir / f"results-{stamp}.jsonl"
-    settings = {"suites": list(chosen), "devices": list(devices), "duration_s": duration, "quick": quick,
-                "seed": seed}
+    settings = {"suites": list(chosen), "devices": list(devices), "kernels": list(kernels), "duration_s": duration,
+                "quick": quick, "seed": seed}
     info = runner.run_info(machine, label, settings)
     click.echo(f"{len(points)} points on {', '.join(devices)}, {duration:g} s each; results: {results_path}")
     with ResultsWriter(results_path) as writer:

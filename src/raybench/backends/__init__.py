@@ -11,7 +11,7 @@ from ..errors import RaybenchError
 
 DEVICES = ("cpu", "cuda")
 CHOICES = ("auto",) + DEVICES
-OPTIONS = {"cpu": ("threads", "constant_count"), "cuda": ("block", "constant_count")}
+OPTIONS = {"cpu": ("threads", "constant_count", "kernel"), "cuda": ("block", "constant_count", "kernel", "rays", "tile")}
 
 
 def module(name: str):

@@ -1,6 +1,8 @@
-"""CUDA backend: numba-cuda, one thread per pixel, in blocks of a chosen shape.
+"""CUDA backend: numba-cuda, in blocks of a chosen shape. The simple kernel is
+the thesis's, one thread per pixel; the fast one gives each thread several
+pixels and stages the spheres through shared memory.
 
-The per-pixel program is the same Python source the CPU runs (raybench.kernels),
+The per-pixel functions are the same Python source the CPU runs (raybench.kernels),
 compiled as CUDA device functions. Under NUMBA_ENABLE_CUDASIM=1 it runs in
 numba's simulator, which is how the tests check it on machines without a GPU.
 """
@@ -17,12 +19,24 @@ from numba import config, cuda
 from numba.cuda.core.errors import NumbaPerformanceWarning
 
 from .. import kernels
+from ..kernels.trace import FAR, ZERO
 from ..errors import RaybenchError
-from .limits import HOST_PIXEL_BYTES, check_count, check_fits, host_available_bytes
+from .limits import HOST_PIXEL_BYTES, check_count, check_fits, check_kernel, host_available_bytes
 
-DEFAULT_BLOCK = (16, 16)
+DEFAULT_BLOCK = {"simple": (16, 16), "fast": (32, 4)}  # the fastest measured on an H100 (docs/performance.md)
 
-_render_pixel = kernels.build(cuda.jit(device=True))
+_k = kernels.build(cuda.jit(device=True))
+# module globals, which is how kernels can see them
+_render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
+_prepare_one, _may_hit, _intersect_relative = _k.prepare, _k.may_hit, _k.intersect_relative
+
+# Fast kernel defaults: each thread traces RAYS pixels, one above the other a
+# block height apart, so every sphere read from shared memory serves RAYS
+# tests; spheres are staged TILE at a time (16 bytes each).
+RAYS = 8
+TILE = 256
+MAX_RAYS = 16
+MAX_TILE = 3072  # 48 KiB of shared memory, what every CUDA GPU gives a block
 
 
 @cuda.jit
@@ -30,6 +44,74 @@ def _render_kernel(width, height, basis, spheres, count, image, hits):
     x, y = cuda.grid(2)
     if x < width and y < height:
         _render_pixel(x, y, width, height, basis, spheres, count, image, hits)
+
+
+@cuda.jit
+def _prepare_kernel(basis, spheres, count, relative):
+    i = cuda.grid(1)
+    if i < count:
+        _prepare_one(i, basis, spheres, relative)
+
+
+@functools.lru_cache(maxsize=None)
+def fast_kernel(rays: int = RAYS, tile: int = TILE):
+    """The fast kernel for `rays` pixels per thread and `tile` spheres per
+    shared-memory tile (compile-time constants: the per-thread arrays must
+    have a fixed size to live in registers); one compilation per pair."""
+
+    @cuda.jit
+    def kernel(width, height, basis, spheres, relative, count, image, hits):
+        """`rays` pixels per thread; the block walks the spheres a tile at a time
+        through shared memory, every thread testing each sphere against its rays:
+        the cull test first, the exact test only where it cannot rule a hit out.
+        Same arithmetic, same order of spheres, same pixels as _render_kernel."""
+        if width <= 0 or height <= 0:  # compile()'s empty launch; the same for every thread
+            return
+        sx = cuda.shared.array(tile, np.float32)
+        sy = cuda.shared.array(tile, np.float32)
+        sz = cuda.shared.array(tile, np.float32)
+        sq = cuda.shared.array(tile, np.float32)
+        dx = cuda.local.array(rays, np.float32)
+        dy = cuda.local.array(rays, np.float32)
+        dz = cuda.local.array(rays, np.float32)
+        closest = cuda.local.array(rays, np.float32)
+        hit = cuda.local.array(rays, np.int32)
+        hit_d = cuda.local.array(rays, np.float32)
+        bw, bh = cuda.blockDim.x, cuda.blockDim.y
+        x = cuda.blockIdx.x * bw + cuda.threadIdx.x
+        y0 = cuda.blockIdx.y * bh * rays + cuda.threadIdx.y
+        for j in range(rays):
+            y = min(y0 + j * bh, height - 1)  # rays off the image trace a copy of the last row, unstored
+            dx[j], dy[j], dz[j] = _primary_ray(min(x, width - 1), y, width, height, basis)
+            closest[j] = FAR
+            hit[j] = -1
+            hit_d[j] = ZERO
+        me = cuda.threadIdx.y * bw + cuda.threadIdx.x
+        for base in range(0, count, tile):
+            n = min(tile, count - base)
+            cuda.syncthreads()  # every thread is done with the previous tile
+            for k in range(me, n, bw * bh):
+                sx[k] = relative[0, base + k]
+                sy[k] = relative[1, base + k]
+                sz[k] = relative[2, base + k]
+                sq[k] = relative[3, base + k]
+            cuda.syncthreads()
+            for k in range(n):
+                ex, ey, ez, q = sx[k], sy[k], sz[k], sq[k]
+                for j in range(rays):
+                    if _may_hit(ex, ey, ez, q, dx[j], dy[j], dz[j]):
+                        t, d = _intersect_relative(ex, ey, ez, spheres[3, base + k], dx[j], dy[j], dz[j])
+                        if t < closest[j] and t > ZERO:
+                            closest[j] = t
+                            hit[j] = base + k
+                            hit_d[j] = d
+        if x < width:
+            for j in range(rays):
+                y = y0 + j * bh
+                if y < height:
+                    _store_pixel(x, y, hit[j], hit_d[j], spheres, image, hits)
+
+    return kernel
 
 
 @functools.lru_cache(maxsize=None)
@@ -83,21 +165,31 @@ def _check_block(block) -> tuple[int, int]:
     return bx, by
 
 
+def _check_int(name: str, value, low: int, high: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
+        raise RaybenchError(f"{name}: must be an integer from {low} to {high}, got {value!r}")
+    return int(value)
+
+
 class Tracer:
     """Keeps the spheres and the frame buffers on the GPU between frames."""
 
     name = "cuda"
 
-    def __init__(self, spheres: np.ndarray, width: int, height: int, block=DEFAULT_BLOCK,
-                 constant_count: bool = False):
+    def __init__(self, spheres: np.ndarray, width: int, height: int, block=None,
+                 constant_count: bool = False, kernel: str = "fast", rays: int = RAYS, tile: int = TILE):
         require()
+        self.kernel = check_kernel(kernel, constant_count)
+        block = DEFAULT_BLOCK[self.kernel] if block is None else block
+        self.rays = _check_int("rays", rays, 1, MAX_RAYS) if self.kernel == "fast" else 1
+        self.tile = _check_int("tile", tile, 1, MAX_TILE)
         self.block = _check_block(block)
         free, _total = cuda.current_context().get_memory_info()
         check_fits("cuda GPU", width, height, spheres.shape[1], free)
         check_fits("host", width, height, 0, host_available_bytes(), HOST_PIXEL_BYTES)
         self.width, self.height = width, height
         self.count = spheres.shape[1]
-        self.grid = (math.ceil(width / self.block[0]), math.ceil(height / self.block[1]))
+        self.grid = (math.ceil(width / self.block[0]), math.ceil(height / (self.block[1] * self.rays)))
         self.d_spheres = cuda.to_device(spheres if self.count else np.zeros((7, 1), np.float32))
         self.d_image = cuda.device_array((height, width, 3), dtype=np.uint8)
         self.d_hits = cuda.device_array((height, width), dtype=np.int32)
@@ -107,7 +199,11 @@ class Tracer:
             np.empty((height, width), np.int32)
         self.d_basis = cuda.device_array((4, 3), dtype=np.float32)
         self.constant_count = bool(constant_count)
-        self._kernel = _constant_kernel(self.count) if self.constant_count else _render_kernel
+        if self.kernel == "fast":
+            self._kernel = fast_kernel(self.rays, self.tile)
+            self.d_relative = cuda.device_array((4, max(self.count, 1)), dtype=np.float32)
+        else:
+            self._kernel = _constant_kernel(self.count) if self.constant_count else _render_kernel
 
     def compile(self) -> float:
         """Compile the kernel if needed (one empty launch); the seconds it took."""
@@ -120,8 +216,15 @@ class Tracer:
         with warnings.catch_warnings():
             # Small frames cannot fill the GPU; that is the user's choice, not news.
             warnings.simplefilter("ignore", NumbaPerformanceWarning)
-            self._kernel[grid, self.block](width, height, self.d_basis, self.d_spheres, count,
-                                           self.d_image, self.d_hits)
+            if self.kernel == "fast":
+                # EO and the cull bound for this frame's camera, on the GPU, before the frame
+                _prepare_kernel[max(1, math.ceil(count / 256)), 256](self.d_basis, self.d_spheres, count,
+                                                                     self.d_relative)
+                self._kernel[grid, self.block](width, height, self.d_basis, self.d_spheres, self.d_relative,
+                                               count, self.d_image, self.d_hits)
+            else:
+                self._kernel[grid, self.block](width, height, self.d_basis, self.d_spheres, count,
+                                               self.d_image, self.d_hits)
 
     def _prepare(self, basis: np.ndarray, count: int | None) -> int:
         """Upload the camera; the sphere count to trace."""

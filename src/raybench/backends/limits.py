@@ -40,3 +40,17 @@ def check_count(count, loaded: int, constant: bool = False) -> int:
 
 def host_available_bytes() -> int:
     return psutil.virtual_memory().available
+
+
+KERNELS = ("fast", "simple")
+
+
+def check_kernel(kernel, constant_count: bool) -> str:
+    """The kernel's name, checked: "simple" (the thesis's loop, one pixel at a
+    time) or "fast" (rays grouped, certain misses culled; the same pixels)."""
+    if kernel not in KERNELS:
+        raise RaybenchError(f"kernel: must be one of {', '.join(KERNELS)}, got {kernel!r}")
+    if constant_count and kernel != "simple":
+        raise RaybenchError("constant_count: applies to the simple kernel only; add kernel='simple' "
+                            "(--kernel simple)")
+    return kernel

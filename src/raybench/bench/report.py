@@ -1,7 +1,7 @@
 """The report: results files in, one Markdown file with PNG plots out, and a
 verdict on each of the thesis's claims for every machine measured.
 
-Records are grouped by machine (record["run"]["label"]); files with the same
+Records are grouped by machine and kernel (column()); files with the same
 label are merged. Everything the verdicts depend on is computed by the small
 pure functions below (speedups, thesis_series, test7_series, cpu_tuning,
 gpu_tuning, constant_vs_runtime, verdicts), which take plain lists of records,
@@ -116,7 +116,8 @@ def _point_key(r: dict) -> tuple:
 
 
 def load(paths) -> tuple[dict[str, list[dict]], list[str]]:
-    """Read every results file; return ({label: records}, notes). Labels keep
+    """Read every results file; return ({column: records}, notes), a column
+    being a machine label and a kernel (column()). Columns keep
     the order they are first seen in. A point measured twice under one label
     keeps the later run's record (by run date, then file order). A half-written
     last line is skipped with a warning (results.read), also listed in notes."""
@@ -134,16 +135,28 @@ def load(paths) -> tuple[dict[str, list[dict]], list[str]]:
             warnings.warn(w.message, stacklevel=2)
         for number, record in enumerate(records, 1):
             _check(record, path, number)
-            points = machines.setdefault(record["run"]["label"], {})
+            points = machines.setdefault(column(record), {})
             key = _point_key(record)
             old = points.get(key)
             if old is not None:
-                notes.append(f"{record['run']['label']}: {_describe_point(record)} was measured more than "
+                notes.append(f"{column(record)}: {_describe_point(record)} was measured more than "
                              "once; the later run's record is used")
                 if str(old["run"].get("date")) > str(record["run"].get("date")):
                     continue
             points[key] = record
     return {label: list(points.values()) for label, points in machines.items()}, notes
+
+
+def kernel_of(record: dict) -> str:
+    """The kernel a record was measured with; records from before the fast
+    kernel existed carry none and were measured with the simple one."""
+    return (record.get("options") or {}).get("kernel", "simple")
+
+
+def column(record: dict) -> str:
+    """The report's column of a record: its machine and kernel, judged apart,
+    since the thesis's claims mean something different for each kernel."""
+    return f"{record['run']['label']}, {kernel_of(record)} kernel"
 
 
 def _describe_point(r: dict) -> str:
@@ -892,7 +905,7 @@ def write_report(paths: list, out_dir) -> Path:
         raise RaybenchError(f"{out_dir}: cannot create the report folder ({exc.strerror or exc})") from None
 
     w = _Writer(out_dir)
-    names = ", ".join(machines)
+    names = ", ".join(dict.fromkeys(records[0]["run"]["label"] for records in machines.values() if records))
     w(f"# raybench: the 2010 GPU ray-tracing thesis, measured again on {names}", "")
     w("Persson and Udd (2010) rendered spheres with one brute-force ray tracer (one primary ray per pixel, "
       f"tested against every sphere) on an {THESIS_CPU} and on a {THESIS_GPU} with a DirectX 11 compute "

@@ -28,6 +28,8 @@ def tracer_options(point: Point) -> dict:
         opts["threads"] = point.options["threads"]
     if "block" in point.options:
         opts["block"] = tuple(point.options["block"])
+    if "kernel" in point.options:
+        opts["kernel"] = point.options["kernel"]
     if point.options.get("count") == "constant":
         opts["constant_count"] = True
     return opts

@@ -60,8 +60,9 @@ def thread_settings(cores: int, height: int) -> list[tuple[str, int]]:
     return out
 
 
-def points(suites, devices, quick: bool = False, cores: int | None = None) -> list[Point]:
-    """Every point of the chosen suites on the chosen devices, in run order."""
+def points(suites, devices, quick: bool = False, cores: int | None = None, kernels=("fast",)) -> list[Point]:
+    """Every point of the chosen suites on the chosen devices (the thesis and
+    tuning suites once per kernel), in run order."""
     for suite in suites:
         if suite not in SUITES:
             raise RaybenchError(f"suite: unknown suite {suite!r}; choose from {', '.join(SUITES)}")
@@ -70,32 +71,36 @@ def points(suites, devices, quick: bool = False, cores: int | None = None) -> li
     if "thesis" in suites:
         sizes = THESIS_SIZES[:1] if quick else THESIS_SIZES
         counts = (100, 500, 1000) if quick else THESIS_COUNTS
-        for device in devices:
-            for i, (w, h) in enumerate(sizes):
-                test = (1 if device == "cuda" else 4) + i
-                out += [Point("thesis", device, w, h, n, test=test) for n in counts]
+        for kernel in kernels:
+            for device in devices:
+                for i, (w, h) in enumerate(sizes):
+                    test = (1 if device == "cuda" else 4) + i
+                    out += [Point("thesis", device, w, h, n, {"kernel": kernel}, test=test) for n in counts]
         first, last, step = (10, 200, 10) if quick else RAMP
         ramp = tuple(range(first, last + 1, step))
         w, h = (320, 240) if quick else RAMP_SIZE
-        out += [Point("test7", device, w, h, ramp[-1], test=7, ramp=ramp) for device in devices]
+        out += [Point("test7", device, w, h, ramp[-1], {"kernel": kernel}, test=7, ramp=ramp)
+                for kernel in kernels for device in devices]
     if "constant-vs-runtime" in suites:
         counts = (100, 500) if quick else CONSTANT_COUNTS
         w, h = (640, 480) if quick else THESIS_SIZES[-1]
         for device in devices:
             for n in counts:
                 for mode in ("constant", "runtime"):
-                    out.append(Point("constant-vs-runtime", device, w, h, n, {"count": mode}))
+                    # the simple kernel: the only one with a compile-time count
+                    out.append(Point("constant-vs-runtime", device, w, h, n, {"count": mode, "kernel": "simple"}))
     if "tuning" in suites:
         w, h = (640, 480) if quick else TUNING_SIZE
         n = 300 if quick else TUNING_SPHERES
-        for device in devices:
+        for kernel, device in ((k, d) for k in kernels for d in devices):
             if device == "cpu":
                 settings = thread_settings(cores, h)
                 if quick:
                     settings = [s for s in settings if s[0] in ("1 thread", "all cores", "2x cores")]
-                out += [Point("tuning", "cpu", w, h, n, {"threads": t, "label": label}) for label, t in settings]
+                out += [Point("tuning", "cpu", w, h, n, {"threads": t, "label": label, "kernel": kernel})
+                        for label, t in settings]
             else:
                 blocks = ((8, 8), (16, 16), (32, 32), (32, 8)) if quick else BLOCKS
-                out += [Point("tuning", device, w, h, n, {"block": list(b), "label": f"{b[0]}x{b[1]}"})
+                out += [Point("tuning", device, w, h, n, {"block": list(b), "label": f"{b[0]}x{b[1]}", "kernel": kernel})
                         for b in blocks]
     return out

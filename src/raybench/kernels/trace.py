@@ -5,6 +5,7 @@ are spread over threads.
 """
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -18,7 +19,8 @@ FAR = np.float32(3.0e38)
 
 
 def build(jit):
-    intersect_sphere = intersect.build(jit)
+    """The algorithm compiled with `jit`; a namespace of its functions."""
+    intersect_relative, intersect_sphere, prepare_sphere, may_hit = intersect.build(jit)
     shade_hit, shade_miss, to_byte = shade.build(jit)
 
     @jit
@@ -52,9 +54,8 @@ def build(jit):
         return hit, hit_d
 
     @jit
-    def render_pixel(x, y, width, height, basis, spheres, count, image, hits):
-        dx, dy, dz = primary_ray(x, y, width, height, basis)
-        hit, d = nearest_hit(basis[0, 0], basis[0, 1], basis[0, 2], dx, dy, dz, spheres, count)
+    def store_pixel(x, y, hit, d, spheres, image, hits):
+        """Shade pixel (x, y) from its nearest hit (-1: none) and store it."""
         if hit >= 0:
             red, green, blue = shade_hit(spheres[4, hit], spheres[5, hit], spheres[6, hit], spheres[3, hit], d)
         else:
@@ -64,4 +65,22 @@ def build(jit):
         image[y, x, 2] = to_byte(blue)
         hits[y, x] = hit
 
-    return render_pixel
+    @jit
+    def render_pixel(x, y, width, height, basis, spheres, count, image, hits):
+        dx, dy, dz = primary_ray(x, y, width, height, basis)
+        hit, d = nearest_hit(basis[0, 0], basis[0, 1], basis[0, 2], dx, dy, dz, spheres, count)
+        store_pixel(x, y, hit, d, spheres, image, hits)
+
+    @jit
+    def prepare(i, basis, spheres, relative):
+        """Fast kernels, once per frame and sphere i: relative[:, i] = EO and the
+        cull bound (prepare_sphere)."""
+        ex, ey, ez, q = prepare_sphere(basis[0, 0], basis[0, 1], basis[0, 2],
+                                       spheres[0, i], spheres[1, i], spheres[2, i], spheres[3, i])
+        relative[0, i] = ex
+        relative[1, i] = ey
+        relative[2, i] = ez
+        relative[3, i] = q
+
+    return SimpleNamespace(render_pixel=render_pixel, primary_ray=primary_ray, store_pixel=store_pixel,
+                           prepare=prepare, may_hit=may_hit, intersect_relative=intersect_relative)

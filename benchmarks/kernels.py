@@ -1,0 +1,90 @@
+"""The kernels against the hardware: measured FP32 peak of each processor,
+the simple and fast kernels side by side on the same frame (their images must
+be identical), and a sweep of the CUDA fast kernel's shape. Writes JSON.
+
+    python benchmarks/kernels.py --json kernels.json [--frames 7] [--sweep]
+
+The figures in docs/performance.md come from this script.
+"""
+
+import argparse
+import json
+import statistics
+import sys
+import time
+
+import numpy as np
+
+import raybench
+from raybench import backends, machine
+from raybench.bench import peak
+
+
+def frames(tracer, basis, n):
+    """Median whole-frame ms and median kernel ms (None on the CPU) over n warm frames."""
+    tracer.trace(basis)
+    walls, kernels = [], []
+    for _ in range(n):
+        t = time.perf_counter()
+        k = tracer.timed_trace(basis)
+        walls.append((time.perf_counter() - t) * 1e3)
+        if k is not None:
+            kernels.append(k)
+    return statistics.median(walls), (statistics.median(kernels) if kernels else None)
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--json", required=True)
+    ap.add_argument("--frames", type=int, default=7)
+    ap.add_argument("--size", default="1680x1050")
+    ap.add_argument("--spheres", type=int, default=1000)
+    ap.add_argument("--sweep", action="store_true")
+    ap.add_argument("--skip-peak", action="store_true")
+    args = ap.parse_args()
+    w, h = map(int, args.size.split("x"))
+    out = {"machine": machine.describe(), "size": [w, h], "spheres": args.spheres, "peak": {}, "kernels": [],
+           "sweep": []}
+    devices = backends.present()
+    if not args.skip_peak:
+        out["peak"]["cpu"] = peak.cpu_peak()
+        print("peak", out["peak"]["cpu"], flush=True)
+        if "cuda" in devices:
+            out["peak"]["cuda"] = peak.cuda_peak()
+            print("peak", out["peak"]["cuda"], flush=True)
+    scene = raybench.random_spheres(args.spheres, seed=0)
+    basis = raybench.Camera().basis(w, h)
+    tests = w * h * args.spheres
+    for device in devices:
+        images = {}
+        for kernel in ("simple", "fast"):
+            tracer = backends.tracer(device, scene.spheres, w, h, kernel=kernel)
+            compile_s = tracer.compile()
+            wall, kern = frames(tracer, basis, args.frames)
+            images[kernel] = (tracer.image.copy(), tracer.hits.copy())
+            best = kern if kern is not None else wall
+            rec = {"device": device, "kernel": kernel, "frame_ms": wall, "kernel_ms": kern,
+                   "tests_per_s": tests / (best / 1e3), "compile_s": compile_s}
+            out["kernels"].append(rec)
+            print(json.dumps(rec), flush=True)
+            tracer.close()
+        same = all(np.array_equal(a, b) for a, b in zip(images["simple"], images["fast"]))
+        out.setdefault("identical", {})[device] = same
+        print(device, "simple and fast images identical:", same, flush=True)
+    if args.sweep and "cuda" in devices:
+        for rays in (1, 2, 4, 8):
+            for tile in (128, 256, 512):
+                for block in ((32, 2), (32, 4), (32, 8), (16, 16), (64, 4), (128, 1)):
+                    tracer = backends.tracer("cuda", scene.spheres, w, h, rays=rays, tile=tile, block=block)
+                    tracer.compile()
+                    wall, kern = frames(tracer, basis, args.frames)
+                    rec = {"rays": rays, "tile": tile, "block": list(block), "frame_ms": wall, "kernel_ms": kern,
+                           "tests_per_s": tests / (kern / 1e3)}
+                    out["sweep"].append(rec)
+                    print(json.dumps(rec), flush=True)
+    with open(args.json, "w") as f:
+        json.dump(out, f, indent=1)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
