@@ -72,7 +72,7 @@ def main():
         out.setdefault("identical", {})[device] = same
         print(device, "simple and fast images identical:", same, flush=True)
     if args.sweep and "cuda" in devices:
-        for rays in (1, 2, 4, 8):
+        for rays in (1, 2, 4, 8, 16):
             for tile in (128, 256, 512):
                 for block in ((32, 2), (32, 4), (32, 8), (16, 16), (64, 4), (128, 1)):
                     tracer = backends.tracer("cuda", scene.spheres, w, h, rays=rays, tile=tile, block=block)
