@@ -539,3 +539,44 @@ def test_worker_traces_off_the_event_loop():
     assert isinstance(result, TracedFrame)
     assert frame_s > 0.1, "the frame was too quick to show anything"
     assert slowest < 0.05, f"an event took {slowest * 1e3:.0f} ms while a {frame_s:.2f} s frame was traced"
+
+
+# --------------------------------------------------------------------------- bad input: one line, exit 2, before any window
+
+
+@pytest.mark.parametrize("args,needles", [
+    (["--spheres", "3", "--size", "0x5"], ["width", "got 0"]),
+    (["--spheres", "3", "--size", "big"], ["--size", "big"]),
+    (["--spheres", "3", "--device", "tpu"], ["--device", "tpu"]),
+    (["--spheres", "3", "--screenshot", "x.png"], ["--screenshot", "--frames"]),
+    (["--spheres", "3", "--frames", "2", "--screenshot", "x.jpg"], ["--screenshot", ".png"]),
+    (["--spheres", "3", "--frames", "2", "--screenshot", "missing/x.png"], ["--screenshot", "does not exist"]),
+    (["--spheres", "3", "--frames", "0"], ["--frames", "0"]),
+    (["--spheres", "3", "--threads", "0"], ["threads", "got 0"]),
+    (["--spheres", "3", "--block", "8"], ["--block"]),
+    (["--spheres", "3", "--scene", "s.json"], ["--scene", "--spheres"]),
+    (["--spheres", "-4"], ["sphere count", "-4"]),
+], ids=["size-0", "size-word", "device", "screenshot-without-frames", "screenshot-jpg", "screenshot-folder",
+        "frames-0", "threads-0", "block", "scene-and-spheres", "negative-spheres"])
+def test_view_bad_input_is_one_line_and_exit_2(capsys, tmp_path, monkeypatch, args, needles):
+    # No screen: input that got past the checks would end in "no display", not in these needles.
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.chdir(tmp_path)
+    code = run(["view", *args])
+    out, err = capsys.readouterr()
+    assert code == 2 and "Traceback" not in out + err
+    lines = err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("raybench: error: "), err
+    for needle in needles:
+        assert needle in lines[0], (needle, lines[0])
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_view_cuda_without_gpu_is_refused_before_the_window(capsys, monkeypatch):
+    monkeypatch.setattr(cuda_backend, "available", lambda: False)
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    code = run(["view", "--spheres", "3", "--device", "cuda"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith("raybench: error: device cuda") and "--device cpu" in err
