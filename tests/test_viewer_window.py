@@ -166,7 +166,7 @@ class Script:
             return
         action, self.until = self.steps[self.step]
         action(window)
-        self.after = window.state._requests
+        self.after = window.state.requests_made
 
     def frames(self, step):
         return [(traced, pixels) for s, traced, pixels in self.records if s == step]
@@ -225,6 +225,15 @@ def test_screenshot_equals_raybench_render(display, tmp_path):
     assert drawn.shape == expected.shape == (120, 160, 3)
     assert np.array_equal(drawn, expected)
     assert len(np.unique(drawn.reshape(-1, 3), axis=0)) > 100  # a real picture, not a blank window
+
+
+def test_frames_without_screenshot_shows_n_frames_and_exits(display, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code = run(["view", "--spheres", "5", "--size", "40x30", "--device", "cpu", "--frames", "4"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    assert out.startswith("showed 4 frames; the last: 40x30, 5 spheres, cpu")
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_scene_file_camera_in_the_window_equals_raybench_render(display, tmp_path):

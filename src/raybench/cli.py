@@ -145,7 +145,11 @@ def view(scene_file, spheres, seed, size, device, threads, block, frames, screen
         _check_options("cpu", options["cpu"])
     if block is not None:
         options["cuda"]["block"] = parse_block(block)
-        if "cuda" in backends.present() or device == "cuda":
+        try:
+            backends.resolve("cuda")
+        except RaybenchError:
+            pass  # no cuda here: a switch to it will say so, block or not
+        else:
             _check_options("cuda", options["cuda"])
     seed = None if scene_file is not None else (0 if seed is None else seed)
     window = open_viewer(scene, device=device, seed=seed, size=(width, height), options=options,
@@ -153,10 +157,11 @@ def view(scene_file, spheres, seed, size, device, threads, block, frames, screen
     if frames is not None and window.state.frames_shown < frames:
         raise RaybenchError(f"the window was closed after {window.state.frames_shown} of {frames} frames"
                             + ("; no screenshot written" if screenshot is not None else ""))
-    if screenshot is not None:
+    if frames is not None:
         shown = window.state.shown
-        click.echo(f"wrote {screenshot}: {shown.frame.width}x{shown.frame.height}, {shown.request.count:,} spheres, "
-                   f"{shown.frame.device}, frame {frames} of {frames} traced in {shown.trace_ms:.1f} ms")
+        last = (f"{shown.frame.width}x{shown.frame.height}, {shown.request.count:,} spheres, {shown.frame.device}, "
+                f"frame {frames} traced in {shown.trace_ms:.1f} ms")
+        click.echo(f"wrote {screenshot}: {last}" if screenshot is not None else f"showed {frames} frames; the last: {last}")
 
 
 def _check_options(device: str, options: dict) -> None:

@@ -48,8 +48,8 @@ class ViewerState:
         self._message: str | None = None
         self._message_until = 0.0
         self._drag_from: tuple[float, float] | None = None
-        self._requests = 0
-        self._last_request: TraceRequest | None = None
+        self.requests_made = 0
+        self.last_request: TraceRequest | None = None
         self._stalled_at: tuple[int, int] | None = None  # size at which the working device failed
 
     # ------------------------------------------------------------------ input
@@ -133,11 +133,11 @@ class ViewerState:
         self.camera = self.motion.apply(self.camera, self.clock())
         scene, count, message = self.supply.frame_count()
         self.say(message)
-        self._requests += 1
-        self._last_request = TraceRequest(number=self._requests, device=self.device, scene=scene, count=count,
+        self.requests_made += 1
+        self.last_request = TraceRequest(number=self.requests_made, device=self.device, scene=scene, count=count,
                                           camera=self.camera, width=width, height=height,
                                           options=self.options[self.device])
-        return self._last_request
+        return self.last_request
 
     def on_traced(self, result: TracedFrame | TraceFailed) -> None:
         """A frame finished tracing (and is about to be drawn), or failed."""
@@ -172,7 +172,7 @@ class ViewerState:
             return help_line()
         message = self._message if now < self._message_until else None
         if self.shown is None:
-            request = self._last_request
+            request = self.last_request
             size = (request.width, request.height) if request else (0, 0)
             return waiting_line(device=self.device, spheres=self.supply.count, width=size[0], height=size[1],
                                 message=message)
