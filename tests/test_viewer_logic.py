@@ -352,12 +352,14 @@ def test_a_failure_on_the_working_device_waits_for_input_or_a_new_size():
     state, _ = make_state()
     request = state.next_request(8, 6)
     state.on_traced(TraceFailed(request, "size: too big"))
+    assert "stopped: size: too big" in state.title()
     assert state.next_request(8, 6) is None           # the same would fail again
     assert state.next_request(9, 6) is not None       # resized
     state.on_traced(TraceFailed(state.last_request, "size: too big"))
     assert state.next_request(9, 6) is None
     state.handle_event(key("-"))
     assert state.next_request(9, 6) is not None       # the user changed something
+    assert "stopped" not in state.title()
 
 
 def test_title_shows_what_is_on_screen():

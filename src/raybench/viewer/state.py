@@ -51,6 +51,7 @@ class ViewerState:
         self.requests_made = 0
         self.last_request: TraceRequest | None = None
         self._stalled_at: tuple[int, int] | None = None  # size at which the working device failed
+        self._stall_reason = ""
 
     # ------------------------------------------------------------------ input
 
@@ -149,7 +150,7 @@ class ViewerState:
                 self.say(f"{result.message} (staying on {self._working_device})")
             else:
                 self._stalled_at = (request.width, request.height)
-                self.say(result.message)
+                self._stall_reason = f"stopped: {result.message} (resize or press a key to try again)"
             return
         previous = self.shown
         if previous is None or (previous.frame.device, previous.frame.width, previous.frame.height) != \
@@ -171,6 +172,8 @@ class ViewerState:
         if self.help:
             return help_line()
         message = self._message if now < self._message_until else None
+        if self._stalled_at is not None:
+            message = self._stall_reason  # stays until tracing goes on
         if self.shown is None:
             request = self.last_request
             size = (request.width, request.height) if request else (0, 0)
@@ -183,12 +186,14 @@ class ViewerState:
 
 
 def device_label(shown: TracedFrame) -> str:
-    """The device of a frame, with what sets its speed: threads or block shape."""
+    """The device of a frame, with what sets its speed: the CPU's threads, a
+    block shape other than the default, or that the GPU is numba's simulator."""
     device, options = shown.frame.device, shown.request.options
     if device == "cpu":
         from ..backends.cpu import default_threads
 
         return f"cpu, {options.get('threads') or default_threads()} threads"
-    if device == "cuda" and backends.module("cuda").simulated():
-        return "cuda (numba simulator)"
-    return device
+    label = "cuda (numba simulator)" if backends.module("cuda").simulated() else "cuda"
+    if "block" in options:
+        label += f", block {options['block'][0]}x{options['block'][1]}"
+    return label
