@@ -32,6 +32,7 @@ import numpy as np
 from ..errors import RaybenchError
 
 FRAME_FORMAT = "rgba8unorm"
+SUGGEST = "use `raybench render` to write frames as PNG files"  # ends every "cannot show a window" error
 
 QUAD_SHADER = """
 struct Varyings {
@@ -86,7 +87,7 @@ def choose_target_format(formats) -> TargetFormat:
         if fmt.endswith("-srgb") and fmt[:-len("-srgb")] in _NON_SRGB:
             return TargetFormat(fmt, fmt[:-len("-srgb")])
     raise RaybenchError(f"the window's surface offers no 8-bit RGBA or BGRA format (it offers {', '.join(formats)}); "
-                        "use `raybench render` to write frames as PNG files")
+                        f"{SUGGEST}")
 
 
 def pixels_to_rgb(data, width: int, height: int, fmt: str) -> np.ndarray:
@@ -208,6 +209,6 @@ def request_device(canvas=None):
     if failure is not None:
         reason = " ".join(str(failure).split()) or type(failure).__name__
         raise RaybenchError(f"no usable graphics adapter: wgpu found none that can draw to a window ({reason}); "
-                            "use `raybench render` to write frames as PNG files")
+                            f"{SUGGEST}")
     sys.stderr.write(native["text"])
     return adapter, device

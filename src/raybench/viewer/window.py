@@ -9,8 +9,8 @@ Pacing: the canvas draws on demand. The worker asks for a draw (through the
 loop's call_soon_threadsafe) when a frame is ready; that draw shows it and
 hands the worker the next request, so the device traces frame k + 1 while
 frame k is on screen. A slow device never blocks the loop: events, resizes
-and redraws of the frame on screen go on while it traces. A slow redraw keeps
-the title's numbers fresh (MIN_FPS).
+and redraws of the frame on screen go on while it traces; a redraw at least
+MIN_FPS times a second keeps the title's numbers and messages current.
 """
 
 from __future__ import annotations
@@ -28,13 +28,12 @@ from ..errors import RaybenchError
 from ..files import write_atomic
 from ..render import png_bytes
 from .bindings import help_lines
-from .gpu import TextureQuad, choose_target_format, request_device
+from .gpu import SUGGEST, TextureQuad, choose_target_format, request_device
 from .state import ViewerState
 from .worker import TracedFrame, TraceWorker
 
 MIN_FPS = 2      # redraws per second at least: the title's frame time, fps and messages stay current
 MAX_FPS = 240    # draws per second at most; frame times are measured by the tracer, not by this cap
-SUGGEST = "use `raybench render` to write frames as PNG files"
 
 
 def check_display() -> None:
