@@ -294,7 +294,7 @@ def test_keys_change_what_is_drawn(display, tmp_path):
 
 
 @pytest.mark.skipif(not cuda_backend.available(), reason="no CUDA GPU and numba's simulator is off")
-def test_tab_switches_to_cuda_live_and_draws_the_same_picture(display):
+def test_tab_switches_live_to_cuda_or_its_simulator_and_draws_the_same_picture(display):
     """Tab traces the next frames on cuda (numba's simulator where there is no
     GPU), then back on the CPU. The algorithm is the same, so the picture is the
     same (bit for bit under the simulator, within a step on a GPU); what changes
