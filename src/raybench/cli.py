@@ -1,4 +1,4 @@
-"""The command line: raybench render | info.
+"""The command line: raybench render | view | info | bench | report.
 
 Every mistake a user can make ends as one line on stderr and exit code 2; no
 traceback reaches the terminal for input we can name.
@@ -42,17 +42,17 @@ def parse_block(text: str) -> tuple[int, int]:
     return parse_pair(text, "--block", "16x16")
 
 
-def check_output(path: Path) -> None:
+def check_output(path: Path, option: str = "-o") -> None:
     """Refuse an output we could not write before spending time on a render."""
     if path.suffix.lower() != ".png":
-        raise RaybenchError(f"-o {path}: the output must be a .png file")
+        raise RaybenchError(f"{option} {path}: the output must be a .png file")
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
-        raise RaybenchError(f"-o {path}: folder {folder} does not exist")
+        raise RaybenchError(f"{option} {path}: folder {folder} does not exist")
     if path.is_dir():
-        raise RaybenchError(f"-o {path}: is a folder; give a file name")
+        raise RaybenchError(f"{option} {path}: is a folder; give a file name")
     if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
-        raise RaybenchError(f"-o {path}: not writable; choose another path")
+        raise RaybenchError(f"{option} {path}: not writable; choose another path")
 
 
 def load_scene(scene_file, spheres, seed):
@@ -107,6 +107,75 @@ def render(scene_file, spheres, seed, size, device, threads, block, kernel, outp
     frame.save(output)
     click.echo(f"wrote {output}: {width}x{height}, {len(scene):,} spheres, {frame.device}, "
                f"{elapsed:.2f} s including compilation")
+
+
+def _view_help() -> str:
+    from .viewer.bindings import help_lines
+
+    # "\b" keeps click from re-wrapping the key table.
+    return ("Open a window that shows frames as fast as the device traces them.\n\n"
+            "The title bar shows the device, the sphere count, the resolution, the frame time "
+            "(averaged over the last second) and frames per second. The picture is the one "
+            "`raybench render` writes for the same view, byte for byte.\n\n"
+            "\b\nKeys:\n" + "\n".join("  " + line for line in help_lines()))
+
+
+@main.command(help=_view_help())
+@click.option("--scene", "scene_file", type=click.Path(dir_okay=False), help="scene JSON file to show")
+@click.option("--spheres", type=int, help="show N random spheres instead of a scene file")
+@click.option("--seed", type=int, help="seed of the random spheres (default 0)")
+@click.option("--size", default="800x600", show_default=True, help="window size as WIDTHxHEIGHT, e.g. 1680x1050")
+@click.option("--device", default="auto", show_default=True, type=click.Choice(["auto", "cpu", "cuda"]),
+              help="where to trace first (switch live with Tab): auto picks cuda when a usable GPU is present")
+@click.option("--threads", type=int, help="cpu: number of threads (default: all cores)")
+@click.option("--block", help="cuda: thread block shape XxY (default 16x16)")
+@click.option("--frames", type=click.IntRange(min=1), help="close after N traced frames are shown")
+@click.option("--screenshot", type=click.Path(path_type=Path),
+              help="with --frames: save the last frame, as drawn in the window, to this PNG file")
+def view(scene_file, spheres, seed, size, device, threads, block, frames, screenshot):
+    from . import backends
+    from .viewer import view as open_viewer
+
+    scene = load_scene(scene_file, spheres, seed)
+    width, height = parse_size(size)
+    if screenshot is not None:
+        if frames is None:
+            raise RaybenchError("--screenshot needs --frames N (the frame to save); in the window, P saves a screenshot")
+        check_output(screenshot, "--screenshot")
+    device = backends.resolve(device)
+    options = {"cpu": {}, "cuda": {}}
+    if threads is not None:
+        options["cpu"]["threads"] = threads
+        _check_options("cpu", options["cpu"])
+    if block is not None:
+        options["cuda"]["block"] = parse_block(block)
+        try:
+            backends.resolve("cuda")
+        except RaybenchError:
+            pass  # no cuda here: a switch to it will say so, block or not
+        else:
+            _check_options("cuda", options["cuda"])
+    seed = None if scene_file is not None else (0 if seed is None else seed)
+    window = open_viewer(scene, device=device, seed=seed, size=(width, height), options=options,
+                         frames=frames, screenshot=screenshot)
+    if frames is not None and window.state.frames_shown < frames:
+        raise RaybenchError(f"the window was closed after {window.state.frames_shown} of {frames} frames"
+                            + ("; no screenshot written" if screenshot is not None else ""))
+    if frames is not None:
+        shown = window.state.shown
+        last = (f"{shown.frame.width}x{shown.frame.height}, {shown.request.count:,} spheres, {shown.frame.device}, "
+                f"frame {frames} traced in {shown.trace_ms:.1f} ms")
+        click.echo(f"wrote {screenshot}: {last}" if screenshot is not None else f"showed {frames} frames; the last: {last}")
+
+
+def _check_options(device: str, options: dict) -> None:
+    """Refuse bad --threads / --block before a window opens: the backend itself
+    checks them, on an empty 1x1 tracer."""
+    import numpy as np
+
+    from . import backends
+
+    backends.tracer(device, np.zeros((7, 0), np.float32), 1, 1, **options).close()
 
 
 @main.command()

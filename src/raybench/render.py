@@ -34,11 +34,7 @@ class Frame:
         return self.image.shape[0]
 
     def png_bytes(self) -> bytes:
-        from PIL import Image
-
-        buf = io.BytesIO()
-        Image.fromarray(self.image, "RGB").save(buf, format="PNG")
-        return buf.getvalue()
+        return png_bytes(self.image)
 
     def _repr_png_(self) -> bytes:
         return self.png_bytes()
@@ -49,6 +45,16 @@ class Frame:
         if path.suffix.lower() != ".png":
             raise RaybenchError(f"{path}: the output must be a .png file")
         write_atomic(path, self.png_bytes())
+
+
+def png_bytes(image: np.ndarray) -> bytes:
+    """An (H, W, 3) uint8 RGB image as PNG file contents: the one encoder every
+    sink that writes pictures uses (Frame.save, the viewer's screenshots)."""
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(image, "RGB").save(buf, format="PNG")
+    return buf.getvalue()
 
 
 def render(scene: Scene, camera: Camera | None = None, width: int = 800, height: int = 600,

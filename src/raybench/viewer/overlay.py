@@ -1,0 +1,50 @@
+"""The status line shown in the window's title bar.
+
+The title bar, not text drawn over the picture: what the window shows stays
+exactly the traced frame, byte for byte what `raybench render` writes, and a
+screenshot is the picture alone.
+"""
+
+from __future__ import annotations
+
+from .bindings import help_summary
+
+SEPARATOR = "  |  "
+
+
+def _ms(ms: float | None) -> str:
+    if ms is None:
+        return "- ms"
+    return f"{ms:.1f} ms" if ms < 1000 else f"{ms / 1000:.2f} s"
+
+
+def _fps(fps: float | None) -> str:
+    if fps is None:
+        return "- fps"
+    return f"{fps:.1f} fps" if fps < 100 else f"{fps:.0f} fps"
+
+
+def status_line(*, device: str, spheres: int, width: int, height: int, frame_ms: float | None,
+                fps: float | None, ramp: bool = False, message: str | None = None) -> str:
+    """device, sphere count, resolution, frame time and frames per second of
+    what is on screen; then the ramp flag and the latest message."""
+    parts = ["raybench", device, f"{spheres:,} spheres", f"{width}x{height}",
+             f"frame {_ms(frame_ms)}", _fps(fps)]
+    if ramp:
+        parts.append("ramp")
+    if message:
+        parts.append(message)
+    return SEPARATOR.join(parts)
+
+
+def waiting_line(*, device: str, spheres: int, width: int, height: int, message: str | None = None) -> str:
+    """Before the first frame is on screen (the first frame compiles the kernel)."""
+    parts = ["raybench", device, f"{spheres:,} spheres", f"{width}x{height}",
+             "tracing the first frame (compiling the kernel)..."]
+    if message:
+        parts.append(message)
+    return SEPARATOR.join(parts)
+
+
+def help_line() -> str:
+    return "raybench keys: " + help_summary()

@@ -1,0 +1,228 @@
+"""The window: a rendercanvas glfw canvas drawn with wgpu (Vulkan, Metal or D3D12).
+
+It glues the parts together and decides nothing itself: events go to
+ViewerState.handle_event, frames are traced by the TraceWorker's thread, each
+finished frame is uploaded to the texture and drawn by TextureQuad, and the
+title bar shows ViewerState.title().
+
+Pacing: the canvas draws on demand. The worker asks for a draw (through the
+loop's call_soon_threadsafe) when a frame is ready; that draw shows it and
+hands the worker the next request, so the device traces frame k + 1 while
+frame k is on screen. A slow device never blocks the loop: events, resizes
+and redraws of the frame on screen go on while it traces; a redraw at least
+MIN_FPS times a second keeps the title's numbers and messages current.
+"""
+
+from __future__ import annotations
+
+import datetime
+import os
+import re
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import RaybenchError
+from ..files import write_atomic
+from ..render import png_bytes
+from .bindings import help_lines
+from .gpu import SUGGEST, TextureQuad, choose_target_format, request_device
+from .state import ViewerState
+from .worker import TracedFrame, TraceWorker
+
+MIN_FPS = 2      # redraws per second at least: the title's frame time, fps and messages stay current
+MAX_FPS = 240    # draws per second at most; frame times are measured by the tracer, not by this cap
+
+
+def check_display() -> None:
+    """Refuse, in one line, to open a window where there is no screen."""
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise RaybenchError(f"no display: DISPLAY and WAYLAND_DISPLAY are not set, so there is no screen "
+                            f"for the window; {SUGGEST}")
+    try:
+        import glfw
+    except Exception as exc:  # noqa: BLE001 - ImportError, or OSError from loading libglfw
+        raise RaybenchError(f"no display: the glfw library cannot be loaded ({exc}); {SUGGEST}") from None
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        ok = glfw.init()
+    if not ok:
+        reason = "; ".join(_glfw_message(w.message) for w in caught) or "glfw.init() failed"
+        raise RaybenchError(f"no display: cannot open a window ({reason}); {SUGGEST}")
+
+
+def _glfw_message(warning) -> str:
+    """pyGLFW's warnings read "(65550) b'X11: Failed to open display :5'": keep the words."""
+    text = " ".join(str(warning).split())
+    match = re.fullmatch(r"\(\d+\) b(['\"])(.*)\1", text)
+    return match[2] if match else text
+
+
+def surface_capabilities(context, adapter) -> dict:
+    """The formats and usages the window's surface supports. rendercanvas does
+    not expose them; read them from the wgpu context it wraps, or assume the
+    least (the preferred format, drawing only) if that ever moves."""
+    try:
+        caps = context._wgpu_context._get_capabilities(adapter)
+        return {"formats": list(caps["formats"]), "usages": int(caps["usages"])}
+    except Exception:  # noqa: BLE001
+        import wgpu
+
+        return {"formats": [context.get_preferred_format(adapter)], "usages": int(wgpu.TextureUsage.RENDER_ATTACHMENT)}
+
+
+def screenshot_path(folder: Path) -> Path:
+    """raybench-view-<date>-<time>.png in folder, never overwriting one."""
+    stem = f"raybench-view-{datetime.datetime.now():%Y%m%d-%H%M%S}"
+    path, n = folder / f"{stem}.png", 2
+    while path.exists():
+        path, n = folder / f"{stem}-{n}.png", n + 1
+    return path
+
+
+class ViewerWindow:
+    def __init__(self, state: ViewerState, size: tuple[int, int], *, frames: int | None = None,
+                 screenshot: Path | None = None):
+        """frames: close after this many traced frames are shown, saving the last
+        as screenshot (if given). P saves into the current folder."""
+        import wgpu
+
+        check_display()
+        from rendercanvas.glfw import RenderCanvas, loop
+
+        self.state = state
+        self.frames = frames
+        self.screenshot = screenshot
+        self.saved: list[Path] = []
+        self.failure: RaybenchError | None = None
+        self.loop = loop
+        self._listeners = []
+        self._texture = None  # the surface texture, during a draw only
+        self._closing = False
+        try:
+            self.canvas = RenderCanvas(size=size, title="raybench", update_mode="ondemand", min_fps=MIN_FPS,
+                                       max_fps=MAX_FPS, vsync=False)
+        except Exception as exc:  # noqa: BLE001
+            raise RaybenchError(f"cannot open a window ({' '.join(str(exc).split())}); {SUGGEST}") from None
+        try:
+            self.context = self.canvas.get_wgpu_context()
+            self.adapter, self.device = request_device(self.canvas)
+            caps = surface_capabilities(self.context, self.adapter)
+            self.format = choose_target_format(caps["formats"])
+            # Read the screenshot from the surface itself where it allows copies; else
+            # from an offscreen texture drawn the same way (TextureQuad.draw_offscreen).
+            self.surface_readable = bool(caps["usages"] & wgpu.TextureUsage.COPY_SRC)
+            usage = wgpu.TextureUsage.RENDER_ATTACHMENT | (wgpu.TextureUsage.COPY_SRC if self.surface_readable else 0)
+            self.context.configure(device=self.device, format=self.format.configure, usage=usage,
+                                   view_formats=self.format.view_formats)
+            self.quad = TextureQuad(self.device, self.format.view)
+        except BaseException:
+            self.canvas.close()
+            raise
+        self.worker = TraceWorker(on_done=self._frame_ready)
+        self.canvas.add_event_handler(self.handle_event, "key_down", "key_up", "pointer_down", "pointer_move",
+                                      "pointer_up")
+        self.canvas.request_draw(self._draw)
+
+    # ------------------------------------------------------------------ running
+
+    def run(self) -> None:
+        """Show frames until the window is closed (Esc, the close button, or --frames)."""
+        try:
+            self.loop.run()
+        finally:
+            self._closing = True
+            if not self.canvas.get_closed():
+                self.canvas.close()
+            self.worker.close()
+        if self.failure is not None:
+            raise self.failure
+
+    def close(self) -> None:
+        """Close the window after the current draw (never inside one: the frame is still being presented)."""
+        self._closing = True
+        self.loop.call_soon(self.canvas.close)
+
+    def add_frame_listener(self, listener) -> None:
+        """listener(window, traced_frame) is called after each traced frame is
+        drawn, while window.read_drawn() can still read it (tests and scripts)."""
+        self._listeners.append(listener)
+
+    # ------------------------------------------------------------------ events and frames
+
+    def handle_event(self, event: dict) -> None:
+        """The canvas's event handler: rendercanvas event dicts (tests call it too)."""
+        action = self.state.handle_event(event)
+        if action == "quit":
+            self.close()
+            return
+        if action == "help" and self.state.help:
+            print("\n".join(["raybench view keys:"] + ["  " + line for line in help_lines()]), flush=True)
+        self.canvas.request_draw()  # the title, a screenshot, a new request after a stall: all at the next draw
+
+    def _frame_ready(self) -> None:
+        """From the worker thread: a frame (or a failure) waits to be shown."""
+        self.loop.call_soon_threadsafe(self.canvas.request_draw)
+
+    def _draw(self) -> None:
+        # First the surface texture: if the window cannot be drawn now (hidden,
+        # resizing) this raises and the finished frame stays for the next draw.
+        texture = self.context.get_current_texture()
+        result = self.worker.handoff.take()
+        traced = None
+        if result is not None:
+            self.state.on_traced(result)
+            if isinstance(result, TracedFrame):
+                self.quad.upload(result.rgba)
+                traced = result
+        self.quad.draw(texture.create_view(format=self.format.view))
+        self._texture = texture
+        try:
+            if traced is not None:
+                for listener in list(self._listeners):
+                    listener(self, traced)
+            if self.state.screenshot_wanted:
+                self.state.screenshot_wanted = False
+                self._save(screenshot_path(Path.cwd()))
+            if traced is not None and self.frames is not None and self.state.frames_shown >= self.frames:
+                if self.screenshot is not None:
+                    self.failure = self._save(self.screenshot)  # raised by run(): the caller asked for this file
+                self.close()
+        finally:
+            self._texture = None
+        self.canvas.set_title(self.state.title())
+        self._trace_next()
+
+    def read_drawn(self) -> np.ndarray:
+        """The picture drawn in the current draw, as (H, W, 3) RGB bytes: read
+        back from the window's surface, or, where the surface cannot be read,
+        drawn again by the same pipeline into a texture of the same format."""
+        if self._texture is None:
+            raise RuntimeError("read_drawn() works only during a draw (in a frame listener)")
+        if self.surface_readable:
+            return self.quad.read(self._texture)
+        width, height = self._texture.size[:2]
+        return self.quad.draw_offscreen(width, height)
+
+    def _save(self, path: Path) -> RaybenchError | None:
+        """Write what was drawn as a PNG; the error, if it could not be (also shown in the title)."""
+        try:
+            write_atomic(path, png_bytes(self.read_drawn()))
+        except RaybenchError as exc:
+            self.state.say(str(exc))
+            return exc
+        self.saved.append(path)
+        self.state.say(f"saved {path}")
+        return None
+
+    def _trace_next(self) -> None:
+        if self._closing or not self.worker.handoff.may_trace():
+            return
+        width, height = self.canvas.get_physical_size()
+        if width < 1 or height < 1:
+            return  # minimised: nothing to trace for
+        request = self.state.next_request(width, height)
+        if request is not None:
+            self.worker.submit(request)

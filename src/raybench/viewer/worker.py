@@ -1,0 +1,156 @@
+"""The tracing thread: frames are traced here, off the window's event loop.
+
+The thread only calls the backends' tracers (the same Tracer objects that
+render() and the benchmark use); it never traces by itself. It keeps one tracer
+and replaces it when the device, size, scene or options change. Every tracer
+is made, used and closed on this one thread, which is what makes switching the
+device while a frame is in flight safe: the switch only changes the next
+request, and a CUDA context never crosses threads.
+
+The CPU kernels run with the GIL released (nogil), so the window stays
+responsive while all cores trace; numba's CUDA simulator is pure Python and
+shares the GIL, which makes the window slower to react but never blocks it.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import backends
+from ..camera import Camera
+from ..errors import RaybenchError
+from ..render import Frame
+from ..scene import Scene
+from .pacing import Handoff
+
+
+@dataclass(frozen=True)
+class TraceRequest:
+    number: int
+    device: str
+    scene: Scene
+    count: int
+    camera: Camera
+    width: int
+    height: int
+    options: dict = field(default_factory=dict)  # the device's own (cpu: threads; cuda: block)
+
+
+@dataclass
+class TracedFrame:
+    request: TraceRequest
+    frame: Frame
+    rgba: np.ndarray           # (H, W, 4) uint8: the frame as the texture wants it
+    trace_ms: float            # camera basis, trace and copy to the host: the whole frame
+    compile_s: float | None    # set on the first frame of a new tracer
+
+
+@dataclass
+class TraceFailed:
+    request: TraceRequest
+    message: str
+
+
+def to_rgba(image: np.ndarray) -> np.ndarray:
+    """(H, W, 3) RGB -> (H, W, 4) RGBA with opaque alpha: textures have no 3-byte
+    formats. Done here so the event loop only copies bytes to the GPU."""
+    rgba = np.empty(image.shape[:2] + (4,), dtype=np.uint8)
+    rgba[..., :3] = image
+    rgba[..., 3] = 255
+    return rgba
+
+
+class TraceWorker:
+    """One thread that traces the requests given to it, one at a time.
+
+    on_done is called from the worker thread after each frame (or failure) is
+    handed over; it must be thread-safe (the window passes the loop's
+    call_soon_threadsafe)."""
+
+    def __init__(self, on_done=None):
+        self.handoff = Handoff()
+        self._on_done = on_done
+        self._wake = threading.Condition()
+        self._request: TraceRequest | None = None
+        self._closing = False
+        self._tracer = None
+        self._tracer_key = None
+        self._tracer_scene = None
+        self._thread = threading.Thread(target=self._run, name="raybench-trace", daemon=True)
+        self._thread.start()
+
+    def submit(self, request: TraceRequest) -> None:
+        """Trace this next; only when handoff.may_trace()."""
+        self.handoff.start(request)
+        with self._wake:
+            self._request = request
+            self._wake.notify()
+
+    def close(self, timeout: float | None = None) -> None:
+        """Stop after the frame in flight, if any, and release the tracer."""
+        with self._wake:
+            self._closing = True
+            self._wake.notify()
+        self._thread.join(timeout)
+
+    def _run(self) -> None:
+        try:
+            while True:
+                with self._wake:
+                    while self._request is None and not self._closing:
+                        self._wake.wait()
+                    if self._closing:
+                        return
+                    request, self._request = self._request, None
+                self.handoff.finish(self._trace(request))
+                if self._on_done is not None:
+                    try:
+                        self._on_done()
+                    except Exception:
+                        pass  # the window is gone; nobody is waiting for this frame
+        finally:
+            self._drop_tracer()
+
+    def _trace(self, request: TraceRequest) -> TracedFrame | TraceFailed:
+        try:
+            compile_s = self._ensure_tracer(request)
+            start = time.perf_counter()
+            image, hits = self._tracer.trace(request.camera.basis(request.width, request.height), request.count)
+            trace_ms = (time.perf_counter() - start) * 1e3
+            # The tracer reuses its buffers for the next frame: the Frame gets copies, as render() gives.
+            frame = Frame(image=image.copy(), hits=hits.copy(), device=self._tracer.name)
+            return TracedFrame(request, frame, to_rgba(frame.image), trace_ms, compile_s)
+        except RaybenchError as exc:
+            self._drop_tracer()
+            return TraceFailed(request, str(exc))
+        except Exception as exc:  # noqa: BLE001 - shown in the title; the window must live on
+            self._drop_tracer()
+            return TraceFailed(request, f"{request.device} failed: {type(exc).__name__}: {exc}")
+
+    def _ensure_tracer(self, request: TraceRequest) -> float | None:
+        """Make the tracer this request needs, if it is not the one held; the
+        seconds its compilation took (None if it was already there)."""
+        key = (request.device, id(request.scene), request.width, request.height,
+               tuple(sorted(request.options.items())))
+        if key == self._tracer_key:
+            return None
+        self._drop_tracer()
+        tracer = backends.tracer(request.device, request.scene.spheres, request.width, request.height,
+                                 **request.options)
+        try:
+            compile_s = tracer.compile()
+        except BaseException:
+            tracer.close()
+            raise
+        # The scene is held with the key: its id() must not be reused while the key is.
+        self._tracer, self._tracer_key, self._tracer_scene = tracer, key, request.scene
+        return compile_s
+
+    def _drop_tracer(self) -> None:
+        if self._tracer is not None:
+            self._tracer.close()
+        self._tracer, self._tracer_key, self._tracer_scene = None, None, None

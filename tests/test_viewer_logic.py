@@ -1,0 +1,584 @@
+"""The viewer's logic without a window: keys to camera motion, +/- and the ramp,
+frame pacing and statistics, the title bar, and the tracing thread.
+
+Events are rendercanvas-style dicts given to ViewerState.handle_event, the very
+handler the window registers; time is a fake clock the tests advance.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import raybench
+from raybench import Camera, Scene, random_spheres
+from raybench.backends import cuda as cuda_backend
+from raybench.bench.suites import RAMP
+from raybench.cli import run
+from raybench.viewer import bindings, controls, overlay
+from raybench.viewer.pacing import FrameStats, Handoff
+from raybench.viewer.spheres import SphereSupply
+from raybench.viewer.state import ViewerState
+from raybench.viewer.worker import TraceFailed, TracedFrame, TraceRequest, TraceWorker, to_rgba
+
+
+class Clock:
+    def __init__(self, t=100.0):
+        self.t = t
+
+    def __call__(self):
+        return self.t
+
+    def advance(self, seconds):
+        self.t += seconds
+
+
+def key(name, kind="key_down"):
+    return {"event_type": kind, "key": name, "modifiers": ()}
+
+
+def pointer(kind, x, y, button=1, buttons=(1,)):
+    return {"event_type": kind, "x": x, "y": y, "button": button, "buttons": buttons, "modifiers": (),
+            "ntouches": 0, "touches": {}}
+
+
+def make_state(n=20, seed=0, device="cpu", **kwargs):
+    clock = Clock()
+    state = ViewerState(random_spheres(n, seed), device=device, seed=seed, clock=clock, **kwargs)
+    return state, clock
+
+
+def close_to(a, b, tol=1e-9):
+    return np.allclose(np.asarray(a, float), np.asarray(b, float), atol=tol, rtol=0)
+
+
+def fake_traced(request, device=None, trace_ms=10.0, compile_s=None):
+    """A TracedFrame for request without tracing (for state and title tests)."""
+    image = np.zeros((request.height, request.width, 3), np.uint8)
+    frame = raybench.Frame(image=image, hits=np.full(image.shape[:2], -1, np.int32), device=device or request.device)
+    return TracedFrame(request, frame, to_rgba(image), trace_ms, compile_s)
+
+
+# --------------------------------------------------------------------------- key bindings
+
+
+def test_every_binding_has_a_distinct_key_and_a_handler():
+    keys = [k.lower() for b in bindings.BINDINGS for k in b.keys]
+    assert len(keys) == len(set(keys))
+    state, _ = make_state()
+    for b in bindings.BINDINGS:
+        if b.action in ("quit",):
+            continue
+        assert state.handle_event(key(b.keys[0])) == b.action
+        state.handle_event(key(b.keys[0], "key_up"))
+
+
+def test_keys_are_matched_case_blind_and_unknown_keys_do_nothing():
+    assert bindings.binding_for("W").action == "forward"       # W with Shift held
+    assert bindings.binding_for("escape") is bindings.binding_for("Escape")
+    assert bindings.binding_for("=").action == "more_spheres"  # the + key without Shift
+    assert bindings.binding_for("F7") is None
+    assert bindings.binding_for(None) is None
+    state, _ = make_state()
+    assert state.handle_event(key("F7")) is None
+    assert state.handle_event({"event_type": "resize", "width": 5, "height": 5}) is None
+
+
+def test_help_lists_every_key_and_the_mouse(capsys):
+    lines = bindings.help_lines()
+    text = "\n".join(lines)
+    for label in ["W", "A", "S", "D", "Tab", "+", "-", "T", "R", "P", "H", "Esc", "drag"]:
+        assert any(line.split()[0] == label or line.startswith(label + " ") for line in lines), label
+    assert "test 7" in text
+    code = run(["view", "--help"])
+    out = capsys.readouterr().out
+    assert code == 0
+    for line in lines:
+        assert line in out, line
+
+
+# --------------------------------------------------------------------------- camera motion
+
+
+def test_moves_follow_the_cameras_own_axes():
+    cam = Camera()
+    forward, right, up = controls.axes(cam)
+    assert close_to(forward, [0, 0, 1]) and close_to(up, [0, 1, 0])
+    # right = cross(forward, up): the direction of increasing pixel x in camera.py's convention.
+    assert close_to(right, np.cross([0, 0, 1], [0, 1, 0]))
+    ahead = controls.moved(cam, 2.0, 0.0)
+    assert close_to(ahead.position, [0, 0, 2]) and close_to(ahead.look_at, [0, 0, 3])
+    aside = controls.moved(cam, 0.0, 1.5)
+    assert close_to(aside.position, 1.5 * right)
+    assert close_to(controls.axes(aside)[0], forward)  # moving never turns
+
+
+def test_turning_right_looks_where_right_was_and_keeps_the_horizon():
+    cam = Camera(position=(1, 2, 3), look_at=(1, 2, 13))
+    _, right, _ = controls.axes(cam)
+    turned = controls.turned(cam, 90.0, 0.0)
+    assert close_to(controls.axes(turned)[0], right)
+    assert turned.position == cam.position
+    assert math.isclose(np.linalg.norm(np.subtract(turned.look_at, turned.position)), 10.0)
+    back = controls.turned(turned, -90.0, 0.0)
+    assert close_to(back.look_at, cam.look_at, 1e-9)
+
+
+def test_looking_up_stops_short_of_straight_up():
+    cam = controls.turned(Camera(), 0.0, 30.0)
+    f, _, up = controls.axes(cam)
+    assert math.isclose(math.degrees(math.asin(f @ up)), 30.0)
+    steep = controls.turned(cam, 0.0, 500.0)
+    f, _, up = controls.axes(steep)
+    assert math.isclose(math.degrees(math.asin(f @ up)), controls.MAX_ELEVATION_DEG)
+    steep.basis(8, 8)  # still a valid camera
+
+
+def test_held_keys_count_the_time_held_not_the_frames():
+    keys = controls.HeldKeys()
+    keys.press("forward", 0.0)
+    keys.press("forward", 0.2)  # key repeat: the first press counts
+    assert keys.take(0.3) == {"forward": pytest.approx(0.3)}
+    keys.release("forward", 0.5)
+    keys.press("left", 0.6)
+    keys.release("left", 0.7)
+    held = keys.take(5.0)  # one slow frame later
+    assert held == {"forward": pytest.approx(0.2), "left": pytest.approx(0.1)}
+    assert keys.take(6.0) == {}
+    keys.release("back", 7.0)  # a release without a press (focus changed) is ignored
+    assert keys.take(8.0) == {}
+
+
+def test_w_held_moves_as_far_whatever_the_frame_rate():
+    """Half a second of W moves the camera speed/2 forward, whether the device
+    made one frame meanwhile or fifty."""
+    ends = []
+    for frames in (1, 50):
+        state, clock = make_state()
+        start = state.camera.position
+        state.handle_event(key("w"))
+        for _ in range(frames):
+            clock.advance(0.5 / frames)
+            state.next_request(16, 12)
+        state.handle_event(key("w", "key_up"))
+        state.next_request(16, 12)
+        ends.append(np.subtract(state.camera.position, start))
+        assert close_to(ends[-1], [0, 0, state.motion.speed * 0.5], 1e-9)
+    assert close_to(ends[0], ends[1], 1e-9)
+
+
+def test_wasd_directions_and_opposite_keys_cancel():
+    for name, direction in [("w", [0, 0, 1]), ("s", [0, 0, -1]), ("d", [-1, 0, 0]), ("a", [1, 0, 0])]:
+        state, clock = make_state()
+        state.handle_event(key(name))
+        clock.advance(1.0)
+        state.next_request(16, 12)
+        assert close_to(state.camera.position, np.multiply(direction, state.motion.speed)), name
+    state, clock = make_state()
+    state.handle_event(key("w"))
+    state.handle_event(key("s"))
+    clock.advance(1.0)
+    request = state.next_request(16, 12)
+    assert request.camera is state.home
+
+
+def test_mouse_drag_turns_and_a_plain_move_does_not():
+    state, _ = make_state()
+    state.handle_event(pointer("pointer_move", 10, 10, button=0, buttons=()))  # hover
+    state.next_request(16, 12)
+    assert state.camera is state.home
+    state.handle_event(pointer("pointer_down", 10, 10))
+    state.handle_event(pointer("pointer_move", 10 + 360 / controls.DRAG_DEG_PER_PIXEL / 4, 10))  # 90 degrees right
+    state.handle_event(pointer("pointer_up", 0, 0))
+    state.next_request(16, 12)
+    _, right, _ = controls.axes(state.home)
+    assert close_to(controls.axes(state.camera)[0], right)
+    state.handle_event(pointer("pointer_down", 0, 100))
+    state.handle_event(pointer("pointer_move", 0, 100 - 20 / controls.DRAG_DEG_PER_PIXEL))  # drag up: look up 20
+    state.next_request(16, 12)
+    f, _, up = controls.axes(state.camera)
+    assert math.isclose(math.degrees(math.asin(f @ up)), 20.0)
+
+
+def test_arrow_keys_turn_at_a_fixed_rate():
+    state, clock = make_state()
+    state.handle_event(key("ArrowLeft"))
+    clock.advance(0.5)
+    state.handle_event(key("ArrowLeft", "key_up"))
+    state.next_request(16, 12)
+    f, right, _ = controls.axes(state.camera)
+    angle = math.degrees(math.atan2(f @ controls.axes(state.home)[1], f @ controls.axes(state.home)[0]))
+    assert math.isclose(angle, -controls.TURN_DEG_PER_S * 0.5)
+
+
+def test_reset_gives_back_the_home_camera_exactly():
+    state, clock = make_state()
+    state.handle_event(key("d"))
+    state.handle_event(pointer("pointer_down", 0, 0))
+    state.handle_event(pointer("pointer_move", 40, 30))
+    clock.advance(0.7)
+    assert state.next_request(16, 12).camera != state.home
+    state.handle_event(key("r"))  # D is still down: reset forgets the motion so far
+    request = state.next_request(16, 12)
+    assert request.camera is state.home
+    assert np.array_equal(request.camera.basis(16, 12), state.home.basis(16, 12))
+
+
+def test_travel_speed_scales_with_the_scene():
+    near = controls.travel_speed(np.array([[0, 0, 2.0], [0, 0, 4.0], [0, 0, 6.0]]), Camera())
+    far = controls.travel_speed(np.array([[0, 0, 200.0], [0, 0, 400.0], [0, 0, 600.0]]), Camera())
+    assert near == pytest.approx(2.0) and far == pytest.approx(200.0)
+    assert controls.travel_speed(np.zeros((0, 3)), Camera()) == 1.0
+
+
+# --------------------------------------------------------------------------- +/- and the ramp
+
+
+def test_first_frame_is_the_view_raybench_render_draws():
+    scene_camera = Camera(position=(0, 1, -2), look_at=(0, 0, 10), fov_deg=50)
+    spheres = random_spheres(15, 3)
+    scene = Scene(spheres.centers, spheres.radii, spheres.colors, scene_camera)
+    state = ViewerState(scene, device="cpu", seed=None, clock=Clock())
+    request = state.next_request(40, 30)
+    assert request.camera is scene_camera and request.scene is scene and request.count == 15
+    generated, _ = make_state(n=25, seed=7)
+    request = generated.next_request(40, 30)
+    assert request.count == 25 and request.camera == Camera()
+    assert np.array_equal(request.scene.spheres, random_spheres(25, 7).spheres)
+
+
+def test_plus_and_minus_on_random_spheres():
+    supply = SphereSupply(random_spheres(25, 4), seed=4)
+    first = supply.scene
+    supply.fewer()
+    supply.fewer()
+    assert supply.count == 5 and supply.scene is first  # a prefix of the same scene
+    supply.more()
+    supply.more()
+    assert supply.count == 25 and supply.scene is first
+    assert supply.more() is None
+    # Past the end: what `raybench render --spheres 35 --seed 4` draws.
+    assert supply.count == 35 and np.array_equal(supply.scene.spheres, random_spheres(35, 4).spheres)
+    for _ in range(5):
+        supply.fewer()
+    assert supply.count == 0
+
+
+def test_plus_on_a_scene_file_stops_at_its_spheres():
+    supply = SphereSupply(random_spheres(25, 4), seed=None)
+    supply.fewer()
+    assert supply.more() is None and supply.count == 25
+    message = supply.more()
+    assert supply.count == 25 and "25 spheres" in message
+
+
+def test_ramp_is_test_7_one_step_per_frame():
+    supply = SphereSupply(random_spheres(20, 2), seed=2)
+    assert "ramp" in supply.toggle_ramp()
+    counts, messages = [], []
+    while True:
+        scene, count, message = supply.frame_count()
+        counts.append(count)
+        if message:
+            messages.append(message)
+            break
+    first, last, step = RAMP
+    assert counts == list(range(first, last + 1, step))  # the frame of 1000 spheres says it is done
+    assert np.array_equal(scene.spheres, random_spheres(last, 2).spheres)  # test 7's scene
+    assert not supply.ramping and "done" in messages[0]
+    # T during the ramp stops it where it is.
+    supply.toggle_ramp()
+    supply.frame_count()
+    supply.frame_count()
+    assert "stopped" in supply.toggle_ramp() and supply.count == first + 2 * step
+    assert supply.frame_count()[1] == first + 2 * step
+
+
+def test_ramp_over_a_small_scene_file():
+    supply = SphereSupply(random_spheres(25, 4), seed=None)
+    supply.toggle_ramp()
+    assert [supply.frame_count()[1] for _ in range(4)] == [10, 20, 25, 25]
+    assert not supply.ramping
+
+
+def test_keys_drive_the_sphere_count_of_the_next_request():
+    state, _ = make_state(n=20)
+    state.handle_event(key("="))
+    assert state.next_request(8, 6).count == 30
+    state.handle_event(key("-"))
+    state.handle_event(key("-"))
+    assert state.next_request(8, 6).count == 10
+    state.handle_event(key("t"))
+    assert [state.next_request(8, 6).count for _ in range(3)] == [10, 20, 30]
+
+
+# --------------------------------------------------------------------------- devices, frames, title
+
+
+def test_tab_cycles_devices_and_a_failed_switch_stays_on_the_working_one():
+    state, _ = make_state()
+    state.on_traced(fake_traced(state.next_request(8, 6)))
+    state.handle_event(key("Tab"))
+    assert state.device == "cuda"
+    request = state.next_request(8, 6)
+    assert request.device == "cuda"
+    state.on_traced(TraceFailed(request, "device cuda: no usable NVIDIA GPU"))
+    assert state.device == "cpu"
+    assert "no usable NVIDIA GPU" in state.title() and "staying on cpu" in state.title()
+    assert state.next_request(8, 6).device == "cpu"
+    state.handle_event(key("2"))
+    assert state.device == "cuda"
+    state.handle_event(key("1"))
+    assert state.device == "cpu"
+
+
+def test_switch_while_a_frame_is_in_flight_labels_frames_by_where_they_were_traced():
+    state, _ = make_state()
+    cpu_request = state.next_request(8, 6)        # in flight on the CPU ...
+    state.handle_event(key("Tab"))                 # ... when the user switches
+    state.on_traced(fake_traced(cpu_request))      # it is still shown, as a cpu frame
+    assert state.title().split("  |  ")[1].startswith("cpu")
+    cuda_request = state.next_request(8, 6)
+    assert cuda_request.device == "cuda"
+    state.on_traced(fake_traced(cuda_request))
+    assert "now on cuda" in state.title()
+
+
+def test_a_failure_on_the_working_device_waits_for_input_or_a_new_size():
+    state, _ = make_state()
+    request = state.next_request(8, 6)
+    state.on_traced(TraceFailed(request, "size: too big"))
+    assert "stopped: size: too big" in state.title()
+    assert state.next_request(8, 6) is None           # the same would fail again
+    assert state.next_request(9, 6) is not None       # resized
+    state.on_traced(TraceFailed(state.last_request, "size: too big"))
+    assert state.next_request(9, 6) is None
+    state.handle_event(key("-"))
+    assert state.next_request(9, 6) is not None       # the user changed something
+    assert "stopped" not in state.title()
+
+
+def test_title_shows_what_is_on_screen():
+    state, clock = make_state(n=1234, options={"cpu": {"threads": 3}})
+    waiting = state.title()
+    assert "1,234 spheres" in waiting and "compiling" in waiting
+    for _ in range(5):
+        state.on_traced(fake_traced(state.next_request(320, 200), trace_ms=20.0, compile_s=None))
+        clock.advance(0.05)
+    title = state.title()
+    parts = title.split("  |  ")
+    assert parts[:5] == ["raybench", "cpu, 3 threads", "1,234 spheres", "320x200", "frame 20.0 ms"]
+    assert parts[5] == "20.0 fps"
+    state.handle_event(key("t"))
+    assert "ramp" in state.title().split("  |  ")
+    state.handle_event(key("h"))
+    assert state.title() == overlay.help_line()
+    state.handle_event(key("h"))
+    assert state.title().startswith("raybench  |  cpu")
+
+
+def test_messages_expire():
+    state, clock = make_state()
+    state.on_traced(fake_traced(state.next_request(8, 6)))
+    state.handle_event(key("r"))
+    assert "view reset" in state.title()
+    clock.advance(10)
+    assert "view reset" not in state.title()
+
+
+def test_compile_time_is_reported_apart_from_frame_times():
+    state, _ = make_state()
+    state.on_traced(fake_traced(state.next_request(8, 6), trace_ms=4.0, compile_s=2.5))
+    title = state.title()
+    assert "compiled in 2.5 s" in title and "frame 4.0 ms" in title
+
+
+def test_quit_screenshot_and_help_flags():
+    state, _ = make_state()
+    assert state.handle_event(key("Escape")) == "quit" and state.quit
+    assert state.handle_event(key("p")) == "screenshot" and state.screenshot_wanted
+    assert state.handle_event(key("H")) == "help" and state.help
+
+
+def test_status_line_formats():
+    line = overlay.status_line(device="cuda", spheres=1000, width=1680, height=1050, frame_ms=1234.5, fps=0.81,
+                               ramp=False, message=None)
+    assert line == "raybench  |  cuda  |  1,000 spheres  |  1680x1050  |  frame 1.23 s  |  0.8 fps"
+    line = overlay.status_line(device="cpu", spheres=0, width=8, height=6, frame_ms=None, fps=None, ramp=True,
+                               message="hello")
+    assert line.endswith("frame - ms  |  - fps  |  ramp  |  hello")
+
+
+# --------------------------------------------------------------------------- pacing
+
+
+def test_handoff_allows_one_frame_in_flight_and_one_waiting():
+    handoff = Handoff()
+    assert handoff.may_trace()
+    handoff.start("request 1")
+    assert not handoff.may_trace() and handoff.in_flight == "request 1"
+    with pytest.raises(RuntimeError):
+        handoff.start("request 2")
+    handoff.finish("frame 1")
+    assert not handoff.may_trace()   # traced but not yet shown: no new trace
+    assert handoff.take() == "frame 1"
+    assert handoff.take() is None
+    assert handoff.may_trace()
+
+
+def test_frame_stats_average_over_the_last_second():
+    stats = FrameStats()
+    assert stats.frame_ms(0.0) is None and stats.fps(0.0) is None
+    for i in range(11):  # a frame every 0.1 s, alternating 10 and 30 ms
+        stats.add(i * 0.1, 10.0 if i % 2 else 30.0)
+    assert stats.fps(1.0) == pytest.approx(10.0)
+    assert stats.frame_ms(1.0) == pytest.approx(sum(10.0 if i % 2 else 30.0 for i in range(1, 11)) / 10)
+
+
+def test_frame_stats_for_frames_slower_than_a_second():
+    stats = FrameStats()
+    stats.add(0.0, 2500.0)
+    assert stats.fps(0.5) is None  # one frame: no rate yet
+    assert stats.frame_ms(3.0) == 2500.0  # older than a second, still the latest news
+    stats.add(2.5, 2400.0)
+    assert stats.fps(2.6) == pytest.approx(1 / 2.5)
+    assert stats.fps(7.5) == pytest.approx(1 / 5.0)  # nothing new for 5 s: the rate decays
+    assert stats.frame_ms(7.5) == 2400.0
+
+
+# --------------------------------------------------------------------------- the tracing thread
+
+
+def run_worker(requests, timeout=120):
+    """Trace requests one after another through a TraceWorker, as the window
+    does (submit, wait for on_done, take); the results."""
+    done = threading.Event()
+    worker = TraceWorker(on_done=done.set)
+    results = []
+    try:
+        for request in requests:
+            done.clear()
+            worker.submit(request)
+            assert done.wait(timeout), "the worker did not finish in time"
+            results.append(worker.handoff.take())
+    finally:
+        worker.close()
+    return results
+
+
+def request_for(scene, device, count=None, width=24, height=16, camera=None, options=None, number=1):
+    return TraceRequest(number=number, device=device, scene=scene, count=len(scene) if count is None else count,
+                        camera=camera or Camera(), width=width, height=height, options=options or {})
+
+
+def test_worker_frames_are_what_render_draws():
+    scene = random_spheres(30, 5)
+    camera = Camera(position=(0.5, 0, -1), look_at=(0, 0, 10))
+    results = run_worker([request_for(scene, "cpu", camera=camera),
+                          request_for(scene, "cpu", count=12, camera=camera, options={"threads": 3})])
+    assert all(isinstance(r, TracedFrame) for r in results), results
+    full, prefix = results
+    assert np.array_equal(full.frame.image, raybench.render(scene, camera, 24, 16, device="cpu").image)
+    assert np.array_equal(full.frame.hits, raybench.render(scene, camera, 24, 16, device="cpu").hits)
+    assert np.array_equal(prefix.frame.image, raybench.render(scene.head(12), camera, 24, 16, device="cpu").image)
+    assert np.array_equal(full.rgba[..., :3], full.frame.image) and (full.rgba[..., 3] == 255).all()
+    assert full.compile_s is not None and prefix.compile_s is not None  # new options: a new tracer
+    assert full.trace_ms > 0
+
+
+@pytest.mark.skipif(not cuda_backend.available(), reason="no CUDA GPU and the simulator is off")
+def test_worker_switches_cpu_to_cuda_and_back():
+    """Real device switch (cuda is numba's simulator without a GPU): each frame
+    comes from the device asked for; the pictures agree (bit for bit under the
+    simulator, within a step on a real GPU)."""
+    scene = random_spheres(8, 1)
+    results = run_worker([request_for(scene, d, width=16, height=12, number=i)
+                          for i, d in enumerate(["cpu", "cuda", "cpu"])])
+    assert [r.frame.device for r in results] == ["cpu", "cuda", "cpu"]
+    diff = np.abs(results[0].frame.image.astype(int) - results[1].frame.image.astype(int))
+    assert diff.max() <= (0 if cuda_backend.simulated() else 1)
+
+
+def test_worker_reports_an_unusable_device_and_goes_on(monkeypatch):
+    monkeypatch.setattr(cuda_backend, "available", lambda: False)
+    scene = random_spheres(5, 1)
+    failed, traced = run_worker([request_for(scene, "cuda"), request_for(scene, "cpu")])
+    assert isinstance(failed, TraceFailed) and "device cuda" in failed.message
+    assert isinstance(traced, TracedFrame) and traced.frame.device == "cpu"
+
+
+def test_worker_traces_off_the_event_loop():
+    """While a slow frame is traced, events are handled at once: the tracer runs
+    on the worker thread, and the CPU kernel releases the GIL."""
+    scene = random_spheres(3000, 0)   # about a second per frame on one thread of a slow machine
+    state, _ = make_state()
+    done = threading.Event()
+    worker = TraceWorker(on_done=done.set)
+    try:
+        worker.submit(request_for(scene, "cpu", width=24, height=16))  # compiles before the frame
+        assert done.wait(120)
+        worker.handoff.take()
+        done.clear()
+        start = time.perf_counter()
+        worker.submit(request_for(scene, "cpu", width=400, height=300, options={"threads": 1}))
+        slowest = 0.0
+        while not done.is_set():
+            t = time.perf_counter()
+            state.handle_event(key("d"))
+            state.handle_event(key("d", "key_up"))
+            state.next_request(8, 6)
+            slowest = max(slowest, time.perf_counter() - t)
+            time.sleep(0.005)
+        frame_s = time.perf_counter() - start
+        assert done.wait(120)
+        result = worker.handoff.take()
+    finally:
+        worker.close()
+    assert isinstance(result, TracedFrame)
+    assert frame_s > 0.1, "the frame was too quick to show anything"
+    assert slowest < 0.05, f"an event took {slowest * 1e3:.0f} ms while a {frame_s:.2f} s frame was traced"
+
+
+# --------------------------------------------------------------------------- bad input: one line, exit 2, before any window
+
+
+@pytest.mark.parametrize("args,needles", [
+    (["--spheres", "3", "--size", "0x5"], ["width", "got 0"]),
+    (["--spheres", "3", "--size", "big"], ["--size", "big"]),
+    (["--spheres", "3", "--device", "tpu"], ["--device", "tpu"]),
+    (["--spheres", "3", "--screenshot", "x.png"], ["--screenshot", "--frames"]),
+    (["--spheres", "3", "--frames", "2", "--screenshot", "x.jpg"], ["--screenshot", ".png"]),
+    (["--spheres", "3", "--frames", "2", "--screenshot", "missing/x.png"], ["--screenshot", "does not exist"]),
+    (["--spheres", "3", "--frames", "0"], ["--frames", "0"]),
+    (["--spheres", "3", "--threads", "0"], ["threads", "got 0"]),
+    (["--spheres", "3", "--block", "8"], ["--block"]),
+    (["--spheres", "3", "--scene", "s.json"], ["--scene", "--spheres"]),
+    (["--spheres", "-4"], ["sphere count", "-4"]),
+], ids=["size-0", "size-word", "device", "screenshot-without-frames", "screenshot-jpg", "screenshot-folder",
+        "frames-0", "threads-0", "block", "scene-and-spheres", "negative-spheres"])
+def test_view_bad_input_is_one_line_and_exit_2(capsys, tmp_path, monkeypatch, args, needles):
+    # No screen: input that got past the checks would end in "no display", not in these needles.
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.chdir(tmp_path)
+    code = run(["view", *args])
+    out, err = capsys.readouterr()
+    assert code == 2 and "Traceback" not in out + err
+    lines = err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("raybench: error: "), err
+    for needle in needles:
+        assert needle in lines[0], (needle, lines[0])
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_view_cuda_without_gpu_is_refused_before_the_window(capsys, monkeypatch):
+    monkeypatch.setattr(cuda_backend, "available", lambda: False)
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    code = run(["view", "--spheres", "3", "--device", "cuda"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith("raybench: error: device cuda") and "--device cpu" in err
