@@ -42,9 +42,20 @@ def test_tuning_points_follow_the_thesis():
 
 
 def test_constant_vs_runtime_pairs():
-    pts = suites.points(["constant-vs-runtime"], ["cpu"])
+    pts = suites.points(["constant-vs-runtime"], ["cpu"], kernels=("fast",))
     modes = {(p.spheres, p.options["count"]) for p in pts}
     assert modes == {(n, m) for n in suites.CONSTANT_COUNTS for m in ("constant", "runtime")}
+    # only the simple kernel has a compile-time count, whatever kernels were asked for
+    assert {p.options["kernel"] for p in pts} == {"simple"}
+
+
+def test_kernels_multiply_the_thesis_and_tuning_suites():
+    one = suites.points(["thesis", "tuning"], ["cpu"], cores=4)
+    both = suites.points(["thesis", "tuning"], ["cpu"], cores=4, kernels=("fast", "simple"))
+    assert {p.options["kernel"] for p in one} == {"fast"}
+    assert len(both) == 2 * len(one)
+    assert sorted(p.describe() for p in both if p.options["kernel"] == "simple") == \
+        sorted(p.describe().replace("kernel=fast", "kernel=simple") for p in one)
 
 
 def test_quick_is_smaller_and_unknown_suite_refused():

@@ -435,3 +435,16 @@ def test_scene_with_huge_integer(capsys, tmp_path, out_dir):
                    '[{"center": [0, 0, 5], "radius": 1' + "0" * 400 + ', "color": [1, 1, 1]}]}')
     expect_error(capsys, tmp_path, ["render", "--scene", bad, *TINY, "-o", out_dir / "x.png"],
                  "spheres[0].radius")
+
+
+def test_render_kernels_draw_the_same_png(capsys, tmp_path):
+    pngs = {}
+    for kernel in ("simple", "fast"):
+        code, out, err = cli(capsys, "render", "--spheres", 60, "--seed", 4, "--size", "67x45", "--device", "cpu",
+                             "--kernel", kernel, "-o", tmp_path / f"{kernel}.png")
+        assert code == 0, err
+        pngs[kernel] = np.asarray(Image.open(tmp_path / f"{kernel}.png"))
+    assert np.array_equal(pngs["simple"], pngs["fast"])
+    code, out, err = cli(capsys, "render", "--spheres", 3, "--kernel", "quick", "-o", tmp_path / "x.png")
+    assert_user_error(code, out, err, "--kernel", "quick")
+    assert not (tmp_path / "x.png").exists()

@@ -428,3 +428,18 @@ def test_cli_report_bad_record_writes_nothing(tmp_path, rng, capsys):
     assert code == 2 and err.count("\n") == 1 and "bad.jsonl" in err and "frame_ms" in err, err
     assert "Traceback" not in err and list((tmp_path / "rep").iterdir()) == []
 
+
+
+def test_each_kernel_is_judged_in_its_own_column(rng):
+    """One machine measured with both kernels: two columns, each with its own
+    speedups, never a fast CPU point matched with a simple GPU one."""
+    simple = thesis(rng)
+    fast = [dict(r, options={"kernel": "fast"}, frame_ms=ms(r["frame_ms"]["median"] / 3)) for r in thesis(rng)]
+    columns = report.group(simple + fast)
+    assert list(columns) == ["alpha, simple kernel", "alpha, fast kernel"]
+    for name, records in columns.items():
+        expected = {(r["width"], r["height"], r["spheres"]): r["frame_ms"]["median"] for r in records
+                    if r["device"] == "cpu"}
+        for p in report.speedups(records):
+            key = (p["width"], p["height"], p["spheres"])
+            assert p["cpu_ms"] == expected[key], name

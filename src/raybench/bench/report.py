@@ -159,6 +159,14 @@ def column(record: dict) -> str:
     return f"{record['run']['label']}, {kernel_of(record)} kernel"
 
 
+def group(records: list[dict]) -> dict[str, list[dict]]:
+    """Records by column(), in the order the columns are first seen."""
+    out: dict[str, list[dict]] = {}
+    for r in records:
+        out.setdefault(column(r), []).append(r)
+    return out
+
+
 def _describe_point(r: dict) -> str:
     opts = ", ".join(f"{k} {_fmt_opt(v)}" for k, v in (r.get("options") or {}).items())
     return (f"{r['suite']} {r['device']} {r['width']}x{r['height']} {r['spheres']} spheres"
