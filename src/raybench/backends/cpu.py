@@ -3,6 +3,8 @@
 This is the thesis's own scheme ("divided up into eight threads, which each
 process an equal amount of pixels"): any thread count from 1 to one per row,
 each thread running the compiled kernel on its band with the GIL released.
+Two kernels: "simple", the thesis's loop a pixel at a time, and "fast", which
+walks the spheres once per LANES pixels with a SIMD cull test (same pixels).
 
 fastmath stays off: the float32 arithmetic is then exactly IEEE, so the CPU image
 is bit-identical to the CUDA kernel run under numba's simulator, and the tests
