@@ -81,7 +81,7 @@ def main():
 @click.option("--device", default="auto", show_default=True, type=click.Choice(["auto", "cpu", "cuda"]),
               help="where to trace: auto picks cuda when a usable GPU is present")
 @click.option("--threads", type=int, help="cpu: number of threads (default: all cores)")
-@click.option("--block", help="cuda: thread block shape XxY (default 32x4 fast, 16x16 simple)")
+@click.option("--block", help="cuda: thread block shape XxY (default 32x2 fast, 16x16 simple)")
 @click.option("--kernel", type=click.Choice(KERNELS), default="fast", show_default=True,
               help="simple: the thesis's loop, a pixel at a time; fast: rays grouped and certain misses "
                    "skipped, the same picture")
