@@ -1,4 +1,5 @@
-"""Writing outputs so that nothing half-written is ever left behind."""
+"""Reading inputs with one-line errors, and writing outputs so that nothing
+half-written is ever left behind."""
 
 from __future__ import annotations
 
@@ -6,6 +7,18 @@ import os
 from pathlib import Path
 
 from .errors import RaybenchError
+
+
+def read_text(path, what: str) -> str:
+    """The UTF-8 text of path; a missing or unreadable file is a one-line
+    error naming it as `what` ("scene file", "results file")."""
+    path = Path(path)
+    try:
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise RaybenchError(f"{path}: no such {what}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RaybenchError(f"{path}: cannot read the {what} ({exc.__class__.__name__}: {exc})") from None
 
 
 def write_atomic(path, data: bytes) -> None:

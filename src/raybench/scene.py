@@ -15,7 +15,7 @@ import numpy as np
 
 from .camera import MAX_MAGNITUDE, Camera
 from .errors import RaybenchError
-from .files import write_atomic
+from .files import read_text, write_atomic
 
 FORMAT = "raybench-scene"
 VERSION = 1
@@ -143,12 +143,7 @@ class Scene:
     @classmethod
     def load(cls, path) -> "Scene":
         path = Path(path)
-        try:
-            text = path.read_text(encoding="utf-8")
-        except FileNotFoundError:
-            raise RaybenchError(f"{path}: no such scene file") from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise RaybenchError(f"{path}: cannot read the scene file ({exc.__class__.__name__}: {exc})") from None
+        text = read_text(path, "scene file")
         try:
             doc = json.loads(text)
         except json.JSONDecodeError as exc:

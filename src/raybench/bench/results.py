@@ -30,6 +30,7 @@ import warnings
 from pathlib import Path
 
 from ..errors import RaybenchError
+from ..files import read_text
 
 FORMAT = "raybench-results"
 VERSION = 1
@@ -72,12 +73,7 @@ def read(path) -> list[dict]:
     with a warning; a file that is not ours, or damaged before its end, is an
     error naming the line."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise RaybenchError(f"{path}: no such results file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise RaybenchError(f"{path}: cannot read results ({exc.__class__.__name__})") from None
+    text = read_text(path, "results file")
     lines = text.split("\n")
     records = []
     for number, line in enumerate(lines, 1):
