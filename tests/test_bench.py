@@ -31,12 +31,15 @@ def test_thesis_points_cover_tests_1_to_7():
 
 
 def test_tuning_points_follow_the_thesis():
-    pts = suites.points(["tuning"], ["cpu", "cuda"], cores=4)
+    pts = suites.points(["tuning"], ["cpu", "cuda"], cores=4, kernels=("simple",))
     cpu = {p.options["label"]: p.options["threads"] for p in pts if p.device == "cpu"}
     assert cpu == {"1 thread": 1, "half the cores": 2, "all cores": 4, "2x cores": 8, "one per row": 1050}
     blocks = [tuple(p.options["block"]) for p in pts if p.device == "cuda"]
     assert {(2, 2), (4, 4), (8, 8), (16, 16), (32, 32)} <= set(blocks)
     assert any(x != y for x, y in blocks), "some non-square shapes"
+    # The fast kernel launches at most 256 threads per block: larger shapes are left out.
+    fast = [p.options["block"] for p in suites.points(["tuning"], ["cuda"], kernels=("fast",))]
+    assert fast and all(x * y <= 256 for x, y in fast) and [16, 16] in fast
     # One core: half the cores and all cores are the same setting, measured once.
     assert [p.options["threads"] for p in suites.points(["tuning"], ["cpu"], cores=1)] == [1, 2, 1050]
 

@@ -41,12 +41,14 @@ def test_cuda_matches_reference_and_cpu(rng, kind, n, kernel):
             assert np.abs(gpu.image.astype(int) - cpu.image.astype(int)).max() <= 1, context
 
 
-def test_every_pixel_is_written(rng):
+@pytest.mark.parametrize("kernel", ["simple", "fast"])
+def test_every_pixel_is_written(rng, kernel):
     """Blocks that overhang the image must neither skip nor spill pixels."""
     scene, camera = KINDS["generated"](rng, 10)
     width, height = SIZES[1]
-    for block in [(1, 1), (7, 5), (32, 4)] if SIM else [(1, 1), (7, 5), (32, 32), (16, 8)]:
-        frame = raybench.render(scene, camera, width, height, device="cuda", block=block)
+    largest = (32, 32) if kernel == "simple" else (16, 16)  # the fast kernel's limit: 256 threads
+    for block in [(1, 1), (7, 5), (32, 4)] if SIM else [(1, 1), (7, 5), largest, (16, 8)]:
+        frame = raybench.render(scene, camera, width, height, device="cuda", block=block, kernel=kernel)
         ref = trace(scene, camera, width, height)
         check_frame(frame, ref, context=f"block {block}")
 

@@ -21,7 +21,7 @@ from numba.cuda.core.errors import NumbaPerformanceWarning
 from .. import kernels
 from ..kernels.trace import FAR, ZERO
 from ..errors import RaybenchError
-from .limits import HOST_PIXEL_BYTES, check_count, check_fits, check_kernel, host_available_bytes
+from .limits import FAST_MAX_THREADS, HOST_PIXEL_BYTES, check_count, check_fits, check_kernel, host_available_bytes
 
 DEFAULT_BLOCK = {"simple": (16, 16), "fast": (32, 2)}  # the fastest measured on an H100 (docs/performance.md)
 
@@ -163,13 +163,16 @@ def description() -> str:
     return f"cuda ({name})"
 
 
-def _check_block(block) -> tuple[int, int]:
+def _check_block(block, kernel: str) -> tuple[int, int]:
     try:
         bx, by = (int(v) for v in block)
     except (TypeError, ValueError):
         raise RaybenchError(f"block: must be two integers (x, y), got {block!r}") from None
     if bx < 1 or by < 1 or bx * by > 1024:
         raise RaybenchError(f"block: each side must be >= 1 and x*y at most 1024 threads, got {bx}x{by}")
+    if kernel == "fast" and bx * by > FAST_MAX_THREADS:
+        raise RaybenchError(f"block: the fast kernel takes at most {FAST_MAX_THREADS} threads per block (its rays "
+                            f"need the registers), got {bx}x{by}; use a smaller block or --kernel simple")
     return bx, by
 
 
@@ -191,7 +194,7 @@ class Tracer:
         block = DEFAULT_BLOCK[self.kernel] if block is None else block
         self.rays = _check_int("rays", rays, 1, MAX_RAYS) if self.kernel == "fast" else 1
         self.tile = _check_int("tile", tile, 1, MAX_TILE)
-        self.block = _check_block(block)
+        self.block = _check_block(block, self.kernel)
         free, _total = cuda.current_context().get_memory_info()
         check_fits("cuda GPU", width, height, spheres.shape[1], free)
         check_fits("host", width, height, 0, host_available_bytes(), HOST_PIXEL_BYTES)

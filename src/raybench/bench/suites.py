@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 
+from ..backends.limits import FAST_MAX_THREADS
 from ..errors import RaybenchError
 
 SUITES = ("thesis", "constant-vs-runtime", "tuning")
@@ -101,6 +102,8 @@ def points(suites, devices, quick: bool = False, cores: int | None = None, kerne
                         for label, t in settings]
             else:
                 blocks = ((8, 8), (16, 16), (32, 32), (32, 8)) if quick else BLOCKS
+                if kernel == "fast":  # larger blocks cannot launch (limits.FAST_MAX_THREADS)
+                    blocks = tuple(b for b in blocks if b[0] * b[1] <= FAST_MAX_THREADS)
                 out += [Point("tuning", device, w, h, n, {"block": list(b), "label": f"{b[0]}x{b[1]}", "kernel": kernel})
                         for b in blocks]
     return out
