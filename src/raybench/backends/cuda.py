@@ -28,7 +28,7 @@ DEFAULT_BLOCK = {"simple": (16, 16), "fast": (32, 2)}  # the fastest measured on
 _k = kernels.build(cuda.jit(device=True))
 # module globals, which is how kernels can see them
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
-_prepare_one, _may_hit, _intersect_relative = _k.prepare, _k.may_hit, _k.intersect_relative
+_prepare_one, _may_hit, _along, _intersect_relative = _k.prepare, _k.may_hit, _k.along, _k.intersect_relative
 
 # Fast kernel defaults: each thread traces RAYS pixels, one above the other a
 # block height apart, so every sphere read from shared memory serves RAYS
@@ -70,7 +70,7 @@ def fast_kernel(rays: int = RAYS, tile: int = TILE):
         sx = cuda.shared.array(tile, np.float32)
         sy = cuda.shared.array(tile, np.float32)
         sz = cuda.shared.array(tile, np.float32)
-        sq = cuda.shared.array(tile, np.float32)
+        ss = cuda.shared.array(tile, np.float32)
         dx = cuda.local.array(rays, np.float32)
         dy = cuda.local.array(rays, np.float32)
         dz = cuda.local.array(rays, np.float32)
@@ -94,20 +94,21 @@ def fast_kernel(rays: int = RAYS, tile: int = TILE):
                 sx[k] = relative[0, base + k]
                 sy[k] = relative[1, base + k]
                 sz[k] = relative[2, base + k]
-                sq[k] = relative[3, base + k]
+                ss[k] = relative[3, base + k]
             cuda.syncthreads()
             for k in range(n):
-                ex, ey, ez, q = sx[k], sy[k], sz[k], sq[k]
-                # One branch per sphere for all the thread's rays: a branch per
-                # ray costs more than the cull test it guards (1.24 against
-                # 0.85 ms on an H100, docs/performance.md).
-                found = False
+                ex, ey, ez, s = sx[k], sy[k], sz[k], ss[k]
+                # One branch per sphere for all the thread's rays, on the
+                # farthest v of them: a branch per ray costs more than the cull
+                # test it guards (1.24 against 0.85 ms on an H100,
+                # docs/performance.md).
+                farthest = -FAR
                 for j in range(rays):
-                    found |= _may_hit(ex, ey, ez, q, dx[j], dy[j], dz[j])
-                if not found:
+                    farthest = max(farthest, _along(ex, ey, ez, dx[j], dy[j], dz[j]))
+                if not farthest > s:
                     continue
                 for j in range(rays):
-                    if _may_hit(ex, ey, ez, q, dx[j], dy[j], dz[j]):
+                    if _may_hit(ex, ey, ez, s, dx[j], dy[j], dz[j]):
                         t, d = _intersect_relative(ex, ey, ez, spheres[3, base + k], dx[j], dy[j], dz[j])
                         if t < closest[j] and t > ZERO:
                             closest[j] = t

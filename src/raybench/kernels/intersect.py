@@ -9,9 +9,18 @@ ZERO = np.float32(0.0)
 # The cull test's slack, relative to |EO|^2 + r^2: 64 float32 epsilons, several
 # times the rounding of either discriminant (derivation in prepare_sphere).
 CULL_SLACK = np.float32(64.0 * 2.0 ** -24)
+# The cull threshold's slack, relative to |EO|: 64 float32 epsilons, covering
+# a v computed with fused multiply-adds in one place and without in another.
+ALONG_SLACK = np.float32(64.0 * 2.0 ** -24)
 
 
 def build(jit):
+    @jit
+    def along(ex, ey, ez, dx, dy, dz):
+        """v = EO.dir, how far along the ray the sphere's centre lies: the
+        first line of intersect_relative, and all of the cull test."""
+        return ex * dx + ey * dy + ez * dz
+
     @jit
     def intersect_relative(ex, ey, ez, r, dx, dy, dz):
         """Distance t along the unit ray to the sphere's near surface and the
@@ -21,7 +30,7 @@ def build(jit):
         keeps its digits in float32: the thesis's form subtracts two squares of
         the sphere's distance and loses everything for small, far spheres.
         """
-        v = ex * dx + ey * dy + ez * dz
+        v = along(ex, ey, ez, dx, dy, dz)
         px = ex - v * dx
         py = ey - v * dy
         pz = ez - v * dz
@@ -39,27 +48,34 @@ def build(jit):
     @jit
     def prepare_sphere(ox, oy, oz, cx, cy, cz, r):
         """Per frame and sphere: EO (exactly as intersect_sphere computes it) and
-        the cull bound q of may_hit.
+        the cull threshold s of may_hit: a ray can only hit where v > s.
 
-        For a unit ray, |EO - v dir|^2 = |EO|^2 - v^2, so the ray can only hit
-        where v^2 > |EO|^2 - r^2: the thesis's cheap form, three multiply-adds
-        for v and one more. In float32 its rounding is a few epsilons of
-        |EO|^2 (and the ray's length is 1 only to a few epsilons), so it
-        cannot decide a hit, but with q lowered by CULL_SLACK (|EO|^2 + r^2)
-        it never rejects a sphere that intersect_relative would accept: the
-        fast kernels skip only certain misses and give the same pixels.
+        Why it holds. intersect_relative accepts only t = v - d > 0 with
+        d >= 0, so v > 0. For a unit ray, |EO - v dir|^2 = |EO|^2 - v^2, so
+        disc >= 0 needs v^2 >= q = |EO|^2 - r^2 (the thesis's cheap form).
+        Hence a hit needs v > sqrt(q) (v > 0 where q <= 0). In float32 the
+        rounding of either discriminant, and a ray of length 1 only to a few
+        epsilons, move q by a few epsilons of |EO|^2 + r^2: lowered by
+        CULL_SLACK (|EO|^2 + r^2), q is below every v^2 the exact test can
+        accept by a margin that also covers the rounding of the square root.
+        v itself may be computed with or without fused multiply-adds (a
+        compiler's choice), which moves it by a few epsilons of |EO|: s is
+        lowered by ALONG_SLACK |EO|. So the test only ever skips certain
+        misses, and the fast kernels give the same pixels as the simple ones.
         """
         ex = cx - ox
         ey = cy - oy
         ez = cz - oz
         e2 = ex * ex + ey * ey + ez * ez
         r2 = r * r
-        return ex, ey, ez, (e2 - r2) - CULL_SLACK * (e2 + r2)
+        q = (e2 - r2) - CULL_SLACK * (e2 + r2)
+        s = np.float32(math.sqrt(q)) if q > ZERO else ZERO
+        return ex, ey, ez, s - ALONG_SLACK * np.float32(math.sqrt(e2))
 
     @jit
-    def may_hit(ex, ey, ez, q, dx, dy, dz):
-        """False only where the ray certainly misses the sphere (see prepare_sphere)."""
-        v = ex * dx + ey * dy + ez * dz
-        return v * v > q
+    def may_hit(ex, ey, ez, s, dx, dy, dz):
+        """False only where the ray certainly misses the sphere (see
+        prepare_sphere): one dot product and a compare."""
+        return along(ex, ey, ez, dx, dy, dz) > s
 
-    return intersect_relative, intersect_sphere, prepare_sphere, may_hit
+    return intersect_relative, intersect_sphere, prepare_sphere, may_hit, along

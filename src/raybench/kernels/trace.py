@@ -20,7 +20,7 @@ FAR = np.float32(3.0e38)
 
 def build(jit):
     """The algorithm compiled with `jit`; a namespace of its functions."""
-    intersect_relative, intersect_sphere, prepare_sphere, may_hit = intersect.build(jit)
+    intersect_relative, intersect_sphere, prepare_sphere, may_hit, along = intersect.build(jit)
     shade_hit, shade_miss, to_byte = shade.build(jit)
 
     @jit
@@ -74,13 +74,14 @@ def build(jit):
     @jit
     def prepare(i, basis, spheres, relative):
         """Fast kernels, once per frame and sphere i: relative[:, i] = EO and the
-        cull bound (prepare_sphere)."""
-        ex, ey, ez, q = prepare_sphere(basis[0, 0], basis[0, 1], basis[0, 2],
+        cull threshold (prepare_sphere)."""
+        ex, ey, ez, s = prepare_sphere(basis[0, 0], basis[0, 1], basis[0, 2],
                                        spheres[0, i], spheres[1, i], spheres[2, i], spheres[3, i])
         relative[0, i] = ex
         relative[1, i] = ey
         relative[2, i] = ez
-        relative[3, i] = q
+        relative[3, i] = s
 
     return SimpleNamespace(render_pixel=render_pixel, primary_ray=primary_ray, store_pixel=store_pixel,
-                           prepare=prepare, may_hit=may_hit, intersect_relative=intersect_relative)
+                           prepare=prepare, may_hit=may_hit, along=along,
+                           intersect_relative=intersect_relative)
