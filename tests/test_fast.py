@@ -84,6 +84,20 @@ def test_cpu_fast_equals_simple(rng, kind, size):
     assert np.array_equal(simple.hits, fast.hits) and np.array_equal(simple.image, fast.image)
 
 
+@pytest.mark.parametrize("band", ["_pairs_band", "_wide_band"])
+def test_both_cpu_fast_loops_equal_simple(rng, band):
+    """The CPU picks one fast loop by its register width; both are checked
+    here, whichever this machine would pick."""
+    from raybench.backends import cpu
+    scene, camera = KINDS["overlapping"](rng, int(rng.integers(1, 120)))
+    width, height = int(rng.integers(1, 50)), int(rng.integers(1, 20))
+    simple = raybench.render(scene, camera, width, height, device="cpu", kernel="simple")
+    tracer = cpu.Tracer(scene.spheres, width, height, kernel="fast", threads=2)
+    tracer._kernel = getattr(cpu, band)
+    tracer.trace(camera.basis(width, height))
+    assert np.array_equal(simple.hits, tracer.hits) and np.array_equal(simple.image, tracer.image)
+
+
 def test_cpu_fast_sphere_prefix(rng):
     scene, camera = KINDS["generated"](rng, 50)
     tracer = backends.tracer("cpu", scene.spheres, 40, 24)
@@ -113,7 +127,7 @@ def test_cuda_fast_shapes_equal_cpu(rng, rays, tile, block):
     ("cpu", {"kernel": "quick"}, "kernel: must be one of"),
     ("cpu", {"kernel": "fast", "constant_count": True}, "simple kernel only"),
     ("cuda", {"rays": 0}, "rays: must be an integer from 1 to 16"),
-    ("cuda", {"tile": 5000}, "tile: must be an integer from 1 to 3072"),
+    ("cuda", {"tile": 5000}, "tile: must be an integer from 1 to 3071"),
     ("cuda", {"block": (32, 32)}, "fast kernel takes at most 256 threads"),
 ])
 def test_bad_kernel_options(device, options, match):

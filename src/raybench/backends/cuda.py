@@ -23,7 +23,7 @@ from ..kernels.trace import FAR, ZERO
 from ..errors import RaybenchError
 from .limits import FAST_MAX_THREADS, HOST_PIXEL_BYTES, check_count, check_fits, check_kernel, host_available_bytes
 
-DEFAULT_BLOCK = {"simple": (16, 16), "fast": (32, 2)}  # the fastest measured on an H100 (docs/performance.md)
+DEFAULT_BLOCK = {"simple": (16, 16), "fast": (16, 4)}  # the fastest measured on an H100 (docs/performance.md)
 
 _k = kernels.build(cuda.jit(device=True))
 # module globals, which is how kernels can see them
@@ -36,7 +36,8 @@ _prepare_one, _may_hit, _along, _intersect_relative = _k.prepare, _k.may_hit, _k
 RAYS = 8
 TILE = 256
 MAX_RAYS = 16
-MAX_TILE = 3072  # 48 KiB of shared memory, what every CUDA GPU gives a block
+MAX_TILE = 3071  # 48 KiB of shared memory (with a pad slot), what every CUDA GPU gives a block
+_U = np.uint64
 
 
 @cuda.jit
@@ -58,25 +59,53 @@ def fast_kernel(rays: int = RAYS, tile: int = TILE):
     """The fast kernel for `rays` pixels per thread and `tile` spheres per
     shared-memory tile (compile-time constants: the per-thread arrays must
     have a fixed size to live in registers); one compilation per pair."""
+    slots = tile + 1  # room for the pad of an odd tile
+
+    @cuda.jit(device=True)
+    def farthest(ex, ey, ez, dx, dy, dz, v):
+        """The largest v = EO.dir over the thread's rays: a tree of maxima,
+        log2(rays) deep rather than a chain of rays - 1."""
+        for j in range(rays):
+            v[j] = _along(ex, ey, ez, dx[j], dy[j], dz[j])
+        step = 1
+        while step < rays:
+            for j in range(0, rays - step, 2 * step):
+                v[j] = max(v[j], v[j + step])
+            step *= 2
+        return v[0]
+
+    @cuda.jit(device=True)
+    def nearer(i, ex, ey, ez, s, r, dx, dy, dz, closest, hit, hit_d):
+        """Sphere i's cull and exact tests on each of the thread's rays."""
+        for j in range(rays):
+            if _may_hit(ex, ey, ez, s, dx[j], dy[j], dz[j]):
+                t, d = _intersect_relative(ex, ey, ez, r, dx[j], dy[j], dz[j])
+                if t < closest[j] and t > ZERO:
+                    closest[j] = t
+                    hit[j] = i
+                    hit_d[j] = d
 
     @cuda.jit
     def kernel(width, height, basis, spheres, relative, count, image, hits):
         """`rays` pixels per thread; the block walks the spheres a tile at a time
-        through shared memory, every thread testing each sphere against its rays:
-        the cull test first, the exact test only where it cannot rule a hit out.
-        Same arithmetic, same order of spheres, same pixels as _render_kernel."""
+        through shared memory, each thread scanning them two at a time with
+        the cull test on all its rays and stopping for the exact test only
+        where the cull cannot rule a hit out. Same arithmetic, same order of
+        spheres, same pixels as _render_kernel."""
         if width <= 0 or height <= 0:  # compile()'s empty launch; the same for every thread
             return
-        sx = cuda.shared.array(tile, np.float32)
-        sy = cuda.shared.array(tile, np.float32)
-        sz = cuda.shared.array(tile, np.float32)
-        ss = cuda.shared.array(tile, np.float32)
+        sx = cuda.shared.array(slots, np.float32)
+        sy = cuda.shared.array(slots, np.float32)
+        sz = cuda.shared.array(slots, np.float32)
+        ss = cuda.shared.array(slots, np.float32)
         dx = cuda.local.array(rays, np.float32)
         dy = cuda.local.array(rays, np.float32)
         dz = cuda.local.array(rays, np.float32)
         closest = cuda.local.array(rays, np.float32)
         hit = cuda.local.array(rays, np.int32)
         hit_d = cuda.local.array(rays, np.float32)
+        va = cuda.local.array(rays, np.float32)
+        vb = cuda.local.array(rays, np.float32)
         bw, bh = cuda.blockDim.x, cuda.blockDim.y
         x = cuda.blockIdx.x * bw + cuda.threadIdx.x
         y0 = cuda.blockIdx.y * bh * rays + cuda.threadIdx.y
@@ -86,34 +115,37 @@ def fast_kernel(rays: int = RAYS, tile: int = TILE):
             closest[j] = FAR
             hit[j] = -1
             hit_d[j] = ZERO
-        me = cuda.threadIdx.y * bw + cuda.threadIdx.x
-        for base in range(0, count, tile):
-            n = min(tile, count - base)
+        # Unsigned indices: a signed one makes every shared-memory read check
+        # for Python's negative indexing (0.80 against 0.74 ms on an H100).
+        me = _U(cuda.threadIdx.y * bw + cuda.threadIdx.x)
+        total = _U(count)
+        for base in range(_U(0), total, _U(tile)):
+            n = min(_U(tile), total - base)
             cuda.syncthreads()  # every thread is done with the previous tile
-            for k in range(me, n, bw * bh):
+            for k in range(me, n, _U(bw * bh)):
                 sx[k] = relative[0, base + k]
                 sy[k] = relative[1, base + k]
                 sz[k] = relative[2, base + k]
                 ss[k] = relative[3, base + k]
+            if me == _U(0) and n % _U(2) == _U(1):
+                # pad to a pair with a sphere no ray can pass the cull test of
+                sx[n], sy[n], sz[n], ss[n] = ZERO, ZERO, ZERO, FAR
             cuda.syncthreads()
-            for k in range(n):
-                ex, ey, ez, s = sx[k], sy[k], sz[k], ss[k]
-                # One branch per sphere for all the thread's rays, on the
-                # farthest v of them: a branch per ray costs more than the cull
-                # test it guards (1.24 against 0.85 ms on an H100,
-                # docs/performance.md).
-                farthest = -FAR
-                for j in range(rays):
-                    farthest = max(farthest, _along(ex, ey, ez, dx[j], dy[j], dz[j]))
-                if not farthest > s:
-                    continue
-                for j in range(rays):
-                    if _may_hit(ex, ey, ez, s, dx[j], dy[j], dz[j]):
-                        t, d = _intersect_relative(ex, ey, ez, spheres[3, base + k], dx[j], dy[j], dz[j])
-                        if t < closest[j] and t > ZERO:
-                            closest[j] = t
-                            hit[j] = base + k
-                            hit_d[j] = d
+            k = _U(0)
+            while k < n:
+                # Two spheres a trip, one branch for both on the farthest v of
+                # all the thread's rays: the loop is then mostly arithmetic
+                # (docs/performance.md has what each step bought).
+                while k < n:
+                    a = farthest(sx[k], sy[k], sz[k], dx, dy, dz, va)
+                    b = farthest(sx[k + _U(1)], sy[k + _U(1)], sz[k + _U(1)], dx, dy, dz, vb)
+                    if a > ss[k] or b > ss[k + _U(1)]:
+                        break
+                    k += _U(2)
+                for i in range(k, min(k + _U(2), n)):
+                    nearer(base + i, sx[i], sy[i], sz[i], ss[i], spheres[3, base + i], dx, dy, dz,
+                           closest, hit, hit_d)
+                k += _U(2)
         if x < width:
             for j in range(rays):
                 y = y0 + j * bh
