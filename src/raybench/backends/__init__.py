@@ -11,7 +11,8 @@ from ..errors import RaybenchError
 
 DEVICES = ("cpu", "cuda")
 CHOICES = ("auto",) + DEVICES
-OPTIONS = {"cpu": ("threads", "constant_count", "kernel"), "cuda": ("block", "constant_count", "kernel", "rays", "tile")}
+OPTIONS = {"cpu": ("threads", "constant_count", "kernel", "accel"),
+           "cuda": ("block", "constant_count", "kernel", "rays", "tile", "accel")}
 
 
 def module(name: str):

@@ -1,10 +1,15 @@
-"""CPU backend: the image cut into equal bands of rows, one band per thread.
+"""CPU backend: rows spread over threads, each running the compiled kernel
+with the GIL released.
 
-This is the thesis's own scheme ("divided up into eight threads, which each
-process an equal amount of pixels"): any thread count from 1 to one per row,
-each thread running the compiled kernel on its band with the GIL released.
-Two kernels: "simple", the thesis's loop a pixel at a time, and "fast", which
-walks the spheres once per LANES pixels with a SIMD cull test (same pixels).
+Brute force (accel "none") cuts the image into equal bands of rows, one per
+thread: the thesis's own scheme ("divided up into eight threads, which each
+process an equal amount of pixels"), any thread count from 1 to one per row.
+Its two kernels: "simple", the thesis's loop a pixel at a time, and "fast",
+which walks the spheres once per LANES pixels with a SIMD cull test (same
+pixels). With the BVH (accel "bvh", the default) a pixel's cost follows how
+many nodes its ray crosses, which varies across the picture, so equal bands
+would leave threads idle: the threads instead pull small chunks of rows from
+a shared counter until none are left.
 
 fastmath stays off: the float32 arithmetic is then exactly IEEE, so the CPU image
 is bit-identical to the CUDA kernel run under numba's simulator, and the tests
@@ -24,7 +29,9 @@ import numpy as np
 from .. import kernels
 from ..kernels.trace import FAR, ZERO
 from ..errors import RaybenchError
-from .limits import HOST_PIXEL_BYTES, check_count, check_fits, check_kernel, host_available_bytes
+from .. import bvh as bvh_mod
+from .limits import (HOST_PIXEL_BYTES, check_accel, check_bvh_fits, check_count, check_fits, check_kernel,
+                     host_available_bytes)
 
 MAX_THREADS = 4096
 
@@ -32,6 +39,7 @@ _k = kernels.build(numba.njit(inline="always"))
 # module globals, which is how jitted code can see them
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
 _prepare_one, _may_hit, _intersect_relative = _k.prepare, _k.may_hit, _k.intersect_relative
+_render_pixel_bvh = _k.render_pixel_bvh
 
 # Rays traced side by side by the fast kernel: two AVX-512 or four AVX2
 # registers of float32, so the cull test runs as SIMD across pixels.
@@ -106,6 +114,26 @@ def _fast_band(first_row, end_row, width, height, basis, spheres, relative, coun
                 _store_pixel(x0 + k, y, hit[k], hit_d[k], spheres, image, hits)
 
 
+@numba.njit(nogil=True)
+def _bvh_rows(first_row, end_row, width, height, basis, nodes, links, ordered, order, spheres, image, hits):
+    stack_row = np.empty(bvh_mod.STACK, np.int32)
+    stack_t = np.empty(bvh_mod.STACK, np.float32)
+    for y in range(first_row, end_row):
+        for x in range(width):
+            _render_pixel_bvh(x, y, width, height, basis, nodes, links, ordered, order, spheres, image, hits,
+                              stack_row, stack_t)
+
+
+# Chunks of rows per thread for the BVH: enough that the last chunk to finish
+# leaves the others little time idle, few enough that the calls cost little.
+CHUNKS_PER_THREAD = 16
+
+
+def chunks(height: int, threads: int) -> list[tuple[int, int]]:
+    """Rows 0..height in about CHUNKS_PER_THREAD chunks per thread, in order."""
+    return bands(height, min(height, threads * CHUNKS_PER_THREAD))
+
+
 def default_threads() -> int:
     return os.cpu_count() or 1
 
@@ -126,29 +154,54 @@ class Tracer:
     name = "cpu"
 
     def __init__(self, spheres: np.ndarray, width: int, height: int, threads: int | None = None,
-                 constant_count: bool = False, kernel: str = "fast"):
-        self.kernel = check_kernel(kernel, constant_count)
+                 constant_count: bool = False, kernel: str | None = None, accel: str | None = None):
+        self.accel, kernel = check_accel(accel, kernel, {"constant_count": constant_count})
+        self.kernel = check_kernel(kernel, constant_count) if self.accel == "none" else None
         if threads is None:
             threads = default_threads()
         if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or not 1 <= threads <= MAX_THREADS:
             raise RaybenchError(f"threads: must be an integer from 1 to {MAX_THREADS}, got {threads!r}")
         check_fits("cpu", width, height, spheres.shape[1], host_available_bytes(), HOST_PIXEL_BYTES)
+        if self.accel == "bvh":
+            check_bvh_fits("cpu", spheres.shape[1], host_available_bytes(), bvh_mod.BUILD_SPHERE_BYTES,
+                           width * height * HOST_PIXEL_BYTES)
         self.threads = int(threads)
         self.spheres = spheres
         self.count = spheres.shape[1]
         self.width, self.height = width, height
         self.image = np.empty((height, width, 3), dtype=np.uint8)
         self.hits = np.empty((height, width), dtype=np.int32)
-        self.bands = bands(height, self.threads)
-        self._pool = ThreadPoolExecutor(len(self.bands)) if len(self.bands) > 1 else None
         self.constant_count = bool(constant_count)
-        if self.kernel == "fast":
-            self._kernel = _fast_band
-            self.relative = np.zeros((4, self.count), np.float32)
+        self.bvh = None
+        self.build_s = None
+        if self.accel == "bvh":
+            self.bands = chunks(height, self.threads)
+            workers = min(self.threads, len(self.bands))
+            self._kernel = _bvh_rows
+            self._build(self.count)
         else:
-            self._kernel = _constant_band(self.count) if self.constant_count else _render_band
+            self.bands = bands(height, self.threads)
+            workers = len(self.bands)
+            if self.kernel == "fast":
+                self._kernel = _fast_band
+                self.relative = np.zeros((4, self.count), np.float32)
+            else:
+                self._kernel = _constant_band(self.count) if self.constant_count else _render_band
+        self._pool = ThreadPoolExecutor(workers) if workers > 1 else None
+        self._workers = workers
+
+    def _build(self, count: int) -> None:
+        """The BVH of the first `count` spheres; its build time in build_s."""
+        self.bvh = bvh_mod.build(self.spheres[:, :count], threads=self.threads)
+        self.build_s = self.bvh.build_s
 
     def _args(self, basis, count):
+        if self.accel == "bvh":
+            if self.bvh.count != count:  # a frame of fewer spheres: their own tree
+                self._build(count)
+            b = self.bvh
+            return (self.width, self.height, basis, b.nodes, b.links, b.ordered, b.order, self.spheres,
+                    self.image, self.hits)
         if self.kernel == "fast":
             _prepare(basis, self.spheres, count, self.relative)
             return (self.width, self.height, basis, self.spheres, self.relative, count, self.image, self.hits)
@@ -167,6 +220,15 @@ class Tracer:
         args = self._args(basis, count)
         if self._pool is None:
             self._kernel(0, self.height, *args)
+        elif self.accel == "bvh":
+            pending = iter(self.bands)  # next() on it is atomic under the GIL
+
+            def pull():
+                for a, b in pending:
+                    self._kernel(a, b, *args)
+
+            for job in [self._pool.submit(pull) for _ in range(self._workers)]:
+                job.result()
         else:
             for job in [self._pool.submit(self._kernel, a, b, *args) for a, b in self.bands]:
                 job.result()
@@ -181,4 +243,3 @@ class Tracer:
         if self._pool is not None:
             self._pool.shutdown()
             self._pool = None
-
