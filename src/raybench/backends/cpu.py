@@ -6,10 +6,12 @@ thread: the thesis's own scheme ("divided up into eight threads, which each
 process an equal amount of pixels"), any thread count from 1 to one per row.
 Its two kernels: "simple", the thesis's loop a pixel at a time, and "fast",
 which walks the spheres once per LANES pixels with a SIMD cull test (same
-pixels). With the BVH (accel "bvh", the default) a pixel's cost follows how
-many nodes its ray crosses, which varies across the picture, so equal bands
-would leave threads idle: the threads instead pull small chunks of rows from
-a shared counter until none are left.
+pixels). With the BVH (accel "bvh", the default) the rays of a 8x4 tile of
+pixels walk the tree together (_bvh_packets), so each node's boxes are
+tested against all of them with SIMD; a pixel's cost follows how many nodes
+its ray crosses, which varies across the picture, so equal bands would
+leave threads idle: the threads instead pull small chunks of rows from a
+shared iterator until none are left.
 
 fastmath stays off: the float32 arithmetic is then exactly IEEE, so the CPU image
 is bit-identical to the CUDA kernel run under numba's simulator, and the tests
@@ -39,7 +41,7 @@ _k = kernels.build(numba.njit(inline="always"))
 # module globals, which is how jitted code can see them
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
 _prepare_one, _may_hit, _intersect_relative = _k.prepare, _k.may_hit, _k.intersect_relative
-_render_pixel_bvh = _k.render_pixel_bvh
+_inverse = _k.inverse
 
 # Rays traced side by side by the fast kernel: two AVX-512 or four AVX2
 # registers of float32, so the cull test runs as SIMD across pixels.
@@ -114,14 +116,118 @@ def _fast_band(first_row, end_row, width, height, basis, spheres, relative, coun
                 _store_pixel(x0 + k, y, hit[k], hit_d[k], spheres, image, hits)
 
 
+# Rays walked through the BVH together by _bvh_packets: an 8x4 tile of
+# pixels, two AVX-512 or four AVX2 registers of float32 per ray component
+# (of 4x4, 8x4 and 8x8, the fastest on a 2-core EPYC, docs/performance.md).
+PACKET_W, PACKET_H = 8, 4
+PACKET = PACKET_W * PACKET_H
+
+
+@numba.njit(inline="always")
+def _packet_box(nodes, row, col, ox, oy, oz, margin, ix, iy, iz, closest):
+    """Whether any ray of the packet enters the child box (grown by margin,
+    as in kernels.traverse) nearer than its closest hit so far, and where
+    the packet's first ray meets the box's planes (to order the children).
+    The rays share their origin, so the planes' offsets from it are
+    computed once for all; no branch and no float reduction in the loop
+    over rays, so that LLVM makes it SIMD (without fastmath it vectorises
+    neither a branchy body nor a min over floats)."""
+    lx = nodes[row, col] - margin - ox
+    ly = nodes[row, col + 1] - margin - oy
+    lz = nodes[row, col + 2] - margin - oz
+    hx = nodes[row, col + 3] + margin - ox
+    hy = nodes[row, col + 4] + margin - oy
+    hz = nodes[row, col + 5] + margin - oz
+    entered = False
+    for k in range(PACKET):
+        t1, t2 = lx * ix[k], hx * ix[k]
+        t3, t4 = ly * iy[k], hy * iy[k]
+        t5, t6 = lz * iz[k], hz * iz[k]
+        near = max(min(t1, t2), max(min(t3, t4), min(t5, t6)))
+        far = min(max(t1, t2), min(max(t3, t4), max(t5, t6)))
+        entered |= (near <= far) & (far > ZERO) & (near <= closest[k])
+    first = max(min(lx * ix[0], hx * ix[0]), max(min(ly * iy[0], hy * iy[0]), min(lz * iz[0], hz * iz[0])))
+    return entered, first
+
+
+@numba.njit(inline="always")
+def _packet_leaf(ox, oy, oz, dx, dy, dz, ordered, order, first, count, closest, hit, hit_d):
+    """The exact test of a leaf's spheres on every ray of the packet: EO as
+    intersect_sphere computes it, the walk's tie rule."""
+    for j in range(first, first + count):
+        ex, ey, ez, r, original = ordered[0, j] - ox, ordered[1, j] - oy, ordered[2, j] - oz, ordered[3, j], order[j]
+        for k in range(PACKET):
+            t, d = _intersect_relative(ex, ey, ez, r, dx[k], dy[k], dz[k])
+            c = closest[k]
+            better = (t > ZERO) & ((t < c) | ((t == c) & (original < hit[k])))
+            closest[k] = t if better else c
+            hit[k] = original if better else hit[k]
+            hit_d[k] = d if better else hit_d[k]
+
+
 @numba.njit(nogil=True)
-def _bvh_rows(first_row, end_row, width, height, basis, nodes, links, ordered, order, spheres, image, hits):
+def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered, order, spheres, image, hits):
+    """The rows first_row..end_row, a PACKET_W x PACKET_H packet of rays at a time: the
+    packet walks the tree together, a node entered if any of its rays
+    enters it, each box and leaf test run across the packet's rays (loops
+    LLVM turns into SIMD). Each ray still gets the nearest sphere of all it
+    could hit, ties to the smaller index: the pixels of kernels.traverse's walk, one ray at a time."""
     stack_row = np.empty(bvh_mod.STACK, np.int32)
-    stack_t = np.empty(bvh_mod.STACK, np.float32)
-    for y in range(first_row, end_row):
-        for x in range(width):
-            _render_pixel_bvh(x, y, width, height, basis, nodes, links, ordered, order, spheres, image, hits,
-                              stack_row, stack_t)
+    dx = np.empty(PACKET, np.float32)
+    dy = np.empty(PACKET, np.float32)
+    dz = np.empty(PACKET, np.float32)
+    ix = np.empty(PACKET, np.float32)
+    iy = np.empty(PACKET, np.float32)
+    iz = np.empty(PACKET, np.float32)
+    closest = np.empty(PACKET, np.float32)
+    hit = np.empty(PACKET, np.int32)
+    hit_d = np.empty(PACKET, np.float32)
+    ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
+    margin = (abs(ox) + abs(oy) + abs(oz)) * bvh_mod.PAD
+    for y0 in range(first_row, end_row, PACKET_H):
+        for x0 in range(0, width, PACKET_W):
+            for k in range(PACKET):
+                # rays off the chunk trace a copy of its last row or column, unstored
+                x = min(x0 + k % PACKET_W, width - 1)
+                y = min(y0 + k // PACKET_W, end_row - 1)
+                dx[k], dy[k], dz[k] = _primary_ray(x, y, width, height, basis)
+                ix[k] = _inverse(dx[k])
+                iy[k] = _inverse(dy[k])
+                iz[k] = _inverse(dz[k])
+                closest[k] = FAR
+                hit[k] = -1
+                hit_d[k] = ZERO
+            row = 0
+            top = 0
+            while row >= 0:
+                a_in, a_near = _packet_box(nodes, row, 0, ox, oy, oz, margin, ix, iy, iz, closest)
+                b_in, b_near = _packet_box(nodes, row, 6, ox, oy, oz, margin, ix, iy, iz, closest)
+                a_ref, b_ref, a_count, b_count = links[row, 12], links[row, 13], links[row, 14], links[row, 15]
+                if b_in and (not a_in or b_near < a_near):  # near child first
+                    a_in, a_near, a_ref, a_count, b_in, b_near, b_ref, b_count = \
+                        b_in, b_near, b_ref, b_count, a_in, a_near, a_ref, a_count
+                row = -1
+                if a_in:
+                    if a_count == bvh_mod.INNER:
+                        row = a_ref
+                    else:
+                        _packet_leaf(ox, oy, oz, dx, dy, dz, ordered, order, a_ref, a_count, closest, hit, hit_d)
+                if b_in:
+                    if b_count != bvh_mod.INNER:
+                        _packet_leaf(ox, oy, oz, dx, dy, dz, ordered, order, b_ref, b_count, closest, hit, hit_d)
+                    elif row < 0:
+                        row = b_ref
+                    else:
+                        stack_row[top] = b_ref
+                        top += 1
+                if row < 0 and top > 0:  # the next node's own test of its children prunes for it
+                    top -= 1
+                    row = stack_row[top]
+            for k in range(PACKET):
+                x = x0 + k % PACKET_W
+                y = y0 + k // PACKET_W
+                if x < width and y < end_row:
+                    _store_pixel(x, y, hit[k], hit_d[k], spheres, image, hits)
 
 
 # Chunks of rows per thread for the BVH: enough that the last chunk to finish
@@ -130,8 +236,11 @@ CHUNKS_PER_THREAD = 16
 
 
 def chunks(height: int, threads: int) -> list[tuple[int, int]]:
-    """Rows 0..height in about CHUNKS_PER_THREAD chunks per thread, in order."""
-    return bands(height, min(height, threads * CHUNKS_PER_THREAD))
+    """Rows 0..height in about CHUNKS_PER_THREAD chunks per thread, in order,
+    cut at whole packets of rows."""
+    packets = -(-height // PACKET_H)
+    return [(a * PACKET_H, min(b * PACKET_H, height))
+            for a, b in bands(packets, min(packets, threads * CHUNKS_PER_THREAD))]
 
 
 def default_threads() -> int:
@@ -177,7 +286,7 @@ class Tracer:
         if self.accel == "bvh":
             self.bands = chunks(height, self.threads)
             workers = min(self.threads, len(self.bands))
-            self._kernel = _bvh_rows
+            self._kernel = _bvh_packets
             self._build(self.count)
         else:
             self.bands = bands(height, self.threads)

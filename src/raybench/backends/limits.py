@@ -90,6 +90,10 @@ def check_bvh_fits(device: str, spheres: int, available: float, per_sphere: int,
     frame must fit in what the device has free."""
     need = max(spheres, 1) * per_sphere + pixel_bytes_needed
     if need > available:
-        raise RaybenchError(f"bvh: {spheres:,} spheres need {need / 2**30:.2f} GiB for the BVH and the frame, "
-                            f"more than the {available / 2**30:.2f} GiB available on the {device}; "
+        raise RaybenchError(f"bvh: {spheres:,} spheres need {_bytes(need)} for the BVH and the frame, "
+                            f"more than the {_bytes(available)} available on the {device}; "
                             "use fewer spheres or a smaller size")
+
+
+def _bytes(n: float) -> str:
+    return f"{n / 2**30:.2f} GiB" if n >= 2**30 else f"{n / 2**20:.1f} MiB"

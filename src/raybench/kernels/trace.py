@@ -22,7 +22,7 @@ def build(jit):
     """The algorithm compiled with `jit`; a namespace of its functions."""
     intersect_relative, intersect_sphere, prepare_sphere, may_hit = intersect.build(jit)
     shade_hit, shade_miss, to_byte = shade.build(jit)
-    nearest_hit_bvh = traverse.build(jit, intersect_sphere)
+    nearest_hit_bvh, inverse = traverse.build(jit, intersect_sphere)
 
     @jit
     def primary_ray(x, y, width, height, basis):
@@ -94,5 +94,5 @@ def build(jit):
 
     return SimpleNamespace(render_pixel=render_pixel, primary_ray=primary_ray, store_pixel=store_pixel,
                            prepare=prepare, may_hit=may_hit, intersect_relative=intersect_relative,
-                           render_pixel_bvh=render_pixel_bvh, nearest_hit_bvh=nearest_hit_bvh,
+                           render_pixel_bvh=render_pixel_bvh, nearest_hit_bvh=nearest_hit_bvh, inverse=inverse,
                            nearest_hit=nearest_hit)

@@ -32,17 +32,18 @@ FAR = np.float32(3.0e38)
 
 def build(jit, intersect_sphere):
     @jit
+    def inverse(d):
+        """1/d for the slab test, finite: |d| raised to at least TINY, its sign kept."""
+        return ONE / (max(d, TINY) if d >= ZERO else min(d, -TINY))
+
+    @jit
     def axis_setup(o, d, margin):
         """One axis of the ray for the slab test: 1/d, and the origin shifted
         by the margin towards the near plane and away from the far one, so the
         slabs are those of the box grown by `margin` on every side."""
         if d >= ZERO:
-            d = max(d, TINY)
-            inv = ONE / d
-            return inv, o + margin, o - margin, 0
-        d = min(d, -TINY)
-        inv = ONE / d
-        return inv, o - margin, o + margin, 3
+            return inverse(d), o + margin, o - margin, 0
+        return inverse(d), o - margin, o + margin, 3
 
     @jit
     def slab(nodes, row, col, ix, iy, iz, nx, ny, nz, fx, fy, fz, sx, sy, sz):
@@ -115,4 +116,4 @@ def build(jit, intersect_sphere):
                     row = stack_row[top]
         return hit, hit_d
 
-    return nearest_hit_bvh
+    return nearest_hit_bvh, inverse
