@@ -124,14 +124,13 @@ PACKET = PACKET_W * PACKET_H
 
 
 @numba.njit(inline="always")
-def _packet_box(nodes, row, col, ox, oy, oz, margin, ix, iy, iz, closest):
+def _packet_box(nodes, row, col, ox, oy, oz, margin, ix, iy, iz, closest, near_out):
     """Whether any ray of the packet enters the child box (grown by margin,
-    as in kernels.traverse) nearer than its closest hit so far, and where
-    the packet's first ray meets the box's planes (to order the children).
-    The rays share their origin, so the planes' offsets from it are
-    computed once for all; no branch and no float reduction in the loop
-    over rays, so that LLVM makes it SIMD (without fastmath it vectorises
-    neither a branchy body nor a min over floats)."""
+    as in kernels.traverse) nearer than its closest hit so far; near_out[k]
+    is where ray k enters it, FAR if it does not. The rays share their
+    origin, so the planes' offsets from it are computed once for all; the
+    loop over rays has no branch and no float reduction, so LLVM makes it
+    SIMD (without fastmath it vectorises neither)."""
     lx = nodes[row, col] - margin - ox
     ly = nodes[row, col + 1] - margin - oy
     lz = nodes[row, col + 2] - margin - oz
@@ -145,9 +144,18 @@ def _packet_box(nodes, row, col, ox, oy, oz, margin, ix, iy, iz, closest):
         t5, t6 = lz * iz[k], hz * iz[k]
         near = max(min(t1, t2), max(min(t3, t4), min(t5, t6)))
         far = min(max(t1, t2), min(max(t3, t4), max(t5, t6)))
-        entered |= (near <= far) & (far > ZERO) & (near <= closest[k])
-    first = max(min(lx * ix[0], hx * ix[0]), max(min(ly * iy[0], hy * iy[0]), min(lz * iz[0], hz * iz[0])))
-    return entered, first
+        ok = (near <= far) & (far > ZERO) & (near <= closest[k])
+        near_out[k] = near if ok else FAR
+        entered |= ok
+    return entered
+
+
+@numba.njit(inline="always")
+def _lowest(values):
+    low = values[0]
+    for k in range(1, PACKET):
+        low = min(low, values[k])
+    return low
 
 
 @numba.njit(inline="always")
@@ -173,6 +181,9 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
     LLVM turns into SIMD). Each ray still gets the nearest sphere of all it
     could hit, ties to the smaller index: the pixels of kernels.traverse's walk, one ray at a time."""
     stack_row = np.empty(bvh_mod.STACK, np.int32)
+    stack_t = np.empty(bvh_mod.STACK, np.float32)
+    near_a = np.empty(PACKET, np.float32)
+    near_b = np.empty(PACKET, np.float32)
     dx = np.empty(PACKET, np.float32)
     dy = np.empty(PACKET, np.float32)
     dz = np.empty(PACKET, np.float32)
@@ -200,9 +211,14 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
             row = 0
             top = 0
             while row >= 0:
-                a_in, a_near = _packet_box(nodes, row, 0, ox, oy, oz, margin, ix, iy, iz, closest)
-                b_in, b_near = _packet_box(nodes, row, 6, ox, oy, oz, margin, ix, iy, iz, closest)
+                a_in = _packet_box(nodes, row, 0, ox, oy, oz, margin, ix, iy, iz, closest, near_a)
+                b_in = _packet_box(nodes, row, 6, ox, oy, oz, margin, ix, iy, iz, closest, near_b)
                 a_ref, b_ref, a_count, b_count = links[row, 12], links[row, 13], links[row, 14], links[row, 15]
+                a_near = b_near = FAR
+                if a_in and b_in:
+                    # the nearest entry of any ray: orders the children, and
+                    # rules a pushed one out once every ray has a nearer hit
+                    a_near, b_near = _lowest(near_a), _lowest(near_b)
                 if b_in and (not a_in or b_near < a_near):  # near child first
                     a_in, a_near, a_ref, a_count, b_in, b_near, b_ref, b_count = \
                         b_in, b_near, b_ref, b_count, a_in, a_near, a_ref, a_count
@@ -219,10 +235,16 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
                         row = b_ref
                     else:
                         stack_row[top] = b_ref
+                        stack_t[top] = b_near
                         top += 1
-                if row < 0 and top > 0:  # the next node's own test of its children prunes for it
-                    top -= 1
-                    row = stack_row[top]
+                if row < 0 and top > 0:
+                    farthest = closest[0]
+                    for k in range(1, PACKET):
+                        farthest = max(farthest, closest[k])
+                    while row < 0 and top > 0:
+                        top -= 1
+                        if stack_t[top] <= farthest:
+                            row = stack_row[top]
             for k in range(PACKET):
                 x = x0 + k % PACKET_W
                 y = y0 + k // PACKET_W
