@@ -197,14 +197,17 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
     margin = (abs(ox) + abs(oy) + abs(oz)) * bvh_mod.PAD
     for y0 in range(first_row, end_row, PACKET_H):
         for x0 in range(0, width, PACKET_W):
+            # separate loops, each simple enough for LLVM to make SIMD
             for k in range(PACKET):
                 # rays off the chunk trace a copy of its last row or column, unstored
                 x = min(x0 + k % PACKET_W, width - 1)
                 y = min(y0 + k // PACKET_W, end_row - 1)
                 dx[k], dy[k], dz[k] = _primary_ray(x, y, width, height, basis)
+            for k in range(PACKET):
                 ix[k] = _inverse(dx[k])
                 iy[k] = _inverse(dy[k])
                 iz[k] = _inverse(dz[k])
+            for k in range(PACKET):
                 closest[k] = FAR
                 hit[k] = -1
                 hit_d[k] = ZERO
