@@ -54,7 +54,8 @@ def present() -> list[str]:
 
 def tracer(device: str, spheres, width: int, height: int, **options):
     """A Tracer of the (resolved) device for this scene and size; options are
-    the device's own (cpu: threads; cuda: block)."""
+    the device's own (cpu: threads; cuda: block, rays, tile) and, on both,
+    accel ("bvh", the default, or "none"), kernel and constant_count."""
     name = resolve(device)
     for key in options:
         if key not in OPTIONS[name]:

@@ -326,7 +326,7 @@ class Tracer:
 
     def _build(self, count: int) -> None:
         """The BVH of the first `count` spheres; its build time in build_s."""
-        self.bvh = bvh_mod.build(self.spheres[:, :count], threads=self.threads)
+        self.bvh = bvh_mod.build(self.spheres[:, :count], threads=min(self.threads, default_threads()))
         self.build_s = self.bvh.build_s
 
     def _args(self, basis, count):
