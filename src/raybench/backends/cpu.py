@@ -41,7 +41,15 @@ _k = kernels.build(numba.njit(inline="always"))
 # module globals, which is how jitted code can see them
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
 _prepare_one, _may_hit, _intersect_relative = _k.prepare, _k.may_hit, _k.intersect_relative
-_inverse = _k.inverse
+# The BVH walk's own build of the same functions, with NumPy's error model:
+# float division then has no check for a zero divisor (none can occur: the
+# divisors are the image size, a ray's length, a radius, a direction
+# component raised to at least TINY), so the result is the same IEEE
+# quotient, and LLVM can make the loops over a packet's rays SIMD, which the
+# check's branch prevents (vdivps, vsqrtps in the assembly).
+_kb = kernels.build(numba.njit(inline="always", error_model="numpy"))
+_primary_ray_v, _store_pixel_v, _intersect_relative_v, _inverse = \
+    _kb.primary_ray, _kb.store_pixel, _kb.intersect_relative, _kb.inverse
 
 # Rays traced side by side by the fast kernel: two AVX-512 or four AVX2
 # registers of float32, so the cull test runs as SIMD across pixels.
@@ -123,7 +131,7 @@ PACKET_W, PACKET_H = 8, 4
 PACKET = PACKET_W * PACKET_H
 
 
-@numba.njit(inline="always")
+@numba.njit(inline="always", error_model="numpy")
 def _packet_box(nodes, row, col, ox, oy, oz, margin, ix, iy, iz, closest, near_out):
     """Whether any ray of the packet enters the child box (grown by margin,
     as in kernels.traverse) nearer than its closest hit so far; near_out[k]
@@ -150,7 +158,7 @@ def _packet_box(nodes, row, col, ox, oy, oz, margin, ix, iy, iz, closest, near_o
     return entered
 
 
-@numba.njit(inline="always")
+@numba.njit(inline="always", error_model="numpy")
 def _lowest(values):
     low = values[0]
     for k in range(1, PACKET):
@@ -158,14 +166,14 @@ def _lowest(values):
     return low
 
 
-@numba.njit(inline="always")
+@numba.njit(inline="always", error_model="numpy")
 def _packet_leaf(ox, oy, oz, dx, dy, dz, ordered, order, first, count, closest, hit, hit_d):
     """The exact test of a leaf's spheres on every ray of the packet: EO as
     intersect_sphere computes it, the walk's tie rule."""
     for j in range(first, first + count):
         ex, ey, ez, r, original = ordered[0, j] - ox, ordered[1, j] - oy, ordered[2, j] - oz, ordered[3, j], order[j]
         for k in range(PACKET):
-            t, d = _intersect_relative(ex, ey, ez, r, dx[k], dy[k], dz[k])
+            t, d = _intersect_relative_v(ex, ey, ez, r, dx[k], dy[k], dz[k])
             c = closest[k]
             better = (t > ZERO) & ((t < c) | ((t == c) & (original < hit[k])))
             closest[k] = t if better else c
@@ -173,7 +181,7 @@ def _packet_leaf(ox, oy, oz, dx, dy, dz, ordered, order, first, count, closest, 
             hit_d[k] = d if better else hit_d[k]
 
 
-@numba.njit(nogil=True)
+@numba.njit(nogil=True, error_model="numpy")
 def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered, order, spheres, image, hits):
     """The rows first_row..end_row, a PACKET_W x PACKET_H packet of rays at a time: the
     packet walks the tree together, a node entered if any of its rays
@@ -202,7 +210,7 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
                 # rays off the chunk trace a copy of its last row or column, unstored
                 x = min(x0 + k % PACKET_W, width - 1)
                 y = min(y0 + k // PACKET_W, end_row - 1)
-                dx[k], dy[k], dz[k] = _primary_ray(x, y, width, height, basis)
+                dx[k], dy[k], dz[k] = _primary_ray_v(x, y, width, height, basis)
             for k in range(PACKET):
                 ix[k] = _inverse(dx[k])
                 iy[k] = _inverse(dy[k])
@@ -252,7 +260,7 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
                 x = x0 + k % PACKET_W
                 y = y0 + k // PACKET_W
                 if x < width and y < end_row:
-                    _store_pixel(x, y, hit[k], hit_d[k], spheres, image, hits)
+                    _store_pixel_v(x, y, hit[k], hit_d[k], spheres, image, hits)
 
 
 # Chunks of rows per thread for the BVH: enough that the last chunk to finish
