@@ -128,7 +128,7 @@ def _fast_band(first_row, end_row, width, height, basis, spheres, relative, coun
 # pixels, two AVX-512 or four AVX2 registers of float32 per ray component
 # (of 4x4, 8x4 and 8x8, the fastest on a 2-core EPYC, docs/performance.md).
 PACKET_W, PACKET_H = 8, 4
-PACKET = PACKET_W * PACKET_H
+PACKET = PACKET_W * PACKET_H  # a multiple of 8 (_lowest)
 
 
 @numba.njit(inline="always", error_model="numpy")
@@ -159,11 +159,33 @@ def _packet_box(nodes, row, col, ox, oy, oz, margin, ix, iy, iz, closest, near_o
 
 
 @numba.njit(inline="always", error_model="numpy")
-def _lowest(values):
-    low = values[0]
-    for k in range(1, PACKET):
-        low = min(low, values[k])
+def _lowest(values, fold):
+    """The smallest of the packet's values: first lane-wise over groups of
+    8 (SIMD; LLVM will not vectorise a float reduction without fastmath),
+    then over the 8 that are left."""
+    for j in range(8):
+        low = values[j]
+        for g in range(8, PACKET, 8):
+            low = min(low, values[g + j])
+        fold[j] = low
+    low = fold[0]
+    for j in range(1, 8):
+        low = min(low, fold[j])
     return low
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _highest(values, fold):
+    """The largest of the packet's values, as _lowest."""
+    for j in range(8):
+        high = values[j]
+        for g in range(8, PACKET, 8):
+            high = max(high, values[g + j])
+        fold[j] = high
+    high = fold[0]
+    for j in range(1, 8):
+        high = max(high, fold[j])
+    return high
 
 
 @numba.njit(inline="always", error_model="numpy")
@@ -192,6 +214,7 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
     stack_t = np.empty(bvh_mod.STACK, np.float32)
     near_a = np.empty(PACKET, np.float32)
     near_b = np.empty(PACKET, np.float32)
+    fold = np.empty(8, np.float32)
     dx = np.empty(PACKET, np.float32)
     dy = np.empty(PACKET, np.float32)
     dz = np.empty(PACKET, np.float32)
@@ -229,7 +252,7 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
                 if a_in and b_in:
                     # the nearest entry of any ray: orders the children, and
                     # rules a pushed one out once every ray has a nearer hit
-                    a_near, b_near = _lowest(near_a), _lowest(near_b)
+                    a_near, b_near = _lowest(near_a, fold), _lowest(near_b, fold)
                 if b_in and (not a_in or b_near < a_near):  # near child first
                     a_in, a_near, a_ref, a_count, b_in, b_near, b_ref, b_count = \
                         b_in, b_near, b_ref, b_count, a_in, a_near, a_ref, a_count
@@ -249,9 +272,7 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
                         stack_t[top] = b_near
                         top += 1
                 if row < 0 and top > 0:
-                    farthest = closest[0]
-                    for k in range(1, PACKET):
-                        farthest = max(farthest, closest[k])
+                    farthest = _highest(closest, fold)
                     while row < 0 and top > 0:
                         top -= 1
                         if stack_t[top] <= farthest:
