@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from raybench import RaybenchError
-from raybench.bench import results, stats, suites
+from raybench.bench import results, runner, stats, suites
 from raybench.bench.results import ResultsWriter
 from raybench.cli import run
 
@@ -161,11 +161,14 @@ def test_quick_run_end_to_end(tmp_path, capsys):
     assert code == 0, out
     (path,) = tmp_path.glob("results-*.jsonl")
     records = results.read(path)
-    expected = suites.points(suites.SUITES, ["cpu"], quick=True)
+    expected = suites.points(suites.SUITES, ["cpu"], quick=True, accels=suites.ACCELS)  # the CLI's default: both
     assert len(records) == len(expected)
     for rec, point in zip(records, expected):
         assert (rec["suite"], rec["device"], rec["width"], rec["height"], rec["spheres"]) == \
                (point.suite, point.device, point.width, point.height, point.spheres)
+        if "skipped" in rec:  # brute force past the scaling suite's cap: recorded, not measured
+            assert rec["suite"] == "scaling" and "cap" in rec["skipped"] and point.options["accel"] == "none"
+            continue
         assert rec["frames"] >= 3 or rec["suite"] == "test7"
         f = rec["frame_ms"]
         assert 0 < f["p5"] <= f["median"] <= f["p95"]
@@ -202,3 +205,44 @@ def test_report_bad_input(tmp_path, capsys):
     assert code == 2 and "x.jsonl" in err and err.count("\n") == 1, err
     code = run(["report", str(tmp_path / "missing.jsonl"), "-o", str(tmp_path / "rep")])
     assert code == 2 and "no such results file" in capsys.readouterr().err
+
+
+def test_scaling_points():
+    pts = suites.points(["scaling"], ["cpu", "cuda"], accels=suites.ACCELS)
+    for device in ("cpu", "cuda"):
+        for accel in ("none", "bvh"):
+            mine = [p for p in pts if p.device == device and p.options["accel"] == accel]
+            assert [p.spheres for p in mine if (p.width, p.height) == (1680, 1050)] == list(suites.SCALING_COUNTS)
+            assert [(p.width, p.height, p.spheres) for p in mine][-1] == (1920, 1080, 1_000_000)
+            # only brute force is capped; the BVH runs every count
+            assert all(("cap_s" in p.options) == (accel == "none") for p in mine)
+    assert suites.SCALING_COUNTS[0] == 10 and suites.SCALING_COUNTS[-1] == 1_000_000
+    quick = suites.points(["scaling"], ["cpu"], quick=True, accels=suites.ACCELS)
+    assert max(p.spheres for p in quick) <= 10_000 and len(quick) < len(pts) / 3
+
+
+def test_scaling_cap_skips_and_records(tmp_path, monkeypatch, rng):
+    """Brute force stops where the frame predicted from the last count
+    measured (linear in spheres and pixels) passes the cap: the rest are
+    recorded as skipped, none silently dropped."""
+    per_sphere_ms = rng.uniform(0.5, 2.0)
+    measured = []
+
+    def fake_measure(point, scenes, duration):
+        measured.append(point.spheres)
+        median = per_sphere_ms * point.spheres * point.width * point.height / (1680 * 1050)
+        return {"suite": point.suite, "device": point.device, "width": point.width, "height": point.height,
+                "spheres": point.spheres, "options": point.options, "frame_ms": stats.summarize([median])}
+
+    monkeypatch.setattr(runner, "measure", fake_measure)
+    pts = [p for p in suites.points(["scaling"], ["cpu"], accels=("none",))]
+    with ResultsWriter(tmp_path / "r.jsonl") as w:
+        runner.run(pts, w, {"label": "x"}, 0.1, 0, progress=False)
+    recs = results.read(tmp_path / "r.jsonl")
+    assert [r["spheres"] for r in recs] == [p.spheres for p in pts]
+    cap_ms = suites.SCALING_CAP_S * 1e3
+    done = [r["spheres"] for r in recs if "skipped" not in r]
+    assert done == measured == [n for n in suites.SCALING_COUNTS if n == 10 or per_sphere_ms * n <= cap_ms]
+    first_skip = next(r for r in recs if "skipped" in r)
+    assert first_skip["predicted_ms"] > cap_ms and "cap" in first_skip["skipped"]
+    assert all("skipped" in r for r in recs[recs.index(first_skip):])

@@ -448,3 +448,18 @@ def test_render_kernels_draw_the_same_png(capsys, tmp_path):
     code, out, err = cli(capsys, "render", "--spheres", 3, "--kernel", "quick", "-o", tmp_path / "x.png")
     assert_user_error(code, out, err, "--kernel", "quick")
     assert not (tmp_path / "x.png").exists()
+
+
+def test_render_accel_bvh_and_none_same_png(tmp_path, capsys):
+    pngs = {}
+    for accel in ("bvh", "none"):
+        code, out, err = cli(capsys, "render", "--spheres", 200, "--size", "48x30", "--device", "cpu",
+                             "--accel", accel, "-o", tmp_path / f"{accel}.png")
+        assert code == 0, err
+        assert ("BVH built in" in out) == (accel == "bvh")
+        pngs[accel] = np.asarray(Image.open(tmp_path / f"{accel}.png"))
+    assert np.array_equal(pngs["bvh"], pngs["none"])
+    code, out, err = cli(capsys, "render", "--spheres", 3, "--accel", "bvh", "--kernel", "simple",
+                         "-o", tmp_path / "x.png")
+    assert_user_error(code, out, err, "kernel", "brute force only")
+    assert not (tmp_path / "x.png").exists()

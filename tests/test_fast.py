@@ -128,7 +128,7 @@ def test_cuda_fast_shapes_equal_cpu(rng, rays, tile, block):
     ("cpu", {"kernel": "fast", "constant_count": True}, "simple kernel only"),
     ("cuda", {"rays": 0}, "rays: must be an integer from 1 to 16"),
     ("cuda", {"tile": 5000}, "tile: must be an integer from 1 to 3071"),
-    ("cuda", {"block": (32, 32)}, "fast kernel takes at most 256 threads"),
+    ("cuda", {"block": (32, 32), "kernel": "fast"}, "fast kernel takes at most 256 threads"),
 ])
 def test_bad_kernel_options(device, options, match):
     if device == "cuda" and not cuda_backend.available():

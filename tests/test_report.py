@@ -443,3 +443,54 @@ def test_each_kernel_is_judged_in_its_own_column(rng):
         for p in report.speedups(records):
             key = (p["width"], p["height"], p["spheres"])
             assert p["cpu_ms"] == expected[key], name
+
+
+# --- the scaling suite and the BVH column ---------------------------------------
+
+def scaling(rng, cap_at=3000):
+    """Brute force linear in the count up to cap_at, then skipped; the BVH
+    logarithmic; both devices."""
+    out = []
+    for device in ("cpu", "cuda"):
+        a, b = rng.uniform(1e-3, 1e-1), rng.uniform(0.5, 5)
+        for n in (10, 100, 1000, 10000, 100000, 1000000):
+            if n <= cap_at:
+                out.append(rec("scaling", device, n, a * n + 1, size=(1680, 1050),
+                               options={"kernel": "fast", "accel": "none", "cap_s": 1.0}))
+            else:
+                r = rec("scaling", device, n, 1, size=(1680, 1050),
+                        options={"kernel": "fast", "accel": "none", "cap_s": 1.0})
+                for key in ("frame_ms", "kernel_ms"):
+                    del r[key]
+                out.append({**r, "skipped": f"predicted {a * n / 1e3:.3g} s a frame, over the 1 s cap",
+                            "predicted_ms": a * n})
+            bvh = rec("scaling", device, n, b * np.log10(n), size=(1680, 1050), options={"accel": "bvh"})
+            out.append({**bvh, "build_s": n * 1e-6, "rays_per_s": 1680 * 1050 / (b * np.log10(n) / 1e3)})
+    return out
+
+
+def test_scaling_series_keeps_skipped_points(rng):
+    series = report.scaling_series(scaling(rng))
+    assert {(s["device"], s["way"]) for s in series} == \
+        {(d, w) for d in ("cpu", "cuda") for w in ("BVH", "brute force, fast kernel")}
+    for s in series:
+        assert [p["spheres"] for p in s["points"]] == [10, 100, 1000, 10000, 100000, 1000000]
+        skipped = [p["spheres"] for p in s["points"] if p["skipped"]]
+        assert skipped == ([10000, 100000, 1000000] if s["accel"] == "none" else [])
+        assert all((p["build_s"] is not None) == (s["accel"] == "bvh") for p in s["points"] if not p["skipped"])
+
+
+def test_bvh_records_get_their_own_column(rng):
+    recs = thesis(rng) + [{**r, "options": {**r["options"], "accel": "bvh"}} for r in thesis(rng)]
+    assert set(report.group(recs)) == {A, "alpha, BVH"}
+
+
+def test_report_with_scaling_section(tmp_path, rng):
+    path = tmp_path / "r.jsonl"
+    with ResultsWriter(path) as w:
+        for r in thesis(rng) + scaling(rng):
+            w.write(r)
+    text = report.write_report([path], tmp_path / "rep").read_text()
+    section = text[text.index("## Beyond the thesis"):]
+    assert "skipped: predicted" in section and "| BVH |" in section
+    assert (tmp_path / "rep" / "alpha-scaling.png").exists()

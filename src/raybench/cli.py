@@ -16,7 +16,7 @@ from pathlib import Path
 import click
 
 from . import __version__
-from .backends.limits import KERNELS
+from .backends.limits import ACCELS, KERNELS
 from .errors import RaybenchError
 
 SIZE_HELP = "image size as WIDTHxHEIGHT, e.g. 1680x1050"
@@ -82,12 +82,15 @@ def main():
               help="where to trace: auto picks cuda when a usable GPU is present")
 @click.option("--threads", type=int, help="cpu: number of threads (default: all cores)")
 @click.option("--block", help="cuda: thread block shape XxY (default 32x2 fast, 16x16 simple)")
-@click.option("--kernel", type=click.Choice(KERNELS), default="fast", show_default=True,
-              help="simple: the thesis's loop, a pixel at a time; fast: rays grouped and certain misses "
-                   "skipped, the same picture")
+@click.option("--accel", type=click.Choice(ACCELS),
+              help="bvh: walk a bounding volume hierarchy (the default); none: brute force, every sphere for "
+                   "every ray (the thesis's algorithm; the default where --kernel is given). Same picture")
+@click.option("--kernel", type=click.Choice(KERNELS),
+              help="brute force only: simple, the thesis's loop, a pixel at a time; fast (its default), rays "
+                   "grouped and certain misses skipped, the same picture")
 @click.option("-o", "--output", default="render.png", show_default=True, type=click.Path(path_type=Path),
               help="PNG file to write")
-def render(scene_file, spheres, seed, size, device, threads, block, kernel, output):
+def render(scene_file, spheres, seed, size, device, threads, block, accel, kernel, output):
     """Trace one frame and save it as a PNG."""
     from .backends import resolve
     from .render import render as render_frame
@@ -96,7 +99,11 @@ def render(scene_file, spheres, seed, size, device, threads, block, kernel, outp
     width, height = parse_size(size)
     check_output(output)
     device = resolve(device)
-    options = {"kernel": kernel}
+    options = {}
+    if kernel is not None:
+        options["kernel"] = kernel
+    if accel is not None:
+        options["accel"] = accel
     if threads is not None:
         options["threads"] = threads
     if block is not None:
@@ -105,8 +112,9 @@ def render(scene_file, spheres, seed, size, device, threads, block, kernel, outp
     frame = render_frame(scene, width=width, height=height, device=device, **options)
     elapsed = time.perf_counter() - start
     frame.save(output)
+    built = f", BVH built in {frame.build_s * 1e3:.1f} ms" if frame.build_s is not None else ""
     click.echo(f"wrote {output}: {width}x{height}, {len(scene):,} spheres, {frame.device}, "
-               f"{elapsed:.2f} s including compilation")
+               f"{elapsed:.2f} s including compilation{built}")
 
 
 def _view_help() -> str:
@@ -214,19 +222,22 @@ def info(as_json):
 
 @main.command()
 @click.option("--suite", "suites", multiple=True, default=("thesis",), show_default=True,
-              help="thesis, constant-vs-runtime, tuning, or all; repeat for several")
+              help="thesis, constant-vs-runtime, tuning, scaling, or all; repeat for several")
 @click.option("--device", "devices", multiple=True, help="cpu or cuda; repeat for several (default: every device present)")
 @click.option("--duration", type=float, help="seconds of timed frames per point, after warm-up (default 10; 0.5 with --quick)")
 @click.option("--kernel", "kernels", multiple=True, type=click.Choice(KERNELS),
               help="kernels for the thesis and tuning suites; repeat for both (default fast; "
                    "constant-vs-runtime always uses simple, the only one with a compile-time count)")
+@click.option("--accel", "accels", multiple=True, type=click.Choice(ACCELS),
+              help="bvh, none (brute force), or both repeated (the default): the thesis, tuning and scaling "
+                   "suites measure each; constant-vs-runtime and test 7 are brute force only")
 @click.option("--quick", is_flag=True, help="a reduced set of points: about a minute on a 2-core laptop")
 @click.option("--out", "out_dir", type=click.Path(path_type=Path),
               help="folder for the results and the report (default: raybench-results/<machine>)")
 @click.option("--label", help="short machine name used in the report (default: from the GPU or CPU name)")
 @click.option("--seed", type=int, default=0, show_default=True, help="seed of the random scenes")
 @click.option("--no-report", is_flag=True, help="only write the results; skip the report")
-def bench(suites, devices, kernels, duration, quick, out_dir, label, seed, no_report):
+def bench(suites, devices, kernels, accels, duration, quick, out_dir, label, seed, no_report):
     """Run the thesis's experiments on this machine, then write a report.
 
     Results go to a JSON Lines file, one record per point as soon as it is
@@ -262,10 +273,12 @@ def bench(suites, devices, kernels, duration, quick, out_dir, label, seed, no_re
     if out_dir.exists() and not out_dir.is_dir():
         raise RaybenchError(f"--out {out_dir}: is a file, not a folder")
     kernels = tuple(dict.fromkeys(kernels)) or ("fast",)
-    points = suites_mod.points(chosen, devices, quick=quick, kernels=kernels)
+    accels = tuple(dict.fromkeys(accels)) or ACCELS
+    points = suites_mod.points(chosen, devices, quick=quick, kernels=kernels, accels=accels)
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
     results_path = out_dir / f"results-{stamp}.jsonl"
-    settings = {"suites": list(chosen), "devices": list(devices), "kernels": list(kernels), "duration_s": duration,
+    settings = {"suites": list(chosen), "devices": list(devices), "kernels": list(kernels), "accels": list(accels),
+                "duration_s": duration,
                 "quick": quick, "seed": seed}
     info = runner.run_info(machine, label, settings)
     click.echo(f"{len(points)} points on {', '.join(devices)}, {duration:g} s each; results: {results_path}")

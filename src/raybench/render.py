@@ -24,6 +24,7 @@ class Frame:
     image: np.ndarray
     hits: np.ndarray
     device: str
+    build_s: float | None = None  # the BVH's build, apart from the trace; None for brute force
 
     @property
     def width(self) -> int:
@@ -61,7 +62,8 @@ def render(scene: Scene, camera: Camera | None = None, width: int = 800, height:
            device: str = "auto", **options) -> Frame:
     """Trace one frame of scene as seen by camera (default: the scene's own
     camera, else Camera()). device is "cpu", "cuda" or "auto"; options go to the
-    device (cpu: threads=N; cuda: block=(x, y))."""
+    device (cpu: threads=N; cuda: block=(x, y); both: accel="bvh" (the
+    default) or "none", brute force with kernel="fast" or "simple")."""
     if not isinstance(scene, Scene):
         raise RaybenchError(f"scene: must be a raybench.Scene, got {type(scene).__name__}")
     check_size(width, height)
@@ -69,6 +71,7 @@ def render(scene: Scene, camera: Camera | None = None, width: int = 800, height:
     tracer = backends.tracer(device, scene.spheres, width, height, **options)
     try:
         image, hits = tracer.trace(camera.basis(width, height))
-        return Frame(image=image.copy(), hits=hits.copy(), device=tracer.name)
+        return Frame(image=image.copy(), hits=hits.copy(), device=tracer.name,
+                     build_s=getattr(tracer, "build_s", None))
     finally:
         tracer.close()

@@ -11,7 +11,8 @@ from ..errors import RaybenchError
 
 DEVICES = ("cpu", "cuda")
 CHOICES = ("auto",) + DEVICES
-OPTIONS = {"cpu": ("threads", "constant_count", "kernel"), "cuda": ("block", "constant_count", "kernel", "rays", "tile")}
+OPTIONS = {"cpu": ("threads", "constant_count", "kernel", "accel"),
+           "cuda": ("block", "constant_count", "kernel", "rays", "tile", "accel")}
 
 
 def module(name: str):
@@ -53,7 +54,8 @@ def present() -> list[str]:
 
 def tracer(device: str, spheres, width: int, height: int, **options):
     """A Tracer of the (resolved) device for this scene and size; options are
-    the device's own (cpu: threads; cuda: block)."""
+    the device's own (cpu: threads; cuda: block, rays, tile) and, on both,
+    accel ("bvh", the default, or "none"), kernel and constant_count."""
     name = resolve(device)
     for key in options:
         if key not in OPTIONS[name]:

@@ -1,10 +1,17 @@
-"""CPU backend: the image cut into equal bands of rows, one band per thread.
+"""CPU backend: rows spread over threads, each running the compiled kernel
+with the GIL released.
 
-This is the thesis's own scheme ("divided up into eight threads, which each
-process an equal amount of pixels"): any thread count from 1 to one per row,
-each thread running the compiled kernel on its band with the GIL released.
-Two kernels: "simple", the thesis's loop a pixel at a time, and "fast", which
-runs a SIMD cull test over groups of spheres before the exact test (same pixels).
+Brute force (accel "none") cuts the image into equal bands of rows, one per
+thread: the thesis's own scheme ("divided up into eight threads, which each
+process an equal amount of pixels"), any thread count from 1 to one per row.
+Its two kernels: "simple", the thesis's loop a pixel at a time, and "fast",
+which runs a SIMD cull test over groups of spheres before the exact test
+(same pixels). With the BVH (accel "bvh", the default) the rays of a 8x4 tile of
+pixels walk the tree together (_bvh_packets), so each node's boxes are
+tested against all of them with SIMD; a pixel's cost follows how many nodes
+its ray crosses, which varies across the picture, so equal bands would
+leave threads idle: the threads instead pull small chunks of rows from a
+shared iterator until none are left.
 
 fastmath stays off: the float32 arithmetic is then exactly IEEE, so the CPU image
 is bit-identical to the CUDA kernel run under numba's simulator, and the tests
@@ -24,7 +31,9 @@ import numpy as np
 from .. import kernels
 from ..kernels.trace import FAR, ZERO
 from ..errors import RaybenchError
-from .limits import HOST_PIXEL_BYTES, check_count, check_fits, check_kernel, host_available_bytes
+from .. import bvh as bvh_mod
+from .limits import (HOST_PIXEL_BYTES, check_accel, check_bvh_fits, check_count, check_fits, check_kernel,
+                     host_available_bytes)
 
 MAX_THREADS = 4096
 
@@ -32,6 +41,15 @@ _k = kernels.build(numba.njit(inline="always"))
 # module globals, which is how jitted code can see them
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
 _prepare_one, _may_hit, _intersect_relative = _k.prepare, _k.may_hit, _k.intersect_relative
+# The BVH walk's own build of the same functions, with NumPy's error model:
+# float division then has no check for a zero divisor (none can occur: the
+# divisors are the image size, a ray's length, a radius, a direction
+# component raised to at least TINY), so the result is the same IEEE
+# quotient, and LLVM can make the loops over a packet's rays SIMD, which the
+# check's branch prevents (vdivps, vsqrtps in the assembly).
+_kb = kernels.build(numba.njit(inline="always", error_model="numpy"))
+_primary_ray_v, _store_pixel_v, _intersect_relative_v, _inverse = \
+    _kb.primary_ray, _kb.store_pixel, _kb.intersect_relative, _kb.inverse
 
 # Spheres per cull group in the fast kernels: a group's cull test is one
 # loop that LLVM turns into SIMD. 32 measured fastest on a 2-core EPYC
@@ -157,6 +175,179 @@ def _has_avx512() -> bool:
 _fast_band = _wide_band if _has_avx512() else _pairs_band
 
 
+# Rays walked through the BVH together by _bvh_packets: an 8x4 tile of
+# pixels, two AVX-512 or four AVX2 registers of float32 per ray component
+# (of 4x4, 8x4 and 8x8, the fastest on a 2-core EPYC, docs/performance.md).
+PACKET_W, PACKET_H = 8, 4
+PACKET = PACKET_W * PACKET_H  # a multiple of 8 (_lowest)
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _packet_box(nodes, row, col, ox, oy, oz, margin, ix, iy, iz, closest, near_out):
+    """Whether any ray of the packet enters the child box (grown by margin,
+    as in kernels.traverse) nearer than its closest hit so far; near_out[k]
+    is where ray k enters it, FAR if it does not. The rays share their
+    origin, so the planes' offsets from it are computed once for all; the
+    loop over rays has no branch and no float reduction, so LLVM makes it
+    SIMD (without fastmath it vectorises neither)."""
+    lx = nodes[row, col] - margin - ox
+    ly = nodes[row, col + 1] - margin - oy
+    lz = nodes[row, col + 2] - margin - oz
+    hx = nodes[row, col + 3] + margin - ox
+    hy = nodes[row, col + 4] + margin - oy
+    hz = nodes[row, col + 5] + margin - oz
+    entered = False
+    for k in range(PACKET):
+        t1, t2 = lx * ix[k], hx * ix[k]
+        t3, t4 = ly * iy[k], hy * iy[k]
+        t5, t6 = lz * iz[k], hz * iz[k]
+        near = max(min(t1, t2), max(min(t3, t4), min(t5, t6)))
+        far = min(max(t1, t2), min(max(t3, t4), max(t5, t6)))
+        ok = (near <= far) & (far > ZERO) & (near <= closest[k])
+        near_out[k] = near if ok else FAR
+        entered |= ok
+    return entered
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _lowest(values, fold):
+    """The smallest of the packet's values: first lane-wise over groups of
+    8 (SIMD; LLVM will not vectorise a float reduction without fastmath),
+    then over the 8 that are left."""
+    for j in range(8):
+        low = values[j]
+        for g in range(8, PACKET, 8):
+            low = min(low, values[g + j])
+        fold[j] = low
+    low = fold[0]
+    for j in range(1, 8):
+        low = min(low, fold[j])
+    return low
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _highest(values, fold):
+    """The largest of the packet's values, as _lowest."""
+    for j in range(8):
+        high = values[j]
+        for g in range(8, PACKET, 8):
+            high = max(high, values[g + j])
+        fold[j] = high
+    high = fold[0]
+    for j in range(1, 8):
+        high = max(high, fold[j])
+    return high
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _packet_leaf(ox, oy, oz, dx, dy, dz, ordered, order, first, count, closest, hit, hit_d):
+    """The exact test of a leaf's spheres on every ray of the packet: EO as
+    intersect_sphere computes it, the walk's tie rule."""
+    for j in range(first, first + count):
+        ex, ey, ez, r, original = ordered[0, j] - ox, ordered[1, j] - oy, ordered[2, j] - oz, ordered[3, j], order[j]
+        for k in range(PACKET):
+            t, d = _intersect_relative_v(ex, ey, ez, r, dx[k], dy[k], dz[k])
+            c = closest[k]
+            better = (t > ZERO) & ((t < c) | ((t == c) & (original < hit[k])))
+            closest[k] = t if better else c
+            hit[k] = original if better else hit[k]
+            hit_d[k] = d if better else hit_d[k]
+
+
+@numba.njit(nogil=True, error_model="numpy")
+def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered, order, spheres, image, hits):
+    """The rows first_row..end_row, a PACKET_W x PACKET_H packet of rays at a time: the
+    packet walks the tree together, a node entered if any of its rays
+    enters it, each box and leaf test run across the packet's rays (loops
+    LLVM turns into SIMD). Each ray still gets the nearest sphere of all it
+    could hit, ties to the smaller index: the pixels of kernels.traverse's walk, one ray at a time."""
+    stack_row = np.empty(bvh_mod.STACK, np.int32)
+    stack_t = np.empty(bvh_mod.STACK, np.float32)
+    near_a = np.empty(PACKET, np.float32)
+    near_b = np.empty(PACKET, np.float32)
+    fold = np.empty(8, np.float32)
+    dx = np.empty(PACKET, np.float32)
+    dy = np.empty(PACKET, np.float32)
+    dz = np.empty(PACKET, np.float32)
+    ix = np.empty(PACKET, np.float32)
+    iy = np.empty(PACKET, np.float32)
+    iz = np.empty(PACKET, np.float32)
+    closest = np.empty(PACKET, np.float32)
+    hit = np.empty(PACKET, np.int32)
+    hit_d = np.empty(PACKET, np.float32)
+    ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
+    margin = (abs(ox) + abs(oy) + abs(oz)) * bvh_mod.PAD
+    for y0 in range(first_row, end_row, PACKET_H):
+        for x0 in range(0, width, PACKET_W):
+            # separate loops, each simple enough for LLVM to make SIMD
+            for k in range(PACKET):
+                # rays off the chunk trace a copy of its last row or column, unstored
+                x = min(x0 + k % PACKET_W, width - 1)
+                y = min(y0 + k // PACKET_W, end_row - 1)
+                dx[k], dy[k], dz[k] = _primary_ray_v(x, y, width, height, basis)
+            for k in range(PACKET):
+                ix[k] = _inverse(dx[k])
+                iy[k] = _inverse(dy[k])
+                iz[k] = _inverse(dz[k])
+            for k in range(PACKET):
+                closest[k] = FAR
+                hit[k] = -1
+                hit_d[k] = ZERO
+            row = 0
+            top = 0
+            while row >= 0:
+                a_in = _packet_box(nodes, row, 0, ox, oy, oz, margin, ix, iy, iz, closest, near_a)
+                b_in = _packet_box(nodes, row, 6, ox, oy, oz, margin, ix, iy, iz, closest, near_b)
+                a_ref, b_ref, a_count, b_count = links[row, 12], links[row, 13], links[row, 14], links[row, 15]
+                a_near = b_near = FAR
+                if a_in and b_in:
+                    # the nearest entry of any ray: orders the children, and
+                    # rules a pushed one out once every ray has a nearer hit
+                    a_near, b_near = _lowest(near_a, fold), _lowest(near_b, fold)
+                if b_in and (not a_in or b_near < a_near):  # near child first
+                    a_in, a_near, a_ref, a_count, b_in, b_near, b_ref, b_count = \
+                        b_in, b_near, b_ref, b_count, a_in, a_near, a_ref, a_count
+                row = -1
+                if a_in:
+                    if a_count == bvh_mod.INNER:
+                        row = a_ref
+                    else:
+                        _packet_leaf(ox, oy, oz, dx, dy, dz, ordered, order, a_ref, a_count, closest, hit, hit_d)
+                if b_in:
+                    if b_count != bvh_mod.INNER:
+                        _packet_leaf(ox, oy, oz, dx, dy, dz, ordered, order, b_ref, b_count, closest, hit, hit_d)
+                    elif row < 0:
+                        row = b_ref
+                    else:
+                        stack_row[top] = b_ref
+                        stack_t[top] = b_near
+                        top += 1
+                if row < 0 and top > 0:
+                    farthest = _highest(closest, fold)
+                    while row < 0 and top > 0:
+                        top -= 1
+                        if stack_t[top] <= farthest:
+                            row = stack_row[top]
+            for k in range(PACKET):
+                x = x0 + k % PACKET_W
+                y = y0 + k // PACKET_W
+                if x < width and y < end_row:
+                    _store_pixel_v(x, y, hit[k], hit_d[k], spheres, image, hits)
+
+
+# Chunks of rows per thread for the BVH: enough that the last chunk to finish
+# leaves the others little time idle, few enough that the calls cost little.
+CHUNKS_PER_THREAD = 16
+
+
+def chunks(height: int, threads: int) -> list[tuple[int, int]]:
+    """Rows 0..height in about CHUNKS_PER_THREAD chunks per thread, in order,
+    cut at whole packets of rows."""
+    packets = -(-height // PACKET_H)
+    return [(a * PACKET_H, min(b * PACKET_H, height))
+            for a, b in bands(packets, min(packets, threads * CHUNKS_PER_THREAD))]
+
+
 def default_threads() -> int:
     return os.cpu_count() or 1
 
@@ -177,29 +368,54 @@ class Tracer:
     name = "cpu"
 
     def __init__(self, spheres: np.ndarray, width: int, height: int, threads: int | None = None,
-                 constant_count: bool = False, kernel: str = "fast"):
-        self.kernel = check_kernel(kernel, constant_count)
+                 constant_count: bool = False, kernel: str | None = None, accel: str | None = None):
+        self.accel, kernel = check_accel(accel, kernel, {"constant_count": constant_count})
+        self.kernel = check_kernel(kernel, constant_count) if self.accel == "none" else None
         if threads is None:
             threads = default_threads()
         if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or not 1 <= threads <= MAX_THREADS:
             raise RaybenchError(f"threads: must be an integer from 1 to {MAX_THREADS}, got {threads!r}")
         check_fits("cpu", width, height, spheres.shape[1], host_available_bytes(), HOST_PIXEL_BYTES)
+        if self.accel == "bvh":
+            check_bvh_fits("cpu", spheres.shape[1], host_available_bytes(), bvh_mod.BUILD_SPHERE_BYTES,
+                           width * height * HOST_PIXEL_BYTES)
         self.threads = int(threads)
         self.spheres = spheres
         self.count = spheres.shape[1]
         self.width, self.height = width, height
         self.image = np.empty((height, width, 3), dtype=np.uint8)
         self.hits = np.empty((height, width), dtype=np.int32)
-        self.bands = bands(height, self.threads)
-        self._pool = ThreadPoolExecutor(len(self.bands)) if len(self.bands) > 1 else None
         self.constant_count = bool(constant_count)
-        if self.kernel == "fast":
-            self._kernel = _fast_band
-            self.relative = np.zeros((4, self.count), np.float32)
+        self.bvh = None
+        self.build_s = None
+        if self.accel == "bvh":
+            self.bands = chunks(height, self.threads)
+            workers = min(self.threads, len(self.bands))
+            self._kernel = _bvh_packets
+            self._build(self.count)
         else:
-            self._kernel = _constant_band(self.count) if self.constant_count else _render_band
+            self.bands = bands(height, self.threads)
+            workers = len(self.bands)
+            if self.kernel == "fast":
+                self._kernel = _fast_band
+                self.relative = np.zeros((4, self.count), np.float32)
+            else:
+                self._kernel = _constant_band(self.count) if self.constant_count else _render_band
+        self._pool = ThreadPoolExecutor(workers) if workers > 1 else None
+        self._workers = workers
+
+    def _build(self, count: int) -> None:
+        """The BVH of the first `count` spheres; its build time in build_s."""
+        self.bvh = bvh_mod.build(self.spheres[:, :count], threads=min(self.threads, default_threads()))
+        self.build_s = self.bvh.build_s
 
     def _args(self, basis, count):
+        if self.accel == "bvh":
+            if self.bvh.count != count:  # a frame of fewer spheres: their own tree
+                self._build(count)
+            b = self.bvh
+            return (self.width, self.height, basis, b.nodes, b.links, b.ordered, b.order, self.spheres,
+                    self.image, self.hits)
         if self.kernel == "fast":
             _prepare(basis, self.spheres, count, self.relative)
             return (self.width, self.height, basis, self.spheres, self.relative, count, self.image, self.hits)
@@ -218,6 +434,15 @@ class Tracer:
         args = self._args(basis, count)
         if self._pool is None:
             self._kernel(0, self.height, *args)
+        elif self.accel == "bvh":
+            pending = iter(self.bands)  # next() on it is atomic under the GIL
+
+            def pull():
+                for a, b in pending:
+                    self._kernel(a, b, *args)
+
+            for job in [self._pool.submit(pull) for _ in range(self._workers)]:
+                job.result()
         else:
             for job in [self._pool.submit(self._kernel, a, b, *args) for a, b in self.bands]:
                 job.result()
@@ -232,4 +457,3 @@ class Tracer:
         if self._pool is not None:
             self._pool.shutdown()
             self._pool = None
-

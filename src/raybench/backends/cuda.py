@@ -1,6 +1,8 @@
-"""CUDA backend: numba-cuda, in blocks of a chosen shape. The simple kernel is
-the thesis's, one thread per pixel; the fast one gives each thread several
-pixels and stages the spheres through shared memory.
+"""CUDA backend: numba-cuda, in blocks of a chosen shape. With the BVH (accel
+"bvh", the default) one thread traces one pixel, walking the tree's nodes
+from global memory. Brute force (accel "none") has two kernels: the simple
+one is the thesis's, one thread per pixel; the fast one gives each thread
+several pixels and stages the spheres through shared memory.
 
 The per-pixel functions are the same Python source the CPU runs (raybench.kernels),
 compiled as CUDA device functions. Under NUMBA_ENABLE_CUDASIM=1 it runs in
@@ -21,14 +23,20 @@ from numba.cuda.core.errors import NumbaPerformanceWarning
 from .. import kernels
 from ..kernels.trace import FAR, ZERO
 from ..errors import RaybenchError
-from .limits import FAST_MAX_THREADS, HOST_PIXEL_BYTES, check_count, check_fits, check_kernel, host_available_bytes
+from .. import bvh as bvh_mod
+from .limits import (FAST_MAX_THREADS, HOST_PIXEL_BYTES, PIXEL_BYTES, check_accel, check_bvh_fits, check_count,
+                     check_fits, check_kernel, host_available_bytes)
 
-DEFAULT_BLOCK = {"simple": (16, 16), "fast": (16, 4)}  # the fastest measured on an H100 (docs/performance.md)
+# simple, fast: the fastest measured on an H100 (docs/performance.md). bvh:
+# 8 wide, so a warp is a compact 8x4 patch of pixels whose rays cross much
+# the same nodes (a first guess, to be measured by the tuning suite).
+DEFAULT_BLOCK = {"simple": (16, 16), "fast": (16, 4), "bvh": (8, 8)}
 
 _k = kernels.build(cuda.jit(device=True))
 # module globals, which is how kernels can see them
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
 _prepare_one, _may_hit, _along, _intersect_relative = _k.prepare, _k.may_hit, _k.along, _k.intersect_relative
+_render_pixel_bvh = _k.render_pixel_bvh
 
 # Fast kernel defaults: each thread traces RAYS pixels, one above the other a
 # block height apart, so every sphere read from shared memory serves RAYS
@@ -45,6 +53,16 @@ def _render_kernel(width, height, basis, spheres, count, image, hits):
     x, y = cuda.grid(2)
     if x < width and y < height:
         _render_pixel(x, y, width, height, basis, spheres, count, image, hits)
+
+
+@cuda.jit
+def _bvh_kernel(width, height, basis, nodes, links, ordered, order, spheres, image, hits):
+    x, y = cuda.grid(2)
+    if x < width and y < height:
+        stack_row = cuda.local.array(bvh_mod.STACK, np.int32)
+        stack_t = cuda.local.array(bvh_mod.STACK, np.float32)
+        _render_pixel_bvh(x, y, width, height, basis, nodes, links, ordered, order, spheres, image, hits,
+                          stack_row, stack_t)
 
 
 @cuda.jit
@@ -206,6 +224,9 @@ def _check_block(block, kernel: str) -> tuple[int, int]:
     if kernel == "fast" and bx * by > FAST_MAX_THREADS:
         raise RaybenchError(f"block: the fast kernel takes at most {FAST_MAX_THREADS} threads per block (its rays "
                             f"need the registers), got {bx}x{by}; use a smaller block or --kernel simple")
+    if kernel == "bvh" and bx * by > FAST_MAX_THREADS:
+        raise RaybenchError(f"block: the BVH walk takes at most {FAST_MAX_THREADS} threads per block (its stack and "
+                            f"ray need the registers), got {bx}x{by}; use a smaller block")
     return bx, by
 
 
@@ -221,16 +242,27 @@ class Tracer:
     name = "cuda"
 
     def __init__(self, spheres: np.ndarray, width: int, height: int, block=None,
-                 constant_count: bool = False, kernel: str = "fast", rays: int = RAYS, tile: int = TILE):
+                 constant_count: bool = False, kernel: str | None = None, rays: int | None = None,
+                 tile: int | None = None, accel: str | None = None):
         require()
-        self.kernel = check_kernel(kernel, constant_count)
-        block = DEFAULT_BLOCK[self.kernel] if block is None else block
+        self.accel, kernel = check_accel(accel, kernel, {"constant_count": constant_count, "rays": rays is not None,
+                                                         "tile": tile is not None})
+        rays = RAYS if rays is None else rays
+        tile = TILE if tile is None else tile
+        self.kernel = check_kernel(kernel, constant_count) if self.accel == "none" else None
+        block = DEFAULT_BLOCK[self.kernel or "bvh"] if block is None else block
         self.rays = _check_int("rays", rays, 1, MAX_RAYS) if self.kernel == "fast" else 1
         self.tile = _check_int("tile", tile, 1, MAX_TILE)
-        self.block = _check_block(block, self.kernel)
+        self.block = _check_block(block, self.kernel or "bvh")
         free, _total = cuda.current_context().get_memory_info()
         check_fits("cuda GPU", width, height, spheres.shape[1], free)
         check_fits("host", width, height, 0, host_available_bytes(), HOST_PIXEL_BYTES)
+        if self.accel == "bvh":
+            check_bvh_fits("cuda GPU", spheres.shape[1], free - spheres.shape[1] * 7 * 4,
+                           bvh_mod.DEVICE_SPHERE_BYTES, width * height * PIXEL_BYTES)
+            check_bvh_fits("host", spheres.shape[1], host_available_bytes(), bvh_mod.BUILD_SPHERE_BYTES,
+                           width * height * HOST_PIXEL_BYTES)
+        self.spheres = spheres
         self.width, self.height = width, height
         self.count = spheres.shape[1]
         self.grid = (math.ceil(width / self.block[0]), math.ceil(height / (self.block[1] * self.rays)))
@@ -243,11 +275,27 @@ class Tracer:
             np.empty((height, width), np.int32)
         self.d_basis = cuda.device_array((4, 3), dtype=np.float32)
         self.constant_count = bool(constant_count)
-        if self.kernel == "fast":
+        self.bvh = None
+        self.build_s = None
+        if self.accel == "bvh":
+            self._kernel = _bvh_kernel
+            self._build(self.count)
+        elif self.kernel == "fast":
             self._kernel = fast_kernel(self.rays, self.tile)
             self.d_relative = cuda.device_array((4, max(self.count, 1)), dtype=np.float32)
         else:
             self._kernel = _constant_kernel(self.count) if self.constant_count else _render_kernel
+
+    def _build(self, count: int) -> None:
+        """Build the BVH of the first `count` spheres on the host and upload it;
+        build_s is the build alone (the upload is a copy like the spheres')."""
+        self.bvh = bvh_mod.build(self.spheres[:, :count])
+        self.build_s = self.bvh.build_s
+        b = self.bvh
+        self.d_nodes = cuda.to_device(b.nodes)
+        self.d_links = self.d_nodes.view(np.int32)  # the same bytes: one row holds both
+        self.d_ordered = cuda.to_device(b.ordered if b.count else np.zeros((4, 1), np.float32))
+        self.d_order = cuda.to_device(b.order if b.count else np.zeros(1, np.int32))
 
     def compile(self) -> float:
         """Compile the kernel if needed (one empty launch); the seconds it took."""
@@ -260,7 +308,13 @@ class Tracer:
         with warnings.catch_warnings():
             # Small frames cannot fill the GPU; that is the user's choice, not news.
             warnings.simplefilter("ignore", NumbaPerformanceWarning)
-            if self.kernel == "fast":
+            if self.accel == "bvh":
+                if self.bvh.count != count:  # a frame of fewer spheres: their own tree
+                    self._build(count)
+                self._kernel[grid, self.block](width, height, self.d_basis, self.d_nodes, self.d_links,
+                                               self.d_ordered, self.d_order, self.d_spheres, self.d_image,
+                                               self.d_hits)
+            elif self.kernel == "fast":
                 # EO and the cull bound for this frame's camera, on the GPU, before the frame
                 _prepare_kernel[max(1, math.ceil(count / 256)), 256](self.d_basis, self.d_spheres, count,
                                                                      self.d_relative)

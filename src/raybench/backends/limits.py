@@ -59,3 +59,41 @@ def check_kernel(kernel, constant_count: bool) -> str:
         raise RaybenchError("constant_count: applies to the simple kernel only; add kernel='simple' "
                             "(--kernel simple)")
     return kernel
+
+
+ACCELS = ("bvh", "none")
+
+
+def check_accel(accel, kernel, brute_force_options: dict) -> tuple[str, str | None]:
+    """(accel, kernel), checked. accel "bvh" walks a bounding volume hierarchy;
+    "none" tests every sphere with the chosen kernel (default "fast"). The
+    kernel and the options of the brute-force kernels (brute_force_options:
+    name -> given) mean nothing to the BVH walk: asking for one without an
+    accel implies accel "none"; asking for one with accel "bvh" is an error."""
+    given = [name for name, on in brute_force_options.items() if on]
+    if kernel is not None:
+        given.insert(0, "kernel")
+    if accel is None:
+        accel = "none" if given else "bvh"
+    if accel not in ACCELS:
+        raise RaybenchError(f"accel: must be one of {', '.join(ACCELS)}, got {accel!r}")
+    if accel == "bvh":
+        if given:
+            raise RaybenchError(f"{given[0]}: applies to brute force only (accel='none', --accel none), "
+                                "not to the BVH walk")
+        return accel, None
+    return accel, "fast" if kernel is None else kernel
+
+
+def check_bvh_fits(device: str, spheres: int, available: float, per_sphere: int, pixel_bytes_needed: int = 0) -> None:
+    """A BVH of `spheres` spheres (per_sphere bytes each, at most) and the
+    frame must fit in what the device has free."""
+    need = max(spheres, 1) * per_sphere + pixel_bytes_needed
+    if need > available:
+        raise RaybenchError(f"bvh: {spheres:,} spheres need {_bytes(need)} for the BVH and the frame, "
+                            f"more than the {_bytes(available)} available on the {device}; "
+                            "use fewer spheres or a smaller size")
+
+
+def _bytes(n: float) -> str:
+    return f"{n / 2**30:.2f} GiB" if n >= 2**30 else f"{n / 2**20:.1f} MiB"

@@ -87,6 +87,12 @@ def _check(record: dict, path, number: int) -> None:
     for key in ("width", "height", "spheres"):
         if not isinstance(record.get(key), int):
             _bad(path, number, f"field {key!r} missing or not a whole number")
+    if "skipped" in record:  # a point not measured (the scaling suite's cap): only why
+        if not isinstance(record["skipped"], str) or record["suite"] != "scaling":
+            _bad(path, number, "field 'skipped' is not a reason, or not in the scaling suite")
+        if not isinstance(record.get("run"), dict) or not isinstance(record["run"].get("label"), str):
+            _bad(path, number, "field 'run' lacks label or machine")
+        return
     for key in ("frame_ms", "kernel_ms"):
         stats = record.get(key)
         if stats is None and key == "kernel_ms":
@@ -147,6 +153,12 @@ def load(paths) -> tuple[dict[str, list[dict]], list[str]]:
     return {label: list(points.values()) for label, points in machines.items()}, notes
 
 
+def accel_of(record: dict) -> str:
+    """How a record found the nearest sphere: "bvh", or "none" (brute force,
+    every sphere), which records from before the BVH were measured with."""
+    return (record.get("options") or {}).get("accel", "none")
+
+
 def kernel_of(record: dict) -> str:
     """The kernel a record was measured with; records from before the fast
     kernel existed carry none and were measured with the simple one."""
@@ -154,8 +166,10 @@ def kernel_of(record: dict) -> str:
 
 
 def column(record: dict) -> str:
-    """The report's column of a record: its machine and kernel, judged apart,
-    since the thesis's claims mean something different for each kernel."""
+    """The report's column of a record: its machine and kernel (or the BVH),
+    judged apart, since the thesis's claims mean something different for each."""
+    if accel_of(record) == "bvh":
+        return f"{record['run']['label']}, BVH"
     return f"{record['run']['label']}, {kernel_of(record)} kernel"
 
 
@@ -887,6 +901,80 @@ def _section_constant(w: _Writer, label: str, slug: str, records: list[dict]) ->
             w(f"{DEVICE_NAMES[device]}: not measured.", "")
 
 
+def _way(r: dict) -> str:
+    return "BVH" if accel_of(r) == "bvh" else f"brute force, {kernel_of(r)} kernel"
+
+
+def scaling_series(records: list[dict]) -> list[dict]:
+    """The scaling suite: one series per (device, way of tracing, size), points
+    sorted by sphere count; each point's median frame (and kernel) ms, rays/s
+    and build s, or the reason it was skipped."""
+    out: dict[tuple, dict] = {}
+    for r in records:
+        if r["suite"] != "scaling":
+            continue
+        key = (r["device"], _way(r), r["width"], r["height"])
+        s = out.setdefault(key, {"device": r["device"], "way": _way(r), "accel": accel_of(r),
+                                 "width": r["width"], "height": r["height"], "points": []})
+        s["points"].append({
+            "spheres": r["spheres"], "skipped": r.get("skipped"),
+            "median": None if "skipped" in r else float(r["frame_ms"]["median"]),
+            "kernel": (r.get("kernel_ms") or {}).get("median"),
+            "rays_per_s": r.get("rays_per_s"), "build_s": r.get("build_s")})
+    for s in out.values():
+        s["points"].sort(key=lambda p: p["spheres"])
+    return sorted(out.values(), key=lambda s: (s["device"], s["way"], s["width"] * s["height"]))
+
+
+def _plot_scaling(label: str, series: list[dict]) -> bytes:
+    fig, (ax,) = _figure(width=8.0, height=5.2)
+    for i, s in enumerate(series):
+        done = [p for p in s["points"] if p["median"] is not None]
+        if not done:
+            continue
+        style = "o-" if s["accel"] == "bvh" else "s--"
+        name = f"{DEVICE_NAMES.get(s['device'], s['device'])}, {s['way']}, {s['width']}x{s['height']}"
+        ax.plot([p["spheres"] for p in done], [p["median"] for p in done], style, color=f"C{i}", markersize=4,
+                label=name)
+        if all(p["kernel"] for p in done):
+            ax.plot([p["spheres"] for p in done], [p["kernel"] for p in done], ":", color=f"C{i}", linewidth=1.2)
+        cut = [p for p in s["points"] if p["median"] is None]
+        if cut:
+            ax.axvline(cut[0]["spheres"], color=f"C{i}", linewidth=0.6, alpha=0.5)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("spheres in the scene")
+    ax.set_ylabel("median frame time (ms); dotted: kernel only")
+    ax.set_title(f"{label}: frame time against sphere count (thin line: brute force stopped)", fontsize=10)
+    ax.legend(fontsize=7)
+    return _png(fig)
+
+
+def _section_scaling(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
+    series = scaling_series(records)
+    if not series:
+        return
+    w(f"### {_md(label)}: scaling from 10 to 1,000,000 spheres", "")
+    w("Median frame time against the number of spheres (`random_spheres`, default camera), on log-log axes: "
+      "brute force grows linearly (slope 1), the BVH about logarithmically. Brute force stops where its next "
+      "frame, predicted linear in spheres from the last one measured, would pass the cap; those points are "
+      "listed as skipped, not left out. BVH build time is measured apart from the frames.", "")
+    w.image(f"{slug}.png", _plot_scaling(label, series), f"{label}: frame time against sphere count")
+    header = ["device", "way", "size", "spheres", "median frame ms", "kernel ms", "rays/s", "build ms"]
+    rows = []
+    for s in series:
+        for p in s["points"]:
+            base = [DEVICE_NAMES.get(s["device"], s["device"]), s["way"], f"{s['width']}x{s['height']}",
+                    f"{p['spheres']:,}"]
+            if p["median"] is None:
+                rows.append(base + [f"skipped: {_md(p['skipped'])}", "", "", ""])
+                continue
+            rows.append(base + [_ms(p["median"]), _ms(p["kernel"]) if p["kernel"] else "–",
+                                f"{_num(p['rays_per_s'] / 1e6)} M" if p["rays_per_s"] else "–",
+                                _ms(p["build_s"] * 1e3) if p["build_s"] is not None else "–"])
+    w(_table(header, rows), "")
+
+
 def _claims_table(machines: dict[str, list[dict]]) -> tuple[str, dict[str, list[dict]]]:
     judged = {label: verdicts(records) for label, records in machines.items()}
     header = ["#", "the thesis's claim", "what the thesis measured"] + [f"{label}" for label in machines]
@@ -907,13 +995,21 @@ def write_report(paths: list, out_dir) -> Path:
     if out_dir.exists() and not out_dir.is_dir():
         raise RaybenchError(f"{out_dir}: is a file, not a folder for the report")
     machines, notes = load(paths)
+    # the scaling suite is no part of the thesis's claims: its own section per machine
+    scaling: dict[str, list[dict]] = {}
+    for records in machines.values():
+        for r in records:
+            if r["suite"] == "scaling":
+                scaling.setdefault(r["run"]["label"], []).append(r)
+    machines = {k: v for k, v in ((k, [r for r in v if r["suite"] != "scaling"]) for k, v in machines.items()) if v}
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise RaybenchError(f"{out_dir}: cannot create the report folder ({exc.strerror or exc})") from None
 
     w = _Writer(out_dir)
-    names = ", ".join(dict.fromkeys(records[0]["run"]["label"] for records in machines.values() if records))
+    names = ", ".join(dict.fromkeys([records[0]["run"]["label"] for records in machines.values() if records]
+                                    + list(scaling)))
     w(f"# raybench: the 2010 GPU ray-tracing thesis, measured again on {names}", "")
     w("Persson and Udd (2010) rendered spheres with one brute-force ray tracer (one primary ray per pixel, "
       f"tested against every sphere) on an {THESIS_CPU} and on a {THESIS_GPU} with a DirectX 11 compute "
@@ -934,6 +1030,10 @@ def write_report(paths: list, out_dir) -> Path:
         w(*_machine_lines(label, records), "")
         for section in (_section_thesis, _section_speedup, _section_test7, _section_tuning, _section_constant):
             section(w, label, slug, records)
+    if scaling:
+        w("## Beyond the thesis: scaling with a BVH", "")
+        for label, records in scaling.items():
+            _section_scaling(w, label, _slug(f"{label}-scaling", taken), records)
     w("## Sources", "")
     w(*[f"- `{Path(p)}`" for p in paths], "")
     if notes:

@@ -4,21 +4,26 @@ every point it finished.
 
 A record (format "raybench-results", version 1):
 
-    suite        "thesis" | "test7" | "constant-vs-runtime" | "tuning"
+    suite        "thesis" | "test7" | "constant-vs-runtime" | "tuning" | "scaling"
     test         the thesis's test number (1-3 GPU, 4-6 CPU by resolution; 7 the ramp), else null
     device       "cpu" | "cuda"
     width, height, spheres
     options      the device options used: {"threads": N} (cpu) or {"block": [x, y]} (cuda),
                  and for constant-vs-runtime {"count": "constant" | "runtime"};
-                 tuning points carry "label", e.g. "2x cores" or "one per row"
+                 tuning points carry "label", e.g. "2x cores" or "one per row";
+                 "accel": "bvh" | "none" (absent in older records: none), "kernel"
+                 for brute force; scaling's brute-force points carry "cap_s"
     frames       how many timed frames
     frame_ms     {mean, median, p5, p95, min, max}: whole frame (kernel, and on the GPU the copy to the host)
     kernel_ms    the same for the kernel alone (CUDA events), or null on the CPU
-    rays_per_s, tests_per_s   from the median frame (tests = rays x spheres)
+    rays_per_s, tests_per_s   from the median frame (tests = rays x spheres; null for the BVH)
+    build_s      the BVH's build time (seconds, compiled code only), or null for brute force
     first_frame_s   the first frame of the point, never averaged in
     compile_s       compiling the kernel for the point, if it was not yet compiled, else 0
     series       test7 only: {"spheres": [...], "frame_ms": [...], "kernel_ms": [... or null]},
                  one entry per frame after the first
+    skipped      instead of frames, frame_ms, ...: why the point was not measured, e.g.
+                 "predicted 4.2 s a frame, over the 1 s cap", with predicted_ms
     run          {"id", "date", "git_commit", "label", "argv", "settings", "machine": raybench.machine.describe()}
 """
 

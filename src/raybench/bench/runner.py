@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import datetime
+import json
 import re
 import subprocess
 import sys
@@ -30,6 +31,8 @@ def tracer_options(point: Point) -> dict:
         opts["block"] = tuple(point.options["block"])
     if "kernel" in point.options:
         opts["kernel"] = point.options["kernel"]
+    if "accel" in point.options:
+        opts["accel"] = point.options["accel"]
     if point.options.get("count") == "constant":
         opts["constant_count"] = True
     return opts
@@ -62,6 +65,7 @@ def measure(point: Point, scenes: Scenes, duration: float) -> dict:
     basis = Camera().basis(point.width, point.height)
     tracer = backends.tracer(point.device, scene.spheres, point.width, point.height, **tracer_options(point))
     try:
+        build_s = getattr(tracer, "build_s", None)
         compile_s = tracer.compile()
         if point.ramp:
             first_ms, _ = _frame(tracer, basis, point.ramp[0])
@@ -84,8 +88,9 @@ def measure(point: Point, scenes: Scenes, duration: float) -> dict:
         "width": point.width, "height": point.height, "spheres": point.spheres,
         "options": point.options, "frames": len(frames),
         "frame_ms": summarize(frame_ms), "kernel_ms": summarize(kernel_ms) if kernel_ms else None,
-        "first_frame_s": first_ms / 1e3, "compile_s": compile_s,
+        "first_frame_s": first_ms / 1e3, "compile_s": compile_s, "build_s": build_s,
     }
+    bvh = point.options.get("accel") == "bvh"
     if point.ramp:
         record["series"] = {"spheres": list(point.ramp[1:]), "frame_ms": frame_ms,
                             "kernel_ms": kernel_ms or None}
@@ -95,8 +100,33 @@ def measure(point: Point, scenes: Scenes, duration: float) -> dict:
     else:
         median_s = record["frame_ms"]["median"] / 1e3
         record["rays_per_s"] = point.width * point.height / median_s
-        record["tests_per_s"] = point.width * point.height * point.spheres / median_s
+        # the BVH tests only the spheres its walk reaches: rays x spheres would be no count of its work
+        record["tests_per_s"] = None if bvh else point.width * point.height * point.spheres / median_s
     return record
+
+
+def _series(point: Point) -> tuple:
+    """The points a capped point predicts its frame time from: the same
+    suite, device and way of tracing, any size and count."""
+    opts = {k: v for k, v in point.options.items() if k != "cap_s"}
+    return point.suite, point.device, json.dumps(opts, sort_keys=True)
+
+
+def predicted_ms(point: Point, last: tuple | None) -> float | None:
+    """Frame time predicted for point from (pixels, spheres, median ms) of the
+    last point of its series: linear in spheres and in pixels."""
+    if last is None:
+        return None
+    pixels, spheres, ms = last
+    return ms * (point.width * point.height / pixels) * (max(point.spheres, 1) / max(spheres, 1))
+
+
+def skipped(point: Point, predicted: float, cap_s: float) -> dict:
+    """The record of a point not measured: its frame would take too long."""
+    return {"suite": point.suite, "test": point.test, "device": point.device, "width": point.width,
+            "height": point.height, "spheres": point.spheres, "options": point.options,
+            "skipped": f"predicted {predicted / 1e3:.3g} s a frame, over the {cap_s:g} s cap",
+            "predicted_ms": predicted}
 
 
 def git_commit() -> str | None:
@@ -132,6 +162,7 @@ def run(points: list[Point], writer: ResultsWriter, run: dict, duration: float, 
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     scenes = Scenes(seed)
+    last: dict[tuple, tuple] = {}
     weights = [duration + WARMUP_S + (duration if p.ramp else 0) for p in points]
     columns = [TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[done]}/{task.fields[count]} points"),
                TimeElapsedColumn(), TextColumn("left"), TimeRemainingColumn()]
@@ -139,6 +170,13 @@ def run(points: list[Point], writer: ResultsWriter, run: dict, duration: float, 
         task = bar.add_task("", total=sum(weights), done=0, count=len(points))
         for i, (point, weight) in enumerate(zip(points, weights)):
             bar.update(task, description=point.describe())
-            writer.write({**measure(point, scenes, duration), "run": run})
+            cap_s = point.options.get("cap_s")
+            guess = predicted_ms(point, last.get(_series(point))) if cap_s else None
+            if guess is not None and guess > cap_s * 1e3:
+                writer.write({**skipped(point, guess, cap_s), "run": run})
+            else:
+                record = measure(point, scenes, duration)
+                last[_series(point)] = (point.width * point.height, point.spheres, record["frame_ms"]["median"])
+                writer.write({**record, "run": run})
             bar.update(task, advance=weight, done=i + 1)
     return writer.count

@@ -3,6 +3,10 @@
 A Point is one thing to time: a device, a size, a scene of n spheres, and the
 device options. The thesis's tests 1 to 6 are the sweep of sphere counts at
 three resolutions (1-3 on the GPU, 4-6 on the CPU); test 7 is the ramp.
+Those are brute force (accel "none"), as in the thesis; with accel "bvh"
+asked for too, the same points are measured through the BVH beside them.
+The scaling suite goes past the thesis: 10 to 1,000,000 spheres, brute
+force and BVH, brute force stopping where its frames would pass a time cap.
 """
 
 from __future__ import annotations
@@ -13,7 +17,8 @@ from dataclasses import dataclass, field
 from ..backends.limits import FAST_MAX_THREADS
 from ..errors import RaybenchError
 
-SUITES = ("thesis", "constant-vs-runtime", "tuning")
+SUITES = ("thesis", "constant-vs-runtime", "tuning", "scaling")
+ACCELS = ("bvh", "none")
 THESIS_SIZES = ((800, 600), (1280, 800), (1680, 1050))
 THESIS_COUNTS = tuple(range(100, 1001, 100))
 TUNING_SIZE = (1680, 1050)
@@ -22,6 +27,17 @@ BLOCKS = ((2, 2), (4, 4), (8, 8), (16, 16), (32, 32), (32, 8), (8, 32), (64, 4),
 CONSTANT_COUNTS = (100, 250, 500, 1000)
 RAMP_SIZE = (800, 600)
 RAMP = (10, 1000, 10)  # first, last, step: the thesis's test 7
+# Half-decades from 10 to 1,000,000 spheres, at the largest thesis size, and
+# the issue's 1,000,000 spheres at 1920x1080.
+SCALING_COUNTS = (10, 30, 100, 300, 1000, 3000, 10_000, 30_000, 100_000, 300_000, 1_000_000)
+SCALING_SIZE = (1680, 1050)
+SCALING_EXTRA = ((1920, 1080), 1_000_000)
+QUICK_SCALING_COUNTS = (10, 100, 1000, 10_000)
+QUICK_SCALING_SIZE = (640, 400)
+# Brute force is not measured where its frame is predicted (linear in spheres
+# and pixels, from the last count measured) to take longer than this.
+SCALING_CAP_S = 1.0
+QUICK_SCALING_CAP_S = 0.25
 
 
 @dataclass(frozen=True)
@@ -61,27 +77,41 @@ def thread_settings(cores: int, height: int) -> list[tuple[str, int]]:
     return out
 
 
-def points(suites, devices, quick: bool = False, cores: int | None = None, kernels=("fast",)) -> list[Point]:
-    """Every point of the chosen suites on the chosen devices (the thesis and
-    tuning suites once per kernel), in run order."""
+def variants(kernels, accels) -> list[dict]:
+    """The options of each way to trace a point: brute force once per kernel
+    (accel "none"), then the BVH, each as asked for."""
+    out = [{"kernel": k, "accel": "none"} for k in kernels] if "none" in accels else []
+    return out + ([{"accel": "bvh"}] if "bvh" in accels else [])
+
+
+def points(suites, devices, quick: bool = False, cores: int | None = None, kernels=("fast",),
+           accels=("none",)) -> list[Point]:
+    """Every point of the chosen suites on the chosen devices (the thesis,
+    tuning and scaling suites once per kernel of brute force, and once more
+    with the BVH if accels holds "bvh"), in run order."""
     for suite in suites:
         if suite not in SUITES:
             raise RaybenchError(f"suite: unknown suite {suite!r}; choose from {', '.join(SUITES)}")
+    for accel in accels:
+        if accel not in ACCELS:
+            raise RaybenchError(f"accel: unknown accel {accel!r}; choose from {', '.join(ACCELS)}")
+    ways = variants(kernels, accels)
     cores = cores or os.cpu_count() or 1
     out: list[Point] = []
     if "thesis" in suites:
         sizes = THESIS_SIZES[:1] if quick else THESIS_SIZES
         counts = (100, 500, 1000) if quick else THESIS_COUNTS
-        for kernel in kernels:
+        for way in ways:
             for device in devices:
                 for i, (w, h) in enumerate(sizes):
                     test = (1 if device == "cuda" else 4) + i
-                    out += [Point("thesis", device, w, h, n, {"kernel": kernel}, test=test) for n in counts]
+                    out += [Point("thesis", device, w, h, n, dict(way), test=test) for n in counts]
         first, last, step = (10, 200, 10) if quick else RAMP
         ramp = tuple(range(first, last + 1, step))
         w, h = (320, 240) if quick else RAMP_SIZE
-        out += [Point("test7", device, w, h, ramp[-1], {"kernel": kernel}, test=7, ramp=ramp)
-                for kernel in kernels for device in devices]
+        # the ramp changes the sphere count every frame: brute force only (a BVH would be rebuilt each frame)
+        out += [Point("test7", device, w, h, ramp[-1], dict(way), test=7, ramp=ramp)
+                for way in ways if way["accel"] == "none" for device in devices]
     if "constant-vs-runtime" in suites:
         counts = (100, 500) if quick else CONSTANT_COUNTS
         w, h = (640, 480) if quick else THESIS_SIZES[-1]
@@ -89,21 +119,32 @@ def points(suites, devices, quick: bool = False, cores: int | None = None, kerne
             for n in counts:
                 for mode in ("constant", "runtime"):
                     # the simple kernel: the only one with a compile-time count
-                    out.append(Point("constant-vs-runtime", device, w, h, n, {"count": mode, "kernel": "simple"}))
+                    out.append(Point("constant-vs-runtime", device, w, h, n,
+                                     {"count": mode, "kernel": "simple", "accel": "none"}))
     if "tuning" in suites:
         w, h = (640, 480) if quick else TUNING_SIZE
         n = 300 if quick else TUNING_SPHERES
-        for kernel, device in ((k, d) for k in kernels for d in devices):
+        for way, device in ((v, d) for v in ways for d in devices):
             if device == "cpu":
                 settings = thread_settings(cores, h)
                 if quick:
                     settings = [s for s in settings if s[0] in ("1 thread", "all cores", "2x cores")]
-                out += [Point("tuning", "cpu", w, h, n, {"threads": t, "label": label, "kernel": kernel})
+                out += [Point("tuning", "cpu", w, h, n, {"threads": t, "label": label, **way})
                         for label, t in settings]
             else:
                 blocks = ((8, 8), (16, 16), (32, 32), (32, 8)) if quick else BLOCKS
-                if kernel == "fast":  # larger blocks cannot launch (limits.FAST_MAX_THREADS)
+                if way.get("kernel", "bvh") in ("fast", "bvh"):  # larger blocks cannot launch (limits.FAST_MAX_THREADS)
                     blocks = tuple(b for b in blocks if b[0] * b[1] <= FAST_MAX_THREADS)
-                out += [Point("tuning", device, w, h, n, {"block": list(b), "label": f"{b[0]}x{b[1]}", "kernel": kernel})
+                out += [Point("tuning", device, w, h, n, {"block": list(b), "label": f"{b[0]}x{b[1]}", **way})
                         for b in blocks]
+    if "scaling" in suites:
+        counts = QUICK_SCALING_COUNTS if quick else SCALING_COUNTS
+        w, h = QUICK_SCALING_SIZE if quick else SCALING_SIZE
+        cap = QUICK_SCALING_CAP_S if quick else SCALING_CAP_S
+        for way, device in ((v, d) for v in ways for d in devices):
+            opts = {**way, "cap_s": cap} if way["accel"] == "none" else dict(way)
+            out += [Point("scaling", device, w, h, n, dict(opts)) for n in counts]
+            if not quick:
+                (ew, eh), en = SCALING_EXTRA
+                out.append(Point("scaling", device, ew, eh, en, dict(opts)))
     return out

@@ -9,7 +9,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from . import intersect, shade
+from . import intersect, shade, traverse
 
 ZERO = np.float32(0.0)
 ONE = np.float32(1.0)
@@ -22,6 +22,7 @@ def build(jit):
     """The algorithm compiled with `jit`; a namespace of its functions."""
     intersect_relative, intersect_sphere, prepare_sphere, may_hit, along = intersect.build(jit)
     shade_hit, shade_miss, to_byte = shade.build(jit)
+    nearest_hit_bvh, inverse = traverse.build(jit, intersect_sphere)
 
     @jit
     def primary_ray(x, y, width, height, basis):
@@ -72,6 +73,15 @@ def build(jit):
         store_pixel(x, y, hit, d, spheres, image, hits)
 
     @jit
+    def render_pixel_bvh(x, y, width, height, basis, nodes, links, ordered, order, spheres, image, hits,
+                         stack_row, stack_t):
+        """render_pixel with the nearest hit found through the BVH: the same pixel."""
+        dx, dy, dz = primary_ray(x, y, width, height, basis)
+        hit, d = nearest_hit_bvh(basis[0, 0], basis[0, 1], basis[0, 2], dx, dy, dz, nodes, links, ordered, order,
+                                 stack_row, stack_t)
+        store_pixel(x, y, hit, d, spheres, image, hits)
+
+    @jit
     def prepare(i, basis, spheres, relative):
         """Fast kernels, once per frame and sphere i: relative[:, i] = EO and the
         cull threshold (prepare_sphere)."""
@@ -83,5 +93,6 @@ def build(jit):
         relative[3, i] = s
 
     return SimpleNamespace(render_pixel=render_pixel, primary_ray=primary_ray, store_pixel=store_pixel,
-                           prepare=prepare, may_hit=may_hit, along=along,
-                           intersect_relative=intersect_relative)
+                           prepare=prepare, may_hit=may_hit, along=along, intersect_relative=intersect_relative,
+                           render_pixel_bvh=render_pixel_bvh, nearest_hit_bvh=nearest_hit_bvh, inverse=inverse,
+                           nearest_hit=nearest_hit)

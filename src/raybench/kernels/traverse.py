@@ -1,0 +1,119 @@
+"""Nearest hit through the BVH (raybench.bvh's layout): the same answer as
+trace.nearest_hit's loop over every sphere, bit for bit.
+
+Same answer because:
+- every sphere a walk reaches is tested with intersect_sphere on the very
+  float32 values the brute-force loop uses, so each t and d is the same;
+- the brute-force loop keeps the first sphere of smallest t (strict <); the
+  walk meets spheres in another order, so on equal t it keeps the smaller
+  ORIGINAL index, which picks the same sphere;
+- no sphere the exact test would accept is ever skipped: a box is entered if
+  its slab interval (computed on the box grown by the builder's padding and a
+  margin for the camera, see ray_setup) reaches [0, closest] inclusive, and
+  the float32 hit point of an accepted sphere lies within a few epsilons of
+  (|EO| + r) of the sphere, far inside that padding.
+The box test may be loose (it only decides what to visit); it never
+overflows to NaN: direction components under TINY are replaced by +-TINY,
+so 1/d stays finite and (plane - origin) * (1/d) cannot be inf * 0.
+"""
+
+import numpy as np
+
+from ..bvh import INNER, PAD
+
+ZERO = np.float32(0.0)
+ONE = np.float32(1.0)
+# Small enough that replacing a zero component moves the ray by under 1e-20
+# of its length (far under the padding), large enough that 1/TINY times the
+# largest scene extent (2e15) is finite in float32.
+TINY = np.float32(1e-20)
+FAR = np.float32(3.0e38)
+
+
+def build(jit, intersect_sphere):
+    @jit
+    def inverse(d):
+        """1/d for the slab test, finite: |d| raised to at least TINY, its sign kept."""
+        return ONE / (max(d, TINY) if d >= ZERO else min(d, -TINY))
+
+    @jit
+    def axis_setup(o, d, margin):
+        """One axis of the ray for the slab test: 1/d, and the origin shifted
+        by the margin towards the near plane and away from the far one, so the
+        slabs are those of the box grown by `margin` on every side."""
+        if d >= ZERO:
+            return inverse(d), o + margin, o - margin, 0
+        return inverse(d), o - margin, o + margin, 3
+
+    @jit
+    def slab(nodes, row, col, ix, iy, iz, nx, ny, nz, fx, fy, fz, sx, sy, sz):
+        """The (near, far) distances of the ray through one child box;
+        near > far where it misses. sx, sy, sz: 0 where the ray goes up the
+        axis (the low plane is near), 3 where it goes down."""
+        t0 = (nodes[row, col + sx] - nx) * ix
+        t1 = (nodes[row, col + 1 + sy] - ny) * iy
+        t2 = (nodes[row, col + 2 + sz] - nz) * iz
+        u0 = (nodes[row, col + 3 - sx] - fx) * ix
+        u1 = (nodes[row, col + 4 - sy] - fy) * iy
+        u2 = (nodes[row, col + 5 - sz] - fz) * iz
+        return max(t0, max(t1, t2)), min(u0, min(u1, u2))
+
+    @jit
+    def leaf_hits(ox, oy, oz, dx, dy, dz, ordered, order, first, count, closest, hit, hit_d):
+        """The exact test on a leaf's spheres; the nearest so far, ties to the
+        smaller original index."""
+        for j in range(first, first + count):
+            t, d = intersect_sphere(ox, oy, oz, dx, dy, dz, ordered[0, j], ordered[1, j], ordered[2, j], ordered[3, j])
+            if t > ZERO and (t < closest or (t == closest and order[j] < hit)):
+                closest = t
+                hit = order[j]
+                hit_d = d
+        return closest, hit, hit_d
+
+    @jit
+    def nearest_hit_bvh(ox, oy, oz, dx, dy, dz, nodes, links, ordered, order, stack_row, stack_t):
+        """(original index of the nearest sphere with t > 0 or -1, its half-chord d).
+        stack_row / stack_t: the walk's stack, bvh.STACK entries, given by the
+        backend (a CUDA thread's local array, a CPU thread's own)."""
+        margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
+        ix, nx, fx, sx = axis_setup(ox, dx, margin)
+        iy, ny, fy, sy = axis_setup(oy, dy, margin)
+        iz, nz, fz, sz = axis_setup(oz, dz, margin)
+        closest = FAR
+        hit = -1
+        hit_d = ZERO
+        row = 0
+        top = 0
+        while row >= 0:
+            a_near, a_far = slab(nodes, row, 0, ix, iy, iz, nx, ny, nz, fx, fy, fz, sx, sy, sz)
+            b_near, b_far = slab(nodes, row, 6, ix, iy, iz, nx, ny, nz, fx, fy, fz, sx, sy, sz)
+            a_ref, b_ref = links[row, 12], links[row, 13]
+            a_count, b_count = links[row, 14], links[row, 15]
+            # near child first: its hits can rule the far one out
+            if b_near < a_near:
+                a_near, a_far, a_ref, a_count, b_near, b_far, b_ref, b_count = \
+                    b_near, b_far, b_ref, b_count, a_near, a_far, a_ref, a_count
+            row = -1
+            if a_near <= a_far and a_far > ZERO and a_near <= closest:
+                if a_count == INNER:
+                    row = a_ref
+                else:
+                    closest, hit, hit_d = leaf_hits(ox, oy, oz, dx, dy, dz, ordered, order, a_ref, a_count,
+                                                    closest, hit, hit_d)
+            if b_near <= b_far and b_far > ZERO and b_near <= closest:
+                if b_count != INNER:
+                    closest, hit, hit_d = leaf_hits(ox, oy, oz, dx, dy, dz, ordered, order, b_ref, b_count,
+                                                    closest, hit, hit_d)
+                elif row < 0:
+                    row = b_ref
+                else:
+                    stack_row[top] = b_ref
+                    stack_t[top] = b_near
+                    top += 1
+            while row < 0 and top > 0:
+                top -= 1
+                if stack_t[top] <= closest:
+                    row = stack_row[top]
+        return hit, hit_d
+
+    return nearest_hit_bvh, inverse

@@ -1,0 +1,290 @@
+"""The BVH: its builder's tree, and the walk through it, which must give
+exactly the brute-force picture and hit indices (the brute-force kernels are
+held to the float64 reference by test_cpu and test_fast)."""
+
+import numpy as np
+import pytest
+
+import raybench
+from raybench import Camera, Scene, bvh, kernels
+from raybench.backends import cuda as cuda_backend
+from scenes import KINDS, colors, random_camera
+
+# The algorithm as plain Python on NumPy float32 scalars, run without a compiler.
+K = kernels.build(lambda f: f)
+
+
+# --- degenerate scenes, each with the camera to view it from ------------------
+
+def one_point(rng, n):
+    """All spheres at one centre; half share one radius (exact ties in t)."""
+    c = rng.uniform(-2, 2, 3) + np.array([0, 0, 12.0])
+    radii = np.where(rng.random(n) < 0.5, 1.5, rng.uniform(0.5, 3.0, n))
+    return Scene(np.tile(c, (n, 1)), radii, colors(rng, n)), Camera()
+
+
+def duplicates(rng, n):
+    """Copies of a few spheres at scattered indices: every hit on them is a tie."""
+    base, _ = KINDS["generated"](rng, max(1, n // 4))
+    pick = rng.integers(0, len(base), n)
+    s = base.spheres[:, pick]
+    return Scene(s[0:3].T, s[3], s[4:7].T), Camera()
+
+
+def line(rng, n):
+    """Centres on one line: across the view, or along it (a sight line)."""
+    cam = random_camera(rng)
+    p = np.array(cam.position) + rng.normal(size=3) * 2
+    d = rng.normal(size=3)
+    d /= np.linalg.norm(d)
+    if rng.random() < 0.5:  # along the camera's sight line
+        d = np.array(cam.look_at) - np.array(cam.position)
+        d /= np.linalg.norm(d)
+        p = np.array(cam.position) + d * 3
+    centers = p + np.outer(np.sort(rng.uniform(0, 20, n)), d)
+    return Scene(centers, rng.uniform(0.05, 1.0, n), colors(rng, n)), cam
+
+
+def one(rng, n):
+    return Scene([rng.uniform(-1, 1, 3) + [0, 0, 6]], [rng.uniform(0.5, 3)], colors(rng, 1)), Camera()
+
+
+def none(rng, n):
+    return Scene(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3))), random_camera(rng)
+
+
+def chain(rng, n):
+    """Centres at 20^k, k = -29..11, along each axis: every binned split (16
+    bins) can only cut off the one farthest sphere, so SAH alone would build
+    a chain 123 deep."""
+    scale = 20.0 ** np.arange(-29, 12)
+    centers = np.zeros((3 * len(scale), 3))
+    for axis in range(3):
+        centers[axis * len(scale):(axis + 1) * len(scale), axis] = scale * rng.choice([-1, 1])
+    radii = np.maximum(0.05 * np.abs(centers).sum(1), 1e-30)
+    m = len(radii)
+    pos = rng.normal(size=3)
+    cam = Camera(tuple(pos / np.linalg.norm(pos) * 1e14), (0, 0, 0), tuple(rng.normal(size=3)), 60)
+    return Scene(centers, radii, colors(rng, m)), cam
+
+
+DEGENERATE = {"one_point": one_point, "duplicates": duplicates, "line": line, "one": one, "none": none,
+              "chain": chain}
+SCENES = {**KINDS, **DEGENERATE}
+# scenes whose spheres are always in front of their camera
+IN_VIEW = {"generated", "inside", "overlapping", "radii_mixed", "one_point", "duplicates", "one"}
+
+
+def brute(scene, camera, width, height):
+    return raybench.render(scene, camera, width, height, device="cpu", accel="none", kernel="simple")
+
+
+# --- the walk gives the brute-force picture ----------------------------------
+
+@pytest.mark.parametrize("kind", sorted(SCENES))
+def test_cpu_bvh_equals_brute_force(rng, kind):
+    n = int(rng.integers(1, 400))
+    scene, camera = SCENES[kind](rng, n)
+    width, height = int(rng.integers(20, 60)), int(rng.integers(10, 40))
+    want = brute(scene, camera, width, height)
+    got = raybench.render(scene, camera, width, height, device="cpu", accel="bvh", threads=3)
+    assert np.array_equal(got.hits, want.hits), (got.hits != want.hits).sum()
+    assert np.array_equal(got.image, want.image)
+    if kind in IN_VIEW:  # not vacuous: something was hit
+        assert (want.hits >= 0).any()
+
+
+@pytest.mark.parametrize("size", [(1, 1), (1, 5), (9, 3), (33, 7), (17, 70)])
+def test_cpu_packets_at_the_edges(rng, size):
+    """The CPU walks 8x4 packets of rays: images and chunks of rows that are
+    no whole number of packets, and more threads than rows."""
+    scene, camera = KINDS["generated"](rng, int(rng.integers(50, 300)))
+    want = brute(scene, camera, *size)
+    got = raybench.render(scene, camera, *size, device="cpu", threads=int(rng.integers(1, 9)))
+    assert np.array_equal(got.hits, want.hits) and np.array_equal(got.image, want.image)
+
+
+def test_ties_go_to_the_smaller_index(rng):
+    """Identical spheres: brute force shows the first; so must the walk."""
+    scene, camera = one_point(rng, 64)
+    s = scene.spheres.copy()
+    s[3] = 1.5
+    same = Scene(s[0:3].T, s[3], s[4:7].T)
+    frame = raybench.render(same, camera, 24, 16, device="cpu")
+    assert set(np.unique(frame.hits)) <= {-1, 0} and (frame.hits == 0).any()
+
+
+def test_sphere_prefix_builds_its_own_tree(rng):
+    """A frame of the first `count` spheres (the viewer's live count)."""
+    scene, camera = KINDS["cloud"](rng, 120)
+    tracer = raybench.backends.tracer("cpu", scene.spheres, 40, 24)
+    try:
+        for count in (37, len(scene), 0):
+            tracer.trace(camera.basis(40, 24), count)
+            want = brute(scene.head(count), camera, 40, 24)
+            assert np.array_equal(tracer.hits, want.hits) and np.array_equal(tracer.image, want.image)
+    finally:
+        tracer.close()
+
+
+@pytest.mark.skipif(not cuda_backend.available(), reason="no CUDA GPU and the simulator is off")
+@pytest.mark.parametrize("kind", ["generated", "inside", "one_point", "duplicates", "line", "none"])
+def test_cuda_bvh_equals_brute_force(rng, kind):
+    """The same walk compiled for CUDA: bit for bit under the simulator,
+    within rounding on a GPU (its compiler may fuse multiply-adds)."""
+    sim = cuda_backend.simulated()
+    scene, camera = SCENES[kind](rng, int(rng.integers(1, 40 if sim else 5000)))
+    width, height = (16, 12) if sim else (640, 400)
+    gpu = raybench.render(scene, camera, width, height, device="cuda", block=(8, 4))
+    cpu = brute(scene, camera, width, height)
+    if sim:
+        assert np.array_equal(gpu.hits, cpu.hits) and np.array_equal(gpu.image, cpu.image)
+    else:
+        assert (gpu.hits != cpu.hits).mean() < 1e-3
+        same = gpu.hits == cpu.hits
+        assert np.abs(gpu.image.astype(int) - cpu.image.astype(int))[same].max(initial=0) <= 1
+
+
+# --- the box test never loses a hit -------------------------------------------
+
+def tangent_pairs(rng, n):
+    """Rays that graze a sphere where it touches its box (the extreme point
+    along an axis), within ~1e-7 of its radius: the exact float32 test
+    accepts about half of them, and an unpadded box test would reject those
+    just outside the box's face. Radii 1e-3 to 1e3; origins 1 to 1e5 away,
+    anywhere from the scene's origin."""
+    out = []
+    for _ in range(n):
+        c = rng.uniform(-1, 1, 3) * 10.0 ** rng.uniform(-1, 4)
+        r = 10.0 ** rng.uniform(-3, 3)
+        a = int(rng.integers(3))
+        sign = rng.choice([-1.0, 1.0])
+        touch = c.copy()
+        touch[a] += sign * r * (1 + rng.uniform(-2e-7, 2e-7))
+        d = rng.normal(size=3)
+        d[a] = 0.0 if rng.random() < 0.5 else d[a] * 1e-9  # along the face, exactly or nearly
+        d /= np.linalg.norm(d)
+        o = touch - d * 10.0 ** rng.uniform(0, 5)
+        out.append((o.astype(np.float32), d.astype(np.float32), c.astype(np.float32), np.float32(r)))
+    return out
+
+
+def walk(b, o, d):
+    stack_row = np.empty(bvh.STACK, np.int32)
+    stack_t = np.empty(bvh.STACK, np.float32)
+    return K.nearest_hit_bvh(o[0], o[1], o[2], d[0], d[1], d[2], b.nodes, b.links, b.ordered, b.order,
+                             stack_row, stack_t)
+
+
+def test_box_test_keeps_every_grazing_hit(rng):
+    hits = misses = 0
+    for o, d, c, r in tangent_pairs(rng, 3000):
+        spheres = np.array([[c[0]], [c[1]], [c[2]], [r], [1], [1], [1]], np.float32)
+        e = c - o  # float32, as intersect_sphere computes EO
+        t, _ = K.intersect_relative(e[0], e[1], e[2], r, d[0], d[1], d[2])
+        hit, _ = walk(bvh.build(spheres, threads=1), o, d)
+        if t > 0:
+            hits += 1
+            assert hit == 0, (o, d, c, r, t)
+        else:
+            misses += 1
+            assert hit == -1
+    assert hits > 300 and misses > 300, (hits, misses)  # both sides of the edge were tried
+
+
+# --- the builder's tree ----------------------------------------------------------
+
+def check_tree(b: bvh.Bvh, spheres: np.ndarray):
+    """Every sphere in exactly one leaf; each child box inside its parent's
+    box and around its spheres' padded boxes; depth within MAX_DEPTH."""
+    n = spheres.shape[1]
+    assert sorted(b.order.tolist()) == list(range(n))
+    assert np.array_equal(b.ordered, spheres[:4, b.order])
+    seen = np.zeros(n, int)
+    pad = bvh.sphere_pad(*(spheres[k].astype(np.float64) for k in range(4)))
+    deepest = 0
+    todo = [(0, None, 1)]
+    while todo:
+        row, outer, depth = todo.pop()
+        deepest = max(deepest, depth)
+        for slot in range(2):
+            box = b.nodes[row, 6 * slot: 6 * slot + 6].astype(np.float64)
+            ref, count = b.links[row, 12 + slot], b.links[row, 14 + slot]
+            if count == 0:
+                assert (box[:3] > box[3:]).all()  # empty: never hit
+                continue
+            if outer is not None:
+                assert (box[:3] >= outer[:3]).all() and (box[3:] <= outer[3:]).all()
+            if count == bvh.INNER:
+                assert 0 < ref < b.node_count
+                todo.append((ref, box, depth + 1))
+                continue
+            assert 0 < count <= bvh.LEAF_MAX
+            for j in range(ref, ref + count):
+                i = b.order[j]
+                seen[i] += 1
+                c, r = spheres[:3, i].astype(np.float64), float(spheres[3, i]) + pad[i] * 0.99
+                assert (box[:3] <= c - r).all() and (box[3:] >= c + r).all()
+    assert (seen == 1).all()
+    assert deepest == b.depth <= bvh.MAX_DEPTH
+    return deepest
+
+
+@pytest.mark.parametrize("kind", sorted(SCENES))
+def test_tree_structure(rng, kind):
+    scene, _ = SCENES[kind](rng, int(rng.integers(1, 3000)))
+    check_tree(bvh.build(scene.spheres), scene.spheres)
+
+
+def test_depth_is_bounded_for_a_chain(rng):
+    """SAH would go as deep as the spheres are many; the builder switches to
+    splits by count before the stack's depth."""
+    scene, _ = chain(rng, 0)
+    depth = check_tree(bvh.build(scene.spheres), scene.spheres)
+    assert depth > bvh.MAX_DEPTH - 10, depth  # the guard was what stopped it
+
+
+def test_parallel_build_is_a_valid_tree(rng):
+    """Large scenes build their subtrees on threads, then pack the rows."""
+    scene = raybench.random_spheres(20000, int(rng.integers(2**31)))
+    one_thread = bvh.build(scene.spheres, threads=1)
+    many = bvh.build(scene.spheres, threads=4)
+    check_tree(many, scene.spheres)
+    assert many.node_count == one_thread.node_count and np.array_equal(many.order, one_thread.order)
+    assert many.build_s > 0
+
+
+# --- options and bad input ----------------------------------------------------------
+
+@pytest.mark.parametrize("options,match", [
+    ({"accel": "bvh", "kernel": "simple"}, "kernel: applies to brute force only"),
+    ({"accel": "bvh", "constant_count": True}, "constant_count: applies to brute force only"),
+    ({"accel": "kd-tree"}, "accel: must be one of bvh, none"),
+])
+def test_bad_accel_options(options, match):
+    with pytest.raises(raybench.RaybenchError, match=match):
+        raybench.render(raybench.random_spheres(3), width=8, height=8, device="cpu", **options)
+
+
+def test_cuda_brute_force_options_refused_with_bvh():
+    if not cuda_backend.available():
+        pytest.skip("no CUDA GPU and the simulator is off")
+    with pytest.raises(raybench.RaybenchError, match="rays: applies to brute force only"):
+        raybench.render(raybench.random_spheres(3), width=8, height=8, device="cuda", accel="bvh", rays=2)
+
+
+def test_default_is_bvh_and_reports_build_time():
+    frame = raybench.render(raybench.random_spheres(50), width=16, height=8, device="cpu")
+    assert frame.build_s is not None and frame.build_s >= 0
+    assert raybench.render(raybench.random_spheres(50), width=16, height=8, device="cpu",
+                           accel="none").build_s is None
+
+
+def test_bvh_too_large_for_memory_is_one_line(monkeypatch):
+    from raybench.backends import cpu
+
+    scene = raybench.random_spheres(10000)
+    # room for the frame and the spheres, not for the tree
+    monkeypatch.setattr(cpu, "host_available_bytes", lambda: 64 * 48 * 14 + 10000 * 28 + 1000)
+    with pytest.raises(raybench.RaybenchError, match=r"bvh: 10,000 spheres need [0-9.]+ MiB for the BVH and the frame, more than the [0-9.]+ MiB available on the cpu"):
+        raybench.render(scene, width=64, height=48, device="cpu")
