@@ -55,12 +55,18 @@ def _render_kernel(width, height, basis, spheres, count, image, hits):
         _render_pixel(x, y, width, height, basis, spheres, count, image, hits)
 
 
+# A plain global, which numba-cuda takes as a compile-time constant (a local
+# array's size must be one); bvh_mod.STACK, a module attribute, is typed as a
+# run-time int64 and fails on a real GPU (the simulator accepts either).
+_STACK = bvh_mod.STACK
+
+
 @cuda.jit
 def _bvh_kernel(width, height, basis, nodes, links, ordered, order, spheres, image, hits):
     x, y = cuda.grid(2)
     if x < width and y < height:
-        stack_row = cuda.local.array(bvh_mod.STACK, np.int32)
-        stack_t = cuda.local.array(bvh_mod.STACK, np.float32)
+        stack_row = cuda.local.array(_STACK, np.int32)
+        stack_t = cuda.local.array(_STACK, np.float32)
         _render_pixel_bvh(x, y, width, height, basis, nodes, links, ordered, order, spheres, image, hits,
                           stack_row, stack_t)
 
