@@ -21,14 +21,12 @@ at equal sizes every fragment copies exactly one texel; a frame of another size
 
 from __future__ import annotations
 
-import contextlib
-import os
 import sys
-import tempfile
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..backends.wgpu.adapters import native_stderr_captured  # noqa: F401 - also used by the tests
 from ..errors import RaybenchError
 
 FRAME_FORMAT = "rgba8unorm"
@@ -169,25 +167,6 @@ class TextureQuad:
         target = self.device.create_texture(size=(width, height, 1), format=self.target_format, usage=usage)
         self.draw(target.create_view())
         return self.read(target)
-
-
-@contextlib.contextmanager
-def native_stderr_captured():
-    """Collect what is written to file descriptor 2 meanwhile: the graphics
-    drivers probed for an adapter print there directly, past sys.stderr."""
-    sys.stderr.flush()
-    saved = os.dup(2)
-    captured = {"text": ""}
-    with tempfile.TemporaryFile() as tmp:
-        os.dup2(tmp.fileno(), 2)
-        try:
-            yield captured
-        finally:
-            sys.stderr.flush()
-            os.dup2(saved, 2)
-            os.close(saved)
-            tmp.seek(0)
-            captured["text"] = tmp.read().decode(errors="replace")
 
 
 def request_device(canvas=None):

@@ -26,11 +26,13 @@ MIN_COMPILE_NOTE_S = 0.1  # a compilation shorter than this was a cache hit: not
 
 class ViewerState:
     def __init__(self, scene: Scene, *, device: str, seed: int | None = None, camera: Camera | None = None,
-                 options: dict | None = None, clock=time.perf_counter):
-        """device: "cpu" or "cuda" (already resolved); seed: that of a generated
-        scene, None for a scene file; options: per device, e.g. {"cpu": {"threads": 4}}."""
+                 options: dict | None = None, clock=time.perf_counter, devices=("cpu", "cuda")):
+        """device: "cpu", "cuda" or "wgpu" (already resolved); seed: that of a generated
+        scene, None for a scene file; options: per device, e.g. {"cpu": {"threads": 4}};
+        devices: those Tab cycles through (the window adds wgpu where it can trace on it)."""
         if device not in backends.DEVICES:
             raise ValueError(f"device must be one of {backends.DEVICES}, got {device!r}")
+        self.devices = tuple(devices) + ((device,) if device not in devices else ())
         self.clock = clock
         self.supply = SphereSupply(scene, seed)
         self.home = camera or scene.camera or Camera()
@@ -88,7 +90,7 @@ class ViewerState:
 
     def _act(self, action: str, now: float) -> None:
         if action == "next_device":
-            devices = backends.DEVICES
+            devices = self.devices
             self._switch(devices[(devices.index(self.device) + 1) % len(devices)])
         elif action == "device_cpu":
             self._switch("cpu")
