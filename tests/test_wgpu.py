@@ -238,3 +238,29 @@ def test_info_lists_the_adapters(adapter, capsys):
     assert lines and lines[0].startswith("wgpu ") and f"({best.backend}, {best.type})" in lines[0], out
     code, out, err = cli(capsys, "info", "--json")
     assert {"name": best.name, "backend": best.backend, "type": best.type} in json.loads(out)["wgpu_adapters"]
+
+
+def test_bench_points_for_wgpu():
+    from raybench.bench import suites
+
+    points = suites.points(("thesis", "tuning", "constant-vs-runtime"), ("cpu", "wgpu"), quick=True,
+                           kernels=("fast", "simple"), wgpu={"adapter": "lavapipe"}, max_invocations=256)
+    gpu = [p for p in points if p.device == "wgpu"]
+    assert gpu and all(p.options["kernel"] == "simple" and p.options["adapter"] == "lavapipe" for p in gpu)
+    assert {p.test for p in gpu if p.suite == "thesis"} == {1}  # a GPU's tests: 1-3
+    assert not [p for p in gpu if p.suite == "constant-vs-runtime"]  # no compile-time count on wgpu
+    shapes = [tuple(p.options["workgroup"]) for p in gpu if p.suite == "tuning"]
+    assert shapes and all(x * y <= 256 for x, y in shapes) and (16, 16) in shapes and (32, 32) not in shapes
+    # once per kernel for the cpu, once for wgpu (its one kernel)
+    assert len([p for p in gpu if p.suite == "test7"]) == 1
+    assert len([p for p in points if p.device == "cpu" and p.suite == "test7"]) == 2
+
+
+def test_a_benchmark_record_names_the_adapter(adapter):
+    from raybench.bench import runner, suites
+
+    point = suites.Point("thesis", "wgpu", 32, 24, 20, {"kernel": "simple", "adapter": adapter}, test=1)
+    record = runner.measure(point, runner.Scenes(0), 0.05)
+    assert record["adapter"]["name"] == adapters.choose(adapter).name
+    assert record["adapter"]["type"] == adapters.choose(adapter).type and record["adapter"]["workgroup"] == [16, 16]
+    assert record["kernel_ms"]["median"] > 0 and record["frames"] >= runner.MIN_FRAMES

@@ -38,7 +38,7 @@ RATIO_BAND = (2 / 3, 3 / 2)   # claim 3: measured / theoretical speedup inside t
 NEAR_FASTEST = 1.05           # claims 4, 5: "within 5% of the fastest"
 RUNTIME_SLOWER = 1.02         # claim 6: runtime / constant above this at every count
 
-DEVICE_NAMES = {"cpu": "CPU", "cuda": "GPU"}
+DEVICE_NAMES = {"cpu": "CPU", "cuda": "GPU", "wgpu": "wgpu"}
 
 CLAIMS = [
     ("The GPU is faster than the CPU in every test (thesis: 58 to 60 times)",
@@ -669,6 +669,13 @@ def _slug(label: str, taken: set) -> str:
     return slug
 
 
+def _adapter_name(records: list[dict]) -> str:
+    """The wgpu adapter of these records, e.g. "llvmpipe (...) (Vulkan, CPU)": a CPU driver must not pass for a GPU."""
+    names = sorted({f"{a.get('name')} ({a.get('backend')}, {a.get('type')})" for r in records
+                    if r["device"] == "wgpu" and isinstance(a := r.get("adapter"), dict)})
+    return ", ".join(names) or "unknown adapter"
+
+
 def _gpu_name(machine: dict) -> str:
     gpus = machine.get("gpus") or []
     return gpus[0].get("name", "unknown GPU") if gpus else "no CUDA GPU"
@@ -754,12 +761,14 @@ def _section_thesis(w: _Writer, label: str, slug: str, records: list[dict]) -> N
       "says. The slope is the cost of one more sphere for the whole picture; the intercept is the cost of "
       "a frame with no spheres (launch, copy, overhead). R² is 1 for a perfect line.", "")
     machine = _machine(records)
-    for device in ("cuda", "cpu"):
+    for device in ("cuda", "wgpu", "cpu"):
         ds = [s for s in series if s["device"] == device]
         if not ds:
-            w(f"{DEVICE_NAMES[device]}: not measured.", "")
+            if device != "wgpu":  # the portable backend is news where measured, not a gap where not
+                w(f"{DEVICE_NAMES[device]}: not measured.", "")
             continue
-        name = _gpu_name(machine) if device == "cuda" else (machine.get("cpu") or {}).get("model", "CPU")
+        name = _gpu_name(machine) if device == "cuda" else _adapter_name(records) if device == "wgpu" \
+            else (machine.get("cpu") or {}).get("model", "CPU")
         w(f"**{DEVICE_NAMES[device]}** ({name})", "")
         w.image(f"{slug}-thesis-{device}.png", _plot_thesis(label, device, ds, name),
                 f"{label}: {DEVICE_NAMES[device]} frame time against spheres")

@@ -61,9 +61,25 @@ def thread_settings(cores: int, height: int) -> list[tuple[str, int]]:
     return out
 
 
-def points(suites, devices, quick: bool = False, cores: int | None = None, kernels=("fast",)) -> list[Point]:
+GPUS = ("cuda", "wgpu")
+
+
+def _runs(kernels, devices, wgpu: dict):
+    """(kernel, device, extra options) for the thesis and tuning suites: cpu and
+    cuda once per kernel; wgpu once, with its only kernel (simple) and its
+    options (the adapter named)."""
+    out = [(k, d, {}) for k in kernels for d in devices if d != "wgpu"]
+    if "wgpu" in devices:
+        out.append(("simple", "wgpu", dict(wgpu)))
+    return out
+
+
+def points(suites, devices, quick: bool = False, cores: int | None = None, kernels=("fast",),
+           wgpu: dict | None = None, max_invocations: int = 1024) -> list[Point]:
     """Every point of the chosen suites on the chosen devices (the thesis and
-    tuning suites once per kernel), in run order."""
+    tuning suites once per kernel), in run order. wgpu: that device's options
+    ({"adapter": name}); max_invocations: its adapter's workgroup limit, which
+    bounds the tuning suite's shapes."""
     for suite in suites:
         if suite not in SUITES:
             raise RaybenchError(f"suite: unknown suite {suite!r}; choose from {', '.join(SUITES)}")
@@ -72,20 +88,19 @@ def points(suites, devices, quick: bool = False, cores: int | None = None, kerne
     if "thesis" in suites:
         sizes = THESIS_SIZES[:1] if quick else THESIS_SIZES
         counts = (100, 500, 1000) if quick else THESIS_COUNTS
-        for kernel in kernels:
-            for device in devices:
-                for i, (w, h) in enumerate(sizes):
-                    test = (1 if device == "cuda" else 4) + i
-                    out += [Point("thesis", device, w, h, n, {"kernel": kernel}, test=test) for n in counts]
+        for kernel, device, extra in _runs(kernels, devices, wgpu or {}):
+            for i, (w, h) in enumerate(sizes):
+                test = (1 if device in GPUS else 4) + i
+                out += [Point("thesis", device, w, h, n, {"kernel": kernel, **extra}, test=test) for n in counts]
         first, last, step = (10, 200, 10) if quick else RAMP
         ramp = tuple(range(first, last + 1, step))
         w, h = (320, 240) if quick else RAMP_SIZE
-        out += [Point("test7", device, w, h, ramp[-1], {"kernel": kernel}, test=7, ramp=ramp)
-                for kernel in kernels for device in devices]
+        out += [Point("test7", device, w, h, ramp[-1], {"kernel": kernel, **extra}, test=7, ramp=ramp)
+                for kernel, device, extra in _runs(kernels, devices, wgpu or {})]
     if "constant-vs-runtime" in suites:
         counts = (100, 500) if quick else CONSTANT_COUNTS
         w, h = (640, 480) if quick else THESIS_SIZES[-1]
-        for device in devices:
+        for device in (d for d in devices if d != "wgpu"):  # wgpu has no compile-time count (yet)
             for n in counts:
                 for mode in ("constant", "runtime"):
                     # the simple kernel: the only one with a compile-time count
@@ -93,7 +108,7 @@ def points(suites, devices, quick: bool = False, cores: int | None = None, kerne
     if "tuning" in suites:
         w, h = (640, 480) if quick else TUNING_SIZE
         n = 300 if quick else TUNING_SPHERES
-        for kernel, device in ((k, d) for k in kernels for d in devices):
+        for kernel, device, extra in _runs(kernels, devices, wgpu or {}):
             if device == "cpu":
                 settings = thread_settings(cores, h)
                 if quick:
@@ -104,6 +119,11 @@ def points(suites, devices, quick: bool = False, cores: int | None = None, kerne
                 blocks = ((8, 8), (16, 16), (32, 32), (32, 8)) if quick else BLOCKS
                 if kernel == "fast":  # larger blocks cannot launch (limits.FAST_MAX_THREADS)
                     blocks = tuple(b for b in blocks if b[0] * b[1] <= FAST_MAX_THREADS)
+                if device == "wgpu":
+                    blocks = tuple(b for b in blocks if b[0] * b[1] <= max_invocations)
+                    out += [Point("tuning", device, w, h, n, {"workgroup": list(b), "label": f"{b[0]}x{b[1]}",
+                                                              "kernel": kernel, **extra}) for b in blocks]
+                    continue
                 out += [Point("tuning", device, w, h, n, {"block": list(b), "label": f"{b[0]}x{b[1]}", "kernel": kernel})
                         for b in blocks]
     return out
