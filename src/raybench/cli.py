@@ -141,14 +141,18 @@ def _view_help() -> str:
 @click.option("--spheres", type=int, help="show N random spheres instead of a scene file")
 @click.option("--seed", type=int, help="seed of the random spheres (default 0)")
 @click.option("--size", default="800x600", show_default=True, help="window size as WIDTHxHEIGHT, e.g. 1680x1050")
-@click.option("--device", default="auto", show_default=True, type=click.Choice(["auto", "cpu", "cuda"]),
-              help="where to trace first (switch live with Tab): auto picks cuda when a usable GPU is present")
+@click.option("--device", default="auto", show_default=True, type=click.Choice(["auto", "cpu", "cuda", "wgpu"]),
+              help="where to trace first (switch live with Tab): auto picks cuda when a usable NVIDIA GPU is "
+                   "present, else wgpu on a GPU, else cpu")
 @click.option("--threads", type=int, help="cpu: number of threads (default: all cores)")
 @click.option("--block", help="cuda: thread block shape XxY (default 16x16)")
+@click.option("--workgroup", help="wgpu: workgroup shape XxY (default 16x16)")
+@click.option("--adapter", help="wgpu, and the window: the adapter whose name contains this (default: the best "
+                                "GPU; a CPU driver such as llvmpipe only when named)")
 @click.option("--frames", type=click.IntRange(min=1), help="close after N traced frames are shown")
 @click.option("--screenshot", type=click.Path(path_type=Path),
               help="with --frames: save the last frame, as drawn in the window, to this PNG file")
-def view(scene_file, spheres, seed, size, device, threads, block, frames, screenshot):
+def view(scene_file, spheres, seed, size, device, threads, block, workgroup, adapter, frames, screenshot):
     from . import backends
     from .viewer import view as open_viewer
 
@@ -158,8 +162,14 @@ def view(scene_file, spheres, seed, size, device, threads, block, frames, screen
         if frames is None:
             raise RaybenchError("--screenshot needs --frames N (the frame to save); in the window, P saves a screenshot")
         check_output(screenshot, "--screenshot")
-    device = backends.resolve(device)
-    options = {"cpu": {}, "cuda": {}}
+    device = backends.resolve(device, adapter)
+    options = {"cpu": {}, "cuda": {}, "wgpu": {}}
+    if adapter is not None:
+        options["wgpu"]["adapter"] = adapter
+    if workgroup is not None:
+        options["wgpu"]["workgroup"] = parse_pair(workgroup, "--workgroup", "16x16")
+    if options["wgpu"]:
+        _check_options("wgpu", options["wgpu"])
     if threads is not None:
         options["cpu"]["threads"] = threads
         _check_options("cpu", options["cpu"])

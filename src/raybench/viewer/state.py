@@ -33,6 +33,7 @@ class ViewerState:
         if device not in backends.DEVICES:
             raise ValueError(f"device must be one of {backends.DEVICES}, got {device!r}")
         self.devices = tuple(devices) + ((device,) if device not in devices else ())
+        self.unavailable: dict[str, str] = {}  # device -> why it cannot trace here (the window says)
         self.clock = clock
         self.supply = SphereSupply(scene, seed)
         self.home = camera or scene.camera or Camera()
@@ -96,6 +97,8 @@ class ViewerState:
             self._switch("cpu")
         elif action == "device_cuda":
             self._switch("cuda")
+        elif action == "device_wgpu":
+            self._switch("wgpu")
         elif action == "more_spheres":
             self.say(self.supply.more())
         elif action == "fewer_spheres":
@@ -113,9 +116,18 @@ class ViewerState:
         elif action == "quit":
             self.quit = True
 
+    def add_device(self, device: str) -> None:
+        """One more device for Tab (the window adds wgpu where it can trace on it)."""
+        if device not in self.devices:
+            self.devices += (device,)
+        self.unavailable.pop(device, None)
+
     def _switch(self, device: str) -> None:
         if device == self.device:
             self.say(f"already on {device}")
+            return
+        if device in self.unavailable:
+            self.say(f"{self.unavailable[device]} (staying on {self.device})")
             return
         self.device = device
         self.say(f"switching to {device}...")
@@ -195,6 +207,9 @@ def device_label(shown: TracedFrame) -> str:
         from ..backends.cpu import default_threads
 
         return f"cpu, {options.get('threads') or default_threads()} threads"
+    if device == "wgpu":
+        # in the window's texture, no copy: the adapter tells a GPU from a CPU driver
+        return f"wgpu on {shown.frame.adapter}, no copy"
     label = "cuda (numba simulator)" if backends.module("cuda").simulated() else "cuda"
     if "block" in options:
         label += f", block {options['block'][0]}x{options['block'][1]}"

@@ -5,6 +5,11 @@ ViewerState.handle_event, frames are traced by the TraceWorker's thread, each
 finished frame is uploaded to the texture and drawn by TextureQuad, and the
 title bar shows ViewerState.title().
 
+wgpu frames take another road, the thesis's: no worker thread and no copy.
+The draw records the compute pass, which writes the frame texture, and the
+quad's render pass, which draws that texture, into one command buffer on the
+window's own device (zero_copy.py); then it asks for the next draw.
+
 Pacing: the canvas draws on demand. The worker asks for a draw (through the
 loop's call_soon_threadsafe) when a frame is ready; that draw shows it and
 hands the worker the next request, so the device traces frame k + 1 while
@@ -30,7 +35,7 @@ from ..render import png_bytes
 from .bindings import help_lines
 from .gpu import SUGGEST, TextureQuad, choose_target_format, request_device
 from .state import ViewerState
-from .worker import TracedFrame, TraceWorker
+from .worker import TracedFrame, TraceFailed, TraceWorker
 
 MIN_FPS = 2      # redraws per second at least: the title's frame time, fps and messages stay current
 MAX_FPS = 240    # draws per second at most; frame times are measured by the tracer, not by this cap
@@ -108,7 +113,8 @@ class ViewerWindow:
             raise RaybenchError(f"cannot open a window ({' '.join(str(exc).split())}); {SUGGEST}") from None
         try:
             self.context = self.canvas.get_wgpu_context()
-            self.adapter, self.device = request_device(self.canvas)
+            named = state.options.get("wgpu", {}).get("adapter")
+            self.adapter, self.device = request_device(self.canvas, named)
             caps = surface_capabilities(self.context, self.adapter)
             self.format = choose_target_format(caps["formats"])
             # Read the screenshot from the surface itself where it allows copies; else
@@ -118,13 +124,32 @@ class ViewerWindow:
             self.context.configure(device=self.device, format=self.format.configure, usage=usage,
                                    view_formats=self.format.view_formats)
             self.quad = TextureQuad(self.device, self.format.view)
+            self.gpu_tracer = self._wgpu_here(state, named)
         except BaseException:
             self.canvas.close()
             raise
+        self._gpu_idle = False  # the last draw found no wgpu frame to trace (stalled, failed)
         self.worker = TraceWorker(on_done=self._frame_ready)
         self.canvas.add_event_handler(self.handle_event, "key_down", "key_up", "pointer_down", "pointer_move",
                                       "pointer_up")
         self.canvas.request_draw(self._draw)
+
+    def _wgpu_here(self, state: ViewerState, named: str | None):
+        """The wgpu tracer on the window's device, where it may trace: on a GPU,
+        or on a CPU driver (lavapipe) that was named. Tells the state either way."""
+        from ..backends.wgpu.adapters import describe_raw
+        from .zero_copy import InWindowTracer
+
+        adapter = describe_raw(self.adapter)
+        if named is None and not adapter.is_gpu:
+            reason = (f"device wgpu: the window's adapter, {adapter.label()}, is not a GPU; name it to trace on "
+                      f"it (--adapter {adapter.name.split(' ')[0]})")
+            if state.device == "wgpu":
+                raise RaybenchError(reason)
+            state.unavailable["wgpu"] = reason
+            return None
+        state.add_device("wgpu")
+        return InWindowTracer(self.device, adapter)
 
     # ------------------------------------------------------------------ running
 
@@ -177,7 +202,16 @@ class ViewerWindow:
             if isinstance(result, TracedFrame):
                 self.quad.upload(result.rgba)
                 traced = result
-        self.quad.draw(texture.create_view(format=self.format.view))
+        # One command buffer: a wgpu frame's compute pass, then the quad that draws its texture.
+        encoder = self.device.create_command_encoder()
+        gpu = self._encode_gpu_frame(encoder) if result is None else None
+        self.quad.encode(encoder, texture.create_view(format=self.format.view))
+        self.device.queue.submit([encoder.finish()])
+        if gpu is not None:
+            request, compile_s = gpu
+            traced = TracedFrame(request, self.gpu_tracer.frame(request), None, self.gpu_tracer.elapsed_ms(),
+                                 compile_s)
+            self.state.on_traced(traced)
         self._texture = texture
         try:
             if traced is not None:
@@ -194,6 +228,30 @@ class ViewerWindow:
             self._texture = None
         self.canvas.set_title(self.state.title())
         self._trace_next()
+
+    def _encode_gpu_frame(self, encoder):
+        """Where frames come from wgpu and the worker is idle: record the next
+        frame's compute pass and have the quad draw its texture. (request,
+        compile seconds), or None when there is nothing to trace or it failed."""
+        self._gpu_idle = True
+        if self._closing or self.state.device != "wgpu" or self.gpu_tracer is None \
+                or not self.worker.handoff.may_trace():
+            return None
+        width, height = self.canvas.get_physical_size()
+        if width < 1 or height < 1:
+            return None
+        request = self.state.next_request(width, height)
+        if request is None:
+            return None
+        try:
+            compile_s = self.gpu_tracer.prepare(request)
+            self.gpu_tracer.encode(encoder, request)
+        except RaybenchError as exc:
+            self.state.on_traced(TraceFailed(request, str(exc)))
+            return None
+        self.quad.show(self.gpu_tracer.compute.texture)
+        self._gpu_idle = False
+        return request, compile_s
 
     def read_drawn(self) -> np.ndarray:
         """The picture drawn in the current draw, as (H, W, 3) RGB bytes: read
@@ -219,6 +277,10 @@ class ViewerWindow:
 
     def _trace_next(self) -> None:
         if self._closing or not self.worker.handoff.may_trace():
+            return
+        if self.state.device == "wgpu":
+            if not self._gpu_idle:
+                self.canvas.request_draw()  # the next draw traces the next frame
             return
         width, height = self.canvas.get_physical_size()
         if width < 1 or height < 1:

@@ -43,9 +43,9 @@ class TraceRequest:
 @dataclass
 class TracedFrame:
     request: TraceRequest
-    frame: Frame
-    rgba: np.ndarray           # (H, W, 4) uint8: the frame as the texture wants it
-    trace_ms: float            # camera basis, trace and copy to the host: the whole frame
+    frame: Frame               # or a zero_copy.DrawnFrame: traced by wgpu into the window's texture
+    rgba: np.ndarray | None    # (H, W, 4) uint8: the frame as the texture wants it (None: already there)
+    trace_ms: float            # camera basis, trace and copy to the host: the whole frame (wgpu: the pass)
     compile_s: float | None    # set on the first frame of a new tracer
 
 

@@ -82,8 +82,7 @@ def found() -> tuple[Adapter, ...]:
             adapters = wgpu.gpu.enumerate_adapters_sync()
     except Exception:  # noqa: BLE001 - no driver at all is "none found", not a crash
         return ()
-    out = [Adapter(a.info["device"] or a.info["description"] or "unknown", a.info["backend_type"],
-                   a.info["adapter_type"], a) for a in adapters]
+    out = [describe_raw(a) for a in adapters]
     return tuple(sorted(out, key=Adapter.rank))
 
 
@@ -118,18 +117,29 @@ def _short(name: str) -> str:
     return name.split(" ")[0]
 
 
+def device_requirements(adapter) -> dict:
+    """request_device's arguments for a GPUAdapter: its higher limits (the
+    thesis's 32x32 workgroup needs 1024 invocations where WebGPU's default is
+    256) and timestamp queries where it has them."""
+    limits = {k: adapter.limits[k] for k in LIMITS if k in adapter.limits}
+    features = [f for f in ("timestamp-query",) if f in adapter.features]
+    return {"required_features": features, "required_limits": limits}
+
+
 def request_device(adapter: Adapter):
-    """A device on adapter with its higher limits (the thesis's 32x32 workgroup
-    needs 1024 invocations where WebGPU's default is 256) and timestamp
-    queries where it has them."""
-    limits = {k: adapter.adapter.limits[k] for k in LIMITS if k in adapter.adapter.limits}
-    features = [f for f in ("timestamp-query",) if f in adapter.adapter.features]
+    """A device on adapter, with device_requirements()."""
     failure = None
     with native_stderr_captured():
         try:
-            device = adapter.adapter.request_device_sync(required_features=features, required_limits=limits)
+            device = adapter.adapter.request_device_sync(**device_requirements(adapter.adapter))
         except Exception as exc:  # noqa: BLE001
             failure = exc
     if failure is not None:
         raise RaybenchError(f"device wgpu: {adapter.label()} gave no device ({' '.join(str(failure).split())})")
     return device
+
+
+def describe_raw(adapter) -> Adapter:
+    """An Adapter for a GPUAdapter obtained elsewhere (the viewer's, which can draw to its window)."""
+    return Adapter(adapter.info["device"] or adapter.info["description"] or "unknown", adapter.info["backend_type"],
+                   adapter.info["adapter_type"], adapter)
