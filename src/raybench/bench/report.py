@@ -289,17 +289,18 @@ def cpu_tuning(records: list[dict]) -> list[dict]:
     return sorted(out, key=lambda e: (e["threads"] if isinstance(e["threads"], int) else 0, e["label"]))
 
 
-def gpu_tuning(records: list[dict]) -> list[dict]:
-    """GPU block shapes in the order measured: label ("32x32"), block, frame and
-    kernel median ms, and ms, the time judged (kernel where measured)."""
-    rs, _ = _largest_group(records, "tuning", "cuda")
+def gpu_tuning(records: list[dict], device: str = "cuda") -> list[dict]:
+    """GPU block shapes (wgpu: workgroup shapes) in the order measured: label
+    ("32x32"), block, frame and kernel median ms, and ms, the time judged
+    (kernel where measured)."""
+    rs, _ = _largest_group(records, "tuning", device)
     # kernel times only if every shape has one: a simulator run merged with a
     # real one must not pit one shape's kernel time against another's frame time
     kernel = all(r.get("kernel_ms") for r in rs)
     out = []
     for r in rs:
         opts = r.get("options") or {}
-        block = opts.get("block")
+        block = opts.get("workgroup" if device == "wgpu" else "block")
         label = f"{block[0]}x{block[1]}" if isinstance(block, list) and len(block) == 2 else opts.get("label", "?")
         out.append({"label": label, "block": block, "frame_ms": _median(r),
                     "kernel_ms": r["kernel_ms"]["median"] if r.get("kernel_ms") else None,
@@ -841,8 +842,8 @@ def _section_test7(w: _Writer, label: str, slug: str, records: list[dict]) -> No
 
 def _section_tuning(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
     w("### Tuning: CPU threads and GPU block shapes", "")
-    cpu, gpu = cpu_tuning(records), gpu_tuning(records)
-    if not cpu and not gpu:
+    cpu, gpu, portable = cpu_tuning(records), gpu_tuning(records), gpu_tuning(records, "wgpu")
+    if not cpu and not gpu and not portable:
         w("Not measured: these results hold no `tuning` suite (`raybench bench --suite tuning`).", "")
         return
     w("The same frame rendered with different ways of splitting the work. On the CPU the rows of the picture "
@@ -855,7 +856,8 @@ def _section_tuning(w: _Writer, label: str, slug: str, records: list[dict]) -> N
         if others:
             w(f"({DEVICE_NAMES[device]} tuning was also measured at {others} smaller size(s); the largest is shown.)",
               "")
-    w.image(f"{slug}-tuning.png", _plot_tuning(label, cpu, gpu), f"{label}: tuning")
+    if cpu or gpu:
+        w.image(f"{slug}-tuning.png", _plot_tuning(label, cpu, gpu), f"{label}: tuning")
     if cpu:
         fastest = min(r["ms"] for r in cpu)
         w(_table(["CPU setting", "threads", "median frame ms", "relative to fastest"],
@@ -870,6 +872,13 @@ def _section_tuning(w: _Writer, label: str, slug: str, records: list[dict]) -> N
                    _x(r["ms"] / fastest)] for r in gpu]), "")
     else:
         w("GPU tuning: not measured.", "")
+    if portable:
+        fastest = min(r["ms"] for r in portable)
+        timing = "kernel" if all(r["kernel_ms"] is not None for r in portable) else "frame"
+        w(f"wgpu workgroups, on {_adapter_name(records)}:", "",
+          _table(["wgpu workgroup", "median frame ms", "median kernel ms", f"relative to fastest ({timing})"],
+                 [[r["label"], _ms(r["frame_ms"]), _ms(r["kernel_ms"]) if r["kernel_ms"] is not None else "–",
+                   _x(r["ms"] / fastest)] for r in portable]), "")
 
 
 def _section_constant(w: _Writer, label: str, slug: str, records: list[dict]) -> None:

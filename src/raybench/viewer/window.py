@@ -249,6 +249,9 @@ class ViewerWindow:
         except RaybenchError as exc:
             self.state.on_traced(TraceFailed(request, str(exc)))
             return None
+        except Exception as exc:  # noqa: BLE001 - shown in the title; the window must live on
+            self.state.on_traced(TraceFailed(request, f"wgpu failed: {type(exc).__name__}: {exc}"))
+            return None
         self.quad.show(self.gpu_tracer.compute.texture)
         self._gpu_idle = False
         return request, compile_s
