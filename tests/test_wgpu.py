@@ -264,3 +264,18 @@ def test_a_benchmark_record_names_the_adapter(adapter):
     assert record["adapter"]["name"] == adapters.choose(adapter).name
     assert record["adapter"]["type"] == adapters.choose(adapter).type and record["adapter"]["workgroup"] == [16, 16]
     assert record["kernel_ms"]["median"] > 0 and record["frames"] >= runner.MIN_FRAMES
+
+
+def test_cpu_use_never_imports_wgpu(tmp_path):
+    """wgpu (and its driver probing) loads only when wgpu or auto is asked for."""
+    import subprocess
+    import sys
+
+    code = ("import sys, raybench\n"
+            "from raybench.cli import run\n"
+            "raybench.render(raybench.random_spheres(3), width=8, height=8, device='cpu')\n"
+            f"assert run(['render', '--spheres', '3', '--size', '8x8', '--device', 'cpu', '-o', {str(tmp_path / 'x.png')!r}]) == 0\n"
+            "import raybench.backends.wgpu\n"
+            "assert 'wgpu' not in sys.modules, 'wgpu was imported'\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
