@@ -442,13 +442,18 @@ def test_wgpu_traces_into_the_drawn_texture_in_one_command_buffer(display, vulka
 
     name = vulkan_adapter.info["device"]
     state = state_for(random_spheres(20, 5), 5, device="wgpu", options={"wgpu": {"adapter": name}})
+    def resize(window):
+        window.canvas.set_logical_size(50, 34)
+
     steps = [(check_zero_copy, first_frame), (press("="), first_frame), (press("Tab"), first_frame),
-             (press("3"), first_frame)]
+             (press("3"), first_frame), (resize, lambda t: (t.frame.width, t.frame.height) == (50, 34))]
     script, window = play(state, (72, 40), steps)
     assert seen == {"same_texture": True, "uploads": 0}
     assert f"wgpu on {name} (Vulkan" in titles[0] and "no copy" in titles[0], titles
-    devices = [(step, traced.frame.device) for step, traced, _ in script.records]
+    devices = [(step, traced.frame.device) for step, traced, _ in script.records if step < 5]
     assert devices == [(0, "wgpu"), (1, "wgpu"), (2, "wgpu"), (3, "cpu"), (4, "wgpu")], devices
+    resized, drawn = script.frames(5)[-1]  # a new size: a new texture, drawn as it is
+    assert resized.frame.device == "wgpu" and drawn.shape == (34, 50, 3)
     assert encoders["uploads"] == 1  # the cpu frame's, and only it
     for step, traced, drawn in script.records:
         expected = reference(traced)
@@ -459,6 +464,20 @@ def test_wgpu_traces_into_the_drawn_texture_in_one_command_buffer(display, vulka
             (encoder,) = [e for number, e in encoders["compute"] if number == traced.request.number]
             assert encoder in encoders["quad"]
     assert script.frames(2)[0][0].request.count == 30
+
+
+def test_wgpu_in_the_window_without_timestamps(display, vulkan_adapter):
+    """Where the device has no timestamp queries, the frame time is the wall
+    time of the completed submission; the picture is the same."""
+    def no_timestamps(window):
+        window.gpu_tracer.period_ns = None
+
+    state = state_for(random_spheres(15, 9), 9, device="wgpu",
+                      options={"wgpu": {"adapter": vulkan_adapter.info["device"]}})
+    script, _ = play(state, (48, 32), [(press("="), first_frame)], prepare=no_timestamps)
+    for step, traced, drawn in script.records:
+        assert traced.frame.device == "wgpu" and traced.trace_ms > 0
+        assert np.abs(drawn.astype(int) - reference(traced).astype(int)).max() <= 1, f"step {step}"
 
 
 def test_cli_view_on_wgpu_saves_the_render(display, vulkan_adapter, tmp_path):

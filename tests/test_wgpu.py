@@ -279,3 +279,18 @@ def test_cpu_use_never_imports_wgpu(tmp_path):
             "assert 'wgpu' not in sys.modules, 'wgpu was imported'\n")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
+
+
+def test_kernel_time_without_timestamps_is_the_wall_time_of_the_pass(adapter, rng):
+    """Where an adapter has no timestamp queries (or their period cannot be
+    read) the pass is timed by the wall clock around its completed submission."""
+    scene, camera = KINDS["generated"](rng, 30)
+    width, height = 40, 24
+    tracer = backends.tracer("wgpu", scene.spheres, width, height, adapter=adapter)
+    try:
+        tracer.period_ns = None
+        assert tracer.describe()["timing"] == "wall clock"
+        assert tracer.timed_trace(camera.basis(width, height)) > 0
+        assert np.array_equal(tracer.hits, raybench.render(scene, camera, width, height, device="cpu").hits)
+    finally:
+        tracer.close()

@@ -66,6 +66,8 @@ class InWindowTracer:
         count = check_count(request.count, self.compute.count)
         self.compute.encode(encoder, request.camera.basis(request.width, request.height), count,
                             timed=self.period_ns is not None)
+        if self.period_ns is None:
+            self.compute.encode_fence(encoder)
         self._started = time.perf_counter()
 
     def elapsed_ms(self) -> float:
@@ -73,7 +75,7 @@ class InWindowTracer:
         no timestamps, the wall time until the whole submission completed."""
         if self.period_ns is not None:
             return self.compute.read_kernel_ms(self.period_ns)
-        self.device.queue.on_submitted_work_done_sync()
+        self.compute.wait()
         return (time.perf_counter() - self._started) * 1e3
 
     def frame(self, request) -> DrawnFrame:

@@ -94,6 +94,9 @@ class Compute:
             self.resolved = device.create_buffer(size=16, usage=wgpu.BufferUsage.QUERY_RESOLVE
                                                  | wgpu.BufferUsage.COPY_SRC)
             self.times = device.create_buffer(size=16, usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ)
+        # Waiting for a submission: map a buffer it copies into. (wgpu-py 0.32's
+        # queue.on_submitted_work_done_sync fails with a ctypes TypeError.)
+        self.fence = device.create_buffer(size=4, usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ)
 
     def compile(self) -> float:
         """Build the pipeline (WGSL to the driver's code); the seconds it took."""
@@ -129,6 +132,17 @@ class Compute:
         if timed:
             encoder.resolve_query_set(self.queries, 0, 2, self.resolved, 0)
             encoder.copy_buffer_to_buffer(self.resolved, 0, self.times, 0, 16)
+
+    def encode_fence(self, encoder) -> None:
+        """Record a 4-byte copy after the pass, for wait() to wait on."""
+        encoder.copy_buffer_to_buffer(self.hits, 0, self.fence, 0, 4)
+
+    def wait(self) -> None:
+        """Until the submission that holds encode_fence()'s copy has completed."""
+        import wgpu
+
+        self.fence.map_sync(wgpu.MapMode.READ)
+        self.fence.unmap()
 
     def read_kernel_ms(self, period_ns: float) -> float:
         """The pass's GPU time from its timestamps (waits for the submission)."""

@@ -122,9 +122,12 @@ class Tracer:
             kernel_ms = self.compute.read_kernel_ms(self.period_ns)
         else:
             self.compute.compile()
+            encoder = self.device.create_command_encoder()
+            self.compute.encode(encoder, basis, count)
+            self.compute.encode_fence(encoder)
             start = time.perf_counter()
-            self._submit(basis, count, timed=False, readback=False)
-            self.device.queue.on_submitted_work_done_sync()
+            self.device.queue.submit([encoder.finish()])
+            self.compute.wait()
             kernel_ms = (time.perf_counter() - start) * 1e3
             encoder = self.device.create_command_encoder()
             self._encode_readback(encoder)
