@@ -5,10 +5,13 @@ ViewerState.handle_event, frames are traced by the TraceWorker's thread, each
 finished frame is uploaded to the texture and drawn by TextureQuad, and the
 title bar shows ViewerState.title().
 
-wgpu frames take another road, the thesis's: no worker thread and no copy.
-The draw records the compute pass, which writes the frame texture, and the
-quad's render pass, which draws that texture, into one command buffer on the
-window's own device (zero_copy.py); then it asks for the next draw.
+wgpu frames take another road, the thesis's: no copy. The draw records the
+compute pass, which writes the frame texture, and the quad's render pass,
+which draws that texture, into one command buffer on the window's own device
+(zero_copy.py), and submits it; the worker thread only waits for the GPU to
+finish (and reads its timestamps), then hands the frame over like any other:
+the next draw counts it, shows the same texture again and asks for the next
+frame. The loop never waits for the GPU.
 
 Pacing: the canvas draws on demand. The worker asks for a draw (through the
 loop's call_soon_threadsafe) when a frame is ready; that draw shows it and
@@ -200,7 +203,8 @@ class ViewerWindow:
         if result is not None:
             self.state.on_traced(result)
             if isinstance(result, TracedFrame):
-                self.quad.upload(result.rgba)
+                if result.rgba is not None:  # None: a wgpu frame, already in the texture the quad draws
+                    self.quad.upload(result.rgba)
                 traced = result
         # One command buffer: a wgpu frame's compute pass, then the quad that draws its texture.
         encoder = self.device.create_command_encoder()
@@ -208,10 +212,8 @@ class ViewerWindow:
         self.quad.encode(encoder, texture.create_view(format=self.format.view))
         self.device.queue.submit([encoder.finish()])
         if gpu is not None:
-            request, compile_s = gpu
-            traced = TracedFrame(request, self.gpu_tracer.frame(request), None, self.gpu_tracer.elapsed_ms(),
-                                 compile_s)
-            self.state.on_traced(traced)
+            # Shown once the GPU is done: the worker thread waits for it, the loop goes on.
+            self.worker.submit(gpu[0], wait=self._gpu_waiter(*gpu))
         self._texture = texture
         try:
             if traced is not None:
@@ -229,14 +231,28 @@ class ViewerWindow:
         self.canvas.set_title(self.state.title())
         self._trace_next()
 
+    def _gpu_waiter(self, request, compile_s):
+        """What the worker thread runs for a submitted wgpu frame: wait for it,
+        and its TracedFrame (the pass's time) or TraceFailed."""
+        tracer = self.gpu_tracer
+
+        def wait():
+            try:
+                return TracedFrame(request, tracer.frame(request), None, tracer.elapsed_ms(), compile_s)
+            except Exception as exc:  # noqa: BLE001 - shown in the title; the window must live on
+                return TraceFailed(request, f"wgpu failed: {type(exc).__name__}: {exc}")
+        return wait
+
     def _encode_gpu_frame(self, encoder):
         """Where frames come from wgpu and the worker is idle: record the next
         frame's compute pass and have the quad draw its texture. (request,
         compile seconds), or None when there is nothing to trace or it failed."""
-        self._gpu_idle = True
         if self._closing or self.state.device != "wgpu" or self.gpu_tracer is None \
                 or not self.worker.handoff.may_trace():
-            return None
+            return None  # not wgpu's turn: a frame in flight or waiting decides what follows
+        # From here, no frame means no next draw on our own: the MIN_FPS redraws
+        # and any input (which asks for a draw) try again.
+        self._gpu_idle = True
         width, height = self.canvas.get_physical_size()
         if width < 1 or height < 1:
             return None
