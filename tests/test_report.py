@@ -494,3 +494,27 @@ def test_report_with_scaling_section(tmp_path, rng):
     section = text[text.index("## Beyond the thesis"):]
     assert "skipped: predicted" in section and "| BVH |" in section
     assert (tmp_path / "rep" / "alpha-scaling.png").exists()
+
+
+def test_wgpu_records_are_labelled_with_their_adapter_and_judge_nothing(tmp_path, rng):
+    """wgpu series and workgroup shapes are shown with the adapter that ran them
+    (a CPU driver must not pass for a GPU); the GPU claims stay cuda's."""
+    adapter = {"name": "llvmpipe (LLVM 15.0.6, 256 bits)", "backend": "Vulkan", "type": "CPU",
+               "workgroup": [16, 16], "timing": "timestamp-query"}
+    slope = rng.uniform(1, 5)
+    wgpu = [rec("thesis", "wgpu", n, slope * n, kernel=0.9 * slope * n, test=1, options={"adapter": "llvmpipe"})
+            for n in COUNTS]
+    wgpu += [rec("tuning", "wgpu", 300, t, size=(640, 480), kernel=0.9 * t, options={"workgroup": w})
+             for w, t in (([8, 8], 120.0), ([16, 16], 100.0), ([32, 32], 150.0))]
+    for r in wgpu:
+        r["adapter"] = adapter
+    records = thesis(rng) + wgpu
+    path = write(tmp_path / "r.jsonl", records)
+    text = report.write_report([path], tmp_path / "out").read_text()
+    assert "**wgpu** (llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, CPU))" in text
+    assert "wgpu workgroups, on llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, CPU):" in text
+    row = next(line for line in text.splitlines() if line.startswith("| 32x32 | 150"))
+    assert row.endswith("| 1.50x |"), row
+    # wgpu here is far slower than the CPU: were it taken for the GPU, claim 1 would fail
+    v = verdict(records, 1)
+    assert v["verdict"] == HOLDS and v["values"]["n"] == len(SIZES) * len(COUNTS)

@@ -336,6 +336,21 @@ def test_tab_cycles_devices_and_a_failed_switch_stays_on_the_working_one():
     assert state.device == "cpu"
 
 
+def test_wgpu_joins_the_cycle_only_where_the_window_can_trace_on_it():
+    state, _ = make_state()
+    state.unavailable["wgpu"] = "device wgpu: the window's adapter, llvmpipe (Vulkan, CPU), is not a GPU"
+    state.handle_event(key("3"))
+    assert state.device == "cpu" and "not a GPU" in state.title() and "staying on cpu" in state.title()
+    state.handle_event(key("Tab"))
+    state.handle_event(key("Tab"))
+    assert state.device == "cpu"  # cpu -> cuda -> cpu: wgpu is not in the cycle
+    state.add_device("wgpu")
+    state.handle_event(key("3"))
+    assert state.device == "wgpu" and state.next_request(8, 6).device == "wgpu"
+    state.handle_event(key("Tab"))
+    assert state.device == "cpu"
+
+
 def test_switch_while_a_frame_is_in_flight_labels_frames_by_where_they_were_traced():
     state, _ = make_state()
     cpu_request = state.next_request(8, 6)        # in flight on the CPU ...

@@ -403,6 +403,127 @@ def test_keyboard_through_the_x_server(display, tmp_path):
     assert np.array_equal(read_png(shot), expected)
 
 
+# --------------------------------------------------------------------------- wgpu: traced into the window's texture
+
+
+def test_wgpu_traces_into_the_drawn_texture_in_one_command_buffer(display, vulkan_adapter, monkeypatch):
+    """The thesis's pipeline: on wgpu, the compute pass writes the texture the
+    quad draws, both recorded into one command encoder, and nothing is
+    uploaded; the worker thread, not the window's loop, waits for the GPU;
+    the picture is the CPU's. Tab leaves wgpu for the CPU (uploaded
+    frames again), 3 comes back."""
+    from raybench.viewer.gpu import TextureQuad
+    from raybench.viewer.zero_copy import InWindowTracer
+
+    encoders = {"compute": [], "quad": [], "uploads": 0}
+    real_encode, real_quad, real_upload = InWindowTracer.encode, TextureQuad.encode, TextureQuad.upload
+
+    def compute_encode(self, encoder, request):
+        encoders["compute"].append((request.number, id(encoder)))
+        return real_encode(self, encoder, request)
+
+    def quad_encode(self, encoder, view):
+        encoders["quad"].append(id(encoder))
+        return real_quad(self, encoder, view)
+
+    def upload(self, rgba):
+        encoders["uploads"] += 1
+        return real_upload(self, rgba)
+
+    waited_on = set()
+    real_elapsed = InWindowTracer.elapsed_ms
+
+    def elapsed_ms(self):
+        waited_on.add(threading.current_thread().name)
+        return real_elapsed(self)
+
+    monkeypatch.setattr(InWindowTracer, "elapsed_ms", elapsed_ms)
+    monkeypatch.setattr(InWindowTracer, "encode", compute_encode)
+    monkeypatch.setattr(TextureQuad, "encode", quad_encode)
+    monkeypatch.setattr(TextureQuad, "upload", upload)
+    titles = []
+    seen = {}
+
+    def check_zero_copy(window):
+        seen["same_texture"] = window.quad.texture is window.gpu_tracer.compute.texture
+        seen["uploads"] = encoders["uploads"]
+        titles.append(window.state.title())
+
+    name = vulkan_adapter.info["device"]
+    state = state_for(random_spheres(20, 5), 5, device="wgpu", options={"wgpu": {"adapter": name}})
+    def resize(window):
+        window.canvas.set_logical_size(50, 34)
+
+    steps = [(check_zero_copy, first_frame), (press("="), first_frame), (press("Tab"), first_frame),
+             (press("3"), first_frame), (resize, lambda t: (t.frame.width, t.frame.height) == (50, 34))]
+    script, window = play(state, (72, 40), steps)
+    assert seen == {"same_texture": True, "uploads": 0}
+    assert f"wgpu on {name} (Vulkan" in titles[0] and "no copy" in titles[0], titles
+    devices = [(step, traced.frame.device) for step, traced, _ in script.records if step < 5]
+    assert devices == [(0, "wgpu"), (1, "wgpu"), (2, "wgpu"), (3, "cpu"), (4, "wgpu")], devices
+    resized, drawn = script.frames(5)[-1]  # a new size: a new texture, drawn as it is
+    assert resized.frame.device == "wgpu" and drawn.shape == (34, 50, 3)
+    assert np.abs(drawn.astype(int) - reference(resized).astype(int)).max() <= 1
+    assert encoders["uploads"] == 1  # the cpu frame's, and only it
+    assert waited_on == {"raybench-trace"}  # the worker thread waits for the GPU, never the window's loop
+    for step, traced, drawn in script.records:
+        expected = reference(traced)
+        # A frame traced just before the resize is shown stretched to the new size: compare it unstretched only.
+        if drawn.shape == expected.shape or step < 5:
+            assert np.abs(drawn.astype(int) - expected.astype(int)).max() <= 1, f"step {step}"
+        if traced.frame.device == "wgpu":
+            assert traced.rgba is None
+            # the frame's compute pass was recorded into the encoder its quad was drawn from
+            (encoder,) = [e for number, e in encoders["compute"] if number == traced.request.number]
+            assert encoder in encoders["quad"]
+    assert script.frames(2)[0][0].request.count == 30
+
+
+def test_wgpu_in_the_window_without_timestamps(display, vulkan_adapter):
+    """Where the device has no timestamp queries, the frame time is the wall
+    time of the completed submission; the picture is the same."""
+    def no_timestamps(window):
+        window.gpu_tracer.period_ns = None
+
+    state = state_for(random_spheres(15, 9), 9, device="wgpu",
+                      options={"wgpu": {"adapter": vulkan_adapter.info["device"]}})
+    script, _ = play(state, (48, 32), [(press("="), first_frame)], prepare=no_timestamps)
+    for step, traced, drawn in script.records:
+        assert traced.frame.device == "wgpu" and traced.trace_ms > 0
+        assert np.abs(drawn.astype(int) - reference(traced).astype(int)).max() <= 1, f"step {step}"
+
+
+def test_cli_view_on_wgpu_saves_the_render(display, vulkan_adapter, tmp_path):
+    """`raybench view --device wgpu --adapter NAME --frames 3 --screenshot`
+    saves what the window drew from its own texture: `raybench render`'s PNG."""
+    env = dict(os.environ, DISPLAY=display)
+    args = ["--spheres", "20", "--size", "96x64"]
+    shot = tmp_path / "view.png"
+    proc = subprocess.run([sys.executable, "-m", "raybench", "view", *args, "--device", "wgpu", "--adapter",
+                           vulkan_adapter.info["device"], "--workgroup", "8x8", "--frames", "3", "--screenshot",
+                           shot], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert f"wrote {shot}: 96x64, 20 spheres, wgpu" in proc.stdout
+    drawn = read_png(shot).astype(int)
+    expected = render_png(tmp_path, "render.png", *args, "--device", "cpu").astype(int)
+    assert drawn.shape == expected.shape and np.abs(drawn - expected).max() <= 1
+
+
+def test_wgpu_on_an_unnamed_cpu_adapter_is_refused_in_one_line(display, vulkan_adapter, tmp_path):
+    from raybench.backends.wgpu import adapters
+
+    if adapters.gpu_present():
+        pytest.skip("this machine has a GPU adapter: wgpu needs no name here")
+    titles = []
+    steps = [(press("3"), first_frame), (lambda w: titles.append(w.state.title()), first_frame)]
+    script, window = play(state_for(random_spheres(5, 1), 1), (40, 30), steps)
+    assert [traced.frame.device for _, traced, _ in script.records] == ["cpu", "cpu", "cpu"]
+    assert window.state.device == "cpu" and window.gpu_tracer is None
+    assert "not a GPU" in titles[0] and "--adapter" in titles[0] and "staying on cpu" in titles[0], titles
+    env = dict(os.environ, DISPLAY=display)
+    assert_one_error_line(view_subprocess(tmp_path, env, "--device", "wgpu"), "no GPU adapter", "--adapter")
+
+
 # --------------------------------------------------------------------------- the texture-to-quad pipeline alone
 
 

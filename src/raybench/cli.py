@@ -42,6 +42,27 @@ def parse_block(text: str) -> tuple[int, int]:
     return parse_pair(text, "--block", "16x16")
 
 
+def device_options(device: str, *, threads=None, block=None, workgroup=None, adapter=None, kernel=None,
+                   accel=None) -> dict:
+    """The options given on the command line, for the device: one that does
+    not apply to it is refused by the backend, in one line. Those not given
+    are left to the backend's defaults."""
+    options = {}
+    if kernel is not None:
+        options["kernel"] = kernel
+    if accel is not None:
+        options["accel"] = accel
+    if threads is not None:
+        options["threads"] = threads
+    if block is not None:
+        options["block"] = parse_block(block)
+    if workgroup is not None:
+        options["workgroup"] = parse_pair(workgroup, "--workgroup", "16x16")
+    if adapter is not None:
+        options["adapter"] = adapter
+    return options
+
+
 def check_output(path: Path, option: str = "-o") -> None:
     """Refuse an output we could not write before spending time on a render."""
     if path.suffix.lower() != ".png":
@@ -78,19 +99,24 @@ def main():
 @click.option("--spheres", type=int, help="render N random spheres instead of a scene file")
 @click.option("--seed", type=int, help="seed of the random spheres (default 0)")
 @click.option("--size", default="800x600", show_default=True, help=SIZE_HELP)
-@click.option("--device", default="auto", show_default=True, type=click.Choice(["auto", "cpu", "cuda"]),
-              help="where to trace: auto picks cuda when a usable GPU is present")
+@click.option("--device", default="auto", show_default=True, type=click.Choice(["auto", "cpu", "cuda", "wgpu"]),
+              help="where to trace: auto picks cuda when a usable NVIDIA GPU is present, else wgpu on a GPU, "
+                   "else cpu")
 @click.option("--threads", type=int, help="cpu: number of threads (default: all cores)")
 @click.option("--block", help="cuda: thread block shape XxY (default 32x2 fast, 16x16 simple)")
+@click.option("--workgroup", help="wgpu: workgroup shape XxY (default 16x16)")
+@click.option("--adapter", help="wgpu: the adapter whose name contains this (default: the best GPU; a CPU "
+                                "driver such as llvmpipe only when named)")
 @click.option("--accel", type=click.Choice(ACCELS),
-              help="bvh: walk a bounding volume hierarchy (the default); none: brute force, every sphere for "
-                   "every ray (the thesis's algorithm; the default where --kernel is given). Same picture")
+              help="bvh: walk a bounding volume hierarchy (the default on cpu and cuda); none: brute force, every "
+                   "sphere for every ray (the thesis's algorithm; the default where --kernel is given, and wgpu's "
+                   "only one). Same picture")
 @click.option("--kernel", type=click.Choice(KERNELS),
-              help="brute force only: simple, the thesis's loop, a pixel at a time; fast (its default), rays "
-                   "grouped and certain misses skipped, the same picture")
+              help="brute force only: simple, the thesis's loop, a pixel at a time; fast (its default on cpu and "
+                   "cuda), rays grouped and certain misses skipped, the same picture; wgpu has simple only")
 @click.option("-o", "--output", default="render.png", show_default=True, type=click.Path(path_type=Path),
               help="PNG file to write")
-def render(scene_file, spheres, seed, size, device, threads, block, accel, kernel, output):
+def render(scene_file, spheres, seed, size, device, threads, block, workgroup, adapter, accel, kernel, output):
     """Trace one frame and save it as a PNG."""
     from .backends import resolve
     from .render import render as render_frame
@@ -98,16 +124,9 @@ def render(scene_file, spheres, seed, size, device, threads, block, accel, kerne
     scene = load_scene(scene_file, spheres, seed)
     width, height = parse_size(size)
     check_output(output)
-    device = resolve(device)
-    options = {}
-    if kernel is not None:
-        options["kernel"] = kernel
-    if accel is not None:
-        options["accel"] = accel
-    if threads is not None:
-        options["threads"] = threads
-    if block is not None:
-        options["block"] = parse_block(block)
+    device = resolve(device, adapter)
+    options = device_options(device, threads=threads, block=block, workgroup=workgroup, adapter=adapter,
+                             kernel=kernel, accel=accel)
     start = time.perf_counter()
     frame = render_frame(scene, width=width, height=height, device=device, **options)
     elapsed = time.perf_counter() - start
@@ -133,14 +152,18 @@ def _view_help() -> str:
 @click.option("--spheres", type=int, help="show N random spheres instead of a scene file")
 @click.option("--seed", type=int, help="seed of the random spheres (default 0)")
 @click.option("--size", default="800x600", show_default=True, help="window size as WIDTHxHEIGHT, e.g. 1680x1050")
-@click.option("--device", default="auto", show_default=True, type=click.Choice(["auto", "cpu", "cuda"]),
-              help="where to trace first (switch live with Tab): auto picks cuda when a usable GPU is present")
+@click.option("--device", default="auto", show_default=True, type=click.Choice(["auto", "cpu", "cuda", "wgpu"]),
+              help="where to trace first (switch live with Tab): auto picks cuda when a usable NVIDIA GPU is "
+                   "present, else wgpu on a GPU, else cpu")
 @click.option("--threads", type=int, help="cpu: number of threads (default: all cores)")
 @click.option("--block", help="cuda: thread block shape XxY (default 16x16)")
+@click.option("--workgroup", help="wgpu: workgroup shape XxY (default 16x16)")
+@click.option("--adapter", help="wgpu, and the window: the adapter whose name contains this (default: the best "
+                                "GPU; a CPU driver such as llvmpipe only when named)")
 @click.option("--frames", type=click.IntRange(min=1), help="close after N traced frames are shown")
 @click.option("--screenshot", type=click.Path(path_type=Path),
               help="with --frames: save the last frame, as drawn in the window, to this PNG file")
-def view(scene_file, spheres, seed, size, device, threads, block, frames, screenshot):
+def view(scene_file, spheres, seed, size, device, threads, block, workgroup, adapter, frames, screenshot):
     from . import backends
     from .viewer import view as open_viewer
 
@@ -150,8 +173,14 @@ def view(scene_file, spheres, seed, size, device, threads, block, frames, screen
         if frames is None:
             raise RaybenchError("--screenshot needs --frames N (the frame to save); in the window, P saves a screenshot")
         check_output(screenshot, "--screenshot")
-    device = backends.resolve(device)
-    options = {"cpu": {}, "cuda": {}}
+    device = backends.resolve(device, adapter)
+    options = {"cpu": {}, "cuda": {}, "wgpu": {}}
+    if adapter is not None:
+        options["wgpu"]["adapter"] = adapter
+    if workgroup is not None:
+        options["wgpu"]["workgroup"] = parse_pair(workgroup, "--workgroup", "16x16")
+    if options["wgpu"]:
+        _check_options("wgpu", options["wgpu"])
     if threads is not None:
         options["cpu"]["threads"] = threads
         _check_options("cpu", options["cpu"])
@@ -216,6 +245,13 @@ def info(as_json):
         if g["fp32_gflops"]:
             click.echo(f"          FP32 peak {g['fp32_gflops']:,} GFLOP/s = {g['multiprocessors']} x "
                        f"{g['fp32_lanes_per_sm']} x 2 x {g['clock_ghz']} GHz")
+    adapters = desc["wgpu_adapters"]
+    if not adapters:
+        click.echo("wgpu      no adapter found (no Vulkan, Metal, D3D12 or OpenGL driver wgpu can use)")
+    for i, a in enumerate(adapters):
+        note = "" if a["type"] in ("DiscreteGPU", "IntegratedGPU") else "  (not a GPU: used only with --adapter)"
+        click.echo(f"{'wgpu' if i == 0 else ''}{'':{10 - (4 if i == 0 else 0)}}{a['name']} ({a['backend']}, "
+                   f"{a['type']}){note}")
     versions = ", ".join(f"{k} {v}" for k, v in desc["versions"].items() if v)
     click.echo(f"Versions  {versions}")
 
@@ -223,7 +259,10 @@ def info(as_json):
 @main.command()
 @click.option("--suite", "suites", multiple=True, default=("thesis",), show_default=True,
               help="thesis, constant-vs-runtime, tuning, scaling, or all; repeat for several")
-@click.option("--device", "devices", multiple=True, help="cpu or cuda; repeat for several (default: every device present)")
+@click.option("--device", "devices", multiple=True,
+              help="cpu, cuda or wgpu; repeat for several (default: every device present)")
+@click.option("--adapter", help="wgpu: the adapter whose name contains this (default: the best GPU; a CPU driver "
+                                "such as llvmpipe only when named)")
 @click.option("--duration", type=float, help="seconds of timed frames per point, after warm-up (default 10; 0.5 with --quick)")
 @click.option("--kernel", "kernels", multiple=True, type=click.Choice(KERNELS),
               help="kernels for the thesis and tuning suites; repeat for both (default fast; "
@@ -237,7 +276,7 @@ def info(as_json):
 @click.option("--label", help="short machine name used in the report (default: from the GPU or CPU name)")
 @click.option("--seed", type=int, default=0, show_default=True, help="seed of the random scenes")
 @click.option("--no-report", is_flag=True, help="only write the results; skip the report")
-def bench(suites, devices, kernels, accels, duration, quick, out_dir, label, seed, no_report):
+def bench(suites, devices, adapter, kernels, accels, duration, quick, out_dir, label, seed, no_report):
     """Run the thesis's experiments on this machine, then write a report.
 
     Results go to a JSON Lines file, one record per point as soon as it is
@@ -258,7 +297,14 @@ def bench(suites, devices, kernels, accels, duration, quick, out_dir, label, see
     for d in devices:
         if d not in backends.DEVICES:
             raise RaybenchError(f"--device: unknown device {d!r}; choose from {', '.join(backends.DEVICES)}")
-        backends.resolve(d)
+        backends.resolve(d, adapter)
+    if adapter is not None and "wgpu" not in devices:
+        raise RaybenchError("--adapter applies to --device wgpu only")
+    wgpu_options, max_invocations = {}, 1024
+    if "wgpu" in devices:
+        chosen_adapter = backends.module("wgpu").choose(adapter)
+        wgpu_options = {"adapter": adapter} if adapter is not None else {}
+        max_invocations = chosen_adapter.adapter.limits["max-compute-invocations-per-workgroup"]
     if duration is None:
         duration = 0.5 if quick else 10.0
     if not 0.05 <= duration <= 3600:
@@ -274,12 +320,12 @@ def bench(suites, devices, kernels, accels, duration, quick, out_dir, label, see
         raise RaybenchError(f"--out {out_dir}: is a file, not a folder")
     kernels = tuple(dict.fromkeys(kernels)) or ("fast",)
     accels = tuple(dict.fromkeys(accels)) or ACCELS
-    points = suites_mod.points(chosen, devices, quick=quick, kernels=kernels, accels=accels)
+    points = suites_mod.points(chosen, devices, quick=quick, kernels=kernels, accels=accels, wgpu=wgpu_options,
+                               max_invocations=max_invocations)
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
     results_path = out_dir / f"results-{stamp}.jsonl"
     settings = {"suites": list(chosen), "devices": list(devices), "kernels": list(kernels), "accels": list(accels),
-                "duration_s": duration,
-                "quick": quick, "seed": seed}
+                "duration_s": duration, "quick": quick, "seed": seed, "adapter": adapter}
     info = runner.run_info(machine, label, settings)
     click.echo(f"{len(points)} points on {', '.join(devices)}, {duration:g} s each; results: {results_path}")
     with ResultsWriter(results_path) as writer:

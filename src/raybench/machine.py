@@ -92,6 +92,14 @@ def gpus() -> list[dict]:
     return out
 
 
+def wgpu_adapters() -> list[dict]:
+    """The adapters wgpu finds (Vulkan, Metal, D3D12, OpenGL), best first:
+    name, backend and type (a CPU driver such as lavapipe says "CPU")."""
+    from .backends.wgpu.adapters import found
+
+    return [a.describe() for a in found()]
+
+
 def _driver_version() -> str | None:
     try:
         out = subprocess.run(["nvidia-smi", "--query-gpu=driver_version", "--format=csv,noheader"],
@@ -106,7 +114,7 @@ def versions() -> dict:
 
     # raybench's own version from the code that runs, which may be a checkout on PYTHONPATH
     out = {"python": platform.python_version(), "raybench": __version__}
-    for dist in ("numpy", "numba", "numba-cuda", "llvmlite", "pillow", "click", "rich"):
+    for dist in ("numpy", "numba", "numba-cuda", "llvmlite", "wgpu", "pillow", "click", "rich"):
         try:
             out[dist] = metadata.version(dist)
         except metadata.PackageNotFoundError:
@@ -115,4 +123,5 @@ def versions() -> dict:
 
 
 def describe() -> dict:
-    return {"os": f"{platform.system()} {platform.release()}", "cpu": cpu(), "gpus": gpus(), "versions": versions()}
+    return {"os": f"{platform.system()} {platform.release()}", "cpu": cpu(), "gpus": gpus(),
+            "wgpu_adapters": wgpu_adapters(), "versions": versions()}

@@ -61,9 +61,11 @@ def png_bytes(image: np.ndarray) -> bytes:
 def render(scene: Scene, camera: Camera | None = None, width: int = 800, height: int = 600,
            device: str = "auto", **options) -> Frame:
     """Trace one frame of scene as seen by camera (default: the scene's own
-    camera, else Camera()). device is "cpu", "cuda" or "auto"; options go to the
-    device (cpu: threads=N; cuda: block=(x, y); both: accel="bvh" (the
-    default) or "none", brute force with kernel="fast" or "simple")."""
+    camera, else Camera()). device is "cpu", "cuda", "wgpu" or "auto"; options go
+    to the device (cpu: threads=N; cuda: block=(x, y); wgpu: workgroup=(x, y),
+    adapter="name", needed for a CPU driver such as llvmpipe; cpu and cuda:
+    accel="bvh" (the default) or "none", brute force with kernel="fast" or
+    "simple"; wgpu: brute force, the simple kernel)."""
     if not isinstance(scene, Scene):
         raise RaybenchError(f"scene: must be a raybench.Scene, got {type(scene).__name__}")
     check_size(width, height)

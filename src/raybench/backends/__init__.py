@@ -1,6 +1,7 @@
 """The registry of backends: pick one by name, or "auto".
 
-Backends import lazily: numba-cuda is only loaded when a GPU is asked about.
+Backends import lazily: numba-cuda and wgpu are only loaded when a GPU is
+asked about ("auto" asks about both).
 """
 
 from __future__ import annotations
@@ -9,10 +10,11 @@ import importlib
 
 from ..errors import RaybenchError
 
-DEVICES = ("cpu", "cuda")
+DEVICES = ("cpu", "cuda", "wgpu")
 CHOICES = ("auto",) + DEVICES
 OPTIONS = {"cpu": ("threads", "constant_count", "kernel", "accel"),
-           "cuda": ("block", "constant_count", "kernel", "rays", "tile", "accel")}
+           "cuda": ("block", "constant_count", "kernel", "rays", "tile", "accel"),
+           "wgpu": ("workgroup", "adapter", "accel", "kernel")}
 
 
 def module(name: str):
@@ -30,12 +32,24 @@ def cuda_available() -> bool:
     return mod.available() and not mod.simulated()
 
 
-def resolve(device: str) -> str:
-    """The concrete device for a name: "auto" is cuda where a usable GPU is
-    present, else cpu. Asking for cuda where there is none is an error, never a
-    silent fallback; asking for it under NUMBA_ENABLE_CUDASIM=1 runs the simulator."""
+def wgpu_gpu_available() -> bool:
+    """wgpu finds a GPU adapter (a CPU driver such as lavapipe does not count)."""
+    return module("wgpu").gpu_present()
+
+
+def resolve(device: str, adapter: str | None = None) -> str:
+    """The concrete device for a name: "auto" is cuda where a usable NVIDIA GPU
+    is present, else wgpu where it finds a GPU, else cpu. Asking for cuda or
+    wgpu where there is none is an error, never a silent fallback; asking for
+    cuda under NUMBA_ENABLE_CUDASIM=1 runs the simulator. adapter: the wgpu
+    adapter's name, if one is named (a CPU driver is used only then)."""
     if device == "auto":
-        return "cuda" if cuda_available() else "cpu"
+        if cuda_available():
+            return "cuda"
+        return "wgpu" if wgpu_gpu_available() else "cpu"
+    if device == "wgpu":
+        module("wgpu").require(adapter)
+        return "wgpu"
     if device == "cuda":
         try:
             module("cuda").require()
@@ -49,14 +63,15 @@ def resolve(device: str) -> str:
 
 def present() -> list[str]:
     """Every device usable on this machine."""
-    return ["cpu"] + (["cuda"] if cuda_available() else [])
+    return ["cpu"] + (["cuda"] if cuda_available() else []) + (["wgpu"] if wgpu_gpu_available() else [])
 
 
 def tracer(device: str, spheres, width: int, height: int, **options):
     """A Tracer of the (resolved) device for this scene and size; options are
-    the device's own (cpu: threads; cuda: block, rays, tile) and, on both,
-    accel ("bvh", the default, or "none"), kernel and constant_count."""
-    name = resolve(device)
+    the device's own (cpu: threads; cuda: block, rays, tile; wgpu: workgroup,
+    adapter) and accel ("bvh", the default on cpu and cuda, or "none", wgpu's
+    only one so far), kernel and constant_count."""
+    name = resolve(device, options.get("adapter") if device == "wgpu" else None)
     for key in options:
         if key not in OPTIONS[name]:
             allowed = ", ".join(OPTIONS[name])

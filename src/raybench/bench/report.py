@@ -38,7 +38,7 @@ RATIO_BAND = (2 / 3, 3 / 2)   # claim 3: measured / theoretical speedup inside t
 NEAR_FASTEST = 1.05           # claims 4, 5: "within 5% of the fastest"
 RUNTIME_SLOWER = 1.02         # claim 6: runtime / constant above this at every count
 
-DEVICE_NAMES = {"cpu": "CPU", "cuda": "GPU"}
+DEVICE_NAMES = {"cpu": "CPU", "cuda": "GPU", "wgpu": "wgpu"}
 
 CLAIMS = [
     ("The GPU is faster than the CPU in every test (thesis: 58 to 60 times)",
@@ -303,17 +303,18 @@ def cpu_tuning(records: list[dict]) -> list[dict]:
     return sorted(out, key=lambda e: (e["threads"] if isinstance(e["threads"], int) else 0, e["label"]))
 
 
-def gpu_tuning(records: list[dict]) -> list[dict]:
-    """GPU block shapes in the order measured: label ("32x32"), block, frame and
-    kernel median ms, and ms, the time judged (kernel where measured)."""
-    rs, _ = _largest_group(records, "tuning", "cuda")
+def gpu_tuning(records: list[dict], device: str = "cuda") -> list[dict]:
+    """GPU block shapes (wgpu: workgroup shapes) in the order measured: label
+    ("32x32"), block, frame and kernel median ms, and ms, the time judged
+    (kernel where measured)."""
+    rs, _ = _largest_group(records, "tuning", device)
     # kernel times only if every shape has one: a simulator run merged with a
     # real one must not pit one shape's kernel time against another's frame time
     kernel = all(r.get("kernel_ms") for r in rs)
     out = []
     for r in rs:
         opts = r.get("options") or {}
-        block = opts.get("block")
+        block = opts.get("workgroup" if device == "wgpu" else "block")
         label = f"{block[0]}x{block[1]}" if isinstance(block, list) and len(block) == 2 else opts.get("label", "?")
         out.append({"label": label, "block": block, "frame_ms": _median(r),
                     "kernel_ms": r["kernel_ms"]["median"] if r.get("kernel_ms") else None,
@@ -683,6 +684,13 @@ def _slug(label: str, taken: set) -> str:
     return slug
 
 
+def _adapter_name(records: list[dict]) -> str:
+    """The wgpu adapter of these records, e.g. "llvmpipe (...) (Vulkan, CPU)": a CPU driver must not pass for a GPU."""
+    names = sorted({f"{a.get('name')} ({a.get('backend')}, {a.get('type')})" for r in records
+                    if r["device"] == "wgpu" and isinstance(a := r.get("adapter"), dict)})
+    return ", ".join(names) or "unknown adapter"
+
+
 def _gpu_name(machine: dict) -> str:
     gpus = machine.get("gpus") or []
     return gpus[0].get("name", "unknown GPU") if gpus else "no CUDA GPU"
@@ -768,12 +776,14 @@ def _section_thesis(w: _Writer, label: str, slug: str, records: list[dict]) -> N
       "says. The slope is the cost of one more sphere for the whole picture; the intercept is the cost of "
       "a frame with no spheres (launch, copy, overhead). R² is 1 for a perfect line.", "")
     machine = _machine(records)
-    for device in ("cuda", "cpu"):
+    for device in ("cuda", "wgpu", "cpu"):
         ds = [s for s in series if s["device"] == device]
         if not ds:
-            w(f"{DEVICE_NAMES[device]}: not measured.", "")
+            if device != "wgpu":  # the portable backend is news where measured, not a gap where not
+                w(f"{DEVICE_NAMES[device]}: not measured.", "")
             continue
-        name = _gpu_name(machine) if device == "cuda" else (machine.get("cpu") or {}).get("model", "CPU")
+        name = _gpu_name(machine) if device == "cuda" else _adapter_name(records) if device == "wgpu" \
+            else (machine.get("cpu") or {}).get("model", "CPU")
         w(f"**{DEVICE_NAMES[device]}** ({name})", "")
         w.image(f"{slug}-thesis-{device}.png", _plot_thesis(label, device, ds, name),
                 f"{label}: {DEVICE_NAMES[device]} frame time against spheres")
@@ -846,8 +856,8 @@ def _section_test7(w: _Writer, label: str, slug: str, records: list[dict]) -> No
 
 def _section_tuning(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
     w("### Tuning: CPU threads and GPU block shapes", "")
-    cpu, gpu = cpu_tuning(records), gpu_tuning(records)
-    if not cpu and not gpu:
+    cpu, gpu, portable = cpu_tuning(records), gpu_tuning(records), gpu_tuning(records, "wgpu")
+    if not cpu and not gpu and not portable:
         w("Not measured: these results hold no `tuning` suite (`raybench bench --suite tuning`).", "")
         return
     w("The same frame rendered with different ways of splitting the work. On the CPU the rows of the picture "
@@ -860,7 +870,8 @@ def _section_tuning(w: _Writer, label: str, slug: str, records: list[dict]) -> N
         if others:
             w(f"({DEVICE_NAMES[device]} tuning was also measured at {others} smaller size(s); the largest is shown.)",
               "")
-    w.image(f"{slug}-tuning.png", _plot_tuning(label, cpu, gpu), f"{label}: tuning")
+    if cpu or gpu:
+        w.image(f"{slug}-tuning.png", _plot_tuning(label, cpu, gpu), f"{label}: tuning")
     if cpu:
         fastest = min(r["ms"] for r in cpu)
         w(_table(["CPU setting", "threads", "median frame ms", "relative to fastest"],
@@ -875,6 +886,13 @@ def _section_tuning(w: _Writer, label: str, slug: str, records: list[dict]) -> N
                    _x(r["ms"] / fastest)] for r in gpu]), "")
     else:
         w("GPU tuning: not measured.", "")
+    if portable:
+        fastest = min(r["ms"] for r in portable)
+        timing = "kernel" if all(r["kernel_ms"] is not None for r in portable) else "frame"
+        w(f"wgpu workgroups, on {_adapter_name(records)}:", "",
+          _table(["wgpu workgroup", "median frame ms", "median kernel ms", f"relative to fastest ({timing})"],
+                 [[r["label"], _ms(r["frame_ms"]), _ms(r["kernel_ms"]) if r["kernel_ms"] is not None else "–",
+                   _x(r["ms"] / fastest)] for r in portable]), "")
 
 
 def _section_constant(w: _Writer, label: str, slug: str, records: list[dict]) -> None:

@@ -29,6 +29,10 @@ def tracer_options(point: Point) -> dict:
         opts["threads"] = point.options["threads"]
     if "block" in point.options:
         opts["block"] = tuple(point.options["block"])
+    if "workgroup" in point.options:
+        opts["workgroup"] = tuple(point.options["workgroup"])
+    if "adapter" in point.options:
+        opts["adapter"] = point.options["adapter"]
     if "kernel" in point.options:
         opts["kernel"] = point.options["kernel"]
     if "accel" in point.options:
@@ -66,6 +70,8 @@ def measure(point: Point, scenes: Scenes, duration: float) -> dict:
     tracer = backends.tracer(point.device, scene.spheres, point.width, point.height, **tracer_options(point))
     try:
         build_s = getattr(tracer, "build_s", None)
+        # wgpu: which adapter ran it (a GPU, or a CPU driver such as lavapipe), and how it was timed
+        described = tracer.describe() if hasattr(tracer, "describe") else None
         compile_s = tracer.compile()
         if point.ramp:
             first_ms, _ = _frame(tracer, basis, point.ramp[0])
@@ -91,6 +97,8 @@ def measure(point: Point, scenes: Scenes, duration: float) -> dict:
         "first_frame_s": first_ms / 1e3, "compile_s": compile_s, "build_s": build_s,
     }
     bvh = point.options.get("accel") == "bvh"
+    if described is not None:
+        record["adapter"] = described
     if point.ramp:
         record["series"] = {"spheres": list(point.ramp[1:]), "frame_ms": frame_ms,
                             "kernel_ms": kernel_ms or None}

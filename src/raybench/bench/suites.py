@@ -77,6 +77,9 @@ def thread_settings(cores: int, height: int) -> list[tuple[str, int]]:
     return out
 
 
+GPUS = ("cuda", "wgpu")
+
+
 def variants(kernels, accels) -> list[dict]:
     """The options of each way to trace a point: brute force once per kernel
     (accel "none"), then the BVH, each as asked for."""
@@ -84,38 +87,49 @@ def variants(kernels, accels) -> list[dict]:
     return out + ([{"accel": "bvh"}] if "bvh" in accels else [])
 
 
+def _runs(ways, devices, wgpu: dict) -> list[tuple[dict, str]]:
+    """(options, device) for each way and device: cpu and cuda every way; wgpu
+    once, with what it has (brute force, the simple kernel) and its own
+    options (the adapter named)."""
+    out = [(dict(way), d) for way in ways for d in devices if d != "wgpu"]
+    if "wgpu" in devices:
+        out.append(({"kernel": "simple", "accel": "none", **wgpu}, "wgpu"))
+    return out
+
+
 def points(suites, devices, quick: bool = False, cores: int | None = None, kernels=("fast",),
-           accels=("none",)) -> list[Point]:
+           accels=("none",), wgpu: dict | None = None, max_invocations: int = 1024) -> list[Point]:
     """Every point of the chosen suites on the chosen devices (the thesis,
     tuning and scaling suites once per kernel of brute force, and once more
-    with the BVH if accels holds "bvh"), in run order."""
+    with the BVH if accels holds "bvh"), in run order. wgpu: that device's
+    options ({"adapter": name}); max_invocations: its adapter's workgroup
+    limit, which bounds the tuning suite's shapes."""
     for suite in suites:
         if suite not in SUITES:
             raise RaybenchError(f"suite: unknown suite {suite!r}; choose from {', '.join(SUITES)}")
     for accel in accels:
         if accel not in ACCELS:
             raise RaybenchError(f"accel: unknown accel {accel!r}; choose from {', '.join(ACCELS)}")
-    ways = variants(kernels, accels)
+    runs = _runs(variants(kernels, accels), devices, wgpu or {})
     cores = cores or os.cpu_count() or 1
     out: list[Point] = []
     if "thesis" in suites:
         sizes = THESIS_SIZES[:1] if quick else THESIS_SIZES
         counts = (100, 500, 1000) if quick else THESIS_COUNTS
-        for way in ways:
-            for device in devices:
-                for i, (w, h) in enumerate(sizes):
-                    test = (1 if device == "cuda" else 4) + i
-                    out += [Point("thesis", device, w, h, n, dict(way), test=test) for n in counts]
+        for way, device in runs:
+            for i, (w, h) in enumerate(sizes):
+                test = (1 if device in GPUS else 4) + i
+                out += [Point("thesis", device, w, h, n, dict(way), test=test) for n in counts]
         first, last, step = (10, 200, 10) if quick else RAMP
         ramp = tuple(range(first, last + 1, step))
         w, h = (320, 240) if quick else RAMP_SIZE
         # the ramp changes the sphere count every frame: brute force only (a BVH would be rebuilt each frame)
         out += [Point("test7", device, w, h, ramp[-1], dict(way), test=7, ramp=ramp)
-                for way in ways if way["accel"] == "none" for device in devices]
+                for way, device in runs if way["accel"] == "none"]
     if "constant-vs-runtime" in suites:
         counts = (100, 500) if quick else CONSTANT_COUNTS
         w, h = (640, 480) if quick else THESIS_SIZES[-1]
-        for device in devices:
+        for device in (d for d in devices if d != "wgpu"):  # wgpu has no compile-time count (yet)
             for n in counts:
                 for mode in ("constant", "runtime"):
                     # the simple kernel: the only one with a compile-time count
@@ -124,7 +138,7 @@ def points(suites, devices, quick: bool = False, cores: int | None = None, kerne
     if "tuning" in suites:
         w, h = (640, 480) if quick else TUNING_SIZE
         n = 300 if quick else TUNING_SPHERES
-        for way, device in ((v, d) for v in ways for d in devices):
+        for way, device in runs:
             if device == "cpu":
                 settings = thread_settings(cores, h)
                 if quick:
@@ -135,13 +149,18 @@ def points(suites, devices, quick: bool = False, cores: int | None = None, kerne
                 blocks = ((8, 8), (16, 16), (32, 32), (32, 8)) if quick else BLOCKS
                 if way.get("kernel", "bvh") in ("fast", "bvh"):  # larger blocks cannot launch (limits.FAST_MAX_THREADS)
                     blocks = tuple(b for b in blocks if b[0] * b[1] <= FAST_MAX_THREADS)
+                if device == "wgpu":
+                    blocks = tuple(b for b in blocks if b[0] * b[1] <= max_invocations)
+                    out += [Point("tuning", device, w, h, n, {"workgroup": list(b), "label": f"{b[0]}x{b[1]}",
+                                                              **way}) for b in blocks]
+                    continue
                 out += [Point("tuning", device, w, h, n, {"block": list(b), "label": f"{b[0]}x{b[1]}", **way})
                         for b in blocks]
     if "scaling" in suites:
         counts = QUICK_SCALING_COUNTS if quick else SCALING_COUNTS
         w, h = QUICK_SCALING_SIZE if quick else SCALING_SIZE
         cap = QUICK_SCALING_CAP_S if quick else SCALING_CAP_S
-        for way, device in ((v, d) for v in ways for d in devices):
+        for way, device in runs:
             opts = {**way, "cap_s": cap} if way["accel"] == "none" else dict(way)
             out += [Point("scaling", device, w, h, n, dict(opts)) for n in counts]
             if not quick:

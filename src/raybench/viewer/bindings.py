@@ -27,9 +27,10 @@ BINDINGS = (
     Binding(("ArrowRight",), "turn_right", "turn right", held=True),
     Binding(("ArrowUp",), "look_up", "look up", held=True),
     Binding(("ArrowDown",), "look_down", "look down", held=True),
-    Binding(("Tab",), "next_device", "switch device live: cpu <-> cuda"),
+    Binding(("Tab",), "next_device", "switch device live: cpu, cuda, wgpu (where the window's adapter can)"),
     Binding(("1",), "device_cpu", "trace on the CPU"),
     Binding(("2",), "device_cuda", "trace on the GPU (cuda)"),
+    Binding(("3",), "device_wgpu", "trace on the GPU through wgpu, into the window's texture (no copy)"),
     # "=" is the + key without Shift on many layouts; glfw reports the key, not the character.
     Binding(("+", "="), "more_spheres", "add 10 spheres"),
     Binding(("-", "_"), "fewer_spheres", "remove 10 spheres"),

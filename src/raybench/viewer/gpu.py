@@ -21,14 +21,12 @@ at equal sizes every fragment copies exactly one texel; a frame of another size
 
 from __future__ import annotations
 
-import contextlib
-import os
 import sys
-import tempfile
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..backends.wgpu.adapters import native_stderr_captured  # noqa: F401 - also used by the tests
 from ..errors import RaybenchError
 
 FRAME_FORMAT = "rgba8unorm"
@@ -120,28 +118,35 @@ class TextureQuad:
             multisample=None,
             fragment={"module": shader, "entry_point": "fs_main", "targets": [{"format": target_format}]},
         )
-        self.texture = None
+        self.texture = None      # the texture drawn: the uploaded one, or the compute pass's (wgpu)
         self.bind_group = None
+        self._uploaded = None    # the texture upload() writes, kept across frames of one size
 
     @property
     def frame_size(self) -> tuple[int, int] | None:
         return None if self.texture is None else self.texture.size[:2]
 
+    def show(self, texture) -> None:
+        """Draw this texture from now on (the wgpu backend's frame texture: no copy)."""
+        if texture is not self.texture:
+            self.texture = texture
+            self.bind_group = self.device.create_bind_group(
+                layout=self.layout, entries=[{"binding": 0, "resource": texture.create_view()}])
+
     def upload(self, rgba: np.ndarray) -> None:
         """Copy an (H, W, 4) uint8 frame into the texture (made anew when the size changes)."""
         height, width = rgba.shape[:2]
-        if self.frame_size != (width, height):
+        if self._uploaded is None or self._uploaded.size[:2] != (width, height):
             usage = self.wgpu.TextureUsage.TEXTURE_BINDING | self.wgpu.TextureUsage.COPY_DST
-            self.texture = self.device.create_texture(size=(width, height, 1), format=FRAME_FORMAT, usage=usage)
-            self.bind_group = self.device.create_bind_group(
-                layout=self.layout, entries=[{"binding": 0, "resource": self.texture.create_view()}])
-        self.device.queue.write_texture({"texture": self.texture}, np.ascontiguousarray(rgba),
+            self._uploaded = self.device.create_texture(size=(width, height, 1), format=FRAME_FORMAT, usage=usage)
+        self.device.queue.write_texture({"texture": self._uploaded}, np.ascontiguousarray(rgba),
                                         {"bytes_per_row": width * 4, "rows_per_image": height},
                                         (width, height, 1))
+        self.show(self._uploaded)
 
-    def draw(self, target_view) -> None:
-        """Draw the frame over the whole target; before the first frame, clear it to black."""
-        encoder = self.device.create_command_encoder()
+    def encode(self, encoder, target_view) -> None:
+        """Record the draw of the frame over the whole target (before the first
+        frame, a clear to black) into encoder."""
         render_pass = encoder.begin_render_pass(color_attachments=[{
             "view": target_view, "resolve_target": None, "clear_value": (0, 0, 0, 1),
             "load_op": self.wgpu.LoadOp.clear, "store_op": self.wgpu.StoreOp.store,
@@ -151,6 +156,11 @@ class TextureQuad:
             render_pass.set_bind_group(0, self.bind_group)
             render_pass.draw(3, 1, 0, 0)
         render_pass.end()
+
+    def draw(self, target_view) -> None:
+        """Draw the frame over the whole target, in a command buffer of its own."""
+        encoder = self.device.create_command_encoder()
+        self.encode(encoder, target_view)
         self.device.queue.submit([encoder.finish()])
 
     def read(self, texture) -> np.ndarray:
@@ -171,39 +181,27 @@ class TextureQuad:
         return self.read(target)
 
 
-@contextlib.contextmanager
-def native_stderr_captured():
-    """Collect what is written to file descriptor 2 meanwhile: the graphics
-    drivers probed for an adapter print there directly, past sys.stderr."""
-    sys.stderr.flush()
-    saved = os.dup(2)
-    captured = {"text": ""}
-    with tempfile.TemporaryFile() as tmp:
-        os.dup2(tmp.fileno(), 2)
-        try:
-            yield captured
-        finally:
-            sys.stderr.flush()
-            os.dup2(saved, 2)
-            os.close(saved)
-            tmp.seek(0)
-            captured["text"] = tmp.read().decode(errors="replace")
-
-
-def request_device(canvas=None):
-    """A wgpu adapter (one that can draw to canvas, if given) and its device; a
-    RaybenchError that says so, in one line, when there is none.
+def request_device(canvas=None, adapter: str | None = None):
+    """A wgpu adapter (one that can draw to canvas, if given; the one named by
+    adapter, if given) and its device, with the limits and timestamp queries
+    the wgpu tracer can use; a RaybenchError that says so, in one line, when
+    there is none.
 
     The drivers' own output while they are probed is passed on when an adapter
     is found, and dropped when none is: then wgpu's reason, in the error, says
     what each backend lacked, and the error stays the only line."""
+    from ..backends.wgpu import adapters
+
+    if adapter is not None:
+        chosen = adapters.choose(adapter)  # a name that matches none: its own one-line error
+        return chosen.adapter, adapters.request_device(chosen)
     failure = None
     with native_stderr_captured() as native:
         try:
             import wgpu
 
-            adapter = wgpu.gpu.request_adapter_sync(power_preference="high-performance", canvas=canvas)
-            device = adapter.request_device_sync()
+            found = wgpu.gpu.request_adapter_sync(power_preference="high-performance", canvas=canvas)
+            device = found.request_device_sync(**adapters.device_requirements(found))
         except Exception as exc:  # noqa: BLE001 - wgpu reports "no adapter" as RuntimeError, ImportError, ...
             failure = exc
     if failure is not None:
@@ -211,4 +209,4 @@ def request_device(canvas=None):
         raise RaybenchError(f"no usable graphics adapter: wgpu found none that can draw to a window ({reason}); "
                             f"{SUGGEST}")
     sys.stderr.write(native["text"])
-    return adapter, device
+    return found, device

@@ -26,11 +26,14 @@ MIN_COMPILE_NOTE_S = 0.1  # a compilation shorter than this was a cache hit: not
 
 class ViewerState:
     def __init__(self, scene: Scene, *, device: str, seed: int | None = None, camera: Camera | None = None,
-                 options: dict | None = None, clock=time.perf_counter):
-        """device: "cpu" or "cuda" (already resolved); seed: that of a generated
-        scene, None for a scene file; options: per device, e.g. {"cpu": {"threads": 4}}."""
+                 options: dict | None = None, clock=time.perf_counter, devices=("cpu", "cuda")):
+        """device: "cpu", "cuda" or "wgpu" (already resolved); seed: that of a generated
+        scene, None for a scene file; options: per device, e.g. {"cpu": {"threads": 4}};
+        devices: those Tab cycles through (the window adds wgpu where it can trace on it)."""
         if device not in backends.DEVICES:
             raise ValueError(f"device must be one of {backends.DEVICES}, got {device!r}")
+        self.devices = tuple(devices) + ((device,) if device not in devices else ())
+        self.unavailable: dict[str, str] = {}  # device -> why it cannot trace here (the window says)
         self.clock = clock
         self.supply = SphereSupply(scene, seed)
         self.home = camera or scene.camera or Camera()
@@ -88,12 +91,14 @@ class ViewerState:
 
     def _act(self, action: str, now: float) -> None:
         if action == "next_device":
-            devices = backends.DEVICES
+            devices = self.devices
             self._switch(devices[(devices.index(self.device) + 1) % len(devices)])
         elif action == "device_cpu":
             self._switch("cpu")
         elif action == "device_cuda":
             self._switch("cuda")
+        elif action == "device_wgpu":
+            self._switch("wgpu")
         elif action == "more_spheres":
             self.say(self.supply.more())
         elif action == "fewer_spheres":
@@ -111,9 +116,18 @@ class ViewerState:
         elif action == "quit":
             self.quit = True
 
+    def add_device(self, device: str) -> None:
+        """One more device for Tab (the window adds wgpu where it can trace on it)."""
+        if device not in self.devices:
+            self.devices += (device,)
+        self.unavailable.pop(device, None)
+
     def _switch(self, device: str) -> None:
         if device == self.device:
             self.say(f"already on {device}")
+            return
+        if device in self.unavailable:
+            self.say(f"{self.unavailable[device]} (staying on {self.device})")
             return
         self.device = device
         self.say(f"switching to {device}...")
@@ -193,6 +207,9 @@ def device_label(shown: TracedFrame) -> str:
         from ..backends.cpu import default_threads
 
         return f"cpu, {options.get('threads') or default_threads()} threads"
+    if device == "wgpu":
+        # in the window's texture, no copy: the adapter tells a GPU from a CPU driver
+        return f"wgpu on {shown.frame.adapter}, no copy"
     label = "cuda (numba simulator)" if backends.module("cuda").simulated() else "cuda"
     if "block" in options:
         label += f", block {options['block'][0]}x{options['block'][1]}"

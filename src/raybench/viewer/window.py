@@ -5,6 +5,14 @@ ViewerState.handle_event, frames are traced by the TraceWorker's thread, each
 finished frame is uploaded to the texture and drawn by TextureQuad, and the
 title bar shows ViewerState.title().
 
+wgpu frames take another road, the thesis's: no copy. The draw records the
+compute pass, which writes the frame texture, and the quad's render pass,
+which draws that texture, into one command buffer on the window's own device
+(zero_copy.py), and submits it; the worker thread only waits for the GPU to
+finish (and reads its timestamps), then hands the frame over like any other:
+the next draw counts it, shows the same texture again and asks for the next
+frame. The loop never waits for the GPU.
+
 Pacing: the canvas draws on demand. The worker asks for a draw (through the
 loop's call_soon_threadsafe) when a frame is ready; that draw shows it and
 hands the worker the next request, so the device traces frame k + 1 while
@@ -30,7 +38,7 @@ from ..render import png_bytes
 from .bindings import help_lines
 from .gpu import SUGGEST, TextureQuad, choose_target_format, request_device
 from .state import ViewerState
-from .worker import TracedFrame, TraceWorker
+from .worker import TracedFrame, TraceFailed, TraceWorker
 
 MIN_FPS = 2      # redraws per second at least: the title's frame time, fps and messages stay current
 MAX_FPS = 240    # draws per second at most; frame times are measured by the tracer, not by this cap
@@ -108,7 +116,8 @@ class ViewerWindow:
             raise RaybenchError(f"cannot open a window ({' '.join(str(exc).split())}); {SUGGEST}") from None
         try:
             self.context = self.canvas.get_wgpu_context()
-            self.adapter, self.device = request_device(self.canvas)
+            named = state.options.get("wgpu", {}).get("adapter")
+            self.adapter, self.device = request_device(self.canvas, named)
             caps = surface_capabilities(self.context, self.adapter)
             self.format = choose_target_format(caps["formats"])
             # Read the screenshot from the surface itself where it allows copies; else
@@ -118,13 +127,32 @@ class ViewerWindow:
             self.context.configure(device=self.device, format=self.format.configure, usage=usage,
                                    view_formats=self.format.view_formats)
             self.quad = TextureQuad(self.device, self.format.view)
+            self.gpu_tracer = self._wgpu_here(state, named)
         except BaseException:
             self.canvas.close()
             raise
+        self._gpu_idle = False  # the last draw found no wgpu frame to trace (stalled, failed)
         self.worker = TraceWorker(on_done=self._frame_ready)
         self.canvas.add_event_handler(self.handle_event, "key_down", "key_up", "pointer_down", "pointer_move",
                                       "pointer_up")
         self.canvas.request_draw(self._draw)
+
+    def _wgpu_here(self, state: ViewerState, named: str | None):
+        """The wgpu tracer on the window's device, where it may trace: on a GPU,
+        or on a CPU driver (lavapipe) that was named. Tells the state either way."""
+        from ..backends.wgpu.adapters import describe_raw
+        from .zero_copy import InWindowTracer
+
+        adapter = describe_raw(self.adapter)
+        if named is None and not adapter.is_gpu:
+            reason = (f"device wgpu: the window's adapter, {adapter.label()}, is not a GPU; name it to trace on "
+                      f"it (--adapter {adapter.name.split(' ')[0]})")
+            if state.device == "wgpu":
+                raise RaybenchError(reason)
+            state.unavailable["wgpu"] = reason
+            return None
+        state.add_device("wgpu")
+        return InWindowTracer(self.device, adapter)
 
     # ------------------------------------------------------------------ running
 
@@ -175,9 +203,17 @@ class ViewerWindow:
         if result is not None:
             self.state.on_traced(result)
             if isinstance(result, TracedFrame):
-                self.quad.upload(result.rgba)
+                if result.rgba is not None:  # None: a wgpu frame, already in the texture the quad draws
+                    self.quad.upload(result.rgba)
                 traced = result
-        self.quad.draw(texture.create_view(format=self.format.view))
+        # One command buffer: a wgpu frame's compute pass, then the quad that draws its texture.
+        encoder = self.device.create_command_encoder()
+        gpu = self._encode_gpu_frame(encoder) if result is None else None
+        self.quad.encode(encoder, texture.create_view(format=self.format.view))
+        self.device.queue.submit([encoder.finish()])
+        if gpu is not None:
+            # Shown once the GPU is done: the worker thread waits for it, the loop goes on.
+            self.worker.submit(gpu[0], wait=self._gpu_waiter(*gpu))
         self._texture = texture
         try:
             if traced is not None:
@@ -194,6 +230,47 @@ class ViewerWindow:
             self._texture = None
         self.canvas.set_title(self.state.title())
         self._trace_next()
+
+    def _gpu_waiter(self, request, compile_s):
+        """What the worker thread runs for a submitted wgpu frame: wait for it,
+        and its TracedFrame (the pass's time) or TraceFailed."""
+        tracer = self.gpu_tracer
+
+        def wait():
+            try:
+                return TracedFrame(request, tracer.frame(request), None, tracer.elapsed_ms(), compile_s)
+            except Exception as exc:  # noqa: BLE001 - shown in the title; the window must live on
+                return TraceFailed(request, f"wgpu failed: {type(exc).__name__}: {exc}")
+        return wait
+
+    def _encode_gpu_frame(self, encoder):
+        """Where frames come from wgpu and the worker is idle: record the next
+        frame's compute pass and have the quad draw its texture. (request,
+        compile seconds), or None when there is nothing to trace or it failed."""
+        if self._closing or self.state.device != "wgpu" or self.gpu_tracer is None \
+                or not self.worker.handoff.may_trace():
+            return None  # not wgpu's turn: a frame in flight or waiting decides what follows
+        # From here, no frame means no next draw on our own: the MIN_FPS redraws
+        # and any input (which asks for a draw) try again.
+        self._gpu_idle = True
+        width, height = self.canvas.get_physical_size()
+        if width < 1 or height < 1:
+            return None
+        request = self.state.next_request(width, height)
+        if request is None:
+            return None
+        try:
+            compile_s = self.gpu_tracer.prepare(request)
+            self.gpu_tracer.encode(encoder, request)
+        except RaybenchError as exc:
+            self.state.on_traced(TraceFailed(request, str(exc)))
+            return None
+        except Exception as exc:  # noqa: BLE001 - shown in the title; the window must live on
+            self.state.on_traced(TraceFailed(request, f"wgpu failed: {type(exc).__name__}: {exc}"))
+            return None
+        self.quad.show(self.gpu_tracer.compute.texture)
+        self._gpu_idle = False
+        return request, compile_s
 
     def read_drawn(self) -> np.ndarray:
         """The picture drawn in the current draw, as (H, W, 3) RGB bytes: read
@@ -219,6 +296,10 @@ class ViewerWindow:
 
     def _trace_next(self) -> None:
         if self._closing or not self.worker.handoff.may_trace():
+            return
+        if self.state.device == "wgpu":
+            if not self._gpu_idle:
+                self.canvas.request_draw()  # the next draw traces the next frame
             return
         width, height = self.canvas.get_physical_size()
         if width < 1 or height < 1:

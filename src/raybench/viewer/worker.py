@@ -43,9 +43,9 @@ class TraceRequest:
 @dataclass
 class TracedFrame:
     request: TraceRequest
-    frame: Frame
-    rgba: np.ndarray           # (H, W, 4) uint8: the frame as the texture wants it
-    trace_ms: float            # camera basis, trace and copy to the host: the whole frame
+    frame: Frame               # or a zero_copy.DrawnFrame: traced by wgpu into the window's texture
+    rgba: np.ndarray | None    # (H, W, 4) uint8: the frame as the texture wants it (None: already there)
+    trace_ms: float            # camera basis, trace and copy to the host: the whole frame (wgpu: the pass)
     compile_s: float | None    # set on the first frame of a new tracer
 
 
@@ -83,11 +83,13 @@ class TraceWorker:
         self._thread = threading.Thread(target=self._run, name="raybench-trace", daemon=True)
         self._thread.start()
 
-    def submit(self, request: TraceRequest) -> None:
-        """Trace this next; only when handoff.may_trace()."""
+    def submit(self, request: TraceRequest, wait=None) -> None:
+        """Trace this next; only when handoff.may_trace(). wait: a frame already
+        submitted to a GPU by the window (wgpu): the thread only waits for it,
+        wait() returning its TracedFrame or TraceFailed, so the window never does."""
         self.handoff.start(request)
         with self._wake:
-            self._request = request
+            self._request = (request, wait)
             self._wake.notify()
 
     def close(self, timeout: float | None = None) -> None:
@@ -105,8 +107,8 @@ class TraceWorker:
                         self._wake.wait()
                     if self._closing:
                         return
-                    request, self._request = self._request, None
-                self.handoff.finish(self._trace(request))
+                    (request, wait), self._request = self._request, None
+                self.handoff.finish(self._trace(request) if wait is None else wait())
                 if self._on_done is not None:
                     try:
                         self._on_done()

@@ -1,0 +1,156 @@
+"""The compute pass on a given wgpu device: pipeline, buffers, the frame texture.
+
+Kept apart from the Tracer so that the viewer can run it on the window's own
+device and draw the texture it writes, in the same command buffer, with no
+copy (the thesis's pipeline); the Tracer adds the readback for trace().
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from ...errors import RaybenchError
+from . import shader
+
+FRAME_FORMAT = "rgba8unorm"
+SPHERE_FLOATS = 8   # shader's struct Sphere: the 7 columns and a pad
+UNIFORM_BYTES = 80  # shader's struct Frame: four vec4s, four u32s
+
+
+def check_workgroup(workgroup, limits: dict) -> tuple[int, int]:
+    try:
+        x, y = (int(v) for v in workgroup)
+    except (TypeError, ValueError):
+        raise RaybenchError(f"workgroup: must be two integers (x, y), got {workgroup!r}") from None
+    most = limits["max-compute-invocations-per-workgroup"]
+    max_x, max_y = limits["max-compute-workgroup-size-x"], limits["max-compute-workgroup-size-y"]
+    if x < 1 or y < 1 or x > max_x or y > max_y or x * y > most:
+        raise RaybenchError(f"workgroup: this adapter takes sides of 1 to {max_x} x {max_y} and at most {most} "
+                            f"invocations (x*y), got {x}x{y}")
+    return x, y
+
+
+def check_frame_fits(width: int, height: int, spheres: int, workgroup, limits: dict) -> None:
+    side = limits["max-texture-dimension-2d"]
+    if width > side or height > side:
+        raise RaybenchError(f"size: this adapter's textures are at most {side}x{side}, got {width}x{height}; "
+                            f"choose a smaller size")
+    groups = limits.get("max-compute-workgroups-per-dimension", 65535)
+    if math.ceil(width / workgroup[0]) > groups or math.ceil(height / workgroup[1]) > groups:
+        raise RaybenchError(f"workgroup: {width}x{height} in workgroups of {workgroup[0]}x{workgroup[1]} needs more "
+                            f"than this adapter's {groups} workgroups per side; use a larger workgroup")
+    largest = min(limits["max-storage-buffer-binding-size"], limits["max-buffer-size"])
+    for what, need in (("the hit indices", width * height * 4), ("the spheres", spheres * SPHERE_FLOATS * 4)):
+        if need > largest:
+            raise RaybenchError(f"size: {what} need {need / 2**20:.0f} MiB, more than this adapter's largest "
+                                f"storage buffer ({largest / 2**20:.0f} MiB); choose a smaller size or fewer spheres")
+
+
+def frame_uniform(basis: np.ndarray, width: int, height: int, count: int) -> bytes:
+    rows = np.zeros((4, 4), np.float32)
+    rows[:, :3] = basis
+    return rows.tobytes() + np.array([width, height, count, 0], np.uint32).tobytes()
+
+
+def sphere_rows(spheres: np.ndarray) -> np.ndarray:
+    """(7, N) columns -> (N, 8) rows, the shader's struct Sphere (one row at least:
+    a binding cannot be empty)."""
+    rows = np.zeros((max(spheres.shape[1], 1), SPHERE_FLOATS), np.float32)
+    rows[:spheres.shape[1], :7] = spheres.T
+    return rows
+
+
+class Compute:
+    """One scene at one size on one device: encode() records a frame's compute
+    pass into a command encoder; texture and hits hold the result."""
+
+    def __init__(self, device, spheres: np.ndarray, width: int, height: int, workgroup=(16, 16),
+                 accel: str = "none", extra_texture_usage: int = 0):
+        import wgpu
+
+        self.device = device
+        limits = dict(device.limits)
+        self.workgroup = check_workgroup(workgroup, limits)
+        self.accel = shader.check_accel(accel)
+        self.count = spheres.shape[1]
+        check_frame_fits(width, height, self.count, self.workgroup, limits)
+        self.width, self.height = width, height
+        self.uniform = device.create_buffer(size=UNIFORM_BYTES,
+                                            usage=wgpu.BufferUsage.UNIFORM | wgpu.BufferUsage.COPY_DST)
+        self.spheres = device.create_buffer_with_data(data=sphere_rows(spheres).tobytes(),
+                                                      usage=wgpu.BufferUsage.STORAGE)
+        self.texture = device.create_texture(
+            size=(width, height, 1), format=FRAME_FORMAT,
+            usage=wgpu.TextureUsage.STORAGE_BINDING | wgpu.TextureUsage.COPY_SRC | extra_texture_usage)
+        self.hits = device.create_buffer(size=width * height * 4,
+                                         usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC)
+        self.pipeline = None
+        self.timestamps = "timestamp-query" in device.features
+        if self.timestamps:
+            self.queries = device.create_query_set(type="timestamp", count=2)
+            self.resolved = device.create_buffer(size=16, usage=wgpu.BufferUsage.QUERY_RESOLVE
+                                                 | wgpu.BufferUsage.COPY_SRC)
+            self.times = device.create_buffer(size=16, usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ)
+        # Waiting for a submission: map a buffer it copies into. (wgpu-py 0.32's
+        # queue.on_submitted_work_done_sync fails with a ctypes TypeError.)
+        self.fence = device.create_buffer(size=4, usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ)
+
+    def compile(self) -> float:
+        """Build the pipeline (WGSL to the driver's code); the seconds it took."""
+        if self.pipeline is not None:
+            return 0.0
+        start = time.perf_counter()
+        module = self.device.create_shader_module(code=shader.source(self.workgroup, self.accel))
+        self.pipeline = self.device.create_compute_pipeline(layout="auto",
+                                                            compute={"module": module, "entry_point": "main"})
+        self.bind_group = self.device.create_bind_group(layout=self.pipeline.get_bind_group_layout(0), entries=[
+            {"binding": 0, "resource": {"buffer": self.uniform}},
+            {"binding": 1, "resource": {"buffer": self.spheres}},
+            {"binding": 2, "resource": self.texture.create_view()},
+            {"binding": 3, "resource": {"buffer": self.hits}},
+        ])
+        return time.perf_counter() - start
+
+    def encode(self, encoder, basis: np.ndarray, count: int, timed: bool = False) -> None:
+        """Record the frame: the camera upload (queued ahead of the command
+        buffer) and one dispatch, one invocation per pixel. timed: with
+        timestamps around the pass, for read_kernel_ms()."""
+        self.compile()
+        self.device.queue.write_buffer(self.uniform, 0, frame_uniform(basis, self.width, self.height, count))
+        timed = timed and self.timestamps
+        writes = {"query_set": self.queries, "beginning_of_pass_write_index": 0,
+                  "end_of_pass_write_index": 1} if timed else None
+        compute_pass = encoder.begin_compute_pass(timestamp_writes=writes)
+        compute_pass.set_pipeline(self.pipeline)
+        compute_pass.set_bind_group(0, self.bind_group)
+        compute_pass.dispatch_workgroups(math.ceil(self.width / self.workgroup[0]),
+                                         math.ceil(self.height / self.workgroup[1]), 1)
+        compute_pass.end()
+        if timed:
+            encoder.resolve_query_set(self.queries, 0, 2, self.resolved, 0)
+            encoder.copy_buffer_to_buffer(self.resolved, 0, self.times, 0, 16)
+
+    def encode_fence(self, encoder) -> None:
+        """Record a 4-byte copy after the pass, for wait() to wait on."""
+        encoder.copy_buffer_to_buffer(self.hits, 0, self.fence, 0, 4)
+
+    def wait(self) -> None:
+        """Until the submission that holds encode_fence()'s copy has completed."""
+        import wgpu
+
+        self.fence.map_sync(wgpu.MapMode.READ)
+        self.fence.unmap()
+
+    def read_kernel_ms(self, period_ns: float) -> float:
+        """The pass's GPU time from its timestamps (waits for the submission)."""
+        import wgpu
+
+        self.times.map_sync(wgpu.MapMode.READ)
+        try:
+            begin, end = np.frombuffer(self.times.read_mapped(), np.uint64)
+        finally:
+            self.times.unmap()
+        return float(end - begin) * period_ns / 1e6

@@ -1,0 +1,140 @@
+"""The wgpu backend's Tracer: the compute pass on a device of its own, and the
+frame read back to the host (texture -> buffer -> map) for trace()."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ...errors import RaybenchError
+from ..limits import HOST_PIXEL_BYTES, check_count, check_fits, check_size, host_available_bytes
+from . import adapters
+from .compute import Compute
+
+# WebGPU's default limit (256 invocations), so the default runs on every
+# adapter; the thesis's 32x32 runs where the adapter allows 1024.
+DEFAULT_WORKGROUP = (16, 16)
+ROW_ALIGN = 256  # bytes_per_row of a texture-to-buffer copy: WebGPU's rule
+
+
+def timestamp_period(device) -> float | None:
+    """Nanoseconds per timestamp tick. wgpu-py does not expose it; wgpu-native
+    does (wgpuQueueGetTimestampPeriod). None where it cannot be read: then
+    frames are timed by the wall clock instead of guessing the unit."""
+    try:
+        from wgpu.backends.wgpu_native._api import libf
+
+        period = float(libf.wgpuQueueGetTimestampPeriod(device.queue._internal))
+    except Exception:  # noqa: BLE001 - another wgpu backend, or the private API moved
+        return None
+    return period if period > 0 else None
+
+
+def check_kernel(kernel) -> None:
+    if kernel != "simple":
+        raise RaybenchError(f"kernel: the wgpu backend has the simple kernel only (the thesis's loop, one "
+                            f"invocation per pixel), got {kernel!r}; use --kernel simple")
+
+
+class Tracer:
+    """Keeps the spheres, the frame texture and the readback buffers on the
+    adapter's device between frames."""
+
+    name = "wgpu"
+
+    def __init__(self, spheres: np.ndarray, width: int, height: int, workgroup=None, adapter: str | None = None,
+                 accel: str = "none", kernel: str = "simple"):
+        import wgpu
+
+        check_kernel(kernel)
+        check_size(width, height)
+        self.adapter = adapters.choose(adapter)
+        self.device = adapters.request_device(self.adapter)
+        check_fits("host", width, height, 0, host_available_bytes(), HOST_PIXEL_BYTES)
+        self.compute = Compute(self.device, spheres, width, height,
+                               DEFAULT_WORKGROUP if workgroup is None else workgroup, accel)
+        self.workgroup = self.compute.workgroup
+        self.width, self.height, self.count = width, height, spheres.shape[1]
+        self.row_bytes = -(-width * 4 // ROW_ALIGN) * ROW_ALIGN
+        self.image_read = self.device.create_buffer(size=self.row_bytes * height,
+                                                    usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ)
+        self.hits_read = self.device.create_buffer(size=width * height * 4,
+                                                   usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ)
+        self.image = np.empty((height, width, 3), np.uint8)
+        self.hits = np.empty((height, width), np.int32)
+        self.period_ns = timestamp_period(self.device) if self.compute.timestamps else None
+
+    def describe(self) -> dict:
+        """The adapter, for result records and labels."""
+        return {**self.adapter.describe(), "workgroup": list(self.workgroup),
+                "timing": "timestamp-query" if self.period_ns else "wall clock"}
+
+    def compile(self) -> float:
+        return self.compute.compile()
+
+    def _count(self, count) -> int:
+        return self.count if count is None else check_count(count, self.count)
+
+    def _submit(self, basis, count, timed: bool, readback: bool) -> None:
+        encoder = self.device.create_command_encoder()
+        self.compute.encode(encoder, basis, count, timed=timed)
+        if readback:
+            self._encode_readback(encoder)
+        self.device.queue.submit([encoder.finish()])
+
+    def _encode_readback(self, encoder) -> None:
+        encoder.copy_texture_to_buffer(
+            {"texture": self.compute.texture, "mip_level": 0, "origin": (0, 0, 0)},
+            {"buffer": self.image_read, "offset": 0, "bytes_per_row": self.row_bytes, "rows_per_image": self.height},
+            (self.width, self.height, 1))
+        encoder.copy_buffer_to_buffer(self.compute.hits, 0, self.hits_read, 0, self.width * self.height * 4)
+
+    def _fetch(self) -> tuple[np.ndarray, np.ndarray]:
+        """Map the readback buffers (waits for the GPU) into self.image and self.hits."""
+        import wgpu
+
+        for buffer in (self.image_read, self.hits_read):
+            buffer.map_sync(wgpu.MapMode.READ)
+        try:
+            rgba = np.frombuffer(self.image_read.read_mapped(copy=False), np.uint8)
+            self.image[...] = rgba.reshape(self.height, self.row_bytes // 4, 4)[:, :self.width, :3]
+            self.hits[...] = np.frombuffer(self.hits_read.read_mapped(copy=False), np.int32).reshape(
+                self.height, self.width)
+        finally:
+            self.image_read.unmap()
+            self.hits_read.unmap()
+        return self.image, self.hits
+
+    def trace(self, basis: np.ndarray, count: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Trace a frame of the first `count` spheres (default all) into
+        self.image and self.hits, which are reused between frames."""
+        self._submit(basis, self._count(count), timed=False, readback=True)
+        return self._fetch()
+
+    def timed_trace(self, basis: np.ndarray, count: int | None = None) -> float:
+        """trace(), returning the compute pass's time in ms: GPU timestamps where
+        the adapter has them, else the wall time from submitting the pass alone
+        to its completion (the readback is outside either way)."""
+        count = self._count(count)
+        if self.period_ns:
+            self._submit(basis, count, timed=True, readback=True)
+            kernel_ms = self.compute.read_kernel_ms(self.period_ns)
+        else:
+            self.compute.compile()
+            encoder = self.device.create_command_encoder()
+            self.compute.encode(encoder, basis, count)
+            self.compute.encode_fence(encoder)
+            start = time.perf_counter()
+            self.device.queue.submit([encoder.finish()])
+            self.compute.wait()
+            kernel_ms = (time.perf_counter() - start) * 1e3
+            encoder = self.device.create_command_encoder()
+            self._encode_readback(encoder)
+            self.device.queue.submit([encoder.finish()])
+        self._fetch()
+        return kernel_ms
+
+    def close(self) -> None:
+        """wgpu releases the buffers and the device with the objects."""
+        self.compute = None

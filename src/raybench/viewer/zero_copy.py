@@ -1,0 +1,82 @@
+"""wgpu frames traced into the very texture the window draws: the thesis's
+GPU pipeline, SPHERE ARRAY -> BUFFER -> CALCULATE ON GPU -> TEXTURE -> quad,
+with no copy of the frame in either direction.
+
+The compute pass (the wgpu backend's Compute, on the window's own device)
+and the quad's render pass are recorded into one command buffer by the
+window; this module keeps the Compute for the current scene, size and
+options, and reads back how long the pass took.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+from ..backends.limits import check_count
+from ..backends.wgpu.compute import Compute
+from ..backends.wgpu.tracer import DEFAULT_WORKGROUP, check_kernel, timestamp_period
+
+
+@dataclass(frozen=True)
+class DrawnFrame:
+    """A frame that exists only in the window's texture: what the viewer needs
+    to know of it (Frame's width, height and device), without its pixels."""
+
+    width: int
+    height: int
+    device: str
+    adapter: str  # e.g. "llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, CPU)"
+
+
+class InWindowTracer:
+    """The wgpu backend on the window's device; one Compute at a time."""
+
+    def __init__(self, device, adapter):
+        self.device = device
+        self.adapter = adapter  # adapters.Adapter
+        self.period_ns = timestamp_period(device) if "timestamp-query" in device.features else None
+        self.compute = None
+        self._key = None
+        self._scene = None
+        self._started = 0.0
+
+    def prepare(self, request) -> float | None:
+        """Make the Compute this request needs, if it is not the one held; the
+        seconds its pipeline took to build (None if it was already there)."""
+        # The adapter option chose the window's adapter; the rest are the backend's.
+        options = {k: v for k, v in request.options.items() if k != "adapter"}
+        key = (id(request.scene), request.width, request.height, tuple(sorted(options.items())))
+        if key == self._key:
+            return None
+        self.compute, self._key, self._scene = None, None, None
+        check_kernel(options.pop("kernel", "simple"))
+        import wgpu
+
+        compute = Compute(self.device, request.scene.spheres, request.width, request.height,
+                          options.pop("workgroup", DEFAULT_WORKGROUP), options.pop("accel", "none"),
+                          extra_texture_usage=wgpu.TextureUsage.TEXTURE_BINDING)
+        compile_s = compute.compile()
+        # The scene is held with the key: its id() must not be reused while the key is.
+        self.compute, self._key, self._scene = compute, key, request.scene
+        return compile_s
+
+    def encode(self, encoder, request) -> None:
+        """Record the frame's compute pass (timed where the device has timestamps)."""
+        count = check_count(request.count, self.compute.count)
+        self.compute.encode(encoder, request.camera.basis(request.width, request.height), count,
+                            timed=self.period_ns is not None)
+        if self.period_ns is None:
+            self.compute.encode_fence(encoder)
+        self._started = time.perf_counter()
+
+    def elapsed_ms(self) -> float:
+        """After the submission: the compute pass's GPU time, or where there are
+        no timestamps, the wall time until the whole submission completed."""
+        if self.period_ns is not None:
+            return self.compute.read_kernel_ms(self.period_ns)
+        self.compute.wait()
+        return (time.perf_counter() - self._started) * 1e3
+
+    def frame(self, request) -> DrawnFrame:
+        return DrawnFrame(request.width, request.height, "wgpu", self.adapter.label())

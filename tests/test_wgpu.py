@@ -1,0 +1,296 @@
+"""The WGSL compute shader through wgpu: on lavapipe (Mesa's CPU Vulkan) in CI,
+on whatever adapter is here otherwise. Same scenes, same float64 reference as
+the CPU and CUDA tests, and the CPU's own pictures.
+
+These tests skip where wgpu finds no adapter at all, except where
+RAYBENCH_REQUIRE_WGPU=1 (CI sets it): there that is a failure.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+import pytest
+
+import raybench
+from raybench import backends
+from raybench.backends.wgpu import adapters
+from raybench.cli import run
+from raybench.render import Frame
+from reference import check_frame, trace
+from scenes import KINDS
+
+REQUIRED = os.environ.get("RAYBENCH_REQUIRE_WGPU") == "1"
+
+
+@pytest.fixture(scope="module")
+def adapter() -> str:
+    """The name of the adapter to trace on: the best one found, named, so that a
+    CPU driver (lavapipe) is used too."""
+    found = adapters.found()
+    if not found:
+        reason = "wgpu finds no adapter (on Debian: apt-get install mesa-vulkan-drivers libvulkan1)"
+        if REQUIRED:
+            pytest.fail(f"{reason}; RAYBENCH_REQUIRE_WGPU=1 requires the wgpu tests to run")
+        pytest.skip(reason)
+    return found[0].name
+
+
+def same_as_cpu(gpu, cpu, ref, context):
+    """Same hit indices wherever rounding cannot change the winner, colours
+    within one step: lavapipe gives the CPU's bytes exactly (both round every
+    operation to float32), but a GPU compiler may fuse multiply-adds."""
+    same = (gpu.hits == cpu.hits) | ref.ambiguous
+    assert same.all(), f"{context}: {np.count_nonzero(~same)} pixels hit another sphere than on the CPU"
+    assert np.abs(gpu.image.astype(int) - cpu.image.astype(int)).max() <= 1, context
+
+
+@pytest.mark.parametrize("kind", sorted(KINDS))
+@pytest.mark.parametrize("n", [1, 60])
+def test_wgpu_matches_reference_and_cpu(adapter, rng, kind, n):
+    scene, camera = KINDS[kind](rng, n)
+    for (width, height), workgroup in [((96, 64), (16, 16)), ((61, 37), (5, 3))]:
+        context = f"{kind} n={n} {width}x{height} workgroup {workgroup}"
+        gpu = raybench.render(scene, camera, width, height, device="wgpu", adapter=adapter, workgroup=workgroup)
+        assert gpu.device == "wgpu"
+        ref = trace(scene, camera, width, height)
+        check_frame(gpu, ref, context=context)
+        same_as_cpu(gpu, raybench.render(scene, camera, width, height, device="cpu"), ref, context)
+
+
+def test_every_pixel_is_written_whatever_the_workgroup(adapter, rng):
+    """Workgroups that overhang the image must neither skip nor spill pixels;
+    the thesis's 32x32 too, where the adapter allows 1024 invocations."""
+    scene, camera = KINDS["generated"](rng, 10)
+    width, height = 45, 23
+    cpu = raybench.render(scene, camera, width, height, device="cpu")
+    shapes = [(1, 1), (7, 5), (64, 1), (8, 32)]
+    limits = adapters.choose(adapter).adapter.limits
+    if limits["max-compute-invocations-per-workgroup"] >= 1024:
+        shapes.append((32, 32))
+    for workgroup in shapes:
+        frame = raybench.render(scene, camera, width, height, device="wgpu", adapter=adapter, workgroup=workgroup)
+        ref = trace(scene, camera, width, height)
+        check_frame(frame, ref, context=f"workgroup {workgroup}")
+        same_as_cpu(frame, cpu, ref, f"workgroup {workgroup}")
+    one = raybench.render(scene, camera, 1, 1, device="wgpu", adapter=adapter)
+    assert np.array_equal(one.hits, raybench.render(scene, camera, 1, 1, device="cpu").hits)
+
+
+def test_sphere_prefix_zero_spheres_and_reused_buffers(adapter, rng):
+    """What the benchmark and the viewer use: frames of the first k spheres
+    (0 included) from one tracer, its buffers reused, and a kernel time."""
+    scene, camera = KINDS["cloud"](rng, 40)
+    width, height = 50, 30
+    basis = camera.basis(width, height)
+    tracer = backends.tracer("wgpu", scene.spheres, width, height, adapter=adapter)
+    try:
+        assert tracer.compile() >= 0
+        for k in [len(scene), 7, 0, len(scene) // 2]:
+            image, hits = tracer.trace(basis, k)
+            cpu = raybench.render(scene.head(k), camera, width, height, device="cpu")
+            same_as_cpu(Frame(image, hits, "wgpu"), cpu,
+                        trace(scene.head(k), camera, width, height), f"first {k} spheres")
+        assert (hits >= -1).all() and (hits < len(scene) // 2).all()
+        kernel_ms = tracer.timed_trace(basis, 3)
+        assert kernel_ms > 0
+        assert np.array_equal(tracer.hits, raybench.render(scene.head(3), camera, width, height, device="cpu").hits)
+        with pytest.raises(raybench.RaybenchError, match="sphere count"):
+            tracer.trace(basis, len(scene) + 1)
+    finally:
+        tracer.close()
+    empty = raybench.render(raybench.Scene(np.zeros((0, 3)), [], np.zeros((0, 3))), width=33, height=17,
+                            device="wgpu", adapter=adapter)
+    assert (empty.hits == -1).all()
+    assert np.array_equal(empty.image, raybench.render(raybench.Scene(np.zeros((0, 3)), [], np.zeros((0, 3))),
+                                                      width=33, height=17, device="cpu").image)
+
+
+@pytest.mark.parametrize("options, match", [
+    ({"workgroup": (0, 4)}, "workgroup"),
+    ({"workgroup": (2048, 1)}, "workgroup"),
+    ({"workgroup": (64, 64)}, "at most"),
+    ({"workgroup": "ab"}, "workgroup: must be two integers"),
+    ({"kernel": "fast"}, "simple kernel only"),
+    ({"accel": "bvh"}, "accel"),
+    ({"threads": 2}, "does not apply to device wgpu"),
+])
+def test_bad_options_are_refused(adapter, options, match):
+    with pytest.raises(raybench.RaybenchError, match=match):
+        raybench.render(raybench.random_spheres(3), width=8, height=8, device="wgpu", adapter=adapter, **options)
+
+
+def test_a_name_that_matches_no_adapter_lists_those_found(adapter):
+    with pytest.raises(raybench.RaybenchError, match=r"adapter: none matches 'no-such-gpu' \(found: .*"
+                                                      + adapter.split(" ")[0]):
+        raybench.render(raybench.random_spheres(3), width=8, height=8, device="wgpu", adapter="no-such-gpu")
+
+
+# --------------------------------------------------------------------------- adapter choice, on made-up adapters
+
+
+def fake(name, backend, kind):
+    return adapters.Adapter(name, backend, kind, object())
+
+
+FAKES = (fake("llvmpipe (LLVM 15)", "Vulkan", "CPU"), fake("Intel(R) UHD 770", "Vulkan", "IntegratedGPU"),
+         fake("NVIDIA RTX 4090", "OpenGL", "DiscreteGPU"), fake("NVIDIA RTX 4090", "Vulkan", "DiscreteGPU"),
+         fake("SwiftShader Device", "Vulkan", "CPU"))
+
+
+def found_these(monkeypatch, fakes):
+    monkeypatch.setattr(adapters, "found", lambda: tuple(sorted(fakes, key=adapters.Adapter.rank)))
+
+
+def test_unnamed_picks_a_discrete_gpu_then_an_integrated_one_never_a_cpu_driver(monkeypatch):
+    found_these(monkeypatch, FAKES)
+    assert (adapters.choose().name, adapters.choose().backend) == ("NVIDIA RTX 4090", "Vulkan")
+    found_these(monkeypatch, [f for f in FAKES if f.type != "DiscreteGPU"])
+    assert adapters.choose().name == "Intel(R) UHD 770"
+    found_these(monkeypatch, [f for f in FAKES if f.type == "CPU"])
+    with pytest.raises(raybench.RaybenchError) as err:
+        adapters.choose()
+    message = str(err.value)
+    assert "no GPU adapter" in message and "llvmpipe (LLVM 15) (Vulkan, CPU)" in message
+    assert "SwiftShader Device (Vulkan, CPU)" in message and "--adapter" in message
+    assert "\n" not in message
+
+
+def test_a_named_adapter_is_used_even_a_cpu_driver(monkeypatch):
+    found_these(monkeypatch, FAKES)
+    assert adapters.choose("LLVMPIPE").name == "llvmpipe (LLVM 15)"
+    assert adapters.choose("swiftshader").name == "SwiftShader Device"
+    assert adapters.choose("opengl").backend == "OpenGL"
+    assert adapters.choose("4090").backend == "Vulkan"  # the native API before OpenGL
+    with pytest.raises(raybench.RaybenchError, match="adapter: must be a non-empty name"):
+        adapters.choose("  ")
+
+
+def test_auto_takes_cuda_then_a_wgpu_gpu_then_the_cpu(monkeypatch):
+    monkeypatch.setattr(backends, "cuda_available", lambda: False)
+    found_these(monkeypatch, [f for f in FAKES if f.type == "CPU"])
+    assert backends.resolve("auto") == "cpu" and backends.present() == ["cpu"]
+    found_these(monkeypatch, FAKES)
+    assert backends.resolve("auto") == "wgpu" and backends.present() == ["cpu", "wgpu"]
+    monkeypatch.setattr(backends, "cuda_available", lambda: True)
+    assert backends.resolve("auto") == "cuda"
+
+
+# --------------------------------------------------------------------------- the command line and the benchmark
+
+
+def cli(capsys, *args):
+    code = run([str(a) for a in args])
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def one_error_line(code, out, err, *needles):
+    assert code == 2 and "Traceback" not in out + err, (code, out, err)
+    lines = err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("raybench: error: "), err
+    for needle in needles:
+        assert needle in lines[0], (needle, lines[0])
+
+
+def test_cli_render_on_wgpu_draws_the_cpu_picture(adapter, capsys, tmp_path):
+    from PIL import Image
+
+    args = ["render", "--spheres", 40, "--seed", 5, "--size", "70x50"]
+    code, out, err = cli(capsys, *args, "--device", "wgpu", "--adapter", adapter, "--workgroup", "8x4",
+                         "-o", tmp_path / "wgpu.png")
+    assert code == 0, err
+    assert "70x50, 40 spheres, wgpu" in out
+    assert cli(capsys, *args, "--device", "cpu", "-o", tmp_path / "cpu.png")[0] == 0
+    drawn, cpu = (np.asarray(Image.open(tmp_path / f"{d}.png")).astype(int) for d in ("wgpu", "cpu"))
+    assert drawn.shape == (50, 70, 3) and np.abs(drawn - cpu).max() <= 1
+
+
+@pytest.mark.parametrize("extra, needles", [
+    (["--workgroup", "0x4"], ["workgroup"]),
+    (["--workgroup", "big"], ["--workgroup", "16x16"]),
+    (["--adapter", "no-such-gpu"], ["adapter: none matches 'no-such-gpu'", "found:"]),
+    (["--kernel", "fast"], ["simple kernel only"]),
+    (["--block", "8x8"], ["'block' does not apply to device wgpu"]),
+])
+def test_cli_bad_wgpu_options_are_one_line(adapter, capsys, tmp_path, extra, needles):
+    args = ["render", "--spheres", 3, "--size", "16x12", "--device", "wgpu", "-o", tmp_path / "x.png"]
+    if "--adapter" not in extra:
+        args += ["--adapter", adapter]
+    one_error_line(*cli(capsys, *args, *extra), *needles)
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_cli_wgpu_without_a_gpu_asks_for_the_adapter_by_name(adapter, capsys, tmp_path):
+    if adapters.gpu_present():
+        pytest.skip("this machine has a GPU adapter: device wgpu alone uses it")
+    one_error_line(*cli(capsys, "render", "--spheres", 3, "--device", "wgpu", "-o", tmp_path / "x.png"),
+                   "no GPU adapter", "--adapter", adapter.split(" ")[0])
+
+
+def test_info_lists_the_adapters(adapter, capsys):
+    code, out, err = cli(capsys, "info")
+    assert code == 0, err
+    lines = [line for line in out.splitlines() if adapter in line]
+    best = adapters.found()[0]
+    assert lines and lines[0].startswith("wgpu ") and f"({best.backend}, {best.type})" in lines[0], out
+    code, out, err = cli(capsys, "info", "--json")
+    assert {"name": best.name, "backend": best.backend, "type": best.type} in json.loads(out)["wgpu_adapters"]
+
+
+def test_bench_points_for_wgpu():
+    from raybench.bench import suites
+
+    points = suites.points(("thesis", "tuning", "constant-vs-runtime"), ("cpu", "wgpu"), quick=True,
+                           kernels=("fast", "simple"), wgpu={"adapter": "lavapipe"}, max_invocations=256)
+    gpu = [p for p in points if p.device == "wgpu"]
+    assert gpu and all(p.options["kernel"] == "simple" and p.options["adapter"] == "lavapipe" for p in gpu)
+    assert {p.test for p in gpu if p.suite == "thesis"} == {1}  # a GPU's tests: 1-3
+    assert not [p for p in gpu if p.suite == "constant-vs-runtime"]  # no compile-time count on wgpu
+    shapes = [tuple(p.options["workgroup"]) for p in gpu if p.suite == "tuning"]
+    assert shapes and all(x * y <= 256 for x, y in shapes) and (16, 16) in shapes and (32, 32) not in shapes
+    # once per kernel for the cpu, once for wgpu (its one kernel)
+    assert len([p for p in gpu if p.suite == "test7"]) == 1
+    assert len([p for p in points if p.device == "cpu" and p.suite == "test7"]) == 2
+
+
+def test_a_benchmark_record_names_the_adapter(adapter):
+    from raybench.bench import runner, suites
+
+    point = suites.Point("thesis", "wgpu", 32, 24, 20, {"kernel": "simple", "adapter": adapter}, test=1)
+    record = runner.measure(point, runner.Scenes(0), 0.05)
+    assert record["adapter"]["name"] == adapters.choose(adapter).name
+    assert record["adapter"]["type"] == adapters.choose(adapter).type and record["adapter"]["workgroup"] == [16, 16]
+    assert record["kernel_ms"]["median"] > 0 and record["frames"] >= runner.MIN_FRAMES
+
+
+def test_cpu_use_never_imports_wgpu(tmp_path):
+    """wgpu (and its driver probing) loads only when wgpu or auto is asked for."""
+    import subprocess
+    import sys
+
+    code = ("import sys, raybench\n"
+            "from raybench.cli import run\n"
+            "raybench.render(raybench.random_spheres(3), width=8, height=8, device='cpu')\n"
+            f"assert run(['render', '--spheres', '3', '--size', '8x8', '--device', 'cpu', '-o', {str(tmp_path / 'x.png')!r}]) == 0\n"
+            "import raybench.backends.wgpu\n"
+            "assert 'wgpu' not in sys.modules, 'wgpu was imported'\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+
+
+def test_kernel_time_without_timestamps_is_the_wall_time_of_the_pass(adapter, rng):
+    """Where an adapter has no timestamp queries (or their period cannot be
+    read) the pass is timed by the wall clock around its completed submission."""
+    scene, camera = KINDS["generated"](rng, 30)
+    width, height = 40, 24
+    tracer = backends.tracer("wgpu", scene.spheres, width, height, adapter=adapter)
+    try:
+        tracer.period_ns = None
+        assert tracer.describe()["timing"] == "wall clock"
+        assert tracer.timed_trace(camera.basis(width, height)) > 0
+        assert np.array_equal(tracer.hits, raybench.render(scene, camera, width, height, device="cpu").hits)
+    finally:
+        tracer.close()
