@@ -36,9 +36,11 @@ def test_cuda_matches_reference_and_cpu(rng, kind, n, kernel):
         else:
             # The GPU compiler fuses multiply-adds; the pictures may differ only
             # where rounding decides, by at most one step.
-            same = (gpu.hits == cpu.hits) | ref.ambiguous
-            assert same.all(), context
-            assert np.abs(gpu.image.astype(int) - cpu.image.astype(int)).max() <= 1, context
+            same = gpu.hits == cpu.hits
+            assert (same | ref.ambiguous).all(), context
+            # where a float32 tie gave another sphere, its colour is another sphere's
+            step = np.abs(gpu.image.astype(int) - cpu.image.astype(int)).max(axis=2)
+            assert step[same].max(initial=0) <= 1, context
 
 
 @pytest.mark.parametrize("kernel", ["simple", "fast"])

@@ -534,13 +534,14 @@ def test_worker_traces_off_the_event_loop():
     done = threading.Event()
     worker = TraceWorker(on_done=done.set)
     try:
-        worker.submit(request_for(scene, "cpu", width=24, height=16, options={"accel": "none"}))  # compiles before the frame
+        slow = {"accel": "none", "kernel": "simple"}
+        worker.submit(request_for(scene, "cpu", width=24, height=16, options=slow))  # compiles before the frame
         assert done.wait(120)
         worker.handoff.take()
         done.clear()
         start = time.perf_counter()
-        # brute force: the BVH (the default) would trace this frame too quickly to tell
-        worker.submit(request_for(scene, "cpu", width=400, height=300, options={"threads": 1, "accel": "none"}))
+        # the thesis's loop: the BVH and the fast kernel would trace this frame too quickly to tell
+        worker.submit(request_for(scene, "cpu", width=400, height=300, options={"threads": 1, **slow}))
         slowest = 0.0
         while not done.is_set():
             t = time.perf_counter()
