@@ -28,6 +28,10 @@ ONE = np.float32(1.0)
 # largest scene extent (2e15) is finite in float32.
 TINY = np.float32(1e-20)
 FAR = np.float32(3.0e38)
+# Array indices are unsigned: a signed one carries Python's negative-index
+# wraparound, a compare and a select on every node and sphere read of the
+# walk (the CUDA fast kernel and the CPU's cull loops dropped it the same way).
+_U = np.uint64
 
 
 def build(jit, intersect_sphere):
@@ -42,8 +46,8 @@ def build(jit, intersect_sphere):
         by the margin towards the near plane and away from the far one, so the
         slabs are those of the box grown by `margin` on every side."""
         if d >= ZERO:
-            return inverse(d), o + margin, o - margin, 0
-        return inverse(d), o - margin, o + margin, 3
+            return inverse(d), o + margin, o - margin, _U(0)
+        return inverse(d), o - margin, o + margin, _U(3)
 
     @jit
     def slab(nodes, row, col, ix, iy, iz, nx, ny, nz, fx, fy, fz, sx, sy, sz):
@@ -51,18 +55,18 @@ def build(jit, intersect_sphere):
         near > far where it misses. sx, sy, sz: 0 where the ray goes up the
         axis (the low plane is near), 3 where it goes down."""
         t0 = (nodes[row, col + sx] - nx) * ix
-        t1 = (nodes[row, col + 1 + sy] - ny) * iy
-        t2 = (nodes[row, col + 2 + sz] - nz) * iz
-        u0 = (nodes[row, col + 3 - sx] - fx) * ix
-        u1 = (nodes[row, col + 4 - sy] - fy) * iy
-        u2 = (nodes[row, col + 5 - sz] - fz) * iz
+        t1 = (nodes[row, col + _U(1) + sy] - ny) * iy
+        t2 = (nodes[row, col + _U(2) + sz] - nz) * iz
+        u0 = (nodes[row, col + _U(3) - sx] - fx) * ix
+        u1 = (nodes[row, col + _U(4) - sy] - fy) * iy
+        u2 = (nodes[row, col + _U(5) - sz] - fz) * iz
         return max(t0, max(t1, t2)), min(u0, min(u1, u2))
 
     @jit
     def leaf_hits(ox, oy, oz, dx, dy, dz, ordered, order, first, count, closest, hit, hit_d):
         """The exact test on a leaf's spheres; the nearest so far, ties to the
         smaller original index."""
-        for j in range(first, first + count):
+        for j in range(_U(first), _U(first + count)):
             t, d = intersect_sphere(ox, oy, oz, dx, dy, dz, ordered[0, j], ordered[1, j], ordered[2, j], ordered[3, j])
             if t > ZERO and (t < closest or (t == closest and order[j] < hit)):
                 closest = t
@@ -83,12 +87,13 @@ def build(jit, intersect_sphere):
         hit = -1
         hit_d = ZERO
         row = 0
-        top = 0
+        top = _U(0)
         while row >= 0:
-            a_near, a_far = slab(nodes, row, 0, ix, iy, iz, nx, ny, nz, fx, fy, fz, sx, sy, sz)
-            b_near, b_far = slab(nodes, row, 6, ix, iy, iz, nx, ny, nz, fx, fy, fz, sx, sy, sz)
-            a_ref, b_ref = links[row, 12], links[row, 13]
-            a_count, b_count = links[row, 14], links[row, 15]
+            node = _U(row)
+            a_near, a_far = slab(nodes, node, _U(0), ix, iy, iz, nx, ny, nz, fx, fy, fz, sx, sy, sz)
+            b_near, b_far = slab(nodes, node, _U(6), ix, iy, iz, nx, ny, nz, fx, fy, fz, sx, sy, sz)
+            a_ref, b_ref = links[node, _U(12)], links[node, _U(13)]
+            a_count, b_count = links[node, _U(14)], links[node, _U(15)]
             # near child first: its hits can rule the far one out
             if b_near < a_near:
                 a_near, a_far, a_ref, a_count, b_near, b_far, b_ref, b_count = \
@@ -109,9 +114,9 @@ def build(jit, intersect_sphere):
                 else:
                     stack_row[top] = b_ref
                     stack_t[top] = b_near
-                    top += 1
-            while row < 0 and top > 0:
-                top -= 1
+                    top += _U(1)
+            while row < 0 and top > _U(0):
+                top -= _U(1)
                 if stack_t[top] <= closest:
                     row = stack_row[top]
         return hit, hit_d
