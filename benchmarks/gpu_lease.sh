@@ -1,0 +1,59 @@
+#!/usr/bin/env bash
+# One lease of the GPU machine (device tool): the steps named in STEPS, in
+# order, each with its own time limit, so that the run ends inside the
+# lease's 10 minutes and everything it wrote comes back as one archive,
+# $OUT/lease.tar.gz (its steps.log says how each step ended).
+#
+#   info     nvidia-smi, raybench info (the CUDA device and the wgpu adapters)
+#   pytest   the GPU tests: BVH, CUDA, fast kernels, wgpu (PYTEST_ARGS to change)
+#   kernels  benchmarks/kernels.py: measured peaks, simple against fast kernels
+#   scaling  the scaling suite, 10 to 1,000,000 spheres (SCALING_DEVICES)
+#   thesis   the thesis suite, fast kernels and the BVH, cuda and cpu
+#   wgpu     the thesis and tuning suites (quick) on wgpu beside cuda, simple kernel
+#   tuning   the BVH walk's block shapes on cuda
+#
+# Carries .whl (NumPy 2.4: the machine's 2.5 breaks numba 0.68.0; wgpu, cffi,
+# pycparser, rendercanvas, glfw) and .gl (the Vulkan and GL loaders as Debian
+# packages; with them wgpu finds the GPU through NVIDIA's Vulkan driver):
+#   LABEL=h200 STEPS="info pytest kernels" bash benchmarks/gpu_lease.sh
+set -uo pipefail
+python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site .whl/*.whl || exit 1
+if [ -d .gl ]; then for f in .gl/*.deb; do dpkg -x "$f" /; done; ldconfig; fi
+export PYTHONPATH=/tmp/site:$PWD/src PYTHONUNBUFFERED=1
+OUT=${OUT:-/tmp/out}; W=/tmp/lease; rm -rf "$W"; mkdir -p "$W" "$OUT"
+LABEL=${LABEL:-h200}; DURATION=${DURATION:-1}
+STEPS=${STEPS:-info pytest kernels scaling thesis wgpu tuning}
+step() {  # step NAME SECONDS COMMAND...: its output to $W/NAME.log, how it ended to steps.log
+    local name=$1 limit=$2; shift 2
+    local t0=$SECONDS
+    timeout -s INT "$limit" "$@" > "$W/$name.log" 2>&1
+    echo "$name rc=$? $((SECONDS - t0)) s" | tee -a "$W/steps.log"
+}
+bench() {  # bench NAME SECONDS ARGS...: raybench bench, its results in $W/NAME/
+    local name=$1 limit=$2; shift 2
+    step "$name" "$limit" python3 -m raybench bench --no-report --label "$LABEL" --out "$W/$name" --duration "$DURATION" "$@"
+}
+for s in $STEPS; do
+    case $s in
+    info)
+        nvidia-smi --query-gpu=name,driver_version,clocks.max.sm,memory.total --format=csv > "$W/nvidia-smi.txt" 2>&1
+        step info 60 python3 -m raybench info
+        python3 -m raybench info --json > "$W/info.json" 2>/dev/null ;;
+    pytest)
+        # shellcheck disable=SC2086
+        step pytest "${PYTEST_S:-200}" python3 -m pytest -q -p no:cacheprovider ${PYTEST_ARGS:-tests/test_bvh.py \
+            tests/test_cuda.py tests/test_fast.py tests/test_wgpu.py} ;;
+    kernels) step kernels "${KERNELS_S:-80}" python3 benchmarks/kernels.py --json "$W/kernels.json" --frames 7 ;;
+    scaling)
+        # shellcheck disable=SC2086
+        bench scaling "${SCALING_S:-200}" --suite scaling $(printf -- '--device %s ' ${SCALING_DEVICES:-cuda cpu}) \
+            ${SCALING_ARGS:-} ;;
+    thesis) bench thesis "${THESIS_S:-200}" --suite thesis --device cuda --device cpu ${THESIS_ARGS:-} ;;
+    wgpu) bench wgpu "${WGPU_S:-80}" --suite thesis --suite tuning --device wgpu --device cuda --accel none \
+            --kernel simple --quick ;;
+    tuning) bench tuning "${TUNING_S:-50}" --suite tuning --accel bvh --device cuda ;;
+    *) echo "unknown step $s" | tee -a "$W/steps.log" ;;
+    esac
+done
+tar -czf "$OUT/lease.tar.gz" -C "$W" .
+cat "$W/steps.log"; [ -f "$W/pytest.log" ] && tail -3 "$W/pytest.log"
