@@ -256,8 +256,22 @@ def test_cli_render_on_wgpu_draws_the_cpu_picture(adapter, capsys, tmp_path):
     assert drawn.shape == (50, 70, 3) and np.abs(drawn - cpu).max() <= 1
 
 
+def test_cli_render_on_wgpu_takes_accel(adapter, capsys, tmp_path):
+    from PIL import Image
+
+    args = ["render", "--spheres", 60, "--seed", 3, "--size", "48x32", "--device", "wgpu", "--adapter", adapter]
+    pngs = {}
+    for accel in ("bvh", "none"):
+        code, out, err = cli(capsys, *args, "--accel", accel, "-o", tmp_path / f"{accel}.png")
+        assert code == 0, err
+        assert ("BVH built in" in out) == (accel == "bvh"), out
+        pngs[accel] = np.asarray(Image.open(tmp_path / f"{accel}.png")).astype(int)
+    assert np.abs(pngs["bvh"] - pngs["none"]).max() <= 1
+
+
 @pytest.mark.parametrize("extra, needles", [
     (["--workgroup", "0x4"], ["workgroup"]),
+    (["--accel", "bvh", "--kernel", "simple"], ["kernel: applies to brute force only"]),
     (["--workgroup", "big"], ["--workgroup", "16x16"]),
     (["--adapter", "no-such-gpu"], ["adapter: none matches 'no-such-gpu'", "found:"]),
     (["--kernel", "fast"], ["simple kernel only"]),
@@ -304,11 +318,33 @@ def test_bench_points_for_wgpu():
     assert len([p for p in points if p.device == "cpu" and p.suite == "test7"]) == 2
 
 
-def test_a_benchmark_record_names_the_adapter(adapter):
+def test_bench_points_for_wgpu_bvh():
+    """wgpu takes accel bvh like the other devices: the BVH's points beside
+    brute force's (simple, once, whatever the kernels), or alone."""
+    from raybench.bench import suites
+
+    both = suites.points(("thesis", "tuning", "scaling"), ("cpu", "wgpu"), quick=True, kernels=("fast", "simple"),
+                         accels=("bvh", "none"), wgpu={"adapter": "lavapipe"}, max_invocations=1024)
+    gpu = [p for p in both if p.device == "wgpu"]
+    ways = {(p.suite, p.options["accel"], p.options.get("kernel")) for p in gpu}
+    assert ways == {(suite, accel, kernel) for suite in ("thesis", "tuning", "scaling")
+                    for accel, kernel in (("bvh", None), ("none", "simple"))} | {("test7", "none", "simple")}
+    scaling = [p for p in gpu if p.suite == "scaling" and p.options["accel"] == "bvh"]
+    assert [p.spheres for p in scaling] == list(suites.QUICK_SCALING_COUNTS)
+    assert all("cap_s" not in p.options for p in scaling)  # only brute force is capped
+    shapes = {tuple(p.options["workgroup"]) for p in gpu if p.suite == "tuning" and p.options["accel"] == "bvh"}
+    assert (32, 32) in shapes  # the adapter's limit, not the CUDA walk's register bound
+    bvh_only = suites.points(("thesis", "scaling"), ("wgpu",), quick=True, accels=("bvh",))
+    assert bvh_only and all(p.options == {"accel": "bvh"} for p in bvh_only)
+
+
+@pytest.mark.parametrize("way", [{"accel": "none", "kernel": "simple"}, {"accel": "bvh"}])
+def test_a_benchmark_record_names_the_adapter(adapter, way):
     from raybench.bench import runner, suites
 
-    point = suites.Point("thesis", "wgpu", 32, 24, 20, {"kernel": "simple", "adapter": adapter}, test=1)
+    point = suites.Point("thesis", "wgpu", 32, 24, 20, {**way, "adapter": adapter}, test=1)
     record = runner.measure(point, runner.Scenes(0), 0.05)
+    assert (record["build_s"] is not None) == (way["accel"] == "bvh")
     assert record["adapter"]["name"] == adapters.choose(adapter).name
     assert record["adapter"]["type"] == adapters.choose(adapter).type and record["adapter"]["workgroup"] == [16, 16]
     assert record["kernel_ms"]["median"] > 0 and record["frames"] >= runner.MIN_FRAMES
