@@ -68,3 +68,65 @@ def radii_mixed(rng, n):
 
 KINDS = {"generated": generated, "cloud": cloud, "inside": inside, "overlapping": overlapping,
          "radii_mixed": radii_mixed}
+
+
+# Degenerate scenes for the BVH (its builder and every backend's walk), each
+# with the camera to view it from.
+
+def one_point(rng, n):
+    """All spheres at one centre; half share one radius (exact ties in t)."""
+    c = rng.uniform(-2, 2, 3) + np.array([0, 0, 12.0])
+    radii = np.where(rng.random(n) < 0.5, 1.5, rng.uniform(0.5, 3.0, n))
+    return Scene(np.tile(c, (n, 1)), radii, colors(rng, n)), Camera()
+
+
+def duplicates(rng, n):
+    """Copies of a few spheres at scattered indices: every hit on them is a tie."""
+    base, _ = KINDS["generated"](rng, max(1, n // 4))
+    pick = rng.integers(0, len(base), n)
+    s = base.spheres[:, pick]
+    return Scene(s[0:3].T, s[3], s[4:7].T), Camera()
+
+
+def line(rng, n):
+    """Centres on one line: across the view, or along it (a sight line)."""
+    cam = random_camera(rng)
+    p = np.array(cam.position) + rng.normal(size=3) * 2
+    d = rng.normal(size=3)
+    d /= np.linalg.norm(d)
+    if rng.random() < 0.5:  # along the camera's sight line
+        d = np.array(cam.look_at) - np.array(cam.position)
+        d /= np.linalg.norm(d)
+        p = np.array(cam.position) + d * 3
+    centers = p + np.outer(np.sort(rng.uniform(0, 20, n)), d)
+    return Scene(centers, rng.uniform(0.05, 1.0, n), colors(rng, n)), cam
+
+
+def one(rng, n):
+    return Scene([rng.uniform(-1, 1, 3) + [0, 0, 6]], [rng.uniform(0.5, 3)], colors(rng, 1)), Camera()
+
+
+def none(rng, n):
+    return Scene(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3))), random_camera(rng)
+
+
+def chain(rng, n):
+    """Centres at 20^k, k = -29..11, along each axis: every binned split (16
+    bins) can only cut off the one farthest sphere, so SAH alone would build
+    a chain 123 deep."""
+    scale = 20.0 ** np.arange(-29, 12)
+    centers = np.zeros((3 * len(scale), 3))
+    for axis in range(3):
+        centers[axis * len(scale):(axis + 1) * len(scale), axis] = scale * rng.choice([-1, 1])
+    radii = np.maximum(0.05 * np.abs(centers).sum(1), 1e-30)
+    m = len(radii)
+    pos = rng.normal(size=3)
+    cam = Camera(tuple(pos / np.linalg.norm(pos) * 1e14), (0, 0, 0), tuple(rng.normal(size=3)), 60)
+    return Scene(centers, radii, colors(rng, m)), cam
+
+
+DEGENERATE = {"one_point": one_point, "duplicates": duplicates, "line": line, "one": one, "none": none,
+              "chain": chain}
+SCENES = {**KINDS, **DEGENERATE}
+# scenes whose spheres are always in front of their camera
+IN_VIEW = {"generated", "inside", "overlapping", "radii_mixed", "one_point", "duplicates", "one"}

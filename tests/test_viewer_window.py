@@ -446,6 +446,7 @@ def test_wgpu_traces_into_the_drawn_texture_in_one_command_buffer(display, vulka
 
     def check_zero_copy(window):
         seen["same_texture"] = window.quad.texture is window.gpu_tracer.compute.texture
+        seen["accel"] = window.gpu_tracer.compute.accel  # the backend's default, as in raybench render
         seen["uploads"] = encoders["uploads"]
         titles.append(window.state.title())
 
@@ -457,7 +458,7 @@ def test_wgpu_traces_into_the_drawn_texture_in_one_command_buffer(display, vulka
     steps = [(check_zero_copy, first_frame), (press("="), first_frame), (press("Tab"), first_frame),
              (press("3"), first_frame), (resize, lambda t: (t.frame.width, t.frame.height) == (50, 34))]
     script, window = play(state, (72, 40), steps)
-    assert seen == {"same_texture": True, "uploads": 0}
+    assert seen == {"same_texture": True, "uploads": 0, "accel": "bvh"}
     assert f"wgpu on {name} (Vulkan" in titles[0] and "no copy" in titles[0], titles
     devices = [(step, traced.frame.device) for step, traced, _ in script.records if step < 5]
     assert devices == [(0, "wgpu"), (1, "wgpu"), (2, "wgpu"), (3, "cpu"), (4, "wgpu")], devices

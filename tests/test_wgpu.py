@@ -1,6 +1,7 @@
 """The WGSL compute shader through wgpu: on lavapipe (Mesa's CPU Vulkan) in CI,
 on whatever adapter is here otherwise. Same scenes, same float64 reference as
-the CPU and CUDA tests, and the CPU's own pictures.
+the CPU and CUDA tests, and the CPU's own pictures, through the BVH and by
+brute force.
 
 These tests skip where wgpu finds no adapter at all, except where
 RAYBENCH_REQUIRE_WGPU=1 (CI sets it): there that is a failure.
@@ -20,7 +21,7 @@ from raybench.backends.wgpu import adapters
 from raybench.cli import run
 from raybench.render import Frame
 from reference import check_frame, trace
-from scenes import KINDS
+from scenes import IN_VIEW, KINDS, SCENES, one_point
 
 REQUIRED = os.environ.get("RAYBENCH_REQUIRE_WGPU") == "1"
 
@@ -47,17 +48,57 @@ def same_as_cpu(gpu, cpu, ref, context):
     assert np.abs(gpu.image.astype(int) - cpu.image.astype(int)).max() <= 1, context
 
 
+@pytest.mark.parametrize("accel", ["bvh", "none"])
 @pytest.mark.parametrize("kind", sorted(KINDS))
 @pytest.mark.parametrize("n", [1, 60])
-def test_wgpu_matches_reference_and_cpu(adapter, rng, kind, n):
+def test_wgpu_matches_reference_and_cpu(adapter, rng, kind, n, accel):
     scene, camera = KINDS[kind](rng, n)
     for (width, height), workgroup in [((96, 64), (16, 16)), ((61, 37), (5, 3))]:
-        context = f"{kind} n={n} {width}x{height} workgroup {workgroup}"
-        gpu = raybench.render(scene, camera, width, height, device="wgpu", adapter=adapter, workgroup=workgroup)
+        context = f"{kind} n={n} {width}x{height} workgroup {workgroup} accel {accel}"
+        gpu = raybench.render(scene, camera, width, height, device="wgpu", adapter=adapter, workgroup=workgroup,
+                              accel=accel)
         assert gpu.device == "wgpu"
         ref = trace(scene, camera, width, height)
         check_frame(gpu, ref, context=context)
         same_as_cpu(gpu, raybench.render(scene, camera, width, height, device="cpu"), ref, context)
+
+
+@pytest.mark.parametrize("kind", sorted(SCENES))
+def test_wgpu_bvh_gives_the_cpu_hits(adapter, rng, kind):
+    """The WGSL walk against the CPU's brute force and the CPU's BVH, on fresh
+    scenes and the degenerate ones (one point, a line, huge and tiny, one
+    sphere, none, duplicates: ties everywhere). A CPU driver rounds every
+    operation to float32 as the CPU does: the same hit in every pixel. A GPU
+    compiler may fuse multiply-adds, which can tip a near-tie."""
+    # from 100: fewer spheres around the camera of "inside" may all be out of view
+    # (2% at 50), and the check below that something was hit would then fail
+    n = int(rng.integers(100, 400))
+    scene, camera = SCENES[kind](rng, n)
+    width, height = 64, 48
+    gpu = raybench.render(scene, camera, width, height, device="wgpu", adapter=adapter)  # the default: the BVH
+    assert gpu.build_s is not None
+    brute = raybench.render(scene, camera, width, height, device="cpu", accel="none", kernel="simple")
+    cpu_bvh = raybench.render(scene, camera, width, height, device="cpu", accel="bvh")
+    differ = gpu.hits != brute.hits
+    if adapters.choose(adapter).type == "CPU":
+        assert not differ.any(), f"{kind}: {np.count_nonzero(differ)} pixels hit another sphere than on the CPU"
+        assert np.array_equal(gpu.hits, cpu_bvh.hits)
+    else:
+        assert differ.mean() < 1e-3, (kind, np.count_nonzero(differ))
+    assert np.abs(gpu.image.astype(int) - brute.image.astype(int))[~differ].max(initial=0) <= 1, kind
+    if kind in IN_VIEW:  # not vacuous: something was hit
+        assert (brute.hits >= 0).any()
+
+
+def test_wgpu_bvh_ties_go_to_the_smaller_index(adapter, rng):
+    """Identical spheres at one point: brute force shows the first in every
+    pixel; the walk meets them in leaf order, and must show it too."""
+    scene, camera = one_point(rng, 64)
+    s = scene.spheres.copy()
+    s[3] = 1.5
+    same = raybench.Scene(s[0:3].T, s[3], s[4:7].T)
+    frame = raybench.render(same, camera, 24, 16, device="wgpu", adapter=adapter, accel="bvh")
+    assert set(np.unique(frame.hits)) <= {-1, 0} and (frame.hits == 0).any()
 
 
 def test_every_pixel_is_written_whatever_the_workgroup(adapter, rng):
@@ -79,17 +120,22 @@ def test_every_pixel_is_written_whatever_the_workgroup(adapter, rng):
     assert np.array_equal(one.hits, raybench.render(scene, camera, 1, 1, device="cpu").hits)
 
 
-def test_sphere_prefix_zero_spheres_and_reused_buffers(adapter, rng):
+@pytest.mark.parametrize("accel", ["bvh", "none"])
+def test_sphere_prefix_zero_spheres_and_reused_buffers(adapter, rng, accel):
     """What the benchmark and the viewer use: frames of the first k spheres
-    (0 included) from one tracer, its buffers reused, and a kernel time."""
+    (0 included) from one tracer, its buffers reused (the BVH rebuilt for
+    each count), and a kernel time."""
     scene, camera = KINDS["cloud"](rng, 40)
     width, height = 50, 30
     basis = camera.basis(width, height)
-    tracer = backends.tracer("wgpu", scene.spheres, width, height, adapter=adapter)
+    tracer = backends.tracer("wgpu", scene.spheres, width, height, adapter=adapter, accel=accel)
     try:
         assert tracer.compile() >= 0
+        assert (tracer.build_s is not None) == (accel == "bvh")
         for k in [len(scene), 7, 0, len(scene) // 2]:
             image, hits = tracer.trace(basis, k)
+            if accel == "bvh":
+                assert tracer.compute.tree.count == k
             cpu = raybench.render(scene.head(k), camera, width, height, device="cpu")
             same_as_cpu(Frame(image, hits, "wgpu"), cpu,
                         trace(scene.head(k), camera, width, height), f"first {k} spheres")
@@ -102,7 +148,7 @@ def test_sphere_prefix_zero_spheres_and_reused_buffers(adapter, rng):
     finally:
         tracer.close()
     empty = raybench.render(raybench.Scene(np.zeros((0, 3)), [], np.zeros((0, 3))), width=33, height=17,
-                            device="wgpu", adapter=adapter)
+                            device="wgpu", adapter=adapter, accel=accel)
     assert (empty.hits == -1).all()
     assert np.array_equal(empty.image, raybench.render(raybench.Scene(np.zeros((0, 3)), [], np.zeros((0, 3))),
                                                       width=33, height=17, device="cpu").image)
@@ -114,7 +160,9 @@ def test_sphere_prefix_zero_spheres_and_reused_buffers(adapter, rng):
     ({"workgroup": (64, 64)}, "at most"),
     ({"workgroup": "ab"}, "workgroup: must be two integers"),
     ({"kernel": "fast"}, "simple kernel only"),
-    ({"accel": "bvh"}, "accel"),
+    ({"accel": "none", "kernel": "fast"}, "simple kernel only"),
+    ({"accel": "bvh", "kernel": "simple"}, "kernel: applies to brute force only"),
+    ({"accel": "kd-tree"}, "accel: must be one of bvh, none"),
     ({"threads": 2}, "does not apply to device wgpu"),
 ])
 def test_bad_options_are_refused(adapter, options, match):
@@ -208,8 +256,22 @@ def test_cli_render_on_wgpu_draws_the_cpu_picture(adapter, capsys, tmp_path):
     assert drawn.shape == (50, 70, 3) and np.abs(drawn - cpu).max() <= 1
 
 
+def test_cli_render_on_wgpu_takes_accel(adapter, capsys, tmp_path):
+    from PIL import Image
+
+    args = ["render", "--spheres", 60, "--seed", 3, "--size", "48x32", "--device", "wgpu", "--adapter", adapter]
+    pngs = {}
+    for accel in ("bvh", "none"):
+        code, out, err = cli(capsys, *args, "--accel", accel, "-o", tmp_path / f"{accel}.png")
+        assert code == 0, err
+        assert ("BVH built in" in out) == (accel == "bvh"), out
+        pngs[accel] = np.asarray(Image.open(tmp_path / f"{accel}.png")).astype(int)
+    assert np.abs(pngs["bvh"] - pngs["none"]).max() <= 1
+
+
 @pytest.mark.parametrize("extra, needles", [
     (["--workgroup", "0x4"], ["workgroup"]),
+    (["--accel", "bvh", "--kernel", "simple"], ["kernel: applies to brute force only"]),
     (["--workgroup", "big"], ["--workgroup", "16x16"]),
     (["--adapter", "no-such-gpu"], ["adapter: none matches 'no-such-gpu'", "found:"]),
     (["--kernel", "fast"], ["simple kernel only"]),
@@ -258,11 +320,33 @@ def test_bench_points_for_wgpu():
     assert len([p for p in points if p.device == "cpu" and p.suite == "test7"]) == 2
 
 
-def test_a_benchmark_record_names_the_adapter(adapter):
+def test_bench_points_for_wgpu_bvh():
+    """wgpu takes accel bvh like the other devices: the BVH's points beside
+    brute force's (simple, once, whatever the kernels), or alone."""
+    from raybench.bench import suites
+
+    both = suites.points(("thesis", "tuning", "scaling"), ("cpu", "wgpu"), quick=True, kernels=("fast", "simple"),
+                         accels=("bvh", "none"), wgpu={"adapter": "lavapipe"}, max_invocations=1024)
+    gpu = [p for p in both if p.device == "wgpu"]
+    ways = {(p.suite, p.options["accel"], p.options.get("kernel")) for p in gpu}
+    assert ways == {(suite, accel, kernel) for suite in ("thesis", "tuning", "scaling")
+                    for accel, kernel in (("bvh", None), ("none", "simple"))} | {("test7", "none", "simple")}
+    scaling = [p for p in gpu if p.suite == "scaling" and p.options["accel"] == "bvh"]
+    assert [p.spheres for p in scaling] == list(suites.QUICK_SCALING_COUNTS)
+    assert all("cap_s" not in p.options for p in scaling)  # only brute force is capped
+    shapes = {tuple(p.options["workgroup"]) for p in gpu if p.suite == "tuning" and p.options["accel"] == "bvh"}
+    assert (32, 32) in shapes  # the adapter's limit, not the CUDA walk's register bound
+    bvh_only = suites.points(("thesis", "scaling"), ("wgpu",), quick=True, accels=("bvh",))
+    assert bvh_only and all(p.options == {"accel": "bvh"} for p in bvh_only)
+
+
+@pytest.mark.parametrize("way", [{"accel": "none", "kernel": "simple"}, {"accel": "bvh"}])
+def test_a_benchmark_record_names_the_adapter(adapter, way):
     from raybench.bench import runner, suites
 
-    point = suites.Point("thesis", "wgpu", 32, 24, 20, {"kernel": "simple", "adapter": adapter}, test=1)
+    point = suites.Point("thesis", "wgpu", 32, 24, 20, {**way, "adapter": adapter}, test=1)
     record = runner.measure(point, runner.Scenes(0), 0.05)
+    assert (record["build_s"] is not None) == (way["accel"] == "bvh")
     assert record["adapter"]["name"] == adapters.choose(adapter).name
     assert record["adapter"]["type"] == adapters.choose(adapter).type and record["adapter"]["workgroup"] == [16, 16]
     assert record["kernel_ms"]["median"] > 0 and record["frames"] >= runner.MIN_FRAMES

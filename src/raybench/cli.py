@@ -108,9 +108,8 @@ def main():
 @click.option("--adapter", help="wgpu: the adapter whose name contains this (default: the best GPU; a CPU "
                                 "driver such as llvmpipe only when named)")
 @click.option("--accel", type=click.Choice(ACCELS),
-              help="bvh: walk a bounding volume hierarchy (the default on cpu and cuda); none: brute force, every "
-                   "sphere for every ray (the thesis's algorithm; the default where --kernel is given, and wgpu's "
-                   "only one). Same picture")
+              help="bvh: walk a bounding volume hierarchy (the default); none: brute force, every sphere for "
+                   "every ray (the thesis's algorithm; the default where --kernel is given). Same picture")
 @click.option("--kernel", type=click.Choice(KERNELS),
               help="brute force only: simple, the thesis's loop, a pixel at a time; fast (its default on cpu and "
                    "cuda), rays grouped and certain misses skipped, the same picture; wgpu has simple only")

@@ -63,9 +63,9 @@ def render(scene: Scene, camera: Camera | None = None, width: int = 800, height:
     """Trace one frame of scene as seen by camera (default: the scene's own
     camera, else Camera()). device is "cpu", "cuda", "wgpu" or "auto"; options go
     to the device (cpu: threads=N; cuda: block=(x, y); wgpu: workgroup=(x, y),
-    adapter="name", needed for a CPU driver such as llvmpipe; cpu and cuda:
+    adapter="name", needed for a CPU driver such as llvmpipe; every device:
     accel="bvh" (the default) or "none", brute force with kernel="fast" or
-    "simple"; wgpu: brute force, the simple kernel)."""
+    "simple" on cpu and cuda, "simple" only on wgpu)."""
     if not isinstance(scene, Scene):
         raise RaybenchError(f"scene: must be a raybench.Scene, got {type(scene).__name__}")
     check_size(width, height)

@@ -69,8 +69,8 @@ def present() -> list[str]:
 def tracer(device: str, spheres, width: int, height: int, **options):
     """A Tracer of the (resolved) device for this scene and size; options are
     the device's own (cpu: threads; cuda: block, rays, tile; wgpu: workgroup,
-    adapter) and accel ("bvh", the default on cpu and cuda, or "none", wgpu's
-    only one so far), kernel and constant_count."""
+    adapter) and accel ("bvh", the default, or "none"), kernel and
+    constant_count."""
     name = resolve(device, options.get("adapter") if device == "wgpu" else None)
     for key in options:
         if key not in OPTIONS[name]:

@@ -89,11 +89,17 @@ def variants(kernels, accels) -> list[dict]:
 
 def _runs(ways, devices, wgpu: dict) -> list[tuple[dict, str]]:
     """(options, device) for each way and device: cpu and cuda every way; wgpu
-    once, with what it has (brute force, the simple kernel) and its own
-    options (the adapter named)."""
+    every way it has, with its own options (the adapter named): the BVH, and
+    brute force once whatever the kernels asked for, with its one kernel
+    (simple)."""
     out = [(dict(way), d) for way in ways for d in devices if d != "wgpu"]
     if "wgpu" in devices:
-        out.append(({"kernel": "simple", "accel": "none", **wgpu}, "wgpu"))
+        own = []
+        for way in ways:
+            way = {**way, "kernel": "simple"} if way["accel"] == "none" else dict(way)
+            if way not in own:
+                own.append(way)
+        out += [({**way, **wgpu}, "wgpu") for way in own]
     return out
 
 
@@ -147,13 +153,13 @@ def points(suites, devices, quick: bool = False, cores: int | None = None, kerne
                         for label, t in settings]
             else:
                 blocks = ((8, 8), (16, 16), (32, 32), (32, 8)) if quick else BLOCKS
-                if way.get("kernel", "bvh") in ("fast", "bvh"):  # larger blocks cannot launch (limits.FAST_MAX_THREADS)
-                    blocks = tuple(b for b in blocks if b[0] * b[1] <= FAST_MAX_THREADS)
-                if device == "wgpu":
+                if device == "wgpu":  # the adapter's limit; a driver spills what does not fit in registers
                     blocks = tuple(b for b in blocks if b[0] * b[1] <= max_invocations)
                     out += [Point("tuning", device, w, h, n, {"workgroup": list(b), "label": f"{b[0]}x{b[1]}",
                                                               **way}) for b in blocks]
                     continue
+                if way.get("kernel", "bvh") in ("fast", "bvh"):  # larger blocks cannot launch (limits.FAST_MAX_THREADS)
+                    blocks = tuple(b for b in blocks if b[0] * b[1] <= FAST_MAX_THREADS)
                 out += [Point("tuning", device, w, h, n, {"block": list(b), "label": f"{b[0]}x{b[1]}", **way})
                         for b in blocks]
     if "scaling" in suites:

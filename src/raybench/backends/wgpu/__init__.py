@@ -2,10 +2,11 @@
 D3D12 through wgpu, one invocation per pixel in workgroups of a chosen shape.
 
 The shader (the .wgsl pieces here, assembled by shader.py) is a port of the
-single-source kernels in raybench.kernels, held to the same pictures by the
-tests. adapters.py picks the adapter (a GPU unless a CPU driver is named),
-compute.py records the compute pass on any device (the viewer's too, for its
-copy-free path), tracer.py is the Tracer with the readback.
+single-source kernels in raybench.kernels, brute force and the BVH walk, held
+to the same pictures by the tests. adapters.py picks the adapter (a GPU
+unless a CPU driver is named), compute.py records the compute pass on any
+device (the viewer's too, for its copy-free path) and builds the BVH,
+tracer.py is the Tracer with the readback.
 
 Nothing here imports wgpu until an adapter is asked for.
 """

@@ -3,6 +3,8 @@
 Kept apart from the Tracer so that the viewer can run it on the window's own
 device and draw the texture it writes, in the same command buffer, with no
 copy (the thesis's pipeline); the Tracer adds the readback for trace().
+The BVH is built here too, on the host (raybench.bvh, as for the cpu and cuda
+backends), so that both get the tree of each frame's sphere count.
 """
 
 from __future__ import annotations
@@ -12,12 +14,30 @@ import time
 
 import numpy as np
 
+from ... import bvh as bvh_mod
 from ...errors import RaybenchError
+from ..limits import HOST_PIXEL_BYTES, check_accel as check_accel_and_kernel, check_bvh_fits, host_available_bytes
 from . import shader
 
 FRAME_FORMAT = "rgba8unorm"
 SPHERE_FLOATS = 8   # shader's struct Sphere: the 7 columns and a pad
 UNIFORM_BYTES = 80  # shader's struct Frame: four vec4s, four u32s
+
+
+def check_kernel(kernel) -> None:
+    if kernel != "simple":
+        raise RaybenchError(f"kernel: the wgpu backend has the simple kernel only (the thesis's loop, one "
+                            f"invocation per pixel), got {kernel!r}; use --kernel simple")
+
+
+def check_accel(accel, kernel) -> str:
+    """accel, checked: "bvh" (the default, as on cpu and cuda) or "none", brute
+    force, whose one kernel is the simple one; a kernel named without an
+    accel means brute force, with "bvh" it is an error."""
+    accel, _ = check_accel_and_kernel(accel, kernel, {})
+    if accel == "none":
+        check_kernel("simple" if kernel is None else kernel)
+    return accel
 
 
 def check_workgroup(workgroup, limits: dict) -> tuple[int, int]:
@@ -33,7 +53,7 @@ def check_workgroup(workgroup, limits: dict) -> tuple[int, int]:
     return x, y
 
 
-def check_frame_fits(width: int, height: int, spheres: int, workgroup, limits: dict) -> None:
+def check_frame_fits(width: int, height: int, spheres: int, workgroup, limits: dict, accel: str = "none") -> None:
     side = limits["max-texture-dimension-2d"]
     if width > side or height > side:
         raise RaybenchError(f"size: this adapter's textures are at most {side}x{side}, got {width}x{height}; "
@@ -43,7 +63,10 @@ def check_frame_fits(width: int, height: int, spheres: int, workgroup, limits: d
         raise RaybenchError(f"workgroup: {width}x{height} in workgroups of {workgroup[0]}x{workgroup[1]} needs more "
                             f"than this adapter's {groups} workgroups per side; use a larger workgroup")
     largest = min(limits["max-storage-buffer-binding-size"], limits["max-buffer-size"])
-    for what, need in (("the hit indices", width * height * 4), ("the spheres", spheres * SPHERE_FLOATS * 4)):
+    needs = [("the hit indices", width * height * 4), ("the spheres", spheres * SPHERE_FLOATS * 4)]
+    if accel == "bvh":  # at most one node per sphere: the largest of the tree's buffers
+        needs.append(("the BVH's nodes", max(spheres, 1) * bvh_mod.NODE_BYTES))
+    for what, need in needs:
         if need > largest:
             raise RaybenchError(f"size: {what} need {need / 2**20:.0f} MiB, more than this adapter's largest "
                                 f"storage buffer ({largest / 2**20:.0f} MiB); choose a smaller size or fewer spheres")
@@ -63,20 +86,32 @@ def sphere_rows(spheres: np.ndarray) -> np.ndarray:
     return rows
 
 
+def ordered_rows(tree: bvh_mod.Bvh) -> np.ndarray:
+    """bvh.ordered's (4, N) columns -> (N, 4) rows, the shader's array<vec4<f32>>
+    (one row at least: a binding cannot be empty)."""
+    rows = np.zeros((max(tree.count, 1), 4), np.float32)
+    rows[:tree.count] = tree.ordered.T
+    return rows
+
+
 class Compute:
     """One scene at one size on one device: encode() records a frame's compute
-    pass into a command encoder; texture and hits hold the result."""
+    pass into a command encoder; texture and hits hold the result. With the
+    BVH, build_s is the last build's seconds (the build alone, as on cuda)."""
 
     def __init__(self, device, spheres: np.ndarray, width: int, height: int, workgroup=(16, 16),
-                 accel: str = "none", extra_texture_usage: int = 0):
+                 accel: str | None = None, kernel: str | None = None, extra_texture_usage: int = 0):
         import wgpu
 
         self.device = device
         limits = dict(device.limits)
         self.workgroup = check_workgroup(workgroup, limits)
-        self.accel = shader.check_accel(accel)
+        self.accel = check_accel(accel, kernel)
         self.count = spheres.shape[1]
-        check_frame_fits(width, height, self.count, self.workgroup, limits)
+        check_frame_fits(width, height, self.count, self.workgroup, limits, self.accel)
+        if self.accel == "bvh":
+            check_bvh_fits("host", self.count, host_available_bytes(), bvh_mod.BUILD_SPHERE_BYTES,
+                           width * height * HOST_PIXEL_BYTES)
         self.width, self.height = width, height
         self.uniform = device.create_buffer(size=UNIFORM_BYTES,
                                             usage=wgpu.BufferUsage.UNIFORM | wgpu.BufferUsage.COPY_DST)
@@ -88,6 +123,12 @@ class Compute:
         self.hits = device.create_buffer(size=width * height * 4,
                                          usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC)
         self.pipeline = None
+        # kept for rebuilds: a frame of fewer spheres walks a tree of its own
+        self.scene_spheres = spheres
+        self.tree = None
+        self.build_s = None
+        if self.accel == "bvh":
+            self._build(self.count)
         self.timestamps = "timestamp-query" in device.features
         if self.timestamps:
             self.queries = device.create_query_set(type="timestamp", count=2)
@@ -106,19 +147,47 @@ class Compute:
         module = self.device.create_shader_module(code=shader.source(self.workgroup, self.accel))
         self.pipeline = self.device.create_compute_pipeline(layout="auto",
                                                             compute={"module": module, "entry_point": "main"})
-        self.bind_group = self.device.create_bind_group(layout=self.pipeline.get_bind_group_layout(0), entries=[
+        self._bind()
+        return time.perf_counter() - start
+
+    def _bind(self) -> None:
+        """The bind group of the current buffers (a rebuild makes new ones for the tree)."""
+        entries = [
             {"binding": 0, "resource": {"buffer": self.uniform}},
             {"binding": 1, "resource": {"buffer": self.spheres}},
             {"binding": 2, "resource": self.texture.create_view()},
             {"binding": 3, "resource": {"buffer": self.hits}},
-        ])
-        return time.perf_counter() - start
+        ]
+        if self.tree is not None:
+            entries += [{"binding": 4, "resource": {"buffer": self.nodes}},
+                        {"binding": 5, "resource": {"buffer": self.ordered}},
+                        {"binding": 6, "resource": {"buffer": self.order}}]
+        self.bind_group = self.device.create_bind_group(layout=self.pipeline.get_bind_group_layout(0),
+                                                        entries=entries)
+
+    def _build(self, count: int) -> None:
+        """Build the BVH of the first `count` spheres on the host and upload it
+        (the nodes as the builder wrote them: floats and int32 links in one
+        buffer, which the shader's struct Node reads as both)."""
+        import wgpu
+
+        tree = bvh_mod.build(self.scene_spheres[:, :count])
+        usage = wgpu.BufferUsage.STORAGE
+        order = tree.order if tree.count else np.zeros(1, np.int32)
+        self.nodes = self.device.create_buffer_with_data(data=tree.nodes.tobytes(), usage=usage)
+        self.ordered = self.device.create_buffer_with_data(data=ordered_rows(tree).tobytes(), usage=usage)
+        self.order = self.device.create_buffer_with_data(data=order.tobytes(), usage=usage)
+        self.tree, self.build_s = tree, tree.build_s
+        if self.pipeline is not None:
+            self._bind()
 
     def encode(self, encoder, basis: np.ndarray, count: int, timed: bool = False) -> None:
         """Record the frame: the camera upload (queued ahead of the command
         buffer) and one dispatch, one invocation per pixel. timed: with
         timestamps around the pass, for read_kernel_ms()."""
         self.compile()
+        if self.tree is not None and self.tree.count != count:
+            self._build(count)
         self.device.queue.write_buffer(self.uniform, 0, frame_uniform(basis, self.width, self.height, count))
         timed = timed and self.timestamps
         writes = {"query_set": self.queries, "beginning_of_pass_write_index": 0,

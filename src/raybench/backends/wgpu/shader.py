@@ -3,9 +3,8 @@
 The pieces port the single-source kernels (raybench.kernels) function by
 function: common.wgsl (bindings), intersect.wgsl, shade.wgsl, trace.wgsl (the
 primary ray, the pixel, the entry point), and one nearest_hit per
-acceleration structure: brute.wgsl, the thesis's loop over every sphere. A BVH
-traversal would be one more piece with the same nearest_hit signature, picked
-by the accel option, and its own bindings.
+acceleration structure: brute.wgsl, the thesis's loop over every sphere, and
+traverse.wgsl, the BVH walk of kernels/traverse.py with its own bindings.
 """
 
 from __future__ import annotations
@@ -13,10 +12,16 @@ from __future__ import annotations
 import functools
 from importlib import resources
 
-from ...errors import RaybenchError
+from ... import bvh
+from ...kernels import traverse
 
-ACCELS = {"none": "brute.wgsl"}
+ACCELS = {"bvh": "traverse.wgsl", "none": "brute.wgsl"}
 PIECES = ("common.wgsl", "intersect.wgsl", "shade.wgsl", "trace.wgsl")
+# The walk's constants, taken from their Python definitions rather than
+# written again in WGSL: float32 values whose repr is exact, so the WGSL
+# literal converts to the very float32 the CPU uses.
+BVH_CONSTANTS = {"BVH_STACK": f"{bvh.STACK}u", "BVH_INNER": f"{bvh.INNER}", "BVH_PAD": repr(float(bvh.PAD)),
+                 "BVH_TINY": repr(float(traverse.TINY))}
 
 
 @functools.cache
@@ -24,16 +29,11 @@ def _piece(name: str) -> str:
     return resources.files(__package__).joinpath(name).read_text(encoding="utf-8")
 
 
-def check_accel(accel) -> str:
-    if accel not in ACCELS:
-        raise RaybenchError(f"accel: the wgpu backend has {', '.join(map(repr, ACCELS))} only (brute force, the "
-                            f"thesis's loop), got {accel!r}")
-    return accel
-
-
-def source(workgroup: tuple[int, int], accel: str = "none") -> str:
+def source(workgroup: tuple[int, int], accel: str) -> str:
     """The whole shader for one workgroup shape (a compile-time constant in
-    WGSL) and acceleration structure."""
-    parts = [_piece(p) for p in PIECES] + [_piece(ACCELS[check_accel(accel)])]
-    text = "\n".join(parts)
-    return text.replace("WORKGROUP_X", f"{workgroup[0]}u").replace("WORKGROUP_Y", f"{workgroup[1]}u")
+    WGSL) and acceleration structure ("bvh" or "none", checked by the caller)."""
+    text = "\n".join([_piece(p) for p in PIECES] + [_piece(ACCELS[accel])])
+    text = text.replace("WORKGROUP_X", f"{workgroup[0]}u").replace("WORKGROUP_Y", f"{workgroup[1]}u")
+    for name, value in BVH_CONSTANTS.items():
+        text = text.replace(name, value)
+    return text

@@ -1,5 +1,7 @@
 """The wgpu backend's Tracer: the compute pass on a device of its own, and the
-frame read back to the host (texture -> buffer -> map) for trace()."""
+frame read back to the host (texture -> buffer -> map) for trace(). With
+accel "bvh" (the default, as on cpu and cuda) the pass walks the BVH; "none"
+is the thesis's brute force, the simple kernel."""
 
 from __future__ import annotations
 
@@ -7,10 +9,9 @@ import time
 
 import numpy as np
 
-from ...errors import RaybenchError
 from ..limits import HOST_PIXEL_BYTES, check_count, check_fits, check_size, host_available_bytes
 from . import adapters
-from .compute import Compute
+from .compute import Compute, check_accel
 
 # WebGPU's default limit (256 invocations), so the default runs on every
 # adapter; the thesis's 32x32 runs where the adapter allows 1024.
@@ -31,12 +32,6 @@ def timestamp_period(device) -> float | None:
     return period if period > 0 else None
 
 
-def check_kernel(kernel) -> None:
-    if kernel != "simple":
-        raise RaybenchError(f"kernel: the wgpu backend has the simple kernel only (the thesis's loop, one "
-                            f"invocation per pixel), got {kernel!r}; use --kernel simple")
-
-
 class Tracer:
     """Keeps the spheres, the frame texture and the readback buffers on the
     adapter's device between frames."""
@@ -44,16 +39,17 @@ class Tracer:
     name = "wgpu"
 
     def __init__(self, spheres: np.ndarray, width: int, height: int, workgroup=None, adapter: str | None = None,
-                 accel: str = "none", kernel: str = "simple"):
+                 accel: str | None = None, kernel: str | None = None):
         import wgpu
 
-        check_kernel(kernel)
+        accel = check_accel(accel, kernel)
         check_size(width, height)
         self.adapter = adapters.choose(adapter)
         self.device = adapters.request_device(self.adapter)
         check_fits("host", width, height, 0, host_available_bytes(), HOST_PIXEL_BYTES)
         self.compute = Compute(self.device, spheres, width, height,
-                               DEFAULT_WORKGROUP if workgroup is None else workgroup, accel)
+                               DEFAULT_WORKGROUP if workgroup is None else workgroup, accel, kernel)
+        self.accel = accel
         self.workgroup = self.compute.workgroup
         self.width, self.height, self.count = width, height, spheres.shape[1]
         self.row_bytes = -(-width * 4 // ROW_ALIGN) * ROW_ALIGN
@@ -64,6 +60,11 @@ class Tracer:
         self.image = np.empty((height, width, 3), np.uint8)
         self.hits = np.empty((height, width), np.int32)
         self.period_ns = timestamp_period(self.device) if self.compute.timestamps else None
+
+    @property
+    def build_s(self) -> float | None:
+        """The last BVH build's seconds (None for brute force), for benchmark records."""
+        return None if self.compute is None else self.compute.build_s
 
     def describe(self) -> dict:
         """The adapter, for result records and labels."""

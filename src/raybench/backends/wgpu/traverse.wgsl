@@ -1,0 +1,144 @@
+// kernels/traverse.py: the nearest hit through the BVH (raybench.bvh's
+// layout), the same answer as brute.wgsl's loop; the Python docstring says
+// why. shader.py fills in the constants' values from raybench.bvh and
+// kernels.traverse, so the layout has one definition.
+
+// One row of bvh.nodes, 64 bytes: both children's boxes (lo xyz, hi xyz of
+// child 0, then of child 1) and, over the same bytes the builder wrote as
+// its int32 `links` view, the children's refs and counts. A struct reads
+// each part as its own type, with no bitcast.
+struct Node {
+    box: array<f32, 12>,
+    links: vec4<i32>,   // ref 0, ref 1, count 0, count 1
+}
+
+@group(0) @binding(4) var<storage, read> nodes: array<Node>;
+// bvh.ordered, one row per sphere (cx, cy, cz, r) in leaf order: the very
+// float32 values of the scene, so the exact test is the brute-force one.
+@group(0) @binding(5) var<storage, read> ordered: array<vec4<f32>>;
+@group(0) @binding(6) var<storage, read> order: array<i32>;
+
+const STACK: u32 = BVH_STACK;
+const INNER: i32 = BVH_INNER;
+const PAD: f32 = BVH_PAD;
+const TINY: f32 = BVH_TINY;
+
+// One axis of the ray for the slab test (axis_setup's four results).
+struct Axis {
+    inv: f32,
+    near: f32,   // the origin shifted towards the near plane
+    far: f32,    // and away from the far one
+    side: u32,   // 0: the low plane is near (the ray goes up the axis); 3: down
+}
+
+// A child of the node being visited: its slab interval and its link.
+struct Child {
+    near: f32,
+    far: f32,
+    link: i32,    // the child's row where count == INNER, else its first sphere in `ordered`
+    count: i32,
+}
+
+// The nearest hit so far: (closest, hit, hit_d) of the Python walk.
+struct Nearest {
+    closest: f32,
+    hit: i32,
+    d: f32,
+}
+
+fn inverse(d: f32) -> f32 {
+    if (d >= 0.0) {
+        return 1.0 / max(d, TINY);
+    }
+    return 1.0 / min(d, -TINY);
+}
+
+fn axis_setup(o: f32, d: f32, margin: f32) -> Axis {
+    if (d >= 0.0) {
+        return Axis(inverse(d), o + margin, o - margin, 0u);
+    }
+    return Axis(inverse(d), o - margin, o + margin, 3u);
+}
+
+// (near, far) of the ray through the child box at column col; near > far where it misses.
+fn slab(row: i32, col: u32, x: Axis, y: Axis, z: Axis) -> vec2<f32> {
+    let t0 = (nodes[row].box[col + x.side] - x.near) * x.inv;
+    let t1 = (nodes[row].box[col + 1u + y.side] - y.near) * y.inv;
+    let t2 = (nodes[row].box[col + 2u + z.side] - z.near) * z.inv;
+    let u0 = (nodes[row].box[col + 3u - x.side] - x.far) * x.inv;
+    let u1 = (nodes[row].box[col + 4u - y.side] - y.far) * y.inv;
+    let u2 = (nodes[row].box[col + 5u - z.side] - z.far) * z.inv;
+    return vec2<f32>(max(t0, max(t1, t2)), min(u0, min(u1, u2)));
+}
+
+// The exact test on a leaf's spheres; ties go to the smaller ORIGINAL index,
+// which is the sphere brute force's first-of-smallest-t picks.
+fn leaf_hits(o: vec3<f32>, dir: vec3<f32>, first: i32, count: i32, so_far: Nearest) -> Nearest {
+    var best = so_far;
+    for (var j = first; j < first + count; j = j + 1) {
+        let c = ordered[j];
+        let td = intersect_sphere(o, dir, Sphere(c.x, c.y, c.z, c.w, 0.0, 0.0, 0.0, 0.0));
+        if (td.x > 0.0 && (td.x < best.closest || (td.x == best.closest && order[j] < best.hit))) {
+            best = Nearest(td.x, order[j], td.y);
+        }
+    }
+    return best;
+}
+
+fn nearest_hit_bvh(o: vec3<f32>, dir: vec3<f32>) -> Hit {
+    let margin = (abs(o.x) + abs(o.y) + abs(o.z)) * PAD;
+    let ax = axis_setup(o.x, dir.x, margin);
+    let ay = axis_setup(o.y, dir.y, margin);
+    let az = axis_setup(o.z, dir.z, margin);
+    var best = Nearest(FAR, -1, 0.0);
+    var stack_row: array<i32, STACK>;
+    var stack_t: array<f32, STACK>;
+    var row = 0;
+    var top = 0u;
+    while (row >= 0) {
+        let links = nodes[row].links;
+        let sa = slab(row, 0u, ax, ay, az);
+        let sb = slab(row, 6u, ax, ay, az);
+        var a = Child(sa.x, sa.y, links.x, links.z);
+        var b = Child(sb.x, sb.y, links.y, links.w);
+        // near child first: its hits can rule the far one out
+        if (b.near < a.near) {
+            let swap = a;
+            a = b;
+            b = swap;
+        }
+        row = -1;
+        if (a.near <= a.far && a.far > 0.0 && a.near <= best.closest) {
+            if (a.count == INNER) {
+                row = a.link;
+            } else {
+                best = leaf_hits(o, dir, a.link, a.count, best);
+            }
+        }
+        if (b.near <= b.far && b.far > 0.0 && b.near <= best.closest) {
+            if (b.count != INNER) {
+                best = leaf_hits(o, dir, b.link, b.count, best);
+            } else if (row < 0) {
+                row = b.link;
+            } else {
+                stack_row[top] = b.link;
+                stack_t[top] = b.near;
+                top = top + 1u;
+            }
+        }
+        while (row < 0 && top > 0u) {
+            top = top - 1u;
+            if (stack_t[top] <= best.closest) {
+                row = stack_row[top];
+            }
+        }
+    }
+    return Hit(best.hit, best.d);
+}
+
+// brute.wgsl's signature, so trace.wgsl's main calls either. The tree holds
+// exactly the frame's spheres (compute.py builds it for the frame's count),
+// so count has nothing left to bound.
+fn nearest_hit(o: vec3<f32>, dir: vec3<f32>, count: u32) -> Hit {
+    return nearest_hit_bvh(o, dir);
+}
