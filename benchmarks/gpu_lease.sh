@@ -7,9 +7,10 @@
 #   info     nvidia-smi, raybench info (the CUDA device and the wgpu adapters)
 #   pytest   the GPU tests: BVH, CUDA, fast kernels, wgpu (PYTEST_ARGS to change)
 #   kernels  benchmarks/kernels.py: measured peaks, simple against fast kernels
+#   trip     the CUDA fast kernel's spheres per trip of its cull loop (kernels.py --sweep-trip)
 #   scaling  the scaling suite, 10 to 1,000,000 spheres (SCALING_DEVICES)
 #   thesis   the thesis suite, fast kernels and the BVH, cuda and cpu
-#   wgpu     the thesis and tuning suites (quick) on wgpu beside cuda, simple kernel
+#   wgpu     the thesis suite on wgpu, BVH and brute force (WGPU_ARGS to change)
 #   tuning   the BVH walk's block shapes on cuda
 #
 # Carries .whl (NumPy 2.4: the machine's 2.5 breaks numba 0.68.0; wgpu, cffi,
@@ -44,13 +45,15 @@ for s in $STEPS; do
         step pytest "${PYTEST_S:-200}" python3 -m pytest -q -p no:cacheprovider ${PYTEST_ARGS:-tests/test_bvh.py \
             tests/test_cuda.py tests/test_fast.py tests/test_wgpu.py} ;;
     kernels) step kernels "${KERNELS_S:-80}" python3 benchmarks/kernels.py --json "$W/kernels.json" --frames 7 ;;
+    trip) step trip "${TRIP_S:-120}" python3 benchmarks/kernels.py --json "$W/trip.json" --frames 7 --skip-peak \
+            --sweep-trip ;;
     scaling)
         # shellcheck disable=SC2086
         bench scaling "${SCALING_S:-200}" --suite scaling $(printf -- '--device %s ' ${SCALING_DEVICES:-cuda cpu}) \
             ${SCALING_ARGS:-} ;;
     thesis) bench thesis "${THESIS_S:-200}" --suite thesis --device cuda --device cpu ${THESIS_ARGS:-} ;;
-    wgpu) bench wgpu "${WGPU_S:-80}" --suite thesis --suite tuning --device wgpu --device cuda --accel none \
-            --kernel simple --quick ;;
+    # shellcheck disable=SC2086
+    wgpu) bench wgpu "${WGPU_S:-150}" ${WGPU_ARGS:---suite thesis --device wgpu} ;;
     tuning) bench tuning "${TUNING_S:-50}" --suite tuning --accel bvh --device cuda ;;
     *) echo "unknown step $s" | tee -a "$W/steps.log" ;;
     esac

@@ -3,7 +3,7 @@ the simple and fast kernels side by side on the same frame (their images must
 be identical on the CPU; on a GPU the compiler may fuse multiply-adds
 differently in the two kernels), and a sweep of the CUDA fast kernel's shape. Writes JSON.
 
-    python benchmarks/kernels.py --json kernels.json [--frames 7] [--sweep]
+    python benchmarks/kernels.py --json kernels.json [--frames 7] [--sweep | --sweep-trip]
 
 The figures in docs/performance.md come from this script.
 """
@@ -40,7 +40,8 @@ def main():
     ap.add_argument("--frames", type=int, default=7)
     ap.add_argument("--size", default="1680x1050")
     ap.add_argument("--spheres", type=int, default=1000)
-    ap.add_argument("--sweep", action="store_true")
+    ap.add_argument("--sweep", action="store_true", help="the CUDA fast kernel's rays, tile and block shapes")
+    ap.add_argument("--sweep-trip", action="store_true", help="its spheres per trip of the cull loop")
     ap.add_argument("--skip-peak", action="store_true")
     args = ap.parse_args()
     w, h = map(int, args.size.split("x"))
@@ -78,17 +79,21 @@ def main():
                 "max_colour_step": int(diff.max())}
         out.setdefault("identical", {})[device] = same
         print(device, "simple against fast:", same, flush=True)
-    if args.sweep and "cuda" in devices:
-        for rays in (1, 2, 4, 8, 16):
-            for tile in (128, 256, 512):
-                for block in ((32, 2), (16, 4), (32, 4), (32, 8), (16, 16), (64, 4), (128, 1)):
-                    tracer = backends.tracer("cuda", scene.spheres, w, h, rays=rays, tile=tile, block=block)
-                    tracer.compile()
-                    wall, kern = frames(tracer, basis, args.frames)
-                    rec = {"rays": rays, "tile": tile, "block": list(block), "frame_ms": wall, "kernel_ms": kern,
-                           "tests_per_s": tests / (kern / 1e3)}
-                    out["sweep"].append(rec)
-                    print(json.dumps(rec), flush=True)
+    if (args.sweep or args.sweep_trip) and "cuda" in devices:
+        if args.sweep:
+            shapes = [(rays, tile, 2, block) for rays in (1, 2, 4, 8, 16) for tile in (128, 256, 512)
+                      for block in ((32, 2), (16, 4), (32, 4), (32, 8), (16, 16), (64, 4), (128, 1))]
+        else:  # spheres per trip of the cull loop, around the default shape, twice over
+            shapes = [(8, 256, trip, block) for _ in range(2) for trip in (1, 2, 3, 4)
+                      for block in ((16, 4), (32, 2), (8, 8))]
+        for rays, tile, trip, block in shapes:
+            tracer = backends.tracer("cuda", scene.spheres, w, h, rays=rays, tile=tile, trip=trip, block=block)
+            tracer.compile()
+            wall, kern = frames(tracer, basis, args.frames)
+            rec = {"rays": rays, "tile": tile, "trip": trip, "block": list(block), "frame_ms": wall,
+                   "kernel_ms": kern, "tests_per_s": tests / (kern / 1e3)}
+            out["sweep"].append(rec)
+            print(json.dumps(rec), flush=True)
     with open(args.json, "w") as f:
         json.dump(out, f, indent=1)
 

@@ -110,15 +110,17 @@ def test_cpu_fast_sphere_prefix(rng):
 # The simulator runs a Python thread per CUDA thread and polls them all while
 # any waits at a barrier: 128 threads of the last shape took minutes there,
 # so it gets 32 threads under the simulator and the real shape on a GPU.
-@pytest.mark.parametrize("rays,tile,block", [(3, 8, (4, 2)), (1, 45, (5, 3)), (2, 1, (8, 8)),
-                                             (8, 256, (8, 4) if cuda_backend.simulated() else (32, 4))])
-def test_cuda_fast_shapes_equal_cpu(rng, rays, tile, block):
+@pytest.mark.parametrize("rays,tile,trip,block", [(3, 8, 3, (4, 2)), (1, 45, 4, (5, 3)), (2, 1, 1, (8, 8)),
+                                                  (8, 256, 2, (8, 4) if cuda_backend.simulated() else (32, 4)),
+                                                  (8, 256, 4, (8, 4) if cuda_backend.simulated() else (16, 4))])
+def test_cuda_fast_shapes_equal_cpu(rng, rays, tile, trip, block):
     """Every way of cutting the work (rays per thread, spheres per shared
-    tile, block shape, counts that are not a multiple of the tile) gives the
-    CPU's picture: bit for bit under the simulator, within rounding on a GPU."""
+    tile and per trip of the cull loop, block shape, counts that are not a
+    multiple of the tile or the trip) gives the CPU's picture: bit for bit
+    under the simulator, within rounding on a GPU."""
     scene, camera = KINDS["overlapping"](rng, 40)
     width, height = (19, 23) if cuda_backend.simulated() else (301, 203)
-    gpu = raybench.render(scene, camera, width, height, device="cuda", rays=rays, tile=tile, block=block)
+    gpu = raybench.render(scene, camera, width, height, device="cuda", rays=rays, tile=tile, trip=trip, block=block)
     cpu = raybench.render(scene, camera, width, height, device="cpu", kernel="simple")
     if cuda_backend.simulated():
         assert np.array_equal(gpu.hits, cpu.hits) and np.array_equal(gpu.image, cpu.image)

@@ -13,7 +13,7 @@ from ..errors import RaybenchError
 DEVICES = ("cpu", "cuda", "wgpu")
 CHOICES = ("auto",) + DEVICES
 OPTIONS = {"cpu": ("threads", "constant_count", "kernel", "accel"),
-           "cuda": ("block", "constant_count", "kernel", "rays", "tile", "accel"),
+           "cuda": ("block", "constant_count", "kernel", "rays", "tile", "trip", "accel"),
            "wgpu": ("workgroup", "adapter", "accel", "kernel")}
 
 

@@ -43,6 +43,10 @@ _render_pixel_bvh = _k.render_pixel_bvh
 # tests; spheres are staged TILE at a time (16 bytes each).
 RAYS = 8
 TILE = 256
+# Spheres tested per trip of the cull loop, one branch for all of them
+# (docs/performance.md: 2 against 4 measured on the H200).
+TRIP = 2
+MAX_TRIP = 4
 MAX_RAYS = 16
 MAX_TILE = 3071  # 48 KiB of shared memory (with a pad slot), what every CUDA GPU gives a block
 _U = np.uint64
@@ -79,11 +83,12 @@ def _prepare_kernel(basis, spheres, count, relative):
 
 
 @functools.lru_cache(maxsize=None)
-def fast_kernel(rays: int = RAYS, tile: int = TILE):
-    """The fast kernel for `rays` pixels per thread and `tile` spheres per
-    shared-memory tile (compile-time constants: the per-thread arrays must
-    have a fixed size to live in registers); one compilation per pair."""
-    slots = tile + 1  # room for the pad of an odd tile
+def fast_kernel(rays: int = RAYS, tile: int = TILE, trip: int = TRIP):
+    """The fast kernel for `rays` pixels per thread, `tile` spheres per
+    shared-memory tile and `trip` spheres per trip of the cull loop
+    (compile-time constants: the per-thread arrays must have a fixed size to
+    live in registers); one compilation per combination."""
+    slots = tile + trip - 1  # room for the pads of a tile that is not a whole number of trips
 
     @cuda.jit(device=True)
     def farthest(ex, ey, ez, dx, dy, dz, v):
@@ -128,8 +133,8 @@ def fast_kernel(rays: int = RAYS, tile: int = TILE):
         closest = cuda.local.array(rays, np.float32)
         hit = cuda.local.array(rays, np.int32)
         hit_d = cuda.local.array(rays, np.float32)
-        va = cuda.local.array(rays, np.float32)
-        vb = cuda.local.array(rays, np.float32)
+        v = cuda.local.array(rays, np.float32)
+        vmax = cuda.local.array(trip, np.float32)
         bw, bh = cuda.blockDim.x, cuda.blockDim.y
         x = cuda.blockIdx.x * bw + cuda.threadIdx.x
         y0 = cuda.blockIdx.y * bh * rays + cuda.threadIdx.y
@@ -151,25 +156,29 @@ def fast_kernel(rays: int = RAYS, tile: int = TILE):
                 sy[k] = relative[1, base + k]
                 sz[k] = relative[2, base + k]
                 ss[k] = relative[3, base + k]
-            if me == _U(0) and n % _U(2) == _U(1):
-                # pad to a pair with a sphere no ray can pass the cull test of
-                sx[n], sy[n], sz[n], ss[n] = ZERO, ZERO, ZERO, FAR
+            if me == _U(0):
+                # pad to whole trips with spheres no ray can pass the cull test of
+                for k in range(n, (n + _U(trip - 1)) // _U(trip) * _U(trip)):
+                    sx[k], sy[k], sz[k], ss[k] = ZERO, ZERO, ZERO, FAR
             cuda.syncthreads()
             k = _U(0)
             while k < n:
-                # Two spheres a trip, one branch for both on the farthest v of
-                # all the thread's rays: the loop is then mostly arithmetic
+                # `trip` spheres a trip, one branch for all on the farthest v
+                # of all the thread's rays: the loop is then mostly arithmetic
                 # (docs/performance.md has what each step bought).
                 while k < n:
-                    a = farthest(sx[k], sy[k], sz[k], dx, dy, dz, va)
-                    b = farthest(sx[k + _U(1)], sy[k + _U(1)], sz[k + _U(1)], dx, dy, dz, vb)
-                    if a > ss[k] or b > ss[k + _U(1)]:
+                    for q in range(trip):
+                        vmax[q] = farthest(sx[k + _U(q)], sy[k + _U(q)], sz[k + _U(q)], dx, dy, dz, v)
+                    passed = False
+                    for q in range(trip):
+                        passed |= vmax[q] > ss[k + _U(q)]
+                    if passed:
                         break
-                    k += _U(2)
-                for i in range(k, min(k + _U(2), n)):
+                    k += _U(trip)
+                for i in range(k, min(k + _U(trip), n)):
                     nearer(base + i, sx[i], sy[i], sz[i], ss[i], spheres[3, base + i], dx, dy, dz,
                            closest, hit, hit_d)
-                k += _U(2)
+                k += _U(trip)
         if x < width:
             for j in range(rays):
                 y = y0 + j * bh
@@ -249,16 +258,18 @@ class Tracer:
 
     def __init__(self, spheres: np.ndarray, width: int, height: int, block=None,
                  constant_count: bool = False, kernel: str | None = None, rays: int | None = None,
-                 tile: int | None = None, accel: str | None = None):
+                 tile: int | None = None, trip: int | None = None, accel: str | None = None):
         require()
         self.accel, kernel = check_accel(accel, kernel, {"constant_count": constant_count, "rays": rays is not None,
-                                                         "tile": tile is not None})
+                                                         "tile": tile is not None, "trip": trip is not None})
         rays = RAYS if rays is None else rays
         tile = TILE if tile is None else tile
+        trip = TRIP if trip is None else trip
         self.kernel = check_kernel(kernel, constant_count) if self.accel == "none" else None
         block = DEFAULT_BLOCK[self.kernel or "bvh"] if block is None else block
         self.rays = _check_int("rays", rays, 1, MAX_RAYS) if self.kernel == "fast" else 1
         self.tile = _check_int("tile", tile, 1, MAX_TILE)
+        self.trip = _check_int("trip", trip, 1, MAX_TRIP)
         self.block = _check_block(block, self.kernel or "bvh")
         free, _total = cuda.current_context().get_memory_info()
         check_fits("cuda GPU", width, height, spheres.shape[1], free)
@@ -287,7 +298,7 @@ class Tracer:
             self._kernel = _bvh_kernel
             self._build(self.count)
         elif self.kernel == "fast":
-            self._kernel = fast_kernel(self.rays, self.tile)
+            self._kernel = fast_kernel(self.rays, self.tile, self.trip)
             self.d_relative = cuda.device_array((4, max(self.count, 1)), dtype=np.float32)
         else:
             self._kernel = _constant_kernel(self.count) if self.constant_count else _render_kernel
