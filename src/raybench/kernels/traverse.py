@@ -43,24 +43,30 @@ def build(jit, intersect_sphere):
     @jit
     def axis_setup(o, d, margin):
         """One axis of the ray for the slab test: 1/d, and the origin shifted
-        by the margin towards the near plane and away from the far one, so the
+        by the margin for the box's low plane and for its high one, so the
         slabs are those of the box grown by `margin` on every side."""
-        if d >= ZERO:
-            return inverse(d), o + margin, o - margin, _U(0)
-        return inverse(d), o - margin, o + margin, _U(3)
+        return inverse(d), o + margin, o - margin
 
     @jit
-    def slab(nodes, row, col, ix, iy, iz, nx, ny, nz, fx, fy, fz, sx, sy, sz):
-        """The (near, far) distances of the ray through one child box;
-        near > far where it misses. sx, sy, sz: 0 where the ray goes up the
-        axis (the low plane is near), 3 where it goes down."""
-        t0 = (nodes[row, col + sx] - nx) * ix
-        t1 = (nodes[row, col + _U(1) + sy] - ny) * iy
-        t2 = (nodes[row, col + _U(2) + sz] - nz) * iz
-        u0 = (nodes[row, col + _U(3) - sx] - fx) * ix
-        u1 = (nodes[row, col + _U(4) - sy] - fy) * iy
-        u2 = (nodes[row, col + _U(5) - sz] - fz) * iz
-        return max(t0, max(t1, t2)), min(u0, min(u1, u2))
+    def slab(nodes, row, col, ix, iy, iz, lx, ly, lz, hx, hy, hz):
+        """The (near, far) distances of the ray through one child box; near >
+        far where it misses. Both planes of each axis are read at fixed
+        columns and put in order by min and max (which is near follows from
+        the sign of 1/d), so every read of the row is at a constant offset:
+        choosing the column by the ray's direction cost an address
+        computation per read (docs/performance.md). The values are the same:
+        float subtraction and multiplication keep the planes' order.
+        An empty child's inverted box (lo +inf, hi -inf) comes out as
+        (-inf, +inf): visited as the leaf of no spheres that it is."""
+        a0 = (nodes[row, col] - lx) * ix
+        a1 = (nodes[row, col + _U(1)] - ly) * iy
+        a2 = (nodes[row, col + _U(2)] - lz) * iz
+        b0 = (nodes[row, col + _U(3)] - hx) * ix
+        b1 = (nodes[row, col + _U(4)] - hy) * iy
+        b2 = (nodes[row, col + _U(5)] - hz) * iz
+        near = max(min(a0, b0), max(min(a1, b1), min(a2, b2)))
+        far = min(max(a0, b0), min(max(a1, b1), max(a2, b2)))
+        return near, far
 
     @jit
     def leaf_hits(ox, oy, oz, dx, dy, dz, ordered, order, first, count, closest, hit, hit_d):
@@ -80,9 +86,9 @@ def build(jit, intersect_sphere):
         stack_row / stack_t: the walk's stack, bvh.STACK entries, given by the
         backend (a CUDA thread's local array, a CPU thread's own)."""
         margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
-        ix, nx, fx, sx = axis_setup(ox, dx, margin)
-        iy, ny, fy, sy = axis_setup(oy, dy, margin)
-        iz, nz, fz, sz = axis_setup(oz, dz, margin)
+        ix, lx, hx = axis_setup(ox, dx, margin)
+        iy, ly, hy = axis_setup(oy, dy, margin)
+        iz, lz, hz = axis_setup(oz, dz, margin)
         closest = FAR
         hit = -1
         hit_d = ZERO
@@ -90,8 +96,8 @@ def build(jit, intersect_sphere):
         top = _U(0)
         while row >= 0:
             node = _U(row)
-            a_near, a_far = slab(nodes, node, _U(0), ix, iy, iz, nx, ny, nz, fx, fy, fz, sx, sy, sz)
-            b_near, b_far = slab(nodes, node, _U(6), ix, iy, iz, nx, ny, nz, fx, fy, fz, sx, sy, sz)
+            a_near, a_far = slab(nodes, node, _U(0), ix, iy, iz, lx, ly, lz, hx, hy, hz)
+            b_near, b_far = slab(nodes, node, _U(6), ix, iy, iz, lx, ly, lz, hx, hy, hz)
             a_ref, b_ref = links[node, _U(12)], links[node, _U(13)]
             a_count, b_count = links[node, _U(14)], links[node, _U(15)]
             # near child first: its hits can rule the far one out

@@ -23,12 +23,11 @@ const INNER: i32 = BVH_INNER;
 const PAD: f32 = BVH_PAD;
 const TINY: f32 = BVH_TINY;
 
-// One axis of the ray for the slab test (axis_setup's four results).
+// One axis of the ray for the slab test (axis_setup's three results).
 struct Axis {
     inv: f32,
-    near: f32,   // the origin shifted towards the near plane
-    far: f32,    // and away from the far one
-    side: u32,   // 0: the low plane is near (the ray goes up the axis); 3: down
+    lo: f32,   // the origin shifted for the box's low plane
+    hi: f32,   // and for its high one
 }
 
 // A child of the node being visited: its slab interval and its link.
@@ -54,21 +53,21 @@ fn inverse(d: f32) -> f32 {
 }
 
 fn axis_setup(o: f32, d: f32, margin: f32) -> Axis {
-    if (d >= 0.0) {
-        return Axis(inverse(d), o + margin, o - margin, 0u);
-    }
-    return Axis(inverse(d), o - margin, o + margin, 3u);
+    return Axis(inverse(d), o + margin, o - margin);
 }
 
-// (near, far) of the ray through the child box at column col; near > far where it misses.
+// (near, far) of the ray through the child box at column col; near > far
+// where it misses. Both planes of each axis, put in order by min and max.
 fn slab(row: i32, col: u32, x: Axis, y: Axis, z: Axis) -> vec2<f32> {
-    let t0 = (nodes[row].box[col + x.side] - x.near) * x.inv;
-    let t1 = (nodes[row].box[col + 1u + y.side] - y.near) * y.inv;
-    let t2 = (nodes[row].box[col + 2u + z.side] - z.near) * z.inv;
-    let u0 = (nodes[row].box[col + 3u - x.side] - x.far) * x.inv;
-    let u1 = (nodes[row].box[col + 4u - y.side] - y.far) * y.inv;
-    let u2 = (nodes[row].box[col + 5u - z.side] - z.far) * z.inv;
-    return vec2<f32>(max(t0, max(t1, t2)), min(u0, min(u1, u2)));
+    let a0 = (nodes[row].box[col] - x.lo) * x.inv;
+    let a1 = (nodes[row].box[col + 1u] - y.lo) * y.inv;
+    let a2 = (nodes[row].box[col + 2u] - z.lo) * z.inv;
+    let b0 = (nodes[row].box[col + 3u] - x.hi) * x.inv;
+    let b1 = (nodes[row].box[col + 4u] - y.hi) * y.inv;
+    let b2 = (nodes[row].box[col + 5u] - z.hi) * z.inv;
+    let near = max(min(a0, b0), max(min(a1, b1), min(a2, b2)));
+    let far = min(max(a0, b0), min(max(a1, b1), max(a2, b2)));
+    return vec2<f32>(near, far);
 }
 
 // The exact test on a leaf's spheres; ties go to the smaller ORIGINAL index,
