@@ -27,10 +27,11 @@ from .. import bvh as bvh_mod
 from .limits import (FAST_MAX_THREADS, HOST_PIXEL_BYTES, PIXEL_BYTES, check_accel, check_bvh_fits, check_count,
                      check_fits, check_kernel, host_available_bytes)
 
-# simple, fast: the fastest measured on an H100 (docs/performance.md). bvh:
-# 8 wide, so a warp is a compact 8x4 patch of pixels whose rays cross much
-# the same nodes (a first guess, to be measured by the tuning suite).
-DEFAULT_BLOCK = {"simple": (16, 16), "fast": (16, 4), "bvh": (8, 8)}
+# The fastest measured (docs/performance.md): simple on an H100; fast (with
+# TRIP) and bvh on the H200, where 8x8 also makes a warp a compact 8x4 patch
+# of pixels whose rays cross much the same nodes (the tuning suite: 8x8
+# 0.407 ms, 16x16 0.452, 8x32 0.464 at 1,000 spheres).
+DEFAULT_BLOCK = {"simple": (16, 16), "fast": (8, 8), "bvh": (8, 8)}
 
 _k = kernels.build(cuda.jit(device=True))
 # module globals, which is how kernels can see them
@@ -43,9 +44,10 @@ _render_pixel_bvh = _k.render_pixel_bvh
 # tests; spheres are staged TILE at a time (16 bytes each).
 RAYS = 8
 TILE = 256
-# Spheres tested per trip of the cull loop, one branch for all of them
-# (docs/performance.md: 2 against 4 measured on the H200).
-TRIP = 2
+# Spheres tested per trip of the cull loop, one branch for all of them: 3
+# with 8x8 blocks measured 0.573-0.580 ms on the H200 against 0.610-0.617 for
+# 2 with 16x4, the earlier default, in the same run (docs/performance.md).
+TRIP = 3
 MAX_TRIP = 4
 MAX_RAYS = 16
 MAX_TILE = 3071  # 48 KiB of shared memory (with a pad slot), what every CUDA GPU gives a block
