@@ -9,7 +9,7 @@ Same answer because:
   ORIGINAL index, which picks the same sphere;
 - no sphere the exact test would accept is ever skipped: a box is entered if
   its slab interval (computed on the box grown by the builder's padding and a
-  margin for the camera, see ray_setup) reaches [0, closest] inclusive, and
+  margin for the camera, see axis_setup) reaches [0, closest] inclusive, and
   the float32 hit point of an accepted sphere lies within a few epsilons of
   (|EO| + r) of the sphere, far inside that padding.
 The box test may be loose (it only decides what to visit); it never
@@ -51,8 +51,8 @@ def build(jit, intersect_sphere):
     def slab(nodes, row, col, ix, iy, iz, lx, ly, lz, hx, hy, hz):
         """The (near, far) distances of the ray through one child box; near >
         far where it misses. Both planes of each axis are read at fixed
-        columns and put in order by min and max (which is near follows from
-        the sign of 1/d), so every read of the row is at a constant offset:
+        columns and put in order by min and max (the sign of 1/d decides
+        which is near), so every read of the row is at a constant offset:
         choosing the column by the ray's direction cost an address
         computation per read (docs/performance.md). The values are the same:
         float subtraction and multiplication keep the planes' order.
