@@ -155,7 +155,7 @@ def _view_help() -> str:
               help="where to trace first (switch live with Tab): auto picks cuda when a usable NVIDIA GPU is "
                    "present, else wgpu on a GPU, else cpu")
 @click.option("--threads", type=int, help="cpu: number of threads (default: all cores)")
-@click.option("--block", help="cuda: thread block shape XxY (default 16x16)")
+@click.option("--block", help="cuda: thread block shape XxY (default 8x8, the BVH walk's)")
 @click.option("--workgroup", help="wgpu: workgroup shape XxY (default 16x16)")
 @click.option("--adapter", help="wgpu, and the window: the adapter whose name contains this (default: the best "
                                 "GPU; a CPU driver such as llvmpipe only when named)")
