@@ -12,6 +12,9 @@
 #   thesis   the thesis suite, fast kernels and the BVH, cuda and cpu
 #   wgpu     the thesis suite on wgpu, BVH and brute force (WGPU_ARGS to change)
 #   tuning   the BVH walk's block shapes on cuda
+#   walks    benchmarks/bvh_walks.py on cuda and wgpu (WALKS_ARGS to change); with
+#            BASELINE=dir (another version's src/, carried), that version and
+#            this one alternately, twice, side by side in one lease
 #
 # Carries .whl (NumPy 2.4: the machine's 2.5 breaks numba 0.68.0; wgpu, cffi,
 # pycparser, rendercanvas, glfw) and .gl (the Vulkan and GL loaders as Debian
@@ -55,6 +58,14 @@ for s in $STEPS; do
     # shellcheck disable=SC2086
     wgpu) bench wgpu "${WGPU_S:-150}" ${WGPU_ARGS:---suite thesis --device wgpu} ;;
     tuning) bench tuning "${TUNING_S:-50}" --suite tuning --accel bvh --device cuda ;;
+    walks)
+        for round in 1 2; do
+            # shellcheck disable=SC2086
+            [ -n "${BASELINE:-}" ] && step "walks-baseline-$round" "${WALKS_S:-60}" env PYTHONPATH="/tmp/site:$PWD/$BASELINE" \
+                python3 benchmarks/bvh_walks.py ${WALKS_ARGS:---device cuda --device wgpu}
+            # shellcheck disable=SC2086
+            step "walks-$round" "${WALKS_S:-60}" python3 benchmarks/bvh_walks.py ${WALKS_ARGS:---device cuda --device wgpu}
+        done ;;
     *) echo "unknown step $s" | tee -a "$W/steps.log" ;;
     esac
 done

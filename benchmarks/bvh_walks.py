@@ -1,0 +1,57 @@
+"""The BVH walk at the issue's sizes, one line of JSON per (device, size): the
+median kernel time (CUDA events, wgpu GPU timestamps; on the CPU the whole
+frame's wall time), rays a second, the build's time, and which raybench ran.
+
+For A/B runs of two versions in one lease, side by side: run it once per
+version's source tree, alternating, e.g.
+
+    PYTHONPATH=old/src python benchmarks/bvh_walks.py --device cuda
+    PYTHONPATH=src     python benchmarks/bvh_walks.py --device cuda
+"""
+
+import argparse
+import json
+import statistics
+import sys
+import time
+
+import raybench
+from raybench import Camera, backends
+
+SIZES = {"1k": (1000, 1680, 1050), "100k": (100_000, 1680, 1050), "1M": (1_000_000, 1920, 1080)}
+
+
+def one(device: str, spheres: int, width: int, height: int, frames: int) -> dict:
+    scene = raybench.random_spheres(spheres, seed=0)
+    basis = (scene.camera or Camera()).basis(width, height)
+    tracer = backends.tracer(device, scene.spheres, width, height, accel="bvh")
+    try:
+        tracer.trace(basis)  # warm: compiled, uploaded
+        times = []
+        for _ in range(frames):
+            start = time.perf_counter()
+            kernel_ms = tracer.timed_trace(basis)
+            times.append(kernel_ms if kernel_ms is not None else (time.perf_counter() - start) * 1e3)
+        ms = statistics.median(times)
+        return {"device": device, "spheres": spheres, "width": width, "height": height, "frames": frames,
+                "median_ms": round(ms, 4), "grays_per_s": round(width * height / ms / 1e6, 3),
+                "build_ms": round(tracer.build_s * 1e3, 1), "kernel_time": kernel_ms is not None,
+                "raybench": raybench.__file__}
+    finally:
+        tracer.close()
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--device", action="append", choices=["cpu", "cuda", "wgpu"])
+    parser.add_argument("--size", action="append", choices=sorted(SIZES))
+    parser.add_argument("--frames", type=int, default=9)
+    args = parser.parse_args()
+    for device in args.device or ["cuda"]:
+        for size in args.size or list(SIZES):
+            print(json.dumps(one(device, *SIZES[size], args.frames)), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
