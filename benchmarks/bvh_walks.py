@@ -16,7 +16,7 @@ import sys
 import time
 
 import raybench
-from raybench import Camera, backends
+from raybench import Camera, RaybenchError, backends
 
 SIZES = {"1k": (1000, 1680, 1050), "100k": (100_000, 1680, 1050), "1M": (1_000_000, 1920, 1080)}
 
@@ -47,9 +47,15 @@ def main() -> int:
     parser.add_argument("--size", action="append", choices=sorted(SIZES))
     parser.add_argument("--frames", type=int, default=9)
     args = parser.parse_args()
-    for device in args.device or ["cuda"]:
-        for size in args.size or list(SIZES):
-            print(json.dumps(one(device, *SIZES[size], args.frames)), flush=True)
+    if args.frames < 1:
+        parser.error(f"--frames: must be at least 1, got {args.frames}")
+    try:
+        for device in args.device or ["cuda"]:
+            for size in args.size or list(SIZES):
+                print(json.dumps(one(device, *SIZES[size], args.frames)), flush=True)
+    except RaybenchError as error:
+        print(f"bvh_walks: {error}", file=sys.stderr)
+        return 2
     return 0
 
 
