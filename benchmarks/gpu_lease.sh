@@ -13,8 +13,8 @@
 #   wgpu     the thesis suite on wgpu, BVH and brute force (WGPU_ARGS to change)
 #   tuning   the BVH walk's block shapes on cuda
 #   walks    benchmarks/bvh_walks.py on cuda and wgpu (WALKS_ARGS to change); with
-#            BASELINE=dir (another version's src/, carried), that version and
-#            this one alternately, twice, side by side in one lease
+#            BASELINE="dir ..." (other versions' src/, carried), those versions
+#            and this one in turn, twice, side by side in one lease
 #
 # Carries .whl (NumPy 2.4: the machine's 2.5 breaks numba 0.68.0; wgpu, cffi,
 # pycparser, rendercanvas, glfw) and .gl (the Vulkan and GL loaders as Debian
@@ -60,9 +60,11 @@ for s in $STEPS; do
     tuning) bench tuning "${TUNING_S:-50}" --suite tuning --accel bvh --device cuda ;;
     walks)
         for round in 1 2; do
-            # shellcheck disable=SC2086
-            [ -n "${BASELINE:-}" ] && step "walks-baseline-$round" "${WALKS_S:-60}" env PYTHONPATH="/tmp/site:$PWD/$BASELINE" \
-                python3 benchmarks/bvh_walks.py ${WALKS_ARGS:---device cuda --device wgpu}
+            for base in ${BASELINE:-}; do
+                # shellcheck disable=SC2086
+                step "walks-$base-$round" "${WALKS_S:-60}" env PYTHONPATH="/tmp/site:$PWD/$base" \
+                    python3 benchmarks/bvh_walks.py ${WALKS_ARGS:---device cuda --device wgpu}
+            done
             # shellcheck disable=SC2086
             step "walks-$round" "${WALKS_S:-60}" python3 benchmarks/bvh_walks.py ${WALKS_ARGS:---device cuda --device wgpu}
         done ;;
