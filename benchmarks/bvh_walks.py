@@ -18,13 +18,17 @@ import time
 import raybench
 from raybench import Camera, RaybenchError, backends
 
-SIZES = {"1k": (1000, 1680, 1050), "100k": (100_000, 1680, 1050), "1M": (1_000_000, 1920, 1080)}
+# The issue's three sizes (the default), and between them for where curves cross
+ISSUE_SIZES = {"1k": (1000, 1680, 1050), "100k": (100_000, 1680, 1050), "1M": (1_000_000, 1920, 1080)}
+SIZES = {**ISSUE_SIZES, "3k": (3000, 1680, 1050), "10k": (10_000, 1680, 1050), "30k": (30_000, 1680, 1050),
+         "300k": (300_000, 1680, 1050)}
 
 
-def one(device: str, spheres: int, width: int, height: int, frames: int) -> dict:
+def one(device: str, spheres: int, width: int, height: int, frames: int, block, walk) -> dict:
     scene = raybench.random_spheres(spheres, seed=0)
     basis = (scene.camera or Camera()).basis(width, height)
-    tracer = backends.tracer(device, scene.spheres, width, height, accel="bvh")
+    options = {key: value for key, value in (("block", block), ("walk", walk)) if value} if device == "cuda" else {}
+    tracer = backends.tracer(device, scene.spheres, width, height, accel="bvh", **options)
     try:
         tracer.trace(basis)  # warm: compiled, uploaded
         times = []
@@ -33,7 +37,8 @@ def one(device: str, spheres: int, width: int, height: int, frames: int) -> dict
             kernel_ms = tracer.timed_trace(basis)
             times.append(kernel_ms if kernel_ms is not None else (time.perf_counter() - start) * 1e3)
         ms = statistics.median(times)
-        return {"device": device, "spheres": spheres, "width": width, "height": height, "frames": frames,
+        return {"device": device, "walk": getattr(tracer, "walk", None), "block": getattr(tracer, "block", None),
+                "spheres": spheres, "width": width, "height": height, "frames": frames,
                 "median_ms": round(ms, 4), "grays_per_s": round(width * height / ms / 1e6, 3),
                 "build_ms": round(tracer.build_s * 1e3, 1), "kernel_time": kernel_ms is not None,
                 "raybench": raybench.__file__}
@@ -46,13 +51,15 @@ def main() -> int:
     parser.add_argument("--device", action="append", choices=["cpu", "cuda", "wgpu"])
     parser.add_argument("--size", action="append", choices=sorted(SIZES))
     parser.add_argument("--frames", type=int, default=9)
+    parser.add_argument("--block", type=int, nargs=2, metavar=("X", "Y"), help="cuda's block shape (default: its own)")
+    parser.add_argument("--walk", choices=["ray", "packet"], help="cuda's BVH walk (default: chosen by the tree's size)")
     args = parser.parse_args()
     if args.frames < 1:
         parser.error(f"--frames: must be at least 1, got {args.frames}")
     try:
         for device in args.device or ["cuda"]:
-            for size in args.size or list(SIZES):
-                print(json.dumps(one(device, *SIZES[size], args.frames)), flush=True)
+            for size in args.size or list(ISSUE_SIZES):
+                print(json.dumps(one(device, *SIZES[size], args.frames, args.block, args.walk)), flush=True)
     except RaybenchError as error:
         print(f"bvh_walks: {error}", file=sys.stderr)
         return 2

@@ -67,14 +67,16 @@ def test_sphere_prefix_builds_its_own_tree(rng):
 
 
 @pytest.mark.skipif(not cuda_backend.available(), reason="no CUDA GPU and the simulator is off")
+@pytest.mark.parametrize("walk", cuda_backend.WALKS)
 @pytest.mark.parametrize("kind", ["generated", "inside", "one_point", "duplicates", "line", "none"])
-def test_cuda_bvh_equals_brute_force(rng, kind):
-    """The same walk compiled for CUDA: bit for bit under the simulator,
-    within rounding on a GPU (its compiler may fuse multiply-adds)."""
+def test_cuda_bvh_equals_brute_force(rng, kind, walk):
+    """The walks compiled for CUDA: bit for bit under the simulator, within
+    rounding on a GPU (its compiler may fuse multiply-adds). The frame is no
+    multiple of the block, so packets have rays off the image."""
     sim = cuda_backend.simulated()
     scene, camera = SCENES[kind](rng, int(rng.integers(1, 40 if sim else 5000)))
-    width, height = (16, 12) if sim else (640, 400)
-    gpu = raybench.render(scene, camera, width, height, device="cuda", block=(8, 4))
+    width, height = (19, 13) if sim else (643, 401)
+    gpu = raybench.render(scene, camera, width, height, device="cuda", block=(8, 4), walk=walk)
     cpu = brute(scene, camera, width, height)
     if sim:
         assert np.array_equal(gpu.hits, cpu.hits) and np.array_equal(gpu.image, cpu.image)
@@ -203,6 +205,34 @@ def test_parallel_build_is_a_valid_tree(rng):
 def test_bad_accel_options(options, match):
     with pytest.raises(raybench.RaybenchError, match=match):
         raybench.render(raybench.random_spheres(3), width=8, height=8, device="cpu", **options)
+
+
+def test_cuda_walk_is_chosen_by_the_tree_size():
+    """Packets once the tree outgrows a GPU's L1 (cuda.PACKET_TREE_BYTES), in
+    their own default block; a ray at a time below, in its own."""
+    if not cuda_backend.available():
+        pytest.skip("no CUDA GPU and the simulator is off")
+    small_rows = cuda_backend.PACKET_TREE_BYTES // bvh.NODE_BYTES
+    assert cuda_backend.choose_walk(small_rows) == "ray"
+    assert cuda_backend.choose_walk(small_rows + 1) == "packet"
+    for n, walk in ((50, "ray"), (30000, "packet")):
+        tracer = raybench.backends.tracer("cuda", raybench.random_spheres(n).spheres, 16, 8)
+        try:
+            assert (tracer.walk, tracer.block) == (walk, cuda_backend.DEFAULT_BLOCK[walk])
+            assert (tracer.bvh.node_count * bvh.NODE_BYTES > cuda_backend.PACKET_TREE_BYTES) == (walk == "packet")
+        finally:
+            tracer.close()
+
+
+@pytest.mark.parametrize("options,match", [
+    ({"walk": "sideways"}, "walk: must be one of ray, packet, got 'sideways'"),
+    ({"walk": "ray", "accel": "none"}, "walk: applies to the BVH walk only"),
+])
+def test_bad_walk_options(options, match):
+    if not cuda_backend.available():
+        pytest.skip("no CUDA GPU and the simulator is off")
+    with pytest.raises(raybench.RaybenchError, match=match):
+        raybench.render(raybench.random_spheres(3), width=8, height=8, device="cuda", **options)
 
 
 def test_cuda_brute_force_options_refused_with_bvh():

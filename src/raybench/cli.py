@@ -103,7 +103,7 @@ def main():
               help="where to trace: auto picks cuda when a usable NVIDIA GPU is present, else wgpu on a GPU, "
                    "else cpu")
 @click.option("--threads", type=int, help="cpu: number of threads (default: all cores)")
-@click.option("--block", help="cuda: thread block shape XxY (default 8x8 for the BVH and the fast kernel, 16x16 simple)")
+@click.option("--block", help="cuda: thread block shape XxY (default 8x8 for the fast kernel and the BVH walked a ray at a time, 8x4 for its packets on large trees, 16x16 simple)")
 @click.option("--workgroup", help="wgpu: workgroup shape XxY (default 16x16)")
 @click.option("--adapter", help="wgpu: the adapter whose name contains this (default: the best GPU; a CPU "
                                 "driver such as llvmpipe only when named)")
@@ -155,7 +155,7 @@ def _view_help() -> str:
               help="where to trace first (switch live with Tab): auto picks cuda when a usable NVIDIA GPU is "
                    "present, else wgpu on a GPU, else cpu")
 @click.option("--threads", type=int, help="cpu: number of threads (default: all cores)")
-@click.option("--block", help="cuda: thread block shape XxY (default 8x8, the BVH walk's)")
+@click.option("--block", help="cuda: thread block shape XxY (default 8x8 for the BVH walked a ray at a time, 8x4 for its packets on large trees)")
 @click.option("--workgroup", help="wgpu: workgroup shape XxY (default 16x16)")
 @click.option("--adapter", help="wgpu, and the window: the adapter whose name contains this (default: the best "
                                 "GPU; a CPU driver such as llvmpipe only when named)")

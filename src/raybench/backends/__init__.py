@@ -13,7 +13,7 @@ from ..errors import RaybenchError
 DEVICES = ("cpu", "cuda", "wgpu")
 CHOICES = ("auto",) + DEVICES
 OPTIONS = {"cpu": ("threads", "constant_count", "kernel", "accel"),
-           "cuda": ("block", "constant_count", "kernel", "rays", "tile", "trip", "accel"),
+           "cuda": ("block", "constant_count", "kernel", "rays", "tile", "trip", "accel", "walk"),
            "wgpu": ("workgroup", "adapter", "accel", "kernel")}
 
 
@@ -68,7 +68,7 @@ def present() -> list[str]:
 
 def tracer(device: str, spheres, width: int, height: int, **options):
     """A Tracer of the (resolved) device for this scene and size; options are
-    the device's own (cpu: threads; cuda: block, rays, tile; wgpu: workgroup,
+    the device's own (cpu: threads; cuda: block, rays, tile, trip, walk; wgpu: workgroup,
     adapter) and accel ("bvh", the default, or "none"), kernel and
     constant_count."""
     name = resolve(device, options.get("adapter") if device == "wgpu" else None)

@@ -1,6 +1,7 @@
 """CUDA backend: numba-cuda, in blocks of a chosen shape. With the BVH (accel
 "bvh", the default) one thread traces one pixel, walking the tree's nodes
-from global memory. Brute force (accel "none") has two kernels: the simple
+from global memory, either on its own or with the block's other rays as one
+packet (walk "ray" or "packet"; by default chosen by the tree's size). Brute force (accel "none") has two kernels: the simple
 one is the thesis's, one thread per pixel; the fast one gives each thread
 several pixels and stages the spheres through shared memory.
 
@@ -31,13 +32,37 @@ from .limits import (FAST_MAX_THREADS, HOST_PIXEL_BYTES, PIXEL_BYTES, check_acce
 # TRIP) and bvh on the H200, where 8x8 also makes a warp a compact 8x4 patch
 # of pixels whose rays cross much the same nodes (the tuning suite: 8x8
 # 0.407 ms, 16x16 0.452, 8x32 0.464 at 1,000 spheres).
-DEFAULT_BLOCK = {"simple": (16, 16), "fast": (8, 8), "bvh": (8, 8)}
+DEFAULT_BLOCK = {"simple": (16, 16), "fast": (8, 8), "ray": (8, 8), "packet": (8, 4)}
+# The BVH walks: a ray at a time (kernels.traverse, the CPU's code) or the
+# block's rays as one packet (_bvh_packet_kernel). Packets are faster once the
+# tree outgrows the L1 cache (an H100's or H200's is 256 KiB an SM): on the
+# H200 they crossed between 10,000 spheres (a 270 KiB tree) and 30,000 (810
+# KiB), and took 27% off at 1,000,000; at 1,000 (25 KiB) a ray at a time is
+# up to 15% faster (docs/performance.md).
+WALKS = ("ray", "packet")
+PACKET_TREE_BYTES = 256 * 1024
+
+
+def choose_walk(nodes: int) -> str:
+    """The walk for a tree of `nodes` rows, when the user did not choose."""
+    return "packet" if nodes * bvh_mod.NODE_BYTES > PACKET_TREE_BYTES else "ray"
+
+
+def check_walk(walk, accel: str) -> str | None:
+    if walk is None:
+        return None
+    if accel != "bvh":
+        raise RaybenchError("walk: applies to the BVH walk only (accel='bvh'), not to brute force")
+    if walk not in WALKS:
+        raise RaybenchError(f"walk: must be one of {', '.join(WALKS)}, got {walk!r}")
+    return walk
 
 _k = kernels.build(cuda.jit(device=True))
 # module globals, which is how kernels can see them
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
 _prepare_one, _may_hit, _along, _intersect_relative = _k.prepare, _k.may_hit, _k.along, _k.intersect_relative
 _render_pixel_bvh = _k.render_pixel_bvh
+_axis_setup, _slab, _leaf_hits = _k.axis_setup, _k.slab, _k.leaf_hits
 
 # Fast kernel defaults: each thread traces RAYS pixels, one above the other a
 # block height apart, so every sphere read from shared memory serves RAYS
@@ -75,6 +100,84 @@ def _bvh_kernel(width, height, basis, nodes, links, ordered, order, spheres, ima
         stack_t = cuda.local.array(_STACK, np.float32)
         _render_pixel_bvh(x, y, width, height, basis, nodes, links, ordered, order, spheres, image, hits,
                           stack_row, stack_t)
+
+
+_PAD = bvh_mod.PAD
+_INNER = bvh_mod.INNER
+# A pushed node this thread's ray does not enter: no closest hit is beyond it.
+_MISS = np.float32(np.inf)
+
+
+@cuda.jit
+def _bvh_packet_kernel(width, height, basis, nodes, links, ordered, order, spheres, image, hits):
+    """The BVH walk with the block's rays as one packet, as the CPU walks its
+    packets: the packet visits a node if any of its rays enters it, and each
+    ray tests only the leaves it enters itself, so the node, the stack's rows
+    and every branch are the same in all the block's threads: one node fetch
+    serves them all, and they never diverge. The votes are the block's
+    barriers (syncthreads_or / _count), which the CUDA simulator has too,
+    so the tests run this very code; in a one-warp block (8x4, the default)
+    they cost what warp votes do (measured, docs/performance.md). Every
+    thread takes part in every vote: those off the image trace a copy of its
+    last row or column, unstored. Same pixels as the ray-at-a-time walk:
+    a ray's hit is in a box it enters, and the packet enters every box one
+    of its rays does (or, off the stack, one it entered nearer than its
+    closest hit)."""
+    x, y = cuda.grid(2)
+    dx, dy, dz = _primary_ray(min(x, width - 1), min(y, height - 1), width, height, basis)
+    ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
+    margin = (abs(ox) + abs(oy) + abs(oz)) * _PAD
+    ix, lx, hx = _axis_setup(ox, dx, margin)
+    iy, ly, hy = _axis_setup(oy, dy, margin)
+    iz, lz, hz = _axis_setup(oz, dz, margin)
+    stack_row = cuda.local.array(_STACK, np.int32)   # the same in every thread
+    stack_t = cuda.local.array(_STACK, np.float32)   # where this thread's ray enters the node
+    closest = FAR
+    hit = -1
+    hit_d = ZERO
+    row = 0
+    top = _U(0)
+    while row >= 0:
+        node = _U(row)
+        a_near, a_far = _slab(nodes, node, _U(0), ix, iy, iz, lx, ly, lz, hx, hy, hz)
+        b_near, b_far = _slab(nodes, node, _U(6), ix, iy, iz, lx, ly, lz, hx, hy, hz)
+        a_ref, b_ref = links[node, _U(12)], links[node, _U(13)]
+        a_count, b_count = links[node, _U(14)], links[node, _U(15)]
+        a_in = a_near <= a_far and a_far > ZERO and a_near <= closest
+        b_in = b_near <= b_far and b_far > ZERO and b_near <= closest
+        # first the child that more of the rays enter first (the barriers
+        # take int32 predicates on a GPU)
+        b_first = cuda.syncthreads_count(np.int32(b_in and (not a_in or b_near < a_near))) > \
+            cuda.syncthreads_count(np.int32(a_in and (not b_in or a_near <= b_near)))
+        any_a = cuda.syncthreads_or(np.int32(a_in)) != 0
+        any_b = cuda.syncthreads_or(np.int32(b_in)) != 0
+        if b_first:
+            a_near, a_ref, a_count, a_in, any_a, b_near, b_ref, b_count, b_in, any_b = \
+                b_near, b_ref, b_count, b_in, any_b, a_near, a_ref, a_count, a_in, any_a
+        row = -1
+        if any_a:
+            if a_count == _INNER:
+                row = a_ref
+            elif a_in:
+                closest, hit, hit_d = _leaf_hits(ox, oy, oz, dx, dy, dz, ordered, order, a_ref, a_count,
+                                                 closest, hit, hit_d)
+        if any_b:
+            if b_count != _INNER:
+                if b_in and b_near <= closest:
+                    closest, hit, hit_d = _leaf_hits(ox, oy, oz, dx, dy, dz, ordered, order, b_ref, b_count,
+                                                     closest, hit, hit_d)
+            elif row < 0:
+                row = b_ref
+            else:
+                stack_row[top] = b_ref
+                stack_t[top] = b_near if b_in else _MISS
+                top += _U(1)
+        while row < 0 and top > _U(0):
+            top -= _U(1)
+            if cuda.syncthreads_or(np.int32(stack_t[top] <= closest)) != 0:
+                row = stack_row[top]
+    if x < width and y < height:
+        _store_pixel(x, y, hit, hit_d, spheres, image, hits)
 
 
 @cuda.jit
@@ -241,7 +344,7 @@ def _check_block(block, kernel: str) -> tuple[int, int]:
     if kernel == "fast" and bx * by > FAST_MAX_THREADS:
         raise RaybenchError(f"block: the fast kernel takes at most {FAST_MAX_THREADS} threads per block (its rays "
                             f"need the registers), got {bx}x{by}; use a smaller block or --kernel simple")
-    if kernel == "bvh" and bx * by > FAST_MAX_THREADS:
+    if kernel in WALKS and bx * by > FAST_MAX_THREADS:
         raise RaybenchError(f"block: the BVH walk takes at most {FAST_MAX_THREADS} threads per block (its stack and "
                             f"ray need the registers), got {bx}x{by}; use a smaller block")
     return bx, by
@@ -260,7 +363,8 @@ class Tracer:
 
     def __init__(self, spheres: np.ndarray, width: int, height: int, block=None,
                  constant_count: bool = False, kernel: str | None = None, rays: int | None = None,
-                 tile: int | None = None, trip: int | None = None, accel: str | None = None):
+                 tile: int | None = None, trip: int | None = None, accel: str | None = None,
+                 walk: str | None = None):
         require()
         self.accel, kernel = check_accel(accel, kernel, {"constant_count": constant_count, "rays": rays is not None,
                                                          "tile": tile is not None, "trip": trip is not None})
@@ -268,11 +372,14 @@ class Tracer:
         tile = TILE if tile is None else tile
         trip = TRIP if trip is None else trip
         self.kernel = check_kernel(kernel, constant_count) if self.accel == "none" else None
-        block = DEFAULT_BLOCK[self.kernel or "bvh"] if block is None else block
+        walk = check_walk(walk, self.accel)
+        block_given = block is not None
+        if not block_given:  # for an auto walk, replaced below once the tree has chosen it
+            block = DEFAULT_BLOCK[self.kernel or walk or "ray"]
         self.rays = _check_int("rays", rays, 1, MAX_RAYS) if self.kernel == "fast" else 1
         self.tile = _check_int("tile", tile, 1, MAX_TILE)
         self.trip = _check_int("trip", trip, 1, MAX_TRIP)
-        self.block = _check_block(block, self.kernel or "bvh")
+        self.block = _check_block(block, self.kernel or walk or "ray")
         free, _total = cuda.current_context().get_memory_info()
         check_fits("cuda GPU", width, height, spheres.shape[1], free)
         check_fits("host", width, height, 0, host_available_bytes(), HOST_PIXEL_BYTES)
@@ -296,9 +403,14 @@ class Tracer:
         self.constant_count = bool(constant_count)
         self.bvh = None
         self.build_s = None
+        self.walk = None
         if self.accel == "bvh":
-            self._kernel = _bvh_kernel
             self._build(self.count)
+            self.walk = choose_walk(self.bvh.node_count) if walk is None else walk
+            self._kernel = _bvh_packet_kernel if self.walk == "packet" else _bvh_kernel
+            if not block_given:
+                self.block = DEFAULT_BLOCK[self.walk]
+                self.grid = (math.ceil(width / self.block[0]), math.ceil(height / self.block[1]))
         elif self.kernel == "fast":
             self._kernel = fast_kernel(self.rays, self.tile, self.trip)
             self.d_relative = cuda.device_array((4, max(self.count, 1)), dtype=np.float32)

@@ -127,4 +127,4 @@ def build(jit, intersect_sphere):
                     row = stack_row[top]
         return hit, hit_d
 
-    return nearest_hit_bvh, inverse
+    return nearest_hit_bvh, inverse, axis_setup, slab, leaf_hits
