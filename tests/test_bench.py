@@ -246,3 +246,17 @@ def test_scaling_cap_skips_and_records(tmp_path, monkeypatch, rng):
     first_skip = next(r for r in recs if "skipped" in r)
     assert first_skip["predicted_ms"] > cap_ms and "cap" in first_skip["skipped"]
     assert all("skipped" in r for r in recs[recs.index(first_skip):])
+
+
+def test_cuda_bvh_records_its_walk():
+    """Which BVH walk cuda chose for the tree is in the record (under the simulator here)."""
+    from raybench.backends import cuda as cuda_backend
+
+    if not cuda_backend.available():
+        pytest.skip("no CUDA GPU and the simulator is off")
+    point = suites.Point("scaling", "cuda", 16, 8, 20, {"accel": "bvh", "label": "bvh"})
+    record = runner.measure(point, runner.Scenes(0), 0.01)
+    assert record["walk"] == "ray" and record["build_s"] >= 0
+    cpu = runner.measure(suites.Point("scaling", "cpu", 16, 8, 20, {"accel": "bvh", "label": "bvh"}),
+                         runner.Scenes(0), 0.01)
+    assert "walk" not in cpu

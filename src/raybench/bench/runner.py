@@ -70,6 +70,7 @@ def measure(point: Point, scenes: Scenes, duration: float) -> dict:
     tracer = backends.tracer(point.device, scene.spheres, point.width, point.height, **tracer_options(point))
     try:
         build_s = getattr(tracer, "build_s", None)
+        walk = getattr(tracer, "walk", None)  # cuda's BVH walk: "ray" or "packet", chosen by the tree
         # wgpu: which adapter ran it (a GPU, or a CPU driver such as lavapipe), and how it was timed
         described = tracer.describe() if hasattr(tracer, "describe") else None
         compile_s = tracer.compile()
@@ -99,6 +100,8 @@ def measure(point: Point, scenes: Scenes, duration: float) -> dict:
     bvh = point.options.get("accel") == "bvh"
     if described is not None:
         record["adapter"] = described
+    if walk is not None:
+        record["walk"] = walk
     if point.ramp:
         record["series"] = {"spheres": list(point.ramp[1:]), "frame_ms": frame_ms,
                             "kernel_ms": kernel_ms or None}
