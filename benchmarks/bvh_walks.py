@@ -52,7 +52,7 @@ def main() -> int:
     parser.add_argument("--size", action="append", choices=sorted(SIZES))
     parser.add_argument("--frames", type=int, default=9)
     parser.add_argument("--block", type=int, nargs=2, metavar=("X", "Y"), help="cuda's block shape (default: its own)")
-    parser.add_argument("--walk", choices=["ray", "packet"], help="cuda's BVH walk (default: chosen by the tree's size)")
+    parser.add_argument("--walk", help="cuda's BVH walk (default: chosen by the tree's size)")
     args = parser.parse_args()
     if args.frames < 1:
         parser.error(f"--frames: must be at least 1, got {args.frames}")
