@@ -108,16 +108,28 @@ _INNER = bvh_mod.INNER
 _MISS = np.float32(np.inf)
 
 
+@cuda.jit(device=True)
+def _centre(nodes, node, col, ox, oy, oz, cdx, cdy, cdz):
+    """How far along the direction (cdx, cdy, cdz) the centre of the child box
+    at column col lies from the origin."""
+    half = np.float32(0.5)
+    return ((half * (nodes[node, col] + nodes[node, col + _U(3)]) - ox) * cdx
+            + (half * (nodes[node, col + _U(1)] + nodes[node, col + _U(4)]) - oy) * cdy
+            + (half * (nodes[node, col + _U(2)] + nodes[node, col + _U(5)]) - oz) * cdz)
+
+
 @cuda.jit
 def _bvh_packet_kernel(width, height, basis, nodes, links, ordered, order, spheres, image, hits):
     """The BVH walk with the block's rays as one packet, as the CPU walks its
     packets: the packet visits a node if any of its rays enters it, and each
     ray tests only the leaves it enters itself, so the node, the stack's rows
     and every branch are the same in all the block's threads: one node fetch
-    serves them all, and they never diverge. The votes are the block's
-    barriers (syncthreads_or / _count), which the CUDA simulator has too,
-    so the tests run this very code; in a one-warp block (8x4, the default)
-    they cost what warp votes do (measured, docs/performance.md). Every
+    serves them all, and they never diverge. The children are taken in the
+    order of their centres along the block's central ray (12% faster than
+    voting on the order, docs/performance.md). The votes are the block's
+    barriers (syncthreads_or), which the CUDA simulator has too, so the
+    tests run this very code; in a one-warp block (8x4, the default) they
+    cost what warp votes do (measured). Every
     thread takes part in every vote: those off the image trace a copy of its
     last row or column, unstored. Same pixels as the ray-at-a-time walk:
     a ray's hit is in a box it enters, and the packet enters every box one
@@ -125,6 +137,9 @@ def _bvh_packet_kernel(width, height, basis, nodes, links, ordered, order, spher
     closest hit)."""
     x, y = cuda.grid(2)
     dx, dy, dz = _primary_ray(min(x, width - 1), min(y, height - 1), width, height, basis)
+    cdx, cdy, cdz = _primary_ray(min(cuda.blockIdx.x * cuda.blockDim.x + cuda.blockDim.x // 2, width - 1),
+                                 min(cuda.blockIdx.y * cuda.blockDim.y + cuda.blockDim.y // 2, height - 1),
+                                 width, height, basis)
     ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
     margin = (abs(ox) + abs(oy) + abs(oz)) * _PAD
     ix, lx, hx = _axis_setup(ox, dx, margin)
@@ -145,10 +160,14 @@ def _bvh_packet_kernel(width, height, basis, nodes, links, ordered, order, spher
         a_count, b_count = links[node, _U(14)], links[node, _U(15)]
         a_in = a_near <= a_far and a_far > ZERO and a_near <= closest
         b_in = b_near <= b_far and b_far > ZERO and b_near <= closest
-        # first the child that more of the rays enter first (the barriers
-        # take int32 predicates on a GPU)
-        b_first = cuda.syncthreads_count(np.int32(b_in and (not a_in or b_near < a_near))) > \
-            cuda.syncthreads_count(np.int32(a_in and (not b_in or a_near <= b_near)))
+        # first the child whose box centre lies nearer along the block's
+        # central ray: an order the same in every thread without a vote (an
+        # empty child, the root's when there are under two spheres, has no
+        # centre and no order). The barriers take int32 predicates on a GPU.
+        b_first = False
+        if a_count != 0 and b_count != 0:
+            b_first = _centre(nodes, node, _U(6), ox, oy, oz, cdx, cdy, cdz) < \
+                _centre(nodes, node, _U(0), ox, oy, oz, cdx, cdy, cdz)
         any_a = cuda.syncthreads_or(np.int32(a_in)) != 0
         any_b = cuda.syncthreads_or(np.int32(b_in)) != 0
         if b_first:
