@@ -16,7 +16,7 @@ Layout, shared by every backend (they get the same arrays):
          view of the same memory): the children's refs and counts.
            count == INNER: ref is the child node's row;
            count >= 0:     a leaf of `count` spheres from `ref` in `ordered`
-                           (0: an empty child, whose box is inverted and never hit).
+                           (0: an empty child, whose box is inverted: lo EMPTY, hi -EMPTY).
   ordered (4, N) float32: centre and radius of the spheres in leaf order,
          the very float32 values of the scene, so the exact test's arithmetic
          is the brute-force path's.
@@ -73,6 +73,11 @@ DEVICE_SPHERE_BYTES = NODE_BYTES + 4 * 4 + 4
 # 128 float32 epsilons: many times the few epsilons by which the exact test's
 # float32 hit point can stray from the true sphere (|EO| and r scale them).
 PAD = np.float32(2.0 ** -16)
+# The planes of an empty child's inverted box (only a root of under two
+# spheres has one): far beyond any scene (coordinates stay under 1e15), and
+# finite even divided by a direction component of TINY (kernels.traverse),
+# so no walk's arithmetic on it overflows or meets inf - inf.
+EMPTY = np.float32(1e18)
 MAX_SPHERES = 2 ** 31 - 1
 
 
@@ -298,12 +303,11 @@ def _root(px, py, pz, pr, idx, nodes, links, stack):
     number; pushes their tasks (parent row, slot, start, end, parent's depth)
     on stack and returns the stack's height."""
     n = px.shape[0]
-    inf = np.float32(np.inf)
     box = np.empty(6, np.float32)
     cbox = np.empty(6, np.float32)
-    nodes[0, :12] = inf
+    nodes[0, :12] = EMPTY
     for slot in range(2):
-        nodes[0, 6 * slot + 3: 6 * slot + 6] = -inf
+        nodes[0, 6 * slot + 3: 6 * slot + 6] = -EMPTY
         links[0, 12 + slot] = 0
         links[0, 14 + slot] = 0
     if n == 0:
@@ -370,9 +374,9 @@ def _grow(px, py, pz, pr, idx, nodes, links, stack, top, used, cutoff, deferred)
         depth = max(depth, d + 1)
         links[parent, 12 + slot] = row
         links[parent, 14 + slot] = INNER
-        nodes[row, :12] = inf
-        nodes[row, 3:6] = -inf
-        nodes[row, 9:12] = -inf
+        nodes[row, :12] = EMPTY
+        nodes[row, 3:6] = -EMPTY
+        nodes[row, 9:12] = -EMPTY
         top = _push(stack, top, row, 1, m, e, d + 1)
         top = _push(stack, top, row, 0, s, m, d + 1)
     return used, depth, waiting

@@ -56,8 +56,8 @@ def build(jit, intersect_sphere):
         choosing the column by the ray's direction cost an address
         computation per read (docs/performance.md). The values are the same:
         float subtraction and multiplication keep the planes' order.
-        An empty child's inverted box (lo +inf, hi -inf) comes out as
-        (-inf, +inf): visited as the leaf of no spheres that it is."""
+        An empty child's inverted box (lo bvh.EMPTY, hi -EMPTY) comes out as
+        a slab around every ray: visited as the leaf of no spheres that it is."""
         a0 = (nodes[row, col] - lx) * ix
         a1 = (nodes[row, col + _U(1)] - ly) * iy
         a2 = (nodes[row, col + _U(2)] - lz) * iz
