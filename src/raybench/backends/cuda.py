@@ -34,11 +34,11 @@ from .limits import (FAST_MAX_THREADS, HOST_PIXEL_BYTES, PIXEL_BYTES, check_acce
 # 0.407 ms, 16x16 0.452, 8x32 0.464 at 1,000 spheres).
 DEFAULT_BLOCK = {"simple": (16, 16), "fast": (8, 8), "ray": (8, 8), "packet": (8, 4)}
 # The BVH walks: a ray at a time (kernels.traverse, the CPU's code) or the
-# block's rays as one packet (_bvh_packet_kernel). Packets are faster once the
-# tree outgrows the L1 cache (an H100's or H200's is 256 KiB an SM): on the
-# H200 they crossed between 10,000 spheres (a 264 KiB tree) and 30,000 (795
-# KiB), and took 27% off at 1,000,000; at 1,000 (25 KiB) a ray at a time is
-# 5-25% faster (docs/performance.md).
+# block's rays as one packet (_bvh_packet_kernel). Packets pay once the tree
+# outgrows the L1 cache (an H100's or H200's is 256 KiB an SM): on the H200
+# the first packets (children ordered by vote) crossed a ray at a time
+# between 10,000 spheres (a 264 KiB tree) and 30,000 (795 KiB); today's take
+# 37% off at 1,000,000 and tie at 1,000 (25 KiB) (docs/performance.md).
 WALKS = ("ray", "packet")
 PACKET_TREE_BYTES = 256 * 1024
 
