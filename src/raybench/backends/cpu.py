@@ -193,14 +193,23 @@ _fast_band = _wide_band if _has_avx512() else _pairs_band
 # pixels, two AVX-512 or four AVX2 registers of float32 per ray component
 # (of 4x4, 8x4 and 8x8, the fastest on a 2-core EPYC, docs/performance.md).
 PACKET_W, PACKET_H = 8, 4
-PACKET = PACKET_W * PACKET_H  # a multiple of 8 (_lowest)
+PACKET = PACKET_W * PACKET_H
+_MIDDLE = (PACKET_H // 2) * PACKET_W + PACKET_W // 2
 
 
 @numba.njit(inline="always", error_model="numpy")
-def _packet_box(nodes, row, col, ox, oy, oz, margin, ix, iy, iz, closest, near_out):
+def _centre(nodes, row, col, ox, oy, oz, cdx, cdy, cdz):
+    """How far along (cdx, cdy, cdz) the centre of the child box at column col lies."""
+    half = np.float32(0.5)
+    return ((half * (nodes[row, col] + nodes[row, col + 3]) - ox) * cdx
+            + (half * (nodes[row, col + 1] + nodes[row, col + 4]) - oy) * cdy
+            + (half * (nodes[row, col + 2] + nodes[row, col + 5]) - oz) * cdz)
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _packet_box(nodes, row, col, ox, oy, oz, margin, ix, iy, iz, closest):
     """Whether any ray of the packet enters the child box (grown by margin,
-    as in kernels.traverse) nearer than its closest hit so far; near_out[k]
-    is where ray k enters it, FAR if it does not. The rays share their
+    as in kernels.traverse) nearer than its closest hit so far. The rays share their
     origin, so the planes' offsets from it are computed once for all; the
     loop over rays has no branch and no float reduction, so LLVM makes it
     SIMD (without fastmath it vectorises neither)."""
@@ -217,40 +226,8 @@ def _packet_box(nodes, row, col, ox, oy, oz, margin, ix, iy, iz, closest, near_o
         t5, t6 = lz * iz[k], hz * iz[k]
         near = max(min(t1, t2), max(min(t3, t4), min(t5, t6)))
         far = min(max(t1, t2), min(max(t3, t4), max(t5, t6)))
-        ok = (near <= far) & (far > ZERO) & (near <= closest[k])
-        near_out[k] = near if ok else FAR
-        entered |= ok
+        entered |= (near <= far) & (far > ZERO) & (near <= closest[k])
     return entered
-
-
-@numba.njit(inline="always", error_model="numpy")
-def _lowest(values, fold):
-    """The smallest of the packet's values: first lane-wise over groups of
-    8 (SIMD; LLVM will not vectorise a float reduction without fastmath),
-    then over the 8 that are left."""
-    for j in range(8):
-        low = values[j]
-        for g in range(8, PACKET, 8):
-            low = min(low, values[g + j])
-        fold[j] = low
-    low = fold[0]
-    for j in range(1, 8):
-        low = min(low, fold[j])
-    return low
-
-
-@numba.njit(inline="always", error_model="numpy")
-def _highest(values, fold):
-    """The largest of the packet's values, as _lowest."""
-    for j in range(8):
-        high = values[j]
-        for g in range(8, PACKET, 8):
-            high = max(high, values[g + j])
-        fold[j] = high
-    high = fold[0]
-    for j in range(1, 8):
-        high = max(high, fold[j])
-    return high
 
 
 @numba.njit(inline="always", error_model="numpy")
@@ -276,10 +253,6 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
     LLVM turns into SIMD). Each ray still gets the nearest sphere of all it
     could hit, ties to the smaller index: the pixels of kernels.traverse's walk, one ray at a time."""
     stack_row = np.empty(bvh_mod.STACK, np.int32)
-    stack_t = np.empty(bvh_mod.STACK, np.float32)
-    near_a = np.empty(PACKET, np.float32)
-    near_b = np.empty(PACKET, np.float32)
-    fold = np.empty(8, np.float32)
     dx = np.empty(PACKET, np.float32)
     dy = np.empty(PACKET, np.float32)
     dz = np.empty(PACKET, np.float32)
@@ -307,20 +280,18 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
                 closest[k] = FAR
                 hit[k] = -1
                 hit_d[k] = ZERO
+            cdx, cdy, cdz = dx[_MIDDLE], dy[_MIDDLE], dz[_MIDDLE]
             row = 0
             top = 0
             while row >= 0:
-                a_in = _packet_box(nodes, row, 0, ox, oy, oz, margin, ix, iy, iz, closest, near_a)
-                b_in = _packet_box(nodes, row, 6, ox, oy, oz, margin, ix, iy, iz, closest, near_b)
+                a_in = _packet_box(nodes, row, 0, ox, oy, oz, margin, ix, iy, iz, closest)
+                b_in = _packet_box(nodes, row, 6, ox, oy, oz, margin, ix, iy, iz, closest)
                 a_ref, b_ref, a_count, b_count = links[row, 12], links[row, 13], links[row, 14], links[row, 15]
-                a_near = b_near = FAR
-                if a_in and b_in:
-                    # the nearest entry of any ray: orders the children, and
-                    # rules a pushed one out once every ray has a nearer hit
-                    a_near, b_near = _lowest(near_a, fold), _lowest(near_b, fold)
-                if b_in and (not a_in or b_near < a_near):  # near child first
-                    a_in, a_near, a_ref, a_count, b_in, b_near, b_ref, b_count = \
-                        b_in, b_near, b_ref, b_count, a_in, a_near, a_ref, a_count
+                # near child first: the one whose box centre lies nearer along
+                # the packet's middle ray
+                if b_in and (not a_in or _centre(nodes, row, 6, ox, oy, oz, cdx, cdy, cdz)
+                             < _centre(nodes, row, 0, ox, oy, oz, cdx, cdy, cdz)):
+                    a_in, a_ref, a_count, b_in, b_ref, b_count = b_in, b_ref, b_count, a_in, a_ref, a_count
                 row = -1
                 if a_in:
                     if a_count == bvh_mod.INNER:
@@ -334,14 +305,10 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
                         row = b_ref
                     else:
                         stack_row[top] = b_ref
-                        stack_t[top] = b_near
                         top += 1
                 if row < 0 and top > 0:
-                    farthest = _highest(closest, fold)
-                    while row < 0 and top > 0:
-                        top -= 1
-                        if stack_t[top] <= farthest:
-                            row = stack_row[top]
+                    top -= 1
+                    row = stack_row[top]
             for k in range(PACKET):
                 x = x0 + k % PACKET_W
                 y = y0 + k // PACKET_W
