@@ -33,10 +33,11 @@ def test_cpu_bvh_equals_brute_force(rng, kind):
         assert (want.hits >= 0).any()
 
 
-@pytest.mark.parametrize("size", [(1, 1), (1, 5), (9, 3), (33, 7), (17, 70)])
+@pytest.mark.parametrize("size", [(1, 1), (1, 5), (9, 3), (33, 7), (17, 70), (47, 21)])
 def test_cpu_packets_at_the_edges(rng, size):
-    """The CPU walks 8x4 packets of rays: images and chunks of rows that are
-    no whole number of packets, and more threads than rows."""
+    """The CPU walks packets of cpu.PACKET_W x PACKET_H rays: images and
+    chunks of rows that are no whole number of packets, and more threads
+    than rows."""
     scene, camera = KINDS["generated"](rng, int(rng.integers(50, 300)))
     want = brute(scene, camera, *size)
     got = raybench.render(scene, camera, *size, device="cpu", threads=int(rng.integers(1, 9)))
