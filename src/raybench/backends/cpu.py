@@ -6,9 +6,9 @@ thread: the thesis's own scheme ("divided up into eight threads, which each
 process an equal amount of pixels"), any thread count from 1 to one per row.
 Its two kernels: "simple", the thesis's loop a pixel at a time, and "fast",
 which runs a SIMD cull test over groups of spheres before the exact test
-(same pixels). With the BVH (accel "bvh", the default) the rays of a 16x8 tile of
-pixels walk the tree together (_bvh_packets), so each node's boxes are
-tested against all of them with SIMD; a pixel's cost follows how many nodes
+(same pixels). With the BVH (accel "bvh", the default) the rays of a 16x8
+tile of pixels walk the tree together (_bvh_packets), so each node's boxes
+are tested against all of them with SIMD; a pixel's cost follows how many nodes
 its ray crosses, which varies across the picture, so equal bands would
 leave threads idle: the threads instead pull small chunks of rows from a
 shared iterator until none are left.
@@ -48,8 +48,8 @@ _prepare_one, _may_hit, _intersect_relative = _k.prepare, _k.may_hit, _k.interse
 # quotient, and LLVM can make the loops over a packet's rays SIMD, which the
 # check's branch prevents (vdivps, vsqrtps in the assembly).
 _kb = kernels.build(numba.njit(inline="always", error_model="numpy"))
-_primary_ray_v, _store_pixel_v, _intersect_relative_v, _inverse = \
-    _kb.primary_ray, _kb.store_pixel, _kb.intersect_relative, _kb.inverse
+_primary_ray_v, _store_pixel_v, _intersect_relative_v, _inverse, _centre = \
+    _kb.primary_ray, _kb.store_pixel, _kb.intersect_relative, _kb.inverse, _kb.centre_along
 
 # The cull loops index the spheres with unsigned integers: a signed index
 # carries Python's negative-index wraparound, a select per lane that LLVM
@@ -201,21 +201,12 @@ _MIDDLE = (PACKET_H // 2) * PACKET_W + PACKET_W // 2
 
 
 @numba.njit(inline="always", error_model="numpy")
-def _centre(nodes, row, col, ox, oy, oz, cdx, cdy, cdz):
-    """How far along (cdx, cdy, cdz) the centre of the child box at column col lies."""
-    half = np.float32(0.5)
-    return ((half * (nodes[row, col] + nodes[row, col + 3]) - ox) * cdx
-            + (half * (nodes[row, col + 1] + nodes[row, col + 4]) - oy) * cdy
-            + (half * (nodes[row, col + 2] + nodes[row, col + 5]) - oz) * cdz)
-
-
-@numba.njit(inline="always", error_model="numpy")
 def _packet_box(nodes, row, col, ox, oy, oz, margin, ix, iy, iz, closest):
     """Whether any ray of the packet enters the child box (grown by margin,
-    as in kernels.traverse) nearer than its closest hit so far. The rays share their
-    origin, so the planes' offsets from it are computed once for all; the
-    loop over rays has no branch and no float reduction, so LLVM makes it
-    SIMD (without fastmath it vectorises neither)."""
+    as in kernels.traverse) nearer than its closest hit so far. The rays
+    share their origin, so the planes' offsets from it are computed once for
+    all; the loop over rays has no branch and no float reduction, so LLVM
+    makes it SIMD (without fastmath it vectorises neither)."""
     lx = nodes[row, col] - margin - ox
     ly = nodes[row, col + 1] - margin - oy
     lz = nodes[row, col + 2] - margin - oz
@@ -292,8 +283,8 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
                 a_ref, b_ref, a_count, b_count = links[row, 12], links[row, 13], links[row, 14], links[row, 15]
                 # near child first: the one whose box centre lies nearer along
                 # the packet's middle ray
-                if b_in and (not a_in or _centre(nodes, row, 6, ox, oy, oz, cdx, cdy, cdz)
-                             < _centre(nodes, row, 0, ox, oy, oz, cdx, cdy, cdz)):
+                if b_in and (not a_in or _centre(nodes, row, _U(6), ox, oy, oz, cdx, cdy, cdz)
+                             < _centre(nodes, row, _U(0), ox, oy, oz, cdx, cdy, cdz)):
                     a_in, a_ref, a_count, b_in, b_ref, b_count = b_in, b_ref, b_count, a_in, a_ref, a_count
                 row = -1
                 if a_in:

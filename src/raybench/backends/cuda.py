@@ -1,9 +1,10 @@
 """CUDA backend: numba-cuda, in blocks of a chosen shape. With the BVH (accel
 "bvh", the default) one thread traces one pixel, walking the tree's nodes
 from global memory, either on its own or with the block's other rays as one
-packet (walk "ray" or "packet"; by default chosen by the tree's size). Brute force (accel "none") has two kernels: the simple
-one is the thesis's, one thread per pixel; the fast one gives each thread
-several pixels and stages the spheres through shared memory.
+packet (walk "ray" or "packet"; by default chosen by the tree's size). Brute
+force (accel "none") has two kernels: the simple one is the thesis's, one
+thread per pixel; the fast one gives each thread several pixels and stages
+the spheres through shared memory.
 
 The per-pixel functions are the same Python source the CPU runs (raybench.kernels),
 compiled as CUDA device functions. Under NUMBA_ENABLE_CUDASIM=1 it runs in
@@ -29,9 +30,11 @@ from .limits import (FAST_MAX_THREADS, HOST_PIXEL_BYTES, PIXEL_BYTES, check_acce
                      check_fits, check_kernel, host_available_bytes)
 
 # The fastest measured (docs/performance.md): simple on an H100; fast (with
-# TRIP) and bvh on the H200, where 8x8 also makes a warp a compact 8x4 patch
-# of pixels whose rays cross much the same nodes (the tuning suite: 8x8
-# 0.407 ms, 16x16 0.452, 8x32 0.464 at 1,000 spheres).
+# TRIP) and the BVH walked a ray at a time on the H200, where 8x8 also makes
+# a warp a compact 8x4 patch of pixels whose rays cross much the same nodes
+# (the tuning suite: 8x8 0.407 ms, 16x16 0.452, 8x32 0.464 at 1,000
+# spheres); the BVH's packets in 8x4 blocks, one warp (8x8: 6.20 ms against
+# 5.82 at 1,000,000 spheres).
 DEFAULT_BLOCK = {"simple": (16, 16), "fast": (8, 8), "ray": (8, 8), "packet": (8, 4)}
 # The BVH walks: a ray at a time (kernels.traverse, the CPU's code) or the
 # block's rays as one packet (_bvh_packet_kernel). Packets pay once the tree
@@ -62,7 +65,7 @@ _k = kernels.build(cuda.jit(device=True))
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
 _prepare_one, _may_hit, _along, _intersect_relative = _k.prepare, _k.may_hit, _k.along, _k.intersect_relative
 _render_pixel_bvh = _k.render_pixel_bvh
-_axis_setup, _slab, _leaf_hits = _k.axis_setup, _k.slab, _k.leaf_hits
+_axis_setup, _slab, _leaf_hits, _centre = _k.axis_setup, _k.slab, _k.leaf_hits, _k.centre_along
 
 # Fast kernel defaults: each thread traces RAYS pixels, one above the other a
 # block height apart, so every sphere read from shared memory serves RAYS
@@ -104,19 +107,9 @@ def _bvh_kernel(width, height, basis, nodes, links, ordered, order, spheres, ima
 
 _PAD = bvh_mod.PAD
 _INNER = bvh_mod.INNER
-# A pushed node this thread's ray does not enter: no closest hit is beyond it.
+# What a thread pushes as the entry distance of a child its ray does not
+# enter: beyond any closest hit, so it never votes to visit that child.
 _MISS = np.float32(np.inf)
-
-
-@cuda.jit(device=True)
-def _centre(nodes, node, col, ox, oy, oz, cdx, cdy, cdz):
-    """How far along the direction (cdx, cdy, cdz) the centre of the child box
-    at column col lies from the origin (0 for an empty child's inverted box,
-    lo bvh.EMPTY and hi -EMPTY)."""
-    half = np.float32(0.5)
-    return ((half * (nodes[node, col] + nodes[node, col + _U(3)]) - ox) * cdx
-            + (half * (nodes[node, col + _U(1)] + nodes[node, col + _U(4)]) - oy) * cdy
-            + (half * (nodes[node, col + _U(2)] + nodes[node, col + _U(5)]) - oz) * cdz)
 
 
 @cuda.jit
@@ -130,9 +123,9 @@ def _bvh_packet_kernel(width, height, basis, nodes, links, ordered, order, spher
     voting on the order, docs/performance.md). The votes are the block's
     barriers (syncthreads_or), which the CUDA simulator has too, so the
     tests run this very code; in a one-warp block (8x4, the default) they
-    cost what warp votes do (measured). Every
-    thread takes part in every vote: those off the image trace a copy of its
-    last row or column, unstored. Same pixels as the ray-at-a-time walk:
+    cost what warp votes do (measured). Every thread takes part in every
+    vote: those off the image trace a copy of its last row or column,
+    unstored. Same pixels as the ray-at-a-time walk:
     a ray's hit is in a box it enters, and the packet enters every box one
     of its rays does (or, off the stack, one it entered nearer than its
     closest hit)."""
