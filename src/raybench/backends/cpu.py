@@ -195,7 +195,7 @@ _fast_band = _wide_band if _has_avx512() else _pairs_band
 # (the children ordered along the middle ray instead), larger packets paid:
 # of 4x4 to 32x8 on one Zen 4 core, 16x8 was the fastest, 8-10% ahead of
 # 8x4, the shape before (docs/performance.md).
-PACKET_W, PACKET_H = 16, 8
+PACKET_W, PACKET_H = 16, 16
 PACKET = PACKET_W * PACKET_H
 _MIDDLE = (PACKET_H // 2) * PACKET_W + PACKET_W // 2
 
@@ -205,23 +205,29 @@ def _packet_box(nodes, row, col, ox, oy, oz, margin, ix, iy, iz, closest):
     """Whether any ray of the packet enters the child box (grown by margin,
     as in kernels.traverse) nearer than its closest hit so far. The rays
     share their origin, so the planes' offsets from it are computed once for
-    all; the loop over rays has no branch and no float reduction, so LLVM
-    makes it SIMD (without fastmath it vectorises neither)."""
+    all. The rays are tested a row of the packet at a time, and the test
+    stops at the first row with a ray that enters: most boxes the walk tests
+    are entered, and by rays of every row. Each row's loop has no branch and
+    no float reduction, so LLVM makes it SIMD (without fastmath it
+    vectorises neither)."""
     lx = nodes[row, col] - margin - ox
     ly = nodes[row, col + 1] - margin - oy
     lz = nodes[row, col + 2] - margin - oz
     hx = nodes[row, col + 3] + margin - ox
     hy = nodes[row, col + 4] + margin - oy
     hz = nodes[row, col + 5] + margin - oz
-    entered = False
-    for k in range(PACKET):
-        t1, t2 = lx * ix[k], hx * ix[k]
-        t3, t4 = ly * iy[k], hy * iy[k]
-        t5, t6 = lz * iz[k], hz * iz[k]
-        near = max(min(t1, t2), max(min(t3, t4), min(t5, t6)))
-        far = min(max(t1, t2), min(max(t3, t4), max(t5, t6)))
-        entered |= (near <= far) & (far > ZERO) & (near <= closest[k])
-    return entered
+    for first in range(0, PACKET, PACKET_W):
+        entered = False
+        for k in range(first, first + PACKET_W):
+            t1, t2 = lx * ix[k], hx * ix[k]
+            t3, t4 = ly * iy[k], hy * iy[k]
+            t5, t6 = lz * iz[k], hz * iz[k]
+            near = max(min(t1, t2), max(min(t3, t4), min(t5, t6)))
+            far = min(max(t1, t2), min(max(t3, t4), max(t5, t6)))
+            entered |= (near <= far) & (far > ZERO) & (near <= closest[k])
+        if entered:
+            return True
+    return False
 
 
 @numba.njit(inline="always", error_model="numpy")
