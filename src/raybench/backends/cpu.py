@@ -50,6 +50,7 @@ _prepare_one, _may_hit, _intersect_relative = _k.prepare, _k.may_hit, _k.interse
 _kb = kernels.build(numba.njit(inline="always", error_model="numpy"))
 _primary_ray_v, _store_pixel_v, _intersect_relative_v, _inverse, _centre = \
     _kb.primary_ray, _kb.store_pixel, _kb.intersect_relative, _kb.inverse, _kb.centre_along
+_shade_hit_v, _shade_miss_v, _to_byte_v = _kb.shade_hit, _kb.shade_miss, _kb.to_byte
 
 # The cull loops index the spheres with unsigned integers: a signed index
 # carries Python's negative-index wraparound, a select per lane that LLVM
@@ -245,6 +246,28 @@ def _packet_leaf(ox, oy, oz, dx, dy, dz, ordered, order, first, count, closest, 
             hit_d[k] = d if better else hit_d[k]
 
 
+@numba.njit(inline="always", error_model="numpy")
+def _colour_packet(x0, y0, spheres, hit, hit_d, rgb, paint):
+    """rgb[c, k]: the bytes store_pixel writes for ray k of the packet, for
+    every ray at once: first the hit spheres' colours and radii gathered
+    (a miss reads sphere 0's and drops them), then shaded in a loop without
+    branches (each ray's hit and miss colours both computed, one kept),
+    which LLVM makes SIMD. spheres must hold a sphere."""
+    for k in range(PACKET):
+        j = max(hit[k], 0)
+        paint[0, k] = spheres[4, j]
+        paint[1, k] = spheres[5, j]
+        paint[2, k] = spheres[6, j]
+        paint[3, k] = spheres[3, j]
+    for k in range(PACKET):
+        hr, hg, hb = _shade_hit_v(paint[0, k], paint[1, k], paint[2, k], paint[3, k], hit_d[k])
+        mr, mg, mb = _shade_miss_v(np.float32(x0 + k % PACKET_W), np.float32(y0 + k // PACKET_W))
+        got = hit[k] >= 0
+        rgb[0, k] = _to_byte_v(hr if got else mr)
+        rgb[1, k] = _to_byte_v(hg if got else mg)
+        rgb[2, k] = _to_byte_v(hb if got else mb)
+
+
 @numba.njit(nogil=True, error_model="numpy")
 def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered, order, spheres, image, hits):
     """The rows first_row..end_row, a PACKET_W x PACKET_H packet of rays at a time: the
@@ -262,6 +285,8 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
     closest = np.empty(PACKET, np.float32)
     hit = np.empty(PACKET, np.int32)
     hit_d = np.empty(PACKET, np.float32)
+    rgb = np.empty((3, PACKET), np.uint8)
+    paint = np.empty((4, PACKET), np.float32)
     ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
     margin = (abs(ox) + abs(oy) + abs(oz)) * bvh_mod.PAD
     for y0 in range(first_row, end_row, PACKET_H):
@@ -309,11 +334,22 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
                 if row < 0 and top > 0:
                     top -= 1
                     row = stack_row[top]
-            for k in range(PACKET):
-                x = x0 + k % PACKET_W
-                y = y0 + k // PACKET_W
-                if x < width and y < end_row:
-                    _store_pixel_v(x, y, hit[k], hit_d[k], spheres, image, hits)
+            if spheres.shape[1] > 0:
+                _colour_packet(x0, y0, spheres, hit, hit_d, rgb, paint)
+                for k in range(PACKET):
+                    x = x0 + k % PACKET_W
+                    y = y0 + k // PACKET_W
+                    if x < width and y < end_row:
+                        image[y, x, 0] = rgb[0, k]
+                        image[y, x, 1] = rgb[1, k]
+                        image[y, x, 2] = rgb[2, k]
+                        hits[y, x] = hit[k]
+            else:  # every pixel a miss, and no sphere for _colour_packet to read
+                for k in range(PACKET):
+                    x = x0 + k % PACKET_W
+                    y = y0 + k // PACKET_W
+                    if x < width and y < end_row:
+                        _store_pixel_v(x, y, hit[k], hit_d[k], spheres, image, hits)
 
 
 # Chunks of rows per thread for the BVH: enough that the last chunk to finish

@@ -96,4 +96,5 @@ def build(jit):
                            prepare=prepare, may_hit=may_hit, along=along, intersect_relative=intersect_relative,
                            render_pixel_bvh=render_pixel_bvh, nearest_hit_bvh=nearest_hit_bvh, inverse=inverse,
                            axis_setup=axis_setup, slab=slab, leaf_hits=leaf_hits, centre_along=centre_along,
+                           shade_hit=shade_hit, shade_miss=shade_miss, to_byte=to_byte,
                            nearest_hit=nearest_hit)
