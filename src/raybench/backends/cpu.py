@@ -336,14 +336,24 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
                     row = stack_row[top]
             if spheres.shape[1] > 0:
                 _colour_packet(x0, y0, spheres, hit, hit_d, rgb, paint)
-                for k in range(PACKET):
-                    x = x0 + k % PACKET_W
-                    y = y0 + k // PACKET_W
-                    if x < width and y < end_row:
-                        image[y, x, 0] = rgb[0, k]
-                        image[y, x, 1] = rgb[1, k]
-                        image[y, x, 2] = rgb[2, k]
-                        hits[y, x] = hit[k]
+                if x0 + PACKET_W <= width and y0 + PACKET_H <= end_row:
+                    # a whole packet: rows of pixels stored without a test each
+                    for line in range(PACKET_H):
+                        for i in range(PACKET_W):
+                            k = line * PACKET_W + i
+                            image[y0 + line, x0 + i, 0] = rgb[0, k]
+                            image[y0 + line, x0 + i, 1] = rgb[1, k]
+                            image[y0 + line, x0 + i, 2] = rgb[2, k]
+                            hits[y0 + line, x0 + i] = hit[k]
+                else:
+                    for k in range(PACKET):
+                        x = x0 + k % PACKET_W
+                        y = y0 + k // PACKET_W
+                        if x < width and y < end_row:
+                            image[y, x, 0] = rgb[0, k]
+                            image[y, x, 1] = rgb[1, k]
+                            image[y, x, 2] = rgb[2, k]
+                            hits[y, x] = hit[k]
             else:  # every pixel a miss, and no sphere for _colour_packet to read
                 for k in range(PACKET):
                     x = x0 + k % PACKET_W
