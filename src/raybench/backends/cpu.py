@@ -195,8 +195,9 @@ _fast_band = _wide_band if _has_avx512() else _pairs_band
 # component. Once the walk stopped reducing the packet's entry distances
 # (the children ordered along the middle ray instead), larger packets paid:
 # of 4x4 to 32x8 on one Zen 4 core, 16x8 was the fastest, 8-10% ahead of
-# 8x4, the shape before (docs/performance.md).
-PACKET_W, PACKET_H = 16, 16
+# 8x4, the shape before; with today's walk 16x16 is as fast on one core and
+# 16x8 the faster at 1,000 spheres with two threads (docs/performance.md).
+PACKET_W, PACKET_H = 16, 8
 PACKET = PACKET_W * PACKET_H
 _MIDDLE = (PACKET_H // 2) * PACKET_W + PACKET_W // 2
 
