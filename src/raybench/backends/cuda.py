@@ -65,7 +65,7 @@ _k = kernels.build(cuda.jit(device=True))
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
 _prepare_one, _may_hit, _along, _intersect_relative = _k.prepare, _k.may_hit, _k.along, _k.intersect_relative
 _render_pixel_bvh = _k.render_pixel_bvh
-_axis_setup, _slab, _leaf_hits, _centre = _k.axis_setup, _k.slab, _k.leaf_hits, _k.centre_along
+_ray_axes, _children, _leaf_hits, _centre = _k.ray_axes, _k.children, _k.leaf_hits, _k.centre_along
 
 # Fast kernel defaults: each thread traces RAYS pixels, one above the other a
 # block height apart, so every sphere read from shared memory serves RAYS
@@ -105,7 +105,6 @@ def _bvh_kernel(width, height, basis, nodes, links, ordered, order, spheres, ima
                           stack_row, stack_t)
 
 
-_PAD = bvh_mod.PAD
 _INNER = bvh_mod.INNER
 # What a thread pushes as the entry distance of a child its ray does not
 # enter: beyond any closest hit, so it never votes to visit that child.
@@ -135,10 +134,7 @@ def _bvh_packet_kernel(width, height, basis, nodes, links, ordered, order, spher
                                  min(cuda.blockIdx.y * cuda.blockDim.y + cuda.blockDim.y // 2, height - 1),
                                  width, height, basis)
     ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
-    margin = (abs(ox) + abs(oy) + abs(oz)) * _PAD
-    ix, lx, hx = _axis_setup(ox, dx, margin)
-    iy, ly, hy = _axis_setup(oy, dy, margin)
-    iz, lz, hz = _axis_setup(oz, dz, margin)
+    ix, iy, iz, lx, ly, lz, hx, hy, hz = _ray_axes(ox, oy, oz, dx, dy, dz)
     stack_row = cuda.local.array(_STACK, np.int32)   # the same in every thread
     stack_t = cuda.local.array(_STACK, np.float32)   # where this thread's ray enters the node
     closest = FAR
@@ -148,10 +144,8 @@ def _bvh_packet_kernel(width, height, basis, nodes, links, ordered, order, spher
     top = _U(0)
     while row >= 0:
         node = _U(row)
-        a_near, a_far = _slab(nodes, node, _U(0), ix, iy, iz, lx, ly, lz, hx, hy, hz)
-        b_near, b_far = _slab(nodes, node, _U(6), ix, iy, iz, lx, ly, lz, hx, hy, hz)
-        a_ref, b_ref = links[node, _U(12)], links[node, _U(13)]
-        a_count, b_count = links[node, _U(14)], links[node, _U(15)]
+        a_near, a_far, b_near, b_far, a_ref, b_ref, a_count, b_count = \
+            _children(nodes, links, node, ix, iy, iz, lx, ly, lz, hx, hy, hz)
         a_in = a_near <= a_far and a_far > ZERO and a_near <= closest
         b_in = b_near <= b_far and b_far > ZERO and b_near <= closest
         # first the child whose box centre lies nearer along the block's

@@ -22,7 +22,7 @@ def build(jit):
     """The algorithm compiled with `jit`; a namespace of its functions."""
     intersect_relative, intersect_sphere, prepare_sphere, may_hit, along = intersect.build(jit)
     shade_hit, shade_miss, to_byte = shade.build(jit)
-    nearest_hit_bvh, inverse, axis_setup, slab, leaf_hits, centre_along = traverse.build(jit, intersect_sphere)
+    nearest_hit_bvh, inverse, ray_axes, children, leaf_hits, centre_along = traverse.build(jit, intersect_sphere)
 
     @jit
     def primary_ray(x, y, width, height, basis):
@@ -95,6 +95,6 @@ def build(jit):
     return SimpleNamespace(render_pixel=render_pixel, primary_ray=primary_ray, store_pixel=store_pixel,
                            prepare=prepare, may_hit=may_hit, along=along, intersect_relative=intersect_relative,
                            render_pixel_bvh=render_pixel_bvh, nearest_hit_bvh=nearest_hit_bvh, inverse=inverse,
-                           axis_setup=axis_setup, slab=slab, leaf_hits=leaf_hits, centre_along=centre_along,
+                           ray_axes=ray_axes, children=children, leaf_hits=leaf_hits, centre_along=centre_along,
                            shade_hit=shade_hit, shade_miss=shade_miss, to_byte=to_byte,
                            nearest_hit=nearest_hit)

@@ -69,6 +69,26 @@ def build(jit, intersect_sphere):
         return near, far
 
     @jit
+    def ray_axes(ox, oy, oz, dx, dy, dz):
+        """The ray's three axes for the slab tests (axis_setup), every box grown
+        by the camera's margin: (1/dx, 1/dy, 1/dz, the low planes' origins, the
+        high planes' origins)."""
+        margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
+        ix, lx, hx = axis_setup(ox, dx, margin)
+        iy, ly, hy = axis_setup(oy, dy, margin)
+        iz, lz, hz = axis_setup(oz, dz, margin)
+        return ix, iy, iz, lx, ly, lz, hx, hy, hz
+
+    @jit
+    def children(nodes, links, node, ix, iy, iz, lx, ly, lz, hx, hy, hz):
+        """A node's two children: the ray's (near, far) through each one's box,
+        then their refs and counts (bvh's layout)."""
+        a_near, a_far = slab(nodes, node, _U(0), ix, iy, iz, lx, ly, lz, hx, hy, hz)
+        b_near, b_far = slab(nodes, node, _U(6), ix, iy, iz, lx, ly, lz, hx, hy, hz)
+        return (a_near, a_far, b_near, b_far, links[node, _U(12)], links[node, _U(13)],
+                links[node, _U(14)], links[node, _U(15)])
+
+    @jit
     def centre_along(nodes, row, col, ox, oy, oz, cx, cy, cz):
         """How far along the direction (cx, cy, cz) from the origin the centre
         of the child box at column col lies: the order in which the packet
@@ -97,21 +117,15 @@ def build(jit, intersect_sphere):
         """(original index of the nearest sphere with t > 0 or -1, its half-chord d).
         stack_row / stack_t: the walk's stack, bvh.STACK entries, given by the
         backend (a CUDA thread's local array, a CPU thread's own)."""
-        margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
-        ix, lx, hx = axis_setup(ox, dx, margin)
-        iy, ly, hy = axis_setup(oy, dy, margin)
-        iz, lz, hz = axis_setup(oz, dz, margin)
+        ix, iy, iz, lx, ly, lz, hx, hy, hz = ray_axes(ox, oy, oz, dx, dy, dz)
         closest = FAR
         hit = -1
         hit_d = ZERO
         row = 0
         top = _U(0)
         while row >= 0:
-            node = _U(row)
-            a_near, a_far = slab(nodes, node, _U(0), ix, iy, iz, lx, ly, lz, hx, hy, hz)
-            b_near, b_far = slab(nodes, node, _U(6), ix, iy, iz, lx, ly, lz, hx, hy, hz)
-            a_ref, b_ref = links[node, _U(12)], links[node, _U(13)]
-            a_count, b_count = links[node, _U(14)], links[node, _U(15)]
+            a_near, a_far, b_near, b_far, a_ref, b_ref, a_count, b_count = \
+                children(nodes, links, _U(row), ix, iy, iz, lx, ly, lz, hx, hy, hz)
             # near child first: its hits can rule the far one out
             if b_near < a_near:
                 a_near, a_far, a_ref, a_count, b_near, b_far, b_ref, b_count = \
@@ -139,4 +153,4 @@ def build(jit, intersect_sphere):
                     row = stack_row[top]
         return hit, hit_d
 
-    return nearest_hit_bvh, inverse, axis_setup, slab, leaf_hits, centre_along
+    return nearest_hit_bvh, inverse, ray_axes, children, leaf_hits, centre_along
