@@ -48,8 +48,8 @@ _prepare_one, _may_hit, _intersect_relative = _k.prepare, _k.may_hit, _k.interse
 # quotient, and LLVM can make the loops over a packet's rays SIMD, which the
 # check's branch prevents (vdivps, vsqrtps in the assembly).
 _kb = kernels.build(numba.njit(inline="always", error_model="numpy"))
-_primary_ray_v, _store_pixel_v, _intersect_relative_v, _inverse, _centre = \
-    _kb.primary_ray, _kb.store_pixel, _kb.intersect_relative, _kb.inverse, _kb.centre_along
+_primary_ray_v, _intersect_relative_v, _inverse, _centre = \
+    _kb.primary_ray, _kb.intersect_relative, _kb.inverse, _kb.centre_along
 _shade_hit_v, _shade_miss_v, _to_byte_v = _kb.shade_hit, _kb.shade_miss, _kb.to_byte
 
 # The cull loops index the spheres with unsigned integers: a signed index
@@ -253,7 +253,7 @@ def _colour_packet(x0, y0, spheres, hit, hit_d, rgb, paint):
     every ray at once: first the hit spheres' colours and radii gathered
     (a miss reads sphere 0's and drops them), then shaded in a loop without
     branches (each ray's hit and miss colours both computed, one kept),
-    which LLVM makes SIMD. spheres must hold a sphere."""
+    which LLVM makes SIMD. spheres must hold a sphere (Tracer.shaded)."""
     for k in range(PACKET):
         j = max(hit[k], 0)
         paint[0, k] = spheres[4, j]
@@ -267,6 +267,15 @@ def _colour_packet(x0, y0, spheres, hit, hit_d, rgb, paint):
         rgb[0, k] = _to_byte_v(hr if got else mr)
         rgb[1, k] = _to_byte_v(hg if got else mg)
         rgb[2, k] = _to_byte_v(hb if got else mb)
+
+
+@numba.njit(inline="always")
+def _put_pixel(y, x, k, rgb, hit, image, hits):
+    """Store ray k's bytes and hit index at pixel (x, y)."""
+    image[y, x, 0] = rgb[0, k]
+    image[y, x, 1] = rgb[1, k]
+    image[y, x, 2] = rgb[2, k]
+    hits[y, x] = hit[k]
 
 
 @numba.njit(nogil=True, error_model="numpy")
@@ -335,32 +344,18 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
                 if row < 0 and top > 0:
                     top -= 1
                     row = stack_row[top]
-            if spheres.shape[1] > 0:
-                _colour_packet(x0, y0, spheres, hit, hit_d, rgb, paint)
-                if x0 + PACKET_W <= width and y0 + PACKET_H <= end_row:
-                    # a whole packet: rows of pixels stored without a test each
-                    for line in range(PACKET_H):
-                        for i in range(PACKET_W):
-                            k = line * PACKET_W + i
-                            image[y0 + line, x0 + i, 0] = rgb[0, k]
-                            image[y0 + line, x0 + i, 1] = rgb[1, k]
-                            image[y0 + line, x0 + i, 2] = rgb[2, k]
-                            hits[y0 + line, x0 + i] = hit[k]
-                else:
-                    for k in range(PACKET):
-                        x = x0 + k % PACKET_W
-                        y = y0 + k // PACKET_W
-                        if x < width and y < end_row:
-                            image[y, x, 0] = rgb[0, k]
-                            image[y, x, 1] = rgb[1, k]
-                            image[y, x, 2] = rgb[2, k]
-                            hits[y, x] = hit[k]
-            else:  # every pixel a miss, and no sphere for _colour_packet to read
+            _colour_packet(x0, y0, spheres, hit, hit_d, rgb, paint)
+            if x0 + PACKET_W <= width and y0 + PACKET_H <= end_row:
+                # a whole packet: rows of pixels stored without a test each
+                for line in range(PACKET_H):
+                    for i in range(PACKET_W):
+                        _put_pixel(y0 + line, x0 + i, line * PACKET_W + i, rgb, hit, image, hits)
+            else:
                 for k in range(PACKET):
                     x = x0 + k % PACKET_W
                     y = y0 + k // PACKET_W
                     if x < width and y < end_row:
-                        _store_pixel_v(x, y, hit[k], hit_d[k], spheres, image, hits)
+                        _put_pixel(y, x, k, rgb, hit, image, hits)
 
 
 # Chunks of rows per thread for the BVH: enough that the last chunk to finish
@@ -417,6 +412,10 @@ class Tracer:
         self.bvh = None
         self.build_s = None
         if self.accel == "bvh":
+            # what the packets shade from: the spheres, or with none a
+            # stand-in that every pixel misses (_colour_packet reads sphere
+            # 0 for a miss), as the cuda backend uploads
+            self.shaded = spheres if self.count else np.zeros((7, 1), np.float32)
             self.bands = chunks(height, self.threads)
             workers = min(self.threads, len(self.bands))
             self._kernel = _bvh_packets
@@ -442,7 +441,7 @@ class Tracer:
             if self.bvh.count != count:  # a frame of fewer spheres: their own tree
                 self._build(count)
             b = self.bvh
-            return (self.width, self.height, basis, b.nodes, b.links, b.ordered, b.order, self.spheres,
+            return (self.width, self.height, basis, b.nodes, b.links, b.ordered, b.order, self.shaded,
                     self.image, self.hits)
         if self.kernel == "fast":
             _prepare(basis, self.spheres, count, self.relative)

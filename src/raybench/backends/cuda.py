@@ -397,7 +397,6 @@ class Tracer:
         self.spheres = spheres
         self.width, self.height = width, height
         self.count = spheres.shape[1]
-        self.grid = (math.ceil(width / self.block[0]), math.ceil(height / (self.block[1] * self.rays)))
         self.d_spheres = cuda.to_device(spheres if self.count else np.zeros((7, 1), np.float32))
         self.d_image = cuda.device_array((height, width, 3), dtype=np.uint8)
         self.d_hits = cuda.device_array((height, width), dtype=np.int32)
@@ -416,12 +415,12 @@ class Tracer:
             self._kernel = _bvh_packet_kernel if self.walk == "packet" else _bvh_kernel
             if not block_given:
                 self.block = DEFAULT_BLOCK[self.walk]
-                self.grid = (math.ceil(width / self.block[0]), math.ceil(height / self.block[1]))
         elif self.kernel == "fast":
             self._kernel = fast_kernel(self.rays, self.tile, self.trip)
             self.d_relative = cuda.device_array((4, max(self.count, 1)), dtype=np.float32)
         else:
             self._kernel = _constant_kernel(self.count) if self.constant_count else _render_kernel
+        self.grid = (math.ceil(width / self.block[0]), math.ceil(height / (self.block[1] * self.rays)))
 
     def _build(self, count: int) -> None:
         """Build the BVH of the first `count` spheres on the host and upload it;
