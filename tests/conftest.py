@@ -1,3 +1,4 @@
+import gc
 import os
 import shutil
 
@@ -18,3 +19,11 @@ def rng(request):
     request.node.user_properties.append(("seed", seed))
     print(f"random seed: {seed}")
     return np.random.default_rng(seed)
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """GPU objects that tests left in reference cycles (closed windows' wgpu
+    devices) are released now, with the interpreter whole, rather than during
+    its shutdown, when wgpu stops a device's polling thread without waiting
+    for it."""
+    gc.collect()

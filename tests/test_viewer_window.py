@@ -11,6 +11,7 @@ RAYBENCH_REQUIRE_WINDOW=1 (CI sets it): there a missing piece is a failure.
 
 from __future__ import annotations
 
+import gc
 import os
 import shutil
 import subprocess
@@ -76,6 +77,9 @@ def display(vulkan_adapter):
     try:
         yield f":{number}"
     finally:
+        # Windows the tests left for the garbage collector release their
+        # surfaces now, before glfw ends (releasing one after can crash).
+        gc.collect()
         if "glfw" in sys.modules:
             # Close this process's X connection before the server goes: Xlib ends
             # a process whose server vanishes under it ("XIO: fatal IO error").

@@ -130,6 +130,7 @@ class ViewerWindow:
             self.gpu_tracer = self._wgpu_here(state, named)
         except BaseException:
             self.canvas.close()
+            self.context = None  # the surface, now: see run()
             raise
         self._gpu_idle = False  # the last draw found no wgpu frame to trace (stalled, failed)
         self.worker = TraceWorker(on_done=self._frame_ready)
@@ -165,6 +166,11 @@ class ViewerWindow:
             if not self.canvas.get_closed():
                 self.canvas.close()
             self.worker.close()
+            # Release the surface now, while glfw and the X connection are up.
+            # Left to the garbage collector (the window is in reference cycles)
+            # it could go after glfw.terminate(), at exit say, and releasing a
+            # surface then can crash the process (pygfx/pygfx#642).
+            self.context = None
         if self.failure is not None:
             raise self.failure
 
