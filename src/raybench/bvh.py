@@ -8,6 +8,8 @@ trees a ray walks more nodes of. Binned SAH picks, at every node, the split of
 16 candidate planes per axis that minimises the expected cost of a random ray,
 in O(n) per level; 1,000,000 spheres build well under the issue's 1 s on two
 cores, and the trace, done every frame, is what the tree must serve.
+Every thread takes part from the root down: a range of many spheres is split
+by all of them at once, and smaller ranges are subtrees built one per thread.
 
 Layout, shared by every backend (they get the same arrays):
   nodes  (M, 16) float32, one 64-byte row per node, one cache line: the boxes
@@ -53,18 +55,25 @@ LEAF_ALWAYS = 3
 # weighs splitting against leaving the spheres in one leaf with it.
 NODE_COST = np.float32(2.0)
 MAX_DEPTH = 48
-# Ranges of more spheres are binned along the centres' widest axis only
-# (Wald 2007): a third of the work where the build spends most of it, for
-# trees the walk measures no slower on the benchmark's scenes.
-ONE_AXIS_ABOVE = 4096
+# Ranges of more spheres than WIDE are split by all the build's threads at
+# once, each binning and then moving a slice of at most SLICE spheres, so the
+# top of a large tree does not wait on one core (_grow_wide); smaller ones are
+# whole subtrees, one thread each. WIDE is a count, not a share of the threads,
+# so the tree is the same on any number of threads. Wide ranges are binned
+# along their centres' widest axis only (Wald 2007): a third of the work where
+# the build spends most of it, for trees the walk measures no slower on the
+# benchmark's scenes.
+WIDE = 4096
+SLICE = 1 << 14
 # Traversal stack entries: one per level on the way down is the most a
 # near-first walk keeps (each level pushes at most its far child).
 STACK = MAX_DEPTH + 2
 NODE_FLOATS = 16
 NODE_BYTES = NODE_FLOATS * 4
-# Bytes the builder holds per sphere at its peak: work arrays, ordered
-# spheres and order, a deferred task, two rows of nodes and the packed copy.
-BUILD_SPHERE_BYTES = 5 * 4 + 5 * 4 + 5 * 8 + 3 * NODE_BYTES + 8
+# Bytes the builder holds per sphere at its peak: work arrays and their spare
+# set, ordered spheres and order, two rows of nodes, the packed copy and its
+# new row numbers.
+BUILD_SPHERE_BYTES = 5 * 4 + 5 * 4 + 5 * 4 + 3 * NODE_BYTES + 8
 # Per sphere on the device after the build: nodes (at most one per sphere),
 # ordered spheres, order.
 DEVICE_SPHERE_BYTES = NODE_BYTES + 4 * 4 + 4
@@ -99,9 +108,22 @@ class Bvh:
         return self.nodes.shape[0]
 
 
+@numba.njit(nogil=True, cache=True)
 def sphere_pad(cx, cy, cz, r):
-    """The padding of one sphere's box, as the builder computes it."""
-    return (r + (abs(cx) + abs(cy) + abs(cz))) * PAD
+    """The padding of a sphere's box, as the builder computes it."""
+    return (r + (np.abs(cx) + np.abs(cy) + np.abs(cz))) * PAD
+
+
+@numba.njit(nogil=True, cache=True)
+def _prepare(cx, cy, cz, r, p, s, e, bounds):
+    """The builder's arrays p for the spheres [s, e): centres, padded radii,
+    original indices; bounds (12,): their box, then their centres' box."""
+    px, py, pz, pr, idx = p
+    for i in range(s, e):
+        px[i], py[i], pz[i] = cx[i], cy[i], cz[i]
+        pr[i] = r[i] + sphere_pad(cx[i], cy[i], cz[i], r[i])
+        idx[i] = i
+    _range_bounds(px, py, pz, pr, s, e, bounds[:6], bounds[6:])
 
 
 @numba.njit(nogil=True, cache=True)
@@ -166,82 +188,25 @@ def _median_split(px, py, pz, pr, idx, s, e, cbox):
 
 
 @numba.njit(nogil=True, cache=True)
-def _sah_split(px, py, pz, pr, idx, s, e, box, cbox, counts, bins, scale, left_area, left_count):
-    """Binned SAH: the best of nb-1 planes on each axis (nb = BINS, fewer
-    for a few spheres). Returns the split point m (s < m < e) and the
-    split's cost relative to the node's area (inf if the centres coincide:
-    no plane separates them). counts to left_count: scratch arrays."""
+def _clear_bins(counts, bins):
+    """Empty bins: columns of (lo, hi) triples, each lo +inf and hi -inf."""
+    inf = np.float32(np.inf)
+    counts[:] = 0
+    for k in range(bins.shape[0]):
+        for c in range(0, bins.shape[1], 6):
+            bins[k, c: c + 3] = inf
+            bins[k, c + 3: c + 6] = -inf
+
+
+@numba.njit(nogil=True, cache=True)
+def _best_plane(counts, bins, scale, nb, left_area, left_count):
+    """The SAH's best plane among the binned axes (scale[a] > 0): (cost,
+    axis, last bin on the left); axis -1 where no plane has spheres on both
+    sides."""
     inf = np.float32(np.inf)
     best_cost = inf
     best_axis = -1
     best_bin = 0
-    nb = min(BINS, max(4, e - s))
-    for a in range(3):
-        ext = cbox[3 + a] - cbox[a]
-        scale[a] = np.float32(nb * (1 - 1e-5)) / ext if ext > 0 else np.float32(0.0)
-    if e - s > ONE_AXIS_ABOVE:  # only the widest axis of the centres
-        wide = 0
-        for a in range(1, 3):
-            if cbox[3 + a] - cbox[a] > cbox[3 + wide] - cbox[wide]:
-                wide = a
-        for a in range(3):
-            if a != wide:
-                scale[a] = np.float32(0.0)
-    counts[:, :nb] = 0
-    for a in range(3):
-        for k in range(nb):
-            bins[a, k, 0] = inf
-            bins[a, k, 1] = inf
-            bins[a, k, 2] = inf
-            bins[a, k, 3] = -inf
-            bins[a, k, 4] = -inf
-            bins[a, k, 5] = -inf
-    c0, c1, c2 = cbox[0], cbox[1], cbox[2]
-    s0, s1, s2 = scale[0], scale[1], scale[2]
-    last = nb - 1
-    if e - s > ONE_AXIS_ABOVE:
-        a = wide
-        c = c0 if a == 0 else (c1 if a == 1 else c2)
-        sa = scale[a]
-        key = px if a == 0 else (py if a == 1 else pz)
-        for i in range(s, e):
-            x, y, z, r = px[i], py[i], pz[i], pr[i]
-            k = min(int((key[i] - c) * sa), last)
-            counts[a, k] += 1
-            bins[a, k, 0] = min(bins[a, k, 0], x - r)
-            bins[a, k, 1] = min(bins[a, k, 1], y - r)
-            bins[a, k, 2] = min(bins[a, k, 2], z - r)
-            bins[a, k, 3] = max(bins[a, k, 3], x + r)
-            bins[a, k, 4] = max(bins[a, k, 4], y + r)
-            bins[a, k, 5] = max(bins[a, k, 5], z + r)
-    # the three axes written out: the hot loop of the build
-    for i in range(s if e - s <= ONE_AXIS_ABOVE else e, e):
-        x, y, z, r = px[i], py[i], pz[i], pr[i]
-        lx, ly, lz, hx, hy, hz = x - r, y - r, z - r, x + r, y + r, z + r
-        k = min(int((x - c0) * s0), last)
-        counts[0, k] += 1
-        bins[0, k, 0] = min(bins[0, k, 0], lx)
-        bins[0, k, 1] = min(bins[0, k, 1], ly)
-        bins[0, k, 2] = min(bins[0, k, 2], lz)
-        bins[0, k, 3] = max(bins[0, k, 3], hx)
-        bins[0, k, 4] = max(bins[0, k, 4], hy)
-        bins[0, k, 5] = max(bins[0, k, 5], hz)
-        k = min(int((y - c1) * s1), last)
-        counts[1, k] += 1
-        bins[1, k, 0] = min(bins[1, k, 0], lx)
-        bins[1, k, 1] = min(bins[1, k, 1], ly)
-        bins[1, k, 2] = min(bins[1, k, 2], lz)
-        bins[1, k, 3] = max(bins[1, k, 3], hx)
-        bins[1, k, 4] = max(bins[1, k, 4], hy)
-        bins[1, k, 5] = max(bins[1, k, 5], hz)
-        k = min(int((z - c2) * s2), last)
-        counts[2, k] += 1
-        bins[2, k, 0] = min(bins[2, k, 0], lx)
-        bins[2, k, 1] = min(bins[2, k, 1], ly)
-        bins[2, k, 2] = min(bins[2, k, 2], lz)
-        bins[2, k, 3] = max(bins[2, k, 3], hx)
-        bins[2, k, 4] = max(bins[2, k, 4], hy)
-        bins[2, k, 5] = max(bins[2, k, 5], hz)
     for a in range(3):
         if scale[a] == 0:
             continue
@@ -269,6 +234,62 @@ def _sah_split(px, py, pz, pr, idx, s, e, box, cbox, counts, bins, scale, left_a
             cost = np.float32(nl) * left_area[k - 1] + np.float32(n) * _area(lx, ly, lz, hx, hy, hz)
             if cost < best_cost:
                 best_cost, best_axis, best_bin = cost, a, k - 1
+    return best_cost, best_axis, best_bin
+
+
+@numba.njit(nogil=True, cache=True)
+def _widest(cbox):
+    wide = 0
+    for a in range(1, 3):
+        if cbox[3 + a] - cbox[a] > cbox[3 + wide] - cbox[wide]:
+            wide = a
+    return wide
+
+
+@numba.njit(nogil=True, cache=True)
+def _sah_split(px, py, pz, pr, idx, s, e, box, cbox, counts, bins, scale, left_area, left_count):
+    """Binned SAH: the best of nb-1 planes on each axis (nb = BINS, fewer
+    for a few spheres). Returns the split point m (s < m < e) and the
+    split's cost relative to the node's area (inf if the centres coincide:
+    no plane separates them). counts to left_count: scratch arrays."""
+    inf = np.float32(np.inf)
+    nb = min(BINS, max(4, e - s))
+    for a in range(3):
+        ext = cbox[3 + a] - cbox[a]
+        scale[a] = np.float32(nb * (1 - 1e-5)) / ext if ext > 0 else np.float32(0.0)
+        _clear_bins(counts[a, :nb], bins[a, :nb])
+    c0, c1, c2 = cbox[0], cbox[1], cbox[2]
+    s0, s1, s2 = scale[0], scale[1], scale[2]
+    last = nb - 1
+    # the three axes written out: the hot loop of the build
+    for i in range(s, e):
+        x, y, z, r = px[i], py[i], pz[i], pr[i]
+        lx, ly, lz, hx, hy, hz = x - r, y - r, z - r, x + r, y + r, z + r
+        k = min(int((x - c0) * s0), last)
+        counts[0, k] += 1
+        bins[0, k, 0] = min(bins[0, k, 0], lx)
+        bins[0, k, 1] = min(bins[0, k, 1], ly)
+        bins[0, k, 2] = min(bins[0, k, 2], lz)
+        bins[0, k, 3] = max(bins[0, k, 3], hx)
+        bins[0, k, 4] = max(bins[0, k, 4], hy)
+        bins[0, k, 5] = max(bins[0, k, 5], hz)
+        k = min(int((y - c1) * s1), last)
+        counts[1, k] += 1
+        bins[1, k, 0] = min(bins[1, k, 0], lx)
+        bins[1, k, 1] = min(bins[1, k, 1], ly)
+        bins[1, k, 2] = min(bins[1, k, 2], lz)
+        bins[1, k, 3] = max(bins[1, k, 3], hx)
+        bins[1, k, 4] = max(bins[1, k, 4], hy)
+        bins[1, k, 5] = max(bins[1, k, 5], hz)
+        k = min(int((z - c2) * s2), last)
+        counts[2, k] += 1
+        bins[2, k, 0] = min(bins[2, k, 0], lx)
+        bins[2, k, 1] = min(bins[2, k, 1], ly)
+        bins[2, k, 2] = min(bins[2, k, 2], lz)
+        bins[2, k, 3] = max(bins[2, k, 3], hx)
+        bins[2, k, 4] = max(bins[2, k, 4], hy)
+        bins[2, k, 5] = max(bins[2, k, 5], hz)
+    best_cost, best_axis, best_bin = _best_plane(counts, bins, scale, nb, left_area, left_count)
     if best_axis < 0:
         return s, inf
     area = _area(box[0], box[1], box[2], box[3], box[4], box[5])
@@ -328,12 +349,19 @@ def _root(px, py, pz, pr, idx, nodes, links, stack):
 
 
 @numba.njit(nogil=True, cache=True)
-def _grow(px, py, pz, pr, idx, nodes, links, stack, top, used, cutoff, deferred):
+def _open_row(nodes, links, parent, slot, row):
+    """Make row an inner node, the child (parent, slot), with both its children empty for now."""
+    links[parent, 12 + slot] = row
+    links[parent, 14 + slot] = INNER
+    nodes[row, :12] = EMPTY
+    nodes[row, 3:6] = -EMPTY
+    nodes[row, 9:12] = -EMPTY
+
+
+@numba.njit(nogil=True, cache=True)
+def _grow(px, py, pz, pr, idx, nodes, links, stack, top, used):
     """Build the subtrees of the tasks on stack, new rows from `used` on.
-    Tasks of at most `cutoff` spheres (cutoff > 0) are not built but moved to
-    `deferred`, for threads to build apart. Returns (rows used, deepest
-    depth, tasks deferred)."""
-    inf = np.float32(np.inf)
+    Returns (rows used, deepest depth)."""
     box = np.empty(6, np.float32)
     cbox = np.empty(6, np.float32)
     counts = np.zeros((3, BINS), np.int64)
@@ -342,15 +370,10 @@ def _grow(px, py, pz, pr, idx, nodes, links, stack, top, used, cutoff, deferred)
     left_area = np.empty(BINS, np.float32)
     left_count = np.empty(BINS, np.int64)
     depth = 1
-    waiting = 0
     while top > 0:
         top -= 1
         parent, slot, s, e, d = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3], stack[top, 4]
         count = e - s
-        if count > 1 and count <= cutoff:
-            deferred[waiting, :] = stack[top, :]
-            waiting += 1
-            continue
         col = 6 * slot
         links[parent, 12 + slot] = s
         links[parent, 14 + slot] = count
@@ -372,18 +395,265 @@ def _grow(px, py, pz, pr, idx, nodes, links, stack, top, used, cutoff, deferred)
         row = used
         used += 1
         depth = max(depth, d + 1)
-        links[parent, 12 + slot] = row
-        links[parent, 14 + slot] = INNER
-        nodes[row, :12] = EMPTY
-        nodes[row, 3:6] = -EMPTY
-        nodes[row, 9:12] = -EMPTY
+        _open_row(nodes, links, parent, slot, row)
         top = _push(stack, top, row, 1, m, e, d + 1)
         top = _push(stack, top, row, 0, s, m, d + 1)
-    return used, depth, waiting
+    return used, depth
 
 
 def _stack():
     return np.empty((2 * MAX_DEPTH + 8, 5), np.int64)
+
+
+# --- the top of a large tree: each split shared by all threads -----------------------
+#
+# A level of wide ranges is split in four steps: plan (which axis, how it is
+# sliced), bin the slices (threads), choose each range's plane and where each
+# slice's spheres go, move them (threads), then attach the children. A slice
+# moves its spheres between the two buffers (the builder's arrays and a spare
+# set), keeping their order: `buf` says which buffer holds a range now.
+# The bins' minima, maxima and counts merge exactly, so a range's plane is the
+# one the serial builder would choose, however it was sliced.
+
+
+@numba.njit(nogil=True, cache=True)
+def _plan(level, bounds, p, q, piece, axis, lo, scale, mid, first_job):
+    """For each wide range of the level, row, s, e, depth, buf: the axis to
+    bin (its centres' widest), its bin arithmetic, and mid: -1 for a SAH
+    split, else the split point of a split by count (depth guard, or centres
+    that coincide). The ranges cut in slices of at most `piece` spheres:
+    jobs (J, 3) = range, s, e; first_job[k] is range k's first."""
+    jobs = 0
+    for k in range(level.shape[0]):
+        jobs += (level[k, 2] - level[k, 1] + piece - 1) // piece
+    out = np.empty((jobs, 3), np.int64)
+    j = 0
+    for k in range(level.shape[0]):
+        s, e, d, buf = level[k, 1], level[k, 2], level[k, 3], level[k, 4]
+        cbox = bounds[k, 6:]
+        a = _widest(cbox)
+        ext = cbox[3 + a] - cbox[a]
+        axis[k] = a
+        lo[k] = cbox[a]
+        scale[k] = np.float32(BINS * (1 - 1e-5)) / ext if ext > 0 else np.float32(0.0)
+        mid[k] = -1
+        if ext == 0:
+            mid[k] = s + (e - s) // 2
+        elif d + _log2ceil(e - s) >= MAX_DEPTH:  # as _grow's guard, for a row at depth d
+            x, y, z, r, i = p if buf == 0 else q
+            mid[k] = _median_split(x, y, z, r, i, s, e, cbox)
+        first_job[k] = j
+        for a0 in range(s, e, piece):
+            out[j, 0] = k
+            out[j, 1] = a0
+            out[j, 2] = min(a0 + piece, e)
+            j += 1
+    first_job[level.shape[0]] = j
+    return out
+
+
+@numba.njit(nogil=True, cache=True)
+def _bin_jobs(level, jobs, p, q, axis, lo, scale, mid, counts, bins, first, step):
+    """Bin the slices jobs[first::step] of SAH ranges along their range's
+    axis: counts[j]; bins[j]: each bin's box, then its centres' box."""
+    last = BINS - 1
+    for j in range(first, jobs.shape[0], step):
+        k = jobs[j, 0]
+        if mid[k] >= 0:
+            continue
+        x, y, z, r, _ = p if level[k, 4] == 0 else q
+        a = axis[k]
+        key = x if a == 0 else (y if a == 1 else z)
+        c, sa = lo[k], scale[k]
+        n, b = counts[j], bins[j]
+        _clear_bins(n, b)
+        for i in range(jobs[j, 1], jobs[j, 2]):
+            xi, yi, zi, ri = x[i], y[i], z[i], r[i]
+            kb = min(int((key[i] - c) * sa), last)
+            n[kb] += 1
+            b[kb, 0] = min(b[kb, 0], xi - ri)
+            b[kb, 1] = min(b[kb, 1], yi - ri)
+            b[kb, 2] = min(b[kb, 2], zi - ri)
+            b[kb, 3] = max(b[kb, 3], xi + ri)
+            b[kb, 4] = max(b[kb, 4], yi + ri)
+            b[kb, 5] = max(b[kb, 5], zi + ri)
+            b[kb, 6] = min(b[kb, 6], xi)
+            b[kb, 7] = min(b[kb, 7], yi)
+            b[kb, 8] = min(b[kb, 8], zi)
+            b[kb, 9] = max(b[kb, 9], xi)
+            b[kb, 10] = max(b[kb, 10], yi)
+            b[kb, 11] = max(b[kb, 11], zi)
+
+
+@numba.njit(nogil=True, cache=True)
+def _merge(into, bins):
+    """into (12,) |= bins (m, 12): lows by min, highs by max."""
+    for b in range(bins.shape[0]):
+        for c in range(0, 12, 6):
+            for d in range(3):
+                into[c + d] = min(into[c + d], bins[b, c + d])
+                into[c + 3 + d] = max(into[c + 3 + d], bins[b, c + 3 + d])
+
+
+@numba.njit(nogil=True, cache=True)
+def _choose(level, jobs, first_job, axis, scale, mid, counts, bins, cut, left_at, right_at, children):
+    """Each SAH range's plane (cut: its last bin on the left) and its
+    children's bounds (children[k, slot]: box, then centres' box), and where
+    each slice's spheres go: left_at[j], right_at[j]. Returns the split points."""
+    inf = np.float32(np.inf)
+    counts3 = np.zeros((3, BINS), np.int64)
+    bins3 = np.empty((3, BINS, 12), np.float32)
+    scale3 = np.zeros(3, np.float32)
+    left_area = np.empty(BINS, np.float32)
+    left_count = np.empty(BINS, np.int64)
+    m = np.empty(level.shape[0], np.int64)
+    for k in range(level.shape[0]):
+        s, e = level[k, 1], level[k, 2]
+        j0, j1 = first_job[k], first_job[k + 1]
+        if mid[k] < 0:
+            a = axis[k]
+            _clear_bins(counts3[a], bins3[a])
+            for j in range(j0, j1):
+                counts3[a] += counts[j]
+                for b in range(BINS):
+                    _merge(bins3[a, b], bins[j, b: b + 1])
+            scale3[:] = 0
+            scale3[a] = scale[k]
+            _cost, best, cut[k] = _best_plane(counts3, bins3, scale3, BINS, left_area, left_count)
+            if best < 0:  # cannot happen (the extreme centres fall in the first and last bins); still valid
+                mid[k] = s + (e - s) // 2
+            else:
+                for slot in range(2):
+                    children[k, slot, 0:3] = inf
+                    children[k, slot, 3:6] = -inf
+                    children[k, slot, 6:9] = inf
+                    children[k, slot, 9:12] = -inf
+                _merge(children[k, 0], bins3[a, : cut[k] + 1])
+                _merge(children[k, 1], bins3[a, cut[k] + 1:])
+        for j in range(j0, j1):  # each slice's spheres that go left, for now in right_at
+            n_left = 0
+            if mid[k] < 0:
+                for b in range(cut[k] + 1):
+                    n_left += counts[j, b]
+            else:
+                n_left = max(0, min(jobs[j, 2], mid[k]) - jobs[j, 1])
+            right_at[j] = n_left
+        left = s
+        for j in range(j0, j1):
+            left_at[j] = left
+            left += right_at[j]
+        m[k] = right = left
+        for j in range(j0, j1):
+            n_right = (jobs[j, 2] - jobs[j, 1]) - right_at[j]
+            right_at[j] = right
+            right += n_right
+    return m
+
+
+@numba.njit(nogil=True, cache=True)
+def _move_jobs(level, jobs, p, q, axis, lo, scale, mid, cut, left_at, right_at, first, step):
+    """Move the slices jobs[first::step] to the other buffer, in order: each
+    slice's left side from left_at[j] on, its right side from right_at[j] on."""
+    last = BINS - 1
+    for j in range(first, jobs.shape[0], step):
+        k = jobs[j, 0]
+        src, dst = (p, q) if level[k, 4] == 0 else (q, p)
+        sx, sy, sz, sr, si = src
+        dx, dy, dz, dr, di = dst
+        a = axis[k]
+        key = sx if a == 0 else (sy if a == 1 else sz)
+        c, sa, kb, split = lo[k], scale[k], cut[k], mid[k]
+        lt, rt = left_at[j], right_at[j]
+        for i in range(jobs[j, 1], jobs[j, 2]):
+            if (i < split) if split >= 0 else (min(int((key[i] - c) * sa), last) <= kb):
+                t = lt
+                lt += 1
+            else:
+                t = rt
+                rt += 1
+            dx[t], dy[t], dz[t], dr[t], di[t] = sx[i], sy[i], sz[i], sr[i], si[i]
+
+
+@numba.njit(nogil=True, cache=True)
+def _attach(level, m, mid, children, p, q, nodes, links, used, wide):
+    """Store each range's two children in its row: ranges of over `wide`
+    spheres get a row and go to the next level (returned with their bounds);
+    the others are subtree tasks (parent row, slot, s, e, depth, buf).
+    Returns (next level, its bounds, subtrees, rows used)."""
+    n = level.shape[0]
+    nxt = np.empty((2 * n, 5), np.int64)
+    nxt_bounds = np.empty((2 * n, 12), np.float32)
+    subtrees = np.empty((2 * n, 6), np.int64)
+    nn = 0
+    ns = 0
+    for k in range(n):
+        row, s, e, d, buf = level[k, 0], level[k, 1], level[k, 2], level[k, 3], level[k, 4]
+        for slot in range(2):
+            cs, ce = (s, m[k]) if slot == 0 else (m[k], e)
+            b = children[k, slot]
+            if mid[k] >= 0:  # split by count: no bins gave the bounds
+                x, y, z, r, _ = q if buf == 0 else p
+                _range_bounds(x, y, z, r, cs, ce, b[:6], b[6:])
+            nodes[row, 6 * slot: 6 * slot + 6] = b[:6]
+            links[row, 12 + slot] = cs
+            links[row, 14 + slot] = ce - cs
+            if ce - cs > wide:
+                _open_row(nodes, links, row, slot, used)
+                nxt[nn, 0], nxt[nn, 1], nxt[nn, 2], nxt[nn, 3], nxt[nn, 4] = used, cs, ce, d + 1, 1 - buf
+                nxt_bounds[nn] = b
+                nn += 1
+                used += 1
+            else:
+                subtrees[ns, 0], subtrees[ns, 1], subtrees[ns, 2] = row, slot, cs
+                subtrees[ns, 3], subtrees[ns, 4], subtrees[ns, 5] = ce, d, 1 - buf
+                ns += 1
+    return nxt[:nn], nxt_bounds[:nn], subtrees[:ns], used
+
+
+@numba.njit(nogil=True, cache=True)
+def _grow_subtrees(p, q, r, nodes, links, tasks, base, ends, depths, ordered, first, step):
+    """Build the subtrees tasks[first::step], each into its block of rows
+    from base + its first sphere, after bringing its spheres back to the
+    builder's arrays where they lie in the spare ones; then their spheres'
+    columns of ordered (the scene's radii r, not the padded ones)."""
+    px, py, pz, pr, idx = p
+    stack = np.empty((2 * MAX_DEPTH + 8, 5), np.int64)
+    for t in range(first, tasks.shape[0], step):
+        parent, slot, s, e, d, buf = tasks[t, 0], tasks[t, 1], tasks[t, 2], tasks[t, 3], tasks[t, 4], tasks[t, 5]
+        if buf == 1:
+            qx, qy, qz, qr, qi = q
+            px[s:e], py[s:e], pz[s:e], pr[s:e], idx[s:e] = qx[s:e], qy[s:e], qz[s:e], qr[s:e], qi[s:e]
+        _push(stack, 0, parent, slot, s, e, d)
+        ends[t], depths[t] = _grow(px, py, pz, pr, idx, nodes, links, stack, 1, base + s)
+        for i in range(s, e):
+            ordered[0, i], ordered[1, i], ordered[2, i], ordered[3, i] = px[i], py[i], pz[i], r[idx[i]]
+
+
+@numba.njit(nogil=True, cache=True)
+def _prepare_slices(cx, cy, cz, r, p, piece, bounds, first, step):
+    """_prepare the j-th slice of piece spheres into bounds[j], for j in first::step."""
+    n = cx.shape[0]
+    for j in range(first, bounds.shape[0], step):
+        a = j * piece
+        _prepare(cx, cy, cz, r, p, a, min(a + piece, n), bounds[j])
+
+
+@numba.njit(nogil=True, cache=True)
+def _pack(nodes, links, tasks, base, ends, starts, packed, packed_links, first, step):
+    """Copy the subtrees' blocks of rows, tasks[first::step], to packed from
+    starts[t] on, their inner links moved with them, and point each block's
+    parent at its new place (the top's rows are already copied)."""
+    for t in range(first, tasks.shape[0], step):
+        parent, slot, old = tasks[t, 0], tasks[t, 1], base + tasks[t, 2]
+        new = starts[t]
+        for row in range(old, ends[t]):
+            to = new + row - old
+            packed[to] = nodes[row]
+            for c in range(2):
+                if packed_links[to, 14 + c] == INNER:
+                    packed_links[to, 12 + c] += new - old
+        if packed_links[parent, 14 + slot] == INNER:
+            packed_links[parent, 12 + slot] = new
 
 
 def memory_bytes(n: int) -> int:
@@ -392,15 +662,93 @@ def memory_bytes(n: int) -> int:
 
 
 def compile_builder() -> None:
-    """Compile (or load from Numba's cache) the builder, so build times leave it out."""
-    build(np.ones((7, 3), np.float32), threads=1, _timed=False)
+    """Compile (or load from Numba's cache) the builder, both its ways, so build times leave it out."""
+    spheres = np.ones((7, 9), np.float32)
+    spheres[:3] = np.arange(27, dtype=np.float32).reshape(3, 9) % 5
+    build(spheres, threads=1, _timed=False)
+    build(spheres, threads=1, _timed=False, _wide=2)
 
 
-def build(spheres: np.ndarray, threads: int | None = None, _timed: bool = True) -> Bvh:
+def _piece(spheres: int, threads: int) -> int:
+    """Spheres per slice of a level of wide ranges: a few slices per thread."""
+    return min(SLICE, max(1024, spheres // (4 * threads)))
+
+
+def _bounds(parts: np.ndarray) -> np.ndarray:
+    """Merge rows of (box, centre box) into one."""
+    return np.concatenate([parts[:, 0:3].min(0), parts[:, 3:6].max(0), parts[:, 6:9].min(0), parts[:, 9:12].max(0)])
+
+
+def _build_wide(cx, cy, cz, r, threads: int, wide: int):
+    """The tree of n > wide spheres (centres cx, cy, cz, radii r): its top
+    level by level, each range of over `wide` spheres split by all threads,
+    then the subtrees below on one thread each, each into its own block of
+    rows, then the blocks packed after the top's rows. Returns (nodes,
+    ordered, order, deepest depth)."""
+    n = cx.shape[0]
+    p = (np.empty(n, np.float32), np.empty(n, np.float32), np.empty(n, np.float32), np.empty(n, np.float32),
+         np.empty(n, np.int32))
+    q = tuple(np.empty_like(a) for a in p)
+    # the top's rows, then one block per subtree at the top's row count plus
+    # its first sphere: a subtree of k spheres has fewer than k inner nodes
+    nodes = np.empty((2 * n, NODE_FLOATS), np.float32)
+    links = nodes.view(np.int32)
+    ordered = np.empty((4, n), np.float32)
+    pool = ThreadPoolExecutor(threads) if threads > 1 else None
+
+    def on_all(fn, *args):
+        """fn(*args, first, step) on every thread: each takes every threads-th job."""
+        if pool is None:
+            fn(*args, 0, 1)
+        else:
+            list(pool.map(lambda w: fn(*args, w, threads), range(threads)))
+
+    try:
+        piece = _piece(n, threads)
+        parts = np.empty(((n + piece - 1) // piece, 12), np.float32)
+        on_all(_prepare_slices, cx, cy, cz, r, p, piece, parts)
+        nodes[0, :12] = EMPTY
+        nodes[0, 3:6] = -EMPTY
+        nodes[0, 9:12] = -EMPTY
+        level = np.array([[0, 0, n, 1, 0]], np.int64)  # row, s, e, the row's depth, buf
+        bounds = _bounds(parts)[None]
+        used, depth, subtrees = 1, 1, []
+        while len(level):
+            k = len(level)
+            axis, lo, scale = np.empty(k, np.int64), np.empty(k, np.float32), np.empty(k, np.float32)
+            mid, first_job, cut = np.empty(k, np.int64), np.empty(k + 1, np.int64), np.zeros(k, np.int64)
+            jobs = _plan(level, bounds, p, q, _piece(int((level[:, 2] - level[:, 1]).sum()), threads),
+                         axis, lo, scale, mid, first_job)
+            counts, bins = np.empty((len(jobs), BINS), np.int64), np.empty((len(jobs), BINS, 12), np.float32)
+            on_all(_bin_jobs, level, jobs, p, q, axis, lo, scale, mid, counts, bins)
+            left_at, right_at = np.empty(len(jobs), np.int64), np.empty(len(jobs), np.int64)
+            children = np.empty((k, 2, 12), np.float32)
+            m = _choose(level, jobs, first_job, axis, scale, mid, counts, bins, cut, left_at, right_at, children)
+            on_all(_move_jobs, level, jobs, p, q, axis, lo, scale, mid, cut, left_at, right_at)
+            depth = max(depth, int(level[:, 3].max()))
+            level, bounds, below, used = _attach(level, m, mid, children, p, q, nodes, links, used, wide)
+            subtrees.append(below)
+        tasks = np.concatenate(subtrees)
+        tasks = tasks[np.argsort(tasks[:, 2] - tasks[:, 3], kind="stable")]  # largest first
+        ends, depths = np.empty(len(tasks), np.int64), np.empty(len(tasks), np.int64)
+        on_all(_grow_subtrees, p, q, r, nodes, links, tasks, used, ends, depths, ordered)
+        sizes = ends - (used + tasks[:, 2])
+        starts = used + np.cumsum(sizes) - sizes
+        packed = np.empty((used + int(sizes.sum()), NODE_FLOATS), np.float32)
+        packed[:used] = nodes[:used]
+        on_all(_pack, nodes, links, tasks, used, ends, starts, packed, packed.view(np.int32))
+    finally:
+        if pool is not None:
+            pool.shutdown()
+    return packed, ordered, p[4], max(depth, int(depths.max()))
+
+
+def build(spheres: np.ndarray, threads: int | None = None, _timed: bool = True, _wide: int = WIDE) -> Bvh:
     """The BVH of a (7, N) float32 sphere array (Scene.spheres), built on
-    `threads` threads (default: all cores): the top of the tree on one, then
-    its subtrees side by side, each into its own block of rows, then the rows
-    packed together."""
+    `threads` threads (default: all cores). Up to `_wide` spheres, on one
+    thread; above, the top of the tree is split by all threads together, the
+    subtrees below on one thread each. The tree is the same on any number of
+    threads."""
     n = spheres.shape[1]
     if n > MAX_SPHERES:
         raise RaybenchError(f"bvh: at most {MAX_SPHERES:,} spheres, got {n:,}")
@@ -409,43 +757,20 @@ def build(spheres: np.ndarray, threads: int | None = None, _timed: bool = True) 
         compile_builder()
     cx, cy, cz, r = (np.ascontiguousarray(spheres[k]) for k in range(4))
     start = time.perf_counter()
-    px, py, pz = cx.copy(), cy.copy(), cz.copy()
-    pr = r + sphere_pad(cx, cy, cz, r)
-    idx = np.arange(n, dtype=np.int32)
-    # the top's rows, then one block per subtree at the top's row count plus
-    # its first sphere: a subtree of k spheres has fewer than k inner nodes
-    nodes = np.empty((2 * max(n, 1), NODE_FLOATS), np.float32)
-    links = nodes.view(np.int32)
-    stack = _stack()
-    top = _root(px, py, pz, pr, idx, nodes, links, stack)
-    cutoff = n // (8 * threads) if threads > 1 and n >= 4096 else 0
-    deferred = np.empty((max(n, 1), 5), np.int64) if cutoff else np.empty((1, 5), np.int64)
-    used, depth, waiting = _grow(px, py, pz, pr, idx, nodes, links, stack, top, 1, cutoff, deferred)
-    rows = [np.arange(used)]
-    if waiting:
-        tasks = sorted(deferred[:waiting].tolist(), key=lambda t: t[2] - t[3])  # largest first
-
-        def one(task):
-            st = _stack()
-            st[0] = task
-            return _grow(px, py, pz, pr, idx, nodes, links, st, 1, used + task[2], 0, deferred[:1])
-
-        with ThreadPoolExecutor(threads) as pool:
-            done = list(pool.map(one, tasks))
-        for task, (end, d, _) in zip(tasks, done):
-            depth = max(depth, d)
-            rows.append(np.arange(used + task[2], end))
-    rows = np.concatenate(rows)
-    nodes = nodes[rows]
-    if waiting:  # rows moved: point the inner links at their new places
-        place = np.full(used + n, -1, np.int64)
-        place[rows] = np.arange(len(rows))
+    if n > _wide:
+        nodes, ordered, order, depth = _build_wide(cx, cy, cz, r, threads, _wide)
+    else:
+        p = tuple(np.empty(n, np.float32) for _ in range(4)) + (np.empty(n, np.int32),)
+        _prepare(cx, cy, cz, r, p, 0, n, np.empty(12, np.float32))
+        px, py, pz, pr, order = p
+        nodes = np.empty((2 * max(n, 1), NODE_FLOATS), np.float32)
+        stack = _stack()
         links = nodes.view(np.int32)
-        for slot in range(2):
-            inner = links[:, 14 + slot] == INNER
-            links[inner, 12 + slot] = place[links[inner, 12 + slot]]
-    # the centres are already in leaf order (the builder moved them), the very values of the scene
-    ordered = np.stack([px, py, pz, r[idx]]) if n else np.zeros((4, 0), np.float32)
+        top = _root(px, py, pz, pr, order, nodes, links, stack)
+        used, depth = _grow(px, py, pz, pr, order, nodes, links, stack, top, 1)
+        nodes = nodes[:used].copy()
+        # the centres are already in leaf order (the builder moved them), the very values of the scene
+        ordered = np.stack([px, py, pz, r[order]])
     build_s = time.perf_counter() - start
-    return Bvh(nodes=nodes, links=nodes.view(np.int32), ordered=np.ascontiguousarray(ordered, np.float32),
-               order=idx, depth=int(depth), build_s=build_s)
+    return Bvh(nodes=nodes, links=nodes.view(np.int32), ordered=ordered, order=order, depth=int(depth),
+               build_s=build_s)
