@@ -15,6 +15,7 @@
 #   walks    benchmarks/bvh_walks.py on cuda and wgpu (WALKS_ARGS to change); with
 #            BASELINE="dir ..." (other versions' src/, carried), those versions
 #            and this one in turn, twice, side by side in one lease
+#   builds   benchmarks/bvh_build.py (BUILDS_ARGS to change), with BASELINE as walks
 #
 # Carries .whl (NumPy 2.4: the machine's 2.5 breaks numba 0.68.0; wgpu, cffi,
 # pycparser, rendercanvas, glfw) and .gl (the Vulkan and GL loaders as Debian
@@ -67,6 +68,17 @@ for s in $STEPS; do
             done
             # shellcheck disable=SC2086
             step "walks-$round" "${WALKS_S:-60}" python3 benchmarks/bvh_walks.py ${WALKS_ARGS:---device cuda --device wgpu}
+        done ;;
+    builds)
+        for round in 1 2; do
+            for base in ${BASELINE:-}; do
+                # shellcheck disable=SC2086
+                step "builds-$base-$round" "${BUILDS_S:-90}" env PYTHONPATH="/tmp/site:$PWD/$base" \
+                    python3 benchmarks/bvh_build.py ${BUILDS_ARGS:---threads 1 --threads 4 --threads 16}
+            done
+            # shellcheck disable=SC2086
+            step "builds-$round" "${BUILDS_S:-90}" python3 benchmarks/bvh_build.py \
+                ${BUILDS_ARGS:---threads 1 --threads 4 --threads 16}
         done ;;
     *) echo "unknown step $s" | tee -a "$W/steps.log" ;;
     esac
