@@ -187,18 +187,19 @@ def _median_split(px, py, pz, pr, idx, s, e, cbox):
     return s + (e - s) // 2
 
 
-@numba.njit(nogil=True, cache=True)
+@numba.njit(nogil=True, cache=True, inline="always")
 def _clear_bins(counts, bins):
     """Empty bins: columns of (lo, hi) triples, each lo +inf and hi -inf."""
     inf = np.float32(np.inf)
     counts[:] = 0
     for k in range(bins.shape[0]):
         for c in range(0, bins.shape[1], 6):
-            bins[k, c: c + 3] = inf
-            bins[k, c + 3: c + 6] = -inf
+            for d in range(3):
+                bins[k, c + d] = inf
+                bins[k, c + 3 + d] = -inf
 
 
-@numba.njit(nogil=True, cache=True)
+@numba.njit(nogil=True, cache=True, inline="always")
 def _best_plane(counts, bins, scale, nb, left_area, left_count):
     """The SAH's best plane among the binned axes (scale[a] > 0): (cost,
     axis, last bin on the left); axis -1 where no plane has spheres on both
