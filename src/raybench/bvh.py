@@ -413,8 +413,8 @@ def _stack():
 # slice's spheres go, move them (threads), then attach the children. A slice
 # moves its spheres between the two buffers (the builder's arrays and a spare
 # set), keeping their order: `buf` says which buffer holds a range now.
-# The bins' minima, maxima and counts merge exactly, so a range's plane is the
-# one the serial builder would choose, however it was sliced.
+# The bins' minima, maxima and counts merge exactly, so a range gets the same
+# plane however many slices it was cut into.
 
 
 @numba.njit(nogil=True, cache=True)
