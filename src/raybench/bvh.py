@@ -70,10 +70,10 @@ SLICE = 1 << 14
 STACK = MAX_DEPTH + 2
 NODE_FLOATS = 16
 NODE_BYTES = NODE_FLOATS * 4
-# Bytes the builder holds per sphere at its peak: work arrays and their spare
-# set, ordered spheres and order, two rows of nodes, the packed copy and its
-# new row numbers.
-BUILD_SPHERE_BYTES = 5 * 4 + 5 * 4 + 5 * 4 + 3 * NODE_BYTES + 8
+# Bytes the builder holds per sphere at its peak: work arrays (the last, the
+# order) and their spare set, ordered spheres, two rows of nodes and the
+# packed copy.
+BUILD_SPHERE_BYTES = 5 * 4 + 5 * 4 + 4 * 4 + 3 * NODE_BYTES
 # Per sphere on the device after the build: nodes (at most one per sphere),
 # ordered spheres, order.
 DEVICE_SPHERE_BYTES = NODE_BYTES + 4 * 4 + 4
