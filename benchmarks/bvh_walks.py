@@ -24,10 +24,12 @@ SIZES = {**ISSUE_SIZES, "3k": (3000, 1680, 1050), "10k": (10_000, 1680, 1050), "
          "300k": (300_000, 1680, 1050)}
 
 
-def one(device: str, spheres: int, width: int, height: int, frames: int, block, walk) -> dict:
+def one(device: str, spheres: int, width: int, height: int, frames: int, block, walk, threads) -> dict:
     scene = raybench.random_spheres(spheres, seed=0)
     basis = (scene.camera or Camera()).basis(width, height)
     options = {key: value for key, value in (("block", block), ("walk", walk)) if value} if device == "cuda" else {}
+    if device == "cpu" and threads:
+        options["threads"] = threads
     tracer = backends.tracer(device, scene.spheres, width, height, accel="bvh", **options)
     try:
         tracer.trace(basis)  # warm: compiled, uploaded
@@ -41,6 +43,7 @@ def one(device: str, spheres: int, width: int, height: int, frames: int, block, 
                 "spheres": spheres, "width": width, "height": height, "frames": frames,
                 "median_ms": round(ms, 4), "grays_per_s": round(width * height / ms / 1e6, 3),
                 "build_ms": round(tracer.build_s * 1e3, 1), "kernel_time": kernel_ms is not None,
+                "threads": getattr(tracer, "threads", None),
                 "raybench": raybench.__file__}
     finally:
         tracer.close()
@@ -53,13 +56,17 @@ def main() -> int:
     parser.add_argument("--frames", type=int, default=9)
     parser.add_argument("--block", type=int, nargs=2, metavar=("X", "Y"), help="cuda's block shape (default: its own)")
     parser.add_argument("--walk", help="cuda's BVH walk (default: chosen by the tree's size)")
+    parser.add_argument("--threads", type=int, help="cpu's threads (default: every core)")
     args = parser.parse_args()
     if args.frames < 1:
         parser.error(f"--frames: must be at least 1, got {args.frames}")
+    if args.threads is not None and args.threads < 1:
+        parser.error(f"--threads: must be at least 1, got {args.threads}")
     try:
         for device in args.device or ["cuda"]:
             for size in args.size or list(ISSUE_SIZES):
-                print(json.dumps(one(device, *SIZES[size], args.frames, args.block, args.walk)), flush=True)
+                print(json.dumps(one(device, *SIZES[size], args.frames, args.block, args.walk, args.threads)),
+                      flush=True)
     except RaybenchError as error:
         print(f"bvh_walks: {error}", file=sys.stderr)
         return 2
