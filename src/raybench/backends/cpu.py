@@ -233,7 +233,9 @@ def _missed_by_all(lx, ly, lz, hx, hy, hz, spread):
     far = min(max(max(lx * x0, hx * x0), max(lx * x1, hx * x1)),
               min(max(max(ly * y0, hy * y0), max(ly * y1, hy * y1)),
                   max(max(lz * z0, hz * z0), max(lz * z1, hz * z1))))
-    return near > far or far <= ZERO or near > spread[6]
+    # one branch where it is used, not three (`or` would branch on each, and
+    # mispredicted they cost 10-13% of the frame)
+    return (near > far) | (far <= ZERO) | (near > spread[6])
 
 
 @numba.njit(inline="always", error_model="numpy")
