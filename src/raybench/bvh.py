@@ -402,7 +402,9 @@ def _grow(px, py, pz, pr, idx, nodes, links, stack, top, used):
     return used, depth
 
 
+@numba.njit(nogil=True, cache=True)
 def _stack():
+    """A builder's task stack: (parent row, slot, start, end, depth) rows."""
     return np.empty((2 * MAX_DEPTH + 8, 5), np.int64)
 
 
@@ -618,7 +620,7 @@ def _grow_subtrees(p, q, r, nodes, links, tasks, base, ends, depths, ordered, fi
     builder's arrays where they lie in the spare ones; then their spheres'
     columns of ordered (the scene's radii r, not the padded ones)."""
     px, py, pz, pr, idx = p
-    stack = np.empty((2 * MAX_DEPTH + 8, 5), np.int64)
+    stack = _stack()
     for t in range(first, tasks.shape[0], step):
         parent, slot, s, e, d, buf = tasks[t, 0], tasks[t, 1], tasks[t, 2], tasks[t, 3], tasks[t, 4], tasks[t, 5]
         if buf == 1:
@@ -675,11 +677,6 @@ def _piece(spheres: int, threads: int) -> int:
     return min(SLICE, max(1024, spheres // (4 * threads)))
 
 
-def _bounds(parts: np.ndarray) -> np.ndarray:
-    """Merge rows of (box, centre box) into one."""
-    return np.concatenate([parts[:, 0:3].min(0), parts[:, 3:6].max(0), parts[:, 6:9].min(0), parts[:, 9:12].max(0)])
-
-
 def _build_wide(cx, cy, cz, r, threads: int, wide: int):
     """The tree of n > wide spheres (centres cx, cy, cz, radii r): its top
     level by level, each range of over `wide` spheres split by all threads,
@@ -712,7 +709,8 @@ def _build_wide(cx, cy, cz, r, threads: int, wide: int):
         nodes[0, 3:6] = -EMPTY
         nodes[0, 9:12] = -EMPTY
         level = np.array([[0, 0, n, 1, 0]], np.int64)  # row, s, e, the row's depth, buf
-        bounds = _bounds(parts)[None]
+        bounds = parts[:1].copy()  # the slices' bounds merged: the root's
+        _merge(bounds[0], parts)
         used, depth, subtrees = 1, 1, []
         while len(level):
             k = len(level)
