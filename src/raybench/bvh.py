@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import os
 import time
-from concurrent.futures import ThreadPoolExecutor
+import threading
 from dataclasses import dataclass
 
 import numba
@@ -88,6 +88,7 @@ PAD = np.float32(2.0 ** -16)
 # so no walk's arithmetic on it overflows or meets inf - inf.
 EMPTY = np.float32(1e18)
 MAX_SPHERES = 2 ** 31 - 1
+_ONE_BUILD = threading.Lock()
 
 
 @dataclass
@@ -137,26 +138,18 @@ def _log2ceil(n):
 @numba.njit(nogil=True, cache=True)
 def _range_bounds(px, py, pz, pr, s, e, box, cbox):
     """box: union of the spheres' padded boxes over [s, e); cbox: bounds of their centres."""
+    # in locals, not box[]: stores to an array that may alias px cannot stay in registers (3x slower)
     inf = np.float32(np.inf)
-    for a in range(3):
-        box[a] = inf
-        box[3 + a] = -inf
-        cbox[a] = inf
-        cbox[3 + a] = -inf
+    lx = ly = lz = clx = cly = clz = inf
+    hx = hy = hz = chx = chy = chz = -inf
     for i in range(s, e):
         x, y, z, r = px[i], py[i], pz[i], pr[i]
-        box[0] = min(box[0], x - r)
-        box[1] = min(box[1], y - r)
-        box[2] = min(box[2], z - r)
-        box[3] = max(box[3], x + r)
-        box[4] = max(box[4], y + r)
-        box[5] = max(box[5], z + r)
-        cbox[0] = min(cbox[0], x)
-        cbox[1] = min(cbox[1], y)
-        cbox[2] = min(cbox[2], z)
-        cbox[3] = max(cbox[3], x)
-        cbox[4] = max(cbox[4], y)
-        cbox[5] = max(cbox[5], z)
+        lx, ly, lz = min(lx, x - r), min(ly, y - r), min(lz, z - r)
+        hx, hy, hz = max(hx, x + r), max(hy, y + r), max(hz, z + r)
+        clx, cly, clz = min(clx, x), min(cly, y), min(clz, z)
+        chx, chy, chz = max(chx, x), max(chy, y), max(chz, z)
+    box[0], box[1], box[2], box[3], box[4], box[5] = lx, ly, lz, hx, hy, hz
+    cbox[0], cbox[1], cbox[2], cbox[3], cbox[4], cbox[5] = clx, cly, clz, chx, chy, chz
 
 
 @numba.njit(nogil=True, cache=True)
@@ -214,10 +207,9 @@ def _best_plane(counts, bins, scale, nb, left_area, left_count):
         lx = ly = lz = inf
         hx = hy = hz = -inf
         n = 0
-        for k in range(nb - 1):
-            b = bins[a, k]
-            lx, ly, lz = min(lx, b[0]), min(ly, b[1]), min(lz, b[2])
-            hx, hy, hz = max(hx, b[3]), max(hy, b[4]), max(hz, b[5])
+        for k in range(nb - 1):  # bins[a, k, c], never a view bins[a, k]: a view costs two atomic refcounts
+            lx, ly, lz = min(lx, bins[a, k, 0]), min(ly, bins[a, k, 1]), min(lz, bins[a, k, 2])
+            hx, hy, hz = max(hx, bins[a, k, 3]), max(hy, bins[a, k, 4]), max(hz, bins[a, k, 5])
             n += counts[a, k]
             left_area[k] = _area(lx, ly, lz, hx, hy, hz) if n > 0 else np.float32(0.0)
             left_count[k] = n
@@ -225,9 +217,8 @@ def _best_plane(counts, bins, scale, nb, left_area, left_count):
         hx = hy = hz = -inf
         n = 0
         for k in range(nb - 1, 0, -1):
-            b = bins[a, k]
-            lx, ly, lz = min(lx, b[0]), min(ly, b[1]), min(lz, b[2])
-            hx, hy, hz = max(hx, b[3]), max(hy, b[4]), max(hz, b[5])
+            lx, ly, lz = min(lx, bins[a, k, 0]), min(ly, bins[a, k, 1]), min(lz, bins[a, k, 2])
+            hx, hy, hz = max(hx, bins[a, k, 3]), max(hy, bins[a, k, 4]), max(hz, bins[a, k, 5])
             n += counts[a, k]
             nl = left_count[k - 1]
             if n == 0 or nl == 0:
@@ -261,12 +252,12 @@ def _sah_split(px, py, pz, pr, idx, s, e, box, cbox, counts, bins, scale, left_a
         _clear_bins(counts[a, :nb], bins[a, :nb])
     c0, c1, c2 = cbox[0], cbox[1], cbox[2]
     s0, s1, s2 = scale[0], scale[1], scale[2]
-    last = nb - 1
+    last = np.uint32(nb - 1)
     # the three axes written out: the hot loop of the build
     for i in range(s, e):
         x, y, z, r = px[i], py[i], pz[i], pr[i]
         lx, ly, lz, hx, hy, hz = x - r, y - r, z - r, x + r, y + r, z + r
-        k = min(int((x - c0) * s0), last)
+        k = min(np.uint32((x - c0) * s0), last)
         counts[0, k] += 1
         bins[0, k, 0] = min(bins[0, k, 0], lx)
         bins[0, k, 1] = min(bins[0, k, 1], ly)
@@ -274,7 +265,7 @@ def _sah_split(px, py, pz, pr, idx, s, e, box, cbox, counts, bins, scale, left_a
         bins[0, k, 3] = max(bins[0, k, 3], hx)
         bins[0, k, 4] = max(bins[0, k, 4], hy)
         bins[0, k, 5] = max(bins[0, k, 5], hz)
-        k = min(int((y - c1) * s1), last)
+        k = min(np.uint32((y - c1) * s1), last)
         counts[1, k] += 1
         bins[1, k, 0] = min(bins[1, k, 0], lx)
         bins[1, k, 1] = min(bins[1, k, 1], ly)
@@ -282,7 +273,7 @@ def _sah_split(px, py, pz, pr, idx, s, e, box, cbox, counts, bins, scale, left_a
         bins[1, k, 3] = max(bins[1, k, 3], hx)
         bins[1, k, 4] = max(bins[1, k, 4], hy)
         bins[1, k, 5] = max(bins[1, k, 5], hz)
-        k = min(int((z - c2) * s2), last)
+        k = min(np.uint32((z - c2) * s2), last)
         counts[2, k] += 1
         bins[2, k, 0] = min(bins[2, k, 0], lx)
         bins[2, k, 1] = min(bins[2, k, 1], ly)
@@ -460,6 +451,10 @@ def _bin_jobs(level, jobs, p, q, axis, lo, scale, mid, counts, bins, first, step
     """Bin the slices jobs[first::step] of SAH ranges along their range's
     axis: counts[j]; bins[j]: each bin's box, then its centres' box."""
     last = BINS - 1
+    # each thread bins in its own arrays: bins[j] beside another thread's
+    # bins[j + 1] would share cache lines, which made 16 threads bin 3x slower
+    n = np.empty(BINS, np.int64)
+    b = np.empty((BINS, 12), np.float32)
     for j in range(first, jobs.shape[0], step):
         k = jobs[j, 0]
         if mid[k] >= 0:
@@ -468,7 +463,6 @@ def _bin_jobs(level, jobs, p, q, axis, lo, scale, mid, counts, bins, first, step
         a = axis[k]
         key = x if a == 0 else (y if a == 1 else z)
         c, sa = lo[k], scale[k]
-        n, b = counts[j], bins[j]
         _clear_bins(n, b)
         for i in range(jobs[j, 1], jobs[j, 2]):
             xi, yi, zi, ri = x[i], y[i], z[i], r[i]
@@ -486,6 +480,8 @@ def _bin_jobs(level, jobs, p, q, axis, lo, scale, mid, counts, bins, first, step
             b[kb, 9] = max(b[kb, 9], xi)
             b[kb, 10] = max(b[kb, 10], yi)
             b[kb, 11] = max(b[kb, 11], zi)
+        counts[j] = n
+        bins[j] = b
 
 
 @numba.njit(nogil=True, cache=True)
@@ -659,6 +655,40 @@ def _pack(nodes, links, tasks, base, ends, starts, packed, packed_links, first, 
             packed_links[parent, 12 + slot] = new
 
 
+# One parallel region per step, each thread taking every parts-th job. Numba's
+# threads, not a Python pool: with a pool, each thread's call unboxed its
+# twenty-odd arguments while holding the GIL, one thread after another,
+# which cost about 0.7 ms a step on 16 threads (10 levels of 2 steps each).
+@numba.njit(nogil=True, cache=True, parallel=True)
+def _prepare_all(cx, cy, cz, r, p, piece, bounds, parts):
+    for w in numba.prange(parts):
+        _prepare_slices(cx, cy, cz, r, p, piece, bounds, w, parts)
+
+
+@numba.njit(nogil=True, cache=True, parallel=True)
+def _bin_all(level, jobs, p, q, axis, lo, scale, mid, counts, bins, parts):
+    for w in numba.prange(parts):
+        _bin_jobs(level, jobs, p, q, axis, lo, scale, mid, counts, bins, w, parts)
+
+
+@numba.njit(nogil=True, cache=True, parallel=True)
+def _move_all(level, jobs, p, q, axis, lo, scale, mid, cut, left_at, right_at, parts):
+    for w in numba.prange(parts):
+        _move_jobs(level, jobs, p, q, axis, lo, scale, mid, cut, left_at, right_at, w, parts)
+
+
+@numba.njit(nogil=True, cache=True, parallel=True)
+def _grow_all(p, q, r, nodes, links, tasks, base, ends, depths, ordered, parts):
+    for w in numba.prange(parts):
+        _grow_subtrees(p, q, r, nodes, links, tasks, base, ends, depths, ordered, w, parts)
+
+
+@numba.njit(nogil=True, cache=True, parallel=True)
+def _pack_all(nodes, links, tasks, base, ends, starts, packed, packed_links, parts):
+    for w in numba.prange(parts):
+        _pack(nodes, links, tasks, base, ends, starts, packed, packed_links, w, parts)
+
+
 def memory_bytes(n: int) -> int:
     """Host bytes a build of n spheres holds at its peak."""
     return max(n, 1) * BUILD_SPHERE_BYTES
@@ -692,53 +722,45 @@ def _build_wide(cx, cy, cz, r, threads: int, wide: int):
     nodes = np.empty((2 * n, NODE_FLOATS), np.float32)
     links = nodes.view(np.int32)
     ordered = np.empty((4, n), np.float32)
-    pool = ThreadPoolExecutor(threads) if threads > 1 else None
-
-    def on_all(fn, *args):
-        """fn(*args, first, step) on every thread: each takes every threads-th job."""
-        if pool is None:
-            fn(*args, 0, 1)
-        else:
-            list(pool.map(lambda w: fn(*args, w, threads), range(threads)))
-
+    piece = _piece(n, threads)
+    parts = np.empty(((n + piece - 1) // piece, 12), np.float32)
+    _prepare_all(cx, cy, cz, r, p, piece, parts, threads)
+    nodes[0, :12] = EMPTY
+    nodes[0, 3:6] = -EMPTY
+    nodes[0, 9:12] = -EMPTY
+    level = np.array([[0, 0, n, 1, 0]], np.int64)  # row, s, e, the row's depth, buf
+    bounds = parts[:1].copy()  # the slices' bounds merged: the root's
+    _merge(bounds[0], parts)
+    used, depth, subtrees = 1, 1, []
+    while len(level):
+        k = len(level)
+        axis, lo, scale = np.empty(k, np.int64), np.empty(k, np.float32), np.empty(k, np.float32)
+        mid, first_job, cut = np.empty(k, np.int64), np.empty(k + 1, np.int64), np.zeros(k, np.int64)
+        jobs = _plan(level, bounds, p, q, _piece(int((level[:, 2] - level[:, 1]).sum()), threads),
+                     axis, lo, scale, mid, first_job)
+        counts, bins = np.empty((len(jobs), BINS), np.int64), np.empty((len(jobs), BINS, 12), np.float32)
+        _bin_all(level, jobs, p, q, axis, lo, scale, mid, counts, bins, threads)
+        left_at, right_at = np.empty(len(jobs), np.int64), np.empty(len(jobs), np.int64)
+        children = np.empty((k, 2, 12), np.float32)
+        m = _choose(level, jobs, first_job, axis, scale, mid, counts, bins, cut, left_at, right_at, children)
+        _move_all(level, jobs, p, q, axis, lo, scale, mid, cut, left_at, right_at, threads)
+        depth = max(depth, int(level[:, 3].max()))
+        level, bounds, below, used = _attach(level, m, mid, children, p, q, nodes, links, used, wide)
+        subtrees.append(below)
+    tasks = np.concatenate(subtrees)
+    tasks = tasks[np.argsort(tasks[:, 2] - tasks[:, 3], kind="stable")]  # largest first
+    ends, depths = np.empty(len(tasks), np.int64), np.empty(len(tasks), np.int64)
+    # subtrees differ in cost: more parts than threads, handed out one at a time as threads come free
+    chunk = numba.set_parallel_chunksize(1)
     try:
-        piece = _piece(n, threads)
-        parts = np.empty(((n + piece - 1) // piece, 12), np.float32)
-        on_all(_prepare_slices, cx, cy, cz, r, p, piece, parts)
-        nodes[0, :12] = EMPTY
-        nodes[0, 3:6] = -EMPTY
-        nodes[0, 9:12] = -EMPTY
-        level = np.array([[0, 0, n, 1, 0]], np.int64)  # row, s, e, the row's depth, buf
-        bounds = parts[:1].copy()  # the slices' bounds merged: the root's
-        _merge(bounds[0], parts)
-        used, depth, subtrees = 1, 1, []
-        while len(level):
-            k = len(level)
-            axis, lo, scale = np.empty(k, np.int64), np.empty(k, np.float32), np.empty(k, np.float32)
-            mid, first_job, cut = np.empty(k, np.int64), np.empty(k + 1, np.int64), np.zeros(k, np.int64)
-            jobs = _plan(level, bounds, p, q, _piece(int((level[:, 2] - level[:, 1]).sum()), threads),
-                         axis, lo, scale, mid, first_job)
-            counts, bins = np.empty((len(jobs), BINS), np.int64), np.empty((len(jobs), BINS, 12), np.float32)
-            on_all(_bin_jobs, level, jobs, p, q, axis, lo, scale, mid, counts, bins)
-            left_at, right_at = np.empty(len(jobs), np.int64), np.empty(len(jobs), np.int64)
-            children = np.empty((k, 2, 12), np.float32)
-            m = _choose(level, jobs, first_job, axis, scale, mid, counts, bins, cut, left_at, right_at, children)
-            on_all(_move_jobs, level, jobs, p, q, axis, lo, scale, mid, cut, left_at, right_at)
-            depth = max(depth, int(level[:, 3].max()))
-            level, bounds, below, used = _attach(level, m, mid, children, p, q, nodes, links, used, wide)
-            subtrees.append(below)
-        tasks = np.concatenate(subtrees)
-        tasks = tasks[np.argsort(tasks[:, 2] - tasks[:, 3], kind="stable")]  # largest first
-        ends, depths = np.empty(len(tasks), np.int64), np.empty(len(tasks), np.int64)
-        on_all(_grow_subtrees, p, q, r, nodes, links, tasks, used, ends, depths, ordered)
-        sizes = ends - (used + tasks[:, 2])
-        starts = used + np.cumsum(sizes) - sizes
-        packed = np.empty((used + int(sizes.sum()), NODE_FLOATS), np.float32)
-        packed[:used] = nodes[:used]
-        on_all(_pack, nodes, links, tasks, used, ends, starts, packed, packed.view(np.int32))
+        _grow_all(p, q, r, nodes, links, tasks, used, ends, depths, ordered, 4 * threads)
     finally:
-        if pool is not None:
-            pool.shutdown()
+        numba.set_parallel_chunksize(chunk)
+    sizes = ends - (used + tasks[:, 2])
+    starts = used + np.cumsum(sizes) - sizes
+    packed = np.empty((used + int(sizes.sum()), NODE_FLOATS), np.float32)
+    packed[:used] = nodes[:used]
+    _pack_all(nodes, links, tasks, used, ends, starts, packed, packed.view(np.int32), threads)
     return packed, ordered, p[4], max(depth, int(depths.max()))
 
 
@@ -757,7 +779,16 @@ def build(spheres: np.ndarray, threads: int | None = None, _timed: bool = True, 
     cx, cy, cz, r = (np.ascontiguousarray(spheres[k]) for k in range(4))
     start = time.perf_counter()
     if n > _wide:
-        nodes, ordered, order, depth = _build_wide(cx, cy, cz, r, threads, _wide)
+        # Numba's threads are at most its pool's (the cores); the slicing into
+        # parts follows `threads` all the same. Its default threading layer
+        # cannot run two parallel regions at once: one build at a time.
+        with _ONE_BUILD:
+            before = numba.get_num_threads()
+            numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+            try:
+                nodes, ordered, order, depth = _build_wide(cx, cy, cz, r, threads, _wide)
+            finally:
+                numba.set_num_threads(before)
     else:
         p = tuple(np.empty(n, np.float32) for _ in range(4)) + (np.empty(n, np.int32),)
         _prepare(cx, cy, cz, r, p, 0, n, np.empty(12, np.float32))
