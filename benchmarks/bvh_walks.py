@@ -27,7 +27,8 @@ SIZES = {**ISSUE_SIZES, "3k": (3000, 1680, 1050), "10k": (10_000, 1680, 1050), "
 def one(device: str, spheres: int, width: int, height: int, frames: int, block, walk, threads) -> dict:
     scene = raybench.random_spheres(spheres, seed=0)
     basis = (scene.camera or Camera()).basis(width, height)
-    options = {key: value for key, value in (("block", block), ("walk", walk)) if value} if device == "cuda" else {}
+    options = {"cuda": {"block": block, "walk": walk}, "wgpu": {"workgroup": block, "walk": walk}}.get(device, {})
+    options = {key: value for key, value in options.items() if value}
     if device == "cpu" and threads:
         options["threads"] = threads
     tracer = backends.tracer(device, scene.spheres, width, height, accel="bvh", **options)
@@ -39,7 +40,7 @@ def one(device: str, spheres: int, width: int, height: int, frames: int, block, 
             kernel_ms = tracer.timed_trace(basis)
             times.append(kernel_ms if kernel_ms is not None else (time.perf_counter() - start) * 1e3)
         ms = statistics.median(times)
-        return {"device": device, "walk": getattr(tracer, "walk", None), "block": getattr(tracer, "block", None),
+        return {"device": device, "walk": getattr(tracer, "walk", None), "block": getattr(tracer, "block", None) or getattr(tracer, "workgroup", None),
                 "spheres": spheres, "width": width, "height": height, "frames": frames,
                 "median_ms": round(ms, 4), "grays_per_s": round(width * height / ms / 1e6, 3),
                 "build_ms": round(tracer.build_s * 1e3, 1), "kernel_time": kernel_ms is not None,
@@ -54,8 +55,8 @@ def main() -> int:
     parser.add_argument("--device", action="append", choices=["cpu", "cuda", "wgpu"])
     parser.add_argument("--size", action="append", choices=sorted(SIZES))
     parser.add_argument("--frames", type=int, default=9)
-    parser.add_argument("--block", type=int, nargs=2, metavar=("X", "Y"), help="cuda's block shape (default: its own)")
-    parser.add_argument("--walk", help="cuda's BVH walk (default: chosen by the tree's size)")
+    parser.add_argument("--block", type=int, nargs=2, metavar=("X", "Y"), help="cuda's block shape, wgpu's workgroup (default: their own)")
+    parser.add_argument("--walk", help="cuda's and wgpu's BVH walk, ray or packet (default: chosen by the tree's size)")
     parser.add_argument("--threads", type=int, help="cpu's threads (default: every core)")
     args = parser.parse_args()
     if args.frames < 1:

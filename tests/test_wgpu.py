@@ -17,7 +17,7 @@ import pytest
 
 import raybench
 from raybench import backends
-from raybench.backends.wgpu import adapters
+from raybench.backends.wgpu import adapters, compute
 from raybench.cli import run
 from raybench.render import Frame
 from reference import check_frame, trace
@@ -63,19 +63,30 @@ def test_wgpu_matches_reference_and_cpu(adapter, rng, kind, n, accel):
         same_as_cpu(gpu, raybench.render(scene, camera, width, height, device="cpu"), ref, context)
 
 
+def has_subgroups(adapter: str) -> bool:
+    return compute.PACKET_FEATURE in adapters.choose(adapter).adapter.features
+
+
+@pytest.mark.parametrize("walk", ["ray", "packet"])
 @pytest.mark.parametrize("kind", sorted(SCENES))
-def test_wgpu_bvh_gives_the_cpu_hits(adapter, rng, kind):
-    """The WGSL walk against the CPU's brute force and the CPU's BVH, on fresh
-    scenes and the degenerate ones (one point, a line, huge and tiny, one
-    sphere, none, duplicates: ties everywhere). A CPU driver rounds every
-    operation to float32 as the CPU does: the same hit in every pixel. A GPU
-    compiler may fuse multiply-adds, which can tip a near-tie."""
+def test_wgpu_bvh_gives_the_cpu_hits(adapter, rng, kind, walk):
+    """The WGSL walks (a ray at a time, the default; packets of a subgroup's rays)
+    against the CPU's brute force and the CPU's BVH, on fresh scenes and the
+    degenerate ones (one point, a line, huge and tiny, one sphere, none,
+    duplicates: ties everywhere). A CPU driver rounds every operation to
+    float32 as the CPU does: the same hit in every pixel. A GPU compiler may
+    fuse multiply-adds, which can tip a near-tie. The image's sides are no
+    multiples of the workgroup's: the packets' invocations off the image
+    vote too, and store nothing."""
+    if walk == "packet" and not has_subgroups(adapter):
+        pytest.skip("this adapter has no subgroups, which the packet walk needs")
     # from 100: fewer spheres around the camera of "inside" may all be out of view
     # (2% at 50), and the check below that something was hit would then fail
     n = int(rng.integers(100, 400))
     scene, camera = SCENES[kind](rng, n)
-    width, height = 64, 48
-    gpu = raybench.render(scene, camera, width, height, device="wgpu", adapter=adapter)  # the default: the BVH
+    width, height = 66, 47
+    gpu = raybench.render(scene, camera, width, height, device="wgpu", adapter=adapter,  # the default: the BVH
+                          walk=walk)
     assert gpu.build_s is not None
     brute = raybench.render(scene, camera, width, height, device="cpu", accel="none", kernel="simple")
     cpu_bvh = raybench.render(scene, camera, width, height, device="cpu", accel="bvh")
@@ -164,10 +175,37 @@ def test_sphere_prefix_zero_spheres_and_reused_buffers(adapter, rng, accel):
     ({"accel": "bvh", "kernel": "simple"}, "kernel: applies to brute force only"),
     ({"accel": "kd-tree"}, "accel: must be one of bvh, none"),
     ({"threads": 2}, "does not apply to device wgpu"),
+    ({"walk": "sideways"}, "walk: must be one of ray, packet, got 'sideways'"),
+    ({"walk": "ray", "accel": "none"}, "walk: applies to the BVH walk only"),
 ])
 def test_bad_options_are_refused(adapter, options, match):
     with pytest.raises(raybench.RaybenchError, match=match):
         raybench.render(raybench.random_spheres(3), width=8, height=8, device="wgpu", adapter=adapter, **options)
+
+
+def test_wgpu_walks_a_ray_at_a_time_unless_asked_for_packets(adapter):
+    """A ray at a time in 16x16 workgroups whatever the tree (the packets
+    measured slower on the H200); packets, where asked for, in 8x4."""
+    for n in (50, 30000):
+        tracer = backends.tracer("wgpu", raybench.random_spheres(n).spheres, 16, 8, adapter=adapter)
+        assert (tracer.walk, tracer.workgroup) == ("ray", compute.DEFAULT_WORKGROUP["ray"])
+    if has_subgroups(adapter):
+        tracer = backends.tracer("wgpu", raybench.random_spheres(50).spheres, 16, 8, adapter=adapter, walk="packet")
+        assert (tracer.walk, tracer.workgroup) == ("packet", (8, 4))
+    given = backends.tracer("wgpu", raybench.random_spheres(50).spheres, 16, 8, adapter=adapter, walk="ray",
+                            workgroup=(4, 4))
+    assert (given.walk, given.workgroup) == ("ray", (4, 4))
+    assert backends.tracer("wgpu", raybench.random_spheres(5).spheres, 16, 8, adapter=adapter,
+                           accel="none").walk is None
+
+
+def test_packets_without_subgroups_are_refused_in_one_line(adapter):
+    """A device without subgroups cannot run the packet walk: one line that
+    says so, not a shader compiler's error (a device asked for without them)."""
+    device = adapters.choose(adapter).adapter.request_device_sync(required_features=[])
+    assert compute.PACKET_FEATURE not in device.features
+    with pytest.raises(raybench.RaybenchError, match="walk: the packet walk votes with subgroup operations"):
+        compute.Compute(device, raybench.random_spheres(3).spheres, 8, 8, walk="packet")
 
 
 def test_a_name_that_matches_no_adapter_lists_those_found(adapter):

@@ -14,7 +14,7 @@ DEVICES = ("cpu", "cuda", "wgpu")
 CHOICES = ("auto",) + DEVICES
 OPTIONS = {"cpu": ("threads", "constant_count", "kernel", "accel"),
            "cuda": ("block", "constant_count", "kernel", "rays", "tile", "trip", "accel", "walk"),
-           "wgpu": ("workgroup", "adapter", "accel", "kernel")}
+           "wgpu": ("workgroup", "adapter", "accel", "kernel", "walk")}
 
 
 def module(name: str):

@@ -28,6 +28,7 @@ from ..errors import RaybenchError
 from .. import bvh as bvh_mod
 from .limits import (FAST_MAX_THREADS, HOST_PIXEL_BYTES, PIXEL_BYTES, check_accel, check_bvh_fits, check_count,
                      check_fits, check_kernel, host_available_bytes)
+from .walks import WALKS, check_walk  # noqa: F401 - WALKS: the walks this backend takes
 
 # The fastest measured (docs/performance.md): simple on an H100; fast (with
 # TRIP) and the BVH walked a ray at a time on the H200, where 8x8 also makes
@@ -36,13 +37,11 @@ from .limits import (FAST_MAX_THREADS, HOST_PIXEL_BYTES, PIXEL_BYTES, check_acce
 # spheres); the BVH's packets in 8x4 blocks, one warp (8x8: 6.20 ms against
 # 5.82 at 1,000,000 spheres).
 DEFAULT_BLOCK = {"simple": (16, 16), "fast": (8, 8), "ray": (8, 8), "packet": (8, 4)}
-# The BVH walks: a ray at a time (kernels.traverse, the CPU's code) or the
-# block's rays as one packet (_bvh_packet_kernel). Packets pay once the tree
-# outgrows the L1 cache (an H100's or H200's is 256 KiB an SM): on the H200
-# the first packets (children ordered by vote) crossed a ray at a time
-# between 10,000 spheres (a 264 KiB tree) and 30,000 (795 KiB); today's take
-# 37% off at 1,000,000 and tie at 1,000 (25 KiB) (docs/performance.md).
-WALKS = ("ray", "packet")
+# The walk by default: packets once the tree outgrows the L1 cache (an
+# H100's or H200's is 256 KiB an SM): on the H200 the first packets
+# (children ordered by vote) crossed a ray at a time between 10,000 spheres
+# (a 264 KiB tree) and 30,000 (795 KiB); today's take 37% off at 1,000,000
+# and tie at 1,000 (25 KiB) (docs/performance.md).
 PACKET_TREE_BYTES = 256 * 1024
 
 
@@ -50,15 +49,6 @@ def choose_walk(nodes: int) -> str:
     """The walk for a tree of `nodes` rows, when the user did not choose."""
     return "packet" if nodes * bvh_mod.NODE_BYTES > PACKET_TREE_BYTES else "ray"
 
-
-def check_walk(walk, accel: str) -> str | None:
-    if walk is None:
-        return None
-    if accel != "bvh":
-        raise RaybenchError("walk: applies to the BVH walk only (accel='bvh'), not to brute force")
-    if walk not in WALKS:
-        raise RaybenchError(f"walk: must be one of {', '.join(WALKS)}, got {walk!r}")
-    return walk
 
 _k = kernels.build(cuda.jit(device=True))
 # module globals, which is how kernels can see them

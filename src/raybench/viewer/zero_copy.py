@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 from ..backends.limits import check_count
 from ..backends.wgpu.compute import Compute
-from ..backends.wgpu.tracer import DEFAULT_WORKGROUP, timestamp_period
+from ..backends.wgpu.tracer import timestamp_period
 
 
 @dataclass(frozen=True)
@@ -55,8 +55,9 @@ class InWindowTracer:
         # accel and kernel as the Tracer takes them: the BVH unless brute force is asked for;
         # a frame of another sphere count (+, -, the ramp) gets its tree in encode()
         compute = Compute(self.device, request.scene.spheres, request.width, request.height,
-                          options.pop("workgroup", DEFAULT_WORKGROUP), options.pop("accel", None),
-                          options.pop("kernel", None), extra_texture_usage=wgpu.TextureUsage.TEXTURE_BINDING)
+                          options.pop("workgroup", None), options.pop("accel", None),
+                          options.pop("kernel", None), extra_texture_usage=wgpu.TextureUsage.TEXTURE_BINDING,
+                          walk=options.pop("walk", None))
         compile_s = compute.compile()
         # The scene is held with the key: its id() must not be reused while the key is.
         self.compute, self._key, self._scene = compute, key, request.scene

@@ -14,7 +14,8 @@ Nothing here imports wgpu until an adapter is asked for.
 from __future__ import annotations
 
 from .adapters import choose, found, gpu_present
-from .tracer import DEFAULT_WORKGROUP, Tracer
+from .compute import DEFAULT_WORKGROUP
+from .tracer import Tracer
 
 __all__ = ["DEFAULT_WORKGROUP", "Tracer", "choose", "description", "found", "gpu_present", "require"]
 

@@ -120,9 +120,10 @@ def _short(name: str) -> str:
 def device_requirements(adapter) -> dict:
     """request_device's arguments for a GPUAdapter: its higher limits (the
     thesis's 32x32 workgroup needs 1024 invocations where WebGPU's default is
-    256) and timestamp queries where it has them."""
+    256), and timestamp queries and subgroups (the BVH's packet walk) where it
+    has them."""
     limits = {k: adapter.limits[k] for k in LIMITS if k in adapter.limits}
-    features = [f for f in ("timestamp-query",) if f in adapter.features]
+    features = [f for f in ("timestamp-query", "subgroup") if f in adapter.features]
     return {"required_features": features, "required_limits": limits}
 
 

@@ -17,11 +17,22 @@ import numpy as np
 from ... import bvh as bvh_mod
 from ...errors import RaybenchError
 from ..limits import HOST_PIXEL_BYTES, check_accel as check_accel_and_kernel, check_bvh_fits, host_available_bytes
+from ..walks import check_walk
 from . import shader
 
 FRAME_FORMAT = "rgba8unorm"
 SPHERE_FLOATS = 8   # shader's struct Sphere: the 7 columns and a pad
 UNIFORM_BYTES = 80  # shader's struct Frame: four vec4s, four u32s
+# The default workgroups: WebGPU's default limit (256 invocations), so they
+# run on every adapter (the thesis's 32x32 runs where the adapter allows
+# 1024); for the packet walk 8x4, one NVIDIA warp, as cuda's packets (8x8:
+# the same, 16x16 and 32x8 slower on the H200).
+DEFAULT_WORKGROUP = {"none": (16, 16), "ray": (16, 16), "packet": (8, 4)}
+# The packet walk's votes are subgroup operations (packet.wgsl). It is no
+# default: on the H200 through Vulkan it was 4-27% slower than a ray at a
+# time at 1,000 to 1,000,000 spheres, where cuda's packets are 37% faster at
+# 1,000,000 (docs/performance.md); walk="packet" measures it on another GPU.
+PACKET_FEATURE = "subgroup"
 
 
 def check_kernel(kernel) -> None:
@@ -97,16 +108,24 @@ def ordered_rows(tree: bvh_mod.Bvh) -> np.ndarray:
 class Compute:
     """One scene at one size on one device: encode() records a frame's compute
     pass into a command encoder; texture and hits hold the result. With the
-    BVH, build_s is the last build's seconds (the build alone, as on cuda)."""
+    BVH, build_s is the last build's seconds (the build alone, as on cuda),
+    and walk says how the pass walks it: "ray" (the default) or "packet"."""
 
-    def __init__(self, device, spheres: np.ndarray, width: int, height: int, workgroup=(16, 16),
-                 accel: str | None = None, kernel: str | None = None, extra_texture_usage: int = 0):
+    def __init__(self, device, spheres: np.ndarray, width: int, height: int, workgroup=None,
+                 accel: str | None = None, kernel: str | None = None, extra_texture_usage: int = 0,
+                 walk: str | None = None):
         import wgpu
 
         self.device = device
         limits = dict(device.limits)
-        self.workgroup = check_workgroup(workgroup, limits)
         self.accel = check_accel(accel, kernel)
+        walk = check_walk(walk, self.accel)
+        self.walk = (walk or "ray") if self.accel == "bvh" else None
+        if self.walk == "packet" and PACKET_FEATURE not in device.features:
+            raise RaybenchError(f"walk: the packet walk votes with subgroup operations, and this device has no "
+                                f"{PACKET_FEATURE!r} feature; use walk='ray'")
+        default = DEFAULT_WORKGROUP[self.walk or self.accel]
+        self.workgroup = check_workgroup(default if workgroup is None else workgroup, limits)
         self.count = spheres.shape[1]
         check_frame_fits(width, height, self.count, self.workgroup, limits, self.accel)
         if self.accel == "bvh":
@@ -144,9 +163,10 @@ class Compute:
         if self.pipeline is not None:
             return 0.0
         start = time.perf_counter()
-        module = self.device.create_shader_module(code=shader.source(self.workgroup, self.accel))
-        self.pipeline = self.device.create_compute_pipeline(layout="auto",
-                                                            compute={"module": module, "entry_point": "main"})
+        walk = self.walk or "ray"
+        module = self.device.create_shader_module(code=shader.source(self.workgroup, self.accel, walk))
+        self.pipeline = self.device.create_compute_pipeline(
+            layout="auto", compute={"module": module, "entry_point": shader.ENTRY[walk]})
         self._bind()
         return time.perf_counter() - start
 

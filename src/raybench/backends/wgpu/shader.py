@@ -4,7 +4,8 @@ The pieces port the single-source kernels (raybench.kernels) function by
 function: common.wgsl (bindings), intersect.wgsl, shade.wgsl, trace.wgsl (the
 primary ray, the pixel, the entry point), and one nearest_hit per
 acceleration structure: brute.wgsl, the thesis's loop over every sphere, and
-traverse.wgsl, the BVH walk of kernels/traverse.py with its own bindings.
+traverse.wgsl, the BVH walk of kernels/traverse.py with its own bindings,
+and for the packet walk packet.wgsl after it, with its own entry point.
 """
 
 from __future__ import annotations
@@ -29,10 +30,15 @@ def _piece(name: str) -> str:
     return resources.files(__package__).joinpath(name).read_text(encoding="utf-8")
 
 
-def source(workgroup: tuple[int, int], accel: str) -> str:
+ENTRY = {"ray": "main", "packet": "main_packet"}
+
+
+def source(workgroup: tuple[int, int], accel: str, walk: str = "ray") -> str:
     """The whole shader for one workgroup shape (a compile-time constant in
-    WGSL) and acceleration structure ("bvh" or "none", checked by the caller)."""
-    text = "\n".join([_piece(p) for p in PIECES] + [_piece(ACCELS[accel])])
+    WGSL), acceleration structure ("bvh" or "none", checked by the caller)
+    and BVH walk (ENTRY's keys: its entry point)."""
+    packet = [_piece("packet.wgsl")] if accel == "bvh" and walk == "packet" else []
+    text = "\n".join([_piece(p) for p in PIECES] + [_piece(ACCELS[accel])] + packet)
     text = text.replace("WORKGROUP_X", f"{workgroup[0]}u").replace("WORKGROUP_Y", f"{workgroup[1]}u")
     for name, value in BVH_CONSTANTS.items():
         text = text.replace(name, value)

@@ -13,9 +13,6 @@ from ..limits import HOST_PIXEL_BYTES, check_count, check_fits, check_size, host
 from . import adapters
 from .compute import Compute, check_accel
 
-# WebGPU's default limit (256 invocations), so the default runs on every
-# adapter; the thesis's 32x32 runs where the adapter allows 1024.
-DEFAULT_WORKGROUP = (16, 16)
 ROW_ALIGN = 256  # bytes_per_row of a texture-to-buffer copy: WebGPU's rule
 
 
@@ -39,7 +36,7 @@ class Tracer:
     name = "wgpu"
 
     def __init__(self, spheres: np.ndarray, width: int, height: int, workgroup=None, adapter: str | None = None,
-                 accel: str | None = None, kernel: str | None = None):
+                 accel: str | None = None, kernel: str | None = None, walk: str | None = None):
         import wgpu
 
         accel = check_accel(accel, kernel)
@@ -47,9 +44,9 @@ class Tracer:
         self.adapter = adapters.choose(adapter)
         self.device = adapters.request_device(self.adapter)
         check_fits("host", width, height, 0, host_available_bytes(), HOST_PIXEL_BYTES)
-        self.compute = Compute(self.device, spheres, width, height,
-                               DEFAULT_WORKGROUP if workgroup is None else workgroup, accel, kernel)
+        self.compute = Compute(self.device, spheres, width, height, workgroup, accel, kernel, walk=walk)
         self.accel = accel
+        self.walk = self.compute.walk  # the BVH walk: "ray" or "packet"; None for brute force
         self.workgroup = self.compute.workgroup
         self.width, self.height, self.count = width, height, spheres.shape[1]
         self.row_bytes = -(-width * 4 // ROW_ALIGN) * ROW_ALIGN
