@@ -25,9 +25,9 @@ SPHERE_FLOATS = 8   # shader's struct Sphere: the 7 columns and a pad
 UNIFORM_BYTES = 80  # shader's struct Frame: four vec4s, four u32s
 # The default workgroups: WebGPU's default limit (256 invocations), so they
 # run on every adapter (the thesis's 32x32 runs where the adapter allows
-# 1024); for the packet walk 8x4, one NVIDIA warp, as cuda's packets (8x8:
-# the same, 16x16 and 32x8 slower on the H200).
-DEFAULT_WORKGROUP = {"none": (16, 16), "ray": (16, 16), "packet": (8, 4)}
+# 1024); for the packet walk 8x8, two NVIDIA warps, each an 8x4 packet of
+# pixels (on the H200 0.5-3% faster than 8x4, and 16x16 and 32x8 slower).
+DEFAULT_WORKGROUP = {"none": (16, 16), "ray": (16, 16), "packet": (8, 8)}
 # The packet walk's votes are subgroup operations (packet.wgsl). It is no
 # default: on the H200 through Vulkan it was 4-27% slower than a ray at a
 # time at 1,000 to 1,000,000 spheres, where cuda's packets are 37% faster at
