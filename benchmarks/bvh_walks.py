@@ -40,7 +40,8 @@ def one(device: str, spheres: int, width: int, height: int, frames: int, block, 
             kernel_ms = tracer.timed_trace(basis)
             times.append(kernel_ms if kernel_ms is not None else (time.perf_counter() - start) * 1e3)
         ms = statistics.median(times)
-        return {"device": device, "walk": getattr(tracer, "walk", None), "block": getattr(tracer, "block", None) or getattr(tracer, "workgroup", None),
+        shape = getattr(tracer, "block", None) or getattr(tracer, "workgroup", None)  # cuda's, wgpu's
+        return {"device": device, "walk": getattr(tracer, "walk", None), "block": shape,
                 "spheres": spheres, "width": width, "height": height, "frames": frames,
                 "median_ms": round(ms, 4), "grays_per_s": round(width * height / ms / 1e6, 3),
                 "build_ms": round(tracer.build_s * 1e3, 1), "kernel_time": kernel_ms is not None,
@@ -55,8 +56,10 @@ def main() -> int:
     parser.add_argument("--device", action="append", choices=["cpu", "cuda", "wgpu"])
     parser.add_argument("--size", action="append", choices=sorted(SIZES))
     parser.add_argument("--frames", type=int, default=9)
-    parser.add_argument("--block", type=int, nargs=2, metavar=("X", "Y"), help="cuda's block shape, wgpu's workgroup (default: their own)")
-    parser.add_argument("--walk", help="cuda's and wgpu's BVH walk, ray or packet (default: chosen by the tree's size)")
+    parser.add_argument("--block", type=int, nargs=2, metavar=("X", "Y"),
+                        help="cuda's block shape, wgpu's workgroup (default: the walk's own)")
+    parser.add_argument("--walk", help="cuda's and wgpu's BVH walk, ray or packet (default: on cuda chosen by the "
+                                       "tree's size, on wgpu ray)")
     parser.add_argument("--threads", type=int, help="cpu's threads (default: every core)")
     args = parser.parse_args()
     if args.frames < 1:
