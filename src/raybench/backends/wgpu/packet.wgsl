@@ -23,21 +23,16 @@ fn centre_along(row: i32, col: u32, o: vec3<f32>, c: vec3<f32>) -> f32 {
 }
 
 fn nearest_hit_packet(o: vec3<f32>, dir: vec3<f32>, centre: vec3<f32>) -> Hit {
-    let margin = (abs(o.x) + abs(o.y) + abs(o.z)) * PAD;
-    let ax = axis_setup(o.x, dir.x, margin);
-    let ay = axis_setup(o.y, dir.y, margin);
-    let az = axis_setup(o.z, dir.z, margin);
+    let axes = ray_axes(o, dir);
     var best = Nearest(FAR, -1, 0.0);
     var stack_row: array<i32, STACK>;   // the same in every invocation
     var stack_t: array<f32, STACK>;     // where this invocation's ray enters the node
     var row = 0;
     var top = 0u;
     while (row >= 0) {
-        let links = nodes[row].links;
-        let sa = slab(row, 0u, ax, ay, az);
-        let sb = slab(row, 6u, ax, ay, az);
-        var a = Child(sa.x, sa.y, links.x, links.z);
-        var b = Child(sb.x, sb.y, links.y, links.w);
+        let pair = children(row, axes);
+        var a = pair.a;
+        var b = pair.b;
         var a_in = a.near <= a.far && a.far > 0.0 && a.near <= best.closest;
         var b_in = b.near <= b.far && b.far > 0.0 && b.near <= best.closest;
         var any_a = subgroupAny(a_in);

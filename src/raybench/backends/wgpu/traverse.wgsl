@@ -30,12 +30,25 @@ struct Axis {
     hi: f32,   // and for its high one
 }
 
+// The ray's three axes (ray_axes' results).
+struct Axes {
+    x: Axis,
+    y: Axis,
+    z: Axis,
+}
+
 // A child of the node being visited: its slab interval and its link.
 struct Child {
     near: f32,
     far: f32,
     link: i32,    // the child's row where count == INNER, else its first sphere in `ordered`
     count: i32,
+}
+
+// A node's two children (children's results).
+struct Children {
+    a: Child,
+    b: Child,
 }
 
 // The nearest hit so far: (closest, hit, hit_d) of the Python walk.
@@ -70,6 +83,20 @@ fn slab(row: i32, col: u32, x: Axis, y: Axis, z: Axis) -> vec2<f32> {
     return vec2<f32>(near, far);
 }
 
+// The ray's axes for the slab tests, every box grown by the camera's margin.
+fn ray_axes(o: vec3<f32>, dir: vec3<f32>) -> Axes {
+    let margin = (abs(o.x) + abs(o.y) + abs(o.z)) * PAD;
+    return Axes(axis_setup(o.x, dir.x, margin), axis_setup(o.y, dir.y, margin), axis_setup(o.z, dir.z, margin));
+}
+
+// A node's two children: the ray's slab through each one's box, and their links.
+fn children(row: i32, axes: Axes) -> Children {
+    let links = nodes[row].links;
+    let sa = slab(row, 0u, axes.x, axes.y, axes.z);
+    let sb = slab(row, 6u, axes.x, axes.y, axes.z);
+    return Children(Child(sa.x, sa.y, links.x, links.z), Child(sb.x, sb.y, links.y, links.w));
+}
+
 // The exact test on a leaf's spheres; ties go to the smaller ORIGINAL index,
 // which is the sphere brute force's first-of-smallest-t picks.
 fn leaf_hits(o: vec3<f32>, dir: vec3<f32>, first: i32, count: i32, so_far: Nearest) -> Nearest {
@@ -85,21 +112,16 @@ fn leaf_hits(o: vec3<f32>, dir: vec3<f32>, first: i32, count: i32, so_far: Neare
 }
 
 fn nearest_hit_bvh(o: vec3<f32>, dir: vec3<f32>) -> Hit {
-    let margin = (abs(o.x) + abs(o.y) + abs(o.z)) * PAD;
-    let ax = axis_setup(o.x, dir.x, margin);
-    let ay = axis_setup(o.y, dir.y, margin);
-    let az = axis_setup(o.z, dir.z, margin);
+    let axes = ray_axes(o, dir);
     var best = Nearest(FAR, -1, 0.0);
     var stack_row: array<i32, STACK>;
     var stack_t: array<f32, STACK>;
     var row = 0;
     var top = 0u;
     while (row >= 0) {
-        let links = nodes[row].links;
-        let sa = slab(row, 0u, ax, ay, az);
-        let sb = slab(row, 6u, ax, ay, az);
-        var a = Child(sa.x, sa.y, links.x, links.z);
-        var b = Child(sb.x, sb.y, links.y, links.w);
+        let pair = children(row, axes);
+        var a = pair.a;
+        var b = pair.b;
         // near child first: its hits can rule the far one out
         if (b.near < a.near) {
             let swap = a;
