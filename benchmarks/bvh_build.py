@@ -37,10 +37,22 @@ def main() -> int:
         for threads in args.threads or [os.cpu_count() or 1]:
             times = [bvh.build(spheres, threads=threads, _timed=False).build_s * 1e3 for _ in range(args.repeats)]
             tree = bvh.build(spheres, threads=threads, _timed=False)
-            print(json.dumps({"spheres": SIZES[size], "threads": threads, "repeats": args.repeats,
-                              "median_ms": round(statistics.median(times), 2), "min_ms": round(min(times), 2),
-                              "nodes": tree.node_count, "depth": tree.depth, "cores": os.cpu_count(),
-                              "raybench": raybench.__file__}), flush=True)
+            print(
+                json.dumps(
+                    {
+                        "spheres": SIZES[size],
+                        "threads": threads,
+                        "repeats": args.repeats,
+                        "median_ms": round(statistics.median(times), 2),
+                        "min_ms": round(min(times), 2),
+                        "nodes": tree.node_count,
+                        "depth": tree.depth,
+                        "cores": os.cpu_count(),
+                        "raybench": raybench.__file__,
+                    }
+                ),
+                flush=True,
+            )
     return 0
 
 

@@ -20,8 +20,13 @@ from raybench import Camera, RaybenchError, backends
 
 # The issue's three sizes (the default), and between them for where curves cross
 ISSUE_SIZES = {"1k": (1000, 1680, 1050), "100k": (100_000, 1680, 1050), "1M": (1_000_000, 1920, 1080)}
-SIZES = {**ISSUE_SIZES, "3k": (3000, 1680, 1050), "10k": (10_000, 1680, 1050), "30k": (30_000, 1680, 1050),
-         "300k": (300_000, 1680, 1050)}
+SIZES = {
+    **ISSUE_SIZES,
+    "3k": (3000, 1680, 1050),
+    "10k": (10_000, 1680, 1050),
+    "30k": (30_000, 1680, 1050),
+    "300k": (300_000, 1680, 1050),
+}
 
 
 def one(device: str, spheres: int, width: int, height: int, frames: int, block, walk, threads) -> dict:
@@ -41,12 +46,21 @@ def one(device: str, spheres: int, width: int, height: int, frames: int, block, 
             times.append(kernel_ms if kernel_ms is not None else (time.perf_counter() - start) * 1e3)
         ms = statistics.median(times)
         shape = getattr(tracer, "block", None) or getattr(tracer, "workgroup", None)  # cuda's, wgpu's
-        return {"device": device, "walk": getattr(tracer, "walk", None), "block": shape,
-                "spheres": spheres, "width": width, "height": height, "frames": frames,
-                "median_ms": round(ms, 4), "grays_per_s": round(width * height / ms / 1e6, 3),
-                "build_ms": round(tracer.build_s * 1e3, 1), "kernel_time": kernel_ms is not None,
-                "threads": getattr(tracer, "threads", None),
-                "raybench": raybench.__file__}
+        return {
+            "device": device,
+            "walk": getattr(tracer, "walk", None),
+            "block": shape,
+            "spheres": spheres,
+            "width": width,
+            "height": height,
+            "frames": frames,
+            "median_ms": round(ms, 4),
+            "grays_per_s": round(width * height / ms / 1e6, 3),
+            "build_ms": round(tracer.build_s * 1e3, 1),
+            "kernel_time": kernel_ms is not None,
+            "threads": getattr(tracer, "threads", None),
+            "raybench": raybench.__file__,
+        }
     finally:
         tracer.close()
 
@@ -56,10 +70,17 @@ def main() -> int:
     parser.add_argument("--device", action="append", choices=["cpu", "cuda", "wgpu"])
     parser.add_argument("--size", action="append", choices=sorted(SIZES))
     parser.add_argument("--frames", type=int, default=9)
-    parser.add_argument("--block", type=int, nargs=2, metavar=("X", "Y"),
-                        help="cuda's block shape, wgpu's workgroup (default: the walk's own)")
-    parser.add_argument("--walk", help="cuda's and wgpu's BVH walk, ray or packet (default: on cuda chosen by the "
-                                       "tree's size, on wgpu ray)")
+    parser.add_argument(
+        "--block",
+        type=int,
+        nargs=2,
+        metavar=("X", "Y"),
+        help="cuda's block shape, wgpu's workgroup (default: the walk's own)",
+    )
+    parser.add_argument(
+        "--walk",
+        help="cuda's and wgpu's BVH walk, ray or packet (default: on cuda chosen by the tree's size, on wgpu ray)",
+    )
     parser.add_argument("--threads", type=int, help="cpu's threads (default: every core)")
     args = parser.parse_args()
     if args.frames < 1:
@@ -69,8 +90,9 @@ def main() -> int:
     try:
         for device in args.device or ["cuda"]:
             for size in args.size or list(ISSUE_SIZES):
-                print(json.dumps(one(device, *SIZES[size], args.frames, args.block, args.walk, args.threads)),
-                      flush=True)
+                print(
+                    json.dumps(one(device, *SIZES[size], args.frames, args.block, args.walk, args.threads)), flush=True
+                )
     except RaybenchError as error:
         print(f"bvh_walks: {error}", file=sys.stderr)
         return 2

@@ -45,8 +45,14 @@ def main():
     ap.add_argument("--skip-peak", action="store_true")
     args = ap.parse_args()
     w, h = map(int, args.size.split("x"))
-    out = {"machine": machine.describe(), "size": [w, h], "spheres": args.spheres, "peak": {}, "kernels": [],
-           "sweep": []}
+    out = {
+        "machine": machine.describe(),
+        "size": [w, h],
+        "spheres": args.spheres,
+        "peak": {},
+        "kernels": [],
+        "sweep": [],
+    }
     # wgpu has the simple kernel alone: nothing to set side by side here
     devices = [d for d in backends.present() if d != "wgpu"]
     if not args.skip_peak:
@@ -66,32 +72,52 @@ def main():
             wall, kern = frames(tracer, basis, args.frames)
             images[kernel] = (tracer.image.copy(), tracer.hits.copy())
             best = kern if kern is not None else wall
-            rec = {"device": device, "kernel": kernel, "frame_ms": wall, "kernel_ms": kern,
-                   "tests_per_s": tests / (best / 1e3), "compile_s": compile_s}
+            rec = {
+                "device": device,
+                "kernel": kernel,
+                "frame_ms": wall,
+                "kernel_ms": kern,
+                "tests_per_s": tests / (best / 1e3),
+                "compile_s": compile_s,
+            }
             out["kernels"].append(rec)
             print(json.dumps(rec), flush=True)
             tracer.close()
         (img_s, hits_s), (img_f, hits_f) = images["simple"], images["fast"]
         diff = np.abs(img_s.astype(int) - img_f.astype(int))
-        same = {"images_identical": bool(np.array_equal(img_s, img_f)),
-                "hits_differing": int((hits_s != hits_f).sum()),
-                "pixels_differing": int(diff.max(axis=2).astype(bool).sum()),
-                "max_colour_step": int(diff.max())}
+        same = {
+            "images_identical": bool(np.array_equal(img_s, img_f)),
+            "hits_differing": int((hits_s != hits_f).sum()),
+            "pixels_differing": int(diff.max(axis=2).astype(bool).sum()),
+            "max_colour_step": int(diff.max()),
+        }
         out.setdefault("identical", {})[device] = same
         print(device, "simple against fast:", same, flush=True)
     if (args.sweep or args.sweep_trip) and "cuda" in devices:
         if args.sweep:
-            shapes = [(rays, tile, 2, block) for rays in (1, 2, 4, 8, 16) for tile in (128, 256, 512)
-                      for block in ((32, 2), (16, 4), (32, 4), (32, 8), (16, 16), (64, 4), (128, 1))]
+            shapes = [
+                (rays, tile, 2, block)
+                for rays in (1, 2, 4, 8, 16)
+                for tile in (128, 256, 512)
+                for block in ((32, 2), (16, 4), (32, 4), (32, 8), (16, 16), (64, 4), (128, 1))
+            ]
         else:  # spheres per trip of the cull loop, around the default shape, twice over
-            shapes = [(8, 256, trip, block) for _ in range(2) for trip in (1, 2, 3, 4)
-                      for block in ((16, 4), (32, 2), (8, 8))]
+            shapes = [
+                (8, 256, trip, block) for _ in range(2) for trip in (1, 2, 3, 4) for block in ((16, 4), (32, 2), (8, 8))
+            ]
         for rays, tile, trip, block in shapes:
             tracer = backends.tracer("cuda", scene.spheres, w, h, rays=rays, tile=tile, trip=trip, block=block)
             tracer.compile()
             wall, kern = frames(tracer, basis, args.frames)
-            rec = {"rays": rays, "tile": tile, "trip": trip, "block": list(block), "frame_ms": wall,
-                   "kernel_ms": kern, "tests_per_s": tests / (kern / 1e3)}
+            rec = {
+                "rays": rays,
+                "tile": tile,
+                "trip": trip,
+                "block": list(block),
+                "frame_ms": wall,
+                "kernel_ms": kern,
+                "tests_per_s": tests / (kern / 1e3),
+            }
             out["sweep"].append(rec)
             print(json.dumps(rec), flush=True)
     with open(args.json, "w") as f:

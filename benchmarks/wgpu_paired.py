@@ -32,16 +32,20 @@ def main():
     basis = Camera().basis(width, height)
     shapes = [parse_pair(w, "--workgroup", "16x16") for w in (args.workgroup or ["16x16"])]
     cpu = backends.tracer("cpu", scene.spheres, width, height, kernel="simple")
-    gpus = {f"{x}x{y}": backends.tracer("wgpu", scene.spheres, width, height, adapter=args.adapter,
-                                        workgroup=(x, y)) for x, y in shapes}
+    gpus = {
+        f"{x}x{y}": backends.tracer("wgpu", scene.spheres, width, height, adapter=args.adapter, workgroup=(x, y))
+        for x, y in shapes
+    }
     cpu.compile()
     cpu_image, cpu_hits = (a.copy() for a in cpu.trace(basis))
     same = {}
     for name, t in gpus.items():
         t.compile()
         image, hits = t.trace(basis)
-        same[name] = {"hits_equal": bool(np.array_equal(hits, cpu_hits)),
-                      "max_colour_step": int(np.abs(image.astype(int) - cpu_image.astype(int)).max())}
+        same[name] = {
+            "hits_equal": bool(np.array_equal(hits, cpu_hits)),
+            "max_colour_step": int(np.abs(image.astype(int) - cpu_image.astype(int)).max()),
+        }
     rounds = []
     for _ in range(args.rounds):
         row = {"load1": os.getloadavg()[0]}
@@ -65,8 +69,18 @@ def main():
     print(json.dumps({"adapter": adapter, "same_picture": same, "summary": summary}, indent=1))
     if args.json:
         with open(args.json, "w") as f:
-            json.dump({"argv": vars(args), "machine": describe(), "adapter": adapter, "same_picture": same,
-                       "rounds": rounds, "summary": summary}, f, indent=1)
+            json.dump(
+                {
+                    "argv": vars(args),
+                    "machine": describe(),
+                    "adapter": adapter,
+                    "same_picture": same,
+                    "rounds": rounds,
+                    "summary": summary,
+                },
+                f,
+                indent=1,
+            )
 
 
 if __name__ == "__main__":

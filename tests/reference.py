@@ -16,11 +16,11 @@ K = 32.0
 
 @dataclass
 class Reference:
-    hits: np.ndarray        # (H, W) nearest sphere with t > 0, -1 for none
-    color: np.ndarray       # (H, W, 3) float64 colour before clamping
-    candidates: list        # per ambiguous pixel (y, x): set of acceptable hit indices
-    ambiguous: np.ndarray   # (H, W) bool: rounding could change which sphere wins
-    color_tol: np.ndarray   # (H, W) bound on the float32 colour error
+    hits: np.ndarray  # (H, W) nearest sphere with t > 0, -1 for none
+    color: np.ndarray  # (H, W, 3) float64 colour before clamping
+    candidates: list  # per ambiguous pixel (y, x): set of acceptable hit indices
+    ambiguous: np.ndarray  # (H, W) bool: rounding could change which sphere wins
+    color_tol: np.ndarray  # (H, W) bound on the float32 colour error
 
 
 def rays(camera, width, height):
@@ -60,13 +60,13 @@ def trace(scene, camera, width, height, pixels=None) -> Reference:
     candidates = {}
     color_tol = np.full(npix, 1e-6)
     if n:
-        eo = centers - pos                                  # (n, 3)
-        eo2 = np.einsum("ij,ij->i", eo, eo)                 # (n,)
+        eo = centers - pos  # (n, 3)
+        eo2 = np.einsum("ij,ij->i", eo, eo)  # (n,)
         norm_eo = np.sqrt(eo2)
         for start in range(0, npix, 4096):
-            dd = dirs[start:start + 4096]
-            v = dd @ eo.T                                   # (p, n)
-            disc = radii ** 2 - (eo2 - v * v)               # the thesis's formula
+            dd = dirs[start : start + 4096]
+            v = dd @ eo.T  # (p, n)
+            disc = radii**2 - (eo2 - v * v)  # the thesis's formula
             hit = disc >= 0
             dist = np.sqrt(np.where(hit, disc, 0.0))
             t = v - dist
@@ -74,13 +74,14 @@ def trace(scene, camera, width, height, pixels=None) -> Reference:
             tt = np.where(valid, t, np.inf)
             idx = np.argmin(tt, axis=1)
             got = np.isfinite(tt[np.arange(len(dd)), idx])
-            hits[start:start + len(dd)] = np.where(got, idx, -1)
-            best_d[start:start + len(dd)] = dist[np.arange(len(dd)), idx]
+            hits[start : start + len(dd)] = np.where(got, idx, -1)
+            best_d[start : start + len(dd)] = dist[np.arange(len(dd)), idx]
 
             # How far could float32 move each quantity? (leading order, times K)
-            err_disc = K * EPS32 * (norm_eo * (radii + np.sqrt(np.maximum(radii ** 2 - disc, 0))) + radii ** 2)
-            err_dist = np.where(dist > 0, np.minimum(err_disc / (2 * np.maximum(dist, 1e-300)), np.sqrt(err_disc)),
-                                np.sqrt(err_disc))
+            err_disc = K * EPS32 * (norm_eo * (radii + np.sqrt(np.maximum(radii**2 - disc, 0))) + radii**2)
+            err_dist = np.where(
+                dist > 0, np.minimum(err_disc / (2 * np.maximum(dist, 1e-300)), np.sqrt(err_disc)), np.sqrt(err_disc)
+            )
             err_t = K * EPS32 * (norm_eo + dist) + err_dist
             maybe_hit = (disc >= -err_disc) & (t > -err_t)
             sure_hit = (disc > err_disc) & (t > err_t)
@@ -94,11 +95,10 @@ def trace(scene, camera, width, height, pixels=None) -> Reference:
                 if nosure[p]:
                     cand.add(-1)
                 candidates[start + p] = cand
-            ambiguous[start:start + len(dd)] = amb
+            ambiguous[start : start + len(dd)] = amb
             win = np.where(got, idx, 0)
             rows = np.arange(len(dd))
-            color_tol[start:start + len(dd)] = np.where(
-                got, err_dist[rows, win] / radii[win] + 4 * EPS32, 1e-6)
+            color_tol[start : start + len(dd)] = np.where(got, err_dist[rows, win] / radii[win] + 4 * EPS32, 1e-6)
     color = np.empty((npix, 3))
     miss = hits < 0
     ys, xs = np.divmod(flat, width)
@@ -109,8 +109,13 @@ def trace(scene, camera, width, height, pixels=None) -> Reference:
     if pixels is not None:
         return Reference(hits, color, candidates, ambiguous, color_tol)
     cand2d = {(p // width, p % width): c for p, c in candidates.items()}
-    return Reference(hits.reshape(height, width), color.reshape(height, width, 3), cand2d,
-                     ambiguous.reshape(height, width), color_tol.reshape(height, width))
+    return Reference(
+        hits.reshape(height, width),
+        color.reshape(height, width, 3),
+        cand2d,
+        ambiguous.reshape(height, width),
+        color_tol.reshape(height, width),
+    )
 
 
 def check_frame(frame, ref: Reference, max_ambiguous=0.02, context=""):
@@ -125,20 +130,25 @@ def check_frame(frame, ref: Reference, max_ambiguous=0.02, context=""):
     frac = amb.mean()
     assert frac <= max_ambiguous, f"{context}: {frac:.1%} of pixels are ambiguous; the test would prove too little"
     wrong = (frame.hits != ref.hits) & ~amb
-    assert not wrong.any(), (f"{context}: {wrong.sum()} pixels hit another sphere than the reference, "
-                             f"first at (y, x) = {tuple(np.argwhere(wrong)[0])}: "
-                             f"got {frame.hits[wrong][0]}, expected {ref.hits[wrong][0]}")
+    assert not wrong.any(), (
+        f"{context}: {wrong.sum()} pixels hit another sphere than the reference, "
+        f"first at (y, x) = {tuple(np.argwhere(wrong)[0])}: "
+        f"got {frame.hits[wrong][0]}, expected {ref.hits[wrong][0]}"
+    )
     for (y, x), cand in ref.candidates.items():
-        assert int(frame.hits[y, x]) in cand, (f"{context}: pixel ({y}, {x}) hit {frame.hits[y, x]}, "
-                                               f"not one of the possible {sorted(cand)}")
+        assert int(frame.hits[y, x]) in cand, (
+            f"{context}: pixel ({y}, {x}) hit {frame.hits[y, x]}, not one of the possible {sorted(cand)}"
+        )
     same = ~amb
     steps = np.abs(frame.image.astype(int) - to_bytes(ref.color).astype(int)).max(axis=2)
     tol_steps = ref.color_tol * 255
     allowed = np.where(tol_steps <= 0.5, 1, 1 + np.ceil(tol_steps))
     bad = same & (steps > allowed)
-    assert not bad.any(), (f"{context}: {bad.sum()} pixels differ in colour beyond rounding, first at "
-                           f"{tuple(np.argwhere(bad)[0])}: got {frame.image[bad][0]}, "
-                           f"expected {to_bytes(ref.color)[bad][0]}")
+    assert not bad.any(), (
+        f"{context}: {bad.sum()} pixels differ in colour beyond rounding, first at "
+        f"{tuple(np.argwhere(bad)[0])}: got {frame.image[bad][0]}, "
+        f"expected {to_bytes(ref.color)[bad][0]}"
+    )
     # The wider allowance must be rare, or "within one step" would mean little.
     wide = same & (allowed > 1)
     assert wide.mean() <= max_ambiguous, f"{context}: {wide.mean():.1%} of pixels needed a colour tolerance over 1 step"

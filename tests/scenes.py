@@ -55,23 +55,32 @@ def overlapping(rng, n):
 def radii_mixed(rng, n):
     """Tiny (1e-3) and huge (1e4) spheres together; the huge ones are far away."""
     tiny = n // 2
-    small_c = np.stack([rng.uniform(-0.05, 0.05, tiny), rng.uniform(-0.04, 0.04, tiny), rng.uniform(0.1, 0.3, tiny)],
-                       axis=1)
+    small_c = np.stack(
+        [rng.uniform(-0.05, 0.05, tiny), rng.uniform(-0.04, 0.04, tiny), rng.uniform(0.1, 0.3, tiny)], axis=1
+    )
     small_r = rng.uniform(5e-4, 3e-3, tiny)
     huge = n - tiny
     dirs = np.stack([rng.uniform(-0.5, 0.5, huge), rng.uniform(-0.4, 0.4, huge), np.ones(huge)], axis=1)
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
     huge_r = rng.uniform(2e3, 1e4, huge)
     huge_c = dirs * (huge_r * rng.uniform(1.2, 3.0, huge))[:, None]
-    return Scene(np.concatenate([small_c, huge_c]), np.concatenate([small_r, huge_r]), colors(rng, n)), Camera(fov_deg=30)
+    return Scene(np.concatenate([small_c, huge_c]), np.concatenate([small_r, huge_r]), colors(rng, n)), Camera(
+        fov_deg=30
+    )
 
 
-KINDS = {"generated": generated, "cloud": cloud, "inside": inside, "overlapping": overlapping,
-         "radii_mixed": radii_mixed}
+KINDS = {
+    "generated": generated,
+    "cloud": cloud,
+    "inside": inside,
+    "overlapping": overlapping,
+    "radii_mixed": radii_mixed,
+}
 
 
 # Degenerate scenes for the BVH (its builder and every backend's walk), each
 # with the camera to view it from.
+
 
 def one_point(rng, n):
     """All spheres at one centre; half share one radius (exact ties in t)."""
@@ -117,7 +126,7 @@ def chain(rng, n):
     scale = 20.0 ** np.arange(-29, 12)
     centers = np.zeros((3 * len(scale), 3))
     for axis in range(3):
-        centers[axis * len(scale):(axis + 1) * len(scale), axis] = scale * rng.choice([-1, 1])
+        centers[axis * len(scale) : (axis + 1) * len(scale), axis] = scale * rng.choice([-1, 1])
     radii = np.maximum(0.05 * np.abs(centers).sum(1), 1e-30)
     m = len(radii)
     pos = rng.normal(size=3)
@@ -125,8 +134,7 @@ def chain(rng, n):
     return Scene(centers, radii, colors(rng, m)), cam
 
 
-DEGENERATE = {"one_point": one_point, "duplicates": duplicates, "line": line, "one": one, "none": none,
-              "chain": chain}
+DEGENERATE = {"one_point": one_point, "duplicates": duplicates, "line": line, "one": one, "none": none, "chain": chain}
 SCENES = {**KINDS, **DEGENERATE}
 # scenes whose spheres are always in front of their camera
 IN_VIEW = {"generated", "inside", "overlapping", "radii_mixed", "one_point", "duplicates", "one"}

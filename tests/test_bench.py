@@ -57,8 +57,9 @@ def test_kernels_multiply_the_thesis_and_tuning_suites():
     both = suites.points(["thesis", "tuning"], ["cpu"], cores=4, kernels=("fast", "simple"))
     assert {p.options["kernel"] for p in one} == {"fast"}
     assert len(both) == 2 * len(one)
-    assert sorted(p.describe() for p in both if p.options["kernel"] == "simple") == \
-        sorted(p.describe().replace("kernel=fast", "kernel=simple") for p in one)
+    assert sorted(p.describe() for p in both if p.options["kernel"] == "simple") == sorted(
+        p.describe().replace("kernel=fast", "kernel=simple") for p in one
+    )
 
 
 def test_quick_is_smaller_and_unknown_suite_refused():
@@ -116,10 +117,26 @@ def _bench_subprocess(out, *extra):
     env = dict(os.environ, NUMBA_ENABLE_CUDASIM="0", PYTHONUNBUFFERED="1")
     # A shell that runs the tests in the background starts them with SIGINT
     # ignored, and Python then never turns it into KeyboardInterrupt: restore it.
-    return subprocess.Popen([sys.executable, "-m", "raybench", "bench", "--quick", "--device", "cpu",
-                             "--no-report", "--out", str(out), *extra],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    return subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "raybench",
+            "bench",
+            "--quick",
+            "--device",
+            "cpu",
+            "--no-report",
+            "--out",
+            str(out),
+            *extra,
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
 
 
 def _wait_for_lines(folder, n, proc, timeout=120):
@@ -155,8 +172,22 @@ def test_interrupted_run_keeps_every_finished_point(tmp_path, sig):
 def test_quick_run_end_to_end(tmp_path, capsys):
     """`raybench bench --quick` on the CPU: every suite, every record complete,
     and the report written."""
-    code = run(["bench", "--quick", "--suite", "all", "--device", "cpu", "--duration", "0.2",
-                "--out", str(tmp_path), "--label", "ci"])
+    code = run(
+        [
+            "bench",
+            "--quick",
+            "--suite",
+            "all",
+            "--device",
+            "cpu",
+            "--duration",
+            "0.2",
+            "--out",
+            str(tmp_path),
+            "--label",
+            "ci",
+        ]
+    )
     out = capsys.readouterr().out
     assert code == 0, out
     (path,) = tmp_path.glob("results-*.jsonl")
@@ -164,8 +195,13 @@ def test_quick_run_end_to_end(tmp_path, capsys):
     expected = suites.points(suites.SUITES, ["cpu"], quick=True, accels=suites.ACCELS)  # the CLI's default: both
     assert len(records) == len(expected)
     for rec, point in zip(records, expected):
-        assert (rec["suite"], rec["device"], rec["width"], rec["height"], rec["spheres"]) == \
-               (point.suite, point.device, point.width, point.height, point.spheres)
+        assert (rec["suite"], rec["device"], rec["width"], rec["height"], rec["spheres"]) == (
+            point.suite,
+            point.device,
+            point.width,
+            point.height,
+            point.spheres,
+        )
         if "skipped" in rec:  # brute force past the scaling suite's cap: recorded, not measured
             assert rec["suite"] == "scaling" and "cap" in rec["skipped"] and point.options["accel"] == "none"
             continue
@@ -184,13 +220,16 @@ def test_quick_run_end_to_end(tmp_path, capsys):
     assert "Verdict" in report.read_text() or "verdict" in report.read_text()
 
 
-@pytest.mark.parametrize("args,needle", [
-    (["--suite", "thesys"], "--suite"),
-    (["--device", "tpu"], "--device"),
-    (["--duration", "0"], "--duration"),
-    (["--duration", "99999"], "--duration"),
-    (["--label", "a b"], "--label"),
-])
+@pytest.mark.parametrize(
+    "args,needle",
+    [
+        (["--suite", "thesys"], "--suite"),
+        (["--device", "tpu"], "--device"),
+        (["--duration", "0"], "--duration"),
+        (["--duration", "99999"], "--duration"),
+        (["--label", "a b"], "--label"),
+    ],
+)
 def test_bench_bad_input(tmp_path, capsys, args, needle):
     code = run(["bench", "--out", str(tmp_path / "r"), *args])
     err = capsys.readouterr().err
@@ -231,8 +270,15 @@ def test_scaling_cap_skips_and_records(tmp_path, monkeypatch, rng):
     def fake_measure(point, scenes, duration):
         measured.append(point.spheres)
         median = per_sphere_ms * point.spheres * point.width * point.height / (1680 * 1050)
-        return {"suite": point.suite, "device": point.device, "width": point.width, "height": point.height,
-                "spheres": point.spheres, "options": point.options, "frame_ms": stats.summarize([median])}
+        return {
+            "suite": point.suite,
+            "device": point.device,
+            "width": point.width,
+            "height": point.height,
+            "spheres": point.spheres,
+            "options": point.options,
+            "frame_ms": stats.summarize([median]),
+        }
 
     monkeypatch.setattr(runner, "measure", fake_measure)
     pts = [p for p in suites.points(["scaling"], ["cpu"], accels=("none",))]
@@ -245,7 +291,7 @@ def test_scaling_cap_skips_and_records(tmp_path, monkeypatch, rng):
     assert done == measured == [n for n in suites.SCALING_COUNTS if n == 10 or per_sphere_ms * n <= cap_ms]
     first_skip = next(r for r in recs if "skipped" in r)
     assert first_skip["predicted_ms"] > cap_ms and "cap" in first_skip["skipped"]
-    assert all("skipped" in r for r in recs[recs.index(first_skip):])
+    assert all("skipped" in r for r in recs[recs.index(first_skip) :])
 
 
 def test_cuda_bvh_records_its_walk():
@@ -257,6 +303,7 @@ def test_cuda_bvh_records_its_walk():
     point = suites.Point("scaling", "cuda", 16, 8, 20, {"accel": "bvh", "label": "bvh"})
     record = runner.measure(point, runner.Scenes(0), 0.01)
     assert record["walk"] == "ray" and record["build_s"] >= 0
-    cpu = runner.measure(suites.Point("scaling", "cpu", 16, 8, 20, {"accel": "bvh", "label": "bvh"}),
-                         runner.Scenes(0), 0.01)
+    cpu = runner.measure(
+        suites.Point("scaling", "cpu", 16, 8, 20, {"accel": "bvh", "label": "bvh"}), runner.Scenes(0), 0.01
+    )
     assert "walk" not in cpu

@@ -21,6 +21,7 @@ def brute(scene, camera, width, height):
 
 # --- the walk gives the brute-force picture ----------------------------------
 
+
 @pytest.mark.parametrize("kind", sorted(SCENES))
 def test_cpu_bvh_equals_brute_force(rng, kind):
     n = int(rng.integers(1, 400))
@@ -90,6 +91,7 @@ def test_cuda_bvh_equals_brute_force(rng, kind, walk):
 
 # --- the box test never loses a hit -------------------------------------------
 
+
 def tangent_pairs(rng, n):
     """Rays that graze a sphere where it touches its box (the extreme point
     along an axis), within ~1e-7 of its radius: the exact float32 test
@@ -115,8 +117,9 @@ def tangent_pairs(rng, n):
 def walk(b, o, d):
     stack_row = np.empty(bvh.STACK, np.int32)
     stack_t = np.empty(bvh.STACK, np.float32)
-    return K.nearest_hit_bvh(o[0], o[1], o[2], d[0], d[1], d[2], b.nodes, b.links, b.ordered, b.order,
-                             stack_row, stack_t)
+    return K.nearest_hit_bvh(
+        o[0], o[1], o[2], d[0], d[1], d[2], b.nodes, b.links, b.ordered, b.order, stack_row, stack_t
+    )
 
 
 def test_box_test_keeps_every_grazing_hit(rng):
@@ -190,6 +193,7 @@ def test_one_test_for_a_packet_never_drops_a_ray_that_enters(rng):
 
 # --- the builder's tree ----------------------------------------------------------
 
+
 def check_tree(b: bvh.Bvh, spheres: np.ndarray):
     """Every sphere in exactly one leaf; each child box inside its parent's
     box and around its spheres' padded boxes; depth within MAX_DEPTH."""
@@ -204,7 +208,7 @@ def check_tree(b: bvh.Bvh, spheres: np.ndarray):
         row, outer, depth = todo.pop()
         deepest = max(deepest, depth)
         for slot in range(2):
-            box = b.nodes[row, 6 * slot: 6 * slot + 6].astype(np.float64)
+            box = b.nodes[row, 6 * slot : 6 * slot + 6].astype(np.float64)
             ref, count = b.links[row, 12 + slot], b.links[row, 14 + slot]
             if count == 0:
                 assert (box[:3] > box[3:]).all()  # empty: never hit
@@ -268,11 +272,15 @@ def test_parallel_build_is_a_valid_tree(rng):
 
 # --- options and bad input ----------------------------------------------------------
 
-@pytest.mark.parametrize("options,match", [
-    ({"accel": "bvh", "kernel": "simple"}, "kernel: applies to brute force only"),
-    ({"accel": "bvh", "constant_count": True}, "constant_count: applies to brute force only"),
-    ({"accel": "kd-tree"}, "accel: must be one of bvh, none"),
-])
+
+@pytest.mark.parametrize(
+    "options,match",
+    [
+        ({"accel": "bvh", "kernel": "simple"}, "kernel: applies to brute force only"),
+        ({"accel": "bvh", "constant_count": True}, "constant_count: applies to brute force only"),
+        ({"accel": "kd-tree"}, "accel: must be one of bvh, none"),
+    ],
+)
 def test_bad_accel_options(options, match):
     with pytest.raises(raybench.RaybenchError, match=match):
         raybench.render(raybench.random_spheres(3), width=8, height=8, device="cpu", **options)
@@ -295,10 +303,13 @@ def test_cuda_walk_is_chosen_by_the_tree_size():
             tracer.close()
 
 
-@pytest.mark.parametrize("options,match", [
-    ({"walk": "sideways"}, "walk: must be one of ray, packet, got 'sideways'"),
-    ({"walk": "ray", "accel": "none"}, "walk: applies to the BVH walk only"),
-])
+@pytest.mark.parametrize(
+    "options,match",
+    [
+        ({"walk": "sideways"}, "walk: must be one of ray, packet, got 'sideways'"),
+        ({"walk": "ray", "accel": "none"}, "walk: applies to the BVH walk only"),
+    ],
+)
 def test_bad_walk_options(options, match):
     if not cuda_backend.available():
         pytest.skip("no CUDA GPU and the simulator is off")
@@ -316,8 +327,7 @@ def test_cuda_brute_force_options_refused_with_bvh():
 def test_default_is_bvh_and_reports_build_time():
     frame = raybench.render(raybench.random_spheres(50), width=16, height=8, device="cpu")
     assert frame.build_s is not None and frame.build_s >= 0
-    assert raybench.render(raybench.random_spheres(50), width=16, height=8, device="cpu",
-                           accel="none").build_s is None
+    assert raybench.render(raybench.random_spheres(50), width=16, height=8, device="cpu", accel="none").build_s is None
 
 
 def test_bvh_too_large_for_memory_is_one_line(monkeypatch):
@@ -326,5 +336,8 @@ def test_bvh_too_large_for_memory_is_one_line(monkeypatch):
     scene = raybench.random_spheres(10000)
     # room for the frame and the spheres, not for the tree
     monkeypatch.setattr(cpu, "host_available_bytes", lambda: 64 * 48 * 14 + 10000 * 28 + 1000)
-    with pytest.raises(raybench.RaybenchError, match=r"bvh: 10,000 spheres need [0-9.]+ MiB for the BVH and the frame, more than the [0-9.]+ MiB available on the cpu"):
+    with pytest.raises(
+        raybench.RaybenchError,
+        match=r"bvh: 10,000 spheres need [0-9.]+ MiB for the BVH and the frame, more than the [0-9.]+ MiB available on the cpu",
+    ):
         raybench.render(scene, width=64, height=48, device="cpu")

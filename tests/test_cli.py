@@ -67,16 +67,27 @@ def expect_error(capsys, tmp_path, args, *needles):
 
 def run_subprocess(tmp_path, *args, env=None):
     before = tree(tmp_path)
-    proc = subprocess.run([sys.executable, "-m", "raybench", *map(str, args)], cwd=tmp_path, env=env,
-                          capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [sys.executable, "-m", "raybench", *map(str, args)],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert tree(tmp_path) == before, sorted(tree(tmp_path) ^ before)
     return proc.returncode, proc.stdout, proc.stderr
 
 
 def write_doc(path, **changes):
-    doc = {"format": "raybench-scene", "version": 1,
-           "spheres": [{"center": [0, 0, 5], "radius": 1, "color": [1, 0.5, 0.25]},
-                       {"center": [1, 0, 7], "radius": 0.5, "color": [0.2, 0.4, 0.6]}]}
+    doc = {
+        "format": "raybench-scene",
+        "version": 1,
+        "spheres": [
+            {"center": [0, 0, 5], "radius": 1, "color": [1, 0.5, 0.25]},
+            {"center": [1, 0, 7], "radius": 0.5, "color": [0.2, 0.4, 0.6]},
+        ],
+    }
     for index, sphere_changes in changes.get("spheres", {}).items():
         doc["spheres"][index].update(sphere_changes)
     path.write_text(json.dumps(doc))
@@ -87,8 +98,9 @@ def write_doc(path, **changes):
 def scene_file(tmp_path):
     path = tmp_path / "scene.json"
     spheres = random_spheres(12, 4)
-    Scene(spheres.centers, spheres.radii, spheres.colors,
-          Camera(position=(0, 0, -1), look_at=(0, 0, 10), fov_deg=55)).save(path)
+    Scene(
+        spheres.centers, spheres.radii, spheres.colors, Camera(position=(0, 0, -1), look_at=(0, 0, 10), fov_deg=55)
+    ).save(path)
     return path
 
 
@@ -105,50 +117,77 @@ def out_dir(tmp_path):
 def test_malformed_json_scene(capsys, tmp_path, out_dir):
     bad = tmp_path / "broken.json"
     bad.write_text('{"format": "raybench-scene", "version": 1, "spheres": [')
-    expect_error(capsys, tmp_path, ["render", "--scene", bad, *TINY, "-o", out_dir / "x.png"],
-                 "broken.json", "not valid JSON")
+    expect_error(
+        capsys, tmp_path, ["render", "--scene", bad, *TINY, "-o", out_dir / "x.png"], "broken.json", "not valid JSON"
+    )
 
 
 def test_scene_with_unknown_field(capsys, tmp_path, out_dir):
     bad = write_doc(tmp_path / "unknown.json", spheres={1: {"shininess": 3}})
-    expect_error(capsys, tmp_path, ["render", "--scene", bad, *TINY, "-o", out_dir / "x.png"],
-                 "unknown.json", "spheres[1].shininess", "unknown field")
+    expect_error(
+        capsys,
+        tmp_path,
+        ["render", "--scene", bad, *TINY, "-o", out_dir / "x.png"],
+        "unknown.json",
+        "spheres[1].shininess",
+        "unknown field",
+    )
 
 
 def test_scene_with_negative_radius(capsys, tmp_path, out_dir):
     bad = write_doc(tmp_path / "negative.json", spheres={0: {"radius": -2}})
-    expect_error(capsys, tmp_path, ["render", "--scene", bad, *TINY, "-o", out_dir / "x.png"],
-                 "negative.json", "spheres[0].radius", "> 0")
+    expect_error(
+        capsys,
+        tmp_path,
+        ["render", "--scene", bad, *TINY, "-o", out_dir / "x.png"],
+        "negative.json",
+        "spheres[0].radius",
+        "> 0",
+    )
 
 
 @pytest.mark.parametrize("color", [[0.5, 1.5, 0.5], [-0.1, 0.5, 0.5]])
 def test_scene_with_color_out_of_range(capsys, tmp_path, out_dir, color):
     bad = write_doc(tmp_path / "color.json", spheres={1: {"color": color}})
-    expect_error(capsys, tmp_path, ["render", "--scene", bad, *TINY, "-o", out_dir / "x.png"],
-                 "color.json", "spheres[1].color", "[0, 1]")
+    expect_error(
+        capsys,
+        tmp_path,
+        ["render", "--scene", bad, *TINY, "-o", out_dir / "x.png"],
+        "color.json",
+        "spheres[1].color",
+        "[0, 1]",
+    )
 
 
 def test_scene_file_that_does_not_exist(capsys, tmp_path, out_dir):
-    expect_error(capsys, tmp_path, ["render", "--scene", tmp_path / "nope.json", *TINY, "-o", out_dir / "x.png"],
-                 "nope.json")
+    expect_error(
+        capsys, tmp_path, ["render", "--scene", tmp_path / "nope.json", *TINY, "-o", out_dir / "x.png"], "nope.json"
+    )
 
 
 # --------------------------------------------------------------------------- --size
 
 
-@pytest.mark.parametrize("size,needles", [
-    ("0x600", ["width", "got 0"]),
-    ("600x0", ["height", "got 0"]),
-    ("800", ["--size", "'800'"]),
-    ("abcxdef", ["--size", "abcxdef"]),
-    ("-8x6", ["--size", "-8x6"]),
-    ("8x6x4", ["--size", "8x6x4"]),
-    ("100000x100", ["width", "65536", "100000"]),
-    ("100x100000", ["height", "65536", "100000"]),
-])
+@pytest.mark.parametrize(
+    "size,needles",
+    [
+        ("0x600", ["width", "got 0"]),
+        ("600x0", ["height", "got 0"]),
+        ("800", ["--size", "'800'"]),
+        ("abcxdef", ["--size", "abcxdef"]),
+        ("-8x6", ["--size", "-8x6"]),
+        ("8x6x4", ["--size", "8x6x4"]),
+        ("100000x100", ["width", "65536", "100000"]),
+        ("100x100000", ["height", "65536", "100000"]),
+    ],
+)
 def test_bad_size(capsys, tmp_path, out_dir, size, needles):
-    expect_error(capsys, tmp_path, ["render", "--spheres", 3, "--size", size, "--device", "cpu",
-                                    "-o", out_dir / "x.png"], *needles)
+    expect_error(
+        capsys,
+        tmp_path,
+        ["render", "--spheres", 3, "--size", size, "--device", "cpu", "-o", out_dir / "x.png"],
+        *needles,
+    )
 
 
 def test_size_beyond_memory(capsys, tmp_path, out_dir):
@@ -157,8 +196,14 @@ def test_size_beyond_memory(capsys, tmp_path, out_dir):
     need = 65536 * 65536 * 14  # colour and hit buffers, held twice on the host
     if psutil.virtual_memory().available > need:
         pytest.skip(f"this machine has more than {need / 2**30:.0f} GiB available; the frame would fit")
-    line = expect_error(capsys, tmp_path, ["render", "--spheres", 3, "--size", "65536x65536", "--device", "cpu",
-                                           "-o", out_dir / "x.png"], "65536x65536", "GiB", "cpu")
+    line = expect_error(
+        capsys,
+        tmp_path,
+        ["render", "--spheres", 3, "--size", "65536x65536", "--device", "cpu", "-o", out_dir / "x.png"],
+        "65536x65536",
+        "GiB",
+        "cpu",
+    )
     assert "56.00 GiB" in line, line  # 65536 * 65536 * 14 bytes + 3 spheres
 
 
@@ -166,8 +211,13 @@ def test_size_beyond_memory(capsys, tmp_path, out_dir):
 
 
 def test_unknown_device(capsys, tmp_path, out_dir):
-    expect_error(capsys, tmp_path, ["render", "--spheres", 3, "--size", "16x12", "--device", "tpu",
-                                    "-o", out_dir / "x.png"], "--device", "tpu")
+    expect_error(
+        capsys,
+        tmp_path,
+        ["render", "--spheres", 3, "--size", "16x12", "--device", "tpu", "-o", out_dir / "x.png"],
+        "--device",
+        "tpu",
+    )
 
 
 def test_cuda_without_gpu(tmp_path, out_dir):
@@ -176,8 +226,9 @@ def test_cuda_without_gpu(tmp_path, out_dir):
     if cuda_available():
         pytest.skip("a usable CUDA GPU is present; the no-GPU error cannot happen here")
     env = dict(os.environ, NUMBA_ENABLE_CUDASIM="0")
-    code, out, err = run_subprocess(tmp_path, "render", "--spheres", 3, "--size", "16x12", "--device", "cuda",
-                                    "-o", out_dir / "x.png", env=env)
+    code, out, err = run_subprocess(
+        tmp_path, "render", "--spheres", 3, "--size", "16x12", "--device", "cuda", "-o", out_dir / "x.png", env=env
+    )
     line = assert_user_error(code, out, err, "cuda")
     assert "--device cpu" in line, line
 
@@ -191,8 +242,12 @@ def test_cuda_unavailable_in_process(capsys, tmp_path, out_dir, monkeypatch):
         pass  # numba-cuda missing: run() meets the real ImportError path below
     else:
         monkeypatch.setattr(cuda_backend, "available", lambda: False)
-    line = expect_error(capsys, tmp_path, ["render", "--spheres", 3, "--size", "16x12", "--device", "cuda",
-                                           "-o", out_dir / "x.png"], "device cuda")
+    line = expect_error(
+        capsys,
+        tmp_path,
+        ["render", "--spheres", 3, "--size", "16x12", "--device", "cuda", "-o", out_dir / "x.png"],
+        "device cuda",
+    )
     assert "--device cpu" in line, line
 
 
@@ -201,8 +256,7 @@ def test_cuda_unavailable_in_process(capsys, tmp_path, out_dir, monkeypatch):
 
 def test_output_in_missing_folder(capsys, tmp_path):
     target = tmp_path / "missing" / "x.png"
-    expect_error(capsys, tmp_path, ["render", "--spheres", 3, *TINY, "-o", target],
-                 str(target), "does not exist")
+    expect_error(capsys, tmp_path, ["render", "--spheres", 3, *TINY, "-o", target], str(target), "does not exist")
     assert not (tmp_path / "missing").exists()
 
 
@@ -221,16 +275,19 @@ def test_output_jpg(capsys, tmp_path, out_dir):
     expect_error(capsys, tmp_path, ["render", "--spheres", 3, *TINY, "-o", out_dir / "x.jpg"], "x.jpg", ".png")
 
 
-@pytest.mark.skipif(hasattr(os, "geteuid") and os.geteuid() == 0,
-                    reason="running as root: os.access() reports every folder writable, so a read-only "
-                           "folder cannot be simulated with chmod")
+@pytest.mark.skipif(
+    hasattr(os, "geteuid") and os.geteuid() == 0,
+    reason="running as root: os.access() reports every folder writable, so a read-only "
+    "folder cannot be simulated with chmod",
+)
 def test_output_in_read_only_folder(capsys, tmp_path):
     folder = tmp_path / "locked"
     folder.mkdir()
     folder.chmod(0o500)
     try:
-        expect_error(capsys, tmp_path, ["render", "--spheres", 3, *TINY, "-o", folder / "x.png"],
-                     "x.png", "not writable")
+        expect_error(
+            capsys, tmp_path, ["render", "--spheres", 3, *TINY, "-o", folder / "x.png"], "x.png", "not writable"
+        )
         assert list(folder.iterdir()) == []
     finally:
         folder.chmod(0o700)
@@ -248,8 +305,7 @@ def test_output_in_unwritable_folder_as_seen_by_os_access(capsys, tmp_path, monk
         return real_access(path, mode, *args, **kwargs)
 
     monkeypatch.setattr(os, "access", access)
-    expect_error(capsys, tmp_path, ["render", "--spheres", 3, *TINY, "-o", folder / "x.png"],
-                 "x.png", "not writable")
+    expect_error(capsys, tmp_path, ["render", "--spheres", 3, *TINY, "-o", folder / "x.png"], "x.png", "not writable")
     assert list(folder.iterdir()) == []
 
 
@@ -257,8 +313,13 @@ def test_output_in_unwritable_folder_as_seen_by_os_access(capsys, tmp_path, monk
 
 
 def test_scene_and_spheres(capsys, tmp_path, scene_file, out_dir):
-    expect_error(capsys, tmp_path, ["render", "--scene", scene_file, "--spheres", 3, *TINY,
-                                    "-o", out_dir / "x.png"], "--scene", "--spheres")
+    expect_error(
+        capsys,
+        tmp_path,
+        ["render", "--scene", scene_file, "--spheres", 3, *TINY, "-o", out_dir / "x.png"],
+        "--scene",
+        "--spheres",
+    )
 
 
 def test_neither_scene_nor_spheres(capsys, tmp_path, out_dir):
@@ -271,19 +332,20 @@ def test_neither_scene_nor_spheres_default_output(capsys, tmp_path):
 
 
 def test_seed_with_scene(capsys, tmp_path, scene_file, out_dir):
-    expect_error(capsys, tmp_path, ["render", "--scene", scene_file, "--seed", 3, *TINY,
-                                    "-o", out_dir / "x.png"], "--seed")
+    expect_error(
+        capsys, tmp_path, ["render", "--scene", scene_file, "--seed", 3, *TINY, "-o", out_dir / "x.png"], "--seed"
+    )
 
 
 @pytest.mark.parametrize("count", [-1, 100_000_001])
 def test_bad_sphere_count(capsys, tmp_path, out_dir, count):
-    expect_error(capsys, tmp_path, ["render", "--spheres", count, *TINY, "-o", out_dir / "x.png"],
-                 "sphere count", str(count))
+    expect_error(
+        capsys, tmp_path, ["render", "--spheres", count, *TINY, "-o", out_dir / "x.png"], "sphere count", str(count)
+    )
 
 
 def test_spheres_not_a_number(capsys, tmp_path, out_dir):
-    expect_error(capsys, tmp_path, ["render", "--spheres", "many", *TINY, "-o", out_dir / "x.png"],
-                 "--spheres", "many")
+    expect_error(capsys, tmp_path, ["render", "--spheres", "many", *TINY, "-o", out_dir / "x.png"], "--spheres", "many")
 
 
 # --------------------------------------------------------------------------- --threads / --block
@@ -291,28 +353,39 @@ def test_spheres_not_a_number(capsys, tmp_path, out_dir):
 
 @pytest.mark.parametrize("threads", [0, 10000, -1])
 def test_bad_threads(capsys, tmp_path, out_dir, threads):
-    expect_error(capsys, tmp_path, ["render", "--spheres", 3, *TINY, "--threads", threads,
-                                    "-o", out_dir / "x.png"], "threads", f"got {threads}")
+    expect_error(
+        capsys,
+        tmp_path,
+        ["render", "--spheres", 3, *TINY, "--threads", threads, "-o", out_dir / "x.png"],
+        "threads",
+        f"got {threads}",
+    )
 
 
 def test_block_on_cpu(capsys, tmp_path, out_dir):
-    expect_error(capsys, tmp_path, ["render", "--spheres", 3, *TINY, "--block", "8x8",
-                                    "-o", out_dir / "x.png"], "block", "cpu")
+    expect_error(
+        capsys, tmp_path, ["render", "--spheres", 3, *TINY, "--block", "8x8", "-o", out_dir / "x.png"], "block", "cpu"
+    )
 
 
 def test_unknown_option(capsys, tmp_path, out_dir):
-    expect_error(capsys, tmp_path, ["render", "--spheres", 3, *TINY, "--colour", "red",
-                                    "-o", out_dir / "x.png"], "--colour")
+    expect_error(
+        capsys, tmp_path, ["render", "--spheres", 3, *TINY, "--colour", "red", "-o", out_dir / "x.png"], "--colour"
+    )
 
 
 # --------------------------------------------------------------------------- subprocess: no traceback
 
 
-@pytest.mark.parametrize("args,needles", [
-    (["--size", "abcxdef", "--device", "cpu"], ["--size", "abcxdef"]),
-    (["--size", "16x12", "--device", "tpu"], ["--device", "tpu"]),
-    (["--size", "16x12", "--device", "cpu", "--threads", "0"], ["threads"]),
-], ids=["bad-size", "unknown-device", "threads-0"])
+@pytest.mark.parametrize(
+    "args,needles",
+    [
+        (["--size", "abcxdef", "--device", "cpu"], ["--size", "abcxdef"]),
+        (["--size", "16x12", "--device", "tpu"], ["--device", "tpu"]),
+        (["--size", "16x12", "--device", "cpu", "--threads", "0"], ["threads"]),
+    ],
+    ids=["bad-size", "unknown-device", "threads-0"],
+)
 def test_subprocess_error_is_one_line(tmp_path, out_dir, args, needles):
     code, out, err = run_subprocess(tmp_path, "render", "--spheres", 3, *args, "-o", out_dir / "x.png")
     assert_user_error(code, out, err, *needles)
@@ -338,8 +411,9 @@ def read_png(path):
 
 
 def test_render_random_spheres(capsys, tmp_path, out_dir):
-    code, out, err = cli(capsys, "render", "--spheres", 20, "--size", "64x48", "--device", "cpu",
-                         "-o", out_dir / "out.png")
+    code, out, err = cli(
+        capsys, "render", "--spheres", 20, "--size", "64x48", "--device", "cpu", "-o", out_dir / "out.png"
+    )
     assert code == 0, err
     assert err == "" and "Traceback" not in out
     assert "64x48" in out and "20 spheres" in out and "cpu" in out
@@ -362,8 +436,9 @@ def test_render_overwrites_existing_output(capsys, tmp_path, out_dir):
 
 
 def test_render_scene_file(capsys, tmp_path, scene_file, out_dir):
-    code, out, err = cli(capsys, "render", "--scene", scene_file, "--size", "40x30", "--device", "cpu",
-                         "-o", out_dir / "scene.png")
+    code, out, err = cli(
+        capsys, "render", "--scene", scene_file, "--size", "40x30", "--device", "cpu", "-o", out_dir / "scene.png"
+    )
     assert code == 0, err
     assert err == ""
     assert sorted(p.name for p in out_dir.iterdir()) == ["scene.png"]
@@ -402,12 +477,15 @@ def test_info_json(capsys):
     assert desc["versions"]["raybench"] == raybench.__version__
 
 
-@pytest.mark.parametrize("args,needle", [
-    (["--help"], "render"),
-    (["-h"], "info"),
-    (["render", "--help"], "--size"),
-    (["info", "--help"], "--json"),
-])
+@pytest.mark.parametrize(
+    "args,needle",
+    [
+        (["--help"], "render"),
+        (["-h"], "info"),
+        (["render", "--help"], "--size"),
+        (["info", "--help"], "--json"),
+    ],
+)
 def test_help(capsys, args, needle):
     code, out, err = cli(capsys, *args)
     assert code == 0, err
@@ -425,23 +503,42 @@ def test_version(capsys):
 
 
 def test_size_with_superscript_digit(capsys, tmp_path, out_dir):
-    expect_error(capsys, tmp_path, ["render", "--spheres", 3, "--size", "²x3", "--device", "cpu",
-                                    "-o", out_dir / "x.png"], "--size")
+    expect_error(
+        capsys,
+        tmp_path,
+        ["render", "--spheres", 3, "--size", "²x3", "--device", "cpu", "-o", out_dir / "x.png"],
+        "--size",
+    )
 
 
 def test_scene_with_huge_integer(capsys, tmp_path, out_dir):
     bad = tmp_path / "huge.json"
-    bad.write_text('{"format": "raybench-scene", "version": 1, "spheres": '
-                   '[{"center": [0, 0, 5], "radius": 1' + "0" * 400 + ', "color": [1, 1, 1]}]}')
-    expect_error(capsys, tmp_path, ["render", "--scene", bad, *TINY, "-o", out_dir / "x.png"],
-                 "spheres[0].radius")
+    bad.write_text(
+        '{"format": "raybench-scene", "version": 1, "spheres": '
+        '[{"center": [0, 0, 5], "radius": 1' + "0" * 400 + ', "color": [1, 1, 1]}]}'
+    )
+    expect_error(capsys, tmp_path, ["render", "--scene", bad, *TINY, "-o", out_dir / "x.png"], "spheres[0].radius")
 
 
 def test_render_kernels_draw_the_same_png(capsys, tmp_path):
     pngs = {}
     for kernel in ("simple", "fast"):
-        code, out, err = cli(capsys, "render", "--spheres", 60, "--seed", 4, "--size", "67x45", "--device", "cpu",
-                             "--kernel", kernel, "-o", tmp_path / f"{kernel}.png")
+        code, out, err = cli(
+            capsys,
+            "render",
+            "--spheres",
+            60,
+            "--seed",
+            4,
+            "--size",
+            "67x45",
+            "--device",
+            "cpu",
+            "--kernel",
+            kernel,
+            "-o",
+            tmp_path / f"{kernel}.png",
+        )
         assert code == 0, err
         pngs[kernel] = np.asarray(Image.open(tmp_path / f"{kernel}.png"))
     assert np.array_equal(pngs["simple"], pngs["fast"])
@@ -453,13 +550,26 @@ def test_render_kernels_draw_the_same_png(capsys, tmp_path):
 def test_render_accel_bvh_and_none_same_png(tmp_path, capsys):
     pngs = {}
     for accel in ("bvh", "none"):
-        code, out, err = cli(capsys, "render", "--spheres", 200, "--size", "48x30", "--device", "cpu",
-                             "--accel", accel, "-o", tmp_path / f"{accel}.png")
+        code, out, err = cli(
+            capsys,
+            "render",
+            "--spheres",
+            200,
+            "--size",
+            "48x30",
+            "--device",
+            "cpu",
+            "--accel",
+            accel,
+            "-o",
+            tmp_path / f"{accel}.png",
+        )
         assert code == 0, err
         assert ("BVH built in" in out) == (accel == "bvh")
         pngs[accel] = np.asarray(Image.open(tmp_path / f"{accel}.png"))
     assert np.array_equal(pngs["bvh"], pngs["none"])
-    code, out, err = cli(capsys, "render", "--spheres", 3, "--accel", "bvh", "--kernel", "simple",
-                         "-o", tmp_path / "x.png")
+    code, out, err = cli(
+        capsys, "render", "--spheres", 3, "--accel", "bvh", "--kernel", "simple", "-o", tmp_path / "x.png"
+    )
     assert_user_error(code, out, err, "kernel", "brute force only")
     assert not (tmp_path / "x.png").exists()

@@ -89,6 +89,7 @@ def test_both_cpu_fast_loops_equal_simple(rng, band):
     """The CPU picks one fast loop by its register width; both are checked
     here, whichever this machine would pick."""
     from raybench.backends import cpu
+
     scene, camera = KINDS["overlapping"](rng, int(rng.integers(1, 120)))
     width, height = int(rng.integers(1, 50)), int(rng.integers(1, 20))
     simple = raybench.render(scene, camera, width, height, device="cpu", kernel="simple")
@@ -110,9 +111,16 @@ def test_cpu_fast_sphere_prefix(rng):
 # The simulator runs a Python thread per CUDA thread and polls them all while
 # any waits at a barrier: 128 threads of the last shape took minutes there,
 # so it gets 32 threads under the simulator and the real shape on a GPU.
-@pytest.mark.parametrize("rays,tile,trip,block", [(3, 8, 3, (4, 2)), (1, 45, 4, (5, 3)), (2, 1, 1, (8, 8)),
-                                                  (8, 256, 2, (8, 4) if cuda_backend.simulated() else (32, 4)),
-                                                  (8, 256, 4, (8, 4) if cuda_backend.simulated() else (16, 4))])
+@pytest.mark.parametrize(
+    "rays,tile,trip,block",
+    [
+        (3, 8, 3, (4, 2)),
+        (1, 45, 4, (5, 3)),
+        (2, 1, 1, (8, 8)),
+        (8, 256, 2, (8, 4) if cuda_backend.simulated() else (32, 4)),
+        (8, 256, 4, (8, 4) if cuda_backend.simulated() else (16, 4)),
+    ],
+)
 def test_cuda_fast_shapes_equal_cpu(rng, rays, tile, trip, block):
     """Every way of cutting the work (rays per thread, spheres per shared
     tile and per trip of the cull loop, block shape, counts that are not a
@@ -129,13 +137,16 @@ def test_cuda_fast_shapes_equal_cpu(rng, rays, tile, trip, block):
         assert np.abs(gpu.image.astype(int) - cpu.image.astype(int)).max() <= 1 or (gpu.hits != cpu.hits).any()
 
 
-@pytest.mark.parametrize("device,options,match", [
-    ("cpu", {"kernel": "quick"}, "kernel: must be one of"),
-    ("cpu", {"kernel": "fast", "constant_count": True}, "simple kernel only"),
-    ("cuda", {"rays": 0}, "rays: must be an integer from 1 to 16"),
-    ("cuda", {"tile": 5000}, "tile: must be an integer from 1 to 3071"),
-    ("cuda", {"block": (32, 32), "kernel": "fast"}, "fast kernel takes at most 256 threads"),
-])
+@pytest.mark.parametrize(
+    "device,options,match",
+    [
+        ("cpu", {"kernel": "quick"}, "kernel: must be one of"),
+        ("cpu", {"kernel": "fast", "constant_count": True}, "simple kernel only"),
+        ("cuda", {"rays": 0}, "rays: must be an integer from 1 to 16"),
+        ("cuda", {"tile": 5000}, "tile: must be an integer from 1 to 3071"),
+        ("cuda", {"block": (32, 32), "kernel": "fast"}, "fast kernel takes at most 256 threads"),
+    ],
+)
 def test_bad_kernel_options(device, options, match):
     if device == "cuda" and not cuda_backend.available():
         pytest.skip("no CUDA GPU and the simulator is off")

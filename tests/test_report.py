@@ -28,22 +28,46 @@ DATE = "2024-05-01T12:00:00+00:00"
 # report columns: machine label and kernel (records without one are simple-kernel records)
 A, B = "alpha, simple kernel", "beta, simple kernel"
 
+
 def machine(cpu_gflops=200.0, gpu_gflops=10000.0):
-    return {"cpu": {"model": "Synthetic CPU", "physical_cores": 4, "logical_cpus": 8, "fp32_gflops": cpu_gflops},
-            "gpus": [{"name": "Synthetic GPU", "multiprocessors": 40, "fp32_gflops": gpu_gflops}]}
+    return {
+        "cpu": {"model": "Synthetic CPU", "physical_cores": 4, "logical_cpus": 8, "fp32_gflops": cpu_gflops},
+        "gpus": [{"name": "Synthetic GPU", "multiprocessors": 40, "fp32_gflops": gpu_gflops}],
+    }
 
 
 def ms(median):
     return {"median": float(median), "p5": 0.9 * float(median), "p95": 1.1 * float(median)}
 
 
-def rec(suite, device, spheres, median, *, size=(800, 600), kernel=None, options=None, test=None,
-        label="alpha", date=DATE, mach=None, series=None):
+def rec(
+    suite,
+    device,
+    spheres,
+    median,
+    *,
+    size=(800, 600),
+    kernel=None,
+    options=None,
+    test=None,
+    label="alpha",
+    date=DATE,
+    mach=None,
+    series=None,
+):
     """One record with every field report._check requires (and what the runner writes besides)."""
-    r = {"suite": suite, "test": test, "device": device, "width": size[0], "height": size[1],
-         "spheres": spheres, "options": options or {}, "frame_ms": ms(median),
-         "kernel_ms": ms(kernel) if kernel is not None else None,
-         "run": {"id": f"{label}-{date}", "date": date, "label": label, "machine": mach or machine()}}
+    r = {
+        "suite": suite,
+        "test": test,
+        "device": device,
+        "width": size[0],
+        "height": size[1],
+        "spheres": spheres,
+        "options": options or {},
+        "frame_ms": ms(median),
+        "kernel_ms": ms(kernel) if kernel is not None else None,
+        "run": {"id": f"{label}-{date}", "date": date, "label": label, "machine": mach or machine()},
+    }
     if series is not None:
         r["series"] = series
     return r
@@ -58,8 +82,18 @@ def thesis(rng, **kw):
         gs, gi = cs / rng.uniform(5, 50), ci / rng.uniform(5, 50)
         for n in COUNTS:
             out.append(rec("thesis", "cpu", n, cs * n + ci, size=size, options={"threads": 8}, **kw))
-            out.append(rec("thesis", "cuda", n, gs * n + gi, size=size, kernel=0.8 * (gs * n + gi),
-                           options={"block": [32, 32]}, **kw))
+            out.append(
+                rec(
+                    "thesis",
+                    "cuda",
+                    n,
+                    gs * n + gi,
+                    size=size,
+                    kernel=0.8 * (gs * n + gi),
+                    options={"block": [32, 32]},
+                    **kw,
+                )
+            )
     return out
 
 
@@ -69,18 +103,38 @@ def ramp(rng, device="cuda", kink=False, **kw):
     slope, icpt = rng.uniform(0.001, 0.1), rng.uniform(0.5, 5)
     x = np.array(RAMP, dtype=float)
     y = slope * x + icpt + (30 * slope * np.maximum(x - 500, 0) if kink else 0)
-    return rec("test7", device, 1000, float(np.median(y)), test=7,
-               series={"spheres": RAMP, "frame_ms": y.tolist(), "kernel_ms": None}, **kw)
+    return rec(
+        "test7",
+        device,
+        1000,
+        float(np.median(y)),
+        test=7,
+        series={"spheres": RAMP, "frame_ms": y.tolist(), "kernel_ms": None},
+        **kw,
+    )
 
 
 def gpu_tuning(frame, kernel=None, **kw):
-    return [rec("tuning", "cuda", 1000, f, size=(1680, 1050), kernel=None if kernel is None else kernel[i],
-                options={"block": b}, **kw) for i, (b, f) in enumerate(zip(BLOCKS, frame))]
+    return [
+        rec(
+            "tuning",
+            "cuda",
+            1000,
+            f,
+            size=(1680, 1050),
+            kernel=None if kernel is None else kernel[i],
+            options={"block": b},
+            **kw,
+        )
+        for i, (b, f) in enumerate(zip(BLOCKS, frame))
+    ]
 
 
 def cpu_tuning(times, **kw):
-    return [rec("tuning", "cpu", 1000, t, size=(1680, 1050), options={"threads": THREADS[name], "label": name}, **kw)
-            for name, t in times.items()]
+    return [
+        rec("tuning", "cpu", 1000, t, size=(1680, 1050), options={"threads": THREADS[name], "label": name}, **kw)
+        for name, t in times.items()
+    ]
 
 
 def constant(device, ratios, rng, kernel_ratios=None, **kw):
@@ -109,6 +163,7 @@ def ref_r2(x, y):
 
 # --- the pure functions ---------------------------------------------------------------
 
+
 def test_speedups_are_cpu_over_gpu_medians_of_matched_points(rng):
     """Speedups match CPU to GPU by (width, height, spheres) within the thesis suite
     only; a GPU point with no CPU twin, and other suites' points, are ignored."""
@@ -116,8 +171,11 @@ def test_speedups_are_cpu_over_gpu_medians_of_matched_points(rng):
     records.append(rec("thesis", "cuda", 1100, 1.0))
     records.append(rec("constant-vs-runtime", "cuda", 500, 1e6, options={"count": "runtime"}))
     sp = report.speedups(records)
-    medians = {(r["device"], r["width"], r["height"], r["spheres"]): r["frame_ms"]["median"]
-               for r in records if r["suite"] == "thesis"}
+    medians = {
+        (r["device"], r["width"], r["height"], r["spheres"]): r["frame_ms"]["median"]
+        for r in records
+        if r["suite"] == "thesis"
+    }
     assert [(p["width"], p["height"], p["spheres"]) for p in sp] == [(w, h, n) for w, h in SIZES for n in COUNTS]
     for p in sp:
         key = (p["width"], p["height"], p["spheres"])
@@ -145,8 +203,9 @@ def test_claim1_gpu_faster_everywhere(rng, gpu_over_cpu):
     assert v["verdict"] == HOLDS and v["values"]["n"] == len(SIZES) * len(COUNTS)
     # One point where the GPU is as slow as the CPU, or slower: the claim fails.
     gpu = rng.choice([r for r in records if r["device"] == "cuda"])
-    cpu = next(r for r in records if r["device"] == "cpu" and r["width"] == gpu["width"]
-               and r["spheres"] == gpu["spheres"])
+    cpu = next(
+        r for r in records if r["device"] == "cpu" and r["width"] == gpu["width"] and r["spheres"] == gpu["spheres"]
+    )
     gpu["frame_ms"]["median"] = cpu["frame_ms"]["median"] * (1.0 if gpu_over_cpu == "equal" else rng.uniform(1.01, 3))
     v = verdict(records, 1)
     assert v["verdict"] == FAILS and v["values"]["not_faster"] == 1 and v["values"]["min"] <= 1
@@ -177,8 +236,9 @@ def test_claim2_linear_holds_kink_fails(rng, where):
     assert v["values"]["min_r2"] == pytest.approx(expected)
 
 
-@pytest.mark.parametrize("share,expected", [(0.67, HOLDS), (1.49, HOLDS), ("inside", HOLDS),
-                                            (0.66, FAILS), (1.51, FAILS), ("far", FAILS)])
+@pytest.mark.parametrize(
+    "share,expected", [(0.67, HOLDS), (1.49, HOLDS), ("inside", HOLDS), (0.66, FAILS), (1.51, FAILS), ("far", FAILS)]
+)
 def test_claim3_speedup_against_theoretical_ratio(rng, share, expected):
     """The machine's GPU FP32 rate is set so that median speedup / theoretical
     ratio is `share`: inside [2/3, 3/2] holds, outside fails."""
@@ -281,12 +341,15 @@ def test_every_claim_not_measured_without_its_data(rng):
     assert [v["verdict"] for v in report.verdicts([])] == [NOT_MEASURED] * 6
     # CPU-only data, a GPU tuning without 32x32, an unpaired constant point: only claim 2 measurable.
     records = [r for r in thesis(rng) if r["device"] == "cpu"]
-    records += [rec("tuning", "cuda", 1000, 5.0, options={"block": [16, 16]}),
-                rec("constant-vs-runtime", "cuda", 500, 5.0, options={"count": "constant"})]
+    records += [
+        rec("tuning", "cuda", 1000, 5.0, options={"block": [16, 16]}),
+        rec("constant-vs-runtime", "cuda", 500, 5.0, options={"count": "constant"}),
+    ]
     assert [v["verdict"] for v in report.verdicts(records)] == [NOT_MEASURED, HOLDS] + [NOT_MEASURED] * 4
 
 
 # --- loading -----------------------------------------------------------------------------
+
 
 def write(path, records):
     with ResultsWriter(path) as w:
@@ -299,10 +362,17 @@ def test_load_keeps_the_later_run_of_a_point(tmp_path, rng):
     """A point measured twice under one label: the later run by date wins,
     whichever file comes first; at equal dates, the later file."""
     t_early, t_late = rng.uniform(1, 100, 2)
-    late = write(tmp_path / "late.jsonl", [rec("thesis", "cpu", 500, t_late, date="2024-05-02T09:00:00+00:00"),
-                                           rec("thesis", "cpu", 600, 1.0, label="beta")])
-    early = write(tmp_path / "early.jsonl", [rec("thesis", "cpu", 500, t_early, date="2024-05-01T23:00:00+00:00"),
-                                             rec("thesis", "cpu", 100, 1.0)])
+    late = write(
+        tmp_path / "late.jsonl",
+        [
+            rec("thesis", "cpu", 500, t_late, date="2024-05-02T09:00:00+00:00"),
+            rec("thesis", "cpu", 600, 1.0, label="beta"),
+        ],
+    )
+    early = write(
+        tmp_path / "early.jsonl",
+        [rec("thesis", "cpu", 500, t_early, date="2024-05-01T23:00:00+00:00"), rec("thesis", "cpu", 100, 1.0)],
+    )
     for paths in ([late, early], [early, late]):
         machines, notes = report.load(paths)
         at = {r["spheres"]: r["frame_ms"]["median"] for r in machines[A]}
@@ -326,14 +396,25 @@ def _drop(*keys):
     return lambda r: functools.reduce(dict.get, keys[:-1], r).pop(keys[-1])
 
 
-@pytest.mark.parametrize("change,needle", [
-    (_drop("suite"), "suite"), (_drop("device"), "device"), (_drop("width"), "width"),
-    (_drop("height"), "height"), (_drop("spheres"), "spheres"), (_drop("frame_ms"), "frame_ms"),
-    (_drop("frame_ms", "p95"), "frame_ms"), (_drop("run", "label"), "run"), (_drop("run"), "run"),
-    (lambda r: r.update(kernel_ms={"median": 1.0}), "kernel_ms"),
-    (lambda r: r.update(spheres=500.0), "spheres"), (lambda r: r.update(options=[1]), "options"),
-    (_drop("series"), "series"), (lambda r: r["series"]["frame_ms"].pop(), "series"),
-])
+@pytest.mark.parametrize(
+    "change,needle",
+    [
+        (_drop("suite"), "suite"),
+        (_drop("device"), "device"),
+        (_drop("width"), "width"),
+        (_drop("height"), "height"),
+        (_drop("spheres"), "spheres"),
+        (_drop("frame_ms"), "frame_ms"),
+        (_drop("frame_ms", "p95"), "frame_ms"),
+        (_drop("run", "label"), "run"),
+        (_drop("run"), "run"),
+        (lambda r: r.update(kernel_ms={"median": 1.0}), "kernel_ms"),
+        (lambda r: r.update(spheres=500.0), "spheres"),
+        (lambda r: r.update(options=[1]), "options"),
+        (_drop("series"), "series"),
+        (lambda r: r["series"]["frame_ms"].pop(), "series"),
+    ],
+)
 def test_load_names_a_missing_field(tmp_path, rng, change, needle):
     records = [thesis(rng)[0], ramp(rng)]
     change(records[1])
@@ -345,6 +426,7 @@ def test_load_names_a_missing_field(tmp_path, rng, change, needle):
 
 
 # --- the report folder ---------------------------------------------------------------------
+
 
 def two_machines(rng, tmp_path):
     """alpha: every claim holds. beta: 1 fails (one point), 2 fails (test 7 kinked),
@@ -383,8 +465,14 @@ def test_write_report_end_to_end(tmp_path, rng):
     lines = text.splitlines()
     header = next(line for line in lines if line.startswith("| # |"))
     assert header.endswith(f"| {A} | {B} |")  # the two machines side by side
-    expected = [(HOLDS, FAILS), (HOLDS, FAILS), (HOLDS, NOT_MEASURED), (HOLDS, FAILS), (HOLDS, NOT_MEASURED),
-                (HOLDS, FAILS)]
+    expected = [
+        (HOLDS, FAILS),
+        (HOLDS, FAILS),
+        (HOLDS, NOT_MEASURED),
+        (HOLDS, FAILS),
+        (HOLDS, NOT_MEASURED),
+        (HOLDS, FAILS),
+    ]
     for number, want in enumerate(expected, 1):
         row = next(line for line in lines if line.startswith(f"| {number} |"))
         got = tuple(re.findall(r"\*\*(holds|does not hold|not measured)\*\*", row))
@@ -410,12 +498,14 @@ def test_zero_time_is_an_error_line_or_a_verdict_not_a_traceback(tmp_path, rng):
     except RaybenchError as exc:
         assert "\n" not in str(exc)
     else:
-        row = next(line for line in (tmp_path / "rep" / "report.md").read_text().splitlines()
-                   if line.startswith("| 4 |"))
+        row = next(
+            line for line in (tmp_path / "rep" / "report.md").read_text().splitlines() if line.startswith("| 4 |")
+        )
         assert f"**{FAILS}**" in row
 
 
 # --- the command line (test_bench.py covers not-JSON and a missing file) ---------------------
+
 
 def test_cli_report_bad_record_writes_nothing(tmp_path, rng, capsys):
     good = write(tmp_path / "good.jsonl", thesis(rng))
@@ -429,7 +519,6 @@ def test_cli_report_bad_record_writes_nothing(tmp_path, rng, capsys):
     assert "Traceback" not in err and list((tmp_path / "rep").iterdir()) == []
 
 
-
 def test_each_kernel_is_judged_in_its_own_column(rng):
     """One machine measured with both kernels: two columns, each with its own
     speedups, never a fast CPU point matched with a simple GPU one."""
@@ -438,14 +527,16 @@ def test_each_kernel_is_judged_in_its_own_column(rng):
     columns = report.group(simple + fast)
     assert list(columns) == ["alpha, simple kernel", "alpha, fast kernel"]
     for name, records in columns.items():
-        expected = {(r["width"], r["height"], r["spheres"]): r["frame_ms"]["median"] for r in records
-                    if r["device"] == "cpu"}
+        expected = {
+            (r["width"], r["height"], r["spheres"]): r["frame_ms"]["median"] for r in records if r["device"] == "cpu"
+        }
         for p in report.speedups(records):
             key = (p["width"], p["height"], p["spheres"])
             assert p["cpu_ms"] == expected[key], name
 
 
 # --- the scaling suite and the BVH column ---------------------------------------
+
 
 def scaling(rng, cap_at=3000):
     """Brute force linear in the count up to cap_at, then skipped; the BVH
@@ -455,15 +546,30 @@ def scaling(rng, cap_at=3000):
         a, b = rng.uniform(1e-3, 1e-1), rng.uniform(0.5, 5)
         for n in (10, 100, 1000, 10000, 100000, 1000000):
             if n <= cap_at:
-                out.append(rec("scaling", device, n, a * n + 1, size=(1680, 1050),
-                               options={"kernel": "fast", "accel": "none", "cap_s": 1.0}))
+                out.append(
+                    rec(
+                        "scaling",
+                        device,
+                        n,
+                        a * n + 1,
+                        size=(1680, 1050),
+                        options={"kernel": "fast", "accel": "none", "cap_s": 1.0},
+                    )
+                )
             else:
-                r = rec("scaling", device, n, 1, size=(1680, 1050),
-                        options={"kernel": "fast", "accel": "none", "cap_s": 1.0})
+                r = rec(
+                    "scaling",
+                    device,
+                    n,
+                    1,
+                    size=(1680, 1050),
+                    options={"kernel": "fast", "accel": "none", "cap_s": 1.0},
+                )
                 for key in ("frame_ms", "kernel_ms"):
                     del r[key]
-                out.append({**r, "skipped": f"predicted {a * n / 1e3:.3g} s a frame, over the 1 s cap",
-                            "predicted_ms": a * n})
+                out.append(
+                    {**r, "skipped": f"predicted {a * n / 1e3:.3g} s a frame, over the 1 s cap", "predicted_ms": a * n}
+                )
             bvh = rec("scaling", device, n, b * np.log10(n), size=(1680, 1050), options={"accel": "bvh"})
             out.append({**bvh, "build_s": n * 1e-6, "rays_per_s": 1680 * 1050 / (b * np.log10(n) / 1e3)})
     return out
@@ -471,8 +577,9 @@ def scaling(rng, cap_at=3000):
 
 def test_scaling_series_keeps_skipped_points(rng):
     series = report.scaling_series(scaling(rng))
-    assert {(s["device"], s["way"]) for s in series} == \
-        {(d, w) for d in ("cpu", "cuda") for w in ("BVH", "brute force, fast kernel")}
+    assert {(s["device"], s["way"]) for s in series} == {
+        (d, w) for d in ("cpu", "cuda") for w in ("BVH", "brute force, fast kernel")
+    }
     for s in series:
         assert [p["spheres"] for p in s["points"]] == [10, 100, 1000, 10000, 100000, 1000000]
         skipped = [p["spheres"] for p in s["points"] if p["skipped"]]
@@ -491,7 +598,7 @@ def test_report_with_scaling_section(tmp_path, rng):
         for r in thesis(rng) + scaling(rng):
             w.write(r)
     text = report.write_report([path], tmp_path / "rep").read_text()
-    section = text[text.index("## Beyond the thesis"):]
+    section = text[text.index("## Beyond the thesis") :]
     assert "skipped: predicted" in section and "| BVH |" in section
     assert (tmp_path / "rep" / "alpha-scaling.png").exists()
 
@@ -499,13 +606,22 @@ def test_report_with_scaling_section(tmp_path, rng):
 def test_wgpu_records_are_labelled_with_their_adapter_and_judge_nothing(tmp_path, rng):
     """wgpu series and workgroup shapes are shown with the adapter that ran them
     (a CPU driver must not pass for a GPU); the GPU claims stay cuda's."""
-    adapter = {"name": "llvmpipe (LLVM 15.0.6, 256 bits)", "backend": "Vulkan", "type": "CPU",
-               "workgroup": [16, 16], "timing": "timestamp-query"}
+    adapter = {
+        "name": "llvmpipe (LLVM 15.0.6, 256 bits)",
+        "backend": "Vulkan",
+        "type": "CPU",
+        "workgroup": [16, 16],
+        "timing": "timestamp-query",
+    }
     slope = rng.uniform(1, 5)
-    wgpu = [rec("thesis", "wgpu", n, slope * n, kernel=0.9 * slope * n, test=1, options={"adapter": "llvmpipe"})
-            for n in COUNTS]
-    wgpu += [rec("tuning", "wgpu", 300, t, size=(640, 480), kernel=0.9 * t, options={"workgroup": w})
-             for w, t in (([8, 8], 120.0), ([16, 16], 100.0), ([32, 32], 150.0))]
+    wgpu = [
+        rec("thesis", "wgpu", n, slope * n, kernel=0.9 * slope * n, test=1, options={"adapter": "llvmpipe"})
+        for n in COUNTS
+    ]
+    wgpu += [
+        rec("tuning", "wgpu", 300, t, size=(640, 480), kernel=0.9 * t, options={"workgroup": w})
+        for w, t in (([8, 8], 120.0), ([16, 16], 100.0), ([32, 32], 150.0))
+    ]
     for r in wgpu:
         r["adapter"] = adapter
     records = thesis(rng) + wgpu

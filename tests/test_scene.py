@@ -25,8 +25,9 @@ def fresh_seed() -> int:
 def random_camera(rng: np.random.Generator) -> Camera:
     position = rng.normal(size=3) * 10.0
     look_at = position + rng.normal(size=3)
-    return Camera(position=tuple(position), look_at=tuple(look_at), up=(0.0, 1.0, 0.0),
-                  fov_deg=float(rng.uniform(10.0, 170.0)))
+    return Camera(
+        position=tuple(position), look_at=tuple(look_at), up=(0.0, 1.0, 0.0), fov_deg=float(rng.uniform(10.0, 170.0))
+    )
 
 
 def only_files(folder) -> list[str]:
@@ -48,8 +49,7 @@ def test_round_trip_is_bit_exact(tmp_path, n, with_camera, source):
         scene = Scene(base.centers, base.radii, base.colors, camera)
     else:
         # Arbitrary float32 values with all mantissa bits in use.
-        scene = Scene(rng.uniform(-1e3, 1e3, (n, 3)), rng.uniform(1e-3, 10.0, n),
-                      rng.uniform(0.0, 1.0, (n, 3)), camera)
+        scene = Scene(rng.uniform(-1e3, 1e3, (n, 3)), rng.uniform(1e-3, 10.0, n), rng.uniform(0.0, 1.0, (n, 3)), camera)
     msg = f"seed={seed} n={n} camera={camera!r}"
     assert scene.spheres.dtype == np.float32 and scene.spheres.shape == (7, n), msg
 
@@ -184,6 +184,7 @@ def _set(path, value):
         for key in path[:-1]:
             obj = obj[key]
         obj[path[-1]] = value
+
     return mutate
 
 
@@ -193,6 +194,7 @@ def _del(path):
         for key in path[:-1]:
             obj = obj[key]
         del obj[path[-1]]
+
     return mutate
 
 
@@ -310,23 +312,26 @@ def three_spheres():
     return centers, radii, colors
 
 
-@pytest.mark.parametrize("field,column,value,where", [
-    ("centers", 0, np.nan, "spheres[1].center"),
-    ("centers", 2, np.inf, "spheres[1].center"),
-    ("centers", 1, -np.inf, "spheres[1].center"),
-    ("centers", 1, 1e20, "spheres[1].center"),
-    ("centers", 0, -1e20, "spheres[1].center"),
-    ("radii", None, np.nan, "spheres[1].radius"),
-    ("radii", None, np.inf, "spheres[1].radius"),
-    ("radii", None, -np.inf, "spheres[1].radius"),
-    ("radii", None, 1e20, "spheres[1].radius"),
-    ("radii", None, 0.0, "spheres[1].radius"),
-    ("radii", None, -1.0, "spheres[1].radius"),
-    ("colors", 0, np.nan, "spheres[1].color"),
-    ("colors", 1, np.inf, "spheres[1].color"),
-    ("colors", 2, 1.5, "spheres[1].color"),
-    ("colors", 0, -0.1, "spheres[1].color"),
-])
+@pytest.mark.parametrize(
+    "field,column,value,where",
+    [
+        ("centers", 0, np.nan, "spheres[1].center"),
+        ("centers", 2, np.inf, "spheres[1].center"),
+        ("centers", 1, -np.inf, "spheres[1].center"),
+        ("centers", 1, 1e20, "spheres[1].center"),
+        ("centers", 0, -1e20, "spheres[1].center"),
+        ("radii", None, np.nan, "spheres[1].radius"),
+        ("radii", None, np.inf, "spheres[1].radius"),
+        ("radii", None, -np.inf, "spheres[1].radius"),
+        ("radii", None, 1e20, "spheres[1].radius"),
+        ("radii", None, 0.0, "spheres[1].radius"),
+        ("radii", None, -1.0, "spheres[1].radius"),
+        ("colors", 0, np.nan, "spheres[1].color"),
+        ("colors", 1, np.inf, "spheres[1].color"),
+        ("colors", 2, 1.5, "spheres[1].color"),
+        ("colors", 0, -0.1, "spheres[1].color"),
+    ],
+)
 def test_constructor_refuses_non_finite_and_out_of_range(field, column, value, where):
     arrays = dict(zip(("centers", "radii", "colors"), three_spheres()))
     if column is None:
@@ -344,18 +349,21 @@ def test_constructor_refuses_mismatched_counts():
         Scene(centers, radii[:2], colors)
 
 
-@pytest.mark.parametrize("kwargs,where", [
-    (dict(fov_deg=0), "camera.fov_deg"),
-    (dict(fov_deg=180), "camera.fov_deg"),
-    (dict(fov_deg=float("nan")), "camera.fov_deg"),
-    (dict(fov_deg="wide"), "camera.fov_deg"),
-    (dict(position=(1, 2, 3), look_at=(1, 2, 3)), "camera.look_at"),
-    (dict(up=(0, 0, 1)), "camera.up"),
-    (dict(position=(0, 0, 0), look_at=(2, 2, 2), up=(-1, -1, -1)), "camera.up"),
-    (dict(position=(0, float("inf"), 0)), "camera.position"),
-    (dict(look_at=(0, 1)), "camera.look_at"),
-    (dict(up="up"), "camera.up"),
-])
+@pytest.mark.parametrize(
+    "kwargs,where",
+    [
+        (dict(fov_deg=0), "camera.fov_deg"),
+        (dict(fov_deg=180), "camera.fov_deg"),
+        (dict(fov_deg=float("nan")), "camera.fov_deg"),
+        (dict(fov_deg="wide"), "camera.fov_deg"),
+        (dict(position=(1, 2, 3), look_at=(1, 2, 3)), "camera.look_at"),
+        (dict(up=(0, 0, 1)), "camera.up"),
+        (dict(position=(0, 0, 0), look_at=(2, 2, 2), up=(-1, -1, -1)), "camera.up"),
+        (dict(position=(0, float("inf"), 0)), "camera.position"),
+        (dict(look_at=(0, 1)), "camera.look_at"),
+        (dict(up="up"), "camera.up"),
+    ],
+)
 def test_camera_refuses_bad_values(kwargs, where):
     with pytest.raises(RaybenchError) as info:
         Camera(**kwargs)
@@ -367,7 +375,7 @@ def test_camera_refuses_bad_values(kwargs, where):
 
 def test_huge_json_integer_is_a_raybench_error():
     doc = valid_doc()
-    doc["spheres"][1]["radius"] = 10 ** 400
+    doc["spheres"][1]["radius"] = 10**400
     with pytest.raises(RaybenchError, match=r"^spheres\[1\]\.radius:"):
         Scene.from_dict(doc)
 

@@ -42,8 +42,16 @@ def key(name, kind="key_down"):
 
 
 def pointer(kind, x, y, button=1, buttons=(1,)):
-    return {"event_type": kind, "x": x, "y": y, "button": button, "buttons": buttons, "modifiers": (),
-            "ntouches": 0, "touches": {}}
+    return {
+        "event_type": kind,
+        "x": x,
+        "y": y,
+        "button": button,
+        "buttons": buttons,
+        "modifiers": (),
+        "ntouches": 0,
+        "touches": {},
+    }
 
 
 def make_state(n=20, seed=0, device="cpu", **kwargs):
@@ -78,7 +86,7 @@ def test_every_binding_has_a_distinct_key_and_a_handler():
 
 
 def test_keys_are_matched_case_blind_and_unknown_keys_do_nothing():
-    assert bindings.binding_for("W").action == "forward"       # W with Shift held
+    assert bindings.binding_for("W").action == "forward"  # W with Shift held
     assert bindings.binding_for("escape") is bindings.binding_for("Escape")
     assert bindings.binding_for("=").action == "more_spheres"  # the + key without Shift
     assert bindings.binding_for("F7") is None
@@ -353,9 +361,9 @@ def test_wgpu_joins_the_cycle_only_where_the_window_can_trace_on_it():
 
 def test_switch_while_a_frame_is_in_flight_labels_frames_by_where_they_were_traced():
     state, _ = make_state()
-    cpu_request = state.next_request(8, 6)        # in flight on the CPU ...
-    state.handle_event(key("Tab"))                 # ... when the user switches
-    state.on_traced(fake_traced(cpu_request))      # it is still shown, as a cpu frame
+    cpu_request = state.next_request(8, 6)  # in flight on the CPU ...
+    state.handle_event(key("Tab"))  # ... when the user switches
+    state.on_traced(fake_traced(cpu_request))  # it is still shown, as a cpu frame
     assert state.title().split("  |  ")[1].startswith("cpu")
     cuda_request = state.next_request(8, 6)
     assert cuda_request.device == "cuda"
@@ -368,12 +376,12 @@ def test_a_failure_on_the_working_device_waits_for_input_or_a_new_size():
     request = state.next_request(8, 6)
     state.on_traced(TraceFailed(request, "size: too big"))
     assert "stopped: size: too big" in state.title()
-    assert state.next_request(8, 6) is None           # the same would fail again
-    assert state.next_request(9, 6) is not None       # resized
+    assert state.next_request(8, 6) is None  # the same would fail again
+    assert state.next_request(9, 6) is not None  # resized
     state.on_traced(TraceFailed(state.last_request, "size: too big"))
     assert state.next_request(9, 6) is None
     state.handle_event(key("-"))
-    assert state.next_request(9, 6) is not None       # the user changed something
+    assert state.next_request(9, 6) is not None  # the user changed something
     assert "stopped" not in state.title()
 
 
@@ -420,11 +428,13 @@ def test_quit_screenshot_and_help_flags():
 
 
 def test_status_line_formats():
-    line = overlay.status_line(device="cuda", spheres=1000, width=1680, height=1050, frame_ms=1234.5, fps=0.81,
-                               ramp=False, message=None)
+    line = overlay.status_line(
+        device="cuda", spheres=1000, width=1680, height=1050, frame_ms=1234.5, fps=0.81, ramp=False, message=None
+    )
     assert line == "raybench  |  cuda  |  1,000 spheres  |  1680x1050  |  frame 1.23 s  |  0.8 fps"
-    line = overlay.status_line(device="cpu", spheres=0, width=8, height=6, frame_ms=None, fps=None, ramp=True,
-                               message="hello")
+    line = overlay.status_line(
+        device="cpu", spheres=0, width=8, height=6, frame_ms=None, fps=None, ramp=True, message="hello"
+    )
     assert line.endswith("frame - ms  |  - fps  |  ramp  |  hello")
 
 
@@ -439,7 +449,7 @@ def test_handoff_allows_one_frame_in_flight_and_one_waiting():
     with pytest.raises(RuntimeError):
         handoff.start("request 2")
     handoff.finish("frame 1")
-    assert not handoff.may_trace()   # traced but not yet shown: no new trace
+    assert not handoff.may_trace()  # traced but not yet shown: no new trace
     assert handoff.take() == "frame 1"
     assert handoff.take() is None
     assert handoff.may_trace()
@@ -486,15 +496,27 @@ def run_worker(requests, timeout=120):
 
 
 def request_for(scene, device, count=None, width=24, height=16, camera=None, options=None, number=1):
-    return TraceRequest(number=number, device=device, scene=scene, count=len(scene) if count is None else count,
-                        camera=camera or Camera(), width=width, height=height, options=options or {})
+    return TraceRequest(
+        number=number,
+        device=device,
+        scene=scene,
+        count=len(scene) if count is None else count,
+        camera=camera or Camera(),
+        width=width,
+        height=height,
+        options=options or {},
+    )
 
 
 def test_worker_frames_are_what_render_draws():
     scene = random_spheres(30, 5)
     camera = Camera(position=(0.5, 0, -1), look_at=(0, 0, 10))
-    results = run_worker([request_for(scene, "cpu", camera=camera),
-                          request_for(scene, "cpu", count=12, camera=camera, options={"threads": 3})])
+    results = run_worker(
+        [
+            request_for(scene, "cpu", camera=camera),
+            request_for(scene, "cpu", count=12, camera=camera, options={"threads": 3}),
+        ]
+    )
     assert all(isinstance(r, TracedFrame) for r in results), results
     full, prefix = results
     assert np.array_equal(full.frame.image, raybench.render(scene, camera, 24, 16, device="cpu").image)
@@ -511,8 +533,9 @@ def test_worker_switches_cpu_to_cuda_and_back():
     comes from the device asked for; the pictures agree (bit for bit under the
     simulator, within a step on a real GPU)."""
     scene = random_spheres(8, 1)
-    results = run_worker([request_for(scene, d, width=16, height=12, number=i)
-                          for i, d in enumerate(["cpu", "cuda", "cpu"])])
+    results = run_worker(
+        [request_for(scene, d, width=16, height=12, number=i) for i, d in enumerate(["cpu", "cuda", "cpu"])]
+    )
     assert [r.frame.device for r in results] == ["cpu", "cuda", "cpu"]
     diff = np.abs(results[0].frame.image.astype(int) - results[1].frame.image.astype(int))
     assert diff.max() <= (0 if cuda_backend.simulated() else 1)
@@ -529,7 +552,7 @@ def test_worker_reports_an_unusable_device_and_goes_on(monkeypatch):
 def test_worker_traces_off_the_event_loop():
     """While a slow frame is traced, events are handled at once: the tracer runs
     on the worker thread, and the CPU kernel releases the GIL."""
-    scene = random_spheres(3000, 0)   # about a second per frame on one thread of a slow machine
+    scene = random_spheres(3000, 0)  # about a second per frame on one thread of a slow machine
     state, _ = make_state()
     done = threading.Event()
     worker = TraceWorker(on_done=done.set)
@@ -563,20 +586,35 @@ def test_worker_traces_off_the_event_loop():
 # --------------------------------------------------------------------------- bad input: one line, exit 2, before any window
 
 
-@pytest.mark.parametrize("args,needles", [
-    (["--spheres", "3", "--size", "0x5"], ["width", "got 0"]),
-    (["--spheres", "3", "--size", "big"], ["--size", "big"]),
-    (["--spheres", "3", "--device", "tpu"], ["--device", "tpu"]),
-    (["--spheres", "3", "--screenshot", "x.png"], ["--screenshot", "--frames"]),
-    (["--spheres", "3", "--frames", "2", "--screenshot", "x.jpg"], ["--screenshot", ".png"]),
-    (["--spheres", "3", "--frames", "2", "--screenshot", "missing/x.png"], ["--screenshot", "does not exist"]),
-    (["--spheres", "3", "--frames", "0"], ["--frames", "0"]),
-    (["--spheres", "3", "--threads", "0"], ["threads", "got 0"]),
-    (["--spheres", "3", "--block", "8"], ["--block"]),
-    (["--spheres", "3", "--scene", "s.json"], ["--scene", "--spheres"]),
-    (["--spheres", "-4"], ["sphere count", "-4"]),
-], ids=["size-0", "size-word", "device", "screenshot-without-frames", "screenshot-jpg", "screenshot-folder",
-        "frames-0", "threads-0", "block", "scene-and-spheres", "negative-spheres"])
+@pytest.mark.parametrize(
+    "args,needles",
+    [
+        (["--spheres", "3", "--size", "0x5"], ["width", "got 0"]),
+        (["--spheres", "3", "--size", "big"], ["--size", "big"]),
+        (["--spheres", "3", "--device", "tpu"], ["--device", "tpu"]),
+        (["--spheres", "3", "--screenshot", "x.png"], ["--screenshot", "--frames"]),
+        (["--spheres", "3", "--frames", "2", "--screenshot", "x.jpg"], ["--screenshot", ".png"]),
+        (["--spheres", "3", "--frames", "2", "--screenshot", "missing/x.png"], ["--screenshot", "does not exist"]),
+        (["--spheres", "3", "--frames", "0"], ["--frames", "0"]),
+        (["--spheres", "3", "--threads", "0"], ["threads", "got 0"]),
+        (["--spheres", "3", "--block", "8"], ["--block"]),
+        (["--spheres", "3", "--scene", "s.json"], ["--scene", "--spheres"]),
+        (["--spheres", "-4"], ["sphere count", "-4"]),
+    ],
+    ids=[
+        "size-0",
+        "size-word",
+        "device",
+        "screenshot-without-frames",
+        "screenshot-jpg",
+        "screenshot-folder",
+        "frames-0",
+        "threads-0",
+        "block",
+        "scene-and-spheres",
+        "negative-spheres",
+    ],
+)
 def test_view_bad_input_is_one_line_and_exit_2(capsys, tmp_path, monkeypatch, args, needles):
     # No screen: input that got past the checks would end in "no display", not in these needles.
     monkeypatch.delenv("DISPLAY", raising=False)

@@ -60,11 +60,13 @@ def display(vulkan_adapter):
     for number in range(91, 200):
         if os.path.exists(f"/tmp/.X{number}-lock") or os.path.exists(f"/tmp/.X11-unix/X{number}"):
             continue
-        proc = subprocess.Popen([xvfb, f":{number}", "-screen", "0", "1280x1024x24", "-nolisten", "tcp"],
-                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        proc = subprocess.Popen(
+            [xvfb, f":{number}", "-screen", "0", "1280x1024x24", "-nolisten", "tcp"],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
         deadline = time.monotonic() + 10
-        while proc.poll() is None and not os.path.exists(f"/tmp/.X11-unix/X{number}") \
-                and time.monotonic() < deadline:
+        while proc.poll() is None and not os.path.exists(f"/tmp/.X11-unix/X{number}") and time.monotonic() < deadline:
             time.sleep(0.05)
         if proc.poll() is None and os.path.exists(f"/tmp/.X11-unix/X{number}"):
             break
@@ -127,10 +129,12 @@ def key(name, kind="key_down"):
 
 def press(*names):
     """An action that presses (and releases) keys through the viewer's event handler."""
+
     def action(window):
         for name in names:
             window.handle_event(key(name))
             window.handle_event(key(name, "key_up"))
+
     return action
 
 
@@ -151,9 +155,9 @@ class Script:
 
     def __init__(self, steps):
         self.steps = list(steps)
-        self.records = []       # (step index, traced frame, pixels drawn)
+        self.records = []  # (step index, traced frame, pixels drawn)
         self.step = -1
-        self.after = 0          # requests up to this number came before the step's action
+        self.after = 0  # requests up to this number came before the step's action
         self.until = first_frame
 
     def __call__(self, window, traced):
@@ -216,13 +220,24 @@ def test_screenshot_equals_raybench_render(display, tmp_path):
     env = dict(os.environ, DISPLAY=display)
     args = ["--spheres", "20", "--size", "160x120", "--device", "cpu"]
     shot = tmp_path / "view.png"
-    proc = subprocess.run([sys.executable, "-m", "raybench", "view", *args, "--frames", "3", "--screenshot", shot],
-                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-m", "raybench", "view", *args, "--frames", "3", "--screenshot", shot],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 0, proc.stderr
     assert "Traceback" not in proc.stdout + proc.stderr
     assert f"wrote {shot}: 160x120, 20 spheres, cpu" in proc.stdout
-    rendered = subprocess.run([sys.executable, "-m", "raybench", "render", *args, "-o", tmp_path / "render.png"],
-                              cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    rendered = subprocess.run(
+        [sys.executable, "-m", "raybench", "render", *args, "-o", tmp_path / "render.png"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert rendered.returncode == 0, rendered.stderr
     drawn, expected = read_png(shot), read_png(tmp_path / "render.png")
     assert drawn.shape == expected.shape == (120, 160, 3)
@@ -243,10 +258,11 @@ def test_scene_file_camera_in_the_window_equals_raybench_render(display, tmp_pat
     """A scene file with its own camera, in a window of an odd size."""
     spheres = random_spheres(25, 8)
     path = tmp_path / "scene.json"
-    Scene(spheres.centers, spheres.radii, spheres.colors,
-          Camera(position=(1, 0.5, -2), look_at=(0, 0, 12), fov_deg=48)).save(path)
+    Scene(
+        spheres.centers, spheres.radii, spheres.colors, Camera(position=(1, 0.5, -2), look_at=(0, 0, 12), fov_deg=48)
+    ).save(path)
     script, _ = play(state_for(Scene.load(path), None), (97, 61), [])
-    (traced, drawn), = script.frames(0)
+    ((traced, drawn),) = script.frames(0)
     assert (traced.frame.width, traced.frame.height) == (97, 61)
     assert np.array_equal(drawn, render_png(tmp_path, "r.png", "--scene", path, "--size", "97x61", "--device", "cpu"))
 
@@ -255,43 +271,47 @@ def test_keys_change_what_is_drawn(display, tmp_path):
     """+, -, the ramp, WASD and R, pressed through the viewer's event handler:
     each changes the picture as it should, and every picture drawn is what
     raybench.render makes of the frame's own view."""
+
     def held(name, seconds):
         def action(window):
             window.handle_event(key(name))
             time.sleep(seconds)
             window.handle_event(key(name, "key_up"))
+
         return action
 
     steps = [
-        (press("="), first_frame),                           # 1: 30 spheres
-        (press("-", "-"), first_frame),                      # 2: 10 of those
-        (press("t"), lambda t: t.request.count >= 40),       # 3: the ramp
-        (press("t"), first_frame),                           # 4: stopped
-        (held("w", 0.3), first_frame),                       # 5: moved forward
-        (press("r"), first_frame),                           # 6: back home
+        (press("="), first_frame),  # 1: 30 spheres
+        (press("-", "-"), first_frame),  # 2: 10 of those
+        (press("t"), lambda t: t.request.count >= 40),  # 3: the ramp
+        (press("t"), first_frame),  # 4: stopped
+        (held("w", 0.3), first_frame),  # 5: moved forward
+        (press("r"), first_frame),  # 6: back home
     ]
     script, window = play(state_for(random_spheres(20, 0), 0), (64, 48), steps)
     for step, traced, drawn in script.records:
         assert np.array_equal(drawn, reference(traced)), f"step {step}, frame {traced.request.number}"
-    (start, start_px), = script.frames(0)
+    ((start, start_px),) = script.frames(0)
     assert start.request.count == 20
-    assert np.array_equal(start_px, render_png(tmp_path, "20.png", "--spheres", 20, "--size", "64x48",
-                                               "--device", "cpu"))
-    (more, more_px), = script.frames(1)
+    assert np.array_equal(
+        start_px, render_png(tmp_path, "20.png", "--spheres", 20, "--size", "64x48", "--device", "cpu")
+    )
+    ((more, more_px),) = script.frames(1)
     assert more.request.count == 30 and not np.array_equal(more_px, start_px)
-    assert np.array_equal(more_px, render_png(tmp_path, "30.png", "--spheres", 30, "--size", "64x48",
-                                              "--device", "cpu"))
-    (fewer, fewer_px), = script.frames(2)
+    assert np.array_equal(
+        more_px, render_png(tmp_path, "30.png", "--spheres", 30, "--size", "64x48", "--device", "cpu")
+    )
+    ((fewer, fewer_px),) = script.frames(2)
     assert fewer.request.count == 10 and not np.array_equal(fewer_px, more_px)
     ramp = script.frames(3)
     assert [t.request.count for t, _ in ramp] == [10, 20, 30, 40]
     assert all(len(t.request.scene) == 1000 for t, _ in ramp)  # test 7's scene
     assert all(not np.array_equal(a, b) for (_, a), (_, b) in zip(ramp, ramp[1:]))
-    (stopped, _), = script.frames(4)
+    ((stopped, _),) = script.frames(4)
     assert stopped.request.count in (40, 50) and not window.state.supply.ramping
-    (moved, moved_px), = script.frames(5)
+    ((moved, moved_px),) = script.frames(5)
     assert moved.request.camera.position[2] > 0 and not np.array_equal(moved_px, script.frames(4)[0][1])
-    (home, home_px), = script.frames(6)
+    ((home, home_px),) = script.frames(6)
     assert home.request.camera is window.state.home
     assert np.array_equal(home_px, script.frames(4)[0][1])
 
@@ -332,8 +352,9 @@ def test_resizing_the_window_retraces_at_the_new_size(display):
     def resize(window):
         window.canvas.set_logical_size(90, 70)
 
-    script, _ = play(state_for(random_spheres(15, 2), 2), (64, 48),
-                     [(resize, lambda t: (t.frame.width, t.frame.height) == (90, 70))])
+    script, _ = play(
+        state_for(random_spheres(15, 2), 2), (64, 48), [(resize, lambda t: (t.frame.width, t.frame.height) == (90, 70))]
+    )
     traced, drawn = script.frames(1)[-1]
     assert drawn.shape == (70, 90, 3)
     assert np.array_equal(drawn, reference(traced))
@@ -350,11 +371,12 @@ def test_screenshot_key_saves_what_was_drawn(display, tmp_path, monkeypatch):
 def test_screenshot_from_the_offscreen_path(display):
     """Where a surface cannot be copied from, the screenshot is the same quad
     drawn into an offscreen texture of the same format: it must be the same bytes."""
+
     def offscreen(window):
         window.surface_readable = False
 
     script, window = play(state_for(random_spheres(10, 6), 6), (64, 48), [], prepare=offscreen)
-    (traced, drawn), = script.frames(0)
+    ((traced, drawn),) = script.frames(0)
     assert np.array_equal(drawn, reference(traced))
 
 
@@ -365,9 +387,14 @@ def test_keyboard_through_the_x_server(display, tmp_path):
     if xdotool is None:
         unavailable("xdotool is not installed (on Debian: apt-get install xdotool)")
     env = dict(os.environ, DISPLAY=display)
-    proc = subprocess.Popen([sys.executable, "-m", "raybench", "view", "--spheres", "20", "--size", "160x120",
-                             "--device", "cpu"], cwd=tmp_path, env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "raybench", "view", "--spheres", "20", "--size", "160x120", "--device", "cpu"],
+        cwd=tmp_path,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
     def xdo(*args):
         return subprocess.run([xdotool, *args], env=env, capture_output=True, text=True, timeout=30).stdout.strip()
@@ -384,6 +411,7 @@ def test_keyboard_through_the_x_server(display, tmp_path):
 
     try:
         window_id = wait_for(lambda: xdo("search", "--name", "^raybench").split("\n")[0], "the window")
+
         def title_with_a_frame():
             title = xdo("getwindowname", window_id)
             return title if "fps" in title else None
@@ -456,11 +484,17 @@ def test_wgpu_traces_into_the_drawn_texture_in_one_command_buffer(display, vulka
 
     name = vulkan_adapter.info["device"]
     state = state_for(random_spheres(20, 5), 5, device="wgpu", options={"wgpu": {"adapter": name}})
+
     def resize(window):
         window.canvas.set_logical_size(50, 34)
 
-    steps = [(check_zero_copy, first_frame), (press("="), first_frame), (press("Tab"), first_frame),
-             (press("3"), first_frame), (resize, lambda t: (t.frame.width, t.frame.height) == (50, 34))]
+    steps = [
+        (check_zero_copy, first_frame),
+        (press("="), first_frame),
+        (press("Tab"), first_frame),
+        (press("3"), first_frame),
+        (resize, lambda t: (t.frame.width, t.frame.height) == (50, 34)),
+    ]
     script, window = play(state, (72, 40), steps)
     assert seen == {"same_texture": True, "uploads": 0, "accel": "bvh"}
     assert f"wgpu on {name} (Vulkan" in titles[0] and "no copy" in titles[0], titles
@@ -487,11 +521,13 @@ def test_wgpu_traces_into_the_drawn_texture_in_one_command_buffer(display, vulka
 def test_wgpu_in_the_window_without_timestamps(display, vulkan_adapter):
     """Where the device has no timestamp queries, the frame time is the wall
     time of the completed submission; the picture is the same."""
+
     def no_timestamps(window):
         window.gpu_tracer.period_ns = None
 
-    state = state_for(random_spheres(15, 9), 9, device="wgpu",
-                      options={"wgpu": {"adapter": vulkan_adapter.info["device"]}})
+    state = state_for(
+        random_spheres(15, 9), 9, device="wgpu", options={"wgpu": {"adapter": vulkan_adapter.info["device"]}}
+    )
     script, _ = play(state, (48, 32), [(press("="), first_frame)], prepare=no_timestamps)
     for step, traced, drawn in script.records:
         assert traced.frame.device == "wgpu" and traced.trace_ms > 0
@@ -504,9 +540,30 @@ def test_cli_view_on_wgpu_saves_the_render(display, vulkan_adapter, tmp_path):
     env = dict(os.environ, DISPLAY=display)
     args = ["--spheres", "20", "--size", "96x64"]
     shot = tmp_path / "view.png"
-    proc = subprocess.run([sys.executable, "-m", "raybench", "view", *args, "--device", "wgpu", "--adapter",
-                           vulkan_adapter.info["device"], "--workgroup", "8x8", "--frames", "3", "--screenshot",
-                           shot], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "raybench",
+            "view",
+            *args,
+            "--device",
+            "wgpu",
+            "--adapter",
+            vulkan_adapter.info["device"],
+            "--workgroup",
+            "8x8",
+            "--frames",
+            "3",
+            "--screenshot",
+            shot,
+        ],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 0, proc.stderr
     assert f"wrote {shot}: 96x64, 20 spheres, wgpu" in proc.stdout
     drawn = read_png(shot).astype(int)
@@ -575,7 +632,7 @@ def test_srgb_only_surface_is_drawn_through_its_plain_view(display, monkeypatch)
     script, window = play(state_for(random_spheres(10, 7), 7), (64, 48), [])
     assert (window.format.configure, window.format.view) == ("bgra8unorm-srgb", "bgra8unorm")
     assert window.surface_readable
-    (traced, drawn), = script.frames(0)
+    ((traced, drawn),) = script.frames(0)
     assert np.array_equal(drawn, reference(traced))
 
 
@@ -604,9 +661,14 @@ def assert_one_error_line(proc, *needles):
 
 
 def view_subprocess(tmp_path, env, *args):
-    return subprocess.run([sys.executable, "-m", "raybench", "view", "--spheres", "5", "--size", "40x30",
-                           "--device", "cpu", *args], cwd=tmp_path, env=env, capture_output=True, text=True,
-                          timeout=120)
+    return subprocess.run(
+        [sys.executable, "-m", "raybench", "view", "--spheres", "5", "--size", "40x30", "--device", "cpu", *args],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
 
 
 def test_no_display_is_one_line_and_exit_2(tmp_path):
@@ -626,6 +688,9 @@ def test_no_graphics_adapter_is_one_line_and_exit_2(display, tmp_path):
     if not sys.platform.startswith("linux"):
         pytest.skip("D3D12 stands for 'no adapter' on Linux only")
     env = dict(os.environ, DISPLAY=display, WGPU_BACKEND_TYPE="D3D12")
-    assert_one_error_line(view_subprocess(tmp_path, env, "--frames", "1", "--screenshot", tmp_path / "x.png"),
-                          "no usable graphics adapter", "raybench render")
+    assert_one_error_line(
+        view_subprocess(tmp_path, env, "--frames", "1", "--screenshot", tmp_path / "x.png"),
+        "no usable graphics adapter",
+        "raybench render",
+    )
     assert list(tmp_path.iterdir()) == []

@@ -55,8 +55,9 @@ def test_wgpu_matches_reference_and_cpu(adapter, rng, kind, n, accel):
     scene, camera = KINDS[kind](rng, n)
     for (width, height), workgroup in [((96, 64), (16, 16)), ((61, 37), (5, 3))]:
         context = f"{kind} n={n} {width}x{height} workgroup {workgroup} accel {accel}"
-        gpu = raybench.render(scene, camera, width, height, device="wgpu", adapter=adapter, workgroup=workgroup,
-                              accel=accel)
+        gpu = raybench.render(
+            scene, camera, width, height, device="wgpu", adapter=adapter, workgroup=workgroup, accel=accel
+        )
         assert gpu.device == "wgpu"
         ref = trace(scene, camera, width, height)
         check_frame(gpu, ref, context=context)
@@ -85,8 +86,15 @@ def test_wgpu_bvh_gives_the_cpu_hits(adapter, rng, kind, walk):
     n = int(rng.integers(100, 400))
     scene, camera = SCENES[kind](rng, n)
     width, height = 66, 47
-    gpu = raybench.render(scene, camera, width, height, device="wgpu", adapter=adapter,  # the default: the BVH
-                          walk=walk)
+    gpu = raybench.render(
+        scene,
+        camera,
+        width,
+        height,
+        device="wgpu",
+        adapter=adapter,  # the default: the BVH
+        walk=walk,
+    )
     assert gpu.build_s is not None
     brute = raybench.render(scene, camera, width, height, device="cpu", accel="none", kernel="simple")
     cpu_bvh = raybench.render(scene, camera, width, height, device="cpu", accel="bvh")
@@ -148,8 +156,9 @@ def test_sphere_prefix_zero_spheres_and_reused_buffers(adapter, rng, accel):
             if accel == "bvh":
                 assert tracer.compute.tree.count == k
             cpu = raybench.render(scene.head(k), camera, width, height, device="cpu")
-            same_as_cpu(Frame(image, hits, "wgpu"), cpu,
-                        trace(scene.head(k), camera, width, height), f"first {k} spheres")
+            same_as_cpu(
+                Frame(image, hits, "wgpu"), cpu, trace(scene.head(k), camera, width, height), f"first {k} spheres"
+            )
         assert (hits >= -1).all() and (hits < len(scene) // 2).all()
         kernel_ms = tracer.timed_trace(basis, 3)
         assert kernel_ms > 0
@@ -158,26 +167,39 @@ def test_sphere_prefix_zero_spheres_and_reused_buffers(adapter, rng, accel):
             tracer.trace(basis, len(scene) + 1)
     finally:
         tracer.close()
-    empty = raybench.render(raybench.Scene(np.zeros((0, 3)), [], np.zeros((0, 3))), width=33, height=17,
-                            device="wgpu", adapter=adapter, accel=accel)
+    empty = raybench.render(
+        raybench.Scene(np.zeros((0, 3)), [], np.zeros((0, 3))),
+        width=33,
+        height=17,
+        device="wgpu",
+        adapter=adapter,
+        accel=accel,
+    )
     assert (empty.hits == -1).all()
-    assert np.array_equal(empty.image, raybench.render(raybench.Scene(np.zeros((0, 3)), [], np.zeros((0, 3))),
-                                                      width=33, height=17, device="cpu").image)
+    assert np.array_equal(
+        empty.image,
+        raybench.render(
+            raybench.Scene(np.zeros((0, 3)), [], np.zeros((0, 3))), width=33, height=17, device="cpu"
+        ).image,
+    )
 
 
-@pytest.mark.parametrize("options, match", [
-    ({"workgroup": (0, 4)}, "workgroup"),
-    ({"workgroup": (2048, 1)}, "workgroup"),
-    ({"workgroup": (64, 64)}, "at most"),
-    ({"workgroup": "ab"}, "workgroup: must be two integers"),
-    ({"kernel": "fast"}, "simple kernel only"),
-    ({"accel": "none", "kernel": "fast"}, "simple kernel only"),
-    ({"accel": "bvh", "kernel": "simple"}, "kernel: applies to brute force only"),
-    ({"accel": "kd-tree"}, "accel: must be one of bvh, none"),
-    ({"threads": 2}, "does not apply to device wgpu"),
-    ({"walk": "sideways"}, "walk: must be one of ray, packet, got 'sideways'"),
-    ({"walk": "ray", "accel": "none"}, "walk: applies to the BVH walk only"),
-])
+@pytest.mark.parametrize(
+    "options, match",
+    [
+        ({"workgroup": (0, 4)}, "workgroup"),
+        ({"workgroup": (2048, 1)}, "workgroup"),
+        ({"workgroup": (64, 64)}, "at most"),
+        ({"workgroup": "ab"}, "workgroup: must be two integers"),
+        ({"kernel": "fast"}, "simple kernel only"),
+        ({"accel": "none", "kernel": "fast"}, "simple kernel only"),
+        ({"accel": "bvh", "kernel": "simple"}, "kernel: applies to brute force only"),
+        ({"accel": "kd-tree"}, "accel: must be one of bvh, none"),
+        ({"threads": 2}, "does not apply to device wgpu"),
+        ({"walk": "sideways"}, "walk: must be one of ray, packet, got 'sideways'"),
+        ({"walk": "ray", "accel": "none"}, "walk: applies to the BVH walk only"),
+    ],
+)
 def test_bad_options_are_refused(adapter, options, match):
     with pytest.raises(raybench.RaybenchError, match=match):
         raybench.render(raybench.random_spheres(3), width=8, height=8, device="wgpu", adapter=adapter, **options)
@@ -192,11 +214,13 @@ def test_wgpu_walks_a_ray_at_a_time_unless_asked_for_packets(adapter):
     if has_subgroups(adapter):
         tracer = backends.tracer("wgpu", raybench.random_spheres(50).spheres, 16, 8, adapter=adapter, walk="packet")
         assert (tracer.walk, tracer.workgroup) == ("packet", compute.DEFAULT_WORKGROUP["packet"])
-    given = backends.tracer("wgpu", raybench.random_spheres(50).spheres, 16, 8, adapter=adapter, walk="ray",
-                            workgroup=(4, 4))
+    given = backends.tracer(
+        "wgpu", raybench.random_spheres(50).spheres, 16, 8, adapter=adapter, walk="ray", workgroup=(4, 4)
+    )
     assert (given.walk, given.workgroup) == ("ray", (4, 4))
-    assert backends.tracer("wgpu", raybench.random_spheres(5).spheres, 16, 8, adapter=adapter,
-                           accel="none").walk is None
+    assert (
+        backends.tracer("wgpu", raybench.random_spheres(5).spheres, 16, 8, adapter=adapter, accel="none").walk is None
+    )
 
 
 def test_packets_without_subgroups_are_refused_in_one_line(adapter):
@@ -209,8 +233,9 @@ def test_packets_without_subgroups_are_refused_in_one_line(adapter):
 
 
 def test_a_name_that_matches_no_adapter_lists_those_found(adapter):
-    with pytest.raises(raybench.RaybenchError, match=r"adapter: none matches 'no-such-gpu' \(found: .*"
-                                                      + adapter.split(" ")[0]):
+    with pytest.raises(
+        raybench.RaybenchError, match=r"adapter: none matches 'no-such-gpu' \(found: .*" + adapter.split(" ")[0]
+    ):
         raybench.render(raybench.random_spheres(3), width=8, height=8, device="wgpu", adapter="no-such-gpu")
 
 
@@ -221,9 +246,13 @@ def fake(name, backend, kind):
     return adapters.Adapter(name, backend, kind, object())
 
 
-FAKES = (fake("llvmpipe (LLVM 15)", "Vulkan", "CPU"), fake("Intel(R) UHD 770", "Vulkan", "IntegratedGPU"),
-         fake("NVIDIA RTX 4090", "OpenGL", "DiscreteGPU"), fake("NVIDIA RTX 4090", "Vulkan", "DiscreteGPU"),
-         fake("SwiftShader Device", "Vulkan", "CPU"))
+FAKES = (
+    fake("llvmpipe (LLVM 15)", "Vulkan", "CPU"),
+    fake("Intel(R) UHD 770", "Vulkan", "IntegratedGPU"),
+    fake("NVIDIA RTX 4090", "OpenGL", "DiscreteGPU"),
+    fake("NVIDIA RTX 4090", "Vulkan", "DiscreteGPU"),
+    fake("SwiftShader Device", "Vulkan", "CPU"),
+)
 
 
 def found_these(monkeypatch, fakes):
@@ -285,8 +314,9 @@ def test_cli_render_on_wgpu_draws_the_cpu_picture(adapter, capsys, tmp_path):
     from PIL import Image
 
     args = ["render", "--spheres", 40, "--seed", 5, "--size", "70x50"]
-    code, out, err = cli(capsys, *args, "--device", "wgpu", "--adapter", adapter, "--workgroup", "8x4",
-                         "-o", tmp_path / "wgpu.png")
+    code, out, err = cli(
+        capsys, *args, "--device", "wgpu", "--adapter", adapter, "--workgroup", "8x4", "-o", tmp_path / "wgpu.png"
+    )
     assert code == 0, err
     assert "70x50, 40 spheres, wgpu" in out
     assert cli(capsys, *args, "--device", "cpu", "-o", tmp_path / "cpu.png")[0] == 0
@@ -307,14 +337,17 @@ def test_cli_render_on_wgpu_takes_accel(adapter, capsys, tmp_path):
     assert np.abs(pngs["bvh"] - pngs["none"]).max() <= 1
 
 
-@pytest.mark.parametrize("extra, needles", [
-    (["--workgroup", "0x4"], ["workgroup"]),
-    (["--accel", "bvh", "--kernel", "simple"], ["kernel: applies to brute force only"]),
-    (["--workgroup", "big"], ["--workgroup", "16x16"]),
-    (["--adapter", "no-such-gpu"], ["adapter: none matches 'no-such-gpu'", "found:"]),
-    (["--kernel", "fast"], ["simple kernel only"]),
-    (["--block", "8x8"], ["'block' does not apply to device wgpu"]),
-])
+@pytest.mark.parametrize(
+    "extra, needles",
+    [
+        (["--workgroup", "0x4"], ["workgroup"]),
+        (["--accel", "bvh", "--kernel", "simple"], ["kernel: applies to brute force only"]),
+        (["--workgroup", "big"], ["--workgroup", "16x16"]),
+        (["--adapter", "no-such-gpu"], ["adapter: none matches 'no-such-gpu'", "found:"]),
+        (["--kernel", "fast"], ["simple kernel only"]),
+        (["--block", "8x8"], ["'block' does not apply to device wgpu"]),
+    ],
+)
 def test_cli_bad_wgpu_options_are_one_line(adapter, capsys, tmp_path, extra, needles):
     args = ["render", "--spheres", 3, "--size", "16x12", "--device", "wgpu", "-o", tmp_path / "x.png"]
     if "--adapter" not in extra:
@@ -326,8 +359,12 @@ def test_cli_bad_wgpu_options_are_one_line(adapter, capsys, tmp_path, extra, nee
 def test_cli_wgpu_without_a_gpu_asks_for_the_adapter_by_name(adapter, capsys, tmp_path):
     if adapters.gpu_present():
         pytest.skip("this machine has a GPU adapter: device wgpu alone uses it")
-    one_error_line(*cli(capsys, "render", "--spheres", 3, "--device", "wgpu", "-o", tmp_path / "x.png"),
-                   "no GPU adapter", "--adapter", adapter.split(" ")[0])
+    one_error_line(
+        *cli(capsys, "render", "--spheres", 3, "--device", "wgpu", "-o", tmp_path / "x.png"),
+        "no GPU adapter",
+        "--adapter",
+        adapter.split(" ")[0],
+    )
 
 
 def test_info_lists_the_adapters(adapter, capsys):
@@ -345,8 +382,14 @@ def test_info_lists_the_adapters(adapter, capsys):
 def test_bench_points_for_wgpu():
     from raybench.bench import suites
 
-    points = suites.points(("thesis", "tuning", "constant-vs-runtime"), ("cpu", "wgpu"), quick=True,
-                           kernels=("fast", "simple"), wgpu={"adapter": "lavapipe"}, max_invocations=256)
+    points = suites.points(
+        ("thesis", "tuning", "constant-vs-runtime"),
+        ("cpu", "wgpu"),
+        quick=True,
+        kernels=("fast", "simple"),
+        wgpu={"adapter": "lavapipe"},
+        max_invocations=256,
+    )
     gpu = [p for p in points if p.device == "wgpu"]
     assert gpu and all(p.options["kernel"] == "simple" and p.options["adapter"] == "lavapipe" for p in gpu)
     assert {p.test for p in gpu if p.suite == "thesis"} == {1}  # a GPU's tests: 1-3
@@ -363,12 +406,22 @@ def test_bench_points_for_wgpu_bvh():
     brute force's (simple, once, whatever the kernels), or alone."""
     from raybench.bench import suites
 
-    both = suites.points(("thesis", "tuning", "scaling"), ("cpu", "wgpu"), quick=True, kernels=("fast", "simple"),
-                         accels=("bvh", "none"), wgpu={"adapter": "lavapipe"}, max_invocations=1024)
+    both = suites.points(
+        ("thesis", "tuning", "scaling"),
+        ("cpu", "wgpu"),
+        quick=True,
+        kernels=("fast", "simple"),
+        accels=("bvh", "none"),
+        wgpu={"adapter": "lavapipe"},
+        max_invocations=1024,
+    )
     gpu = [p for p in both if p.device == "wgpu"]
     ways = {(p.suite, p.options["accel"], p.options.get("kernel")) for p in gpu}
-    assert ways == {(suite, accel, kernel) for suite in ("thesis", "tuning", "scaling")
-                    for accel, kernel in (("bvh", None), ("none", "simple"))} | {("test7", "none", "simple")}
+    assert ways == {
+        (suite, accel, kernel)
+        for suite in ("thesis", "tuning", "scaling")
+        for accel, kernel in (("bvh", None), ("none", "simple"))
+    } | {("test7", "none", "simple")}
     scaling = [p for p in gpu if p.suite == "scaling" and p.options["accel"] == "bvh"]
     assert [p.spheres for p in scaling] == list(suites.QUICK_SCALING_COUNTS)
     assert all("cap_s" not in p.options for p in scaling)  # only brute force is capped
@@ -395,12 +448,14 @@ def test_cpu_use_never_imports_wgpu(tmp_path):
     import subprocess
     import sys
 
-    code = ("import sys, raybench\n"
-            "from raybench.cli import run\n"
-            "raybench.render(raybench.random_spheres(3), width=8, height=8, device='cpu')\n"
-            f"assert run(['render', '--spheres', '3', '--size', '8x8', '--device', 'cpu', '-o', {str(tmp_path / 'x.png')!r}]) == 0\n"
-            "import raybench.backends.wgpu\n"
-            "assert 'wgpu' not in sys.modules, 'wgpu was imported'\n")
+    code = (
+        "import sys, raybench\n"
+        "from raybench.cli import run\n"
+        "raybench.render(raybench.random_spheres(3), width=8, height=8, device='cpu')\n"
+        f"assert run(['render', '--spheres', '3', '--size', '8x8', '--device', 'cpu', '-o', {str(tmp_path / 'x.png')!r}]) == 0\n"
+        "import raybench.backends.wgpu\n"
+        "assert 'wgpu' not in sys.modules, 'wgpu was imported'\n"
+    )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
 

@@ -81,24 +81,24 @@ DEVICE_SPHERE_BYTES = NODE_BYTES + 4 * 4 + 4
 # traversal adds the same fraction of |camera|_1 (kernels.traverse). 2^-16 is
 # 128 float32 epsilons: many times the few epsilons by which the exact test's
 # float32 hit point can stray from the true sphere (|EO| and r scale them).
-PAD = np.float32(2.0 ** -16)
+PAD = np.float32(2.0**-16)
 # The planes of an empty child's inverted box (only a root of under two
 # spheres has one): far beyond any scene (coordinates stay under 1e15), and
 # finite even divided by a direction component of TINY (kernels.traverse),
 # so no walk's arithmetic on it overflows or meets inf - inf.
 EMPTY = np.float32(1e18)
-MAX_SPHERES = 2 ** 31 - 1
+MAX_SPHERES = 2**31 - 1
 _ONE_BUILD = threading.Lock()
 
 
 @dataclass
 class Bvh:
-    nodes: np.ndarray      # (M, 16) float32
-    links: np.ndarray      # (M, 16) int32 view of nodes; columns 12..15 used
-    ordered: np.ndarray    # (4, N) float32: cx, cy, cz, r in leaf order
-    order: np.ndarray      # (N,) int32: original index of each ordered sphere
-    depth: int             # deepest node (root = 1)
-    build_s: float         # seconds the build took (compiled code only)
+    nodes: np.ndarray  # (M, 16) float32
+    links: np.ndarray  # (M, 16) int32 view of nodes; columns 12..15 used
+    ordered: np.ndarray  # (4, N) float32: cx, cy, cz, r in leaf order
+    order: np.ndarray  # (N,) int32: original index of each ordered sphere
+    depth: int  # deepest node (root = 1)
+    build_s: float  # seconds the build took (compiled code only)
 
     @property
     def count(self) -> int:
@@ -321,7 +321,7 @@ def _root(px, py, pz, pr, idx, nodes, links, stack):
     cbox = np.empty(6, np.float32)
     nodes[0, :12] = EMPTY
     for slot in range(2):
-        nodes[0, 6 * slot + 3: 6 * slot + 6] = -EMPTY
+        nodes[0, 6 * slot + 3 : 6 * slot + 6] = -EMPTY
         links[0, 12 + slot] = 0
         links[0, 14 + slot] = 0
     if n == 0:
@@ -332,9 +332,22 @@ def _root(px, py, pz, pr, idx, nodes, links, stack):
     elif 1 + _log2ceil(n) >= MAX_DEPTH:
         m = _median_split(px, py, pz, pr, idx, 0, n, cbox)
     else:
-        m, _cost = _sah_split(px, py, pz, pr, idx, 0, n, box, cbox, np.zeros((3, BINS), np.int64),
-                              np.empty((3, BINS, 6), np.float32), np.empty(3, np.float32),
-                              np.empty(BINS, np.float32), np.empty(BINS, np.int64))
+        m, _cost = _sah_split(
+            px,
+            py,
+            pz,
+            pr,
+            idx,
+            0,
+            n,
+            box,
+            cbox,
+            np.zeros((3, BINS), np.int64),
+            np.empty((3, BINS, 6), np.float32),
+            np.empty(3, np.float32),
+            np.empty(BINS, np.float32),
+            np.empty(BINS, np.int64),
+        )
         if m == 0 or m == n:
             m = _median_split(px, py, pz, pr, idx, 0, n, cbox)
     top = _push(stack, 0, 0, 1, m, n, 1)
@@ -374,7 +387,7 @@ def _grow(px, py, pz, pr, idx, nodes, links, stack, top, used):
         if count == 0:
             continue  # an empty child: its box stays inverted
         _range_bounds(px, py, pz, pr, s, e, box, cbox)
-        nodes[parent, col: col + 6] = box
+        nodes[parent, col : col + 6] = box
         if count <= LEAF_ALWAYS:
             continue
         if d + 1 + _log2ceil(count) >= MAX_DEPTH:  # deeper SAH splits could overflow the stack
@@ -517,7 +530,7 @@ def _choose(level, jobs, first_job, axis, scale, mid, counts, bins, cut, left_at
             for j in range(j0, j1):
                 counts3[a] += counts[j]
                 for b in range(BINS):
-                    _merge(bins3[a, b], bins[j, b: b + 1])
+                    _merge(bins3[a, b], bins[j, b : b + 1])
             scale3[:] = 0
             scale3[a] = scale[k]
             _cost, best, cut[k] = _best_plane(counts3, bins3, scale3, BINS, left_area, left_count)
@@ -530,7 +543,7 @@ def _choose(level, jobs, first_job, axis, scale, mid, counts, bins, cut, left_at
                     children[k, slot, 6:9] = inf
                     children[k, slot, 9:12] = -inf
                 _merge(children[k, 0], bins3[a, : cut[k] + 1])
-                _merge(children[k, 1], bins3[a, cut[k] + 1:])
+                _merge(children[k, 1], bins3[a, cut[k] + 1 :])
         for j in range(j0, j1):  # each slice's spheres that go left, for now in right_at
             n_left = 0
             if mid[k] < 0:
@@ -595,7 +608,7 @@ def _attach(level, m, mid, children, p, q, nodes, links, used, wide):
             if mid[k] >= 0:  # split by count: no bins gave the bounds
                 x, y, z, r, _ = q if buf == 0 else p
                 _range_bounds(x, y, z, r, cs, ce, b[:6], b[6:])
-            nodes[row, 6 * slot: 6 * slot + 6] = b[:6]
+            nodes[row, 6 * slot : 6 * slot + 6] = b[:6]
             links[row, 12 + slot] = cs
             links[row, 14 + slot] = ce - cs
             if ce - cs > wide:
@@ -716,8 +729,13 @@ def _build_wide(cx, cy, cz, r, threads: int, wide: int):
     rows, then the blocks packed after the top's rows. Returns (nodes,
     ordered, order, deepest depth)."""
     n = cx.shape[0]
-    p = (np.empty(n, np.float32), np.empty(n, np.float32), np.empty(n, np.float32), np.empty(n, np.float32),
-         np.empty(n, np.int32))
+    p = (
+        np.empty(n, np.float32),
+        np.empty(n, np.float32),
+        np.empty(n, np.float32),
+        np.empty(n, np.float32),
+        np.empty(n, np.int32),
+    )
     q = tuple(np.empty_like(a) for a in p)
     # the top's rows, then one block per subtree at the top's row count plus
     # its first sphere: a subtree of k spheres has fewer than k inner nodes
@@ -738,8 +756,18 @@ def _build_wide(cx, cy, cz, r, threads: int, wide: int):
         k = len(level)
         axis, lo, scale = np.empty(k, np.int64), np.empty(k, np.float32), np.empty(k, np.float32)
         mid, first_job, cut = np.empty(k, np.int64), np.empty(k + 1, np.int64), np.zeros(k, np.int64)
-        jobs = _plan(level, bounds, p, q, _piece(int((level[:, 2] - level[:, 1]).sum()), threads),
-                     axis, lo, scale, mid, first_job)
+        jobs = _plan(
+            level,
+            bounds,
+            p,
+            q,
+            _piece(int((level[:, 2] - level[:, 1]).sum()), threads),
+            axis,
+            lo,
+            scale,
+            mid,
+            first_job,
+        )
         counts, bins = np.empty((len(jobs), BINS), np.int64), np.empty((len(jobs), BINS, 12), np.float32)
         _bin_all(level, jobs, p, q, axis, lo, scale, mid, counts, bins, threads)
         left_at, right_at = np.empty(len(jobs), np.int64), np.empty(len(jobs), np.int64)
@@ -804,5 +832,4 @@ def build(spheres: np.ndarray, threads: int | None = None, _timed: bool = True, 
         # the centres are already in leaf order (the builder moved them), the very values of the scene
         ordered = np.stack([px, py, pz, r[order]])
     build_s = time.perf_counter() - start
-    return Bvh(nodes=nodes, links=nodes.view(np.int32), ordered=ordered, order=order, depth=int(depth),
-               build_s=build_s)
+    return Bvh(nodes=nodes, links=nodes.view(np.int32), ordered=ordered, order=order, depth=int(depth), build_s=build_s)

@@ -28,8 +28,9 @@ def _vector(value, name: str) -> tuple[float, float, float]:
     except (TypeError, ValueError, OverflowError):
         raise RaybenchError(f"{name}: must be 3 numbers [x, y, z], got {value!r}") from None
     if len(vec) != 3 or not all(math.isfinite(c) and abs(c) <= MAX_MAGNITUDE for c in vec):
-        raise RaybenchError(f"{name}: must be 3 finite numbers [x, y, z], each at most {MAX_MAGNITUDE:g} "
-                            f"in magnitude, got {value!r}")
+        raise RaybenchError(
+            f"{name}: must be 3 finite numbers [x, y, z], each at most {MAX_MAGNITUDE:g} in magnitude, got {value!r}"
+        )
     return vec
 
 
@@ -53,14 +54,18 @@ class Camera:
                 raise TypeError
             fov = float(self.fov_deg)
         except (TypeError, ValueError, OverflowError):
-            raise RaybenchError(f"camera.fov_deg: must be a number of degrees in (0, 180), got {self.fov_deg!r}") from None
+            raise RaybenchError(
+                f"camera.fov_deg: must be a number of degrees in (0, 180), got {self.fov_deg!r}"
+            ) from None
         if not (0.0 < fov < 180.0):
             raise RaybenchError(f"camera.fov_deg: must be in (0, 180) degrees, got {self.fov_deg!r}")
         object.__setattr__(self, "fov_deg", fov)
         forward = np.subtract(look, pos)
         if not np.linalg.norm(forward) > 0.0:
             raise RaybenchError("camera.look_at: must differ from camera.position")
-        if not np.linalg.norm(np.cross(forward, up)) > 1e-12 * np.linalg.norm(forward) * max(np.linalg.norm(up), 1e-300):
+        if not np.linalg.norm(np.cross(forward, up)) > 1e-12 * np.linalg.norm(forward) * max(
+            np.linalg.norm(up), 1e-300
+        ):
             raise RaybenchError("camera.up: must not be zero or parallel to the view direction (look_at - position)")
 
     def basis(self, width: int, height: int) -> np.ndarray:
@@ -77,5 +82,9 @@ class Camera:
         return np.array([pos, forward, right * plane_w, true_up * plane_h], dtype=np.float32)
 
     def to_dict(self) -> dict:
-        return {"position": list(self.position), "look_at": list(self.look_at),
-                "up": list(self.up), "fov_deg": self.fov_deg}
+        return {
+            "position": list(self.position),
+            "look_at": list(self.look_at),
+            "up": list(self.up),
+            "fov_deg": self.fov_deg,
+        }

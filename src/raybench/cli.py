@@ -42,8 +42,9 @@ def parse_block(text: str) -> tuple[int, int]:
     return parse_pair(text, "--block", "16x16")
 
 
-def device_options(device: str, *, threads=None, block=None, workgroup=None, adapter=None, kernel=None,
-                   accel=None) -> dict:
+def device_options(
+    device: str, *, threads=None, block=None, workgroup=None, adapter=None, kernel=None, accel=None
+) -> dict:
     """The options given on the command line, for the device: one that does
     not apply to it is refused by the backend, in one line. Those not given
     are left to the backend's defaults."""
@@ -99,22 +100,39 @@ def main():
 @click.option("--spheres", type=int, help="render N random spheres instead of a scene file")
 @click.option("--seed", type=int, help="seed of the random spheres (default 0)")
 @click.option("--size", default="800x600", show_default=True, help=SIZE_HELP)
-@click.option("--device", default="auto", show_default=True, type=click.Choice(["auto", "cpu", "cuda", "wgpu"]),
-              help="where to trace: auto picks cuda when a usable NVIDIA GPU is present, else wgpu on a GPU, "
-                   "else cpu")
+@click.option(
+    "--device",
+    default="auto",
+    show_default=True,
+    type=click.Choice(["auto", "cpu", "cuda", "wgpu"]),
+    help="where to trace: auto picks cuda when a usable NVIDIA GPU is present, else wgpu on a GPU, else cpu",
+)
 @click.option("--threads", type=int, help="cpu: number of threads (default: all cores)")
-@click.option("--block", help="cuda: thread block shape XxY (default 8x8 for the fast kernel and the BVH walked a ray at a time, 8x4 for its packets on large trees, 16x16 simple)")
+@click.option(
+    "--block",
+    help="cuda: thread block shape XxY (default 8x8 for the fast kernel and the BVH walked a ray at a time, 8x4 for its packets on large trees, 16x16 simple)",
+)
 @click.option("--workgroup", help="wgpu: workgroup shape XxY (default 16x16)")
-@click.option("--adapter", help="wgpu: the adapter whose name contains this (default: the best GPU; a CPU "
-                                "driver such as llvmpipe only when named)")
-@click.option("--accel", type=click.Choice(ACCELS),
-              help="bvh: walk a bounding volume hierarchy (the default); none: brute force, every sphere for "
-                   "every ray (the thesis's algorithm; the default where --kernel is given). Same picture")
-@click.option("--kernel", type=click.Choice(KERNELS),
-              help="brute force only: simple, the thesis's loop, a pixel at a time; fast (its default on cpu and "
-                   "cuda), rays grouped and certain misses skipped, the same picture; wgpu has simple only")
-@click.option("-o", "--output", default="render.png", show_default=True, type=click.Path(path_type=Path),
-              help="PNG file to write")
+@click.option(
+    "--adapter",
+    help="wgpu: the adapter whose name contains this (default: the best GPU; a CPU "
+    "driver such as llvmpipe only when named)",
+)
+@click.option(
+    "--accel",
+    type=click.Choice(ACCELS),
+    help="bvh: walk a bounding volume hierarchy (the default); none: brute force, every sphere for "
+    "every ray (the thesis's algorithm; the default where --kernel is given). Same picture",
+)
+@click.option(
+    "--kernel",
+    type=click.Choice(KERNELS),
+    help="brute force only: simple, the thesis's loop, a pixel at a time; fast (its default on cpu and "
+    "cuda), rays grouped and certain misses skipped, the same picture; wgpu has simple only",
+)
+@click.option(
+    "-o", "--output", default="render.png", show_default=True, type=click.Path(path_type=Path), help="PNG file to write"
+)
 def render(scene_file, spheres, seed, size, device, threads, block, workgroup, adapter, accel, kernel, output):
     """Trace one frame and save it as a PNG."""
     from .backends import resolve
@@ -124,26 +142,31 @@ def render(scene_file, spheres, seed, size, device, threads, block, workgroup, a
     width, height = parse_size(size)
     check_output(output)
     device = resolve(device, adapter)
-    options = device_options(device, threads=threads, block=block, workgroup=workgroup, adapter=adapter,
-                             kernel=kernel, accel=accel)
+    options = device_options(
+        device, threads=threads, block=block, workgroup=workgroup, adapter=adapter, kernel=kernel, accel=accel
+    )
     start = time.perf_counter()
     frame = render_frame(scene, width=width, height=height, device=device, **options)
     elapsed = time.perf_counter() - start
     frame.save(output)
     built = f", BVH built in {frame.build_s * 1e3:.1f} ms" if frame.build_s is not None else ""
-    click.echo(f"wrote {output}: {width}x{height}, {len(scene):,} spheres, {frame.device}, "
-               f"{elapsed:.2f} s including compilation{built}")
+    click.echo(
+        f"wrote {output}: {width}x{height}, {len(scene):,} spheres, {frame.device}, "
+        f"{elapsed:.2f} s including compilation{built}"
+    )
 
 
 def _view_help() -> str:
     from .viewer.bindings import help_lines
 
     # "\b" keeps click from re-wrapping the key table.
-    return ("Open a window that shows frames as fast as the device traces them.\n\n"
-            "The title bar shows the device, the sphere count, the resolution, the frame time "
-            "(averaged over the last second) and frames per second. The picture is the one "
-            "`raybench render` writes for the same view, byte for byte.\n\n"
-            "\b\nKeys:\n" + "\n".join("  " + line for line in help_lines()))
+    return (
+        "Open a window that shows frames as fast as the device traces them.\n\n"
+        "The title bar shows the device, the sphere count, the resolution, the frame time "
+        "(averaged over the last second) and frames per second. The picture is the one "
+        "`raybench render` writes for the same view, byte for byte.\n\n"
+        "\b\nKeys:\n" + "\n".join("  " + line for line in help_lines())
+    )
 
 
 @main.command(help=_view_help())
@@ -151,17 +174,31 @@ def _view_help() -> str:
 @click.option("--spheres", type=int, help="show N random spheres instead of a scene file")
 @click.option("--seed", type=int, help="seed of the random spheres (default 0)")
 @click.option("--size", default="800x600", show_default=True, help="window size as WIDTHxHEIGHT, e.g. 1680x1050")
-@click.option("--device", default="auto", show_default=True, type=click.Choice(["auto", "cpu", "cuda", "wgpu"]),
-              help="where to trace first (switch live with Tab): auto picks cuda when a usable NVIDIA GPU is "
-                   "present, else wgpu on a GPU, else cpu")
+@click.option(
+    "--device",
+    default="auto",
+    show_default=True,
+    type=click.Choice(["auto", "cpu", "cuda", "wgpu"]),
+    help="where to trace first (switch live with Tab): auto picks cuda when a usable NVIDIA GPU is "
+    "present, else wgpu on a GPU, else cpu",
+)
 @click.option("--threads", type=int, help="cpu: number of threads (default: all cores)")
-@click.option("--block", help="cuda: thread block shape XxY (default 8x8 for the BVH walked a ray at a time, 8x4 for its packets on large trees)")
+@click.option(
+    "--block",
+    help="cuda: thread block shape XxY (default 8x8 for the BVH walked a ray at a time, 8x4 for its packets on large trees)",
+)
 @click.option("--workgroup", help="wgpu: workgroup shape XxY (default 16x16)")
-@click.option("--adapter", help="wgpu, and the window: the adapter whose name contains this (default: the best "
-                                "GPU; a CPU driver such as llvmpipe only when named)")
+@click.option(
+    "--adapter",
+    help="wgpu, and the window: the adapter whose name contains this (default: the best "
+    "GPU; a CPU driver such as llvmpipe only when named)",
+)
 @click.option("--frames", type=click.IntRange(min=1), help="close after N traced frames are shown")
-@click.option("--screenshot", type=click.Path(path_type=Path),
-              help="with --frames: save the last frame, as drawn in the window, to this PNG file")
+@click.option(
+    "--screenshot",
+    type=click.Path(path_type=Path),
+    help="with --frames: save the last frame, as drawn in the window, to this PNG file",
+)
 def view(scene_file, spheres, seed, size, device, threads, block, workgroup, adapter, frames, screenshot):
     from . import backends
     from .viewer import view as open_viewer
@@ -170,7 +207,9 @@ def view(scene_file, spheres, seed, size, device, threads, block, workgroup, ada
     width, height = parse_size(size)
     if screenshot is not None:
         if frames is None:
-            raise RaybenchError("--screenshot needs --frames N (the frame to save); in the window, P saves a screenshot")
+            raise RaybenchError(
+                "--screenshot needs --frames N (the frame to save); in the window, P saves a screenshot"
+            )
         check_output(screenshot, "--screenshot")
     device = backends.resolve(device, adapter)
     options = {"cpu": {}, "cuda": {}, "wgpu": {}}
@@ -192,16 +231,23 @@ def view(scene_file, spheres, seed, size, device, threads, block, workgroup, ada
         else:
             _check_options("cuda", options["cuda"])
     seed = None if scene_file is not None else (0 if seed is None else seed)
-    window = open_viewer(scene, device=device, seed=seed, size=(width, height), options=options,
-                         frames=frames, screenshot=screenshot)
+    window = open_viewer(
+        scene, device=device, seed=seed, size=(width, height), options=options, frames=frames, screenshot=screenshot
+    )
     if frames is not None and window.state.frames_shown < frames:
-        raise RaybenchError(f"the window was closed after {window.state.frames_shown} of {frames} frames"
-                            + ("; no screenshot written" if screenshot is not None else ""))
+        raise RaybenchError(
+            f"the window was closed after {window.state.frames_shown} of {frames} frames"
+            + ("; no screenshot written" if screenshot is not None else "")
+        )
     if frames is not None:
         shown = window.state.shown
-        last = (f"{shown.frame.width}x{shown.frame.height}, {shown.request.count:,} spheres, {shown.frame.device}, "
-                f"frame {frames} traced in {shown.trace_ms:.1f} ms")
-        click.echo(f"wrote {screenshot}: {last}" if screenshot is not None else f"showed {frames} frames; the last: {last}")
+        last = (
+            f"{shown.frame.width}x{shown.frame.height}, {shown.request.count:,} spheres, {shown.frame.device}, "
+            f"frame {frames} traced in {shown.trace_ms:.1f} ms"
+        )
+        click.echo(
+            f"wrote {screenshot}: {last}" if screenshot is not None else f"showed {frames} frames; the last: {last}"
+        )
 
 
 def _check_options(device: str, options: dict) -> None:
@@ -227,51 +273,88 @@ def info(as_json):
     c = desc["cpu"]
     click.echo(f"OS        {desc['os']}")
     click.echo(f"CPU       {c['model']} ({c['arch']})")
-    click.echo(f"          {c['physical_cores']} cores, {c['logical_cpus']} logical CPUs, {c['clock_ghz']} GHz, "
-               f"{c['memory_gib']} GiB memory")
-    click.echo(f"          SIMD {c['simd']} ({c['simd_bits']} bits = {c['fp32_lanes']} float32 lanes), "
-               f"{c['fma_units_per_core']} FMA units per core (assumed)")
-    click.echo(f"          FP32 peak {c['fp32_gflops']:,} GFLOP/s = {c['physical_cores']} cores x {c['clock_ghz']} GHz "
-               f"x {c['fp32_lanes']} lanes x 2 x {c['fma_units_per_core']} FMA units")
+    click.echo(
+        f"          {c['physical_cores']} cores, {c['logical_cpus']} logical CPUs, {c['clock_ghz']} GHz, "
+        f"{c['memory_gib']} GiB memory"
+    )
+    click.echo(
+        f"          SIMD {c['simd']} ({c['simd_bits']} bits = {c['fp32_lanes']} float32 lanes), "
+        f"{c['fma_units_per_core']} FMA units per core (assumed)"
+    )
+    click.echo(
+        f"          FP32 peak {c['fp32_gflops']:,} GFLOP/s = {c['physical_cores']} cores x {c['clock_ghz']} GHz "
+        f"x {c['fp32_lanes']} lanes x 2 x {c['fma_units_per_core']} FMA units"
+    )
     if not desc["gpus"]:
         from .backends import cuda_available
 
         click.echo("GPU       none usable" + ("" if cuda_available() else f": {_cuda_reason()}"))
     for g in desc["gpus"]:
         click.echo(f"GPU       {g['name']} (compute capability {g['compute_capability']}, driver {g['driver']})")
-        click.echo(f"          {g['multiprocessors']} multiprocessors x {g['fp32_lanes_per_sm']} FP32 lanes, "
-                   f"{g['clock_ghz']} GHz, memory {g['memory_gib']} GiB at {g['memory_clock_ghz']} GHz")
+        click.echo(
+            f"          {g['multiprocessors']} multiprocessors x {g['fp32_lanes_per_sm']} FP32 lanes, "
+            f"{g['clock_ghz']} GHz, memory {g['memory_gib']} GiB at {g['memory_clock_ghz']} GHz"
+        )
         if g["fp32_gflops"]:
-            click.echo(f"          FP32 peak {g['fp32_gflops']:,} GFLOP/s = {g['multiprocessors']} x "
-                       f"{g['fp32_lanes_per_sm']} x 2 x {g['clock_ghz']} GHz")
+            click.echo(
+                f"          FP32 peak {g['fp32_gflops']:,} GFLOP/s = {g['multiprocessors']} x "
+                f"{g['fp32_lanes_per_sm']} x 2 x {g['clock_ghz']} GHz"
+            )
     adapters = desc["wgpu_adapters"]
     if not adapters:
         click.echo("wgpu      no adapter found (no Vulkan, Metal, D3D12 or OpenGL driver wgpu can use)")
     for i, a in enumerate(adapters):
         note = "" if a["type"] in ("DiscreteGPU", "IntegratedGPU") else "  (not a GPU: used only with --adapter)"
-        click.echo(f"{'wgpu' if i == 0 else ''}{'':{10 - (4 if i == 0 else 0)}}{a['name']} ({a['backend']}, "
-                   f"{a['type']}){note}")
+        click.echo(
+            f"{'wgpu' if i == 0 else ''}{'':{10 - (4 if i == 0 else 0)}}{a['name']} ({a['backend']}, {a['type']}){note}"
+        )
     versions = ", ".join(f"{k} {v}" for k, v in desc["versions"].items() if v)
     click.echo(f"Versions  {versions}")
 
 
 @main.command()
-@click.option("--suite", "suites", multiple=True, default=("thesis",), show_default=True,
-              help="thesis, constant-vs-runtime, tuning, scaling, or all; repeat for several")
-@click.option("--device", "devices", multiple=True,
-              help="cpu, cuda or wgpu; repeat for several (default: every device present)")
-@click.option("--adapter", help="wgpu: the adapter whose name contains this (default: the best GPU; a CPU driver "
-                                "such as llvmpipe only when named)")
-@click.option("--duration", type=float, help="seconds of timed frames per point, after warm-up (default 10; 0.5 with --quick)")
-@click.option("--kernel", "kernels", multiple=True, type=click.Choice(KERNELS),
-              help="kernels for the thesis and tuning suites; repeat for both (default fast; "
-                   "constant-vs-runtime always uses simple, the only one with a compile-time count)")
-@click.option("--accel", "accels", multiple=True, type=click.Choice(ACCELS),
-              help="bvh, none (brute force), or both repeated (the default): the thesis, tuning and scaling "
-                   "suites measure each; constant-vs-runtime and test 7 are brute force only")
+@click.option(
+    "--suite",
+    "suites",
+    multiple=True,
+    default=("thesis",),
+    show_default=True,
+    help="thesis, constant-vs-runtime, tuning, scaling, or all; repeat for several",
+)
+@click.option(
+    "--device", "devices", multiple=True, help="cpu, cuda or wgpu; repeat for several (default: every device present)"
+)
+@click.option(
+    "--adapter",
+    help="wgpu: the adapter whose name contains this (default: the best GPU; a CPU driver "
+    "such as llvmpipe only when named)",
+)
+@click.option(
+    "--duration", type=float, help="seconds of timed frames per point, after warm-up (default 10; 0.5 with --quick)"
+)
+@click.option(
+    "--kernel",
+    "kernels",
+    multiple=True,
+    type=click.Choice(KERNELS),
+    help="kernels for the thesis and tuning suites; repeat for both (default fast; "
+    "constant-vs-runtime always uses simple, the only one with a compile-time count)",
+)
+@click.option(
+    "--accel",
+    "accels",
+    multiple=True,
+    type=click.Choice(ACCELS),
+    help="bvh, none (brute force), or both repeated (the default): the thesis, tuning and scaling "
+    "suites measure each; constant-vs-runtime and test 7 are brute force only",
+)
 @click.option("--quick", is_flag=True, help="a reduced set of points: about a minute on a 2-core laptop")
-@click.option("--out", "out_dir", type=click.Path(path_type=Path),
-              help="folder for the results and the report (default: raybench-results/<machine>)")
+@click.option(
+    "--out",
+    "out_dir",
+    type=click.Path(path_type=Path),
+    help="folder for the results and the report (default: raybench-results/<machine>)",
+)
 @click.option("--label", help="short machine name used in the report (default: from the GPU or CPU name)")
 @click.option("--seed", type=int, default=0, show_default=True, help="seed of the random scenes")
 @click.option("--no-report", is_flag=True, help="only write the results; skip the report")
@@ -319,20 +402,32 @@ def bench(suites, devices, adapter, kernels, accels, duration, quick, out_dir, l
         raise RaybenchError(f"--out {out_dir}: is a file, not a folder")
     kernels = tuple(dict.fromkeys(kernels)) or ("fast",)
     accels = tuple(dict.fromkeys(accels)) or ACCELS
-    points = suites_mod.points(chosen, devices, quick=quick, kernels=kernels, accels=accels, wgpu=wgpu_options,
-                               max_invocations=max_invocations)
+    points = suites_mod.points(
+        chosen, devices, quick=quick, kernels=kernels, accels=accels, wgpu=wgpu_options, max_invocations=max_invocations
+    )
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
     results_path = out_dir / f"results-{stamp}.jsonl"
-    settings = {"suites": list(chosen), "devices": list(devices), "kernels": list(kernels), "accels": list(accels),
-                "duration_s": duration, "quick": quick, "seed": seed, "adapter": adapter}
+    settings = {
+        "suites": list(chosen),
+        "devices": list(devices),
+        "kernels": list(kernels),
+        "accels": list(accels),
+        "duration_s": duration,
+        "quick": quick,
+        "seed": seed,
+        "adapter": adapter,
+    }
     info = runner.run_info(machine, label, settings)
     click.echo(f"{len(points)} points on {', '.join(devices)}, {duration:g} s each; results: {results_path}")
     with ResultsWriter(results_path) as writer:
         try:
             runner.run(points, writer, info, duration, seed, progress=sys.stderr.isatty())
         except KeyboardInterrupt:
-            click.echo(f"raybench: interrupted; the {writer.count} finished points are in {results_path} "
-                       f"(report them with: raybench report {results_path})", err=True)
+            click.echo(
+                f"raybench: interrupted; the {writer.count} finished points are in {results_path} "
+                f"(report them with: raybench report {results_path})",
+                err=True,
+            )
             raise SystemExit(130) from None
     click.echo(f"wrote {writer.count} results to {results_path}")
     if not no_report:
@@ -344,8 +439,15 @@ def bench(suites, devices, adapter, kernels, accels, duration, quick, out_dir, l
 
 @main.command(name="report")
 @click.argument("results", nargs=-1, required=True, type=click.Path(path_type=Path))
-@click.option("-o", "--out", "out_dir", type=click.Path(path_type=Path), default=Path("raybench-report"),
-              show_default=True, help="folder for report.md and its plots")
+@click.option(
+    "-o",
+    "--out",
+    "out_dir",
+    type=click.Path(path_type=Path),
+    default=Path("raybench-report"),
+    show_default=True,
+    help="folder for report.md and its plots",
+)
 def report_cmd(results, out_dir):
     """Turn result files (JSON Lines from `raybench bench`) into a Markdown report
     with plots and a verdict on each of the thesis's claims. Several files (two
@@ -382,8 +484,11 @@ def run(argv=None) -> int:
         click.echo(exc.ctx.get_help() if exc.ctx else str(exc))
         return 2
     except click.UsageError as exc:
-        hint = f" (see 'raybench {exc.ctx.command_path.split(' ', 1)[1]} --help')" \
-            if exc.ctx and " " in exc.ctx.command_path else " (see 'raybench --help')"
+        hint = (
+            f" (see 'raybench {exc.ctx.command_path.split(' ', 1)[1]} --help')"
+            if exc.ctx and " " in exc.ctx.command_path
+            else " (see 'raybench --help')"
+        )
         click.echo(f"raybench: error: {exc.format_message()}{hint}", err=True)
         return 2
     except click.ClickException as exc:

@@ -15,10 +15,28 @@ from importlib import metadata
 
 # FP32 lanes per multiprocessor by compute capability (CUDA C Programming
 # Guide, "Arithmetic Instructions" throughput table).
-_FP32_PER_SM = {(3, 0): 192, (3, 5): 192, (3, 7): 192, (5, 0): 128, (5, 2): 128, (5, 3): 128,
-                (6, 0): 64, (6, 1): 128, (6, 2): 128, (7, 0): 64, (7, 2): 64, (7, 5): 64,
-                (8, 0): 64, (8, 6): 128, (8, 7): 128, (8, 9): 128, (9, 0): 128,
-                (10, 0): 128, (10, 3): 128, (12, 0): 128}
+_FP32_PER_SM = {
+    (3, 0): 192,
+    (3, 5): 192,
+    (3, 7): 192,
+    (5, 0): 128,
+    (5, 2): 128,
+    (5, 3): 128,
+    (6, 0): 64,
+    (6, 1): 128,
+    (6, 2): 128,
+    (7, 0): 64,
+    (7, 2): 64,
+    (7, 5): 64,
+    (8, 0): 64,
+    (8, 6): 128,
+    (8, 7): 128,
+    (8, 9): 128,
+    (9, 0): 128,
+    (10, 0): 128,
+    (10, 3): 128,
+    (12, 0): 128,
+}
 
 
 def cpu() -> dict:
@@ -40,8 +58,11 @@ def cpu() -> dict:
     # on, AMD Zen 2 on) and on Apple/Neoverse cores; it is an assumption, shown.
     fma_units = 2 if fma else 1
     freq = psutil.cpu_freq()
-    hz = (freq.max if freq and freq.max else 0) * 1e6 or info.get("hz_advertised", [0])[0] \
+    hz = (
+        (freq.max if freq and freq.max else 0) * 1e6
+        or info.get("hz_advertised", [0])[0]
         or (freq.current * 1e6 if freq else 0)
+    )
     cores = psutil.cpu_count(logical=False) or os.cpu_count() or 1
     lanes = bits // 32
     return {
@@ -78,17 +99,19 @@ def gpus() -> list[dict]:
             per_sm = _FP32_PER_SM.get(tuple(cc))
             _free, total = cuda.current_context().get_memory_info()
             name = d.name.decode() if isinstance(d.name, bytes) else d.name
-            out.append({
-                "name": name,
-                "compute_capability": f"{cc[0]}.{cc[1]}",
-                "multiprocessors": sms,
-                "clock_ghz": round(clock_ghz, 3),
-                "memory_clock_ghz": round(d.MEMORY_CLOCK_RATE / 1e6, 3),
-                "memory_gib": round(total / 2**30, 1),
-                "fp32_lanes_per_sm": per_sm,
-                "fp32_gflops": round(sms * per_sm * 2 * clock_ghz, 1) if per_sm else None,
-                "driver": driver,
-            })
+            out.append(
+                {
+                    "name": name,
+                    "compute_capability": f"{cc[0]}.{cc[1]}",
+                    "multiprocessors": sms,
+                    "clock_ghz": round(clock_ghz, 3),
+                    "memory_clock_ghz": round(d.MEMORY_CLOCK_RATE / 1e6, 3),
+                    "memory_gib": round(total / 2**30, 1),
+                    "fp32_lanes_per_sm": per_sm,
+                    "fp32_gflops": round(sms * per_sm * 2 * clock_ghz, 1) if per_sm else None,
+                    "driver": driver,
+                }
+            )
     return out
 
 
@@ -102,8 +125,12 @@ def wgpu_adapters() -> list[dict]:
 
 def _driver_version() -> str | None:
     try:
-        out = subprocess.run(["nvidia-smi", "--query-gpu=driver_version", "--format=csv,noheader"],
-                             capture_output=True, text=True, timeout=10)
+        out = subprocess.run(
+            ["nvidia-smi", "--query-gpu=driver_version", "--format=csv,noheader"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+        )
         return out.stdout.strip().splitlines()[0] if out.returncode == 0 and out.stdout.strip() else None
     except (OSError, subprocess.SubprocessError):
         return None
@@ -123,5 +150,10 @@ def versions() -> dict:
 
 
 def describe() -> dict:
-    return {"os": f"{platform.system()} {platform.release()}", "cpu": cpu(), "gpus": gpus(),
-            "wgpu_adapters": wgpu_adapters(), "versions": versions()}
+    return {
+        "os": f"{platform.system()} {platform.release()}",
+        "cpu": cpu(),
+        "gpus": gpus(),
+        "wgpu_adapters": wgpu_adapters(),
+        "versions": versions(),
+    }

@@ -58,8 +58,9 @@ def png_bytes(image: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
-def render(scene: Scene, camera: Camera | None = None, width: int = 800, height: int = 600,
-           device: str = "auto", **options) -> Frame:
+def render(
+    scene: Scene, camera: Camera | None = None, width: int = 800, height: int = 600, device: str = "auto", **options
+) -> Frame:
     """Trace one frame of scene as seen by camera (default: the scene's own
     camera, else Camera()). device is "cpu", "cuda", "wgpu" or "auto"; options go
     to the device (cpu: threads=N; cuda: block=(x, y); wgpu: workgroup=(x, y),
@@ -73,7 +74,6 @@ def render(scene: Scene, camera: Camera | None = None, width: int = 800, height:
     tracer = backends.tracer(device, scene.spheres, width, height, **options)
     try:
         image, hits = tracer.trace(camera.basis(width, height))
-        return Frame(image=image.copy(), hits=hits.copy(), device=tracer.name,
-                     build_s=getattr(tracer, "build_s", None))
+        return Frame(image=image.copy(), hits=hits.copy(), device=tracer.name, build_s=getattr(tracer, "build_s", None))
     finally:
         tracer.close()

@@ -38,16 +38,22 @@ class Scene:
             radii = np.asarray(radii, dtype=np.float64).reshape(-1)
             colors = np.asarray(colors, dtype=np.float64).reshape(-1, 3)
         except (TypeError, ValueError) as exc:
-            raise RaybenchError(f"scene: centers (n, 3), radii (n,) and colors (n, 3) must be numbers ({exc})") from None
+            raise RaybenchError(
+                f"scene: centers (n, 3), radii (n,) and colors (n, 3) must be numbers ({exc})"
+            ) from None
         if not (len(centers) == len(radii) == len(colors)):
-            raise RaybenchError(f"scene: {len(centers)} centers, {len(radii)} radii and {len(colors)} colors: "
-                                "each sphere needs one of each")
+            raise RaybenchError(
+                f"scene: {len(centers)} centers, {len(radii)} radii and {len(colors)} colors: "
+                "each sphere needs one of each"
+            )
         for name, values in (("center", centers), ("radius", radii)):
             bad = ~(np.isfinite(values) & (np.abs(values) <= MAX_MAGNITUDE))
             if bad.any():
                 i = int(np.argwhere(bad)[0][0])
-                raise RaybenchError(f"spheres[{i}].{name}: must be finite and at most {MAX_MAGNITUDE:g} in magnitude, "
-                                    f"got {values[i].tolist()}")
+                raise RaybenchError(
+                    f"spheres[{i}].{name}: must be finite and at most {MAX_MAGNITUDE:g} in magnitude, "
+                    f"got {values[i].tolist()}"
+                )
         # Checked as stored: a radius that rounds to 0 in float32 is no sphere.
         bad = ~(radii.astype(np.float32) > 0)
         if bad.any():
@@ -57,8 +63,7 @@ class Scene:
         if bad.any():
             i = int(np.argwhere(bad)[0][0])
             raise RaybenchError(f"spheres[{i}].color: each channel must be in [0, 1], got {colors[i].tolist()}")
-        self.spheres = np.ascontiguousarray(
-            np.concatenate([centers.T, radii[None, :], colors.T]).astype(np.float32))
+        self.spheres = np.ascontiguousarray(np.concatenate([centers.T, radii[None, :], colors.T]).astype(np.float32))
         self.camera = camera
 
     def __len__(self) -> int:
@@ -100,17 +105,17 @@ class Scene:
     @classmethod
     def from_dict(cls, doc) -> "Scene":
         if not isinstance(doc, dict):
-            raise RaybenchError(f"scene: must be a JSON object with \"format\": \"{FORMAT}\", got {type(doc).__name__}")
+            raise RaybenchError(f'scene: must be a JSON object with "format": "{FORMAT}", got {type(doc).__name__}')
         if doc.get("format") != FORMAT:
-            raise RaybenchError(f"format: must be \"{FORMAT}\", got {doc.get('format')!r}")
+            raise RaybenchError(f'format: must be "{FORMAT}", got {doc.get("format")!r}')
         if doc.get("version") != VERSION or isinstance(doc.get("version"), bool):
             raise RaybenchError(f"version: this raybench reads version {VERSION}, got {doc.get('version')!r}")
         _no_unknown(doc, _TOP_KEYS, "")
         if "spheres" not in doc:
-            raise RaybenchError("spheres: missing (a list of {\"center\", \"radius\", \"color\"} objects)")
+            raise RaybenchError('spheres: missing (a list of {"center", "radius", "color"} objects)')
         spheres = doc["spheres"]
         if not isinstance(spheres, list):
-            raise RaybenchError("spheres: must be a list of {\"center\", \"radius\", \"color\"} objects")
+            raise RaybenchError('spheres: must be a list of {"center", "radius", "color"} objects')
         n = len(spheres)
         centers = np.empty((n, 3))
         radii = np.empty(n)
@@ -118,7 +123,7 @@ class Scene:
         for i, s in enumerate(spheres):
             where = f"spheres[{i}]"
             if not isinstance(s, dict):
-                raise RaybenchError(f"{where}: must be an object with \"center\", \"radius\" and \"color\"")
+                raise RaybenchError(f'{where}: must be an object with "center", "radius" and "color"')
             _no_unknown(s, _SPHERE_KEYS, where + ".")
             for key in ("center", "radius", "color"):
                 if key not in s:

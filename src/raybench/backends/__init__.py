@@ -12,9 +12,11 @@ from ..errors import RaybenchError
 
 DEVICES = ("cpu", "cuda", "wgpu")
 CHOICES = ("auto",) + DEVICES
-OPTIONS = {"cpu": ("threads", "constant_count", "kernel", "accel"),
-           "cuda": ("block", "constant_count", "kernel", "rays", "tile", "trip", "accel", "walk"),
-           "wgpu": ("workgroup", "adapter", "accel", "kernel", "walk")}
+OPTIONS = {
+    "cpu": ("threads", "constant_count", "kernel", "accel"),
+    "cuda": ("block", "constant_count", "kernel", "rays", "tile", "trip", "accel", "walk"),
+    "wgpu": ("workgroup", "adapter", "accel", "kernel", "walk"),
+}
 
 
 def module(name: str):
@@ -54,8 +56,9 @@ def resolve(device: str, adapter: str | None = None) -> str:
         try:
             module("cuda").require()
         except ImportError as exc:
-            raise RaybenchError(f"device cuda: numba-cuda is not installed ({exc}); "
-                                "pip install numba-cuda, or use --device cpu") from None
+            raise RaybenchError(
+                f"device cuda: numba-cuda is not installed ({exc}); pip install numba-cuda, or use --device cpu"
+            ) from None
         return "cuda"
     module(device)
     return device

@@ -32,8 +32,15 @@ from .. import kernels
 from ..kernels.trace import FAR, ZERO
 from ..errors import RaybenchError
 from .. import bvh as bvh_mod
-from .limits import (HOST_PIXEL_BYTES, check_accel, check_bvh_fits, check_count, check_fits, check_kernel,
-                     host_available_bytes)
+from .limits import (
+    HOST_PIXEL_BYTES,
+    check_accel,
+    check_bvh_fits,
+    check_count,
+    check_fits,
+    check_kernel,
+    host_available_bytes,
+)
 
 MAX_THREADS = 4096
 
@@ -48,8 +55,12 @@ _prepare_one, _may_hit, _intersect_relative = _k.prepare, _k.may_hit, _k.interse
 # quotient, and LLVM can make the loops over a packet's rays SIMD, which the
 # check's branch prevents (vdivps, vsqrtps in the assembly).
 _kb = kernels.build(numba.njit(inline="always", error_model="numpy"))
-_primary_ray_v, _intersect_relative_v, _inverse, _centre = \
-    _kb.primary_ray, _kb.intersect_relative, _kb.inverse, _kb.centre_along
+_primary_ray_v, _intersect_relative_v, _inverse, _centre = (
+    _kb.primary_ray,
+    _kb.intersect_relative,
+    _kb.inverse,
+    _kb.centre_along,
+)
 _shade_hit_v, _shade_miss_v, _to_byte_v = _kb.shade_hit, _kb.shade_miss, _kb.to_byte
 
 # The cull loops index the spheres with unsigned integers: a signed index
@@ -63,6 +74,7 @@ _U = np.uint64
 GROUP = 32
 # Rays side by side in the AVX-512 kernel: one 16-lane register of float32.
 WIDE = 16
+
 
 @numba.njit(nogil=True)
 def _render_band(first_row, end_row, width, height, basis, spheres, count, image, hits):
@@ -112,8 +124,9 @@ def _pairs_band(first_row, end_row, width, height, basis, spheres, relative, cou
                 end = min(first + GROUP, count)
                 maybe = False
                 for i in range(_U(first), _U(end)):
-                    maybe |= _may_hit(ex[i], ey[i], ez[i], es[i], ax, ay, az) | \
-                        _may_hit(ex[i], ey[i], ez[i], es[i], bx, by, bz)
+                    maybe |= _may_hit(ex[i], ey[i], ez[i], es[i], ax, ay, az) | _may_hit(
+                        ex[i], ey[i], ez[i], es[i], bx, by, bz
+                    )
                 if maybe:
                     for i in range(first, end):
                         if _may_hit(ex[i], ey[i], ez[i], es[i], ax, ay, az):
@@ -178,6 +191,7 @@ def _has_avx512() -> bool:
     """Whether the CPU Numba compiles for has 16-lane float32 registers."""
     try:
         from llvmlite import binding
+
         return bool(binding.get_host_cpu_features().get("avx512f", False))
     except Exception:  # an llvmlite without the query: the kernel that suits every CPU
         return False
@@ -227,12 +241,14 @@ def _missed_by_all(lx, ly, lz, hx, hy, hz, spread):
     is monotonic, so the bounds hold for the float32 products a ray's own
     box test computes: True only where that test fails for every ray."""
     x0, x1, y0, y1, z0, z1 = spread[0], spread[1], spread[2], spread[3], spread[4], spread[5]
-    near = max(min(min(lx * x0, hx * x0), min(lx * x1, hx * x1)),
-               max(min(min(ly * y0, hy * y0), min(ly * y1, hy * y1)),
-                   min(min(lz * z0, hz * z0), min(lz * z1, hz * z1))))
-    far = min(max(max(lx * x0, hx * x0), max(lx * x1, hx * x1)),
-              min(max(max(ly * y0, hy * y0), max(ly * y1, hy * y1)),
-                  max(max(lz * z0, hz * z0), max(lz * z1, hz * z1))))
+    near = max(
+        min(min(lx * x0, hx * x0), min(lx * x1, hx * x1)),
+        max(min(min(ly * y0, hy * y0), min(ly * y1, hy * y1)), min(min(lz * z0, hz * z0), min(lz * z1, hz * z1))),
+    )
+    far = min(
+        max(max(lx * x0, hx * x0), max(lx * x1, hx * x1)),
+        min(max(max(ly * y0, hy * y0), max(ly * y1, hy * y1)), max(max(lz * z0, hz * z0), max(lz * z1, hz * z1))),
+    )
     # one branch where it is used, not three (`or` would branch on each, and
     # mispredicted they cost 10-13% of the frame)
     return (near > far) | (far <= ZERO) | (near > spread[6])
@@ -273,8 +289,9 @@ def _packet_box(nodes, row, col, ox, oy, oz, margin, ix, iy, iz, spread, closest
 
 
 @numba.njit(inline="always", error_model="numpy")
-def _packet_leaf(ox, oy, oz, margin, dx, dy, dz, ordered, order, first, count, spread, closest, hit, hit_d,
-                 closest_bits, spread_bits):
+def _packet_leaf(
+    ox, oy, oz, margin, dx, dy, dz, ordered, order, first, count, spread, closest, hit, hit_d, closest_bits, spread_bits
+):
     """The exact test of a leaf's spheres on every ray of the packet: EO as
     intersect_sphere computes it, the walk's tie rule. A sphere whose own
     box (as the builder pads it, grown by margin as the walk grows boxes) no
@@ -284,8 +301,15 @@ def _packet_leaf(ox, oy, oz, margin, dx, dy, dz, ordered, order, first, count, s
     for j in range(first, first + count):
         cx, cy, cz, r, original = ordered[0, j], ordered[1, j], ordered[2, j], ordered[3, j], order[j]
         pr = r + bvh_mod.sphere_pad(cx, cy, cz, r)
-        if _missed_by_all(cx - pr - margin - ox, cy - pr - margin - oy, cz - pr - margin - oz,
-                          cx + pr + margin - ox, cy + pr + margin - oy, cz + pr + margin - oz, spread):
+        if _missed_by_all(
+            cx - pr - margin - ox,
+            cy - pr - margin - oy,
+            cz - pr - margin - oz,
+            cx + pr + margin - ox,
+            cy + pr + margin - oy,
+            cz + pr + margin - oz,
+            spread,
+        ):
             continue
         ex, ey, ez = cx - ox, cy - oy, cz - oz
         for k in range(PACKET):
@@ -384,20 +408,57 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
                 a_ref, b_ref, a_count, b_count = links[row, 12], links[row, 13], links[row, 14], links[row, 15]
                 # near child first: the one whose box centre lies nearer along
                 # the packet's middle ray
-                if b_in and (not a_in or _centre(nodes, row, _U(6), ox, oy, oz, cdx, cdy, cdz)
-                             < _centre(nodes, row, _U(0), ox, oy, oz, cdx, cdy, cdz)):
+                if b_in and (
+                    not a_in
+                    or _centre(nodes, row, _U(6), ox, oy, oz, cdx, cdy, cdz)
+                    < _centre(nodes, row, _U(0), ox, oy, oz, cdx, cdy, cdz)
+                ):
                     a_in, a_ref, a_count, b_in, b_ref, b_count = b_in, b_ref, b_count, a_in, a_ref, a_count
                 row = -1
                 if a_in:
                     if a_count == bvh_mod.INNER:
                         row = a_ref
                     else:
-                        _packet_leaf(ox, oy, oz, margin, dx, dy, dz, ordered, order, a_ref, a_count, spread,
-                                     closest, hit, hit_d, closest_bits, spread_bits)
+                        _packet_leaf(
+                            ox,
+                            oy,
+                            oz,
+                            margin,
+                            dx,
+                            dy,
+                            dz,
+                            ordered,
+                            order,
+                            a_ref,
+                            a_count,
+                            spread,
+                            closest,
+                            hit,
+                            hit_d,
+                            closest_bits,
+                            spread_bits,
+                        )
                 if b_in:
                     if b_count != bvh_mod.INNER:
-                        _packet_leaf(ox, oy, oz, margin, dx, dy, dz, ordered, order, b_ref, b_count, spread,
-                                     closest, hit, hit_d, closest_bits, spread_bits)
+                        _packet_leaf(
+                            ox,
+                            oy,
+                            oz,
+                            margin,
+                            dx,
+                            dy,
+                            dz,
+                            ordered,
+                            order,
+                            b_ref,
+                            b_count,
+                            spread,
+                            closest,
+                            hit,
+                            hit_d,
+                            closest_bits,
+                            spread_bits,
+                        )
                     elif row < 0:
                         row = b_ref
                     else:
@@ -429,8 +490,9 @@ def chunks(height: int, threads: int) -> list[tuple[int, int]]:
     """Rows 0..height in about CHUNKS_PER_THREAD chunks per thread, in order,
     cut at whole packets of rows."""
     packets = -(-height // PACKET_H)
-    return [(a * PACKET_H, min(b * PACKET_H, height))
-            for a, b in bands(packets, min(packets, threads * CHUNKS_PER_THREAD))]
+    return [
+        (a * PACKET_H, min(b * PACKET_H, height)) for a, b in bands(packets, min(packets, threads * CHUNKS_PER_THREAD))
+    ]
 
 
 def default_threads() -> int:
@@ -452,8 +514,16 @@ class Tracer:
 
     name = "cpu"
 
-    def __init__(self, spheres: np.ndarray, width: int, height: int, threads: int | None = None,
-                 constant_count: bool = False, kernel: str | None = None, accel: str | None = None):
+    def __init__(
+        self,
+        spheres: np.ndarray,
+        width: int,
+        height: int,
+        threads: int | None = None,
+        constant_count: bool = False,
+        kernel: str | None = None,
+        accel: str | None = None,
+    ):
         self.accel, kernel = check_accel(accel, kernel, {"constant_count": constant_count})
         self.kernel = check_kernel(kernel, constant_count) if self.accel == "none" else None
         if threads is None:
@@ -462,8 +532,13 @@ class Tracer:
             raise RaybenchError(f"threads: must be an integer from 1 to {MAX_THREADS}, got {threads!r}")
         check_fits("cpu", width, height, spheres.shape[1], host_available_bytes(), HOST_PIXEL_BYTES)
         if self.accel == "bvh":
-            check_bvh_fits("cpu", spheres.shape[1], host_available_bytes(), bvh_mod.BUILD_SPHERE_BYTES,
-                           width * height * HOST_PIXEL_BYTES)
+            check_bvh_fits(
+                "cpu",
+                spheres.shape[1],
+                host_available_bytes(),
+                bvh_mod.BUILD_SPHERE_BYTES,
+                width * height * HOST_PIXEL_BYTES,
+            )
         self.threads = int(threads)
         self.spheres = spheres
         self.count = spheres.shape[1]
@@ -503,8 +578,18 @@ class Tracer:
             if self.bvh.count != count:  # a frame of fewer spheres: their own tree
                 self._build(count)
             b = self.bvh
-            return (self.width, self.height, basis, b.nodes, b.links, b.ordered, b.order, self.shaded,
-                    self.image, self.hits)
+            return (
+                self.width,
+                self.height,
+                basis,
+                b.nodes,
+                b.links,
+                b.ordered,
+                b.order,
+                self.shaded,
+                self.image,
+                self.hits,
+            )
         if self.kernel == "fast":
             _prepare(basis, self.spheres, count, self.relative)
             return (self.width, self.height, basis, self.spheres, self.relative, count, self.image, self.hits)

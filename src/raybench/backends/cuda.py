@@ -26,8 +26,17 @@ from .. import kernels
 from ..kernels.trace import FAR, ZERO
 from ..errors import RaybenchError
 from .. import bvh as bvh_mod
-from .limits import (FAST_MAX_THREADS, HOST_PIXEL_BYTES, PIXEL_BYTES, check_accel, check_bvh_fits, check_count,
-                     check_fits, check_kernel, host_available_bytes)
+from .limits import (
+    FAST_MAX_THREADS,
+    HOST_PIXEL_BYTES,
+    PIXEL_BYTES,
+    check_accel,
+    check_bvh_fits,
+    check_count,
+    check_fits,
+    check_kernel,
+    host_available_bytes,
+)
 from .walks import WALKS, check_walk  # noqa: F401 - WALKS: the walks this backend takes
 
 # The fastest measured (docs/performance.md): simple on an H100; fast (with
@@ -91,8 +100,9 @@ def _bvh_kernel(width, height, basis, nodes, links, ordered, order, spheres, ima
     if x < width and y < height:
         stack_row = cuda.local.array(_STACK, np.int32)
         stack_t = cuda.local.array(_STACK, np.float32)
-        _render_pixel_bvh(x, y, width, height, basis, nodes, links, ordered, order, spheres, image, hits,
-                          stack_row, stack_t)
+        _render_pixel_bvh(
+            x, y, width, height, basis, nodes, links, ordered, order, spheres, image, hits, stack_row, stack_t
+        )
 
 
 _INNER = bvh_mod.INNER
@@ -120,13 +130,17 @@ def _bvh_packet_kernel(width, height, basis, nodes, links, ordered, order, spher
     closest hit)."""
     x, y = cuda.grid(2)
     dx, dy, dz = _primary_ray(min(x, width - 1), min(y, height - 1), width, height, basis)
-    cdx, cdy, cdz = _primary_ray(min(cuda.blockIdx.x * cuda.blockDim.x + cuda.blockDim.x // 2, width - 1),
-                                 min(cuda.blockIdx.y * cuda.blockDim.y + cuda.blockDim.y // 2, height - 1),
-                                 width, height, basis)
+    cdx, cdy, cdz = _primary_ray(
+        min(cuda.blockIdx.x * cuda.blockDim.x + cuda.blockDim.x // 2, width - 1),
+        min(cuda.blockIdx.y * cuda.blockDim.y + cuda.blockDim.y // 2, height - 1),
+        width,
+        height,
+        basis,
+    )
     ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
     ix, iy, iz, lx, ly, lz, hx, hy, hz = _ray_axes(ox, oy, oz, dx, dy, dz)
-    stack_row = cuda.local.array(_STACK, np.int32)   # the same in every thread
-    stack_t = cuda.local.array(_STACK, np.float32)   # where this thread's ray enters the node
+    stack_row = cuda.local.array(_STACK, np.int32)  # the same in every thread
+    stack_t = cuda.local.array(_STACK, np.float32)  # where this thread's ray enters the node
     closest = FAR
     hit = -1
     hit_d = ZERO
@@ -134,8 +148,9 @@ def _bvh_packet_kernel(width, height, basis, nodes, links, ordered, order, spher
     top = _U(0)
     while row >= 0:
         node = _U(row)
-        a_near, a_far, b_near, b_far, a_ref, b_ref, a_count, b_count = \
-            _children(nodes, links, node, ix, iy, iz, lx, ly, lz, hx, hy, hz)
+        a_near, a_far, b_near, b_far, a_ref, b_ref, a_count, b_count = _children(
+            nodes, links, node, ix, iy, iz, lx, ly, lz, hx, hy, hz
+        )
         a_in = a_near <= a_far and a_far > ZERO and a_near <= closest
         b_in = b_near <= b_far and b_far > ZERO and b_near <= closest
         # first the child whose box centre lies nearer along the block's
@@ -143,25 +158,38 @@ def _bvh_packet_kernel(width, height, basis, nodes, links, ordered, order, spher
         # (guarding an empty child's case with a branch cost 17%, clamping
         # its planes 8%: the builder stores them finite instead). The
         # barriers take int32 predicates on a GPU.
-        b_first = _centre(nodes, node, _U(6), ox, oy, oz, cdx, cdy, cdz) < \
-            _centre(nodes, node, _U(0), ox, oy, oz, cdx, cdy, cdz)
+        b_first = _centre(nodes, node, _U(6), ox, oy, oz, cdx, cdy, cdz) < _centre(
+            nodes, node, _U(0), ox, oy, oz, cdx, cdy, cdz
+        )
         any_a = cuda.syncthreads_or(np.int32(a_in)) != 0
         any_b = cuda.syncthreads_or(np.int32(b_in)) != 0
         if b_first:
-            a_near, a_ref, a_count, a_in, any_a, b_near, b_ref, b_count, b_in, any_b = \
-                b_near, b_ref, b_count, b_in, any_b, a_near, a_ref, a_count, a_in, any_a
+            a_near, a_ref, a_count, a_in, any_a, b_near, b_ref, b_count, b_in, any_b = (
+                b_near,
+                b_ref,
+                b_count,
+                b_in,
+                any_b,
+                a_near,
+                a_ref,
+                a_count,
+                a_in,
+                any_a,
+            )
         row = -1
         if any_a:
             if a_count == _INNER:
                 row = a_ref
             elif a_in:
-                closest, hit, hit_d = _leaf_hits(ox, oy, oz, dx, dy, dz, ordered, order, a_ref, a_count,
-                                                 closest, hit, hit_d)
+                closest, hit, hit_d = _leaf_hits(
+                    ox, oy, oz, dx, dy, dz, ordered, order, a_ref, a_count, closest, hit, hit_d
+                )
         if any_b:
             if b_count != _INNER:
                 if b_in and b_near <= closest:
-                    closest, hit, hit_d = _leaf_hits(ox, oy, oz, dx, dy, dz, ordered, order, b_ref, b_count,
-                                                     closest, hit, hit_d)
+                    closest, hit, hit_d = _leaf_hits(
+                        ox, oy, oz, dx, dy, dz, ordered, order, b_ref, b_count, closest, hit, hit_d
+                    )
             elif row < 0:
                 row = b_ref
             else:
@@ -277,8 +305,7 @@ def fast_kernel(rays: int = RAYS, tile: int = TILE, trip: int = TRIP):
                         break
                     k += _U(trip)
                 for i in range(k, min(k + _U(trip), n)):
-                    nearer(base + i, sx[i], sy[i], sz[i], ss[i], spheres[3, base + i], dx, dy, dz,
-                           closest, hit, hit_d)
+                    nearer(base + i, sx[i], sy[i], sz[i], ss[i], spheres[3, base + i], dx, dy, dz, closest, hit, hit_d)
                 k += _U(trip)
         if x < width:
             for j in range(rays):
@@ -338,11 +365,15 @@ def _check_block(block, kernel: str) -> tuple[int, int]:
     if bx < 1 or by < 1 or bx * by > 1024:
         raise RaybenchError(f"block: each side must be >= 1 and x*y at most 1024 threads, got {bx}x{by}")
     if kernel == "fast" and bx * by > FAST_MAX_THREADS:
-        raise RaybenchError(f"block: the fast kernel takes at most {FAST_MAX_THREADS} threads per block (its rays "
-                            f"need the registers), got {bx}x{by}; use a smaller block or --kernel simple")
+        raise RaybenchError(
+            f"block: the fast kernel takes at most {FAST_MAX_THREADS} threads per block (its rays "
+            f"need the registers), got {bx}x{by}; use a smaller block or --kernel simple"
+        )
     if kernel in WALKS and bx * by > FAST_MAX_THREADS:
-        raise RaybenchError(f"block: the BVH walk takes at most {FAST_MAX_THREADS} threads per block (its stack and "
-                            f"ray need the registers), got {bx}x{by}; use a smaller block")
+        raise RaybenchError(
+            f"block: the BVH walk takes at most {FAST_MAX_THREADS} threads per block (its stack and "
+            f"ray need the registers), got {bx}x{by}; use a smaller block"
+        )
     return bx, by
 
 
@@ -357,13 +388,31 @@ class Tracer:
 
     name = "cuda"
 
-    def __init__(self, spheres: np.ndarray, width: int, height: int, block=None,
-                 constant_count: bool = False, kernel: str | None = None, rays: int | None = None,
-                 tile: int | None = None, trip: int | None = None, accel: str | None = None,
-                 walk: str | None = None):
+    def __init__(
+        self,
+        spheres: np.ndarray,
+        width: int,
+        height: int,
+        block=None,
+        constant_count: bool = False,
+        kernel: str | None = None,
+        rays: int | None = None,
+        tile: int | None = None,
+        trip: int | None = None,
+        accel: str | None = None,
+        walk: str | None = None,
+    ):
         require()
-        self.accel, kernel = check_accel(accel, kernel, {"constant_count": constant_count, "rays": rays is not None,
-                                                         "tile": tile is not None, "trip": trip is not None})
+        self.accel, kernel = check_accel(
+            accel,
+            kernel,
+            {
+                "constant_count": constant_count,
+                "rays": rays is not None,
+                "tile": tile is not None,
+                "trip": trip is not None,
+            },
+        )
         rays = RAYS if rays is None else rays
         tile = TILE if tile is None else tile
         trip = TRIP if trip is None else trip
@@ -380,20 +429,36 @@ class Tracer:
         check_fits("cuda GPU", width, height, spheres.shape[1], free)
         check_fits("host", width, height, 0, host_available_bytes(), HOST_PIXEL_BYTES)
         if self.accel == "bvh":
-            check_bvh_fits("cuda GPU", spheres.shape[1], free - spheres.shape[1] * 7 * 4,
-                           bvh_mod.DEVICE_SPHERE_BYTES, width * height * PIXEL_BYTES)
-            check_bvh_fits("host", spheres.shape[1], host_available_bytes(), bvh_mod.BUILD_SPHERE_BYTES,
-                           width * height * HOST_PIXEL_BYTES)
+            check_bvh_fits(
+                "cuda GPU",
+                spheres.shape[1],
+                free - spheres.shape[1] * 7 * 4,
+                bvh_mod.DEVICE_SPHERE_BYTES,
+                width * height * PIXEL_BYTES,
+            )
+            check_bvh_fits(
+                "host",
+                spheres.shape[1],
+                host_available_bytes(),
+                bvh_mod.BUILD_SPHERE_BYTES,
+                width * height * HOST_PIXEL_BYTES,
+            )
         self.spheres = spheres
         self.width, self.height = width, height
         self.count = spheres.shape[1]
         self.d_spheres = cuda.to_device(spheres if self.count else np.zeros((7, 1), np.float32))
         self.d_image = cuda.device_array((height, width, 3), dtype=np.uint8)
         self.d_hits = cuda.device_array((height, width), dtype=np.int32)
-        self.image = cuda.pinned_array((height, width, 3), dtype=np.uint8) if not simulated() else \
-            np.empty((height, width, 3), np.uint8)
-        self.hits = cuda.pinned_array((height, width), dtype=np.int32) if not simulated() else \
-            np.empty((height, width), np.int32)
+        self.image = (
+            cuda.pinned_array((height, width, 3), dtype=np.uint8)
+            if not simulated()
+            else np.empty((height, width, 3), np.uint8)
+        )
+        self.hits = (
+            cuda.pinned_array((height, width), dtype=np.int32)
+            if not simulated()
+            else np.empty((height, width), np.int32)
+        )
         self.d_basis = cuda.device_array((4, 3), dtype=np.float32)
         self.constant_count = bool(constant_count)
         self.bvh = None
@@ -437,18 +502,30 @@ class Tracer:
             if self.accel == "bvh":
                 if self.bvh.count != count:  # a frame of fewer spheres: their own tree
                     self._build(count)
-                self._kernel[grid, self.block](width, height, self.d_basis, self.d_nodes, self.d_links,
-                                               self.d_ordered, self.d_order, self.d_spheres, self.d_image,
-                                               self.d_hits)
+                self._kernel[grid, self.block](
+                    width,
+                    height,
+                    self.d_basis,
+                    self.d_nodes,
+                    self.d_links,
+                    self.d_ordered,
+                    self.d_order,
+                    self.d_spheres,
+                    self.d_image,
+                    self.d_hits,
+                )
             elif self.kernel == "fast":
                 # EO and the cull bound for this frame's camera, on the GPU, before the frame
-                _prepare_kernel[max(1, math.ceil(count / 256)), 256](self.d_basis, self.d_spheres, count,
-                                                                     self.d_relative)
-                self._kernel[grid, self.block](width, height, self.d_basis, self.d_spheres, self.d_relative,
-                                               count, self.d_image, self.d_hits)
+                _prepare_kernel[max(1, math.ceil(count / 256)), 256](
+                    self.d_basis, self.d_spheres, count, self.d_relative
+                )
+                self._kernel[grid, self.block](
+                    width, height, self.d_basis, self.d_spheres, self.d_relative, count, self.d_image, self.d_hits
+                )
             else:
-                self._kernel[grid, self.block](width, height, self.d_basis, self.d_spheres, count,
-                                               self.d_image, self.d_hits)
+                self._kernel[grid, self.block](
+                    width, height, self.d_basis, self.d_spheres, count, self.d_image, self.d_hits
+                )
 
     def _prepare(self, basis: np.ndarray, count: int | None) -> int:
         """Upload the camera; the sphere count to trace."""

@@ -18,13 +18,16 @@ def check_size(width, height) -> None:
             raise RaybenchError(f"size: {name} must be an integer from 1 to {MAX_SIDE}, got {value!r}")
 
 
-def check_fits(device: str, width: int, height: int, spheres: int, available: float,
-               pixel_bytes: int = PIXEL_BYTES) -> None:
+def check_fits(
+    device: str, width: int, height: int, spheres: int, available: float, pixel_bytes: int = PIXEL_BYTES
+) -> None:
     check_size(width, height)
     need = width * height * pixel_bytes + spheres * SPHERE_BYTES
     if need > available:
-        raise RaybenchError(f"size: {width}x{height} with {spheres:,} spheres needs {need / 2**30:.2f} GiB, "
-                            f"more than the {available / 2**30:.2f} GiB available on the {device}; choose a smaller size")
+        raise RaybenchError(
+            f"size: {width}x{height} with {spheres:,} spheres needs {need / 2**30:.2f} GiB, "
+            f"more than the {available / 2**30:.2f} GiB available on the {device}; choose a smaller size"
+        )
 
 
 def check_count(count, loaded: int, constant: bool = False) -> int:
@@ -56,8 +59,7 @@ def check_kernel(kernel, constant_count: bool) -> str:
     if kernel not in KERNELS:
         raise RaybenchError(f"kernel: must be one of {', '.join(KERNELS)}, got {kernel!r}")
     if constant_count and kernel != "simple":
-        raise RaybenchError("constant_count: applies to the simple kernel only; add kernel='simple' "
-                            "(--kernel simple)")
+        raise RaybenchError("constant_count: applies to the simple kernel only; add kernel='simple' (--kernel simple)")
     return kernel
 
 
@@ -79,8 +81,9 @@ def check_accel(accel, kernel, brute_force_options: dict) -> tuple[str, str | No
         raise RaybenchError(f"accel: must be one of {', '.join(ACCELS)}, got {accel!r}")
     if accel == "bvh":
         if given:
-            raise RaybenchError(f"{given[0]}: applies to brute force only (accel='none', --accel none), "
-                                "not to the BVH walk")
+            raise RaybenchError(
+                f"{given[0]}: applies to brute force only (accel='none', --accel none), not to the BVH walk"
+            )
         return accel, None
     return accel, "fast" if kernel is None else kernel
 
@@ -90,9 +93,11 @@ def check_bvh_fits(device: str, spheres: int, available: float, per_sphere: int,
     frame must fit in what the device has free."""
     need = max(spheres, 1) * per_sphere + pixel_bytes_needed
     if need > available:
-        raise RaybenchError(f"bvh: {spheres:,} spheres need {_bytes(need)} for the BVH and the frame, "
-                            f"more than the {_bytes(available)} available on the {device}; "
-                            "use fewer spheres or a smaller size")
+        raise RaybenchError(
+            f"bvh: {spheres:,} spheres need {_bytes(need)} for the BVH and the frame, "
+            f"more than the {_bytes(available)} available on the {device}; "
+            "use fewer spheres or a smaller size"
+        )
 
 
 def _bytes(n: float) -> str:

@@ -16,7 +16,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 CHAINS = 64  # CPU: independent accumulators, enough to hide FMA latency
-UNROLL = 8   # GPU: 8 chains x 8 per loop trip
+UNROLL = 8  # GPU: 8 chains x 8 per loop trip
 FLOP_PER_FMA = 2
 
 
@@ -112,5 +112,8 @@ def cuda_peak(seconds: float = 0.5) -> dict:
     for _ in range(3):
         dt = launch(n)
         best = max(best, blocks * block * n * UNROLL * 8 * FLOP_PER_FMA / dt / 1e9)
-    return {"device": "cuda", "name": device.name.decode() if isinstance(device.name, bytes) else device.name,
-            "fp32_gflops": best}
+    return {
+        "device": "cuda",
+        "name": device.name.decode() if isinstance(device.name, bytes) else device.name,
+        "fp32_gflops": best,
+    }

@@ -95,8 +95,10 @@ def read(path) -> list[dict]:
         if not isinstance(record, dict) or record.get("format") != FORMAT:
             raise RaybenchError(f"{path}: line {number} is not a raybench result (format {FORMAT!r} expected)")
         if record.get("version") != VERSION:
-            raise RaybenchError(f"{path}: line {number} has results version {record.get('version')!r}; "
-                                f"this raybench reads version {VERSION}")
+            raise RaybenchError(
+                f"{path}: line {number} has results version {record.get('version')!r}; "
+                f"this raybench reads version {VERSION}"
+            )
         records.append(record)
     if not records:
         raise RaybenchError(f"{path}: holds no results")

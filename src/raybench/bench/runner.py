@@ -91,11 +91,19 @@ def measure(point: Point, scenes: Scenes, duration: float) -> dict:
     frame_ms = [f for f, _ in frames]
     kernel_ms = [k for _, k in frames if k is not None]
     record = {
-        "suite": point.suite, "test": point.test, "device": point.device,
-        "width": point.width, "height": point.height, "spheres": point.spheres,
-        "options": point.options, "frames": len(frames),
-        "frame_ms": summarize(frame_ms), "kernel_ms": summarize(kernel_ms) if kernel_ms else None,
-        "first_frame_s": first_ms / 1e3, "compile_s": compile_s, "build_s": build_s,
+        "suite": point.suite,
+        "test": point.test,
+        "device": point.device,
+        "width": point.width,
+        "height": point.height,
+        "spheres": point.spheres,
+        "options": point.options,
+        "frames": len(frames),
+        "frame_ms": summarize(frame_ms),
+        "kernel_ms": summarize(kernel_ms) if kernel_ms else None,
+        "first_frame_s": first_ms / 1e3,
+        "compile_s": compile_s,
+        "build_s": build_s,
     }
     bvh = point.options.get("accel") == "bvh"
     if described is not None:
@@ -103,8 +111,7 @@ def measure(point: Point, scenes: Scenes, duration: float) -> dict:
     if walk is not None:
         record["walk"] = walk
     if point.ramp:
-        record["series"] = {"spheres": list(point.ramp[1:]), "frame_ms": frame_ms,
-                            "kernel_ms": kernel_ms or None}
+        record["series"] = {"spheres": list(point.ramp[1:]), "frame_ms": frame_ms, "kernel_ms": kernel_ms or None}
         rays = point.width * point.height
         record["rays_per_s"] = rays * len(frames) / (sum(frame_ms) / 1e3)
         record["tests_per_s"] = rays * sum(point.ramp[1:]) / (sum(frame_ms) / 1e3)
@@ -134,16 +141,28 @@ def predicted_ms(point: Point, last: tuple | None) -> float | None:
 
 def skipped(point: Point, predicted: float, cap_s: float) -> dict:
     """The record of a point not measured: its frame would take too long."""
-    return {"suite": point.suite, "test": point.test, "device": point.device, "width": point.width,
-            "height": point.height, "spheres": point.spheres, "options": point.options,
-            "skipped": f"predicted {predicted / 1e3:.3g} s a frame, over the {cap_s:g} s cap",
-            "predicted_ms": predicted}
+    return {
+        "suite": point.suite,
+        "test": point.test,
+        "device": point.device,
+        "width": point.width,
+        "height": point.height,
+        "spheres": point.spheres,
+        "options": point.options,
+        "skipped": f"predicted {predicted / 1e3:.3g} s a frame, over the {cap_s:g} s cap",
+        "predicted_ms": predicted,
+    }
 
 
 def git_commit() -> str | None:
     try:
-        out = subprocess.run(["git", "describe", "--always", "--dirty", "--abbrev=12"], capture_output=True,
-                             text=True, timeout=10, cwd=Path(__file__).resolve().parent)
+        out = subprocess.run(
+            ["git", "describe", "--always", "--dirty", "--abbrev=12"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+            cwd=Path(__file__).resolve().parent,
+        )
         return out.stdout.strip() or None if out.returncode == 0 else None
     except (OSError, subprocess.SubprocessError):
         return None
@@ -160,13 +179,20 @@ def machine_label(machine: dict) -> str:
 
 
 def run_info(machine: dict, label: str, settings: dict) -> dict:
-    return {"id": uuid.uuid4().hex[:12], "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-            "git_commit": git_commit(), "label": label, "argv": sys.argv[1:], "settings": settings,
-            "machine": machine}
+    return {
+        "id": uuid.uuid4().hex[:12],
+        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "git_commit": git_commit(),
+        "label": label,
+        "argv": sys.argv[1:],
+        "settings": settings,
+        "machine": machine,
+    }
 
 
-def run(points: list[Point], writer: ResultsWriter, run: dict, duration: float, seed: int,
-        progress: bool = True) -> int:
+def run(
+    points: list[Point], writer: ResultsWriter, run: dict, duration: float, seed: int, progress: bool = True
+) -> int:
     """Measure every point in order, writing each record as soon as it is done.
     Returns how many points were written; Ctrl-C stops between frames and
     propagates, with every finished point already on disk."""
@@ -175,8 +201,14 @@ def run(points: list[Point], writer: ResultsWriter, run: dict, duration: float, 
     scenes = Scenes(seed)
     last: dict[tuple, tuple] = {}
     weights = [duration + WARMUP_S + (duration if p.ramp else 0) for p in points]
-    columns = [TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[done]}/{task.fields[count]} points"),
-               TimeElapsedColumn(), TextColumn("left"), TimeRemainingColumn()]
+    columns = [
+        TextColumn("{task.description}"),
+        BarColumn(),
+        TextColumn("{task.fields[done]}/{task.fields[count]} points"),
+        TimeElapsedColumn(),
+        TextColumn("left"),
+        TimeRemainingColumn(),
+    ]
     with Progress(*columns, disable=not progress, transient=False) as bar:
         task = bar.add_task("", total=sum(weights), done=0, count=len(points))
         for i, (point, weight) in enumerate(zip(points, weights)):

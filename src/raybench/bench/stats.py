@@ -13,8 +13,14 @@ def summarize(samples_ms) -> dict:
     if a.size == 0:
         raise ValueError("no samples")
     p5, median, p95 = np.percentile(a, [5, 50, 95])
-    return {"mean": float(a.mean()), "median": float(median), "p5": float(p5), "p95": float(p95),
-            "min": float(a.min()), "max": float(a.max())}
+    return {
+        "mean": float(a.mean()),
+        "median": float(median),
+        "p5": float(p5),
+        "p95": float(p95),
+        "min": float(a.min()),
+        "max": float(a.max()),
+    }
 
 
 def linear_fit(x, y) -> dict:
@@ -27,5 +33,5 @@ def linear_fit(x, y) -> dict:
     slope, intercept = np.polyfit(x, y, 1)
     residual = y - (slope * x + intercept)
     total = float(((y - y.mean()) ** 2).sum())
-    r2 = 1.0 - float((residual ** 2).sum()) / total if total > 0 else math.nan
+    r2 = 1.0 - float((residual**2).sum()) / total if total > 0 else math.nan
     return {"slope": float(slope), "intercept": float(intercept), "r2": r2, "n": int(x.size)}

@@ -67,8 +67,13 @@ def _fmt(value) -> str:
 def thread_settings(cores: int, height: int) -> list[tuple[str, int]]:
     """The thesis's CPU tuning: 1 thread, half the cores, all cores, twice the
     cores, and one thread per image row."""
-    settings = [("1 thread", 1), ("half the cores", max(1, cores // 2)), ("all cores", cores),
-                ("2x cores", 2 * cores), ("one per row", height)]
+    settings = [
+        ("1 thread", 1),
+        ("half the cores", max(1, cores // 2)),
+        ("all cores", cores),
+        ("2x cores", 2 * cores),
+        ("one per row", height),
+    ]
     seen, out = set(), []
     for label, n in settings:
         if n not in seen:
@@ -103,8 +108,16 @@ def _runs(ways, devices, wgpu: dict) -> list[tuple[dict, str]]:
     return out
 
 
-def points(suites, devices, quick: bool = False, cores: int | None = None, kernels=("fast",),
-           accels=("none",), wgpu: dict | None = None, max_invocations: int = 1024) -> list[Point]:
+def points(
+    suites,
+    devices,
+    quick: bool = False,
+    cores: int | None = None,
+    kernels=("fast",),
+    accels=("none",),
+    wgpu: dict | None = None,
+    max_invocations: int = 1024,
+) -> list[Point]:
     """Every point of the chosen suites on the chosen devices (the thesis,
     tuning and scaling suites once per kernel of brute force, and once more
     with the BVH if accels holds "bvh"), in run order. wgpu: that device's
@@ -130,8 +143,11 @@ def points(suites, devices, quick: bool = False, cores: int | None = None, kerne
         ramp = tuple(range(first, last + 1, step))
         w, h = (320, 240) if quick else RAMP_SIZE
         # the ramp changes the sphere count every frame: brute force only (a BVH would be rebuilt each frame)
-        out += [Point("test7", device, w, h, ramp[-1], dict(way), test=7, ramp=ramp)
-                for way, device in runs if way["accel"] == "none"]
+        out += [
+            Point("test7", device, w, h, ramp[-1], dict(way), test=7, ramp=ramp)
+            for way, device in runs
+            if way["accel"] == "none"
+        ]
     if "constant-vs-runtime" in suites:
         counts = (100, 500) if quick else CONSTANT_COUNTS
         w, h = (640, 480) if quick else THESIS_SIZES[-1]
@@ -139,8 +155,11 @@ def points(suites, devices, quick: bool = False, cores: int | None = None, kerne
             for n in counts:
                 for mode in ("constant", "runtime"):
                     # the simple kernel: the only one with a compile-time count
-                    out.append(Point("constant-vs-runtime", device, w, h, n,
-                                     {"count": mode, "kernel": "simple", "accel": "none"}))
+                    out.append(
+                        Point(
+                            "constant-vs-runtime", device, w, h, n, {"count": mode, "kernel": "simple", "accel": "none"}
+                        )
+                    )
     if "tuning" in suites:
         w, h = (640, 480) if quick else TUNING_SIZE
         n = 300 if quick else TUNING_SPHERES
@@ -149,19 +168,22 @@ def points(suites, devices, quick: bool = False, cores: int | None = None, kerne
                 settings = thread_settings(cores, h)
                 if quick:
                     settings = [s for s in settings if s[0] in ("1 thread", "all cores", "2x cores")]
-                out += [Point("tuning", "cpu", w, h, n, {"threads": t, "label": label, **way})
-                        for label, t in settings]
+                out += [Point("tuning", "cpu", w, h, n, {"threads": t, "label": label, **way}) for label, t in settings]
             else:
                 blocks = ((8, 8), (16, 16), (32, 32), (32, 8)) if quick else BLOCKS
                 if device == "wgpu":  # the adapter's limit; a driver spills what does not fit in registers
                     blocks = tuple(b for b in blocks if b[0] * b[1] <= max_invocations)
-                    out += [Point("tuning", device, w, h, n, {"workgroup": list(b), "label": f"{b[0]}x{b[1]}",
-                                                              **way}) for b in blocks]
+                    out += [
+                        Point("tuning", device, w, h, n, {"workgroup": list(b), "label": f"{b[0]}x{b[1]}", **way})
+                        for b in blocks
+                    ]
                     continue
                 if way.get("kernel", "bvh") in ("fast", "bvh"):  # larger blocks cannot launch (limits.FAST_MAX_THREADS)
                     blocks = tuple(b for b in blocks if b[0] * b[1] <= FAST_MAX_THREADS)
-                out += [Point("tuning", device, w, h, n, {"block": list(b), "label": f"{b[0]}x{b[1]}", **way})
-                        for b in blocks]
+                out += [
+                    Point("tuning", device, w, h, n, {"block": list(b), "label": f"{b[0]}x{b[1]}", **way})
+                    for b in blocks
+                ]
     if "scaling" in suites:
         counts = QUICK_SCALING_COUNTS if quick else SCALING_COUNTS
         w, h = QUICK_SCALING_SIZE if quick else SCALING_SIZE

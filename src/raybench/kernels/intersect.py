@@ -8,10 +8,10 @@ import numpy as np
 ZERO = np.float32(0.0)
 # The cull test's slack, relative to |EO|^2 + r^2: 64 float32 epsilons, several
 # times the rounding of either discriminant (derivation in prepare_sphere).
-CULL_SLACK = np.float32(64.0 * 2.0 ** -24)
+CULL_SLACK = np.float32(64.0 * 2.0**-24)
 # The cull threshold's slack, relative to |EO|: 64 float32 epsilons, covering
 # a v computed with fused multiply-adds in one place and without in another.
-ALONG_SLACK = np.float32(64.0 * 2.0 ** -24)
+ALONG_SLACK = np.float32(64.0 * 2.0**-24)
 
 
 def build(jit):

@@ -46,8 +46,7 @@ def build(jit):
         hit = -1
         hit_d = ZERO
         for i in range(count):
-            t, d = intersect_sphere(ox, oy, oz, dx, dy, dz,
-                                    spheres[0, i], spheres[1, i], spheres[2, i], spheres[3, i])
+            t, d = intersect_sphere(ox, oy, oz, dx, dy, dz, spheres[0, i], spheres[1, i], spheres[2, i], spheres[3, i])
             if t < closest and t > ZERO:
                 closest = t
                 hit = i
@@ -73,28 +72,45 @@ def build(jit):
         store_pixel(x, y, hit, d, spheres, image, hits)
 
     @jit
-    def render_pixel_bvh(x, y, width, height, basis, nodes, links, ordered, order, spheres, image, hits,
-                         stack_row, stack_t):
+    def render_pixel_bvh(
+        x, y, width, height, basis, nodes, links, ordered, order, spheres, image, hits, stack_row, stack_t
+    ):
         """render_pixel with the nearest hit found through the BVH: the same pixel."""
         dx, dy, dz = primary_ray(x, y, width, height, basis)
-        hit, d = nearest_hit_bvh(basis[0, 0], basis[0, 1], basis[0, 2], dx, dy, dz, nodes, links, ordered, order,
-                                 stack_row, stack_t)
+        hit, d = nearest_hit_bvh(
+            basis[0, 0], basis[0, 1], basis[0, 2], dx, dy, dz, nodes, links, ordered, order, stack_row, stack_t
+        )
         store_pixel(x, y, hit, d, spheres, image, hits)
 
     @jit
     def prepare(i, basis, spheres, relative):
         """Fast kernels, once per frame and sphere i: relative[:, i] = EO and the
         cull threshold (prepare_sphere)."""
-        ex, ey, ez, s = prepare_sphere(basis[0, 0], basis[0, 1], basis[0, 2],
-                                       spheres[0, i], spheres[1, i], spheres[2, i], spheres[3, i])
+        ex, ey, ez, s = prepare_sphere(
+            basis[0, 0], basis[0, 1], basis[0, 2], spheres[0, i], spheres[1, i], spheres[2, i], spheres[3, i]
+        )
         relative[0, i] = ex
         relative[1, i] = ey
         relative[2, i] = ez
         relative[3, i] = s
 
-    return SimpleNamespace(render_pixel=render_pixel, primary_ray=primary_ray, store_pixel=store_pixel,
-                           prepare=prepare, may_hit=may_hit, along=along, intersect_relative=intersect_relative,
-                           render_pixel_bvh=render_pixel_bvh, nearest_hit_bvh=nearest_hit_bvh, inverse=inverse,
-                           ray_axes=ray_axes, children=children, leaf_hits=leaf_hits, centre_along=centre_along,
-                           shade_hit=shade_hit, shade_miss=shade_miss, to_byte=to_byte,
-                           nearest_hit=nearest_hit)
+    return SimpleNamespace(
+        render_pixel=render_pixel,
+        primary_ray=primary_ray,
+        store_pixel=store_pixel,
+        prepare=prepare,
+        may_hit=may_hit,
+        along=along,
+        intersect_relative=intersect_relative,
+        render_pixel_bvh=render_pixel_bvh,
+        nearest_hit_bvh=nearest_hit_bvh,
+        inverse=inverse,
+        ray_axes=ray_axes,
+        children=children,
+        leaf_hits=leaf_hits,
+        centre_along=centre_along,
+        shade_hit=shade_hit,
+        shade_miss=shade_miss,
+        to_byte=to_byte,
+        nearest_hit=nearest_hit,
+    )

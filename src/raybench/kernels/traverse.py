@@ -85,8 +85,16 @@ def build(jit, intersect_sphere):
         then their refs and counts (bvh's layout)."""
         a_near, a_far = slab(nodes, node, _U(0), ix, iy, iz, lx, ly, lz, hx, hy, hz)
         b_near, b_far = slab(nodes, node, _U(6), ix, iy, iz, lx, ly, lz, hx, hy, hz)
-        return (a_near, a_far, b_near, b_far, links[node, _U(12)], links[node, _U(13)],
-                links[node, _U(14)], links[node, _U(15)])
+        return (
+            a_near,
+            a_far,
+            b_near,
+            b_far,
+            links[node, _U(12)],
+            links[node, _U(13)],
+            links[node, _U(14)],
+            links[node, _U(15)],
+        )
 
     @jit
     def centre_along(nodes, row, col, ox, oy, oz, cx, cy, cz):
@@ -96,9 +104,11 @@ def build(jit, intersect_sphere):
         packet's rays. An empty child's inverted box (lo bvh.EMPTY, hi -EMPTY)
         gives 0, not NaN."""
         half = np.float32(0.5)
-        return ((half * (nodes[row, col] + nodes[row, col + _U(3)]) - ox) * cx
-                + (half * (nodes[row, col + _U(1)] + nodes[row, col + _U(4)]) - oy) * cy
-                + (half * (nodes[row, col + _U(2)] + nodes[row, col + _U(5)]) - oz) * cz)
+        return (
+            (half * (nodes[row, col] + nodes[row, col + _U(3)]) - ox) * cx
+            + (half * (nodes[row, col + _U(1)] + nodes[row, col + _U(4)]) - oy) * cy
+            + (half * (nodes[row, col + _U(2)] + nodes[row, col + _U(5)]) - oz) * cz
+        )
 
     @jit
     def leaf_hits(ox, oy, oz, dx, dy, dz, ordered, order, first, count, closest, hit, hit_d):
@@ -124,23 +134,34 @@ def build(jit, intersect_sphere):
         row = 0
         top = _U(0)
         while row >= 0:
-            a_near, a_far, b_near, b_far, a_ref, b_ref, a_count, b_count = \
-                children(nodes, links, _U(row), ix, iy, iz, lx, ly, lz, hx, hy, hz)
+            a_near, a_far, b_near, b_far, a_ref, b_ref, a_count, b_count = children(
+                nodes, links, _U(row), ix, iy, iz, lx, ly, lz, hx, hy, hz
+            )
             # near child first: its hits can rule the far one out
             if b_near < a_near:
-                a_near, a_far, a_ref, a_count, b_near, b_far, b_ref, b_count = \
-                    b_near, b_far, b_ref, b_count, a_near, a_far, a_ref, a_count
+                a_near, a_far, a_ref, a_count, b_near, b_far, b_ref, b_count = (
+                    b_near,
+                    b_far,
+                    b_ref,
+                    b_count,
+                    a_near,
+                    a_far,
+                    a_ref,
+                    a_count,
+                )
             row = -1
             if a_near <= a_far and a_far > ZERO and a_near <= closest:
                 if a_count == INNER:
                     row = a_ref
                 else:
-                    closest, hit, hit_d = leaf_hits(ox, oy, oz, dx, dy, dz, ordered, order, a_ref, a_count,
-                                                    closest, hit, hit_d)
+                    closest, hit, hit_d = leaf_hits(
+                        ox, oy, oz, dx, dy, dz, ordered, order, a_ref, a_count, closest, hit, hit_d
+                    )
             if b_near <= b_far and b_far > ZERO and b_near <= closest:
                 if b_count != INNER:
-                    closest, hit, hit_d = leaf_hits(ox, oy, oz, dx, dy, dz, ordered, order, b_ref, b_count,
-                                                    closest, hit, hit_d)
+                    closest, hit, hit_d = leaf_hits(
+                        ox, oy, oz, dx, dy, dz, ordered, order, b_ref, b_count, closest, hit, hit_d
+                    )
                 elif row < 0:
                     row = b_ref
                 else:

@@ -22,8 +22,16 @@ from __future__ import annotations
 from pathlib import Path
 
 
-def view(scene, *, device: str, seed: int | None, size: tuple[int, int], options: dict | None = None,
-         frames: int | None = None, screenshot: Path | None = None):
+def view(
+    scene,
+    *,
+    device: str,
+    seed: int | None,
+    size: tuple[int, int],
+    options: dict | None = None,
+    frames: int | None = None,
+    screenshot: Path | None = None,
+):
     """Open the window on scene and run until it closes; returns the window
     (what it saved, and its state with the last frame shown)."""
     from .state import ViewerState

@@ -34,8 +34,9 @@ BINDINGS = (
     # "=" is the + key without Shift on many layouts; glfw reports the key, not the character.
     Binding(("+", "="), "more_spheres", "add 10 spheres"),
     Binding(("-", "_"), "fewer_spheres", "remove 10 spheres"),
-    Binding(("t",), "ramp", "ramp (the thesis's test 7): from 10 spheres, 10 more every frame, up to 1000; "
-                            "again to stop"),
+    Binding(
+        ("t",), "ramp", "ramp (the thesis's test 7): from 10 spheres, 10 more every frame, up to 1000; again to stop"
+    ),
     Binding(("r",), "reset", "reset the view"),
     Binding(("p",), "screenshot", "save what is on screen as a PNG in the current folder"),
     Binding(("h",), "help", "show the keys in the title bar (and print them); again to hide"),
@@ -69,5 +70,4 @@ def help_lines() -> list[str]:
 
 def help_summary() -> str:
     """The keys in one short line, for the title bar."""
-    return ("WASD move, drag/arrows turn, Tab device, +/- spheres, T ramp, R reset, "
-            "P screenshot, H help, Esc quit")
+    return "WASD move, drag/arrows turn, Tab device, +/- spheres, T ramp, R reset, P screenshot, H help, Esc quit"

@@ -17,10 +17,10 @@ import numpy as np
 
 from ..camera import Camera
 
-TURN_DEG_PER_S = 90.0        # arrow keys
-DRAG_DEG_PER_PIXEL = 0.25    # mouse look
-MAX_ELEVATION_DEG = 85.0     # never look straight up or down: the view would have no "right"
-MIN_SPEED = 0.1              # scene units per second, for a scene with nothing in it
+TURN_DEG_PER_S = 90.0  # arrow keys
+DRAG_DEG_PER_PIXEL = 0.25  # mouse look
+MAX_ELEVATION_DEG = 85.0  # never look straight up or down: the view would have no "right"
+MIN_SPEED = 0.1  # scene units per second, for a scene with nothing in it
 
 _MOVES = {"forward": (1, 0), "back": (-1, 0), "right": (0, 1), "left": (0, -1)}
 _TURNS = {"turn_right": (1, 0), "turn_left": (-1, 0), "look_up": (0, 1), "look_down": (0, -1)}
@@ -42,8 +42,12 @@ def moved(camera: Camera, forward: float, right: float) -> Camera:
     its right; it keeps looking the same way."""
     f, r, _ = axes(camera)
     delta = f * forward + r * right
-    return Camera(position=tuple(np.add(camera.position, delta)), look_at=tuple(np.add(camera.look_at, delta)),
-                  up=camera.up, fov_deg=camera.fov_deg)
+    return Camera(
+        position=tuple(np.add(camera.position, delta)),
+        look_at=tuple(np.add(camera.look_at, delta)),
+        up=camera.up,
+        fov_deg=camera.fov_deg,
+    )
 
 
 def turned(camera: Camera, yaw_deg: float, pitch_deg: float) -> Camera:
@@ -52,15 +56,19 @@ def turned(camera: Camera, yaw_deg: float, pitch_deg: float) -> Camera:
     f, r, up = axes(camera)
     elevation = math.degrees(math.asin(max(-1.0, min(1.0, float(f @ up)))))
     elevation = max(-MAX_ELEVATION_DEG, min(MAX_ELEVATION_DEG, elevation + pitch_deg))
-    level = f - (f @ up) * up            # forward, flattened onto the ground plane
+    level = f - (f @ up) * up  # forward, flattened onto the ground plane
     level /= np.linalg.norm(level)
     yaw = math.radians(yaw_deg)
     level = math.cos(yaw) * level + math.sin(yaw) * r
     e = math.radians(elevation)
     direction = math.cos(e) * level + math.sin(e) * up
     distance = float(np.linalg.norm(np.subtract(camera.look_at, camera.position)))
-    return Camera(position=camera.position, look_at=tuple(np.add(camera.position, direction * distance)),
-                  up=camera.up, fov_deg=camera.fov_deg)
+    return Camera(
+        position=camera.position,
+        look_at=tuple(np.add(camera.position, direction * distance)),
+        up=camera.up,
+        fov_deg=camera.fov_deg,
+    )
 
 
 def travel_speed(centers: np.ndarray, camera: Camera) -> float:

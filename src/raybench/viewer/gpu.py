@@ -82,10 +82,11 @@ def choose_target_format(formats) -> TargetFormat:
         if fmt in _NON_SRGB:
             return TargetFormat(fmt, fmt)
     for fmt in formats:
-        if fmt.endswith("-srgb") and fmt[:-len("-srgb")] in _NON_SRGB:
-            return TargetFormat(fmt, fmt[:-len("-srgb")])
-    raise RaybenchError(f"the window's surface offers no 8-bit RGBA or BGRA format (it offers {', '.join(formats)}); "
-                        f"{SUGGEST}")
+        if fmt.endswith("-srgb") and fmt[: -len("-srgb")] in _NON_SRGB:
+            return TargetFormat(fmt, fmt[: -len("-srgb")])
+    raise RaybenchError(
+        f"the window's surface offers no 8-bit RGBA or BGRA format (it offers {', '.join(formats)}); {SUGGEST}"
+    )
 
 
 def pixels_to_rgb(data, width: int, height: int, fmt: str) -> np.ndarray:
@@ -106,10 +107,15 @@ class TextureQuad:
         self.device = device
         self.target_format = target_format
         shader = device.create_shader_module(code=QUAD_SHADER)
-        self.layout = device.create_bind_group_layout(entries=[{
-            "binding": 0, "visibility": wgpu.ShaderStage.FRAGMENT,
-            "texture": {"sample_type": wgpu.TextureSampleType.float, "view_dimension": "2d"},
-        }])
+        self.layout = device.create_bind_group_layout(
+            entries=[
+                {
+                    "binding": 0,
+                    "visibility": wgpu.ShaderStage.FRAGMENT,
+                    "texture": {"sample_type": wgpu.TextureSampleType.float, "view_dimension": "2d"},
+                }
+            ]
+        )
         self.pipeline = device.create_render_pipeline(
             layout=device.create_pipeline_layout(bind_group_layouts=[self.layout]),
             vertex={"module": shader, "entry_point": "vs_main", "buffers": []},
@@ -118,9 +124,9 @@ class TextureQuad:
             multisample=None,
             fragment={"module": shader, "entry_point": "fs_main", "targets": [{"format": target_format}]},
         )
-        self.texture = None      # the texture drawn: the uploaded one, or the compute pass's (wgpu)
+        self.texture = None  # the texture drawn: the uploaded one, or the compute pass's (wgpu)
         self.bind_group = None
-        self._uploaded = None    # the texture upload() writes, kept across frames of one size
+        self._uploaded = None  # the texture upload() writes, kept across frames of one size
 
     @property
     def frame_size(self) -> tuple[int, int] | None:
@@ -131,7 +137,8 @@ class TextureQuad:
         if texture is not self.texture:
             self.texture = texture
             self.bind_group = self.device.create_bind_group(
-                layout=self.layout, entries=[{"binding": 0, "resource": texture.create_view()}])
+                layout=self.layout, entries=[{"binding": 0, "resource": texture.create_view()}]
+            )
 
     def upload(self, rgba: np.ndarray) -> None:
         """Copy an (H, W, 4) uint8 frame into the texture (made anew when the size changes)."""
@@ -139,18 +146,28 @@ class TextureQuad:
         if self._uploaded is None or self._uploaded.size[:2] != (width, height):
             usage = self.wgpu.TextureUsage.TEXTURE_BINDING | self.wgpu.TextureUsage.COPY_DST
             self._uploaded = self.device.create_texture(size=(width, height, 1), format=FRAME_FORMAT, usage=usage)
-        self.device.queue.write_texture({"texture": self._uploaded}, np.ascontiguousarray(rgba),
-                                        {"bytes_per_row": width * 4, "rows_per_image": height},
-                                        (width, height, 1))
+        self.device.queue.write_texture(
+            {"texture": self._uploaded},
+            np.ascontiguousarray(rgba),
+            {"bytes_per_row": width * 4, "rows_per_image": height},
+            (width, height, 1),
+        )
         self.show(self._uploaded)
 
     def encode(self, encoder, target_view) -> None:
         """Record the draw of the frame over the whole target (before the first
         frame, a clear to black) into encoder."""
-        render_pass = encoder.begin_render_pass(color_attachments=[{
-            "view": target_view, "resolve_target": None, "clear_value": (0, 0, 0, 1),
-            "load_op": self.wgpu.LoadOp.clear, "store_op": self.wgpu.StoreOp.store,
-        }])
+        render_pass = encoder.begin_render_pass(
+            color_attachments=[
+                {
+                    "view": target_view,
+                    "resolve_target": None,
+                    "clear_value": (0, 0, 0, 1),
+                    "load_op": self.wgpu.LoadOp.clear,
+                    "store_op": self.wgpu.StoreOp.store,
+                }
+            ]
+        )
         if self.texture is not None:
             render_pass.set_pipeline(self.pipeline)
             render_pass.set_bind_group(0, self.bind_group)
@@ -166,9 +183,11 @@ class TextureQuad:
     def read(self, texture) -> np.ndarray:
         """What a texture holds (the window's, after draw(); or an offscreen one), as (H, W, 3) RGB."""
         width, height = texture.size[:2]
-        data = self.device.queue.read_texture({"texture": texture, "origin": (0, 0, 0), "mip_level": 0},
-                                              {"offset": 0, "bytes_per_row": width * 4, "rows_per_image": height},
-                                              (width, height, 1))
+        data = self.device.queue.read_texture(
+            {"texture": texture, "origin": (0, 0, 0), "mip_level": 0},
+            {"offset": 0, "bytes_per_row": width * 4, "rows_per_image": height},
+            (width, height, 1),
+        )
         return pixels_to_rgb(data, width, height, texture.format)
 
     def draw_offscreen(self, width: int, height: int) -> np.ndarray:
@@ -206,7 +225,8 @@ def request_device(canvas=None, adapter: str | None = None):
             failure = exc
     if failure is not None:
         reason = " ".join(str(failure).split()) or type(failure).__name__
-        raise RaybenchError(f"no usable graphics adapter: wgpu found none that can draw to a window ({reason}); "
-                            f"{SUGGEST}")
+        raise RaybenchError(
+            f"no usable graphics adapter: wgpu found none that can draw to a window ({reason}); {SUGGEST}"
+        )
     sys.stderr.write(native["text"])
     return found, device

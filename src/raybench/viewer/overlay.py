@@ -24,12 +24,20 @@ def _fps(fps: float | None) -> str:
     return f"{fps:.1f} fps" if fps < 100 else f"{fps:.0f} fps"
 
 
-def status_line(*, device: str, spheres: int, width: int, height: int, frame_ms: float | None,
-                fps: float | None, ramp: bool = False, message: str | None = None) -> str:
+def status_line(
+    *,
+    device: str,
+    spheres: int,
+    width: int,
+    height: int,
+    frame_ms: float | None,
+    fps: float | None,
+    ramp: bool = False,
+    message: str | None = None,
+) -> str:
     """device, sphere count, resolution, frame time and frames per second of
     what is on screen; then the ramp flag and the latest message."""
-    parts = ["raybench", device, f"{spheres:,} spheres", f"{width}x{height}",
-             f"frame {_ms(frame_ms)}", _fps(fps)]
+    parts = ["raybench", device, f"{spheres:,} spheres", f"{width}x{height}", f"frame {_ms(frame_ms)}", _fps(fps)]
     if ramp:
         parts.append("ramp")
     if message:
@@ -39,8 +47,13 @@ def status_line(*, device: str, spheres: int, width: int, height: int, frame_ms:
 
 def waiting_line(*, device: str, spheres: int, width: int, height: int, message: str | None = None) -> str:
     """Before the first frame is on screen (the first frame compiles the kernel)."""
-    parts = ["raybench", device, f"{spheres:,} spheres", f"{width}x{height}",
-             "tracing the first frame (compiling the kernel)..."]
+    parts = [
+        "raybench",
+        device,
+        f"{spheres:,} spheres",
+        f"{width}x{height}",
+        "tracing the first frame (compiling the kernel)...",
+    ]
     if message:
         parts.append(message)
     return SEPARATOR.join(parts)

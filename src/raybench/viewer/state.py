@@ -25,8 +25,17 @@ MIN_COMPILE_NOTE_S = 0.1  # a compilation shorter than this was a cache hit: not
 
 
 class ViewerState:
-    def __init__(self, scene: Scene, *, device: str, seed: int | None = None, camera: Camera | None = None,
-                 options: dict | None = None, clock=time.perf_counter, devices=("cpu", "cuda")):
+    def __init__(
+        self,
+        scene: Scene,
+        *,
+        device: str,
+        seed: int | None = None,
+        camera: Camera | None = None,
+        options: dict | None = None,
+        clock=time.perf_counter,
+        devices=("cpu", "cuda"),
+    ):
         """device: "cpu", "cuda" or "wgpu" (already resolved); seed: that of a generated
         scene, None for a scene file; options: per device, e.g. {"cpu": {"threads": 4}};
         devices: those Tab cycles through (the window adds wgpu where it can trace on it)."""
@@ -38,8 +47,8 @@ class ViewerState:
         self.supply = SphereSupply(scene, seed)
         self.home = camera or scene.camera or Camera()
         self.camera = self.home
-        self.device = device                # where the next frame is traced
-        self._working_device = device       # where frames last came from: the fallback for a failed switch
+        self.device = device  # where the next frame is traced
+        self._working_device = device  # where frames last came from: the fallback for a failed switch
         self.options = {d: dict((options or {}).get(d, {})) for d in backends.DEVICES}
         self.motion = Motion(travel_speed(scene.centers, self.home))
         self.stats = FrameStats()
@@ -149,9 +158,16 @@ class ViewerState:
         scene, count, message = self.supply.frame_count()
         self.say(message)
         self.requests_made += 1
-        self.last_request = TraceRequest(number=self.requests_made, device=self.device, scene=scene, count=count,
-                                          camera=self.camera, width=width, height=height,
-                                          options=self.options[self.device])
+        self.last_request = TraceRequest(
+            number=self.requests_made,
+            device=self.device,
+            scene=scene,
+            count=count,
+            camera=self.camera,
+            width=width,
+            height=height,
+            options=self.options[self.device],
+        )
         return self.last_request
 
     def on_traced(self, result: TracedFrame | TraceFailed) -> None:
@@ -167,8 +183,11 @@ class ViewerState:
                 self._stall_reason = f"stopped: {result.message} (resize or press a key to try again)"
             return
         previous = self.shown
-        if previous is None or (previous.frame.device, previous.frame.width, previous.frame.height) != \
-                (result.frame.device, result.frame.width, result.frame.height):
+        if previous is None or (previous.frame.device, previous.frame.width, previous.frame.height) != (
+            result.frame.device,
+            result.frame.width,
+            result.frame.height,
+        ):
             self.stats.reset()  # another device or size: its times are not comparable
         if previous is not None and previous.frame.device != result.frame.device:
             self.say(f"now on {result.frame.device}")
@@ -191,12 +210,20 @@ class ViewerState:
         if self.shown is None:
             request = self.last_request
             size = (request.width, request.height) if request else (0, 0)
-            return waiting_line(device=self.device, spheres=self.supply.count, width=size[0], height=size[1],
-                                message=message)
+            return waiting_line(
+                device=self.device, spheres=self.supply.count, width=size[0], height=size[1], message=message
+            )
         shown = self.shown
-        return status_line(device=device_label(shown), spheres=shown.request.count, width=shown.frame.width,
-                           height=shown.frame.height, frame_ms=self.stats.frame_ms(now), fps=self.stats.fps(now),
-                           ramp=self.supply.ramping, message=message)
+        return status_line(
+            device=device_label(shown),
+            spheres=shown.request.count,
+            width=shown.frame.width,
+            height=shown.frame.height,
+            frame_ms=self.stats.frame_ms(now),
+            fps=self.stats.fps(now),
+            ramp=self.supply.ramping,
+            message=message,
+        )
 
 
 def device_label(shown: TracedFrame) -> str:

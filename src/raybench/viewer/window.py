@@ -40,15 +40,16 @@ from .gpu import SUGGEST, TextureQuad, choose_target_format, request_device
 from .state import ViewerState
 from .worker import TracedFrame, TraceFailed, TraceWorker
 
-MIN_FPS = 2      # redraws per second at least: the title's frame time, fps and messages stay current
-MAX_FPS = 240    # draws per second at most; frame times are measured by the tracer, not by this cap
+MIN_FPS = 2  # redraws per second at least: the title's frame time, fps and messages stay current
+MAX_FPS = 240  # draws per second at most; frame times are measured by the tracer, not by this cap
 
 
 def check_display() -> None:
     """Refuse, in one line, to open a window where there is no screen."""
     if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        raise RaybenchError(f"no display: DISPLAY and WAYLAND_DISPLAY are not set, so there is no screen "
-                            f"for the window; {SUGGEST}")
+        raise RaybenchError(
+            f"no display: DISPLAY and WAYLAND_DISPLAY are not set, so there is no screen for the window; {SUGGEST}"
+        )
     try:
         import glfw
     except Exception as exc:  # noqa: BLE001 - ImportError, or OSError from loading libglfw
@@ -91,8 +92,9 @@ def screenshot_path(folder: Path) -> Path:
 
 
 class ViewerWindow:
-    def __init__(self, state: ViewerState, size: tuple[int, int], *, frames: int | None = None,
-                 screenshot: Path | None = None):
+    def __init__(
+        self, state: ViewerState, size: tuple[int, int], *, frames: int | None = None, screenshot: Path | None = None
+    ):
         """frames: close after this many traced frames are shown, saving the last
         as screenshot (if given). P saves into the current folder."""
         import wgpu
@@ -110,8 +112,9 @@ class ViewerWindow:
         self._texture = None  # the surface texture, during a draw only
         self._closing = False
         try:
-            self.canvas = RenderCanvas(size=size, title="raybench", update_mode="ondemand", min_fps=MIN_FPS,
-                                       max_fps=MAX_FPS, vsync=False)
+            self.canvas = RenderCanvas(
+                size=size, title="raybench", update_mode="ondemand", min_fps=MIN_FPS, max_fps=MAX_FPS, vsync=False
+            )
         except Exception as exc:  # noqa: BLE001
             raise RaybenchError(f"cannot open a window ({' '.join(str(exc).split())}); {SUGGEST}") from None
         try:
@@ -124,8 +127,9 @@ class ViewerWindow:
             # from an offscreen texture drawn the same way (TextureQuad.draw_offscreen).
             self.surface_readable = bool(caps["usages"] & wgpu.TextureUsage.COPY_SRC)
             usage = wgpu.TextureUsage.RENDER_ATTACHMENT | (wgpu.TextureUsage.COPY_SRC if self.surface_readable else 0)
-            self.context.configure(device=self.device, format=self.format.configure, usage=usage,
-                                   view_formats=self.format.view_formats)
+            self.context.configure(
+                device=self.device, format=self.format.configure, usage=usage, view_formats=self.format.view_formats
+            )
             self.quad = TextureQuad(self.device, self.format.view)
             self.gpu_tracer = self._wgpu_here(state, named)
         except BaseException:
@@ -134,8 +138,9 @@ class ViewerWindow:
             raise
         self._gpu_idle = False  # the last draw found no wgpu frame to trace (stalled, failed)
         self.worker = TraceWorker(on_done=self._frame_ready)
-        self.canvas.add_event_handler(self.handle_event, "key_down", "key_up", "pointer_down", "pointer_move",
-                                      "pointer_up")
+        self.canvas.add_event_handler(
+            self.handle_event, "key_down", "key_up", "pointer_down", "pointer_move", "pointer_up"
+        )
         self.canvas.request_draw(self._draw)
 
     def _wgpu_here(self, state: ViewerState, named: str | None):
@@ -146,8 +151,10 @@ class ViewerWindow:
 
         adapter = describe_raw(self.adapter)
         if named is None and not adapter.is_gpu:
-            reason = (f"device wgpu: the window's adapter, {adapter.label()}, is not a GPU; name it to trace on "
-                      f"it (--adapter {adapter.name.split(' ')[0]})")
+            reason = (
+                f"device wgpu: the window's adapter, {adapter.label()}, is not a GPU; name it to trace on "
+                f"it (--adapter {adapter.name.split(' ')[0]})"
+            )
             if state.device == "wgpu":
                 raise RaybenchError(reason)
             state.unavailable["wgpu"] = reason
@@ -247,14 +254,19 @@ class ViewerWindow:
                 return TracedFrame(request, tracer.frame(request), None, tracer.elapsed_ms(), compile_s)
             except Exception as exc:  # noqa: BLE001 - shown in the title; the window must live on
                 return TraceFailed(request, f"wgpu failed: {type(exc).__name__}: {exc}")
+
         return wait
 
     def _encode_gpu_frame(self, encoder):
         """Where frames come from wgpu and the worker is idle: record the next
         frame's compute pass and have the quad draw its texture. (request,
         compile seconds), or None when there is nothing to trace or it failed."""
-        if self._closing or self.state.device != "wgpu" or self.gpu_tracer is None \
-                or not self.worker.handoff.may_trace():
+        if (
+            self._closing
+            or self.state.device != "wgpu"
+            or self.gpu_tracer is None
+            or not self.worker.handoff.may_trace()
+        ):
             return None  # not wgpu's turn: a frame in flight or waiting decides what follows
         # From here, no frame means no next draw on our own: the MIN_FPS redraws
         # and any input (which asks for a draw) try again.

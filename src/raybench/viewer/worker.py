@@ -43,10 +43,10 @@ class TraceRequest:
 @dataclass
 class TracedFrame:
     request: TraceRequest
-    frame: Frame               # or a zero_copy.DrawnFrame: traced by wgpu into the window's texture
-    rgba: np.ndarray | None    # (H, W, 4) uint8: the frame as the texture wants it (None: already there)
-    trace_ms: float            # camera basis, trace and copy to the host: the whole frame (wgpu: the pass)
-    compile_s: float | None    # set on the first frame of a new tracer
+    frame: Frame  # or a zero_copy.DrawnFrame: traced by wgpu into the window's texture
+    rgba: np.ndarray | None  # (H, W, 4) uint8: the frame as the texture wants it (None: already there)
+    trace_ms: float  # camera basis, trace and copy to the host: the whole frame (wgpu: the pass)
+    compile_s: float | None  # set on the first frame of a new tracer
 
 
 @dataclass
@@ -136,13 +136,13 @@ class TraceWorker:
     def _ensure_tracer(self, request: TraceRequest) -> float | None:
         """Make the tracer this request needs, if it is not the one held; the
         seconds its compilation took (None if it was already there)."""
-        key = (request.device, id(request.scene), request.width, request.height,
-               tuple(sorted(request.options.items())))
+        key = (request.device, id(request.scene), request.width, request.height, tuple(sorted(request.options.items())))
         if key == self._tracer_key:
             return None
         self._drop_tracer()
-        tracer = backends.tracer(request.device, request.scene.spheres, request.width, request.height,
-                                 **request.options)
+        tracer = backends.tracer(
+            request.device, request.scene.spheres, request.width, request.height, **request.options
+        )
         try:
             compile_s = tracer.compile()
         except BaseException:

@@ -54,10 +54,17 @@ class InWindowTracer:
 
         # accel and kernel as the Tracer takes them: the BVH unless brute force is asked for;
         # a frame of another sphere count (+, -, the ramp) gets its tree in encode()
-        compute = Compute(self.device, request.scene.spheres, request.width, request.height,
-                          options.pop("workgroup", None), options.pop("accel", None),
-                          options.pop("kernel", None), extra_texture_usage=wgpu.TextureUsage.TEXTURE_BINDING,
-                          walk=options.pop("walk", None))
+        compute = Compute(
+            self.device,
+            request.scene.spheres,
+            request.width,
+            request.height,
+            options.pop("workgroup", None),
+            options.pop("accel", None),
+            options.pop("kernel", None),
+            extra_texture_usage=wgpu.TextureUsage.TEXTURE_BINDING,
+            walk=options.pop("walk", None),
+        )
         compile_s = compute.compile()
         # The scene is held with the key: its id() must not be reused while the key is.
         self.compute, self._key, self._scene = compute, key, request.scene
@@ -66,8 +73,9 @@ class InWindowTracer:
     def encode(self, encoder, request) -> None:
         """Record the frame's compute pass (timed where the device has timestamps)."""
         count = check_count(request.count, self.compute.count)
-        self.compute.encode(encoder, request.camera.basis(request.width, request.height), count,
-                            timed=self.period_ns is not None)
+        self.compute.encode(
+            encoder, request.camera.basis(request.width, request.height), count, timed=self.period_ns is not None
+        )
         if self.period_ns is None:
             self.compute.encode_fence(encoder)
         self._started = time.perf_counter()

@@ -23,8 +23,14 @@ GPU_TYPES = ("DiscreteGPU", "IntegratedGPU")
 # Among adapters of one type: the native APIs first, OpenGL (compute through GLES, fewer features) last.
 BACKEND_ORDER = ("Vulkan", "Metal", "D3D12", "OpenGL")
 # Limits the tracer may need beyond WebGPU's defaults; asked for up to what the adapter has.
-LIMITS = ("max-compute-invocations-per-workgroup", "max-compute-workgroup-size-x", "max-compute-workgroup-size-y",
-          "max-storage-buffer-binding-size", "max-buffer-size", "max-texture-dimension-2d")
+LIMITS = (
+    "max-compute-invocations-per-workgroup",
+    "max-compute-workgroup-size-x",
+    "max-compute-workgroup-size-y",
+    "max-storage-buffer-binding-size",
+    "max-buffer-size",
+    "max-texture-dimension-2d",
+)
 
 
 @contextlib.contextmanager
@@ -49,8 +55,8 @@ def native_stderr_captured():
 @dataclass(frozen=True)
 class Adapter:
     name: str
-    backend: str     # Vulkan, Metal, D3D12, OpenGL
-    type: str        # DiscreteGPU, IntegratedGPU, CPU, VirtualGPU, Unknown
+    backend: str  # Vulkan, Metal, D3D12, OpenGL
+    type: str  # DiscreteGPU, IntegratedGPU, CPU, VirtualGPU, Unknown
     adapter: object  # the wgpu GPUAdapter
 
     @property
@@ -101,8 +107,11 @@ def choose(name: str | None = None) -> Adapter:
         gpus = [a for a in adapters if a.is_gpu]
         if gpus:
             return gpus[0]
-        hint = (f"; a CPU adapter is used only when named: add --adapter {_short(adapters[0].name)!r}"
-                if adapters else "; install a Vulkan, Metal or D3D12 driver")
+        hint = (
+            f"; a CPU adapter is used only when named: add --adapter {_short(adapters[0].name)!r}"
+            if adapters
+            else "; install a Vulkan, Metal or D3D12 driver"
+        )
         raise RaybenchError(f"device wgpu: no GPU adapter (found: {listing(adapters)}){hint}")
     if not isinstance(name, str) or not name.strip():
         raise RaybenchError(f"adapter: must be a non-empty name, got {name!r}")
@@ -142,5 +151,9 @@ def request_device(adapter: Adapter):
 
 def describe_raw(adapter) -> Adapter:
     """An Adapter for a GPUAdapter obtained elsewhere (the viewer's, which can draw to its window)."""
-    return Adapter(adapter.info["device"] or adapter.info["description"] or "unknown", adapter.info["backend_type"],
-                   adapter.info["adapter_type"], adapter)
+    return Adapter(
+        adapter.info["device"] or adapter.info["description"] or "unknown",
+        adapter.info["backend_type"],
+        adapter.info["adapter_type"],
+        adapter,
+    )

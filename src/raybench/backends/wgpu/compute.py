@@ -21,7 +21,7 @@ from ..walks import check_walk
 from . import shader
 
 FRAME_FORMAT = "rgba8unorm"
-SPHERE_FLOATS = 8   # shader's struct Sphere: the 7 columns and a pad
+SPHERE_FLOATS = 8  # shader's struct Sphere: the 7 columns and a pad
 UNIFORM_BYTES = 80  # shader's struct Frame: four vec4s, four u32s
 # The default workgroups: WebGPU's default limit (256 invocations), so they
 # run on every adapter (the thesis's 32x32 runs where the adapter allows
@@ -37,8 +37,10 @@ PACKET_FEATURE = "subgroup"
 
 def check_kernel(kernel) -> None:
     if kernel != "simple":
-        raise RaybenchError(f"kernel: the wgpu backend has the simple kernel only (the thesis's loop, one "
-                            f"invocation per pixel), got {kernel!r}; use --kernel simple")
+        raise RaybenchError(
+            f"kernel: the wgpu backend has the simple kernel only (the thesis's loop, one "
+            f"invocation per pixel), got {kernel!r}; use --kernel simple"
+        )
 
 
 def check_accel(accel, kernel) -> str:
@@ -59,28 +61,35 @@ def check_workgroup(workgroup, limits: dict) -> tuple[int, int]:
     most = limits["max-compute-invocations-per-workgroup"]
     max_x, max_y = limits["max-compute-workgroup-size-x"], limits["max-compute-workgroup-size-y"]
     if x < 1 or y < 1 or x > max_x or y > max_y or x * y > most:
-        raise RaybenchError(f"workgroup: this adapter takes sides of 1 to {max_x} x {max_y} and at most {most} "
-                            f"invocations (x*y), got {x}x{y}")
+        raise RaybenchError(
+            f"workgroup: this adapter takes sides of 1 to {max_x} x {max_y} and at most {most} "
+            f"invocations (x*y), got {x}x{y}"
+        )
     return x, y
 
 
 def check_frame_fits(width: int, height: int, spheres: int, workgroup, limits: dict, accel: str = "none") -> None:
     side = limits["max-texture-dimension-2d"]
     if width > side or height > side:
-        raise RaybenchError(f"size: this adapter's textures are at most {side}x{side}, got {width}x{height}; "
-                            f"choose a smaller size")
+        raise RaybenchError(
+            f"size: this adapter's textures are at most {side}x{side}, got {width}x{height}; choose a smaller size"
+        )
     groups = limits.get("max-compute-workgroups-per-dimension", 65535)
     if math.ceil(width / workgroup[0]) > groups or math.ceil(height / workgroup[1]) > groups:
-        raise RaybenchError(f"workgroup: {width}x{height} in workgroups of {workgroup[0]}x{workgroup[1]} needs more "
-                            f"than this adapter's {groups} workgroups per side; use a larger workgroup")
+        raise RaybenchError(
+            f"workgroup: {width}x{height} in workgroups of {workgroup[0]}x{workgroup[1]} needs more "
+            f"than this adapter's {groups} workgroups per side; use a larger workgroup"
+        )
     largest = min(limits["max-storage-buffer-binding-size"], limits["max-buffer-size"])
     needs = [("the hit indices", width * height * 4), ("the spheres", spheres * SPHERE_FLOATS * 4)]
     if accel == "bvh":  # at most one node per sphere: the largest of the tree's buffers
         needs.append(("the BVH's nodes", max(spheres, 1) * bvh_mod.NODE_BYTES))
     for what, need in needs:
         if need > largest:
-            raise RaybenchError(f"size: {what} need {need / 2**20:.0f} MiB, more than this adapter's largest "
-                                f"storage buffer ({largest / 2**20:.0f} MiB); choose a smaller size or fewer spheres")
+            raise RaybenchError(
+                f"size: {what} need {need / 2**20:.0f} MiB, more than this adapter's largest "
+                f"storage buffer ({largest / 2**20:.0f} MiB); choose a smaller size or fewer spheres"
+            )
 
 
 def frame_uniform(basis: np.ndarray, width: int, height: int, count: int) -> bytes:
@@ -93,7 +102,7 @@ def sphere_rows(spheres: np.ndarray) -> np.ndarray:
     """(7, N) columns -> (N, 8) rows, the shader's struct Sphere (one row at least:
     a binding cannot be empty)."""
     rows = np.zeros((max(spheres.shape[1], 1), SPHERE_FLOATS), np.float32)
-    rows[:spheres.shape[1], :7] = spheres.T
+    rows[: spheres.shape[1], :7] = spheres.T
     return rows
 
 
@@ -101,7 +110,7 @@ def ordered_rows(tree: bvh_mod.Bvh) -> np.ndarray:
     """bvh.ordered's (4, N) columns -> (N, 4) rows, the shader's array<vec4<f32>>
     (one row at least: a binding cannot be empty)."""
     rows = np.zeros((max(tree.count, 1), 4), np.float32)
-    rows[:tree.count] = tree.ordered.T
+    rows[: tree.count] = tree.ordered.T
     return rows
 
 
@@ -111,9 +120,18 @@ class Compute:
     BVH, build_s is the last build's seconds (the build alone, as on cuda),
     and walk says how the pass walks it: "ray" (the default) or "packet"."""
 
-    def __init__(self, device, spheres: np.ndarray, width: int, height: int, workgroup=None,
-                 accel: str | None = None, kernel: str | None = None, extra_texture_usage: int = 0,
-                 walk: str | None = None):
+    def __init__(
+        self,
+        device,
+        spheres: np.ndarray,
+        width: int,
+        height: int,
+        workgroup=None,
+        accel: str | None = None,
+        kernel: str | None = None,
+        extra_texture_usage: int = 0,
+        walk: str | None = None,
+    ):
         import wgpu
 
         self.device = device
@@ -122,25 +140,37 @@ class Compute:
         walk = check_walk(walk, self.accel)
         self.walk = (walk or "ray") if self.accel == "bvh" else None
         if self.walk == "packet" and PACKET_FEATURE not in device.features:
-            raise RaybenchError(f"walk: the packet walk votes with subgroup operations, and this device has no "
-                                f"{PACKET_FEATURE!r} feature; use walk='ray'")
+            raise RaybenchError(
+                f"walk: the packet walk votes with subgroup operations, and this device has no "
+                f"{PACKET_FEATURE!r} feature; use walk='ray'"
+            )
         default = DEFAULT_WORKGROUP[self.walk or self.accel]
         self.workgroup = check_workgroup(default if workgroup is None else workgroup, limits)
         self.count = spheres.shape[1]
         check_frame_fits(width, height, self.count, self.workgroup, limits, self.accel)
         if self.accel == "bvh":
-            check_bvh_fits("host", self.count, host_available_bytes(), bvh_mod.BUILD_SPHERE_BYTES,
-                           width * height * HOST_PIXEL_BYTES)
+            check_bvh_fits(
+                "host",
+                self.count,
+                host_available_bytes(),
+                bvh_mod.BUILD_SPHERE_BYTES,
+                width * height * HOST_PIXEL_BYTES,
+            )
         self.width, self.height = width, height
-        self.uniform = device.create_buffer(size=UNIFORM_BYTES,
-                                            usage=wgpu.BufferUsage.UNIFORM | wgpu.BufferUsage.COPY_DST)
-        self.spheres = device.create_buffer_with_data(data=sphere_rows(spheres).tobytes(),
-                                                      usage=wgpu.BufferUsage.STORAGE)
+        self.uniform = device.create_buffer(
+            size=UNIFORM_BYTES, usage=wgpu.BufferUsage.UNIFORM | wgpu.BufferUsage.COPY_DST
+        )
+        self.spheres = device.create_buffer_with_data(
+            data=sphere_rows(spheres).tobytes(), usage=wgpu.BufferUsage.STORAGE
+        )
         self.texture = device.create_texture(
-            size=(width, height, 1), format=FRAME_FORMAT,
-            usage=wgpu.TextureUsage.STORAGE_BINDING | wgpu.TextureUsage.COPY_SRC | extra_texture_usage)
-        self.hits = device.create_buffer(size=width * height * 4,
-                                         usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC)
+            size=(width, height, 1),
+            format=FRAME_FORMAT,
+            usage=wgpu.TextureUsage.STORAGE_BINDING | wgpu.TextureUsage.COPY_SRC | extra_texture_usage,
+        )
+        self.hits = device.create_buffer(
+            size=width * height * 4, usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC
+        )
         self.pipeline = None
         # kept for rebuilds: a frame of fewer spheres walks a tree of its own
         self.scene_spheres = spheres
@@ -151,8 +181,9 @@ class Compute:
         self.timestamps = "timestamp-query" in device.features
         if self.timestamps:
             self.queries = device.create_query_set(type="timestamp", count=2)
-            self.resolved = device.create_buffer(size=16, usage=wgpu.BufferUsage.QUERY_RESOLVE
-                                                 | wgpu.BufferUsage.COPY_SRC)
+            self.resolved = device.create_buffer(
+                size=16, usage=wgpu.BufferUsage.QUERY_RESOLVE | wgpu.BufferUsage.COPY_SRC
+            )
             self.times = device.create_buffer(size=16, usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ)
         # Waiting for a submission: map a buffer it copies into. (wgpu-py 0.32's
         # queue.on_submitted_work_done_sync fails with a ctypes TypeError.)
@@ -166,7 +197,8 @@ class Compute:
         walk = self.walk or "ray"
         module = self.device.create_shader_module(code=shader.source(self.workgroup, self.accel, walk))
         self.pipeline = self.device.create_compute_pipeline(
-            layout="auto", compute={"module": module, "entry_point": shader.ENTRY[walk]})
+            layout="auto", compute={"module": module, "entry_point": shader.ENTRY[walk]}
+        )
         self._bind()
         return time.perf_counter() - start
 
@@ -179,11 +211,12 @@ class Compute:
             {"binding": 3, "resource": {"buffer": self.hits}},
         ]
         if self.tree is not None:
-            entries += [{"binding": 4, "resource": {"buffer": self.nodes}},
-                        {"binding": 5, "resource": {"buffer": self.ordered}},
-                        {"binding": 6, "resource": {"buffer": self.order}}]
-        self.bind_group = self.device.create_bind_group(layout=self.pipeline.get_bind_group_layout(0),
-                                                        entries=entries)
+            entries += [
+                {"binding": 4, "resource": {"buffer": self.nodes}},
+                {"binding": 5, "resource": {"buffer": self.ordered}},
+                {"binding": 6, "resource": {"buffer": self.order}},
+            ]
+        self.bind_group = self.device.create_bind_group(layout=self.pipeline.get_bind_group_layout(0), entries=entries)
 
     def _build(self, count: int) -> None:
         """Build the BVH of the first `count` spheres on the host and upload it
@@ -210,13 +243,17 @@ class Compute:
             self._build(count)
         self.device.queue.write_buffer(self.uniform, 0, frame_uniform(basis, self.width, self.height, count))
         timed = timed and self.timestamps
-        writes = {"query_set": self.queries, "beginning_of_pass_write_index": 0,
-                  "end_of_pass_write_index": 1} if timed else None
+        writes = (
+            {"query_set": self.queries, "beginning_of_pass_write_index": 0, "end_of_pass_write_index": 1}
+            if timed
+            else None
+        )
         compute_pass = encoder.begin_compute_pass(timestamp_writes=writes)
         compute_pass.set_pipeline(self.pipeline)
         compute_pass.set_bind_group(0, self.bind_group)
-        compute_pass.dispatch_workgroups(math.ceil(self.width / self.workgroup[0]),
-                                         math.ceil(self.height / self.workgroup[1]), 1)
+        compute_pass.dispatch_workgroups(
+            math.ceil(self.width / self.workgroup[0]), math.ceil(self.height / self.workgroup[1]), 1
+        )
         compute_pass.end()
         if timed:
             encoder.resolve_query_set(self.queries, 0, 2, self.resolved, 0)

@@ -21,8 +21,12 @@ PIECES = ("common.wgsl", "intersect.wgsl", "shade.wgsl", "trace.wgsl")
 # The walk's constants, taken from their Python definitions rather than
 # written again in WGSL: float32 values whose repr is exact, so the WGSL
 # literal converts to the very float32 the CPU uses.
-BVH_CONSTANTS = {"BVH_STACK": f"{bvh.STACK}u", "BVH_INNER": f"{bvh.INNER}", "BVH_PAD": repr(float(bvh.PAD)),
-                 "BVH_TINY": repr(float(traverse.TINY))}
+BVH_CONSTANTS = {
+    "BVH_STACK": f"{bvh.STACK}u",
+    "BVH_INNER": f"{bvh.INNER}",
+    "BVH_PAD": repr(float(bvh.PAD)),
+    "BVH_TINY": repr(float(traverse.TINY)),
+}
 
 
 @functools.cache

@@ -35,8 +35,17 @@ class Tracer:
 
     name = "wgpu"
 
-    def __init__(self, spheres: np.ndarray, width: int, height: int, workgroup=None, adapter: str | None = None,
-                 accel: str | None = None, kernel: str | None = None, walk: str | None = None):
+    def __init__(
+        self,
+        spheres: np.ndarray,
+        width: int,
+        height: int,
+        workgroup=None,
+        adapter: str | None = None,
+        accel: str | None = None,
+        kernel: str | None = None,
+        walk: str | None = None,
+    ):
         import wgpu
 
         accel = check_accel(accel, kernel)
@@ -50,10 +59,12 @@ class Tracer:
         self.workgroup = self.compute.workgroup
         self.width, self.height, self.count = width, height, spheres.shape[1]
         self.row_bytes = -(-width * 4 // ROW_ALIGN) * ROW_ALIGN
-        self.image_read = self.device.create_buffer(size=self.row_bytes * height,
-                                                    usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ)
-        self.hits_read = self.device.create_buffer(size=width * height * 4,
-                                                   usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ)
+        self.image_read = self.device.create_buffer(
+            size=self.row_bytes * height, usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ
+        )
+        self.hits_read = self.device.create_buffer(
+            size=width * height * 4, usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ
+        )
         self.image = np.empty((height, width, 3), np.uint8)
         self.hits = np.empty((height, width), np.int32)
         self.period_ns = timestamp_period(self.device) if self.compute.timestamps else None
@@ -65,8 +76,11 @@ class Tracer:
 
     def describe(self) -> dict:
         """The adapter, for result records and labels."""
-        return {**self.adapter.describe(), "workgroup": list(self.workgroup),
-                "timing": "timestamp-query" if self.period_ns else "wall clock"}
+        return {
+            **self.adapter.describe(),
+            "workgroup": list(self.workgroup),
+            "timing": "timestamp-query" if self.period_ns else "wall clock",
+        }
 
     def compile(self) -> float:
         return self.compute.compile()
@@ -85,7 +99,8 @@ class Tracer:
         encoder.copy_texture_to_buffer(
             {"texture": self.compute.texture, "mip_level": 0, "origin": (0, 0, 0)},
             {"buffer": self.image_read, "offset": 0, "bytes_per_row": self.row_bytes, "rows_per_image": self.height},
-            (self.width, self.height, 1))
+            (self.width, self.height, 1),
+        )
         encoder.copy_buffer_to_buffer(self.compute.hits, 0, self.hits_read, 0, self.width * self.height * 4)
 
     def _fetch(self) -> tuple[np.ndarray, np.ndarray]:
@@ -96,9 +111,10 @@ class Tracer:
             buffer.map_sync(wgpu.MapMode.READ)
         try:
             rgba = np.frombuffer(self.image_read.read_mapped(copy=False), np.uint8)
-            self.image[...] = rgba.reshape(self.height, self.row_bytes // 4, 4)[:, :self.width, :3]
+            self.image[...] = rgba.reshape(self.height, self.row_bytes // 4, 4)[:, : self.width, :3]
             self.hits[...] = np.frombuffer(self.hits_read.read_mapped(copy=False), np.int32).reshape(
-                self.height, self.width)
+                self.height, self.width
+            )
         finally:
             self.image_read.unmap()
             self.hits_read.unmap()
