@@ -1,7 +1,6 @@
 """The benchmark: suite points, statistics, the results file under interruption,
 and a --quick run end to end on the CPU."""
 
-import json
 import os
 import signal
 import subprocess

@@ -4,12 +4,12 @@ held to the float64 reference by test_cpu and test_fast)."""
 
 import numpy as np
 import pytest
+from scenes import IN_VIEW, KINDS, SCENES, chain, one_point
 
 import raybench
 from raybench import Scene, bvh, kernels
 from raybench.backends import cpu as cpu_backend
 from raybench.backends import cuda as cuda_backend
-from scenes import IN_VIEW, KINDS, SCENES, chain, one_point
 
 # The algorithm as plain Python on NumPy float32 scalars, run without a compiler.
 K = kernels.build(lambda f: f)
@@ -338,6 +338,7 @@ def test_bvh_too_large_for_memory_is_one_line(monkeypatch):
     monkeypatch.setattr(cpu, "host_available_bytes", lambda: 64 * 48 * 14 + 10000 * 28 + 1000)
     with pytest.raises(
         raybench.RaybenchError,
-        match=r"bvh: 10,000 spheres need [0-9.]+ MiB for the BVH and the frame, more than the [0-9.]+ MiB available on the cpu",
+        match=r"bvh: 10,000 spheres need [0-9.]+ MiB for the BVH and the frame, "
+        r"more than the [0-9.]+ MiB available on the cpu",
     ):
         raybench.render(scene, width=64, height=48, device="cpu")

@@ -12,8 +12,7 @@ import pytest
 from PIL import Image
 
 import raybench
-from raybench import Camera, Scene, random_spheres
-from raybench import backends
+from raybench import Camera, Scene, backends, random_spheres
 from raybench.backends import cuda_available
 from raybench.cli import run
 

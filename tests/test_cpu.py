@@ -2,10 +2,10 @@
 
 import numpy as np
 import pytest
-
-import raybench
 from reference import check_frame, trace
 from scenes import KINDS
+
+import raybench
 
 
 @pytest.mark.parametrize("kernel", ["simple", "fast"])

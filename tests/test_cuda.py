@@ -3,11 +3,11 @@ on a machine with one. Same scenes, same reference as the CPU tests."""
 
 import numpy as np
 import pytest
+from reference import check_frame, trace
+from scenes import KINDS
 
 import raybench
 from raybench.backends import cuda as cuda_backend
-from reference import check_frame, trace
-from scenes import KINDS
 
 SIM = cuda_backend.simulated()
 pytestmark = pytest.mark.skipif(not cuda_backend.available(), reason="no CUDA GPU and the simulator is off")
@@ -72,7 +72,7 @@ def test_constant_count_kernel_draws_the_same(rng):
 def test_timed_frames_and_sphere_prefix(rng):
     """What the benchmark uses: kernel time from CUDA events (None under the
     simulator) and frames of the first k spheres."""
-    from raybench import Camera, backends
+    from raybench import backends
 
     scene, camera = KINDS["generated"](rng, 30)
     width, height = SIZES[0]

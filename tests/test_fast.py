@@ -3,11 +3,11 @@ test only ever skips spheres the exact test would reject."""
 
 import numpy as np
 import pytest
+from scenes import KINDS
 
 import raybench
 from raybench import backends, kernels
 from raybench.backends import cuda as cuda_backend
-from scenes import KINDS
 
 # The algorithm as plain Python on NumPy float32 scalars: the same source the
 # backends compile, run without a compiler.

@@ -23,7 +23,7 @@ from raybench.viewer import bindings, controls, overlay
 from raybench.viewer.pacing import FrameStats, Handoff
 from raybench.viewer.spheres import SphereSupply
 from raybench.viewer.state import ViewerState
-from raybench.viewer.worker import TraceFailed, TracedFrame, TraceRequest, TraceWorker, to_rgba
+from raybench.viewer.worker import TracedFrame, TraceFailed, TraceRequest, TraceWorker, to_rgba
 
 
 class Clock:
@@ -583,7 +583,7 @@ def test_worker_traces_off_the_event_loop():
     assert slowest < 0.05, f"an event took {slowest * 1e3:.0f} ms while a {frame_s:.2f} s frame was traced"
 
 
-# --------------------------------------------------------------------------- bad input: one line, exit 2, before any window
+# ---------------------------------------------------------------- bad input: one line, exit 2, before any window
 
 
 @pytest.mark.parametrize(

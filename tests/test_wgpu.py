@@ -14,14 +14,14 @@ import os
 
 import numpy as np
 import pytest
+from reference import check_frame, trace
+from scenes import IN_VIEW, KINDS, SCENES, one_point
 
 import raybench
 from raybench import backends
 from raybench.backends.wgpu import adapters, compute
 from raybench.cli import run
 from raybench.render import Frame
-from reference import check_frame, trace
-from scenes import IN_VIEW, KINDS, SCENES, one_point
 
 REQUIRED = os.environ.get("RAYBENCH_REQUIRE_WGPU") == "1"
 
@@ -452,7 +452,8 @@ def test_cpu_use_never_imports_wgpu(tmp_path):
         "import sys, raybench\n"
         "from raybench.cli import run\n"
         "raybench.render(raybench.random_spheres(3), width=8, height=8, device='cpu')\n"
-        f"assert run(['render', '--spheres', '3', '--size', '8x8', '--device', 'cpu', '-o', {str(tmp_path / 'x.png')!r}]) == 0\n"
+        f"out = {str(tmp_path / 'x.png')!r}\n"
+        "assert run(['render', '--spheres', '3', '--size', '8x8', '--device', 'cpu', '-o', out]) == 0\n"
         "import raybench.backends.wgpu\n"
         "assert 'wgpu' not in sys.modules, 'wgpu was imported'\n"
     )

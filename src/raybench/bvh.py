@@ -35,8 +35,8 @@ all coincide are split by count too.
 from __future__ import annotations
 
 import os
-import time
 import threading
+import time
 from dataclasses import dataclass
 
 import numba

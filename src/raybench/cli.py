@@ -110,7 +110,10 @@ def main():
 @click.option("--threads", type=int, help="cpu: number of threads (default: all cores)")
 @click.option(
     "--block",
-    help="cuda: thread block shape XxY (default 8x8 for the fast kernel and the BVH walked a ray at a time, 8x4 for its packets on large trees, 16x16 simple)",
+    help=(
+        "cuda: thread block shape XxY (default 8x8 for the fast kernel and the BVH walked a ray at a time, "
+        "8x4 for its packets on large trees, 16x16 simple)"
+    ),
 )
 @click.option("--workgroup", help="wgpu: workgroup shape XxY (default 16x16)")
 @click.option(
@@ -185,7 +188,10 @@ def _view_help() -> str:
 @click.option("--threads", type=int, help="cpu: number of threads (default: all cores)")
 @click.option(
     "--block",
-    help="cuda: thread block shape XxY (default 8x8 for the BVH walked a ray at a time, 8x4 for its packets on large trees)",
+    help=(
+        "cuda: thread block shape XxY (default 8x8 for the BVH walked a ray at a time, "
+        "8x4 for its packets on large trees)"
+    ),
 )
 @click.option("--workgroup", help="wgpu: workgroup shape XxY (default 16x16)")
 @click.option(
@@ -367,7 +373,8 @@ def bench(suites, devices, adapter, kernels, accels, duration, quick, out_dir, l
     import datetime
 
     from . import backends
-    from .bench import runner, suites as suites_mod
+    from .bench import runner
+    from .bench import suites as suites_mod
     from .bench.results import ResultsWriter
     from .machine import describe
 

@@ -84,7 +84,7 @@ class Scene:
     def colors(self) -> np.ndarray:
         return self.spheres[4:7].T
 
-    def head(self, n: int) -> "Scene":
+    def head(self, n: int) -> Scene:
         """The first n spheres of this scene."""
         return Scene(self.centers[:n], self.radii[:n], self.colors[:n], self.camera)
 
@@ -103,7 +103,7 @@ class Scene:
         write_atomic(path, json.dumps(self.to_dict(), indent=1).encode())
 
     @classmethod
-    def from_dict(cls, doc) -> "Scene":
+    def from_dict(cls, doc) -> Scene:
         if not isinstance(doc, dict):
             raise RaybenchError(f'scene: must be a JSON object with "format": "{FORMAT}", got {type(doc).__name__}')
         if doc.get("format") != FORMAT:
@@ -146,7 +146,7 @@ class Scene:
         return cls(centers, radii, colors, camera)
 
     @classmethod
-    def load(cls, path) -> "Scene":
+    def load(cls, path) -> Scene:
         path = Path(path)
         text = read_text(path, "scene file")
         try:

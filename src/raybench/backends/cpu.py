@@ -28,10 +28,10 @@ from concurrent.futures import ThreadPoolExecutor
 import numba
 import numpy as np
 
-from .. import kernels
-from ..kernels.trace import FAR, ZERO
-from ..errors import RaybenchError
 from .. import bvh as bvh_mod
+from .. import kernels
+from ..errors import RaybenchError
+from ..kernels.trace import FAR, ZERO
 from .limits import (
     HOST_PIXEL_BYTES,
     check_accel,
@@ -83,7 +83,7 @@ def _render_band(first_row, end_row, width, height, basis, spheres, count, image
             _render_pixel(x, y, width, height, basis, spheres, count, image, hits)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _constant_band(count: int):
     """_render_band with the sphere count frozen into the code (a compile-time
     constant, as in the thesis's tests 1 to 6); one compilation per count."""
@@ -193,7 +193,7 @@ def _has_avx512() -> bool:
         from llvmlite import binding
 
         return bool(binding.get_host_cpu_features().get("avx512f", False))
-    except Exception:  # an llvmlite without the query: the kernel that suits every CPU
+    except Exception:  # noqa: BLE001 - an llvmlite without the query: the kernel that suits every CPU
         return False
 
 

@@ -22,10 +22,10 @@ import numpy as np
 from numba import config, cuda
 from numba.cuda.core.errors import NumbaPerformanceWarning
 
-from .. import kernels
-from ..kernels.trace import FAR, ZERO
-from ..errors import RaybenchError
 from .. import bvh as bvh_mod
+from .. import kernels
+from ..errors import RaybenchError
+from ..kernels.trace import FAR, ZERO
 from .limits import (
     FAST_MAX_THREADS,
     HOST_PIXEL_BYTES,
@@ -37,7 +37,7 @@ from .limits import (
     check_kernel,
     host_available_bytes,
 )
-from .walks import WALKS, check_walk  # noqa: F401 - WALKS: the walks this backend takes
+from .walks import WALKS, check_walk
 
 # The fastest measured (docs/performance.md): simple on an H100; fast (with
 # TRIP) and the BVH walked a ray at a time on the H200, where 8x8 also makes
@@ -211,7 +211,7 @@ def _prepare_kernel(basis, spheres, count, relative):
         _prepare_one(i, basis, spheres, relative)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def fast_kernel(rays: int = RAYS, tile: int = TILE, trip: int = TRIP):
     """The fast kernel for `rays` pixels per thread, `tile` spheres per
     shared-memory tile and `trip` spheres per trip of the cull loop
@@ -316,7 +316,7 @@ def fast_kernel(rays: int = RAYS, tile: int = TILE, trip: int = TRIP):
     return kernel
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _constant_kernel(count: int):
     """_render_kernel with the sphere count frozen into the code (a compile-time
     constant, as in the thesis's tests 1 to 6); one compilation per count."""
@@ -340,7 +340,10 @@ def available() -> bool:
 
 def unavailable_reason() -> str:
     reason = " ".join((cuda.cuda_error() or "no CUDA device was found").split())
-    return f"device cuda: no usable NVIDIA GPU (numba-cuda looked for the CUDA driver and a CUDA device: {reason}); use --device cpu"
+    return (
+        "device cuda: no usable NVIDIA GPU (numba-cuda looked for the CUDA driver and a CUDA device: "
+        f"{reason}); use --device cpu"
+    )
 
 
 def require() -> None:

@@ -979,7 +979,7 @@ def _section_thesis(w: _Writer, label: str, slug: str, records: list[dict]) -> N
             tps = s["tests_per_s"][-1]
             row.append(f"{_num(tps / 1e9)} G" if tps else "–")
             rows.append(row)
-        w(f"Median frame time (ms) at each sphere count, and the line fitted to it:", "", _table(header, rows), "")
+        w("Median frame time (ms) at each sphere count, and the line fitted to it:", "", _table(header, rows), "")
 
 
 def _section_speedup(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
@@ -1072,7 +1072,7 @@ def _section_tuning(w: _Writer, label: str, slug: str, records: list[dict]) -> N
         "outlined.",
         "",
     )
-    for device, rows in (("cpu", cpu), ("cuda", gpu)):
+    for device, _rows in (("cpu", cpu), ("cuda", gpu)):
         _, others = _largest_group(records, "tuning", device)
         if others:
             w(

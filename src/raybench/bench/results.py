@@ -89,7 +89,7 @@ def read(path) -> list[dict]:
             record = json.loads(line)
         except json.JSONDecodeError:
             if last and not text.endswith("\n"):
-                warnings.warn(f"{path}: line {number} is cut short (an interrupted run?); skipped it")
+                warnings.warn(f"{path}: line {number} is cut short (an interrupted run?); skipped it", stacklevel=2)
                 continue
             raise RaybenchError(f"{path}: line {number} is not JSON: not a raybench results file, or damaged") from None
         if not isinstance(record, dict) or record.get("format") != FORMAT:

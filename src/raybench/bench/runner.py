@@ -181,7 +181,7 @@ def machine_label(machine: dict) -> str:
 def run_info(machine: dict, label: str, settings: dict) -> dict:
     return {
         "id": uuid.uuid4().hex[:12],
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         "git_commit": git_commit(),
         "label": label,
         "argv": sys.argv[1:],

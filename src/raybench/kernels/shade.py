@@ -1,7 +1,5 @@
 """Shading: the thesis's colour rule, and colour to bytes."""
 
-import math
-
 import numpy as np
 
 ZERO = np.float32(0.0)

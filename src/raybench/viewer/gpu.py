@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..backends.wgpu.adapters import native_stderr_captured  # noqa: F401 - also used by the tests
+from ..backends.wgpu.adapters import native_stderr_captured
 from ..errors import RaybenchError
 
 FRAME_FORMAT = "rgba8unorm"

@@ -112,7 +112,7 @@ class TraceWorker:
                 if self._on_done is not None:
                     try:
                         self._on_done()
-                    except Exception:
+                    except Exception:  # noqa: BLE001
                         pass  # the window is gone; nobody is waiting for this frame
         finally:
             self._drop_tracer()

@@ -16,7 +16,8 @@ import numpy as np
 
 from ... import bvh as bvh_mod
 from ...errors import RaybenchError
-from ..limits import HOST_PIXEL_BYTES, check_accel as check_accel_and_kernel, check_bvh_fits, host_available_bytes
+from ..limits import HOST_PIXEL_BYTES, check_bvh_fits, host_available_bytes
+from ..limits import check_accel as check_accel_and_kernel
 from ..walks import check_walk
 from . import shader
 
