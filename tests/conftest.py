@@ -21,6 +21,22 @@ def rng(request):
     return np.random.default_rng(seed)
 
 
+@pytest.fixture(scope="session")
+def adapter() -> str:
+    """The name of the wgpu adapter to trace on: the best one found, named, so
+    that a CPU driver (lavapipe) is used too. Where there is none the test
+    skips, or fails under RAYBENCH_REQUIRE_WGPU=1 (CI)."""
+    from raybench.backends.wgpu import adapters
+
+    found = adapters.found()
+    if not found:
+        reason = "wgpu finds no adapter (on Debian: apt-get install mesa-vulkan-drivers libvulkan1)"
+        if os.environ.get("RAYBENCH_REQUIRE_WGPU") == "1":
+            pytest.fail(f"{reason}; RAYBENCH_REQUIRE_WGPU=1 requires the wgpu tests to run")
+        pytest.skip(reason)
+    return found[0].name
+
+
 def pytest_sessionfinish(session, exitstatus):
     """GPU objects that tests left in reference cycles (closed windows' wgpu
     devices) are released now, with the interpreter whole, rather than during

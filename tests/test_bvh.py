@@ -7,7 +7,7 @@ import pytest
 from scenes import IN_VIEW, KINDS, SCENES, chain, one_point
 
 import raybench
-from raybench import Scene, bvh, kernels
+from raybench import Scene, bvh, kernels, layout
 from raybench.backends import cpu as cpu_backend
 from raybench.backends import cuda as cuda_backend
 
@@ -115,8 +115,8 @@ def tangent_pairs(rng, n):
 
 
 def walk(b, o, d):
-    stack_row = np.empty(bvh.STACK, np.int32)
-    stack_t = np.empty(bvh.STACK, np.float32)
+    stack_row = np.empty(layout.STACK, np.int32)
+    stack_t = np.empty(layout.STACK, np.float32)
     return K.nearest_hit_bvh(
         o[0], o[1], o[2], d[0], d[1], d[2], b.nodes, b.links, b.ordered, b.order, stack_row, stack_t
     )
@@ -215,7 +215,7 @@ def check_tree(b: bvh.Bvh, spheres: np.ndarray):
                 continue
             if outer is not None:
                 assert (box[:3] >= outer[:3]).all() and (box[3:] <= outer[3:]).all()
-            if count == bvh.INNER:
+            if count == layout.INNER:
                 assert 0 < ref < b.node_count
                 todo.append((ref, box, depth + 1))
                 continue
@@ -226,7 +226,7 @@ def check_tree(b: bvh.Bvh, spheres: np.ndarray):
                 c, r = spheres[:3, i].astype(np.float64), float(spheres[3, i]) + pad[i] * 0.99
                 assert (box[:3] <= c - r).all() and (box[3:] >= c + r).all()
     assert (seen == 1).all()
-    assert deepest == b.depth <= bvh.MAX_DEPTH
+    assert deepest == b.depth <= layout.MAX_DEPTH
     return deepest
 
 
@@ -256,7 +256,7 @@ def test_depth_is_bounded_for_a_chain(rng):
     splits by count before the stack's depth."""
     scene, _ = chain(rng, 0)
     depth = check_tree(bvh.build(scene.spheres), scene.spheres)
-    assert depth > bvh.MAX_DEPTH - 10, depth  # the guard was what stopped it
+    assert depth > layout.MAX_DEPTH - 10, depth  # the guard was what stopped it
 
 
 def test_parallel_build_is_a_valid_tree(rng):
@@ -291,14 +291,14 @@ def test_cuda_walk_is_chosen_by_the_tree_size():
     their own default block; a ray at a time below, in its own."""
     if not cuda_backend.available():
         pytest.skip("no CUDA GPU and the simulator is off")
-    small_rows = cuda_backend.PACKET_TREE_BYTES // bvh.NODE_BYTES
+    small_rows = cuda_backend.PACKET_TREE_BYTES // layout.NODE_BYTES
     assert cuda_backend.choose_walk(small_rows) == "ray"
     assert cuda_backend.choose_walk(small_rows + 1) == "packet"
     for n, walk in ((50, "ray"), (30000, "packet")):
         tracer = raybench.backends.tracer("cuda", raybench.random_spheres(n).spheres, 16, 8)
         try:
             assert (tracer.walk, tracer.block) == (walk, cuda_backend.DEFAULT_BLOCK[walk])
-            assert (tracer.bvh.node_count * bvh.NODE_BYTES > cuda_backend.PACKET_TREE_BYTES) == (walk == "packet")
+            assert (tracer.bvh.node_count * layout.NODE_BYTES > cuda_backend.PACKET_TREE_BYTES) == (walk == "packet")
         finally:
             tracer.close()
 

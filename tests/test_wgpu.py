@@ -10,7 +10,6 @@ RAYBENCH_REQUIRE_WGPU=1 (CI sets it): there that is a failure.
 from __future__ import annotations
 
 import json
-import os
 
 import numpy as np
 import pytest
@@ -22,21 +21,6 @@ from raybench import backends
 from raybench.backends.wgpu import adapters, compute
 from raybench.cli import run
 from raybench.render import Frame
-
-REQUIRED = os.environ.get("RAYBENCH_REQUIRE_WGPU") == "1"
-
-
-@pytest.fixture(scope="module")
-def adapter() -> str:
-    """The name of the adapter to trace on: the best one found, named, so that a
-    CPU driver (lavapipe) is used too."""
-    found = adapters.found()
-    if not found:
-        reason = "wgpu finds no adapter (on Debian: apt-get install mesa-vulkan-drivers libvulkan1)"
-        if REQUIRED:
-            pytest.fail(f"{reason}; RAYBENCH_REQUIRE_WGPU=1 requires the wgpu tests to run")
-        pytest.skip(reason)
-    return found[0].name
 
 
 def same_as_cpu(gpu, cpu, ref, context):

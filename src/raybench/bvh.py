@@ -11,11 +11,12 @@ cores, and the trace, done every frame, is what the tree must serve.
 Every thread takes part from the root down: a range of many spheres is split
 by all of them at once, and smaller ranges are subtrees built one per thread.
 
-Layout, shared by every backend (they get the same arrays):
-  nodes  (M, 16) float32, one 64-byte row per node, one cache line: the boxes
-         of BOTH children (lo xyz, hi xyz of child 0, then of child 1), so one
-         row fetch tests two boxes; columns 12..15 hold int32 (the `links`
-         view of the same memory): the children's refs and counts.
+Layout, shared by every backend (they get the same arrays; raybench.layout
+names the columns):
+  nodes  (M, NODE_FLOATS) float32, one 64-byte row per node, one cache line:
+         the boxes of BOTH children (from CHILD_BOX[c]: lo xyz, hi xyz), so one
+         row fetch tests two boxes; columns REF + c and COUNT + c hold int32
+         (the `links` view of the same memory): the children's refs and counts.
            count == INNER: ref is the child node's row;
            count >= 0:     a leaf of `count` spheres from `ref` in `ordered`
                            (0: an empty child, whose box is inverted: lo EMPTY, hi -EMPTY).
@@ -43,8 +44,8 @@ import numba
 import numpy as np
 
 from .errors import RaybenchError
+from .layout import BOX_FLOATS, CHILD_BOX, COUNT, EMPTY, INNER, MAX_DEPTH, NODE_BYTES, NODE_FLOATS, PAD, REF
 
-INNER = -1
 BINS = 16
 LEAF_MAX = 8
 # Leaves of up to LEAF_ALWAYS spheres are kept without weighing a split:
@@ -54,7 +55,6 @@ LEAF_ALWAYS = 3
 # Expected cost of visiting a node (two box tests), in sphere tests; the SAH
 # weighs splitting against leaving the spheres in one leaf with it.
 NODE_COST = np.float32(2.0)
-MAX_DEPTH = 48
 # Ranges of more spheres than WIDE are split by all the build's threads at
 # once, each binning and then moving a slice of at most SLICE spheres, so the
 # top of a large tree does not wait on one core (_grow_wide); smaller ones are
@@ -65,11 +65,6 @@ MAX_DEPTH = 48
 # benchmark's scenes.
 WIDE = 4096
 SLICE = 1 << 14
-# Traversal stack entries: one per level on the way down is the most a
-# near-first walk keeps (each level pushes at most its far child).
-STACK = MAX_DEPTH + 2
-NODE_FLOATS = 16
-NODE_BYTES = NODE_FLOATS * 4
 # Bytes the builder holds per sphere at its peak: work arrays (the last, the
 # order) and their spare set, ordered spheres, two rows of nodes and the
 # packed copy.
@@ -77,16 +72,6 @@ BUILD_SPHERE_BYTES = 5 * 4 + 5 * 4 + 4 * 4 + 3 * NODE_BYTES
 # Per sphere on the device after the build: nodes (at most one per sphere),
 # ordered spheres, order.
 DEVICE_SPHERE_BYTES = NODE_BYTES + 4 * 4 + 4
-# Relative padding of every sphere's box, of (radius + |centre|_1); the
-# traversal adds the same fraction of |camera|_1 (kernels.traverse). 2^-16 is
-# 128 float32 epsilons: many times the few epsilons by which the exact test's
-# float32 hit point can stray from the true sphere (|EO| and r scale them).
-PAD = np.float32(2.0**-16)
-# The planes of an empty child's inverted box (only a root of under two
-# spheres has one): far beyond any scene (coordinates stay under 1e15), and
-# finite even divided by a direction component of TINY (kernels.traverse),
-# so no walk's arithmetic on it overflows or meets inf - inf.
-EMPTY = np.float32(1e18)
 MAX_SPHERES = 2**31 - 1
 _ONE_BUILD = threading.Lock()
 
@@ -94,7 +79,7 @@ _ONE_BUILD = threading.Lock()
 @dataclass
 class Bvh:
     nodes: np.ndarray  # (M, 16) float32
-    links: np.ndarray  # (M, 16) int32 view of nodes; columns 12..15 used
+    links: np.ndarray  # (M, 16) int32 view of nodes; columns REF, COUNT used
     ordered: np.ndarray  # (4, N) float32: cx, cy, cz, r in leaf order
     order: np.ndarray  # (N,) int32: original index of each ordered sphere
     depth: int  # deepest node (root = 1)
@@ -312,6 +297,14 @@ def _push(stack, top, parent, slot, s, e, d):
 
 
 @numba.njit(nogil=True, cache=True)
+def _empty_children(nodes, row):
+    """Both children's boxes of row inverted (lo EMPTY, hi -EMPTY): empty until filled."""
+    for col in CHILD_BOX:
+        nodes[row, col : col + 3] = EMPTY
+        nodes[row, col + 3 : col + BOX_FLOATS] = -EMPTY
+
+
+@numba.njit(nogil=True, cache=True)
 def _root(px, py, pz, pr, idx, nodes, links, stack):
     """Row 0, the root, with its spheres split in two children whatever their
     number; pushes their tasks (parent row, slot, start, end, parent's depth)
@@ -319,11 +312,10 @@ def _root(px, py, pz, pr, idx, nodes, links, stack):
     n = px.shape[0]
     box = np.empty(6, np.float32)
     cbox = np.empty(6, np.float32)
-    nodes[0, :12] = EMPTY
+    _empty_children(nodes, 0)
     for slot in range(2):
-        nodes[0, 6 * slot + 3 : 6 * slot + 6] = -EMPTY
-        links[0, 12 + slot] = 0
-        links[0, 14 + slot] = 0
+        links[0, REF + slot] = 0
+        links[0, COUNT + slot] = 0
     if n == 0:
         return 0
     _range_bounds(px, py, pz, pr, 0, n, box, cbox)
@@ -357,11 +349,9 @@ def _root(px, py, pz, pr, idx, nodes, links, stack):
 @numba.njit(nogil=True, cache=True)
 def _open_row(nodes, links, parent, slot, row):
     """Make row an inner node, the child (parent, slot), with both its children empty for now."""
-    links[parent, 12 + slot] = row
-    links[parent, 14 + slot] = INNER
-    nodes[row, :12] = EMPTY
-    nodes[row, 3:6] = -EMPTY
-    nodes[row, 9:12] = -EMPTY
+    links[parent, REF + slot] = row
+    links[parent, COUNT + slot] = INNER
+    _empty_children(nodes, row)
 
 
 @numba.njit(nogil=True, cache=True)
@@ -380,14 +370,14 @@ def _grow(px, py, pz, pr, idx, nodes, links, stack, top, used):
         top -= 1
         parent, slot, s, e, d = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3], stack[top, 4]
         count = e - s
-        col = 6 * slot
-        links[parent, 12 + slot] = s
-        links[parent, 14 + slot] = count
+        col = CHILD_BOX[slot]
+        links[parent, REF + slot] = s
+        links[parent, COUNT + slot] = count
         depth = max(depth, d)
         if count == 0:
             continue  # an empty child: its box stays inverted
         _range_bounds(px, py, pz, pr, s, e, box, cbox)
-        nodes[parent, col : col + 6] = box
+        nodes[parent, col : col + BOX_FLOATS] = box
         if count <= LEAF_ALWAYS:
             continue
         if d + 1 + _log2ceil(count) >= MAX_DEPTH:  # deeper SAH splits could overflow the stack
@@ -608,9 +598,9 @@ def _attach(level, m, mid, children, p, q, nodes, links, used, wide):
             if mid[k] >= 0:  # split by count: no bins gave the bounds
                 x, y, z, r, _ = q if buf == 0 else p
                 _range_bounds(x, y, z, r, cs, ce, b[:6], b[6:])
-            nodes[row, 6 * slot : 6 * slot + 6] = b[:6]
-            links[row, 12 + slot] = cs
-            links[row, 14 + slot] = ce - cs
+            nodes[row, CHILD_BOX[slot] : CHILD_BOX[slot] + BOX_FLOATS] = b[:6]
+            links[row, REF + slot] = cs
+            links[row, COUNT + slot] = ce - cs
             if ce - cs > wide:
                 _open_row(nodes, links, row, slot, used)
                 nxt[nn, 0], nxt[nn, 1], nxt[nn, 2], nxt[nn, 3], nxt[nn, 4] = used, cs, ce, d + 1, 1 - buf
@@ -664,10 +654,10 @@ def _pack(nodes, links, tasks, base, ends, starts, packed, packed_links, first, 
             to = new + row - old
             packed[to] = nodes[row]
             for c in range(2):
-                if packed_links[to, 14 + c] == INNER:
-                    packed_links[to, 12 + c] += new - old
-        if packed_links[parent, 14 + slot] == INNER:
-            packed_links[parent, 12 + slot] = new
+                if packed_links[to, COUNT + c] == INNER:
+                    packed_links[to, REF + c] += new - old
+        if packed_links[parent, COUNT + slot] == INNER:
+            packed_links[parent, REF + slot] = new
 
 
 # One parallel region per step, each thread taking every parts-th job. Numba's
@@ -745,9 +735,7 @@ def _build_wide(cx, cy, cz, r, threads: int, wide: int):
     piece = _piece(n, threads)
     parts = np.empty(((n + piece - 1) // piece, 12), np.float32)
     _prepare_all(cx, cy, cz, r, p, piece, parts, threads)
-    nodes[0, :12] = EMPTY
-    nodes[0, 3:6] = -EMPTY
-    nodes[0, 9:12] = -EMPTY
+    _empty_children(nodes, 0)
     level = np.array([[0, 0, n, 1, 0]], np.int64)  # row, s, e, the row's depth, buf
     bounds = parts[:1].copy()  # the slices' bounds merged: the root's
     _merge(bounds[0], parts)

@@ -74,6 +74,6 @@ def render(
     tracer = backends.tracer(device, scene.spheres, width, height, **options)
     try:
         image, hits = tracer.trace(camera.basis(width, height))
-        return Frame(image=image.copy(), hits=hits.copy(), device=tracer.name, build_s=getattr(tracer, "build_s", None))
+        return Frame(image=image.copy(), hits=hits.copy(), device=tracer.name, build_s=tracer.build_s)
     finally:
         tracer.close()

@@ -32,13 +32,13 @@ from .. import bvh as bvh_mod
 from .. import kernels
 from ..errors import RaybenchError
 from ..kernels.trace import FAR, ZERO
+from ..layout import BLUE, CHILD_BOX, COUNT, GREEN, INNER, PAD, RADIUS, RED, REF, STACK
+from .contract import TracerBase, check_method
 from .limits import (
     HOST_PIXEL_BYTES,
-    check_accel,
     check_bvh_fits,
     check_count,
     check_fits,
-    check_kernel,
     host_available_bytes,
 )
 
@@ -112,7 +112,7 @@ def _pairs_band(first_row, end_row, width, height, basis, spheres, relative, cou
     sphere by sphere, with the exact test. Same arithmetic, same order of
     spheres, same pixels as _render_band."""
     ex, ey, ez, es = relative[0], relative[1], relative[2], relative[3]
-    radius = spheres[3]
+    radius = spheres[RADIUS]
     for y in range(first_row, end_row):
         for x in range(0, width, 2):
             x1 = min(x + 1, width - 1)  # an odd width traces its last pixel twice, stores it once
@@ -149,7 +149,7 @@ def _wide_band(first_row, end_row, width, height, basis, spheres, relative, coun
     GROUP spheres is walked again with the exact test only where some ray
     may hit one of them. Same arithmetic, same order, same pixels."""
     ex, ey, ez, es = relative[0], relative[1], relative[2], relative[3]
-    radius = spheres[3]
+    radius = spheres[RADIUS]
     dx = np.empty(WIDE, np.float32)
     dy = np.empty(WIDE, np.float32)
     dz = np.empty(WIDE, np.float32)
@@ -337,10 +337,10 @@ def _colour_packet(x0, y0, spheres, hit, hit_d, rgb, paint):
     which LLVM makes SIMD. spheres must hold a sphere (Tracer.shaded)."""
     for k in range(PACKET):
         j = max(hit[k], 0)
-        paint[0, k] = spheres[4, j]
-        paint[1, k] = spheres[5, j]
-        paint[2, k] = spheres[6, j]
-        paint[3, k] = spheres[3, j]
+        paint[0, k] = spheres[RED, j]
+        paint[1, k] = spheres[GREEN, j]
+        paint[2, k] = spheres[BLUE, j]
+        paint[3, k] = spheres[RADIUS, j]
     for k in range(PACKET):
         hr, hg, hb = _shade_hit_v(paint[0, k], paint[1, k], paint[2, k], paint[3, k], hit_d[k])
         mr, mg, mb = _shade_miss_v(np.float32(x0 + k % PACKET_W), np.float32(y0 + k // PACKET_W))
@@ -366,7 +366,7 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
     enters it, each box and leaf test run across the packet's rays (loops
     LLVM turns into SIMD). Each ray still gets the nearest sphere of all it
     could hit, ties to the smaller index: the pixels of kernels.traverse's walk, one ray at a time."""
-    stack_row = np.empty(bvh_mod.STACK, np.int32)
+    stack_row = np.empty(STACK, np.int32)
     dx = np.empty(PACKET, np.float32)
     dy = np.empty(PACKET, np.float32)
     dz = np.empty(PACKET, np.float32)
@@ -381,7 +381,7 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
     rgb = np.empty((3, PACKET), np.uint8)
     paint = np.empty((4, PACKET), np.float32)
     ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
-    margin = (abs(ox) + abs(oy) + abs(oz)) * bvh_mod.PAD
+    margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
     for y0 in range(first_row, end_row, PACKET_H):
         for x0 in range(0, width, PACKET_W):
             # separate loops, each simple enough for LLVM to make SIMD
@@ -403,20 +403,25 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
             row = 0
             top = 0
             while row >= 0:
-                a_in = _packet_box(nodes, row, 0, ox, oy, oz, margin, ix, iy, iz, spread, closest)
-                b_in = _packet_box(nodes, row, 6, ox, oy, oz, margin, ix, iy, iz, spread, closest)
-                a_ref, b_ref, a_count, b_count = links[row, 12], links[row, 13], links[row, 14], links[row, 15]
+                a_in = _packet_box(nodes, row, CHILD_BOX[0], ox, oy, oz, margin, ix, iy, iz, spread, closest)
+                b_in = _packet_box(nodes, row, CHILD_BOX[1], ox, oy, oz, margin, ix, iy, iz, spread, closest)
+                a_ref, b_ref, a_count, b_count = (
+                    links[row, REF],
+                    links[row, REF + 1],
+                    links[row, COUNT],
+                    links[row, COUNT + 1],
+                )
                 # near child first: the one whose box centre lies nearer along
                 # the packet's middle ray
                 if b_in and (
                     not a_in
-                    or _centre(nodes, row, _U(6), ox, oy, oz, cdx, cdy, cdz)
-                    < _centre(nodes, row, _U(0), ox, oy, oz, cdx, cdy, cdz)
+                    or _centre(nodes, row, _U(CHILD_BOX[1]), ox, oy, oz, cdx, cdy, cdz)
+                    < _centre(nodes, row, _U(CHILD_BOX[0]), ox, oy, oz, cdx, cdy, cdz)
                 ):
                     a_in, a_ref, a_count, b_in, b_ref, b_count = b_in, b_ref, b_count, a_in, a_ref, a_count
                 row = -1
                 if a_in:
-                    if a_count == bvh_mod.INNER:
+                    if a_count == INNER:
                         row = a_ref
                     else:
                         _packet_leaf(
@@ -439,7 +444,7 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
                             spread_bits,
                         )
                 if b_in:
-                    if b_count != bvh_mod.INNER:
+                    if b_count != INNER:
                         _packet_leaf(
                             ox,
                             oy,
@@ -509,8 +514,9 @@ def bands(height: int, threads: int) -> list[tuple[int, int]]:
     return [(a, b) for a, b in zip(edges, edges[1:]) if b > a]
 
 
-class Tracer:
-    """Renders one scene at one size, frame after frame, into reused buffers."""
+class Tracer(TracerBase):
+    """Renders one scene at one size, frame after frame, into reused buffers
+    (the contract: backends.contract.Tracer)."""
 
     name = "cpu"
 
@@ -524,8 +530,7 @@ class Tracer:
         kernel: str | None = None,
         accel: str | None = None,
     ):
-        self.accel, kernel = check_accel(accel, kernel, {"constant_count": constant_count})
-        self.kernel = check_kernel(kernel, constant_count) if self.accel == "none" else None
+        self.accel, self.kernel = check_method(accel, kernel, constant_count, {})
         if threads is None:
             threads = default_threads()
         if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or not 1 <= threads <= MAX_THREADS:
@@ -622,8 +627,8 @@ class Tracer:
                 job.result()
         return self.image, self.hits
 
-    def timed_trace(self, basis: np.ndarray, count: int | None = None) -> None:
-        """trace(); the CPU has no separate kernel time to report."""
+    def timed_trace(self, basis: np.ndarray, count: int | None = None) -> float | None:
+        """trace(); the CPU has no separate kernel time to report: None."""
         self.trace(basis, count)
         return None
 

@@ -26,15 +26,15 @@ from .. import bvh as bvh_mod
 from .. import kernels
 from ..errors import RaybenchError
 from ..kernels.trace import FAR, ZERO
+from ..layout import CHILD_BOX, INNER, NODE_BYTES, RADIUS, STACK
+from .contract import TracerBase, check_method
 from .limits import (
     FAST_MAX_THREADS,
     HOST_PIXEL_BYTES,
     PIXEL_BYTES,
-    check_accel,
     check_bvh_fits,
     check_count,
     check_fits,
-    check_kernel,
     host_available_bytes,
 )
 from .walks import WALKS, check_walk
@@ -56,7 +56,7 @@ PACKET_TREE_BYTES = 256 * 1024
 
 def choose_walk(nodes: int) -> str:
     """The walk for a tree of `nodes` rows, when the user did not choose."""
-    return "packet" if nodes * bvh_mod.NODE_BYTES > PACKET_TREE_BYTES else "ray"
+    return "packet" if nodes * NODE_BYTES > PACKET_TREE_BYTES else "ray"
 
 
 _k = kernels.build(cuda.jit(device=True))
@@ -88,24 +88,23 @@ def _render_kernel(width, height, basis, spheres, count, image, hits):
         _render_pixel(x, y, width, height, basis, spheres, count, image, hits)
 
 
-# A plain global, which numba-cuda takes as a compile-time constant (a local
-# array's size must be one); bvh_mod.STACK, a module attribute, is typed as a
-# run-time int64 and fails on a real GPU (the simulator accepts either).
-_STACK = bvh_mod.STACK
+# STACK is imported as a plain global, which numba-cuda takes as a
+# compile-time constant (a local array's size must be one); layout.STACK, a
+# module attribute, is typed as a run-time int64 and fails on a real GPU (the
+# simulator accepts either).
 
 
 @cuda.jit
 def _bvh_kernel(width, height, basis, nodes, links, ordered, order, spheres, image, hits):
     x, y = cuda.grid(2)
     if x < width and y < height:
-        stack_row = cuda.local.array(_STACK, np.int32)
-        stack_t = cuda.local.array(_STACK, np.float32)
+        stack_row = cuda.local.array(STACK, np.int32)
+        stack_t = cuda.local.array(STACK, np.float32)
         _render_pixel_bvh(
             x, y, width, height, basis, nodes, links, ordered, order, spheres, image, hits, stack_row, stack_t
         )
 
 
-_INNER = bvh_mod.INNER
 # What a thread pushes as the entry distance of a child its ray does not
 # enter: beyond any closest hit, so it never votes to visit that child.
 _MISS = np.float32(np.inf)
@@ -139,8 +138,8 @@ def _bvh_packet_kernel(width, height, basis, nodes, links, ordered, order, spher
     )
     ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
     ix, iy, iz, lx, ly, lz, hx, hy, hz = _ray_axes(ox, oy, oz, dx, dy, dz)
-    stack_row = cuda.local.array(_STACK, np.int32)  # the same in every thread
-    stack_t = cuda.local.array(_STACK, np.float32)  # where this thread's ray enters the node
+    stack_row = cuda.local.array(STACK, np.int32)  # the same in every thread
+    stack_t = cuda.local.array(STACK, np.float32)  # where this thread's ray enters the node
     closest = FAR
     hit = -1
     hit_d = ZERO
@@ -158,8 +157,8 @@ def _bvh_packet_kernel(width, height, basis, nodes, links, ordered, order, spher
         # (guarding an empty child's case with a branch cost 17%, clamping
         # its planes 8%: the builder stores them finite instead). The
         # barriers take int32 predicates on a GPU.
-        b_first = _centre(nodes, node, _U(6), ox, oy, oz, cdx, cdy, cdz) < _centre(
-            nodes, node, _U(0), ox, oy, oz, cdx, cdy, cdz
+        b_first = _centre(nodes, node, _U(CHILD_BOX[1]), ox, oy, oz, cdx, cdy, cdz) < _centre(
+            nodes, node, _U(CHILD_BOX[0]), ox, oy, oz, cdx, cdy, cdz
         )
         any_a = cuda.syncthreads_or(np.int32(a_in)) != 0
         any_b = cuda.syncthreads_or(np.int32(b_in)) != 0
@@ -178,14 +177,14 @@ def _bvh_packet_kernel(width, height, basis, nodes, links, ordered, order, spher
             )
         row = -1
         if any_a:
-            if a_count == _INNER:
+            if a_count == INNER:
                 row = a_ref
             elif a_in:
                 closest, hit, hit_d = _leaf_hits(
                     ox, oy, oz, dx, dy, dz, ordered, order, a_ref, a_count, closest, hit, hit_d
                 )
         if any_b:
-            if b_count != _INNER:
+            if b_count != INNER:
                 if b_in and b_near <= closest:
                     closest, hit, hit_d = _leaf_hits(
                         ox, oy, oz, dx, dy, dz, ordered, order, b_ref, b_count, closest, hit, hit_d
@@ -305,7 +304,9 @@ def fast_kernel(rays: int = RAYS, tile: int = TILE, trip: int = TRIP):
                         break
                     k += _U(trip)
                 for i in range(k, min(k + _U(trip), n)):
-                    nearer(base + i, sx[i], sy[i], sz[i], ss[i], spheres[3, base + i], dx, dy, dz, closest, hit, hit_d)
+                    nearer(
+                        base + i, sx[i], sy[i], sz[i], ss[i], spheres[RADIUS, base + i], dx, dy, dz, closest, hit, hit_d
+                    )
                 k += _U(trip)
         if x < width:
             for j in range(rays):
@@ -386,8 +387,9 @@ def _check_int(name: str, value, low: int, high: int) -> int:
     return int(value)
 
 
-class Tracer:
-    """Keeps the spheres and the frame buffers on the GPU between frames."""
+class Tracer(TracerBase):
+    """Keeps the spheres and the frame buffers on the GPU between frames
+    (the contract: backends.contract.Tracer)."""
 
     name = "cuda"
 
@@ -406,20 +408,15 @@ class Tracer:
         walk: str | None = None,
     ):
         require()
-        self.accel, kernel = check_accel(
+        self.accel, self.kernel = check_method(
             accel,
             kernel,
-            {
-                "constant_count": constant_count,
-                "rays": rays is not None,
-                "tile": tile is not None,
-                "trip": trip is not None,
-            },
+            constant_count,
+            {"rays": rays is not None, "tile": tile is not None, "trip": trip is not None},
         )
         rays = RAYS if rays is None else rays
         tile = TILE if tile is None else tile
         trip = TRIP if trip is None else trip
-        self.kernel = check_kernel(kernel, constant_count) if self.accel == "none" else None
         walk = check_walk(walk, self.accel)
         block_given = block is not None
         if not block_given:  # for an auto walk, replaced below once the tree has chosen it
@@ -550,7 +547,7 @@ class Tracer:
         self.launch(basis, count)
         return self.fetch()
 
-    def timed_trace(self, basis: np.ndarray, count: int | None = None) -> float:
+    def timed_trace(self, basis: np.ndarray, count: int | None = None) -> float | None:
         """trace(), returning the kernel's own time in ms (CUDA events around the
         launch alone; the camera upload and the copy back are outside). None
         under the simulator, which has no GPU clock to read."""

@@ -69,10 +69,10 @@ def measure(point: Point, scenes: Scenes, duration: float) -> dict:
     basis = Camera().basis(point.width, point.height)
     tracer = backends.tracer(point.device, scene.spheres, point.width, point.height, **tracer_options(point))
     try:
-        build_s = getattr(tracer, "build_s", None)
-        walk = getattr(tracer, "walk", None)  # cuda's BVH walk: "ray" or "packet", chosen by the tree
+        build_s = tracer.build_s
+        walk = tracer.walk  # cuda's BVH walk: "ray" or "packet", chosen by the tree
         # wgpu: which adapter ran it (a GPU, or a CPU driver such as lavapipe), and how it was timed
-        described = tracer.describe() if hasattr(tracer, "describe") else None
+        described = tracer.describe()
         compile_s = tracer.compile()
         if point.ramp:
             first_ms, _ = _frame(tracer, basis, point.ramp[0])

@@ -9,6 +9,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from ..layout import BLUE, CX, CY, CZ, GREEN, RADIUS, RED
 from . import intersect, shade, traverse
 
 ZERO = np.float32(0.0)
@@ -46,7 +47,9 @@ def build(jit):
         hit = -1
         hit_d = ZERO
         for i in range(count):
-            t, d = intersect_sphere(ox, oy, oz, dx, dy, dz, spheres[0, i], spheres[1, i], spheres[2, i], spheres[3, i])
+            t, d = intersect_sphere(
+                ox, oy, oz, dx, dy, dz, spheres[CX, i], spheres[CY, i], spheres[CZ, i], spheres[RADIUS, i]
+            )
             if t < closest and t > ZERO:
                 closest = t
                 hit = i
@@ -57,7 +60,9 @@ def build(jit):
     def store_pixel(x, y, hit, d, spheres, image, hits):
         """Shade pixel (x, y) from its nearest hit (-1: none) and store it."""
         if hit >= 0:
-            red, green, blue = shade_hit(spheres[4, hit], spheres[5, hit], spheres[6, hit], spheres[3, hit], d)
+            red, green, blue = shade_hit(
+                spheres[RED, hit], spheres[GREEN, hit], spheres[BLUE, hit], spheres[RADIUS, hit], d
+            )
         else:
             red, green, blue = shade_miss(np.float32(x), np.float32(y))
         image[y, x, 0] = to_byte(red)
@@ -87,7 +92,7 @@ def build(jit):
         """Fast kernels, once per frame and sphere i: relative[:, i] = EO and the
         cull threshold (prepare_sphere)."""
         ex, ey, ez, s = prepare_sphere(
-            basis[0, 0], basis[0, 1], basis[0, 2], spheres[0, i], spheres[1, i], spheres[2, i], spheres[3, i]
+            basis[0, 0], basis[0, 1], basis[0, 2], spheres[CX, i], spheres[CY, i], spheres[CZ, i], spheres[RADIUS, i]
         )
         relative[0, i] = ex
         relative[1, i] = ey

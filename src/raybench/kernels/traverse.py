@@ -19,7 +19,7 @@ so 1/d stays finite and (plane - origin) * (1/d) cannot be inf * 0.
 
 import numpy as np
 
-from ..bvh import INNER, PAD
+from ..layout import CHILD_BOX, COUNT, INNER, PAD, REF
 
 ZERO = np.float32(0.0)
 ONE = np.float32(1.0)
@@ -56,7 +56,7 @@ def build(jit, intersect_sphere):
         choosing the column by the ray's direction cost an address
         computation per read (docs/performance.md). The values are the same:
         float subtraction and multiplication keep the planes' order.
-        An empty child's inverted box (lo bvh.EMPTY, hi -EMPTY) comes out as
+        An empty child's inverted box (lo layout.EMPTY, hi -EMPTY) comes out as
         a slab around every ray: visited as the leaf of no spheres that it is."""
         a0 = (nodes[row, col] - lx) * ix
         a1 = (nodes[row, col + _U(1)] - ly) * iy
@@ -83,17 +83,17 @@ def build(jit, intersect_sphere):
     def children(nodes, links, node, ix, iy, iz, lx, ly, lz, hx, hy, hz):
         """A node's two children: the ray's (near, far) through each one's box,
         then their refs and counts (bvh's layout)."""
-        a_near, a_far = slab(nodes, node, _U(0), ix, iy, iz, lx, ly, lz, hx, hy, hz)
-        b_near, b_far = slab(nodes, node, _U(6), ix, iy, iz, lx, ly, lz, hx, hy, hz)
+        a_near, a_far = slab(nodes, node, _U(CHILD_BOX[0]), ix, iy, iz, lx, ly, lz, hx, hy, hz)
+        b_near, b_far = slab(nodes, node, _U(CHILD_BOX[1]), ix, iy, iz, lx, ly, lz, hx, hy, hz)
         return (
             a_near,
             a_far,
             b_near,
             b_far,
-            links[node, _U(12)],
-            links[node, _U(13)],
-            links[node, _U(14)],
-            links[node, _U(15)],
+            links[node, _U(REF)],
+            links[node, _U(REF + 1)],
+            links[node, _U(COUNT)],
+            links[node, _U(COUNT + 1)],
         )
 
     @jit
@@ -101,7 +101,7 @@ def build(jit, intersect_sphere):
         """How far along the direction (cx, cy, cz) from the origin the centre
         of the child box at column col lies: the order in which the packet
         walks (cpu, cuda) take a node's children, the same for all the
-        packet's rays. An empty child's inverted box (lo bvh.EMPTY, hi -EMPTY)
+        packet's rays. An empty child's inverted box (lo layout.EMPTY, hi -EMPTY)
         gives 0, not NaN."""
         half = np.float32(0.5)
         return (
@@ -125,7 +125,7 @@ def build(jit, intersect_sphere):
     @jit
     def nearest_hit_bvh(ox, oy, oz, dx, dy, dz, nodes, links, ordered, order, stack_row, stack_t):
         """(original index of the nearest sphere with t > 0 or -1, its half-chord d).
-        stack_row / stack_t: the walk's stack, bvh.STACK entries, given by the
+        stack_row / stack_t: the walk's stack, layout.STACK entries, given by the
         backend (a CUDA thread's local array, a CPU thread's own)."""
         ix, iy, iz, lx, ly, lz, hx, hy, hz = ray_axes(ox, oy, oz, dx, dy, dz)
         closest = FAR

@@ -15,6 +15,7 @@ import time
 import numpy as np
 
 from ... import bvh as bvh_mod
+from ... import layout
 from ...errors import RaybenchError
 from ..limits import HOST_PIXEL_BYTES, check_bvh_fits, host_available_bytes
 from ..limits import check_accel as check_accel_and_kernel
@@ -84,7 +85,7 @@ def check_frame_fits(width: int, height: int, spheres: int, workgroup, limits: d
     largest = min(limits["max-storage-buffer-binding-size"], limits["max-buffer-size"])
     needs = [("the hit indices", width * height * 4), ("the spheres", spheres * SPHERE_FLOATS * 4)]
     if accel == "bvh":  # at most one node per sphere: the largest of the tree's buffers
-        needs.append(("the BVH's nodes", max(spheres, 1) * bvh_mod.NODE_BYTES))
+        needs.append(("the BVH's nodes", max(spheres, 1) * layout.NODE_BYTES))
     for what, need in needs:
         if need > largest:
             raise RaybenchError(

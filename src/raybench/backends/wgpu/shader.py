@@ -13,7 +13,7 @@ from __future__ import annotations
 import functools
 from importlib import resources
 
-from ... import bvh
+from ... import layout
 from ...kernels import traverse
 
 ACCELS = {"bvh": "traverse.wgsl", "none": "brute.wgsl"}
@@ -22,9 +22,9 @@ PIECES = ("common.wgsl", "intersect.wgsl", "shade.wgsl", "trace.wgsl")
 # written again in WGSL: float32 values whose repr is exact, so the WGSL
 # literal converts to the very float32 the CPU uses.
 BVH_CONSTANTS = {
-    "BVH_STACK": f"{bvh.STACK}u",
-    "BVH_INNER": f"{bvh.INNER}",
-    "BVH_PAD": repr(float(bvh.PAD)),
+    "BVH_STACK": f"{layout.STACK}u",
+    "BVH_INNER": f"{layout.INNER}",
+    "BVH_PAD": repr(float(layout.PAD)),
     "BVH_TINY": repr(float(traverse.TINY)),
 }
 

@@ -9,6 +9,7 @@ import time
 
 import numpy as np
 
+from ..contract import TracerBase
 from ..limits import HOST_PIXEL_BYTES, check_count, check_fits, check_size, host_available_bytes
 from . import adapters
 from .compute import Compute, check_accel
@@ -29,9 +30,9 @@ def timestamp_period(device) -> float | None:
     return period if period > 0 else None
 
 
-class Tracer:
+class Tracer(TracerBase):
     """Keeps the spheres, the frame texture and the readback buffers on the
-    adapter's device between frames."""
+    adapter's device between frames (the contract: backends.contract.Tracer)."""
 
     name = "wgpu"
 

@@ -1,0 +1,77 @@
+"""What every backend's Tracer does: the contract that render(), the bench,
+the viewer and the tests rely on, written down once.
+
+A Tracer is made for one scene at one size; it keeps what a frame needs
+(the tree, the buffers, the compiled kernel) between frames, and traces a
+frame on each call into buffers it reuses.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from .limits import check_accel, check_kernel
+
+
+@runtime_checkable
+class Tracer(Protocol):
+    name: str  # the device: "cpu", "cuda" or "wgpu"
+    width: int
+    height: int
+    count: int  # spheres loaded
+    accel: str  # "bvh" or "none"
+    walk: str | None  # the BVH walk ("ray" or "packet"), None where the device has one kind or for brute force
+    build_s: float | None  # the last BVH build's seconds, apart from any frame; None for brute force
+
+    def compile(self) -> float:
+        """Compile what a frame needs, tracing nothing; the seconds it took."""
+        ...
+
+    def trace(self, basis: np.ndarray, count: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Trace a frame of the first `count` spheres (default all) seen from
+        Camera.basis(); the (H, W, 3) uint8 image and (H, W) int32 hits, in
+        buffers the next frame overwrites."""
+        ...
+
+    def timed_trace(self, basis: np.ndarray, count: int | None = None) -> float | None:
+        """trace(), returning the device's own kernel time in ms, or None where
+        the device has no separate clock (the CPU, numba's simulator)."""
+        ...
+
+    def describe(self) -> dict | None:
+        """What ran the frames beyond the device's name (wgpu: the adapter), for records."""
+        ...
+
+    def close(self) -> None:
+        """Release what the Tracer holds; it traces no more frames."""
+        ...
+
+
+class TracerBase:
+    """The part of the contract every backend shares: `with` closes, and by
+    default a device has one walk and nothing more to describe."""
+
+    walk: str | None = None
+    build_s: float | None = None
+
+    def describe(self) -> dict | None:
+        return None
+
+    def close(self) -> None:
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def check_method(accel, kernel, constant_count: bool, brute_force_options: dict) -> tuple[str, str | None]:
+    """The prologue of the cpu and cuda Tracers: the acceleration structure
+    and, for brute force, the kernel (None with the BVH). brute_force_options:
+    which options that only brute force takes were given."""
+    accel, kernel = check_accel(accel, kernel, {"constant_count": constant_count, **brute_force_options})
+    return accel, check_kernel(kernel, constant_count) if accel == "none" else None

@@ -1,0 +1,61 @@
+"""The data layouts that the scene, the builder, every kernel and the WGSL
+share, by name: the rows of the sphere, material and light arrays and the
+columns of a BVH node.
+
+Plain module globals (ints and float32 scalars), which is how Numba's and
+numba-cuda's compiled code can read them: they are frozen into the code as
+constants. The WGSL gets the same values from backends/wgpu/shader.py.
+"""
+
+import numpy as np
+
+# ---------------------------------------------------------------- spheres
+# Scene.spheres: (SPHERE_ROWS, N) float32, structure of arrays, one row a field.
+CX, CY, CZ, RADIUS, RED, GREEN, BLUE = range(7)
+SPHERE_ROWS = 7
+
+# ---------------------------------------------------------------- materials
+# Scene.materials: (MATERIAL_ROWS, N) float32, beside the spheres (whose
+# colour rows are the diffuse colour). Only Whitted shading reads them.
+SPECULAR, SHININESS, REFLECT, TRANSMIT, IOR = range(5)
+MATERIAL_ROWS = 5
+
+# ---------------------------------------------------------------- lights
+# Scene.lights: (LIGHT_ROWS, L) float32. The colour rows hold colour times
+# intensity; a radius of 0 is a point light, more a spherical area light.
+LX, LY, LZ, LRED, LGREEN, LBLUE, LRADIUS = range(7)
+LIGHT_ROWS = 7
+
+# ---------------------------------------------------------------- BVH nodes
+# nodes: (M, NODE_FLOATS) float32, one 64-byte row a node, one cache line:
+# the boxes of BOTH children, so one row fetch tests two boxes; links is
+# the int32 view of the same memory, whose last four columns hold the
+# children's refs and counts.
+NODE_FLOATS = 16
+NODE_BYTES = NODE_FLOATS * 4
+# A child's box starts at column CHILD_BOX[c]: lo x, y, z, then hi x, y, z.
+CHILD_BOX = (0, 6)
+BOX_FLOATS = 6
+# links[node, REF + c] and links[node, COUNT + c] for child c in 0, 1.
+REF = 12
+COUNT = 14
+# A child's count: INNER where ref is a node's row; else the child is a
+# leaf of `count` spheres from `ref` in the ordered spheres (0: an empty
+# child, whose box is inverted: lo EMPTY, hi -EMPTY).
+INNER = -1
+# The planes of an empty child's inverted box (only a root of under two
+# spheres has one): far beyond any scene (coordinates stay under 1e15), and
+# finite even divided by a direction component of TINY (kernels.traverse),
+# so no walk's arithmetic on it overflows or meets inf - inf.
+EMPTY = np.float32(1e18)
+# Relative padding of every sphere's box, of (radius + |centre|_1); the
+# walks add the same fraction of |origin|_1 (kernels.traverse). 2^-16 is
+# 128 float32 epsilons: many times the few epsilons by which the exact test's
+# float32 hit point can stray from the true sphere (|EO| and r scale them).
+PAD = np.float32(2.0**-16)
+# The tree's depth is bounded whatever the input (the builder splits by
+# count where SAH would go deeper).
+MAX_DEPTH = 48
+# Walk stack entries: one per level on the way down is the most a
+# near-first walk keeps (each level pushes at most its far child).
+STACK = MAX_DEPTH + 2

@@ -1,0 +1,26 @@
+"""Every backend's Tracer keeps the written contract (backends.contract.Tracer)."""
+
+import numpy as np
+import pytest
+
+import raybench
+from raybench import backends
+from raybench.backends.contract import Tracer
+
+
+# cuda: the real GPU, or numba's simulator under NUMBA_ENABLE_CUDASIM=1 (conftest)
+@pytest.mark.parametrize("device", ["cpu", "cuda", "wgpu"])
+@pytest.mark.parametrize("accel", ["bvh", "none"])
+def test_tracer_keeps_the_contract(device, accel, request):
+    spheres = raybench.random_spheres(20, seed=3).spheres
+    options = {"adapter": request.getfixturevalue("adapter")} if device == "wgpu" else {}
+    with backends.tracer(device, spheres, 16, 8, accel=accel, **options) as tracer:
+        assert isinstance(tracer, Tracer)
+        assert (tracer.name, tracer.width, tracer.height, tracer.count, tracer.accel) == (device, 16, 8, 20, accel)
+        assert (tracer.build_s is None) == (accel == "none")
+        assert isinstance(tracer.compile(), float)
+        image, hits = tracer.trace(raybench.Camera().basis(16, 8))
+        assert image.shape == (8, 16, 3) and image.dtype == np.uint8
+        assert hits.shape == (8, 16) and hits.dtype == np.int32
+        ms = tracer.timed_trace(raybench.Camera().basis(16, 8))
+        assert ms is None or ms >= 0
