@@ -1,8 +1,11 @@
 """Scenes of spheres: structure-of-arrays float32, JSON load/save, a generator.
 
 The kernels read one (7, n) float32 array: rows x, y, z, radius, red, green,
-blue. Keeping the rows contiguous lets a kernel stream one field for all spheres
-and hands every backend the same buffer without repacking.
+blue (raybench.layout names them). Keeping the rows contiguous lets a kernel
+stream one field for all spheres and hands every backend the same buffer
+without repacking. Format version 2 adds what Whitted shading reads: lights,
+a material per sphere, the ambient light and the background
+(raybench.lighting); a version-1 file loads and renders as it always did.
 """
 
 from __future__ import annotations
@@ -13,12 +16,16 @@ from pathlib import Path
 
 import numpy as np
 
+from . import lighting
 from .camera import MAX_MAGNITUDE, Camera
 from .errors import RaybenchError
 from .files import read_text, write_atomic
 
 FORMAT = "raybench-scene"
-VERSION = 1
+VERSION = 2
+# Files without lights, materials, ambient or background are written as
+# version 1, which every raybench reads.
+VERSIONS = (1, 2)
 MAX_GENERATED = 100_000_000
 # random_spheres fills the view of a picture this wide, about this many times over.
 ASPECT = 16 / 10
@@ -26,13 +33,29 @@ COVERAGE = 2.0
 
 _TOP_KEYS = {"format", "version", "spheres", "camera"}
 _SPHERE_KEYS = {"center", "radius", "color"}
+# What version 2 adds.
+_TOP_KEYS_2 = _TOP_KEYS | {"lights", "ambient", "background"}
+_SPHERE_KEYS_2 = _SPHERE_KEYS | {"material"}
 _CAMERA_KEYS = {"position", "look_at", "up", "fov_deg"}
 
 
 class Scene:
-    """n spheres, and optionally the camera the scene was saved with."""
+    """n spheres, and optionally the camera the scene was saved with; for
+    Whitted shading, lights, a Material per sphere (None: all matte), the
+    ambient light and the background colour (None: the thesis's gradient)."""
 
-    def __init__(self, centers, radii, colors, camera: Camera | None = None):
+    def __init__(
+        self,
+        centers,
+        radii,
+        colors,
+        camera: Camera | None = None,
+        *,
+        materials=None,
+        lights=(),
+        ambient=lighting.DEFAULT_AMBIENT,
+        background=None,
+    ):
         try:
             centers = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
             radii = np.asarray(radii, dtype=np.float64).reshape(-1)
@@ -65,6 +88,20 @@ class Scene:
             raise RaybenchError(f"spheres[{i}].color: each channel must be in [0, 1], got {colors[i].tolist()}")
         self.spheres = np.ascontiguousarray(np.concatenate([centers.T, radii[None, :], colors.T]).astype(np.float32))
         self.camera = camera
+        if materials is not None:
+            materials = tuple(materials)
+            if len(materials) != len(radii):
+                raise RaybenchError(f"scene: {len(materials)} materials for {len(radii)} spheres: give one per sphere")
+            for i, m in enumerate(materials):
+                if not isinstance(m, lighting.Material):
+                    raise RaybenchError(f"spheres[{i}].material: must be a raybench.Material, got {type(m).__name__}")
+        self.materials = materials
+        self.lights = tuple(lights)
+        for i, light in enumerate(self.lights):
+            if not isinstance(light, lighting.Light):
+                raise RaybenchError(f"lights[{i}]: must be a raybench.Light, got {type(light).__name__}")
+        self.ambient = lighting._colour(ambient, "ambient")
+        self.background = None if background is None else lighting._colour(background, "background")
 
     def __len__(self) -> int:
         return self.spheres.shape[1]
@@ -84,19 +121,49 @@ class Scene:
     def colors(self) -> np.ndarray:
         return self.spheres[4:7].T
 
+    @property
+    def version(self) -> int:
+        """The scene format version this scene needs: 1 unless it has lights,
+        materials, an ambient light or a background of its own."""
+        plain = (
+            self.materials is None
+            and not self.lights
+            and self.ambient == lighting.DEFAULT_AMBIENT
+            and self.background is None
+        )
+        return 1 if plain else 2
+
     def head(self, n: int) -> Scene:
-        """The first n spheres of this scene."""
-        return Scene(self.centers[:n], self.radii[:n], self.colors[:n], self.camera)
+        """The first n spheres of this scene, with their materials and the same lights."""
+        return Scene(
+            self.centers[:n],
+            self.radii[:n],
+            self.colors[:n],
+            self.camera,
+            materials=None if self.materials is None else self.materials[:n],
+            lights=self.lights,
+            ambient=self.ambient,
+            background=self.background,
+        )
 
     def to_dict(self) -> dict:
-        doc = {"format": FORMAT, "version": VERSION}
+        doc = {"format": FORMAT, "version": self.version}
         if self.camera is not None:
             doc["camera"] = self.camera.to_dict()
+        if self.version > 1:
+            doc["ambient"] = list(self.ambient)
+            if self.background is not None:
+                doc["background"] = list(self.background)
+            doc["lights"] = [light.to_dict() for light in self.lights]
         # float32 -> float keeps the file exact: reloading gives the same bits.
         doc["spheres"] = [
             {"center": [float(v) for v in c], "radius": float(r), "color": [float(v) for v in k]}
             for c, r, k in zip(self.centers, self.radii, self.colors)
         ]
+        if self.materials is not None:
+            for sphere, material in zip(doc["spheres"], self.materials):
+                if material != lighting.MATTE:
+                    sphere["material"] = material.to_dict()
         return doc
 
     def save(self, path) -> None:
@@ -108,9 +175,10 @@ class Scene:
             raise RaybenchError(f'scene: must be a JSON object with "format": "{FORMAT}", got {type(doc).__name__}')
         if doc.get("format") != FORMAT:
             raise RaybenchError(f'format: must be "{FORMAT}", got {doc.get("format")!r}')
-        if doc.get("version") != VERSION or isinstance(doc.get("version"), bool):
-            raise RaybenchError(f"version: this raybench reads version {VERSION}, got {doc.get('version')!r}")
-        _no_unknown(doc, _TOP_KEYS, "")
+        version = doc.get("version")
+        if version not in VERSIONS or isinstance(version, bool):
+            raise RaybenchError(f"version: this raybench reads versions 1 and 2, got {version!r}")
+        _no_unknown(doc, _TOP_KEYS_2 if version == 2 else _TOP_KEYS, "")
         if "spheres" not in doc:
             raise RaybenchError('spheres: missing (a list of {"center", "radius", "color"} objects)')
         spheres = doc["spheres"]
@@ -120,11 +188,14 @@ class Scene:
         centers = np.empty((n, 3))
         radii = np.empty(n)
         colors = np.empty((n, 3))
+        materials = [lighting.MATTE] * n
         for i, s in enumerate(spheres):
             where = f"spheres[{i}]"
             if not isinstance(s, dict):
                 raise RaybenchError(f'{where}: must be an object with "center", "radius" and "color"')
-            _no_unknown(s, _SPHERE_KEYS, where + ".")
+            _no_unknown(s, _SPHERE_KEYS_2 if version == 2 else _SPHERE_KEYS, where + ".")
+            if "material" in s:
+                materials[i] = lighting.Material.from_dict(s["material"], f"{where}.material")
             for key in ("center", "radius", "color"):
                 if key not in s:
                     raise RaybenchError(f"{where}.{key}: missing")
@@ -143,7 +214,19 @@ class Scene:
             if "fov_deg" in cam:
                 _numbers(cam["fov_deg"], None, "camera.fov_deg")
             camera = Camera(**cam)
-        return cls(centers, radii, colors, camera)
+        extra = {}
+        if version == 2:
+            lights = doc.get("lights", [])
+            if not isinstance(lights, list):
+                raise RaybenchError('lights: must be a list of {"position", "color", "intensity", "radius"} objects')
+            extra["lights"] = [lighting.Light.from_dict(x, f"lights[{k}]") for k, x in enumerate(lights)]
+            if any(m != lighting.MATTE for m in materials):
+                extra["materials"] = materials
+            if "ambient" in doc:
+                extra["ambient"] = _numbers(doc["ambient"], 3, "ambient")
+            if "background" in doc:
+                extra["background"] = _numbers(doc["background"], 3, "background")
+        return cls(centers, radii, colors, camera, **extra)
 
     @classmethod
     def load(cls, path) -> Scene:
@@ -187,7 +270,7 @@ def _short(text: str) -> str:
     return text if len(text) <= 40 else text[:37] + "..."
 
 
-def random_spheres(n: int, seed: int = 0) -> Scene:
+def random_spheres(n: int, seed: int = 0, materials: bool = False) -> Scene:
     """n spheres in front of the default camera, sized so that any n from 10 to
     1,000,000 covers the picture about twice over: a full, varied image.
 
@@ -195,6 +278,9 @@ def random_spheres(n: int, seed: int = 0) -> Scene:
     benchmark's resolutions; at 4:3 some fall outside the sides) at depths 5 to
     25; the angular radius shrinks as 1/sqrt(n) to keep the coverage constant.
     The same seed gives the same spheres on every machine.
+
+    materials: the same spheres, lit for Whitted shading by one area light
+    above and behind the camera, with mixed materials (mixed_materials).
     """
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not (0 <= n <= MAX_GENERATED):
         raise RaybenchError(f"sphere count: must be an integer from 0 to {MAX_GENERATED:,}, got {n!r}")
@@ -211,4 +297,32 @@ def random_spheres(n: int, seed: int = 0) -> Scene:
     # Few spheres are large; none may reach the camera.
     radii = np.minimum(depth * angular * rng.uniform(0.5, 1.5, n), 0.5 * depth)
     colors = rng.uniform(0.25, 1.0, (n, 3))
-    return Scene(centers, radii, colors)
+    if not materials:
+        return Scene(centers, radii, colors)
+    return Scene(centers, radii, colors, materials=mixed_materials(n, seed), lights=[MIXED_LIGHT])
+
+
+# The light of the materials scenes: above the view and behind the camera,
+# large enough for soft shadows; a little brighter than white, as the
+# ambient light adds to it.
+MIXED_LIGHT = lighting.Light(position=(-8.0, 14.0, -6.0), color=(1.0, 0.97, 0.9), intensity=1.0, radius=1.5)
+
+
+def mixed_materials(n: int, seed: int = 0) -> list:
+    """n materials, drawn from their own stream of the seed (the spheres'
+    geometry is the seed's as without materials): half plastic (diffuse
+    with a Phong highlight), a quarter mirrors, a quarter glass."""
+    rng = np.random.default_rng([seed, 1])
+    kind = rng.uniform(0.0, 1.0, n)
+    specular = rng.uniform(0.2, 0.8, n)
+    shininess = rng.uniform(8.0, 128.0, n)
+    reflect = rng.uniform(0.5, 0.95, n)
+    out = []
+    for k, sp, sh, re in zip(kind, specular, shininess, reflect):
+        if k < 0.5:
+            out.append(lighting.Material(specular=float(sp), shininess=float(sh)))
+        elif k < 0.75:
+            out.append(lighting.Material(specular=0.5, shininess=64.0, reflect=float(re)))
+        else:
+            out.append(lighting.Material(specular=0.5, shininess=128.0, reflect=0.05, transmit=0.9, ior=1.5))
+    return out

@@ -13,8 +13,8 @@ from ..errors import RaybenchError
 DEVICES = ("cpu", "cuda", "wgpu")
 CHOICES = ("auto",) + DEVICES
 OPTIONS = {
-    "cpu": ("threads", "constant_count", "kernel", "accel"),
-    "cuda": ("block", "constant_count", "kernel", "rays", "tile", "trip", "accel", "walk"),
+    "cpu": ("threads", "constant_count", "kernel", "accel", "whitted"),
+    "cuda": ("block", "constant_count", "kernel", "rays", "tile", "trip", "accel", "walk", "whitted"),
     "wgpu": ("workgroup", "adapter", "accel", "kernel", "walk"),
 }
 

@@ -31,8 +31,10 @@ import numpy as np
 from .. import bvh as bvh_mod
 from .. import kernels
 from ..errors import RaybenchError
+from ..kernels import whitted as whitted_mod
 from ..kernels.trace import FAR, ZERO
-from ..layout import BLUE, CHILD_BOX, COUNT, GREEN, INNER, PAD, RADIUS, RED, REF, STACK
+from ..layout import BLUE, CHILD_BOX, COUNT, GREEN, INNER, NODE_FLOATS, PAD, RADIUS, RED, REF, STACK
+from ..lighting import Shading
 from .contract import TracerBase, check_method
 from .limits import (
     HOST_PIXEL_BYTES,
@@ -47,6 +49,7 @@ MAX_THREADS = 4096
 _k = kernels.build(numba.njit(inline="always"))
 # module globals, which is how jitted code can see them
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
+_render_pixel_whitted = _k.render_pixel_whitted
 _prepare_one, _may_hit, _intersect_relative = _k.prepare, _k.may_hit, _k.intersect_relative
 # The BVH walk's own build of the same functions, with NumPy's error model:
 # float division then has no check for a zero divisor (none can occur: the
@@ -486,6 +489,33 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
                         _put_pixel(y, x, k, rgb, hit, image, hits)
 
 
+@numba.njit(nogil=True)
+def _whitted_rows(first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern, params,
+                  tree, image, hits, counts):  # fmt: skip
+    """Whitted shading of the rows first_row..end_row, a ray at a time
+    (secondary rays scatter: no packet keeps them together); counts[y]: the
+    rays row y cast, by kind."""
+    stack_row = np.empty(STACK, np.int32)
+    stack_t = np.empty(STACK, np.float32)
+    rays_f = np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_FLOATS), np.float32)
+    rays_i = np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_INTS), np.int32)
+    for y in range(first_row, end_row):
+        primary = shadow = reflection = refraction = 0
+        for x in range(width):
+            a, b, c, d = _render_pixel_whitted(
+                x, y, width, height, basis, spheres, count, materials, lights, pattern, params, tree, stack_row,
+                stack_t, rays_f, rays_i, image, hits,
+            )  # fmt: skip
+            primary += a
+            shadow += b
+            reflection += c
+            refraction += d
+        counts[y, whitted_mod.PRIMARY] = primary
+        counts[y, whitted_mod.SHADOW] = shadow
+        counts[y, whitted_mod.REFLECTION] = reflection
+        counts[y, whitted_mod.REFRACTION] = refraction
+
+
 # Chunks of rows per thread for the BVH: enough that the last chunk to finish
 # leaves the others little time idle, few enough that the calls cost little.
 CHUNKS_PER_THREAD = 16
@@ -529,8 +559,9 @@ class Tracer(TracerBase):
         constant_count: bool = False,
         kernel: str | None = None,
         accel: str | None = None,
+        whitted: Shading | None = None,
     ):
-        self.accel, self.kernel = check_method(accel, kernel, constant_count, {})
+        self.accel, self.kernel = check_method(accel, kernel, constant_count, {}, whitted)
         if threads is None:
             threads = default_threads()
         if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or not 1 <= threads <= MAX_THREADS:
@@ -553,7 +584,19 @@ class Tracer(TracerBase):
         self.constant_count = bool(constant_count)
         self.bvh = None
         self.build_s = None
-        if self.accel == "bvh":
+        self.whitted = whitted
+        self.rays = None
+        if whitted is not None:
+            # rows take unequal time (mirrors and glass cost more): pulled in chunks, as the BVH's
+            self.bands = chunks(height, self.threads)
+            workers = min(self.threads, len(self.bands))
+            self._kernel = _whitted_rows
+            self._row_rays = np.zeros((height, len(whitted_mod.KINDS)), np.int64)
+            self.rays = np.zeros(len(whitted_mod.KINDS), np.int64)
+            self._none = np.zeros((0, NODE_FLOATS), np.float32)
+            if self.accel == "bvh":
+                self._build(self.count)
+        elif self.accel == "bvh":
             # what the packets shade from: the spheres, or with none a
             # stand-in that every pixel misses (_colour_packet reads sphere
             # 0 for a miss), as the cuda backend uploads
@@ -578,7 +621,20 @@ class Tracer(TracerBase):
         self.bvh = bvh_mod.build(self.spheres[:, :count], threads=min(self.threads, default_threads()))
         self.build_s = self.bvh.build_s
 
+    def _tree(self, count):
+        """The BVH's arrays for the walk; brute force's stand-in, with no node."""
+        if self.accel == "none":
+            return (self._none, self._none.view(np.int32), np.zeros((4, 0), np.float32), np.zeros(0, np.int32))
+        if self.bvh.count != count:  # a frame of fewer spheres: their own tree
+            self._build(count)
+        b = self.bvh
+        return (b.nodes, b.links, b.ordered, b.order)
+
     def _args(self, basis, count):
+        if self.whitted is not None:
+            w = self.whitted
+            return (self.width, self.height, basis, self.spheres, count, w.materials, w.lights, w.pattern, w.params,
+                    self._tree(count), self.image, self.hits, self._row_rays)  # fmt: skip
         if self.accel == "bvh":
             if self.bvh.count != count:  # a frame of fewer spheres: their own tree
                 self._build(count)
@@ -613,7 +669,7 @@ class Tracer(TracerBase):
         args = self._args(basis, count)
         if self._pool is None:
             self._kernel(0, self.height, *args)
-        elif self.accel == "bvh":
+        elif self.accel == "bvh" or self.whitted is not None:
             pending = iter(self.bands)  # next() on it is atomic under the GIL
 
             def pull():
@@ -625,6 +681,8 @@ class Tracer(TracerBase):
         else:
             for job in [self._pool.submit(self._kernel, a, b, *args) for a, b in self.bands]:
                 job.result()
+        if self.rays is not None:
+            self.rays[:] = self._row_rays.sum(axis=0)
         return self.image, self.hits
 
     def timed_trace(self, basis: np.ndarray, count: int | None = None) -> float | None:

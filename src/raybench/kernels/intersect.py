@@ -22,6 +22,16 @@ def build(jit):
         return ex * dx + ey * dy + ez * dz
 
     @jit
+    def chord(ex, ey, ez, r, dx, dy, dz):
+        """v = EO.dir and the discriminant r^2 - |EO - v dir|^2: the ray meets
+        the sphere where disc >= 0, at v -+ sqrt(disc)."""
+        v = along(ex, ey, ez, dx, dy, dz)
+        px = ex - v * dx
+        py = ey - v * dy
+        pz = ez - v * dz
+        return v, r * r - (px * px + py * py + pz * pz)
+
+    @jit
     def intersect_relative(ex, ey, ez, r, dx, dy, dz):
         """Distance t along the unit ray to the sphere's near surface and the
         half-chord d (the thesis's `d`, which its shading uses); t = -1 on a miss.
@@ -30,15 +40,28 @@ def build(jit):
         keeps its digits in float32: the thesis's form subtracts two squares of
         the sphere's distance and loses everything for small, far spheres.
         """
-        v = along(ex, ey, ez, dx, dy, dz)
-        px = ex - v * dx
-        py = ey - v * dy
-        pz = ez - v * dz
-        disc = r * r - (px * px + py * py + pz * pz)
+        v, disc = chord(ex, ey, ez, r, dx, dy, dz)
         if disc < ZERO:
             return np.float32(-1.0), ZERO
         d = np.float32(math.sqrt(disc))
         return v - d, d
+
+    @jit
+    def intersect_ahead(ex, ey, ez, r, dx, dy, dz, far_only):
+        """The secondary rays' test: the first crossing of the sphere ahead of
+        the origin, the near root from outside and the far root from inside
+        (a ray in a glass sphere, a camera in one); far_only takes the far
+        root whatever the near one, for a ray that starts on this very sphere
+        and goes into it. Same (t, d) as intersect_relative where the near
+        root is ahead; t <= 0 where nothing is."""
+        v, disc = chord(ex, ey, ez, r, dx, dy, dz)
+        if disc < ZERO:
+            return np.float32(-1.0), ZERO
+        d = np.float32(math.sqrt(disc))
+        t = v - d
+        if far_only or t <= ZERO:
+            t = v + d
+        return t, d
 
     @jit
     def intersect_sphere(ox, oy, oz, dx, dy, dz, cx, cy, cz, r):
@@ -78,4 +101,4 @@ def build(jit):
         prepare_sphere): one dot product and a compare."""
         return along(ex, ey, ez, dx, dy, dz) > s
 
-    return intersect_relative, intersect_sphere, prepare_sphere, may_hit, along
+    return intersect_relative, intersect_sphere, prepare_sphere, may_hit, along, intersect_ahead

@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from ..layout import BLUE, CX, CY, CZ, GREEN, RADIUS, RED
-from . import intersect, shade, traverse
+from . import intersect, shade, traverse, whitted
 
 ZERO = np.float32(0.0)
 ONE = np.float32(1.0)
@@ -21,9 +21,11 @@ FAR = np.float32(3.0e38)
 
 def build(jit):
     """The algorithm compiled with `jit`; a namespace of its functions."""
-    intersect_relative, intersect_sphere, prepare_sphere, may_hit, along = intersect.build(jit)
+    intersect_relative, intersect_sphere, prepare_sphere, may_hit, along, intersect_ahead = intersect.build(jit)
     shade_hit, shade_miss, to_byte = shade.build(jit)
-    nearest_hit_bvh, inverse, ray_axes, children, leaf_hits, centre_along = traverse.build(jit, intersect_sphere)
+    nearest_hit_bvh, inverse, ray_axes, children, leaf_hits, centre_along, walk = traverse.build(
+        jit, intersect_sphere, intersect_ahead
+    )
 
     @jit
     def primary_ray(x, y, width, height, basis):
@@ -40,20 +42,46 @@ def build(jit):
         return dx * inv, dy * inv, dz * inv
 
     @jit
-    def nearest_hit(ox, oy, oz, dx, dy, dz, spheres, count):
-        """Index of the sphere with the smallest t > 0 (the first on a tie, -1
-        if none) and its half-chord d."""
-        closest = FAR
+    def scan(ox, oy, oz, dx, dy, dz, t_max, any_hit, ahead, own, own_inside, spheres, count):
+        """Brute force for any ray, as traverse's walk() takes it through the
+        tree: (index of the nearest sphere with 0 < t < t_max, the first on a
+        tie, or -1; its t; its half-chord d), over every sphere in order;
+        any_hit stops at the first; ahead, own, own_inside: the secondary
+        rays' test (traverse.leaf_test)."""
+        closest = t_max
         hit = -1
         hit_d = ZERO
         for i in range(count):
-            t, d = intersect_sphere(
-                ox, oy, oz, dx, dy, dz, spheres[CX, i], spheres[CY, i], spheres[CZ, i], spheres[RADIUS, i]
-            )
+            if ahead:
+                if i == own and not own_inside:
+                    continue
+                t, d = intersect_ahead(
+                    spheres[CX, i] - ox,
+                    spheres[CY, i] - oy,
+                    spheres[CZ, i] - oz,
+                    spheres[RADIUS, i],
+                    dx,
+                    dy,
+                    dz,
+                    i == own,
+                )
+            else:
+                t, d = intersect_sphere(
+                    ox, oy, oz, dx, dy, dz, spheres[CX, i], spheres[CY, i], spheres[CZ, i], spheres[RADIUS, i]
+                )
             if t < closest and t > ZERO:
                 closest = t
                 hit = i
                 hit_d = d
+                if any_hit:
+                    break
+        return hit, closest, hit_d
+
+    @jit
+    def nearest_hit(ox, oy, oz, dx, dy, dz, spheres, count):
+        """Index of the sphere with the smallest t > 0 (the first on a tie, -1
+        if none) and its half-chord d: scan() for the thesis's primary rays."""
+        hit, _t, hit_d = scan(ox, oy, oz, dx, dy, dz, FAR, False, False, -1, False, spheres, count)
         return hit, hit_d
 
     @jit
@@ -87,6 +115,26 @@ def build(jit):
         )
         store_pixel(x, y, hit, d, spheres, image, hits)
 
+    whitted_pixel = whitted.build(jit, scan, walk, shade_hit, shade_miss)
+
+    @jit
+    def render_pixel_whitted(x, y, width, height, basis, spheres, count, materials, lights, pattern, params, tree,
+                             stack_row, stack_t, rays_f, rays_i, image, hits):  # fmt: skip
+        """render_pixel under Whitted shading (kernels/whitted.py); returns the
+        pixel's rays by kind (primary, shadow, reflection, refraction).
+        tree: the BVH's (nodes, links, ordered, order), or brute force where
+        it has no node. stack_row/stack_t: the walk's stack; rays_f/rays_i:
+        the pending rays (whitted.RAY_STACK rows), the backend's to give."""
+        red, green, blue, hit, primary, shadow, reflection, refraction = whitted_pixel(
+            x, y, width, height, basis, primary_ray(x, y, width, height, basis), spheres, count, materials, lights,
+            pattern, params, tree, stack_row, stack_t, rays_f, rays_i,
+        )  # fmt: skip
+        image[y, x, 0] = to_byte(red)
+        image[y, x, 1] = to_byte(green)
+        image[y, x, 2] = to_byte(blue)
+        hits[y, x] = hit
+        return primary, shadow, reflection, refraction
+
     @jit
     def prepare(i, basis, spheres, relative):
         """Fast kernels, once per frame and sphere i: relative[:, i] = EO and the
@@ -118,4 +166,8 @@ def build(jit):
         shade_miss=shade_miss,
         to_byte=to_byte,
         nearest_hit=nearest_hit,
+        scan=scan,
+        render_pixel_whitted=render_pixel_whitted,
+        walk=walk,
+        intersect_ahead=intersect_ahead,
     )

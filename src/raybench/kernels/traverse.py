@@ -34,7 +34,7 @@ FAR = np.float32(3.0e38)
 _U = np.uint64
 
 
-def build(jit, intersect_sphere):
+def build(jit, intersect_sphere, intersect_ahead):
     @jit
     def inverse(d):
         """1/d for the slab test, finite: |d| raised to at least TINY, its sign kept."""
@@ -111,24 +111,56 @@ def build(jit, intersect_sphere):
         )
 
     @jit
-    def leaf_hits(ox, oy, oz, dx, dy, dz, ordered, order, first, count, closest, hit, hit_d):
+    def leaf_test(ox, oy, oz, dx, dy, dz, ordered, order, first, count, closest, hit, hit_d, ahead, own, own_inside):
         """The exact test on a leaf's spheres; the nearest so far, ties to the
-        smaller original index."""
+        smaller original index. ahead: a Whitted ray's test (intersect_ahead),
+        where the sphere `own` the ray leaves is skipped, or with own_inside
+        (the ray goes into it) met at its far root: a ray leaving a sphere
+        outwards cannot meet it again (it is convex), so no rounding of the
+        ray's origin can make the sphere shadow or reflect itself. Else the
+        thesis's test (intersect_sphere)."""
         for j in range(_U(first), _U(first + count)):
-            t, d = intersect_sphere(ox, oy, oz, dx, dy, dz, ordered[0, j], ordered[1, j], ordered[2, j], ordered[3, j])
-            if t > ZERO and (t < closest or (t == closest and order[j] < hit)):
+            original = order[j]
+            if ahead:
+                if original == own and not own_inside:
+                    continue
+                t, d = intersect_ahead(
+                    ordered[0, j] - ox,
+                    ordered[1, j] - oy,
+                    ordered[2, j] - oz,
+                    ordered[3, j],
+                    dx,
+                    dy,
+                    dz,
+                    original == own,
+                )
+            else:
+                t, d = intersect_sphere(
+                    ox, oy, oz, dx, dy, dz, ordered[0, j], ordered[1, j], ordered[2, j], ordered[3, j]
+                )
+            if t > ZERO and (t < closest or (t == closest and original < hit)):
                 closest = t
-                hit = order[j]
+                hit = original
                 hit_d = d
         return closest, hit, hit_d
 
     @jit
-    def nearest_hit_bvh(ox, oy, oz, dx, dy, dz, nodes, links, ordered, order, stack_row, stack_t):
-        """(original index of the nearest sphere with t > 0 or -1, its half-chord d).
-        stack_row / stack_t: the walk's stack, layout.STACK entries, given by the
-        backend (a CUDA thread's local array, a CPU thread's own)."""
+    def leaf_hits(ox, oy, oz, dx, dy, dz, ordered, order, first, count, closest, hit, hit_d):
+        """leaf_test for the thesis's primary rays."""
+        return leaf_test(ox, oy, oz, dx, dy, dz, ordered, order, first, count, closest, hit, hit_d, False, -1, False)
+
+    @jit
+    def walk(
+        ox, oy, oz, dx, dy, dz, t_max, any_hit, ahead, own, own_inside, nodes, links, ordered, order, stack_row, stack_t
+    ):
+        """The one BVH walk for any ray: (original index of the nearest sphere
+        with 0 < t < t_max, or -1; its t; its half-chord d). any_hit: stop at
+        the first such sphere (a shadow ray's blocker), whichever it is.
+        ahead, own, own_inside: the secondary rays' test (leaf_test).
+        stack_row / stack_t: the walk's stack, layout.STACK entries, given by
+        the backend (a CUDA thread's local array, a CPU thread's own)."""
         ix, iy, iz, lx, ly, lz, hx, hy, hz = ray_axes(ox, oy, oz, dx, dy, dz)
-        closest = FAR
+        closest = t_max
         hit = -1
         hit_d = ZERO
         row = 0
@@ -154,13 +186,43 @@ def build(jit, intersect_sphere):
                 if a_count == INNER:
                     row = a_ref
                 else:
-                    closest, hit, hit_d = leaf_hits(
-                        ox, oy, oz, dx, dy, dz, ordered, order, a_ref, a_count, closest, hit, hit_d
+                    closest, hit, hit_d = leaf_test(
+                        ox,
+                        oy,
+                        oz,
+                        dx,
+                        dy,
+                        dz,
+                        ordered,
+                        order,
+                        a_ref,
+                        a_count,
+                        closest,
+                        hit,
+                        hit_d,
+                        ahead,
+                        own,
+                        own_inside,
                     )
             if b_near <= b_far and b_far > ZERO and b_near <= closest:
                 if b_count != INNER:
-                    closest, hit, hit_d = leaf_hits(
-                        ox, oy, oz, dx, dy, dz, ordered, order, b_ref, b_count, closest, hit, hit_d
+                    closest, hit, hit_d = leaf_test(
+                        ox,
+                        oy,
+                        oz,
+                        dx,
+                        dy,
+                        dz,
+                        ordered,
+                        order,
+                        b_ref,
+                        b_count,
+                        closest,
+                        hit,
+                        hit_d,
+                        ahead,
+                        own,
+                        own_inside,
                     )
                 elif row < 0:
                     row = b_ref
@@ -168,10 +230,21 @@ def build(jit, intersect_sphere):
                     stack_row[top] = b_ref
                     stack_t[top] = b_near
                     top += _U(1)
+            if any_hit and hit >= 0:
+                return hit, closest, hit_d
             while row < 0 and top > _U(0):
                 top -= _U(1)
                 if stack_t[top] <= closest:
                     row = stack_row[top]
+        return hit, closest, hit_d
+
+    @jit
+    def nearest_hit_bvh(ox, oy, oz, dx, dy, dz, nodes, links, ordered, order, stack_row, stack_t):
+        """(original index of the nearest sphere with t > 0 or -1, its
+        half-chord d): walk() for the thesis's primary rays."""
+        hit, _t, hit_d = walk(
+            ox, oy, oz, dx, dy, dz, FAR, False, False, -1, False, nodes, links, ordered, order, stack_row, stack_t
+        )
         return hit, hit_d
 
-    return nearest_hit_bvh, inverse, ray_axes, children, leaf_hits, centre_along
+    return nearest_hit_bvh, inverse, ray_axes, children, leaf_hits, centre_along, walk

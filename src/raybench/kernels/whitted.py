@@ -1,0 +1,288 @@
+"""Whitted shading (Whitted 1980; the thesis's "Shadow Rays" and "Reflective
+Rays"): local light with shadow rays, then mirror reflection and refraction,
+traced iteratively from a bounded stack of pending rays, which a GPU thread
+can hold (no recursion).
+
+A pixel's rays, each counted by kind:
+- the primary ray;
+- shadow rays, any-hit, from each hit point towards each light: one to a
+  point light, `samples` to an area light (a sphere), at the fixed points of
+  lighting.sample_pattern, so a frame is the same on every run and device;
+- a reflected ray where the material reflects or Fresnel sends light back;
+- a refracted ray (Snell's law) where it transmits, unless the angle is past
+  the critical one (total internal reflection: all of it is reflected).
+Fresnel by Schlick's approximation splits a transmitting material's weight
+between the two. A ray is not spawned past `depth` bounces, nor when its
+weight, the product of the coefficients along its path, falls under CUTOFF
+on every channel: it could not move a byte.
+
+Where the scene has no lights, a hit's local colour is the thesis's own
+(shade.shade_hit), so a scene of neither lights nor mirrors nor glass gives
+the thesis's picture bit for bit.
+
+Self-intersection: a secondary ray starts at the hit point, moved by OFFSET
+of its coordinates' magnitude to the side it leaves on (what float32 can
+resolve there), and it skips the sphere it leaves, or for a ray going into
+that sphere takes only its far root (traverse.leaf_test): a sphere is
+convex, so this holds for grazing rays and for tiny or huge radii, where
+no offset alone can.
+"""
+
+import math
+
+import numpy as np
+
+from ..layout import (
+    BLUE,
+    CX,
+    CY,
+    CZ,
+    GREEN,
+    IOR,
+    LBLUE,
+    LGREEN,
+    LRADIUS,
+    LRED,
+    LX,
+    LY,
+    LZ,
+    RADIUS,
+    RED,
+    REFLECT,
+    SHININESS,
+    SPECULAR,
+    TRANSMIT,
+)
+
+ZERO = np.float32(0.0)
+ONE = np.float32(1.0)
+TWO = np.float32(2.0)
+FAR = np.float32(3.0e38)
+# Pending rays a pixel may hold: a ray at depth k leaves at most one sibling
+# pending on each level above it and pushes two, so MAX_DEPTH + 1 suffice.
+MAX_DEPTH = 16
+RAY_STACK = MAX_DEPTH + 2
+# A pending ray: origin, direction, weight (rgb) as float32 ...
+RAY_FLOATS = 9
+# ... and its depth, kind, the sphere it leaves and whether it goes into it.
+RAY_INTS = 4
+# Ray kinds, the columns of the ray counts.
+PRIMARY, SHADOW, REFLECTION, REFRACTION = range(4)
+KINDS = ("primary", "shadow", "reflection", "refraction")
+# Weights under half a byte's step cannot change a pixel.
+CUTOFF = np.float32(0.5 / 255.0)
+# The offset of a secondary ray's origin, of |P|_1: 16 float32 epsilons.
+OFFSET = np.float32(2.0**-19)
+# The frame's settings, one small float32 array (lighting.Shading.params).
+P_AMBIENT = 0  # 3 floats
+P_BACKGROUND = 3  # 3 floats, used where P_GRADIENT is 0
+P_GRADIENT = 6  # 1: the thesis's gradient behind everything
+P_DEPTH = 7
+P_SAMPLES = 8  # shadow rays to an area light
+P_LIGHTS = 9
+PARAMS = 10
+
+
+def build(jit, scan, walk, shade_hit, shade_miss):
+    @jit
+    def find(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, spheres, count, tree, stack_row, stack_t):
+        """The nearest sphere (or, any_hit, any) with 0 < t < t_max along a
+        secondary ray: (index or -1, t, half-chord). tree: the BVH's nodes,
+        links, ordered and order; brute force (scan) where it has no node."""
+        nodes, links, ordered, order = tree
+        if nodes.shape[0] > 0:
+            return walk(
+                ox, oy, oz, dx, dy, dz, t_max, any_hit, True, own, own_inside, nodes, links, ordered, order,
+                stack_row, stack_t,
+            )  # fmt: skip
+        return scan(ox, oy, oz, dx, dy, dz, t_max, any_hit, True, own, own_inside, spheres, count)
+
+    @jit
+    def push(rays_f, rays_i, top, ox, oy, oz, dx, dy, dz, wr, wg, wb, depth, kind, own, inside):
+        rays_f[top, 0] = ox
+        rays_f[top, 1] = oy
+        rays_f[top, 2] = oz
+        rays_f[top, 3] = dx
+        rays_f[top, 4] = dy
+        rays_f[top, 5] = dz
+        rays_f[top, 6] = wr
+        rays_f[top, 7] = wg
+        rays_f[top, 8] = wb
+        rays_i[top, 0] = depth
+        rays_i[top, 1] = kind
+        rays_i[top, 2] = own
+        rays_i[top, 3] = inside
+        return top + 1
+
+    @jit
+    def local_light(px, py, pz, nx, ny, nz, vx, vy, vz, i, inside, spheres, count, materials, lights, pattern, params,
+                    tree, stack_row, stack_t):  # fmt: skip
+        """The hit's diffuse (ambient and Lambert) and specular (Phong) light,
+        each an rgb triple, with a shadow ray to every light sample; and the
+        number of shadow rays cast. (nx, ny, nz): the unit normal on the
+        viewer's side; (vx, vy, vz): the unit direction towards the viewer."""
+        kr, kg, kb = spheres[RED, i], spheres[GREEN, i], spheres[BLUE, i]
+        dr = params[P_AMBIENT] * kr
+        dg = params[P_AMBIENT + 1] * kg
+        db = params[P_AMBIENT + 2] * kb
+        sr = ZERO
+        sg = ZERO
+        sb = ZERO
+        ks = materials[SPECULAR, i]
+        shininess = materials[SHININESS, i]
+        shadows = 0
+        for light in range(np.int32(params[P_LIGHTS])):
+            radius = lights[LRADIUS, light]
+            samples = np.int32(params[P_SAMPLES]) if radius > ZERO else 1
+            share = ONE / np.float32(samples)
+            for s in range(samples):
+                lx = lights[LX, light] + radius * pattern[0, s] - px
+                ly = lights[LY, light] + radius * pattern[1, s] - py
+                lz = lights[LZ, light] + radius * pattern[2, s] - pz
+                dist = np.float32(math.sqrt(lx * lx + ly * ly + lz * lz))
+                if dist <= ZERO:
+                    continue
+                lx /= dist
+                ly /= dist
+                lz /= dist
+                facing = nx * lx + ny * ly + nz * lz
+                if facing <= ZERO:  # the light is behind the surface: no shadow ray needed
+                    continue
+                shadows += 1
+                blocker, _t, _d = find(px, py, pz, lx, ly, lz, dist, True, i, inside, spheres, count, tree,
+                                       stack_row, stack_t)  # fmt: skip
+                if blocker >= 0:
+                    continue
+                cr = lights[LRED, light] * share
+                cg = lights[LGREEN, light] * share
+                cb = lights[LBLUE, light] * share
+                dr += cr * kr * facing
+                dg += cg * kg * facing
+                db += cb * kb * facing
+                if ks > ZERO:
+                    # Phong: the light's mirror direction against the viewer's
+                    rv = TWO * facing * (nx * vx + ny * vy + nz * vz) - (lx * vx + ly * vy + lz * vz)
+                    if rv > ZERO:
+                        glint = ks * np.float32(math.pow(rv, shininess))
+                        sr += cr * glint
+                        sg += cg * glint
+                        sb += cb * glint
+        return dr, dg, db, sr, sg, sb, shadows
+
+    @jit
+    def whitted_pixel(x, y, width, height, basis, primary_ray, spheres, count, materials, lights, pattern, params,
+                      tree, stack_row, stack_t, rays_f, rays_i):  # fmt: skip
+        """Colour (rgb, unclamped), primary hit and the rays cast by kind for
+        pixel (x, y). primary_ray: trace.primary_ray's direction, given."""
+        dx, dy, dz = primary_ray
+        fx = np.float32(x)
+        fy = np.float32(y)
+        if params[P_GRADIENT] > ZERO:
+            br, bg, bb = shade_miss(fx, fy)
+        else:
+            br, bg, bb = params[P_BACKGROUND], params[P_BACKGROUND + 1], params[P_BACKGROUND + 2]
+        max_depth = np.int32(params[P_DEPTH])
+        lit = params[P_LIGHTS] > ZERO
+        red = ZERO
+        green = ZERO
+        blue = ZERO
+        first_hit = -1
+        n_primary = 0
+        n_shadow = 0
+        n_reflect = 0
+        n_refract = 0
+        top = push(rays_f, rays_i, 0, basis[0, 0], basis[0, 1], basis[0, 2], dx, dy, dz, ONE, ONE, ONE, 0,
+                   PRIMARY, -1, 0)  # fmt: skip
+        while top > 0:
+            top -= 1
+            ox, oy, oz = rays_f[top, 0], rays_f[top, 1], rays_f[top, 2]
+            dx, dy, dz = rays_f[top, 3], rays_f[top, 4], rays_f[top, 5]
+            wr, wg, wb = rays_f[top, 6], rays_f[top, 7], rays_f[top, 8]
+            depth, kind, own, own_inside = rays_i[top, 0], rays_i[top, 1], rays_i[top, 2], rays_i[top, 3]
+            if kind == PRIMARY:
+                n_primary += 1
+            elif kind == REFLECTION:
+                n_reflect += 1
+            else:
+                n_refract += 1
+            i, t, d = find(ox, oy, oz, dx, dy, dz, FAR, False, own, own_inside != 0, spheres, count, tree,
+                           stack_row, stack_t)  # fmt: skip
+            if kind == PRIMARY:
+                first_hit = i
+            if i < 0:
+                red += wr * br
+                green += wg * bg
+                blue += wb * bb
+                continue
+            r = spheres[RADIUS, i]
+            px = ox + t * dx
+            py = oy + t * dy
+            pz = oz + t * dz
+            inv_r = ONE / r
+            nx = (px - spheres[CX, i]) * inv_r
+            ny = (py - spheres[CY, i]) * inv_r
+            nz = (pz - spheres[CZ, i]) * inv_r
+            inv_n = ONE / np.float32(math.sqrt(nx * nx + ny * ny + nz * nz))
+            nx *= inv_n
+            ny *= inv_n
+            nz *= inv_n
+            cos_i = -(nx * dx + ny * dy + nz * dz)
+            inside = cos_i < ZERO  # the ray meets the sphere from within
+            if inside:
+                nx, ny, nz, cos_i = -nx, -ny, -nz, -cos_i
+            kr = materials[REFLECT, i]
+            kt = materials[TRANSMIT, i]
+            keep = ONE - kr - kt
+            if lit:
+                lr, lg, lb, sr, sg, sb, shadows = local_light(
+                    px, py, pz, nx, ny, nz, -dx, -dy, -dz, i, inside, spheres, count, materials, lights, pattern,
+                    params, tree, stack_row, stack_t,
+                )  # fmt: skip
+                n_shadow += shadows
+                red += wr * (keep * lr + sr)
+                green += wg * (keep * lg + sg)
+                blue += wb * (keep * lb + sb)
+            else:
+                lr, lg, lb = shade_hit(spheres[RED, i], spheres[GREEN, i], spheres[BLUE, i], r, d)
+                red += wr * (keep * lr)
+                green += wg * (keep * lg)
+                blue += wb * (keep * lb)
+            if depth >= max_depth or (kr <= ZERO and kt <= ZERO):
+                continue
+            offset = OFFSET * (abs(px) + abs(py) + abs(pz))
+            if kt > ZERO:
+                # Snell: eta = n1 / n2, from the side the ray comes from
+                ior = materials[IOR, i]
+                eta = ior if inside else ONE / ior
+                k = ONE - eta * eta * (ONE - cos_i * cos_i)
+                if k < ZERO:  # total internal reflection
+                    kr += kt
+                    kt = ZERO
+                else:
+                    cos_t = np.float32(math.sqrt(k))
+                    r0 = (ONE - ior) / (ONE + ior)
+                    r0 *= r0
+                    # Schlick, with the angle on the optically thinner side
+                    c = ONE - (cos_t if eta > ONE else cos_i)
+                    fresnel = r0 + (ONE - r0) * c * c * c * c * c
+                    kr += kt * fresnel
+                    kt *= ONE - fresnel
+                    tr, tg, tb = wr * kt, wg * kt, wb * kt
+                    if max(tr, max(tg, tb)) > CUTOFF:
+                        a = eta * cos_i - cos_t
+                        tx = eta * dx + a * nx
+                        ty = eta * dy + a * ny
+                        tz = eta * dz + a * nz
+                        # it goes through the surface: from outside into the sphere, or out of it
+                        top = push(rays_f, rays_i, top, px - offset * nx, py - offset * ny, pz - offset * nz,
+                                   tx, ty, tz, tr, tg, tb, depth + 1, REFRACTION, i,
+                                   0 if inside else 1)  # fmt: skip
+            rr, rg, rb = wr * kr, wg * kr, wb * kr
+            if max(rr, max(rg, rb)) > CUTOFF:
+                two_cos = TWO * cos_i
+                top = push(rays_f, rays_i, top, px + offset * nx, py + offset * ny, pz + offset * nz,
+                           dx + two_cos * nx, dy + two_cos * ny, dz + two_cos * nz, rr, rg, rb, depth + 1,
+                           REFLECTION, i, 1 if inside else 0)  # fmt: skip
+        return red, green, blue, first_hit, n_primary, n_shadow, n_reflect, n_refract
+
+    return whitted_pixel
