@@ -3,9 +3,20 @@ CPU (Numba) and for NVIDIA GPUs (numba-cuda), to measure what a GPU buys."""
 
 from .camera import Camera
 from .errors import RaybenchError
+from .lighting import Light, Material
 from .render import Frame, render
 from .scene import Scene, random_spheres
 
 __version__ = "0.1.0"
 
-__all__ = ["Camera", "Frame", "RaybenchError", "Scene", "random_spheres", "render", "__version__"]
+__all__ = [
+    "Camera",
+    "Frame",
+    "Light",
+    "Material",
+    "RaybenchError",
+    "Scene",
+    "random_spheres",
+    "render",
+    "__version__",
+]

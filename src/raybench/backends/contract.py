@@ -25,6 +25,9 @@ class Tracer(Protocol):
     accel: str  # "bvh" or "none"
     walk: str | None  # the BVH walk ("ray" or "packet"), None where the device has one kind or for brute force
     build_s: float | None  # the last BVH build's seconds, apart from any frame; None for brute force
+    # The last frame's rays by kind (kernels.whitted.KINDS), as the kernel
+    # counted them; None under the thesis's shading: one primary ray a pixel.
+    ray_counts: np.ndarray | None
 
     def compile(self) -> float:
         """Compile what a frame needs, tracing nothing; the seconds it took."""
@@ -56,6 +59,7 @@ class TracerBase:
 
     walk: str | None = None
     build_s: float | None = None
+    ray_counts: np.ndarray | None = None
 
     def describe(self) -> dict | None:
         return None

@@ -585,14 +585,14 @@ class Tracer(TracerBase):
         self.bvh = None
         self.build_s = None
         self.whitted = whitted
-        self.rays = None
+        self.ray_counts = None
         if whitted is not None:
             # rows take unequal time (mirrors and glass cost more): pulled in chunks, as the BVH's
             self.bands = chunks(height, self.threads)
             workers = min(self.threads, len(self.bands))
             self._kernel = _whitted_rows
             self._row_rays = np.zeros((height, len(whitted_mod.KINDS)), np.int64)
-            self.rays = np.zeros(len(whitted_mod.KINDS), np.int64)
+            self.ray_counts = np.zeros(len(whitted_mod.KINDS), np.int64)
             self._none = np.zeros((0, NODE_FLOATS), np.float32)
             if self.accel == "bvh":
                 self._build(self.count)
@@ -681,8 +681,8 @@ class Tracer(TracerBase):
         else:
             for job in [self._pool.submit(self._kernel, a, b, *args) for a, b in self.bands]:
                 job.result()
-        if self.rays is not None:
-            self.rays[:] = self._row_rays.sum(axis=0)
+        if self.ray_counts is not None:
+            self.ray_counts[:] = self._row_rays.sum(axis=0)
         return self.image, self.hits
 
     def timed_trace(self, basis: np.ndarray, count: int | None = None) -> float | None:

@@ -26,7 +26,9 @@ from .. import bvh as bvh_mod
 from .. import kernels
 from ..errors import RaybenchError
 from ..kernels.trace import FAR, ZERO
-from ..layout import CHILD_BOX, INNER, NODE_BYTES, RADIUS, STACK
+from ..kernels.whitted import KINDS, RAY_FLOATS, RAY_INTS, RAY_STACK
+from ..layout import CHILD_BOX, INNER, NODE_BYTES, NODE_FLOATS, RADIUS, STACK
+from ..lighting import Shading
 from .contract import TracerBase, check_method
 from .limits import (
     FAST_MAX_THREADS,
@@ -64,6 +66,7 @@ _k = kernels.build(cuda.jit(device=True))
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
 _prepare_one, _may_hit, _along, _intersect_relative = _k.prepare, _k.may_hit, _k.along, _k.intersect_relative
 _render_pixel_bvh = _k.render_pixel_bvh
+_render_pixel_whitted = _k.render_pixel_whitted
 _ray_axes, _children, _leaf_hits, _centre = _k.ray_axes, _k.children, _k.leaf_hits, _k.centre_along
 
 # Fast kernel defaults: each thread traces RAYS pixels, one above the other a
@@ -103,6 +106,45 @@ def _bvh_kernel(width, height, basis, nodes, links, ordered, order, spheres, ima
         _render_pixel_bvh(
             x, y, width, height, basis, nodes, links, ordered, order, spheres, image, hits, stack_row, stack_t
         )
+
+
+@cuda.jit
+def _whitted_kernel(width, height, basis, spheres, count, materials, lights, pattern, params, nodes, links, ordered,
+                    order, image, hits, rays):  # fmt: skip
+    """Whitted shading, a thread a pixel (kernels/whitted.py), through the
+    BVH or (with no node) over every sphere. rays[kind] += the rays the
+    block cast, summed in shared memory first: one global atomic per kind
+    and block, not per pixel."""
+    x, y = cuda.grid(2)
+    me = cuda.threadIdx.y * cuda.blockDim.x + cuda.threadIdx.x
+    tally = cuda.shared.array(4, np.int32)
+    if me < 4:
+        tally[me] = 0
+    cuda.syncthreads()
+    if x < width and y < height:
+        stack_row = cuda.local.array(STACK, np.int32)
+        stack_t = cuda.local.array(STACK, np.float32)
+        rays_f = cuda.local.array((RAY_STACK, RAY_FLOATS), np.float32)
+        rays_i = cuda.local.array((RAY_STACK, RAY_INTS), np.int32)
+        primary, shadow, reflection, refraction = _render_pixel_whitted(
+            x, y, width, height, basis, spheres, count, materials, lights, pattern, params,
+            (nodes, links, ordered, order), stack_row, stack_t, rays_f, rays_i, image, hits,
+        )  # fmt: skip
+        cuda.atomic.add(tally, 0, primary)
+        if shadow:
+            cuda.atomic.add(tally, 1, shadow)
+        if reflection:
+            cuda.atomic.add(tally, 2, reflection)
+        if refraction:
+            cuda.atomic.add(tally, 3, refraction)
+    cuda.syncthreads()
+    if me < 4:
+        cuda.atomic.add(rays, me, np.int64(tally[me]))
+
+
+@cuda.jit
+def _zero_rays(rays):
+    rays[cuda.threadIdx.x] = 0
 
 
 # What a thread pushes as the entry distance of a child its ray does not
@@ -406,6 +448,7 @@ class Tracer(TracerBase):
         trip: int | None = None,
         accel: str | None = None,
         walk: str | None = None,
+        whitted: Shading | None = None,
     ):
         require()
         self.accel, self.kernel = check_method(
@@ -413,6 +456,7 @@ class Tracer(TracerBase):
             kernel,
             constant_count,
             {"rays": rays is not None, "tile": tile is not None, "trip": trip is not None},
+            whitted,
         )
         rays = RAYS if rays is None else rays
         tile = TILE if tile is None else tile
@@ -464,7 +508,29 @@ class Tracer(TracerBase):
         self.bvh = None
         self.build_s = None
         self.walk = None
-        if self.accel == "bvh":
+        self.whitted = whitted
+        self.ray_counts = None
+        if whitted is not None:
+            if walk == "packet":
+                raise RaybenchError(
+                    "walk 'packet': applies to the thesis's shading only; Whitted's rays walk one by one"
+                )
+            self._kernel = _whitted_kernel
+            if self.accel == "bvh":
+                self._build(self.count)
+                self.walk = "ray"
+            else:  # brute force: a tree of no node
+                self.d_nodes = cuda.device_array((0, NODE_FLOATS), np.float32)
+                self.d_links = cuda.device_array((0, NODE_FLOATS), np.int32)
+                self.d_ordered = cuda.device_array((4, 1), np.float32)
+                self.d_order = cuda.device_array(1, np.int32)
+            self.d_materials = cuda.to_device(whitted.materials if self.count else np.ones((5, 1), np.float32))
+            self.d_lights = cuda.to_device(whitted.lights)
+            self.d_pattern = cuda.to_device(whitted.pattern)
+            self.d_params = cuda.to_device(whitted.params)
+            self.d_rays = cuda.to_device(np.zeros(len(KINDS), np.int64))
+            self.ray_counts = np.zeros(len(KINDS), np.int64)
+        elif self.accel == "bvh":
             self._build(self.count)
             self.walk = choose_walk(self.bvh.node_count) if walk is None else walk
             self._kernel = _bvh_packet_kernel if self.walk == "packet" else _bvh_kernel
@@ -499,7 +565,16 @@ class Tracer(TracerBase):
         with warnings.catch_warnings():
             # Small frames cannot fill the GPU; that is the user's choice, not news.
             warnings.simplefilter("ignore", NumbaPerformanceWarning)
-            if self.accel == "bvh":
+            if self.whitted is not None:
+                if self.accel == "bvh" and self.bvh.count != count:
+                    self._build(count)
+                _zero_rays[1, len(KINDS)](self.d_rays)
+                self._kernel[grid, self.block](
+                    width, height, self.d_basis, self.d_spheres, count, self.d_materials, self.d_lights,
+                    self.d_pattern, self.d_params, self.d_nodes, self.d_links, self.d_ordered, self.d_order,
+                    self.d_image, self.d_hits, self.d_rays,
+                )  # fmt: skip
+            elif self.accel == "bvh":
                 if self.bvh.count != count:  # a frame of fewer spheres: their own tree
                     self._build(count)
                 self._kernel[grid, self.block](
@@ -541,6 +616,8 @@ class Tracer(TracerBase):
         """Copy the last frame to the host (waits for the kernel)."""
         self.d_image.copy_to_host(self.image)
         self.d_hits.copy_to_host(self.hits)
+        if self.ray_counts is not None:
+            self.d_rays.copy_to_host(self.ray_counts)
         return self.image, self.hits
 
     def trace(self, basis: np.ndarray, count: int | None = None) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,15 @@
+"""Example scenes shipped with raybench, loadable by name (`--scene whitted`)
+or as files: whitted.json, the classic scene of Whitted's paper made of
+spheres only (a huge sphere as the floor, a mirror, a glass ball, an area
+light)."""
+
+from __future__ import annotations
+
+from importlib import resources
+
+NAMES = ("whitted",)
+
+
+def path(name: str):
+    """The packaged file of the example `name`."""
+    return resources.files(__package__).joinpath(f"{name}.json")

@@ -1,0 +1,272 @@
+"""Whitted shading: the kernels against the float64 reference (whitted_reference)
+on fresh random scenes, its invariants, and every device against the CPU."""
+
+import math
+
+import numpy as np
+import pytest
+import whitted_reference
+from reference import to_bytes
+from scenes import KINDS
+
+import raybench
+from raybench import Camera, Light, Material, Scene, backends, lighting
+from raybench.kernels import whitted
+
+
+def material(rng) -> Material:
+    kind = rng.integers(4)
+    if kind == 0:
+        return Material()
+    if kind == 1:
+        return Material(specular=float(rng.uniform(0, 1)), shininess=float(rng.uniform(1, 200)))
+    if kind == 2:
+        return Material(specular=float(rng.uniform(0, 1)), reflect=float(rng.uniform(0.3, 1.0)))
+    return Material(
+        specular=float(rng.uniform(0, 1)),
+        reflect=float(rng.uniform(0, 0.1)),
+        transmit=float(rng.uniform(0.5, 0.9)),
+        ior=float(rng.uniform(1.1, 2.4)),
+    )
+
+
+def lit_scene(rng, n, lights=True, camera=None):
+    """n spheres of mixed materials in front of the default camera, on a
+    floor that is a huge sphere, lit by a point light and an area light."""
+    centers = np.stack([rng.uniform(-4, 4, n), rng.uniform(-2.5, 2.5, n), rng.uniform(6, 18, n)], axis=1)
+    radii = rng.uniform(0.3, 1.6, n)
+    centers = np.concatenate([centers, [[0.0, -1003.0, 12.0]]])
+    radii = np.concatenate([radii, [1000.0]])
+    lamps = []
+    if lights:
+        lamps = [
+            Light(position=tuple(rng.uniform([-6, 4, -2], [6, 10, 6])), intensity=float(rng.uniform(0.4, 0.9))),
+            Light(
+                position=tuple(rng.uniform([-6, 4, -2], [6, 10, 6])),
+                color=tuple(rng.uniform(0.5, 1.0, 3)),
+                intensity=float(rng.uniform(0.4, 0.9)),
+                radius=float(rng.uniform(0.2, 1.5)),
+            ),
+        ]
+    return Scene(
+        centers,
+        radii,
+        rng.uniform(0, 1, (n + 1, 3)),
+        camera,
+        materials=[material(rng) for _ in range(n + 1)],
+        lights=lamps,
+        ambient=tuple(rng.uniform(0, 0.2, 3)),
+        background=None if rng.uniform() < 0.5 else tuple(rng.uniform(0, 1, 3)),
+    )
+
+
+def frame(scene, device, width, height, camera=None, depth=5, samples=3, **options):
+    return raybench.render(
+        scene, camera, width, height, device=device, shading="whitted", depth=depth, shadow_samples=samples, **options
+    )
+
+
+def check_against_reference(got, ref, context, max_off=0.02):
+    """Hits the reference's wherever they agree closely enough that float32
+    cannot decide otherwise (all but a few edge pixels), colours within 2
+    steps but at a few pixels (grazing rays, shadow edges), ray counts within
+    a few percent (a weight near the cut-off or a grazing hit may go either
+    way)."""
+    n = got.hits.size
+    hits_off = (got.hits != ref.hits).sum()
+    assert hits_off <= max(1, 0.005 * n), f"{context}: {hits_off} of {n} pixels hit another sphere"
+    steps = np.abs(got.image.astype(int) - to_bytes(ref.color).astype(int)).max(axis=2)
+    off = (steps > 2).mean()
+    assert off <= max_off, f"{context}: {off:.1%} of pixels more than 2 steps from the reference (max {steps.max()})"
+    counts = np.array([got.rays[k] for k in whitted.KINDS])
+    assert counts[0] == ref.rays[0] == n
+    assert np.all(np.abs(counts - ref.rays) <= 0.03 * ref.rays + 2), f"{context}: rays {counts} vs {ref.rays}"
+
+
+@pytest.mark.parametrize("accel", ["bvh", "none"])
+def test_cpu_matches_the_float64_reference(rng, accel):
+    scene = lit_scene(rng, 12)
+    shading = lighting.Shading.of(scene, 5, 3)
+    ref = whitted_reference.trace(scene, shading, Camera(), 48, 32)
+    got = frame(scene, "cpu", 48, 32, accel=accel)
+    check_against_reference(got, ref, f"cpu {accel}")
+    assert got.rays["shadow"] > 0 and got.rays["reflection"] > 0 and got.rays["refraction"] > 0
+
+
+def test_camera_inside_a_glass_sphere(rng):
+    scene = lit_scene(rng, 8)
+    glass = Scene(
+        np.concatenate([scene.centers, [[0.2, -0.1, 0.3]]]),
+        np.concatenate([scene.radii, [2.5]]),
+        np.concatenate([scene.colors, [[1.0, 1.0, 1.0]]]),
+        materials=[*scene.materials, Material(transmit=0.95, ior=1.33)],
+        lights=scene.lights,
+        ambient=scene.ambient,
+        background=scene.background,
+    )
+    shading = lighting.Shading.of(glass, 5, 2)
+    ref = whitted_reference.trace(glass, shading, Camera(), 40, 30)
+    got = frame(glass, "cpu", 40, 30, samples=2)
+    assert (got.hits == len(glass) - 1).all()  # every primary ray meets the glass from inside
+    check_against_reference(got, ref, "camera in glass")
+
+
+@pytest.mark.parametrize("kind", [k for k in KINDS if k != "inside"])
+@pytest.mark.parametrize("accel", ["bvh", "none"])
+def test_no_lights_no_mirrors_is_the_thesis_picture(rng, kind, accel):
+    """With the camera outside every sphere: Whitted shading of a scene
+    without lights, mirrors or glass is the thesis's picture, bit for bit."""
+    scene, camera = KINDS[kind](rng, 40)
+    thesis = raybench.render(scene, camera, 40, 30, device="cpu", accel=accel)
+    lit = raybench.render(scene, camera, 40, 30, device="cpu", accel=accel, shading="whitted")
+    assert np.array_equal(thesis.image, lit.image) and np.array_equal(thesis.hits, lit.hits)
+    assert lit.rays == {"primary": 1200, "shadow": 0, "reflection": 0, "refraction": 0}
+
+
+def test_a_sphere_shadows_the_floor_where_the_reference_says(rng):
+    """A point light above a sphere over a floor: the floor's pixels in the
+    shadow are those the reference finds blocked, but at the shadow's edge."""
+    side = float(rng.choice([-1, 1]) * rng.uniform(2, 4))
+    scene = Scene(
+        [[0.0, -1000.0, 10.0], [float(rng.uniform(-1, 1)), float(rng.uniform(1.2, 2.0)), 10.0]],
+        [1000.0, 0.8],
+        [[0.8, 0.8, 0.8], [0.9, 0.2, 0.2]],
+        Camera(position=(0, 4, 0), look_at=(0, 0, 10)),
+        lights=[Light(position=(side, 7.0, float(rng.uniform(8, 12))))],
+        ambient=(0.05, 0.05, 0.05),
+    )
+    shading = lighting.Shading.of(scene, 5, 1)
+    ref = whitted_reference.trace(scene, shading, scene.camera, 80, 60)
+    got = frame(scene, "cpu", 80, 60)
+    floor = (ref.hits == 0) & (got.hits == 0)
+    dark_ref = floor & (ref.color.sum(axis=2) < 0.5)
+    dark_got = floor & (got.image.astype(int).sum(axis=2) < 0.5 * 255)
+    assert dark_ref.sum() > 20, "the test scene casts no shadow in view"
+    differ = dark_ref ^ dark_got
+    edge = dark_ref ^ np.roll(dark_ref, 1, 0) | dark_ref ^ np.roll(dark_ref, 1, 1)
+    edge = edge | np.roll(edge, -1, 0) | np.roll(edge, -1, 1)
+    assert not (differ & ~edge).any(), f"{(differ & ~edge).sum()} floor pixels shadowed unlike the reference"
+
+
+@pytest.mark.parametrize("device", ["cpu", "cuda"])
+@pytest.mark.parametrize("depth", [0, 1, 4, 5, 9])
+def test_facing_mirrors_stop_at_the_depth_limit(device, depth):
+    """Between two facing mirrors the ray bounces depth times, then stops."""
+    scene = Scene(
+        [[0.0, 0.0, 3.0], [0.0, 0.0, -3.0]],
+        [1.0, 1.0],
+        [[0.5, 0.5, 0.5]] * 2,
+        materials=[Material(reflect=1.0)] * 2,
+    )
+    got = frame(scene, device, 1, 1, Camera(fov_deg=1.0), depth=depth)
+    assert got.rays == {"primary": 1, "shadow": 0, "reflection": depth, "refraction": 0}
+
+
+@pytest.mark.parametrize("device", ["cpu", "cuda"])
+def test_total_internal_reflection_inside_glass(device):
+    """From inside a glass ball (ior 1.5, critical angle 41.8 degrees) a ray
+    meeting the surface at 64 degrees is all reflected, at every bounce (a
+    chord keeps its angle); at 26 degrees it leaves, and is refracted."""
+    glass = Material(transmit=1.0, ior=1.5)
+    scene = Scene([[0.0, 0.0, 0.0]], [1.0], [[1.0, 1.0, 1.0]], materials=[glass])
+    steep = Camera(position=(0.9, 0.0, 0.0), look_at=(0.9, 1.0, 0.0), up=(0, 0, 1), fov_deg=1.0)
+    got = frame(scene, device, 1, 1, steep, depth=6)
+    assert math.degrees(math.acos(math.sqrt(1 - 0.9**2))) > 41.8
+    assert got.rays == {"primary": 1, "shadow": 0, "reflection": 6, "refraction": 0}
+    assert got.image.max() == 0  # all the light is lost at the depth limit
+    shallow = Camera(position=(0.44, 0.0, 0.0), look_at=(0.44, 1.0, 0.0), up=(0, 0, 1), fov_deg=1.0)
+    got = frame(scene, device, 1, 1, shallow, depth=1)
+    assert got.rays["refraction"] == 1 and got.rays["reflection"] == 1
+
+
+@pytest.mark.parametrize("accel", ["bvh", "none"])
+def test_cuda_gives_the_cpu_frame(rng, accel):
+    """Bit for bit under numba's simulator, which rounds as the CPU does; on
+    a GPU, whose compiler fuses multiply-adds, the same hits and colours
+    within one step but at a few pixels where a shadow or glass path turns."""
+    scene = lit_scene(rng, 10)
+    cpu = frame(scene, "cpu", 24, 16, accel=accel, samples=2)
+    gpu = frame(scene, "cuda", 24, 16, accel=accel, samples=2)
+    if backends.module("cuda").simulated():
+        assert np.array_equal(cpu.image, gpu.image) and np.array_equal(cpu.hits, gpu.hits)
+        assert cpu.rays == gpu.rays
+    else:
+        steps = np.abs(cpu.image.astype(int) - gpu.image.astype(int)).max(axis=2)
+        assert (steps > 1).mean() <= 0.01 and (cpu.hits != gpu.hits).mean() <= 0.005
+
+
+def test_version_1_scenes_need_no_lights():
+    """A scene without lights or materials is saved as version 1, and a
+    version-1 file refuses version 2's fields."""
+    plain = raybench.random_spheres(5)
+    assert plain.to_dict()["version"] == 1
+    doc = plain.to_dict()
+    doc["lights"] = []
+    with pytest.raises(raybench.RaybenchError, match=r"^lights: unknown field"):
+        Scene.from_dict(doc)
+
+
+def test_version_2_round_trip(tmp_path, rng):
+    scene = lit_scene(rng, 6, camera=Camera(position=(0, 1, -2)))
+    scene.save(tmp_path / "s.json")
+    back = Scene.load(tmp_path / "s.json")
+    assert back.to_dict() == scene.to_dict() and back.to_dict()["version"] == 2
+    assert np.array_equal(back.spheres, scene.spheres)
+    np.testing.assert_array_equal(lighting.Shading.of(back).materials, lighting.Shading.of(scene).materials)
+
+
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (lambda d: d["spheres"][3].update(material={"ior": -1}), r"spheres\[3\]\.material\.ior: must be > 0"),
+        (lambda d: d["spheres"][0].update(material={"reflect": 0.7, "transmit": 0.6}), r"reflect \+ transmit"),
+        (lambda d: d["spheres"][1].update(material={"shiny": 1}), r"spheres\[1\]\.material\.shiny: unknown"),
+        (lambda d: d["spheres"][2].update(material={"reflect": True}), r"material\.reflect: must be a number"),
+        (lambda d: d["lights"].append({"color": [1, 1, 1]}), r"lights\[2\]\.position: missing"),
+        (lambda d: d["lights"][0].update(intensity=-2), r"lights\[0\]\.intensity: must be >= 0"),
+        (lambda d: d["lights"][1].update(radius="big"), r"lights\[1\]\.radius: must be a number"),
+        (lambda d: d["lights"][0].update(color=[2, 0, 0]), r"lights\[0\]\.color: each channel"),
+        (lambda d: d.update(ambient=[0.1, 0.1]), r"ambient: must be a list of 3 numbers"),
+        (lambda d: d.update(background="blue"), r"background: must be a list of 3 numbers"),
+        (lambda d: d.update(lights={}), r"lights: must be a list"),
+        (lambda d: d.update(version=3), r"version: this raybench reads versions 1 and 2, got 3"),
+    ],
+)
+def test_version_2_bad_fields_are_named(rng, edit, message):
+    doc = lit_scene(rng, 5).to_dict()
+    edit(doc)
+    with pytest.raises(raybench.RaybenchError, match=message):
+        Scene.from_dict(doc)
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"depth": 17}, r"depth: must be an integer from 0 to 16"),
+        ({"depth": 2.0}, r"depth: must be an integer"),
+        ({"shadow_samples": 0}, r"shadow_samples: must be an integer from 1 to 64"),
+        ({"shading": "phong"}, r"shading: must be one of thesis, whitted"),
+        ({"shading": "whitted", "kernel": "fast", "accel": "none"}, r"kernel 'fast': applies to the thesis"),
+    ],
+)
+def test_bad_whitted_options_are_refused(kwargs, message):
+    options = {"shading": "whitted", **kwargs}
+    with pytest.raises(raybench.RaybenchError, match=message):
+        raybench.render(raybench.random_spheres(3), width=8, height=8, device="cpu", **options)
+
+
+def test_thesis_shading_takes_no_depth():
+    with pytest.raises(raybench.RaybenchError, match="apply to shading='whitted' only"):
+        raybench.render(raybench.random_spheres(3), width=8, height=8, device="cpu", depth=3)
+
+
+def test_the_example_scenes_load_and_render():
+    from raybench import examples
+
+    scene = Scene.load(examples.path("whitted"))
+    got = raybench.render(scene, width=32, height=20, device="cpu", shading="whitted")
+    assert got.rays["shadow"] > 0 and got.rays["reflection"] > 0 and got.rays["refraction"] > 0
+    mixed = raybench.random_spheres(200, seed=4, materials=True)
+    assert np.array_equal(mixed.spheres, raybench.random_spheres(200, seed=4).spheres)  # same geometry
+    kinds = {(m.reflect > 0.3, m.transmit > 0) for m in mixed.materials}
+    assert kinds == {(False, False), (True, False), (False, True)}
