@@ -19,6 +19,9 @@ SHADINGS = ("thesis", "whitted")
 DEFAULT_DEPTH = 5
 DEFAULT_SHADOW_SAMPLES = 4
 MAX_SHADOW_SAMPLES = 64
+# The lights a scene may have: the wgpu backend holds them in a uniform buffer
+# of fixed size (and every light costs every hit its shadow rays).
+MAX_LIGHTS = 64
 DEFAULT_AMBIENT = (0.1, 0.1, 0.1)
 MAX_INTENSITY = 1e6
 MAX_SHININESS = 1e4

@@ -97,6 +97,8 @@ class Scene:
                     raise RaybenchError(f"spheres[{i}].material: must be a raybench.Material, got {type(m).__name__}")
         self.materials = materials
         self.lights = tuple(lights)
+        if len(self.lights) > lighting.MAX_LIGHTS:
+            raise RaybenchError(f"lights: at most {lighting.MAX_LIGHTS}, got {len(self.lights)}")
         for i, light in enumerate(self.lights):
             if not isinstance(light, lighting.Light):
                 raise RaybenchError(f"lights[{i}]: must be a raybench.Light, got {type(light).__name__}")

@@ -15,7 +15,7 @@ CHOICES = ("auto",) + DEVICES
 OPTIONS = {
     "cpu": ("threads", "constant_count", "kernel", "accel", "whitted"),
     "cuda": ("block", "constant_count", "kernel", "rays", "tile", "trip", "accel", "walk", "whitted"),
-    "wgpu": ("workgroup", "adapter", "accel", "kernel", "walk"),
+    "wgpu": ("workgroup", "adapter", "accel", "kernel", "walk", "whitted"),
 }
 
 

@@ -19,8 +19,11 @@ HALF = np.float32(0.5)
 FAR = np.float32(3.0e38)
 
 
-def build(jit):
-    """The algorithm compiled with `jit`; a namespace of its functions."""
+def build(jit, call=None):
+    """The algorithm compiled with `jit`; a namespace of its functions.
+    call: the decorator of Whitted shading's large functions (default jit),
+    which a CPU compiles as calls rather than inlined copies."""
+    call = call or jit
     intersect_relative, intersect_sphere, prepare_sphere, may_hit, along, intersect_ahead = intersect.build(jit)
     shade_hit, shade_miss, to_byte = shade.build(jit)
     nearest_hit_bvh, inverse, ray_axes, children, leaf_hits, centre_along, walk = traverse.build(
@@ -115,9 +118,9 @@ def build(jit):
         )
         store_pixel(x, y, hit, d, spheres, image, hits)
 
-    whitted_pixel = whitted.build(jit, scan, walk, shade_hit, shade_miss)
+    whitted_pixel = whitted.build(jit, call, scan, walk, shade_hit, shade_miss)
 
-    @jit
+    @call
     def render_pixel_whitted(x, y, width, height, basis, spheres, count, materials, lights, pattern, params, tree,
                              stack_row, stack_t, rays_f, rays_i, image, hits):  # fmt: skip
         """render_pixel under Whitted shading (kernels/whitted.py); returns the

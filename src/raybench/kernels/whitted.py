@@ -83,8 +83,8 @@ P_LIGHTS = 9
 PARAMS = 10
 
 
-def build(jit, scan, walk, shade_hit, shade_miss):
-    @jit
+def build(jit, call, scan, walk, shade_hit, shade_miss):
+    @call
     def find(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, spheres, count, tree, stack_row, stack_t):
         """The nearest sphere (or, any_hit, any) with 0 < t < t_max along a
         secondary ray: (index or -1, t, half-chord). tree: the BVH's nodes,
@@ -114,7 +114,7 @@ def build(jit, scan, walk, shade_hit, shade_miss):
         rays_i[top, 3] = inside
         return top + 1
 
-    @jit
+    @call
     def local_light(px, py, pz, nx, ny, nz, vx, vy, vz, i, inside, spheres, count, materials, lights, pattern, params,
                     tree, stack_row, stack_t):  # fmt: skip
         """The hit's diffuse (ambient and Lambert) and specular (Phong) light,
@@ -169,7 +169,7 @@ def build(jit, scan, walk, shade_hit, shade_miss):
                         sb += cb * glint
         return dr, dg, db, sr, sg, sb, shadows
 
-    @jit
+    @call
     def whitted_pixel(x, y, width, height, basis, primary_ray, spheres, count, materials, lights, pattern, params,
                       tree, stack_row, stack_t, rays_f, rays_i):  # fmt: skip
         """Colour (rgb, unclamped), primary hit and the rays cast by kind for

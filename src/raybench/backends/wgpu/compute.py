@@ -15,8 +15,10 @@ import time
 import numpy as np
 
 from ... import bvh as bvh_mod
-from ... import layout
+from ... import layout, lighting
 from ...errors import RaybenchError
+from ...kernels import whitted
+from ...lighting import Shading
 from ..limits import HOST_PIXEL_BYTES, check_bvh_fits, host_available_bytes
 from ..limits import check_accel as check_accel_and_kernel
 from ..walks import check_walk
@@ -35,6 +37,7 @@ DEFAULT_WORKGROUP = {"none": (16, 16), "ray": (16, 16), "packet": (8, 8)}
 # time at 1,000 to 1,000,000 spheres, where cuda's packets are 37% faster at
 # 1,000,000 (docs/performance.md); walk="packet" measures it on another GPU.
 PACKET_FEATURE = "subgroup"
+RAY_KINDS = len(whitted.KINDS)
 
 
 def check_kernel(kernel) -> None:
@@ -116,6 +119,34 @@ def ordered_rows(tree: bvh_mod.Bvh) -> np.ndarray:
     return rows
 
 
+def material_rows(materials: np.ndarray) -> np.ndarray:
+    """lighting.materials_array's (5, N) columns -> (N, 5) rows, the shader's
+    struct Material (one row at least: a binding cannot be empty)."""
+    rows = np.ones((max(materials.shape[1], 1), materials.shape[0]), np.float32)
+    rows[: materials.shape[1]] = materials.T
+    return rows
+
+
+def lighting_uniform(shading: Shading) -> bytes:
+    """whitted.wgsl's struct Lighting: ambient, background and its gradient
+    flag, the sizes (lights, shadow samples, depth), the lights (position and
+    radius, colour times intensity), the sample pattern."""
+    p = shading.params
+    head = np.zeros((2, 4), np.float32)
+    head[0, :3] = p[whitted.P_AMBIENT : whitted.P_AMBIENT + 3]
+    head[1, :3] = p[whitted.P_BACKGROUND : whitted.P_BACKGROUND + 3]
+    head[1, 3] = p[whitted.P_GRADIENT]
+    sizes = np.array([p[whitted.P_LIGHTS], p[whitted.P_SAMPLES], p[whitted.P_DEPTH], 0], np.uint32)
+    lights = np.zeros((lighting.MAX_LIGHTS, 2, 4), np.float32)
+    n = int(p[whitted.P_LIGHTS])
+    lights[:n, 0, :3] = shading.lights[layout.LX : layout.LZ + 1, :n].T
+    lights[:n, 0, 3] = shading.lights[layout.LRADIUS, :n]
+    lights[:n, 1, :3] = shading.lights[layout.LRED : layout.LBLUE + 1, :n].T
+    pattern = np.zeros((lighting.MAX_SHADOW_SAMPLES, 4), np.float32)
+    pattern[: shading.pattern.shape[1], :3] = shading.pattern.T
+    return head.tobytes() + sizes.tobytes() + lights.tobytes() + pattern.tobytes()
+
+
 class Compute:
     """One scene at one size on one device: encode() records a frame's compute
     pass into a command encoder; texture and hits hold the result. With the
@@ -133,6 +164,7 @@ class Compute:
         kernel: str | None = None,
         extra_texture_usage: int = 0,
         walk: str | None = None,
+        whitted: Shading | None = None,
     ):
         import wgpu
 
@@ -140,7 +172,12 @@ class Compute:
         limits = dict(device.limits)
         self.accel = check_accel(accel, kernel)
         walk = check_walk(walk, self.accel)
+        if whitted is not None and walk == "packet":
+            raise RaybenchError("walk 'packet': applies to the thesis's shading only; Whitted's rays walk one by one")
         self.walk = (walk or "ray") if self.accel == "bvh" else None
+        # the shader's entry point: the walk's, or Whitted shading's (either accel)
+        self.program = "whitted" if whitted is not None else (self.walk or "ray")
+        self.whitted = whitted
         if self.walk == "packet" and PACKET_FEATURE not in device.features:
             raise RaybenchError(
                 f"walk: the packet walk votes with subgroup operations, and this device has no "
@@ -173,6 +210,17 @@ class Compute:
         self.hits = device.create_buffer(
             size=width * height * 4, usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC
         )
+        if whitted is not None:
+            self.materials = device.create_buffer_with_data(
+                data=material_rows(whitted.materials).tobytes(), usage=wgpu.BufferUsage.STORAGE
+            )
+            self.lighting = device.create_buffer_with_data(
+                data=lighting_uniform(whitted), usage=wgpu.BufferUsage.UNIFORM
+            )
+            self.rays = device.create_buffer(
+                size=RAY_KINDS * 4,
+                usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC | wgpu.BufferUsage.COPY_DST,
+            )
         self.pipeline = None
         # kept for rebuilds: a frame of fewer spheres walks a tree of its own
         self.scene_spheres = spheres
@@ -196,10 +244,9 @@ class Compute:
         if self.pipeline is not None:
             return 0.0
         start = time.perf_counter()
-        walk = self.walk or "ray"
-        module = self.device.create_shader_module(code=shader.source(self.workgroup, self.accel, walk))
+        module = self.device.create_shader_module(code=shader.source(self.workgroup, self.accel, self.program))
         self.pipeline = self.device.create_compute_pipeline(
-            layout="auto", compute={"module": module, "entry_point": shader.ENTRY[walk]}
+            layout="auto", compute={"module": module, "entry_point": shader.ENTRY[self.program]}
         )
         self._bind()
         return time.perf_counter() - start
@@ -217,6 +264,12 @@ class Compute:
                 {"binding": 4, "resource": {"buffer": self.nodes}},
                 {"binding": 5, "resource": {"buffer": self.ordered}},
                 {"binding": 6, "resource": {"buffer": self.order}},
+            ]
+        if self.whitted is not None:
+            entries += [
+                {"binding": 7, "resource": {"buffer": self.materials}},
+                {"binding": 8, "resource": {"buffer": self.lighting}},
+                {"binding": 9, "resource": {"buffer": self.rays}},
             ]
         self.bind_group = self.device.create_bind_group(layout=self.pipeline.get_bind_group_layout(0), entries=entries)
 
@@ -250,6 +303,8 @@ class Compute:
             if timed
             else None
         )
+        if self.whitted is not None:
+            encoder.clear_buffer(self.rays, 0, RAY_KINDS * 4)
         compute_pass = encoder.begin_compute_pass(timestamp_writes=writes)
         compute_pass.set_pipeline(self.pipeline)
         compute_pass.set_bind_group(0, self.bind_group)

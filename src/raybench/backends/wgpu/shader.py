@@ -13,8 +13,8 @@ from __future__ import annotations
 import functools
 from importlib import resources
 
-from ... import layout
-from ...kernels import traverse
+from ... import layout, lighting
+from ...kernels import traverse, whitted
 
 ACCELS = {"bvh": "traverse.wgsl", "none": "brute.wgsl"}
 PIECES = ("common.wgsl", "intersect.wgsl", "shade.wgsl", "trace.wgsl")
@@ -34,16 +34,32 @@ def _piece(name: str) -> str:
     return resources.files(__package__).joinpath(name).read_text(encoding="utf-8")
 
 
-ENTRY = {"ray": "main", "packet": "main_packet"}
+# Whitted shading's constants, likewise; the lights and samples a frame's
+# uniform buffer holds (lighting.MAX_LIGHTS, lighting.MAX_SHADOW_SAMPLES).
+WHITTED_CONSTANTS = {
+    "WHITTED_RAY_STACK": f"{whitted.RAY_STACK}u",
+    "WHITTED_CUTOFF": repr(float(whitted.CUTOFF)),
+    "WHITTED_OFFSET": repr(float(whitted.OFFSET)),
+    "MAX_LIGHTS": f"{lighting.MAX_LIGHTS}u",
+    "MAX_SAMPLES": f"{lighting.MAX_SHADOW_SAMPLES}u",
+}
+
+# The entry point of each walk, and of Whitted shading (either accel).
+ENTRY = {"ray": "main", "packet": "main_packet", "whitted": "main_whitted"}
 
 
 def source(workgroup: tuple[int, int], accel: str, walk: str = "ray") -> str:
     """The whole shader for one workgroup shape (a compile-time constant in
     WGSL), acceleration structure ("bvh" or "none", checked by the caller)
-    and BVH walk (ENTRY's keys: its entry point)."""
-    packet = [_piece("packet.wgsl")] if accel == "bvh" and walk == "packet" else []
-    text = "\n".join([_piece(p) for p in PIECES] + [_piece(ACCELS[accel])] + packet)
+    and BVH walk, or "whitted" for Whitted shading (ENTRY's keys: its entry
+    point)."""
+    extra = []
+    if walk == "packet" and accel == "bvh":
+        extra = [_piece("packet.wgsl")]
+    elif walk == "whitted":
+        extra = [_piece("whitted.wgsl")]
+    text = "\n".join([_piece(p) for p in PIECES] + [_piece(ACCELS[accel])] + extra)
     text = text.replace("WORKGROUP_X", f"{workgroup[0]}u").replace("WORKGROUP_Y", f"{workgroup[1]}u")
-    for name, value in BVH_CONSTANTS.items():
+    for name, value in {**BVH_CONSTANTS, **WHITTED_CONSTANTS}.items():
         text = text.replace(name, value)
     return text

@@ -5,6 +5,13 @@ struct Hit {
     d: f32,
 }
 
+// What a search for any ray finds: the sphere (-1: none), its t, its half-chord.
+struct Found {
+    index: i32,
+    t: f32,
+    d: f32,
+}
+
 fn primary_ray(x: u32, y: u32) -> vec3<f32> {
     let fx = f32(x);
     let fy = f32(y);

@@ -9,10 +9,11 @@ import time
 
 import numpy as np
 
+from ...lighting import Shading
 from ..contract import TracerBase
 from ..limits import HOST_PIXEL_BYTES, check_count, check_fits, check_size, host_available_bytes
 from . import adapters
-from .compute import Compute, check_accel
+from .compute import RAY_KINDS, Compute, check_accel
 
 ROW_ALIGN = 256  # bytes_per_row of a texture-to-buffer copy: WebGPU's rule
 
@@ -46,6 +47,7 @@ class Tracer(TracerBase):
         accel: str | None = None,
         kernel: str | None = None,
         walk: str | None = None,
+        whitted: Shading | None = None,
     ):
         import wgpu
 
@@ -54,7 +56,9 @@ class Tracer(TracerBase):
         self.adapter = adapters.choose(adapter)
         self.device = adapters.request_device(self.adapter)
         check_fits("host", width, height, 0, host_available_bytes(), HOST_PIXEL_BYTES)
-        self.compute = Compute(self.device, spheres, width, height, workgroup, accel, kernel, walk=walk)
+        self.compute = Compute(
+            self.device, spheres, width, height, workgroup, accel, kernel, walk=walk, whitted=whitted
+        )
         self.accel = accel
         self.walk = self.compute.walk  # the BVH walk: "ray" or "packet"; None for brute force
         self.workgroup = self.compute.workgroup
@@ -66,6 +70,11 @@ class Tracer(TracerBase):
         self.hits_read = self.device.create_buffer(
             size=width * height * 4, usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ
         )
+        if whitted is not None:
+            self.rays_read = self.device.create_buffer(
+                size=RAY_KINDS * 4, usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ
+            )
+            self.ray_counts = np.zeros(RAY_KINDS, np.int64)
         self.image = np.empty((height, width, 3), np.uint8)
         self.hits = np.empty((height, width), np.int32)
         self.period_ns = timestamp_period(self.device) if self.compute.timestamps else None
@@ -103,6 +112,8 @@ class Tracer(TracerBase):
             (self.width, self.height, 1),
         )
         encoder.copy_buffer_to_buffer(self.compute.hits, 0, self.hits_read, 0, self.width * self.height * 4)
+        if self.ray_counts is not None:
+            encoder.copy_buffer_to_buffer(self.compute.rays, 0, self.rays_read, 0, RAY_KINDS * 4)
 
     def _fetch(self) -> tuple[np.ndarray, np.ndarray]:
         """Map the readback buffers (waits for the GPU) into self.image and self.hits."""
@@ -119,6 +130,12 @@ class Tracer(TracerBase):
         finally:
             self.image_read.unmap()
             self.hits_read.unmap()
+        if self.ray_counts is not None:
+            self.rays_read.map_sync(wgpu.MapMode.READ)
+            try:
+                self.ray_counts[:] = np.frombuffer(self.rays_read.read_mapped(copy=False), np.uint32)
+            finally:
+                self.rays_read.unmap()
         return self.image, self.hits
 
     def trace(self, basis: np.ndarray, count: int | None = None) -> tuple[np.ndarray, np.ndarray]:

@@ -97,23 +97,36 @@ fn children(row: i32, axes: Axes) -> Children {
     return Children(Child(sa.x, sa.y, links.x, links.z), Child(sb.x, sb.y, links.y, links.w));
 }
 
-// The exact test on a leaf's spheres; ties go to the smaller ORIGINAL index,
-// which is the sphere brute force's first-of-smallest-t picks.
-fn leaf_hits(o: vec3<f32>, dir: vec3<f32>, first: i32, count: i32, so_far: Nearest) -> Nearest {
+// The exact test on a leaf's spheres (leaf_test); ties go to the smaller
+// ORIGINAL index, which is the sphere brute force's first-of-smallest-t
+// picks. ahead, own, own_inside: the secondary rays' test.
+fn leaf_test(o: vec3<f32>, dir: vec3<f32>, first: i32, count: i32, so_far: Nearest, ahead: bool, own: i32,
+             own_inside: bool) -> Nearest {
     var best = so_far;
     for (var j = first; j < first + count; j = j + 1) {
         let c = ordered[j];
-        let td = intersect_sphere(o, dir, Sphere(c.x, c.y, c.z, c.w, 0.0, 0.0, 0.0, 0.0));
-        if (td.x > 0.0 && (td.x < best.closest || (td.x == best.closest && order[j] < best.hit))) {
-            best = Nearest(td.x, order[j], td.y);
+        let original = order[j];
+        var td: vec2<f32>;
+        if (ahead) {
+            if (original == own && !own_inside) {
+                continue;
+            }
+            td = intersect_ahead(c.x - o.x, c.y - o.y, c.z - o.z, c.w, dir.x, dir.y, dir.z, original == own);
+        } else {
+            td = intersect_sphere(o, dir, Sphere(c.x, c.y, c.z, c.w, 0.0, 0.0, 0.0, 0.0));
+        }
+        if (td.x > 0.0 && (td.x < best.closest || (td.x == best.closest && original < best.hit))) {
+            best = Nearest(td.x, original, td.y);
         }
     }
     return best;
 }
 
-fn nearest_hit_bvh(o: vec3<f32>, dir: vec3<f32>) -> Hit {
+// The one walk for any ray (walk): the nearest sphere with 0 < t < t_max,
+// or with any_hit the first found.
+fn walk(o: vec3<f32>, dir: vec3<f32>, t_max: f32, any_hit: bool, ahead: bool, own: i32, own_inside: bool) -> Found {
     let axes = ray_axes(o, dir);
-    var best = Nearest(FAR, -1, 0.0);
+    var best = Nearest(t_max, -1, 0.0);
     var stack_row: array<i32, STACK>;
     var stack_t: array<f32, STACK>;
     var row = 0;
@@ -133,12 +146,12 @@ fn nearest_hit_bvh(o: vec3<f32>, dir: vec3<f32>) -> Hit {
             if (a.count == INNER) {
                 row = a.link;
             } else {
-                best = leaf_hits(o, dir, a.link, a.count, best);
+                best = leaf_test(o, dir, a.link, a.count, best, ahead, own, own_inside);
             }
         }
         if (b.near <= b.far && b.far > 0.0 && b.near <= best.closest) {
             if (b.count != INNER) {
-                best = leaf_hits(o, dir, b.link, b.count, best);
+                best = leaf_test(o, dir, b.link, b.count, best, ahead, own, own_inside);
             } else if (row < 0) {
                 row = b.link;
             } else {
@@ -147,6 +160,9 @@ fn nearest_hit_bvh(o: vec3<f32>, dir: vec3<f32>) -> Hit {
                 top = top + 1u;
             }
         }
+        if (any_hit && best.hit >= 0) {
+            break;
+        }
         while (row < 0 && top > 0u) {
             top = top - 1u;
             if (stack_t[top] <= best.closest) {
@@ -154,7 +170,16 @@ fn nearest_hit_bvh(o: vec3<f32>, dir: vec3<f32>) -> Hit {
             }
         }
     }
-    return Hit(best.hit, best.d);
+    return Found(best.hit, best.closest, best.d);
+}
+
+fn leaf_hits(o: vec3<f32>, dir: vec3<f32>, first: i32, count: i32, so_far: Nearest) -> Nearest {
+    return leaf_test(o, dir, first, count, so_far, false, -1, false);
+}
+
+fn nearest_hit_bvh(o: vec3<f32>, dir: vec3<f32>) -> Hit {
+    let found = walk(o, dir, FAR, false, false, -1, false);
+    return Hit(found.index, found.d);
 }
 
 // brute.wgsl's signature, so trace.wgsl's main calls either. The tree holds
@@ -162,4 +187,9 @@ fn nearest_hit_bvh(o: vec3<f32>, dir: vec3<f32>) -> Hit {
 // so count has nothing left to bound.
 fn nearest_hit(o: vec3<f32>, dir: vec3<f32>, count: u32) -> Hit {
     return nearest_hit_bvh(o, dir);
+}
+
+// whitted.wgsl's search for any ray, through the tree.
+fn find(o: vec3<f32>, dir: vec3<f32>, t_max: f32, any_hit: bool, own: i32, own_inside: bool) -> Found {
+    return walk(o, dir, t_max, any_hit, true, own, own_inside);
 }
