@@ -20,13 +20,24 @@
 # Carries .whl (NumPy 2.4: the machine's 2.5 breaks numba 0.68.0; wgpu, cffi,
 # pycparser, rendercanvas, glfw) and .gl (the Vulkan and GL loaders as Debian
 # packages; with them wgpu finds the GPU through NVIDIA's Vulkan driver):
-#   LABEL=h200 STEPS="info pytest kernels" bash benchmarks/gpu_lease.sh
+#   RAYBENCH_GIT_COMMIT=<commit> LABEL=h200 STEPS="info pytest kernels" bash benchmarks/gpu_lease.sh
+#
+# RAYBENCH_GIT_COMMIT is required: the machine's copy of the checkout carries
+# stale git metadata, so every record would name a wrong commit. Write the value
+# out on this side (`git describe --always --dirty --abbrev=12` here), not as
+# $(git ...) in the command, which would run there, on the stale metadata.
 set -uo pipefail
+if [ -z "${RAYBENCH_GIT_COMMIT:-}" ]; then
+    echo "gpu_lease.sh: set RAYBENCH_GIT_COMMIT to the commit that runs (git describe --always --dirty --abbrev=12 here)" >&2
+    exit 2
+fi
+export RAYBENCH_GIT_COMMIT
 python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site .whl/*.whl || exit 1
 if [ -d .gl ]; then for f in .gl/*.deb; do dpkg -x "$f" /; done; ldconfig; fi
 export PYTHONPATH=/tmp/site:$PWD/src PYTHONUNBUFFERED=1
 OUT=${OUT:-/tmp/out}; W=/tmp/lease; rm -rf "$W"; mkdir -p "$W" "$OUT"
 LABEL=${LABEL:-h200}; DURATION=${DURATION:-1}
+echo "$RAYBENCH_GIT_COMMIT" > "$W/git_commit.txt"
 STEPS=${STEPS:-info pytest kernels scaling thesis wgpu tuning}
 step() {  # step NAME SECONDS COMMAND...: its output to $W/NAME.log, how it ended to steps.log
     local name=$1 limit=$2; shift 2

@@ -306,3 +306,17 @@ def test_cuda_bvh_records_its_walk():
         suites.Point("scaling", "cpu", 16, 8, 20, {"accel": "bvh", "label": "bvh"}), runner.Scenes(0), 0.01
     )
     assert "walk" not in cpu
+
+
+def test_record_names_the_commit_given_in_the_environment(monkeypatch):
+    """The GPU machine's git metadata is stale: RAYBENCH_GIT_COMMIT, where set,
+    is the commit a record names; unset, the checkout's own git answers."""
+    from raybench import machine
+
+    monkeypatch.delenv(machine.GIT_COMMIT_ENV, raising=False)
+    from_git = machine.git_commit()
+    monkeypatch.setenv(machine.GIT_COMMIT_ENV, "0123456789ab")
+    assert runner.run_info({}, "x", {})["git_commit"] == "0123456789ab"
+    assert from_git != "0123456789ab"
+    monkeypatch.setenv(machine.GIT_COMMIT_ENV, "  ")  # blank is unset, not a commit
+    assert machine.git_commit() == from_git
