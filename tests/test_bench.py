@@ -293,6 +293,7 @@ def test_scaling_cap_skips_and_records(tmp_path, monkeypatch, rng):
     assert all("skipped" in r for r in recs[recs.index(first_skip) :])
 
 
+@pytest.mark.gpu
 def test_cuda_bvh_records_its_walk():
     """Which BVH walk cuda chose for the tree is in the record (under the simulator here)."""
     from raybench.backends import cuda as cuda_backend

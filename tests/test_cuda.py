@@ -10,7 +10,10 @@ import raybench
 from raybench.backends import cuda as cuda_backend
 
 SIM = cuda_backend.simulated()
-pytestmark = pytest.mark.skipif(not cuda_backend.available(), reason="no CUDA GPU and the simulator is off")
+pytestmark = [
+    pytest.mark.gpu,
+    pytest.mark.skipif(not cuda_backend.available(), reason="no CUDA GPU and the simulator is off"),
+]
 
 # The simulator runs every GPU thread as Python: keep its images small.
 SIZES = [(24, 16), (19, 13)] if SIM else [(320, 200), (257, 129)]

@@ -527,6 +527,7 @@ def test_worker_frames_are_what_render_draws():
     assert full.trace_ms > 0
 
 
+@pytest.mark.gpu
 @pytest.mark.skipif(not cuda_backend.available(), reason="no CUDA GPU and the simulator is off")
 def test_worker_switches_cpu_to_cuda_and_back():
     """Real device switch (cuda is numba's simulator without a GPU): each frame

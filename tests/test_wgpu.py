@@ -25,6 +25,8 @@ from raybench.render import Frame
 
 REQUIRED = os.environ.get("RAYBENCH_REQUIRE_WGPU") == "1"
 
+pytestmark = pytest.mark.gpu
+
 
 @pytest.fixture(scope="module")
 def adapter() -> str:
