@@ -11,7 +11,7 @@ One module a job, each reading only those before it:
   verdicts  the six claims judged; the thresholds are its constants, RULES
             states them in words, and the report prints it
   charts    the PNG charts (matplotlib, Agg canvas, no pyplot)
-  markdown  report.md, its sections and tables
+  markdown  report.md; text from a results file enters it only through escape()
 """
 
 from .data import (
@@ -31,7 +31,7 @@ from .data import (
     thesis_series,
 )
 from .data import _check as _check  # one record at a time, for the tests
-from .markdown import write_report
+from .markdown import escape, write_report
 from .verdicts import (
     CLAIMS,
     FAILS,
@@ -68,6 +68,7 @@ __all__ = [
     "column",
     "constant_vs_runtime",
     "cpu_tuning",
+    "escape",
     "gpu_tuning",
     "group",
     "kernel_of",

@@ -31,14 +31,40 @@ from .data import (
 from .numbers import fmt_ms, fmt_num, fmt_r2, fmt_x
 from .verdicts import CLAIMS, RULES, THESIS_CPU, THESIS_GPU, THESIS_RATIO, verdicts
 
+# Character references, not backslashes: a reference is never Markdown syntax,
+# whatever stands before it, and _cell's escaping of "|" cannot undo it.
+_INERT = str.maketrans(
+    {
+        "&": "&amp;",
+        "<": "&lt;",  # HTML tags and autolinks
+        ">": "&gt;",
+        "[": "&#91;",  # links and images
+        "]": "&#93;",
+        "\\": "&#92;",  # backslash escapes
+        "`": "&#96;",  # code spans
+        "*": "&#42;",  # emphasis
+        "|": "&#124;",  # table cells
+        "\n": " ",
+        "\r": " ",
+    }
+)
 
-def _md(text) -> str:
+
+def escape(text) -> str:
+    """Text from a results file (a label, a CPU model, a setting, a note) as
+    inert Markdown: it shows as written and adds no HTML, link, image, code,
+    emphasis or table cell. Every such text enters the report through here."""
+    return str(text).translate(_INERT)
+
+
+def _cell(text) -> str:
+    """A table cell of the report's own text (record text is escape()d first)."""
     return str(text).replace("|", "\\|").replace("\n", " ")
 
 
 def _table(header: list[str], rows: list[list]) -> str:
-    lines = ["| " + " | ".join(_md(h) for h in header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(_md(c) for c in row) + " |" for row in rows]
+    lines = ["| " + " | ".join(_cell(h) for h in header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(_cell(c) for c in row) + " |" for row in rows]
     return "\n".join(lines)
 
 
@@ -69,10 +95,11 @@ def _gpu_name(machine: dict) -> str:
 
 
 def _machine_lines(label: str, records: list[dict]) -> list[str]:
+    # every value below is the results file's text: escaped where it is read
     m = machine_of(records)
-    cpu = m.get("cpu") or {}
-    versions = m.get("versions") or {}
-    gpus = m.get("gpus") or []
+    cpu = {k: escape(v) for k, v in (m.get("cpu") or {}).items()}
+    versions = {k: escape(v) if v else v for k, v in (m.get("versions") or {}).items()}
+    gpus = [{k: escape(v) if v else v for k, v in g.items()} for g in m.get("gpus") or []]
     gpu = (
         (
             f"{gpus[0].get('name')} ({gpus[0].get('multiprocessors', '?')} multiprocessors, "
@@ -82,8 +109,8 @@ def _machine_lines(label: str, records: list[dict]) -> list[str]:
         else "no CUDA GPU"
     )
     lines = [
-        f"**{_md(label)}**: CPU {cpu.get('model', '?')} ({cpu.get('physical_cores', '?')} cores, "
-        f"{cpu.get('logical_cpus', '?')} threads); GPU {gpu}; {m.get('os', '')}; "
+        f"**{escape(label)}**: CPU {cpu.get('model', '?')} ({cpu.get('physical_cores', '?')} cores, "
+        f"{cpu.get('logical_cpus', '?')} threads); GPU {gpu}; {escape(m.get('os', ''))}; "
         f"raybench {versions.get('raybench') or '?'}, numba {versions.get('numba') or '?'}, "
         f"numba-cuda {versions.get('numba-cuda') or '?'}."
     ]
@@ -92,10 +119,10 @@ def _machine_lines(label: str, records: list[dict]) -> list[str]:
         runs.setdefault(r["run"].get("id"), (r["run"], []))[1].append(r)
     for run, rs in runs.values():
         settings = run.get("settings") or {}
-        shown = ", ".join(f"{k} {fmt_opt(v)}" for k, v in settings.items())
+        shown = escape(", ".join(f"{k} {fmt_opt(v)}" for k, v in settings.items()))
         lines.append(
-            f"- run {run.get('id', '?')}: {run.get('date', '?')}, git {run.get('git_commit') or 'unknown'}, "
-            f"{len(rs)} points; settings: {shown or 'none recorded'}"
+            f"- run {escape(run.get('id', '?'))}: {escape(run.get('date', '?'))}, "
+            f"git {escape(run.get('git_commit') or 'unknown')}, {len(rs)} points; settings: {shown or 'none recorded'}"
         )
     machines = {json.dumps(r["run"]["machine"].get("cpu"), sort_keys=True) for r in records}
     if len(machines) > 1:
@@ -107,8 +134,10 @@ def _machine_lines(label: str, records: list[dict]) -> list[str]:
 
 
 def _rates_text(machine: dict) -> str:
-    cpu = machine.get("cpu") or {}
-    gpus = machine.get("gpus") or []
+    ratio = theoretical_ratio(machine)
+    # the machine's own text, escaped where it is read; fp32_gflops stays a number for fmt_num
+    cpu = {k: v if k == "fp32_gflops" else escape(v) for k, v in (machine.get("cpu") or {}).items()}
+    gpus = [{k: v if k == "fp32_gflops" else escape(v) for k, v in g.items()} for g in machine.get("gpus") or []]
     parts = []
     if cpu.get("fp32_gflops"):
         parts.append(
@@ -126,7 +155,6 @@ def _rates_text(machine: dict) -> str:
         )
     else:
         parts.append("GPU FP32 rate unknown")
-    ratio = theoretical_ratio(machine)
     text = "; ".join(parts) + (f": a theoretical ratio of **{fmt_x(ratio)}**." if ratio else ".")
     return (
         text + f" (The thesis counted cores x GHz and no SIMD: {THESIS_GPU} against {THESIS_CPU} gives "
@@ -150,7 +178,7 @@ class _Writer:
         path = self.out_dir / name
         write_atomic(path, data)
         self.pngs.append(path)
-        self(f"![{alt}]({name})", "")
+        self(f"![{escape(alt)}]({name})", "")  # alt names the machine: the results file's text
 
 
 def _section_thesis(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
@@ -182,7 +210,7 @@ def _section_thesis(w: _Writer, label: str, slug: str, records: list[dict]) -> N
             if device == "wgpu"
             else (machine.get("cpu") or {}).get("model", "CPU")
         )
-        w(f"**{DEVICE_NAMES[device]}** ({name})", "")
+        w(f"**{DEVICE_NAMES[device]}** ({escape(name)})", "")
         w.image(
             f"{slug}-thesis-{device}.png",
             charts.plot_thesis(label, device, ds, name),
@@ -200,7 +228,7 @@ def _section_thesis(w: _Writer, label: str, slug: str, records: list[dict]) -> N
             at = dict(zip(s["spheres"], s["median"]))
             row = [
                 f"{s['width']}x{s['height']}",
-                s["test"] or "–",
+                escape(s["test"] or "–"),
                 fmt_num(f["slope"]) if f else "–",
                 fmt_num(f["intercept"]) if f else "–",
                 fmt_r2(f["r2"]) if f else "–",
@@ -265,7 +293,7 @@ def _section_test7(w: _Writer, label: str, slug: str, records: list[dict]) -> No
         f = s["fit"]
         rows.append(
             [
-                DEVICE_NAMES.get(s["device"], s["device"]),
+                escape(DEVICE_NAMES.get(s["device"], s["device"])),
                 f"{s['width']}x{s['height']}",
                 len(s["spheres"]),
                 fmt_num(f["slope"]) if f else "–",
@@ -321,7 +349,7 @@ def _section_tuning(w: _Writer, label: str, slug: str, records: list[dict]) -> N
         w(
             _table(
                 ["CPU setting", "threads", "median frame ms", "relative to fastest"],
-                [[r["label"], r["threads"], fmt_ms(r["ms"]), fmt_x(r["ms"] / fastest)] for r in cpu],
+                [[escape(r["label"]), escape(r["threads"]), fmt_ms(r["ms"]), fmt_x(r["ms"] / fastest)] for r in cpu],
             ),
             "",
         )
@@ -335,7 +363,7 @@ def _section_tuning(w: _Writer, label: str, slug: str, records: list[dict]) -> N
                 ["GPU block", "median frame ms", "median kernel ms", f"relative to fastest ({timing})"],
                 [
                     [
-                        r["label"],
+                        escape(r["label"]),
                         fmt_ms(r["frame_ms"]),
                         fmt_ms(r["kernel_ms"]) if r["kernel_ms"] is not None else "–",
                         fmt_x(r["ms"] / fastest),
@@ -351,13 +379,13 @@ def _section_tuning(w: _Writer, label: str, slug: str, records: list[dict]) -> N
         fastest = min(r["ms"] for r in portable)
         timing = "kernel" if all(r["kernel_ms"] is not None for r in portable) else "frame"
         w(
-            f"wgpu workgroups, on {_adapter_name(records)}:",
+            f"wgpu workgroups, on {escape(_adapter_name(records))}:",
             "",
             _table(
                 ["wgpu workgroup", "median frame ms", "median kernel ms", f"relative to fastest ({timing})"],
                 [
                     [
-                        r["label"],
+                        escape(r["label"]),
                         fmt_ms(r["frame_ms"]),
                         fmt_ms(r["kernel_ms"]) if r["kernel_ms"] is not None else "–",
                         fmt_x(r["ms"] / fastest),
@@ -416,7 +444,7 @@ def _section_scaling(w: _Writer, label: str, slug: str, records: list[dict]) -> 
     series = scaling_series(records)
     if not series:
         return
-    w(f"### {_md(label)}: scaling from 10 to 1,000,000 spheres", "")
+    w(f"### {escape(label)}: scaling from 10 to 1,000,000 spheres", "")
     w(
         "Median frame time against the number of spheres (`random_spheres`, default camera), on log-log axes: "
         "brute force grows linearly (slope 1), the BVH about logarithmically. Brute force stops where its next "
@@ -430,13 +458,13 @@ def _section_scaling(w: _Writer, label: str, slug: str, records: list[dict]) -> 
     for s in series:
         for p in s["points"]:
             base = [
-                DEVICE_NAMES.get(s["device"], s["device"]),
-                s["way"],
+                escape(DEVICE_NAMES.get(s["device"], s["device"])),
+                escape(s["way"]),
                 f"{s['width']}x{s['height']}",
                 f"{p['spheres']:,}",
             ]
             if p["median"] is None:
-                rows.append(base + [f"skipped: {_md(p['skipped'])}", "", "", ""])
+                rows.append(base + [f"skipped: {escape(p['skipped'])}", "", "", ""])
                 continue
             rows.append(
                 base
@@ -452,13 +480,13 @@ def _section_scaling(w: _Writer, label: str, slug: str, records: list[dict]) -> 
 
 def _claims_table(machines: dict[str, list[dict]]) -> tuple[str, dict[str, list[dict]]]:
     judged = {label: verdicts(records) for label, records in machines.items()}
-    header = ["#", "the thesis's claim", "what the thesis measured"] + [f"{label}" for label in machines]
+    header = ["#", "the thesis's claim", "what the thesis measured"] + [escape(label) for label in machines]
     rows = []
     for i, (claim, thesis) in enumerate(CLAIMS):
         row = [i + 1, claim, thesis]
         for label in machines:
             v = judged[label][i]
-            row.append(f"**{v['verdict']}**: {v['measured']}")
+            row.append(f"**{v['verdict']}**: {escape(v['measured'])}")  # names settings from the results
         rows.append(row)
     return _table(header, rows), judged
 
@@ -486,7 +514,7 @@ def write_report(paths: list, out_dir) -> Path:
     names = ", ".join(
         dict.fromkeys([records[0]["run"]["label"] for records in machines.values() if records] + list(scaling))
     )
-    w(f"# raybench: the 2010 GPU ray-tracing thesis, measured again on {names}", "")
+    w(f"# raybench: the 2010 GPU ray-tracing thesis, measured again on {escape(names)}", "")
     w(
         "Persson and Udd (2010) rendered spheres with one brute-force ray tracer (one primary ray per pixel, "
         f"tested against every sphere) on an {THESIS_CPU} and on a {THESIS_GPU} with a DirectX 11 compute "
@@ -505,7 +533,7 @@ def write_report(paths: list, out_dir) -> Path:
     taken: set = set()
     for label, records in machines.items():
         slug = _slug(label, taken)
-        w(f"## {_md(label)}", "")
+        w(f"## {escape(label)}", "")
         w(*_machine_lines(label, records), "")
         for section in (_section_thesis, _section_speedup, _section_test7, _section_tuning, _section_constant):
             section(w, label, slug, records)
@@ -517,7 +545,7 @@ def write_report(paths: list, out_dir) -> Path:
     w(*[f"- `{Path(p)}`" for p in paths], "")
     if notes:
         w("## Notes", "")
-        w(*[f"- {_md(n)}" for n in notes], "")
+        w(*[f"- {escape(n)}" for n in notes], "")
     report = out_dir / "report.md"
     write_atomic(report, "\n".join(w.lines).encode("utf-8"))
     return report
