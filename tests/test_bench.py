@@ -151,6 +151,7 @@ def _wait_for_lines(folder, n, proc, timeout=120):
     pytest.fail("no results appeared")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGKILL])
 def test_interrupted_run_keeps_every_finished_point(tmp_path, sig):
     proc = _bench_subprocess(tmp_path, "--suite", "thesis", "--duration", "0.5")
@@ -168,6 +169,7 @@ def test_interrupted_run_keeps_every_finished_point(tmp_path, sig):
     assert path.read_text().endswith("\n")
 
 
+@pytest.mark.slow
 def test_quick_run_end_to_end(tmp_path, capsys):
     """`raybench bench --quick` on the CPU: every suite, every record complete,
     and the report written."""

@@ -69,6 +69,7 @@ def test_sphere_prefix_builds_its_own_tree(rng):
         tracer.close()
 
 
+@pytest.mark.slow
 @pytest.mark.gpu
 @pytest.mark.skipif(not cuda_backend.available(), reason="no CUDA GPU and the simulator is off")
 @pytest.mark.parametrize("walk", cuda_backend.WALKS)

@@ -20,6 +20,7 @@ SIZES = [(24, 16), (19, 13)] if SIM else [(320, 200), (257, 129)]
 COUNTS = [1, 25] if SIM else [1, 100, 1000]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kernel", ["simple", "fast"])
 @pytest.mark.parametrize("kind", sorted(KINDS))
 @pytest.mark.parametrize("n", COUNTS)

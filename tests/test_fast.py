@@ -107,6 +107,7 @@ def test_cpu_fast_sphere_prefix(rng):
     assert np.array_equal(tracer.hits, prefix.hits) and np.array_equal(tracer.image, prefix.image)
 
 
+@pytest.mark.slow
 @pytest.mark.gpu
 @pytest.mark.skipif(not cuda_backend.available(), reason="no CUDA GPU and the simulator is off")
 # The simulator runs a Python thread per CUDA thread and polls them all while

@@ -216,6 +216,7 @@ def state_for(scene, seed, device="cpu", **kwargs):
 # --------------------------------------------------------------------------- the picture is the render
 
 
+@pytest.mark.slow
 def test_screenshot_equals_raybench_render(display, tmp_path):
     """The CLI end to end: `raybench view --frames 3 --screenshot` saves what the
     window drew, and it is `raybench render` of the same view, byte for byte."""
@@ -318,6 +319,7 @@ def test_keys_change_what_is_drawn(display, tmp_path):
     assert np.array_equal(home_px, script.frames(4)[0][1])
 
 
+@pytest.mark.slow
 @pytest.mark.gpu
 @pytest.mark.skipif(not cuda_backend.available(), reason="no CUDA GPU and numba's simulator is off")
 def test_tab_switches_live_to_cuda_or_its_simulator_and_draws_the_same_picture(display):
@@ -383,6 +385,7 @@ def test_screenshot_from_the_offscreen_path(display):
     assert np.array_equal(drawn, reference(traced))
 
 
+@pytest.mark.slow
 def test_keyboard_through_the_x_server(display, tmp_path):
     """One end-to-end run with real key presses (xdotool): the title bar
     reports the frame, + adds spheres, P saves a screenshot, Esc quits."""
@@ -539,6 +542,7 @@ def test_wgpu_in_the_window_without_timestamps(display, vulkan_adapter):
         assert np.abs(drawn.astype(int) - reference(traced).astype(int)).max() <= 1, f"step {step}"
 
 
+@pytest.mark.slow
 @pytest.mark.gpu
 def test_cli_view_on_wgpu_saves_the_render(display, vulkan_adapter, tmp_path):
     """`raybench view --device wgpu --adapter NAME --frames 3 --screenshot`

@@ -445,6 +445,7 @@ def test_a_benchmark_record_names_the_adapter(adapter, way):
     assert record["kernel_ms"]["median"] > 0 and record["frames"] >= runner.MIN_FRAMES
 
 
+@pytest.mark.slow
 def test_cpu_use_never_imports_wgpu(tmp_path):
     """wgpu (and its driver probing) loads only when wgpu or auto is asked for."""
     import subprocess
