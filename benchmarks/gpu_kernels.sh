@@ -3,7 +3,13 @@
 # (benchmarks/kernels.py: peaks, simple vs fast, the CUDA fast kernel's shape
 # sweep), the fast kernel's PTX, and the thesis suite with both kernels.
 # Carries a NumPy 2.4 wheel in .whl (the machine's NumPy 2.5 breaks numba 0.68.0).
+# RAYBENCH_GIT_COMMIT is required, as in gpu_lease.sh: the machine's git metadata is stale.
 set -uo pipefail
+if [ -z "${RAYBENCH_GIT_COMMIT:-}" ]; then
+    echo "gpu_kernels.sh: set RAYBENCH_GIT_COMMIT to the commit that runs (git describe --always --dirty --abbrev=12 here)" >&2
+    exit 2
+fi
+export RAYBENCH_GIT_COMMIT
 python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site .whl/*.whl || exit 1
 export PYTHONPATH=/tmp/site:$PWD/src PYTHONUNBUFFERED=1
 OUT=${OUT:-/tmp/out}; mkdir -p "$OUT"

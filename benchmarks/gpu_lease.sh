@@ -5,7 +5,10 @@
 # $OUT/lease.tar.gz (its steps.log says how each step ended).
 #
 #   info     nvidia-smi, raybench info (the CUDA device and the wgpu adapters)
-#   pytest   the GPU tests: BVH, CUDA, fast kernels, wgpu (PYTEST_ARGS to change)
+#   pytest   the tests that can run without a window (-m "not window"): every
+#            GPU test (marker gpu) and the CPU ones, the BVH build's on 16 threads
+#            among them; PYTEST_ARGS to change, e.g. PYTEST_ARGS="-m gpu" for the
+#            GPU tests alone
 #   kernels  benchmarks/kernels.py: measured peaks, simple against fast kernels
 #   trip     the CUDA fast kernel's spheres per trip of its cull loop (kernels.py --sweep-trip)
 #   scaling  the scaling suite, 10 to 1,000,000 spheres (SCALING_DEVICES)
@@ -20,13 +23,24 @@
 # Carries .whl (NumPy 2.4: the machine's 2.5 breaks numba 0.68.0; wgpu, cffi,
 # pycparser, rendercanvas, glfw) and .gl (the Vulkan and GL loaders as Debian
 # packages; with them wgpu finds the GPU through NVIDIA's Vulkan driver):
-#   LABEL=h200 STEPS="info pytest kernels" bash benchmarks/gpu_lease.sh
+#   RAYBENCH_GIT_COMMIT=<commit> LABEL=h200 STEPS="info pytest kernels" bash benchmarks/gpu_lease.sh
+#
+# RAYBENCH_GIT_COMMIT is required: the machine's copy of the checkout carries
+# stale git metadata, so every record would name a wrong commit. Write the value
+# out on this side (`git describe --always --dirty --abbrev=12` here), not as
+# $(git ...) in the command, which would run there, on the stale metadata.
 set -uo pipefail
+if [ -z "${RAYBENCH_GIT_COMMIT:-}" ]; then
+    echo "gpu_lease.sh: set RAYBENCH_GIT_COMMIT to the commit that runs (git describe --always --dirty --abbrev=12 here)" >&2
+    exit 2
+fi
+export RAYBENCH_GIT_COMMIT
 python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site .whl/*.whl || exit 1
 if [ -d .gl ]; then for f in .gl/*.deb; do dpkg -x "$f" /; done; ldconfig; fi
 export PYTHONPATH=/tmp/site:$PWD/src PYTHONUNBUFFERED=1
 OUT=${OUT:-/tmp/out}; W=/tmp/lease; rm -rf "$W"; mkdir -p "$W" "$OUT"
 LABEL=${LABEL:-h200}; DURATION=${DURATION:-1}
+echo "$RAYBENCH_GIT_COMMIT" > "$W/git_commit.txt"
 STEPS=${STEPS:-info pytest kernels scaling thesis wgpu tuning}
 step() {  # step NAME SECONDS COMMAND...: its output to $W/NAME.log, how it ended to steps.log
     local name=$1 limit=$2; shift 2
@@ -45,9 +59,9 @@ for s in $STEPS; do
         step info 60 python3 -m raybench info
         python3 -m raybench info --json > "$W/info.json" 2>/dev/null ;;
     pytest)
-        # shellcheck disable=SC2086
-        step pytest "${PYTEST_S:-200}" python3 -m pytest -q -p no:cacheprovider ${PYTEST_ARGS:-tests/test_bvh.py \
-            tests/test_cuda.py tests/test_fast.py tests/test_wgpu.py} ;;
+        # PYTEST_ARGS is read as shell words, so that a marker expression can be quoted in it
+        eval "pytest_args=(${PYTEST_ARGS:--m \"not window\"})"
+        step pytest "${PYTEST_S:-300}" python3 -m pytest -q -p no:cacheprovider "${pytest_args[@]}" ;;
     kernels) step kernels "${KERNELS_S:-80}" python3 benchmarks/kernels.py --json "$W/kernels.json" --frames 7 ;;
     trip) step trip "${TRIP_S:-120}" python3 benchmarks/kernels.py --json "$W/trip.json" --frames 7 --skip-peak \
             --sweep-trip ;;

@@ -46,6 +46,7 @@ def main():
     args = ap.parse_args()
     w, h = map(int, args.size.split("x"))
     out = {
+        "git_commit": machine.git_commit(),
         "machine": machine.describe(),
         "size": [w, h],
         "spheres": args.spheres,

@@ -15,7 +15,7 @@ import numpy as np
 
 from raybench import Camera, backends, random_spheres
 from raybench.cli import parse_pair, parse_size
-from raybench.machine import describe
+from raybench.machine import describe, git_commit
 
 
 def main():
@@ -72,6 +72,7 @@ def main():
             json.dump(
                 {
                     "argv": vars(args),
+                    "git_commit": git_commit(),
                     "machine": describe(),
                     "adapter": adapter,
                     "same_picture": same,

@@ -151,6 +151,7 @@ def _wait_for_lines(folder, n, proc, timeout=120):
     pytest.fail("no results appeared")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGKILL])
 def test_interrupted_run_keeps_every_finished_point(tmp_path, sig):
     proc = _bench_subprocess(tmp_path, "--suite", "thesis", "--duration", "0.5")
@@ -168,6 +169,7 @@ def test_interrupted_run_keeps_every_finished_point(tmp_path, sig):
     assert path.read_text().endswith("\n")
 
 
+@pytest.mark.slow
 def test_quick_run_end_to_end(tmp_path, capsys):
     """`raybench bench --quick` on the CPU: every suite, every record complete,
     and the report written."""
@@ -293,6 +295,7 @@ def test_scaling_cap_skips_and_records(tmp_path, monkeypatch, rng):
     assert all("skipped" in r for r in recs[recs.index(first_skip) :])
 
 
+@pytest.mark.gpu
 def test_cuda_bvh_records_its_walk():
     """Which BVH walk cuda chose for the tree is in the record (under the simulator here)."""
     from raybench.backends import cuda as cuda_backend
@@ -306,3 +309,17 @@ def test_cuda_bvh_records_its_walk():
         suites.Point("scaling", "cpu", 16, 8, 20, {"accel": "bvh", "label": "bvh"}), runner.Scenes(0), 0.01
     )
     assert "walk" not in cpu
+
+
+def test_record_names_the_commit_given_in_the_environment(monkeypatch):
+    """The GPU machine's git metadata is stale: RAYBENCH_GIT_COMMIT, where set,
+    is the commit a record names; unset, the checkout's own git answers."""
+    from raybench import machine
+
+    monkeypatch.delenv(machine.GIT_COMMIT_ENV, raising=False)
+    from_git = machine.git_commit()
+    monkeypatch.setenv(machine.GIT_COMMIT_ENV, "0123456789ab")
+    assert runner.run_info({}, "x", {})["git_commit"] == "0123456789ab"
+    assert from_git != "0123456789ab"
+    monkeypatch.setenv(machine.GIT_COMMIT_ENV, "  ")  # blank is unset, not a commit
+    assert machine.git_commit() == from_git

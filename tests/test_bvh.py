@@ -69,6 +69,8 @@ def test_sphere_prefix_builds_its_own_tree(rng):
         tracer.close()
 
 
+@pytest.mark.slow
+@pytest.mark.gpu
 @pytest.mark.skipif(not cuda_backend.available(), reason="no CUDA GPU and the simulator is off")
 @pytest.mark.parametrize("walk", cuda_backend.WALKS)
 @pytest.mark.parametrize("kind", ["generated", "inside", "one_point", "duplicates", "line", "none"])
@@ -286,6 +288,7 @@ def test_bad_accel_options(options, match):
         raybench.render(raybench.random_spheres(3), width=8, height=8, device="cpu", **options)
 
 
+@pytest.mark.gpu
 def test_cuda_walk_is_chosen_by_the_tree_size():
     """Packets once the tree outgrows a GPU's L1 (cuda.PACKET_TREE_BYTES), in
     their own default block; a ray at a time below, in its own."""
@@ -310,6 +313,7 @@ def test_cuda_walk_is_chosen_by_the_tree_size():
         ({"walk": "ray", "accel": "none"}, "walk: applies to the BVH walk only"),
     ],
 )
+@pytest.mark.gpu
 def test_bad_walk_options(options, match):
     if not cuda_backend.available():
         pytest.skip("no CUDA GPU and the simulator is off")
@@ -317,6 +321,7 @@ def test_bad_walk_options(options, match):
         raybench.render(raybench.random_spheres(3), width=8, height=8, device="cuda", **options)
 
 
+@pytest.mark.gpu
 def test_cuda_brute_force_options_refused_with_bvh():
     if not cuda_backend.available():
         pytest.skip("no CUDA GPU and the simulator is off")

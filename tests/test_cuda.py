@@ -10,13 +10,17 @@ import raybench
 from raybench.backends import cuda as cuda_backend
 
 SIM = cuda_backend.simulated()
-pytestmark = pytest.mark.skipif(not cuda_backend.available(), reason="no CUDA GPU and the simulator is off")
+pytestmark = [
+    pytest.mark.gpu,
+    pytest.mark.skipif(not cuda_backend.available(), reason="no CUDA GPU and the simulator is off"),
+]
 
 # The simulator runs every GPU thread as Python: keep its images small.
 SIZES = [(24, 16), (19, 13)] if SIM else [(320, 200), (257, 129)]
 COUNTS = [1, 25] if SIM else [1, 100, 1000]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kernel", ["simple", "fast"])
 @pytest.mark.parametrize("kind", sorted(KINDS))
 @pytest.mark.parametrize("n", COUNTS)

@@ -107,6 +107,8 @@ def test_cpu_fast_sphere_prefix(rng):
     assert np.array_equal(tracer.hits, prefix.hits) and np.array_equal(tracer.image, prefix.image)
 
 
+@pytest.mark.slow
+@pytest.mark.gpu
 @pytest.mark.skipif(not cuda_backend.available(), reason="no CUDA GPU and the simulator is off")
 # The simulator runs a Python thread per CUDA thread and polls them all while
 # any waits at a barrier: 128 threads of the last shape took minutes there,
@@ -147,6 +149,7 @@ def test_cuda_fast_shapes_equal_cpu(rng, rays, tile, trip, block):
         ("cuda", {"block": (32, 32), "kernel": "fast"}, "fast kernel takes at most 256 threads"),
     ],
 )
+@pytest.mark.gpu
 def test_bad_kernel_options(device, options, match):
     if device == "cuda" and not cuda_backend.available():
         pytest.skip("no CUDA GPU and the simulator is off")

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import raybench
-from raybench import Camera, Scene, random_spheres
+from raybench import Camera, Scene, cli, random_spheres, viewer
 from raybench.backends import cuda as cuda_backend
 from raybench.bench.suites import RAMP
 from raybench.cli import run
@@ -527,6 +527,7 @@ def test_worker_frames_are_what_render_draws():
     assert full.trace_ms > 0
 
 
+@pytest.mark.gpu
 @pytest.mark.skipif(not cuda_backend.available(), reason="no CUDA GPU and the simulator is off")
 def test_worker_switches_cpu_to_cuda_and_back():
     """Real device switch (cuda is numba's simulator without a GPU): each frame
@@ -637,3 +638,33 @@ def test_view_cuda_without_gpu_is_refused_before_the_window(capsys, monkeypatch)
     code = run(["view", "--spheres", "3", "--device", "cuda"])
     err = capsys.readouterr().err
     assert code == 2 and err.startswith("raybench: error: device cuda") and "--device cpu" in err
+
+
+def test_view_takes_renders_device_options_each_device_its_own(monkeypatch):
+    """view's device options are render's, parsed by the same code; the window
+    gets each device's share (it switches device live), checked before it opens."""
+    opened = []
+    monkeypatch.setattr(viewer, "view", lambda scene, **kw: opened.append(kw))
+    flags = ["--threads", "2", "--block", "8x8", "--accel", "none", "--kernel", "simple"]
+    assert run(["view", "--spheres", "3", "--device", "cpu", *flags]) == 0
+    common = {"accel": "none", "kernel": "simple"}
+    assert opened[0]["options"] == {
+        "cpu": {"threads": 2, **common},
+        "cuda": {"block": (8, 8), **common},
+        "wgpu": common,
+    }
+    assert cli.device_options(threads=2, block="8x8", accel="none", kernel="simple") == {
+        "threads": 2,
+        "block": (8, 8),
+        **common,
+    }
+
+
+def test_view_refuses_options_the_first_device_refuses_before_the_window(capsys, monkeypatch):
+    opened = []
+    monkeypatch.setattr(viewer, "view", lambda scene, **kw: opened.append(kw))
+    code = run(["view", "--spheres", "3", "--device", "cpu", "--kernel", "fast", "--accel", "bvh"])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.splitlines()) == 1
+    assert err.startswith("raybench: error: kernel: applies to brute force only")
+    assert opened == []

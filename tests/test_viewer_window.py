@@ -30,6 +30,8 @@ from raybench.cli import run
 
 REQUIRED = os.environ.get("RAYBENCH_REQUIRE_WINDOW") == "1"
 
+pytestmark = pytest.mark.window
+
 
 def unavailable(reason: str):
     if REQUIRED:
@@ -214,6 +216,7 @@ def state_for(scene, seed, device="cpu", **kwargs):
 # --------------------------------------------------------------------------- the picture is the render
 
 
+@pytest.mark.slow
 def test_screenshot_equals_raybench_render(display, tmp_path):
     """The CLI end to end: `raybench view --frames 3 --screenshot` saves what the
     window drew, and it is `raybench render` of the same view, byte for byte."""
@@ -316,6 +319,8 @@ def test_keys_change_what_is_drawn(display, tmp_path):
     assert np.array_equal(home_px, script.frames(4)[0][1])
 
 
+@pytest.mark.slow
+@pytest.mark.gpu
 @pytest.mark.skipif(not cuda_backend.available(), reason="no CUDA GPU and numba's simulator is off")
 def test_tab_switches_live_to_cuda_or_its_simulator_and_draws_the_same_picture(display):
     """Tab traces the next frames on cuda (numba's simulator where there is no
@@ -380,6 +385,7 @@ def test_screenshot_from_the_offscreen_path(display):
     assert np.array_equal(drawn, reference(traced))
 
 
+@pytest.mark.slow
 def test_keyboard_through_the_x_server(display, tmp_path):
     """One end-to-end run with real key presses (xdotool): the title bar
     reports the frame, + adds spheres, P saves a screenshot, Esc quits."""
@@ -438,6 +444,7 @@ def test_keyboard_through_the_x_server(display, tmp_path):
 # --------------------------------------------------------------------------- wgpu: traced into the window's texture
 
 
+@pytest.mark.gpu
 def test_wgpu_traces_into_the_drawn_texture_in_one_command_buffer(display, vulkan_adapter, monkeypatch):
     """The thesis's pipeline: on wgpu, the compute pass writes the texture the
     quad draws, both recorded into one command encoder, and nothing is
@@ -518,6 +525,7 @@ def test_wgpu_traces_into_the_drawn_texture_in_one_command_buffer(display, vulka
     assert script.frames(2)[0][0].request.count == 30
 
 
+@pytest.mark.gpu
 def test_wgpu_in_the_window_without_timestamps(display, vulkan_adapter):
     """Where the device has no timestamp queries, the frame time is the wall
     time of the completed submission; the picture is the same."""
@@ -534,6 +542,8 @@ def test_wgpu_in_the_window_without_timestamps(display, vulkan_adapter):
         assert np.abs(drawn.astype(int) - reference(traced).astype(int)).max() <= 1, f"step {step}"
 
 
+@pytest.mark.slow
+@pytest.mark.gpu
 def test_cli_view_on_wgpu_saves_the_render(display, vulkan_adapter, tmp_path):
     """`raybench view --device wgpu --adapter NAME --frames 3 --screenshot`
     saves what the window drew from its own texture: `raybench render`'s PNG."""
@@ -571,6 +581,7 @@ def test_cli_view_on_wgpu_saves_the_render(display, vulkan_adapter, tmp_path):
     assert drawn.shape == expected.shape and np.abs(drawn - expected).max() <= 1
 
 
+@pytest.mark.gpu
 def test_wgpu_on_an_unnamed_cpu_adapter_is_refused_in_one_line(display, vulkan_adapter, tmp_path):
     from raybench.backends.wgpu import adapters
 
@@ -589,6 +600,7 @@ def test_wgpu_on_an_unnamed_cpu_adapter_is_refused_in_one_line(display, vulkan_a
 # --------------------------------------------------------------------------- the texture-to-quad pipeline alone
 
 
+@pytest.mark.gpu
 def test_quad_copies_every_byte_for_both_target_formats(vulkan_adapter):
     from raybench.viewer.gpu import TextureQuad
     from raybench.viewer.worker import to_rgba
@@ -603,6 +615,7 @@ def test_quad_copies_every_byte_for_both_target_formats(vulkan_adapter):
         assert np.array_equal(stretched[::2, ::2], image) and np.array_equal(stretched[1::2, 1::2], image), fmt
 
 
+@pytest.mark.gpu
 def test_an_srgb_target_would_change_the_bytes(vulkan_adapter):
     """Why the target is drawn through a non-sRGB view: an sRGB target encodes
     what the pixel shader writes, and a byte of 128 lands as 188."""

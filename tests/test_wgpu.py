@@ -22,6 +22,8 @@ from raybench.backends.wgpu import adapters, compute
 from raybench.cli import run
 from raybench.render import Frame
 
+pytestmark = pytest.mark.gpu
+
 
 def same_as_cpu(gpu, cpu, ref, context):
     """Same hit indices wherever rounding cannot change the winner, colours
@@ -427,6 +429,7 @@ def test_a_benchmark_record_names_the_adapter(adapter, way):
     assert record["kernel_ms"]["median"] > 0 and record["frames"] >= runner.MIN_FRAMES
 
 
+@pytest.mark.slow
 def test_cpu_use_never_imports_wgpu(tmp_path):
     """wgpu (and its driver probing) loads only when wgpu or auto is asked for."""
     import subprocess

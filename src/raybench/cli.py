@@ -42,12 +42,10 @@ def parse_block(text: str) -> tuple[int, int]:
     return parse_pair(text, "--block", "16x16")
 
 
-def device_options(
-    device: str, *, threads=None, block=None, workgroup=None, adapter=None, kernel=None, accel=None
-) -> dict:
-    """The options given on the command line, for the device: one that does
-    not apply to it is refused by the backend, in one line. Those not given
-    are left to the backend's defaults."""
+def device_options(*, threads=None, block=None, workgroup=None, adapter=None, kernel=None, accel=None) -> dict:
+    """The device options given on the command line (render's and view's),
+    parsed: one that does not apply to the device is refused by the backend,
+    in one line. Those not given are left to the backend's defaults."""
     options = {}
     if kernel is not None:
         options["kernel"] = kernel
@@ -62,6 +60,14 @@ def device_options(
     if adapter is not None:
         options["adapter"] = adapter
     return options
+
+
+def options_by_device(options: dict) -> dict[str, dict]:
+    """Each device's share of device_options(), as backends.OPTIONS names
+    them: the window switches device live, and each takes its own."""
+    from .backends import DEVICES, OPTIONS
+
+    return {device: {k: v for k, v in options.items() if k in OPTIONS[device]} for device in DEVICES}
 
 
 def check_output(path: Path, option: str = "-o") -> None:
@@ -89,6 +95,82 @@ def load_scene(scene_file, spheres, seed):
     return random_spheres(spheres, 0 if seed is None else seed)
 
 
+# --- options that render and view share, each written once ------------------------
+
+
+def stacked(*decorators):
+    """One decorator of several click options, shown in the order given."""
+
+    def apply(f):
+        for decorator in reversed(decorators):
+            f = decorator(f)
+        return f
+
+    return apply
+
+
+def scene_options(verb: str):
+    """--scene, --spheres, --seed: the scene to render or show."""
+    return stacked(
+        click.option("--scene", "scene_file", type=click.Path(dir_okay=False), help=f"scene JSON file to {verb}"),
+        click.option("--spheres", type=int, help=f"{verb} N random spheres instead of a scene file"),
+        click.option("--seed", type=int, help="seed of the random spheres (default 0)"),
+    )
+
+
+def size_option(help_text: str = SIZE_HELP):
+    return click.option("--size", default="800x600", show_default=True, help=help_text)
+
+
+def device_option(what: str = "where to trace"):
+    return click.option(
+        "--device",
+        default="auto",
+        show_default=True,
+        type=click.Choice(["auto", "cpu", "cuda", "wgpu"]),
+        help=f"{what}: auto picks cuda when a usable NVIDIA GPU is present, else wgpu on a GPU, else cpu",
+    )
+
+
+def adapter_option(whose: str = "wgpu"):
+    return click.option(
+        "--adapter",
+        help=f"{whose}: the adapter whose name contains this (default: the best GPU; a CPU "
+        "driver such as llvmpipe only when named)",
+    )
+
+
+def tracer_options(adapter_whose: str = "wgpu"):
+    """The options device_options() takes: how to trace, on each device."""
+    return stacked(
+        click.option("--threads", type=int, help="cpu: number of threads (default: all cores)"),
+        click.option(
+            "--block",
+            help=(
+                "cuda: thread block shape XxY (default 8x8 for the fast kernel and the BVH walked a ray at a time, "
+                "8x4 for its packets on large trees, 16x16 simple)"
+            ),
+        ),
+        click.option("--workgroup", help="wgpu: workgroup shape XxY (default 16x16)"),
+        adapter_option(adapter_whose),
+        click.option(
+            "--accel",
+            type=click.Choice(ACCELS),
+            help="bvh: walk a bounding volume hierarchy (the default); none: brute force, every sphere for "
+            "every ray (the thesis's algorithm; the default where --kernel is given). Same picture",
+        ),
+        click.option(
+            "--kernel",
+            type=click.Choice(KERNELS),
+            help="brute force only: simple, the thesis's loop, a pixel at a time; fast (its default on cpu and "
+            "cuda), rays grouped and certain misses skipped, the same picture; wgpu has simple only",
+        ),
+    )
+
+
+# --- the commands -------------------------------------------------------------------
+
+
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(version=__version__, prog_name="raybench")
 def main():
@@ -96,43 +178,10 @@ def main():
 
 
 @main.command()
-@click.option("--scene", "scene_file", type=click.Path(dir_okay=False), help="scene JSON file to render")
-@click.option("--spheres", type=int, help="render N random spheres instead of a scene file")
-@click.option("--seed", type=int, help="seed of the random spheres (default 0)")
-@click.option("--size", default="800x600", show_default=True, help=SIZE_HELP)
-@click.option(
-    "--device",
-    default="auto",
-    show_default=True,
-    type=click.Choice(["auto", "cpu", "cuda", "wgpu"]),
-    help="where to trace: auto picks cuda when a usable NVIDIA GPU is present, else wgpu on a GPU, else cpu",
-)
-@click.option("--threads", type=int, help="cpu: number of threads (default: all cores)")
-@click.option(
-    "--block",
-    help=(
-        "cuda: thread block shape XxY (default 8x8 for the fast kernel and the BVH walked a ray at a time, "
-        "8x4 for its packets on large trees, 16x16 simple)"
-    ),
-)
-@click.option("--workgroup", help="wgpu: workgroup shape XxY (default 16x16)")
-@click.option(
-    "--adapter",
-    help="wgpu: the adapter whose name contains this (default: the best GPU; a CPU "
-    "driver such as llvmpipe only when named)",
-)
-@click.option(
-    "--accel",
-    type=click.Choice(ACCELS),
-    help="bvh: walk a bounding volume hierarchy (the default); none: brute force, every sphere for "
-    "every ray (the thesis's algorithm; the default where --kernel is given). Same picture",
-)
-@click.option(
-    "--kernel",
-    type=click.Choice(KERNELS),
-    help="brute force only: simple, the thesis's loop, a pixel at a time; fast (its default on cpu and "
-    "cuda), rays grouped and certain misses skipped, the same picture; wgpu has simple only",
-)
+@scene_options("render")
+@size_option()
+@device_option()
+@tracer_options()
 @click.option(
     "-o", "--output", default="render.png", show_default=True, type=click.Path(path_type=Path), help="PNG file to write"
 )
@@ -146,7 +195,7 @@ def render(scene_file, spheres, seed, size, device, threads, block, workgroup, a
     check_output(output)
     device = resolve(device, adapter)
     options = device_options(
-        device, threads=threads, block=block, workgroup=workgroup, adapter=adapter, kernel=kernel, accel=accel
+        threads=threads, block=block, workgroup=workgroup, adapter=adapter, kernel=kernel, accel=accel
     )
     start = time.perf_counter()
     frame = render_frame(scene, width=width, height=height, device=device, **options)
@@ -173,39 +222,19 @@ def _view_help() -> str:
 
 
 @main.command(help=_view_help())
-@click.option("--scene", "scene_file", type=click.Path(dir_okay=False), help="scene JSON file to show")
-@click.option("--spheres", type=int, help="show N random spheres instead of a scene file")
-@click.option("--seed", type=int, help="seed of the random spheres (default 0)")
-@click.option("--size", default="800x600", show_default=True, help="window size as WIDTHxHEIGHT, e.g. 1680x1050")
-@click.option(
-    "--device",
-    default="auto",
-    show_default=True,
-    type=click.Choice(["auto", "cpu", "cuda", "wgpu"]),
-    help="where to trace first (switch live with Tab): auto picks cuda when a usable NVIDIA GPU is "
-    "present, else wgpu on a GPU, else cpu",
-)
-@click.option("--threads", type=int, help="cpu: number of threads (default: all cores)")
-@click.option(
-    "--block",
-    help=(
-        "cuda: thread block shape XxY (default 8x8 for the BVH walked a ray at a time, "
-        "8x4 for its packets on large trees)"
-    ),
-)
-@click.option("--workgroup", help="wgpu: workgroup shape XxY (default 16x16)")
-@click.option(
-    "--adapter",
-    help="wgpu, and the window: the adapter whose name contains this (default: the best "
-    "GPU; a CPU driver such as llvmpipe only when named)",
-)
+@scene_options("show")
+@size_option("window size as WIDTHxHEIGHT, e.g. 1680x1050")
+@device_option("where to trace first (switch live with Tab)")
+@tracer_options(adapter_whose="wgpu, and the window")
 @click.option("--frames", type=click.IntRange(min=1), help="close after N traced frames are shown")
 @click.option(
     "--screenshot",
     type=click.Path(path_type=Path),
     help="with --frames: save the last frame, as drawn in the window, to this PNG file",
 )
-def view(scene_file, spheres, seed, size, device, threads, block, workgroup, adapter, frames, screenshot):
+def view(
+    scene_file, spheres, seed, size, device, threads, block, workgroup, adapter, accel, kernel, frames, screenshot
+):
     from . import backends
     from .viewer import view as open_viewer
 
@@ -218,24 +247,23 @@ def view(scene_file, spheres, seed, size, device, threads, block, workgroup, ada
             )
         check_output(screenshot, "--screenshot")
     device = backends.resolve(device, adapter)
-    options = {"cpu": {}, "cuda": {}, "wgpu": {}}
-    if adapter is not None:
-        options["wgpu"]["adapter"] = adapter
-    if workgroup is not None:
-        options["wgpu"]["workgroup"] = parse_pair(workgroup, "--workgroup", "16x16")
-    if options["wgpu"]:
-        _check_options("wgpu", options["wgpu"])
-    if threads is not None:
-        options["cpu"]["threads"] = threads
-        _check_options("cpu", options["cpu"])
-    if block is not None:
-        options["cuda"]["block"] = parse_block(block)
-        try:
-            backends.resolve("cuda")
-        except RaybenchError:
-            pass  # no cuda here: a switch to it will say so, block or not
-        else:
-            _check_options("cuda", options["cuda"])
+    # render's options, through render's path, then each device's share of them
+    options = options_by_device(
+        device_options(threads=threads, block=block, workgroup=workgroup, adapter=adapter, kernel=kernel, accel=accel)
+    )
+    # Bad options are refused before the window opens, on each device they would
+    # reach: the first one, the cpu, cuda where there is one (a switch to it says
+    # so otherwise), and wgpu where it is the first or was given its own options
+    # (an adapter is looked for only then).
+    for name, given in options.items():
+        if not given or (name == "wgpu" and device != "wgpu" and not {"adapter", "workgroup"} & given.keys()):
+            continue
+        if name == "cuda" and device != "cuda":
+            try:
+                backends.resolve("cuda")
+            except RaybenchError:
+                continue
+        _check_options(name, given)
     seed = None if scene_file is not None else (0 if seed is None else seed)
     window = open_viewer(
         scene, device=device, seed=seed, size=(width, height), options=options, frames=frames, screenshot=screenshot
@@ -257,8 +285,8 @@ def view(scene_file, spheres, seed, size, device, threads, block, workgroup, ada
 
 
 def _check_options(device: str, options: dict) -> None:
-    """Refuse bad --threads / --block before a window opens: the backend itself
-    checks them, on an empty 1x1 tracer."""
+    """Refuse bad device options (--threads, --block, --accel, ...) before a
+    window opens: the backend itself checks them, on an empty 1x1 tracer."""
     import numpy as np
 
     from . import backends
@@ -330,11 +358,7 @@ def info(as_json):
 @click.option(
     "--device", "devices", multiple=True, help="cpu, cuda or wgpu; repeat for several (default: every device present)"
 )
-@click.option(
-    "--adapter",
-    help="wgpu: the adapter whose name contains this (default: the best GPU; a CPU driver "
-    "such as llvmpipe only when named)",
-)
+@adapter_option()
 @click.option(
     "--duration", type=float, help="seconds of timed frames per point, after warm-up (default 10; 0.5 with --quick)"
 )

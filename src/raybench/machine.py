@@ -12,6 +12,7 @@ import os
 import platform
 import subprocess
 from importlib import metadata
+from pathlib import Path
 
 # FP32 lanes per multiprocessor by compute capability (CUDA C Programming
 # Guide, "Arithmetic Instructions" throughput table).
@@ -132,6 +133,32 @@ def _driver_version() -> str | None:
             timeout=10,
         )
         return out.stdout.strip().splitlines()[0] if out.returncode == 0 and out.stdout.strip() else None
+    except (OSError, subprocess.SubprocessError):
+        return None
+
+
+# The commit a record names, where the checkout's own git metadata cannot be
+# trusted: the GPU machine gets a copy of the working tree whose .git is stale,
+# so benchmarks/gpu_lease.sh passes the real commit in this variable.
+GIT_COMMIT_ENV = "RAYBENCH_GIT_COMMIT"
+
+
+def git_commit() -> str | None:
+    """The commit of the code that runs: $RAYBENCH_GIT_COMMIT where set, else
+    `git describe --always --dirty` of the checkout this module is in; None
+    outside a checkout (an installed wheel) or without git."""
+    given = os.environ.get(GIT_COMMIT_ENV, "").strip()
+    if given:
+        return given
+    try:
+        out = subprocess.run(
+            ["git", "describe", "--always", "--dirty", "--abbrev=12"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+            cwd=Path(__file__).resolve().parent,
+        )
+        return out.stdout.strip() or None if out.returncode == 0 else None
     except (OSError, subprocess.SubprocessError):
         return None
 

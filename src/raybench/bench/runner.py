@@ -5,14 +5,13 @@ from __future__ import annotations
 import datetime
 import json
 import re
-import subprocess
 import sys
 import time
 import uuid
-from pathlib import Path
 
 from .. import backends
 from ..camera import Camera
+from ..machine import git_commit
 from ..scene import random_spheres
 from .results import ResultsWriter
 from .stats import summarize
@@ -152,20 +151,6 @@ def skipped(point: Point, predicted: float, cap_s: float) -> dict:
         "skipped": f"predicted {predicted / 1e3:.3g} s a frame, over the {cap_s:g} s cap",
         "predicted_ms": predicted,
     }
-
-
-def git_commit() -> str | None:
-    try:
-        out = subprocess.run(
-            ["git", "describe", "--always", "--dirty", "--abbrev=12"],
-            capture_output=True,
-            text=True,
-            timeout=10,
-            cwd=Path(__file__).resolve().parent,
-        )
-        return out.stdout.strip() or None if out.returncode == 0 else None
-    except (OSError, subprocess.SubprocessError):
-        return None
 
 
 def machine_label(machine: dict) -> str:

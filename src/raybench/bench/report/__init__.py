@@ -1,0 +1,83 @@
+"""The report: results files in, one Markdown file with PNG charts out, and a
+verdict on each of the thesis's claims for every machine measured.
+
+One module a job, each reading only those before it:
+  numbers   numbers as text, for all three below
+  data      results files read and checked; records grouped by machine and
+            kernel (column()), files with the same label merged; the series
+            (speedups, thesis_series, test7_series, cpu_tuning, gpu_tuning,
+            constant_vs_runtime, scaling_series): pure functions of plain
+            lists of records, so the rules can be tested on synthetic data
+  verdicts  the six claims judged; the thresholds are its constants, RULES
+            states them in words, and the report prints it
+  charts    the PNG charts (matplotlib, Agg canvas, no pyplot)
+  markdown  report.md; text from a results file enters it only through escape()
+"""
+
+from .data import (
+    DEVICE_NAMES,
+    accel_of,
+    column,
+    constant_vs_runtime,
+    cpu_tuning,
+    gpu_tuning,
+    group,
+    kernel_of,
+    load,
+    scaling_series,
+    speedups,
+    test7_series,
+    theoretical_ratio,
+    thesis_series,
+)
+from .data import _check as _check  # one record at a time, for the tests
+from .markdown import escape, write_report
+from .verdicts import (
+    CLAIMS,
+    FAILS,
+    HOLDS,
+    NEAR_FASTEST,
+    NOT_MEASURED,
+    R2_MIN,
+    RATIO_BAND,
+    RULES,
+    RUNTIME_SLOWER,
+    THESIS_CPU,
+    THESIS_GPU,
+    THESIS_RATIO,
+    THESIS_SPEEDUP,
+    verdicts,
+)
+
+__all__ = [
+    "CLAIMS",
+    "DEVICE_NAMES",
+    "FAILS",
+    "HOLDS",
+    "NEAR_FASTEST",
+    "NOT_MEASURED",
+    "R2_MIN",
+    "RATIO_BAND",
+    "RULES",
+    "RUNTIME_SLOWER",
+    "THESIS_CPU",
+    "THESIS_GPU",
+    "THESIS_RATIO",
+    "THESIS_SPEEDUP",
+    "accel_of",
+    "column",
+    "constant_vs_runtime",
+    "cpu_tuning",
+    "escape",
+    "gpu_tuning",
+    "group",
+    "kernel_of",
+    "load",
+    "scaling_series",
+    "speedups",
+    "test7_series",
+    "theoretical_ratio",
+    "thesis_series",
+    "verdicts",
+    "write_report",
+]

@@ -1,0 +1,220 @@
+"""The report's charts, as PNG bytes. Drawn on matplotlib Figure objects with
+the Agg canvas attached explicitly: no pyplot, no display, no global backend
+switch."""
+
+from __future__ import annotations
+
+import io
+import math
+
+from .data import DEVICE_NAMES
+from .numbers import fmt_ms, fmt_r2, fmt_x
+from .verdicts import THESIS_SPEEDUP
+
+
+def _figure(ncols: int = 1, width: float = 7.5, height: float = 4.6):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width, height), dpi=110, layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(1, ncols, squeeze=False)[0]
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+    return fig, list(axes)
+
+
+def _png(fig) -> bytes:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    return buf.getvalue()
+
+
+def _linear_or_log(ax, values) -> None:
+    values = [v for v in values if v and v > 0 and math.isfinite(v)]
+    if values and max(values) / min(values) > 30:
+        from matplotlib.ticker import ScalarFormatter
+
+        ax.set_yscale("log")
+        ax.yaxis.set_major_formatter(ScalarFormatter())
+    else:
+        ax.set_ylim(bottom=0)
+
+
+def plot_thesis(label: str, device: str, series: list[dict], device_name: str) -> bytes:
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    fig, (ax,) = _figure()
+    any_kernel = False
+    for i, s in enumerate(series):
+        color = f"C{i}"
+        ax.fill_between(s["spheres"], s["p5"], s["p95"], color=color, alpha=0.2, linewidth=0)
+        ax.plot(s["spheres"], s["median"], "o-", color=color, markersize=4, label=s["label"])
+        if s["fit"]:
+            xs = [min(s["spheres"]), max(s["spheres"])]
+            ax.plot(xs, [s["fit"]["slope"] * x + s["fit"]["intercept"] for x in xs], "--", color=color, linewidth=1)
+        if s["kernel"]:
+            any_kernel = True
+            ax.plot(s["spheres"], s["kernel"], ":", color=color, linewidth=1.5)
+    handles, labels = ax.get_legend_handles_labels()
+    handles += [Line2D([], [], color="gray", linestyle="--"), Patch(color="gray", alpha=0.2)]
+    labels += ["least-squares line", "p5-p95 of frames"]
+    if any_kernel:
+        handles.append(Line2D([], [], color="gray", linestyle=":", linewidth=1.5))
+        labels.append("kernel only (CUDA events)")
+    ax.legend(handles, labels, fontsize=8)
+    tests = [s["test"] for s in series if s["test"]]
+    what = f"tests {min(tests)}-{max(tests)}" if tests else "thesis tests"
+    ax.set_title(f"{label}: {DEVICE_NAMES.get(device, device)} {what}, {device_name}", fontsize=10)
+    ax.set_xlabel("spheres in the scene")
+    ax.set_ylabel("median frame time (ms)")
+    ax.set_ylim(bottom=0)
+    ax.set_xlim(left=0)
+    return _png(fig)
+
+
+def plot_speedup(label: str, sp: list[dict], ratio: float | None) -> bytes:
+    fig, (ax,) = _figure()
+    sizes = sorted({(p["width"], p["height"]) for p in sp}, key=lambda s: s[0] * s[1])
+    for i, (w, h) in enumerate(sizes):
+        pts = [p for p in sp if (p["width"], p["height"]) == (w, h)]
+        ax.plot(
+            [p["spheres"] for p in pts],
+            [p["speedup"] for p in pts],
+            "o-",
+            color=f"C{i}",
+            markersize=4,
+            label=f"{w}x{h}",
+        )
+    ax.axhspan(*THESIS_SPEEDUP, color="gray", alpha=0.35, label="thesis: 58-60x")
+    if ratio:
+        ax.axhline(ratio, color="C3", linestyle="--", label=f"theoretical FP32 ratio: {fmt_x(ratio)}")
+    ax.axhline(1, color="black", linewidth=0.8, label="1x (no gain)")
+    _linear_or_log(ax, [p["speedup"] for p in sp] + list(THESIS_SPEEDUP) + ([ratio] if ratio else []) + [1])
+    ax.set_title(f"{label}: GPU speedup over the CPU (CPU frame time / GPU frame time)", fontsize=10)
+    ax.set_xlabel("spheres in the scene")
+    ax.set_ylabel("speedup (x)")
+    ax.set_xlim(left=0)
+    ax.legend(fontsize=8)
+    return _png(fig)
+
+
+def plot_test7(label: str, series: list[dict]) -> bytes:
+    fig, axes = _figure(len(series), width=4.2 * len(series) + 1, height=4.2)
+    for i, (ax, s) in enumerate(zip(axes, series)):
+        ax.plot(
+            s["spheres"], s["frame_ms"], "-", color=f"C{i}", linewidth=1, marker=".", markersize=3, label="frame time"
+        )
+        if s["kernel_ms"]:
+            ax.plot(s["spheres"], s["kernel_ms"], "-", color="gray", linewidth=0.8, label="kernel only")
+        if s["fit"]:
+            xs = [min(s["spheres"]), max(s["spheres"])]
+            ax.plot(
+                xs,
+                [s["fit"]["slope"] * x + s["fit"]["intercept"] for x in xs],
+                "--",
+                color="black",
+                linewidth=1,
+                label=f"least squares (R² {fmt_r2(s['fit']['r2'])})",
+            )
+        ax.set_title(f"{DEVICE_NAMES.get(s['device'], s['device'])}, {s['width']}x{s['height']}", fontsize=10)
+        ax.set_xlabel("spheres in the scene (10 more each frame)")
+        ax.set_ylabel("frame time (ms)")
+        ax.set_ylim(bottom=0)
+        ax.legend(fontsize=8)
+    fig.suptitle(f"{label}: test 7, one frame per sphere count (first frame left out)", fontsize=10)
+    return _png(fig)
+
+
+def _bars(ax, labels, groups, names, ylabel, best=True):
+    """Grouped bars: groups is a list (one per bar series) of values per label."""
+    n = len(groups)
+    width = 0.8 / n
+    for j, (values, name) in enumerate(zip(groups, names)):
+        xs = [i + (j - (n - 1) / 2) * width for i in range(len(labels))]
+        bars = ax.bar(xs, values, width, label=name, color=f"C{j}")
+        ax.bar_label(bars, [fmt_ms(v) for v in values], fontsize=7, padding=1)
+        if best and j == n - 1 and values:
+            k = min(range(len(values)), key=values.__getitem__)
+            bars[k].set_edgecolor("black")
+            bars[k].set_linewidth(1.5)
+    ax.set_xticks(range(len(labels)), labels, fontsize=8)
+    ax.set_ylabel(ylabel)
+    ax.margins(y=0.12)
+    if n > 1 or names[0]:
+        ax.legend(fontsize=8)
+
+
+def plot_tuning(label: str, cpu: list[dict], gpu: list[dict]) -> bytes:
+    panels = [p for p in (("cpu", cpu), ("cuda", gpu)) if p[1]]
+    fig, axes = _figure(len(panels), width=6.5 * len(panels), height=4.4)
+    for ax, (device, rows) in zip(axes, panels):
+        r0 = rows[0]
+        where = f"{r0['width']}x{r0['height']}, {r0['spheres']} spheres"
+        if device == "cpu":
+            _bars(
+                ax,
+                [f"{r['label']}\n{r['threads']} thread{'s' if r['threads'] != 1 else ''}" for r in rows],
+                [[r["ms"] for r in rows]],
+                [""],
+                "median frame time (ms)",
+            )
+            ax.set_title(f"CPU threads ({where})", fontsize=10)
+        else:
+            has_kernel = all(r["kernel_ms"] is not None for r in rows)
+            groups = [[r["frame_ms"] for r in rows]] + ([[r["kernel_ms"] for r in rows]] if has_kernel else [])
+            names = ["whole frame", "kernel only"] if has_kernel else ["whole frame"]
+            _bars(ax, [r["label"] for r in rows], groups, names, "median time (ms)")
+            ax.set_xlabel("threads per block (x by y)")
+            ax.tick_params(axis="x", labelrotation=45)
+            ax.set_title(f"GPU block shapes ({where})", fontsize=10)
+    fig.suptitle(f"{label}: tuning (the fastest bar is outlined)", fontsize=10)
+    return _png(fig)
+
+
+def plot_constant(label: str, rows_by_device: dict[str, list[dict]]) -> bytes:
+    panels = [(d, rows) for d, rows in rows_by_device.items() if rows]
+    fig, axes = _figure(len(panels), width=5.2 * len(panels) + 0.5, height=4.2)
+    for ax, (device, rows) in zip(axes, panels):
+        sizes = {(r["width"], r["height"]) for r in rows}
+        names = [f"{r['spheres']}" if len(sizes) == 1 else f"{r['spheres']}\n{r['width']}x{r['height']}" for r in rows]
+        timing = "kernel" if all(r["timing"] == "kernel" for r in rows) else "frame"
+        _bars(
+            ax,
+            names,
+            [[r["constant"] for r in rows], [r["runtime"] for r in rows]],
+            ["constant (compile time)", "runtime variable"],
+            f"median {timing} time (ms)",
+            best=False,
+        )
+        ax.set_xlabel("spheres in the scene")
+        where = f", {rows[0]['width']}x{rows[0]['height']}" if len(sizes) == 1 else ""
+        ax.set_title(f"{DEVICE_NAMES.get(device, device)}{where}", fontsize=10)
+    fig.suptitle(f"{label}: sphere count as a compile-time constant or a runtime variable", fontsize=10)
+    return _png(fig)
+
+
+def plot_scaling(label: str, series: list[dict]) -> bytes:
+    fig, (ax,) = _figure(width=8.0, height=5.2)
+    for i, s in enumerate(series):
+        done = [p for p in s["points"] if p["median"] is not None]
+        if not done:
+            continue
+        style = "o-" if s["accel"] == "bvh" else "s--"
+        name = f"{DEVICE_NAMES.get(s['device'], s['device'])}, {s['way']}, {s['width']}x{s['height']}"
+        ax.plot(
+            [p["spheres"] for p in done], [p["median"] for p in done], style, color=f"C{i}", markersize=4, label=name
+        )
+        if all(p["kernel"] for p in done):
+            ax.plot([p["spheres"] for p in done], [p["kernel"] for p in done], ":", color=f"C{i}", linewidth=1.2)
+        cut = [p for p in s["points"] if p["median"] is None]
+        if cut:
+            ax.axvline(cut[0]["spheres"], color=f"C{i}", linewidth=0.6, alpha=0.5)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("spheres in the scene")
+    ax.set_ylabel("median frame time (ms); dotted: kernel only")
+    ax.set_title(f"{label}: frame time against sphere count (thin line: brute force stopped)", fontsize=10)
+    ax.legend(fontsize=7)
+    return _png(fig)

@@ -1,0 +1,28 @@
+"""Numbers as the report writes them, in the verdicts, the charts and the
+Markdown alike: significant digits, never exponent notation."""
+
+from __future__ import annotations
+
+import math
+
+
+def fmt_num(x, sig: int = 3) -> str:
+    """x to sig significant digits, never in exponent notation."""
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "–" if x is None or math.isnan(x) else ("∞" if x > 0 else "-∞")
+    if x == 0:
+        return "0"
+    digits = max(0, sig - 1 - math.floor(math.log10(abs(x))))
+    return f"{x:.{digits}f}"
+
+
+def fmt_ms(x) -> str:
+    return fmt_num(x, 3)
+
+
+def fmt_x(x) -> str:
+    return f"{fmt_num(x)}x"
+
+
+def fmt_r2(x) -> str:
+    return "nan (flat)" if x is None or math.isnan(x) else f"{x:.4f}"
