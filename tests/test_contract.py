@@ -9,7 +9,9 @@ from raybench.backends.contract import Tracer
 
 
 # cuda: the real GPU, or numba's simulator under NUMBA_ENABLE_CUDASIM=1 (conftest)
-@pytest.mark.parametrize("device", ["cpu", "cuda", "wgpu"])
+@pytest.mark.parametrize(
+    "device", ["cpu", pytest.param("cuda", marks=pytest.mark.gpu), pytest.param("wgpu", marks=pytest.mark.gpu)]
+)
 @pytest.mark.parametrize("accel", ["bvh", "none"])
 def test_tracer_keeps_the_contract(device, accel, request):
     spheres = raybench.random_spheres(20, seed=3).spheres

@@ -18,6 +18,7 @@ import click
 from . import __version__
 from .backends.limits import ACCELS, KERNELS
 from .errors import RaybenchError
+from .lighting import SHADINGS
 
 SIZE_HELP = "image size as WIDTHxHEIGHT, e.g. 1680x1050"
 
@@ -83,16 +84,28 @@ def check_output(path: Path, option: str = "-o") -> None:
         raise RaybenchError(f"{option} {path}: not writable; choose another path")
 
 
-def load_scene(scene_file, spheres, seed):
+def load_scene(scene_file, spheres, seed, materials=False):
+    """The scene of --scene (a file, or an example's name: raybench.examples)
+    or --spheres N (--seed, --materials)."""
+    from . import examples
     from .scene import Scene, random_spheres
 
     if (scene_file is None) == (spheres is None):
         raise RaybenchError("give exactly one of --scene FILE or --spheres N")
     if scene_file is not None:
-        if seed is not None:
-            raise RaybenchError("--seed applies to --spheres only")
+        if seed is not None or materials:
+            raise RaybenchError(f"{'--seed' if seed is not None else '--materials'} applies to --spheres only")
+        if scene_file in examples.NAMES and not Path(scene_file).exists():
+            return Scene.load(examples.path(scene_file))
         return Scene.load(scene_file)
-    return random_spheres(spheres, 0 if seed is None else seed)
+    return random_spheres(spheres, 0 if seed is None else seed, materials=materials)
+
+
+def shading_options(shading, depth, shadow_samples) -> dict:
+    """render()'s shading arguments from --shading, --depth, --shadow-samples."""
+    if shading != "whitted" and (depth is not None or shadow_samples is not None):
+        raise RaybenchError("--depth and --shadow-samples apply to --shading whitted only")
+    return {"shading": shading, "depth": depth, "shadow_samples": shadow_samples}
 
 
 # --- options that render and view share, each written once ------------------------
@@ -110,11 +123,39 @@ def stacked(*decorators):
 
 
 def scene_options(verb: str):
-    """--scene, --spheres, --seed: the scene to render or show."""
+    """--scene, --spheres, --seed, --materials: the scene to render or show."""
     return stacked(
-        click.option("--scene", "scene_file", type=click.Path(dir_okay=False), help=f"scene JSON file to {verb}"),
+        click.option(
+            "--scene",
+            "scene_file",
+            type=click.Path(dir_okay=False),
+            help=f"scene JSON file to {verb}, or the name of an example: whitted",
+        ),
         click.option("--spheres", type=int, help=f"{verb} N random spheres instead of a scene file"),
         click.option("--seed", type=int, help="seed of the random spheres (default 0)"),
+        click.option(
+            "--materials",
+            is_flag=True,
+            help="the random spheres with mixed materials (plastic, mirrors, glass) and an area light",
+        ),
+    )
+
+
+def shading_option_group():
+    """--shading, --depth, --shadow-samples."""
+    return stacked(
+        click.option(
+            "--shading",
+            type=click.Choice(SHADINGS),
+            default="thesis",
+            show_default=True,
+            help="thesis: each sphere's colour darkened towards its rim; whitted: the scene's lights with "
+            "shadows, mirrors and glass",
+        ),
+        click.option("--depth", type=int, help="whitted: bounces of reflection and refraction (default 5)"),
+        click.option(
+            "--shadow-samples", type=int, help="whitted: shadow rays to each area light, for soft shadows (default 4)"
+        ),
     )
 
 
@@ -182,29 +223,51 @@ def main():
 @size_option()
 @device_option()
 @tracer_options()
+@shading_option_group()
 @click.option(
     "-o", "--output", default="render.png", show_default=True, type=click.Path(path_type=Path), help="PNG file to write"
 )
-def render(scene_file, spheres, seed, size, device, threads, block, workgroup, adapter, accel, kernel, output):
+def render(
+    scene_file,
+    spheres,
+    seed,
+    materials,
+    size,
+    device,
+    threads,
+    block,
+    workgroup,
+    adapter,
+    accel,
+    kernel,
+    shading,
+    depth,
+    shadow_samples,
+    output,
+):
     """Trace one frame and save it as a PNG."""
     from .backends import resolve
     from .render import render as render_frame
 
-    scene = load_scene(scene_file, spheres, seed)
+    scene = load_scene(scene_file, spheres, seed, materials)
     width, height = parse_size(size)
+    shaded = shading_options(shading, depth, shadow_samples)
     check_output(output)
     device = resolve(device, adapter)
     options = device_options(
         threads=threads, block=block, workgroup=workgroup, adapter=adapter, kernel=kernel, accel=accel
     )
     start = time.perf_counter()
-    frame = render_frame(scene, width=width, height=height, device=device, **options)
+    frame = render_frame(scene, width=width, height=height, device=device, **shaded, **options)
     elapsed = time.perf_counter() - start
     frame.save(output)
     built = f", BVH built in {frame.build_s * 1e3:.1f} ms" if frame.build_s is not None else ""
+    rays = ""
+    if frame.rays is not None:
+        rays = ", rays: " + ", ".join(f"{n:,} {kind}" for kind, n in frame.rays.items())
     click.echo(
         f"wrote {output}: {width}x{height}, {len(scene):,} spheres, {frame.device}, "
-        f"{elapsed:.2f} s including compilation{built}"
+        f"{elapsed:.2f} s including compilation{built}{rays}"
     )
 
 
@@ -233,12 +296,25 @@ def _view_help() -> str:
     help="with --frames: save the last frame, as drawn in the window, to this PNG file",
 )
 def view(
-    scene_file, spheres, seed, size, device, threads, block, workgroup, adapter, accel, kernel, frames, screenshot
+    scene_file,
+    spheres,
+    seed,
+    materials,
+    size,
+    device,
+    threads,
+    block,
+    workgroup,
+    adapter,
+    accel,
+    kernel,
+    frames,
+    screenshot,
 ):
     from . import backends
     from .viewer import view as open_viewer
 
-    scene = load_scene(scene_file, spheres, seed)
+    scene = load_scene(scene_file, spheres, seed, materials)
     width, height = parse_size(size)
     if screenshot is not None:
         if frames is None:
