@@ -19,6 +19,7 @@
 #            BASELINE="dir ..." (other versions' src/, carried), those versions
 #            and this one in turn, twice, side by side in one lease
 #   builds   benchmarks/bvh_build.py (BUILDS_ARGS to change), with BASELINE as walks
+#   whitted  benchmarks/whitted_rays.py: Whitted shading's rays a second (WHITTED_ARGS to change)
 #
 # Carries .whl (NumPy 2.4: the machine's 2.5 breaks numba 0.68.0; wgpu, cffi,
 # pycparser, rendercanvas, glfw) and .gl (the Vulkan and GL loaders as Debian
@@ -94,6 +95,10 @@ for s in $STEPS; do
             step "builds-$round" "${BUILDS_S:-90}" python3 benchmarks/bvh_build.py \
                 ${BUILDS_ARGS:---threads 1 --threads 4 --threads 16}
         done ;;
+    whitted)
+        # shellcheck disable=SC2086
+        step whitted "${WHITTED_S:-200}" python3 benchmarks/whitted_rays.py \
+            ${WHITTED_ARGS:---device cuda --device wgpu --device cpu} ;;
     *) echo "unknown step $s" | tee -a "$W/steps.log" ;;
     esac
 done
