@@ -18,11 +18,12 @@ import raybench
 from raybench import Camera, RaybenchError, backends, lighting
 
 
-def one(device: str, spheres: int, width: int, height: int, frames: int, accel: str, depth: int, samples: int) -> dict:
+def one(device, spheres, width, height, frames, accel, depth, samples, block=None) -> dict:
     scene = raybench.random_spheres(spheres, seed=0, materials=True)
     shading = lighting.Shading.of(scene, depth, samples)
     basis = Camera().basis(width, height)
-    with backends.tracer(device, scene.spheres, width, height, accel=accel, whitted=shading) as tracer:
+    options = {"cuda": {"block": block}, "wgpu": {"workgroup": block}}.get(device, {}) if block else {}
+    with backends.tracer(device, scene.spheres, width, height, accel=accel, whitted=shading, **options) as tracer:
         start = time.perf_counter()
         tracer.trace(basis)  # compiled, uploaded
         first_s = time.perf_counter() - start
@@ -38,6 +39,8 @@ def one(device: str, spheres: int, width: int, height: int, frames: int, accel: 
         return {
             "device": device,
             "accel": accel,
+            "block": getattr(tracer, "block", None) or getattr(tracer, "workgroup", None),
+            **_resources(tracer),
             "spheres": spheres,
             "width": width,
             "height": height,
@@ -56,6 +59,22 @@ def one(device: str, spheres: int, width: int, height: int, frames: int, accel: 
         }
 
 
+def _resources(tracer) -> dict:
+    """cuda: the Whitted kernel's registers and local memory a thread (spills
+    and the stacks); other devices: nothing."""
+    if tracer.name != "cuda":
+        return {}
+    kernel = tracer._kernel
+    try:
+        (signature,) = kernel.overloads.keys()
+        return {
+            "regs": kernel.get_regs_per_thread(signature),
+            "local_bytes": kernel.get_local_mem_per_thread(signature),
+        }
+    except Exception as exc:  # noqa: BLE001 - a numba-cuda without the query: the record says so
+        return {"resources": f"unknown ({exc.__class__.__name__})"}
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--device", action="append", choices=["cpu", "cuda", "wgpu"])
@@ -65,13 +84,14 @@ def main() -> int:
     parser.add_argument("--frames", type=int, default=7)
     parser.add_argument("--depth", type=int, default=5)
     parser.add_argument("--shadow-samples", type=int, default=4)
+    parser.add_argument("--block", type=int, nargs=2, metavar=("X", "Y"), help="cuda's block, wgpu's workgroup")
     args = parser.parse_args()
     width, height = (int(v) for v in args.size.split("x"))
     for device in args.device or ["cuda"]:
         for accel in args.accel or ["bvh"]:
             for n in args.spheres or [1000, 10_000, 100_000]:
                 try:
-                    row = one(device, n, width, height, args.frames, accel, args.depth, args.shadow_samples)
+                    row = one(device, n, width, height, args.frames, accel, args.depth, args.shadow_samples, args.block)
                 except RaybenchError as exc:
                     row = {"device": device, "accel": accel, "spheres": n, "error": str(exc)}
                 print(json.dumps(row), flush=True)

@@ -49,7 +49,6 @@ MAX_THREADS = 4096
 _k = kernels.build(numba.njit(inline="always"))
 # module globals, which is how jitted code can see them
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
-_render_pixel_whitted = _k.render_pixel_whitted
 _prepare_one, _may_hit, _intersect_relative = _k.prepare, _k.may_hit, _k.intersect_relative
 # The BVH walk's own build of the same functions, with NumPy's error model:
 # float division then has no check for a zero divisor (none can occur: the
@@ -489,31 +488,38 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
                         _put_pixel(y, x, k, rgb, hit, image, hits)
 
 
-@numba.njit(nogil=True)
-def _whitted_rows(first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern, params,
-                  tree, image, hits, counts):  # fmt: skip
-    """Whitted shading of the rows first_row..end_row, a ray at a time
-    (secondary rays scatter: no packet keeps them together); counts[y]: the
-    rays row y cast, by kind."""
-    stack_row = np.empty(STACK, np.int32)
-    stack_t = np.empty(STACK, np.float32)
-    rays_f = np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_FLOATS), np.float32)
-    rays_i = np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_INTS), np.int32)
-    for y in range(first_row, end_row):
-        primary = shadow = reflection = refraction = 0
-        for x in range(width):
-            a, b, c, d = _render_pixel_whitted(
-                x, y, width, height, basis, spheres, count, materials, lights, pattern, params, tree, stack_row,
-                stack_t, rays_f, rays_i, image, hits,
-            )  # fmt: skip
-            primary += a
-            shadow += b
-            reflection += c
-            refraction += d
-        counts[y, whitted_mod.PRIMARY] = primary
-        counts[y, whitted_mod.SHADOW] = shadow
-        counts[y, whitted_mod.REFLECTION] = reflection
-        counts[y, whitted_mod.REFRACTION] = refraction
+@functools.cache
+def _whitted_rows(accel: str):
+    """The rows kernel of Whitted shading through the BVH or by brute force."""
+    render_pixel = _k.render_pixel_whitted[accel]
+
+    @numba.njit(nogil=True)
+    def whitted_rows(first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern, params,
+                     tree, image, hits, counts):  # fmt: skip
+        """Whitted shading of the rows first_row..end_row, a ray at a time
+        (secondary rays scatter: no packet keeps them together); counts[y]: the
+        rays row y cast, by kind."""
+        stack_row = np.empty(STACK, np.int32)
+        stack_t = np.empty(STACK, np.float32)
+        rays_f = np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_FLOATS), np.float32)
+        rays_i = np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_INTS), np.int32)
+        for y in range(first_row, end_row):
+            primary = shadow = reflection = refraction = 0
+            for x in range(width):
+                a, b, c, d = render_pixel(
+                    x, y, width, height, basis, spheres, count, materials, lights, pattern, params, tree, stack_row,
+                    stack_t, rays_f, rays_i, image, hits,
+                )  # fmt: skip
+                primary += a
+                shadow += b
+                reflection += c
+                refraction += d
+            counts[y, whitted_mod.PRIMARY] = primary
+            counts[y, whitted_mod.SHADOW] = shadow
+            counts[y, whitted_mod.REFLECTION] = reflection
+            counts[y, whitted_mod.REFRACTION] = refraction
+
+    return whitted_rows
 
 
 # Chunks of rows per thread for the BVH: enough that the last chunk to finish
@@ -590,7 +596,7 @@ class Tracer(TracerBase):
             # rows take unequal time (mirrors and glass cost more): pulled in chunks, as the BVH's
             self.bands = chunks(height, self.threads)
             workers = min(self.threads, len(self.bands))
-            self._kernel = _whitted_rows
+            self._kernel = _whitted_rows(self.accel)
             self._row_rays = np.zeros((height, len(whitted_mod.KINDS)), np.int64)
             self.ray_counts = np.zeros(len(whitted_mod.KINDS), np.int64)
             self._none = np.zeros((0, NODE_FLOATS), np.float32)

@@ -66,7 +66,6 @@ _k = kernels.build(cuda.jit(device=True))
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
 _prepare_one, _may_hit, _along, _intersect_relative = _k.prepare, _k.may_hit, _k.along, _k.intersect_relative
 _render_pixel_bvh = _k.render_pixel_bvh
-_render_pixel_whitted = _k.render_pixel_whitted
 _ray_axes, _children, _leaf_hits, _centre = _k.ray_axes, _k.children, _k.leaf_hits, _k.centre_along
 
 # Fast kernel defaults: each thread traces RAYS pixels, one above the other a
@@ -108,38 +107,43 @@ def _bvh_kernel(width, height, basis, nodes, links, ordered, order, spheres, ima
         )
 
 
-@cuda.jit
-def _whitted_kernel(width, height, basis, spheres, count, materials, lights, pattern, params, nodes, links, ordered,
-                    order, image, hits, rays):  # fmt: skip
-    """Whitted shading, a thread a pixel (kernels/whitted.py), through the
-    BVH or (with no node) over every sphere. rays[kind] += the rays the
-    block cast, summed in shared memory first: one global atomic per kind
-    and block, not per pixel."""
-    x, y = cuda.grid(2)
-    me = cuda.threadIdx.y * cuda.blockDim.x + cuda.threadIdx.x
-    tally = cuda.shared.array(4, np.int32)
-    if me < 4:
-        tally[me] = 0
-    cuda.syncthreads()
-    if x < width and y < height:
-        stack_row = cuda.local.array(STACK, np.int32)
-        stack_t = cuda.local.array(STACK, np.float32)
-        rays_f = cuda.local.array((RAY_STACK, RAY_FLOATS), np.float32)
-        rays_i = cuda.local.array((RAY_STACK, RAY_INTS), np.int32)
-        primary, shadow, reflection, refraction = _render_pixel_whitted(
-            x, y, width, height, basis, spheres, count, materials, lights, pattern, params,
-            (nodes, links, ordered, order), stack_row, stack_t, rays_f, rays_i, image, hits,
-        )  # fmt: skip
-        cuda.atomic.add(tally, 0, primary)
-        if shadow:
-            cuda.atomic.add(tally, 1, shadow)
-        if reflection:
-            cuda.atomic.add(tally, 2, reflection)
-        if refraction:
-            cuda.atomic.add(tally, 3, refraction)
-    cuda.syncthreads()
-    if me < 4:
-        cuda.atomic.add(rays, me, np.int64(tally[me]))
+@functools.cache
+def _whitted_kernel(accel: str):
+    """Whitted shading, a thread a pixel (kernels/whitted.py), through the BVH
+    or by brute force. rays[kind] += the rays the block cast, summed in
+    shared memory first: one global atomic per kind and block, not per pixel."""
+    render_pixel = _k.render_pixel_whitted[accel]
+
+    @cuda.jit
+    def kernel(width, height, basis, spheres, count, materials, lights, pattern, params, nodes, links, ordered, order,
+               image, hits, rays):  # fmt: skip
+        x, y = cuda.grid(2)
+        me = cuda.threadIdx.y * cuda.blockDim.x + cuda.threadIdx.x
+        tally = cuda.shared.array(4, np.int32)
+        if me < 4:
+            tally[me] = 0
+        cuda.syncthreads()
+        if x < width and y < height:
+            stack_row = cuda.local.array(STACK, np.int32)
+            stack_t = cuda.local.array(STACK, np.float32)
+            rays_f = cuda.local.array((RAY_STACK, RAY_FLOATS), np.float32)
+            rays_i = cuda.local.array((RAY_STACK, RAY_INTS), np.int32)
+            primary, shadow, reflection, refraction = render_pixel(
+                x, y, width, height, basis, spheres, count, materials, lights, pattern, params,
+                (nodes, links, ordered, order), stack_row, stack_t, rays_f, rays_i, image, hits,
+            )  # fmt: skip
+            cuda.atomic.add(tally, 0, primary)
+            if shadow:
+                cuda.atomic.add(tally, 1, shadow)
+            if reflection:
+                cuda.atomic.add(tally, 2, reflection)
+            if refraction:
+                cuda.atomic.add(tally, 3, refraction)
+        cuda.syncthreads()
+        if me < 4:
+            cuda.atomic.add(rays, me, np.int64(tally[me]))
+
+    return kernel
 
 
 @cuda.jit
@@ -515,7 +519,7 @@ class Tracer(TracerBase):
                 raise RaybenchError(
                     "walk 'packet': applies to the thesis's shading only; Whitted's rays walk one by one"
                 )
-            self._kernel = _whitted_kernel
+            self._kernel = _whitted_kernel(self.accel)
             if self.accel == "bvh":
                 self._build(self.count)
                 self.walk = "ray"

@@ -118,25 +118,47 @@ def build(jit, call=None):
         )
         store_pixel(x, y, hit, d, spheres, image, hits)
 
-    whitted_pixel = whitted.build(jit, call, scan, walk, shade_hit, shade_miss)
-
-    @call
-    def render_pixel_whitted(x, y, width, height, basis, spheres, count, materials, lights, pattern, params, tree,
-                             stack_row, stack_t, rays_f, rays_i, image, hits):  # fmt: skip
-        """render_pixel under Whitted shading (kernels/whitted.py); returns the
-        pixel's rays by kind (primary, shadow, reflection, refraction).
-        tree: the BVH's (nodes, links, ordered, order), or brute force where
-        it has no node. stack_row/stack_t: the walk's stack; rays_f/rays_i:
-        the pending rays (whitted.RAY_STACK rows), the backend's to give."""
-        red, green, blue, hit, primary, shadow, reflection, refraction = whitted_pixel(
-            x, y, width, height, basis, primary_ray(x, y, width, height, basis), spheres, count, materials, lights,
-            pattern, params, tree, stack_row, stack_t, rays_f, rays_i,
+    @jit
+    def search_tree(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, spheres, count, tree, stack_row,
+                    stack_t):  # fmt: skip
+        """Whitted's rays through the BVH, tree = (nodes, links, ordered, order)."""
+        nodes, links, ordered, order = tree
+        return walk(
+            ox, oy, oz, dx, dy, dz, t_max, any_hit, True, own, own_inside, nodes, links, ordered, order, stack_row,
+            stack_t,
         )  # fmt: skip
-        image[y, x, 0] = to_byte(red)
-        image[y, x, 1] = to_byte(green)
-        image[y, x, 2] = to_byte(blue)
-        hits[y, x] = hit
-        return primary, shadow, reflection, refraction
+
+    @jit
+    def search_all(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, spheres, count, tree, stack_row,
+                   stack_t):  # fmt: skip
+        """Whitted's rays by brute force, every sphere tested (the tree unused)."""
+        return scan(ox, oy, oz, dx, dy, dz, t_max, any_hit, True, own, own_inside, spheres, count)
+
+    def whitted_program(search):
+        whitted_pixel = whitted.build(jit, call, search, shade_hit, shade_miss)
+
+        @call
+        def render_pixel_whitted(x, y, width, height, basis, spheres, count, materials, lights, pattern, params, tree,
+                                 stack_row, stack_t, rays_f, rays_i, image, hits):  # fmt: skip
+            """render_pixel under Whitted shading (kernels/whitted.py); returns
+            the pixel's rays by kind (primary, shadow, reflection, refraction).
+            tree: the BVH's (nodes, links, ordered, order), for search_tree.
+            stack_row/stack_t: the walk's stack; rays_f/rays_i: the pending
+            rays (whitted.RAY_STACK rows), the backend's to give."""
+            red, green, blue, hit, primary, shadow, reflection, refraction = whitted_pixel(
+                x, y, width, height, basis, primary_ray(x, y, width, height, basis), spheres, count, materials,
+                lights, pattern, params, tree, stack_row, stack_t, rays_f, rays_i,
+            )  # fmt: skip
+            image[y, x, 0] = to_byte(red)
+            image[y, x, 1] = to_byte(green)
+            image[y, x, 2] = to_byte(blue)
+            hits[y, x] = hit
+            return primary, shadow, reflection, refraction
+
+        return render_pixel_whitted
+
+    # Whitted's pixel through the BVH and by brute force
+    render_pixel_whitted = {"bvh": whitted_program(search_tree), "none": whitted_program(search_all)}
 
     @jit
     def prepare(i, basis, spheres, relative):

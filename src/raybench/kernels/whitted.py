@@ -83,19 +83,16 @@ P_LIGHTS = 9
 PARAMS = 10
 
 
-def build(jit, call, scan, walk, shade_hit, shade_miss):
+def build(jit, call, search, shade_hit, shade_miss):
+    """Whitted's pixel program over `search`, the nearest (or any) hit of
+    any ray: through the tree or over every sphere (trace.search_tree and
+    search_all), one program for each, so neither carries the other's code."""
+
     @call
     def find(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, spheres, count, tree, stack_row, stack_t):
         """The nearest sphere (or, any_hit, any) with 0 < t < t_max along a
-        secondary ray: (index or -1, t, half-chord). tree: the BVH's nodes,
-        links, ordered and order; brute force (scan) where it has no node."""
-        nodes, links, ordered, order = tree
-        if nodes.shape[0] > 0:
-            return walk(
-                ox, oy, oz, dx, dy, dz, t_max, any_hit, True, own, own_inside, nodes, links, ordered, order,
-                stack_row, stack_t,
-            )  # fmt: skip
-        return scan(ox, oy, oz, dx, dy, dz, t_max, any_hit, True, own, own_inside, spheres, count)
+        secondary ray: (index or -1, t, half-chord)."""
+        return search(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, spheres, count, tree, stack_row, stack_t)
 
     @jit
     def push(rays_f, rays_i, top, ox, oy, oz, dx, dy, dz, wr, wg, wb, depth, kind, own, inside):
