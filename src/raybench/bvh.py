@@ -43,6 +43,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from . import compiled
 from .errors import RaybenchError
 from .layout import BOX_FLOATS, CHILD_BOX, COUNT, EMPTY, INNER, MAX_DEPTH, NODE_BYTES, NODE_FLOATS, PAD, REF
 
@@ -94,13 +95,13 @@ class Bvh:
         return self.nodes.shape[0]
 
 
-@numba.njit(nogil=True, cache=True)
+@compiled.njit(nogil=True)
 def sphere_pad(cx, cy, cz, r):
     """The padding of a sphere's box, as the builder computes it."""
     return (r + (np.abs(cx) + np.abs(cy) + np.abs(cz))) * PAD
 
 
-@numba.njit(nogil=True, cache=True)
+@compiled.njit(nogil=True)
 def _prepare(cx, cy, cz, r, p, s, e, bounds):
     """The builder's arrays p for the spheres [s, e): centres, padded radii,
     original indices; bounds (12,): their box, then their centres' box."""
@@ -112,7 +113,7 @@ def _prepare(cx, cy, cz, r, p, s, e, bounds):
     _range_bounds(px, py, pz, pr, s, e, bounds[:6], bounds[6:])
 
 
-@numba.njit(nogil=True, cache=True)
+@compiled.njit(nogil=True)
 def _log2ceil(n):
     k = 0
     while (1 << k) < n:
@@ -120,7 +121,7 @@ def _log2ceil(n):
     return k
 
 
-@numba.njit(nogil=True, cache=True)
+@compiled.njit(nogil=True)
 def _range_bounds(px, py, pz, pr, s, e, box, cbox):
     """box: union of the spheres' padded boxes over [s, e); cbox: bounds of their centres."""
     # in locals, not box[]: stores to an array that may alias px cannot stay in
@@ -138,13 +139,13 @@ def _range_bounds(px, py, pz, pr, s, e, box, cbox):
     cbox[0], cbox[1], cbox[2], cbox[3], cbox[4], cbox[5] = clx, cly, clz, chx, chy, chz
 
 
-@numba.njit(nogil=True, cache=True)
+@compiled.njit(nogil=True)
 def _area(lx, ly, lz, hx, hy, hz):
     dx, dy, dz = hx - lx, hy - ly, hz - lz
     return dx * dy + dy * dz + dz * dx
 
 
-@numba.njit(nogil=True, cache=True)
+@compiled.njit(nogil=True)
 def _swap(px, py, pz, pr, idx, i, j):
     px[i], px[j] = px[j], px[i]
     py[i], py[j] = py[j], py[i]
@@ -153,7 +154,7 @@ def _swap(px, py, pz, pr, idx, i, j):
     idx[i], idx[j] = idx[j], idx[i]
 
 
-@numba.njit(nogil=True, cache=True)
+@compiled.njit(nogil=True)
 def _median_split(px, py, pz, pr, idx, s, e, cbox):
     """Split [s, e) in two halves by count, ordered along the centres' widest axis."""
     ext0, ext1, ext2 = cbox[3] - cbox[0], cbox[4] - cbox[1], cbox[5] - cbox[2]
@@ -166,7 +167,7 @@ def _median_split(px, py, pz, pr, idx, s, e, cbox):
     return s + (e - s) // 2
 
 
-@numba.njit(nogil=True, cache=True, inline="always")
+@compiled.njit(nogil=True, inline="always")
 def _clear_bins(counts, bins):
     """Empty bins: columns of (lo, hi) triples, each lo +inf and hi -inf."""
     inf = np.float32(np.inf)
@@ -178,7 +179,7 @@ def _clear_bins(counts, bins):
                 bins[k, c + 3 + d] = -inf
 
 
-@numba.njit(nogil=True, cache=True, inline="always")
+@compiled.njit(nogil=True, inline="always")
 def _best_plane(counts, bins, scale, nb, left_area, left_count):
     """The SAH's best plane among the binned axes (scale[a] > 0): (cost,
     axis, last bin on the left); axis -1 where no plane has spheres on both
@@ -215,7 +216,7 @@ def _best_plane(counts, bins, scale, nb, left_area, left_count):
     return best_cost, best_axis, best_bin
 
 
-@numba.njit(nogil=True, cache=True)
+@compiled.njit(nogil=True)
 def _widest(cbox):
     wide = 0
     for a in range(1, 3):
@@ -224,7 +225,7 @@ def _widest(cbox):
     return wide
 
 
-@numba.njit(nogil=True, cache=True)
+@compiled.njit(nogil=True)
 def _sah_split(px, py, pz, pr, idx, s, e, box, cbox, counts, bins, scale, left_area, left_count):
     """Binned SAH: the best of nb-1 planes on each axis (nb = BINS, fewer
     for a few spheres). Returns the split point m (s < m < e) and the
@@ -286,7 +287,7 @@ def _sah_split(px, py, pz, pr, idx, s, e, box, cbox, counts, bins, scale, left_a
     return i, rel
 
 
-@numba.njit(nogil=True, cache=True)
+@compiled.njit(nogil=True)
 def _push(stack, top, parent, slot, s, e, d):
     stack[top, 0] = parent
     stack[top, 1] = slot
@@ -296,7 +297,7 @@ def _push(stack, top, parent, slot, s, e, d):
     return top + 1
 
 
-@numba.njit(nogil=True, cache=True)
+@compiled.njit(nogil=True)
 def _empty_children(nodes, row):
     """Both children's boxes of row inverted (lo EMPTY, hi -EMPTY): empty until filled."""
     for col in CHILD_BOX:
@@ -304,7 +305,7 @@ def _empty_children(nodes, row):
         nodes[row, col + 3 : col + BOX_FLOATS] = -EMPTY
 
 
-@numba.njit(nogil=True, cache=True)
+@compiled.njit(nogil=True)
 def _root(px, py, pz, pr, idx, nodes, links, stack):
     """Row 0, the root, with its spheres split in two children whatever their
     number; pushes their tasks (parent row, slot, start, end, parent's depth)
@@ -346,7 +347,7 @@ def _root(px, py, pz, pr, idx, nodes, links, stack):
     return _push(stack, top, 0, 0, 0, m, 1)
 
 
-@numba.njit(nogil=True, cache=True)
+@compiled.njit(nogil=True)
 def _open_row(nodes, links, parent, slot, row):
     """Make row an inner node, the child (parent, slot), with both its children empty for now."""
     links[parent, REF + slot] = row
@@ -354,7 +355,7 @@ def _open_row(nodes, links, parent, slot, row):
     _empty_children(nodes, row)
 
 
-@numba.njit(nogil=True, cache=True)
+@compiled.njit(nogil=True)
 def _grow(px, py, pz, pr, idx, nodes, links, stack, top, used):
     """Build the subtrees of the tasks on stack, new rows from `used` on.
     Returns (rows used, deepest depth)."""
@@ -397,7 +398,7 @@ def _grow(px, py, pz, pr, idx, nodes, links, stack, top, used):
     return used, depth
 
 
-@numba.njit(nogil=True, cache=True)
+@compiled.njit(nogil=True)
 def _stack():
     """A builder's task stack: (parent row, slot, start, end, depth) rows."""
     return np.empty((2 * MAX_DEPTH + 8, 5), np.int64)
@@ -414,7 +415,7 @@ def _stack():
 # plane however many slices it was cut into.
 
 
-@numba.njit(nogil=True, cache=True)
+@compiled.njit(nogil=True)
 def _plan(level, bounds, p, q, piece, axis, lo, scale, mid, first_job):
     """For each wide range of the level, row, s, e, depth, buf: the axis to
     bin (its centres' widest), its bin arithmetic, and mid: -1 for a SAH
@@ -450,7 +451,7 @@ def _plan(level, bounds, p, q, piece, axis, lo, scale, mid, first_job):
     return out
 
 
-@numba.njit(nogil=True, cache=True)
+@compiled.njit(nogil=True)
 def _bin_jobs(level, jobs, p, q, axis, lo, scale, mid, counts, bins, first, step):
     """Bin the slices jobs[first::step] of SAH ranges along their range's
     axis: counts[j]; bins[j]: each bin's box, then its centres' box."""
@@ -489,7 +490,7 @@ def _bin_jobs(level, jobs, p, q, axis, lo, scale, mid, counts, bins, first, step
         bins[j] = b
 
 
-@numba.njit(nogil=True, cache=True)
+@compiled.njit(nogil=True)
 def _merge(into, bins):
     """into (12,) |= bins (m, 12): lows by min, highs by max."""
     for b in range(bins.shape[0]):
@@ -499,7 +500,7 @@ def _merge(into, bins):
                 into[c + 3 + d] = max(into[c + 3 + d], bins[b, c + 3 + d])
 
 
-@numba.njit(nogil=True, cache=True)
+@compiled.njit(nogil=True)
 def _choose(level, jobs, first_job, axis, scale, mid, counts, bins, cut, left_at, right_at, children):
     """Each SAH range's plane (cut: its last bin on the left) and its
     children's bounds (children[k, slot]: box, then centres' box), and where
@@ -554,7 +555,7 @@ def _choose(level, jobs, first_job, axis, scale, mid, counts, bins, cut, left_at
     return m
 
 
-@numba.njit(nogil=True, cache=True)
+@compiled.njit(nogil=True)
 def _move_jobs(level, jobs, p, q, axis, lo, scale, mid, cut, left_at, right_at, first, step):
     """Move the slices jobs[first::step] to the other buffer, in order: each
     slice's left side from left_at[j] on, its right side from right_at[j] on."""
@@ -578,7 +579,7 @@ def _move_jobs(level, jobs, p, q, axis, lo, scale, mid, cut, left_at, right_at, 
             dx[t], dy[t], dz[t], dr[t], di[t] = sx[i], sy[i], sz[i], sr[i], si[i]
 
 
-@numba.njit(nogil=True, cache=True)
+@compiled.njit(nogil=True)
 def _attach(level, m, mid, children, p, q, nodes, links, used, wide):
     """Store each range's two children in its row: ranges of over `wide`
     spheres get a row and go to the next level (returned with their bounds);
@@ -614,7 +615,7 @@ def _attach(level, m, mid, children, p, q, nodes, links, used, wide):
     return nxt[:nn], nxt_bounds[:nn], subtrees[:ns], used
 
 
-@numba.njit(nogil=True, cache=True)
+@compiled.njit(nogil=True)
 def _grow_subtrees(p, q, r, nodes, links, tasks, base, ends, depths, ordered, first, step):
     """Build the subtrees tasks[first::step], each into its block of rows
     from base + its first sphere, after bringing its spheres back to the
@@ -633,7 +634,7 @@ def _grow_subtrees(p, q, r, nodes, links, tasks, base, ends, depths, ordered, fi
             ordered[0, i], ordered[1, i], ordered[2, i], ordered[3, i] = px[i], py[i], pz[i], r[idx[i]]
 
 
-@numba.njit(nogil=True, cache=True)
+@compiled.njit(nogil=True)
 def _prepare_slices(cx, cy, cz, r, p, piece, bounds, first, step):
     """_prepare the j-th slice of piece spheres into bounds[j], for j in first::step."""
     n = cx.shape[0]
@@ -642,7 +643,7 @@ def _prepare_slices(cx, cy, cz, r, p, piece, bounds, first, step):
         _prepare(cx, cy, cz, r, p, a, min(a + piece, n), bounds[j])
 
 
-@numba.njit(nogil=True, cache=True)
+@compiled.njit(nogil=True)
 def _pack(nodes, links, tasks, base, ends, starts, packed, packed_links, first, step):
     """Copy the subtrees' blocks of rows, tasks[first::step], to packed from
     starts[t] on, their inner links moved with them, and point each block's
@@ -664,31 +665,31 @@ def _pack(nodes, links, tasks, base, ends, starts, packed, packed_links, first, 
 # threads, not a Python pool: with a pool, each thread's call unboxed its
 # twenty-odd arguments while holding the GIL, one thread after another,
 # which cost about 0.7 ms a step on 16 threads (10 levels of 2 steps each).
-@numba.njit(nogil=True, cache=True, parallel=True)
+@compiled.njit(nogil=True, parallel=True)
 def _prepare_all(cx, cy, cz, r, p, piece, bounds, parts):
     for w in numba.prange(parts):
         _prepare_slices(cx, cy, cz, r, p, piece, bounds, w, parts)
 
 
-@numba.njit(nogil=True, cache=True, parallel=True)
+@compiled.njit(nogil=True, parallel=True)
 def _bin_all(level, jobs, p, q, axis, lo, scale, mid, counts, bins, parts):
     for w in numba.prange(parts):
         _bin_jobs(level, jobs, p, q, axis, lo, scale, mid, counts, bins, w, parts)
 
 
-@numba.njit(nogil=True, cache=True, parallel=True)
+@compiled.njit(nogil=True, parallel=True)
 def _move_all(level, jobs, p, q, axis, lo, scale, mid, cut, left_at, right_at, parts):
     for w in numba.prange(parts):
         _move_jobs(level, jobs, p, q, axis, lo, scale, mid, cut, left_at, right_at, w, parts)
 
 
-@numba.njit(nogil=True, cache=True, parallel=True)
+@compiled.njit(nogil=True, parallel=True)
 def _grow_all(p, q, r, nodes, links, tasks, base, ends, depths, ordered, parts):
     for w in numba.prange(parts):
         _grow_subtrees(p, q, r, nodes, links, tasks, base, ends, depths, ordered, w, parts)
 
 
-@numba.njit(nogil=True, cache=True, parallel=True)
+@compiled.njit(nogil=True, parallel=True)
 def _pack_all(nodes, links, tasks, base, ends, starts, packed, packed_links, parts):
     for w in numba.prange(parts):
         _pack(nodes, links, tasks, base, ends, starts, packed, packed_links, w, parts)

@@ -29,7 +29,7 @@ import numba
 import numpy as np
 
 from .. import bvh as bvh_mod
-from .. import kernels
+from .. import compiled, kernels
 from ..errors import RaybenchError
 from ..kernels import whitted as whitted_mod
 from ..kernels.trace import FAR, ZERO
@@ -78,7 +78,7 @@ GROUP = 32
 WIDE = 16
 
 
-@numba.njit(nogil=True)
+@compiled.njit(nogil=True)
 def _render_band(first_row, end_row, width, height, basis, spheres, count, image, hits):
     for y in range(first_row, end_row):
         for x in range(width):
@@ -99,13 +99,13 @@ def _constant_band(count: int):
     return render_band
 
 
-@numba.njit(nogil=True)
+@compiled.njit(nogil=True)
 def _prepare(basis, spheres, count, relative):
     for i in range(count):
         _prepare_one(i, basis, spheres, relative)
 
 
-@numba.njit(nogil=True)
+@compiled.njit(nogil=True)
 def _pairs_band(first_row, end_row, width, height, basis, spheres, relative, count, image, hits):
     """The fast kernel for AVX2 and narrower: the rows of a band two pixels at
     a time, the spheres GROUP at a time. The cull test of a whole group on
@@ -144,7 +144,7 @@ def _pairs_band(first_row, end_row, width, height, basis, spheres, relative, cou
                 _store_pixel(x1, y, b_hit, b_d, spheres, image, hits)
 
 
-@numba.njit(nogil=True)
+@compiled.njit(nogil=True)
 def _wide_band(first_row, end_row, width, height, basis, spheres, relative, count, image, hits):
     """The fast kernel for AVX-512: WIDE pixels of a row side by side, so the
     cull test of each sphere is one SIMD compare across the rays; a group of
@@ -361,7 +361,7 @@ def _put_pixel(y, x, k, rgb, hit, image, hits):
     hits[y, x] = hit[k]
 
 
-@numba.njit(nogil=True, error_model="numpy")
+@compiled.njit(nogil=True, error_model="numpy")
 def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered, order, spheres, image, hits):
     """The rows first_row..end_row, a PACKET_W x PACKET_H packet of rays at a time: the
     packet walks the tree together, a node entered if any of its rays
@@ -488,38 +488,55 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
                         _put_pixel(y, x, k, rgb, hit, image, hits)
 
 
-@functools.cache
-def _whitted_rows(accel: str):
-    """The rows kernel of Whitted shading through the BVH or by brute force."""
-    render_pixel = _k.render_pixel_whitted[accel]
+@numba.njit(inline="always")
+def _whitted_rows(render_pixel, first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern,
+                  params, tree, image, hits, counts):  # fmt: skip
+    """Whitted shading of the rows first_row..end_row with render_pixel (the
+    program through the tree or by brute force), a ray at a time (secondary
+    rays scatter: no packet keeps them together); counts[y]: the rays row y
+    cast, by kind."""
+    stack_row = np.empty(STACK, np.int32)
+    stack_t = np.empty(STACK, np.float32)
+    rays_f = np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_FLOATS), np.float32)
+    rays_i = np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_INTS), np.int32)
+    for y in range(first_row, end_row):
+        primary = shadow = reflection = refraction = 0
+        for x in range(width):
+            a, b, c, d = render_pixel(
+                x, y, width, height, basis, spheres, count, materials, lights, pattern, params, tree, stack_row,
+                stack_t, rays_f, rays_i, image, hits,
+            )  # fmt: skip
+            primary += a
+            shadow += b
+            reflection += c
+            refraction += d
+        counts[y, whitted_mod.PRIMARY] = primary
+        counts[y, whitted_mod.SHADOW] = shadow
+        counts[y, whitted_mod.REFLECTION] = reflection
+        counts[y, whitted_mod.REFRACTION] = refraction
 
-    @numba.njit(nogil=True)
-    def whitted_rows(first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern, params,
-                     tree, image, hits, counts):  # fmt: skip
-        """Whitted shading of the rows first_row..end_row, a ray at a time
-        (secondary rays scatter: no packet keeps them together); counts[y]: the
-        rays row y cast, by kind."""
-        stack_row = np.empty(STACK, np.int32)
-        stack_t = np.empty(STACK, np.float32)
-        rays_f = np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_FLOATS), np.float32)
-        rays_i = np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_INTS), np.int32)
-        for y in range(first_row, end_row):
-            primary = shadow = reflection = refraction = 0
-            for x in range(width):
-                a, b, c, d = render_pixel(
-                    x, y, width, height, basis, spheres, count, materials, lights, pattern, params, tree, stack_row,
-                    stack_t, rays_f, rays_i, image, hits,
-                )  # fmt: skip
-                primary += a
-                shadow += b
-                reflection += c
-                refraction += d
-            counts[y, whitted_mod.PRIMARY] = primary
-            counts[y, whitted_mod.SHADOW] = shadow
-            counts[y, whitted_mod.REFLECTION] = reflection
-            counts[y, whitted_mod.REFRACTION] = refraction
 
-    return whitted_rows
+_whitted_bvh_pixel, _whitted_all_pixel = _k.render_pixel_whitted["bvh"], _k.render_pixel_whitted["none"]
+
+
+# One cached kernel for each search, written out at module level: a kernel
+# that a factory makes, closing over the pixel program, misses Numba's cache
+# in every new process (tried: each run added an index entry, none was hit).
+@compiled.njit(nogil=True)
+def _whitted_rows_bvh(first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern, params,
+                      tree, image, hits, counts):  # fmt: skip
+    _whitted_rows(_whitted_bvh_pixel, first_row, end_row, width, height, basis, spheres, count, materials, lights,
+                  pattern, params, tree, image, hits, counts)  # fmt: skip
+
+
+@compiled.njit(nogil=True)
+def _whitted_rows_all(first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern, params,
+                      tree, image, hits, counts):  # fmt: skip
+    _whitted_rows(_whitted_all_pixel, first_row, end_row, width, height, basis, spheres, count, materials, lights,
+                  pattern, params, tree, image, hits, counts)  # fmt: skip
+
+
+WHITTED_ROWS = {"bvh": _whitted_rows_bvh, "none": _whitted_rows_all}
 
 
 # Chunks of rows per thread for the BVH: enough that the last chunk to finish
@@ -596,7 +613,7 @@ class Tracer(TracerBase):
             # rows take unequal time (mirrors and glass cost more): pulled in chunks, as the BVH's
             self.bands = chunks(height, self.threads)
             workers = min(self.threads, len(self.bands))
-            self._kernel = _whitted_rows(self.accel)
+            self._kernel = WHITTED_ROWS[self.accel]
             self._row_rays = np.zeros((height, len(whitted_mod.KINDS)), np.int64)
             self.ray_counts = np.zeros(len(whitted_mod.KINDS), np.int64)
             self._none = np.zeros((0, NODE_FLOATS), np.float32)

@@ -23,7 +23,7 @@ from numba import config, cuda
 from numba.cuda.core.errors import NumbaPerformanceWarning
 
 from .. import bvh as bvh_mod
-from .. import kernels
+from .. import compiled, kernels
 from ..errors import RaybenchError
 from ..kernels.trace import FAR, ZERO
 from ..kernels.whitted import KINDS, RAY_FLOATS, RAY_INTS, RAY_STACK
@@ -83,7 +83,7 @@ MAX_TILE = 3071  # 48 KiB of shared memory (with a pad slot), what every CUDA GP
 _U = np.uint64
 
 
-@cuda.jit
+@compiled.cuda_jit()
 def _render_kernel(width, height, basis, spheres, count, image, hits):
     x, y = cuda.grid(2)
     if x < width and y < height:
@@ -96,7 +96,7 @@ def _render_kernel(width, height, basis, spheres, count, image, hits):
 # simulator accepts either).
 
 
-@cuda.jit
+@compiled.cuda_jit()
 def _bvh_kernel(width, height, basis, nodes, links, ordered, order, spheres, image, hits):
     x, y = cuda.grid(2)
     if x < width and y < height:
@@ -107,46 +107,81 @@ def _bvh_kernel(width, height, basis, nodes, links, ordered, order, spheres, ima
         )
 
 
-@functools.cache
-def _whitted_kernel(accel: str):
-    """Whitted shading, a thread a pixel (kernels/whitted.py), through the BVH
-    or by brute force. rays[kind] += the rays the block cast, summed in
-    shared memory first: one global atomic per kind and block, not per pixel."""
-    render_pixel = _k.render_pixel_whitted[accel]
-
-    @cuda.jit
-    def kernel(width, height, basis, spheres, count, materials, lights, pattern, params, nodes, links, ordered, order,
-               image, hits, rays):  # fmt: skip
-        x, y = cuda.grid(2)
-        me = cuda.threadIdx.y * cuda.blockDim.x + cuda.threadIdx.x
-        tally = cuda.shared.array(4, np.int32)
-        if me < 4:
-            tally[me] = 0
-        cuda.syncthreads()
-        if x < width and y < height:
-            stack_row = cuda.local.array(STACK, np.int32)
-            stack_t = cuda.local.array(STACK, np.float32)
-            rays_f = cuda.local.array((RAY_STACK, RAY_FLOATS), np.float32)
-            rays_i = cuda.local.array((RAY_STACK, RAY_INTS), np.int32)
-            primary, shadow, reflection, refraction = render_pixel(
-                x, y, width, height, basis, spheres, count, materials, lights, pattern, params,
-                (nodes, links, ordered, order), stack_row, stack_t, rays_f, rays_i, image, hits,
-            )  # fmt: skip
-            cuda.atomic.add(tally, 0, primary)
-            if shadow:
-                cuda.atomic.add(tally, 1, shadow)
-            if reflection:
-                cuda.atomic.add(tally, 2, reflection)
-            if refraction:
-                cuda.atomic.add(tally, 3, refraction)
-        cuda.syncthreads()
-        if me < 4:
-            cuda.atomic.add(rays, me, np.int64(tally[me]))
-
-    return kernel
+@cuda.jit(device=True)
+def _tally(tally, primary, shadow, reflection, refraction):
+    """Add a pixel's rays by kind to the block's tally, in shared memory."""
+    cuda.atomic.add(tally, 0, primary)
+    if shadow:
+        cuda.atomic.add(tally, 1, shadow)
+    if reflection:
+        cuda.atomic.add(tally, 2, reflection)
+    if refraction:
+        cuda.atomic.add(tally, 3, refraction)
 
 
-@cuda.jit
+@cuda.jit(device=True)
+def _flush(tally, me, rays):
+    """Once every thread of the block has added its rays: rays += the tally,
+    one global atomic per kind and block, not per pixel."""
+    cuda.syncthreads()
+    if me < 4:
+        cuda.atomic.add(rays, me, np.int64(tally[me]))
+
+
+_whitted_bvh_pixel, _whitted_all_pixel = _k.render_pixel_whitted["bvh"], _k.render_pixel_whitted["none"]
+
+
+# Whitted shading, a thread a pixel (kernels/whitted.py): one cached kernel
+# for each search, written out at module level (cpu.py says why), with the
+# block's ray tally (_tally, _flush).
+@compiled.cuda_jit()
+def _whitted_bvh_kernel(width, height, basis, spheres, count, materials, lights, pattern, params, nodes, links,
+                        ordered, order, image, hits, rays):  # fmt: skip
+    x, y = cuda.grid(2)
+    me = cuda.threadIdx.y * cuda.blockDim.x + cuda.threadIdx.x
+    tally = cuda.shared.array(4, np.int32)
+    if me < 4:
+        tally[me] = 0
+    cuda.syncthreads()
+    if x < width and y < height:
+        stack_row = cuda.local.array(STACK, np.int32)
+        stack_t = cuda.local.array(STACK, np.float32)
+        rays_f = cuda.local.array((RAY_STACK, RAY_FLOATS), np.float32)
+        rays_i = cuda.local.array((RAY_STACK, RAY_INTS), np.int32)
+        primary, shadow, reflection, refraction = _whitted_bvh_pixel(
+            x, y, width, height, basis, spheres, count, materials, lights, pattern, params,
+            (nodes, links, ordered, order), stack_row, stack_t, rays_f, rays_i, image, hits,
+        )  # fmt: skip
+        _tally(tally, primary, shadow, reflection, refraction)
+    _flush(tally, me, rays)
+
+
+@compiled.cuda_jit()
+def _whitted_all_kernel(width, height, basis, spheres, count, materials, lights, pattern, params, nodes, links,
+                        ordered, order, image, hits, rays):  # fmt: skip
+    x, y = cuda.grid(2)
+    me = cuda.threadIdx.y * cuda.blockDim.x + cuda.threadIdx.x
+    tally = cuda.shared.array(4, np.int32)
+    if me < 4:
+        tally[me] = 0
+    cuda.syncthreads()
+    if x < width and y < height:
+        stack_row = cuda.local.array(STACK, np.int32)
+        stack_t = cuda.local.array(STACK, np.float32)
+        rays_f = cuda.local.array((RAY_STACK, RAY_FLOATS), np.float32)
+        rays_i = cuda.local.array((RAY_STACK, RAY_INTS), np.int32)
+        primary, shadow, reflection, refraction = _whitted_all_pixel(
+            x, y, width, height, basis, spheres, count, materials, lights, pattern, params,
+            (nodes, links, ordered, order), stack_row, stack_t, rays_f, rays_i, image, hits,
+        )  # fmt: skip
+        _tally(tally, primary, shadow, reflection, refraction)
+    _flush(tally, me, rays)
+
+
+WHITTED_KERNELS = {"bvh": _whitted_bvh_kernel, "none": _whitted_all_kernel}
+
+
+@compiled.cuda_jit()
 def _zero_rays(rays):
     rays[cuda.threadIdx.x] = 0
 
@@ -156,7 +191,7 @@ def _zero_rays(rays):
 _MISS = np.float32(np.inf)
 
 
-@cuda.jit
+@compiled.cuda_jit()
 def _bvh_packet_kernel(width, height, basis, nodes, links, ordered, order, spheres, image, hits):
     """The BVH walk with the block's rays as one packet, as the CPU walks its
     packets: the packet visits a node if any of its rays enters it, and each
@@ -519,7 +554,7 @@ class Tracer(TracerBase):
                 raise RaybenchError(
                     "walk 'packet': applies to the thesis's shading only; Whitted's rays walk one by one"
                 )
-            self._kernel = _whitted_kernel(self.accel)
+            self._kernel = WHITTED_KERNELS[self.accel]
             if self.accel == "bvh":
                 self._build(self.count)
                 self.walk = "ray"

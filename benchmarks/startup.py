@@ -1,0 +1,60 @@
+"""Time to the first picture, in fresh processes: `import raybench`, then
+`raybench render` cold (an empty compile cache: a new RAYBENCH_CACHE_DIR)
+and warm (the cache the cold runs filled), each a median of --runs. One line
+of JSON per measurement.
+
+    python benchmarks/startup.py --device cpu --size 1680x1050 --spheres 1000
+    python benchmarks/startup.py --device cpu --shading whitted
+"""
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+
+def timed(command: list[str], env: dict) -> float:
+    start = time.perf_counter()
+    subprocess.run(command, env=env, check=True, stdout=subprocess.DEVNULL)
+    return time.perf_counter() - start
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--device", action="append", choices=["cpu", "cuda", "wgpu"])
+    parser.add_argument("--size", default="1680x1050")
+    parser.add_argument("--spheres", type=int, default=1000)
+    parser.add_argument("--shading", default="thesis", choices=["thesis", "whitted"])
+    parser.add_argument("--runs", type=int, default=3)
+    args = parser.parse_args()
+    python = sys.executable
+    with tempfile.TemporaryDirectory() as scratch:
+        out = os.path.join(scratch, "x.png")
+        base_env = dict(os.environ)
+        imports = [timed([python, "-c", "import raybench"], base_env) for _ in range(args.runs)]
+        print(json.dumps({"what": "import raybench", "median_s": round(statistics.median(imports), 3)}), flush=True)
+        for device in args.device or ["cpu"]:
+            render = [python, "-m", "raybench", "render", "--spheres", str(args.spheres), "--size", args.size,
+                      "--device", device, "--shading", args.shading, "-o", out]  # fmt: skip
+            if args.shading == "whitted":
+                render.insert(render.index("--spheres") + 2, "--materials")
+            cold = []
+            for run in range(args.runs):
+                env = {**base_env, "RAYBENCH_CACHE_DIR": os.path.join(scratch, f"cold-{device}-{run}")}
+                cold.append(timed(render, env))
+            warm_env = {**base_env, "RAYBENCH_CACHE_DIR": os.path.join(scratch, f"cold-{device}-0")}
+            warm = [timed(render, warm_env) for _ in range(args.runs)]
+            for what, times in (("cold", cold), ("warm", warm)):
+                row = {"what": f"render {what}", "device": device, "shading": args.shading, "spheres": args.spheres,
+                       "size": args.size, "median_s": round(statistics.median(times), 3),
+                       "runs_s": [round(t, 3) for t in times]}  # fmt: skip
+                print(json.dumps(row), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,72 @@
+"""Where raybench's compiled kernels are kept between processes, and the
+decorators that keep them there: the first picture of a process then loads
+machine code instead of compiling it.
+
+Numba's on-disk cache checks only the source file of the function it
+compiled, not the files of the functions it calls (kernels/*.py) nor the
+constants it read (layout.py): after a change to one of those it would load
+stale code. So raybench's cache lives in a folder named after a hash of
+every source file of the package and the compiler's version: any change to
+raybench starts a new folder. RAYBENCH_CACHE_DIR moves it (default
+~/.cache/raybench, or $XDG_CACHE_HOME/raybench).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from pathlib import Path
+
+import numba
+
+ROOT = Path(__file__).parent
+
+
+def source_hash() -> str:
+    """A hash of raybench's source: every .py and .wgsl file of the package."""
+    digest = hashlib.sha256()
+    for path in sorted([*ROOT.rglob("*.py"), *ROOT.rglob("*.wgsl")]):
+        digest.update(path.relative_to(ROOT).as_posix().encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def cache_dir() -> Path:
+    base = os.environ.get("RAYBENCH_CACHE_DIR")
+    if not base:
+        base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "raybench"
+    return Path(base) / f"numba-{numba.__version__}-{source_hash()}"
+
+
+CACHE_DIR = cache_dir()
+
+
+def _in_cache(decorator):
+    """decorator(f), with Numba's cache folder set to CACHE_DIR while it is
+    applied: Numba picks a function's cache folder when it is decorated, so
+    no other code's cache moves."""
+
+    def decorate(f):
+        old = numba.config.CACHE_DIR
+        numba.config.CACHE_DIR = str(CACHE_DIR)
+        try:
+            return decorator(f)
+        finally:
+            numba.config.CACHE_DIR = old
+
+    return decorate
+
+
+def njit(**options):
+    """numba.njit(cache=True, **options), cached in CACHE_DIR."""
+    return _in_cache(numba.njit(cache=True, **options))
+
+
+def cuda_jit(**options):
+    """numba.cuda.jit(cache=True, **options), cached in CACHE_DIR (numba's
+    simulator, which compiles nothing, takes it as a plain cuda.jit)."""
+    from numba import cuda
+
+    if numba.config.ENABLE_CUDASIM:
+        return cuda.jit(**options)
+    return _in_cache(cuda.jit(cache=True, **options))
