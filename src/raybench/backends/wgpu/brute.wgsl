@@ -1,3 +1,9 @@
+// On lavapipe (Mesa's CPU Vulkan) one invocation runs at most 65,535 trips
+// of a loop (gallivm's loop limiter): a Whitted pixel of many rays over 1,000
+// spheres reaches it and is cut short, so there brute force is exact only for
+// small scenes (measured: 300 spheres exact, 1,000 not, at depth 5); GPUs
+// have no such limit, and the BVH's walks stay far under it.
+//
 // kernels/trace.py's scan: every sphere in order, the thesis's loop, for any
 // ray: the smallest 0 < t < t_max wins; strict < keeps the first sphere on a
 // tie; any_hit stops at the first; ahead, own, own_inside: the secondary
