@@ -31,9 +31,9 @@ def _check(record: dict, path, number: int) -> None:
     for key in ("width", "height", "spheres"):
         if not isinstance(record.get(key), int):
             _bad(path, number, f"field {key!r} missing or not a whole number")
-    if "skipped" in record:  # a point not measured (the scaling suite's cap): only why
-        if not isinstance(record["skipped"], str) or record["suite"] != "scaling":
-            _bad(path, number, "field 'skipped' is not a reason, or not in the scaling suite")
+    if "skipped" in record:  # a point not measured (the scaling and secondary suites' cap): only why
+        if not isinstance(record["skipped"], str) or record["suite"] not in ("scaling", "secondary"):
+            _bad(path, number, "field 'skipped' is not a reason, or not in the scaling or secondary suite")
         if not isinstance(record.get("run"), dict) or not isinstance(record["run"].get("label"), str):
             _bad(path, number, "field 'run' lacks label or machine")
         return
