@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from raybench import RaybenchError
-from raybench.bench import results, runner, stats, suites
+from raybench.bench import report, results, runner, stats, suites
 from raybench.bench.results import ResultsWriter
 from raybench.cli import run
 
@@ -410,6 +410,8 @@ def test_secondary_quick_run_counts_the_rays_a_render_casts(tmp_path, capsys, mo
             assert set(r) - {"format", "version", "run"} == THESIS_RECORD_KEYS
             assert r["rays_per_s"] == pytest.approx(r["width"] * r["height"] / (r["frame_ms"]["median"] / 1e3))
     assert "report:" in out
+    text = next(tmp_path.glob("report-*/report.md")).read_text()
+    assert f"**{report.SECONDARY_QUESTION}** **not measured**: cannot be decided" in text  # the CPU alone
 
 
 def test_thesis_records_keep_their_fields():
