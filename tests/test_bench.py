@@ -461,3 +461,42 @@ def test_secondary_cap_skips_brute_force_and_records(tmp_path, monkeypatch, rng)
                 skips += 1
                 assert r["predicted_ms"] == pytest.approx(exact_ms(p)) and "cap" in r["skipped"]
     assert skips > 0  # at least 100,000 spheres' Whitted frames: 12 x 1680 x 1050 x 1e5 x 1e-6 ms > the cap
+
+
+def test_whitted_record_rates_from_frame_and_kernel_time(monkeypatch, rng):
+    """Where the device has its own clock, a Whitted record's rays/s come from
+    the median frame and, apart, the median kernel time; the rays are the
+    tracer's counts, by kind. A stand-in tracer gives known times and counts."""
+    counts = rng.integers(1, 10**7, 4)
+    frames = iter(rng.uniform(5, 50, 1000))
+    seen = {}
+
+    class Fake:
+        walk, build_s, ray_counts = None, None, np.zeros(4, np.int64)
+
+        def __init__(self, device, spheres, width, height, **options):
+            seen.update(options, spheres=spheres.shape[1])
+
+        def describe(self):
+            return None
+
+        def compile(self):
+            return 0.0
+
+        def timed_trace(self, basis, count=None):
+            self.ray_counts[:] = counts
+            return next(frames)
+
+        def close(self):
+            pass
+
+    monkeypatch.setattr(runner.backends, "tracer", Fake)
+    monkeypatch.setattr(runner, "WARMUP_S", 0.0)
+    opts = {"accel": "bvh", "shading": "whitted", "depth": 3, "shadow_samples": 2}
+    record = runner.measure(suites.Point("secondary", "cuda", 40, 30, 12, opts), runner.Scenes(0), 0.0)
+    assert seen["whitted"].depth == 3 and seen["whitted"].shadow_samples == 2 and seen["spheres"] == 12
+    assert seen["accel"] == "bvh" and "shading" not in seen and "depth" not in seen
+    assert record["rays"] == dict(zip(("primary", "shadow", "reflection", "refraction"), counts.tolist()))
+    assert record["rays_per_frame"] == counts.sum() and record["options"] == opts
+    assert record["rays_per_s"] == pytest.approx(counts.sum() / (record["frame_ms"]["median"] / 1e3))
+    assert record["kernel_rays_per_s"] == pytest.approx(counts.sum() / (record["kernel_ms"]["median"] / 1e3))
