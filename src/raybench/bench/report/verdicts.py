@@ -267,9 +267,10 @@ def secondary_verdict(records: list[dict], gpu: str = "cuda") -> dict:
     leads = secondary_leads(records, gpu)
     name = "the GPU" if gpu == "cuda" else DEVICE_NAMES.get(gpu, gpu)
     if not leads:
+        who = "the GPU (cuda)" if gpu == "cuda" else name
         return {
             "verdict": NOT_MEASURED,
-            "measured": f"cannot be decided: needs the secondary suite on both the CPU and {name} ({gpu}) "
+            "measured": f"cannot be decided: needs the secondary suite on both the CPU and {who} "
             "at the same points, each with its thesis-shading twin",
             "ways": {},
             "points": [],
