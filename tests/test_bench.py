@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from raybench import RaybenchError
-from raybench.bench import results, runner, stats, suites
+from raybench.bench import report, results, runner, stats, suites
 from raybench.bench.results import ResultsWriter
 from raybench.cli import run
 
@@ -203,8 +203,9 @@ def test_quick_run_end_to_end(tmp_path, capsys):
             point.height,
             point.spheres,
         )
-        if "skipped" in rec:  # brute force past the scaling suite's cap: recorded, not measured
-            assert rec["suite"] == "scaling" and "cap" in rec["skipped"] and point.options["accel"] == "none"
+        if "skipped" in rec:  # brute force past the scaling or secondary suite's cap: recorded, not measured
+            assert rec["suite"] in ("scaling", "secondary") and "cap" in rec["skipped"]
+            assert point.options["accel"] == "none"
             continue
         assert rec["frames"] >= 3 or rec["suite"] == "test7"
         f = rec["frame_ms"]
@@ -323,3 +324,179 @@ def test_record_names_the_commit_given_in_the_environment(monkeypatch):
     assert from_git != "0123456789ab"
     monkeypatch.setenv(machine.GIT_COMMIT_ENV, "  ")  # blank is unset, not a commit
     assert machine.git_commit() == from_git
+
+
+def test_secondary_points():
+    """The secondary suite: the thesis's three sizes x 1,000, 10,000 and
+    100,000 spheres, on every device, through the BVH and by brute force (the
+    simple kernel whatever kernels were asked for, capped), each Whitted
+    point (depth 5, 4 shadow samples) beside its thesis-shading twin."""
+    devices = ["cpu", "cuda", "wgpu"]
+    pts = suites.points(["secondary"], devices, accels=suites.ACCELS, kernels=("fast",), wgpu={"adapter": "x"})
+    assert {p.suite for p in pts} == {"secondary"}
+    grid = {(w, h, n) for w, h in ((800, 600), (1280, 800), (1680, 1050)) for n in (1000, 10_000, 100_000)}
+    for device in devices:
+        for accel in ("bvh", "none"):
+            mine = [p for p in pts if p.device == device and p.options["accel"] == accel]
+            for shading in ("thesis", "whitted"):
+                got = [(p.width, p.height, p.spheres) for p in mine if p.options["shading"] == shading]
+                assert len(got) == len(set(got)) == 9 and set(got) == grid
+            whitted = [p for p in mine if p.options["shading"] == "whitted"]
+            assert all(p.options["depth"] == 5 and p.options["shadow_samples"] == 4 for p in whitted)
+            assert all("depth" not in p.options for p in mine if p.options["shading"] == "thesis")
+            if accel == "none":
+                assert {p.options["kernel"] for p in mine} == {"simple"}
+                assert {p.options["cap_s"] for p in mine} == {suites.SECONDARY_CAP_S}
+            else:
+                assert all("cap_s" not in p.options and "kernel" not in p.options for p in mine)
+            assert all(p.options.get("adapter") == ("x" if device == "wgpu" else None) for p in mine)
+    # each Whitted point right after its twin: an interrupted run keeps whole pairs
+    for a, b in zip(pts[::2], pts[1::2]):
+        assert (a.options["shading"], b.options["shading"]) == ("thesis", "whitted")
+        assert (a.device, a.width, a.height, a.spheres) == (b.device, b.width, b.height, b.spheres)
+    assert len(suites.points(["secondary"], ["cpu"], accels=("bvh",))) == 18
+    quick = suites.points(["secondary"], ["cpu"], quick=True, accels=suites.ACCELS)
+    assert len(quick) < len(pts) / 6 and max(p.width * p.height for p in quick) <= 320 * 200
+    assert "secondary" in suites.SUITES  # so --suite all includes it
+
+
+# The fields of a record of the thesis's shading, as before the secondary suite:
+# its records must stay exactly as they were (older results files still report).
+THESIS_RECORD_KEYS = {
+    "suite", "test", "device", "width", "height", "spheres", "options", "frames", "frame_ms", "kernel_ms",
+    "first_frame_s", "compile_s", "build_s", "rays_per_s", "tests_per_s",
+}  # fmt: skip
+
+
+@pytest.mark.slow
+def test_secondary_quick_run_counts_the_rays_a_render_casts(tmp_path, capsys, monkeypatch, rng):
+    """`raybench bench --suite secondary --quick` on the CPU (its quick set
+    shrunk to tiny frames): every Whitted record holds the rays by kind that
+    raybench.render(..., shading="whitted") counts for the same scene, size
+    and way, rays/s from them and the median frame, and the shading
+    settings; the thesis-shading twins are records as any other suite's."""
+    import raybench
+
+    monkeypatch.setattr(suites, "QUICK_SECONDARY_SIZES", ((24, 16), (16, 12)))
+    monkeypatch.setattr(suites, "QUICK_SECONDARY_COUNTS", (int(rng.integers(5, 40)), int(rng.integers(40, 120))))
+    seed = int(rng.integers(0, 1000))
+    args = ["bench", "--quick", "--suite", "secondary", "--device", "cpu", "--duration", "0.05"]
+    code = run([*args, "--seed", str(seed), "--out", str(tmp_path), "--label", "ci"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    (path,) = tmp_path.glob("results-*.jsonl")
+    records = results.read(path)
+    expected = suites.points(["secondary"], ["cpu"], quick=True, accels=suites.ACCELS)
+    assert [(r["width"], r["height"], r["spheres"], r["options"]) for r in records] == [
+        (p.width, p.height, p.spheres, p.options) for p in expected
+    ]
+    whitted = [r for r in records if r["options"]["shading"] == "whitted"]
+    assert len(whitted) == len(records) // 2 and not any("skipped" in r for r in records)
+    for r in whitted:
+        scene = raybench.random_spheres(r["spheres"], seed, materials=True)
+        frame = raybench.render(
+            scene, width=r["width"], height=r["height"], device="cpu", shading="whitted",
+            depth=r["options"]["depth"], shadow_samples=r["options"]["shadow_samples"],
+            accel=r["options"]["accel"],
+        )  # fmt: skip
+        assert r["rays"] == frame.rays and r["rays"]["primary"] == r["width"] * r["height"]
+        assert r["rays"]["shadow"] > 0 and r["rays_per_frame"] == sum(frame.rays.values())
+        assert r["rays_per_s"] == pytest.approx(r["rays_per_frame"] / (r["frame_ms"]["median"] / 1e3))
+        assert r["kernel_rays_per_s"] is None and r["tests_per_s"] is None  # the CPU has no kernel clock
+        assert (r["options"]["depth"], r["options"]["shadow_samples"]) == (5, 4)
+    # the same spheres lit differently: the twins cast one ray a pixel and record no kinds
+    for r in records:
+        if r["options"]["shading"] == "thesis":
+            assert set(r) - {"format", "version", "run"} == THESIS_RECORD_KEYS
+            assert r["rays_per_s"] == pytest.approx(r["width"] * r["height"] / (r["frame_ms"]["median"] / 1e3))
+    assert "report:" in out
+    text = next(tmp_path.glob("report-*/report.md")).read_text()
+    assert f"**{report.SECONDARY_QUESTION}** **not measured**: cannot be decided" in text  # the CPU alone
+
+
+def test_thesis_records_keep_their_fields():
+    """A thesis-shading point's record has exactly the fields it had before
+    Whitted points existed."""
+    point = suites.Point("thesis", "cpu", 8, 6, 5, {"kernel": "simple", "accel": "none"}, test=4)
+    record = runner.measure(point, runner.Scenes(0), 0.01)
+    assert set(record) == THESIS_RECORD_KEYS
+
+
+def test_secondary_cap_skips_brute_force_and_records(tmp_path, monkeypatch, rng):
+    """The secondary suite's brute force stops where a frame predicted from
+    the last one of its series (same device, way and shading) passes the cap;
+    the BVH is never skipped, and every point is recorded."""
+    per_ray_ms = rng.uniform(1e-6, 1e-4)  # per pixel and sphere
+
+    def exact_ms(point):
+        return (
+            per_ray_ms
+            * (12 if point.options["shading"] == "whitted" else 1)
+            * point.width
+            * point.height
+            * point.spheres
+        )
+
+    def fake_measure(point, scenes, duration):
+        keys = ("suite", "device", "width", "height", "spheres", "options")
+        return {**{k: getattr(point, k) for k in keys}, "frame_ms": stats.summarize([exact_ms(point)])}
+
+    monkeypatch.setattr(runner, "measure", fake_measure)
+    pts = suites.points(["secondary"], ["cpu"], accels=suites.ACCELS)
+    with ResultsWriter(tmp_path / "r.jsonl") as w:
+        runner.run(pts, w, {"label": "x"}, 0.1, 0, progress=False)
+    recs = results.read(tmp_path / "r.jsonl")
+    assert [(r["width"], r["height"], r["spheres"], r["options"]) for r in recs] == [
+        (p.width, p.height, p.spheres, p.options) for p in pts
+    ]
+    cap_ms = suites.SECONDARY_CAP_S * 1e3
+    skips = 0
+    for r, p in zip(recs, pts):
+        first = p.spheres == 1000 and (p.width, p.height) == (800, 600)  # nothing to predict from
+        if p.options["accel"] == "bvh" or first:
+            assert "skipped" not in r
+        else:
+            assert ("skipped" in r) == (exact_ms(p) > cap_ms)
+            if "skipped" in r:
+                skips += 1
+                assert r["predicted_ms"] == pytest.approx(exact_ms(p)) and "cap" in r["skipped"]
+    assert skips > 0  # at least 100,000 spheres' Whitted frames: 12 x 1680 x 1050 x 1e5 x 1e-6 ms > the cap
+
+
+def test_whitted_record_rates_from_frame_and_kernel_time(monkeypatch, rng):
+    """Where the device has its own clock, a Whitted record's rays/s come from
+    the median frame and, apart, the median kernel time; the rays are the
+    tracer's counts, by kind. A stand-in tracer gives known times and counts."""
+    counts = rng.integers(1, 10**7, 4)
+    frames = iter(rng.uniform(5, 50, 1000))
+    seen = {}
+
+    class Fake:
+        walk, build_s, ray_counts = None, None, np.zeros(4, np.int64)
+
+        def __init__(self, device, spheres, width, height, **options):
+            seen.update(options, spheres=spheres.shape[1])
+
+        def describe(self):
+            return None
+
+        def compile(self):
+            return 0.0
+
+        def timed_trace(self, basis, count=None):
+            self.ray_counts[:] = counts
+            return next(frames)
+
+        def close(self):
+            pass
+
+    monkeypatch.setattr(runner.backends, "tracer", Fake)
+    monkeypatch.setattr(runner, "WARMUP_S", 0.0)
+    opts = {"accel": "bvh", "shading": "whitted", "depth": 3, "shadow_samples": 2}
+    record = runner.measure(suites.Point("secondary", "cuda", 40, 30, 12, opts), runner.Scenes(0), 0.0)
+    assert seen["whitted"].depth == 3 and seen["whitted"].shadow_samples == 2 and seen["spheres"] == 12
+    assert seen["accel"] == "bvh" and "shading" not in seen and "depth" not in seen
+    assert record["rays"] == dict(zip(("primary", "shadow", "reflection", "refraction"), counts.tolist()))
+    assert record["rays_per_frame"] == counts.sum() and record["options"] == opts
+    assert record["rays_per_s"] == pytest.approx(counts.sum() / (record["frame_ms"]["median"] / 1e3))
+    assert record["kernel_rays_per_s"] == pytest.approx(counts.sum() / (record["kernel_ms"]["median"] / 1e3))

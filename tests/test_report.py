@@ -634,3 +634,208 @@ def test_wgpu_records_are_labelled_with_their_adapter_and_judge_nothing(tmp_path
     # wgpu here is far slower than the CPU: were it taken for the GPU, claim 1 would fail
     v = verdict(records, 1)
     assert v["verdict"] == HOLDS and v["values"]["n"] == len(SIZES) * len(COUNTS)
+
+
+# --- the secondary suite: does the GPU's lead hold for secondary rays? -------------------
+
+SEC_SIZES = [(800, 600), (1680, 1050)]
+SEC_COUNTS = [1000, 10_000, 100_000]
+WHITTED = {"shading": "whitted", "depth": 5, "shadow_samples": 4}
+
+
+def sec_rec(device, way, size, n, shading, rays_per_s, rng, **kw):
+    """One secondary-suite record as the runner writes it: the frame time from
+    rays_per_s and the rays a frame casts (for Whitted, random counts by kind)."""
+    options = {"accel": "bvh"} if way == "bvh" else {"kernel": "simple", "accel": "none", "cap_s": 30.0}
+    pixels = size[0] * size[1]
+    if shading == "thesis":
+        r = rec(
+            "secondary", device, n, pixels / rays_per_s * 1e3, size=size, options={**options, "shading": "thesis"}, **kw
+        )
+        return {**r, "rays_per_s": pixels / (r["frame_ms"]["median"] / 1e3)}
+    rays = {
+        "primary": pixels,
+        "shadow": int(pixels * rng.uniform(3, 8)),
+        "reflection": int(pixels * rng.uniform(0.5, 2)),
+        "refraction": int(pixels * rng.uniform(0.5, 2)),
+    }
+    total = sum(rays.values())
+    r = rec("secondary", device, n, total / rays_per_s * 1e3, size=size, options={**options, **WHITTED}, **kw)
+    median_s = r["frame_ms"]["median"] / 1e3
+    return {**r, "rays": rays, "rays_per_frame": total, "rays_per_s": total / median_s, "kernel_rays_per_s": None}
+
+
+def secondary(rng, kept, ways=("bvh", "none"), devices=("cpu", "cuda"), lead=(5.0, 50.0), **kw):
+    """The secondary suite on one machine: at every way, size and count a
+    thesis-shading twin and a Whitted record per device. The CPU's rays/s are
+    random; the GPU leads on primary rays by a random factor in `lead`, and on
+    secondary rays by that factor times kept(way) (a random share kept)."""
+    out = []
+    for way in ways:
+        for size in SEC_SIZES:
+            for n in SEC_COUNTS:
+                cpu_primary = rng.uniform(1e6, 1e8)
+                cpu_whitted = cpu_primary * rng.uniform(0.2, 1.0)
+                primary_lead = rng.uniform(*lead)
+                rates = {
+                    "cpu": (cpu_primary, cpu_whitted),
+                    "cuda": (cpu_primary * primary_lead, cpu_whitted * primary_lead * kept(way)),
+                    "wgpu": (cpu_primary * 2, cpu_whitted * 0.1),
+                }
+                for device in devices:
+                    p, s = rates[device]
+                    out.append(sec_rec(device, way, size, n, "thesis", p, rng, **kw))
+                    out.append(sec_rec(device, way, size, n, "whitted", s, rng, **kw))
+    return out
+
+
+def ref_leads(records):
+    """The GPU's lead per matched point from the records' frame times and ray
+    counts, computed here without the report: (secondary lead, primary lead)."""
+    at = {}
+    for r in records:
+        if "skipped" in r:
+            continue
+        rays = r["rays_per_frame"] if r["options"]["shading"] == "whitted" else r["width"] * r["height"]
+        key = (r["options"]["accel"], r["width"], r["height"], r["spheres"], r["options"]["shading"])
+        at.setdefault(key, {})[r["device"]] = rays / r["frame_ms"]["median"]
+    out = {}
+    for (accel, w, h, n, shading), by in at.items():
+        if "cpu" in by and "cuda" in by:
+            out.setdefault((accel, w, h, n), {})[shading] = by["cuda"] / by["cpu"]
+    return {k: (v["whitted"], v["thesis"]) for k, v in out.items() if len(v) == 2}
+
+
+def test_secondary_leads_are_matched_rays_per_second(rng):
+    """Leads pair the CPU and the GPU at the same way, size and count, the
+    Whitted frames and their twins apart; a point skipped or missing on
+    either device, or measured with one shading only, is left out."""
+    records = secondary(rng, lambda way: rng.uniform(0.1, 2))
+    drop = [r for r in records if r["device"] == "cpu" and r["options"]["accel"] == "none"]
+    skipped = drop[-1]  # the CPU's brute force at the largest point: skipped
+    for key in ("frame_ms", "kernel_ms", "rays", "rays_per_frame", "rays_per_s", "kernel_rays_per_s"):
+        skipped.pop(key)
+    skipped.update(skipped="predicted 9e+03 s a frame, over the 30 s cap", predicted_ms=9e6)
+    records.remove(drop[0])  # a twin never measured (an interrupted run)
+    records.append(sec_rec("cuda", "bvh", (640, 480), 1000, "whitted", 1e9, rng))  # no CPU point
+    leads = report.secondary_leads(records)
+    expected = ref_leads(records)
+    assert len(leads) == len(expected) == 2 * len(SEC_SIZES) * len(SEC_COUNTS) - 2
+    for p in leads:
+        secondary_lead, primary_lead = expected[(p["accel"], p["width"], p["height"], p["spheres"])]
+        assert p["secondary"] == pytest.approx(secondary_lead) and p["primary"] == pytest.approx(primary_lead)
+        assert p["kept"] == pytest.approx(secondary_lead / primary_lead)
+    points = report.secondary_points(records)
+    gone = next(p for p in points if p["device"] == "cpu" and p["accel"] == "none" and p["spheres"] == 100_000
+                and p["width"] == 1680)  # fmt: skip
+    assert gone["whitted"]["skipped"].startswith("predicted") and gone["primary"]["skipped"] is None
+
+
+@pytest.mark.parametrize(
+    "kept,expected",
+    [(0.5, HOLDS), ("above", HOLDS), (0.49, FAILS), ("below", FAILS), ("gpu slower", FAILS), ("one way", FAILS)],
+)
+def test_secondary_verdict_both_ways(rng, kept, expected):
+    """The rule: per way, the median share of the primary-ray lead kept on
+    secondary rays at least 0.5, and the GPU still faster; every way must
+    hold. The shares are set per point around the threshold, the median
+    exactly where the parameter says."""
+    lead = (5.0, 50.0)
+    if kept == "above":
+        share = {"bvh": rng.uniform(0.5, 3), "none": rng.uniform(0.5, 3)}
+    elif kept == "below":
+        share = {"bvh": rng.uniform(0.05, 0.49), "none": rng.uniform(0.05, 0.49)}
+    elif kept == "gpu slower":  # keeps 80% of a lead that was small: slower than the CPU on secondary rays
+        share, lead = {"bvh": 0.8, "none": 0.8}, (1.01, 1.2)
+    elif kept == "one way":
+        share = {"bvh": rng.uniform(0.05, 0.45), "none": rng.uniform(0.55, 3)}
+    else:
+        share = {"bvh": kept, "none": kept}
+    records = secondary(rng, lambda way: share[way], lead=lead)
+    v = report.secondary_verdict(records)
+    assert v["verdict"] == expected, v["measured"]
+    n = len(SEC_SIZES) * len(SEC_COUNTS)
+    for way, accel in (("BVH", "bvh"), ("brute force, simple kernel", "none")):
+        got = v["ways"][way]
+        assert got["n"] == n and got["kept"] == pytest.approx(share[accel])
+        mine = [ref for key, ref in ref_leads(records).items() if key[0] == accel]
+        assert got["lead"] == pytest.approx(statistics.median(s for s, _ in mine))
+        assert got["verdict"] == (HOLDS if share[accel] >= 0.5 and got["lead"] > 1 else FAILS)
+    if kept == "one way":
+        assert v["ways"]["BVH"]["verdict"] == FAILS and v["ways"]["brute force, simple kernel"]["verdict"] == HOLDS
+
+
+@pytest.mark.parametrize("devices", [("cpu",), ("cuda",), ("cpu", "wgpu")])
+def test_secondary_verdict_cannot_be_decided_on_one_device(rng, devices):
+    """One device (or the CPU and wgpu, which decides nothing): no verdict."""
+    v = report.secondary_verdict(secondary(rng, lambda way: 1.0, devices=devices))
+    assert v["verdict"] == NOT_MEASURED and "cannot be decided" in v["measured"] and v["points"] == []
+
+
+def test_report_secondary_section(tmp_path, rng):
+    """Two machines with cpu and cuda secondary records: on alpha the GPU
+    keeps its lead, on beta it does not; each section gives its verdict, the
+    rule, both charts, the rays by kind and the leads; the thesis's claims
+    table does not count secondary records. A CPU-only machine: cannot be
+    decided."""
+    alpha = secondary(rng, lambda way: rng.uniform(0.6, 2.0)) + thesis(rng)
+    beta = secondary(rng, lambda way: rng.uniform(0.05, 0.4), label="beta")
+    gamma = secondary(rng, lambda way: 1.0, devices=("cpu",), label="gamma")
+    path = write(tmp_path / "r.jsonl", alpha + beta + gamma)
+    text = report.write_report([path], tmp_path / "rep").read_text()
+    section = text[text.index("## Beyond the thesis: secondary rays") :]
+    parts = {label: section[section.index(f"### {label}: secondary rays") :] for label in ("alpha", "beta", "gamma")}
+    question = f"**{report.SECONDARY_QUESTION}**"
+    assert parts["alpha"].split("\n\n")[2].startswith(f"{question} **{HOLDS}**: BVH: the GPU leads by")
+    assert f"{question} **{FAILS}**" in parts["beta"].split("### gamma")[0]
+    assert f"{question} **{NOT_MEASURED}**: cannot be decided" in parts["gamma"]
+    assert section.count(report.SECONDARY_RULE) == 3 and "at least 0.5" in report.SECONDARY_RULE
+    assert "**gamma**: CPU Synthetic CPU" in parts["gamma"]  # described here: it has no other section
+    for slug in ("alpha-secondary", "beta-secondary", "gamma-secondary"):
+        for chart in ("rays", "frames"):
+            with Image.open(tmp_path / "rep" / f"{slug}-{chart}.png") as im:
+                assert im.format == "PNG" and im.width > 100
+    r = next(r for r in beta if r["device"] == "cuda" and r["options"]["shading"] == "whitted")
+    row = next(line for line in parts["beta"].splitlines() if line.startswith(f"| GPU | BVH | {r['width']}x"))
+    assert f"| {r['rays']['shadow']:,} | {r['rays']['reflection']:,} | {r['rays']['refraction']:,} |" in row
+    leads = parts["alpha"][parts["alpha"].index("The GPU's lead at each point") :].split("### beta")[0]
+    assert (
+        leads.count("\n| BVH |") == leads.count("\n| brute force, simple kernel |") == len(SEC_SIZES) * len(SEC_COUNTS)
+    )
+    claims = next(line for line in text.splitlines() if line.startswith("| # |"))
+    assert claims.endswith(f"| {A} |")  # beta and gamma ran no thesis suite: no column of not measured
+
+
+OLD_RESULTS = [
+    "benchmarks/results/h100/results-20261122-234729.jsonl",
+    "benchmarks/results/h200/thesis-20261129-d.jsonl",
+    "benchmarks/results/epyc-2c-lavapipe/results-20261123-030724.jsonl",
+    "benchmarks/results/epyc-2c-cpu-only/scaling-20261123.jsonl",
+]
+
+
+def test_old_results_files_still_report(tmp_path):
+    """Results files committed before the secondary suite load and report as
+    before: every record the thesis's shading, no secondary section."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    paths = [root / p for p in OLD_RESULTS]
+    machines, _ = report.load(paths)
+    records = [r for rs in machines.values() for r in rs]
+    assert len(records) > 100 and {report.shading_of(r) for r in records} == {"thesis"}
+    assert report.secondary_points(records) == []
+    text = report.write_report(paths, tmp_path / "rep").read_text()
+    assert "## The thesis's claims" in text and "secondary rays" not in text
+
+
+@pytest.mark.parametrize("bvh_kept,expected", [(0.8, HOLDS), (0.3, FAILS)])
+def test_secondary_way_without_a_matched_point_is_left_out(rng, bvh_kept, expected):
+    """Brute force measured on the CPU alone (the GPU's skipped, say): the BVH's points decide."""
+    records = [
+        r
+        for r in secondary(rng, lambda way: bvh_kept if way == "bvh" else 0.01)
+        if not (r["device"] == "cuda" and r["options"]["accel"] == "none")
+    ]
+    v = report.secondary_verdict(records)
+    assert list(v["ways"]) == ["BVH"] and v["verdict"] == expected

@@ -429,7 +429,9 @@ def info(as_json):
     multiple=True,
     default=("thesis",),
     show_default=True,
-    help="thesis, constant-vs-runtime, tuning, scaling, or all; repeat for several",
+    help="thesis, constant-vs-runtime, tuning, scaling, secondary (Whitted frames: shadows, mirrors, "
+    "glass), or all (every one; brute force past a frame-time cap is skipped in scaling and secondary); "
+    "repeat for several",
 )
 @click.option(
     "--device", "devices", multiple=True, help="cpu, cuda or wgpu; repeat for several (default: every device present)"
@@ -444,15 +446,16 @@ def info(as_json):
     multiple=True,
     type=click.Choice(KERNELS),
     help="kernels for the thesis and tuning suites; repeat for both (default fast; "
-    "constant-vs-runtime always uses simple, the only one with a compile-time count)",
+    "constant-vs-runtime always uses simple, the only one with a compile-time count, "
+    "and so does secondary's brute force, the only one Whitted shading has)",
 )
 @click.option(
     "--accel",
     "accels",
     multiple=True,
     type=click.Choice(ACCELS),
-    help="bvh, none (brute force), or both repeated (the default): the thesis, tuning and scaling "
-    "suites measure each; constant-vs-runtime and test 7 are brute force only",
+    help="bvh, none (brute force), or both repeated (the default): the thesis, tuning, scaling and "
+    "secondary suites measure each; constant-vs-runtime and test 7 are brute force only",
 )
 @click.option("--quick", is_flag=True, help="a reduced set of points: about a minute on a 2-core laptop")
 @click.option(

@@ -4,7 +4,7 @@ every point it finished.
 
 A record (format "raybench-results", version 1):
 
-    suite        "thesis" | "test7" | "constant-vs-runtime" | "tuning" | "scaling"
+    suite        "thesis" | "test7" | "constant-vs-runtime" | "tuning" | "scaling" | "secondary"
     test         the thesis's test number (1-3 GPU, 4-6 CPU by resolution; 7 the ramp), else null
     device       "cpu" | "cuda"
     width, height, spheres
@@ -12,17 +12,25 @@ A record (format "raybench-results", version 1):
                  and for constant-vs-runtime {"count": "constant" | "runtime"};
                  tuning points carry "label", e.g. "2x cores" or "one per row";
                  "accel": "bvh" | "none" (absent in older records: none), "kernel"
-                 for brute force; scaling's brute-force points carry "cap_s"
+                 for brute force; scaling's and secondary's brute-force points carry "cap_s";
+                 secondary's points carry "shading": "thesis" (primary rays, the baseline) or
+                 "whitted" with "depth" and "shadow_samples" (the materials scene,
+                 random_spheres(n, seed, materials=True))
     frames       how many timed frames
     frame_ms     {mean, median, p5, p95, min, max}: whole frame (kernel, and on the GPU the copy to the host)
     kernel_ms    the same for the kernel alone (CUDA events), or null on the CPU
-    rays_per_s, tests_per_s   from the median frame (tests = rays x spheres; null for the BVH)
+    rays_per_s, tests_per_s   from the median frame (tests = rays x spheres; null for the BVH);
+                 under Whitted shading rays_per_s counts every ray cast, and tests_per_s is null
+    rays         Whitted points only: the rays a frame cast by kind, as the kernel counted them,
+                 {"primary", "shadow", "reflection", "refraction"}; rays_per_frame their sum;
+                 kernel_rays_per_s the same rays over the median kernel time, or null
     build_s      the BVH's build time (seconds, compiled code only), or null for brute force
     first_frame_s   the first frame of the point, never averaged in
     compile_s       compiling the kernel for the point, if it was not yet compiled, else 0
     series       test7 only: {"spheres": [...], "frame_ms": [...], "kernel_ms": [... or null]},
                  one entry per frame after the first
-    skipped      instead of frames, frame_ms, ...: why the point was not measured, e.g.
+    skipped      instead of frames, frame_ms, ...: why the point was not measured (the
+                 scaling and secondary suites' brute force), e.g.
                  "predicted 4.2 s a frame, over the 1 s cap", with predicted_ms
     run          {"id", "date", "git_commit", "label", "argv", "settings", "machine": raybench.machine.describe()}
 """

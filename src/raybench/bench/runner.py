@@ -11,6 +11,8 @@ import uuid
 
 from .. import backends
 from ..camera import Camera
+from ..kernels.whitted import KINDS
+from ..lighting import Shading
 from ..machine import git_commit
 from ..scene import random_spheres
 from .results import ResultsWriter
@@ -22,7 +24,8 @@ WARMUP_S = 1.0
 
 
 def tracer_options(point: Point) -> dict:
-    """The backend options of a point (its label and count mode are bookkeeping)."""
+    """The backend options of a point (its label and count mode are bookkeeping;
+    its shading, which needs the scene, measure() adds)."""
     opts = {}
     if "threads" in point.options:
         opts["threads"] = point.options["threads"]
@@ -41,17 +44,24 @@ def tracer_options(point: Point) -> dict:
     return opts
 
 
+def whitted(point: Point) -> bool:
+    """Whether a point traces Whitted frames (the secondary suite's), of the
+    materials scene; every other point is the thesis's shading."""
+    return point.options.get("shading") == "whitted"
+
+
 class Scenes:
-    """The benchmark's scenes: random_spheres(n, seed), made once each, the same on every device."""
+    """The benchmark's scenes: random_spheres(n, seed), made once each, the same
+    on every device; with materials (the same spheres, lit) for Whitted points."""
 
     def __init__(self, seed: int):
         self.seed = seed
         self._cache = {}
 
-    def get(self, n: int):
-        if n not in self._cache:
-            self._cache[n] = random_spheres(n, self.seed)
-        return self._cache[n]
+    def get(self, n: int, materials: bool = False):
+        if (n, materials) not in self._cache:
+            self._cache[n, materials] = random_spheres(n, self.seed, materials=materials)
+        return self._cache[n, materials]
 
 
 def _frame(tracer, basis, count=None) -> tuple[float, float | None]:
@@ -63,10 +73,17 @@ def _frame(tracer, basis, count=None) -> tuple[float, float | None]:
 def measure(point: Point, scenes: Scenes, duration: float) -> dict:
     """Time one point: compile, one first frame, warm-up, then frames for
     `duration` seconds (at least MIN_FRAMES). The ramp (test 7) instead traces
-    one frame per sphere count and keeps all but the first."""
-    scene = scenes.get(point.spheres)
+    one frame per sphere count and keeps all but the first. A Whitted point
+    also records the rays its frames cast, by kind, as the kernel counted
+    them (every frame of a point casts the same: scene, camera and the area
+    light's sample pattern are fixed)."""
+    shaded = whitted(point)
+    scene = scenes.get(point.spheres, materials=shaded)
     basis = Camera().basis(point.width, point.height)
-    tracer = backends.tracer(point.device, scene.spheres, point.width, point.height, **tracer_options(point))
+    opts = tracer_options(point)
+    if shaded:
+        opts["whitted"] = Shading.of(scene, point.options.get("depth"), point.options.get("shadow_samples"))
+    tracer = backends.tracer(point.device, scene.spheres, point.width, point.height, **opts)
     try:
         build_s = tracer.build_s
         walk = tracer.walk  # cuda's BVH walk: "ray" or "packet", chosen by the tree
@@ -85,6 +102,7 @@ def measure(point: Point, scenes: Scenes, duration: float) -> dict:
             end = time.perf_counter() + duration
             while time.perf_counter() < end or len(frames) < MIN_FRAMES:
                 frames.append(_frame(tracer, basis))
+        counts = None if tracer.ray_counts is None else [int(c) for c in tracer.ray_counts]
     finally:
         tracer.close()
     frame_ms = [f for f, _ in frames]
@@ -114,6 +132,14 @@ def measure(point: Point, scenes: Scenes, duration: float) -> dict:
         rays = point.width * point.height
         record["rays_per_s"] = rays * len(frames) / (sum(frame_ms) / 1e3)
         record["tests_per_s"] = rays * sum(point.ramp[1:]) / (sum(frame_ms) / 1e3)
+    elif shaded:
+        # every kind of ray counted; no tests/s: shadow rays stop at their first blocker
+        total = sum(counts)
+        record["rays"] = dict(zip(KINDS, counts))
+        record["rays_per_frame"] = total
+        record["rays_per_s"] = total / (record["frame_ms"]["median"] / 1e3)
+        record["kernel_rays_per_s"] = total / (record["kernel_ms"]["median"] / 1e3) if kernel_ms else None
+        record["tests_per_s"] = None
     else:
         median_s = record["frame_ms"]["median"] / 1e3
         record["rays_per_s"] = point.width * point.height / median_s

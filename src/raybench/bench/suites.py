@@ -7,6 +7,34 @@ Those are brute force (accel "none"), as in the thesis; with accel "bvh"
 asked for too, the same points are measured through the BVH beside them.
 The scaling suite goes past the thesis: 10 to 1,000,000 spheres, brute
 force and BVH, brute force stopping where its frames would pass a time cap.
+
+The secondary suite asks whether the GPU's lead holds for secondary rays
+(issue 14): Whitted frames of the materials scene (random_spheres(n, seed,
+materials=True): plastic, mirrors and glass, one area light) at depth 5 with
+4 shadow samples, at the thesis's three sizes and 1,000, 10,000 and 100,000
+spheres, through the BVH and by brute force (the simple kernel's loop, the
+only brute force Whitted shading has), on every device asked for. Beside
+each Whitted point it measures the same scene, size and way with the
+thesis's shading (primary rays only): the baseline its verdict compares the
+GPU's lead against, taken in the same run.
+
+Brute force with secondary rays is the costly part: a Whitted frame of the
+materials scene casts about 12 rays a pixel, each tested against every
+sphere. On 2 busy cores the simple loop manages about 230 k such rays/s at
+1,000 spheres, so a 1680x1050 frame takes about 1.5 minutes at 1,000
+spheres, and at 100,000 some 2.5 hours (tens of minutes on 16 cores); a GPU
+takes seconds. What a user would expect is brute force measured wherever
+its frames are bearable and every point that is not said so, never silently
+dropped. So brute-force points carry a cap, as in the scaling suite: a
+point whose frame is predicted (linear in pixels and spheres from the last
+point of its series) to take more than SECONDARY_CAP_S is recorded as
+skipped with that prediction. A GPU thus runs brute force to 100,000
+spheres; a CPU stops before 100,000 (a 2-core machine after 1,000 spheres
+at 800x600); the BVH runs every point everywhere.
+
+`--suite all` includes it: all means every suite, and the cap keeps the
+suite's brute force within minutes a point, as the scaling suite's keeps
+its own; what a 2-core machine spends on it is mostly its BVH frames.
 """
 
 from __future__ import annotations
@@ -17,7 +45,7 @@ from dataclasses import dataclass, field
 from ..backends.limits import FAST_MAX_THREADS
 from ..errors import RaybenchError
 
-SUITES = ("thesis", "constant-vs-runtime", "tuning", "scaling")
+SUITES = ("thesis", "constant-vs-runtime", "tuning", "scaling", "secondary")
 ACCELS = ("bvh", "none")
 THESIS_SIZES = ((800, 600), (1280, 800), (1680, 1050))
 THESIS_COUNTS = tuple(range(100, 1001, 100))
@@ -38,6 +66,19 @@ QUICK_SCALING_SIZE = (640, 400)
 # and pixels, from the last count measured) to take longer than this.
 SCALING_CAP_S = 1.0
 QUICK_SCALING_CAP_S = 0.25
+SECONDARY_SIZES = THESIS_SIZES
+SECONDARY_COUNTS = (1000, 10_000, 100_000)
+SECONDARY_DEPTH = 5
+SECONDARY_SHADOW_SAMPLES = 4
+# A brute-force frame predicted past this is skipped: long enough for a GPU
+# at 100,000 spheres, short enough that no point takes more than a few
+# minutes (a point times at least 5 frames: the first, warm-up, MIN_FRAMES).
+SECONDARY_CAP_S = 30.0
+# --quick: one small size, the two smaller counts; brute force is skipped
+# where its frame would pass the quick cap (on 2 cores: at 10,000 spheres).
+QUICK_SECONDARY_SIZES = ((160, 100),)
+QUICK_SECONDARY_COUNTS = (1000, 10_000)
+QUICK_SECONDARY_CAP_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -106,6 +147,13 @@ def _runs(ways, devices, wgpu: dict) -> list[tuple[dict, str]]:
                 own.append(way)
         out += [({**way, **wgpu}, "wgpu") for way in own]
     return out
+
+
+def secondary_shadings() -> list[dict]:
+    """The shading options of the secondary suite's points, the baseline
+    first: the thesis's (primary rays), then Whitted's."""
+    whitted = {"shading": "whitted", "depth": SECONDARY_DEPTH, "shadow_samples": SECONDARY_SHADOW_SAMPLES}
+    return [{"shading": "thesis"}, whitted]
 
 
 def points(
@@ -194,4 +242,21 @@ def points(
             if not quick:
                 (ew, eh), en = SCALING_EXTRA
                 out.append(Point("scaling", device, ew, eh, en, dict(opts)))
+    if "secondary" in suites:
+        # Whitted's brute force is the simple kernel's loop, whatever kernels were
+        # asked for; its thesis-shading twin uses the same loop, so that the two
+        # differ only in the rays they cast
+        ways = [{"accel": "bvh"}] if "bvh" in accels else []
+        ways += [{"kernel": "simple", "accel": "none"}] if "none" in accels else []
+        sizes = QUICK_SECONDARY_SIZES if quick else SECONDARY_SIZES
+        counts = QUICK_SECONDARY_COUNTS if quick else SECONDARY_COUNTS
+        cap = QUICK_SECONDARY_CAP_S if quick else SECONDARY_CAP_S
+        for way, device in _runs(ways, devices, wgpu or {}):
+            capped = {"cap_s": cap} if way["accel"] == "none" else {}
+            for n in counts:
+                for w, h in sizes:
+                    out += [
+                        Point("secondary", device, w, h, n, {**way, **shading, **capped})
+                        for shading in secondary_shadings()
+                    ]
     return out

@@ -6,10 +6,12 @@ One module a job, each reading only those before it:
   data      results files read and checked; records grouped by machine and
             kernel (column()), files with the same label merged; the series
             (speedups, thesis_series, test7_series, cpu_tuning, gpu_tuning,
-            constant_vs_runtime, scaling_series): pure functions of plain
+            constant_vs_runtime, scaling_series, secondary_points,
+            secondary_leads): pure functions of plain
             lists of records, so the rules can be tested on synthetic data
   verdicts  the six claims judged; the thresholds are its constants, RULES
-            states them in words, and the report prints it
+            states them in words, and the report prints it; beyond them,
+            SECONDARY_QUESTION judged under SECONDARY_RULE
   charts    the PNG charts (matplotlib, Agg canvas, no pyplot)
   markdown  report.md; text from a results file enters it only through escape()
 """
@@ -25,6 +27,9 @@ from .data import (
     kernel_of,
     load,
     scaling_series,
+    secondary_leads,
+    secondary_points,
+    shading_of,
     speedups,
     test7_series,
     theoretical_ratio,
@@ -42,10 +47,14 @@ from .verdicts import (
     RATIO_BAND,
     RULES,
     RUNTIME_SLOWER,
+    SECONDARY_KEPT_MIN,
+    SECONDARY_QUESTION,
+    SECONDARY_RULE,
     THESIS_CPU,
     THESIS_GPU,
     THESIS_RATIO,
     THESIS_SPEEDUP,
+    secondary_verdict,
     verdicts,
 )
 
@@ -60,6 +69,9 @@ __all__ = [
     "RATIO_BAND",
     "RULES",
     "RUNTIME_SLOWER",
+    "SECONDARY_KEPT_MIN",
+    "SECONDARY_QUESTION",
+    "SECONDARY_RULE",
     "THESIS_CPU",
     "THESIS_GPU",
     "THESIS_RATIO",
@@ -74,6 +86,10 @@ __all__ = [
     "kernel_of",
     "load",
     "scaling_series",
+    "secondary_leads",
+    "secondary_points",
+    "secondary_verdict",
+    "shading_of",
     "speedups",
     "test7_series",
     "theoretical_ratio",

@@ -218,3 +218,73 @@ def plot_scaling(label: str, series: list[dict]) -> bytes:
     ax.set_title(f"{label}: frame time against sphere count (thin line: brute force stopped)", fontsize=10)
     ax.legend(fontsize=7)
     return _png(fig)
+
+
+_SIZE_MARKERS = ("o", "s", "^", "D", "v", "P")
+_DEVICE_COLORS = {"cpu": "C0", "cuda": "C1", "wgpu": "C2"}
+
+
+def _secondary_panels(points: list[dict], value, ylabel: str, title: str, styles) -> bytes:
+    """One panel per way of tracing (BVH, brute force): a line per device and
+    size of `value(figures)` against the sphere count, for each (key, style)
+    of styles (which record of the point: "whitted" or "primary")."""
+    from matplotlib.lines import Line2D
+
+    ways = list(dict.fromkeys(p["way"] for p in points))
+    sizes = sorted({(p["width"], p["height"]) for p in points}, key=lambda s: s[0] * s[1])
+    devices = list(dict.fromkeys(p["device"] for p in points))
+    fig, axes = _figure(len(ways), width=5.6 * len(ways) + 2.2, height=4.8)
+    for ax, way in zip(axes, ways):
+        for device in devices:
+            color = _DEVICE_COLORS.get(device, "C3")
+            for size, marker in zip(sizes, _SIZE_MARKERS):
+                mine = [p for p in points if (p["way"], p["device"], (p["width"], p["height"])) == (way, device, size)]
+                for key, style in styles:
+                    done = [(p["spheres"], value(p[key])) for p in mine if p[key] and value(p[key])]
+                    if done:
+                        xs, ys = zip(*done)
+                        ax.plot(xs, ys, style, color=color, marker=marker, markersize=4, linewidth=1.2)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("spheres in the scene")
+        ax.set_ylabel(ylabel)
+        ax.set_title(way, fontsize=10)
+    handles = [Line2D([], [], color=_DEVICE_COLORS.get(d, "C3"), linewidth=3) for d in devices]
+    labels = [DEVICE_NAMES.get(d, d) for d in devices]
+    handles += [Line2D([], [], color="gray", linestyle="none", marker=m) for m in _SIZE_MARKERS[: len(sizes)]]
+    labels += [f"{w}x{h}" for w, h in sizes]
+    handles += [Line2D([], [], color="gray", linestyle=style) for _, style in styles]
+    labels += [_STYLE_LABELS[key] for key, _ in styles]
+    fig.legend(handles, labels, loc="outside right upper", fontsize=7)
+    fig.suptitle(title, fontsize=10)
+    return _png(fig)
+
+
+_STYLE_LABELS = {"whitted": "Whitted frames, every ray counted", "primary": "thesis shading, primary rays only"}
+
+
+def plot_secondary_rays(label: str, points: list[dict]) -> bytes:
+    """Rays per second (median frames) against the sphere count: Whitted
+    frames (solid) and their thesis-shading twins (dashed), by device and size."""
+    return _secondary_panels(
+        points,
+        lambda f: f["rays_per_s"] if f["median"] is not None else None,
+        "rays per second (median frame)",
+        f"{label}: rays/s, Whitted frames (solid) and primary rays alone (dashed)",
+        [("whitted", "-"), ("primary", "--")],
+    )
+
+
+def plot_secondary_frames(label: str, points: list[dict]) -> bytes:
+    """Median Whitted frame time against the sphere count, by device and size."""
+    settings = sorted(
+        {(p["whitted"]["depth"], p["whitted"]["shadow_samples"]) for p in points if p["whitted"]}, key=str
+    )
+    shown = ", ".join(f"depth {d}, {n} shadow samples" for d, n in settings)
+    return _secondary_panels(
+        points,
+        lambda f: f["median"],
+        "median frame time (ms)",
+        f"{label}: Whitted frame time ({shown})",
+        [("whitted", "-")],
+    )

@@ -31,9 +31,9 @@ def _check(record: dict, path, number: int) -> None:
     for key in ("width", "height", "spheres"):
         if not isinstance(record.get(key), int):
             _bad(path, number, f"field {key!r} missing or not a whole number")
-    if "skipped" in record:  # a point not measured (the scaling suite's cap): only why
-        if not isinstance(record["skipped"], str) or record["suite"] != "scaling":
-            _bad(path, number, "field 'skipped' is not a reason, or not in the scaling suite")
+    if "skipped" in record:  # a point not measured (the scaling and secondary suites' cap): only why
+        if not isinstance(record["skipped"], str) or record["suite"] not in ("scaling", "secondary"):
+            _bad(path, number, "field 'skipped' is not a reason, or not in the scaling or secondary suite")
         if not isinstance(record.get("run"), dict) or not isinstance(record["run"].get("label"), str):
             _bad(path, number, "field 'run' lacks label or machine")
         return
@@ -391,3 +391,85 @@ def scaling_series(records: list[dict]) -> list[dict]:
     for s in out.values():
         s["points"].sort(key=lambda p: p["spheres"])
     return sorted(out.values(), key=lambda s: (s["device"], s["way"], s["width"] * s["height"]))
+
+
+def shading_of(r: dict) -> str:
+    """A record's shading: "whitted" for the secondary suite's Whitted frames,
+    else the thesis's (every record from before Whitted shading)."""
+    return (r.get("options") or {}).get("shading", "thesis")
+
+
+def secondary_points(records: list[dict]) -> list[dict]:
+    """The secondary suite, one entry per (device, way of tracing, size, sphere
+    count): "whitted" and "primary" (its thesis-shading twin), each with the
+    median frame (and kernel) ms, rays/s, and for Whitted the rays by kind;
+    None where that record is missing, and "skipped" the reason where the
+    point was not measured. Sorted by device, way, size, count."""
+    out: dict[tuple, dict] = {}
+    for r in records:
+        if r["suite"] != "secondary":
+            continue
+        key = (r["device"], way_of(r), r["width"], r["height"], r["spheres"])
+        entry = out.setdefault(
+            key,
+            {
+                "device": r["device"],
+                "way": way_of(r),
+                "accel": accel_of(r),
+                "width": r["width"],
+                "height": r["height"],
+                "spheres": r["spheres"],
+                "whitted": None,
+                "primary": None,
+            },
+        )
+        opts = r.get("options") or {}
+        figures = {
+            "skipped": r.get("skipped"),
+            "median": None if "skipped" in r else float(r["frame_ms"]["median"]),
+            "kernel": (r.get("kernel_ms") or {}).get("median"),
+            "rays_per_s": r.get("rays_per_s"),
+            "kernel_rays_per_s": r.get("kernel_rays_per_s"),
+            "rays": r.get("rays"),
+            "depth": opts.get("depth"),
+            "shadow_samples": opts.get("shadow_samples"),
+        }
+        entry["whitted" if shading_of(r) == "whitted" else "primary"] = figures
+    return sorted(out.values(), key=lambda e: (e["device"], e["way"], e["width"] * e["height"], e["spheres"]))
+
+
+def _measured(figures: dict | None) -> bool:
+    return bool(figures) and figures["median"] is not None and bool(figures["rays_per_s"])
+
+
+def secondary_leads(records: list[dict], gpu: str = "cuda") -> list[dict]:
+    """The points of the secondary suite that both the CPU and `gpu` measured
+    with both shadings, matched by way of tracing, size and sphere count:
+    the GPU's lead on secondary rays (GPU rays/s / CPU rays/s of the Whitted
+    frames, every ray counted, median frames), on primary rays (the same of
+    the thesis-shading twins), and kept, the first over the second."""
+    by = {(p["device"], p["way"], p["width"], p["height"], p["spheres"]): p for p in secondary_points(records)}
+    out = []
+    for (device, way, w, h, n), cpu in by.items():
+        other = by.get((gpu, way, w, h, n))
+        if device != "cpu" or other is None:
+            continue
+        if not all(_measured(p[kind]) for p in (cpu, other) for kind in ("whitted", "primary")):
+            continue
+        secondary = other["whitted"]["rays_per_s"] / cpu["whitted"]["rays_per_s"]
+        primary = other["primary"]["rays_per_s"] / cpu["primary"]["rays_per_s"]
+        out.append(
+            {
+                "way": way,
+                "accel": cpu["accel"],
+                "width": w,
+                "height": h,
+                "spheres": n,
+                "cpu_rays_per_s": cpu["whitted"]["rays_per_s"],
+                "gpu_rays_per_s": other["whitted"]["rays_per_s"],
+                "secondary": secondary,
+                "primary": primary,
+                "kept": secondary / primary,
+            }
+        )
+    return out

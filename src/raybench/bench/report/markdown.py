@@ -12,6 +12,7 @@ from pathlib import Path
 
 from ...errors import RaybenchError
 from ...files import write_atomic
+from ...kernels.whitted import KINDS
 from . import charts
 from .data import (
     DEVICE_NAMES,
@@ -23,13 +24,24 @@ from .data import (
     load,
     machine_of,
     scaling_series,
+    secondary_points,
     speedups,
     test7_series,
     theoretical_ratio,
     thesis_series,
 )
 from .numbers import fmt_ms, fmt_num, fmt_r2, fmt_x
-from .verdicts import CLAIMS, RULES, THESIS_CPU, THESIS_GPU, THESIS_RATIO, verdicts
+from .verdicts import (
+    CLAIMS,
+    RULES,
+    SECONDARY_QUESTION,
+    SECONDARY_RULE,
+    THESIS_CPU,
+    THESIS_GPU,
+    THESIS_RATIO,
+    secondary_verdict,
+    verdicts,
+)
 
 # Character references, not backslashes: a reference is never Markdown syntax,
 # whatever stands before it, and _cell's escaping of "|" cannot undo it.
@@ -478,6 +490,91 @@ def _section_scaling(w: _Writer, label: str, slug: str, records: list[dict]) -> 
     w(_table(header, rows), "")
 
 
+def _rays_text(x) -> str:
+    """Rays per second in M, or G from a billion on (the issue's targets are in G rays/s)."""
+    if not x:
+        return "–"
+    return f"{fmt_num(x / 1e9)} G" if x >= 1e9 else f"{fmt_num(x / 1e6)} M"
+
+
+def _section_secondary(w: _Writer, label: str, slug: str, records: list[dict], describe: bool = False) -> None:
+    """The secondary suite on one machine; describe: the machine too, where no other section does."""
+    points = secondary_points(records)
+    if not points:
+        return
+    w(f"### {escape(label)}: secondary rays", "")
+    if describe:
+        w(*_machine_lines(label, records), "")
+    w(
+        "Whitted frames of the materials scene (`random_spheres(n, seed, materials=True)`: plastic, mirrors "
+        "and glass, one area light), each beside the same spheres at the same size and way of tracing with "
+        "the thesis's shading (one primary ray a pixel), measured in the same run. Rays per second count "
+        "every ray a frame cast, of every kind, as the kernels counted them (not estimates), over the median "
+        "frame time (whole frames: on a GPU, the copy back included; where the device has its own clock, over "
+        "the kernel time as well). Brute force is Whitted's simple loop over every sphere, for its twin too. "
+        "A brute-force point is skipped, and listed as such, where its frame is predicted (linear in pixels "
+        "and spheres from the last one measured) to pass the suite's cap: with secondary rays at 100,000 "
+        "spheres a CPU would take tens of minutes a frame on 16 cores and hours on 2, so a CPU's brute force "
+        "stops there or before, while a GPU's runs on. The BVH runs every point.",
+        "",
+    )
+    judged = secondary_verdict(records)
+    w(f"**{SECONDARY_QUESTION}** **{judged['verdict']}**: {escape(judged['measured'])}", "")
+    if any(p["device"] == "wgpu" for p in points):
+        info = secondary_verdict(records, "wgpu")
+        w(f"wgpu on {escape(_adapter_name(records))}, for information: {escape(info['measured'])}", "")
+    w(f"The rule: {SECONDARY_RULE}", "")
+    w.image(f"{slug}-rays.png", charts.plot_secondary_rays(label, points), f"{label}: rays per second")
+    w.image(f"{slug}-frames.png", charts.plot_secondary_frames(label, points), f"{label}: Whitted frame time")
+    header = ["device", "way", "size", "spheres", "frame ms", "kernel ms", "rays a frame: primary"]
+    header += ["shadow", "reflection", "refraction", "rays/s", "rays/s (kernel)", "primary rays/s (thesis shading)"]
+    rows = []
+    for p in points:
+        wh, pr = p["whitted"], p["primary"]
+        base = [
+            escape(DEVICE_NAMES.get(p["device"], p["device"])),
+            escape(p["way"]),
+            f"{p['width']}x{p['height']}",
+            f"{p['spheres']:,}",
+        ]
+        primary = (
+            f"skipped: {escape(pr['skipped'])}" if pr and pr["skipped"] else _rays_text(pr["rays_per_s"]) if pr else "–"
+        )
+        if wh is None or wh["skipped"]:
+            why = f"skipped: {escape(wh['skipped'])}" if wh else "not measured"
+            rows.append(base + [why] + [""] * 8 + [primary])
+            continue
+        rays = wh["rays"] or {}
+        rows.append(
+            base
+            + [fmt_ms(wh["median"]), fmt_ms(wh["kernel"]) if wh["kernel"] else "–"]
+            + [f"{rays[k]:,}" if isinstance(rays.get(k), int) else "–" for k in KINDS]
+            + [_rays_text(wh["rays_per_s"]), _rays_text(wh["kernel_rays_per_s"]), primary]
+        )
+    w(_table(header, rows), "")
+    if judged["points"]:
+        w("The GPU's lead at each point both devices measured (GPU rays/s / CPU rays/s, median frames):", "")
+        w(
+            _table(
+                ["way", "size", "spheres", "CPU rays/s", "GPU rays/s", "lead, secondary", "lead, primary", "kept"],
+                [
+                    [
+                        escape(p["way"]),
+                        f"{p['width']}x{p['height']}",
+                        f"{p['spheres']:,}",
+                        _rays_text(p["cpu_rays_per_s"]),
+                        _rays_text(p["gpu_rays_per_s"]),
+                        fmt_x(p["secondary"]),
+                        fmt_x(p["primary"]),
+                        fmt_num(p["kept"]),
+                    ]
+                    for p in judged["points"]
+                ],
+            ),
+            "",
+        )
+
+
 def _claims_table(machines: dict[str, list[dict]]) -> tuple[str, dict[str, list[dict]]]:
     judged = {label: verdicts(records) for label, records in machines.items()}
     header = ["#", "the thesis's claim", "what the thesis measured"] + [escape(label) for label in machines]
@@ -498,13 +595,14 @@ def write_report(paths: list, out_dir) -> Path:
     if out_dir.exists() and not out_dir.is_dir():
         raise RaybenchError(f"{out_dir}: is a file, not a folder for the report")
     machines, notes = load(paths)
-    # the scaling suite is no part of the thesis's claims: its own section per machine
-    scaling: dict[str, list[dict]] = {}
+    # the scaling and secondary suites are no part of the thesis's claims: each its own section per machine
+    beyond: dict[str, dict[str, list[dict]]] = {"scaling": {}, "secondary": {}}
     for records in machines.values():
         for r in records:
-            if r["suite"] == "scaling":
-                scaling.setdefault(r["run"]["label"], []).append(r)
-    machines = {k: v for k, v in ((k, [r for r in v if r["suite"] != "scaling"]) for k, v in machines.items()) if v}
+            if r["suite"] in beyond:
+                beyond[r["suite"]].setdefault(r["run"]["label"], []).append(r)
+    scaling, secondary = beyond["scaling"], beyond["secondary"]
+    machines = {k: v for k, v in ((k, [r for r in v if r["suite"] not in beyond]) for k, v in machines.items()) if v}
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -512,7 +610,9 @@ def write_report(paths: list, out_dir) -> Path:
 
     w = _Writer(out_dir)
     names = ", ".join(
-        dict.fromkeys([records[0]["run"]["label"] for records in machines.values() if records] + list(scaling))
+        dict.fromkeys(
+            [records[0]["run"]["label"] for records in machines.values() if records] + list(scaling) + list(secondary)
+        )
     )
     w(f"# raybench: the 2010 GPU ray-tracing thesis, measured again on {escape(names)}", "")
     w(
@@ -541,6 +641,11 @@ def write_report(paths: list, out_dir) -> Path:
         w("## Beyond the thesis: scaling with a BVH", "")
         for label, records in scaling.items():
             _section_scaling(w, label, _slug(f"{label}-scaling", taken), records)
+    if secondary:
+        w("## Beyond the thesis: secondary rays", "")
+        for label, records in secondary.items():
+            described = any(rs[0]["run"]["label"] == label for rs in machines.values())
+            _section_secondary(w, label, _slug(f"{label}-secondary", taken), records, describe=not described)
     w("## Sources", "")
     w(*[f"- `{Path(p)}`" for p in paths], "")
     if notes:

@@ -12,6 +12,7 @@ from .data import (
     cpu_tuning,
     gpu_tuning,
     machine_of,
+    secondary_leads,
     speedups,
     test7_series,
     theoretical_ratio,
@@ -234,3 +235,58 @@ def _claim6(records):
         return NOT_MEASURED, "needs constant-vs-runtime on the GPU" + info, values
     ok = all(r["ratio"] > RUNTIME_SLOWER for r in gpu)
     return (HOLDS if ok else FAILS), f"GPU: {listing(gpu)}{info}", values
+
+
+# --- beyond the thesis: secondary rays (issue 14) ------------------------------------
+
+SECONDARY_QUESTION = "Does the GPU's lead over the CPU hold for secondary rays?"
+# Fixed before any data was taken: the GPU keeps at least this share of its
+# lead on primary rays, and is still faster.
+SECONDARY_KEPT_MIN = 0.5
+SECONDARY_RULE = (
+    "Fixed before any data. For every point of the secondary suite (a way of tracing, size and sphere "
+    "count) that both the CPU and the GPU (cuda) measured with both shadings: the GPU's lead on secondary "
+    "rays is GPU rays/s / CPU rays/s of the Whitted frames (every ray cast counted, by the kernels; "
+    "median frame times, whole frames), its lead on primary rays is the same ratio for the point's "
+    "thesis-shading twin (the same spheres, size and way, one ray a pixel; the suite times it right "
+    "before the Whitted frame, in the same run), and "
+    "the share kept is the first divided by the second. A way of tracing (BVH, brute force) holds if the "
+    f"median share kept over its points is at least {SECONDARY_KEPT_MIN} and the median lead on secondary "
+    "rays is above 1 (the GPU still faster); a way with no such point is left out. The answer holds if "
+    "every way left holds, does not hold if any does not, and cannot be decided where no way has a point "
+    "measured on both devices (only one device ran). wgpu's leads are shown for information and decide "
+    "nothing."
+)
+
+
+def secondary_verdict(records: list[dict], gpu: str = "cuda") -> dict:
+    """The question SECONDARY_QUESTION judged under SECONDARY_RULE on one
+    machine's records: verdict (HOLDS, FAILS or NOT_MEASURED), measured (one
+    line), ways ({way: {"verdict", "kept", "lead", "primary", "n"}}) and the
+    matched points (secondary_leads)."""
+    leads = secondary_leads(records, gpu)
+    name = "the GPU" if gpu == "cuda" else DEVICE_NAMES.get(gpu, gpu)
+    if not leads:
+        who = "the GPU (cuda)" if gpu == "cuda" else name
+        return {
+            "verdict": NOT_MEASURED,
+            "measured": f"cannot be decided: needs the secondary suite on both the CPU and {who} "
+            "at the same points, each with its thesis-shading twin",
+            "ways": {},
+            "points": [],
+        }
+    ways, parts = {}, []
+    for way in dict.fromkeys(p["way"] for p in leads):
+        mine = [p for p in leads if p["way"] == way]
+        kept = statistics.median(p["kept"] for p in mine)
+        lead = statistics.median(p["secondary"] for p in mine)
+        primary = statistics.median(p["primary"] for p in mine)
+        ok = kept >= SECONDARY_KEPT_MIN and lead > 1
+        ways[way] = {"verdict": HOLDS if ok else FAILS, "kept": kept, "lead": lead, "primary": primary, "n": len(mine)}
+        parts.append(
+            f"{way}: {name} leads by {fmt_x(lead)} on secondary rays against {fmt_x(primary)} on primary "
+            f"rays (medians), keeping {fmt_num(kept)} of its lead over {len(mine)} point{'s' * (len(mine) != 1)}: "
+            f"{HOLDS if ok else FAILS}"
+        )
+    verdict = HOLDS if all(w["verdict"] == HOLDS for w in ways.values()) else FAILS
+    return {"verdict": verdict, "measured": "; ".join(parts), "ways": ways, "points": leads}
