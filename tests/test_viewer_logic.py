@@ -276,6 +276,21 @@ def test_plus_and_minus_on_random_spheres():
     assert supply.count == 0
 
 
+def test_plus_and_the_ramp_keep_random_materials():
+    """--spheres N --materials: the scenes made past the end and for the ramp
+    are what `raybench render --spheres M --materials` draws, lights and all."""
+    supply = SphereSupply(random_spheres(25, 4, materials=True), seed=4)
+    supply.more()
+    expected = random_spheres(35, 4, materials=True)
+    assert np.array_equal(supply.scene.spheres, expected.spheres)
+    assert supply.scene.materials == expected.materials and supply.scene.lights == expected.lights
+    supply.toggle_ramp()
+    assert supply.scene.materials == random_spheres(RAMP[1], 4, materials=True).materials
+    plain = SphereSupply(random_spheres(25, 4), seed=4)
+    plain.more()
+    assert plain.scene.materials is None and plain.scene.lights == ()
+
+
 def test_plus_on_a_scene_file_stops_at_its_spheres():
     supply = SphereSupply(random_spheres(25, 4), seed=None)
     supply.fewer()
