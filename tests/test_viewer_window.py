@@ -628,7 +628,7 @@ def test_whitted_keys_on_wgpu_in_the_window(display, vulkan_adapter):
     value, unit = parts[7].split(" ", 1)
     assert unit in ("rays/s", "k rays/s", "M rays/s", "G rays/s") and float(value) > 0, text
     # the rays counted in the window's pass, read back: more than one a pixel
-    assert shown.rays == sum(shown.frame.rays.values()) > 64 * 48
+    assert shown.rays_cast == sum(shown.frame.rays.values()) > 64 * 48
 
 
 @pytest.mark.gpu

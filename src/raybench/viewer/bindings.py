@@ -37,7 +37,9 @@ BINDINGS = (
     Binding(
         ("t",), "ramp", "ramp (the thesis's test 7): from 10 spheres, 10 more every frame, up to 1000; again to stop"
     ),
-    Binding(("g",), "toggle_shading", "shading: thesis or whitted (the scene's lights, shadows, mirrors, glass)"),
+    Binding(
+        ("g",), "toggle_shading", "toggle the shading: thesis, whitted (the scene's lights, shadows, mirrors, glass)"
+    ),
     Binding(("j",), "light_left", "move the (first) light left, in the camera's frame"),
     Binding(("l",), "light_right", "move the light right"),
     Binding(("i",), "light_up", "move the light up"),

@@ -205,7 +205,7 @@ class ViewerState:
         self._working_device = result.frame.device
         self.shown = result
         self.frames_shown += 1
-        self.stats.add(self.clock(), result.trace_ms, result.rays)
+        self.stats.add(self.clock(), result.trace_ms, result.rays_cast)
 
     # ------------------------------------------------------------------ display
 

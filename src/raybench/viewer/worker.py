@@ -52,7 +52,7 @@ class TracedFrame:
     compile_s: float | None  # set on the first frame of a new tracer
 
     @property
-    def rays(self) -> int:
+    def rays_cast(self) -> int:
         """The rays the frame cast: under Whitted shading every kind the
         kernel counted (primary, shadow, reflection, refraction); under the
         thesis's, one primary ray a pixel."""
