@@ -763,6 +763,21 @@ def test_worker_whitted_frames_are_what_render_draws_with_every_ray_counted():
     assert not np.array_equal(results[0].frame.image, results[1].frame.image)
 
 
+def test_whitted_with_a_thesis_only_option_fails_in_the_title_and_g_goes_back():
+    """view --accel none --kernel fast, then G: Whitted's brute force has the
+    simple kernel only. The worker says so (nothing is compiled), the title
+    shows it, and G goes back to frames that trace."""
+    state, _ = make_state(n=12, options={"cpu": {"accel": "none", "kernel": "fast"}})
+    state.handle_event(key("g"))
+    (failed,) = run_worker([state.next_request(8, 6)])
+    assert isinstance(failed, TraceFailed) and "kernel 'fast'" in failed.message
+    state.on_traced(failed)
+    assert state.next_request(8, 6) is None and "kernel 'fast'" in state.title()
+    state.handle_event(key("g"))
+    request = state.next_request(8, 6)
+    assert request.shading is None and request.options == {"accel": "none", "kernel": "fast"}
+
+
 @pytest.mark.gpu
 @pytest.mark.skipif(not cuda_backend.available(), reason="no CUDA GPU and the simulator is off")
 def test_worker_switches_cpu_to_cuda_and_back():
