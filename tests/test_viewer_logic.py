@@ -15,12 +15,15 @@ import numpy as np
 import pytest
 
 import raybench
-from raybench import Camera, Scene, cli, random_spheres, viewer
+from raybench import Camera, Light, Scene, cli, random_spheres, viewer
 from raybench.backends import cuda as cuda_backend
 from raybench.bench.suites import RAMP
 from raybench.cli import run
+from raybench.kernels.whitted import KINDS, P_LIGHTS
+from raybench.lighting import Shading
 from raybench.viewer import bindings, controls, overlay
 from raybench.viewer.pacing import FrameStats, Handoff
+from raybench.viewer.shading import LIGHT_STEP_S, ShadingControl
 from raybench.viewer.spheres import SphereSupply
 from raybench.viewer.state import ViewerState
 from raybench.viewer.worker import TracedFrame, TraceFailed, TraceRequest, TraceWorker, to_rgba
@@ -64,10 +67,13 @@ def close_to(a, b, tol=1e-9):
     return np.allclose(np.asarray(a, float), np.asarray(b, float), atol=tol, rtol=0)
 
 
-def fake_traced(request, device=None, trace_ms=10.0, compile_s=None):
-    """A TracedFrame for request without tracing (for state and title tests)."""
+def fake_traced(request, device=None, trace_ms=10.0, compile_s=None, rays=None):
+    """A TracedFrame for request without tracing (for state and title tests);
+    rays: the frame's rays by kind, as a Whitted frame has them."""
     image = np.zeros((request.height, request.width, 3), np.uint8)
-    frame = raybench.Frame(image=image, hits=np.full(image.shape[:2], -1, np.int32), device=device or request.device)
+    frame = raybench.Frame(
+        image=image, hits=np.full(image.shape[:2], -1, np.int32), device=device or request.device, rays=rays
+    )
     return TracedFrame(request, frame, to_rgba(image), trace_ms, compile_s)
 
 
@@ -99,9 +105,31 @@ def test_keys_are_matched_case_blind_and_unknown_keys_do_nothing():
 def test_help_lists_every_key_and_the_mouse(capsys):
     lines = bindings.help_lines()
     text = "\n".join(lines)
-    for label in ["W", "A", "S", "D", "Tab", "+", "-", "T", "R", "P", "H", "Esc", "drag"]:
+    for label in [
+        "W",
+        "A",
+        "S",
+        "D",
+        "Tab",
+        "+",
+        "-",
+        "T",
+        "G",
+        "J",
+        "L",
+        "I",
+        "K",
+        "U",
+        "O",
+        "R",
+        "P",
+        "H",
+        "Esc",
+        "drag",
+    ]:
         assert any(line.split()[0] == label or line.startswith(label + " ") for line in lines), label
-    assert "test 7" in text
+    assert "test 7" in text and "whitted" in text and "light" in text
+    assert "G shading" in bindings.help_summary() and "IJKL/UO light" in bindings.help_summary()
     code = run(["view", "--help"])
     out = capsys.readouterr().out
     assert code == 0
@@ -276,6 +304,21 @@ def test_plus_and_minus_on_random_spheres():
     assert supply.count == 0
 
 
+def test_plus_and_the_ramp_keep_random_materials():
+    """--spheres N --materials: the scenes made past the end and for the ramp
+    are what `raybench render --spheres M --materials` draws, lights and all."""
+    supply = SphereSupply(random_spheres(25, 4, materials=True), seed=4)
+    supply.more()
+    expected = random_spheres(35, 4, materials=True)
+    assert np.array_equal(supply.scene.spheres, expected.spheres)
+    assert supply.scene.materials == expected.materials and supply.scene.lights == expected.lights
+    supply.toggle_ramp()
+    assert supply.scene.materials == random_spheres(RAMP[1], 4, materials=True).materials
+    plain = SphereSupply(random_spheres(25, 4), seed=4)
+    plain.more()
+    assert plain.scene.materials is None and plain.scene.lights == ()
+
+
 def test_plus_on_a_scene_file_stops_at_its_spheres():
     supply = SphereSupply(random_spheres(25, 4), seed=None)
     supply.fewer()
@@ -438,6 +481,154 @@ def test_status_line_formats():
     assert line.endswith("frame - ms  |  - fps  |  ramp  |  hello")
 
 
+# --------------------------------------------------------------------------- shading and the light
+
+
+def lit_file_scene():
+    """A scene file's scene: a few spheres, two lights, its own camera looking along +x."""
+    spheres = random_spheres(12, 9, materials=True)
+    lights = [Light(position=(1.0, 5.0, -2.0), radius=0.5), Light(position=(-3.0, 2.0, 0.0), color=(0.5, 0.5, 1.0))]
+    camera = Camera(position=(-10, 0, 15), look_at=(0, 0, 15))
+    return Scene(spheres.centers, spheres.radii, spheres.colors, camera, materials=spheres.materials, lights=lights)
+
+
+def same_shading(a: Shading, b: Shading) -> bool:
+    return (a.depth, a.shadow_samples) == (b.depth, b.shadow_samples) and all(
+        np.array_equal(getattr(a, k), getattr(b, k)) for k in ("materials", "lights", "pattern", "params")
+    )
+
+
+def test_g_toggles_the_shading_of_the_next_request():
+    state, _ = make_state(n=20, seed=3, depth=None)
+    scene = state.supply.scene
+    assert state.next_request(8, 6).shading is None  # the thesis's shading by default
+    assert state.handle_event(key("g")) == "toggle_shading"
+    request = state.next_request(8, 6)
+    assert request.scene is scene and same_shading(request.shading, Shading.of(scene))
+    assert "shading: whitted" in state.title()
+    assert state.next_request(8, 6).shading is request.shading  # kept: the tracer is kept too
+    state.handle_event(key("G"))  # with Shift
+    assert state.next_request(8, 6).shading is None and "shading: thesis" in state.title()
+    # --shading whitted --depth 2 --shadow-samples 3: the first request is render()'s Whitted frame.
+    lit = random_spheres(15, 2, materials=True)
+    state = ViewerState(lit, device="cpu", seed=2, clock=Clock(), shading="whitted", depth=2, shadow_samples=3)
+    request = state.next_request(8, 6)
+    assert request.scene is lit and same_shading(request.shading, Shading.of(lit, 2, 3))
+    state.handle_event(key("g"))
+    assert state.next_request(8, 6).shading is None
+    state.handle_event(key("g"))
+    assert same_shading(state.next_request(8, 6).shading, Shading.of(lit, 2, 3))  # depth and samples kept
+
+
+def test_whitted_without_lights_is_traced_and_the_light_keys_say_why_nothing_moves():
+    state, _ = make_state(n=20)  # random spheres without --materials: no lights
+    state.handle_event(key("g"))
+    request = state.next_request(8, 6)
+    assert request.shading is not None and request.scene is state.supply.scene
+    assert request.shading.params[P_LIGHTS] == 0
+    state.handle_event(key("j"))
+    assert "no lights" in state.title()
+    assert state.next_request(8, 6).scene is request.scene
+
+
+def test_light_keys_move_the_first_light_in_the_cameras_frame():
+    scene = lit_file_scene()
+    state = ViewerState(scene, device="cpu", seed=None, clock=Clock(), shading="whitted")
+    step = state.motion.speed * LIGHT_STEP_S
+    assert state.lighting.step == step > 0
+    forward, right, up = controls.axes(scene.camera)  # forward is +x here, right -z, up +y
+    start = np.array(scene.lights[0].position)
+    for name, direction in [("l", right), ("j", -right), ("i", up), ("k", -up), ("u", forward), ("o", -forward)]:
+        state.handle_event(key(name))
+        request = state.next_request(8, 6)
+        moved = request.scene.lights[0]
+        assert close_to(moved.position, start + step * direction), name
+        assert "light at" in state.title()
+        # only the first light's position: the spheres' bits, materials and the other lights stay
+        assert moved.color == scene.lights[0].color and moved.radius == scene.lights[0].radius
+        assert request.scene.lights[1:] == scene.lights[1:]
+        assert np.array_equal(request.scene.spheres, scene.spheres) and request.scene.materials == scene.materials
+        assert request.scene.camera == scene.camera
+        # the Shading is that of the scene with the moved light, as render() would make it
+        assert same_shading(request.shading, Shading.of(request.scene))
+        assert not np.array_equal(request.shading.lights, Shading.of(scene).lights)
+        state.handle_event(key(name, "key_up"))
+        state.handle_event(key({"l": "j", "j": "l", "i": "k", "k": "i", "u": "o", "o": "u"}[name]))
+        assert close_to(state.lighting.offset, np.zeros(3), 1e-9)
+    state.handle_event(key("l"))
+    state.handle_event(key("l"))
+    request = state.next_request(8, 6)
+    assert close_to(request.scene.lights[0].position, start + 2 * step * right)
+    assert state.next_request(8, 6).shading is request.shading  # nothing new: the same Shading, the same tracer
+    state.handle_event(key("r"))  # reset: the view and the light
+    request = state.next_request(8, 6)
+    assert request.scene is scene and same_shading(request.shading, Shading.of(scene))
+
+
+def test_the_light_moves_under_the_thesis_shading_and_shows_under_whitted():
+    scene = lit_file_scene()
+    state = ViewerState(scene, device="cpu", seed=None, clock=Clock())
+    state.handle_event(key("i"))
+    request = state.next_request(8, 6)
+    assert request.scene is scene and request.shading is None  # the thesis's frame does not change
+    assert "whitted shading (G)" in state.title()
+    state.handle_event(key("g"))
+    request = state.next_request(8, 6)
+    _, _, up = controls.axes(scene.camera)
+    assert close_to(request.scene.lights[0].position, np.add(scene.lights[0].position, state.lighting.step * up))
+
+
+def test_the_light_moves_with_the_random_scene_past_its_end():
+    state, _ = make_state(n=20, seed=1, shading="whitted")
+    state.supply = SphereSupply(random_spheres(20, 1, materials=True), seed=1)
+    state.handle_event(key("i"))
+    state.handle_event(key("="))  # a new scene of 30 spheres: the light stays where it was moved
+    request = state.next_request(8, 6)
+    assert request.count == 30 and len(request.scene) == 30
+    expected = np.add(random_spheres(30, 1, materials=True).lights[0].position, [0, state.lighting.step, 0])
+    assert close_to(request.scene.lights[0].position, expected)
+
+
+def test_a_light_step_out_of_bounds_is_refused_in_the_title():
+    control = ShadingControl("whitted", step=2e15)
+    scene = lit_file_scene()
+    message = control.move_light("light_up", scene, scene.camera)
+    assert message.startswith("the light stays: ") and "position" in message
+    assert not control.offset.any() and control.for_scene(scene)[0] is scene
+
+
+def test_title_shows_the_shading_and_rays_per_second():
+    state, clock = make_state(n=20, seed=0)
+    for _ in range(3):  # the thesis's shading: one primary ray a pixel
+        state.on_traced(fake_traced(state.next_request(100, 50), trace_ms=2.0))
+        clock.advance(0.1)
+    parts = state.title().split("  |  ")
+    assert parts[6:8] == ["thesis", "2.5 M rays/s"]  # 5,000 rays in 2 ms
+    state.handle_event(key("g"))
+    counts = [{"primary": 5000, "shadow": 12000, "reflection": 2000, "refraction": 1000}, None]
+    counts[1] = {k: 2 * v for k, v in counts[0].items()}
+    state.on_traced(fake_traced(state.next_request(100, 50), trace_ms=4.0, rays=counts[0]))
+    clock.advance(0.1)
+    parts = state.title().split("  |  ")
+    assert parts[6:8] == ["whitted, depth 5, 4 shadow samples", "5 M rays/s"]  # 20,000 in 4 ms: every kind
+    state.on_traced(fake_traced(state.next_request(100, 50), trace_ms=6.0, rays=counts[1]))
+    clock.advance(0.1)
+    assert state.title().split("  |  ")[7] == "6 M rays/s"  # 60,000 rays in 10 ms: the thesis's frames are gone
+    clock.advance(5)
+    assert state.title().split("  |  ")[7] == "6.67 M rays/s"  # nothing for a while: the last frame's
+
+
+def test_rays_per_second_formats():
+    line = overlay.status_line(
+        device="cuda", spheres=10, width=8, height=6, frame_ms=1.0, fps=1.0, shading="thesis", rays_per_s=1.5e9
+    )
+    assert line.endswith("1.0 ms  |  1.0 fps  |  thesis  |  1.5 G rays/s")
+    for per_s, text in [(None, "- rays/s"), (12.0, "12 rays/s"), (12345.0, "12.3 k rays/s"), (2.5e8, "250 M rays/s")]:
+        assert overlay.status_line(
+            device="cpu", spheres=1, width=1, height=1, frame_ms=1.0, fps=None, shading="whitted", rays_per_s=per_s
+        ).endswith("whitted  |  " + text)
+
+
 # --------------------------------------------------------------------------- pacing
 
 
@@ -462,6 +653,18 @@ def test_frame_stats_average_over_the_last_second():
         stats.add(i * 0.1, 10.0 if i % 2 else 30.0)
     assert stats.fps(1.0) == pytest.approx(10.0)
     assert stats.frame_ms(1.0) == pytest.approx(sum(10.0 if i % 2 else 30.0 for i in range(1, 11)) / 10)
+
+
+def test_frame_stats_rays_per_second_are_all_rays_over_all_trace_time():
+    stats = FrameStats()
+    assert stats.rays_per_s(0.0) is None
+    stats.add(0.0, 10.0, 1000)
+    stats.add(0.5, 30.0, 5000)
+    assert stats.rays_per_s(0.6) == pytest.approx(6000 / 0.040)
+    assert stats.rays_per_s(1.2) == pytest.approx(5000 / 0.030)  # the first left the last second
+    assert stats.rays_per_s(9.0) == pytest.approx(5000 / 0.030)  # none in it: the last frame's
+    stats.reset()
+    assert stats.rays_per_s(9.0) is None
 
 
 def test_frame_stats_for_frames_slower_than_a_second():
@@ -525,6 +728,54 @@ def test_worker_frames_are_what_render_draws():
     assert np.array_equal(full.rgba[..., :3], full.frame.image) and (full.rgba[..., 3] == 255).all()
     assert full.compile_s is not None and prefix.compile_s is not None  # new options: a new tracer
     assert full.trace_ms > 0
+
+
+@pytest.mark.slow
+def test_worker_whitted_frames_are_what_render_draws_with_every_ray_counted():
+    """Whitted frames through the worker, as the state asks for them (the
+    light moved, then a prefix of the spheres): render()'s pictures, hits and
+    ray counts, on the CPU (its first Whitted frame compiles for a minute)."""
+    scene = lit_file_scene()
+    state = ViewerState(scene, device="cpu", seed=None, clock=Clock(), shading="whitted", depth=2, shadow_samples=2)
+    state.camera = Camera(position=(-10, 1, 15), look_at=(0, 0, 15))
+    first = state.next_request(24, 16)
+    state.handle_event(key("k"))
+    state.handle_event(key("-"))
+    moved = state.next_request(24, 16)
+    assert moved.count == 2 and moved.scene is not scene
+    results = run_worker([first, moved], timeout=600)
+    assert all(isinstance(r, TracedFrame) for r in results), results
+    for request, traced in zip((first, moved), results):
+        expected = raybench.render(
+            request.scene.head(request.count),
+            request.camera,
+            24,
+            16,
+            device="cpu",
+            shading="whitted",
+            depth=2,
+            shadow_samples=2,
+        )
+        assert np.array_equal(traced.frame.image, expected.image)
+        assert np.array_equal(traced.frame.hits, expected.hits)
+        assert traced.frame.rays == expected.rays and list(traced.frame.rays) == list(KINDS)
+        assert traced.rays_cast == sum(expected.rays.values()) > 24 * 16  # shadow rays at least
+    assert not np.array_equal(results[0].frame.image, results[1].frame.image)
+
+
+def test_whitted_with_a_thesis_only_option_fails_in_the_title_and_g_goes_back():
+    """view --accel none --kernel fast, then G: Whitted's brute force has the
+    simple kernel only. The worker says so (nothing is compiled), the title
+    shows it, and G goes back to frames that trace."""
+    state, _ = make_state(n=12, options={"cpu": {"accel": "none", "kernel": "fast"}})
+    state.handle_event(key("g"))
+    (failed,) = run_worker([state.next_request(8, 6)])
+    assert isinstance(failed, TraceFailed) and "kernel 'fast'" in failed.message
+    state.on_traced(failed)
+    assert state.next_request(8, 6) is None and "kernel 'fast'" in state.title()
+    state.handle_event(key("g"))
+    request = state.next_request(8, 6)
+    assert request.shading is None and request.options == {"accel": "none", "kernel": "fast"}
 
 
 @pytest.mark.gpu
@@ -601,6 +852,11 @@ def test_worker_traces_off_the_event_loop():
         (["--spheres", "3", "--block", "8"], ["--block"]),
         (["--spheres", "3", "--scene", "s.json"], ["--scene", "--spheres"]),
         (["--spheres", "-4"], ["sphere count", "-4"]),
+        (["--spheres", "3", "--depth", "2"], ["--depth", "--shading whitted"]),
+        (["--spheres", "3", "--shading", "whitted", "--depth", "99"], ["depth", "99"]),
+        (["--spheres", "3", "--shading", "whitted", "--shadow-samples", "0"], ["shadow_samples", "got 0"]),
+        (["--spheres", "3", "--shading", "phong"], ["--shading", "phong"]),
+        (["--spheres", "3", "--shading", "whitted", "--accel", "none", "--kernel", "fast"], ["kernel 'fast'"]),
     ],
     ids=[
         "size-0",
@@ -614,6 +870,11 @@ def test_worker_traces_off_the_event_loop():
         "block",
         "scene-and-spheres",
         "negative-spheres",
+        "depth-without-whitted",
+        "depth-99",
+        "shadow-samples-0",
+        "shading-unknown",
+        "whitted-fast-kernel",
     ],
 )
 def test_view_bad_input_is_one_line_and_exit_2(capsys, tmp_path, monkeypatch, args, needles):
@@ -658,6 +919,22 @@ def test_view_takes_renders_device_options_each_device_its_own(monkeypatch):
         "block": (8, 8),
         **common,
     }
+
+
+def test_view_takes_renders_shading_options(monkeypatch):
+    opened = []
+    monkeypatch.setattr(viewer, "view", lambda scene, **kw: opened.append((scene, kw)))
+    assert run(["view", "--scene", "whitted", "--shading", "whitted", "--depth", "3", "--shadow-samples", "2"]) == 0
+    assert run(["view", "--spheres", "4", "--materials"]) == 0
+    (whitted_scene, whitted_kw), (random_scene, thesis_kw) = opened
+    assert {k: whitted_kw[k] for k in ("shading", "depth", "shadow_samples")} == {
+        "shading": "whitted",
+        "depth": 3,
+        "shadow_samples": 2,
+    }
+    assert len(whitted_scene.lights) == 1 and whitted_kw["seed"] is None
+    assert (thesis_kw["shading"], thesis_kw["depth"], thesis_kw["shadow_samples"]) == ("thesis", None, None)
+    assert random_scene.materials == random_spheres(4, 0, materials=True).materials
 
 
 def test_view_refuses_options_the_first_device_refuses_before_the_window(capsys, monkeypatch):

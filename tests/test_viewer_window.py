@@ -24,7 +24,7 @@ import pytest
 from PIL import Image
 
 import raybench
-from raybench import Camera, Scene, random_spheres
+from raybench import Camera, Scene, examples, random_spheres
 from raybench.backends import cuda as cuda_backend
 from raybench.cli import run
 
@@ -246,6 +246,32 @@ def test_screenshot_equals_raybench_render(display, tmp_path):
     assert drawn.shape == expected.shape == (120, 160, 3)
     assert np.array_equal(drawn, expected)
     assert len(np.unique(drawn.reshape(-1, 3), axis=0)) > 100  # a real picture, not a blank window
+
+
+@pytest.mark.slow
+def test_screenshot_equals_raybench_render_under_whitted_shading(display, tmp_path):
+    """`raybench view --shading whitted --frames 2 --screenshot` on the CPU: the
+    window drew `raybench render --shading whitted`, byte for byte. (Small:
+    the first Whitted frame of each process compiles for about a minute.)"""
+    env = dict(os.environ, DISPLAY=display)
+    shading = ["--shading", "whitted", "--depth", "3", "--shadow-samples", "2"]
+    args = ["--scene", "whitted", "--size", "64x48", "--device", "cpu", *shading]
+    shot = tmp_path / "view.png"
+    proc = subprocess.run(
+        [sys.executable, "-m", "raybench", "view", *args, "--frames", "2", "--screenshot", shot],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stdout + proc.stderr
+    assert f"wrote {shot}: 64x48, 7 spheres, cpu, whitted" in proc.stdout
+    drawn = read_png(shot)
+    assert np.array_equal(drawn, render_png(tmp_path, "render.png", *args))
+    thesis = render_png(tmp_path, "thesis.png", *args[:6])
+    assert not np.array_equal(drawn, thesis)  # lit: not the thesis's picture
 
 
 def test_frames_without_screenshot_shows_n_frames_and_exits(display, capsys, tmp_path, monkeypatch):
@@ -540,6 +566,90 @@ def test_wgpu_in_the_window_without_timestamps(display, vulkan_adapter):
     for step, traced, drawn in script.records:
         assert traced.frame.device == "wgpu" and traced.trace_ms > 0
         assert np.abs(drawn.astype(int) - reference(traced).astype(int)).max() <= 1, f"step {step}"
+
+
+def whitted_reference(traced, adapter):
+    """What raybench.render draws on wgpu (the same adapter) for a Whitted frame's request."""
+    r = traced.request
+    shading = r.shading
+    return raybench.render(
+        r.scene.head(r.count),
+        r.camera,
+        r.width,
+        r.height,
+        device="wgpu",
+        adapter=adapter,
+        shading="whitted",
+        depth=shading.depth,
+        shadow_samples=shading.shadow_samples,
+    )
+
+
+@pytest.mark.gpu
+def test_whitted_keys_on_wgpu_in_the_window(display, vulkan_adapter):
+    """In the window's own texture (wgpu, no copy): G toggles Whitted shading,
+    I moves the light up, G goes back. Every Whitted frame drawn is what
+    raybench.render draws on the same adapter, with the same rays counted,
+    and the title shows the rays per second, every kind counted."""
+    name = vulkan_adapter.info["device"]
+    scene = Scene.load(examples.path("whitted"))
+    state = state_for(scene, None, device="wgpu", options={"wgpu": {"adapter": name}}, depth=2, shadow_samples=2)
+    titles = []
+
+    def title(window):
+        titles.append((window.state.title(), window.state.shown))
+
+    steps = [
+        (press("g"), first_frame),  # 1: whitted
+        (title, first_frame),  # 2: the same again, its title
+        (press("i"), first_frame),  # 3: the light moved up
+        (press("g"), first_frame),  # 4: the thesis's shading again
+    ]
+    script, window = play(state, (64, 48), steps, timeout=300)
+    shaded = [(step, traced.request.shading is not None) for step, traced, _ in script.records]
+    assert shaded == [(0, False), (1, True), (2, True), (3, True), (4, False)], shaded
+    for step, traced, drawn in script.records:
+        assert traced.frame.device == "wgpu" and traced.rgba is None
+        if traced.request.shading is None:
+            assert np.abs(drawn.astype(int) - reference(traced).astype(int)).max() <= 1, f"step {step}"
+            continue
+        expected = whitted_reference(traced, name)
+        assert np.array_equal(drawn, expected.image), f"step {step}"
+        assert traced.frame.rays == expected.rays, f"step {step}"
+        assert expected.rays["shadow"] > 0 and expected.rays["reflection"] > 0 and expected.rays["refraction"] > 0
+    thesis_px, whitted_px = script.frames(0)[0][1], script.frames(1)[0][1]
+    moved, moved_px = script.frames(3)[0]
+    assert not np.array_equal(thesis_px, whitted_px) and not np.array_equal(moved_px, whitted_px)
+    assert moved.request.scene.lights[0].position[1] > scene.lights[0].position[1]
+    assert np.array_equal(script.frames(4)[0][1], thesis_px)
+    (text, shown), *_ = titles
+    parts = text.split("  |  ")
+    assert "wgpu" in parts[1] and parts[6] == "whitted, depth 2, 2 shadow samples", text
+    value, unit = parts[7].split(" ", 1)
+    assert unit in ("rays/s", "k rays/s", "M rays/s", "G rays/s") and float(value) > 0, text
+    # the rays counted in the window's pass, read back: more than one a pixel
+    assert shown.rays_cast == sum(shown.frame.rays.values()) > 64 * 48
+
+
+@pytest.mark.gpu
+def test_whitted_without_lights_on_wgpu_is_the_thesis_picture(display, vulkan_adapter):
+    """A scene without lights toggled to Whitted shading is traced, and with
+    nothing lit (no mirrors, no glass) it is the thesis's picture, by design;
+    the light keys say there is no light to move."""
+    name = vulkan_adapter.info["device"]
+    titles = []
+    steps = [
+        (press("g"), first_frame),
+        (press("j"), first_frame),
+        (lambda w: titles.append(w.state.title()), first_frame),
+    ]
+    state = state_for(random_spheres(15, 9), 9, device="wgpu", options={"wgpu": {"adapter": name}})
+    script, _ = play(state, (48, 32), steps, timeout=300)
+    (thesis, thesis_px), (whitted, whitted_px) = script.frames(0)[0], script.frames(1)[0]
+    assert thesis.request.shading is None and whitted.request.shading is not None
+    assert whitted.frame.rays == {"primary": 48 * 32, "shadow": 0, "reflection": 0, "refraction": 0}
+    assert np.array_equal(whitted_px, thesis_px)
+    assert "no lights" in titles[0]
 
 
 @pytest.mark.slow

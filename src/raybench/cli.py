@@ -278,8 +278,9 @@ def _view_help() -> str:
     return (
         "Open a window that shows frames as fast as the device traces them.\n\n"
         "The title bar shows the device, the sphere count, the resolution, the frame time "
-        "(averaged over the last second) and frames per second. The picture is the one "
-        "`raybench render` writes for the same view, byte for byte.\n\n"
+        "(averaged over the last second), frames per second, the shading and rays per second "
+        "(under whitted shading every ray cast counts: primary, shadow, reflection, refraction). "
+        "The picture is the one `raybench render` writes for the same view and shading, byte for byte.\n\n"
         "\b\nKeys:\n" + "\n".join("  " + line for line in help_lines())
     )
 
@@ -289,6 +290,7 @@ def _view_help() -> str:
 @size_option("window size as WIDTHxHEIGHT, e.g. 1680x1050")
 @device_option("where to trace first (switch live with Tab)")
 @tracer_options(adapter_whose="wgpu, and the window")
+@shading_option_group()
 @click.option("--frames", type=click.IntRange(min=1), help="close after N traced frames are shown")
 @click.option(
     "--screenshot",
@@ -308,14 +310,22 @@ def view(
     adapter,
     accel,
     kernel,
+    shading,
+    depth,
+    shadow_samples,
     frames,
     screenshot,
 ):
     from . import backends
+    from .lighting import Shading
+    from .scene import Scene
     from .viewer import view as open_viewer
 
     scene = load_scene(scene_file, spheres, seed, materials)
     width, height = parse_size(size)
+    shaded = shading_options(shading, depth, shadow_samples)
+    # checked here, before the window opens: a Whitted frame of no spheres
+    whitted = Shading.of(Scene([], [], []), depth, shadow_samples) if shading == "whitted" else None
     if screenshot is not None:
         if frames is None:
             raise RaybenchError(
@@ -339,10 +349,17 @@ def view(
                 backends.resolve("cuda")
             except RaybenchError:
                 continue
-        _check_options(name, given)
+        _check_options(name, given, whitted)
     seed = None if scene_file is not None else (0 if seed is None else seed)
     window = open_viewer(
-        scene, device=device, seed=seed, size=(width, height), options=options, frames=frames, screenshot=screenshot
+        scene,
+        device=device,
+        seed=seed,
+        size=(width, height),
+        options=options,
+        frames=frames,
+        screenshot=screenshot,
+        **shaded,
     )
     if frames is not None and window.state.frames_shown < frames:
         raise RaybenchError(
@@ -351,8 +368,9 @@ def view(
         )
     if frames is not None:
         shown = window.state.shown
+        lit = "" if shown.request.shading is None else ", whitted"
         last = (
-            f"{shown.frame.width}x{shown.frame.height}, {shown.request.count:,} spheres, {shown.frame.device}, "
+            f"{shown.frame.width}x{shown.frame.height}, {shown.request.count:,} spheres, {shown.frame.device}{lit}, "
             f"frame {frames} traced in {shown.trace_ms:.1f} ms"
         )
         click.echo(
@@ -360,13 +378,16 @@ def view(
         )
 
 
-def _check_options(device: str, options: dict) -> None:
+def _check_options(device: str, options: dict, whitted=None) -> None:
     """Refuse bad device options (--threads, --block, --accel, ...) before a
-    window opens: the backend itself checks them, on an empty 1x1 tracer."""
+    window opens: the backend itself checks them, on an empty 1x1 tracer
+    (with whitted, a lighting.Shading of no spheres: under Whitted shading)."""
     import numpy as np
 
     from . import backends
 
+    if whitted is not None:
+        options = {**options, "whitted": whitted}
     backends.tracer(device, np.zeros((7, 0), np.float32), 1, 1, **options).close()
 
 

@@ -6,6 +6,7 @@ Pure logic, testable without a window:
     bindings.py   keys -> actions, and the help text
     controls.py   keys held and mouse drags -> camera motion
     spheres.py    +/- and the ramp (test 7): which prefix of which scene is traced
+    shading.py    the shading toggle and the light keys: what the next frame is lit by
     pacing.py     the handoff between tracer thread and window; frame time and fps
     overlay.py    the title bar's status line
     state.py      the event handler, and what to trace next
@@ -31,13 +32,19 @@ def view(
     options: dict | None = None,
     frames: int | None = None,
     screenshot: Path | None = None,
+    shading: str = "thesis",
+    depth: int | None = None,
+    shadow_samples: int | None = None,
 ):
     """Open the window on scene and run until it closes; returns the window
-    (what it saved, and its state with the last frame shown)."""
+    (what it saved, and its state with the last frame shown). shading, depth
+    and shadow_samples: the first frame's, as render() takes them."""
     from .state import ViewerState
     from .window import ViewerWindow
 
-    state = ViewerState(scene, device=device, seed=seed, options=options)
+    state = ViewerState(
+        scene, device=device, seed=seed, options=options, shading=shading, depth=depth, shadow_samples=shadow_samples
+    )
     window = ViewerWindow(state, size, frames=frames, screenshot=screenshot)
     window.run()
     return window

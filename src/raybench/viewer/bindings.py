@@ -37,7 +37,16 @@ BINDINGS = (
     Binding(
         ("t",), "ramp", "ramp (the thesis's test 7): from 10 spheres, 10 more every frame, up to 1000; again to stop"
     ),
-    Binding(("r",), "reset", "reset the view"),
+    Binding(
+        ("g",), "toggle_shading", "toggle the shading: thesis, whitted (the scene's lights, shadows, mirrors, glass)"
+    ),
+    Binding(("j",), "light_left", "move the (first) light left, in the camera's frame"),
+    Binding(("l",), "light_right", "move the light right"),
+    Binding(("i",), "light_up", "move the light up"),
+    Binding(("k",), "light_down", "move the light down"),
+    Binding(("u",), "light_away", "move the light away from the camera"),
+    Binding(("o",), "light_near", "move the light towards the camera"),
+    Binding(("r",), "reset", "reset the view and the light"),
     Binding(("p",), "screenshot", "save what is on screen as a PNG in the current folder"),
     Binding(("h",), "help", "show the keys in the title bar (and print them); again to hide"),
     Binding(("Escape",), "quit", "quit"),
@@ -70,4 +79,7 @@ def help_lines() -> list[str]:
 
 def help_summary() -> str:
     """The keys in one short line, for the title bar."""
-    return "WASD move, drag/arrows turn, Tab device, +/- spheres, T ramp, R reset, P screenshot, H help, Esc quit"
+    return (
+        "WASD move, drag/arrows turn, Tab device, +/- spheres, T ramp, G shading, IJKL/UO light, R reset, "
+        "P screenshot, H help, Esc quit"
+    )

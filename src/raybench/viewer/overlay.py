@@ -24,6 +24,15 @@ def _fps(fps: float | None) -> str:
     return f"{fps:.1f} fps" if fps < 100 else f"{fps:.0f} fps"
 
 
+def _rays(per_s: float | None) -> str:
+    if per_s is None:
+        return "- rays/s"
+    for scale, prefix in ((1e9, "G"), (1e6, "M"), (1e3, "k")):
+        if per_s >= scale:
+            return f"{per_s / scale:.3g} {prefix} rays/s"
+    return f"{per_s:.0f} rays/s"
+
+
 def status_line(
     *,
     device: str,
@@ -34,10 +43,15 @@ def status_line(
     fps: float | None,
     ramp: bool = False,
     message: str | None = None,
+    shading: str | None = None,
+    rays_per_s: float | None = None,
 ) -> str:
     """device, sphere count, resolution, frame time and frames per second of
-    what is on screen; then the ramp flag and the latest message."""
+    what is on screen; with a shading, it and the rays cast per second (under
+    Whitted's, every kind counted); then the ramp flag and the latest message."""
     parts = ["raybench", device, f"{spheres:,} spheres", f"{width}x{height}", f"frame {_ms(frame_ms)}", _fps(fps)]
+    if shading is not None:
+        parts += [shading, _rays(rays_per_s)]
     if ramp:
         parts.append("ramp")
     if message:

@@ -7,8 +7,9 @@ slow device (input is always applied to the very next frame), no traced frame
 is thrown away, and a fast device is not held back by drawing: tracing frame
 k + 1 overlaps showing frame k.
 
-FrameStats turns the frames shown into the overlay's two numbers: the frame
-time (what tracing took, averaged over the last second) and frames per second.
+FrameStats turns the frames shown into the overlay's numbers: the frame time
+(what tracing took, averaged over the last second), frames per second, and
+rays per second (the rays the frames cast over the time tracing them).
 """
 
 from __future__ import annotations
@@ -61,21 +62,21 @@ class FrameStats:
 
     def __init__(self, window_s: float = WINDOW_S):
         self.window_s = window_s
-        self._frames: deque[tuple[float, float]] = deque()  # (shown at, trace ms)
-        self._last: tuple[float, float] | None = None
+        self._frames: deque[tuple[float, float, int]] = deque()  # (shown at, trace ms, rays cast)
+        self._last: tuple[float, float, int] | None = None
         self._interval: float | None = None  # seconds between the last two frames shown
 
-    def add(self, shown_at: float, trace_ms: float) -> None:
+    def add(self, shown_at: float, trace_ms: float, rays: int = 0) -> None:
         if self._last is not None:
             self._interval = shown_at - self._last[0]
-        self._last = (shown_at, trace_ms)
+        self._last = (shown_at, trace_ms, rays)
         self._frames.append(self._last)
 
     def reset(self) -> None:
         """Start afresh (a new device or size: old numbers would mislead)."""
         self.__init__(self.window_s)
 
-    def _recent(self, now: float) -> list[tuple[float, float]]:
+    def _recent(self, now: float) -> list[tuple[float, float, int]]:
         while self._frames and self._frames[0][0] <= now - self.window_s:
             self._frames.popleft()
         return list(self._frames)
@@ -85,8 +86,16 @@ class FrameStats:
         take longer than that, the last frame's."""
         recent = self._recent(now)
         if recent:
-            return sum(ms for _, ms in recent) / len(recent)
+            return sum(ms for _, ms, _ in recent) / len(recent)
         return None if self._last is None else self._last[1]
+
+    def rays_per_s(self, now: float) -> float | None:
+        """Rays cast per second of tracing by the frames shown in the last
+        second (all their rays over all their trace time); when frames take
+        longer than that, the last frame's."""
+        frames = self._recent(now) or ([self._last] if self._last is not None else [])
+        ms = sum(ms for _, ms, _ in frames)
+        return sum(rays for _, _, rays in frames) / ms * 1e3 if ms > 0 else None
 
     def fps(self, now: float) -> float | None:
         """Frames shown per second over the last second; when frames come less

@@ -11,6 +11,10 @@ ramp costs no upload per frame):
 - a scene file: `-` and `+` move within the file's spheres;
 - the ramp (T): test 7's scene, random_spheres(1000, seed), from 10 spheres,
   10 more every frame up to 1000 (a file ramps over its own spheres).
+
+Random spheres made with --materials stay so: the scenes made for + and the
+ramp are random_spheres(..., materials=True) too, what `raybench render
+--materials` draws.
 """
 
 from __future__ import annotations
@@ -26,6 +30,8 @@ class SphereSupply:
         """seed: that of random_spheres for a generated scene; None for a scene file."""
         self.scene = scene
         self.seed = seed
+        # A generated scene with materials came from random_spheres(..., materials=True): so do the next.
+        self.materials = scene.materials is not None
         self.count = len(scene)
         self.ramping = False
 
@@ -40,7 +46,7 @@ class SphereSupply:
             if not self.generated:
                 self.count = len(self.scene)
                 return f"the scene file has {len(self.scene):,} spheres, all shown"
-            self.scene = random_spheres(target, self.seed)
+            self.scene = random_spheres(target, self.seed, materials=self.materials)
         self.count = target
         return None
 
@@ -54,7 +60,7 @@ class SphereSupply:
             return f"ramp stopped at {self.count:,} spheres"
         first, last, _ = RAMP
         if self.generated and len(self.scene) != last:
-            self.scene = random_spheres(last, self.seed)
+            self.scene = random_spheres(last, self.seed, materials=self.materials)
         self.count = min(first, len(self.scene))
         self.ramping = True
         return f"ramp: {self.count:,} to {len(self.scene):,} spheres, {STEP} more every frame"

@@ -17,6 +17,7 @@ from .bindings import binding_for
 from .controls import Motion, travel_speed
 from .overlay import help_line, status_line, waiting_line
 from .pacing import FrameStats
+from .shading import LIGHT_MOVES, LIGHT_STEP_S, ShadingControl
 from .spheres import SphereSupply
 from .worker import TracedFrame, TraceFailed, TraceRequest
 
@@ -35,10 +36,14 @@ class ViewerState:
         options: dict | None = None,
         clock=time.perf_counter,
         devices=("cpu", "cuda"),
+        shading: str = "thesis",
+        depth: int | None = None,
+        shadow_samples: int | None = None,
     ):
         """device: "cpu", "cuda" or "wgpu" (already resolved); seed: that of a generated
         scene, None for a scene file; options: per device, e.g. {"cpu": {"threads": 4}};
-        devices: those Tab cycles through (the window adds wgpu where it can trace on it)."""
+        devices: those Tab cycles through (the window adds wgpu where it can trace on it);
+        shading, depth, shadow_samples: the first frame's shading, as render() takes them."""
         if device not in backends.DEVICES:
             raise ValueError(f"device must be one of {backends.DEVICES}, got {device!r}")
         self.devices = tuple(devices) + ((device,) if device not in devices else ())
@@ -51,6 +56,7 @@ class ViewerState:
         self._working_device = device  # where frames last came from: the fallback for a failed switch
         self.options = {d: dict((options or {}).get(d, {})) for d in backends.DEVICES}
         self.motion = Motion(travel_speed(scene.centers, self.home))
+        self.lighting = ShadingControl(shading, depth, shadow_samples, step=self.motion.speed * LIGHT_STEP_S)
         self.stats = FrameStats()
         self.shown: TracedFrame | None = None
         self.frames_shown = 0
@@ -114,9 +120,14 @@ class ViewerState:
             self.supply.fewer()
         elif action == "ramp":
             self.say(self.supply.toggle_ramp())
+        elif action == "toggle_shading":
+            self.say(self.lighting.toggle())
+        elif action in LIGHT_MOVES:
+            self.say(self.lighting.move_light(action, self.supply.scene, self.camera))
         elif action == "reset":
             self.camera = self.home
             self.motion.clear(now)
+            self.lighting.reset_light()
             self.say("view reset")
         elif action == "screenshot":
             self.screenshot_wanted = True
@@ -156,6 +167,7 @@ class ViewerState:
         self._stalled_at = None
         self.camera = self.motion.apply(self.camera, self.clock())
         scene, count, message = self.supply.frame_count()
+        scene, shading = self.lighting.for_scene(scene)
         self.say(message)
         self.requests_made += 1
         self.last_request = TraceRequest(
@@ -167,6 +179,7 @@ class ViewerState:
             width=width,
             height=height,
             options=self.options[self.device],
+            shading=shading,
         )
         return self.last_request
 
@@ -183,12 +196,8 @@ class ViewerState:
                 self._stall_reason = f"stopped: {result.message} (resize or press a key to try again)"
             return
         previous = self.shown
-        if previous is None or (previous.frame.device, previous.frame.width, previous.frame.height) != (
-            result.frame.device,
-            result.frame.width,
-            result.frame.height,
-        ):
-            self.stats.reset()  # another device or size: its times are not comparable
+        if previous is None or comparable(previous) != comparable(result):
+            self.stats.reset()  # another device, size or shading: its times are not comparable
         if previous is not None and previous.frame.device != result.frame.device:
             self.say(f"now on {result.frame.device}")
         if result.compile_s is not None and result.compile_s >= MIN_COMPILE_NOTE_S:
@@ -196,7 +205,7 @@ class ViewerState:
         self._working_device = result.frame.device
         self.shown = result
         self.frames_shown += 1
-        self.stats.add(self.clock(), result.trace_ms)
+        self.stats.add(self.clock(), result.trace_ms, result.rays_cast)
 
     # ------------------------------------------------------------------ display
 
@@ -223,7 +232,22 @@ class ViewerState:
             fps=self.stats.fps(now),
             ramp=self.supply.ramping,
             message=message,
+            shading=shading_label(shown),
+            rays_per_s=self.stats.rays_per_s(now),
         )
+
+
+def comparable(shown: TracedFrame) -> tuple:
+    """What frames must share for their times to be averaged together."""
+    return shown.frame.device, shown.frame.width, shown.frame.height, shown.request.shading is None
+
+
+def shading_label(shown: TracedFrame) -> str:
+    """The shading of a frame, with what sets Whitted's cost."""
+    shading = shown.request.shading
+    if shading is None:
+        return "thesis"
+    return f"whitted, depth {shading.depth}, {shading.shadow_samples} shadow samples"
 
 
 def device_label(shown: TracedFrame) -> str:

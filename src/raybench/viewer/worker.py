@@ -2,7 +2,7 @@
 
 The thread only calls the backends' tracers (the same Tracer objects that
 render() and the benchmark use); it never traces by itself. It keeps one tracer
-and replaces it when the device, size, scene or options change. Every tracer
+and replaces it when the device, size, scene, options or shading change. Every tracer
 is made, used and closed on this one thread, which is what makes switching the
 device while a frame is in flight safe: the switch only changes the next
 request, and a CUDA context never crosses threads.
@@ -23,6 +23,8 @@ import numpy as np
 from .. import backends
 from ..camera import Camera
 from ..errors import RaybenchError
+from ..kernels.whitted import KINDS
+from ..lighting import Shading
 from ..render import Frame
 from ..scene import Scene
 from .pacing import Handoff
@@ -38,6 +40,7 @@ class TraceRequest:
     width: int
     height: int
     options: dict = field(default_factory=dict)  # the device's own (cpu: threads; cuda: block)
+    shading: Shading | None = None  # Whitted shading's arrays (of this scene); None: the thesis's shading
 
 
 @dataclass
@@ -47,6 +50,14 @@ class TracedFrame:
     rgba: np.ndarray | None  # (H, W, 4) uint8: the frame as the texture wants it (None: already there)
     trace_ms: float  # camera basis, trace and copy to the host: the whole frame (wgpu: the pass)
     compile_s: float | None  # set on the first frame of a new tracer
+
+    @property
+    def rays_cast(self) -> int:
+        """The rays the frame cast: under Whitted shading every kind the
+        kernel counted (primary, shadow, reflection, refraction); under the
+        thesis's, one primary ray a pixel."""
+        counted = getattr(self.frame, "rays", None)
+        return sum(counted.values()) if counted else self.frame.width * self.frame.height
 
 
 @dataclass
@@ -124,7 +135,9 @@ class TraceWorker:
             image, hits = self._tracer.trace(request.camera.basis(request.width, request.height), request.count)
             trace_ms = (time.perf_counter() - start) * 1e3
             # The tracer reuses its buffers for the next frame: the Frame gets copies, as render() gives.
-            frame = Frame(image=image.copy(), hits=hits.copy(), device=self._tracer.name)
+            counts = self._tracer.ray_counts
+            rays = None if counts is None else dict(zip(KINDS, counts.tolist()))
+            frame = Frame(image=image.copy(), hits=hits.copy(), device=self._tracer.name, rays=rays)
             return TracedFrame(request, frame, to_rgba(frame.image), trace_ms, compile_s)
         except RaybenchError as exc:
             self._drop_tracer()
@@ -136,20 +149,22 @@ class TraceWorker:
     def _ensure_tracer(self, request: TraceRequest) -> float | None:
         """Make the tracer this request needs, if it is not the one held; the
         seconds its compilation took (None if it was already there)."""
-        key = (request.device, id(request.scene), request.width, request.height, tuple(sorted(request.options.items())))
+        options = request.options
+        key = (request.device, id(request.scene), id(request.shading), request.width, request.height)
+        key += (tuple(sorted(options.items())),)
         if key == self._tracer_key:
             return None
         self._drop_tracer()
-        tracer = backends.tracer(
-            request.device, request.scene.spheres, request.width, request.height, **request.options
-        )
+        if request.shading is not None:
+            options = {**options, "whitted": request.shading}
+        tracer = backends.tracer(request.device, request.scene.spheres, request.width, request.height, **options)
         try:
             compile_s = tracer.compile()
         except BaseException:
             tracer.close()
             raise
-        # The scene is held with the key: its id() must not be reused while the key is.
-        self._tracer, self._tracer_key, self._tracer_scene = tracer, key, request.scene
+        # The scene and shading are held with the key: their id()s must not be reused while the key is.
+        self._tracer, self._tracer_key, self._tracer_scene = tracer, key, (request.scene, request.shading)
         return compile_s
 
     def _drop_tracer(self) -> None:

@@ -4,8 +4,9 @@ with no copy of the frame in either direction.
 
 The compute pass (the wgpu backend's Compute, on the window's own device)
 and the quad's render pass are recorded into one command buffer by the
-window; this module keeps the Compute for the current scene, size and
-options, and reads back how long the pass took.
+window; this module keeps the Compute for the current scene, size, options
+and shading, and reads back how long the pass took and, under Whitted
+shading, the rays it counted (16 bytes: the frame itself is never copied).
 """
 
 from __future__ import annotations
@@ -13,9 +14,12 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
+import numpy as np
+
 from ..backends.limits import check_count
-from ..backends.wgpu.compute import Compute
+from ..backends.wgpu.compute import RAY_KINDS, Compute
 from ..backends.wgpu.tracer import timestamp_period
+from ..kernels.whitted import KINDS
 
 
 @dataclass(frozen=True)
@@ -27,6 +31,7 @@ class DrawnFrame:
     height: int
     device: str
     adapter: str  # e.g. "llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, CPU)"
+    rays: dict | None = None  # Whitted shading: the rays cast by kind, as Frame.rays; None under the thesis's
 
 
 class InWindowTracer:
@@ -40,13 +45,14 @@ class InWindowTracer:
         self._key = None
         self._scene = None
         self._started = 0.0
+        self._rays_read = None  # where a Whitted pass's ray counts are copied, to be read back
 
     def prepare(self, request) -> float | None:
         """Make the Compute this request needs, if it is not the one held; the
         seconds its pipeline took to build (None if it was already there)."""
         # The adapter option chose the window's adapter; the rest are the backend's.
         options = {k: v for k, v in request.options.items() if k != "adapter"}
-        key = (id(request.scene), request.width, request.height, tuple(sorted(options.items())))
+        key = (id(request.scene), id(request.shading), request.width, request.height, tuple(sorted(options.items())))
         if key == self._key:
             return None
         self.compute, self._key, self._scene = None, None, None
@@ -64,10 +70,14 @@ class InWindowTracer:
             options.pop("kernel", None),
             extra_texture_usage=wgpu.TextureUsage.TEXTURE_BINDING,
             walk=options.pop("walk", None),
+            whitted=request.shading,
         )
         compile_s = compute.compile()
-        # The scene is held with the key: its id() must not be reused while the key is.
-        self.compute, self._key, self._scene = compute, key, request.scene
+        if request.shading is not None and self._rays_read is None:
+            usage = wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ
+            self._rays_read = self.device.create_buffer(size=RAY_KINDS * 4, usage=usage)
+        # The scene and shading are held with the key: their id()s must not be reused while the key is.
+        self.compute, self._key, self._scene = compute, key, (request.scene, request.shading)
         return compile_s
 
     def encode(self, encoder, request) -> None:
@@ -76,6 +86,8 @@ class InWindowTracer:
         self.compute.encode(
             encoder, request.camera.basis(request.width, request.height), count, timed=self.period_ns is not None
         )
+        if self.compute.whitted is not None:
+            encoder.copy_buffer_to_buffer(self.compute.rays, 0, self._rays_read, 0, RAY_KINDS * 4)
         if self.period_ns is None:
             self.compute.encode_fence(encoder)
         self._started = time.perf_counter()
@@ -89,4 +101,18 @@ class InWindowTracer:
         return (time.perf_counter() - self._started) * 1e3
 
     def frame(self, request) -> DrawnFrame:
-        return DrawnFrame(request.width, request.height, "wgpu", self.adapter.label())
+        """The frame, once its submission has completed (this waits for it)."""
+        return DrawnFrame(request.width, request.height, "wgpu", self.adapter.label(), self._read_rays(request))
+
+    def _read_rays(self, request) -> dict | None:
+        """Under Whitted shading, the rays the pass counted, by kind."""
+        if request.shading is None:
+            return None
+        import wgpu
+
+        self._rays_read.map_sync(wgpu.MapMode.READ)
+        try:
+            counts = np.frombuffer(self._rays_read.read_mapped(copy=False), np.uint32).tolist()
+        finally:
+            self._rays_read.unmap()
+        return dict(zip(KINDS, counts))
