@@ -290,3 +290,18 @@ def test_wgpu_gives_the_cpu_frame(rng, accel, adapter):
     else:
         steps = np.abs(cpu.image.astype(int) - gpu.image.astype(int)).max(axis=2)
         assert (steps > 1).mean() <= 0.01 and (cpu.hits != gpu.hits).mean() <= 0.005
+
+
+@pytest.mark.gpu
+@pytest.mark.slow
+def test_wgpu_brute_force_is_its_bvh_on_a_large_scene(adapter):
+    """Brute force and the BVH give one Whitted frame on wgpu, 1,000 spheres,
+    where a pixel's rays test the spheres over 65,535 times: more than
+    lavapipe's loop limiter lets one invocation run (brute.wgsl says so),
+    so this runs on GPU adapters only."""
+    if backends.module("wgpu").choose(adapter).type == "CPU":
+        pytest.skip("a CPU adapter (lavapipe) cuts loops of over 65,535 trips short: brute.wgsl")
+    scene = raybench.random_spheres(1000, seed=0, materials=True)
+    frames = [frame(scene, "wgpu", 160, 100, accel=accel, samples=4, adapter=adapter) for accel in ("none", "bvh")]
+    assert frames[0].rays == frames[1].rays
+    assert np.array_equal(frames[0].image, frames[1].image) and np.array_equal(frames[0].hits, frames[1].hits)
