@@ -4,7 +4,7 @@ CPU (Numba) and for NVIDIA GPUs (numba-cuda), to measure what a GPU buys."""
 from .camera import Camera
 from .errors import RaybenchError
 from .lighting import Light, Material
-from .render import Frame, render
+from .render import Frame, Renderer, render
 from .scene import Scene, random_spheres
 
 __version__ = "0.1.0"
@@ -15,6 +15,7 @@ __all__ = [
     "Light",
     "Material",
     "RaybenchError",
+    "Renderer",
     "Scene",
     "random_spheres",
     "render",

@@ -24,7 +24,7 @@ class Frame:
     holds the index of the sphere seen in each pixel, -1 where the ray missed."""
 
     image: np.ndarray
-    hits: np.ndarray
+    hits: np.ndarray | None  # None where the caller asked for none (Renderer.render(hits=False))
     device: str
     build_s: float | None = None  # the BVH's build, apart from the trace; None for brute force
     # Whitted shading: the rays the kernel cast, by kind (primary, shadow,
@@ -63,6 +63,72 @@ def png_bytes(image: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
+class Renderer:
+    """A scene kept ready on a device, frame after frame: its tree, the
+    device's buffers and the compiled kernel are made once, here, and each
+    render(camera) traces one frame. Close it with close() or a `with` block:
+
+        with raybench.Renderer(scene, 1680, 1050, device="cuda", shading="whitted") as renderer:
+            for camera in path:
+                renderer.render(camera).save(...)
+
+    device, shading, depth, shadow_samples and the device's options are
+    render()'s (below)."""
+
+    def __init__(
+        self,
+        scene: Scene,
+        width: int = 800,
+        height: int = 600,
+        device: str = "auto",
+        shading: str = "thesis",
+        depth: int | None = None,
+        shadow_samples: int | None = None,
+        **options,
+    ):
+        if not isinstance(scene, Scene):
+            raise RaybenchError(f"scene: must be a raybench.Scene, got {type(scene).__name__}")
+        check_size(width, height)
+        if check_shading(shading) == "whitted":
+            options["whitted"] = Shading.of(scene, depth, shadow_samples)
+        elif depth is not None or shadow_samples is not None:
+            raise RaybenchError("depth and shadow_samples: apply to shading='whitted' only")
+        self.scene, self.width, self.height, self.shading = scene, width, height, shading
+        self.tracer = backends.tracer(device, scene.spheres, width, height, **options)
+
+    @property
+    def device(self) -> str:
+        return self.tracer.name
+
+    def render(self, camera: Camera | None = None, hits: bool = True) -> Frame:
+        """One frame as seen by camera (default: the scene's own camera, else
+        Camera()); a Frame of its own arrays. hits=False leaves Frame.hits
+        None and saves copying them."""
+        if self.tracer is None:
+            raise RaybenchError("renderer: it is closed; make a new Renderer")
+        camera = camera or self.scene.camera or Camera()
+        image, hit_ids = self.tracer.trace(camera.basis(self.width, self.height))
+        counts = self.tracer.ray_counts
+        return Frame(
+            image=image.copy(),
+            hits=hit_ids.copy() if hits else None,
+            device=self.tracer.name,
+            build_s=self.tracer.build_s,
+            rays=None if counts is None else dict(zip(KINDS, counts.tolist())),
+        )
+
+    def close(self) -> None:
+        if self.tracer is not None:
+            self.tracer.close()
+            self.tracer = None
+
+    def __enter__(self) -> Renderer:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
 def render(
     scene: Scene,
     camera: Camera | None = None,
@@ -75,24 +141,15 @@ def render(
     **options,
 ) -> Frame:
     """Trace one frame of scene as seen by camera (default: the scene's own
-    camera, else Camera()). device is "cpu", "cuda", "wgpu" or "auto".
-    shading: "thesis" (the default: each sphere's colour darkened towards its
-    rim) or "whitted" (the scene's lights with shadows, mirrors and glass, to
-    `depth` bounces, default 5; an area light's soft shadow from
-    `shadow_samples` rays, default 4). options go to the device (cpu:
-    threads=N; cuda: block=(x, y); wgpu: workgroup=(x, y), adapter="name",
-    needed for a CPU driver such as llvmpipe; every device: accel="bvh" (the
-    default) or "none", brute force with kernel="fast" or "simple" on cpu and
-    cuda, "simple" only on wgpu and under Whitted shading)."""
-    if not isinstance(scene, Scene):
-        raise RaybenchError(f"scene: must be a raybench.Scene, got {type(scene).__name__}")
-    check_size(width, height)
-    camera = camera or scene.camera or Camera()
-    if check_shading(shading) == "whitted":
-        options["whitted"] = Shading.of(scene, depth, shadow_samples)
-    elif depth is not None or shadow_samples is not None:
-        raise RaybenchError("depth and shadow_samples: apply to shading='whitted' only")
-    with backends.tracer(device, scene.spheres, width, height, **options) as tracer:
-        image, hits = tracer.trace(camera.basis(width, height))
-        rays = None if tracer.ray_counts is None else dict(zip(KINDS, tracer.ray_counts.tolist()))
-        return Frame(image=image.copy(), hits=hits.copy(), device=tracer.name, build_s=tracer.build_s, rays=rays)
+    camera, else Camera()): a Renderer for one frame. device is "cpu",
+    "cuda", "wgpu" or "auto". shading: "thesis" (the default: each sphere's
+    colour darkened towards its rim) or "whitted" (the scene's lights with
+    shadows, mirrors and glass, to `depth` bounces, default 5; an area light's
+    soft shadow from `shadow_samples` rays, default 4). options go to the
+    device (cpu: threads=N; cuda: block=(x, y); wgpu: workgroup=(x, y),
+    adapter="name", needed for a CPU driver such as llvmpipe; every device:
+    accel="bvh" (the default) or "none", brute force with kernel="fast" or
+    "simple" on cpu and cuda, "simple" only on wgpu and under Whitted
+    shading)."""
+    with Renderer(scene, width, height, device, shading, depth, shadow_samples, **options) as renderer:
+        return renderer.render(camera)
