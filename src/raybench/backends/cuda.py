@@ -131,12 +131,14 @@ def _flush(tally, me, rays):
 _whitted_bvh_pixel, _whitted_all_pixel = _k.render_pixel_whitted["bvh"], _k.render_pixel_whitted["none"]
 
 
-# Whitted shading, a thread a pixel (kernels/whitted.py): one cached kernel
-# for each search, written out at module level (cpu.py says why), with the
-# block's ray tally (_tally, _flush).
+# Whitted shading, a thread a pixel (kernels/whitted.py), through the tree or,
+# where it has no node, by brute force: one kernel holding both programs (a
+# kernel cannot take the program as an argument, and a factory's closure
+# would miss the cache, cpu.py says why); the choice is the same in every
+# thread. rays[kind] += the rays the block cast (_tally, _flush).
 @compiled.cuda_jit()
-def _whitted_bvh_kernel(width, height, basis, spheres, count, materials, lights, pattern, params, nodes, links,
-                        ordered, order, image, hits, rays):  # fmt: skip
+def _whitted_kernel(width, height, basis, spheres, count, materials, lights, pattern, params, nodes, links, ordered,
+                    order, image, hits, rays):  # fmt: skip
     x, y = cuda.grid(2)
     me = cuda.threadIdx.y * cuda.blockDim.x + cuda.threadIdx.x
     tally = cuda.shared.array(4, np.int32)
@@ -148,37 +150,19 @@ def _whitted_bvh_kernel(width, height, basis, spheres, count, materials, lights,
         stack_t = cuda.local.array(STACK, np.float32)
         rays_f = cuda.local.array((RAY_STACK, RAY_FLOATS), np.float32)
         rays_i = cuda.local.array((RAY_STACK, RAY_INTS), np.int32)
-        primary, shadow, reflection, refraction = _whitted_bvh_pixel(
-            x, y, width, height, basis, spheres, count, materials, lights, pattern, params,
-            (nodes, links, ordered, order), stack_row, stack_t, rays_f, rays_i, image, hits,
-        )  # fmt: skip
+        tree = (nodes, links, ordered, order)
+        if nodes.shape[0] > 0:
+            primary, shadow, reflection, refraction = _whitted_bvh_pixel(
+                x, y, width, height, basis, spheres, count, materials, lights, pattern, params, tree, stack_row,
+                stack_t, rays_f, rays_i, image, hits,
+            )  # fmt: skip
+        else:
+            primary, shadow, reflection, refraction = _whitted_all_pixel(
+                x, y, width, height, basis, spheres, count, materials, lights, pattern, params, tree, stack_row,
+                stack_t, rays_f, rays_i, image, hits,
+            )  # fmt: skip
         _tally(tally, primary, shadow, reflection, refraction)
     _flush(tally, me, rays)
-
-
-@compiled.cuda_jit()
-def _whitted_all_kernel(width, height, basis, spheres, count, materials, lights, pattern, params, nodes, links,
-                        ordered, order, image, hits, rays):  # fmt: skip
-    x, y = cuda.grid(2)
-    me = cuda.threadIdx.y * cuda.blockDim.x + cuda.threadIdx.x
-    tally = cuda.shared.array(4, np.int32)
-    if me < 4:
-        tally[me] = 0
-    cuda.syncthreads()
-    if x < width and y < height:
-        stack_row = cuda.local.array(STACK, np.int32)
-        stack_t = cuda.local.array(STACK, np.float32)
-        rays_f = cuda.local.array((RAY_STACK, RAY_FLOATS), np.float32)
-        rays_i = cuda.local.array((RAY_STACK, RAY_INTS), np.int32)
-        primary, shadow, reflection, refraction = _whitted_all_pixel(
-            x, y, width, height, basis, spheres, count, materials, lights, pattern, params,
-            (nodes, links, ordered, order), stack_row, stack_t, rays_f, rays_i, image, hits,
-        )  # fmt: skip
-        _tally(tally, primary, shadow, reflection, refraction)
-    _flush(tally, me, rays)
-
-
-WHITTED_KERNELS = {"bvh": _whitted_bvh_kernel, "none": _whitted_all_kernel}
 
 
 @compiled.cuda_jit()
@@ -554,7 +538,7 @@ class Tracer(TracerBase):
                 raise RaybenchError(
                     "walk 'packet': applies to the thesis's shading only; Whitted's rays walk one by one"
                 )
-            self._kernel = WHITTED_KERNELS[self.accel]
+            self._kernel = _whitted_kernel
             if self.accel == "bvh":
                 self._build(self.count)
                 self.walk = "ray"
