@@ -572,3 +572,8 @@ def test_render_accel_bvh_and_none_same_png(tmp_path, capsys):
     )
     assert_user_error(code, out, err, "kernel", "brute force only")
     assert not (tmp_path / "x.png").exists()
+
+
+def test_warmup_refuses_an_unknown_device(capsys):
+    code, out, err = cli(capsys, "warmup", "--device", "tpu")
+    assert code == 2 and err.strip() == "raybench: error: --device: unknown device 'tpu'; choose from cpu, cuda, wgpu"

@@ -568,6 +568,45 @@ def bench(suites, devices, adapter, kernels, accels, duration, quick, out_dir, l
         click.echo(f"report: {path}")
 
 
+@main.command()
+@click.option(
+    "--device", "devices", multiple=True, help="cpu, cuda or wgpu; repeat for several (default: every device present)"
+)
+def warmup(devices):
+    """Compile every kernel ahead of the first picture, into the disk cache
+    (raybench.compiled): the thesis's and Whitted's shading, through the BVH
+    and by brute force, and the BVH's builder. Later processes load them."""
+    import numpy as np
+    from rich.progress import Progress
+
+    from . import backends, compiled, lighting
+    from .camera import Camera
+    from .scene import random_spheres
+
+    devices = tuple(dict.fromkeys(devices)) or tuple(backends.present())
+    for d in devices:
+        if d not in backends.DEVICES:
+            raise RaybenchError(f"--device: unknown device {d!r}; choose from {', '.join(backends.DEVICES)}")
+        backends.resolve(d)
+    scene = random_spheres(8, seed=0, materials=True)
+    whitted = lighting.Shading.of(scene)
+    jobs = [(d, accel, shading) for d in devices for accel in ("bvh", "none") for shading in ("thesis", "whitted")]
+    with Progress(transient=True) as progress:
+        task = progress.add_task("compiling", total=len(jobs))
+        for device, accel, shading in jobs:
+            progress.update(task, description=f"{device}, {accel}, {shading}")
+            options = {"whitted": whitted} if shading == "whitted" else {}
+            with backends.tracer(device, scene.spheres, 4, 4, accel=accel, **options) as tracer:
+                tracer.compile()
+                tracer.trace(Camera().basis(4, 4))
+            progress.advance(task)
+    if "cpu" in devices:  # the thesis's brute force on the CPU: both of its kernels
+        for kernel in ("fast", "simple"):
+            with backends.tracer("cpu", np.zeros((7, 0), np.float32), 4, 4, kernel=kernel) as tracer:
+                tracer.compile()
+    click.echo(f"compiled for {', '.join(devices)}; the cache: {compiled.CACHE_DIR}")
+
+
 @main.command(name="report")
 @click.argument("results", nargs=-1, required=True, type=click.Path(path_type=Path))
 @click.option(
