@@ -44,7 +44,7 @@ def _number(value, where: str, low: float, high: float, low_open: bool = False) 
     return value
 
 
-def _colour(value, where: str) -> tuple[float, float, float]:
+def check_colour(value, where: str) -> tuple[float, float, float]:
     vec = _vector(value, where)
     if not all(0.0 <= c <= 1.0 for c in vec):
         raise RaybenchError(f"{where}: each channel must be in [0, 1], got {list(vec)}")
@@ -114,7 +114,7 @@ class Light:
 
     def check(self, where: str) -> None:
         object.__setattr__(self, "position", _vector(self.position, f"{where}.position"))
-        object.__setattr__(self, "color", _colour(self.color, f"{where}.color"))
+        object.__setattr__(self, "color", check_colour(self.color, f"{where}.color"))
         _number(self.intensity, f"{where}.intensity", 0.0, MAX_INTENSITY)
         _number(self.radius, f"{where}.radius", 0.0, MAX_MAGNITUDE)
 
@@ -180,7 +180,7 @@ def sample_pattern(samples: int) -> np.ndarray:
 @dataclass
 class Shading:
     """What a Whitted frame needs besides the spheres: the arrays the kernel
-    reads (params: lay out in kernels/whitted.py's P_ indices)."""
+    reads (params: laid out by kernels/whitted.py's P_ indices)."""
 
     materials: np.ndarray
     lights: np.ndarray

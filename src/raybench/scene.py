@@ -102,8 +102,8 @@ class Scene:
         for i, light in enumerate(self.lights):
             if not isinstance(light, lighting.Light):
                 raise RaybenchError(f"lights[{i}]: must be a raybench.Light, got {type(light).__name__}")
-        self.ambient = lighting._colour(ambient, "ambient")
-        self.background = None if background is None else lighting._colour(background, "background")
+        self.ambient = lighting.check_colour(ambient, "ambient")
+        self.background = None if background is None else lighting.check_colour(background, "background")
 
     def __len__(self) -> int:
         return self.spheres.shape[1]
