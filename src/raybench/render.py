@@ -69,7 +69,9 @@ def render(
     "simple" on cpu and cuda, "simple" only on wgpu)."""
     if not isinstance(scene, Scene):
         raise RaybenchError(f"scene: must be a raybench.Scene, got {type(scene).__name__}")
-    check_size(width, height)
+    if camera is not None and not isinstance(camera, Camera):
+        raise RaybenchError(f"camera: must be a raybench.Camera or None, got {type(camera).__name__}")
+    width, height = check_size(width, height)
     camera = camera or scene.camera or Camera()
     tracer = backends.tracer(device, scene.spheres, width, height, **options)
     try:
