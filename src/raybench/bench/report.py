@@ -208,7 +208,7 @@ def group(records: list[dict]) -> dict[str, list[dict]]:
 
 
 def _describe_point(r: dict) -> str:
-    opts = ", ".join(f"{k} {_fmt_opt(v)}" for k, v in (r.get("options") or {}).items())
+    opts = _text(", ".join(f"{k} {_fmt_opt(v)}" for k, v in (r.get("options") or {}).items()))
     return f"{r['suite']} {r['device']} {r['width']}x{r['height']} {r['spheres']} spheres" + (
         f" ({opts})" if opts else ""
     )
@@ -612,6 +612,17 @@ def _md(text) -> str:
     return str(text).replace("|", "\\|").replace("\n", " ")
 
 
+_MARKDOWN = re.compile(r"([\\`*_\[\]<>&#$~!])")
+
+
+def _text(value) -> str:
+    """Text from a results file (a CPU's model, a driver, a setting), shown
+    as the characters it holds: every character Markdown or HTML would act
+    on is escaped, so a record cannot add a link, an image or a tag. A
+    table cell still goes through _md for its "|"."""
+    return _MARKDOWN.sub(r"\\\1", " ".join(str(value).split()))
+
+
 def _table(header: list[str], rows: list[list]) -> str:
     lines = ["| " + " | ".join(_md(h) for h in header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(_md(c) for c in row) + " |" for row in rows]
@@ -840,26 +851,27 @@ def _machine_lines(label: str, records: list[dict]) -> list[str]:
     gpus = m.get("gpus") or []
     gpu = (
         (
-            f"{gpus[0].get('name')} ({gpus[0].get('multiprocessors', '?')} multiprocessors, "
-            f"{gpus[0].get('memory_gib', '?')} GiB, driver {gpus[0].get('driver') or '?'})"
+            f"{_text(gpus[0].get('name'))} ({gpus[0].get('multiprocessors', '?')} multiprocessors, "
+            f"{gpus[0].get('memory_gib', '?')} GiB, driver {_text(gpus[0].get('driver') or '?')})"
         )
         if gpus
         else "no CUDA GPU"
     )
     lines = [
-        f"**{_md(label)}**: CPU {cpu.get('model', '?')} ({cpu.get('physical_cores', '?')} cores, "
-        f"{cpu.get('logical_cpus', '?')} threads); GPU {gpu}; {m.get('os', '')}; "
-        f"raybench {versions.get('raybench') or '?'}, numba {versions.get('numba') or '?'}, "
-        f"numba-cuda {versions.get('numba-cuda') or '?'}."
+        f"**{_md(label)}**: CPU {_text(cpu.get('model', '?'))} ({cpu.get('physical_cores', '?')} cores, "
+        f"{cpu.get('logical_cpus', '?')} threads); GPU {gpu}; {_text(m.get('os', ''))}; "
+        f"raybench {_text(versions.get('raybench') or '?')}, numba {_text(versions.get('numba') or '?')}, "
+        f"numba-cuda {_text(versions.get('numba-cuda') or '?')}."
     ]
     runs = {}
     for r in records:
         runs.setdefault(r["run"].get("id"), (r["run"], []))[1].append(r)
     for run, rs in runs.values():
         settings = run.get("settings") or {}
-        shown = ", ".join(f"{k} {_fmt_opt(v)}" for k, v in settings.items())
+        shown = _text(", ".join(f"{k} {_fmt_opt(v)}" for k, v in settings.items()))
         lines.append(
-            f"- run {run.get('id', '?')}: {run.get('date', '?')}, git {run.get('git_commit') or 'unknown'}, "
+            f"- run {_text(run.get('id', '?'))}: {_text(run.get('date', '?'))}, "
+            f"git {_text(run.get('git_commit') or 'unknown')}, "
             f"{len(rs)} points; settings: {shown or 'none recorded'}"
         )
     machines = {json.dumps(r["run"]["machine"].get("cpu"), sort_keys=True) for r in records}
@@ -878,7 +890,7 @@ def _rates_text(machine: dict) -> str:
     if cpu.get("fp32_gflops"):
         parts.append(
             f"CPU {_num(cpu['fp32_gflops'])} GFLOP/s FP32 ({cpu.get('physical_cores', '?')} cores x "
-            f"{cpu.get('clock_ghz', '?')} GHz x {cpu.get('fp32_lanes', '?')} {cpu.get('simd', '')} lanes x 2 "
+            f"{cpu.get('clock_ghz', '?')} GHz x {cpu.get('fp32_lanes', '?')} {_text(cpu.get('simd') or '')} lanes x 2 "
             f"(multiply-add) x {cpu.get('fma_units_per_core', '?')} FMA units)"
         )
     else:
@@ -947,10 +959,11 @@ def _section_thesis(w: _Writer, label: str, slug: str, records: list[dict]) -> N
             if device == "wgpu"
             else (machine.get("cpu") or {}).get("model", "CPU")
         )
-        w(f"**{DEVICE_NAMES[device]}** ({name})", "")
+        w(f"**{DEVICE_NAMES[device]}** ({_text(name)})", "")
         w.image(
             f"{slug}-thesis-{device}.png",
-            _plot_thesis(label, device, ds, name),
+            # a "$" would start matplotlib's mathematics
+            _plot_thesis(label, device, ds, str(name).replace("$", r"\$")),
             f"{label}: {DEVICE_NAMES[device]} frame time against spheres",
         )
         counts = sorted({n for s in ds for n in s["spheres"]})
@@ -1116,7 +1129,7 @@ def _section_tuning(w: _Writer, label: str, slug: str, records: list[dict]) -> N
         fastest = min(r["ms"] for r in portable)
         timing = "kernel" if all(r["kernel_ms"] is not None for r in portable) else "frame"
         w(
-            f"wgpu workgroups, on {_adapter_name(records)}:",
+            f"wgpu workgroups, on {_text(_adapter_name(records))}:",
             "",
             _table(
                 ["wgpu workgroup", "median frame ms", "median kernel ms", f"relative to fastest ({timing})"],
@@ -1265,7 +1278,7 @@ def _section_scaling(w: _Writer, label: str, slug: str, records: list[dict]) -> 
                 f"{p['spheres']:,}",
             ]
             if p["median"] is None:
-                rows.append(base + [f"skipped: {_md(p['skipped'])}", "", "", ""])
+                rows.append(base + [f"skipped: {_md(_text(p['skipped']))}", "", "", ""])
                 continue
             rows.append(
                 base
