@@ -18,6 +18,7 @@ import click
 from . import __version__
 from .backends.limits import ACCELS, KERNELS
 from .errors import RaybenchError
+from .files import check_writable
 
 SIZE_HELP = "image size as WIDTHxHEIGHT, e.g. 1680x1050"
 
@@ -75,6 +76,9 @@ def check_output(path: Path, option: str = "-o") -> None:
         raise RaybenchError(f"{option} {path}: is a folder; give a file name")
     if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
         raise RaybenchError(f"{option} {path}: not writable; choose another path")
+    # os.access answers for the permissions only (and yes to root): creating a
+    # file there answers for read-only file systems and the rest too.
+    check_writable(path, option)
 
 
 def load_scene(scene_file, spheres, seed):
@@ -432,7 +436,9 @@ def bench(suites, devices, adapter, kernels, accels, duration, quick, out_dir, l
         except KeyboardInterrupt:
             click.echo(
                 f"raybench: interrupted; the {writer.count} finished points are in {results_path} "
-                f"(report them with: raybench report {results_path})",
+                f"(report them with: raybench report {results_path})"
+                if writer.count
+                else "raybench: interrupted before the first point finished; no results were written",
                 err=True,
             )
             raise SystemExit(130) from None
@@ -504,6 +510,15 @@ def run(argv=None) -> int:
     except click.exceptions.Abort:
         click.echo("raybench: interrupted", err=True)
         return 130
+    except MemoryError:
+        # Checked before the large allocations (limits.host_available_bytes);
+        # this is for the rest, under a ulimit or cgroup limit we could not foresee.
+        click.echo(
+            "raybench: error: out of memory (a ulimit or container limit may be lower than the free memory); "
+            "use a smaller --size or fewer --spheres",
+            err=True,
+        )
+        return 2
     except KeyboardInterrupt:
         click.echo("raybench: interrupted", err=True)
         return 130
