@@ -27,11 +27,12 @@ MAX_FILE_BYTES = 512 * 2**20
 MAX_JSON_DEPTH = 32
 
 
-def read_text(path, what: str, max_bytes: int = MAX_FILE_BYTES) -> str:
+def read_text(path, what: str, max_bytes: int | None = None) -> str:
     """The UTF-8 text of path; a missing or unreadable file, one that is not a
     regular file (a FIFO, a device, a folder), or one over max_bytes is a
     one-line error naming it as `what` ("scene file", "results file")."""
     path = Path(path)
+    max_bytes = MAX_FILE_BYTES if max_bytes is None else max_bytes
     try:
         # O_NONBLOCK: opening a FIFO with no writer returns at once instead of
         # waiting; the fstat below then refuses it.
@@ -89,33 +90,51 @@ def _unique_keys(pairs: list) -> dict:
 
 _ESCAPED = re.compile(r"\\.", re.DOTALL)
 _STRING = re.compile(r'"[^"]*"')
-_NOT_BRACKET = re.compile(r"[^\[\]{}]+")
+_NOT_BRACKET = re.compile(r"[^\[\]{}\n]+")
 _STEP = np.zeros(256, np.int8)
 _STEP[[ord("["), ord("{")]] = 1
 _STEP[[ord("]"), ord("}")]] = -1
 
 
-def json_depth(text: str) -> int:
-    """How deeply text's arrays and objects nest, brackets inside strings not
-    counted; linear, at C speed, before the parser sees it."""
+def json_depth(text: str, lines: bool = False) -> tuple[int, int]:
+    """(depth, line): how deeply text's arrays and objects nest, brackets
+    inside strings not counted, and the first line (from 1) that nests that
+    deep. With lines, each line is a document of its own (JSON Lines) and
+    starts again at depth 0. Linear, at C speed, before any parser sees it."""
     # An escaped character (\" among them) says nothing about depth; once they
-    # are gone, the quotes of valid JSON pair up and the strings can go.
-    brackets = _NOT_BRACKET.sub("", _STRING.sub("", _ESCAPED.sub("", text)))
-    if not brackets:
-        return 0
-    steps = _STEP[np.frombuffer(brackets.encode("ascii"), np.uint8)]
-    return int(np.cumsum(steps, dtype=np.int32).max())
+    # are gone, the quotes of valid JSON pair up and the strings can go. JSON
+    # strings hold no raw newline, so the newlines that remain end lines.
+    kept = _NOT_BRACKET.sub("", _STRING.sub("", _ESCAPED.sub("", text)))
+    if not kept:
+        return 0, 1
+    chars = np.frombuffer(kept.encode("ascii"), np.uint8)
+    levels = np.cumsum(_STEP[chars], dtype=np.int32)
+    newline = chars == ord("\n")
+    if lines and newline.any():
+        # subtract the level each line started at
+        starts = np.maximum.accumulate(np.where(newline, np.arange(len(chars)), -1))
+        levels = levels - np.where(starts >= 0, levels[np.maximum(starts, 0)], 0)
+    deepest = int(np.argmax(levels))
+    return int(levels[deepest]), int(newline[:deepest].sum()) + 1
 
 
-def loads(text: str, where: str):
-    """The JSON document text, strictly: nesting at most MAX_JSON_DEPTH deep,
-    no key twice in an object. Any fault is one RaybenchError starting with
-    `where` (a file's path, or "path: line N")."""
-    depth = json_depth(text)
+_DECODER = json.JSONDecoder(object_pairs_hook=_unique_keys)
+
+
+def check_depth(text: str, where: str, lines: bool = False) -> None:
+    """Refuse text nested deeper than MAX_JSON_DEPTH, naming the line."""
+    depth, line = json_depth(text, lines)
     if depth > MAX_JSON_DEPTH:
-        raise RaybenchError(f"{where}: JSON nested {depth} deep, more than the {MAX_JSON_DEPTH} allowed")
+        at = f": line {line}" if lines else ""
+        raise RaybenchError(f"{where}{at}: JSON nested {depth} deep, more than the {MAX_JSON_DEPTH} allowed")
+
+
+def parse(text: str, where: str):
+    """The JSON document text, with no key twice in an object, its depth
+    already checked (check_depth). Any fault is one RaybenchError starting
+    with `where` (a file's path, or "path: line N")."""
     try:
-        return json.loads(text, object_pairs_hook=_unique_keys)
+        return _DECODER.decode(text)
     except json.JSONDecodeError as exc:
         raise RaybenchError(f"{where}: not valid JSON: {exc.msg} at line {exc.lineno} column {exc.colno}") from None
     except DuplicateKey as exc:
@@ -124,6 +143,13 @@ def loads(text: str, where: str):
         raise RaybenchError(f"{where}: not valid JSON: {exc}".split("\n")[0]) from None
     except RecursionError:  # not reached below MAX_JSON_DEPTH; kept so a future cap cannot bring a traceback
         raise RaybenchError(f"{where}: JSON nested too deeply") from None
+
+
+def loads(text: str, where: str):
+    """The JSON document text, strictly: nesting at most MAX_JSON_DEPTH deep,
+    no key twice in an object."""
+    check_depth(text, where)
+    return parse(text, where)
 
 
 def read_json(path, what: str):

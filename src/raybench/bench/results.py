@@ -37,7 +37,7 @@ from pathlib import Path
 
 from ..backends.limits import MAX_SIDE
 from ..errors import RaybenchError, shown
-from ..files import check_writable, loads, read_text
+from ..files import check_depth, check_writable, parse, read_text
 
 FORMAT = "raybench-results"
 VERSION = 1
@@ -113,16 +113,18 @@ def read(path) -> list[dict]:
     not ours, or damaged before its end, is an error naming the line."""
     path = Path(path)
     text = read_text(path, "results file")
+    check_depth(text, str(path), lines=True)
     lines = text.split("\n")
     # The last line holding anything: only it may be cut short. Found once, so reading is linear.
     last = max((i for i, line in enumerate(lines, 1) if line.strip()), default=0)
-    records = []
+    records: list[dict] = []
+    runs: list[dict] = []
     for number, line in enumerate(lines, 1):
         if not line.strip():
             continue
         where = f"{path}: line {number}"
         try:
-            record = loads(line, where)
+            record = parse(line, where)
         except RaybenchError:
             if number == last and not text.endswith("\n"):
                 warnings.warn(f"{path}: line {number} is cut short (an interrupted run?); skipped it", stacklevel=2)
@@ -134,7 +136,7 @@ def read(path) -> list[dict]:
             raise RaybenchError(
                 f"{where} has results version {shown(record.get('version'))}; this raybench reads version {VERSION}"
             )
-        check_record(record, where)
+        check_record(record, where, runs)
         records.append(record)
     if not records:
         raise RaybenchError(f"{path}: holds no results")
@@ -142,117 +144,140 @@ def read(path) -> list[dict]:
 
 
 # --- the schema ----------------------------------------------------------------
-# A spec is a checker function, or a dict of field -> spec (a key ending in "?"
-# may be missing; fields not named are let through, for newer writers).
+# A checker takes a value and returns None, or raises _Bad; an object's checker
+# puts the field's name in front of the path as _Bad passes it, so the path is
+# only ever built for the one field that fails (reading stays fast).
 
 
-def _fail(path: str, what: str, value) -> None:
-    raise RaybenchError(f"{path}: must be {what}, got {shown(value)}")
+class _Bad(Exception):
+    def __init__(self, what: str, value, path: str = ""):
+        self.what, self.value, self.path = what, value, path
+
+    def at(self, key: str) -> _Bad:
+        self.path = key + ("" if not self.path or self.path.startswith("[") else ".") + self.path
+        return self
 
 
-def _text(value, path):
+def _text(value):
     if not isinstance(value, str) or len(value) > MAX_TEXT or "\n" in value:
-        _fail(path, f"one line of text, at most {MAX_TEXT} characters", value)
+        raise _Bad(f"one line of text, at most {MAX_TEXT} characters", value)
 
 
-def _name(value, path):
+def _name(value):
     if not isinstance(value, str) or not NAME.fullmatch(value):
-        _fail(path, "a name of letters, digits, '.', '_' and '-'", value)
+        raise _Bad("a name of letters, digits, '.', '_' and '-' (as bench --label takes)", value)
 
 
-def _count(value, path):
+def _count(value):
     if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= MAX_NUMBER:
-        _fail(path, f"a whole number from 0 to {MAX_NUMBER:g}", value)
+        raise _Bad(f"a whole number from 0 to {MAX_NUMBER:g}", value)
 
 
-def _size(value, path):
+def _size(value):
     if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_SIDE:
-        _fail(path, f"a whole number from 1 to {MAX_SIDE}", value)
+        raise _Bad(f"a whole number from 1 to {MAX_SIDE}", value)
 
 
-def _number(value, path):
+def _number(value):
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0 <= value <= MAX_NUMBER):
-        _fail(path, f"a number from 0 to {MAX_NUMBER:g}", value)
+        raise _Bad(f"a number from 0 to {MAX_NUMBER:g}", value)
 
 
-def _time(value, path):
+def _time(value):
     """A measured time: every ratio in the report divides by one, and no real frame takes 0 ms."""
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0 < value <= MAX_NUMBER):
-        _fail(path, f"a time above 0 and at most {MAX_NUMBER:g}", value)
+        raise _Bad(f"a time above 0 and at most {MAX_NUMBER:g}", value)
 
 
 def _one_of(*choices):
-    def check(value, path):
-        if value not in choices or isinstance(value, bool):
-            _fail(path, "one of " + ", ".join(map(str, choices)), value)
+    def check(value):
+        if isinstance(value, bool) or value not in choices:
+            raise _Bad("one of " + ", ".join(choices), value)
 
     return check
 
 
 def _or_null(spec):
-    def check(value, path):
+    spec = _compile(spec)
+
+    def check(value):
         if value is not None:
-            _check(value, spec, path)
+            spec(value)
 
     return check
 
 
 def _list(spec, most: int = 10_000_000):
-    def check(value, path):
+    spec = _compile(spec)
+
+    def check(value):
         if not isinstance(value, list) or len(value) > most:
-            _fail(path, "a list", value)
+            raise _Bad(f"a list of at most {most:,}", value)
         for i, item in enumerate(value):
-            _check(item, spec, f"{path}[{i}]")
+            try:
+                spec(item)
+            except _Bad as bad:
+                raise bad.at(f"[{i}]") from None
 
     return check
 
 
 def _object_of(spec):
     """An object whose every value matches spec (settings, versions)."""
+    spec = _compile(spec)
 
-    def check(value, path):
+    def check(value):
         if not isinstance(value, dict):
-            _fail(path, "an object", value)
+            raise _Bad("an object", value)
         for key, item in value.items():
-            _check(item, spec, f"{path}.{key}")
+            try:
+                spec(item)
+            except _Bad as bad:
+                raise bad.at(key) from None
 
     return check
 
 
-def _option(value, path):
+def _compile(spec):
+    """A dict of field -> spec (a key ending in "?" may be missing; fields not
+    named pass, for newer writers) becomes the checker of such an object."""
+    if callable(spec):
+        return spec
+    fields = [(key.rstrip("?"), key.endswith("?"), _compile(field)) for key, field in spec.items()]
+
+    def check(value):
+        if not isinstance(value, dict):
+            raise _Bad("an object", value)
+        for key, optional, field in fields:
+            if key in value:
+                try:
+                    field(value[key])
+                except _Bad as bad:
+                    raise bad.at(key) from None
+            elif not optional:
+                raise _Bad("present", "nothing").at(key)
+
+    return check
+
+
+def _option(value):
     if isinstance(value, str):
         if not OPTION_TEXT.fullmatch(value):
-            _fail(path, "a short text of letters, digits and spaces", value)
+            raise _Bad("a short text of letters, digits and spaces", value)
     elif isinstance(value, list):
-        _list(_count, 16)(value, path)
+        _list(_count, 16)(value)
     elif value is not None and not isinstance(value, bool):
-        _number(value, path)
+        _number(value)
 
 
-def _plain(value, path):
+def _plain(value):
     """A setting as the runner writes it: text, a number, a flag, null, or a list of those."""
     if isinstance(value, list):
-        _list(_plain, 64)(value, path)
+        _list(_plain, 64)(value)
     elif isinstance(value, str):
-        _text(value, path)
+        _text(value)
     elif value is not None and not isinstance(value, bool):
-        _number(value, path)
-
-
-def _check(value, spec, path: str) -> None:
-    if callable(spec):
-        spec(value, path)
-        return
-    if not isinstance(value, dict):
-        _fail(path, "an object", value)
-    for key, field in spec.items():
-        optional = key.endswith("?")
-        key = key.rstrip("?")
-        if key not in value:
-            if not optional:
-                raise RaybenchError(f"{path}.{key}: missing" if path else f"{key}: missing")
-            continue
-        _check(value[key], field, f"{path}.{key}" if path else key)
+        _number(value)
 
 
 TIMES = {"median": _time, "p5": _time, "p95": _time, "mean?": _time, "min?": _time, "max?": _time}
@@ -288,61 +313,77 @@ MACHINE = {
     "wgpu_adapters?": _list(_object_of(_or_null(_plain)), 64),
     "versions?": _object_of(_or_null(_text)),
 }
-RUN = {
-    "id?": _text,
-    "date?": _text,
-    "git_commit?": _or_null(_text),
-    "label": _name,
-    "argv?": _list(_text, 256),
-    "settings?": _object_of(_plain),
-    "machine": MACHINE,
-}
-COMMON = {
-    "suite": _one_of("thesis", "test7", "constant-vs-runtime", "tuning", "scaling"),
-    "test?": _or_null(_count),
-    "device": _one_of("cpu", "cuda", "wgpu"),
-    "width": _size,
-    "height": _size,
-    "spheres": _count,
-    "options?": _object_of(_option),
-    "adapter?": _object_of(_or_null(_plain)),
-    "walk?": _or_null(_text),
-    "run": RUN,
-}
-MEASURED = {
-    "frames?": _count,
-    "frame_ms": TIMES,
-    "kernel_ms?": _or_null(TIMES),
-    "first_frame_s?": _or_null(_number),
-    "compile_s?": _or_null(_number),
-    "build_s?": _or_null(_number),
-    "rays_per_s?": _or_null(_number),
-    "tests_per_s?": _or_null(_number),
-}
-SKIPPED = {"skipped": _text, "predicted_ms?": _or_null(_number)}
-SERIES = {
-    "spheres": _list(_count),
-    "frame_ms": _list(_time),
-    "kernel_ms?": _or_null(_list(_time)),
-}
+RUN = _compile(
+    {
+        "id?": _text,
+        "date?": _text,
+        "git_commit?": _or_null(_text),
+        "label": _name,
+        "argv?": _list(_text, 256),
+        "settings?": _object_of(_plain),
+        "machine": MACHINE,
+    }
+)
+POINT = _compile(
+    {
+        "suite": _one_of("thesis", "test7", "constant-vs-runtime", "tuning", "scaling"),
+        "test?": _or_null(_count),
+        "device": _one_of("cpu", "cuda", "wgpu"),
+        "width": _size,
+        "height": _size,
+        "spheres": _count,
+        "options?": _object_of(_option),
+        "adapter?": _object_of(_or_null(_plain)),
+        "walk?": _or_null(_text),
+    }
+)
+MEASURED = _compile(
+    {
+        "frames?": _count,
+        "frame_ms": TIMES,
+        "kernel_ms?": _or_null(TIMES),
+        "first_frame_s?": _or_null(_number),
+        "compile_s?": _or_null(_number),
+        "build_s?": _or_null(_number),
+        "rays_per_s?": _or_null(_number),
+        "tests_per_s?": _or_null(_number),
+    }
+)
+SKIPPED = _compile({"skipped": _text, "predicted_ms?": _or_null(_number)})
+SERIES = _compile(
+    {"series": {"spheres": _list(_count), "frame_ms": _list(_time), "kernel_ms?": _or_null(_list(_time))}}
+)
 
 
-def check_record(record: dict, where: str) -> None:
+def check_record(record: dict, where: str, runs: list | None = None) -> None:
     """Every field the report reads, checked for type and range, so a
     hand-edited file fails with one line naming the field, never a traceback
-    or a silently wrong report: `where: run.machine.cpu: must be an object`."""
+    or a silently wrong report: `where: run.machine.cpu: must be an object`.
+    runs: the run objects already checked; every record of a run repeats
+    its run, which is then compared (at C speed) rather than checked again."""
     try:
-        _check(record, COMMON, "")
+        POINT(record)
+        if "run" not in record:
+            raise _Bad("present", "nothing").at("run")
+        if runs is None or record["run"] not in runs:
+            try:
+                RUN(record["run"])
+            except _Bad as bad:
+                raise bad.at("run") from None
+            if runs is not None and len(runs) < 16:
+                runs.append(record["run"])
         if "skipped" in record:
-            _check(record, SKIPPED, "")
+            SKIPPED(record)
             if record["suite"] != "scaling":
-                raise RaybenchError("skipped: only the scaling suite skips points")
+                raise _Bad("absent outside the scaling suite", record["skipped"]).at("skipped")
             return
-        _check(record, MEASURED, "")
+        MEASURED(record)
         if record["suite"] == "test7":
-            _check(record, {"series": SERIES}, "")
+            SERIES(record)
             series = record["series"]
             if len(series["spheres"]) != len(series["frame_ms"]):
-                raise RaybenchError("series: its spheres and frame_ms lists differ in length")
-    except RaybenchError as exc:
-        raise RaybenchError(f"{where}: {exc}") from None
+                raise _Bad("as long as series.spheres", f"{len(series['frame_ms'])} entries").at("series.frame_ms")
+    except _Bad as bad:
+        got = "nothing" if bad.what == "present" else shown(bad.value)
+        what = "missing" if bad.what == "present" else f"must be {bad.what}, got {got}"
+        raise RaybenchError(f"{where}: {bad.path}: {what}") from None
