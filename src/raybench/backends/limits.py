@@ -46,7 +46,7 @@ def check_count(count, loaded: int, constant: bool = False) -> int:
     the kernels do not check bounds. A kernel compiled for a constant count traces
     exactly that many."""
     if constant and count != loaded:
-        raise RaybenchError(f"sphere count: this kernel was compiled for exactly {loaded} spheres, got {count!r}")
+        raise RaybenchError(f"sphere count: this kernel was compiled for exactly {loaded} spheres, got {shown(count)}")
     if not is_integer(count) or not 0 <= count <= loaded:
         raise RaybenchError(
             f"sphere count: must be an integer from 0 to {loaded} (the spheres loaded), got {shown(count)}"
@@ -113,7 +113,7 @@ def check_kernel(kernel, constant_count: bool) -> str:
     """The kernel's name, checked: "simple" (the thesis's loop, one pixel at a
     time) or "fast" (rays grouped, certain misses culled; the same pixels)."""
     if kernel not in KERNELS:
-        raise RaybenchError(f"kernel: must be one of {', '.join(KERNELS)}, got {kernel!r}")
+        raise RaybenchError(f"kernel: must be one of {', '.join(KERNELS)}, got {shown(kernel)}")
     if constant_count and kernel != "simple":
         raise RaybenchError("constant_count: applies to the simple kernel only; add kernel='simple' (--kernel simple)")
     return kernel
@@ -134,7 +134,7 @@ def check_accel(accel, kernel, brute_force_options: dict) -> tuple[str, str | No
     if accel is None:
         accel = "none" if given else "bvh"
     if accel not in ACCELS:
-        raise RaybenchError(f"accel: must be one of {', '.join(ACCELS)}, got {accel!r}")
+        raise RaybenchError(f"accel: must be one of {', '.join(ACCELS)}, got {shown(accel)}")
     if accel == "bvh":
         if given:
             raise RaybenchError(
