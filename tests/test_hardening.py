@@ -541,3 +541,29 @@ def test_results_writer_on_a_full_disk_keeps_the_records_before(tmp_path):
     writer.close()
     with pytest.warns(UserWarning, match="line 2 is cut short"):
         assert [r["spheres"] for r in results.read(path)] == [100]
+
+
+# --- found by the fuzzer ----------------------------------------------------------------------
+
+
+def test_a_key_or_file_name_with_a_line_break_is_still_one_line(capsys, tmp_path):
+    """Seed 2 of the fuzzer: an unknown key "\\r" made the error two lines."""
+    (tmp_path / "s.json").write_text(json.dumps(scene_doc(0) | {"\r": None}))
+    line = one_line(capsys, ["render", "--scene", "s.json", "--device", "cpu"], "unknown field")
+    assert 's.json: "\\r": unknown field' in line, line  # the key, quoted and escaped
+    one_line(capsys, ["render", "--scene", "a\nb\u2028c.json", "--device", "cpu"], "a\\nb\\u2028c.json: no such")
+
+
+@pytest.mark.parametrize(
+    "options,needle",
+    [
+        ({"accel": np.int64(7)}, "accel: must be one of bvh, none, got 7"),
+        ({"kernel": np.int64(7)}, "kernel: must be one of fast, simple, got 7"),
+        ({"threads": np.int8(-1)}, "threads: must be an integer from 1 to"),
+    ],
+)
+def test_option_values_are_shown_as_plain_numbers(options, needle):
+    """Seed 1 of the fuzzer: these said np.int64(7)."""
+    with pytest.raises(RaybenchError) as info:
+        raybench.render(raybench.random_spheres(3), width=8, height=6, device="cpu", **options)
+    assert needle in str(info.value) and "np." not in str(info.value), info.value

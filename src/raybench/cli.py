@@ -17,7 +17,7 @@ import click
 
 from . import __version__
 from .backends.limits import ACCELS, KERNELS
-from .errors import RaybenchError
+from .errors import RaybenchError, one_line
 from .files import check_writable
 
 SIZE_HELP = "image size as WIDTHxHEIGHT, e.g. 1680x1050"
@@ -473,7 +473,7 @@ def report_cmd(results, out_dir):
         warnings.simplefilter("always")
         path = report.write_report(list(results), out_dir)
     for w in caught:
-        click.echo(f"raybench: warning: {w.message}", err=True)
+        click.echo(f"raybench: warning: {one_line(w.message)}", err=True)
     click.echo(f"report: {path}")
 
 
@@ -491,7 +491,7 @@ def run(argv=None) -> int:
     try:
         main.main(args=argv, prog_name="raybench", standalone_mode=False)
     except RaybenchError as exc:
-        click.echo(f"raybench: error: {exc}", err=True)
+        click.echo(f"raybench: error: {one_line(exc)}", err=True)
         return 2
     except click.exceptions.NoArgsIsHelpError as exc:
         click.echo(exc.ctx.get_help() if exc.ctx else str(exc))
@@ -502,10 +502,10 @@ def run(argv=None) -> int:
             if exc.ctx and " " in exc.ctx.command_path
             else " (see 'raybench --help')"
         )
-        click.echo(f"raybench: error: {exc.format_message()}{hint}", err=True)
+        click.echo(f"raybench: error: {one_line(exc.format_message())}{hint}", err=True)
         return 2
     except click.ClickException as exc:
-        click.echo(f"raybench: error: {exc.format_message()}", err=True)
+        click.echo(f"raybench: error: {one_line(exc.format_message())}", err=True)
         return exc.exit_code
     except click.exceptions.Abort:
         click.echo("raybench: interrupted", err=True)

@@ -15,3 +15,10 @@ def shown(value, limit: int = 60) -> str:
         value = tolist()
     text = " ".join(repr(value).split())
     return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def one_line(text: str) -> str:
+    """text with every character that is not printable (a newline, a carriage
+    return, a line separator) written as its escape: what the CLI prints is
+    then one line, whatever a file name or a hand-edited key holds."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))

@@ -185,7 +185,8 @@ def _array(values, columns: int | None, name: str) -> np.ndarray:
 def _no_unknown(obj: dict, allowed: set, prefix: str) -> None:
     unknown = sorted(set(obj) - allowed)
     if unknown:
-        raise RaybenchError(f"{prefix}{unknown[0]}: unknown field (allowed: {', '.join(sorted(allowed))})")
+        key = unknown[0] if unknown[0].isidentifier() else _short(json.dumps(unknown[0]))
+        raise RaybenchError(f"{prefix}{key}: unknown field (allowed: {', '.join(sorted(allowed))})")
 
 
 def _numbers(value, count, where):
