@@ -454,16 +454,19 @@ def test_render_to_an_unwritable_folder_fails_before_the_render(capsys, monkeypa
 
 def test_report_escapes_text_from_results_files(tmp_path):
     hostile = machine()
-    hostile["cpu"]["model"] = "<img src=x onerror=alert(1)> ![pwned](http://e.x/a.png) [link](http://e.x) $\\alpha$"
+    # "$\\notacommand$" would stop matplotlib's mathematics in a plot's title
+    hostile["cpu"]["model"] = (
+        "<img src=x onerror=alert(1)> ![pwned](http://e.x/a.png) [link](http://e.x) $\\notacommand$"
+    )
     hostile["gpus"][0]["name"] = "**Hostile** `code` <script>"
     hostile["gpus"][0]["driver"] = "1 | 2"
     records = [rec("thesis", "cpu", n, 5.0 + n, mach=hostile) for n in (100, 200, 300)]
     records += [rec("thesis", "cuda", n, 1.0 + n / 10, mach=hostile) for n in (100, 200, 300)]
     text = report.write_report([write(tmp_path / "r.jsonl", records)], tmp_path / "rep").read_text()
-    for raw in ("<img", "<script", "![pwned]", "[link](", "**Hostile**", "`code`", "$\\alpha$"):
-        assert not re.search(r"(?<!\\)" + re.escape(raw), text), raw  # each only with a backslash before it
-    assert "\\<img src=x onerror=alert(1)\\> \\!\\[pwned\\](http://e.x/a.png)" in text
-    assert "\\*\\*Hostile\\*\\* \\`code\\` \\<script\\>" in text
+    for raw in ("<img", "<script", "![pwned]", "[link](", "**Hostile**", "`code`"):
+        assert not re.search(r"(?<!\\)" + re.escape(raw), text), raw  # escaped, whichever way
+    for word in ("onerror=alert", "pwned", "Hostile", "code", "notacommand"):
+        assert word in text, word  # and still shown
 
 
 # --- faults during work -------------------------------------------------------------------------
