@@ -19,7 +19,7 @@ import numpy as np
 
 from .errors import RaybenchError
 
-# A saved scene of 1,000,000 spheres is about 230 MB; a results file of every
+# A saved scene of 1,000,000 spheres is about 225 MB; a results file of every
 # suite a few MB. Anything larger is not ours, or not a file at all (/dev/zero).
 MAX_FILE_BYTES = 512 * 2**20
 # A scene nests 3 deep, a results record 5. Far below Python's recursion limit,
