@@ -95,6 +95,56 @@ def test_depth_cap_is_exact():
     assert files.loads(json.dumps(["[" * 100, '\\"[[[' * 50]), "x") == ["[" * 100, '\\"[[[' * 50]
 
 
+def test_depth_counts_each_branch_not_the_brackets_in_all():
+    """Siblings close what they open: ten shallow ones and then one 33 deep is 33 deep."""
+    doc = "[" + ",".join([nested(2)] * 10 + [nested(files.MAX_JSON_DEPTH)]) + "]"
+    with pytest.raises(RaybenchError, match=f"nested {files.MAX_JSON_DEPTH + 1} deep"):
+        files.loads(doc, "x")
+    pretty = json.dumps(json.loads(nested(files.MAX_JSON_DEPTH + 1)), indent=1)  # a bracket a line
+    with pytest.raises(RaybenchError, match=f"nested {files.MAX_JSON_DEPTH + 1} deep"):
+        files.loads(pretty, "x")
+
+
+def test_each_results_line_starts_again_at_depth_zero(tmp_path):
+    """A damaged line that leaves brackets open is reported as not JSON, by
+    its number; its open brackets do not count against the next line."""
+    record = rec("thesis", "cpu", 100, 5.0)
+    record["extra"] = json.loads(nested(20))
+    path = tmp_path / "r.jsonl"
+    path.write_text("[" * 20 + "\n" + json.dumps({"format": "raybench-results", "version": 1, **record}) + "\n")
+    with pytest.raises(RaybenchError, match=r"r.jsonl: line 1: not valid JSON"):
+        results.read(path)
+
+
+def test_an_integer_too_long_for_python_is_one_line(capsys, tmp_path):
+    """Python refuses to read integers of more than 4300 digits (a ValueError, not a JSONDecodeError)."""
+    (tmp_path / "s.json").write_text(json.dumps(scene_doc(1)).replace('"radius": 0.5', '"radius": ' + "7" * 5000))
+    one_line(capsys, ["render", "--scene", "s.json", "--device", "cpu"], "s.json: not valid JSON", "4300")
+
+
+def test_the_size_limit_is_exact_and_holds_for_files_that_report_no_size(tmp_path):
+    """max_bytes is allowed, one more is not; a /proc file says it holds 0
+    bytes and holds more, and is still cut at the limit."""
+    path = tmp_path / "ten.json"
+    path.write_text("0123456789")
+    assert files.read_text(path, "scene file", max_bytes=10) == "0123456789"
+    with pytest.raises(RaybenchError, match="ten.json: the scene file is 0 MiB, over the limit"):
+        files.read_text(path, "scene file", max_bytes=9)
+    assert os.stat("/proc/self/status").st_size == 0
+    with pytest.raises(RaybenchError, match="/proc/self/status: the scene file is over the limit"):
+        files.read_text("/proc/self/status", "scene file", max_bytes=20)
+    assert len(files.read_text("/proc/self/status", "scene file", max_bytes=100_000)) > 20
+
+
+def test_unreadable_paths_are_one_line(tmp_path):
+    loop = tmp_path / "loop.json"
+    loop.symlink_to(loop)  # opening it fails with ELOOP
+    with pytest.raises(RaybenchError, match="loop.json: cannot read the scene file"):
+        Scene.load(loop)
+    with pytest.raises(RaybenchError, match="/proc/x.png: cannot write"):
+        files.write_atomic("/proc/x.png", b"png")  # /proc is a folder that takes no new files
+
+
 # --- 2. a planted symlink; the replaced file's mode --------------------------------------
 
 
@@ -117,12 +167,13 @@ def test_replacing_keeps_the_mode_and_a_new_file_gets_the_umask(tmp_path):
     old.chmod(0o640)
     files.write_atomic(old, b"2")
     assert stat.S_IMODE(old.stat().st_mode) == 0o640 and old.read_bytes() == b"2"
-    mask = os.umask(0o027)
-    try:
-        files.write_atomic(tmp_path / "new.png", b"3")
-    finally:
-        os.umask(mask)
-    assert stat.S_IMODE((tmp_path / "new.png").stat().st_mode) == 0o640  # 0o666 & ~0o027
+    for umask, mode in ((0o027, 0o640), (0o022, 0o644), (0o077, 0o600)):
+        mask = os.umask(umask)
+        try:
+            files.write_atomic(tmp_path / f"new-{umask:o}.png", b"3")
+        finally:
+            os.umask(mask)
+        assert stat.S_IMODE((tmp_path / f"new-{umask:o}.png").stat().st_mode) == mode  # 0o666 & ~umask
 
 
 def test_disk_full_keeps_the_old_file(tmp_path, monkeypatch):
