@@ -621,3 +621,25 @@ def test_option_values_are_shown_as_plain_numbers(options, needle):
     with pytest.raises(RaybenchError) as info:
         raybench.render(raybench.random_spheres(3), width=8, height=6, device="cpu", **options)
     assert needle in str(info.value) and "np." not in str(info.value), info.value
+
+
+@pytest.mark.parametrize("version", [1, 2])
+def test_cgroup_memory_limit_is_read(tmp_path, version):
+    """A container's limit, as cgroup v1 and v2 show it (a fake /sys tree):
+    the limit less the usage; no limit where it says "max" or a huge number."""
+    from raybench.backends.limits import _cgroup_headroom
+
+    proc = tmp_path / "cgroup"
+    proc.write_text("0::/box\n" if version == 2 else "4:memory:/box\n1:cpu:/\n")
+    folder = tmp_path / ("box" if version == 2 else "memory/box")
+    folder.mkdir(parents=True)
+    limit, usage = (
+        ("memory.max", "memory.current") if version == 2 else ("memory.limit_in_bytes", "memory.usage_in_bytes")
+    )
+    (folder / limit).write_text(f"{3 * 2**30}\n")
+    (folder / usage).write_text(f"{2**30}\n")
+    assert _cgroup_headroom(str(tmp_path), str(proc)) == 2 * 2**30
+    (folder / limit).write_text("max\n" if version == 2 else "9223372036854771712\n")
+    assert _cgroup_headroom(str(tmp_path), str(proc)) is None
+    (folder / usage).unlink()
+    assert _cgroup_headroom(str(tmp_path), str(proc)) is None  # unreadable: no limit known

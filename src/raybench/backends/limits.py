@@ -70,27 +70,28 @@ def host_available_bytes() -> int:
     return available
 
 
-def _cgroup_headroom() -> int | None:
-    """The cgroup's memory limit less its usage (cgroup v2, else v1), or None."""
+def _cgroup_headroom(root: str = "/sys/fs/cgroup", proc: str = "/proc/self/cgroup") -> int | None:
+    """The cgroup's memory limit less its usage (cgroup v2, else v1), or None
+    where there is no limit. The process's own cgroup is read first, then
+    the root of the hierarchy, which is the container's own in a container."""
     paths = [""]
     try:
-        with open("/proc/self/cgroup", encoding="ascii") as f:
+        with open(proc, encoding="ascii") as f:
             for line in f:
                 _, controllers, where = line.rstrip("\n").split(":", 2)
-                if controllers in ("", "memory"):
+                if controllers in ("", "memory") and where not in ("", "/"):
                     paths.insert(0, where)
     except (OSError, ValueError):
         pass
     for limit_file, usage_file in (
-        ("/sys/fs/cgroup{}/memory.max", "/sys/fs/cgroup{}/memory.current"),
-        ("/sys/fs/cgroup/memory{}/memory.limit_in_bytes", "/sys/fs/cgroup/memory{}/memory.usage_in_bytes"),
+        ("{}{}/memory.max", "{}{}/memory.current"),
+        ("{}/memory{}/memory.limit_in_bytes", "{}/memory{}/memory.usage_in_bytes"),
     ):
         for where in paths:
-            where = "" if where == "/" else where
             try:
-                with open(limit_file.format(where), encoding="ascii") as f:
+                with open(limit_file.format(root, where), encoding="ascii") as f:
                     limit = f.read().strip()
-                with open(usage_file.format(where), encoding="ascii") as f:
+                with open(usage_file.format(root, where), encoding="ascii") as f:
                     usage = int(f.read())
             except (OSError, ValueError):
                 continue
