@@ -111,9 +111,16 @@ def test_each_results_line_starts_again_at_depth_zero(tmp_path):
     record = rec("thesis", "cpu", 100, 5.0)
     record["extra"] = json.loads(nested(20))
     path = tmp_path / "r.jsonl"
-    path.write_text("[" * 20 + "\n" + json.dumps({"format": "raybench-results", "version": 1, **record}) + "\n")
+    line = json.dumps({"format": "raybench-results", "version": 1, **record})
+    path.write_text("[" * 20 + "\n" + line + "\n")
     with pytest.raises(RaybenchError, match=r"r.jsonl: line 1: not valid JSON"):
         results.read(path)
+    # and the cap holds on every line, the first and a later one, below Python's recursion limit
+    deep = nested(files.MAX_JSON_DEPTH + 1)
+    for lines, number in (([deep, line], 1), ([line, line, deep], 3)):
+        path.write_text("\n".join(lines) + "\n")
+        with pytest.raises(RaybenchError, match=f"r.jsonl: line {number}: JSON nested {files.MAX_JSON_DEPTH + 1} deep"):
+            results.read(path)
 
 
 def test_an_integer_too_long_for_python_is_one_line(capsys, tmp_path):
@@ -131,7 +138,7 @@ def test_the_size_limit_is_exact_and_holds_for_files_that_report_no_size(tmp_pat
     with pytest.raises(RaybenchError, match="ten.json: the scene file is 0 MiB, over the limit"):
         files.read_text(path, "scene file", max_bytes=9)
     assert os.stat("/proc/self/status").st_size == 0
-    with pytest.raises(RaybenchError, match="/proc/self/status: the scene file is over the limit"):
+    with pytest.raises(RaybenchError, match="/proc/self/status: the scene file is over the limit of 0 MiB$"):
         files.read_text("/proc/self/status", "scene file", max_bytes=20)
     assert len(files.read_text("/proc/self/status", "scene file", max_bytes=100_000)) > 20
 
