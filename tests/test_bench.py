@@ -88,11 +88,25 @@ def test_linear_fit_recovers_a_known_line(rng):
     assert curved["r2"] < 0.95
 
 
+def complete(**extra) -> dict:
+    """The least record results.read accepts (its schema), and extra fields."""
+    return {
+        "suite": "thesis",
+        "device": "cpu",
+        "width": 8,
+        "height": 6,
+        "spheres": 10,
+        "frame_ms": {"median": 2.0, "p5": 1.0, "p95": 3.0},
+        "run": {"label": "x", "machine": {}},
+        **extra,
+    }
+
+
 def test_results_round_trip_and_damage(tmp_path):
     path = tmp_path / "r.jsonl"
     with ResultsWriter(path) as w:
         for i in range(3):
-            w.write({"suite": "thesis", "i": i})
+            w.write(complete(i=i))
     assert [r["i"] for r in results.read(path)] == [0, 1, 2]
     # A half-written last line (a crash mid-write) is skipped with a warning.
     with open(path, "a") as f:
@@ -285,7 +299,7 @@ def test_scaling_cap_skips_and_records(tmp_path, monkeypatch, rng):
     monkeypatch.setattr(runner, "measure", fake_measure)
     pts = [p for p in suites.points(["scaling"], ["cpu"], accels=("none",))]
     with ResultsWriter(tmp_path / "r.jsonl") as w:
-        runner.run(pts, w, {"label": "x"}, 0.1, 0, progress=False)
+        runner.run(pts, w, {"label": "x", "machine": {}}, 0.1, 0, progress=False)
     recs = results.read(tmp_path / "r.jsonl")
     assert [r["spheres"] for r in recs] == [p.spheres for p in pts]
     cap_ms = suites.SCALING_CAP_S * 1e3
@@ -444,7 +458,7 @@ def test_secondary_cap_skips_brute_force_and_records(tmp_path, monkeypatch, rng)
     monkeypatch.setattr(runner, "measure", fake_measure)
     pts = suites.points(["secondary"], ["cpu"], accels=suites.ACCELS)
     with ResultsWriter(tmp_path / "r.jsonl") as w:
-        runner.run(pts, w, {"label": "x"}, 0.1, 0, progress=False)
+        runner.run(pts, w, {"label": "x", "machine": {}}, 0.1, 0, progress=False)
     recs = results.read(tmp_path / "r.jsonl")
     assert [(r["width"], r["height"], r["spheres"], r["options"]) for r in recs] == [
         (p.width, p.height, p.spheres, p.options) for p in pts

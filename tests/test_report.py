@@ -422,7 +422,7 @@ def test_load_names_a_missing_field(tmp_path, rng, change, needle):
     with pytest.raises(RaybenchError) as info:
         report.load([path])
     message = str(info.value)
-    assert "\n" not in message and needle in message and "bad.jsonl" in message and "record 2" in message
+    assert "\n" not in message and needle in message and "bad.jsonl" in message and "line 2" in message
 
 
 # --- the report folder ---------------------------------------------------------------------

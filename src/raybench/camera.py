@@ -9,27 +9,36 @@ plane_w = plane_h * W / H wide. Row 0 of the image is the top.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import RaybenchError
+from .errors import RaybenchError, shown
 
 # Coordinates and radii are squared in float32 inside the kernels; beyond this
 # magnitude the squares overflow or swamp every other term.
 MAX_MAGNITUDE = 1e15
 
 
+def _real(value) -> bool:
+    """A real number (NumPy's included), not a bool, a string or a complex."""
+    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+
+
 def _vector(value, name: str) -> tuple[float, float, float]:
     try:
-        if any(isinstance(c, bool) for c in value):
+        # Real numbers only: a string would be read digit by digit, and a
+        # complex number would lose its imaginary part.
+        if isinstance(value, (str, bytes)) or not all(_real(c) for c in value):
             raise TypeError
         vec = tuple(float(c) for c in value)
     except (TypeError, ValueError, OverflowError):
-        raise RaybenchError(f"{name}: must be 3 numbers [x, y, z], got {value!r}") from None
+        raise RaybenchError(f"{name}: must be 3 numbers [x, y, z], got {shown(value)}") from None
     if len(vec) != 3 or not all(math.isfinite(c) and abs(c) <= MAX_MAGNITUDE for c in vec):
         raise RaybenchError(
-            f"{name}: must be 3 finite numbers [x, y, z], each at most {MAX_MAGNITUDE:g} in magnitude, got {value!r}"
+            f"{name}: must be 3 finite numbers [x, y, z], each at most {MAX_MAGNITUDE:g} in magnitude, "
+            f"got {shown(value)}"
         )
     return vec
 
@@ -50,15 +59,15 @@ class Camera:
         object.__setattr__(self, "look_at", look)
         object.__setattr__(self, "up", up)
         try:
-            if isinstance(self.fov_deg, bool):
+            if not _real(self.fov_deg):
                 raise TypeError
             fov = float(self.fov_deg)
         except (TypeError, ValueError, OverflowError):
             raise RaybenchError(
-                f"camera.fov_deg: must be a number of degrees in (0, 180), got {self.fov_deg!r}"
+                f"camera.fov_deg: must be a number of degrees in (0, 180), got {shown(self.fov_deg)}"
             ) from None
         if not (0.0 < fov < 180.0):
-            raise RaybenchError(f"camera.fov_deg: must be in (0, 180) degrees, got {self.fov_deg!r}")
+            raise RaybenchError(f"camera.fov_deg: must be in (0, 180) degrees, got {shown(self.fov_deg)}")
         object.__setattr__(self, "fov_deg", fov)
         forward = np.subtract(look, pos)
         if not np.linalg.norm(forward) > 0.0:

@@ -17,7 +17,8 @@ import click
 
 from . import __version__
 from .backends.limits import ACCELS, KERNELS
-from .errors import RaybenchError
+from .errors import RaybenchError, one_line
+from .files import check_writable
 from .lighting import SHADINGS
 
 SIZE_HELP = "image size as WIDTHxHEIGHT, e.g. 1680x1050"
@@ -82,6 +83,9 @@ def check_output(path: Path, option: str = "-o") -> None:
         raise RaybenchError(f"{option} {path}: is a folder; give a file name")
     if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
         raise RaybenchError(f"{option} {path}: not writable; choose another path")
+    # os.access answers for the permissions only (and yes to root): creating a
+    # file there answers for read-only file systems and the rest too.
+    check_writable(path, option)
 
 
 def load_scene(scene_file, spheres, seed, materials=False):
@@ -556,7 +560,9 @@ def bench(suites, devices, adapter, kernels, accels, duration, quick, out_dir, l
         except KeyboardInterrupt:
             click.echo(
                 f"raybench: interrupted; the {writer.count} finished points are in {results_path} "
-                f"(report them with: raybench report {results_path})",
+                f"(report them with: raybench report {results_path})"
+                if writer.count
+                else "raybench: interrupted before the first point finished; no results were written",
                 err=True,
             )
             raise SystemExit(130) from None
@@ -630,7 +636,7 @@ def report_cmd(results, out_dir):
         warnings.simplefilter("always")
         path = report.write_report(list(results), out_dir)
     for w in caught:
-        click.echo(f"raybench: warning: {w.message}", err=True)
+        click.echo(f"raybench: warning: {one_line(w.message)}", err=True)
     click.echo(f"report: {path}")
 
 
@@ -648,7 +654,7 @@ def run(argv=None) -> int:
     try:
         main.main(args=argv, prog_name="raybench", standalone_mode=False)
     except RaybenchError as exc:
-        click.echo(f"raybench: error: {exc}", err=True)
+        click.echo(f"raybench: error: {one_line(exc)}", err=True)
         return 2
     except click.exceptions.NoArgsIsHelpError as exc:
         click.echo(exc.ctx.get_help() if exc.ctx else str(exc))
@@ -659,14 +665,23 @@ def run(argv=None) -> int:
             if exc.ctx and " " in exc.ctx.command_path
             else " (see 'raybench --help')"
         )
-        click.echo(f"raybench: error: {exc.format_message()}{hint}", err=True)
+        click.echo(f"raybench: error: {one_line(exc.format_message())}{hint}", err=True)
         return 2
     except click.ClickException as exc:
-        click.echo(f"raybench: error: {exc.format_message()}", err=True)
+        click.echo(f"raybench: error: {one_line(exc.format_message())}", err=True)
         return exc.exit_code
     except click.exceptions.Abort:
         click.echo("raybench: interrupted", err=True)
         return 130
+    except MemoryError:
+        # Checked before the large allocations (limits.host_available_bytes);
+        # this is for the rest, under a ulimit or cgroup limit we could not foresee.
+        click.echo(
+            "raybench: error: out of memory (a ulimit or container limit may be lower than the free memory); "
+            "use a smaller --size or fewer --spheres",
+            err=True,
+        )
+        return 2
     except KeyboardInterrupt:
         click.echo("raybench: interrupted", err=True)
         return 130

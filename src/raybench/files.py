@@ -1,43 +1,225 @@
 """Reading inputs with one-line errors, and writing outputs so that nothing
-half-written is ever left behind."""
+half-written is ever left behind.
+
+Every file raybench reads (scenes, results) goes through read_text, and every
+JSON document through loads: one place bounds what a file may cost. Every file
+it writes goes through write_atomic.
+"""
 
 from __future__ import annotations
 
+import json
 import os
+import re
+import stat
+import tempfile
 from pathlib import Path
+
+import numpy as np
 
 from .errors import RaybenchError
 
+# A saved scene of 1,000,000 spheres is about 225 MB; a results file of every
+# suite a few MB. Anything larger is not ours, or not a file at all (/dev/zero).
+MAX_FILE_BYTES = 512 * 2**20
+# A scene nests 3 deep, a results record 5. Far below Python's recursion limit,
+# so neither the parser nor anything that walks a document can overflow it.
+MAX_JSON_DEPTH = 32
 
-def read_text(path, what: str) -> str:
-    """The UTF-8 text of path; a missing or unreadable file is a one-line
-    error naming it as `what` ("scene file", "results file")."""
+
+def read_text(path, what: str, max_bytes: int | None = None) -> str:
+    """The UTF-8 text of path; a missing or unreadable file, one that is not a
+    regular file (a FIFO, a device, a folder), or one over max_bytes is a
+    one-line error naming it as `what` ("scene file", "results file")."""
     path = Path(path)
+    max_bytes = MAX_FILE_BYTES if max_bytes is None else max_bytes
     try:
-        return path.read_text(encoding="utf-8")
+        # O_NONBLOCK: opening a FIFO with no writer returns at once instead of
+        # waiting; the fstat below then refuses it.
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
     except FileNotFoundError:
         raise RaybenchError(f"{path}: no such {what}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise RaybenchError(f"{path}: cannot read the {what} ({exc.__class__.__name__}: {exc})") from None
+    except OSError as exc:
+        raise RaybenchError(f"{path}: cannot read the {what} ({exc.strerror or exc})") from None
+    try:
+        with os.fdopen(fd, "rb") as f:
+            info = os.fstat(f.fileno())
+            if not stat.S_ISREG(info.st_mode):
+                raise RaybenchError(f"{path}: the {what} must be a regular file, not a {_kind(info.st_mode)}")
+            if info.st_size > max_bytes:
+                raise RaybenchError(
+                    f"{path}: the {what} is {info.st_size / 2**20:,.0f} MiB, over the limit of "
+                    f"{max_bytes / 2**20:,.0f} MiB"
+                )
+            # A file that grows while we read it is still cut at the limit.
+            data = f.read(max_bytes + 1)
+    except OSError as exc:
+        raise RaybenchError(f"{path}: cannot read the {what} ({exc.strerror or exc})") from None
+    if len(data) > max_bytes:
+        raise RaybenchError(f"{path}: the {what} is over the limit of {max_bytes / 2**20:,.0f} MiB")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise RaybenchError(f"{path}: cannot read the {what}: not UTF-8 text (byte {exc.start})") from None
+
+
+def _kind(mode: int) -> str:
+    if stat.S_ISDIR(mode):
+        return "folder"
+    if stat.S_ISFIFO(mode):
+        return "pipe"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "device"
+    return "special file"  # a socket cannot be opened: os.open says so first
+
+
+class DuplicateKey(RaybenchError):
+    """A JSON object names one key twice: json would silently keep the last."""
+
+
+def _unique_keys(pairs: list) -> dict:
+    obj = dict(pairs)
+    if len(obj) != len(pairs):
+        seen: set = set()
+        key = next(k for k, _ in pairs if k in seen or seen.add(k))
+        raise DuplicateKey(f"key {json.dumps(key)[:40]} appears twice in one object; keep one")
+    return obj
+
+
+_ESCAPED = re.compile(r"\\.", re.DOTALL)
+_STRING = re.compile(r'"[^"]*"')
+_NOT_BRACKET = re.compile(r"[^\[\]{}\n]+")
+_STEP = np.zeros(256, np.int8)
+_STEP[[ord("["), ord("{")]] = 1
+_STEP[[ord("]"), ord("}")]] = -1
+
+
+def json_depth(text: str, lines: bool = False) -> tuple[int, int]:
+    """(depth, line): how deeply text's arrays and objects nest, brackets
+    inside strings not counted, and the first line (from 1) that nests that
+    deep. With lines, each line is a document of its own (JSON Lines) and
+    starts again at depth 0. Linear, at C speed, before any parser sees it."""
+    # An escaped character (\" among them) says nothing about depth; once they
+    # are gone, the quotes of valid JSON pair up and the strings can go. JSON
+    # strings hold no raw newline, so the newlines that remain end lines.
+    kept = _NOT_BRACKET.sub("", _STRING.sub("", _ESCAPED.sub("", text)))
+    if not kept:
+        return 0, 1
+    chars = np.frombuffer(kept.encode("ascii"), np.uint8)
+    levels = np.cumsum(_STEP[chars], dtype=np.int32)
+    newline = chars == ord("\n")
+    if lines and newline.any():
+        # subtract the level each line started at
+        starts = np.maximum.accumulate(np.where(newline, np.arange(len(chars)), -1))
+        levels = levels - np.where(starts >= 0, levels[np.maximum(starts, 0)], 0)
+    deepest = int(np.argmax(levels))
+    return int(levels[deepest]), int(newline[:deepest].sum()) + 1
+
+
+_DECODER = json.JSONDecoder(object_pairs_hook=_unique_keys)
+
+
+def check_depth(text: str, where: str, lines: bool = False) -> None:
+    """Refuse text nested deeper than MAX_JSON_DEPTH, naming the line."""
+    depth, line = json_depth(text, lines)
+    if depth > MAX_JSON_DEPTH:
+        at = f": line {line}" if lines else ""
+        raise RaybenchError(f"{where}{at}: JSON nested {depth} deep, more than the {MAX_JSON_DEPTH} allowed")
+
+
+def parse(text: str, where: str):
+    """The JSON document text, with no key twice in an object, its depth
+    already checked (check_depth). Any fault is one RaybenchError starting
+    with `where` (a file's path, or "path: line N")."""
+    try:
+        return _DECODER.decode(text)
+    except json.JSONDecodeError as exc:
+        raise RaybenchError(f"{where}: not valid JSON: {exc.msg} at line {exc.lineno} column {exc.colno}") from None
+    except DuplicateKey as exc:
+        raise RaybenchError(f"{where}: {exc}") from None
+    except ValueError as exc:  # an integer of more than 4300 digits
+        raise RaybenchError(f"{where}: not valid JSON: {exc}".split("\n")[0]) from None
+    except RecursionError:  # not reached below MAX_JSON_DEPTH; kept so a future cap cannot bring a traceback
+        raise RaybenchError(f"{where}: JSON nested too deeply") from None
+
+
+def loads(text: str, where: str):
+    """The JSON document text, strictly: nesting at most MAX_JSON_DEPTH deep,
+    no key twice in an object."""
+    check_depth(text, where)
+    return parse(text, where)
+
+
+def read_json(path, what: str):
+    """read_text, then loads: the one way a JSON file is read."""
+    return loads(read_text(path, what), str(path))
+
+
+def _umask() -> int:
+    """The process's umask, without changing it (other threads may create files)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def check_writable(path, option: str) -> None:
+    """Refuse an output path whose folder we cannot create a file in, by
+    creating (and removing) one there: permissions as the kernel sees them,
+    read-only file systems included, before any time is spent on the work."""
+    path = Path(path)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=".raybench-probe.", dir=path.parent)
+    except OSError as exc:
+        raise RaybenchError(
+            f"{option} {path}: cannot write there ({exc.strerror or exc}); choose another path"
+        ) from None
+    os.close(fd)
+    os.unlink(tmp)
 
 
 def write_atomic(path, data: bytes) -> None:
     """Write data to path through a temporary file in the same folder and a
-    rename, so a reader (or a crash) never sees half a file."""
+    rename, so a reader (or a crash) never sees half a file.
+
+    The temporary file is created exclusively under a random name (mkstemp:
+    O_EXCL, no link followed), so nothing planted in the folder can redirect
+    the write. A file that is replaced keeps its mode; a new one gets the
+    umask's. On any failure (a full disk, an interrupt) the temporary file is
+    removed and the old file, if any, is left as it was."""
     path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
+    folder = path.parent
     if not folder.is_dir():
         raise RaybenchError(f"{path}: cannot write: folder {folder} does not exist")
     if path.is_dir():
         raise RaybenchError(f"{path}: cannot write: it is a folder; give a file name")
-    tmp = folder / f".{path.name}.{os.getpid()}.tmp"
     try:
-        with open(tmp, "wb") as f:
-            f.write(data)
-        os.replace(tmp, path)
+        mode = stat.S_IMODE(os.stat(path).st_mode)
+    except OSError:
+        mode = 0o666 & ~_umask()
+    try:
+        # The name is cut so that a long file name still leaves room for the suffix.
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name[:100]}.", suffix=".tmp", dir=folder)
     except OSError as exc:
+        raise RaybenchError(f"{path}: cannot write ({exc.strerror or exc})") from None
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fchmod(f.fileno(), mode)
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException as exc:
         try:
-            tmp.unlink()
+            os.unlink(tmp)
         except OSError:
             pass
-        raise RaybenchError(f"{path}: cannot write ({exc.strerror or exc})") from None
+        if isinstance(exc, OSError):
+            raise RaybenchError(f"{path}: cannot write ({exc.strerror or exc}); nothing was changed") from None
+        raise

@@ -88,7 +88,7 @@ class Renderer:
     ):
         if not isinstance(scene, Scene):
             raise RaybenchError(f"scene: must be a raybench.Scene, got {type(scene).__name__}")
-        check_size(width, height)
+        width, height = check_size(width, height)
         if check_shading(shading) == "whitted":
             options["whitted"] = Shading.of(scene, depth, shadow_samples)
         elif depth is not None or shadow_samples is not None:
@@ -106,6 +106,7 @@ class Renderer:
         None and saves copying them."""
         if self.tracer is None:
             raise RaybenchError("renderer: it is closed; make a new Renderer")
+        _check_camera(camera)
         camera = camera or self.scene.camera or Camera()
         image, hit_ids = self.tracer.trace(camera.basis(self.width, self.height))
         counts = self.tracer.ray_counts
@@ -151,5 +152,11 @@ def render(
     accel="bvh" (the default) or "none", brute force with kernel="fast" or
     "simple" on cpu and cuda, "simple" only on wgpu and under Whitted
     shading)."""
+    _check_camera(camera)  # before any work
     with Renderer(scene, width, height, device, shading, depth, shadow_samples, **options) as renderer:
         return renderer.render(camera)
+
+
+def _check_camera(camera) -> None:
+    if camera is not None and not isinstance(camera, Camera):
+        raise RaybenchError(f"camera: must be a raybench.Camera or None, got {type(camera).__name__}")

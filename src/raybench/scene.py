@@ -17,9 +17,10 @@ from pathlib import Path
 import numpy as np
 
 from . import lighting
+from .backends.limits import host_available_bytes
 from .camera import MAX_MAGNITUDE, Camera
-from .errors import RaybenchError
-from .files import read_text, write_atomic
+from .errors import RaybenchError, shown
+from .files import read_json, write_atomic
 
 FORMAT = "raybench-scene"
 VERSION = 2
@@ -29,6 +30,8 @@ VERSIONS = (1, 2)
 MAX_GENERATED = 100_000_000
 # random_spheres fills the view of a picture this wide, about this many times over.
 ASPECT = 16 / 10
+# Peak bytes per sphere while random_spheres works (measured: 224 MB for 1,000,000).
+GENERATE_BYTES = 256
 COVERAGE = 2.0
 
 _TOP_KEYS = {"format", "version", "spheres", "camera"}
@@ -56,14 +59,9 @@ class Scene:
         ambient=lighting.DEFAULT_AMBIENT,
         background=None,
     ):
-        try:
-            centers = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
-            radii = np.asarray(radii, dtype=np.float64).reshape(-1)
-            colors = np.asarray(colors, dtype=np.float64).reshape(-1, 3)
-        except (TypeError, ValueError) as exc:
-            raise RaybenchError(
-                f"scene: centers (n, 3), radii (n,) and colors (n, 3) must be numbers ({exc})"
-            ) from None
+        centers = _array(centers, 3, "centers")
+        radii = _array(radii, None, "radii")
+        colors = _array(colors, 3, "colors")
         if not (len(centers) == len(radii) == len(colors)):
             raise RaybenchError(
                 f"scene: {len(centers)} centers, {len(radii)} radii and {len(colors)} colors: "
@@ -81,7 +79,8 @@ class Scene:
         bad = ~(radii.astype(np.float32) > 0)
         if bad.any():
             i = int(np.argmax(bad))
-            raise RaybenchError(f"spheres[{i}].radius: must be > 0, got {radii[i]!r}")
+            why = f" (0 in float32; the smallest radius is {_TINY:g})" if radii[i] > 0 else ""
+            raise RaybenchError(f"spheres[{i}].radius: must be > 0, got {shown(radii[i])}{why}")
         bad = ~((colors >= 0.0) & (colors <= 1.0))
         if bad.any():
             i = int(np.argwhere(bad)[0][0])
@@ -136,7 +135,11 @@ class Scene:
         return 1 if plain else 2
 
     def head(self, n: int) -> Scene:
-        """The first n spheres of this scene, with their materials and the same lights."""
+        """The first n spheres of this scene, 0 <= n <= len(self), with their
+        materials and the same lights."""
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 0 <= n <= len(self):
+            raise RaybenchError(f"head: n must be an integer from 0 to {len(self)} (the spheres), got {shown(n)}")
+        n = int(n)
         return Scene(
             self.centers[:n],
             self.radii[:n],
@@ -176,10 +179,10 @@ class Scene:
         if not isinstance(doc, dict):
             raise RaybenchError(f'scene: must be a JSON object with "format": "{FORMAT}", got {type(doc).__name__}')
         if doc.get("format") != FORMAT:
-            raise RaybenchError(f'format: must be "{FORMAT}", got {doc.get("format")!r}')
+            raise RaybenchError(f'format: must be "{FORMAT}", got {shown(doc.get("format"))}')
         version = doc.get("version")
         if version not in VERSIONS or isinstance(version, bool):
-            raise RaybenchError(f"version: this raybench reads versions 1 and 2, got {version!r}")
+            raise RaybenchError(f"version: this raybench reads versions 1 and 2, got {shown(version)}")
         _no_unknown(doc, _TOP_KEYS_2 if version == 2 else _TOP_KEYS, "")
         if "spheres" not in doc:
             raise RaybenchError('spheres: missing (a list of {"center", "radius", "color"} objects)')
@@ -233,28 +236,50 @@ class Scene:
     @classmethod
     def load(cls, path) -> Scene:
         path = Path(path)
-        text = read_text(path, "scene file")
-        try:
-            doc = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise RaybenchError(f"{path}: not valid JSON: {exc.msg} at line {exc.lineno} column {exc.colno}") from None
+        doc = read_json(path, "scene file")
         try:
             return cls.from_dict(doc)
         except RaybenchError as exc:
             raise RaybenchError(f"{path}: {exc}") from None
 
 
+# The smallest positive float32 (a subnormal): any smaller radius is stored as 0.
+_TINY = float(np.finfo(np.float32).smallest_subnormal)
+
+
+def _array(values, columns: int | None, name: str) -> np.ndarray:
+    """values as float64 of shape (n, columns), or (n,) where columns is None:
+    real numbers only (ints of any NumPy width, floats), nothing reshaped, so a
+    (3, 2) array or a flat list is refused rather than read as other spheres."""
+    want = "(n,)" if columns is None else f"(n, {columns})"
+    try:
+        array = np.asarray(values)
+    except (TypeError, ValueError) as exc:  # ragged lists
+        raise RaybenchError(f"scene: {name} must be an array of shape {want} of numbers ({exc})") from None
+    if array.dtype.kind not in "iuf":
+        raise RaybenchError(
+            f"scene: {name} must be real numbers of shape {want}, got an array of {array.dtype} "
+            "(booleans, complex numbers, text and None are refused)"
+        )
+    if array.size == 0:  # [] or np.empty(0): no spheres, whatever the shape
+        return np.zeros((0,) if columns is None else (0, columns))
+    if array.shape[1:] != (() if columns is None else (columns,)) or array.ndim != (1 if columns is None else 2):
+        raise RaybenchError(f"scene: {name} must have shape {want}, got {array.shape}")
+    return array.astype(np.float64)
+
+
 def _no_unknown(obj: dict, allowed: set, prefix: str) -> None:
     unknown = sorted(set(obj) - allowed)
     if unknown:
-        raise RaybenchError(f"{prefix}{unknown[0]}: unknown field (allowed: {', '.join(sorted(allowed))})")
+        key = unknown[0] if unknown[0].isidentifier() else _short(json.dumps(unknown[0]))
+        raise RaybenchError(f"{prefix}{key}: unknown field (allowed: {', '.join(sorted(allowed))})")
 
 
 def _numbers(value, count, where):
     """Check a JSON number (count None) or a list of count numbers; return floats."""
     values = [value] if count is None else value
     if count is not None and (not isinstance(value, list) or len(value) != count):
-        raise RaybenchError(f"{where}: must be a list of {count} numbers, got {json.dumps(value)}")
+        raise RaybenchError(f"{where}: must be a list of {count} numbers, got {_short(json.dumps(value))}")
     for v in values:
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not _finite(v):
             raise RaybenchError(f"{where}: must be a finite number, got {_short(json.dumps(v))}")
@@ -285,9 +310,16 @@ def random_spheres(n: int, seed: int = 0, materials: bool = False) -> Scene:
     above and behind the camera, with mixed materials (mixed_materials).
     """
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not (0 <= n <= MAX_GENERATED):
-        raise RaybenchError(f"sphere count: must be an integer from 0 to {MAX_GENERATED:,}, got {n!r}")
+        raise RaybenchError(f"sphere count: must be an integer from 0 to {MAX_GENERATED:,}, got {shown(n)}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise RaybenchError(f"seed: must be a non-negative integer, got {seed!r}")
+        raise RaybenchError(f"seed: must be a non-negative integer, got {shown(seed)}")
+    need = n * GENERATE_BYTES
+    available = host_available_bytes()
+    if need > available:
+        raise RaybenchError(
+            f"sphere count: {n:,} spheres need about {need / 2**30:.2f} GiB to generate, more than the "
+            f"{available / 2**30:.2f} GiB this process may use; use fewer spheres"
+        )
     rng = np.random.default_rng(seed)
     plane_h = 2.0 * math.tan(math.radians(30.0))
     plane_w = plane_h * ASPECT

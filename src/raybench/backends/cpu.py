@@ -30,7 +30,7 @@ import numpy as np
 
 from .. import bvh as bvh_mod
 from .. import compiled, kernels
-from ..errors import RaybenchError
+from ..errors import RaybenchError, shown
 from ..kernels import whitted as whitted_mod
 from ..kernels.trace import FAR, ZERO
 from ..layout import BLUE, CHILD_BOX, COUNT, GREEN, INNER, NODE_FLOATS, PAD, RADIUS, RED, REF, STACK
@@ -588,7 +588,7 @@ class Tracer(TracerBase):
         if threads is None:
             threads = default_threads()
         if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or not 1 <= threads <= MAX_THREADS:
-            raise RaybenchError(f"threads: must be an integer from 1 to {MAX_THREADS}, got {threads!r}")
+            raise RaybenchError(f"threads: must be an integer from 1 to {MAX_THREADS}, got {shown(threads)}")
         check_fits("cpu", width, height, spheres.shape[1], host_available_bytes(), HOST_PIXEL_BYTES)
         if self.accel == "bvh":
             check_bvh_fits(

@@ -24,7 +24,7 @@ from numba.cuda.core.errors import NumbaPerformanceWarning
 
 from .. import bvh as bvh_mod
 from .. import compiled, kernels
-from ..errors import RaybenchError
+from ..errors import RaybenchError, shown
 from ..kernels.trace import FAR, ZERO
 from ..kernels.whitted import KINDS, RAY_FLOATS, RAY_INTS, RAY_STACK
 from ..layout import CHILD_BOX, INNER, NODE_BYTES, NODE_FLOATS, RADIUS, STACK
@@ -430,7 +430,7 @@ def _check_block(block, kernel: str) -> tuple[int, int]:
     try:
         bx, by = (int(v) for v in block)
     except (TypeError, ValueError):
-        raise RaybenchError(f"block: must be two integers (x, y), got {block!r}") from None
+        raise RaybenchError(f"block: must be two integers (x, y), got {shown(block)}") from None
     if bx < 1 or by < 1 or bx * by > 1024:
         raise RaybenchError(f"block: each side must be >= 1 and x*y at most 1024 threads, got {bx}x{by}")
     if kernel == "fast" and bx * by > FAST_MAX_THREADS:
@@ -448,7 +448,7 @@ def _check_block(block, kernel: str) -> tuple[int, int]:
 
 def _check_int(name: str, value, low: int, high: int) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
-        raise RaybenchError(f"{name}: must be an integer from {low} to {high}, got {value!r}")
+        raise RaybenchError(f"{name}: must be an integer from {low} to {high}, got {shown(value)}")
     return int(value)
 
 

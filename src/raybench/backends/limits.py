@@ -1,8 +1,12 @@
 """Limits checked before anything is allocated or launched: sizes, memory, counts."""
 
+import numbers
+import resource
+
+import numpy as np
 import psutil
 
-from ..errors import RaybenchError
+from ..errors import RaybenchError, shown
 
 MAX_SIDE = 65536
 # Per pixel: 3 colour bytes and a 4-byte hit index, on the device; the host
@@ -12,10 +16,17 @@ HOST_PIXEL_BYTES = 2 * PIXEL_BYTES
 SPHERE_BYTES = 7 * 4
 
 
-def check_size(width, height) -> None:
+def is_integer(value) -> bool:
+    """An integer, NumPy's included; a bool is not one."""
+    return isinstance(value, numbers.Integral) and not isinstance(value, (bool, np.bool_))
+
+
+def check_size(width, height) -> tuple[int, int]:
+    """(width, height) as Python ints, checked."""
     for name, value in (("width", width), ("height", height)):
-        if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_SIDE:
-            raise RaybenchError(f"size: {name} must be an integer from 1 to {MAX_SIDE}, got {value!r}")
+        if not is_integer(value) or not 1 <= value <= MAX_SIDE:
+            raise RaybenchError(f"size: {name} must be an integer from 1 to {MAX_SIDE}, got {shown(value)}")
+    return int(width), int(height)
 
 
 def check_fits(
@@ -35,14 +46,60 @@ def check_count(count, loaded: int, constant: bool = False) -> int:
     the kernels do not check bounds. A kernel compiled for a constant count traces
     exactly that many."""
     if constant and count != loaded:
-        raise RaybenchError(f"sphere count: this kernel was compiled for exactly {loaded} spheres, got {count!r}")
-    if isinstance(count, bool) or not isinstance(count, int) or not 0 <= count <= loaded:
-        raise RaybenchError(f"sphere count: must be an integer from 0 to {loaded} (the spheres loaded), got {count!r}")
-    return count
+        raise RaybenchError(f"sphere count: this kernel was compiled for exactly {loaded} spheres, got {shown(count)}")
+    if not is_integer(count) or not 0 <= count <= loaded:
+        raise RaybenchError(
+            f"sphere count: must be an integer from 0 to {loaded} (the spheres loaded), got {shown(count)}"
+        )
+    return int(count)
 
 
 def host_available_bytes() -> int:
-    return psutil.virtual_memory().available
+    """What this process may still allocate: the free memory, or less where a
+    ulimit (address space, data) or the cgroup's memory limit leaves less.
+    Beyond it an allocation ends in a MemoryError or the OOM killer."""
+    available = psutil.virtual_memory().available
+    memory = psutil.Process().memory_info()
+    for which, used in ((resource.RLIMIT_AS, memory.vms), (resource.RLIMIT_DATA, getattr(memory, "data", 0))):
+        soft = resource.getrlimit(which)[0]
+        if soft != resource.RLIM_INFINITY:
+            available = min(available, max(soft - used, 0))
+    cgroup = _cgroup_headroom()
+    if cgroup is not None:
+        available = min(available, cgroup)
+    return available
+
+
+def _cgroup_headroom(root: str = "/sys/fs/cgroup", proc: str = "/proc/self/cgroup") -> int | None:
+    """The cgroup's memory limit less its usage (cgroup v2, else v1), or None
+    where there is no limit. The process's own cgroup is read first, then
+    the root of the hierarchy, which is the container's own in a container."""
+    paths = [""]
+    try:
+        with open(proc, encoding="ascii") as f:
+            for line in f:
+                _, controllers, where = line.rstrip("\n").split(":", 2)
+                if controllers in ("", "memory") and where not in ("", "/"):
+                    paths.insert(0, where)
+    except (OSError, ValueError):
+        pass
+    for limit_file, usage_file in (
+        ("{}{}/memory.max", "{}{}/memory.current"),
+        ("{}/memory{}/memory.limit_in_bytes", "{}/memory{}/memory.usage_in_bytes"),
+    ):
+        for where in paths:
+            try:
+                with open(limit_file.format(root, where), encoding="ascii") as f:
+                    limit = f.read().strip()
+                with open(usage_file.format(root, where), encoding="ascii") as f:
+                    usage = int(f.read())
+            except (OSError, ValueError):
+                continue
+            # "max" (v2) or a huge number (v1): no limit
+            if limit == "max" or int(limit) >= 2**62:
+                return None
+            return max(int(limit) - usage, 0)
+    return None
 
 
 KERNELS = ("fast", "simple")
@@ -57,7 +114,7 @@ def check_kernel(kernel, constant_count: bool) -> str:
     """The kernel's name, checked: "simple" (the thesis's loop, one pixel at a
     time) or "fast" (rays grouped, certain misses culled; the same pixels)."""
     if kernel not in KERNELS:
-        raise RaybenchError(f"kernel: must be one of {', '.join(KERNELS)}, got {kernel!r}")
+        raise RaybenchError(f"kernel: must be one of {', '.join(KERNELS)}, got {shown(kernel)}")
     if constant_count and kernel != "simple":
         raise RaybenchError("constant_count: applies to the simple kernel only; add kernel='simple' (--kernel simple)")
     return kernel
@@ -78,7 +135,7 @@ def check_accel(accel, kernel, brute_force_options: dict) -> tuple[str, str | No
     if accel is None:
         accel = "none" if given else "bvh"
     if accel not in ACCELS:
-        raise RaybenchError(f"accel: must be one of {', '.join(ACCELS)}, got {accel!r}")
+        raise RaybenchError(f"accel: must be one of {', '.join(ACCELS)}, got {shown(accel)}")
     if accel == "bvh":
         if given:
             raise RaybenchError(

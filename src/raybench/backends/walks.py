@@ -6,7 +6,7 @@ says which it takes by default."""
 
 from __future__ import annotations
 
-from ..errors import RaybenchError
+from ..errors import RaybenchError, shown
 
 WALKS = ("ray", "packet")
 
@@ -17,5 +17,5 @@ def check_walk(walk, accel: str) -> str | None:
     if accel != "bvh":
         raise RaybenchError("walk: applies to the BVH walk only (accel='bvh'), not to brute force")
     if walk not in WALKS:
-        raise RaybenchError(f"walk: must be one of {', '.join(WALKS)}, got {walk!r}")
+        raise RaybenchError(f"walk: must be one of {', '.join(WALKS)}, got {shown(walk)}")
     return walk

@@ -39,40 +39,74 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import warnings
 from pathlib import Path
 
-from ..errors import RaybenchError
-from ..files import read_text
+from ..backends.limits import MAX_SIDE
+from ..errors import RaybenchError, shown
+from ..files import check_depth, check_writable, parse, read_text
 
 FORMAT = "raybench-results"
 VERSION = 1
 
 
+# Every number a record holds is a count, a time or a rate far below this:
+# larger ones are hand-edited, and would overflow the report's sums and fits.
+MAX_NUMBER = 1e15
+MAX_TEXT = 300
+# Names the report prints as they are and uses in file names: what bench --label allows.
+NAME = re.compile(r"[A-Za-z0-9._-]{1,64}")
+# Option values: "one per row", "2x cores", "constant", an adapter's name.
+OPTION_TEXT = re.compile(r"[A-Za-z0-9 ._:,/()+-]{0,120}")
+
+
 class ResultsWriter:
-    """Appends records to a .jsonl file, each on disk before the next point starts."""
+    """Appends records to a .jsonl file, each on disk before the next point
+    starts. The file is created with the first record: a run stopped before
+    its first point leaves nothing behind."""
 
     def __init__(self, path):
         self.path = Path(path)
-        folder = self.path.parent
-        try:
-            folder.mkdir(parents=True, exist_ok=True)
-            self._file = open(self.path, "a", encoding="utf-8")
-        except OSError as exc:
-            raise RaybenchError(f"{self.path}: cannot write results ({exc.strerror or exc})") from None
+        if self.path.is_dir():
+            raise RaybenchError(f"{self.path}: cannot write results: it is a folder")
+        # Refuse an unwritable place now, not after the first point's minutes.
+        existing = self.path.parent
+        while not existing.exists() and existing != existing.parent:
+            existing = existing.parent
+        if not existing.is_dir():
+            raise RaybenchError(f"{self.path}: cannot write results: {existing} is not a folder")
+        check_writable(existing / self.path.name, "results")
+        self._file = None
         self.count = 0
 
     def write(self, record: dict) -> None:
         line = json.dumps({"format": FORMAT, "version": VERSION, **record}, separators=(",", ":"))
+        if self._file is None:
+            try:
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+                self._file = open(self.path, "a", encoding="utf-8")
+            except OSError as exc:
+                raise RaybenchError(f"{self.path}: cannot write results ({exc.strerror or exc})") from None
         # One write of a whole line, then fsync: a crash can at worst leave a
         # half line at the end, which the reader skips with a warning.
-        self._file.write(line + "\n")
-        self._file.flush()
-        os.fsync(self._file.fileno())
+        try:
+            self._file.write(line + "\n")
+            self._file.flush()
+            os.fsync(self._file.fileno())
+        except OSError as exc:
+            raise RaybenchError(
+                f"{self.path}: cannot write results ({exc.strerror or exc}); the {self.count} records before "
+                "this one are kept"
+            ) from None
         self.count += 1
 
     def close(self) -> None:
-        self._file.close()
+        if self._file is not None:
+            try:
+                self._file.close()
+            except OSError:
+                pass  # write() has reported it; every finished record is on disk
 
     def __enter__(self):
         return self
@@ -82,32 +116,286 @@ class ResultsWriter:
 
 
 def read(path) -> list[dict]:
-    """All records of one results file. A half-written last line is skipped
-    with a warning; a file that is not ours, or damaged before its end, is an
-    error naming the line."""
+    """All records of one results file, each checked against the schema
+    below. A half-written last line is skipped with a warning; a file that is
+    not ours, or damaged before its end, is an error naming the line."""
     path = Path(path)
     text = read_text(path, "results file")
+    check_depth(text, str(path), lines=True)
     lines = text.split("\n")
-    records = []
+    # The last line holding anything: only it may be cut short. Found once, so reading is linear.
+    last = max((i for i, line in enumerate(lines, 1) if line.strip()), default=0)
+    records: list[dict] = []
+    runs: list[dict] = []
     for number, line in enumerate(lines, 1):
         if not line.strip():
             continue
-        last = number == len(lines) or all(not rest.strip() for rest in lines[number:])
+        where = f"{path}: line {number}"
         try:
-            record = json.loads(line)
-        except json.JSONDecodeError:
-            if last and not text.endswith("\n"):
+            record = parse(line, where)
+        except RaybenchError:
+            if number == last and not text.endswith("\n"):
                 warnings.warn(f"{path}: line {number} is cut short (an interrupted run?); skipped it", stacklevel=2)
                 continue
-            raise RaybenchError(f"{path}: line {number} is not JSON: not a raybench results file, or damaged") from None
+            raise
         if not isinstance(record, dict) or record.get("format") != FORMAT:
-            raise RaybenchError(f"{path}: line {number} is not a raybench result (format {FORMAT!r} expected)")
-        if record.get("version") != VERSION:
+            raise RaybenchError(f"{where} is not a raybench result (format {FORMAT!r} expected)")
+        if record.get("version") != VERSION or isinstance(record.get("version"), bool):
             raise RaybenchError(
-                f"{path}: line {number} has results version {record.get('version')!r}; "
-                f"this raybench reads version {VERSION}"
+                f"{where} has results version {shown(record.get('version'))}; this raybench reads version {VERSION}"
             )
+        check_record(record, where, runs)
         records.append(record)
     if not records:
         raise RaybenchError(f"{path}: holds no results")
     return records
+
+
+# --- the schema ----------------------------------------------------------------
+# A checker takes a value and returns None, or raises _Bad; an object's checker
+# puts the field's name in front of the path as _Bad passes it, so the path is
+# only ever built for the one field that fails (reading stays fast).
+
+
+class _Bad(Exception):
+    def __init__(self, what: str, value, path: str = ""):
+        self.what, self.value, self.path = what, value, path
+
+    def at(self, key: str) -> _Bad:
+        self.path = key + ("" if not self.path or self.path.startswith("[") else ".") + self.path
+        return self
+
+
+def _text(value):
+    if not isinstance(value, str) or len(value) > MAX_TEXT or "\n" in value:
+        raise _Bad(f"one line of text, at most {MAX_TEXT} characters", value)
+
+
+def _name(value):
+    if not isinstance(value, str) or not NAME.fullmatch(value):
+        raise _Bad("a name of letters, digits, '.', '_' and '-' (as bench --label takes)", value)
+
+
+def _count(value):
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= MAX_NUMBER:
+        raise _Bad(f"a whole number from 0 to {MAX_NUMBER:g}", value)
+
+
+def _size(value):
+    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_SIDE:
+        raise _Bad(f"a whole number from 1 to {MAX_SIDE}", value)
+
+
+def _number(value):
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0 <= value <= MAX_NUMBER):
+        raise _Bad(f"a number from 0 to {MAX_NUMBER:g}", value)
+
+
+def _time(value):
+    """A measured time: every ratio in the report divides by one, and no real frame takes 0 ms."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0 < value <= MAX_NUMBER):
+        raise _Bad(f"a time above 0 and at most {MAX_NUMBER:g}", value)
+
+
+def _one_of(*choices):
+    def check(value):
+        if isinstance(value, bool) or value not in choices:
+            raise _Bad("one of " + ", ".join(choices), value)
+
+    return check
+
+
+def _or_null(spec):
+    spec = _compile(spec)
+
+    def check(value):
+        if value is not None:
+            spec(value)
+
+    return check
+
+
+def _list(spec, most: int = 10_000_000):
+    spec = _compile(spec)
+
+    def check(value):
+        if not isinstance(value, list) or len(value) > most:
+            raise _Bad(f"a list of at most {most:,}", value)
+        for i, item in enumerate(value):
+            try:
+                spec(item)
+            except _Bad as bad:
+                raise bad.at(f"[{i}]") from None
+
+    return check
+
+
+def _object_of(spec):
+    """An object whose every value matches spec (settings, versions)."""
+    spec = _compile(spec)
+
+    def check(value):
+        if not isinstance(value, dict):
+            raise _Bad("an object", value)
+        for key, item in value.items():
+            try:
+                spec(item)
+            except _Bad as bad:
+                raise bad.at(key) from None
+
+    return check
+
+
+def _compile(spec):
+    """A dict of field -> spec (a key ending in "?" may be missing; fields not
+    named pass, for newer writers) becomes the checker of such an object."""
+    if callable(spec):
+        return spec
+    fields = [(key.rstrip("?"), key.endswith("?"), _compile(field)) for key, field in spec.items()]
+
+    def check(value):
+        if not isinstance(value, dict):
+            raise _Bad("an object", value)
+        for key, optional, field in fields:
+            if key in value:
+                try:
+                    field(value[key])
+                except _Bad as bad:
+                    raise bad.at(key) from None
+            elif not optional:
+                raise _Bad("present", "nothing").at(key)
+
+    return check
+
+
+def _option(value):
+    if isinstance(value, str):
+        if not OPTION_TEXT.fullmatch(value):
+            raise _Bad("a short text of letters, digits and spaces", value)
+    elif isinstance(value, list):
+        _list(_count, 16)(value)
+    elif value is not None and not isinstance(value, bool):
+        _number(value)
+
+
+def _plain(value):
+    """A setting as the runner writes it: text, a number, a flag, null, or a list of those."""
+    if isinstance(value, list):
+        _list(_plain, 64)(value)
+    elif isinstance(value, str):
+        _text(value)
+    elif value is not None and not isinstance(value, bool):
+        _number(value)
+
+
+TIMES = {"median": _time, "p5": _time, "p95": _time, "mean?": _time, "min?": _time, "max?": _time}
+MACHINE = {
+    "os?": _text,
+    "cpu?": {
+        "model?": _text,
+        "arch?": _text,
+        "physical_cores?": _or_null(_count),
+        "logical_cpus?": _or_null(_count),
+        "clock_ghz?": _or_null(_number),
+        "simd?": _or_null(_text),
+        "simd_bits?": _or_null(_count),
+        "fp32_lanes?": _or_null(_count),
+        "fma_units_per_core?": _or_null(_count),
+        "fp32_gflops?": _or_null(_number),
+        "memory_gib?": _or_null(_number),
+    },
+    "gpus?": _list(
+        {
+            "name?": _text,
+            "compute_capability?": _text,
+            "multiprocessors?": _or_null(_count),
+            "clock_ghz?": _or_null(_number),
+            "memory_clock_ghz?": _or_null(_number),
+            "memory_gib?": _or_null(_number),
+            "fp32_lanes_per_sm?": _or_null(_count),
+            "fp32_gflops?": _or_null(_number),
+            "driver?": _or_null(_text),
+        },
+        64,
+    ),
+    "wgpu_adapters?": _list(_object_of(_or_null(_plain)), 64),
+    "versions?": _object_of(_or_null(_text)),
+}
+RUN = _compile(
+    {
+        "id?": _text,
+        "date?": _text,
+        "git_commit?": _or_null(_text),
+        "label": _name,
+        "argv?": _list(_text, 256),
+        "settings?": _object_of(_plain),
+        "machine": MACHINE,
+    }
+)
+POINT = _compile(
+    {
+        "suite": _one_of("thesis", "test7", "constant-vs-runtime", "tuning", "scaling", "secondary"),
+        "test?": _or_null(_count),
+        "device": _one_of("cpu", "cuda", "wgpu"),
+        "width": _size,
+        "height": _size,
+        "spheres": _count,
+        "options?": _object_of(_option),
+        "adapter?": _object_of(_or_null(_plain)),
+        "walk?": _or_null(_text),
+    }
+)
+MEASURED = _compile(
+    {
+        "frames?": _count,
+        "frame_ms": TIMES,
+        "kernel_ms?": _or_null(TIMES),
+        "first_frame_s?": _or_null(_number),
+        "compile_s?": _or_null(_number),
+        "build_s?": _or_null(_number),
+        "rays_per_s?": _or_null(_number),
+        "tests_per_s?": _or_null(_number),
+        # Whitted shading's (the secondary suite): the rays the kernels counted
+        "rays?": {"primary": _count, "shadow": _count, "reflection": _count, "refraction": _count},
+        "rays_per_frame?": _count,
+        "kernel_rays_per_s?": _or_null(_number),
+    }
+)
+SKIPPED = _compile({"skipped": _text, "predicted_ms?": _or_null(_number)})
+SERIES = _compile(
+    {"series": {"spheres": _list(_count), "frame_ms": _list(_time), "kernel_ms?": _or_null(_list(_time))}}
+)
+
+
+def check_record(record: dict, where: str, runs: list | None = None) -> None:
+    """Every field the report reads, checked for type and range, so a
+    hand-edited file fails with one line naming the field, never a traceback
+    or a silently wrong report: `where: run.machine.cpu: must be an object`.
+    runs: the run objects already checked; every record of a run repeats
+    its run, which is then compared (at C speed) rather than checked again."""
+    try:
+        POINT(record)
+        if "run" not in record:
+            raise _Bad("present", "nothing").at("run")
+        if runs is None or record["run"] not in runs:
+            try:
+                RUN(record["run"])
+            except _Bad as bad:
+                raise bad.at("run") from None
+            if runs is not None and len(runs) < 16:
+                runs.append(record["run"])
+        if "skipped" in record:
+            SKIPPED(record)
+            if record["suite"] not in ("scaling", "secondary"):
+                raise _Bad("absent outside the scaling and secondary suites", record["skipped"]).at("skipped")
+            return
+        MEASURED(record)
+        if record["suite"] == "test7":
+            SERIES(record)
+            series = record["series"]
+            if len(series["spheres"]) != len(series["frame_ms"]):
+                raise _Bad("as long as series.spheres", f"{len(series['frame_ms'])} entries").at("series.frame_ms")
+    except _Bad as bad:
+        got = "nothing" if bad.what == "present" else shown(bad.value)
+        what = "missing" if bad.what == "present" else f"must be {bad.what}, got {got}"
+        raise RaybenchError(f"{where}: {bad.path}: {what}") from None

@@ -17,7 +17,7 @@ import sys
 import tempfile
 from dataclasses import dataclass
 
-from ...errors import RaybenchError
+from ...errors import RaybenchError, shown
 
 GPU_TYPES = ("DiscreteGPU", "IntegratedGPU")
 # Among adapters of one type: the native APIs first, OpenGL (compute through GLES, fewer features) last.
@@ -114,7 +114,7 @@ def choose(name: str | None = None) -> Adapter:
         )
         raise RaybenchError(f"device wgpu: no GPU adapter (found: {listing(adapters)}){hint}")
     if not isinstance(name, str) or not name.strip():
-        raise RaybenchError(f"adapter: must be a non-empty name, got {name!r}")
+        raise RaybenchError(f"adapter: must be a non-empty name, got {shown(name)}")
     needle = name.strip().lower()
     matches = [a for a in adapters if needle in a.name.lower() or needle == a.backend.lower()]
     if not matches:

@@ -16,7 +16,7 @@ import numpy as np
 
 from ... import bvh as bvh_mod
 from ... import layout, lighting
-from ...errors import RaybenchError
+from ...errors import RaybenchError, shown
 from ...kernels import whitted
 from ...lighting import Shading
 from ..limits import HOST_PIXEL_BYTES, check_bvh_fits, host_available_bytes
@@ -44,7 +44,7 @@ def check_kernel(kernel) -> None:
     if kernel != "simple":
         raise RaybenchError(
             f"kernel: the wgpu backend has the simple kernel only (the thesis's loop, one "
-            f"invocation per pixel), got {kernel!r}; use --kernel simple"
+            f"invocation per pixel), got {shown(kernel)}; use --kernel simple"
         )
 
 
@@ -62,7 +62,7 @@ def check_workgroup(workgroup, limits: dict) -> tuple[int, int]:
     try:
         x, y = (int(v) for v in workgroup)
     except (TypeError, ValueError):
-        raise RaybenchError(f"workgroup: must be two integers (x, y), got {workgroup!r}") from None
+        raise RaybenchError(f"workgroup: must be two integers (x, y), got {shown(workgroup)}") from None
     most = limits["max-compute-invocations-per-workgroup"]
     max_x, max_y = limits["max-compute-workgroup-size-x"], limits["max-compute-workgroup-size-y"]
     if x < 1 or y < 1 or x > max_x or y > max_y or x * y > most:

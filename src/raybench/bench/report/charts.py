@@ -66,7 +66,9 @@ def plot_thesis(label: str, device: str, series: list[dict], device_name: str) -
     ax.legend(handles, labels, fontsize=8)
     tests = [s["test"] for s in series if s["test"]]
     what = f"tests {min(tests)}-{max(tests)}" if tests else "thesis tests"
-    ax.set_title(f"{label}: {DEVICE_NAMES.get(device, device)} {what}, {device_name}", fontsize=10)
+    # device_name is a results file's text: a "$" in it would start matplotlib's mathematics
+    plain = str(device_name).replace("$", r"\$")
+    ax.set_title(f"{label}: {DEVICE_NAMES.get(device, device)} {what}, {plain}", fontsize=10)
     ax.set_xlabel("spheres in the scene")
     ax.set_ylabel("median frame time (ms)")
     ax.set_ylim(bottom=0)
