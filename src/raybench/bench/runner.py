@@ -108,13 +108,7 @@ def measure(point: Point, scenes: Scenes, duration: float) -> dict:
     frame_ms = [f for f, _ in frames]
     kernel_ms = [k for _, k in frames if k is not None]
     record = {
-        "suite": point.suite,
-        "test": point.test,
-        "device": point.device,
-        "width": point.width,
-        "height": point.height,
-        "spheres": point.spheres,
-        "options": point.options,
+        **_identity(point),
         "frames": len(frames),
         "frame_ms": summarize(frame_ms),
         "kernel_ms": summarize(kernel_ms) if kernel_ms else None,
@@ -164,8 +158,8 @@ def predicted_ms(point: Point, last: tuple | None) -> float | None:
     return ms * (point.width * point.height / pixels) * (max(point.spheres, 1) / max(spheres, 1))
 
 
-def skipped(point: Point, predicted: float, cap_s: float) -> dict:
-    """The record of a point not measured: its frame would take too long."""
+def _identity(point: Point) -> dict:
+    """What every record says of its point, measured or skipped."""
     return {
         "suite": point.suite,
         "test": point.test,
@@ -174,6 +168,13 @@ def skipped(point: Point, predicted: float, cap_s: float) -> dict:
         "height": point.height,
         "spheres": point.spheres,
         "options": point.options,
+    }
+
+
+def skipped(point: Point, predicted: float, cap_s: float) -> dict:
+    """The record of a point not measured: its frame would take too long."""
+    return {
+        **_identity(point),
         "skipped": f"predicted {predicted / 1e3:.3g} s a frame, over the {cap_s:g} s cap",
         "predicted_ms": predicted,
     }
