@@ -20,6 +20,7 @@
 #            and this one in turn, twice, side by side in one lease
 #   builds   benchmarks/bvh_build.py (BUILDS_ARGS to change), with BASELINE as walks
 #   whitted  benchmarks/whitted_rays.py: Whitted shading's rays a second (WHITTED_ARGS to change)
+#   readback benchmarks/wgpu_readback.py: a wgpu frame's readback, step by step (READBACK_ARGS to change)
 #
 # Carries .whl (NumPy 2.4: the machine's 2.5 breaks numba 0.68.0; wgpu, cffi,
 # pycparser, rendercanvas, glfw) and .gl (the Vulkan and GL loaders as Debian
@@ -99,6 +100,9 @@ for s in $STEPS; do
         # shellcheck disable=SC2086
         step whitted "${WHITTED_S:-200}" python3 benchmarks/whitted_rays.py \
             ${WHITTED_ARGS:---device cuda --device wgpu --device cpu} ;;
+    readback)
+        # shellcheck disable=SC2086
+        step readback "${READBACK_S:-120}" python3 benchmarks/wgpu_readback.py ${READBACK_ARGS:-} ;;
     *) echo "unknown step $s" | tee -a "$W/steps.log" ;;
     esac
 done
