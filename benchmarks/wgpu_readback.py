@@ -2,7 +2,9 @@
 the host: the pass alone (GPU timestamps, and submit-to-done by the wall
 clock), then each step of the readback that Tracer.trace() does, timed apart:
 the copies out of the texture and the hits buffer, mapping each buffer, and
-the conversion into the (H, W, 3) image and (H, W) hits. Medians of --frames
+the conversion into the (H, W, 3) image and (H, W) hits (the image's three
+ways: (H, W, 3) picked out of mapped memory at once, as before; a plane at a
+time; and copied out first, then a plane at a time, as trace() does now). Medians of --frames
 warm frames; one line of JSON per sphere count.
 
     python benchmarks/wgpu_readback.py --spheres 1000 --spheres 1000000
@@ -30,7 +32,22 @@ def measure(spheres: int, width: int, height: int, frames: int, adapter: str | N
 
     scene = random_spheres(spheres, seed=0)
     basis = Camera().basis(width, height)
-    steps = {k: [] for k in ("kernel", "pass_wall", "copy_submit", "map_image", "map_hits", "image", "hits", "trace")}
+    steps = {
+        k: []
+        for k in (
+            "kernel",
+            "pass_wall",
+            "copy_submit",
+            "map_image",
+            "map_hits",
+            "image_in_place",
+            "image_copy",
+            "image_planes_in_place",
+            "image_planes",
+            "hits",
+            "trace",
+        )
+    }
     with Tracer(scene.spheres, width, height, adapter=adapter) as tracer:
         tracer.compile()
         for _ in range(3):
@@ -58,10 +75,25 @@ def measure(spheres: int, width: int, height: int, frames: int, adapter: str | N
             start = time.perf_counter()
             tracer.hits_read.map_sync(wgpu.MapMode.READ)
             steps["map_hits"].append(ms(start))
+            mapped = np.frombuffer(tracer.image_read.read_mapped(copy=False), np.uint8)
+            start = time.perf_counter()  # the RGB channels picked out of mapped memory in place
+            tracer.image[...] = mapped.reshape(height, tracer.row_bytes // 4, 4)[:, :width, :3]
+            steps["image_in_place"].append(ms(start))
+            start = time.perf_counter()  # one plane at a time, out of mapped memory
+            pixels = mapped.reshape(height, tracer.row_bytes // 4, 4)[:, :width]
+            for channel in range(3):
+                tracer.image[:, :, channel] = pixels[:, :, channel]
+            steps["image_planes_in_place"].append(ms(start))
+            start = time.perf_counter()  # what trace() does: one straight copy out, then the planes
+            tracer.rgba[...] = mapped
+            steps["image_copy"].append(ms(start))
             start = time.perf_counter()
-            rgba = np.frombuffer(tracer.image_read.read_mapped(copy=False), np.uint8)
-            tracer.image[...] = rgba.reshape(height, tracer.row_bytes // 4, 4)[:, :width, :3]
-            steps["image"].append(ms(start))
+            pixels = tracer.rgba.reshape(height, tracer.row_bytes // 4, 4)[:, :width]
+            for channel in range(3):
+                tracer.image[:, :, channel] = pixels[:, :, channel]
+            steps["image_planes"].append(ms(start))
+            del pixels
+            del mapped
             start = time.perf_counter()
             tracer.hits[...] = np.frombuffer(tracer.hits_read.read_mapped(copy=False), np.int32).reshape(height, width)
             steps["hits"].append(ms(start))
