@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from raybench import Camera, RaybenchError, camera_path
+from raybench.cli import run
 
 
 def random_camera(rng) -> Camera:
@@ -76,3 +77,12 @@ def test_bad_keyframes_are_refused_with_where(tmp_path, keyframes, top, message)
 def test_frames_must_be_a_count(frames):
     with pytest.raises(RaybenchError, match="frames: must be a whole number"):
         camera_path.orbit(Camera(), frames)
+
+
+def test_cli_a_bad_path_file_is_one_line(tmp_path, capsys, monkeypatch):
+    monkeypatch.delenv("RAYBENCH_SCHEDULER", raising=False)
+    bad = write_path(tmp_path, [{"position": [0, 0, 0], "zoom": 2}])
+    assert run(["render", "--spheres", "3", "--path", str(bad), "-o", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "keyframes[0].zoom: unknown key" in err and err.count("\n") == 1
+    assert not (tmp_path / "out").exists()
