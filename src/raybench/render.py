@@ -105,8 +105,8 @@ class Renderer:
         Camera()); a Frame of its own arrays. hits=False leaves Frame.hits
         None and saves copying them. rows=(first, end): only those rows of
         the frame, each pixel as the whole frame has it (a tile of
-        raybench.cluster's render; first a multiple of 8), on devices that
-        trace rows (cpu)."""
+        raybench.cluster's render; first a multiple of 8 on the cpu), on
+        devices that trace rows (cpu and cuda)."""
         if self.tracer is None:
             raise RaybenchError("renderer: it is closed; make a new Renderer")
         _check_camera(camera)
@@ -115,7 +115,9 @@ class Renderer:
         if rows is None:
             image, hit_ids = self.tracer.trace(basis)
         elif not self.tracer.traces_rows:
-            raise RaybenchError(f"rows: device {self.tracer.name} traces whole frames only; tiles need device cpu")
+            raise RaybenchError(
+                f"rows: device {self.tracer.name} traces whole frames only; tiles need device cpu or cuda"
+            )
         else:
             image, hit_ids = self.tracer.trace(basis, rows=rows)
             image, hit_ids = image[rows[0] : rows[1]], hit_ids[rows[0] : rows[1]]

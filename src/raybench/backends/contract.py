@@ -61,7 +61,7 @@ class TracerBase:
     build_s: float | None = None
     ray_counts: np.ndarray | None = None
     # trace() takes rows=(first, end), tracing only those rows of the frame
-    # (the tiles of raybench.cluster); the cpu's does.
+    # (the tiles of raybench.cluster); the cpu's and cuda's do.
     traces_rows: bool = False
 
     def describe(self) -> dict | None:

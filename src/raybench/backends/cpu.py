@@ -41,6 +41,7 @@ from .limits import (
     check_bvh_fits,
     check_count,
     check_fits,
+    check_rows,
     host_available_bytes,
 )
 
@@ -561,21 +562,6 @@ def description() -> str:
     return f"cpu ({default_threads()} threads, Numba {numba.__version__})"
 
 
-def check_rows(rows, height: int) -> tuple[int, int]:
-    """(first, end): rows first..end of a frame `height` rows high, first a
-    multiple of PACKET_H (where the whole frame's packets start)."""
-    try:
-        first, end = (int(r) for r in rows)
-    except (TypeError, ValueError):
-        raise RaybenchError(f"rows: must be (first, end), got {shown(rows)}") from None
-    if not (0 <= first < end <= height and first % PACKET_H == 0):
-        raise RaybenchError(
-            f"rows: must be (first, end) with 0 <= first < end <= {height} and first a multiple of {PACKET_H}, "
-            f"got {shown(rows)}"
-        )
-    return first, end
-
-
 def bands(height: int, threads: int) -> list[tuple[int, int]]:
     """Split rows 0..height into `threads` contiguous bands whose sizes differ by at most one."""
     edges = [height * i // threads for i in range(threads + 1)]
@@ -717,7 +703,7 @@ class Tracer(TracerBase):
         args = self._args(basis, count)
         first, end, bands = 0, self.height, self.bands
         if rows is not None:
-            first, end = check_rows(rows, self.height)
+            first, end = check_rows(rows, self.height, PACKET_H)
             cut = chunks if self.accel == "bvh" or self.whitted is not None else _bands_of
             bands = [(first + a, first + b) for a, b in cut(end - first, self.threads)]
         if self._pool is None:
