@@ -75,6 +75,17 @@ def test_tiles_are_the_single_process_frame_bit_for_bit(running, rng, accel):
     assert (frame.hits >= 0).any() and (frame.hits < 0).any()  # hits and misses both compared
 
 
+@pytest.mark.gpu
+def test_cuda_tiles_are_the_single_process_frame_bit_for_bit(running, rng):
+    """On cuda workers (numba's simulator without a GPU: keep it tiny)."""
+    scene, camera = scene_and_camera(rng, 20)
+    frame = cluster.render(running.client, scene, camera, 24, 16, device="cuda", rows=8)
+    whole = raybench.render(scene, camera, 24, 16, device="cuda")
+    assert frame.device == "cuda"
+    np.testing.assert_array_equal(frame.image, whole.image)
+    np.testing.assert_array_equal(frame.hits, whole.hits)
+
+
 def test_a_tile_must_be_whole_packets_of_rows(running):
     with pytest.raises(RaybenchError, match="multiple of 8"):
         cluster.render(running.client, raybench.random_spheres(3), width=32, height=32, device="cpu", rows=12)

@@ -14,7 +14,7 @@ this module decides only what a worker owns and what a task is:
   key, and the kernels, the tree and the device's buffers are made on the
   first task and reused by the next.
 - A task is a band of rows of one frame (a tile: bit for bit the rows of the
-  whole frame's render) or a run of whole frames of a sequence (their PNGs,
+  whole frame's render, on cpu and cuda) or a run of whole frames of a sequence (their PNGs,
   encoded on the worker).
 
 Why the embedded workers differ from Dask's defaults (docs/scaling.md has
@@ -314,7 +314,7 @@ def render(
     """raybench.render() across the cluster's workers: the frame cut in
     bands of `rows` rows (default: tile_rows()), traced where Dask puts
     them and assembled here, bit for bit the frame one process traces on
-    the same device. device "cpu" (the devices that trace rows)."""
+    the same device: "cpu" or "cuda" (the devices that trace rows)."""
     from distributed import as_completed
 
     if camera is not None and not isinstance(camera, Camera):
@@ -323,8 +323,8 @@ def render(
     width, height = spec[0], spec[1]
     found = check_workers(client, device, **options)
     device = next(iter(found.values()))
-    if device != "cpu":
-        raise RaybenchError(f"device {device}: traces whole frames only; a frame in tiles needs device cpu")
+    if device not in ("cpu", "cuda"):
+        raise RaybenchError(f"device {device}: traces whole frames only; a frame in tiles needs device cpu or cuda")
     spec = (width, height, device, *spec[3:])
     if rows is None:
         rows = tile_rows(height, len(found))
