@@ -6,6 +6,8 @@ this one process."""
 import os
 import signal
 import socket
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -198,3 +200,36 @@ def test_cli_refuses_bad_cluster_options_in_one_line(argv, message, capsys, monk
     assert run(["render", "--spheres", "3", *argv]) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
+
+
+@pytest.mark.slow
+def test_ctrl_c_keeps_the_frames_written_and_stops_the_cluster(tmp_path):
+    """Ctrl-C at a terminal: SIGINT to the whole process group, workers included."""
+    out = tmp_path / "frames"
+    argv = [sys.executable, "-m", "raybench", "render", "--spheres", "200", "--size", "160x120", "--device", "cpu",
+            "--accel", "none", "--kernel", "simple", "--workers", "2", "--path", "orbit", "--frames", "2000",
+            "-o", str(out)]  # fmt: skip
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    proc = subprocess.Popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while len(list(out.glob("frame_*.png"))) < 3:
+            assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read().decode()
+            time.sleep(0.1)
+        family = psutil.Process(proc.pid).children(recursive=True)
+        assert len(family) >= 2  # the nannies and their workers
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130 and err.decode().strip().splitlines()[-1] == "raybench: interrupted"
+    _, alive = psutil.wait_procs(family, timeout=20)
+    assert not alive, f"stray processes: {alive}"
+    frames = sorted(out.iterdir())
+    assert 3 <= len(frames) < 2000 and all(f.name.startswith("frame_") and f.suffix == ".png" for f in frames)
+    cameras = camera_path.orbit(Camera(), 2000)
+    scene = raybench.random_spheres(200, 0)
+    with raybench.Renderer(scene, 160, 120, device="cpu", accel="none", kernel="simple") as renderer:
+        for f in frames[:2] + frames[-1:]:  # the last one written whole too
+            np.testing.assert_array_equal(png(f), renderer.render(cameras[int(f.stem[6:])]).image)

@@ -287,8 +287,11 @@ def _spec(width, height, device, shading, depth, shadow_samples, options) -> tup
 def _scatter(client, scene: Scene):
     if not isinstance(scene, Scene):
         raise RaybenchError(f"scene: must be a raybench.Scene, got {type(scene).__name__}")
-    # Once to every worker: the tasks then find it there and carry only its key.
-    future = client.scatter(scene, broadcast=True)
+    # Once to every worker: the tasks then find it there and carry only its
+    # key. The key is a hash of the scene, so a later job of the same scene
+    # finds the workers' renderers warm; the data stays while any job holds a
+    # future of it, and is never cancelled by one job under another.
+    future = client.scatter(scene, broadcast=True, hash=True)
     return future, future.key
 
 
@@ -348,7 +351,7 @@ def render(
                 rays = {k: (rays or {}).get(k, 0) + n for k, n in band_rays.items()}
             build_s = band_build if build_s is None else max(build_s, band_build or 0.0)
     finally:
-        client.cancel(tasks + [future])
+        client.cancel(tasks)
     return Frame(image=image, hits=hits, device=device, build_s=build_s, rays=rays)
 
 
@@ -415,5 +418,5 @@ def render_sequence(
                     on_frame(n, paths[n])
     finally:
         # Ctrl-C or an error: what is written stays; what is queued is dropped.
-        client.cancel(tasks + [future])
+        client.cancel(tasks)
     return paths
