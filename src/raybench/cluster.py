@@ -284,14 +284,29 @@ def _spec(width, height, device, shading, depth, shadow_samples, options) -> tup
     return (width, height, device, shading, depth, shadow_samples, tuple(sorted(options.items())))
 
 
+# The scenes this process's jobs scattered, the last KEEP_RENDERERS: (client
+# id, key) -> Future. Held here between jobs, because a key released and
+# scattered again at once can be dropped by the scheduler under the new job
+# (its tasks then fail with "lost dependencies").
+_scattered: OrderedDict = OrderedDict()
+
+
 def _scatter(client, scene: Scene):
+    """The scene on every worker, once: the tasks find it there and carry
+    only its key. The key is a hash of the scene, so a later job of the same
+    scene reuses it, and finds the workers' renderers warm."""
+    from dask.base import tokenize
+
     if not isinstance(scene, Scene):
         raise RaybenchError(f"scene: must be a raybench.Scene, got {type(scene).__name__}")
-    # Once to every worker: the tasks then find it there and carry only its
-    # key. The key is a hash of the scene, so a later job of the same scene
-    # finds the workers' renderers warm; the data stays while any job holds a
-    # future of it, and is never cancelled by one job under another.
-    future = client.scatter(scene, broadcast=True, hash=True)
+    held = (id(client), f"Scene-{tokenize(scene)}")
+    future = _scattered.get(held)
+    if future is None or future.client is not client or future.status != "finished":
+        future = client.scatter(scene, broadcast=True, hash=True)
+        _scattered[held] = future
+        while len(_scattered) > KEEP_RENDERERS:
+            _scattered.popitem(last=False)[1].release()
+    _scattered.move_to_end(held)
     return future, future.key
 
 
