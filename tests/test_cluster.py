@@ -233,3 +233,14 @@ def test_ctrl_c_keeps_the_frames_written_and_stops_the_cluster(tmp_path):
     with raybench.Renderer(scene, 160, 120, device="cpu", accel="none", kernel="simple") as renderer:
         for f in frames[:2] + frames[-1:]:  # the last one written whole too
             np.testing.assert_array_equal(png(f), renderer.render(cameras[int(f.stem[6:])]).image)
+
+
+def test_cuda_workers_are_pinned_one_gpu_each_within_those_visible(monkeypatch):
+    monkeypatch.delenv("CUDA_VISIBLE_DEVICES", raising=False)
+    assert [s["options"]["env"]["CUDA_VISIBLE_DEVICES"] for s in cluster.worker_specs("cuda", 3).values()] == [
+        "0", "1", "2"
+    ]  # fmt: skip
+    monkeypatch.setenv("CUDA_VISIBLE_DEVICES", "5, GPU-abc")
+    specs = cluster.worker_specs("cuda", 2)
+    assert [s["options"]["env"]["CUDA_VISIBLE_DEVICES"] for s in specs.values()] == ["5", "GPU-abc"]
+    assert all(s["options"]["host"] == "127.0.0.1" and s["options"]["nthreads"] == 1 for s in specs.values())

@@ -92,9 +92,11 @@ def worker_specs(device: str, workers: int) -> dict:
     except ImportError:  # psutil is a dependency; without it Dask picks
         memory = "auto"
     specs = {}
+    # the GPUs this process may use, in its own numbering: a worker pins one of them
+    visible = [g.strip() for g in os.environ.get("CUDA_VISIBLE_DEVICES", "").split(",") if g.strip()]
     for i in range(workers):
         if device == "cuda":
-            env = {"CUDA_VISIBLE_DEVICES": str(i)}
+            env = {"CUDA_VISIBLE_DEVICES": visible[i] if i < len(visible) else str(i)}
         else:
             env = {"NUMBA_NUM_THREADS": str(max(1, usable_cores() // workers))}
         for key in ("RAYBENCH_CACHE_DIR", "NUMBA_ENABLE_CUDASIM"):  # the compiled kernels' cache, and the simulator
@@ -266,6 +268,15 @@ def _tile(scene: Scene, scene_key: str, spec: tuple, camera: Camera | None, rows
     return rows[0], frame.image, frame.hits, frame.rays, frame.build_s
 
 
+def _hit_counts(scene: Scene, scene_key: str, spec: tuple, cameras: list[Camera]) -> list[int]:
+    """A task: whole frames traced in the renderer's own buffers, each
+    reduced to the count of its pixels that hit a sphere."""
+    width, height = spec[0], spec[1]
+    with _lock:
+        renderer = _renderer(scene, scene_key, spec)
+        return [int((renderer.tracer.trace(c.basis(width, height))[1] >= 0).sum()) for c in cameras]
+
+
 def _frames(scene: Scene, scene_key: str, spec: tuple, numbered: list[tuple[int, Camera]]):
     """A task: whole frames of a sequence; [(number, PNG bytes)]."""
     with _lock:
@@ -370,6 +381,43 @@ def render(
     return Frame(image=image, hits=hits, device=device, build_s=build_s, rays=rays)
 
 
+def _runs(items: list, workers: int, per_task: int | None) -> list[list]:
+    """items cut into the runs of a sequence's tasks: per_task each, by
+    default about TASKS_PER_WORKER a worker and at most MAX_FRAMES_PER_TASK."""
+    if per_task is None:
+        per_task = min(MAX_FRAMES_PER_TASK, math.ceil(len(items) / (workers * TASKS_PER_WORKER)))
+    if isinstance(per_task, bool) or not isinstance(per_task, int) or per_task < 1:
+        raise RaybenchError(f"frames_per_task: must be a whole number >= 1, got {per_task!r}")
+    return [items[i : i + per_task] for i in range(0, len(items), per_task)]
+
+
+def trace_frames(
+    client,
+    scene: Scene,
+    cameras: Iterable[Camera],
+    width: int = 800,
+    height: int = 600,
+    device: str = "auto",
+    frames_per_task: int | None = None,
+    **options,
+) -> list[int]:
+    """The frames of cameras traced across the workers as render_sequence
+    traces them, but kept there: each comes back as the count of its pixels
+    that hit a sphere. The throughput of the workers' devices alone, without
+    encoding or moving pictures (the bench's multi-gpu suite)."""
+    cameras = list(cameras)
+    spec = _spec(width, height, device, "thesis", None, None, options)
+    found = check_workers(client, device, **options)
+    spec = (spec[0], spec[1], next(iter(found.values())), *spec[3:])
+    future, key = _scatter(client, scene)
+    tasks = [client.submit(_hit_counts, future, key, spec, run, pure=False)
+             for run in _runs(cameras, len(found), frames_per_task)]  # fmt: skip
+    try:
+        return [n for counts in client.gather(tasks) for n in counts]
+    finally:
+        client.cancel(tasks)
+
+
 def frame_path(out_dir: Path, number: int) -> Path:
     return Path(out_dir) / f"frame_{number:05d}.png"
 
@@ -418,12 +466,8 @@ def render_sequence(
             todo.append((n, cameras[n]))
     if not todo:
         return paths
-    if frames_per_task is None:
-        frames_per_task = min(MAX_FRAMES_PER_TASK, math.ceil(len(todo) / (len(found) * TASKS_PER_WORKER)))
-    if isinstance(frames_per_task, bool) or not isinstance(frames_per_task, int) or frames_per_task < 1:
-        raise RaybenchError(f"frames_per_task: must be a whole number >= 1, got {frames_per_task!r}")
+    runs = _runs(todo, len(found), frames_per_task)
     future, key = _scatter(client, scene)
-    runs = [todo[i : i + frames_per_task] for i in range(0, len(todo), frames_per_task)]
     tasks = [client.submit(_frames, future, key, spec, run, pure=False) for run in runs]
     try:
         for task in as_completed(tasks):
