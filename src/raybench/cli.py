@@ -655,7 +655,14 @@ def bench(suites, devices, adapter, kernels, accels, duration, quick, out_dir, l
     kernels = tuple(dict.fromkeys(kernels)) or ("fast",)
     accels = tuple(dict.fromkeys(accels)) or ACCELS
     points = suites_mod.points(
-        chosen, devices, quick=quick, kernels=kernels, accels=accels, wgpu=wgpu_options, max_invocations=max_invocations
+        chosen,
+        devices,
+        quick=quick,
+        kernels=kernels,
+        accels=accels,
+        wgpu=wgpu_options,
+        max_invocations=max_invocations,
+        gpus=len(machine["gpus"]),
     )
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
     results_path = out_dir / f"results-{stamp}.jsonl"
