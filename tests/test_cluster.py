@@ -244,3 +244,34 @@ def test_cuda_workers_are_pinned_one_gpu_each_within_those_visible(monkeypatch):
     specs = cluster.worker_specs("cuda", 2)
     assert [s["options"]["env"]["CUDA_VISIBLE_DEVICES"] for s in specs.values()] == ["5", "GPU-abc"]
     assert all(s["options"]["host"] == "127.0.0.1" and s["options"]["nthreads"] == 1 for s in specs.values())
+
+
+@pytest.mark.slow
+def test_a_worker_killed_mid_frame_loses_no_tile(running, rng):
+    """A worker killed while it traces a tile: Dask traces that tile again elsewhere, and the frame is whole."""
+    import threading
+
+    scene, camera = scene_and_camera(rng, 400)
+    options = {"accel": "none", "kernel": "simple"}  # tiles slow enough to be caught in the act
+    done = {}
+    job = threading.Thread(
+        target=lambda: done.setdefault(
+            "frame", cluster.render(running.client, scene, camera, 96, 240, "cpu", rows=8, **options)
+        )
+    )
+    pids = running.client.run(os.getpid)
+    job.start()
+    victim = None
+    deadline = time.monotonic() + 60
+    while victim is None and job.is_alive() and time.monotonic() < deadline:
+        busy = running.client.processing()
+        victim = next((w for w, keys in busy.items() if any("_tile" in str(k) for k in keys)), None)
+    assert victim is not None, "no tile was seen in progress"
+    os.kill(pids[victim], signal.SIGKILL)
+    job.join(120)
+    assert not job.is_alive()
+    whole = raybench.render(scene, camera, 96, 240, device="cpu", **options)
+    np.testing.assert_array_equal(done["frame"].image, whole.image)
+    np.testing.assert_array_equal(done["frame"].hits, whole.hits)
+    running.client.wait_for_workers(2, timeout=60)
+    assert pids[victim] not in running.client.run(os.getpid).values()
