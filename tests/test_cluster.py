@@ -88,6 +88,12 @@ def test_cuda_tiles_are_the_single_process_frame_bit_for_bit(running, rng):
     np.testing.assert_array_equal(frame.hits, whole.hits)
 
 
+def test_a_frame_too_large_to_assemble_here_is_refused_before_work(running, monkeypatch):
+    monkeypatch.setattr(cluster, "host_available_bytes", lambda: 64 * 48 * 7 - 1)
+    with pytest.raises(RaybenchError, match=r"64x48 .* more than .* on the host \(where the frame is assembled\)"):
+        cluster.render(running.client, raybench.random_spheres(3), width=64, height=48, device="cpu")
+
+
 def test_a_tile_must_be_whole_packets_of_rows(running):
     with pytest.raises(RaybenchError, match="multiple of 8"):
         cluster.render(running.client, raybench.random_spheres(3), width=32, height=32, device="cpu", rows=12)

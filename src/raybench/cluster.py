@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .backends.limits import PIXEL_BYTES, check_fits, host_available_bytes
 from .camera import Camera
 from .errors import RaybenchError, one_line
 from .render import Frame, Renderer
@@ -362,6 +363,8 @@ def render(
             f"rows: a tile's rows must be a multiple of {TILE_ALIGN}, at least {TILE_ALIGN}, got {rows!r}"
         )
     camera = camera or scene.camera or Camera()
+    # The frame is assembled here, whole: refused before any work if it cannot be.
+    check_fits("host (where the frame is assembled)", width, height, 0, host_available_bytes(), PIXEL_BYTES)
     future, key = _scatter(client, scene)
     bands = [(a, min(a + rows, height)) for a in range(0, height, rows)]
     tasks = [client.submit(_tile, future, key, spec, camera, band, pure=False) for band in bands]
