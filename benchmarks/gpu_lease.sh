@@ -20,7 +20,7 @@
 #            and this one in turn, twice, side by side in one lease
 #   builds   benchmarks/bvh_build.py (BUILDS_ARGS to change), with BASELINE as walks
 #   whitted  benchmarks/whitted_rays.py: Whitted shading's rays a second (WHITTED_ARGS to change)
-#   warmup   raybench warmup on cuda and cpu: the kernels into the disk cache, which
+#   warmup   raybench warmup on cuda (its BVH builder included): the kernels into the disk cache, which
 #            every later process (a cluster's workers among them) loads
 #   overhead benchmarks/dask_overhead.py: a frame's time in a Dask worker against a
 #            plain process (OVERHEAD_ARGS to change)
@@ -110,7 +110,7 @@ for s in $STEPS; do
         # shellcheck disable=SC2086
         step whitted "${WHITTED_S:-200}" python3 benchmarks/whitted_rays.py \
             ${WHITTED_ARGS:---device cuda --device wgpu --device cpu} ;;
-    warmup) step warmup "${WARMUP_S:-300}" python3 -m raybench warmup --device cuda --device cpu ;;
+    warmup) step warmup "${WARMUP_S:-300}" python3 -m raybench warmup --device cuda ;;
     overhead)
         # shellcheck disable=SC2086
         step overhead "${OVERHEAD_S:-300}" python3 benchmarks/dask_overhead.py --json "$W/dask_overhead.jsonl" \
