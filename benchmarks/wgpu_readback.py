@@ -1,0 +1,99 @@
+"""Where a wgpu frame's time goes between the compute pass and the arrays on
+the host: the pass alone (GPU timestamps, and submit-to-done by the wall
+clock), then each step of the readback that Tracer.trace() does, timed apart:
+the copies out of the texture and the hits buffer, mapping each buffer, and
+the conversion into the (H, W, 3) image and (H, W) hits. Medians of --frames
+warm frames; one line of JSON per sphere count.
+
+    python benchmarks/wgpu_readback.py --spheres 1000 --spheres 1000000
+"""
+
+import argparse
+import json
+import statistics
+import sys
+import time
+
+import numpy as np
+
+
+def ms(start: float) -> float:
+    return (time.perf_counter() - start) * 1e3
+
+
+def measure(spheres: int, width: int, height: int, frames: int, adapter: str | None) -> dict:
+    import wgpu
+
+    from raybench.backends.wgpu.tracer import Tracer
+    from raybench.camera import Camera
+    from raybench.scene import random_spheres
+
+    scene = random_spheres(spheres, seed=0)
+    basis = Camera().basis(width, height)
+    steps = {k: [] for k in ("kernel", "pass_wall", "copy_submit", "map_image", "map_hits", "image", "hits", "trace")}
+    with Tracer(scene.spheres, width, height, adapter=adapter) as tracer:
+        tracer.compile()
+        for _ in range(3):
+            tracer.trace(basis)
+        for _ in range(frames):
+            # the pass alone, waited for through the fence
+            encoder = tracer.device.create_command_encoder()
+            tracer.compute.encode(encoder, basis, tracer.count, timed=True)
+            tracer.compute.encode_fence(encoder)
+            start = time.perf_counter()
+            tracer.device.queue.submit([encoder.finish()])
+            tracer.compute.wait()
+            steps["pass_wall"].append(ms(start))
+            if tracer.period_ns:
+                steps["kernel"].append(tracer.compute.read_kernel_ms(tracer.period_ns))
+            # the readback, step by step
+            start = time.perf_counter()
+            encoder = tracer.device.create_command_encoder()
+            tracer._encode_readback(encoder)
+            tracer.device.queue.submit([encoder.finish()])
+            steps["copy_submit"].append(ms(start))
+            start = time.perf_counter()
+            tracer.image_read.map_sync(wgpu.MapMode.READ)
+            steps["map_image"].append(ms(start))
+            start = time.perf_counter()
+            tracer.hits_read.map_sync(wgpu.MapMode.READ)
+            steps["map_hits"].append(ms(start))
+            start = time.perf_counter()
+            rgba = np.frombuffer(tracer.image_read.read_mapped(copy=False), np.uint8)
+            tracer.image[...] = rgba.reshape(height, tracer.row_bytes // 4, 4)[:, :width, :3]
+            steps["image"].append(ms(start))
+            start = time.perf_counter()
+            tracer.hits[...] = np.frombuffer(tracer.hits_read.read_mapped(copy=False), np.int32).reshape(height, width)
+            steps["hits"].append(ms(start))
+            tracer.image_read.unmap()
+            tracer.hits_read.unmap()
+            # and the whole of trace(), as render() calls it
+            start = time.perf_counter()
+            tracer.trace(basis)
+            steps["trace"].append(ms(start))
+        described = tracer.describe()
+    return {
+        "what": "wgpu readback",
+        "spheres": spheres,
+        "size": f"{width}x{height}",
+        "frames": frames,
+        "adapter": described,
+        "median_ms": {k: round(statistics.median(v), 3) for k, v in steps.items() if v},
+    }
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--spheres", type=int, action="append")
+    parser.add_argument("--size", default="1680x1050")
+    parser.add_argument("--frames", type=int, default=30)
+    parser.add_argument("--adapter", help="a wgpu adapter by name (default: the best GPU)")
+    args = parser.parse_args()
+    width, height = (int(v) for v in args.size.split("x"))
+    for n in args.spheres or [1000, 100_000, 1_000_000]:
+        print(json.dumps(measure(n, width, height, args.frames, args.adapter)), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
