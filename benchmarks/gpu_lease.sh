@@ -21,6 +21,16 @@
 #   builds   benchmarks/bvh_build.py (BUILDS_ARGS to change), with BASELINE as walks
 #   whitted  benchmarks/whitted_rays.py: Whitted shading's rays a second (WHITTED_ARGS to change)
 #   readback benchmarks/wgpu_readback.py: a wgpu frame's readback, step by step (READBACK_ARGS to change)
+#   warmup   raybench warmup on cuda (its BVH builder included): the kernels into the disk cache, which
+#            every later process (a cluster's workers among them) loads
+#   overhead benchmarks/dask_overhead.py: a frame's time in a Dask worker against a
+#            plain process (OVERHEAD_ARGS to change)
+#   multigpu benchmarks/multi_gpu.py: 1 and 2 cuda workers of raybench.cluster on a
+#            240-frame orbit at 1680x1050, an 8192x8192 frame in tiles, both at 100,000
+#            spheres, and the scaling model's terms (MULTIGPU_ARGS to change); needs the
+#            Dask wheels in .whl (benchmarks/dask_wheels.sh) and the machine kind nvidia-h200-x2
+#   multibench raybench bench --suite multi-gpu on cuda: the same throughput as results
+#            records, for raybench report's section across workers
 #
 # Carries .whl (NumPy 2.4: the machine's 2.5 breaks numba 0.68.0; wgpu, cffi,
 # pycparser, rendercanvas, glfw) and .gl (the Vulkan and GL loaders as Debian
@@ -103,6 +113,16 @@ for s in $STEPS; do
     readback)
         # shellcheck disable=SC2086
         step readback "${READBACK_S:-120}" python3 benchmarks/wgpu_readback.py ${READBACK_ARGS:-} ;;
+    warmup) step warmup "${WARMUP_S:-300}" python3 -m raybench warmup --device cuda ;;
+    overhead)
+        # shellcheck disable=SC2086
+        step overhead "${OVERHEAD_S:-300}" python3 benchmarks/dask_overhead.py --json "$W/dask_overhead.jsonl" \
+            ${OVERHEAD_ARGS:---device cuda --size 1680x1050 --spheres 100000 --frames 60} ;;
+    multigpu)
+        # shellcheck disable=SC2086
+        step multigpu "${MULTIGPU_S:-420}" python3 benchmarks/multi_gpu.py --json "$W/multi_gpu.jsonl" \
+            ${MULTIGPU_ARGS:---device cuda --workers 1 --workers 2 --spheres 100000 --orbit 240 --orbit-size 1680x1050 --frame 8192x8192} ;;
+    multibench) bench multibench "${MULTIBENCH_S:-400}" --suite multi-gpu --device cuda --accel bvh ;;
     *) echo "unknown step $s" | tee -a "$W/steps.log" ;;
     esac
 done

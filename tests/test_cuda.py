@@ -88,3 +88,34 @@ def test_timed_frames_and_sphere_prefix(rng):
     assert np.array_equal(tracer.hits, prefix.hits) if SIM else (tracer.hits == prefix.hits).mean() > 0.999
     with pytest.raises(raybench.RaybenchError, match="sphere count"):
         tracer.trace(camera.basis(width, height), 31)
+
+
+# Each of cuda's kernels: (options, shading). The packet walk's block is its
+# default 8x4; 5x3 puts a band's edge inside blocks of the others.
+ROW_KERNELS = [
+    ({"accel": "none", "kernel": "simple", "block": (5, 3)}, "thesis"),
+    ({"accel": "none", "kernel": "fast", "block": (8, 2), "rays": 2}, "thesis"),
+    ({"accel": "none", "kernel": "simple", "constant_count": True}, "thesis"),
+    ({"accel": "bvh", "walk": "ray", "block": (5, 3)}, "thesis"),
+    ({"accel": "bvh", "walk": "packet"}, "thesis"),
+    ({"accel": "bvh", "block": (5, 3)}, "whitted"),
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("options, shading", ROW_KERNELS)
+def test_rows_are_the_whole_frames_rows(rng, options, shading):
+    """trace(rows=...) on every cuda kernel: a cluster's tile, each pixel as the whole frame has it."""
+    scene = raybench.random_spheres(int(rng.integers(1, 25)), seed=int(rng.integers(2**31)), materials=True)
+    camera = raybench.Camera(position=tuple(rng.uniform(-0.3, 0.3, 3)))
+    width, height = (16, 11) if SIM else SIZES[0]  # three frames of every kernel: small on the simulator
+    with raybench.Renderer(scene, width, height, device="cuda", shading=shading, **options) as renderer:
+        whole = renderer.render(camera)
+        first = int(rng.integers(0, height - 1))
+        end = int(rng.integers(first + 1, height + 1))
+        band = renderer.render(camera, rows=(first, end))
+        np.testing.assert_array_equal(band.image, whole.image[first:end])
+        np.testing.assert_array_equal(band.hits, whole.hits[first:end])
+        if shading == "whitted":
+            assert band.rays["primary"] == (end - first) * width
+        assert renderer.render(camera).rays == whole.rays  # a whole frame after a band: all of it again

@@ -44,3 +44,23 @@ def test_bad_arguments_are_refused(kwargs, message):
     args = {"scene": raybench.random_spheres(3), "width": 8, "height": 8, "device": "cpu", **kwargs}
     with pytest.raises(raybench.RaybenchError, match=message):
         raybench.Renderer(**args)
+
+
+@pytest.mark.parametrize("accel, shading", [("bvh", "thesis"), ("none", "thesis"), ("bvh", "whitted")])
+def test_rows_are_the_whole_frames_rows(rng, accel, shading):
+    """Renderer.render(rows=...): a cluster's tile, each pixel as the whole frame has it."""
+    scene = raybench.random_spheres(int(rng.integers(1, 60)), seed=int(rng.integers(2**31)), materials=True)
+    camera = raybench.Camera(position=tuple(rng.uniform(-0.3, 0.3, 3)))
+    with raybench.Renderer(scene, 64, 48, device="cpu", threads=2, accel=accel, shading=shading) as renderer:
+        whole = renderer.render(camera)
+        first = 8 * int(rng.integers(0, 5))
+        end = int(rng.integers(first + 1, 49))
+        band = renderer.render(camera, rows=(first, end))
+        np.testing.assert_array_equal(band.image, whole.image[first:end])
+        np.testing.assert_array_equal(band.hits, whole.hits[first:end])
+        if shading == "whitted":  # the band's rays alone: one primary ray a pixel of it
+            assert band.rays["primary"] == (end - first) * 64
+            assert renderer.render(camera, rows=(0, 48)).rays == whole.rays
+        for bad in [(3, 10), (8, 8), (0, 49), (-8, 8), "rows"]:
+            with pytest.raises(raybench.RaybenchError, match="rows"):
+                renderer.render(camera, rows=bad)

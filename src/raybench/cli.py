@@ -213,6 +213,35 @@ def tracer_options(adapter_whose: str = "wgpu"):
     )
 
 
+def cluster_options():
+    """--workers, --scheduler, --tile, --connect-timeout: where a Dask cluster's workers trace."""
+    return stacked(
+        click.option(
+            "--workers",
+            type=click.IntRange(min=1),
+            help="trace across an embedded Dask cluster of N worker processes on this machine (one per GPU on "
+            "cuda; on the cpu, sharing the cores)",
+        ),
+        click.option(
+            "--scheduler",
+            help="trace across the running Dask cluster whose scheduler is at this address, e.g. "
+            "tcp://10.0.0.5:8786 (default: $RAYBENCH_SCHEDULER)",
+        ),
+        click.option(
+            "--tile",
+            type=int,
+            help="across a cluster: rows of one frame's tiles, a multiple of 8 (default: about 4 tiles a worker)",
+        ),
+        click.option(
+            "--connect-timeout",
+            type=click.FloatRange(min=0.1, max=3600),
+            default=10.0,
+            show_default=True,
+            help="seconds to try the scheduler's address before giving up",
+        ),
+    )
+
+
 # --- the commands -------------------------------------------------------------------
 
 
@@ -229,8 +258,19 @@ def main():
 @tracer_options()
 @shading_option_group()
 @click.option(
-    "-o", "--output", default="render.png", show_default=True, type=click.Path(path_type=Path), help="PNG file to write"
+    "-o",
+    "--output",
+    type=click.Path(path_type=Path),
+    help="PNG file to write (default render.png); with --path, the folder of the frames",
 )
+@click.option(
+    "--path",
+    "camera_path",
+    help="a frame sequence: 'orbit' (a full turn about the camera's look_at) or a keyframes JSON file "
+    "(docs: raybench.camera_path); one PNG a frame in the folder -o, across the cluster's workers",
+)
+@click.option("--frames", type=int, help="--path: frames of the sequence (default 240)")
+@cluster_options()
 def render(
     scene_file,
     spheres,
@@ -248,19 +288,43 @@ def render(
     depth,
     shadow_samples,
     output,
+    camera_path,
+    frames,
+    workers,
+    scheduler,
+    tile,
+    connect_timeout,
 ):
-    """Trace one frame and save it as a PNG."""
+    """Trace one frame and save it as a PNG; or, with --path, a sequence of
+    frames. With --workers or --scheduler, across a Dask cluster's workers:
+    one frame in tiles of rows, a sequence in runs of frames."""
     from .backends import resolve
     from .render import render as render_frame
 
     scene = load_scene(scene_file, spheres, seed, materials)
     width, height = parse_size(size)
     shaded = shading_options(shading, depth, shadow_samples)
-    check_output(output)
-    device = resolve(device, adapter)
     options = device_options(
         threads=threads, block=block, workgroup=workgroup, adapter=adapter, kernel=kernel, accel=accel
     )
+    scheduler = scheduler or os.environ.get("RAYBENCH_SCHEDULER") or None
+    if workers is not None and scheduler is not None:
+        raise RaybenchError("give --workers (an embedded cluster) or --scheduler (a running one), not both")
+    if camera_path is None and frames is not None:
+        raise RaybenchError("--frames applies to --path only")
+    if camera_path is not None:
+        if tile is not None:
+            raise RaybenchError("--tile applies to one frame; a sequence's tasks are whole frames")
+        return _render_sequence(scene, camera_path, frames, output, width, height, device, shaded, options,
+                                workers, scheduler, connect_timeout)  # fmt: skip
+    output = output or Path("render.png")
+    check_output(output)
+    if workers is not None or scheduler is not None:
+        return _render_tiles(scene, output, width, height, device, shaded, options, workers, scheduler, tile,
+                             connect_timeout)  # fmt: skip
+    if tile is not None:
+        raise RaybenchError("--tile applies across a cluster: give --workers N or --scheduler ADDR")
+    device = resolve(device, adapter)
     start = time.perf_counter()
     frame = render_frame(scene, width=width, height=height, device=device, **shaded, **options)
     elapsed = time.perf_counter() - start
@@ -272,6 +336,59 @@ def render(
     click.echo(
         f"wrote {output}: {width}x{height}, {len(scene):,} spheres, {frame.device}, "
         f"{elapsed:.2f} s including compilation{built}{rays}"
+    )
+
+
+def _cluster(workers, device, scheduler, connect_timeout):
+    from . import cluster
+
+    return cluster.Cluster(workers=workers, device=device, scheduler=scheduler, timeout=connect_timeout)
+
+
+def _render_tiles(scene, output, width, height, device, shaded, options, workers, scheduler, tile, timeout):
+    """render --workers/--scheduler: one frame in tiles across the cluster."""
+    from . import cluster
+
+    start = time.perf_counter()
+    with _cluster(workers, device, scheduler, timeout) as running:
+        frame = cluster.render(running.client, scene, None, width, height, device, rows=tile, **shaded, **options)
+        count = running.workers
+    frame.save(output)
+    click.echo(
+        f"wrote {output}: {width}x{height}, {len(scene):,} spheres, {frame.device}, in tiles on {count} workers, "
+        f"{time.perf_counter() - start:.2f} s including the cluster's start"
+    )
+
+
+def _render_sequence(scene, spec, frames, output, width, height, device, shaded, options, workers, scheduler,
+                     timeout):  # fmt: skip
+    """render --path: a sequence of frames across the cluster, written as they
+    arrive, with a progress bar; those on disk already are kept."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+    from . import camera_path, cluster
+
+    if output is None:
+        raise RaybenchError("--path: give -o DIR, the folder to write the frames in")
+    if output.suffix.lower() == ".png":
+        raise RaybenchError(f"-o {output}: with --path, a folder for the frames, not a .png file")
+    if output.exists() and not output.is_dir():
+        raise RaybenchError(f"-o {output}: is a file; give a folder for the frames")
+    cameras = camera_path.load(spec, 240 if frames is None else frames, scene.camera)
+    if not output.parent.is_dir():
+        raise RaybenchError(f"-o {output}: folder {output.parent} does not exist")
+    output.mkdir(exist_ok=True)
+    check_writable(cluster.frame_path(output, 0), "-o")
+    start = time.perf_counter()
+    with _cluster(workers, device, scheduler, timeout) as running:
+        columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
+        with Progress(*columns, transient=True) as progress:
+            bar = progress.add_task(f"frames on {running.workers} workers", total=len(cameras))
+            cluster.render_sequence(running.client, scene, cameras, output, width, height, device, **shaded,
+                                    on_frame=lambda n, path: progress.advance(bar), **options)  # fmt: skip
+    click.echo(
+        f"wrote {len(cameras)} frames to {output}/: {width}x{height}, {len(scene):,} spheres, "
+        f"{time.perf_counter() - start:.2f} s including the cluster's start"
     )
 
 
@@ -538,7 +655,14 @@ def bench(suites, devices, adapter, kernels, accels, duration, quick, out_dir, l
     kernels = tuple(dict.fromkeys(kernels)) or ("fast",)
     accels = tuple(dict.fromkeys(accels)) or ACCELS
     points = suites_mod.points(
-        chosen, devices, quick=quick, kernels=kernels, accels=accels, wgpu=wgpu_options, max_invocations=max_invocations
+        chosen,
+        devices,
+        quick=quick,
+        kernels=kernels,
+        accels=accels,
+        wgpu=wgpu_options,
+        max_invocations=max_invocations,
+        gpus=len(machine["gpus"]),
     )
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
     results_path = out_dir / f"results-{stamp}.jsonl"

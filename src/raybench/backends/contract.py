@@ -60,6 +60,9 @@ class TracerBase:
     walk: str | None = None
     build_s: float | None = None
     ray_counts: np.ndarray | None = None
+    # trace() takes rows=(first, end), tracing only those rows of the frame
+    # (the tiles of raybench.cluster); the cpu's and cuda's do.
+    traces_rows: bool = False
 
     def describe(self) -> dict | None:
         return None

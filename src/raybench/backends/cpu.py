@@ -41,6 +41,7 @@ from .limits import (
     check_bvh_fits,
     check_count,
     check_fits,
+    check_rows,
     host_available_bytes,
 )
 
@@ -567,11 +568,15 @@ def bands(height: int, threads: int) -> list[tuple[int, int]]:
     return [(a, b) for a, b in zip(edges, edges[1:]) if b > a]
 
 
+_bands_of = bands  # Tracer.trace's name for it, where a local shadows bands
+
+
 class Tracer(TracerBase):
     """Renders one scene at one size, frame after frame, into reused buffers
     (the contract: backends.contract.Tracer)."""
 
     name = "cpu"
+    traces_rows = True
 
     def __init__(
         self,
@@ -685,15 +690,26 @@ class Tracer(TracerBase):
         self._kernel(0, 0, *self._args(np.zeros((4, 3), np.float32), self.count))
         return time.perf_counter() - start
 
-    def trace(self, basis: np.ndarray, count: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def trace(
+        self, basis: np.ndarray, count: int | None = None, rows: tuple[int, int] | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Trace a frame of the first `count` spheres (default all) into
-        self.image and self.hits, which are reused between frames."""
+        self.image and self.hits, which are reused between frames. rows:
+        (first, end), to trace only those rows of the frame (a tile of a
+        cluster's render: raybench.cluster); the others are left as they were.
+        first must be a multiple of PACKET_H, so that the BVH's packets fall
+        on the rows the whole frame's would."""
         count = self.count if count is None else check_count(count, self.count, self.constant_count)
         args = self._args(basis, count)
+        first, end, bands = 0, self.height, self.bands
+        if rows is not None:
+            first, end = check_rows(rows, self.height, PACKET_H)
+            cut = chunks if self.accel == "bvh" or self.whitted is not None else _bands_of
+            bands = [(first + a, first + b) for a, b in cut(end - first, self.threads)]
         if self._pool is None:
-            self._kernel(0, self.height, *args)
+            self._kernel(first, end, *args)
         elif self.accel == "bvh" or self.whitted is not None:
-            pending = iter(self.bands)  # next() on it is atomic under the GIL
+            pending = iter(bands)  # next() on it is atomic under the GIL
 
             def pull():
                 for a, b in pending:
@@ -702,10 +718,10 @@ class Tracer(TracerBase):
             for job in [self._pool.submit(pull) for _ in range(self._workers)]:
                 job.result()
         else:
-            for job in [self._pool.submit(self._kernel, a, b, *args) for a, b in self.bands]:
+            for job in [self._pool.submit(self._kernel, a, b, *args) for a, b in bands]:
                 job.result()
         if self.ray_counts is not None:
-            self.ray_counts[:] = self._row_rays.sum(axis=0)
+            self.ray_counts[:] = self._row_rays[first:end].sum(axis=0)
         return self.image, self.hits
 
     def timed_trace(self, basis: np.ndarray, count: int | None = None) -> float | None:

@@ -37,6 +37,7 @@ from .limits import (
     check_bvh_fits,
     check_count,
     check_fits,
+    check_rows,
     host_available_bytes,
 )
 from .walks import WALKS, check_walk
@@ -84,9 +85,10 @@ _U = np.uint64
 
 
 @compiled.cuda_jit()
-def _render_kernel(width, height, basis, spheres, count, image, hits):
+def _render_kernel(width, height, first, end, basis, spheres, count, image, hits):
     x, y = cuda.grid(2)
-    if x < width and y < height:
+    y += first
+    if x < width and y < end:
         _render_pixel(x, y, width, height, basis, spheres, count, image, hits)
 
 
@@ -97,9 +99,10 @@ def _render_kernel(width, height, basis, spheres, count, image, hits):
 
 
 @compiled.cuda_jit()
-def _bvh_kernel(width, height, basis, nodes, links, ordered, order, spheres, image, hits):
+def _bvh_kernel(width, height, first, end, basis, nodes, links, ordered, order, spheres, image, hits):
     x, y = cuda.grid(2)
-    if x < width and y < height:
+    y += first
+    if x < width and y < end:
         stack_row = cuda.local.array(STACK, np.int32)
         stack_t = cuda.local.array(STACK, np.float32)
         _render_pixel_bvh(
@@ -137,15 +140,16 @@ _whitted_bvh_pixel, _whitted_all_pixel = _k.render_pixel_whitted["bvh"], _k.rend
 # would miss the cache, cpu.py says why); the choice is the same in every
 # thread. rays[kind] += the rays the block cast (_tally, _flush).
 @compiled.cuda_jit()
-def _whitted_kernel(width, height, basis, spheres, count, materials, lights, pattern, params, nodes, links, ordered,
-                    order, image, hits, rays):  # fmt: skip
+def _whitted_kernel(width, height, first, end, basis, spheres, count, materials, lights, pattern, params, nodes,
+                    links, ordered, order, image, hits, rays):  # fmt: skip
     x, y = cuda.grid(2)
+    y += first
     me = cuda.threadIdx.y * cuda.blockDim.x + cuda.threadIdx.x
     tally = cuda.shared.array(4, np.int32)
     if me < 4:
         tally[me] = 0
     cuda.syncthreads()
-    if x < width and y < height:
+    if x < width and y < end:
         stack_row = cuda.local.array(STACK, np.int32)
         stack_t = cuda.local.array(STACK, np.float32)
         rays_f = cuda.local.array((RAY_STACK, RAY_FLOATS), np.float32)
@@ -176,7 +180,7 @@ _MISS = np.float32(np.inf)
 
 
 @compiled.cuda_jit()
-def _bvh_packet_kernel(width, height, basis, nodes, links, ordered, order, spheres, image, hits):
+def _bvh_packet_kernel(width, height, first, end, basis, nodes, links, ordered, order, spheres, image, hits):
     """The BVH walk with the block's rays as one packet, as the CPU walks its
     packets: the packet visits a node if any of its rays enters it, and each
     ray tests only the leaves it enters itself, so the node, the stack's rows
@@ -193,10 +197,11 @@ def _bvh_packet_kernel(width, height, basis, nodes, links, ordered, order, spher
     of its rays does (or, off the stack, one it entered nearer than its
     closest hit)."""
     x, y = cuda.grid(2)
-    dx, dy, dz = _primary_ray(min(x, width - 1), min(y, height - 1), width, height, basis)
+    y += first
+    dx, dy, dz = _primary_ray(min(x, width - 1), min(y, end - 1), width, height, basis)
     cdx, cdy, cdz = _primary_ray(
         min(cuda.blockIdx.x * cuda.blockDim.x + cuda.blockDim.x // 2, width - 1),
-        min(cuda.blockIdx.y * cuda.blockDim.y + cuda.blockDim.y // 2, height - 1),
+        min(first + cuda.blockIdx.y * cuda.blockDim.y + cuda.blockDim.y // 2, end - 1),
         width,
         height,
         basis,
@@ -264,7 +269,7 @@ def _bvh_packet_kernel(width, height, basis, nodes, links, ordered, order, spher
             top -= _U(1)
             if cuda.syncthreads_or(np.int32(stack_t[top] <= closest)) != 0:
                 row = stack_row[top]
-    if x < width and y < height:
+    if x < width and y < end:
         _store_pixel(x, y, hit, hit_d, spheres, image, hits)
 
 
@@ -308,13 +313,13 @@ def fast_kernel(rays: int = RAYS, tile: int = TILE, trip: int = TRIP):
                     hit_d[j] = d
 
     @cuda.jit
-    def kernel(width, height, basis, spheres, relative, count, image, hits):
+    def kernel(width, height, first, end, basis, spheres, relative, count, image, hits):
         """`rays` pixels per thread; the block walks the spheres a tile at a time
         through shared memory, each thread scanning them two at a time with
         the cull test on all its rays and stopping for the exact test only
         where the cull cannot rule a hit out. Same arithmetic, same order of
         spheres, same pixels as _render_kernel."""
-        if width <= 0 or height <= 0:  # compile()'s empty launch; the same for every thread
+        if width <= 0 or end <= first:  # compile()'s empty launch; the same for every thread
             return
         sx = cuda.shared.array(slots, np.float32)
         sy = cuda.shared.array(slots, np.float32)
@@ -330,9 +335,9 @@ def fast_kernel(rays: int = RAYS, tile: int = TILE, trip: int = TRIP):
         vmax = cuda.local.array(trip, np.float32)
         bw, bh = cuda.blockDim.x, cuda.blockDim.y
         x = cuda.blockIdx.x * bw + cuda.threadIdx.x
-        y0 = cuda.blockIdx.y * bh * rays + cuda.threadIdx.y
+        y0 = first + cuda.blockIdx.y * bh * rays + cuda.threadIdx.y
         for j in range(rays):
-            y = min(y0 + j * bh, height - 1)  # rays off the image trace a copy of the last row, unstored
+            y = min(y0 + j * bh, end - 1)  # rays past the rows asked for trace a copy of the last, unstored
             dx[j], dy[j], dz[j] = _primary_ray(min(x, width - 1), y, width, height, basis)
             closest[j] = FAR
             hit[j] = -1
@@ -376,7 +381,7 @@ def fast_kernel(rays: int = RAYS, tile: int = TILE, trip: int = TRIP):
         if x < width:
             for j in range(rays):
                 y = y0 + j * bh
-                if y < height:
+                if y < end:
                     _store_pixel(x, y, hit[j], hit_d[j], spheres, image, hits)
 
     return kernel
@@ -388,9 +393,10 @@ def _constant_kernel(count: int):
     constant, as in the thesis's tests 1 to 6); one compilation per count."""
 
     @cuda.jit
-    def render_kernel(width, height, basis, spheres, _count, image, hits):
+    def render_kernel(width, height, first, end, basis, spheres, _count, image, hits):
         x, y = cuda.grid(2)
-        if x < width and y < height:
+        y += first
+        if x < width and y < end:
             _render_pixel(x, y, width, height, basis, spheres, count, image, hits)
 
     return render_kernel
@@ -457,6 +463,7 @@ class Tracer(TracerBase):
     (the contract: backends.contract.Tracer)."""
 
     name = "cuda"
+    traces_rows = True
 
     def __init__(
         self,
@@ -565,6 +572,7 @@ class Tracer(TracerBase):
         else:
             self._kernel = _constant_kernel(self.count) if self.constant_count else _render_kernel
         self.grid = (math.ceil(width / self.block[0]), math.ceil(height / (self.block[1] * self.rays)))
+        self._rows = None  # the rows the last launch traced, None for all
 
     def _build(self, count: int) -> None:
         """Build the BVH of the first `count` spheres on the host and upload it;
@@ -584,7 +592,10 @@ class Tracer(TracerBase):
         cuda.synchronize()
         return time.perf_counter() - start
 
-    def _launch(self, grid, width, height, count) -> None:
+    def _launch(self, grid, width, height, count, first: int = 0, end: int | None = None) -> None:
+        """The frame's kernel on grid, for rows first..end (default all) of a
+        width x height frame."""
+        end = height if end is None else end
         with warnings.catch_warnings():
             # Small frames cannot fill the GPU; that is the user's choice, not news.
             warnings.simplefilter("ignore", NumbaPerformanceWarning)
@@ -593,7 +604,7 @@ class Tracer(TracerBase):
                     self._build(count)
                 _zero_rays[1, len(KINDS)](self.d_rays)
                 self._kernel[grid, self.block](
-                    width, height, self.d_basis, self.d_spheres, count, self.d_materials, self.d_lights,
+                    width, height, first, end, self.d_basis, self.d_spheres, count, self.d_materials, self.d_lights,
                     self.d_pattern, self.d_params, self.d_nodes, self.d_links, self.d_ordered, self.d_order,
                     self.d_image, self.d_hits, self.d_rays,
                 )  # fmt: skip
@@ -603,6 +614,8 @@ class Tracer(TracerBase):
                 self._kernel[grid, self.block](
                     width,
                     height,
+                    first,
+                    end,
                     self.d_basis,
                     self.d_nodes,
                     self.d_links,
@@ -618,11 +631,12 @@ class Tracer(TracerBase):
                     self.d_basis, self.d_spheres, count, self.d_relative
                 )
                 self._kernel[grid, self.block](
-                    width, height, self.d_basis, self.d_spheres, self.d_relative, count, self.d_image, self.d_hits
-                )
+                    width, height, first, end, self.d_basis, self.d_spheres, self.d_relative, count, self.d_image,
+                    self.d_hits,
+                )  # fmt: skip
             else:
                 self._kernel[grid, self.block](
-                    width, height, self.d_basis, self.d_spheres, count, self.d_image, self.d_hits
+                    width, height, first, end, self.d_basis, self.d_spheres, count, self.d_image, self.d_hits
                 )
 
     def _prepare(self, basis: np.ndarray, count: int | None) -> int:
@@ -630,21 +644,37 @@ class Tracer(TracerBase):
         self.d_basis.copy_to_device(basis)
         return self.count if count is None else check_count(count, self.count, self.constant_count)
 
-    def launch(self, basis: np.ndarray, count: int | None = None) -> None:
+    def launch(self, basis: np.ndarray, count: int | None = None, rows: tuple[int, int] | None = None) -> None:
         """Start the kernel for one frame of the first `count` spheres (default
-        all); it runs asynchronously."""
-        self._launch(self.grid, self.width, self.height, self._prepare(basis, count))
+        all); it runs asynchronously. rows: (first, end), to trace only those
+        rows of the frame (a cluster's tile)."""
+        count = self._prepare(basis, count)
+        if rows is None:
+            self._rows = None
+            self._launch(self.grid, self.width, self.height, count)
+            return
+        first, end = self._rows = check_rows(rows, self.height)
+        grid = (self.grid[0], math.ceil((end - first) / (self.block[1] * self.rays)))
+        self._launch(grid, self.width, self.height, count, first, end)
 
     def fetch(self) -> tuple[np.ndarray, np.ndarray]:
-        """Copy the last frame to the host (waits for the kernel)."""
-        self.d_image.copy_to_host(self.image)
-        self.d_hits.copy_to_host(self.hits)
+        """Copy the last frame (or its rows, where launch() was given rows)
+        to the host (waits for the kernel)."""
+        if self._rows is not None:
+            first, end = self._rows
+            self.d_image[first:end].copy_to_host(self.image[first:end])
+            self.d_hits[first:end].copy_to_host(self.hits[first:end])
+        else:
+            self.d_image.copy_to_host(self.image)
+            self.d_hits.copy_to_host(self.hits)
         if self.ray_counts is not None:
             self.d_rays.copy_to_host(self.ray_counts)
         return self.image, self.hits
 
-    def trace(self, basis: np.ndarray, count: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-        self.launch(basis, count)
+    def trace(
+        self, basis: np.ndarray, count: int | None = None, rows: tuple[int, int] | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        self.launch(basis, count, rows)
         return self.fetch()
 
     def timed_trace(self, basis: np.ndarray, count: int | None = None) -> float | None:
@@ -655,6 +685,7 @@ class Tracer(TracerBase):
             self.trace(basis, count)
             return None
         count = self._prepare(basis, count)
+        self._rows = None
         start, end = cuda.event(), cuda.event()
         start.record()
         self._launch(self.grid, self.width, self.height, count)

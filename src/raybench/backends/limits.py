@@ -29,6 +29,22 @@ def check_size(width, height) -> tuple[int, int]:
     return int(width), int(height)
 
 
+def check_rows(rows, height: int, align: int = 1) -> tuple[int, int]:
+    """(first, end): rows first..end of a frame `height` rows high (a
+    cluster's tile), first a multiple of align (cpu: its packets' height,
+    where the whole frame's packets start)."""
+    try:
+        first, end = (int(r) for r in rows)
+    except (TypeError, ValueError):
+        raise RaybenchError(f"rows: must be (first, end), got {shown(rows)}") from None
+    if not (0 <= first < end <= height and first % align == 0):
+        raise RaybenchError(
+            f"rows: must be (first, end) with 0 <= first < end <= {height} and first a multiple of {align}, "
+            f"got {shown(rows)}"
+        )
+    return first, end
+
+
 def check_fits(
     device: str, width: int, height: int, spheres: int, available: float, pixel_bytes: int = PIXEL_BYTES
 ) -> None:

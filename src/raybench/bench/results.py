@@ -4,7 +4,7 @@ every point it finished.
 
 A record (format "raybench-results", version 1):
 
-    suite        "thesis" | "test7" | "constant-vs-runtime" | "tuning" | "scaling" | "secondary"
+    suite        "thesis" | "test7" | "constant-vs-runtime" | "tuning" | "scaling" | "secondary" | "multi-gpu"
     test         the thesis's test number (1-3 GPU, 4-6 CPU by resolution; 7 the ramp), else null
     device       "cpu" | "cuda"
     width, height, spheres
@@ -15,9 +15,13 @@ A record (format "raybench-results", version 1):
                  for brute force; scaling's and secondary's brute-force points carry "cap_s";
                  secondary's points carry "shading": "thesis" (primary rays, the baseline) or
                  "whitted" with "depth" and "shadow_samples" (the materials scene,
-                 random_spheres(n, seed, materials=True))
+                 random_spheres(n, seed, materials=True)); multi-gpu's carry "workers" (of
+                 raybench.cluster), "job": "frame" (one frame in tiles) or "sequence" (an
+                 orbit of "frames" frames), and on the cpu "threads" (a worker's)
     frames       how many timed frames
-    frame_ms     {mean, median, p5, p95, min, max}: whole frame (kernel, and on the GPU the copy to the host)
+    frame_ms     {mean, median, p5, p95, min, max}: whole frame (kernel, and on the GPU the copy to the host);
+                 multi-gpu's: a run of the job's wall time over its frames, on all its workers
+    frames_per_s multi-gpu only: frames a second from the median (the workers' throughput)
     kernel_ms    the same for the kernel alone (CUDA events), or null on the CPU
     rays_per_s, tests_per_s   from the median frame (tests = rays x spheres; null for the BVH);
                  under Whitted shading rays_per_s counts every ray cast, and tests_per_s is null
@@ -334,7 +338,7 @@ RUN = _compile(
 )
 POINT = _compile(
     {
-        "suite": _one_of("thesis", "test7", "constant-vs-runtime", "tuning", "scaling", "secondary"),
+        "suite": _one_of("thesis", "test7", "constant-vs-runtime", "tuning", "scaling", "secondary", "multi-gpu"),
         "test?": _or_null(_count),
         "device": _one_of("cpu", "cuda", "wgpu"),
         "width": _size,
@@ -359,6 +363,7 @@ MEASURED = _compile(
         "rays?": {"primary": _count, "shadow": _count, "reflection": _count, "refraction": _count},
         "rays_per_frame?": _count,
         "kernel_rays_per_s?": _or_null(_number),
+        "frames_per_s?": _number,  # the multi-gpu suite's
     }
 )
 SKIPPED = _compile({"skipped": _text, "predicted_ms?": _or_null(_number)})

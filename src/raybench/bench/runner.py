@@ -15,6 +15,7 @@ from ..kernels.whitted import KINDS
 from ..lighting import Shading
 from ..machine import git_commit
 from ..scene import random_spheres
+from . import multi
 from .results import ResultsWriter
 from .stats import summarize
 from .suites import Point
@@ -221,6 +222,7 @@ def run(
         TextColumn("left"),
         TimeRemainingColumn(),
     ]
+    clusters = multi.Clusters()  # the multi-gpu suite's, one open at a time
     with Progress(*columns, disable=not progress, transient=False) as bar:
         task = bar.add_task("", total=sum(weights), done=0, count=len(points))
         for i, (point, weight) in enumerate(zip(points, weights)):
@@ -230,8 +232,17 @@ def run(
             if guess is not None and guess > cap_s * 1e3:
                 writer.write({**skipped(point, guess, cap_s), "run": run})
             else:
-                record = measure(point, scenes, duration)
+                try:
+                    if point.suite == "multi-gpu":
+                        record = multi.measure(point, scenes, duration, clusters)
+                    else:
+                        clusters.close()
+                        record = measure(point, scenes, duration)
+                except BaseException:
+                    clusters.close()
+                    raise
                 last[_series(point)] = (point.width * point.height, point.spheres, record["frame_ms"]["median"])
                 writer.write({**record, "run": run})
             bar.update(task, advance=weight, done=i + 1)
+    clusters.close()
     return writer.count

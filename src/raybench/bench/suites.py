@@ -32,7 +32,17 @@ skipped with that prediction. A GPU thus runs brute force to 100,000
 spheres; a CPU stops before 100,000 (a 2-core machine after 1,000 spheres
 at 800x600); the BVH runs every point everywhere.
 
-`--suite all` includes it: all means every suite, and the cap keeps the
+The multi-gpu suite (issue 17) measures the throughput of 1..N workers of
+an embedded raybench.cluster, each owning a device: on cuda every count of
+GPUs up to the machine's, on the cpu 1, 2, 4, ... workers up to the cores,
+each worker one thread (a worker is then a fixed share of the machine, as a
+GPU is). Two jobs: one large frame in tiles, and an orbit's frames. On a GPU
+the issue's sizes: an 8192x8192 frame and 240 frames at 1680x1050, at
+100,000 spheres; a CPU's cores would take minutes a frame at those, so on the
+cpu the frame is 3360x2100 and the orbit 240 frames at 640x400, at 10,000.
+The report sets each count's throughput against linear (N x one worker's).
+
+`--suite all` includes the secondary suite: all means every suite, and the cap keeps the
 suite's brute force within minutes a point, as the scaling suite's keeps
 its own; what a 2-core machine spends on it is mostly its BVH frames.
 """
@@ -45,7 +55,7 @@ from dataclasses import dataclass, field
 from ..backends.limits import FAST_MAX_THREADS
 from ..errors import RaybenchError
 
-SUITES = ("thesis", "constant-vs-runtime", "tuning", "scaling", "secondary")
+SUITES = ("thesis", "constant-vs-runtime", "tuning", "scaling", "secondary", "multi-gpu")
 ACCELS = ("bvh", "none")
 THESIS_SIZES = ((800, 600), (1280, 800), (1680, 1050))
 THESIS_COUNTS = tuple(range(100, 1001, 100))
@@ -79,6 +89,18 @@ SECONDARY_CAP_S = 30.0
 QUICK_SECONDARY_SIZES = ((160, 100),)
 QUICK_SECONDARY_COUNTS = (1000, 10_000)
 QUICK_SECONDARY_CAP_S = 1.0
+# The multi-gpu suite: (frame size, (orbit size, its frames), spheres) by device kind.
+MULTI_GPU = {"cuda": ((8192, 8192), ((1680, 1050), 240), 100_000), "cpu": ((3360, 2100), ((640, 400), 240), 10_000)}
+QUICK_MULTI_GPU = ((640, 400), ((160, 100), 24), 1000)
+
+
+def worker_counts(device: str, cores: int, gpus: int) -> list[int]:
+    """The multi-gpu suite's worker counts: every GPU count on cuda; on the
+    cpu 1, 2, 4, ... up to the cores (and the cores themselves)."""
+    if device == "cuda":
+        return list(range(1, max(gpus, 1) + 1))
+    counts = [1 << i for i in range(cores.bit_length()) if 1 << i <= cores]
+    return counts + ([cores] if counts[-1] != cores else [])
 
 
 @dataclass(frozen=True)
@@ -165,12 +187,14 @@ def points(
     accels=("none",),
     wgpu: dict | None = None,
     max_invocations: int = 1024,
+    gpus: int = 0,
 ) -> list[Point]:
     """Every point of the chosen suites on the chosen devices (the thesis,
     tuning and scaling suites once per kernel of brute force, and once more
     with the BVH if accels holds "bvh"), in run order. wgpu: that device's
     options ({"adapter": name}); max_invocations: its adapter's workgroup
-    limit, which bounds the tuning suite's shapes."""
+    limit, which bounds the tuning suite's shapes; gpus: the machine's GPU
+    count, the multi-gpu suite's largest count of cuda workers."""
     for suite in suites:
         if suite not in SUITES:
             raise RaybenchError(f"suite: unknown suite {suite!r}; choose from {', '.join(SUITES)}")
@@ -259,4 +283,16 @@ def points(
                         Point("secondary", device, w, h, n, {**way, **shading, **capped})
                         for shading in secondary_shadings()
                     ]
+    if "multi-gpu" in suites:
+        for device in (d for d in devices if d in MULTI_GPU):  # wgpu has no cluster workers
+            (fw, fh), ((sw, sh), frames), n = QUICK_MULTI_GPU if quick else MULTI_GPU[device]
+            # the BVH: the suite asks how workers scale, not how brute force does
+            own = {"accel": "bvh", **({"threads": 1} if device == "cpu" else {})}
+            for workers in worker_counts(device, cores, gpus):
+                out.append(Point("multi-gpu", device, fw, fh, n, {"workers": workers, "job": "frame", **own}))
+                out.append(
+                    Point(
+                        "multi-gpu", device, sw, sh, n, {"workers": workers, "job": "sequence", "frames": frames, **own}
+                    )
+                )
     return out

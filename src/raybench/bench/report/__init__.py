@@ -7,7 +7,7 @@ One module a job, each reading only those before it:
             kernel (column()), files with the same label merged; the series
             (speedups, thesis_series, test7_series, cpu_tuning, gpu_tuning,
             constant_vs_runtime, scaling_series, secondary_points,
-            secondary_leads): pure functions of plain
+            secondary_leads, multi_gpu_series): pure functions of plain
             lists of records, so the rules can be tested on synthetic data
   verdicts  the six claims judged; the thresholds are its constants, RULES
             states them in words, and the report prints it; beyond them,
@@ -26,6 +26,7 @@ from .data import (
     group,
     kernel_of,
     load,
+    multi_gpu_series,
     scaling_series,
     secondary_leads,
     secondary_points,
@@ -85,6 +86,7 @@ __all__ = [
     "group",
     "kernel_of",
     "load",
+    "multi_gpu_series",
     "scaling_series",
     "secondary_leads",
     "secondary_points",

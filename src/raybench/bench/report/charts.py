@@ -290,3 +290,26 @@ def plot_secondary_frames(label: str, points: list[dict]) -> bytes:
         f"{label}: Whitted frame time ({shown})",
         [("whitted", "-")],
     )
+
+
+def plot_multi_gpu(label: str, series: list[dict]) -> bytes:
+    """Throughput against workers, one panel per job, a line per device and
+    size, and dashed the linear scaling of its one-worker point."""
+    jobs = list(dict.fromkeys(s["job"] for s in series))
+    fig, axes = _figure(len(jobs), width=5.2 * len(jobs) + 0.6, height=4.4)
+    for ax, job in zip(axes, jobs):
+        for i, s in enumerate(x for x in series if x["job"] == job):
+            color = _DEVICE_COLORS.get(s["device"], f"C{i + 3}")
+            xs = [p["workers"] for p in s["points"]]
+            what = f"{DEVICE_NAMES.get(s['device'], s['device'])} {s['width']}x{s['height']}"
+            ax.plot(xs, [p["frames_per_s"] for p in s["points"]], "o-", color=color, label=what)
+            if s["one"]:
+                ax.plot(xs, [s["one"] * n for n in xs], "--", color=color, linewidth=1, label=f"{what}, linear")
+        ax.set_xlabel("workers (one device each)")
+        ax.set_ylabel("frames per second")
+        ax.set_ylim(bottom=0)
+        ax.set_xticks(sorted({p["workers"] for s in series for p in s["points"]}))
+        ax.set_title("one frame in tiles" if job == "frame" else "a sequence of frames", fontsize=10)
+        ax.legend(fontsize=7)
+    fig.suptitle(f"{label}: throughput against workers, linear dashed", fontsize=10)
+    return _png(fig)

@@ -473,3 +473,31 @@ def secondary_leads(records: list[dict], gpu: str = "cuda") -> list[dict]:
             }
         )
     return out
+
+
+def multi_gpu_series(records: list[dict]) -> list[dict]:
+    """The multi-gpu suite, one series per (device, job, size, spheres): its
+    points by worker count, each with its throughput (frames/s), the speedup
+    over one worker of the series and the efficiency against linear
+    (speedup / workers); both None where the series has no one-worker point."""
+    out: dict[tuple, dict] = {}
+    for r in records:
+        if r["suite"] != "multi-gpu" or "skipped" in r:
+            continue
+        opts = r.get("options") or {}
+        key = (r["device"], opts.get("job"), r["width"], r["height"], r["spheres"], opts.get("frames"))
+        s = out.setdefault(
+            key,
+            {"device": r["device"], "job": opts.get("job"), "width": r["width"], "height": r["height"],
+             "spheres": r["spheres"], "frames": opts.get("frames"), "points": []},
+        )  # fmt: skip
+        fps = 1e3 / float(r["frame_ms"]["median"])
+        s["points"].append({"workers": int(opts.get("workers", 1)), "frames_per_s": fps})
+    for s in out.values():
+        s["points"].sort(key=lambda p: p["workers"])
+        one = next((p["frames_per_s"] for p in s["points"] if p["workers"] == 1), None)
+        s["one"] = one
+        for p in s["points"]:
+            p["speedup"] = p["frames_per_s"] / one if one else None
+            p["efficiency"] = p["speedup"] / p["workers"] if one else None
+    return sorted(out.values(), key=lambda s: (s["device"], s["job"] or "", s["width"] * s["height"]))

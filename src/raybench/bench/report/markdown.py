@@ -23,6 +23,7 @@ from .data import (
     largest_group,
     load,
     machine_of,
+    multi_gpu_series,
     scaling_series,
     secondary_points,
     speedups,
@@ -490,6 +491,39 @@ def _section_scaling(w: _Writer, label: str, slug: str, records: list[dict]) -> 
     w(_table(header, rows), "")
 
 
+def _section_multi_gpu(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
+    series = multi_gpu_series(records)
+    if not series:
+        return
+    w(f"### {escape(label)}: across workers", "")
+    w(
+        "Throughput of 1..N workers of raybench.cluster (each a process owning one device: a GPU, or on the "
+        "CPU one thread), each after one untimed run that warmed every worker. One frame in tiles is traced "
+        "and assembled in one place; a sequence's frames are traced where they run and only counted here. "
+        "Efficiency is the throughput over N times one worker's (1 is linear).",
+        "",
+    )
+    w.image(f"{slug}.png", charts.plot_multi_gpu(label, series), f"{label}: throughput against workers")
+    header = ["device", "job", "size", "spheres", "workers", "frames/s", "speedup", "efficiency"]
+    rows = []
+    for s in series:
+        job = "one frame in tiles" if s["job"] == "frame" else f"{s['frames']} frames"
+        for p in s["points"]:
+            rows.append(
+                [
+                    escape(DEVICE_NAMES.get(s["device"], s["device"])),
+                    escape(job),
+                    f"{s['width']}x{s['height']}",
+                    f"{s['spheres']:,}",
+                    p["workers"],
+                    fmt_num(p["frames_per_s"]),
+                    fmt_x(p["speedup"]) if p["speedup"] else "–",
+                    f"{p['efficiency']:.0%}" if p["efficiency"] else "–",
+                ]
+            )
+    w(_table(header, rows), "")
+
+
 def _rays_text(x) -> str:
     """Rays per second in M, or G from a billion on (the issue's targets are in G rays/s)."""
     if not x:
@@ -596,12 +630,12 @@ def write_report(paths: list, out_dir) -> Path:
         raise RaybenchError(f"{out_dir}: is a file, not a folder for the report")
     machines, notes = load(paths)
     # the scaling and secondary suites are no part of the thesis's claims: each its own section per machine
-    beyond: dict[str, dict[str, list[dict]]] = {"scaling": {}, "secondary": {}}
+    beyond: dict[str, dict[str, list[dict]]] = {"scaling": {}, "secondary": {}, "multi-gpu": {}}
     for records in machines.values():
         for r in records:
             if r["suite"] in beyond:
                 beyond[r["suite"]].setdefault(r["run"]["label"], []).append(r)
-    scaling, secondary = beyond["scaling"], beyond["secondary"]
+    scaling, secondary, multi_gpu = beyond["scaling"], beyond["secondary"], beyond["multi-gpu"]
     machines = {k: v for k, v in ((k, [r for r in v if r["suite"] not in beyond]) for k, v in machines.items()) if v}
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -611,7 +645,10 @@ def write_report(paths: list, out_dir) -> Path:
     w = _Writer(out_dir)
     names = ", ".join(
         dict.fromkeys(
-            [records[0]["run"]["label"] for records in machines.values() if records] + list(scaling) + list(secondary)
+            [records[0]["run"]["label"] for records in machines.values() if records]
+            + list(scaling)
+            + list(secondary)
+            + list(multi_gpu)
         )
     )
     w(f"# raybench: the 2010 GPU ray-tracing thesis, measured again on {escape(names)}", "")
@@ -646,6 +683,10 @@ def write_report(paths: list, out_dir) -> Path:
         for label, records in secondary.items():
             described = any(rs[0]["run"]["label"] == label for rs in machines.values())
             _section_secondary(w, label, _slug(f"{label}-secondary", taken), records, describe=not described)
+    if multi_gpu:
+        w("## Beyond the thesis: across GPUs and workers", "")
+        for label, records in multi_gpu.items():
+            _section_multi_gpu(w, label, _slug(f"{label}-multi-gpu", taken), records)
     w("## Sources", "")
     w(*[f"- `{Path(p)}`" for p in paths], "")
     if notes:

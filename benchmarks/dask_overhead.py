@@ -1,0 +1,172 @@
+"""Where a frame's time goes inside a Dask worker, against a plain process:
+issue 17's probe saw 4.1 ms a frame in a worker's task loop where a plain
+process took 2.5 ms. One line of JSON per case, each the median over rounds
+of a loop of --frames frames of one warm Renderer (render(camera), which
+copies the image and the hits out of the tracer's buffers, then hits.max(),
+as the probe's loop):
+
+  plain            this loop in a fresh process, raybench's environment
+  plain-malloc     the same with MALLOC_TRIM_THRESHOLD_=65536, which a Dask
+                   Nanny puts in its worker's environment
+  worker           the loop as one task on a raybench.cluster worker (no
+                   MALLOC_TRIM_THRESHOLD_, one thread)
+  worker-dask-env  on a worker with Dask's default environment (the variable set)
+  worker-noprofile raybench's worker with Dask's statistical profiler off
+  copy / copy-malloc   the loop's copies alone (np.copy of a frame's image and
+                   hits, then hits.max()), without and with the variable
+  empty-task       Dask's cost of one task: a no-op submitted and waited for,
+                   one at a time (latency) and 400 at once (per task)
+
+    PYTHONPATH=src python benchmarks/dask_overhead.py --device cpu --size 1680x1050 --spheres 1000 --json out.jsonl
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+import raybench
+from raybench import Camera, cluster
+
+MALLOC = {"MALLOC_TRIM_THRESHOLD_": "65536"}
+
+
+def loop(scene, width, height, device, frames, rounds, accel) -> list[float]:
+    """ms a frame of each round: render (with its copies), then hits.max()."""
+    with raybench.Renderer(scene, width, height, device=device, accel=accel) as renderer:
+        cameras = [Camera(position=(0.3 * np.sin(a), 0.0, 0.3 * np.cos(a))) for a in np.linspace(0, 0.5, frames)]
+        renderer.render(cameras[0]).hits.max()  # compiled, uploaded
+        out = []
+        for _ in range(rounds):
+            start = time.perf_counter()
+            for camera in cameras:
+                renderer.render(camera).hits.max()
+            out.append((time.perf_counter() - start) * 1e3 / frames)
+        return out
+
+
+def copies(width, height, frames, rounds) -> list[float]:
+    image = np.zeros((height, width, 3), np.uint8)
+    hits = np.zeros((height, width), np.int32)
+    out = []
+    for _ in range(rounds + 1):
+        start = time.perf_counter()
+        for _ in range(frames):
+            image.copy()
+            hits.copy().max()
+        out.append((time.perf_counter() - start) * 1e3 / frames)
+    return out[1:]
+
+
+def noop():
+    return None
+
+
+def record(case, ms, args, **extra) -> dict:
+    return {
+        "case": case,
+        "device": args.device,
+        "width": args.width,
+        "height": args.height,
+        "spheres": args.spheres,
+        "frames": args.frames,
+        "ms_per_frame_median": round(statistics.median(ms), 4) if ms else None,
+        "ms_per_frame_rounds": [round(x, 4) for x in ms],
+        **extra,
+    }
+
+
+def in_process(args, env: dict, what: str) -> list[float]:
+    """The loop (or the copies) in a fresh process with env added."""
+    argv = [sys.executable, __file__, "--child", what, "--device", args.device, "--size", args.size]
+    argv += ["--spheres", str(args.spheres), "--frames", str(args.frames), "--rounds", str(args.rounds)]
+    argv += ["--accel", args.accel]
+    done = subprocess.run(argv, env={**os.environ, **env}, capture_output=True, text=True, check=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def on_worker(args, scene, worker_env: dict | None, config: dict | None) -> list[float]:
+    """The loop as one task on a one-worker cluster: raybench's, with
+    worker_env added to its workers' environment and config to their Dask config."""
+    from distributed import Client, Scheduler, SpecCluster
+
+    specs = cluster.worker_specs(args.device, 1)
+    for spec in specs.values():
+        spec["options"]["env"].update(worker_env or {})
+        if config:
+            spec["options"]["config"] = config
+    with (
+        SpecCluster(
+            scheduler={"cls": Scheduler, "options": {"host": cluster.HOST, "dashboard_address": f"{cluster.HOST}:0"}},
+            workers=specs,
+            silence_logs=40,
+        ) as spec_cluster,
+        Client(spec_cluster) as client,
+    ):
+        task = client.submit(
+            loop, scene, args.width, args.height, args.device, args.frames, args.rounds, args.accel, pure=False
+        )
+        result = task.result()
+        # the empty task's cost, on this cluster
+        start = time.perf_counter()
+        for _ in range(100):
+            client.submit(noop, pure=False).result()
+        latency = (time.perf_counter() - start) * 1e3 / 100
+        start = time.perf_counter()
+        client.gather(client.map(lambda i: None, range(400), pure=False))
+        each = (time.perf_counter() - start) * 1e3 / 400
+        return result, latency, each
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--device", default="cpu")
+    parser.add_argument("--size", default="1680x1050")
+    parser.add_argument("--spheres", type=int, default=1000)
+    parser.add_argument("--frames", type=int, default=20)
+    parser.add_argument("--rounds", type=int, default=5)
+    parser.add_argument("--accel", default="bvh")
+    parser.add_argument("--json", help="append the records here (JSON Lines)")
+    parser.add_argument("--child", help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    args.width, args.height = (int(v) for v in args.size.lower().split("x"))
+    scene = raybench.random_spheres(args.spheres, seed=0)
+    if args.child == "loop":
+        print(json.dumps(loop(scene, args.width, args.height, args.device, args.frames, args.rounds, args.accel)))
+        return 0
+    if args.child == "copy":
+        print(json.dumps(copies(args.width, args.height, args.frames, args.rounds)))
+        return 0
+    records = [
+        record("copy", in_process(args, {}, "copy"), args),
+        record("copy-malloc", in_process(args, MALLOC, "copy"), args),
+        record("plain", in_process(args, {}, "loop"), args),
+        record("plain-malloc", in_process(args, MALLOC, "loop"), args),
+    ]
+    for case, env, config in (
+        ("worker", None, None),
+        ("worker-dask-env", MALLOC, None),
+        ("worker-noprofile", None, {"distributed.worker.profile.enabled": False}),
+    ):
+        ms, latency, each = on_worker(args, scene, env, config)
+        records.append(record(case, ms, args, empty_task_latency_ms=round(latency, 3), empty_task_ms=round(each, 3)))
+    for rec in records:
+        rec["raybench"] = raybench.__version__
+        rec["git_commit"] = os.environ.get("RAYBENCH_GIT_COMMIT")
+        print(json.dumps(rec))
+    if args.json:
+        with open(args.json, "a") as out:
+            for rec in records:
+                out.write(json.dumps(rec) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

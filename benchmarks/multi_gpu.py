@@ -1,0 +1,189 @@
+"""Throughput of 1..N raybench.cluster workers (issue 17): one line of JSON
+per (job, workers), and at the end each job's efficiency against linear
+(throughput with N workers / (N x with one)).
+
+Jobs:
+  orbit        --orbit frames of an orbit at --orbit-size, traced in tasks of
+               frames (cluster.trace_frames: each frame traced into the worker's
+               warm tracer, then its hits counted), nothing sent back but the counts
+  orbit-png    the same frames through cluster.render_sequence: PNGs encoded
+               on the workers, written here (what `raybench render --path` does)
+  frame        one --frame sized frame in tiles (cluster.render), assembled here
+  terms        the scaling model's terms on this cluster (docs/scaling.md): the
+               scene's broadcast, an empty task's cost, a tile's transfer
+
+Every job is warmed first (each worker compiles, builds and uploads once),
+and timed over --repeat runs (median).
+
+    PYTHONPATH=src python benchmarks/multi_gpu.py --device cuda --workers 1 --workers 2 \\
+        --spheres 100000 --frame 8192x8192 --orbit 240 --orbit-size 1680x1050 --json multi_gpu.jsonl
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import statistics
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+import raybench
+from raybench import Camera, camera_path, cluster
+
+
+def array_of(nbytes: int):
+    return np.ones(nbytes, np.uint8)
+
+
+def nothing():
+    return None
+
+
+def options(args) -> dict:
+    """The device options of every job: the walk, and the cpu's threads a worker."""
+    return {"accel": args.accel, **({"threads": args.threads} if args.threads else {})}
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    w, h = text.lower().split("x")
+    return int(w), int(h)
+
+
+def timed(f, repeat: int) -> list[float]:
+    out = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        f()
+        out.append(time.perf_counter() - start)
+    return out
+
+
+def orbit_job(client, args, scene, workers) -> dict:
+    width, height = parse_size(args.orbit_size)
+    cameras = camera_path.orbit(scene.camera or Camera(position=(0, 0, -1), look_at=(0, 0, 2)), args.orbit)
+    per_task = args.frames_per_task or min(
+        cluster.MAX_FRAMES_PER_TASK, math.ceil(len(cameras) / (workers * cluster.TASKS_PER_WORKER))
+    )
+
+    def go(frames=cameras):
+        cluster.trace_frames(client, scene, frames, width, height, args.device, per_task, **options(args))
+
+    go(cameras[: workers * per_task])  # warm: a task on every worker
+    seconds = timed(go, args.repeat)
+    return {"width": width, "height": height, "frames": len(cameras), "tasks": math.ceil(len(cameras) / per_task),
+            "seconds": seconds}  # fmt: skip
+
+
+def orbit_png_job(client, args, scene, workers) -> dict:
+    width, height = parse_size(args.orbit_size)
+    cameras = camera_path.orbit(scene.camera or Camera(position=(0, 0, -1), look_at=(0, 0, 2)), args.orbit)
+    with tempfile.TemporaryDirectory() as warm:
+        cluster.render_sequence(client, scene, cameras[:workers], warm, width, height, args.device, **options(args))
+    seconds = []
+    for _ in range(args.repeat):
+        with tempfile.TemporaryDirectory() as out:
+            start = time.perf_counter()
+            cluster.render_sequence(client, scene, cameras, out, width, height, args.device, **options(args))
+            seconds.append(time.perf_counter() - start)
+    return {"width": width, "height": height, "frames": len(cameras), "seconds": seconds}
+
+
+def frame_job(client, args, scene, workers) -> dict:
+    width, height = parse_size(args.frame)
+    rows = args.tile or cluster.tile_rows(height, workers)
+
+    def go():
+        return cluster.render(client, scene, None, width, height, args.device, rows=rows, **options(args))
+
+    go()  # warm: every worker that got a tile compiled and built its tree
+    seconds = timed(go, args.repeat)
+    return {"width": width, "height": height, "frames": 1, "rows": rows, "tasks": math.ceil(height / rows),
+            "seconds": seconds}  # fmt: skip
+
+
+def terms_job(client, args, scene, workers) -> dict:
+    """The scaling model's terms, each the median of --repeat."""
+    width, height = parse_size(args.frame)
+    # a key of its own each time (hash=False), so that nothing is found on the workers already
+    broadcast = timed(lambda: client.scatter(scene, broadcast=True, hash=False).release(), args.repeat)
+    n = 200
+    empty = timed(lambda: client.gather([client.submit(nothing, pure=False) for _ in range(n)]), args.repeat)
+    rows = cluster.tile_rows(height, workers)
+    tile_bytes = rows * width * 7  # RGB bytes and an int32 hit a pixel
+    tiles = 16
+    fetched = timed(
+        lambda: client.gather([client.submit(array_of, tile_bytes, pure=False) for _ in range(tiles)]), args.repeat
+    )
+    made = timed(lambda: client.gather([client.submit(lambda b: array_of(b).sum(), tile_bytes, pure=False)
+                                        for _ in range(tiles)]), args.repeat)  # fmt: skip
+    image = np.zeros((height, width, 3), np.uint8)
+    assembly = timed(lambda: np.copyto(image, np.ones_like(image)), args.repeat)
+    return {
+        "scene_bytes": int(scene.spheres.nbytes),
+        "broadcast_s": statistics.median(broadcast),
+        "empty_task_ms": statistics.median(empty) * 1e3 / n,
+        "tile_bytes": tile_bytes,
+        "tile_transfer_ms": max(0.0, (statistics.median(fetched) - statistics.median(made)) * 1e3 / tiles),
+        "assembly_ms_per_frame": statistics.median(assembly) * 1e3 * 7 / 3,
+        "width": width,
+        "height": height,
+    }
+
+
+JOBS = {"orbit": orbit_job, "orbit-png": orbit_png_job, "frame": frame_job, "terms": terms_job}
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"))
+    parser.add_argument("--workers", type=int, action="append", help="worker counts to run (repeat; default 1 2)")
+    parser.add_argument("--job", action="append", choices=tuple(JOBS), help="jobs to run (repeat; default all)")
+    parser.add_argument("--spheres", type=int, default=100_000)
+    parser.add_argument("--accel", default="bvh", choices=("bvh", "none"))
+    parser.add_argument("--threads", type=int, help="cpu: threads a worker (default: the cores shared out)")
+    parser.add_argument("--frame", default="8192x8192", help="the large frame's size")
+    parser.add_argument("--tile", type=int, help="the large frame's tile rows (default cluster.tile_rows)")
+    parser.add_argument("--orbit", type=int, default=240, help="frames of the orbit")
+    parser.add_argument("--orbit-size", default="1680x1050")
+    parser.add_argument("--frames-per-task", type=int, help="the orbit's frames a task (default as render_sequence)")
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--json", help="append the records here (JSON Lines)")
+    args = parser.parse_args(argv)
+    scene = raybench.random_spheres(args.spheres, seed=0)
+    jobs = args.job or list(JOBS)
+    records = []
+    for workers in args.workers or [1, 2]:
+        with cluster.Cluster(workers=workers, device=args.device) as running:
+            running.client.wait_for_workers(workers)
+            for job in jobs:
+                rec = JOBS[job](running.client, args, scene, workers)
+                rec = {"job": job, "device": args.device, "workers": workers, "spheres": args.spheres,
+                       "options": options(args), **rec}  # fmt: skip
+                if "seconds" in rec:
+                    rec["median_s"] = statistics.median(rec["seconds"])
+                    rec["frames_per_s"] = rec["frames"] / rec["median_s"]
+                rec["git_commit"] = os.environ.get("RAYBENCH_GIT_COMMIT")
+                records.append(rec)
+                print(json.dumps(rec), flush=True)
+    for job in jobs:
+        one = [r for r in records if r["job"] == job and r["workers"] == 1 and "frames_per_s" in r]
+        for rec in records:
+            if rec["job"] == job and "frames_per_s" in rec and one:
+                rec["speedup"] = rec["frames_per_s"] / one[0]["frames_per_s"]
+                rec["efficiency"] = rec["speedup"] / rec["workers"]
+                print(f"{job}: {rec['workers']} workers {rec['frames_per_s']:.3g} frames/s, "
+                      f"{rec['speedup']:.2f}x one, {rec['efficiency']:.0%} of linear")  # fmt: skip
+    if args.json:
+        with open(args.json, "a") as out:
+            for rec in records:
+                out.write(json.dumps(rec) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

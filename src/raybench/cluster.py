@@ -1,0 +1,484 @@
+"""raybench's work on Dask workers: one large frame in tiles, or a sequence of
+frames, traced across the workers of a Dask cluster and gathered here.
+
+Dask does the distribution (scatter, scheduling, retries when a worker dies);
+this module decides only what a worker owns and what a task is:
+
+- A worker owns one device: an embedded cluster starts one worker process
+  per GPU, each pinned to its GPU by CUDA_VISIBLE_DEVICES, or with no GPU N
+  processes that share the cores (each traces on cores // N threads). Every
+  embedded process listens on 127.0.0.1 only. A scheduler's address
+  (scheduler=, or RAYBENCH_SCHEDULER) joins a cluster started elsewhere.
+- A worker keeps a warm Renderer per (scene, size, device, options): the
+  scene is scattered once to every worker (broadcast), tasks name it by its
+  key, and the kernels, the tree and the device's buffers are made on the
+  first task and reused by the next.
+- A task is a band of rows of one frame (a tile: bit for bit the rows of the
+  whole frame's render, on cpu and cuda) or a run of whole frames of a sequence (their PNGs,
+  encoded on the worker).
+
+Why the embedded workers differ from Dask's defaults (docs/scaling.md has
+the measurements): a Nanny's worker gets MALLOC_TRIM_THRESHOLD_=65536 in its
+environment, which makes glibc map and fault in afresh every frame-sized
+allocation (4.1 against 1.1 ms a 1680x1050 frame's copies, measured here);
+and a Nanny's default thread count is every core, which runs several tasks
+at once on one device. raybench's workers take one task at a time, without
+that variable.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import threading
+from collections import OrderedDict
+from collections.abc import Callable, Iterable
+from pathlib import Path
+
+import numpy as np
+
+from .backends.limits import PIXEL_BYTES, check_fits, host_available_bytes
+from .camera import Camera
+from .errors import RaybenchError, one_line
+from .render import Frame, Renderer
+from .scene import Scene
+
+HOST = "127.0.0.1"  # every process of an embedded cluster listens here only
+SCHEDULER_ENV = "RAYBENCH_SCHEDULER"
+# How long to try a scheduler's address before saying it is unreachable.
+CONNECT_TIMEOUT_S = 10.0
+# The BVH's packets are 8 rows high (backends.cpu.PACKET_H): a tile starts on one.
+TILE_ALIGN = 8
+# Tasks a worker gets of one job, by default: enough that a slow or lost
+# worker's share is made up by the others, few enough that the scheduler's
+# cost per task (docs/scaling.md) stays small beside the tracing.
+TASKS_PER_WORKER = 4
+# The most frames a task of a sequence traces, so progress is seen often.
+MAX_FRAMES_PER_TASK = 60
+# Warm renderers a worker keeps; each holds a frame's buffers and a tree.
+KEEP_RENDERERS = 2
+
+
+# --- the cluster -------------------------------------------------------------------
+
+
+def gpu_count() -> int:
+    """NVIDIA GPUs this process can use (0 under numba's simulator)."""
+    from . import backends
+
+    if not backends.cuda_available():
+        return 0
+    from numba import cuda
+
+    return len(cuda.gpus)
+
+
+def usable_cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def worker_specs(device: str, workers: int) -> dict:
+    """The SpecCluster worker specs of an embedded cluster: `workers` Nanny
+    processes on 127.0.0.1, one task at a time each; on cuda each pinned to
+    one GPU, on the cpu each given its share of the cores."""
+    from distributed import Nanny
+
+    try:
+        import psutil
+
+        memory = psutil.virtual_memory().total // workers
+    except ImportError:  # psutil is a dependency; without it Dask picks
+        memory = "auto"
+    specs = {}
+    # the GPUs this process may use, in its own numbering: a worker pins one of them
+    visible = [g.strip() for g in os.environ.get("CUDA_VISIBLE_DEVICES", "").split(",") if g.strip()]
+    for i in range(workers):
+        if device == "cuda":
+            env = {"CUDA_VISIBLE_DEVICES": visible[i] if i < len(visible) else str(i)}
+        else:
+            env = {"NUMBA_NUM_THREADS": str(max(1, usable_cores() // workers))}
+        for key in ("RAYBENCH_CACHE_DIR", "NUMBA_ENABLE_CUDASIM"):  # the compiled kernels' cache, and the simulator
+            if key in os.environ:
+                env[key] = os.environ[key]
+        specs[f"{device}-{i}"] = {
+            "cls": Nanny,
+            "options": {
+                "nthreads": 1,
+                "host": HOST,
+                "dashboard_address": f"{HOST}:0",  # Dask's HTTP server (health, metrics) is always started
+                "env": env,
+                "memory_limit": memory,
+                "silence_logs": 40,  # errors only: a restarted worker's warnings are Dask's to handle
+            },
+        }
+    return specs
+
+
+def default_workers(device: str) -> int:
+    return max(1, gpu_count()) if device == "cuda" else 1
+
+
+class Cluster:
+    """A Dask client and, unless it joined one by address, the embedded
+    cluster it talks to; a `with` block closes both (the embedded workers'
+    processes end with it).
+
+        with raybench.cluster.Cluster(workers=2, device="cpu") as cluster:
+            frame = raybench.cluster.render(cluster.client, scene, width=1680, height=1050, device="cpu")
+
+    device picks the embedded workers' kind ("auto": one per GPU where
+    there is one, else the CPU); scheduler (default: RAYBENCH_SCHEDULER)
+    joins an existing cluster, tried for timeout seconds."""
+
+    def __init__(
+        self,
+        workers: int | None = None,
+        device: str = "auto",
+        scheduler: str | None = None,
+        timeout: float = CONNECT_TIMEOUT_S,
+    ):
+        import dask
+        from distributed import Client, Scheduler, SpecCluster
+
+        from . import backends
+
+        scheduler = scheduler or os.environ.get(SCHEDULER_ENV) or None
+        self.cluster = None
+        if scheduler is not None:
+            if workers is not None:
+                raise RaybenchError("workers: a joined cluster has its own; give workers or a scheduler, not both")
+            self.client = connect(scheduler, timeout)
+            return
+        device = backends.resolve(device)
+        if device == "wgpu":
+            raise RaybenchError("device wgpu: the cluster runs cpu or cuda workers")
+        if workers is None:
+            workers = default_workers(device)
+        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+            raise RaybenchError(f"workers: must be a whole number >= 1, got {workers!r}")
+        if device == "cuda" and not backends.module("cuda").simulated() and workers > gpu_count():
+            raise RaybenchError(f"workers: {workers} cuda workers need {workers} GPUs; this machine has {gpu_count()}")
+        # Dask's default sets MALLOC_TRIM_THRESHOLD_ in a worker's environment;
+        # raybench's workers go without it (the module's docstring says why).
+        environ = dict(dask.config.get("distributed.nanny.pre-spawn-environ"))
+        environ.pop("MALLOC_TRIM_THRESHOLD_", None)
+        with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}):
+            self.cluster = SpecCluster(
+                scheduler={"cls": Scheduler, "options": {"host": HOST, "port": 0, "dashboard_address": f"{HOST}:0"}},
+                workers=worker_specs(device, workers),
+                silence_logs=40,  # errors only: a restarted worker's warnings are Dask's to handle
+            )
+        try:
+            self.client = Client(self.cluster)
+        except BaseException:
+            self.cluster.close()
+            raise
+
+    @property
+    def workers(self) -> int:
+        return len(self.client.scheduler_info(n_workers=-1)["workers"])
+
+    def close(self) -> None:
+        self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+            self.cluster = None
+
+    def __enter__(self) -> Cluster:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def connect(address: str, timeout: float = CONNECT_TIMEOUT_S):
+    """A Client of the scheduler at address, or one line saying it was not
+    reached within timeout seconds."""
+    from distributed import Client
+
+    try:
+        return Client(address, timeout=timeout)
+    except (OSError, TimeoutError, ValueError) as exc:
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        raise RaybenchError(f"scheduler {address}: unreachable within {timeout:g} s ({reason})") from None
+
+
+def check_workers(client, device: str, **options) -> dict[str, str]:
+    """Each worker's device for `device`, asked on the worker itself ("auto"
+    resolves there); a worker that lacks it is an error that names it."""
+    from distributed import TimeoutError as DaskTimeout
+
+    try:
+        answers = client.run(_worker_device, device, options.get("adapter"), on_error="return")
+    except (OSError, DaskTimeout) as exc:
+        raise RaybenchError(f"cluster: its workers did not answer ({one_line(exc)})") from None
+    if not answers:
+        raise RaybenchError("cluster: it has no workers")
+    for worker, answer in sorted(answers.items()):
+        if isinstance(answer, BaseException):
+            raise RaybenchError(f"worker {worker}: {one_line(answer)}")
+    kinds = set(answers.values())
+    if len(kinds) > 1:
+        raise RaybenchError(f"cluster: its workers resolve device {device!r} to different devices: {sorted(kinds)}")
+    return answers
+
+
+def _worker_device(device: str, adapter: str | None) -> str:
+    from . import backends
+
+    return backends.resolve(device, adapter)
+
+
+# --- what a worker keeps -------------------------------------------------------------
+
+_renderers: OrderedDict = OrderedDict()
+# One task at a time touches a worker's renderers: a worker started with
+# several threads (a cluster joined by address) would otherwise trace two
+# tasks into one renderer's buffers at once.
+_lock = threading.Lock()
+
+
+def _renderer(scene: Scene, scene_key: str, spec: tuple) -> Renderer:
+    """The worker's warm Renderer of this scene and spec, made on first use."""
+    key = (scene_key, spec)
+    renderer = _renderers.get(key)
+    if renderer is None:
+        width, height, device, shading, depth, shadow_samples, options = spec
+        options = dict(options)
+        if device == "cpu" and "threads" not in options:
+            import numba
+
+            options["threads"] = numba.config.NUMBA_NUM_THREADS  # the worker's share of the cores
+        renderer = Renderer(scene, width, height, device, shading, depth, shadow_samples, **options)
+        _renderers[key] = renderer
+        while len(_renderers) > KEEP_RENDERERS:
+            _renderers.popitem(last=False)[1].close()
+    _renderers.move_to_end(key)
+    return renderer
+
+
+def _tile(scene: Scene, scene_key: str, spec: tuple, camera: Camera | None, rows: tuple[int, int]):
+    """A task: rows first..end of the frame; (first, image rows, hit rows,
+    rays by kind or None, BVH build seconds or None)."""
+    with _lock:
+        renderer = _renderer(scene, scene_key, spec)
+        frame = renderer.render(camera, rows=rows)
+    return rows[0], frame.image, frame.hits, frame.rays, frame.build_s
+
+
+def _hit_counts(scene: Scene, scene_key: str, spec: tuple, cameras: list[Camera]) -> list[int]:
+    """A task: whole frames traced in the renderer's own buffers, each
+    reduced to the count of its pixels that hit a sphere."""
+    width, height = spec[0], spec[1]
+    with _lock:
+        renderer = _renderer(scene, scene_key, spec)
+        return [int((renderer.tracer.trace(c.basis(width, height))[1] >= 0).sum()) for c in cameras]
+
+
+def _frames(scene: Scene, scene_key: str, spec: tuple, numbered: list[tuple[int, Camera]]):
+    """A task: whole frames of a sequence; [(number, PNG bytes)]."""
+    with _lock:
+        renderer = _renderer(scene, scene_key, spec)
+        return [(n, renderer.render(camera, hits=False).png_bytes()) for n, camera in numbered]
+
+
+# --- jobs -----------------------------------------------------------------------------
+
+
+def _spec(width, height, device, shading, depth, shadow_samples, options) -> tuple:
+    """What names a worker's renderer besides the scene: hashable, picklable."""
+    from .backends.limits import check_size
+
+    width, height = check_size(width, height)
+    return (width, height, device, shading, depth, shadow_samples, tuple(sorted(options.items())))
+
+
+# The scenes this process's jobs scattered, the last KEEP_RENDERERS: (client
+# id, key) -> Future. Held here between jobs, because a key released and
+# scattered again at once can be dropped by the scheduler under the new job
+# (its tasks then fail with "lost dependencies").
+_scattered: OrderedDict = OrderedDict()
+
+
+def _scatter(client, scene: Scene):
+    """The scene on every worker, once: the tasks find it there and carry
+    only its key. The key is a hash of the scene, so a later job of the same
+    scene reuses it, and finds the workers' renderers warm."""
+    from dask.base import tokenize
+
+    if not isinstance(scene, Scene):
+        raise RaybenchError(f"scene: must be a raybench.Scene, got {type(scene).__name__}")
+    held = (id(client), f"Scene-{tokenize(scene)}")
+    future = _scattered.get(held)
+    if future is None or future.client is not client or future.status != "finished":
+        future = client.scatter(scene, broadcast=True, hash=True)
+        _scattered[held] = future
+        while len(_scattered) > KEEP_RENDERERS:
+            _scattered.popitem(last=False)[1].release()
+    _scattered.move_to_end(held)
+    return future, future.key
+
+
+def tile_rows(height: int, workers: int) -> int:
+    """Rows of a tile: about TASKS_PER_WORKER tiles a worker, whole packets of rows."""
+    rows = math.ceil(height / max(1, workers * TASKS_PER_WORKER))
+    return max(TILE_ALIGN, math.ceil(rows / TILE_ALIGN) * TILE_ALIGN)
+
+
+def render(
+    client,
+    scene: Scene,
+    camera: Camera | None = None,
+    width: int = 800,
+    height: int = 600,
+    device: str = "cpu",
+    shading: str = "thesis",
+    depth: int | None = None,
+    shadow_samples: int | None = None,
+    rows: int | None = None,
+    **options,
+) -> Frame:
+    """raybench.render() across the cluster's workers: the frame cut in
+    bands of `rows` rows (default: tile_rows()), traced where Dask puts
+    them and assembled here, bit for bit the frame one process traces on
+    the same device: "cpu" or "cuda" (the devices that trace rows)."""
+    from distributed import as_completed
+
+    if camera is not None and not isinstance(camera, Camera):
+        raise RaybenchError(f"camera: must be a raybench.Camera or None, got {type(camera).__name__}")
+    spec = _spec(width, height, device, shading, depth, shadow_samples, options)
+    width, height = spec[0], spec[1]
+    found = check_workers(client, device, **options)
+    device = next(iter(found.values()))
+    if device not in ("cpu", "cuda"):
+        raise RaybenchError(f"device {device}: traces whole frames only; a frame in tiles needs device cpu or cuda")
+    spec = (width, height, device, *spec[3:])
+    if rows is None:
+        rows = tile_rows(height, len(found))
+    if isinstance(rows, bool) or not isinstance(rows, int) or rows < TILE_ALIGN or rows % TILE_ALIGN:
+        raise RaybenchError(
+            f"rows: a tile's rows must be a multiple of {TILE_ALIGN}, at least {TILE_ALIGN}, got {rows!r}"
+        )
+    camera = camera or scene.camera or Camera()
+    # The frame is assembled here, whole: refused before any work if it cannot be.
+    check_fits("host (where the frame is assembled)", width, height, 0, host_available_bytes(), PIXEL_BYTES)
+    future, key = _scatter(client, scene)
+    bands = [(a, min(a + rows, height)) for a in range(0, height, rows)]
+    tasks = [client.submit(_tile, future, key, spec, camera, band, pure=False) for band in bands]
+    image = np.empty((height, width, 3), np.uint8)
+    hits = np.empty((height, width), np.int32)
+    rays, build_s = None, None
+    try:
+        for task in as_completed(tasks):
+            first, band_image, band_hits, band_rays, band_build = task.result()
+            image[first : first + len(band_image)] = band_image
+            hits[first : first + len(band_hits)] = band_hits
+            if band_rays is not None:
+                rays = {k: (rays or {}).get(k, 0) + n for k, n in band_rays.items()}
+            build_s = band_build if build_s is None else max(build_s, band_build or 0.0)
+    finally:
+        client.cancel(tasks)
+    return Frame(image=image, hits=hits, device=device, build_s=build_s, rays=rays)
+
+
+def _runs(items: list, workers: int, per_task: int | None) -> list[list]:
+    """items cut into the runs of a sequence's tasks: per_task each, by
+    default about TASKS_PER_WORKER a worker and at most MAX_FRAMES_PER_TASK."""
+    if per_task is None:
+        per_task = min(MAX_FRAMES_PER_TASK, math.ceil(len(items) / (workers * TASKS_PER_WORKER)))
+    if isinstance(per_task, bool) or not isinstance(per_task, int) or per_task < 1:
+        raise RaybenchError(f"frames_per_task: must be a whole number >= 1, got {per_task!r}")
+    return [items[i : i + per_task] for i in range(0, len(items), per_task)]
+
+
+def trace_frames(
+    client,
+    scene: Scene,
+    cameras: Iterable[Camera],
+    width: int = 800,
+    height: int = 600,
+    device: str = "auto",
+    frames_per_task: int | None = None,
+    **options,
+) -> list[int]:
+    """The frames of cameras traced across the workers as render_sequence
+    traces them, but kept there: each comes back as the count of its pixels
+    that hit a sphere. The throughput of the workers' devices alone, without
+    encoding or moving pictures (the bench's multi-gpu suite)."""
+    cameras = list(cameras)
+    spec = _spec(width, height, device, "thesis", None, None, options)
+    found = check_workers(client, device, **options)
+    spec = (spec[0], spec[1], next(iter(found.values())), *spec[3:])
+    future, key = _scatter(client, scene)
+    tasks = [client.submit(_hit_counts, future, key, spec, run, pure=False)
+             for run in _runs(cameras, len(found), frames_per_task)]  # fmt: skip
+    try:
+        return [n for counts in client.gather(tasks) for n in counts]
+    finally:
+        client.cancel(tasks)
+
+
+def frame_path(out_dir: Path, number: int) -> Path:
+    return Path(out_dir) / f"frame_{number:05d}.png"
+
+
+def render_sequence(
+    client,
+    scene: Scene,
+    cameras: Iterable[Camera],
+    out_dir,
+    width: int = 800,
+    height: int = 600,
+    device: str = "auto",
+    shading: str = "thesis",
+    depth: int | None = None,
+    shadow_samples: int | None = None,
+    frames_per_task: int | None = None,
+    on_frame: Callable[[int, Path], None] | None = None,
+    **options,
+) -> list[Path]:
+    """One PNG a camera, out_dir/frame_00000.png on, traced across the
+    cluster's workers in tasks of frames_per_task frames and each written
+    here, atomically, as it arrives. A frame already on disk is not traced
+    again (an interrupted sequence resumes); on_frame(number, path) is
+    called for every frame, skipped ones first. The frames' paths, in order."""
+    from distributed import as_completed
+
+    from .files import write_atomic
+
+    cameras = list(cameras)
+    for i, camera in enumerate(cameras):
+        if not isinstance(camera, Camera):
+            raise RaybenchError(f"cameras[{i}]: must be a raybench.Camera, got {type(camera).__name__}")
+    out_dir = Path(out_dir)
+    if not out_dir.is_dir():
+        raise RaybenchError(f"{out_dir}: not a folder; make it first")
+    spec = _spec(width, height, device, shading, depth, shadow_samples, options)
+    found = check_workers(client, device, **options)
+    spec = (spec[0], spec[1], next(iter(found.values())), *spec[3:])
+    paths = [frame_path(out_dir, n) for n in range(len(cameras))]
+    todo = []
+    for n, path in enumerate(paths):
+        if path.exists():
+            if on_frame is not None:
+                on_frame(n, path)
+        else:
+            todo.append((n, cameras[n]))
+    if not todo:
+        return paths
+    runs = _runs(todo, len(found), frames_per_task)
+    future, key = _scatter(client, scene)
+    tasks = [client.submit(_frames, future, key, spec, run, pure=False) for run in runs]
+    try:
+        for task in as_completed(tasks):
+            for n, png in task.result():
+                write_atomic(paths[n], png)
+                if on_frame is not None:
+                    on_frame(n, paths[n])
+    finally:
+        # Ctrl-C or an error: what is written stays; what is queued is dropped.
+        client.cancel(tasks)
+    return paths

@@ -1,0 +1,283 @@
+"""raybench.cluster on a real Dask cluster: one LocalCluster-like embedded
+cluster of 2 worker processes (raybench's own, 127.0.0.1 only), shared by
+the module's tests; each result is checked against the same work done in
+this one process."""
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+
+import numpy as np
+import psutil
+import pytest
+from PIL import Image
+
+import raybench
+from raybench import Camera, RaybenchError, camera_path, cluster
+from raybench.cli import run
+
+pytest.importorskip("distributed")
+
+SIZES = [(64, 48), (40, 56), (72, 40)]
+
+
+@pytest.fixture(scope="module")
+def running():
+    # Compiled here first, into the disk cache, so that the workers load the
+    # kernels rather than compile them each (raybench.compiled).
+    for accel in ("bvh", "none"):
+        raybench.render(raybench.random_spheres(3), width=16, height=8, device="cpu", accel=accel)
+    with cluster.Cluster(workers=2, device="cpu") as c:
+        c.client.wait_for_workers(2)
+        yield c
+
+
+def scene_and_camera(rng, n=None):
+    scene = raybench.random_spheres(int(n or rng.integers(1, 60)), seed=int(rng.integers(2**31)))
+    camera = Camera(position=tuple(rng.uniform(-0.3, 0.3, 3)), look_at=tuple(rng.uniform(-0.2, 0.2, 3) + (0, 0, 3)))
+    return scene, camera
+
+
+def png(path) -> np.ndarray:
+    return np.asarray(Image.open(path).convert("RGB"))
+
+
+def test_everything_listens_on_loopback_only(running):
+    info = running.client.scheduler_info(n_workers=-1)
+    assert info["address"].startswith("tcp://127.0.0.1:")
+    assert len(info["workers"]) == 2
+    for address, worker in info["workers"].items():
+        assert address.startswith("tcp://127.0.0.1:")
+        assert worker["nanny"].startswith("tcp://127.0.0.1:")
+    pids = [os.getpid(), *running.client.run(os.getpid).values()]
+    pids += [psutil.Process(p).ppid() for p in pids[1:]]  # the nannies
+    listening = [c for p in set(pids) for c in psutil.Process(p).net_connections("inet") if c.status == "LISTEN"]
+    assert len(listening) >= 4  # the scheduler's, the workers' and the nannies' at least
+    assert {c.laddr.ip for c in listening} == {"127.0.0.1"}
+
+
+def test_workers_split_the_cores_and_go_without_dask_malloc_setting(running):
+    env = running.client.run(lambda: (os.environ.get("NUMBA_NUM_THREADS"), os.environ.get("MALLOC_TRIM_THRESHOLD_")))
+    assert set(env.values()) == {(str(max(1, cluster.usable_cores() // 2)), None)}
+
+
+@pytest.mark.parametrize("accel", ["bvh", "none"])
+def test_tiles_are_the_single_process_frame_bit_for_bit(running, rng, accel):
+    scene, camera = scene_and_camera(rng)
+    width, height = SIZES[rng.integers(len(SIZES))]
+    rows = 8 * int(rng.integers(1, 4))
+    frame = cluster.render(running.client, scene, camera, width, height, device="cpu", rows=rows, accel=accel)
+    whole = raybench.render(scene, camera, width, height, device="cpu", accel=accel)
+    assert frame.image.shape == (height, width, 3) and frame.device == "cpu"
+    np.testing.assert_array_equal(frame.image, whole.image)
+    np.testing.assert_array_equal(frame.hits, whole.hits)
+    assert (frame.hits >= 0).any() and (frame.hits < 0).any()  # hits and misses both compared
+
+
+@pytest.mark.gpu
+def test_cuda_tiles_are_the_single_process_frame_bit_for_bit(running, rng):
+    """On cuda workers (numba's simulator without a GPU: keep it tiny)."""
+    scene, camera = scene_and_camera(rng, 20)
+    frame = cluster.render(running.client, scene, camera, 24, 16, device="cuda", rows=8)
+    whole = raybench.render(scene, camera, 24, 16, device="cuda")
+    assert frame.device == "cuda"
+    np.testing.assert_array_equal(frame.image, whole.image)
+    np.testing.assert_array_equal(frame.hits, whole.hits)
+
+
+def test_a_frame_too_large_to_assemble_here_is_refused_before_work(running, monkeypatch):
+    monkeypatch.setattr(cluster, "host_available_bytes", lambda: 64 * 48 * 7 - 1)
+    with pytest.raises(RaybenchError, match=r"64x48 .* more than .* on the host \(where the frame is assembled\)"):
+        cluster.render(running.client, raybench.random_spheres(3), width=64, height=48, device="cpu")
+
+
+def test_a_tile_must_be_whole_packets_of_rows(running):
+    with pytest.raises(RaybenchError, match="multiple of 8"):
+        cluster.render(running.client, raybench.random_spheres(3), width=32, height=32, device="cpu", rows=12)
+
+
+def test_sequence_is_the_single_process_frames_and_resumes(running, rng, tmp_path):
+    scene, camera = scene_and_camera(rng, 20)
+    cameras = camera_path.orbit(camera, 6)
+    seen = []
+    paths = cluster.render_sequence(
+        running.client, scene, cameras, tmp_path, 48, 32, device="cpu", on_frame=lambda n, p: seen.append(n)
+    )
+    assert sorted(seen) == list(range(6)) and [p.name for p in paths] == [f"frame_{n:05d}.png" for n in range(6)]
+    with raybench.Renderer(scene, 48, 32, device="cpu") as renderer:
+        for path, cam in zip(paths, cameras, strict=True):
+            np.testing.assert_array_equal(png(path), renderer.render(cam).image)
+    # resumption: two frames lost, the others left as they are
+    kept = {p: p.stat().st_mtime_ns for p in paths}
+    for n in (1, 4):
+        paths[n].unlink()
+    seen.clear()
+    cluster.render_sequence(
+        running.client, scene, cameras, tmp_path, 48, 32, device="cpu", on_frame=lambda n, p: seen.append(n)
+    )
+    assert seen[:4] == [0, 2, 3, 5] and sorted(seen[4:]) == [1, 4]
+    for n, path in enumerate(paths):
+        if n not in (1, 4):
+            assert path.stat().st_mtime_ns == kept[path]
+    with raybench.Renderer(scene, 48, 32, device="cpu") as renderer:
+        for n in (1, 4):
+            np.testing.assert_array_equal(png(paths[n]), renderer.render(cameras[n]).image)
+
+
+@pytest.mark.slow
+def test_a_worker_killed_mid_sequence_loses_nothing(running, rng, tmp_path):
+    scene, camera = scene_and_camera(rng, 200)
+    cameras = camera_path.orbit(camera, 24)
+    pids = running.client.run(os.getpid)
+    victim = sorted(pids.values())[int(rng.integers(2))]
+    killed = []
+
+    def on_frame(n, path):
+        if not killed and len(list(tmp_path.glob("frame_*.png"))) >= 3:
+            os.kill(victim, signal.SIGKILL)
+            killed.append(n)
+
+    options = {"accel": "none", "kernel": "simple"}  # slow enough frames that the kill lands mid-sequence
+    paths = cluster.render_sequence(
+        running.client, scene, cameras, tmp_path, 160, 120, device="cpu", frames_per_task=1, on_frame=on_frame,
+        **options,
+    )  # fmt: skip
+    assert killed and killed[0] < len(cameras) - 1  # killed with frames still to come
+    assert sorted(p.name for p in tmp_path.iterdir()) == [p.name for p in paths]
+    with raybench.Renderer(scene, 160, 120, device="cpu", **options) as renderer:
+        for path, cam in zip(paths, cameras, strict=True):
+            np.testing.assert_array_equal(png(path), renderer.render(cam).image)
+    running.client.wait_for_workers(2, timeout=60)  # the nanny restarted it, for the tests after this one
+    assert victim not in running.client.run(os.getpid).values()
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_an_unreachable_scheduler_is_one_line_within_the_timeout(capsys):
+    address = f"tcp://127.0.0.1:{free_port()}"
+    start = time.perf_counter()
+    with pytest.raises(RaybenchError, match=f"scheduler {address}: unreachable within 1 s"):
+        cluster.Cluster(scheduler=address, timeout=1)
+    assert time.perf_counter() - start < 5
+    code = run(["render", "--spheres", "3", "--size", "16x8", "--scheduler", address, "--connect-timeout", "0.5"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith(f"raybench: error: scheduler {address}: unreachable within 0.5 s")
+    assert err.count("\n") == 1
+
+
+def test_a_worker_without_the_device_is_named(running):
+    with pytest.raises(RaybenchError, match=r"^worker tcp://127\.0\.0\.1:\d+: .*no-such-adapter"):
+        cluster.check_workers(running.client, "wgpu", adapter="no-such-adapter")
+
+
+def test_cli_renders_tiles_and_a_sequence_on_a_running_cluster(running, rng, tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("RAYBENCH_SCHEDULER", running.client.scheduler.address)
+    seed = int(rng.integers(1000))
+    out = tmp_path / "tiles.png"
+    args = ["--spheres", "25", "--seed", str(seed), "--size", "56x40", "--device", "cpu"]
+    assert run(["render", *args, "--tile", "16", "-o", str(out)]) == 0
+    whole = raybench.render(raybench.random_spheres(25, seed), width=56, height=40, device="cpu")
+    np.testing.assert_array_equal(png(out), whole.image)
+    frames = tmp_path / "frames"
+    assert run(["render", *args, "--path", "orbit", "--frames", "3", "-o", str(frames)]) == 0
+    assert sorted(p.name for p in frames.iterdir()) == [f"frame_{n:05d}.png" for n in range(3)]
+    assert "wrote 3 frames" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--tile", "16"], "--tile applies across a cluster"),
+        (["--frames", "3"], "--frames applies to --path only"),
+        (["--path", "orbit"], "--path: give -o DIR"),
+        (["--path", "orbit", "-o", "x.png"], "not a .png file"),
+        (["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "not both"),
+    ],
+)
+def test_cli_refuses_bad_cluster_options_in_one_line(argv, message, capsys, monkeypatch):
+    monkeypatch.delenv("RAYBENCH_SCHEDULER", raising=False)
+    assert run(["render", "--spheres", "3", *argv]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1
+
+
+@pytest.mark.slow
+def test_ctrl_c_keeps_the_frames_written_and_stops_the_cluster(tmp_path):
+    """Ctrl-C at a terminal: SIGINT to the whole process group, workers included."""
+    out = tmp_path / "frames"
+    argv = [sys.executable, "-m", "raybench", "render", "--spheres", "200", "--size", "160x120", "--device", "cpu",
+            "--accel", "none", "--kernel", "simple", "--workers", "2", "--path", "orbit", "--frames", "2000",
+            "-o", str(out)]  # fmt: skip
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    proc = subprocess.Popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while len(list(out.glob("frame_*.png"))) < 3:
+            assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read().decode()
+            time.sleep(0.1)
+        family = psutil.Process(proc.pid).children(recursive=True)
+        assert len(family) >= 2  # the nannies and their workers
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130 and err.decode().strip().splitlines()[-1] == "raybench: interrupted"
+    _, alive = psutil.wait_procs(family, timeout=20)
+    assert not alive, f"stray processes: {alive}"
+    frames = sorted(out.iterdir())
+    assert 3 <= len(frames) < 2000 and all(f.name.startswith("frame_") and f.suffix == ".png" for f in frames)
+    cameras = camera_path.orbit(Camera(), 2000)
+    scene = raybench.random_spheres(200, 0)
+    with raybench.Renderer(scene, 160, 120, device="cpu", accel="none", kernel="simple") as renderer:
+        for f in frames[:2] + frames[-1:]:  # the last one written whole too
+            np.testing.assert_array_equal(png(f), renderer.render(cameras[int(f.stem[6:])]).image)
+
+
+def test_cuda_workers_are_pinned_one_gpu_each_within_those_visible(monkeypatch):
+    monkeypatch.delenv("CUDA_VISIBLE_DEVICES", raising=False)
+    assert [s["options"]["env"]["CUDA_VISIBLE_DEVICES"] for s in cluster.worker_specs("cuda", 3).values()] == [
+        "0", "1", "2"
+    ]  # fmt: skip
+    monkeypatch.setenv("CUDA_VISIBLE_DEVICES", "5, GPU-abc")
+    specs = cluster.worker_specs("cuda", 2)
+    assert [s["options"]["env"]["CUDA_VISIBLE_DEVICES"] for s in specs.values()] == ["5", "GPU-abc"]
+    assert all(s["options"]["host"] == "127.0.0.1" and s["options"]["nthreads"] == 1 for s in specs.values())
+
+
+@pytest.mark.slow
+def test_a_worker_killed_mid_frame_loses_no_tile(running, rng):
+    """A worker killed while it traces a tile: Dask traces that tile again elsewhere, and the frame is whole."""
+    import threading
+
+    scene, camera = scene_and_camera(rng, 400)
+    options = {"accel": "none", "kernel": "simple"}  # tiles slow enough to be caught in the act
+    done = {}
+    job = threading.Thread(
+        target=lambda: done.setdefault(
+            "frame", cluster.render(running.client, scene, camera, 96, 240, "cpu", rows=8, **options)
+        )
+    )
+    pids = running.client.run(os.getpid)
+    job.start()
+    victim = None
+    deadline = time.monotonic() + 60
+    while victim is None and job.is_alive() and time.monotonic() < deadline:
+        busy = running.client.processing()
+        victim = next((w for w, keys in busy.items() if any("_tile" in str(k) for k in keys)), None)
+    assert victim is not None, "no tile was seen in progress"
+    os.kill(pids[victim], signal.SIGKILL)
+    job.join(120)
+    assert not job.is_alive()
+    whole = raybench.render(scene, camera, 96, 240, device="cpu", **options)
+    np.testing.assert_array_equal(done["frame"].image, whole.image)
+    np.testing.assert_array_equal(done["frame"].hits, whole.hits)
+    running.client.wait_for_workers(2, timeout=60)
+    assert pids[victim] not in running.client.run(os.getpid).values()
