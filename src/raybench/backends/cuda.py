@@ -29,6 +29,7 @@ from ..kernels.trace import FAR, ZERO
 from ..kernels.whitted import KINDS, RAY_FLOATS, RAY_INTS, RAY_STACK
 from ..layout import CHILD_BOX, INNER, NODE_BYTES, NODE_FLOATS, RADIUS, STACK
 from ..lighting import Shading
+from . import cuda_build
 from .contract import TracerBase, check_method
 from .limits import (
     FAST_MAX_THREADS,
@@ -54,6 +55,23 @@ DEFAULT_BLOCK = {"simple": (16, 16), "fast": (8, 8), "ray": (8, 8), "packet": (8
 # (a 264 KiB tree) and 30,000 (795 KiB); today's take 37% off at 1,000,000
 # and tie at 1,000 (25 KiB) (docs/performance.md).
 PACKET_TREE_BYTES = 256 * 1024
+# Where the tree is built: "host" (raybench.bvh's binned SAH, uploaded) or
+# "gpu" (backends.cuda_build's LBVH, built where it is walked).
+BUILDS = ("host", "gpu")
+# The default stays the host's SAH tree until the H200 has measured the
+# GPU's tree walking within 10% of it (issue 16's condition).
+DEFAULT_BUILD = "host"
+
+
+def check_build(build, accel: str) -> str | None:
+    """The build for a tracer of accel (None for brute force, which builds nothing)."""
+    if build is None:
+        return DEFAULT_BUILD if accel == "bvh" else None
+    if accel != "bvh":
+        raise RaybenchError("build: applies to the BVH only (accel='bvh'), not to brute force")
+    if build not in BUILDS:
+        raise RaybenchError(f"build: must be one of {', '.join(BUILDS)}, got {shown(build)}")
+    return build
 
 
 def choose_walk(nodes: int) -> str:
@@ -471,6 +489,7 @@ class Tracer(TracerBase):
         trip: int | None = None,
         accel: str | None = None,
         walk: str | None = None,
+        build: str | None = None,
         whitted: Shading | None = None,
     ):
         require()
@@ -485,6 +504,7 @@ class Tracer(TracerBase):
         tile = TILE if tile is None else tile
         trip = TRIP if trip is None else trip
         walk = check_walk(walk, self.accel)
+        self.build = check_build(build, self.accel)
         block_given = block is not None
         if not block_given:  # for an auto walk, replaced below once the tree has chosen it
             block = DEFAULT_BLOCK[self.kernel or walk or "ray"]
@@ -500,7 +520,7 @@ class Tracer(TracerBase):
                 "cuda GPU",
                 spheres.shape[1],
                 free - spheres.shape[1] * 7 * 4,
-                bvh_mod.DEVICE_SPHERE_BYTES,
+                cuda_build.DEVICE_SPHERE_BYTES if self.build == "gpu" else bvh_mod.DEVICE_SPHERE_BYTES,
                 width * height * PIXEL_BYTES,
             )
             check_bvh_fits(
@@ -530,6 +550,7 @@ class Tracer(TracerBase):
         self.constant_count = bool(constant_count)
         self.bvh = None
         self.build_s = None
+        self._builder = None
         self.walk = None
         self.whitted = whitted
         self.ray_counts = None
@@ -567,15 +588,20 @@ class Tracer(TracerBase):
         self.grid = (math.ceil(width / self.block[0]), math.ceil(height / (self.block[1] * self.rays)))
 
     def _build(self, count: int) -> None:
-        """Build the BVH of the first `count` spheres on the host and upload it;
-        build_s is the build alone (the upload is a copy like the spheres')."""
-        self.bvh = bvh_mod.build(self.spheres[:, :count])
+        """The BVH of the first `count` spheres, on the device: built on the
+        host and uploaded, or built on the GPU (its arrays kept for the next
+        build of as many spheres). build_s is the build alone: on the host
+        without the upload (a copy like the spheres'), on the GPU up to the
+        tree ready to walk."""
+        if self.build == "gpu":
+            if self._builder is None or self._builder.n != count:
+                self._builder = cuda_build.Builder(count) if count >= 2 else None
+            self.bvh = cuda_build.build(self.spheres[:, :count], self.d_spheres, self._builder)
+        else:
+            self.bvh = cuda_build.upload(bvh_mod.build(self.spheres[:, :count]))
         self.build_s = self.bvh.build_s
-        b = self.bvh
-        self.d_nodes = cuda.to_device(b.nodes)
-        self.d_links = self.d_nodes.view(np.int32)  # the same bytes: one row holds both
-        self.d_ordered = cuda.to_device(b.ordered if b.count else np.zeros((4, 1), np.float32))
-        self.d_order = cuda.to_device(b.order if b.count else np.zeros(1, np.int32))
+        self.d_nodes, self.d_links = self.bvh.nodes, self.bvh.links  # the same bytes: one row holds both
+        self.d_ordered, self.d_order = self.bvh.ordered, self.bvh.order
 
     def compile(self) -> float:
         """Compile the kernel if needed (one empty launch); the seconds it took."""
