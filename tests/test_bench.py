@@ -514,3 +514,15 @@ def test_whitted_record_rates_from_frame_and_kernel_time(monkeypatch, rng):
     assert record["rays_per_frame"] == counts.sum() and record["options"] == opts
     assert record["rays_per_s"] == pytest.approx(counts.sum() / (record["frame_ms"]["median"] / 1e3))
     assert record["kernel_rays_per_s"] == pytest.approx(counts.sum() / (record["kernel_ms"]["median"] / 1e3))
+
+
+def test_builds_split_cuda_bvh_points_only():
+    """--build host --build gpu: each cuda BVH point twice, one per build;
+    brute force and the other devices once, as without."""
+    plain = suites.points(["scaling"], ["cpu", "cuda"], accels=("bvh", "none"))
+    both = suites.points(["scaling"], ["cpu", "cuda"], accels=("bvh", "none"), builds=("host", "gpu"))
+    cuda_bvh = [p for p in plain if p.device == "cuda" and p.options["accel"] == "bvh"]
+    assert len(both) == len(plain) + len(cuda_bvh)
+    for build in ("host", "gpu"):
+        assert [p.spheres for p in both if p.options.get("build") == build] == [p.spheres for p in cuda_bvh]
+    assert all("build" not in p.options for p in both if p.device == "cpu" or p.options["accel"] == "none")

@@ -32,6 +32,7 @@ from ..lighting import Shading
 from . import cuda_build
 from .contract import TracerBase, check_method
 from .limits import (
+    BUILDS,
     FAST_MAX_THREADS,
     HOST_PIXEL_BYTES,
     PIXEL_BYTES,
@@ -55,9 +56,6 @@ DEFAULT_BLOCK = {"simple": (16, 16), "fast": (8, 8), "ray": (8, 8), "packet": (8
 # (a 264 KiB tree) and 30,000 (795 KiB); today's take 37% off at 1,000,000
 # and tie at 1,000 (25 KiB) (docs/performance.md).
 PACKET_TREE_BYTES = 256 * 1024
-# Where the tree is built: "host" (raybench.bvh's binned SAH, uploaded) or
-# "gpu" (backends.cuda_build's LBVH, built where it is walked).
-BUILDS = ("host", "gpu")
 # The default stays the host's SAH tree until the H200 has measured the
 # GPU's tree walking within 10% of it (issue 16's condition).
 DEFAULT_BUILD = "host"

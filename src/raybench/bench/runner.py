@@ -39,6 +39,8 @@ def tracer_options(point: Point) -> dict:
         opts["kernel"] = point.options["kernel"]
     if "accel" in point.options:
         opts["accel"] = point.options["accel"]
+    if "build" in point.options:
+        opts["build"] = point.options["build"]
     if point.options.get("count") == "constant":
         opts["constant_count"] = True
     return opts

@@ -133,12 +133,19 @@ def variants(kernels, accels) -> list[dict]:
     return out + ([{"accel": "bvh"}] if "bvh" in accels else [])
 
 
-def _runs(ways, devices, wgpu: dict) -> list[tuple[dict, str]]:
+def _runs(ways, devices, wgpu: dict, builds=()) -> list[tuple[dict, str]]:
     """(options, device) for each way and device: cpu and cuda every way; wgpu
     every way it has, with its own options (the adapter named): the BVH, and
     brute force once whatever the kernels asked for, with its one kernel
-    (simple)."""
-    out = [(dict(way), d) for way in ways for d in devices if d != "wgpu"]
+    (simple). builds: where cuda's trees are built ("host", "gpu"), the BVH
+    once for each; none given, the backend's default."""
+    out = []
+    for way in ways:
+        for d in devices:
+            if d == "cuda" and way["accel"] == "bvh" and builds:
+                out += [({**way, "build": b}, d) for b in builds]
+            elif d != "wgpu":
+                out.append((dict(way), d))
     if "wgpu" in devices:
         own = []
         for way in ways:
@@ -165,19 +172,21 @@ def points(
     accels=("none",),
     wgpu: dict | None = None,
     max_invocations: int = 1024,
+    builds=(),
 ) -> list[Point]:
     """Every point of the chosen suites on the chosen devices (the thesis,
     tuning and scaling suites once per kernel of brute force, and once more
     with the BVH if accels holds "bvh"), in run order. wgpu: that device's
     options ({"adapter": name}); max_invocations: its adapter's workgroup
-    limit, which bounds the tuning suite's shapes."""
+    limit, which bounds the tuning suite's shapes. builds: where cuda's BVH
+    points build their trees (_runs)."""
     for suite in suites:
         if suite not in SUITES:
             raise RaybenchError(f"suite: unknown suite {suite!r}; choose from {', '.join(SUITES)}")
     for accel in accels:
         if accel not in ACCELS:
             raise RaybenchError(f"accel: unknown accel {accel!r}; choose from {', '.join(ACCELS)}")
-    runs = _runs(variants(kernels, accels), devices, wgpu or {})
+    runs = _runs(variants(kernels, accels), devices, wgpu or {}, builds)
     cores = cores or os.cpu_count() or 1
     out: list[Point] = []
     if "thesis" in suites:
@@ -251,7 +260,7 @@ def points(
         sizes = QUICK_SECONDARY_SIZES if quick else SECONDARY_SIZES
         counts = QUICK_SECONDARY_COUNTS if quick else SECONDARY_COUNTS
         cap = QUICK_SECONDARY_CAP_S if quick else SECONDARY_CAP_S
-        for way, device in _runs(ways, devices, wgpu or {}):
+        for way, device in _runs(ways, devices, wgpu or {}, builds):
             capped = {"cap_s": cap} if way["accel"] == "none" else {}
             for n in counts:
                 for w, h in sizes:
