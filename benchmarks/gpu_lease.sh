@@ -20,6 +20,9 @@
 #            and this one in turn, twice, side by side in one lease
 #   builds   benchmarks/bvh_build.py (BUILDS_ARGS to change), with BASELINE as walks
 #   whitted  benchmarks/whitted_rays.py: Whitted shading's rays a second (WHITTED_ARGS to change)
+#   gpubuild benchmarks/gpu_build.py: the BVH built on the GPU against the host's binned SAH tree
+#            (build, refit, SAH cost, walks on both, leaf sizes), its records in gpu-build.json
+#            (GPUBUILD_ARGS to change, e.g. "--spheres 100000 --repeats 101")
 #
 # Carries .whl (NumPy 2.4: the machine's 2.5 breaks numba 0.68.0; wgpu, cffi,
 # pycparser, rendercanvas, glfw) and .gl (the Vulkan and GL loaders as Debian
@@ -99,6 +102,10 @@ for s in $STEPS; do
         # shellcheck disable=SC2086
         step whitted "${WHITTED_S:-200}" python3 benchmarks/whitted_rays.py \
             ${WHITTED_ARGS:---device cuda --device wgpu --device cpu} ;;
+    gpubuild)
+        # shellcheck disable=SC2086
+        step gpubuild "${GPUBUILD_S:-420}" python3 benchmarks/gpu_build.py --json "$W/gpu-build.json" \
+            ${GPUBUILD_ARGS:-} ;;
     *) echo "unknown step $s" | tee -a "$W/steps.log" ;;
     esac
 done

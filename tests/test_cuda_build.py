@@ -26,12 +26,14 @@ def small(rng) -> int:
     return int(rng.integers(2, 48 if sim() else 5000))
 
 
-def gpu_tree(spheres, **options):
+def gpu_tree(spheres, leaf_size=None, **options):
     from numba import cuda
 
     from raybench.backends import cuda_build
 
-    return cuda_build.build(spheres, cuda.to_device(spheres), **options)
+    n = spheres.shape[1]
+    builder = cuda_build.Builder(n, leaf_size) if leaf_size is not None and n >= 2 else None
+    return cuda_build.build(spheres, cuda.to_device(spheres), builder, **options)
 
 
 def morton_reference(spheres) -> np.ndarray:
@@ -54,13 +56,17 @@ def morton_reference(spheres) -> np.ndarray:
 @pytest.mark.parametrize("kind", ["generated", "cloud", "one_point", "duplicates", "line", "chain"])
 def test_gpu_tree_is_valid(rng, kind):
     """Every sphere in one leaf, each box around its spheres' padded boxes
-    and inside its parent's, the depth reported being the tree's."""
+    and inside its parent's, the depth reported being the tree's; leaves of
+    up to leaf_size spheres, and none of more."""
     scene, _ = SCENES[kind](rng, small(rng))
-    tree = gpu_tree(scene.spheres)
+    leaf_size = int(rng.integers(1, bvh.LEAF_MAX + 1))
+    tree = gpu_tree(scene.spheres, leaf_size)
     assert tree.built_on == ("gpu" if len(scene) >= 2 else "host")
-    check_tree(tree.to_host(), scene.spheres)
-    if len(scene) >= 2:
-        assert tree.node_count == len(scene) - 1  # LBVH: leaves of one sphere
+    host = tree.to_host()
+    check_tree(host, scene.spheres)
+    assert tree.node_count == max(len(scene) - 1, 1)  # Karras's internal nodes, collapsed ones kept
+    counts = host.links[:, layout.COUNT : layout.COUNT + 2]
+    assert counts.max() <= leaf_size
 
 
 def test_sort_is_stable_by_morton_code(rng):
@@ -88,7 +94,7 @@ def test_one_point_is_log2_deep(rng):
     tree over the places is balanced."""
     n = small(rng)
     scene, _ = SCENES["one_point"](rng, n)
-    tree = gpu_tree(scene.spheres)
+    tree = gpu_tree(scene.spheres, leaf_size=1)
     assert tree.depth == int(np.ceil(np.log2(n)))
     check_tree(tree.to_host(), scene.spheres)
 
@@ -156,10 +162,11 @@ def test_build_is_an_option_of_cuda_only():
 
 
 def test_sah_cost_of_a_tree_by_hand():
-    """Row 0: a leaf of 2 spheres in [0,1]^3 and a row in [2,3]x[0,1]x[0,1];
-    row 1: a leaf of 1 in [2,3]x[0,1]x[0,0.5] and an empty child. Half areas
-    (dx dy + dy dz + dz dx): root 7, leaf 3, row 1 2, its leaf 2; so
-    (2 * 7 + 2 * 3 + 2 * 2 + 1 * 2) / 7 with a node costing 2 sphere tests."""
+    """tree_cost.sah_cost against a tree worked out by hand. Row 0: a leaf of
+    2 spheres in [0,1]^3 and a row in [2,3]x[0,1]x[0,1]; row 1: a leaf of 1
+    in [2,3]x[0,1]x[0,0.5] and an empty child. Half areas (dx dy + dy dz +
+    dz dx): root 7, leaf 3, row 1 2, its leaf 2; so (2 * 7 + 2 * 3 + 2 * 2 +
+    1 * 2) / 7 with a node costing 2 sphere tests."""
     nodes = np.zeros((2, layout.NODE_FLOATS), np.float32)
     links = nodes.view(np.int32)
     nodes[0, 0:6] = [0, 0, 0, 1, 1, 1]
@@ -171,3 +178,71 @@ def test_sah_cost_of_a_tree_by_hand():
     links[1, layout.REF : layout.REF + 2] = [2, 3]
     links[1, layout.COUNT : layout.COUNT + 2] = [1, 0]
     assert tree_cost.sah_cost(nodes) == pytest.approx(26 / 7)
+    # a row no walk reaches (cuda_build leaves collapsed subtrees' rows) adds nothing
+    dead = np.concatenate([nodes, nodes[:1] * 100])
+    assert tree_cost.sah_cost(dead) == pytest.approx(26 / 7)
+
+
+# --- spheres that move: refit, or rebuild ------------------------------------
+
+
+def moved(rng, spheres, scale):
+    """The spheres with their centres moved by up to scale radii."""
+    out = spheres.copy()
+    out[:3] += (rng.uniform(-1, 1, (3, spheres.shape[1])) * spheres[3] * scale).astype(np.float32)
+    return out
+
+
+def test_device_sah_cost_is_tree_costs(rng):
+    """Builder.read_cost, summed on the device over the rows a walk reaches,
+    against tree_cost.sah_cost on the tree copied back: fresh, then refitted
+    to moved spheres."""
+    from numba import cuda
+
+    from raybench.backends import cuda_build
+
+    scene, _ = SCENES["generated"](rng, small(rng))
+    builder = cuda_build.Builder(len(scene), int(rng.integers(1, 5)))
+    d_spheres = cuda.to_device(scene.spheres)
+    builder.launch_build(d_spheres)
+    tree = builder.tree(builder.read_depth(), 0.0)
+    assert builder.read_cost() == pytest.approx(tree_cost.sah_cost(tree.to_host().nodes), rel=1e-5)
+    spheres = moved(rng, scene.spheres, 3.0)
+    d_spheres.copy_to_device(spheres)
+    builder.launch_refit(d_spheres)
+    refitted = tree.to_host()
+    check_tree(refitted, spheres)
+    assert builder.read_cost() == pytest.approx(tree_cost.sah_cost(refitted.nodes), rel=1e-5)
+
+
+@pytest.mark.parametrize("limit,want", [(np.inf, "refit"), (0.0, "build")])
+def test_update_refits_within_the_limit_and_rebuilds_past_it(rng, monkeypatch, limit, want):
+    """Tracer.update: a refit keeps the tree's rows (its links), a rebuild
+    makes new ones; either way the frame is the brute force's of the moved
+    spheres."""
+    from raybench.backends import cuda_build
+
+    monkeypatch.setattr(cuda_build, "REFIT_LIMIT", limit)
+    scene, camera = SCENES["generated"](rng, int(rng.integers(20, 40)))
+    with raybench.backends.tracer("cuda", scene.spheres, 19, 13, build="gpu") as tracer:
+        before = tracer.d_links.copy_to_host()[:, layout.REF :]  # the rows' links, not their boxes
+        spheres = moved(rng, scene.spheres, 2.0)
+        assert tracer.update(spheres) == want
+        assert tracer.build_s > 0
+        tracer.trace(camera.basis(19, 13))
+        if want == "refit":
+            assert np.array_equal(tracer.d_links.copy_to_host()[:, layout.REF :], before)
+        want_frame = brute(raybench.Scene(spheres[:3].T, spheres[3], spheres[4:].T), camera, 19, 13)
+        assert np.array_equal(tracer.hits, want_frame.hits) and np.array_equal(tracer.image, want_frame.image)
+
+
+def test_update_of_a_host_tree_rebuilds_it_and_checks_its_input(rng):
+    scene, camera = SCENES["generated"](rng, 30)
+    with raybench.backends.tracer("cuda", scene.spheres, 19, 13, build="host") as tracer:
+        spheres = moved(rng, scene.spheres, 2.0)
+        assert tracer.update(spheres) == "build"
+        tracer.trace(camera.basis(19, 13))
+        want = brute(raybench.Scene(spheres[:3].T, spheres[3], spheres[4:].T), camera, 19, 13)
+        assert np.array_equal(tracer.hits, want.hits)
+        with pytest.raises(raybench.RaybenchError, match=r"update: spheres must be a \(7, 30\) float32 array"):
+            tracer.update(spheres[:, :10])

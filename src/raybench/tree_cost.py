@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from .bvh import NODE_COST
-from .layout import CHILD_BOX, COUNT
+from .layout import CHILD_BOX, COUNT, INNER, REF
 
 
 def _half_area(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -30,20 +30,27 @@ def _half_area(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
 
 def sah_cost(nodes: np.ndarray) -> float:
     """The SAH cost of the tree whose rows are nodes (M, NODE_FLOATS)
-    float32 (its int32 view holds the links); 0 for a tree of no sphere."""
+    float32 (its int32 view holds the links), over the rows a walk can reach
+    from the root (a builder may leave others: cuda_build's collapsed
+    subtrees); 0 for a tree of no sphere."""
     if nodes.shape[0] == 0:
         return 0.0
     links = nodes.view(np.int32)
-    boxes = [nodes[:, c : c + 6].astype(np.float64) for c in CHILD_BOX]
-    row_lo = np.minimum(boxes[0][:, :3], boxes[1][:, :3])
-    row_hi = np.maximum(boxes[0][:, 3:], boxes[1][:, 3:])
-    rows = _half_area(row_lo, row_hi)
-    root = rows[0]
-    if not root > 0:
-        return 0.0
-    total = float(NODE_COST) * rows.sum()
-    for slot in range(2):
-        count = links[:, COUNT + slot]
-        leaf = count > 0  # not INNER (a row, counted above) nor empty
-        total += (count[leaf] * _half_area(boxes[slot][leaf, :3], boxes[slot][leaf, 3:])).sum()
+    total, root = 0.0, None
+    level = np.zeros(1, np.int64)  # the reachable rows, a level at a time
+    while len(level):
+        boxes = [nodes[level, c : c + 6].astype(np.float64) for c in CHILD_BOX]
+        rows = _half_area(np.minimum(boxes[0][:, :3], boxes[1][:, :3]), np.maximum(boxes[0][:, 3:], boxes[1][:, 3:]))
+        if root is None:
+            root = rows[0]
+            if not root > 0:
+                return 0.0
+        total += float(NODE_COST) * rows.sum()
+        below = []
+        for slot in range(2):
+            count = links[level, COUNT + slot]
+            leaf = count > 0
+            total += (count[leaf] * _half_area(boxes[slot][leaf, :3], boxes[slot][leaf, 3:])).sum()
+            below.append(links[level, REF + slot][count == INNER])
+        level = np.concatenate(below).astype(np.int64)
     return float(total / root)

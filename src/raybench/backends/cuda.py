@@ -549,6 +549,7 @@ class Tracer(TracerBase):
         self.bvh = None
         self.build_s = None
         self._builder = None
+        self._fresh_cost = None
         self.walk = None
         self.whitted = whitted
         self.ray_counts = None
@@ -595,11 +596,45 @@ class Tracer(TracerBase):
             if self._builder is None or self._builder.n != count:
                 self._builder = cuda_build.Builder(count) if count >= 2 else None
             self.bvh = cuda_build.build(self.spheres[:, :count], self.d_spheres, self._builder)
+            # the fresh tree's SAH cost: what update()'s refits are held to
+            self._fresh_cost = self._builder.read_cost() if self.bvh.built_on == "gpu" else None
         else:
             self.bvh = cuda_build.upload(bvh_mod.build(self.spheres[:, :count]))
         self.build_s = self.bvh.build_s
         self.d_nodes, self.d_links = self.bvh.nodes, self.bvh.links  # the same bytes: one row holds both
         self.d_ordered, self.d_order = self.bvh.ordered, self.bvh.order
+
+    def update(self, spheres: np.ndarray) -> str | None:
+        """The spheres moved (or changed radius or colour; as many as before):
+        the next frames show spheres, a (7, N) float32 array like the first.
+        Their tree follows: with build "gpu" refitted on the GPU (its shape
+        kept, its boxes the spheres' new ones) while its SAH cost stays
+        within cuda_build.REFIT_LIMIT of its fresh cost, else rebuilt; with
+        build "host" rebuilt on the host. Returns "refit" or "build" (None
+        for brute force, which has no tree); build_s is what it took, the
+        tree ready to walk."""
+        spheres = np.asarray(spheres)
+        if spheres.shape != self.spheres.shape or spheres.dtype != np.float32:
+            raise RaybenchError(
+                f"update: spheres must be a {self.spheres.shape} float32 array like the tracer's, "
+                f"got {spheres.shape} {spheres.dtype}"
+            )
+        self.spheres = spheres
+        if self.count:
+            self.d_spheres.copy_to_device(spheres)
+        if self.accel != "bvh":
+            return None
+        refit_s = 0.0
+        if self.build == "gpu" and self.bvh.built_on == "gpu":
+            start = time.perf_counter()
+            self._builder.launch_refit(self.d_spheres)
+            refit_s = time.perf_counter() - start
+            if self._builder.read_cost() <= cuda_build.REFIT_LIMIT * self._fresh_cost:
+                self.build_s = refit_s
+                return "refit"
+        self._build(self.bvh.count)
+        self.build_s += refit_s  # the refit that was not enough, then the build
+        return "build"
 
     def compile(self) -> float:
         """Compile the kernel if needed (one empty launch); the seconds it took."""

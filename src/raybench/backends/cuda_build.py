@@ -12,10 +12,11 @@ waits once, at the end, to read the tree's depth:
               sort; the scatter is stable, so equal codes keep the order of
               their indices: the tie-break Karras's hierarchy needs;
   4. hierarchy Karras's internal nodes from the sorted codes, internal node i
-              in row i (the root is row 0), each child a row (INNER) or a leaf
-              of one sphere (ref: its place in leaf order). Equal codes are
-              told apart by their places, as Karras does: a key of code bits
-              then place bits, all distinct;
+              in row i (the root is row 0), each child a row (INNER) or, where
+              it covers at most LEAF_SIZE spheres, a leaf of them (ref: the
+              first one's place in leaf order). Equal codes are told apart by
+              their places, as Karras does: a key of code bits then place
+              bits, all distinct;
   5. bounds up one thread per leaf climbs to the root; at each row the first of
               its two children to arrive stops, the second (an atomic counter
               says which) unites both boxes and goes on. The same pass writes
@@ -72,6 +73,19 @@ SORT_CELLS = RADIX * SORT_THREADS
 ONE_BLOCK = 32 if _SIM else 256
 # The other kernels: a thread an element, in blocks of THREADS.
 THREADS = 32 if _SIM else 256
+# Subtrees of at most LEAF_SIZE spheres become leaves (of consecutive
+# spheres in leaf order, which every LBVH subtree covers): fewer rows on a
+# ray's way (the host's tree keeps leaves of up to 3 spheres always, up to
+# bvh.LEAF_MAX where SAH says so). benchmarks/gpu_build.py measures the
+# choice.
+LEAF_SIZE = 4
+# A refitted tree is rebuilt once its SAH cost (Builder.read_cost) exceeds
+# REFIT_LIMIT times the cost it had fresh from its build: moved spheres
+# stretch its boxes, and each ray then visits more of them. A provisional
+# value, to be set from benchmarks/gpu_build.py's refit series on the H200
+# (walk time of the refitted tree against the rebuilt one, frame by frame,
+# against the build's time).
+REFIT_LIMIT = 1.3
 # Device bytes a Builder holds per sphere: keys and values twice (the sort's
 # two buffers), the links up (8 + 8), the heights (8), the counters (4), the
 # node rows (64) and the ordered spheres (16); the histograms add under 1.
@@ -82,6 +96,7 @@ _BOX = BOX_FLOATS
 _INNER = INNER
 _REF = REF
 _COUNT = COUNT
+_NODE_COST = bvh_mod.NODE_COST
 
 
 def _blocks(n: int, per: int) -> int:
@@ -269,12 +284,26 @@ def _delta(keys, n, i, j):
     return 32 + cuda.clz(np.uint32(i ^ j))
 
 
+@cuda.jit(device=True)
+def _link(links, row, slot, first, count, child_row, leaf_size):
+    """Child slot of row: the leaf of its `count` spheres from `first` if
+    they are at most leaf_size, else the row child_row."""
+    if count <= leaf_size:
+        links[row, _REF + slot] = first
+        links[row, _COUNT + slot] = count
+    else:
+        links[row, _REF + slot] = child_row
+        links[row, _COUNT + slot] = _INNER
+
+
 @compiled.cuda_jit()
-def _hierarchy(keys, n, links, up, leaf_up):
+def _hierarchy(keys, n, leaf_size, links, up, leaf_up, live):
     """Internal node i (row i): the range of sorted keys it covers, where it
     splits, and its two children (Karras 2012, figure 4). up[row] and
     leaf_up[leaf]: the parent's row times 2 plus the child's slot (the
-    root's: -1)."""
+    root's: -1). live[row]: 1 where a walk can reach the row (the root, and
+    rows of over leaf_size spheres: a range shrinks downwards, so all their
+    ancestors are rows too)."""
     i = cuda.grid(1)
     if i >= n - 1:
         return
@@ -305,28 +334,27 @@ def _hierarchy(keys, n, links, up, leaf_up):
     gamma = i + split * d + min(d, 0)
     first = min(i, j)
     last = max(i, j)
+    # Each child covers consecutive leaves (first..gamma, gamma+1..last): one
+    # of at most leaf_size spheres is stored as a leaf of them all. Its
+    # subtree's rows stay, out of the walks' reach, so that the bounds still
+    # climb through them (their boxes unite to the leaf's).
+    live[i] = 1 if i == 0 or last - first + 1 > leaf_size else 0
+    _link(links, i, 0, first, gamma - first + 1, gamma, leaf_size)
+    _link(links, i, 1, gamma + 1, last - gamma, gamma + 1, leaf_size)
     if first == gamma:
-        links[i, _REF] = gamma
-        links[i, _COUNT] = 1
         leaf_up[gamma] = 2 * i
     else:
-        links[i, _REF] = gamma
-        links[i, _COUNT] = _INNER
         up[gamma] = 2 * i
     if last == gamma + 1:
-        links[i, _REF + 1] = gamma + 1
-        links[i, _COUNT + 1] = 1
         leaf_up[gamma + 1] = 2 * i + 1
     else:
-        links[i, _REF + 1] = gamma + 1
-        links[i, _COUNT + 1] = _INNER
         up[gamma + 1] = 2 * i + 1
     if i == 0:
         up[0] = -1
 
 
 @compiled.cuda_jit()
-def _bounds_up(spheres, n, order, leaf_up, up, nodes, heights, arrived, ordered, depth):
+def _bounds_up(spheres, n, order, leaf_up, up, nodes, links, heights, arrived, ordered, depth):
     """Leaf k (its sphere order[k]) climbs to the root, each row's box
     written into its parent's slot; a row's second child to arrive (arrived
     counts them) unites the two boxes and climbs on, and sets the counter
@@ -356,6 +384,8 @@ def _bounds_up(spheres, n, order, leaf_up, up, nodes, heights, arrived, ordered,
         nodes[row, col + 3] = hx
         nodes[row, col + 4] = hy
         nodes[row, col + 5] = hz
+        if links[row, _COUNT + slot] != _INNER:
+            h = 0  # a leaf to the walks, whatever rows it collapsed
         heights[link] = h
         cuda.threadfence()  # the box and height are seen before the count
         if cuda.atomic.add(arrived, row, 1) == 0:
@@ -371,6 +401,48 @@ def _bounds_up(spheres, n, order, leaf_up, up, nodes, heights, arrived, ordered,
         arrived[row] = 0
         link = up[row]
     depth[0] = h
+
+
+@cuda.jit(device=True)
+def _half_area(lx, ly, lz, hx, hy, hz):
+    dx, dy, dz = max(hx - lx, np.float32(0)), max(hy - ly, np.float32(0)), max(hz - lz, np.float32(0))
+    return dx * dy + dy * dz + dz * dx
+
+
+@compiled.cuda_jit()
+def _sah_parts(nodes, links, live, m, parts):
+    """tree_cost.sah_cost's sums on the device: parts[b] the SAH terms of
+    block b's live rows (NODE_COST times the row's half area, plus each leaf
+    child's count times its box's), parts[-1] the root's half area."""
+    i = cuda.grid(1)
+    t = cuda.threadIdx.x
+    acc = cuda.shared.array(THREADS, np.float32)
+    v = np.float32(0)
+    if i < m and live[i] != 0:
+        a = _half_area(
+            min(nodes[i, 0], nodes[i, 6]), min(nodes[i, 1], nodes[i, 7]), min(nodes[i, 2], nodes[i, 8]),
+            max(nodes[i, 3], nodes[i, 9]), max(nodes[i, 4], nodes[i, 10]), max(nodes[i, 5], nodes[i, 11]),
+        )  # fmt: skip
+        v = _NODE_COST * a
+        for slot in range(2):
+            count = links[i, _COUNT + slot]
+            if count > 0:
+                c = slot * _BOX
+                leaf = _half_area(
+                    nodes[i, c], nodes[i, c + 1], nodes[i, c + 2], nodes[i, c + 3], nodes[i, c + 4], nodes[i, c + 5]
+                )
+                v += np.float32(count) * leaf
+        if i == 0:
+            parts[parts.shape[0] - 1] = a
+    acc[t] = v
+    step = THREADS // 2
+    while step > 0:
+        cuda.syncthreads()
+        if t < step:
+            acc[t] += acc[t + step]
+        step //= 2
+    if t == 0:
+        parts[cuda.blockIdx.x] = acc[0]
 
 
 @dataclass
@@ -408,8 +480,9 @@ class Builder:
     allocated once and reused by every build and refit: the dynamic case
     builds every frame."""
 
-    def __init__(self, n: int):
+    def __init__(self, n: int, leaf_size: int = LEAF_SIZE):
         self.n = n
+        self.leaf_size = leaf_size
         m = max(n - 1, 1)
         self.tiles = _blocks(n, SORT_TILE)
         self.bounds = cuda.device_array(6, np.float32)
@@ -424,34 +497,58 @@ class Builder:
         self.arrived = cuda.to_device(np.zeros(m, np.int32))  # each pass leaves it zero
         self.ordered = cuda.device_array((4, max(n, 1)), np.float32)
         self.depth = cuda.device_array(1, np.int32)
+        self.live = cuda.device_array(m, np.int8)
+        self.cost_parts = cuda.device_array(_blocks(m, THREADS) + 1, np.float32)
         # the sorted values end in the buffer of the last pass: the order
         self.order = self.values[PASSES % 2]
 
     def launch_build(self, spheres) -> None:
         """Queue the build of the first n spheres of the device array spheres
         (7, >= n); nothing waits."""
-        n = self.n
-        grid = _blocks(n, THREADS)
-        _centre_bounds[1, ONE_BLOCK](spheres, n, self.bounds)
-        _morton[grid, THREADS](spheres, n, self.bounds, self.keys[0], self.values[0])
+        self.launch_codes(spheres)
+        self.launch_sort()
+        self.launch_hierarchy()
+        self.launch_refit(spheres)
+
+    # The steps of a build, apart so that a benchmark can time each.
+
+    def launch_codes(self, spheres) -> None:
+        """Steps 1 and 2: the centres' bounds, then each one's Morton code."""
+        _centre_bounds[1, ONE_BLOCK](spheres, self.n, self.bounds)
+        _morton[_blocks(self.n, THREADS), THREADS](spheres, self.n, self.bounds, self.keys[0], self.values[0])
+
+    def launch_sort(self) -> None:
+        """Step 3: the (code, index) pairs sorted by code, stably."""
         for p in range(PASSES):
             src, dst = p % 2, 1 - p % 2
             shift = p * DIGIT_BITS
-            _count[self.tiles, SORT_THREADS](self.keys[src], n, shift, self.hist, self.tiles)
+            _count[self.tiles, SORT_THREADS](self.keys[src], self.n, shift, self.hist, self.tiles)
             _scan[1, ONE_BLOCK](self.hist, RADIX * self.tiles)
             _scatter[self.tiles, SORT_THREADS](
-                self.keys[src], self.values[src], n, shift, self.hist, self.tiles, self.keys[dst], self.values[dst]
+                self.keys[src], self.values[src], self.n, shift, self.hist, self.tiles, self.keys[dst], self.values[dst]
             )
-        _hierarchy[_blocks(n - 1, THREADS), THREADS](self.keys[PASSES % 2], n, self.links, self.up, self.leaf_up)
-        self.launch_refit(spheres)
+
+    def launch_hierarchy(self) -> None:
+        """Step 4: the rows' links from the sorted codes."""
+        _hierarchy[_blocks(self.n - 1, THREADS), THREADS](
+            self.keys[PASSES % 2], self.n, self.leaf_size, self.links, self.up, self.leaf_up, self.live
+        )
 
     def launch_refit(self, spheres) -> None:
         """Queue the boxes of the tree's rows recomputed from the spheres'
         positions now (the tree's shape kept); nothing waits."""
         _bounds_up[_blocks(self.n, THREADS), THREADS](
-            spheres, self.n, self.order, self.leaf_up, self.up, self.nodes, self.heights, self.arrived,
+            spheres, self.n, self.order, self.leaf_up, self.up, self.nodes, self.links, self.heights, self.arrived,
             self.ordered, self.depth,
         )  # fmt: skip
+
+    def read_cost(self) -> float:
+        """The tree's SAH cost (tree_cost.sah_cost's, summed on the device in
+        float32; waits for the queued work)."""
+        m = self.nodes.shape[0]
+        _sah_parts[_blocks(m, THREADS), THREADS](self.nodes, self.links, self.live, m, self.cost_parts)
+        parts = self.cost_parts.copy_to_host().astype(np.float64)
+        return float(parts[:-1].sum() / parts[-1]) if parts[-1] > 0 else 0.0
 
     def read_depth(self) -> int:
         """The tree's depth (waits for the queued work)."""
