@@ -15,11 +15,19 @@ with the machine and the commit):
   walks (a ray at a time, packets), median of --frames, and the share of
   pixels whose hit differs between the two trees (0 on a GPU, up to the
   compiler's fused multiply-adds; the tests hold it to the brute force);
+- moving spheres (raybench.animate.Orbits, seed 0, --anim-frames frames
+  --anim-dt seconds apart): per frame, the tree's update (Tracer.update:
+  refit or build) and the walk, under four policies: the default
+  (cuda_build.REFIT_LIMIT), refit only, rebuild every frame, and the host's
+  build; with the refitted tree's SAH cost over its fresh cost, the series
+  from which REFIT_LIMIT is chosen (rebuild once the walk's loss on the
+  refitted tree exceeds the build's cost over the refit's);
 - the GPU tree's leaf size (cuda_build.LEAF_SIZE: subtrees of up to that
   many spheres collapsed into leaves) swept over --leaf-size: its SAH cost
   and both walks' times, to choose it.
 
     python benchmarks/gpu_build.py --json out.json [--spheres 1000 --spheres 100000] [--repeats 51]
+        [--anim-frames 40 --anim-dt 0.1]
 
 Issue 16's targets (H200): a build of 1,000,000 spheres in at most 5 ms,
 100,000 in 1 ms, the walk on the GPU's tree at most 10% slower than on the
@@ -126,6 +134,47 @@ def walks(spheres: np.ndarray, width: int, height: int, frames: int) -> dict:
     return out
 
 
+POLICIES = {"default": ("gpu", None), "refit-only": ("gpu", np.inf), "rebuild": ("gpu", 0.0), "host": ("host", None)}
+
+
+def dynamic(spheres: np.ndarray, width: int, height: int, frames: int, dt: float) -> dict:
+    """Per policy: per frame, the update's wall ms and kind, the walk's kernel
+    ms, the whole frame's wall ms (update, walk, image and hits to the host)
+    and, on the GPU's trees, the SAH cost over the fresh tree's."""
+    from raybench import animate
+
+    basis = Camera().basis(width, height)
+    orbits = animate.Orbits(spheres, 0)
+    moved = [orbits.at(k * dt) for k in range(1, frames + 1)]
+    out = {}
+    for name, (build, limit) in POLICIES.items():
+        saved = cuda_build.REFIT_LIMIT
+        if limit is not None:
+            cuda_build.REFIT_LIMIT = limit
+        try:
+            with backends.tracer("cuda", spheres, width, height, build=build) as tracer:
+                tracer.trace(basis)
+                series = {"update_ms": [], "kind": [], "walk_ms": [], "frame_ms": [], "cost_ratio": []}
+                for frame in moved:
+                    start = time.perf_counter()
+                    kind = tracer.update(frame)
+                    update_ms = (time.perf_counter() - start) * 1e3
+                    walk_ms = tracer.timed_trace(basis)
+                    series["frame_ms"].append(round((time.perf_counter() - start) * 1e3, 4))
+                    series["update_ms"].append(round(update_ms, 4))
+                    series["kind"].append(kind)
+                    series["walk_ms"].append(round(walk_ms or np.nan, 4))
+                    fresh = getattr(tracer, "_fresh_cost", None)
+                    if build == "gpu" and fresh:
+                        series["cost_ratio"].append(round(tracer._builder.read_cost() / fresh, 4))
+                series["median_frame_ms"] = round(statistics.median(series["frame_ms"]), 4)
+                series["fps"] = round(1e3 / series["median_frame_ms"], 2)
+                out[name] = series
+        finally:
+            cuda_build.REFIT_LIMIT = saved
+    return out
+
+
 def leaf_sizes(spheres: np.ndarray, width: int, height: int, frames: int, sizes) -> dict:
     """Per leaf size: the GPU tree's SAH cost and both walks' kernel times
     (the tracer's tree replaced by one built with that leaf size)."""
@@ -160,6 +209,8 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=51, help="timed GPU builds (and refits) per count")
     parser.add_argument("--frames", type=int, default=15, help="timed frames per walk")
     parser.add_argument("--leaf-size", type=int, action="append", help="leaf sizes to sweep (default 1, 2, 4, 8)")
+    parser.add_argument("--anim-frames", type=int, default=40, help="frames of moving spheres per policy")
+    parser.add_argument("--anim-dt", type=float, default=0.1, help="seconds of the animation between frames")
     args = parser.parse_args()
     width, height = (int(v) for v in args.size.split("x"))
     records = []
@@ -172,6 +223,8 @@ def main() -> int:
         row.update(walks(spheres, width, height, args.frames))
         row["leaf_size"] = cuda_build.LEAF_SIZE
         row["leaf_sizes"] = leaf_sizes(spheres, width, height, args.frames, args.leaf_size or [1, 2, 4, 8])
+        if args.anim_frames > 0:
+            row["dynamic"] = dynamic(spheres, width, height, args.anim_frames, args.anim_dt)
         print(json.dumps(row), flush=True)
         records.append(row)
     out = {
