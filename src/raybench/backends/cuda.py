@@ -30,7 +30,7 @@ from ..kernels.whitted import KINDS, RAY_FLOATS, RAY_INTS, RAY_STACK
 from ..layout import CHILD_BOX, INNER, NODE_BYTES, NODE_FLOATS, RADIUS, STACK
 from ..lighting import Shading
 from . import cuda_build
-from .contract import TracerBase, check_method
+from .contract import TracerBase, check_method, check_moved
 from .limits import (
     BUILDS,
     FAST_MAX_THREADS,
@@ -613,13 +613,7 @@ class Tracer(TracerBase):
         build "host" rebuilt on the host. Returns "refit" or "build" (None
         for brute force, which has no tree); build_s is what it took, the
         tree ready to walk."""
-        spheres = np.asarray(spheres)
-        if spheres.shape != self.spheres.shape or spheres.dtype != np.float32:
-            raise RaybenchError(
-                f"update: spheres must be a {self.spheres.shape} float32 array like the tracer's, "
-                f"got {spheres.shape} {spheres.dtype}"
-            )
-        self.spheres = spheres
+        self.spheres = check_moved(spheres, self.spheres)
         if self.count:
             self.d_spheres.copy_to_device(spheres)
         if self.accel != "bvh":
