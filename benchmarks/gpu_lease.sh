@@ -20,6 +20,8 @@
 #            and this one in turn, twice, side by side in one lease
 #   builds   benchmarks/bvh_build.py (BUILDS_ARGS to change), with BASELINE as walks
 #   whitted  benchmarks/whitted_rays.py: Whitted shading's rays a second (WHITTED_ARGS to change)
+#   dynamic  the dynamic suite: moving spheres, the tree's update and the frame, cuda (both builds),
+#            cpu and wgpu (DYNAMIC_ARGS to change)
 #   gpubuild benchmarks/gpu_build.py: the BVH built on the GPU against the host's binned SAH tree
 #            (build, refit, SAH cost, walks on both, leaf sizes), its records in gpu-build.json
 #            (GPUBUILD_ARGS to change, e.g. "--spheres 100000 --repeats 101")
@@ -102,6 +104,8 @@ for s in $STEPS; do
         # shellcheck disable=SC2086
         step whitted "${WHITTED_S:-200}" python3 benchmarks/whitted_rays.py \
             ${WHITTED_ARGS:---device cuda --device wgpu --device cpu} ;;
+    # shellcheck disable=SC2086
+    dynamic) bench dynamic "${DYNAMIC_S:-300}" ${DYNAMIC_ARGS:---suite dynamic --device cuda --device cpu --device wgpu} ;;
     gpubuild)
         # shellcheck disable=SC2086
         step gpubuild "${GPUBUILD_S:-420}" python3 benchmarks/gpu_build.py --json "$W/gpu-build.json" \

@@ -475,8 +475,8 @@ def info(as_json):
     default=("thesis",),
     show_default=True,
     help="thesis, constant-vs-runtime, tuning, scaling, secondary (Whitted frames: shadows, mirrors, "
-    "glass), or all (every one; brute force past a frame-time cap is skipped in scaling and secondary); "
-    "repeat for several",
+    "glass), dynamic (spheres that move every frame: the tree's update and the frame), or all (every "
+    "one; brute force past a frame-time cap is skipped in scaling and secondary); repeat for several",
 )
 @click.option(
     "--device", "devices", multiple=True, help="cpu, cuda or wgpu; repeat for several (default: every device present)"

@@ -4,7 +4,7 @@ every point it finished.
 
 A record (format "raybench-results", version 1):
 
-    suite        "thesis" | "test7" | "constant-vs-runtime" | "tuning" | "scaling" | "secondary"
+    suite        "thesis" | "test7" | "constant-vs-runtime" | "tuning" | "scaling" | "secondary" | "dynamic"
     test         the thesis's test number (1-3 GPU, 4-6 CPU by resolution; 7 the ramp), else null
     device       "cpu" | "cuda"
     width, height, spheres
@@ -15,7 +15,9 @@ A record (format "raybench-results", version 1):
                  for brute force; scaling's and secondary's brute-force points carry "cap_s";
                  secondary's points carry "shading": "thesis" (primary rays, the baseline) or
                  "whitted" with "depth" and "shadow_samples" (the materials scene,
-                 random_spheres(n, seed, materials=True))
+                 random_spheres(n, seed, materials=True)); "build": "host" | "gpu" where
+                 cuda's tree is built (cuda's BVH points, when asked for; always in dynamic);
+                 dynamic's points carry "motion": "orbits" (raybench.animate.Orbits)
     frames       how many timed frames
     frame_ms     {mean, median, p5, p95, min, max}: whole frame (kernel, and on the GPU the copy to the host)
     kernel_ms    the same for the kernel alone (CUDA events), or null on the CPU
@@ -24,6 +26,10 @@ A record (format "raybench-results", version 1):
     rays         Whitted points only: the rays a frame cast by kind, as the kernel counted them,
                  {"primary", "shadow", "reflection", "refraction"}; rays_per_frame their sum;
                  kernel_rays_per_s the same rays over the median kernel time, or null
+    update_ms    dynamic only: the same for the tree's update alone (Tracer.update: refit
+                 or build, with any upload), a part of each frame_ms; updates: how many
+                 frames refitted and rebuilt, {"refit"?: N, "build"?: N}; update_share:
+                 the updates' time over the frames' (sums); frames_per_s from the median frame
     build_s      the BVH's build time (seconds, compiled code only), or null for brute force
     first_frame_s   the first frame of the point, never averaged in
     compile_s       compiling the kernel for the point, if it was not yet compiled, else 0
@@ -334,7 +340,7 @@ RUN = _compile(
 )
 POINT = _compile(
     {
-        "suite": _one_of("thesis", "test7", "constant-vs-runtime", "tuning", "scaling", "secondary"),
+        "suite": _one_of("thesis", "test7", "constant-vs-runtime", "tuning", "scaling", "secondary", "dynamic"),
         "test?": _or_null(_count),
         "device": _one_of("cpu", "cuda", "wgpu"),
         "width": _size,
@@ -359,6 +365,11 @@ MEASURED = _compile(
         "rays?": {"primary": _count, "shadow": _count, "reflection": _count, "refraction": _count},
         "rays_per_frame?": _count,
         "kernel_rays_per_s?": _or_null(_number),
+        # the dynamic suite's: the tree's update in each frame
+        "update_ms?": TIMES,
+        "updates?": {"refit?": _count, "build?": _count},
+        "update_share?": _number,
+        "frames_per_s?": _number,
     }
 )
 SKIPPED = _compile({"skipped": _text, "predicted_ms?": _or_null(_number)})

@@ -32,6 +32,15 @@ skipped with that prediction. A GPU thus runs brute force to 100,000
 spheres; a CPU stops before 100,000 (a 2-core machine after 1,000 spheres
 at 800x600); the BVH runs every point everywhere.
 
+The dynamic suite (issue 16) moves the spheres every frame
+(raybench.animate.Orbits, seeded like the scene, DYNAMIC_DT seconds of
+motion a frame) and times what a frame then costs: the tree's update (cuda
+with build "gpu": refitted on the GPU, or rebuilt past the refit limit;
+cuda with build "host", cpu and wgpu: rebuilt on the host and, on a GPU,
+uploaded) plus the frame. At 10,000, 100,000 and 1,000,000 spheres at
+1680x1050, through the BVH (brute force has no tree to update), cuda once
+per build (both by default, or those --build names).
+
 `--suite all` includes it: all means every suite, and the cap keeps the
 suite's brute force within minutes a point, as the scaling suite's keeps
 its own; what a 2-core machine spends on it is mostly its BVH frames.
@@ -42,10 +51,10 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 
-from ..backends.limits import FAST_MAX_THREADS
+from ..backends.limits import BUILDS, FAST_MAX_THREADS
 from ..errors import RaybenchError
 
-SUITES = ("thesis", "constant-vs-runtime", "tuning", "scaling", "secondary")
+SUITES = ("thesis", "constant-vs-runtime", "tuning", "scaling", "secondary", "dynamic")
 ACCELS = ("bvh", "none")
 THESIS_SIZES = ((800, 600), (1280, 800), (1680, 1050))
 THESIS_COUNTS = tuple(range(100, 1001, 100))
@@ -76,6 +85,12 @@ SECONDARY_SHADOW_SAMPLES = 4
 SECONDARY_CAP_S = 30.0
 # --quick: one small size, the two smaller counts; brute force is skipped
 # where its frame would pass the quick cap (on 2 cores: at 10,000 spheres).
+DYNAMIC_COUNTS = (10_000, 100_000, 1_000_000)
+DYNAMIC_SIZE = (1680, 1050)
+QUICK_DYNAMIC_COUNTS = (1000, 10_000)
+QUICK_DYNAMIC_SIZE = (640, 400)
+# Seconds of the animation between frames: 60 frames a second's worth.
+DYNAMIC_DT = 1 / 60
 QUICK_SECONDARY_SIZES = ((160, 100),)
 QUICK_SECONDARY_COUNTS = (1000, 10_000)
 QUICK_SECONDARY_CAP_S = 1.0
@@ -268,4 +283,9 @@ def points(
                         Point("secondary", device, w, h, n, {**way, **shading, **capped})
                         for shading in secondary_shadings()
                     ]
+    if "dynamic" in suites:
+        counts = QUICK_DYNAMIC_COUNTS if quick else DYNAMIC_COUNTS
+        w, h = QUICK_DYNAMIC_SIZE if quick else DYNAMIC_SIZE
+        for way, device in _runs([{"accel": "bvh"}], devices, wgpu or {}, builds or BUILDS):
+            out += [Point("dynamic", device, w, h, n, {**way, "motion": "orbits"}) for n in counts]
     return out
