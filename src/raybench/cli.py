@@ -312,6 +312,12 @@ def _view_help() -> str:
 @device_option("where to trace first (switch live with Tab)")
 @tracer_options(adapter_whose="wgpu, and the window")
 @shading_option_group()
+@click.option(
+    "--animate",
+    is_flag=True,
+    help="the spheres move every frame (orbits, raybench.animate), the tree following them; the title shows "
+    "its update (refit or build) and the trace apart",
+)
 @click.option("--frames", type=click.IntRange(min=1), help="close after N traced frames are shown")
 @click.option(
     "--screenshot",
@@ -335,6 +341,7 @@ def view(
     shading,
     depth,
     shadow_samples,
+    animate,
     frames,
     screenshot,
 ):
@@ -383,6 +390,7 @@ def view(
         options=options,
         frames=frames,
         screenshot=screenshot,
+        animate=animate,
         **shaded,
     )
     if frames is not None and window.state.frames_shown < frames:

@@ -2,9 +2,10 @@
 parallelism in the construction of BVHs, octrees, and k-d trees") written in
 raybench.bvh's node layout, so every walk reads it unchanged.
 
-Steps, one kernel each (the sort three a pass), all on the device; the host
+Steps, a kernel each (the bounds two, the sort three a pass), all on the device; the host
 waits once, at the end, to read the tree's depth:
-  1. bounds   the box of the spheres' centres (one block of threads);
+  1. bounds   the box of the spheres' centres (a box per block, then one
+              block unites them);
   2. morton   each centre's 30-bit Morton code in that box, beside its index;
   3. sort     (code, index) pairs by code: an LSD radix sort of DIGIT_BITS a
               pass, each pass count (a histogram per block), scan (where each
@@ -69,8 +70,12 @@ SORT_THREADS = 8 if _SIM else 128
 ITEMS = 4 if _SIM else 8
 SORT_TILE = SORT_THREADS * ITEMS
 SORT_CELLS = RADIX * SORT_THREADS
-# The one-block kernels (centres' bounds, the scan of the histograms).
-ONE_BLOCK = 32 if _SIM else 256
+# The one-block kernels (the centres' bounds merged, the scan of the
+# histograms): a block as large as CUDA has, so that each thread's run of
+# entries is short.
+ONE_BLOCK = 32 if _SIM else 1024
+# The centres' bounds: at most BOUNDS_BLOCKS blocks of THREADS, each a part.
+BOUNDS_BLOCKS = 4 * ONE_BLOCK
 # The other kernels: a thread an element, in blocks of THREADS.
 THREADS = 32 if _SIM else 256
 # Subtrees of at most LEAF_SIZE spheres become leaves (of consecutive
@@ -103,21 +108,11 @@ def _blocks(n: int, per: int) -> int:
     return max(1, math.ceil(n / per))
 
 
-@compiled.cuda_jit()
-def _centre_bounds(spheres, n, bounds):
-    """bounds (6,): lo x, y, z, hi x, y, z of the first n centres; one block."""
-    t = cuda.threadIdx.x
-    lo = cuda.shared.array((3, ONE_BLOCK), np.float32)
-    hi = cuda.shared.array((3, ONE_BLOCK), np.float32)
-    for a in range(3):
-        lo[a, t] = np.float32(np.inf)
-        hi[a, t] = np.float32(-np.inf)
-    for i in range(t, n, ONE_BLOCK):
-        for a in range(3):
-            v = spheres[a, i]
-            lo[a, t] = min(lo[a, t], v)
-            hi[a, t] = max(hi[a, t], v)
-    step = ONE_BLOCK // 2
+@cuda.jit(device=True)
+def _reduce_box(lo, hi, t, size):
+    """The block's boxes lo[:, 0:size], hi[:, 0:size] (shared) united into
+    lo[:, 0], hi[:, 0] by a tree of minima and maxima (size a power of 2)."""
+    step = size // 2
     while step > 0:
         cuda.syncthreads()
         if t < step:
@@ -126,6 +121,43 @@ def _centre_bounds(spheres, n, bounds):
                 hi[a, t] = max(hi[a, t], hi[a, t + step])
         step //= 2
     cuda.syncthreads()
+
+
+@compiled.cuda_jit()
+def _bounds_parts(spheres, n, parts):
+    """parts[b] (lo x, y, z, hi x, y, z): the box of the centres block b's
+    threads strode over (every gridDim.x * THREADS-th of the first n)."""
+    t = cuda.threadIdx.x
+    lo = cuda.shared.array((3, THREADS), np.float32)
+    hi = cuda.shared.array((3, THREADS), np.float32)
+    for a in range(3):
+        lo[a, t] = np.float32(np.inf)
+        hi[a, t] = np.float32(-np.inf)
+    for i in range(cuda.blockIdx.x * THREADS + t, n, cuda.gridDim.x * THREADS):
+        for a in range(3):
+            v = spheres[a, i]
+            lo[a, t] = min(lo[a, t], v)
+            hi[a, t] = max(hi[a, t], v)
+    _reduce_box(lo, hi, t, THREADS)
+    if t < 3:
+        parts[cuda.blockIdx.x, t] = lo[t, 0]
+        parts[cuda.blockIdx.x, 3 + t] = hi[t, 0]
+
+
+@compiled.cuda_jit()
+def _bounds_merge(parts, count, bounds):
+    """bounds (6,): the union of parts[0:count]; one block."""
+    t = cuda.threadIdx.x
+    lo = cuda.shared.array((3, ONE_BLOCK), np.float32)
+    hi = cuda.shared.array((3, ONE_BLOCK), np.float32)
+    for a in range(3):
+        lo[a, t] = np.float32(np.inf)
+        hi[a, t] = np.float32(-np.inf)
+    for k in range(t, count, ONE_BLOCK):
+        for a in range(3):
+            lo[a, t] = min(lo[a, t], parts[k, a])
+            hi[a, t] = max(hi[a, t], parts[k, 3 + a])
+    _reduce_box(lo, hi, t, ONE_BLOCK)
     if t < 3:
         bounds[t] = lo[t, 0]
         bounds[3 + t] = hi[t, 0]
@@ -486,6 +518,7 @@ class Builder:
         m = max(n - 1, 1)
         self.tiles = _blocks(n, SORT_TILE)
         self.bounds = cuda.device_array(6, np.float32)
+        self.bound_parts = cuda.device_array((BOUNDS_BLOCKS, 6), np.float32)
         self.keys = (cuda.device_array(max(n, 1), np.uint32), cuda.device_array(max(n, 1), np.uint32))
         self.values = (cuda.device_array(max(n, 1), np.int32), cuda.device_array(max(n, 1), np.int32))
         self.hist = cuda.device_array(RADIX * self.tiles, np.int32)
@@ -514,7 +547,9 @@ class Builder:
 
     def launch_codes(self, spheres) -> None:
         """Steps 1 and 2: the centres' bounds, then each one's Morton code."""
-        _centre_bounds[1, ONE_BLOCK](spheres, self.n, self.bounds)
+        parts = min(_blocks(self.n, THREADS), BOUNDS_BLOCKS)
+        _bounds_parts[parts, THREADS](spheres, self.n, self.bound_parts)
+        _bounds_merge[1, ONE_BLOCK](self.bound_parts, parts, self.bounds)
         _morton[_blocks(self.n, THREADS), THREADS](spheres, self.n, self.bounds, self.keys[0], self.values[0])
 
     def launch_sort(self) -> None:
