@@ -23,7 +23,7 @@ def sim() -> bool:
 
 
 def small(rng) -> int:
-    return int(rng.integers(2, 48 if sim() else 5000))
+    return int(rng.integers(2, 33 if sim() else 5000))
 
 
 def gpu_tree(spheres, leaf_size=None, **options):
@@ -103,7 +103,7 @@ def test_too_deep_falls_back_to_the_host_build(rng):
     """A tree deeper than the walks' stack allows is replaced by the host's,
     whose depth is bounded (here the bound made small: no scene the
     simulator can build is 48 deep)."""
-    scene, _ = SCENES["generated"](rng, int(rng.integers(20, 48)))
+    scene, _ = SCENES["generated"](rng, int(rng.integers(10, 24)))
     deep = gpu_tree(scene.spheres)
     tree = gpu_tree(scene.spheres, max_depth=deep.depth - 1)
     assert tree.built_on == "host"
@@ -128,16 +128,16 @@ def test_gpu_tree_walks_give_the_brute_force(rng, kind):
         assert np.array_equal(gpu.hits, cpu.hits) and np.array_equal(gpu.image, cpu.image)
     else:
         assert (gpu.hits != cpu.hits).mean() < 1e-3
-    if kind in IN_VIEW:
+    if kind in ("one_point", "one") or (kind in IN_VIEW and len(scene) >= 100):  # not vacuous: a hit
         assert (cpu.hits >= 0).any()
 
 
 def test_sphere_prefix_builds_its_own_tree_on_the_gpu(rng):
     """A frame of the first `count` spheres (the viewer's live count), its
     tree built on the GPU from the spheres already there."""
-    scene, camera = SCENES["generated"](rng, 40)
+    scene, camera = SCENES["generated"](rng, 30)
     with raybench.backends.tracer("cuda", scene.spheres, 19, 13, build="gpu") as tracer:
-        for count in (int(rng.integers(2, 39)), len(scene), 1, 0):
+        for count in (int(rng.integers(2, 29)), 1, 0):
             tracer.trace(camera.basis(19, 13), count)
             want = brute(scene.head(count), camera, 19, 13)
             assert tracer.bvh.count == count
@@ -223,7 +223,7 @@ def test_update_refits_within_the_limit_and_rebuilds_past_it(rng, monkeypatch, l
     from raybench.backends import cuda_build
 
     monkeypatch.setattr(cuda_build, "REFIT_LIMIT", limit)
-    scene, camera = SCENES["generated"](rng, int(rng.integers(20, 40)))
+    scene, camera = SCENES["generated"](rng, int(rng.integers(10, 30)))
     with raybench.backends.tracer("cuda", scene.spheres, 19, 13, build="gpu") as tracer:
         before = tracer.d_links.copy_to_host()[:, layout.REF :]  # the rows' links, not their boxes
         spheres = moved(rng, scene.spheres, 2.0)

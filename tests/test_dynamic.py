@@ -15,7 +15,7 @@ SIZE = (19, 13)
 
 def moving_frames(rng, device, **options):
     """Two moved frames of a small scene on device: update's answers."""
-    scene, camera = SCENES["generated"](rng, int(rng.integers(20, 40)))
+    scene, camera = SCENES["generated"](rng, int(rng.integers(10, 30)))
     orbits = animate.Orbits(scene.spheres, int(rng.integers(2**31)))
     kinds = []
     with raybench.backends.tracer(device, scene.spheres, *SIZE, **options) as tracer:
