@@ -246,3 +246,20 @@ def test_update_of_a_host_tree_rebuilds_it_and_checks_its_input(rng):
         assert np.array_equal(tracer.hits, want.hits)
         with pytest.raises(raybench.RaybenchError, match=r"update: spheres must be a \(7, 30\) float32 array"):
             tracer.update(spheres[:, :10])
+
+
+def test_walk_is_chosen_by_the_rows_a_walk_reaches(rng):
+    """The GPU's tree keeps its collapsed subtrees' rows; the walk's choice
+    (cuda.choose_walk, by the tree's bytes) counts only those a walk reaches
+    from the root, counted here on the tree copied back."""
+    scene, _ = SCENES["generated"](rng, small(rng))
+    with raybench.backends.tracer("cuda", scene.spheres, 8, 8, build="gpu") as tracer:
+        host = tracer.bvh.to_host()
+        reached, todo = 0, [0]
+        while todo:
+            row = todo.pop()
+            reached += 1
+            for slot in range(2):
+                if host.links[row, layout.COUNT + slot] == layout.INNER:
+                    todo.append(int(host.links[row, layout.REF + slot]))
+        assert tracer._rows_walked() == reached

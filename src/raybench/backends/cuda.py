@@ -575,7 +575,7 @@ class Tracer(TracerBase):
             self.ray_counts = np.zeros(len(KINDS), np.int64)
         elif self.accel == "bvh":
             self._build(self.count)
-            self.walk = choose_walk(self.bvh.node_count) if walk is None else walk
+            self.walk = choose_walk(self._rows_walked()) if walk is None else walk
             self._kernel = _bvh_packet_kernel if self.walk == "packet" else _bvh_kernel
             if not block_given:
                 self.block = DEFAULT_BLOCK[self.walk]
@@ -603,6 +603,14 @@ class Tracer(TracerBase):
         self.build_s = self.bvh.build_s
         self.d_nodes, self.d_links = self.bvh.nodes, self.bvh.links  # the same bytes: one row holds both
         self.d_ordered, self.d_order = self.bvh.ordered, self.bvh.order
+
+    def _rows_walked(self) -> int:
+        """The rows of the tree a walk can reach: all of a host-built tree's;
+        of the GPU's, those its collapsed subtrees left out of reach not
+        counted (cuda_build's live flags, read once)."""
+        if self.bvh.built_on == "gpu":
+            return int(self._builder.live.copy_to_host().astype(np.int64).sum())
+        return self.bvh.node_count
 
     def update(self, spheres: np.ndarray) -> str | None:
         """The spheres moved (or changed radius or colour; as many as before):
