@@ -84,7 +84,7 @@ class TracerBase:
 def check_moved(spheres, like: np.ndarray) -> np.ndarray:
     """Tracer.update's spheres, checked: an array of the shape and type of
     the tracer's own (like)."""
-    spheres = np.asarray(spheres)
+    spheres = np.ascontiguousarray(spheres)  # rows as the kernels and the uploads read them
     if spheres.shape != like.shape or spheres.dtype != np.float32:
         raise RaybenchError(
             f"update: spheres must be a {like.shape} float32 array like the tracer's, got {spheres.shape} "

@@ -623,15 +623,16 @@ class Tracer(TracerBase):
         tree ready to walk."""
         self.spheres = check_moved(spheres, self.spheres)
         if self.count:
-            self.d_spheres.copy_to_device(spheres)
+            self.d_spheres.copy_to_device(self.spheres)
         if self.accel != "bvh":
             return None
         refit_s = 0.0
         if self.build == "gpu" and self.bvh.built_on == "gpu":
             start = time.perf_counter()
             self._builder.launch_refit(self.d_spheres)
+            cost = self._builder.read_cost()  # waits for the refit
             refit_s = time.perf_counter() - start
-            if self._builder.read_cost() <= cuda_build.REFIT_LIMIT * self._fresh_cost:
+            if cost <= cuda_build.REFIT_LIMIT * self._fresh_cost:
                 self.build_s = refit_s
                 return "refit"
         self._build(self.bvh.count)
