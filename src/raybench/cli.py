@@ -650,6 +650,9 @@ def warmup(devices):
         for kernel in ("fast", "simple"):
             with backends.tracer("cpu", np.zeros((7, 0), np.float32), 4, 4, kernel=kernel) as tracer:
                 tracer.compile()
+    if "cuda" in devices:  # the tree built on the GPU: its build, its cost and its refit
+        with backends.tracer("cuda", scene.spheres, 4, 4, build="gpu") as tracer:
+            tracer.update(scene.spheres)
     click.echo(f"compiled for {', '.join(devices)}; the cache: {compiled.CACHE_DIR}")
 
 
