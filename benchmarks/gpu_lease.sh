@@ -31,6 +31,11 @@
 #            Dask wheels in .whl (benchmarks/dask_wheels.sh) and the machine kind nvidia-h200-x2
 #   multibench raybench bench --suite multi-gpu on cuda: the same throughput as results
 #            records, for raybench report's section across workers
+#   dynamic  the dynamic suite: moving spheres, the tree's update and the frame, cuda (both builds),
+#            cpu and wgpu (DYNAMIC_ARGS to change)
+#   gpubuild benchmarks/gpu_build.py: the BVH built on the GPU against the host's binned SAH tree
+#            (build, refit, SAH cost, walks on both, leaf sizes), its records in gpu-build.json
+#            (GPUBUILD_ARGS to change, e.g. "--spheres 100000 --repeats 101")
 #
 # Carries .whl (NumPy 2.4: the machine's 2.5 breaks numba 0.68.0; wgpu, cffi,
 # pycparser, rendercanvas, glfw) and .gl (the Vulkan and GL loaders as Debian
@@ -123,6 +128,12 @@ for s in $STEPS; do
         step multigpu "${MULTIGPU_S:-420}" python3 benchmarks/multi_gpu.py --json "$W/multi_gpu.jsonl" \
             ${MULTIGPU_ARGS:---device cuda --workers 1 --workers 2 --spheres 100000 --orbit 240 --orbit-size 1680x1050 --frame 8192x8192} ;;
     multibench) bench multibench "${MULTIBENCH_S:-400}" --suite multi-gpu --device cuda --accel bvh ;;
+    # shellcheck disable=SC2086
+    dynamic) bench dynamic "${DYNAMIC_S:-300}" ${DYNAMIC_ARGS:---suite dynamic --device cuda --device cpu --device wgpu} ;;
+    gpubuild)
+        # shellcheck disable=SC2086
+        step gpubuild "${GPUBUILD_S:-420}" python3 benchmarks/gpu_build.py --json "$W/gpu-build.json" \
+            ${GPUBUILD_ARGS:-} ;;
     *) echo "unknown step $s" | tee -a "$W/steps.log" ;;
     esac
 done

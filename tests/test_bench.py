@@ -563,3 +563,39 @@ def test_multi_gpu_suite_on_cpu_workers_end_to_end(tmp_path, capsys):
     text = next(tmp_path.glob("report-*/report.md")).read_text()
     assert "ci: across workers" in text and "| 2 |" in text and "efficiency" in text
     assert next(tmp_path.glob("report-*/ci-multi-gpu.png")).stat().st_size > 1000
+
+
+def test_builds_split_cuda_bvh_points_only():
+    """--build host --build gpu: each cuda BVH point twice, one per build;
+    brute force and the other devices once, as without."""
+    plain = suites.points(["scaling"], ["cpu", "cuda"], accels=("bvh", "none"))
+    both = suites.points(["scaling"], ["cpu", "cuda"], accels=("bvh", "none"), builds=("host", "gpu"))
+    cuda_bvh = [p for p in plain if p.device == "cuda" and p.options["accel"] == "bvh"]
+    assert len(both) == len(plain) + len(cuda_bvh)
+    for build in ("host", "gpu"):
+        assert [p.spheres for p in both if p.options.get("build") == build] == [p.spheres for p in cuda_bvh]
+    assert all("build" not in p.options for p in both if p.device == "cpu" or p.options["accel"] == "none")
+
+
+def test_dynamic_points_are_bvh_with_cuda_once_per_build():
+    pts = suites.points(["dynamic"], ["cpu", "cuda", "wgpu"], wgpu={"adapter": "x"})
+    assert {p.spheres for p in pts} == set(suites.DYNAMIC_COUNTS)
+    assert all(p.options["accel"] == "bvh" and p.options["motion"] == "orbits" for p in pts)
+    assert sorted(p.options.get("build", "-") for p in pts if p.spheres == 10_000) == ["-", "-", "gpu", "host"]
+    only = suites.points(["dynamic"], ["cuda"], builds=("gpu",))
+    assert {p.options["build"] for p in only} == {"gpu"}
+
+
+def test_dynamic_record_times_the_update_in_each_frame(tmp_path):
+    """A measured dynamic point (cpu: the tree rebuilt every frame) passes the
+    results schema; its update is part of its frame, and every frame rebuilt."""
+    point = suites.Point("dynamic", "cpu", 16, 8, 40, {"accel": "bvh", "motion": "orbits"})
+    record = runner.measure_dynamic(point, runner.Scenes(0), 0.05)
+    assert record["updates"] == {"build": record["frames"]} and record["frames"] >= runner.MIN_FRAMES
+    assert 0 < record["update_ms"]["median"] <= record["frame_ms"]["median"]
+    assert 0 < record["update_share"] < 1
+    assert record["frames_per_s"] == pytest.approx(1e3 / record["frame_ms"]["median"])
+    with ResultsWriter(tmp_path / "r.jsonl") as w:
+        w.write({**record, "run": {"label": "x", "machine": {}}})
+    (back,) = results.read(tmp_path / "r.jsonl")
+    assert back["updates"] == record["updates"]

@@ -577,3 +577,16 @@ def test_render_accel_bvh_and_none_same_png(tmp_path, capsys):
 def test_warmup_refuses_an_unknown_device(capsys):
     code, out, err = cli(capsys, "warmup", "--device", "tpu")
     assert code == 2 and err.strip() == "raybench: error: --device: unknown device 'tpu'; choose from cpu, cuda, wgpu"
+
+
+def test_build_option_on_a_device_without_it_is_one_line(capsys, tmp_path):
+    """--build is cuda's (where the BVH is built); cpu refuses it, and bench
+    without cuda among its devices too; a bad value is click's one line."""
+    out = tmp_path / "x.png"
+    expect_error(
+        capsys, tmp_path, ["render", "--spheres", 3, *TINY, "--build", "gpu", "-o", out], "'build'", "device cpu"
+    )
+    expect_error(capsys, tmp_path, ["render", "--spheres", 3, *TINY, "--build", "sideways", "-o", out], "--build")
+    expect_error(
+        capsys, tmp_path, ["bench", "--device", "cpu", "--build", "gpu", "--out", tmp_path / "r"], "--build", "cuda"
+    )

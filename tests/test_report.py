@@ -839,3 +839,24 @@ def test_secondary_way_without_a_matched_point_is_left_out(rng, bvh_kept, expect
     ]
     v = report.secondary_verdict(records)
     assert list(v["ways"]) == ["BVH"] and v["verdict"] == expected
+
+
+def test_report_with_dynamic_section(tmp_path, rng):
+    """The dynamic suite's table: frames/s from the median frame, the update's
+    ms and share, refits and builds, one row per device and build."""
+    records = []
+    for build, frame_ms in (("host", 40.0), ("gpu", 10.0)):
+        r = rec("dynamic", "cuda", 100_000, frame_ms, size=(1680, 1050), kernel=2.0)
+        r["options"] = {"accel": "bvh", "motion": "orbits", "build": build}
+        r["update_ms"] = {k: frame_ms / 4 for k in ("mean", "median", "p5", "p95", "min", "max")}
+        r["updates"] = {"refit": 9, "build": 1} if build == "gpu" else {"build": 10}
+        r["update_share"] = 0.25
+        records.append(r)
+    path = write(tmp_path / "r.jsonl", thesis(rng) + records)
+    text = report.write_report([path], tmp_path / "rep").read_text()
+    section = text[text.index("## Beyond the thesis: spheres that move") :]
+    assert (
+        "| GPU | gpu | 1680x1050 | 100,000 | 100 |" in section
+        and "| GPU | host | 1680x1050 | 100,000 | 25.0 | 40.0 |" in section
+    )
+    assert "| 25% | 9 / 1 |" in section and "| 0 / 10 |" in section

@@ -945,3 +945,43 @@ def test_view_refuses_options_the_first_device_refuses_before_the_window(capsys,
     assert code == 2 and len(err.splitlines()) == 1
     assert err.startswith("raybench: error: kernel: applies to brute force only")
     assert opened == []
+
+
+# --------------------------------------------------------------------------- --animate
+
+
+def test_animate_stamps_each_request_with_the_time_since_the_window_opened():
+    state, clock = make_state(animate=True)
+    clock.advance(0.25)
+    first = state.next_request(32, 20)
+    clock.advance(0.5)
+    assert (first.time, state.next_request(32, 20).time) == (0.25, 0.75)
+    still, _ = make_state()
+    assert still.next_request(32, 20).time is None
+
+
+def test_animated_title_shows_the_update_and_the_trace_apart():
+    state, clock = make_state(n=50, animate=True)
+    request = state.next_request(320, 200)
+    image = np.zeros((200, 320, 3), np.uint8)
+    frame = raybench.Frame(image=image, hits=np.full((200, 320), -1, np.int32), device="cuda")
+    state.on_traced(TracedFrame(request, frame, to_rgba(image), 4.0, None, update_ms=0.31, update="refit"))
+    parts = state.title().split("  |  ")
+    assert parts[4:6] == ["refit 0.31 ms", "trace 4.0 ms"], parts
+
+
+@pytest.mark.parametrize("t", [0.0, 1.7])
+def test_worker_moves_the_spheres_to_the_requests_time(t):
+    """An animated request: the tree rebuilt (cpu) for the spheres where
+    animate.Orbits (seed 0) puts them, and the frame is theirs."""
+    from raybench import animate
+
+    scene = random_spheres(30, 5)
+    moved = animate.Orbits(scene.spheres, 0).at(t)
+    # the reference first, through the same kernels: compiled before the worker's wait starts
+    want = raybench.render(raybench.Scene(moved[:3].T, moved[3], moved[4:].T), Camera(), 24, 16, device="cpu")
+    request = TraceRequest(number=1, device="cpu", scene=scene, count=30, camera=Camera(), width=24, height=16, time=t)
+    (result,) = run_worker([request])
+    assert isinstance(result, TracedFrame), result
+    assert result.update == "build" and result.update_ms > 0
+    assert np.array_equal(result.frame.image, want.image) and np.array_equal(result.frame.hits, want.hits)

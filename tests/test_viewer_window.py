@@ -817,3 +817,26 @@ def test_no_graphics_adapter_is_one_line_and_exit_2(display, tmp_path):
         "raybench render",
     )
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("device", ["cpu", "wgpu"])
+def test_animate_moves_the_spheres_in_the_window(display, vulkan_adapter, device):
+    """--animate through the window: every frame the tree is rebuilt for the
+    moved spheres (cpu through the worker; wgpu in the window's own pass),
+    and the title names the update and the trace apart."""
+    from raybench.viewer import view
+
+    options = {"wgpu": {"adapter": vulkan_adapter.info["device"]}} if device == "wgpu" else {}
+    window = view(random_spheres(20, 3), device=device, seed=3, size=(40, 30), options=options, frames=3, animate=True)
+    shown = window.state.shown
+    assert shown.update == "build" and shown.update_ms > 0 and shown.request.time > 0
+    parts = window.state.title().split("  |  ")
+    assert parts[4].startswith("build ") and parts[5].startswith("trace "), parts
+
+
+def test_cli_view_animate_shows_its_frames(display, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code = run(["view", "--spheres", "5", "--size", "40x30", "--device", "cpu", "--animate", "--frames", "3"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    assert out.startswith("showed 3 frames; the last: 40x30, 5 spheres, cpu")

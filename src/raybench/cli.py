@@ -16,7 +16,7 @@ from pathlib import Path
 import click
 
 from . import __version__
-from .backends.limits import ACCELS, KERNELS
+from .backends.limits import ACCELS, BUILDS, KERNELS
 from .errors import RaybenchError, one_line
 from .files import check_writable
 from .lighting import SHADINGS
@@ -44,7 +44,9 @@ def parse_block(text: str) -> tuple[int, int]:
     return parse_pair(text, "--block", "16x16")
 
 
-def device_options(*, threads=None, block=None, workgroup=None, adapter=None, kernel=None, accel=None) -> dict:
+def device_options(
+    *, threads=None, block=None, workgroup=None, adapter=None, kernel=None, accel=None, build=None
+) -> dict:
     """The device options given on the command line (render's and view's),
     parsed: one that does not apply to the device is refused by the backend,
     in one line. Those not given are left to the backend's defaults."""
@@ -53,6 +55,8 @@ def device_options(*, threads=None, block=None, workgroup=None, adapter=None, ke
         options["kernel"] = kernel
     if accel is not None:
         options["accel"] = accel
+    if build is not None:
+        options["build"] = build
     if threads is not None:
         options["threads"] = threads
     if block is not None:
@@ -210,6 +214,18 @@ def tracer_options(adapter_whose: str = "wgpu"):
             help="brute force only: simple, the thesis's loop, a pixel at a time; fast (its default on cpu and "
             "cuda), rays grouped and certain misses skipped, the same picture; wgpu has simple only",
         ),
+        build_option(),
+    )
+
+
+def build_option(multiple: bool = False):
+    return click.option(
+        "--build",
+        "builds" if multiple else "build",
+        multiple=multiple,
+        type=click.Choice(BUILDS),
+        help="cuda, with the BVH: where its tree is built: host (the CPU's binned SAH tree, uploaded; the "
+        "default) or gpu (an LBVH built on the GPU, where it is walked)" + ("; repeat for both" if multiple else ""),
     )
 
 
@@ -284,6 +300,7 @@ def render(
     adapter,
     accel,
     kernel,
+    build,
     shading,
     depth,
     shadow_samples,
@@ -305,7 +322,7 @@ def render(
     width, height = parse_size(size)
     shaded = shading_options(shading, depth, shadow_samples)
     options = device_options(
-        threads=threads, block=block, workgroup=workgroup, adapter=adapter, kernel=kernel, accel=accel
+        threads=threads, block=block, workgroup=workgroup, adapter=adapter, kernel=kernel, accel=accel, build=build
     )
     scheduler = scheduler or os.environ.get("RAYBENCH_SCHEDULER") or None
     if workers is not None and scheduler is not None:
@@ -412,6 +429,12 @@ def _view_help() -> str:
 @device_option("where to trace first (switch live with Tab)")
 @tracer_options(adapter_whose="wgpu, and the window")
 @shading_option_group()
+@click.option(
+    "--animate",
+    is_flag=True,
+    help="the spheres move every frame (orbits, raybench.animate), the tree following them; the title shows "
+    "its update (refit or build) and the trace apart",
+)
 @click.option("--frames", type=click.IntRange(min=1), help="close after N traced frames are shown")
 @click.option(
     "--screenshot",
@@ -431,9 +454,11 @@ def view(
     adapter,
     accel,
     kernel,
+    build,
     shading,
     depth,
     shadow_samples,
+    animate,
     frames,
     screenshot,
 ):
@@ -456,7 +481,9 @@ def view(
     device = backends.resolve(device, adapter)
     # render's options, through render's path, then each device's share of them
     options = options_by_device(
-        device_options(threads=threads, block=block, workgroup=workgroup, adapter=adapter, kernel=kernel, accel=accel)
+        device_options(
+            threads=threads, block=block, workgroup=workgroup, adapter=adapter, kernel=kernel, accel=accel, build=build
+        )
     )
     # Bad options are refused before the window opens, on each device they would
     # reach: the first one, the cpu, cuda where there is one (a switch to it says
@@ -480,6 +507,7 @@ def view(
         options=options,
         frames=frames,
         screenshot=screenshot,
+        animate=animate,
         **shaded,
     )
     if frames is not None and window.state.frames_shown < frames:
@@ -572,8 +600,8 @@ def info(as_json):
     default=("thesis",),
     show_default=True,
     help="thesis, constant-vs-runtime, tuning, scaling, secondary (Whitted frames: shadows, mirrors, "
-    "glass), or all (every one; brute force past a frame-time cap is skipped in scaling and secondary); "
-    "repeat for several",
+    "glass), dynamic (spheres that move every frame: the tree's update and the frame), or all (every "
+    "one; brute force past a frame-time cap is skipped in scaling and secondary); repeat for several",
 )
 @click.option(
     "--device", "devices", multiple=True, help="cpu, cuda or wgpu; repeat for several (default: every device present)"
@@ -599,6 +627,7 @@ def info(as_json):
     help="bvh, none (brute force), or both repeated (the default): the thesis, tuning, scaling and "
     "secondary suites measure each; constant-vs-runtime and test 7 are brute force only",
 )
+@build_option(multiple=True)
 @click.option("--quick", is_flag=True, help="a reduced set of points: about a minute on a 2-core laptop")
 @click.option(
     "--out",
@@ -609,7 +638,7 @@ def info(as_json):
 @click.option("--label", help="short machine name used in the report (default: from the GPU or CPU name)")
 @click.option("--seed", type=int, default=0, show_default=True, help="seed of the random scenes")
 @click.option("--no-report", is_flag=True, help="only write the results; skip the report")
-def bench(suites, devices, adapter, kernels, accels, duration, quick, out_dir, label, seed, no_report):
+def bench(suites, devices, adapter, kernels, accels, builds, duration, quick, out_dir, label, seed, no_report):
     """Run the thesis's experiments on this machine, then write a report.
 
     Results go to a JSON Lines file, one record per point as soon as it is
@@ -634,6 +663,9 @@ def bench(suites, devices, adapter, kernels, accels, duration, quick, out_dir, l
         backends.resolve(d, adapter)
     if adapter is not None and "wgpu" not in devices:
         raise RaybenchError("--adapter applies to --device wgpu only")
+    builds = tuple(dict.fromkeys(builds))
+    if builds and "cuda" not in devices:
+        raise RaybenchError("--build applies to --device cuda only")
     wgpu_options, max_invocations = {}, 1024
     if "wgpu" in devices:
         chosen_adapter = backends.module("wgpu").choose(adapter)
@@ -663,6 +695,7 @@ def bench(suites, devices, adapter, kernels, accels, duration, quick, out_dir, l
         wgpu=wgpu_options,
         max_invocations=max_invocations,
         gpus=len(machine["gpus"]),
+        builds=builds,
     )
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
     results_path = out_dir / f"results-{stamp}.jsonl"
@@ -671,6 +704,7 @@ def bench(suites, devices, adapter, kernels, accels, duration, quick, out_dir, l
         "devices": list(devices),
         "kernels": list(kernels),
         "accels": list(accels),
+        "builds": list(builds),
         "duration_s": duration,
         "quick": quick,
         "seed": seed,
@@ -734,6 +768,9 @@ def warmup(devices):
         for kernel in ("fast", "simple"):
             with backends.tracer("cpu", np.zeros((7, 0), np.float32), 4, 4, kernel=kernel) as tracer:
                 tracer.compile()
+    if "cuda" in devices:  # the tree built on the GPU: its build, its cost and its refit
+        with backends.tracer("cuda", scene.spheres, 4, 4, build="gpu") as tracer:
+            tracer.update(scene.spheres)
     click.echo(f"compiled for {', '.join(devices)}; the cache: {compiled.CACHE_DIR}")
 
 

@@ -14,7 +14,7 @@ DEVICES = ("cpu", "cuda", "wgpu")
 CHOICES = ("auto",) + DEVICES
 OPTIONS = {
     "cpu": ("threads", "constant_count", "kernel", "accel", "whitted"),
-    "cuda": ("block", "constant_count", "kernel", "rays", "tile", "trip", "accel", "walk", "whitted"),
+    "cuda": ("block", "constant_count", "kernel", "rays", "tile", "trip", "accel", "walk", "build", "whitted"),
     "wgpu": ("workgroup", "adapter", "accel", "kernel", "walk", "whitted"),
 }
 
@@ -71,7 +71,7 @@ def present() -> list[str]:
 
 def tracer(device: str, spheres, width: int, height: int, **options):
     """A Tracer of the (resolved) device for this scene and size; options are
-    the device's own (cpu: threads; cuda: block, rays, tile, trip, walk; wgpu: workgroup,
+    the device's own (cpu: threads; cuda: block, rays, tile, trip, walk, build; wgpu: workgroup,
     adapter) and accel ("bvh", the default, or "none"), kernel and
     constant_count."""
     name = resolve(device, options.get("adapter") if device == "wgpu" else None)

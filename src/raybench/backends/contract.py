@@ -48,6 +48,13 @@ class Tracer(Protocol):
         """What ran the frames beyond the device's name (wgpu: the adapter), for records."""
         ...
 
+    def update(self, spheres: np.ndarray) -> str | None:
+        """The spheres moved (as many as before, a (7, N) float32 array like
+        the first): the next frames show them. Their BVH follows, "build"
+        (rebuilt) or "refit" (its boxes updated, cuda's GPU-built tree) is
+        returned, and build_s is what it took; None for brute force."""
+        ...
+
     def close(self) -> None:
         """Release what the Tracer holds; it traces no more frames."""
         ...
@@ -75,6 +82,18 @@ class TracerBase:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def check_moved(spheres, like: np.ndarray) -> np.ndarray:
+    """Tracer.update's spheres, checked: an array of the shape and type of
+    the tracer's own (like)."""
+    spheres = np.ascontiguousarray(spheres)  # rows as the kernels and the uploads read them
+    if spheres.shape != like.shape or spheres.dtype != np.float32:
+        raise RaybenchError(
+            f"update: spheres must be a {like.shape} float32 array like the tracer's, got {spheres.shape} "
+            f"{spheres.dtype}"
+        )
+    return spheres
 
 
 def check_method(

@@ -35,7 +35,7 @@ from ..kernels import whitted as whitted_mod
 from ..kernels.trace import FAR, ZERO
 from ..layout import BLUE, CHILD_BOX, COUNT, GREEN, INNER, NODE_FLOATS, PAD, RADIUS, RED, REF, STACK
 from ..lighting import Shading
-from .contract import TracerBase, check_method
+from .contract import TracerBase, check_method, check_moved
 from .limits import (
     HOST_PIXEL_BYTES,
     check_bvh_fits,
@@ -643,6 +643,17 @@ class Tracer(TracerBase):
                 self._kernel = _constant_band(self.count) if self.constant_count else _render_band
         self._pool = ThreadPoolExecutor(workers) if workers > 1 else None
         self._workers = workers
+
+    def update(self, spheres: np.ndarray) -> str | None:
+        """The spheres moved: the next frames trace them, through a tree
+        rebuilt on the host (the contract's update)."""
+        self.spheres = check_moved(spheres, self.spheres)
+        if self.accel != "bvh":
+            return None
+        if self.whitted is None:
+            self.shaded = self.spheres if self.count else np.zeros((7, 1), np.float32)
+        self._build(self.bvh.count)
+        return "build"
 
     def _build(self, count: int) -> None:
         """The BVH of the first `count` spheres; its build time in build_s."""

@@ -29,8 +29,10 @@ from ..kernels.trace import FAR, ZERO
 from ..kernels.whitted import KINDS, RAY_FLOATS, RAY_INTS, RAY_STACK
 from ..layout import CHILD_BOX, INNER, NODE_BYTES, NODE_FLOATS, RADIUS, STACK
 from ..lighting import Shading
-from .contract import TracerBase, check_method
+from . import cuda_build
+from .contract import TracerBase, check_method, check_moved
 from .limits import (
+    BUILDS,
     FAST_MAX_THREADS,
     HOST_PIXEL_BYTES,
     PIXEL_BYTES,
@@ -55,6 +57,20 @@ DEFAULT_BLOCK = {"simple": (16, 16), "fast": (8, 8), "ray": (8, 8), "packet": (8
 # (a 264 KiB tree) and 30,000 (795 KiB); today's take 37% off at 1,000,000
 # and tie at 1,000 (25 KiB) (docs/performance.md).
 PACKET_TREE_BYTES = 256 * 1024
+# The default stays the host's SAH tree until the H200 has measured the
+# GPU's tree walking within 10% of it (issue 16's condition).
+DEFAULT_BUILD = "host"
+
+
+def check_build(build, accel: str) -> str | None:
+    """The build for a tracer of accel (None for brute force, which builds nothing)."""
+    if build is None:
+        return DEFAULT_BUILD if accel == "bvh" else None
+    if accel != "bvh":
+        raise RaybenchError("build: applies to the BVH only (accel='bvh'), not to brute force")
+    if build not in BUILDS:
+        raise RaybenchError(f"build: must be one of {', '.join(BUILDS)}, got {shown(build)}")
+    return build
 
 
 def choose_walk(nodes: int) -> str:
@@ -478,6 +494,7 @@ class Tracer(TracerBase):
         trip: int | None = None,
         accel: str | None = None,
         walk: str | None = None,
+        build: str | None = None,
         whitted: Shading | None = None,
     ):
         require()
@@ -492,6 +509,7 @@ class Tracer(TracerBase):
         tile = TILE if tile is None else tile
         trip = TRIP if trip is None else trip
         walk = check_walk(walk, self.accel)
+        self.build = check_build(build, self.accel)
         block_given = block is not None
         if not block_given:  # for an auto walk, replaced below once the tree has chosen it
             block = DEFAULT_BLOCK[self.kernel or walk or "ray"]
@@ -507,7 +525,7 @@ class Tracer(TracerBase):
                 "cuda GPU",
                 spheres.shape[1],
                 free - spheres.shape[1] * 7 * 4,
-                bvh_mod.DEVICE_SPHERE_BYTES,
+                cuda_build.DEVICE_SPHERE_BYTES if self.build == "gpu" else bvh_mod.DEVICE_SPHERE_BYTES,
                 width * height * PIXEL_BYTES,
             )
             check_bvh_fits(
@@ -537,6 +555,8 @@ class Tracer(TracerBase):
         self.constant_count = bool(constant_count)
         self.bvh = None
         self.build_s = None
+        self._builder = None
+        self._fresh_cost = None
         self.walk = None
         self.whitted = whitted
         self.ray_counts = None
@@ -562,7 +582,7 @@ class Tracer(TracerBase):
             self.ray_counts = np.zeros(len(KINDS), np.int64)
         elif self.accel == "bvh":
             self._build(self.count)
-            self.walk = choose_walk(self.bvh.node_count) if walk is None else walk
+            self.walk = choose_walk(self._rows_walked()) if walk is None else walk
             self._kernel = _bvh_packet_kernel if self.walk == "packet" else _bvh_kernel
             if not block_given:
                 self.block = DEFAULT_BLOCK[self.walk]
@@ -575,15 +595,57 @@ class Tracer(TracerBase):
         self._rows = None  # the rows the last launch traced, None for all
 
     def _build(self, count: int) -> None:
-        """Build the BVH of the first `count` spheres on the host and upload it;
-        build_s is the build alone (the upload is a copy like the spheres')."""
-        self.bvh = bvh_mod.build(self.spheres[:, :count])
+        """The BVH of the first `count` spheres, on the device: built on the
+        host and uploaded, or built on the GPU (its arrays kept for the next
+        build of as many spheres). build_s is the build alone: on the host
+        without the upload (a copy like the spheres'), on the GPU up to the
+        tree ready to walk."""
+        if self.build == "gpu":
+            if self._builder is None or self._builder.n != count:
+                self._builder = cuda_build.Builder(count) if count >= 2 else None
+            self.bvh = cuda_build.build(self.spheres[:, :count], self.d_spheres, self._builder)
+            # the fresh tree's SAH cost: what update()'s refits are held to
+            self._fresh_cost = self._builder.read_cost() if self.bvh.built_on == "gpu" else None
+        else:
+            self.bvh = cuda_build.upload(bvh_mod.build(self.spheres[:, :count]))
         self.build_s = self.bvh.build_s
-        b = self.bvh
-        self.d_nodes = cuda.to_device(b.nodes)
-        self.d_links = self.d_nodes.view(np.int32)  # the same bytes: one row holds both
-        self.d_ordered = cuda.to_device(b.ordered if b.count else np.zeros((4, 1), np.float32))
-        self.d_order = cuda.to_device(b.order if b.count else np.zeros(1, np.int32))
+        self.d_nodes, self.d_links = self.bvh.nodes, self.bvh.links  # the same bytes: one row holds both
+        self.d_ordered, self.d_order = self.bvh.ordered, self.bvh.order
+
+    def _rows_walked(self) -> int:
+        """The rows of the tree a walk can reach: all of a host-built tree's;
+        of the GPU's, those its collapsed subtrees left out of reach not
+        counted (cuda_build's live flags, read once)."""
+        if self.bvh.built_on == "gpu":
+            return int(self._builder.live.copy_to_host().astype(np.int64).sum())
+        return self.bvh.node_count
+
+    def update(self, spheres: np.ndarray) -> str | None:
+        """The spheres moved (or changed radius or colour; as many as before):
+        the next frames show spheres, a (7, N) float32 array like the first.
+        Their tree follows: with build "gpu" refitted on the GPU (its shape
+        kept, its boxes the spheres' new ones) while its SAH cost stays
+        within cuda_build.REFIT_LIMIT of its fresh cost, else rebuilt; with
+        build "host" rebuilt on the host. Returns "refit" or "build" (None
+        for brute force, which has no tree); build_s is what it took, the
+        tree ready to walk."""
+        self.spheres = check_moved(spheres, self.spheres)
+        if self.count:
+            self.d_spheres.copy_to_device(self.spheres)
+        if self.accel != "bvh":
+            return None
+        refit_s = 0.0
+        if self.build == "gpu" and self.bvh.built_on == "gpu":
+            start = time.perf_counter()
+            self._builder.launch_refit(self.d_spheres)
+            cost = self._builder.read_cost()  # waits for the refit
+            refit_s = time.perf_counter() - start
+            if cost <= cuda_build.REFIT_LIMIT * self._fresh_cost:
+                self.build_s = refit_s
+                return "refit"
+        self._build(self.bvh.count)
+        self.build_s += refit_s  # the refit that was not enough, then the build
+        return "build"
 
     def compile(self) -> float:
         """Compile the kernel if needed (one empty launch); the seconds it took."""

@@ -137,6 +137,9 @@ def check_kernel(kernel, constant_count: bool) -> str:
 
 
 ACCELS = ("bvh", "none")
+# Where a GPU's tree is built (cuda): "host" (raybench.bvh's binned SAH tree,
+# uploaded) or "gpu" (backends.cuda_build's LBVH, built where it is walked).
+BUILDS = ("host", "gpu")
 
 
 def check_accel(accel, kernel, brute_force_options: dict) -> tuple[str, str | None]:

@@ -4,7 +4,8 @@ every point it finished.
 
 A record (format "raybench-results", version 1):
 
-    suite        "thesis" | "test7" | "constant-vs-runtime" | "tuning" | "scaling" | "secondary" | "multi-gpu"
+    suite        "thesis" | "test7" | "constant-vs-runtime" | "tuning" | "scaling" | "secondary" |
+                 "multi-gpu" | "dynamic"
     test         the thesis's test number (1-3 GPU, 4-6 CPU by resolution; 7 the ramp), else null
     device       "cpu" | "cuda"
     width, height, spheres
@@ -17,17 +18,24 @@ A record (format "raybench-results", version 1):
                  "whitted" with "depth" and "shadow_samples" (the materials scene,
                  random_spheres(n, seed, materials=True)); multi-gpu's carry "workers" (of
                  raybench.cluster), "job": "frame" (one frame in tiles) or "sequence" (an
-                 orbit of "frames" frames), and on the cpu "threads" (a worker's)
+                 orbit of "frames" frames), and on the cpu "threads" (a worker's);
+                 "build": "host" | "gpu" where
+                 cuda's tree is built (cuda's BVH points, when asked for; always in dynamic);
+                 dynamic's points carry "motion": "orbits" (raybench.animate.Orbits)
     frames       how many timed frames
     frame_ms     {mean, median, p5, p95, min, max}: whole frame (kernel, and on the GPU the copy to the host);
                  multi-gpu's: a run of the job's wall time over its frames, on all its workers
-    frames_per_s multi-gpu only: frames a second from the median (the workers' throughput)
+    frames_per_s multi-gpu and dynamic: frames a second from the median (multi-gpu: the workers' throughput)
     kernel_ms    the same for the kernel alone (CUDA events), or null on the CPU
     rays_per_s, tests_per_s   from the median frame (tests = rays x spheres; null for the BVH);
                  under Whitted shading rays_per_s counts every ray cast, and tests_per_s is null
     rays         Whitted points only: the rays a frame cast by kind, as the kernel counted them,
                  {"primary", "shadow", "reflection", "refraction"}; rays_per_frame their sum;
                  kernel_rays_per_s the same rays over the median kernel time, or null
+    update_ms    dynamic only: the same for the tree's update alone (Tracer.update: refit
+                 or build, with any upload), a part of each frame_ms; updates: how many
+                 frames refitted and rebuilt, {"refit"?: N, "build"?: N}; update_share:
+                 the updates' time over the frames' (sums); frames_per_s from the median frame
     build_s      the BVH's build time (seconds, compiled code only), or null for brute force
     first_frame_s   the first frame of the point, never averaged in
     compile_s       compiling the kernel for the point, if it was not yet compiled, else 0
@@ -338,7 +346,9 @@ RUN = _compile(
 )
 POINT = _compile(
     {
-        "suite": _one_of("thesis", "test7", "constant-vs-runtime", "tuning", "scaling", "secondary", "multi-gpu"),
+        "suite": _one_of(
+            "thesis", "test7", "constant-vs-runtime", "tuning", "scaling", "secondary", "multi-gpu", "dynamic"
+        ),
         "test?": _or_null(_count),
         "device": _one_of("cpu", "cuda", "wgpu"),
         "width": _size,
@@ -363,7 +373,12 @@ MEASURED = _compile(
         "rays?": {"primary": _count, "shadow": _count, "reflection": _count, "refraction": _count},
         "rays_per_frame?": _count,
         "kernel_rays_per_s?": _or_null(_number),
-        "frames_per_s?": _number,  # the multi-gpu suite's
+        # the multi-gpu suite's (its workers' throughput) and the dynamic suite's
+        "frames_per_s?": _number,
+        # the dynamic suite's: the tree's update in each frame
+        "update_ms?": TIMES,
+        "updates?": {"refit?": _count, "build?": _count},
+        "update_share?": _number,
     }
 )
 SKIPPED = _compile({"skipped": _text, "predicted_ms?": _or_null(_number)})

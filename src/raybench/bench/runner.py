@@ -9,7 +9,7 @@ import sys
 import time
 import uuid
 
-from .. import backends
+from .. import animate, backends
 from ..camera import Camera
 from ..kernels.whitted import KINDS
 from ..lighting import Shading
@@ -18,7 +18,7 @@ from ..scene import random_spheres
 from . import multi
 from .results import ResultsWriter
 from .stats import summarize
-from .suites import Point
+from .suites import DYNAMIC_DT, Point
 
 MIN_FRAMES = 3
 WARMUP_S = 1.0
@@ -40,6 +40,8 @@ def tracer_options(point: Point) -> dict:
         opts["kernel"] = point.options["kernel"]
     if "accel" in point.options:
         opts["accel"] = point.options["accel"]
+    if "build" in point.options:  # cuda's: where its tree is built
+        opts["build"] = point.options["build"]
     if point.options.get("count") == "constant":
         opts["constant_count"] = True
     return opts
@@ -69,6 +71,66 @@ def _frame(tracer, basis, count=None) -> tuple[float, float | None]:
     start = time.perf_counter()
     kernel_ms = tracer.timed_trace(basis, count)
     return (time.perf_counter() - start) * 1e3, kernel_ms
+
+
+def measure_dynamic(point: Point, scenes: Scenes, duration: float) -> dict:
+    """Time a point of the dynamic suite: each frame moves the spheres
+    (animate.Orbits at the next DYNAMIC_DT, computed before the clock
+    starts, as a program would have its spheres' positions), then updates
+    the tree (Tracer.update: refit or build, uploads included) and traces
+    the frame; frame_ms is both, update_ms the update alone. A first moved
+    frame and a warm-up are left out, as in measure()."""
+    scene = scenes.get(point.spheres)
+    basis = Camera().basis(point.width, point.height)
+    orbits = animate.Orbits(scene.spheres, scenes.seed)
+    tracer = backends.tracer(point.device, scene.spheres, point.width, point.height, **tracer_options(point))
+    clock = iter(range(1, 1 << 62))
+
+    def frame() -> tuple[float, float, float | None, str | None]:
+        spheres = orbits.at(next(clock) * DYNAMIC_DT)
+        start = time.perf_counter()
+        kind = tracer.update(spheres)
+        update_ms = (time.perf_counter() - start) * 1e3
+        kernel_ms = tracer.timed_trace(basis)
+        return (time.perf_counter() - start) * 1e3, update_ms, kernel_ms, kind
+
+    try:
+        build_s = tracer.build_s
+        described, compile_s = tracer.describe(), tracer.compile()
+        first_ms = frame()[0]
+        end_warmup = time.perf_counter() + min(WARMUP_S, duration / 2)
+        while time.perf_counter() < end_warmup:
+            frame()
+        frames = []
+        end = time.perf_counter() + duration
+        while time.perf_counter() < end or len(frames) < MIN_FRAMES:
+            frames.append(frame())
+        walk = tracer.walk
+    finally:
+        tracer.close()
+    frame_ms, update_ms = [f[0] for f in frames], [f[1] for f in frames]
+    kernel_ms = [f[2] for f in frames if f[2] is not None]
+    kinds = [f[3] for f in frames]
+    record = {
+        **_identity(point),
+        "frames": len(frames),
+        "frame_ms": summarize(frame_ms),
+        "kernel_ms": summarize(kernel_ms) if kernel_ms else None,
+        "update_ms": summarize(update_ms),
+        "updates": {kind: kinds.count(kind) for kind in ("refit", "build") if kind in kinds},
+        "update_share": sum(update_ms) / sum(frame_ms),
+        "frames_per_s": 1e3 / summarize(frame_ms)["median"],
+        "first_frame_s": first_ms / 1e3,
+        "compile_s": compile_s,
+        "build_s": build_s,
+        "rays_per_s": point.width * point.height / (summarize(frame_ms)["median"] / 1e3),
+        "tests_per_s": None,
+    }
+    if described is not None:
+        record["adapter"] = described
+    if walk is not None:
+        record["walk"] = walk
+    return record
 
 
 def measure(point: Point, scenes: Scenes, duration: float) -> dict:
@@ -237,7 +299,7 @@ def run(
                         record = multi.measure(point, scenes, duration, clusters)
                     else:
                         clusters.close()
-                        record = measure(point, scenes, duration)
+                        record = (measure_dynamic if point.suite == "dynamic" else measure)(point, scenes, duration)
                 except BaseException:
                     clusters.close()
                     raise

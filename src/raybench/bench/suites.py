@@ -42,6 +42,15 @@ the issue's sizes: an 8192x8192 frame and 240 frames at 1680x1050, at
 cpu the frame is 3360x2100 and the orbit 240 frames at 640x400, at 10,000.
 The report sets each count's throughput against linear (N x one worker's).
 
+The dynamic suite (issue 16) moves the spheres every frame
+(raybench.animate.Orbits, seeded like the scene, DYNAMIC_DT seconds of
+motion a frame) and times what a frame then costs: the tree's update (cuda
+with build "gpu": refitted on the GPU, or rebuilt past the refit limit;
+cuda with build "host", cpu and wgpu: rebuilt on the host and, on a GPU,
+uploaded) plus the frame. At 10,000, 100,000 and 1,000,000 spheres at
+1680x1050, through the BVH (brute force has no tree to update), cuda once
+per build (both by default, or those --build names).
+
 `--suite all` includes the secondary suite: all means every suite, and the cap keeps the
 suite's brute force within minutes a point, as the scaling suite's keeps
 its own; what a 2-core machine spends on it is mostly its BVH frames.
@@ -52,10 +61,10 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 
-from ..backends.limits import FAST_MAX_THREADS
+from ..backends.limits import BUILDS, FAST_MAX_THREADS
 from ..errors import RaybenchError
 
-SUITES = ("thesis", "constant-vs-runtime", "tuning", "scaling", "secondary", "multi-gpu")
+SUITES = ("thesis", "constant-vs-runtime", "tuning", "scaling", "secondary", "multi-gpu", "dynamic")
 ACCELS = ("bvh", "none")
 THESIS_SIZES = ((800, 600), (1280, 800), (1680, 1050))
 THESIS_COUNTS = tuple(range(100, 1001, 100))
@@ -86,6 +95,12 @@ SECONDARY_SHADOW_SAMPLES = 4
 SECONDARY_CAP_S = 30.0
 # --quick: one small size, the two smaller counts; brute force is skipped
 # where its frame would pass the quick cap (on 2 cores: at 10,000 spheres).
+DYNAMIC_COUNTS = (10_000, 100_000, 1_000_000)
+DYNAMIC_SIZE = (1680, 1050)
+QUICK_DYNAMIC_COUNTS = (1000, 10_000)
+QUICK_DYNAMIC_SIZE = (640, 400)
+# Seconds of the animation between frames: 60 frames a second's worth.
+DYNAMIC_DT = 1 / 60
 QUICK_SECONDARY_SIZES = ((160, 100),)
 QUICK_SECONDARY_COUNTS = (1000, 10_000)
 QUICK_SECONDARY_CAP_S = 1.0
@@ -155,12 +170,19 @@ def variants(kernels, accels) -> list[dict]:
     return out + ([{"accel": "bvh"}] if "bvh" in accels else [])
 
 
-def _runs(ways, devices, wgpu: dict) -> list[tuple[dict, str]]:
+def _runs(ways, devices, wgpu: dict, builds=()) -> list[tuple[dict, str]]:
     """(options, device) for each way and device: cpu and cuda every way; wgpu
     every way it has, with its own options (the adapter named): the BVH, and
     brute force once whatever the kernels asked for, with its one kernel
-    (simple)."""
-    out = [(dict(way), d) for way in ways for d in devices if d != "wgpu"]
+    (simple). builds: where cuda's trees are built ("host", "gpu"), the BVH
+    once for each; none given, the backend's default."""
+    out = []
+    for way in ways:
+        for d in devices:
+            if d == "cuda" and way["accel"] == "bvh" and builds:
+                out += [({**way, "build": b}, d) for b in builds]
+            elif d != "wgpu":
+                out.append((dict(way), d))
     if "wgpu" in devices:
         own = []
         for way in ways:
@@ -188,20 +210,22 @@ def points(
     wgpu: dict | None = None,
     max_invocations: int = 1024,
     gpus: int = 0,
+    builds=(),
 ) -> list[Point]:
     """Every point of the chosen suites on the chosen devices (the thesis,
     tuning and scaling suites once per kernel of brute force, and once more
     with the BVH if accels holds "bvh"), in run order. wgpu: that device's
     options ({"adapter": name}); max_invocations: its adapter's workgroup
     limit, which bounds the tuning suite's shapes; gpus: the machine's GPU
-    count, the multi-gpu suite's largest count of cuda workers."""
+    count, the multi-gpu suite's largest count of cuda workers. builds: where
+    cuda's BVH points build their trees (_runs)."""
     for suite in suites:
         if suite not in SUITES:
             raise RaybenchError(f"suite: unknown suite {suite!r}; choose from {', '.join(SUITES)}")
     for accel in accels:
         if accel not in ACCELS:
             raise RaybenchError(f"accel: unknown accel {accel!r}; choose from {', '.join(ACCELS)}")
-    runs = _runs(variants(kernels, accels), devices, wgpu or {})
+    runs = _runs(variants(kernels, accels), devices, wgpu or {}, builds)
     cores = cores or os.cpu_count() or 1
     out: list[Point] = []
     if "thesis" in suites:
@@ -275,7 +299,7 @@ def points(
         sizes = QUICK_SECONDARY_SIZES if quick else SECONDARY_SIZES
         counts = QUICK_SECONDARY_COUNTS if quick else SECONDARY_COUNTS
         cap = QUICK_SECONDARY_CAP_S if quick else SECONDARY_CAP_S
-        for way, device in _runs(ways, devices, wgpu or {}):
+        for way, device in _runs(ways, devices, wgpu or {}, builds):
             capped = {"cap_s": cap} if way["accel"] == "none" else {}
             for n in counts:
                 for w, h in sizes:
@@ -295,4 +319,9 @@ def points(
                         "multi-gpu", device, sw, sh, n, {"workers": workers, "job": "sequence", "frames": frames, **own}
                     )
                 )
+    if "dynamic" in suites:
+        counts = QUICK_DYNAMIC_COUNTS if quick else DYNAMIC_COUNTS
+        w, h = QUICK_DYNAMIC_SIZE if quick else DYNAMIC_SIZE
+        for way, device in _runs([{"accel": "bvh"}], devices, wgpu or {}, builds or BUILDS):
+            out += [Point("dynamic", device, w, h, n, {**way, "motion": "orbits"}) for n in counts]
     return out

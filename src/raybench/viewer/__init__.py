@@ -35,15 +35,24 @@ def view(
     shading: str = "thesis",
     depth: int | None = None,
     shadow_samples: int | None = None,
+    animate: bool = False,
 ):
     """Open the window on scene and run until it closes; returns the window
     (what it saved, and its state with the last frame shown). shading, depth
-    and shadow_samples: the first frame's, as render() takes them."""
+    and shadow_samples: the first frame's, as render() takes them; animate:
+    the spheres move every frame (viewer.moving)."""
     from .state import ViewerState
     from .window import ViewerWindow
 
     state = ViewerState(
-        scene, device=device, seed=seed, options=options, shading=shading, depth=depth, shadow_samples=shadow_samples
+        scene,
+        device=device,
+        seed=seed,
+        options=options,
+        shading=shading,
+        depth=depth,
+        shadow_samples=shadow_samples,
+        animate=animate,
     )
     window = ViewerWindow(state, size, frames=frames, screenshot=screenshot)
     window.run()

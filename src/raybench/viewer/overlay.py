@@ -45,11 +45,18 @@ def status_line(
     message: str | None = None,
     shading: str | None = None,
     rays_per_s: float | None = None,
+    update: tuple[str, float] | None = None,
 ) -> str:
     """device, sphere count, resolution, frame time and frames per second of
-    what is on screen; with a shading, it and the rays cast per second (under
-    Whitted's, every kind counted); then the ramp flag and the latest message."""
-    parts = ["raybench", device, f"{spheres:,} spheres", f"{width}x{height}", f"frame {_ms(frame_ms)}", _fps(fps)]
+    what is on screen; with --animate, the last frame's tree update (its kind,
+    "refit" or "build", and ms) before the trace; with a shading, it and the
+    rays cast per second (under Whitted's, every kind counted); then the ramp
+    flag and the latest message."""
+    parts = ["raybench", device, f"{spheres:,} spheres", f"{width}x{height}"]
+    if update is not None:
+        # a refit takes a fraction of a ms: two decimals there
+        parts.append(f"{update[0]} {update[1]:.2f} ms" if update[1] < 10 else f"{update[0]} {_ms(update[1])}")
+    parts += [f"{'trace' if update is not None else 'frame'} {_ms(frame_ms)}", _fps(fps)]
     if shading is not None:
         parts += [shading, _rays(rays_per_s)]
     if ramp:

@@ -39,11 +39,13 @@ class ViewerState:
         shading: str = "thesis",
         depth: int | None = None,
         shadow_samples: int | None = None,
+        animate: bool = False,
     ):
         """device: "cpu", "cuda" or "wgpu" (already resolved); seed: that of a generated
         scene, None for a scene file; options: per device, e.g. {"cpu": {"threads": 4}};
         devices: those Tab cycles through (the window adds wgpu where it can trace on it);
-        shading, depth, shadow_samples: the first frame's shading, as render() takes them."""
+        shading, depth, shadow_samples: the first frame's shading, as render() takes them;
+        animate: the spheres move (viewer.moving), each request at the clock's time since now."""
         if device not in backends.DEVICES:
             raise ValueError(f"device must be one of {backends.DEVICES}, got {device!r}")
         self.devices = tuple(devices) + ((device,) if device not in devices else ())
@@ -70,6 +72,7 @@ class ViewerState:
         self.last_request: TraceRequest | None = None
         self._stalled_at: tuple[int, int] | None = None  # size at which the working device failed
         self._stall_reason = ""
+        self._animation_start = clock() if animate else None
 
     # ------------------------------------------------------------------ input
 
@@ -180,6 +183,7 @@ class ViewerState:
             height=height,
             options=self.options[self.device],
             shading=shading,
+            time=None if self._animation_start is None else self.clock() - self._animation_start,
         )
         return self.last_request
 
@@ -234,6 +238,7 @@ class ViewerState:
             message=message,
             shading=shading_label(shown),
             rays_per_s=self.stats.rays_per_s(now),
+            update=(shown.update, shown.update_ms) if shown.update is not None else None,
         )
 
 

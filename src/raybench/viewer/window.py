@@ -37,6 +37,7 @@ from ..files import write_atomic
 from ..render import png_bytes
 from .bindings import help_lines
 from .gpu import SUGGEST, TextureQuad, choose_target_format, request_device
+from .moving import MovingSpheres
 from .state import ViewerState
 from .worker import TracedFrame, TraceFailed, TraceWorker
 
@@ -137,6 +138,7 @@ class ViewerWindow:
             self.context = None  # the surface, now: see run()
             raise
         self._gpu_idle = False  # the last draw found no wgpu frame to trace (stalled, failed)
+        self.moving = MovingSpheres()  # --animate, for the frames wgpu traces here
         self.worker = TraceWorker(on_done=self._frame_ready)
         self.canvas.add_event_handler(
             self.handle_event, "key_down", "key_up", "pointer_down", "pointer_move", "pointer_up"
@@ -244,14 +246,16 @@ class ViewerWindow:
         self.canvas.set_title(self.state.title())
         self._trace_next()
 
-    def _gpu_waiter(self, request, compile_s):
+    def _gpu_waiter(self, request, compile_s, update_ms=None, update=None):
         """What the worker thread runs for a submitted wgpu frame: wait for it,
         and its TracedFrame (the pass's time) or TraceFailed."""
         tracer = self.gpu_tracer
 
         def wait():
             try:
-                return TracedFrame(request, tracer.frame(request), None, tracer.elapsed_ms(), compile_s)
+                return TracedFrame(
+                    request, tracer.frame(request), None, tracer.elapsed_ms(), compile_s, update_ms, update
+                )
             except Exception as exc:  # noqa: BLE001 - shown in the title; the window must live on
                 return TraceFailed(request, f"wgpu failed: {type(exc).__name__}: {exc}")
 
@@ -279,6 +283,7 @@ class ViewerWindow:
             return None
         try:
             compile_s = self.gpu_tracer.prepare(request)
+            update_ms, update = self.moving.update(self.gpu_tracer.compute, request)
             self.gpu_tracer.encode(encoder, request)
         except RaybenchError as exc:
             self.state.on_traced(TraceFailed(request, str(exc)))
@@ -288,7 +293,7 @@ class ViewerWindow:
             return None
         self.quad.show(self.gpu_tracer.compute.texture)
         self._gpu_idle = False
-        return request, compile_s
+        return request, compile_s, update_ms, update
 
     def read_drawn(self) -> np.ndarray:
         """The picture drawn in the current draw, as (H, W, 3) RGB bytes: read

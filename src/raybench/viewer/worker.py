@@ -27,6 +27,7 @@ from ..kernels.whitted import KINDS
 from ..lighting import Shading
 from ..render import Frame
 from ..scene import Scene
+from .moving import MovingSpheres
 from .pacing import Handoff
 
 
@@ -41,6 +42,7 @@ class TraceRequest:
     height: int
     options: dict = field(default_factory=dict)  # the device's own (cpu: threads; cuda: block)
     shading: Shading | None = None  # Whitted shading's arrays (of this scene); None: the thesis's shading
+    time: float | None = None  # --animate: the spheres where animate.Orbits puts them at this time (s)
 
 
 @dataclass
@@ -50,6 +52,8 @@ class TracedFrame:
     rgba: np.ndarray | None  # (H, W, 4) uint8: the frame as the texture wants it (None: already there)
     trace_ms: float  # camera basis, trace and copy to the host: the whole frame (wgpu: the pass)
     compile_s: float | None  # set on the first frame of a new tracer
+    update_ms: float | None = None  # --animate: the tree's update before the trace (not in trace_ms)
+    update: str | None = None  # its kind: "refit" or "build" (None: brute force, or not animated)
 
     @property
     def rays_cast(self) -> int:
@@ -91,6 +95,7 @@ class TraceWorker:
         self._tracer = None
         self._tracer_key = None
         self._tracer_scene = None
+        self._moving = MovingSpheres()
         self._thread = threading.Thread(target=self._run, name="raybench-trace", daemon=True)
         self._thread.start()
 
@@ -131,6 +136,7 @@ class TraceWorker:
     def _trace(self, request: TraceRequest) -> TracedFrame | TraceFailed:
         try:
             compile_s = self._ensure_tracer(request)
+            update_ms, update = self._moving.update(self._tracer, request)
             start = time.perf_counter()
             image, hits = self._tracer.trace(request.camera.basis(request.width, request.height), request.count)
             trace_ms = (time.perf_counter() - start) * 1e3
@@ -138,7 +144,7 @@ class TraceWorker:
             counts = self._tracer.ray_counts
             rays = None if counts is None else dict(zip(KINDS, counts.tolist()))
             frame = Frame(image=image.copy(), hits=hits.copy(), device=self._tracer.name, rays=rays)
-            return TracedFrame(request, frame, to_rgba(frame.image), trace_ms, compile_s)
+            return TracedFrame(request, frame, to_rgba(frame.image), trace_ms, compile_s, update_ms, update)
         except RaybenchError as exc:
             self._drop_tracer()
             return TraceFailed(request, str(exc))

@@ -200,7 +200,7 @@ class Compute:
             size=UNIFORM_BYTES, usage=wgpu.BufferUsage.UNIFORM | wgpu.BufferUsage.COPY_DST
         )
         self.spheres = device.create_buffer_with_data(
-            data=sphere_rows(spheres).tobytes(), usage=wgpu.BufferUsage.STORAGE
+            data=sphere_rows(spheres).tobytes(), usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_DST
         )
         self.texture = device.create_texture(
             size=(width, height, 1),
@@ -272,6 +272,16 @@ class Compute:
                 {"binding": 9, "resource": {"buffer": self.rays}},
             ]
         self.bind_group = self.device.create_bind_group(layout=self.pipeline.get_bind_group_layout(0), entries=entries)
+
+    def update(self, spheres: np.ndarray) -> str | None:
+        """The spheres moved (checked by the Tracer): uploaded over the old
+        ones, their tree rebuilt on the host. "build", or None for brute force."""
+        self.device.queue.write_buffer(self.spheres, 0, sphere_rows(spheres).tobytes())
+        self.scene_spheres = spheres
+        if self.tree is None:
+            return None
+        self._build(self.tree.count)
+        return "build"
 
     def _build(self, count: int) -> None:
         """Build the BVH of the first `count` spheres on the host and upload it

@@ -10,7 +10,7 @@ import time
 import numpy as np
 
 from ...lighting import Shading
-from ..contract import TracerBase
+from ..contract import TracerBase, check_moved
 from ..limits import HOST_PIXEL_BYTES, check_count, check_fits, check_size, host_available_bytes
 from . import adapters
 from .compute import RAY_KINDS, Compute, check_accel
@@ -95,6 +95,10 @@ class Tracer(TracerBase):
 
     def compile(self) -> float:
         return self.compute.compile()
+
+    def update(self, spheres: np.ndarray) -> str | None:
+        """The spheres moved: the contract's update (a tree rebuilt on the host)."""
+        return self.compute.update(check_moved(spheres, self.compute.scene_spheres))
 
     def _count(self, count) -> int:
         return self.count if count is None else check_count(count, self.count)

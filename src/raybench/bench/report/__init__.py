@@ -7,7 +7,7 @@ One module a job, each reading only those before it:
             kernel (column()), files with the same label merged; the series
             (speedups, thesis_series, test7_series, cpu_tuning, gpu_tuning,
             constant_vs_runtime, scaling_series, secondary_points,
-            secondary_leads, multi_gpu_series): pure functions of plain
+            secondary_leads, multi_gpu_series, dynamic_points): pure functions of plain
             lists of records, so the rules can be tested on synthetic data
   verdicts  the six claims judged; the thresholds are its constants, RULES
             states them in words, and the report prints it; beyond them,
@@ -22,6 +22,7 @@ from .data import (
     column,
     constant_vs_runtime,
     cpu_tuning,
+    dynamic_points,
     gpu_tuning,
     group,
     kernel_of,
@@ -81,6 +82,7 @@ __all__ = [
     "column",
     "constant_vs_runtime",
     "cpu_tuning",
+    "dynamic_points",
     "escape",
     "gpu_tuning",
     "group",

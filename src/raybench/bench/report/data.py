@@ -393,6 +393,35 @@ def scaling_series(records: list[dict]) -> list[dict]:
     return sorted(out.values(), key=lambda s: (s["device"], s["way"], s["width"] * s["height"]))
 
 
+def dynamic_points(records: list[dict]) -> list[dict]:
+    """The dynamic suite: one row per measured point (device, where its tree
+    is built, size, spheres): frames a second from the median frame, the
+    median frame, update and kernel ms, the updates' share of the frames'
+    time, and how many frames refitted and rebuilt. Sorted by spheres, then
+    device and build."""
+    out = []
+    for r in records:
+        if r["suite"] != "dynamic" or "skipped" in r:
+            continue
+        build = (r.get("options") or {}).get("build", "host")
+        out.append(
+            {
+                "device": r["device"],
+                "build": build,
+                "width": r["width"],
+                "height": r["height"],
+                "spheres": r["spheres"],
+                "frames_per_s": 1e3 / float(r["frame_ms"]["median"]),
+                "frame_ms": float(r["frame_ms"]["median"]),
+                "update_ms": float((r.get("update_ms") or {}).get("median", 0.0)),
+                "kernel_ms": (r.get("kernel_ms") or {}).get("median"),
+                "update_share": r.get("update_share"),
+                "updates": dict(r.get("updates") or {}),
+            }
+        )
+    return sorted(out, key=lambda p: (p["spheres"], p["width"] * p["height"], p["device"], p["build"]))
+
+
 def shading_of(r: dict) -> str:
     """A record's shading: "whitted" for the secondary suite's Whitted frames,
     else the thesis's (every record from before Whitted shading)."""

@@ -18,6 +18,7 @@ from .data import (
     DEVICE_NAMES,
     constant_vs_runtime,
     cpu_tuning,
+    dynamic_points,
     fmt_opt,
     gpu_tuning,
     largest_group,
@@ -609,6 +610,41 @@ def _section_secondary(w: _Writer, label: str, slug: str, records: list[dict], d
         )
 
 
+def _section_dynamic(w: _Writer, label: str, records: list[dict]) -> None:
+    """The dynamic suite on one machine: a table of frames a second."""
+    points = dynamic_points(records)
+    if not points:
+        return
+    w(f"### {escape(label)}: spheres that move every frame", "")
+    w(
+        "Every frame moves the spheres (`raybench.animate.Orbits`: each on a circle of 1.5 of its radii through "
+        "its start, seeded like the scene), updates the BVH and traces the frame; frames/s is from the median "
+        "frame (update and trace, the copy to the host included). The tree is rebuilt on the host (cpu, wgpu, "
+        "and cuda with build host, then uploaded) or, with build gpu, refitted on the GPU while its SAH cost "
+        "stays within the refit limit of a fresh tree's, else rebuilt there. Update share: the updates' time "
+        "over the frames'. The positions themselves are computed before each frame's clock starts.",
+        "",
+    )
+    header = ["device", "build", "size", "spheres", "frames/s", "frame ms", "update ms", "kernel ms", "update share",
+              "refits / builds"]  # fmt: skip
+    rows = [
+        [
+            escape(DEVICE_NAMES.get(p["device"], p["device"])),
+            escape(p["build"]),
+            f"{p['width']}x{p['height']}",
+            f"{p['spheres']:,}",
+            fmt_num(p["frames_per_s"]),
+            fmt_ms(p["frame_ms"]),
+            fmt_ms(p["update_ms"]),
+            fmt_ms(p["kernel_ms"]) if p["kernel_ms"] else "–",
+            f"{p['update_share']:.0%}" if p["update_share"] is not None else "–",
+            f"{p['updates'].get('refit', 0)} / {p['updates'].get('build', 0)}",
+        ]
+        for p in points
+    ]
+    w(_table(header, rows), "")
+
+
 def _claims_table(machines: dict[str, list[dict]]) -> tuple[str, dict[str, list[dict]]]:
     judged = {label: verdicts(records) for label, records in machines.items()}
     header = ["#", "the thesis's claim", "what the thesis measured"] + [escape(label) for label in machines]
@@ -629,13 +665,14 @@ def write_report(paths: list, out_dir) -> Path:
     if out_dir.exists() and not out_dir.is_dir():
         raise RaybenchError(f"{out_dir}: is a file, not a folder for the report")
     machines, notes = load(paths)
-    # the scaling and secondary suites are no part of the thesis's claims: each its own section per machine
-    beyond: dict[str, dict[str, list[dict]]] = {"scaling": {}, "secondary": {}, "multi-gpu": {}}
+    # the scaling, secondary, multi-gpu and dynamic suites are no part of the thesis's claims: each its own section
+    beyond: dict[str, dict[str, list[dict]]] = {"scaling": {}, "secondary": {}, "multi-gpu": {}, "dynamic": {}}
     for records in machines.values():
         for r in records:
             if r["suite"] in beyond:
                 beyond[r["suite"]].setdefault(r["run"]["label"], []).append(r)
-    scaling, secondary, multi_gpu = beyond["scaling"], beyond["secondary"], beyond["multi-gpu"]
+    scaling, secondary = beyond["scaling"], beyond["secondary"]
+    multi_gpu, dynamic = beyond["multi-gpu"], beyond["dynamic"]
     machines = {k: v for k, v in ((k, [r for r in v if r["suite"] not in beyond]) for k, v in machines.items()) if v}
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -649,6 +686,7 @@ def write_report(paths: list, out_dir) -> Path:
             + list(scaling)
             + list(secondary)
             + list(multi_gpu)
+            + list(dynamic)
         )
     )
     w(f"# raybench: the 2010 GPU ray-tracing thesis, measured again on {escape(names)}", "")
@@ -687,6 +725,10 @@ def write_report(paths: list, out_dir) -> Path:
         w("## Beyond the thesis: across GPUs and workers", "")
         for label, records in multi_gpu.items():
             _section_multi_gpu(w, label, _slug(f"{label}-multi-gpu", taken), records)
+    if dynamic:
+        w("## Beyond the thesis: spheres that move", "")
+        for label, records in dynamic.items():
+            _section_dynamic(w, label, records)
     w("## Sources", "")
     w(*[f"- `{Path(p)}`" for p in paths], "")
     if notes:

@@ -1,0 +1,625 @@
+"""The BVH built on the GPU (numba-cuda): an LBVH (Karras 2012, "Maximizing
+parallelism in the construction of BVHs, octrees, and k-d trees") written in
+raybench.bvh's node layout, so every walk reads it unchanged.
+
+Steps, a kernel each (the bounds two, the sort three a pass), all on the device; the host
+waits once, at the end, to read the tree's depth:
+  1. bounds   the box of the spheres' centres (a box per block, then one
+              block unites them);
+  2. morton   each centre's 30-bit Morton code in that box, beside its index;
+  3. sort     (code, index) pairs by code: an LSD radix sort of DIGIT_BITS a
+              pass, each pass count (a histogram per block), scan (where each
+              block's keys of each digit go) and scatter. numba-cuda has no
+              sort; the scatter is stable, so equal codes keep the order of
+              their indices: the tie-break Karras's hierarchy needs;
+  4. hierarchy Karras's internal nodes from the sorted codes, internal node i
+              in row i (the root is row 0), each child a row (INNER) or, where
+              it covers at most LEAF_SIZE spheres, a leaf of them (ref: the
+              first one's place in leaf order). Equal codes are told apart by
+              their places, as Karras does: a key of code bits then place
+              bits, all distinct;
+  5. bounds up one thread per leaf climbs to the root; at each row the first of
+              its two children to arrive stops, the second (an atomic counter
+              says which) unites both boxes and goes on. The same pass writes
+              the ordered spheres (the scene's very float32 values, as the host
+              builder does) and each row's height.
+Refit (spheres moved, same tree) is step 5 alone: the tree's shape is kept,
+its boxes are the moved spheres'.
+
+The walks' stack holds layout.STACK entries, so a tree must be at most
+MAX_DEPTH rows deep. A radix tree's depth is at most its keys' bits: 30 code
+bits and ceil(log2 n) place bits, so under 2**18 spheres no tree is too deep;
+above, unlucky inputs could be (spheres at positions halving towards a point,
+then many at one code). The depth, read at the end, tells; a tree too deep is
+replaced by the host's build (raybench.bvh), whose depth is bounded.
+
+Under two spheres there is no internal node to build: the host's tree (one
+row) is uploaded.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from numba import config, cuda
+
+from .. import bvh as bvh_mod
+from .. import compiled
+from ..layout import BOX_FLOATS, COUNT, INNER, MAX_DEPTH, NODE_FLOATS, PAD, REF
+
+# Morton codes: 10 bits an axis.
+CODE_BITS = 30
+AXIS_CELLS = 1 << (CODE_BITS // 3)
+# The radix sort: DIGIT_BITS a pass (5 passes for 30 bits); a block of
+# SORT_THREADS threads sorts a tile of SORT_THREADS * ITEMS keys, each thread
+# ITEMS consecutive ones, so its counts per digit (RADIX x SORT_THREADS, 32
+# KiB of shared memory) make the scatter stable without warp intrinsics
+# (which the simulator lacks).
+DIGIT_BITS = 6
+RADIX = 1 << DIGIT_BITS
+DIGIT_MASK = RADIX - 1
+PASSES = -(-CODE_BITS // DIGIT_BITS)
+# Under numba's simulator every thread is a Python thread: there the blocks
+# are small (the same kernels, their sizes only), which also gives the tests'
+# scenes of tens of spheres several tiles to sort.
+_SIM = bool(config.ENABLE_CUDASIM)
+SORT_THREADS = 8 if _SIM else 128
+ITEMS = 4 if _SIM else 8
+SORT_TILE = SORT_THREADS * ITEMS
+SORT_CELLS = RADIX * SORT_THREADS
+# The one-block kernels (the centres' bounds merged, the scan of the
+# histograms): a block as large as CUDA has, so that each thread's run of
+# entries is short.
+ONE_BLOCK = 32 if _SIM else 1024
+# The centres' bounds: at most BOUNDS_BLOCKS blocks of THREADS, each a part.
+BOUNDS_BLOCKS = 4 * ONE_BLOCK
+# The other kernels: a thread an element, in blocks of THREADS.
+THREADS = 32 if _SIM else 256
+# Subtrees of at most LEAF_SIZE spheres become leaves (of consecutive
+# spheres in leaf order, which every LBVH subtree covers): fewer rows on a
+# ray's way (the host's tree keeps leaves of up to 3 spheres always, up to
+# bvh.LEAF_MAX where SAH says so). benchmarks/gpu_build.py measures the
+# choice.
+LEAF_SIZE = 4
+# A refitted tree is rebuilt once its SAH cost (Builder.read_cost) exceeds
+# REFIT_LIMIT times the cost it had fresh from its build: moved spheres
+# stretch its boxes, and each ray then visits more of them. A provisional
+# value, to be set from benchmarks/gpu_build.py's refit series on the H200
+# (walk time of the refitted tree against the rebuilt one, frame by frame,
+# against the build's time).
+REFIT_LIMIT = 1.3
+# Device bytes a Builder holds per sphere: keys and values twice (the sort's
+# two buffers), the links up (8 + 8), the heights (8), the counters (4), the
+# node rows (64) and the ordered spheres (16); the histograms add under 1.
+DEVICE_SPHERE_BYTES = 16 + 16 + 8 + 4 + NODE_FLOATS * 4 + 16 + 1
+# The padding of a sphere's box, as raybench.bvh.sphere_pad computes it.
+_PAD = PAD
+_BOX = BOX_FLOATS
+_INNER = INNER
+_REF = REF
+_COUNT = COUNT
+_NODE_COST = bvh_mod.NODE_COST
+
+
+def _blocks(n: int, per: int) -> int:
+    return max(1, math.ceil(n / per))
+
+
+@cuda.jit(device=True)
+def _reduce_box(lo, hi, t, size):
+    """The block's boxes lo[:, 0:size], hi[:, 0:size] (shared) united into
+    lo[:, 0], hi[:, 0] by a tree of minima and maxima (size a power of 2)."""
+    step = size // 2
+    while step > 0:
+        cuda.syncthreads()
+        if t < step:
+            for a in range(3):
+                lo[a, t] = min(lo[a, t], lo[a, t + step])
+                hi[a, t] = max(hi[a, t], hi[a, t + step])
+        step //= 2
+    cuda.syncthreads()
+
+
+@compiled.cuda_jit()
+def _bounds_parts(spheres, n, parts):
+    """parts[b] (lo x, y, z, hi x, y, z): the box of the centres block b's
+    threads strode over (every gridDim.x * THREADS-th of the first n)."""
+    t = cuda.threadIdx.x
+    lo = cuda.shared.array((3, THREADS), np.float32)
+    hi = cuda.shared.array((3, THREADS), np.float32)
+    for a in range(3):
+        lo[a, t] = np.float32(np.inf)
+        hi[a, t] = np.float32(-np.inf)
+    for i in range(cuda.blockIdx.x * THREADS + t, n, cuda.gridDim.x * THREADS):
+        for a in range(3):
+            v = spheres[a, i]
+            lo[a, t] = min(lo[a, t], v)
+            hi[a, t] = max(hi[a, t], v)
+    _reduce_box(lo, hi, t, THREADS)
+    if t < 3:
+        parts[cuda.blockIdx.x, t] = lo[t, 0]
+        parts[cuda.blockIdx.x, 3 + t] = hi[t, 0]
+
+
+@compiled.cuda_jit()
+def _bounds_merge(parts, count, bounds):
+    """bounds (6,): the union of parts[0:count]; one block."""
+    t = cuda.threadIdx.x
+    lo = cuda.shared.array((3, ONE_BLOCK), np.float32)
+    hi = cuda.shared.array((3, ONE_BLOCK), np.float32)
+    for a in range(3):
+        lo[a, t] = np.float32(np.inf)
+        hi[a, t] = np.float32(-np.inf)
+    for k in range(t, count, ONE_BLOCK):
+        for a in range(3):
+            lo[a, t] = min(lo[a, t], parts[k, a])
+            hi[a, t] = max(hi[a, t], parts[k, 3 + a])
+    _reduce_box(lo, hi, t, ONE_BLOCK)
+    if t < 3:
+        bounds[t] = lo[t, 0]
+        bounds[3 + t] = hi[t, 0]
+
+
+@cuda.jit(device=True)
+def _spread(v):
+    """The 10 bits of v spread to every third bit (bit k to bit 3k)."""
+    v = (v * 0x00010001) & 0xFF0000FF
+    v = (v * 0x00000101) & 0x0F00F00F
+    v = (v * 0x00000011) & 0xC30C30C3
+    return (v * 0x00000005) & 0x49249249
+
+
+@cuda.jit(device=True)
+def _cell(c, lo, hi):
+    """The cell (0 .. AXIS_CELLS - 1) of coordinate c in [lo, hi]."""
+    if hi > lo:
+        return min(np.int64((c - lo) * (np.float32(AXIS_CELLS) / (hi - lo))), AXIS_CELLS - 1)
+    return np.int64(0)
+
+
+@compiled.cuda_jit()
+def _morton(spheres, n, bounds, keys, values):
+    """keys[i]: the Morton code of centre i in the bounds; values[i] = i."""
+    i = cuda.grid(1)
+    if i < n:
+        x = _cell(spheres[0, i], bounds[0], bounds[3])
+        y = _cell(spheres[1, i], bounds[1], bounds[4])
+        z = _cell(spheres[2, i], bounds[2], bounds[5])
+        keys[i] = np.uint32((_spread(x) << 2) | (_spread(y) << 1) | _spread(z))
+        values[i] = i
+
+
+@compiled.cuda_jit()
+def _count(keys, n, shift, hist, blocks):
+    """hist[d * blocks + b]: the keys of tile b whose digit at shift is d."""
+    b = cuda.blockIdx.x
+    t = cuda.threadIdx.x
+    h = cuda.shared.array(RADIX, np.int32)
+    for d in range(t, RADIX, SORT_THREADS):
+        h[d] = 0
+    cuda.syncthreads()
+    base = b * SORT_TILE
+    for k in range(ITEMS):
+        i = base + k * SORT_THREADS + t
+        if i < n:
+            cuda.atomic.add(h, np.int64(keys[i] >> shift) & DIGIT_MASK, 1)
+    cuda.syncthreads()
+    for d in range(t, RADIX, SORT_THREADS):
+        hist[d * blocks + b] = h[d]
+
+
+@cuda.jit(device=True)
+def _block_scan(sums, t, size):
+    """sums[0:size] to its inclusive prefix sums, in place, by the block's
+    first `size` threads (every thread of the block must call it)."""
+    step = 1
+    while step < size:
+        cuda.syncthreads()
+        v = sums[t - step] if t >= step and t < size else 0
+        cuda.syncthreads()
+        if t < size:
+            sums[t] += v
+        step *= 2
+    cuda.syncthreads()
+
+
+@compiled.cuda_jit()
+def _scan(hist, m):
+    """hist[0:m] to its exclusive prefix sums; one block, each thread a run
+    of consecutive entries."""
+    t = cuda.threadIdx.x
+    sums = cuda.shared.array(ONE_BLOCK, np.int32)
+    per = (m + ONE_BLOCK - 1) // ONE_BLOCK
+    lo = min(t * per, m)
+    hi = min(lo + per, m)
+    s = 0
+    for i in range(lo, hi):
+        s += hist[i]
+    sums[t] = s
+    _block_scan(sums, t, ONE_BLOCK)
+    run = sums[t] - s
+    for i in range(lo, hi):
+        v = hist[i]
+        hist[i] = run
+        run += v
+
+
+@compiled.cuda_jit()
+def _scatter(keys, values, n, shift, offsets, blocks, keys_out, values_out):
+    """Each key of tile b (with its value) to its place by the digit at
+    shift: offsets[d * blocks + b] (the scanned histograms) plus the keys of
+    digit d before it in the tile. Stable: thread t takes the tile's keys
+    t * ITEMS to (t + 1) * ITEMS - 1, and its place among a digit's keys
+    counts those of the threads before it."""
+    b = cuda.blockIdx.x
+    t = cuda.threadIdx.x
+    tile_k = cuda.shared.array(SORT_TILE, np.uint32)
+    tile_v = cuda.shared.array(SORT_TILE, np.int32)
+    cells = cuda.shared.array(SORT_CELLS, np.int32)  # digit-major: cells[d * SORT_THREADS + thread]
+    sums = cuda.shared.array(SORT_THREADS, np.int32)
+    start = cuda.shared.array(RADIX, np.int32)
+    base = b * SORT_TILE
+    for k in range(ITEMS):  # coalesced loads
+        j = k * SORT_THREADS + t
+        if base + j < n:
+            tile_k[j] = keys[base + j]
+            tile_v[j] = values[base + j]
+    for d in range(RADIX):
+        cells[d * SORT_THREADS + t] = 0
+    cuda.syncthreads()
+    for k in range(ITEMS):
+        j = t * ITEMS + k
+        if base + j < n:
+            cells[(np.int64(tile_k[j] >> shift) & DIGIT_MASK) * SORT_THREADS + t] += 1
+    cuda.syncthreads()
+    # cells to their exclusive prefix sums in digit-major order: each
+    # thread a run of RADIX of them, then the runs' totals scanned
+    per = SORT_CELLS // SORT_THREADS
+    s = 0
+    for c in range(t * per, (t + 1) * per):
+        s += cells[c]
+    sums[t] = s
+    _block_scan(sums, t, SORT_THREADS)
+    run = sums[t] - s
+    for c in range(t * per, (t + 1) * per):
+        v = cells[c]
+        cells[c] = run
+        run += v
+    cuda.syncthreads()
+    for d in range(t, RADIX, SORT_THREADS):
+        start[d] = cells[d * SORT_THREADS]
+    cuda.syncthreads()
+    for k in range(ITEMS):
+        j = t * ITEMS + k
+        if base + j < n:
+            d = np.int64(tile_k[j] >> shift) & DIGIT_MASK
+            c = d * SORT_THREADS + t
+            to = offsets[d * blocks + b] + cells[c] - start[d]
+            cells[c] += 1
+            keys_out[to] = tile_k[j]
+            values_out[to] = tile_v[j]
+
+
+@cuda.jit(device=True)
+def _delta(keys, n, i, j):
+    """Karras's delta: the length of the common prefix of keys i and j (code
+    bits, then place bits where the codes are equal); -1 off the ends."""
+    if j < 0 or j >= n:
+        return -1
+    a = keys[i]
+    b = keys[j]
+    if a != b:
+        return cuda.clz(np.uint32(a ^ b))
+    return 32 + cuda.clz(np.uint32(i ^ j))
+
+
+@cuda.jit(device=True)
+def _link(links, row, slot, first, count, child_row, leaf_size):
+    """Child slot of row: the leaf of its `count` spheres from `first` if
+    they are at most leaf_size, else the row child_row."""
+    if count <= leaf_size:
+        links[row, _REF + slot] = first
+        links[row, _COUNT + slot] = count
+    else:
+        links[row, _REF + slot] = child_row
+        links[row, _COUNT + slot] = _INNER
+
+
+@compiled.cuda_jit()
+def _hierarchy(keys, n, leaf_size, links, up, leaf_up, live):
+    """Internal node i (row i): the range of sorted keys it covers, where it
+    splits, and its two children (Karras 2012, figure 4). up[row] and
+    leaf_up[leaf]: the parent's row times 2 plus the child's slot (the
+    root's: -1). live[row]: 1 where a walk can reach the row (the root, and
+    rows of over leaf_size spheres: a range shrinks downwards, so all their
+    ancestors are rows too)."""
+    i = cuda.grid(1)
+    if i >= n - 1:
+        return
+    # the direction of the range: towards the neighbour sharing more bits
+    d = 1 if _delta(keys, n, i, i + 1) > _delta(keys, n, i, i - 1) else -1
+    least = _delta(keys, n, i, i - d)
+    # an upper bound of the range's length, then the length by binary search
+    most = 2
+    while _delta(keys, n, i, i + most * d) > least:
+        most *= 2
+    length = 0
+    step = most // 2
+    while step >= 1:
+        if _delta(keys, n, i, i + (length + step) * d) > least:
+            length += step
+        step //= 2
+    j = i + length * d
+    node = _delta(keys, n, i, j)
+    # the split: the last key sharing more than `node` bits with key i
+    split = 0
+    step = length
+    while True:
+        step = (step + 1) // 2
+        if _delta(keys, n, i, i + (split + step) * d) > node:
+            split += step
+        if step <= 1:
+            break
+    gamma = i + split * d + min(d, 0)
+    first = min(i, j)
+    last = max(i, j)
+    # Each child covers consecutive leaves (first..gamma, gamma+1..last): one
+    # of at most leaf_size spheres is stored as a leaf of them all. Its
+    # subtree's rows stay, out of the walks' reach, so that the bounds still
+    # climb through them (their boxes unite to the leaf's).
+    live[i] = 1 if i == 0 or last - first + 1 > leaf_size else 0
+    _link(links, i, 0, first, gamma - first + 1, gamma, leaf_size)
+    _link(links, i, 1, gamma + 1, last - gamma, gamma + 1, leaf_size)
+    if first == gamma:
+        leaf_up[gamma] = 2 * i
+    else:
+        up[gamma] = 2 * i
+    if last == gamma + 1:
+        leaf_up[gamma + 1] = 2 * i + 1
+    else:
+        up[gamma + 1] = 2 * i + 1
+    if i == 0:
+        up[0] = -1
+
+
+@compiled.cuda_jit()
+def _bounds_up(spheres, n, order, leaf_up, up, nodes, links, heights, arrived, ordered, depth):
+    """Leaf k (its sphere order[k]) climbs to the root, each row's box
+    written into its parent's slot; a row's second child to arrive (arrived
+    counts them) unites the two boxes and climbs on, and sets the counter
+    back to 0 for the next pass. heights[2 * row + slot]: the child's height
+    (a leaf 0, a row 1 + its children's most); depth[0]: the root's.
+    Also writes leaf k's sphere into ordered (the scene's values)."""
+    k = cuda.grid(1)
+    if k >= n:
+        return
+    s = order[k]
+    cx, cy, cz, r = spheres[0, s], spheres[1, s], spheres[2, s], spheres[3, s]
+    ordered[0, k] = cx
+    ordered[1, k] = cy
+    ordered[2, k] = cz
+    ordered[3, k] = r
+    pr = r + (r + (abs(cx) + abs(cy) + abs(cz))) * _PAD
+    lx, ly, lz, hx, hy, hz = cx - pr, cy - pr, cz - pr, cx + pr, cy + pr, cz + pr
+    h = 0
+    link = leaf_up[k]
+    while link >= 0:
+        row = link // 2
+        slot = link - 2 * row
+        col = slot * _BOX
+        nodes[row, col] = lx
+        nodes[row, col + 1] = ly
+        nodes[row, col + 2] = lz
+        nodes[row, col + 3] = hx
+        nodes[row, col + 4] = hy
+        nodes[row, col + 5] = hz
+        if links[row, _COUNT + slot] != _INNER:
+            h = 0  # a leaf to the walks, whatever rows it collapsed
+        heights[link] = h
+        cuda.threadfence()  # the box and height are seen before the count
+        if cuda.atomic.add(arrived, row, 1) == 0:
+            return  # the sibling, arriving second, goes on
+        other = (1 - slot) * _BOX
+        lx = min(lx, cuda.atomic.add(nodes, (row, other), np.float32(0)))
+        ly = min(ly, cuda.atomic.add(nodes, (row, other + 1), np.float32(0)))
+        lz = min(lz, cuda.atomic.add(nodes, (row, other + 2), np.float32(0)))
+        hx = max(hx, cuda.atomic.add(nodes, (row, other + 3), np.float32(0)))
+        hy = max(hy, cuda.atomic.add(nodes, (row, other + 4), np.float32(0)))
+        hz = max(hz, cuda.atomic.add(nodes, (row, other + 5), np.float32(0)))
+        h = 1 + max(h, cuda.atomic.add(heights, 2 * row + 1 - slot, np.int32(0)))
+        arrived[row] = 0
+        link = up[row]
+    depth[0] = h
+
+
+@cuda.jit(device=True)
+def _half_area(lx, ly, lz, hx, hy, hz):
+    dx, dy, dz = max(hx - lx, np.float32(0)), max(hy - ly, np.float32(0)), max(hz - lz, np.float32(0))
+    return dx * dy + dy * dz + dz * dx
+
+
+@compiled.cuda_jit()
+def _sah_parts(nodes, links, live, m, parts):
+    """tree_cost.sah_cost's sums on the device: parts[b] the SAH terms of
+    block b's live rows (NODE_COST times the row's half area, plus each leaf
+    child's count times its box's), parts[-1] the root's half area."""
+    i = cuda.grid(1)
+    t = cuda.threadIdx.x
+    acc = cuda.shared.array(THREADS, np.float32)
+    v = np.float32(0)
+    if i < m and live[i] != 0:
+        a = _half_area(
+            min(nodes[i, 0], nodes[i, 6]), min(nodes[i, 1], nodes[i, 7]), min(nodes[i, 2], nodes[i, 8]),
+            max(nodes[i, 3], nodes[i, 9]), max(nodes[i, 4], nodes[i, 10]), max(nodes[i, 5], nodes[i, 11]),
+        )  # fmt: skip
+        v = _NODE_COST * a
+        for slot in range(2):
+            count = links[i, _COUNT + slot]
+            if count > 0:
+                c = slot * _BOX
+                leaf = _half_area(
+                    nodes[i, c], nodes[i, c + 1], nodes[i, c + 2], nodes[i, c + 3], nodes[i, c + 4], nodes[i, c + 5]
+                )
+                v += np.float32(count) * leaf
+        if i == 0:
+            parts[parts.shape[0] - 1] = a
+    acc[t] = v
+    step = THREADS // 2
+    while step > 0:
+        cuda.syncthreads()
+        if t < step:
+            acc[t] += acc[t + step]
+        step //= 2
+    if t == 0:
+        parts[cuda.blockIdx.x] = acc[0]
+
+
+@dataclass
+class GpuTree:
+    """A tree on the device, in raybench.bvh's layout: what the walks read."""
+
+    nodes: object  # device (M, NODE_FLOATS) float32
+    links: object  # its int32 view
+    ordered: object  # device (4, N) float32
+    order: object  # device (N,) int32
+    count: int
+    depth: int
+    build_s: float
+    built_on: str  # "gpu", or "host" (under two spheres, or the GPU's tree too deep)
+
+    @property
+    def node_count(self) -> int:
+        return self.nodes.shape[0]
+
+    def to_host(self) -> bvh_mod.Bvh:
+        """The tree copied to the host, as raybench.bvh's Bvh (for checks and its SAH cost)."""
+        nodes = self.nodes.copy_to_host()
+        return bvh_mod.Bvh(
+            nodes=nodes,
+            links=nodes.view(np.int32),
+            ordered=self.ordered.copy_to_host()[:, : self.count],
+            order=self.order.copy_to_host()[: self.count],
+            depth=self.depth,
+            build_s=self.build_s,
+        )
+
+
+class Builder:
+    """Builds (and refits) trees of n spheres on the GPU, its device arrays
+    allocated once and reused by every build and refit: the dynamic case
+    builds every frame."""
+
+    def __init__(self, n: int, leaf_size: int = LEAF_SIZE):
+        self.n = n
+        self.leaf_size = leaf_size
+        m = max(n - 1, 1)
+        self.tiles = _blocks(n, SORT_TILE)
+        self.bounds = cuda.device_array(6, np.float32)
+        self.bound_parts = cuda.device_array((BOUNDS_BLOCKS, 6), np.float32)
+        self.keys = (cuda.device_array(max(n, 1), np.uint32), cuda.device_array(max(n, 1), np.uint32))
+        self.values = (cuda.device_array(max(n, 1), np.int32), cuda.device_array(max(n, 1), np.int32))
+        self.hist = cuda.device_array(RADIX * self.tiles, np.int32)
+        self.nodes = cuda.device_array((m, NODE_FLOATS), np.float32)
+        self.links = self.nodes.view(np.int32)
+        self.up = cuda.device_array(m, np.int64)
+        self.leaf_up = cuda.device_array(max(n, 1), np.int64)
+        self.heights = cuda.device_array(2 * m, np.int32)
+        self.arrived = cuda.to_device(np.zeros(m, np.int32))  # each pass leaves it zero
+        self.ordered = cuda.device_array((4, max(n, 1)), np.float32)
+        self.depth = cuda.device_array(1, np.int32)
+        self.live = cuda.device_array(m, np.int8)
+        self.cost_parts = cuda.device_array(_blocks(m, THREADS) + 1, np.float32)
+        # the sorted values end in the buffer of the last pass: the order
+        self.order = self.values[PASSES % 2]
+
+    def launch_build(self, spheres) -> None:
+        """Queue the build of the first n spheres of the device array spheres
+        (7, >= n); nothing waits."""
+        self.launch_codes(spheres)
+        self.launch_sort()
+        self.launch_hierarchy()
+        self.launch_refit(spheres)
+
+    # The steps of a build, apart so that a benchmark can time each.
+
+    def launch_codes(self, spheres) -> None:
+        """Steps 1 and 2: the centres' bounds, then each one's Morton code."""
+        parts = min(_blocks(self.n, THREADS), BOUNDS_BLOCKS)
+        _bounds_parts[parts, THREADS](spheres, self.n, self.bound_parts)
+        _bounds_merge[1, ONE_BLOCK](self.bound_parts, parts, self.bounds)
+        _morton[_blocks(self.n, THREADS), THREADS](spheres, self.n, self.bounds, self.keys[0], self.values[0])
+
+    def launch_sort(self) -> None:
+        """Step 3: the (code, index) pairs sorted by code, stably."""
+        for p in range(PASSES):
+            src, dst = p % 2, 1 - p % 2
+            shift = p * DIGIT_BITS
+            _count[self.tiles, SORT_THREADS](self.keys[src], self.n, shift, self.hist, self.tiles)
+            _scan[1, ONE_BLOCK](self.hist, RADIX * self.tiles)
+            _scatter[self.tiles, SORT_THREADS](
+                self.keys[src], self.values[src], self.n, shift, self.hist, self.tiles, self.keys[dst], self.values[dst]
+            )
+
+    def launch_hierarchy(self) -> None:
+        """Step 4: the rows' links from the sorted codes."""
+        _hierarchy[_blocks(self.n - 1, THREADS), THREADS](
+            self.keys[PASSES % 2], self.n, self.leaf_size, self.links, self.up, self.leaf_up, self.live
+        )
+
+    def launch_refit(self, spheres) -> None:
+        """Queue the boxes of the tree's rows recomputed from the spheres'
+        positions now (the tree's shape kept); nothing waits."""
+        _bounds_up[_blocks(self.n, THREADS), THREADS](
+            spheres, self.n, self.order, self.leaf_up, self.up, self.nodes, self.links, self.heights, self.arrived,
+            self.ordered, self.depth,
+        )  # fmt: skip
+
+    def read_cost(self) -> float:
+        """The tree's SAH cost (tree_cost.sah_cost's, summed on the device in
+        float32; waits for the queued work)."""
+        m = self.nodes.shape[0]
+        _sah_parts[_blocks(m, THREADS), THREADS](self.nodes, self.links, self.live, m, self.cost_parts)
+        parts = self.cost_parts.copy_to_host().astype(np.float64)
+        return float(parts[:-1].sum() / parts[-1]) if parts[-1] > 0 else 0.0
+
+    def read_depth(self) -> int:
+        """The tree's depth (waits for the queued work)."""
+        return int(self.depth.copy_to_host()[0])
+
+    def tree(self, depth: int, build_s: float) -> GpuTree:
+        return GpuTree(self.nodes, self.links, self.ordered, self.order, self.n, depth, build_s, "gpu")
+
+
+def upload(b: bvh_mod.Bvh) -> GpuTree:
+    """A host-built tree on the device."""
+    nodes = cuda.to_device(b.nodes)
+    return GpuTree(
+        nodes,
+        nodes.view(np.int32),
+        cuda.to_device(b.ordered if b.count else np.zeros((4, 1), np.float32)),
+        cuda.to_device(b.order if b.count else np.zeros(1, np.int32)),
+        b.count,
+        b.depth,
+        b.build_s,
+        "host",
+    )
+
+
+def build(spheres: np.ndarray, d_spheres, builder: Builder | None = None, max_depth: int = MAX_DEPTH) -> GpuTree:
+    """The tree of the (7, N) spheres, whose copy on the device is d_spheres,
+    built on the GPU (with `builder`'s arrays if given, for N spheres), or on
+    the host where the GPU has nothing to build (N < 2) or its tree is deeper
+    than max_depth. build_s: from the first launch to the tree ready to walk."""
+    n = spheres.shape[1]
+    if n < 2:
+        return upload(bvh_mod.build(spheres))
+    start = time.perf_counter()
+    builder = builder if builder is not None and builder.n == n else Builder(n)
+    builder.launch_build(d_spheres)
+    depth = builder.read_depth()
+    if depth > max_depth:
+        return upload(bvh_mod.build(spheres))
+    return builder.tree(depth, time.perf_counter() - start)

@@ -1,0 +1,265 @@
+"""The BVH built on the GPU (backends.cuda_build): a valid tree in the layout
+every walk reads, its sort checked against NumPy's, and walks through it that
+give the brute force's hits. Under numba's simulator where there is no GPU
+(scenes of tens of spheres: every simulated thread is a Python thread)."""
+
+import numpy as np
+import pytest
+from scenes import IN_VIEW, SCENES
+from test_bvh import brute, check_tree
+
+import raybench
+from raybench import bvh, layout, tree_cost
+from raybench.backends import cuda as cuda_backend
+
+pytestmark = [
+    pytest.mark.gpu,
+    pytest.mark.skipif(not cuda_backend.available(), reason="no CUDA GPU and the simulator is off"),
+]
+
+
+def sim() -> bool:
+    return cuda_backend.simulated()
+
+
+def small(rng) -> int:
+    return int(rng.integers(2, 33 if sim() else 5000))
+
+
+def gpu_tree(spheres, leaf_size=None, **options):
+    from numba import cuda
+
+    from raybench.backends import cuda_build
+
+    n = spheres.shape[1]
+    builder = cuda_build.Builder(n, leaf_size) if leaf_size is not None and n >= 2 else None
+    return cuda_build.build(spheres, cuda.to_device(spheres), builder, **options)
+
+
+def morton_reference(spheres) -> np.ndarray:
+    """Each centre's 30-bit Morton code in the centres' box, bit by bit:
+    10 bits an axis, x highest."""
+    n = spheres.shape[1]
+    cells = np.zeros((3, n), np.int64)
+    for a in range(3):
+        c = spheres[a]
+        lo, hi = c.min(), c.max()
+        if hi > lo:
+            cells[a] = np.minimum(((c - lo) * (np.float32(1024) / (hi - lo))).astype(np.int64), 1023)
+    code = np.zeros(n, np.int64)
+    for b in range(10):
+        for a in range(3):
+            code |= ((cells[a] >> b) & 1) << (3 * b + 2 - a)
+    return code
+
+
+@pytest.mark.parametrize("kind", ["generated", "cloud", "one_point", "duplicates", "line", "chain"])
+def test_gpu_tree_is_valid(rng, kind):
+    """Every sphere in one leaf, each box around its spheres' padded boxes
+    and inside its parent's, the depth reported being the tree's; leaves of
+    up to leaf_size spheres, and none of more."""
+    scene, _ = SCENES[kind](rng, small(rng))
+    leaf_size = int(rng.integers(1, bvh.LEAF_MAX + 1))
+    tree = gpu_tree(scene.spheres, leaf_size)
+    assert tree.built_on == ("gpu" if len(scene) >= 2 else "host")
+    host = tree.to_host()
+    check_tree(host, scene.spheres)
+    assert tree.node_count == max(len(scene) - 1, 1)  # Karras's internal nodes, collapsed ones kept
+    counts = host.links[:, layout.COUNT : layout.COUNT + 2]
+    assert counts.max() <= leaf_size
+
+
+def test_sort_is_stable_by_morton_code(rng):
+    """The leaf order is the spheres sorted by their Morton codes, equal codes
+    in index order: NumPy's stable argsort of the reference codes. Codes
+    made to collide often (centres on a coarse grid)."""
+    from numba import cuda
+
+    from raybench.backends import cuda_build
+
+    n = small(rng)
+    scene, _ = SCENES["generated"](rng, n)
+    spheres = scene.spheres.copy()
+    spheres[:3] = np.round(spheres[:3] * rng.uniform(0.5, 4)) / 2  # many shared cells
+    builder = cuda_build.Builder(n)
+    builder.launch_build(cuda.to_device(spheres))
+    want = np.argsort(morton_reference(spheres), kind="stable")
+    assert np.array_equal(builder.order.copy_to_host(), want)
+    keys = builder.keys[cuda_build.PASSES % 2].copy_to_host()
+    assert np.array_equal(keys, morton_reference(spheres)[want])
+
+
+def test_one_point_is_log2_deep(rng):
+    """All centres equal: one Morton code, told apart by place alone; the
+    tree over the places is balanced."""
+    n = small(rng)
+    scene, _ = SCENES["one_point"](rng, n)
+    tree = gpu_tree(scene.spheres, leaf_size=1)
+    assert tree.depth == int(np.ceil(np.log2(n)))
+    check_tree(tree.to_host(), scene.spheres)
+
+
+def test_too_deep_falls_back_to_the_host_build(rng):
+    """A tree deeper than the walks' stack allows is replaced by the host's,
+    whose depth is bounded (here the bound made small: no scene the
+    simulator can build is 48 deep)."""
+    scene, _ = SCENES["generated"](rng, int(rng.integers(10, 24)))
+    deep = gpu_tree(scene.spheres)
+    tree = gpu_tree(scene.spheres, max_depth=deep.depth - 1)
+    assert tree.built_on == "host"
+    host = bvh.build(scene.spheres)
+    got = tree.to_host()
+    assert np.array_equal(got.links, host.links) and np.array_equal(got.order, host.order)
+
+
+@pytest.mark.parametrize(
+    "kind", ["generated", "inside", "overlapping", "one_point", "duplicates", "line", "one", "none"]
+)
+def test_gpu_tree_walks_give_the_brute_force(rng, kind):
+    """Both walks on the GPU's tree: the brute force's hits, bit for bit under
+    the simulator, within rounding on a GPU (its compiler may fuse
+    multiply-adds; test_bvh's CUDA test says the same)."""
+    scene, camera = SCENES[kind](rng, small(rng))
+    width, height = (19, 13) if sim() else (643, 401)
+    walk = str(rng.choice(cuda_backend.WALKS))
+    gpu = raybench.render(scene, camera, width, height, device="cuda", build="gpu", walk=walk, block=(8, 4))
+    cpu = brute(scene, camera, width, height)
+    if sim():
+        assert np.array_equal(gpu.hits, cpu.hits) and np.array_equal(gpu.image, cpu.image)
+    else:
+        assert (gpu.hits != cpu.hits).mean() < 1e-3
+    if kind in ("one_point", "one") or (kind in IN_VIEW and len(scene) >= 100):  # not vacuous: a hit
+        assert (cpu.hits >= 0).any()
+
+
+def test_sphere_prefix_builds_its_own_tree_on_the_gpu(rng):
+    """A frame of the first `count` spheres (the viewer's live count), its
+    tree built on the GPU from the spheres already there."""
+    scene, camera = SCENES["generated"](rng, 30)
+    with raybench.backends.tracer("cuda", scene.spheres, 19, 13, build="gpu") as tracer:
+        for count in (int(rng.integers(2, 29)), 1, 0):
+            tracer.trace(camera.basis(19, 13), count)
+            want = brute(scene.head(count), camera, 19, 13)
+            assert tracer.bvh.count == count
+            assert np.array_equal(tracer.hits, want.hits) and np.array_equal(tracer.image, want.image)
+
+
+@pytest.mark.parametrize(
+    "options,match",
+    [
+        ({"build": "sideways"}, "build: must be one of host, gpu, got 'sideways'"),
+        ({"build": "gpu", "accel": "none"}, "build: applies to the BVH only"),
+    ],
+)
+def test_bad_build_options(options, match):
+    with pytest.raises(raybench.RaybenchError, match=match):
+        raybench.render(raybench.random_spheres(3), width=8, height=8, device="cuda", **options)
+
+
+def test_build_is_an_option_of_cuda_only():
+    with pytest.raises(raybench.RaybenchError, match="option 'build' does not apply to device cpu"):
+        raybench.render(raybench.random_spheres(3), width=8, height=8, device="cpu", build="host")
+
+
+def test_sah_cost_of_a_tree_by_hand():
+    """tree_cost.sah_cost against a tree worked out by hand. Row 0: a leaf of
+    2 spheres in [0,1]^3 and a row in [2,3]x[0,1]x[0,1]; row 1: a leaf of 1
+    in [2,3]x[0,1]x[0,0.5] and an empty child. Half areas (dx dy + dy dz +
+    dz dx): root 7, leaf 3, row 1 2, its leaf 2; so (2 * 7 + 2 * 3 + 2 * 2 +
+    1 * 2) / 7 with a node costing 2 sphere tests."""
+    nodes = np.zeros((2, layout.NODE_FLOATS), np.float32)
+    links = nodes.view(np.int32)
+    nodes[0, 0:6] = [0, 0, 0, 1, 1, 1]
+    nodes[0, 6:12] = [2, 0, 0, 3, 1, 1]
+    links[0, layout.REF : layout.REF + 2] = [0, 1]
+    links[0, layout.COUNT : layout.COUNT + 2] = [2, layout.INNER]
+    nodes[1, 0:6] = [2, 0, 0, 3, 1, 0.5]
+    nodes[1, 6:9], nodes[1, 9:12] = layout.EMPTY, -layout.EMPTY
+    links[1, layout.REF : layout.REF + 2] = [2, 3]
+    links[1, layout.COUNT : layout.COUNT + 2] = [1, 0]
+    assert tree_cost.sah_cost(nodes) == pytest.approx(26 / 7)
+    # a row no walk reaches (cuda_build leaves collapsed subtrees' rows) adds nothing
+    dead = np.concatenate([nodes, nodes[:1] * 100])
+    assert tree_cost.sah_cost(dead) == pytest.approx(26 / 7)
+
+
+# --- spheres that move: refit, or rebuild ------------------------------------
+
+
+def moved(rng, spheres, scale):
+    """The spheres with their centres moved by up to scale radii."""
+    out = spheres.copy()
+    out[:3] += (rng.uniform(-1, 1, (3, spheres.shape[1])) * spheres[3] * scale).astype(np.float32)
+    return out
+
+
+def test_device_sah_cost_is_tree_costs(rng):
+    """Builder.read_cost, summed on the device over the rows a walk reaches,
+    against tree_cost.sah_cost on the tree copied back: fresh, then refitted
+    to moved spheres."""
+    from numba import cuda
+
+    from raybench.backends import cuda_build
+
+    scene, _ = SCENES["generated"](rng, small(rng))
+    builder = cuda_build.Builder(len(scene), int(rng.integers(1, 5)))
+    d_spheres = cuda.to_device(scene.spheres)
+    builder.launch_build(d_spheres)
+    tree = builder.tree(builder.read_depth(), 0.0)
+    assert builder.read_cost() == pytest.approx(tree_cost.sah_cost(tree.to_host().nodes), rel=1e-5)
+    spheres = moved(rng, scene.spheres, 3.0)
+    d_spheres.copy_to_device(spheres)
+    builder.launch_refit(d_spheres)
+    refitted = tree.to_host()
+    check_tree(refitted, spheres)
+    assert builder.read_cost() == pytest.approx(tree_cost.sah_cost(refitted.nodes), rel=1e-5)
+
+
+@pytest.mark.parametrize("limit,want", [(np.inf, "refit"), (0.0, "build")])
+def test_update_refits_within_the_limit_and_rebuilds_past_it(rng, monkeypatch, limit, want):
+    """Tracer.update: a refit keeps the tree's rows (its links), a rebuild
+    makes new ones; either way the frame is the brute force's of the moved
+    spheres."""
+    from raybench.backends import cuda_build
+
+    monkeypatch.setattr(cuda_build, "REFIT_LIMIT", limit)
+    scene, camera = SCENES["generated"](rng, int(rng.integers(10, 30)))
+    with raybench.backends.tracer("cuda", scene.spheres, 19, 13, build="gpu") as tracer:
+        before = tracer.d_links.copy_to_host()[:, layout.REF :]  # the rows' links, not their boxes
+        spheres = moved(rng, scene.spheres, 2.0)
+        assert tracer.update(spheres) == want
+        assert tracer.build_s > 0
+        tracer.trace(camera.basis(19, 13))
+        if want == "refit":
+            assert np.array_equal(tracer.d_links.copy_to_host()[:, layout.REF :], before)
+        want_frame = brute(raybench.Scene(spheres[:3].T, spheres[3], spheres[4:].T), camera, 19, 13)
+        assert np.array_equal(tracer.hits, want_frame.hits) and np.array_equal(tracer.image, want_frame.image)
+
+
+def test_update_of_a_host_tree_rebuilds_it_and_checks_its_input(rng):
+    scene, camera = SCENES["generated"](rng, 30)
+    with raybench.backends.tracer("cuda", scene.spheres, 19, 13, build="host") as tracer:
+        spheres = moved(rng, scene.spheres, 2.0)
+        assert tracer.update(spheres) == "build"
+        tracer.trace(camera.basis(19, 13))
+        want = brute(raybench.Scene(spheres[:3].T, spheres[3], spheres[4:].T), camera, 19, 13)
+        assert np.array_equal(tracer.hits, want.hits)
+        with pytest.raises(raybench.RaybenchError, match=r"update: spheres must be a \(7, 30\) float32 array"):
+            tracer.update(spheres[:, :10])
+
+
+def test_walk_is_chosen_by_the_rows_a_walk_reaches(rng):
+    """The GPU's tree keeps its collapsed subtrees' rows; the walk's choice
+    (cuda.choose_walk, by the tree's bytes) counts only those a walk reaches
+    from the root, counted here on the tree copied back."""
+    scene, _ = SCENES["generated"](rng, small(rng))
+    with raybench.backends.tracer("cuda", scene.spheres, 8, 8, build="gpu") as tracer:
+        host = tracer.bvh.to_host()
+        reached, todo = 0, [0]
+        while todo:
+            row = todo.pop()
+            reached += 1
+            for slot in range(2):
+                if host.links[row, layout.COUNT + slot] == layout.INNER:
+                    todo.append(int(host.links[row, layout.REF + slot]))
+        assert tracer._rows_walked() == reached
