@@ -47,7 +47,7 @@ from .limits import (
 
 MAX_THREADS = 4096
 
-_k = kernels.build(numba.njit(inline="always"))
+_k = kernels.build(numba.njit(inline="always"), call=numba.njit(nogil=True))
 # module globals, which is how jitted code can see them
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
 _prepare_one, _may_hit, _intersect_relative = _k.prepare, _k.may_hit, _k.intersect_relative

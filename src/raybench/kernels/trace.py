@@ -21,8 +21,9 @@ FAR = np.float32(3.0e38)
 
 def build(jit, call=None):
     """The algorithm compiled with `jit`; a namespace of its functions.
-    call: the decorator of Whitted shading's large functions (default jit),
-    which a CPU compiles as calls rather than inlined copies."""
+    call: the decorator of Whitted shading's search for a ray's hit (default
+    jit), which the CPU compiles as one function called from both of its call
+    sites rather than as two inlined copies of the walk (whitted.build)."""
     call = call or jit
     intersect_relative, intersect_sphere, prepare_sphere, may_hit, along, intersect_ahead = intersect.build(jit)
     shade_hit, shade_miss, to_byte = shade.build(jit)
@@ -137,7 +138,7 @@ def build(jit, call=None):
     def whitted_program(search):
         whitted_pixel = whitted.build(jit, call, search, shade_hit, shade_miss)
 
-        @call
+        @jit
         def render_pixel_whitted(x, y, width, height, basis, spheres, count, materials, lights, pattern, params, tree,
                                  stack_row, stack_t, rays_f, rays_i, image, hits):  # fmt: skip
             """render_pixel under Whitted shading (kernels/whitted.py); returns

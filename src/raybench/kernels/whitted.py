@@ -88,6 +88,11 @@ def build(jit, call, search, shade_hit, shade_miss):
     any ray: through the tree or over every sphere (trace.search_tree and
     search_all), one program for each, so neither carries the other's code."""
 
+    # `find` is the program's one call boundary on the CPU (call: a plain
+    # numba.njit there; every other function is inlined into the kernel): the
+    # walk inlined at both of find's call sites, the shadow rays' and the
+    # others', made the kernel about twice as long to compile for the same
+    # frame time (docs/performance.md, "Time to the first picture").
     @call
     def find(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, spheres, count, tree, stack_row, stack_t):
         """The nearest sphere (or, any_hit, any) with 0 < t < t_max along a
@@ -111,7 +116,7 @@ def build(jit, call, search, shade_hit, shade_miss):
         rays_i[top, 3] = inside
         return top + 1
 
-    @call
+    @jit
     def local_light(px, py, pz, nx, ny, nz, vx, vy, vz, i, inside, spheres, count, materials, lights, pattern, params,
                     tree, stack_row, stack_t):  # fmt: skip
         """The hit's diffuse (ambient and Lambert) and specular (Phong) light,
@@ -166,7 +171,7 @@ def build(jit, call, search, shade_hit, shade_miss):
                         sb += cb * glint
         return dr, dg, db, sr, sg, sb, shadows
 
-    @call
+    @jit
     def whitted_pixel(x, y, width, height, basis, primary_ray, spheres, count, materials, lights, pattern, params,
                       tree, stack_row, stack_t, rays_f, rays_i):  # fmt: skip
         """Colour (rgb, unclamped), primary hit and the rays cast by kind for
