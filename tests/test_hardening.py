@@ -200,7 +200,9 @@ def test_disk_full_keeps_the_old_file(tmp_path, monkeypatch):
 
 def test_file_size_limit_in_a_real_process_keeps_the_old_file(tmp_path):
     """ulimit -f: the kernel refuses the write (EFBIG) part way through the PNG;
-    the CLI prints one line and the old picture is kept."""
+    the CLI prints one line and the old picture is kept. The compile cache
+    starts empty, so its writes are refused first: the render goes on
+    without it (raybench.compiled)."""
     out = tmp_path / "x.png"
     out.write_bytes(b"old picture")
 
@@ -213,7 +215,12 @@ def test_file_size_limit_in_a_real_process_keeps_the_old_file(tmp_path):
         preexec_fn=limit,
         capture_output=True,
         text=True,
-        env=dict(os.environ, PYTHONPATH=SRC, NUMBA_CACHE_DIR=str(tmp_path / "numba-cache")),
+        env=dict(
+            os.environ,
+            PYTHONPATH=SRC,
+            NUMBA_CACHE_DIR=str(tmp_path / "numba-cache"),
+            RAYBENCH_CACHE_DIR=str(tmp_path / "raybench-cache"),
+        ),
         timeout=300,
         cwd=tmp_path,
     )

@@ -50,11 +50,32 @@ def _in_cache(decorator):
         old = numba.config.CACHE_DIR
         numba.config.CACHE_DIR = str(CACHE_DIR)
         try:
-            return decorator(f)
+            return _tolerant(decorator(f))
         finally:
             numba.config.CACHE_DIR = old
 
     return decorate
+
+
+def _tolerant(dispatcher):
+    """The dispatcher, its cache made an optimisation only: where the machine
+    code cannot be written (a full disk, a quota, ulimit -f) Numba raises
+    from inside the first call; then the call goes on with the code compiled,
+    and the next process compiles again. (Numba leaves no partial file: it
+    writes through a temporary one and removes it on error.)"""
+    cache = getattr(dispatcher, "_cache", None)
+    save = getattr(cache, "save_overload", None)
+    if save is None:  # numba's CUDA simulator caches nothing
+        return dispatcher
+
+    def save_overload(sig, data):
+        try:
+            save(sig, data)
+        except OSError:
+            pass
+
+    cache.save_overload = save_overload
+    return dispatcher
 
 
 def njit(**options):
