@@ -657,3 +657,66 @@ def test_cgroup_memory_limit_is_read(tmp_path, version):
     assert _cgroup_headroom(str(tmp_path), str(proc)) is None
     (folder / usage).unlink()
     assert _cgroup_headroom(str(tmp_path), str(proc)) is None  # unreadable: no limit known
+
+
+# --- a device failing in the middle of a run --------------------------------------------------
+
+
+def _device_errors():
+    """Errors as the device libraries raise them: wgpu's, and numba-cuda's driver's."""
+    import wgpu
+    from numba.cuda.cudadrv import driver
+
+    yield wgpu.GPUError("Parent device is lost")
+    yield driver.CudaAPIError(700, "Call to cuLaunchKernel results in CUDA_ERROR_ILLEGAL_ADDRESS")
+
+
+@pytest.mark.parametrize("error", list(_device_errors()), ids=lambda e: type(e).__name__)
+def test_bench_device_failing_mid_run_keeps_the_finished_points(capsys, tmp_path, monkeypatch, error):
+    from raybench.bench import runner
+
+    measure, calls = runner.measure, []
+
+    def failing_second(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            raise error
+        return measure(*args, **kwargs)
+
+    monkeypatch.setattr(runner, "measure", failing_second)
+    out_dir = tmp_path / "out"
+    argv = ["bench", "--quick", "--device", "cpu", "--suite", "thesis", "--accel", "bvh", "--duration", "0.05"]
+    code = run([*argv, "--out", str(out_dir), "--no-report"])
+    out, err = capsys.readouterr()
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert "the device failed" in err and type(error).__name__ in err and "1 finished points are in" in err, err
+    (path,) = out_dir.glob("results-*.jsonl")
+    (record,) = results.read(path)
+    assert record["spheres"] == 100
+
+
+@pytest.mark.parametrize("error", list(_device_errors()), ids=lambda e: type(e).__name__)
+def test_render_device_failing_is_one_line_and_writes_nothing(capsys, tmp_path, monkeypatch, error):
+    render_mod = sys.modules["raybench.render"]
+
+    def failing(*args, **kwargs):
+        raise error
+
+    monkeypatch.setattr(render_mod, "render", failing)
+    before = tree(tmp_path)
+    code = run(["render", "--spheres", "3", "--size", "8x6", "--device", "cpu", "-o", str(tmp_path / "x.png")])
+    out, err = capsys.readouterr()
+    assert code == 2 and err.count("\n") == 1 and "the device failed" in err and "Traceback" not in err, err
+    assert tree(tmp_path) == before
+
+
+def test_a_bug_is_not_told_as_a_device_failure(monkeypatch, tmp_path):
+    """Only the device libraries' errors become one line: raybench's own bugs keep their traceback."""
+    render_mod = sys.modules["raybench.render"]
+
+    def buggy(*args, **kwargs):
+        raise IndexError("a bug")
+
+    monkeypatch.setattr(render_mod, "render", buggy)
+    with pytest.raises(IndexError):
+        run(["render", "--spheres", "3", "--size", "8x6", "--device", "cpu", "-o", str(tmp_path / "x.png")])

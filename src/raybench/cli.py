@@ -17,7 +17,7 @@ import click
 
 from . import __version__
 from .backends.limits import ACCELS, BUILDS, KERNELS
-from .errors import RaybenchError, one_line
+from .errors import RaybenchError, device_failure, one_line
 from .files import check_writable
 from .lighting import SHADINGS
 
@@ -715,6 +715,16 @@ def bench(suites, devices, adapter, kernels, accels, builds, duration, quick, ou
     with ResultsWriter(results_path) as writer:
         try:
             runner.run(points, writer, info, duration, seed, progress=sys.stderr.isatty())
+        except Exception as exc:
+            failure = device_failure(exc)
+            if failure is None:
+                raise
+            kept = (
+                f"the {writer.count} finished points are in {results_path}"
+                if writer.count
+                else "no point had finished; no results were written"
+            )
+            raise RaybenchError(f"{failure}; {kept}") from None
         except KeyboardInterrupt:
             click.echo(
                 f"raybench: interrupted; the {writer.count} finished points are in {results_path} "
@@ -846,6 +856,12 @@ def run(argv=None) -> int:
     except KeyboardInterrupt:
         click.echo("raybench: interrupted", err=True)
         return 130
+    except Exception as exc:
+        failure = device_failure(exc)
+        if failure is None:
+            raise
+        click.echo(f"raybench: error: {one_line(failure)}; the run was stopped", err=True)
+        return 2
     return 0
 
 

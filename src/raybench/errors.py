@@ -6,6 +6,23 @@ class RaybenchError(ValueError):
     was wrong and what is allowed. The CLI prints it and exits with code 2."""
 
 
+# The libraries that drive the devices: an exception raised from one of them
+# in the middle of a run (a GPU lost, out of memory, a driver reset) is the
+# device failing, not raybench's bug, and is told in one line (cli.run).
+DEVICE_LIBRARIES = ("numba.cuda", "numba_cuda", "wgpu")
+
+
+def device_failure(exc: BaseException) -> str | None:
+    """One line naming the device's failure, where exc comes from a device
+    library (DEVICE_LIBRARIES); else None (any other exception is a bug and
+    keeps its traceback)."""
+    module = type(exc).__module__ or ""
+    if not any(module == lib or module.startswith(lib + ".") for lib in DEVICE_LIBRARIES):
+        return None
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return f"the device failed ({type(exc).__name__}: {text[:300]})"
+
+
 def shown(value, limit: int = 60) -> str:
     """value as a message shows it: NumPy scalars and arrays as the plain
     Python numbers and lists they hold (-1.0, not np.float64(-1.0)), cut to
