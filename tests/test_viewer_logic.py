@@ -681,9 +681,11 @@ def test_frame_stats_for_frames_slower_than_a_second():
 # --------------------------------------------------------------------------- the tracing thread
 
 
-def run_worker(requests, timeout=120):
+def run_worker(requests, timeout=600):
     """Trace requests one after another through a TraceWorker, as the window
-    does (submit, wait for on_done, take); the results."""
+    does (submit, wait for on_done, take); the results. timeout: a guard
+    against a hang only, so it allows a cold compile on a slow, busy machine
+    (over 120 s was seen on CI's 2 cores)."""
     done = threading.Event()
     worker = TraceWorker(on_done=done.set)
     results = []

@@ -53,9 +53,8 @@ def vulkan_adapter():
     return vulkan[0]
 
 
-@pytest.fixture(scope="session")
-def display(vulkan_adapter):
-    """A fresh Xvfb server for this session; DISPLAY points at it meanwhile."""
+def start_xvfb() -> tuple[subprocess.Popen, int]:
+    """A fresh Xvfb server on the first free display from :91: (its process, the number)."""
     xvfb = shutil.which("Xvfb")
     if xvfb is None:
         unavailable("Xvfb is not installed (on Debian: apt-get install xvfb)")
@@ -76,6 +75,13 @@ def display(vulkan_adapter):
         proc.wait()
     else:
         pytest.fail("Xvfb did not start on any display from :91 to :199")
+    return proc, number
+
+
+@pytest.fixture(scope="session")
+def display(vulkan_adapter):
+    """A fresh Xvfb server for this session; DISPLAY points at it meanwhile."""
+    proc, number = start_xvfb()
     previous = os.environ.get("DISPLAY")
     os.environ["DISPLAY"] = f":{number}"
     try:
@@ -840,3 +846,36 @@ def test_cli_view_animate_shows_its_frames(display, capsys, tmp_path, monkeypatc
     out, err = capsys.readouterr()
     assert code == 0, err
     assert out.startswith("showed 3 frames; the last: 40x30, 5 spheres, cpu")
+
+
+def test_losing_the_display_is_one_line_and_exit_2(vulkan_adapter, tmp_path):
+    """The X server killed under an open window: one line of raybench's and exit
+    2, where Xlib alone prints its own two and exits 1."""
+    xvfb, number = start_xvfb()
+    runtime = tmp_path / "runtime"
+    runtime.mkdir(mode=0o700)
+    env = dict(os.environ, DISPLAY=f":{number}", XDG_RUNTIME_DIR=str(runtime))
+    view = subprocess.Popen(
+        [sys.executable, "-m", "raybench", "view", "--spheres", "20", "--size", "96x64", "--device", "cpu"]
+        + ["--frames", "100000000"],
+        cwd=tmp_path,
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        shown = subprocess.run(
+            ["xdotool", "search", "--sync", "--name", "raybench"], env=env, capture_output=True, timeout=240
+        )
+        assert shown.returncode == 0 and view.poll() is None, shown
+        xvfb.kill()
+        xvfb.wait()
+        err = view.communicate(timeout=60)[1]
+    finally:
+        view.kill()
+        xvfb.kill()
+    assert view.returncode == 2, err
+    assert err.splitlines() == [
+        f"raybench: error: the window's display :{number} was lost (its X server closed the connection)"
+    ], err

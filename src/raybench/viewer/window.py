@@ -23,6 +23,8 @@ MIN_FPS times a second keeps the title's numbers and messages current.
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import datetime
 import os
 import re
@@ -32,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import RaybenchError
+from ..errors import RaybenchError, one_line
 from ..files import write_atomic
 from ..render import png_bytes
 from .bindings import help_lines
@@ -61,6 +63,34 @@ def check_display() -> None:
     if not ok:
         reason = "; ".join(_glfw_message(w.message) for w in caught) or "glfw.init() failed"
         raise RaybenchError(f"no display: cannot open a window ({reason}); {SUGGEST}")
+    _one_line_on_lost_display()
+
+
+# Xlib's own answer to losing the X server under an open window (the server
+# killed, the connection cut) is two lines of its own and exit(1), from inside
+# whatever Xlib call notices. This handler says it in raybench's one line and
+# exits 2 instead. It must not return: Xlib exits when it does. Nothing is
+# left half-written: every output is written atomically (raybench.files).
+_io_handler = None
+
+
+def _one_line_on_lost_display() -> None:
+    global _io_handler
+    if _io_handler is not None or not os.environ.get("DISPLAY"):
+        return
+    try:
+        x11 = ctypes.CDLL(ctypes.util.find_library("X11") or "libX11.so.6")
+    except OSError:  # no Xlib (Wayland alone): nothing to answer for
+        return
+    display = os.environ["DISPLAY"]
+
+    def lost(_connection) -> int:
+        line = f"raybench: error: the window's display {display} was lost (its X server closed the connection)\n"
+        os.write(2, one_line(line.rstrip("\n")).encode() + b"\n")
+        os._exit(2)
+
+    _io_handler = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p)(lost)
+    x11.XSetIOErrorHandler(_io_handler)
 
 
 def _glfw_message(warning) -> str:
