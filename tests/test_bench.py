@@ -152,7 +152,7 @@ def _bench_subprocess(out, *extra):
     )
 
 
-def _wait_for_lines(folder, n, proc, timeout=120):
+def _wait_for_lines(folder, n, proc, timeout=600):
     deadline = time.time() + timeout
     while time.time() < deadline:
         files = list(folder.glob("*.jsonl"))

