@@ -10,22 +10,27 @@ unmapped when the last of those arrays is garbage-collected.
 
 A worker on another host, or in another container, finds no block of that
 name (the name carries 64 random bits, so it is no other job's either) and
-write_rows says so; its task then sends its rows as before.
+write_rows says so; its task then sends its rows as before. So does one
+where /dev/shm has no room left for its rows.
 """
 
 from __future__ import annotations
 
 import contextlib
+import mmap
 import os
 import secrets
 import weakref
-from multiprocessing import resource_tracker
 from multiprocessing.shared_memory import SharedMemory
 
 import numpy as np
 
 PREFIX = "raybench-"  # every block's name starts so (tests look for leftovers by it)
 _ALIGN = 64  # the hits start on a cache line
+# Where Linux keeps POSIX shared memory, a file a block: workers open their
+# client's block here. Elsewhere every tile is sent (write_rows says False).
+SHM_DIR = "/dev/shm"
+_POPULATE = getattr(mmap, "MAP_POPULATE", 0)  # Linux
 
 
 def _layout(width: int, height: int) -> tuple[int, int]:
@@ -45,13 +50,13 @@ def _views(buf, width: int, height: int) -> tuple[np.ndarray, np.ndarray, np.nda
 
 
 def _room(size: int) -> bool:
-    """Whether /dev/shm (where Linux keeps the blocks) has size bytes free. A
-    block is created sparse: were the room short, a worker's write would die
-    of SIGBUS, and Dask would retry it until the job failed."""
+    """Whether /dev/shm has size bytes free: a block is sparse, and one that
+    would not fit is better not begun. Without /dev/shm (not Linux) the
+    workers could not open a block by its file, so none is made."""
     try:
-        stat = os.statvfs("/dev/shm")
-    except OSError:  # not Linux: the system has no such file system to fill
-        return True
+        stat = os.statvfs(SHM_DIR)
+    except OSError:
+        return False
     return stat.f_bavail * stat.f_frsize >= size
 
 
@@ -83,7 +88,7 @@ class SharedFrame:
 
 def create(width: int, height: int) -> SharedFrame | None:
     """A SharedFrame, or None where this host cannot give one (no room in
-    /dev/shm, no shared memory at all): the caller assembles as before."""
+    /dev/shm, or no /dev/shm): the caller assembles as before."""
     if not _room(_layout(width, height)[1]):
         return None
     try:
@@ -95,29 +100,51 @@ def create(width: int, height: int) -> SharedFrame | None:
 def write_rows(address: tuple[str, int, int], first: int, image: np.ndarray, hits: np.ndarray) -> bool:
     """Rows first.. of the frame at address (SharedFrame.address) written
     from image and hits; False, and nothing written, where this process
-    cannot open the block (another host) or it is not a frame of this size.
-    Writing the same rows again writes the same bytes (a retried task)."""
+    cannot open the block (another host, another container, not Linux) or
+    it has no room. Writing the same rows again writes the same bytes (a
+    retried task)."""
     name, width, height = address
+    offset, size = _layout(width, height)
+    rows = len(image)
+    if not (0 <= first and first + rows <= height and image.shape == (rows, width, 3) and hits.shape == (rows, width)):
+        raise ValueError(
+            f"rows {first}..{first + rows} ({image.shape}, {hits.shape}): not rows of a {width}x{height} frame"
+        )
     try:
-        shm = SharedMemory(name=name)
-    except OSError:  # FileNotFoundError: not on this host, or the job is over
+        # The block's file, opened as itself: SharedMemory(name) would register
+        # it with a resource tracker, one that an embedded cluster's workers
+        # share with the client, and unlink or untrack the client's block.
+        fd = os.open(os.path.join(SHM_DIR, name), os.O_RDWR)
+    except OSError:  # not on this host, or the job is over
         return False
-    # Python < 3.13 registers an attached block with this process's resource
-    # tracker, which would unlink the client's block when this worker exits.
-    with contextlib.suppress(Exception):
-        resource_tracker.unregister(shm._name, "shared_memory")
     try:
-        if shm.size < _layout(width, height)[1]:
+        if os.fstat(fd).st_size != size:
             return False
-        _copy(shm.buf, width, height, first, image, hits)
+        for start, rows_array in ((first * width * 3, image), (offset + first * width * 4, hits)):
+            if not _write(fd, start, rows_array):
+                return False
         return True
     finally:
-        shm.close()
+        os.close(fd)
 
 
-def _copy(buf, width: int, height: int, first: int, image: np.ndarray, hits: np.ndarray) -> None:
-    # a function of its own, so that its views of the block are gone, even
-    # when it raises, before the block is closed (closing under a view fails)
-    _, frame_image, frame_hits = _views(buf, width, height)
-    frame_image[first : first + len(image)] = image
-    frame_hits[first : first + len(hits)] = hits
+def _write(fd: int, start: int, rows_array: np.ndarray) -> bool:
+    """rows_array's bytes at byte start of the block: its pages reserved first
+    (the block is sparse: a write to a page that tmpfs has no room for dies of
+    SIGBUS; a reservation that fails says so), then mapped with their page
+    tables filled at once, rather than page by page as the copy touches them."""
+    length = rows_array.nbytes
+    try:
+        os.posix_fallocate(fd, start, length)
+    except OSError:  # ENOSPC: /dev/shm is full
+        return False
+    base = start - start % mmap.ALLOCATIONGRANULARITY
+    with mmap.mmap(fd, start + length - base, flags=mmap.MAP_SHARED | _POPULATE, offset=base) as mapped:
+        _copy_into(mapped, start - base, rows_array)
+    return True
+
+
+def _copy_into(mapped: mmap.mmap, at: int, rows_array: np.ndarray) -> None:
+    # a function of its own, so that its view of the mapping is gone, even
+    # when it raises, before the mapping is closed (closing under a view fails)
+    np.frombuffer(mapped, np.uint8, rows_array.nbytes, at)[:] = rows_array.reshape(-1).view(np.uint8)
