@@ -49,6 +49,14 @@ def nothing():
     return None
 
 
+def shm_free() -> int | None:
+    try:
+        stat = os.statvfs(sharedframe.SHM_DIR)
+    except OSError:
+        return None
+    return stat.f_bavail * stat.f_frsize
+
+
 def tile_arrays(first: int, end: int, width: int):
     """A tile's image and hits, as a worker's tracer leaves them."""
     return np.ones((end - first, width, 3), np.uint8), np.ones((end - first, width), np.int32)
@@ -123,7 +131,7 @@ def frame_job(client, args, scene, workers, shared=True) -> dict:
     go()  # warm: every worker that got a tile compiled and built its tree
     seconds = timed(go, args.repeat)
     return {"width": width, "height": height, "frames": 1, "rows": rows, "tasks": math.ceil(height / rows),
-            "shared": shared, "seconds": seconds}  # fmt: skip
+            "shared": shared and sharedframe.fits(width, height), "seconds": seconds}  # fmt: skip
 
 
 def frame_sent_job(client, args, scene, workers) -> dict:
@@ -154,16 +162,15 @@ def terms_job(client, args, scene, workers) -> dict:
 
     def shared_frame():
         block = sharedframe.create(width, height)
-        if block is None:
-            raise SystemExit(f"terms: no room in shared memory for a {width}x{height} frame")
         try:
             done = client.gather([client.submit(written, block.address, a, b, width, pure=False) for a, b in bands])
-            if not all(done):
-                raise SystemExit("terms: a worker could not open the shared block (another host?)")
         finally:
             block.unlink()
+        if not all(done):
+            raise RuntimeError("a worker could not write into the shared block (another host? /dev/shm full?)")
 
-    shared = timed(shared_frame, args.repeat)
+    # None where the host has no room in /dev/shm for the frame (the frame job then sends its tiles)
+    shared = timed(shared_frame, args.repeat) if sharedframe.fits(width, height) else None
     unshared = timed(
         lambda: client.gather([client.submit(made_only, a, b, width, pure=False) for a, b in bands]), args.repeat
     )
@@ -174,7 +181,10 @@ def terms_job(client, args, scene, workers) -> dict:
         "tile_bytes": tile_bytes,
         "tile_transfer_ms": max(0.0, (statistics.median(fetched) - statistics.median(made)) * 1e3 / tiles),
         "assembly_ms_per_frame": statistics.median(assembly) * 1e3 * 7 / 3,
-        "shared_write_ms_per_frame": max(0.0, (statistics.median(shared) - statistics.median(unshared)) * 1e3),
+        "shared_write_ms_per_frame": None
+        if shared is None
+        else max(0.0, (statistics.median(shared) - statistics.median(unshared)) * 1e3),
+        "shm_free_bytes": shm_free(),
         "shared_tasks": len(bands),
         "width": width,
         "height": height,

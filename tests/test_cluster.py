@@ -106,11 +106,14 @@ def test_workers_on_this_host_write_into_the_clients_block(running, rng, no_bloc
         block.unlink()
 
 
-@pytest.mark.parametrize("path", ["shared", "sent", "sent-by-workers"])
+@pytest.mark.parametrize("path", ["shared", "sent", "sent-by-workers", "no-room"])
 def test_shared_and_sent_tiles_are_the_single_process_frame(running, rng, monkeypatch, path, no_block_left):
     """shared: rows written into the client's block; sent: shared=False;
     sent-by-workers: a block the workers cannot open (another host's case),
-    so each task falls back to sending its rows."""
+    so each task falls back to sending its rows; no-room: /dev/shm too full
+    for the frame, so no block is made and every tile is sent."""
+    if path == "no-room":
+        monkeypatch.setattr(sharedframe, "_room", lambda size: False)
     if path == "sent-by-workers":
         monkeypatch.setattr(
             sharedframe.SharedFrame, "address", property(lambda b: (b.name + "-elsewhere", b.width, b.height))

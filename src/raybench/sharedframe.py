@@ -86,10 +86,15 @@ class SharedFrame:
             self._shm.unlink()
 
 
+def fits(width: int, height: int) -> bool:
+    """Whether this host can make a width x height SharedFrame now."""
+    return _room(_layout(width, height)[1])
+
+
 def create(width: int, height: int) -> SharedFrame | None:
     """A SharedFrame, or None where this host cannot give one (no room in
     /dev/shm, or no /dev/shm): the caller assembles as before."""
-    if not _room(_layout(width, height)[1]):
+    if not fits(width, height):
         return None
     try:
         return SharedFrame(width, height)
