@@ -106,6 +106,22 @@ def test_workers_on_this_host_write_into_the_clients_block(running, rng, no_bloc
         block.unlink()
 
 
+def test_a_tile_task_on_this_host_sends_no_rows(running, rng, no_block_left):
+    """_tile on a worker with the client's block: its rows are in the block, and none come back."""
+    scene, camera = scene_and_camera(rng)
+    spec = cluster._spec(40, 24, "cpu", "thesis", None, None, {})
+    whole = raybench.render(scene, camera, 40, 24, device="cpu")
+    block = sharedframe.create(40, 24)
+    try:
+        task = running.client.submit(cluster._tile, scene, "test-scene", spec, camera, (8, 24), block.address)
+        first, image, hits, _, _ = task.result()
+        assert (first, image, hits) == (8, None, None)
+        np.testing.assert_array_equal(block.image[8:], whole.image[8:])
+        np.testing.assert_array_equal(block.hits[8:], whole.hits[8:])
+    finally:
+        block.unlink()
+
+
 @pytest.mark.parametrize("path", ["shared", "sent", "sent-by-workers", "no-room"])
 def test_shared_and_sent_tiles_are_the_single_process_frame(running, rng, monkeypatch, path, no_block_left):
     """shared: rows written into the client's block; sent: shared=False;
