@@ -8,9 +8,14 @@ Jobs:
                warm tracer, then its hits counted), nothing sent back but the counts
   orbit-png    the same frames through cluster.render_sequence: PNGs encoded
                on the workers, written here (what `raybench render --path` does)
-  frame        one --frame sized frame in tiles (cluster.render), assembled here
+  frame        one --frame sized frame in tiles (cluster.render): the workers
+               write their rows into the frame, made here in shared memory
+  frame-sent   the same frame with every tile sent to the client and assembled
+               here (cluster.render(shared=False): a cluster across machines)
   terms        the scaling model's terms on this cluster (docs/scaling.md): the
-               scene's broadcast, an empty task's cost, a tile's transfer
+               scene's broadcast, an empty task's cost, a tile's transfer, the
+               assembly of a sent frame, and a frame's rows written into shared
+               memory by the workers
 
 Every job is warmed first (each worker compiles, builds and uploads once),
 and timed over --repeat runs (median).
@@ -33,7 +38,7 @@ import time
 import numpy as np
 
 import raybench
-from raybench import Camera, camera_path, cluster
+from raybench import Camera, camera_path, cluster, sharedframe
 
 
 def array_of(nbytes: int):
@@ -42,6 +47,27 @@ def array_of(nbytes: int):
 
 def nothing():
     return None
+
+
+def shm_free() -> int | None:
+    try:
+        stat = os.statvfs(sharedframe.SHM_DIR)
+    except OSError:
+        return None
+    return stat.f_bavail * stat.f_frsize
+
+
+def tile_arrays(first: int, end: int, width: int):
+    """A tile's image and hits, as a worker's tracer leaves them."""
+    return np.ones((end - first, width, 3), np.uint8), np.ones((end - first, width), np.int32)
+
+
+def made_only(first: int, end: int, width: int) -> None:
+    tile_arrays(first, end, width)
+
+
+def written(address, first: int, end: int, width: int) -> bool:
+    return sharedframe.write_rows(address, first, *tile_arrays(first, end, width))
 
 
 def options(args) -> dict:
@@ -93,17 +119,23 @@ def orbit_png_job(client, args, scene, workers) -> dict:
     return {"width": width, "height": height, "frames": len(cameras), "seconds": seconds}
 
 
-def frame_job(client, args, scene, workers) -> dict:
+def frame_job(client, args, scene, workers, shared=True) -> dict:
     width, height = parse_size(args.frame)
     rows = args.tile or cluster.tile_rows(height, workers)
 
     def go():
-        return cluster.render(client, scene, None, width, height, args.device, rows=rows, **options(args))
+        return cluster.render(
+            client, scene, None, width, height, args.device, rows=rows, shared=shared, **options(args)
+        )
 
     go()  # warm: every worker that got a tile compiled and built its tree
     seconds = timed(go, args.repeat)
     return {"width": width, "height": height, "frames": 1, "rows": rows, "tasks": math.ceil(height / rows),
-            "seconds": seconds}  # fmt: skip
+            "shared": shared and sharedframe.fits(width, height), "seconds": seconds}  # fmt: skip
+
+
+def frame_sent_job(client, args, scene, workers) -> dict:
+    return frame_job(client, args, scene, workers, shared=False)
 
 
 def terms_job(client, args, scene, workers) -> dict:
@@ -123,6 +155,25 @@ def terms_job(client, args, scene, workers) -> dict:
                                         for _ in range(tiles)]), args.repeat)  # fmt: skip
     image = np.zeros((height, width, 3), np.uint8)
     assembly = timed(lambda: np.copyto(image, np.ones_like(image)), args.repeat)
+    # The shared path's cost a frame: a fresh block made here (as cluster.render
+    # makes one a frame), every tile's rows written into it by the workers in
+    # parallel; less the same tasks making their rows only.
+    bands = [(a, min(a + rows, height)) for a in range(0, height, rows)]
+
+    def shared_frame():
+        block = sharedframe.create(width, height)
+        try:
+            done = client.gather([client.submit(written, block.address, a, b, width, pure=False) for a, b in bands])
+        finally:
+            block.unlink()
+        if not all(done):
+            raise RuntimeError("a worker could not write into the shared block (another host? /dev/shm full?)")
+
+    # None where the host has no room in /dev/shm for the frame (the frame job then sends its tiles)
+    shared = timed(shared_frame, args.repeat) if sharedframe.fits(width, height) else None
+    unshared = timed(
+        lambda: client.gather([client.submit(made_only, a, b, width, pure=False) for a, b in bands]), args.repeat
+    )
     return {
         "scene_bytes": int(scene.spheres.nbytes),
         "broadcast_s": statistics.median(broadcast),
@@ -130,12 +181,18 @@ def terms_job(client, args, scene, workers) -> dict:
         "tile_bytes": tile_bytes,
         "tile_transfer_ms": max(0.0, (statistics.median(fetched) - statistics.median(made)) * 1e3 / tiles),
         "assembly_ms_per_frame": statistics.median(assembly) * 1e3 * 7 / 3,
+        "shared_write_ms_per_frame": None
+        if shared is None
+        else max(0.0, (statistics.median(shared) - statistics.median(unshared)) * 1e3),
+        "shm_free_bytes": shm_free(),
+        "shared_tasks": len(bands),
         "width": width,
         "height": height,
     }
 
 
-JOBS = {"orbit": orbit_job, "orbit-png": orbit_png_job, "frame": frame_job, "terms": terms_job}
+JOBS = {"orbit": orbit_job, "orbit-png": orbit_png_job, "frame": frame_job, "frame-sent": frame_sent_job,
+        "terms": terms_job}  # fmt: skip
 
 
 def main(argv=None) -> int:

@@ -9,6 +9,7 @@ import socket
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import psutil
@@ -16,7 +17,7 @@ import pytest
 from PIL import Image
 
 import raybench
-from raybench import Camera, RaybenchError, camera_path, cluster
+from raybench import Camera, RaybenchError, camera_path, cluster, sharedframe
 from raybench.cli import run
 
 pytest.importorskip("distributed")
@@ -75,6 +76,107 @@ def test_tiles_are_the_single_process_frame_bit_for_bit(running, rng, accel):
     np.testing.assert_array_equal(frame.image, whole.image)
     np.testing.assert_array_equal(frame.hits, whole.hits)
     assert (frame.hits >= 0).any() and (frame.hits < 0).any()  # hits and misses both compared
+
+
+def blocks() -> set[str]:
+    """raybench's shared-memory blocks in /dev/shm, whoever made them."""
+    return {p.name for p in Path("/dev/shm").glob(sharedframe.PREFIX + "*")}
+
+
+@pytest.fixture
+def no_block_left():
+    before = blocks()
+    yield
+    assert blocks() <= before, "a shared-memory block was left in /dev/shm"
+
+
+def test_workers_on_this_host_write_into_the_clients_block(running, rng, no_block_left):
+    block = sharedframe.create(24, 16)
+    try:
+        image = rng.integers(0, 256, (8, 24, 3), dtype=np.uint8)
+        hits = rng.integers(-1, 100, (8, 24), dtype=np.int32)
+        wrote = running.client.submit(sharedframe.write_rows, block.address, 8, image, hits, pure=False).result()
+        assert wrote is True
+        np.testing.assert_array_equal(block.image[8:], image)
+        np.testing.assert_array_equal(block.hits[8:], hits)
+        # a block the worker cannot open (as on another host): nothing written, and it says so
+        elsewhere = (sharedframe.PREFIX + "elsewhere", 24, 16)
+        assert running.client.submit(sharedframe.write_rows, elsewhere, 0, image, hits, pure=False).result() is False
+    finally:
+        block.unlink()
+
+
+def test_a_tile_task_on_this_host_sends_no_rows(running, rng, no_block_left):
+    """_tile on a worker with the client's block: its rows are in the block, and none come back."""
+    scene, camera = scene_and_camera(rng)
+    spec = cluster._spec(40, 24, "cpu", "thesis", None, None, {})
+    whole = raybench.render(scene, camera, 40, 24, device="cpu")
+    block = sharedframe.create(40, 24)
+    try:
+        task = running.client.submit(cluster._tile, scene, "test-scene", spec, camera, (8, 24), block.address)
+        first, image, hits, _, _ = task.result()
+        assert (first, image, hits) == (8, None, None)
+        np.testing.assert_array_equal(block.image[8:], whole.image[8:])
+        np.testing.assert_array_equal(block.hits[8:], whole.hits[8:])
+    finally:
+        block.unlink()
+
+
+@pytest.mark.parametrize("path", ["shared", "sent", "sent-by-workers", "no-room"])
+def test_shared_and_sent_tiles_are_the_single_process_frame(running, rng, monkeypatch, path, no_block_left):
+    """shared: rows written into the client's block; sent: shared=False;
+    sent-by-workers: a block the workers cannot open (another host's case),
+    so each task falls back to sending its rows; no-room: /dev/shm too full
+    for the frame, so no block is made and every tile is sent."""
+    if path == "no-room":
+        monkeypatch.setattr(sharedframe, "_room", lambda size: False)
+    if path == "sent-by-workers":
+        monkeypatch.setattr(
+            sharedframe.SharedFrame, "address", property(lambda b: (b.name + "-elsewhere", b.width, b.height))
+        )
+    scene, camera = scene_and_camera(rng)
+    width, height = SIZES[rng.integers(len(SIZES))]
+    rows = 8 * int(rng.integers(1, 4))
+    shared = path != "sent"
+    frame = cluster.render(running.client, scene, camera, width, height, device="cpu", rows=rows, shared=shared)
+    whole = raybench.render(scene, camera, width, height, device="cpu")
+    np.testing.assert_array_equal(frame.image, whole.image)
+    np.testing.assert_array_equal(frame.hits, whole.hits)
+    assert frame.image.flags.writeable and frame.hits.dtype == np.int32
+    assert (frame.hits >= 0).any() and (frame.hits < 0).any()
+
+
+def test_a_failed_job_leaves_no_block(running, no_block_left):
+    with pytest.raises(RaybenchError, match="accel: must be one of"):
+        cluster.render(running.client, raybench.random_spheres(3), width=32, height=32, device="cpu", accel="bogus")
+
+
+def test_ctrl_c_during_a_frame_leaves_no_block(running, monkeypatch, no_block_left):
+    import distributed
+
+    as_completed = distributed.as_completed
+
+    def interrupted(tasks):
+        yield next(iter(as_completed(tasks)))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(distributed, "as_completed", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        cluster.render(running.client, raybench.random_spheres(3), width=32, height=32, device="cpu", rows=8)
+
+
+def test_a_frame_outlives_its_block(running, no_block_left):
+    """The block's name is gone when render returns; its memory stays the frame's until the frame is dropped."""
+    scene = raybench.random_spheres(5, seed=1)
+    frame = cluster.render(running.client, scene, width=32, height=24, device="cpu", rows=8)
+    assert not any(name.startswith(f"{sharedframe.PREFIX}{os.getpid()}-") for name in blocks())
+    image, hits = frame.image.copy(), frame.hits.copy()
+    del frame
+    import gc
+
+    gc.collect()
+    np.testing.assert_array_equal(image, raybench.render(scene, width=32, height=24, device="cpu").image)
+    assert hits.shape == (24, 32)
 
 
 @pytest.mark.gpu
@@ -253,7 +355,7 @@ def test_cuda_workers_are_pinned_one_gpu_each_within_those_visible(monkeypatch):
 
 
 @pytest.mark.slow
-def test_a_worker_killed_mid_frame_loses_no_tile(running, rng):
+def test_a_worker_killed_mid_frame_loses_no_tile(running, rng, no_block_left):
     """A worker killed while it traces a tile: Dask traces that tile again elsewhere, and the frame is whole."""
     import threading
 

@@ -16,6 +16,9 @@ this module decides only what a worker owns and what a task is:
 - A task is a band of rows of one frame (a tile: bit for bit the rows of the
   whole frame's render, on cpu and cuda) or a run of whole frames of a sequence (their PNGs,
   encoded on the worker).
+- A tile's rows do not travel where they need not: the client makes the frame
+  in shared memory (raybench.sharedframe) and a worker on its host writes its
+  rows there; a worker on another host sends them through Dask.
 
 Why the embedded workers differ from Dask's defaults (docs/scaling.md has
 the measurements): a Nanny's worker gets MALLOC_TRIM_THRESHOLD_=65536 in its
@@ -37,9 +40,11 @@ from pathlib import Path
 
 import numpy as np
 
+from . import sharedframe
 from .backends.limits import PIXEL_BYTES, check_fits, host_available_bytes
 from .camera import Camera
 from .errors import RaybenchError, one_line
+from .kernels.whitted import KINDS
 from .render import Frame, Renderer
 from .scene import Scene
 
@@ -260,13 +265,32 @@ def _renderer(scene: Scene, scene_key: str, spec: tuple) -> Renderer:
     return renderer
 
 
-def _tile(scene: Scene, scene_key: str, spec: tuple, camera: Camera | None, rows: tuple[int, int]):
+def _tile(
+    scene: Scene, scene_key: str, spec: tuple, camera: Camera, rows: tuple[int, int], shared: tuple | None = None
+):
     """A task: rows first..end of the frame; (first, image rows, hit rows,
-    rays by kind or None, BVH build seconds or None)."""
+    rays by kind or None, BVH build seconds or None). With shared (the
+    address of the client's SharedFrame) the rows are written into it, once
+    from the tracer's own buffers, and come back as None; where this worker
+    cannot open it (another host) they come back as before."""
     with _lock:
         renderer = _renderer(scene, scene_key, spec)
+        if shared is not None:
+            tracer = renderer.tracer
+            image, hits = tracer.trace(camera.basis(renderer.width, renderer.height), rows=rows)
+            first, end = rows
+            if sharedframe.write_rows(shared, first, image[first:end], hits[first:end]):
+                return first, None, None, _rays(tracer), tracer.build_s
+            # traced already: the rows travel from the tracer's buffers
+            return first, image[first:end].copy(), hits[first:end].copy(), _rays(tracer), tracer.build_s
         frame = renderer.render(camera, rows=rows)
     return rows[0], frame.image, frame.hits, frame.rays, frame.build_s
+
+
+def _rays(tracer) -> dict | None:
+    """The last trace's rays by kind, as Frame.rays has them."""
+    counts = tracer.ray_counts
+    return None if counts is None else dict(zip(KINDS, counts.tolist()))
 
 
 def _hit_counts(scene: Scene, scene_key: str, spec: tuple, cameras: list[Camera]) -> list[int]:
@@ -339,12 +363,17 @@ def render(
     depth: int | None = None,
     shadow_samples: int | None = None,
     rows: int | None = None,
+    shared: bool = True,
     **options,
 ) -> Frame:
     """raybench.render() across the cluster's workers: the frame cut in
     bands of `rows` rows (default: tile_rows()), traced where Dask puts
     them and assembled here, bit for bit the frame one process traces on
-    the same device: "cpu" or "cuda" (the devices that trace rows)."""
+    the same device: "cpu" or "cuda" (the devices that trace rows).
+
+    shared (default): the frame is made in shared memory (raybench.sharedframe),
+    and a worker on this host writes its rows into it, so that they do not
+    travel; a worker elsewhere sends them. shared=False: every tile is sent."""
     from distributed import as_completed
 
     if camera is not None and not isinstance(camera, Camera):
@@ -367,20 +396,33 @@ def render(
     check_fits("host (where the frame is assembled)", width, height, 0, host_available_bytes(), PIXEL_BYTES)
     future, key = _scatter(client, scene)
     bands = [(a, min(a + rows, height)) for a in range(0, height, rows)]
-    tasks = [client.submit(_tile, future, key, spec, camera, band, pure=False) for band in bands]
-    image = np.empty((height, width, 3), np.uint8)
-    hits = np.empty((height, width), np.int32)
-    rays, build_s = None, None
+    block = None
     try:
-        for task in as_completed(tasks):
-            first, band_image, band_hits, band_rays, band_build = task.result()
-            image[first : first + len(band_image)] = band_image
-            hits[first : first + len(band_hits)] = band_hits
-            if band_rays is not None:
-                rays = {k: (rays or {}).get(k, 0) + n for k, n in band_rays.items()}
-            build_s = band_build if build_s is None else max(build_s, band_build or 0.0)
+        block = sharedframe.create(width, height) if shared else None
+        address = None if block is None else block.address
+        tasks = [client.submit(_tile, future, key, spec, camera, band, address, pure=False) for band in bands]
+        if block is None:
+            image, hits = np.empty((height, width, 3), np.uint8), np.empty((height, width), np.int32)
+        else:
+            image, hits = block.image, block.hits
+        rays, build_s = None, None
+        try:
+            for task in as_completed(tasks):
+                first, band_image, band_hits, band_rays, band_build = task.result()
+                if band_image is not None:  # sent: a worker that could not write to the block, or none
+                    image[first : first + len(band_image)] = band_image
+                    hits[first : first + len(band_hits)] = band_hits
+                if band_rays is not None:
+                    rays = {k: (rays or {}).get(k, 0) + n for k, n in band_rays.items()}
+                build_s = band_build if build_s is None else max(build_s, band_build or 0.0)
+        finally:
+            client.cancel(tasks)
     finally:
-        client.cancel(tasks)
+        # Done, failed or interrupted: the block's name goes now. The frame's
+        # arrays keep its memory; a task still running writes into memory
+        # that nobody reads, and one that starts later finds no block.
+        if block is not None:
+            block.unlink()
     return Frame(image=image, hits=hits, device=device, build_s=build_s, rays=rays)
 
 
