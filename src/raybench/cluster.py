@@ -23,9 +23,9 @@ this module decides only what a worker owns and what a task is:
 Why the embedded workers differ from Dask's defaults (docs/scaling.md has
 the measurements): a Nanny's worker gets MALLOC_TRIM_THRESHOLD_=65536 in its
 environment, which makes glibc map and fault in afresh every frame-sized
-allocation (several times slower copies of a frame); and a Nanny's default thread count is every core, which runs several tasks
-at once on one device. raybench's workers take one task at a time, without
-that variable.
+allocation (several times slower copies of a frame); and a Nanny's default
+thread count is every core, which runs several tasks at once on one device.
+raybench's workers take one task at a time, without that variable.
 """
 
 from __future__ import annotations
