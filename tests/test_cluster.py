@@ -3,7 +3,9 @@ cluster of 2 worker processes (raybench's own, 127.0.0.1 only), shared by
 the module's tests; each result is checked against the same work done in
 this one process."""
 
+import json
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -383,3 +385,86 @@ def test_a_worker_killed_mid_frame_loses_no_tile(running, rng, no_block_left):
     np.testing.assert_array_equal(done["frame"].hits, whole.hits)
     running.client.wait_for_workers(2, timeout=60)
     assert pids[victim] not in running.client.run(os.getpid).values()
+
+
+# --- the benchmark on every machine -------------------------------------------------------
+
+BENCH = ["bench", "--quick", "--suite", "thesis", "--device", "cpu", "--accel", "bvh", "--duration", "0.05"]
+
+
+def bench_records(out):
+    from raybench.bench import results
+
+    (path,) = out.glob("results-*.jsonl")
+    records = results.read(path)
+    for i, record in enumerate(records):
+        results.check_record(record, f"record {i}")
+    return records
+
+
+def test_cli_bench_runs_once_a_machine_on_a_worker(running, tmp_path, capsys):
+    address = running.client.scheduler.address
+    out = tmp_path / "out"
+    assert run([*BENCH, "--scheduler", address, "--out", str(out)]) == 0
+    assert "on 1 machine of" in capsys.readouterr().out  # both workers are on 127.0.0.1: one machine
+    records = bench_records(out)
+    workers = running.client.run(os.getpid)
+    assert len(records) == 3  # 800x600 at 100, 500 and 1000 spheres, the BVH's
+    (run_info,) = {json.dumps(r["run"], sort_keys=True) for r in records}
+    settings = json.loads(run_info)["settings"]
+    assert settings["worker"] in workers and settings["pid"] == workers[settings["worker"]] != os.getpid()
+    assert settings["host"] == socket.gethostname() and settings["devices"] == ["cpu"]
+    assert records[0]["run"]["label"] == cluster._slug(socket.gethostname())
+    assert [r["spheres"] for r in records] == [100, 500, 1000] and all(r["device"] == "cpu" for r in records)
+    assert len(list(out.glob("report-*/report.md"))) == 1
+
+
+@pytest.mark.slow
+def test_cli_bench_puts_two_machines_side_by_side(running, tmp_path, monkeypatch, capsys):
+    # one host here: each worker is made a machine of its own
+    monkeypatch.setattr(cluster, "machine_key", lambda worker: worker["id"])
+    monkeypatch.setenv("RAYBENCH_SCHEDULER", running.client.scheduler.address)
+    out = tmp_path / "out"
+    assert run([*BENCH, "--label", "lab", "--out", str(out)]) == 0
+    assert "on 2 machines of" in capsys.readouterr().out
+    records = bench_records(out)
+    host = cluster._slug(socket.gethostname())
+    labels = {f"lab-{host}", f"lab-{host}-2"}
+    assert {r["run"]["label"] for r in records} == labels and len(records) == 6
+    assert {r["run"]["settings"]["worker"] for r in records} == set(running.client.run(os.getpid))
+    (report,) = out.glob("report-*/report.md")
+    text = report.read_text()
+    assert all(f"{label}, BVH" in text for label in labels)
+
+
+def test_cli_bench_on_an_unreachable_scheduler_is_one_line(capsys):
+    address = f"tcp://127.0.0.1:{free_port()}"
+    start = time.perf_counter()
+    assert run([*BENCH, "--scheduler", address, "--connect-timeout", "1"]) == 2
+    assert time.perf_counter() - start < 5
+    err = capsys.readouterr().err
+    assert err.startswith(f"raybench: error: scheduler {address}: unreachable within 1 s") and err.count("\n") == 1
+
+
+def test_cli_bench_names_the_worker_that_lacks_a_device(running, tmp_path, capsys):
+    address = running.client.scheduler.address
+    argv = ["bench", "--quick", "--device", "wgpu", "--adapter", "no-such-adapter", "--scheduler", address]
+    assert run([*argv, "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert re.match(r"raybench: error: worker tcp://127\.0\.0\.1:\d+: .*no-such-adapter", err) and err.count("\n") == 1
+    assert not (tmp_path / "out").exists()
+
+
+def test_cli_bench_ctrl_c_keeps_the_machines_records_written(running, tmp_path, monkeypatch, capsys):
+    def one_machine_then_ctrl_c(client, settings, label, on_records):
+        on_records([{"suite": "thesis", "n": 1}, {"suite": "thesis", "n": 2}])
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cluster, "bench", one_machine_then_ctrl_c)
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as stopped:
+        run([*BENCH, "--scheduler", running.client.scheduler.address, "--out", str(out)])
+    assert stopped.value.code == 130
+    (path,) = out.glob("results-*.jsonl")
+    assert [json.loads(line)["n"] for line in path.read_text().splitlines()] == [1, 2]
+    assert "interrupted; the 2 finished points are in" in capsys.readouterr().err

@@ -238,23 +238,27 @@ def cluster_options():
             help="trace across an embedded Dask cluster of N worker processes on this machine (one per GPU on "
             "cuda; on the cpu, sharing the cores)",
         ),
-        click.option(
-            "--scheduler",
-            help="trace across the running Dask cluster whose scheduler is at this address, e.g. "
-            "tcp://10.0.0.5:8786 (default: $RAYBENCH_SCHEDULER)",
-        ),
+        scheduler_option("trace across the running Dask cluster whose scheduler is at this address"),
         click.option(
             "--tile",
             type=int,
             help="across a cluster: rows of one frame's tiles, a multiple of 8 (default: about 4 tiles a worker)",
         ),
-        click.option(
-            "--connect-timeout",
-            type=click.FloatRange(min=0.1, max=3600),
-            default=10.0,
-            show_default=True,
-            help="seconds to try the scheduler's address before giving up",
-        ),
+        connect_timeout_option(),
+    )
+
+
+def scheduler_option(what: str):
+    return click.option("--scheduler", help=f"{what}, e.g. tcp://10.0.0.5:8786 (default: $RAYBENCH_SCHEDULER)")
+
+
+def connect_timeout_option():
+    return click.option(
+        "--connect-timeout",
+        type=click.FloatRange(min=0.1, max=3600),
+        default=10.0,
+        show_default=True,
+        help="seconds to try the scheduler's address before giving up",
     )
 
 
@@ -633,113 +637,143 @@ def info(as_json):
     "--out",
     "out_dir",
     type=click.Path(path_type=Path),
-    help="folder for the results and the report (default: raybench-results/<machine>)",
+    help="folder for the results and the report (default: raybench-results/<machine>, or /cluster with --scheduler)",
 )
-@click.option("--label", help="short machine name used in the report (default: from the GPU or CPU name)")
+@click.option(
+    "--label",
+    help="short machine name used in the report (default: from the GPU or CPU name; with --scheduler, each "
+    "machine's host name, after this label and a dash if given)",
+)
 @click.option("--seed", type=int, default=0, show_default=True, help="seed of the random scenes")
 @click.option("--no-report", is_flag=True, help="only write the results; skip the report")
-def bench(suites, devices, adapter, kernels, accels, builds, duration, quick, out_dir, label, seed, no_report):
-    """Run the thesis's experiments on this machine, then write a report.
+@scheduler_option(
+    "run the suites on every machine of the running Dask cluster whose scheduler is at this address, "
+    "once a machine (on one of its workers), with its own devices and description; each machine's "
+    "records arrive when its run ends, into one results file and one report, the machines side by side"
+)
+@connect_timeout_option()
+def bench(
+    suites,
+    devices,
+    adapter,
+    kernels,
+    accels,
+    builds,
+    duration,
+    quick,
+    out_dir,
+    label,
+    seed,
+    no_report,
+    scheduler,
+    connect_timeout,
+):
+    """Run the thesis's experiments on this machine, then write a report;
+    with --scheduler, on every machine of a Dask cluster.
 
     Results go to a JSON Lines file, one record per point as soon as it is
-    measured: an interrupted run (Ctrl-C) keeps every finished point.
+    measured (across a cluster: each machine's as its run ends): an
+    interrupted run (Ctrl-C) keeps every record written.
     """
     import datetime
 
-    from . import backends
     from .bench import runner
     from .bench import suites as suites_mod
     from .bench.results import ResultsWriter
-    from .machine import describe
 
     chosen = suites_mod.SUITES if "all" in suites else tuple(dict.fromkeys(suites))
     for s in chosen:
         if s not in suites_mod.SUITES:
             raise RaybenchError(f"--suite: unknown suite {s!r}; choose from {', '.join(suites_mod.SUITES)} or all")
-    devices = tuple(dict.fromkeys(devices)) or tuple(backends.present())
-    for d in devices:
-        if d not in backends.DEVICES:
-            raise RaybenchError(f"--device: unknown device {d!r}; choose from {', '.join(backends.DEVICES)}")
-        backends.resolve(d, adapter)
-    if adapter is not None and "wgpu" not in devices:
-        raise RaybenchError("--adapter applies to --device wgpu only")
-    builds = tuple(dict.fromkeys(builds))
-    if builds and "cuda" not in devices:
-        raise RaybenchError("--build applies to --device cuda only")
-    wgpu_options, max_invocations = {}, 1024
-    if "wgpu" in devices:
-        chosen_adapter = backends.module("wgpu").choose(adapter)
-        wgpu_options = {"adapter": adapter} if adapter is not None else {}
-        max_invocations = chosen_adapter.adapter.limits["max-compute-invocations-per-workgroup"]
+    scheduler = scheduler or os.environ.get("RAYBENCH_SCHEDULER") or None
+    if scheduler is not None and "all" in suites:
+        chosen = tuple(s for s in chosen if s != "multi-gpu")  # it starts workers of its own: one machine's
     if duration is None:
         duration = 0.5 if quick else 10.0
     if not 0.05 <= duration <= 3600:
         raise RaybenchError(f"--duration: must be from 0.05 to 3600 seconds, got {duration:g}")
     if seed < 0:
         raise RaybenchError(f"--seed: must be >= 0, got {seed}")
-    machine = describe()
-    label = label or runner.machine_label(machine)
-    if not re.fullmatch(r"[A-Za-z0-9._-]+", label):
+    if label is not None and not re.fullmatch(r"[A-Za-z0-9._-]+", label):
         raise RaybenchError(f"--label: use letters, digits, '.', '_' and '-' only, got {label!r}")
-    out_dir = out_dir or Path("raybench-results") / label
-    if out_dir.exists() and not out_dir.is_dir():
+    if out_dir is not None and out_dir.exists() and not out_dir.is_dir():
         raise RaybenchError(f"--out {out_dir}: is a file, not a folder")
-    kernels = tuple(dict.fromkeys(kernels)) or ("fast",)
-    accels = tuple(dict.fromkeys(accels)) or ACCELS
-    points = suites_mod.points(
-        chosen,
-        devices,
-        quick=quick,
-        kernels=kernels,
-        accels=accels,
-        wgpu=wgpu_options,
-        max_invocations=max_invocations,
-        gpus=len(machine["gpus"]),
-        builds=builds,
-    )
-    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
-    results_path = out_dir / f"results-{stamp}.jsonl"
     settings = {
         "suites": list(chosen),
-        "devices": list(devices),
-        "kernels": list(kernels),
-        "accels": list(accels),
-        "builds": list(builds),
+        "devices": list(dict.fromkeys(devices)),  # none: each machine's own, as plan() finds them
+        "kernels": list(dict.fromkeys(kernels)) or ["fast"],
+        "accels": list(dict.fromkeys(accels)) or list(ACCELS),
+        "builds": list(dict.fromkeys(builds)),
         "duration_s": duration,
         "quick": quick,
         "seed": seed,
         "adapter": adapter,
     }
-    info = runner.run_info(machine, label, settings)
-    click.echo(f"{len(points)} points on {', '.join(devices)}, {duration:g} s each; results: {results_path}")
-    with ResultsWriter(results_path) as writer:
-        try:
-            runner.run(points, writer, info, duration, seed, progress=sys.stderr.isatty())
-        except Exception as exc:
-            failure = device_failure(exc)
-            if failure is None:
-                raise
-            kept = (
-                f"the {writer.count} finished points are in {results_path}"
-                if writer.count
-                else "no point had finished; no results were written"
-            )
-            raise RaybenchError(f"{failure}; {kept}") from None
-        except KeyboardInterrupt:
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    if scheduler is not None:
+        from . import cluster
+
+        out_dir = out_dir or Path("raybench-results") / (label or "cluster")
+        results_path = out_dir / f"results-{stamp}.jsonl"
+        with _cluster(None, "auto", scheduler, connect_timeout) as running:
+            machines = cluster.bench_workers(running.client)
             click.echo(
-                f"raybench: interrupted; the {writer.count} finished points are in {results_path} "
-                f"(report them with: raybench report {results_path})"
-                if writer.count
-                else "raybench: interrupted before the first point finished; no results were written",
-                err=True,
+                f"{', '.join(settings['suites'])} on {len(machines)} machine{'s' if len(machines) != 1 else ''} "
+                f"of {scheduler}, {duration:g} s a point; results: {results_path}"
             )
-            raise SystemExit(130) from None
+            with ResultsWriter(results_path) as writer:
+                _bench_into(
+                    writer,
+                    results_path,
+                    lambda: cluster.bench(running.client, settings, label, lambda rs: [writer.write(r) for r in rs]),
+                )
+    else:
+        points, info = runner.plan(settings, label)
+        label = info["label"]
+        out_dir = out_dir or Path("raybench-results") / label
+        if out_dir.exists() and not out_dir.is_dir():
+            raise RaybenchError(f"--out {out_dir}: is a file, not a folder")
+        results_path = out_dir / f"results-{stamp}.jsonl"
+        devices = info["settings"]["devices"]
+        click.echo(f"{len(points)} points on {', '.join(devices)}, {duration:g} s each; results: {results_path}")
+        with ResultsWriter(results_path) as writer:
+            _bench_into(
+                writer,
+                results_path,
+                lambda: runner.run(points, writer, info, duration, seed, progress=sys.stderr.isatty()),
+            )
     click.echo(f"wrote {writer.count} results to {results_path}")
     if not no_report:
         from .bench import report
 
         path = report.write_report([results_path], out_dir / f"report-{stamp}")
         click.echo(f"report: {path}")
+
+
+def _bench_into(writer, results_path, measure) -> None:
+    """bench's measure() into writer: a failure or Ctrl-C says how many of
+    its records are kept, all of them on disk already."""
+    try:
+        measure()
+    except Exception as exc:
+        failure = device_failure(exc) or (one_line(exc) if isinstance(exc, RaybenchError) else None)
+        if failure is None:
+            raise
+        kept = (
+            f"the {writer.count} finished points are in {results_path}"
+            if writer.count
+            else "no point had finished; no results were written"
+        )
+        raise RaybenchError(f"{failure}; {kept}") from None
+    except KeyboardInterrupt:
+        click.echo(
+            f"raybench: interrupted; the {writer.count} finished points are in {results_path} "
+            f"(report them with: raybench report {results_path})"
+            if writer.count
+            else "raybench: interrupted before the first point finished; no results were written",
+            err=True,
+        )
+        raise SystemExit(130) from None
 
 
 @main.command()

@@ -11,11 +11,12 @@ import uuid
 
 from .. import animate, backends
 from ..camera import Camera
+from ..errors import RaybenchError
 from ..kernels.whitted import KINDS
 from ..lighting import Shading
-from ..machine import git_commit
+from ..machine import describe, git_commit
 from ..scene import random_spheres
-from . import multi
+from . import multi, suites
 from .results import ResultsWriter
 from .stats import summarize
 from .suites import DYNAMIC_DT, Point
@@ -253,20 +254,75 @@ def machine_label(machine: dict) -> str:
     return slug or "machine"
 
 
-def run_info(machine: dict, label: str, settings: dict) -> dict:
+def run_info(machine: dict, label: str, settings: dict, argv: list[str] | None = None) -> dict:
     return {
         "id": uuid.uuid4().hex[:12],
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         "git_commit": git_commit(),
         "label": label,
-        "argv": sys.argv[1:],
+        "argv": sys.argv[1:] if argv is None else list(argv),
         "settings": settings,
         "machine": machine,
     }
 
 
+def plan(settings: dict, label: str | None = None, argv: list[str] | None = None) -> tuple[list[Point], dict]:
+    """This machine's points of the bench's settings, and the run info its
+    records carry: the same on the command line's machine and inside a
+    cluster's worker (raybench.cluster.bench), each with its own machine's
+    description. settings["devices"] empty: every device present here; each
+    named is checked here. Its other keys are the CLI's: suites, kernels,
+    accels, builds, duration_s, quick, seed, adapter (any more are kept in
+    the run info as they are)."""
+    devices = tuple(settings["devices"]) or tuple(backends.present())
+    adapter = settings.get("adapter")
+    for d in devices:
+        if d not in backends.DEVICES:
+            raise RaybenchError(f"--device: unknown device {d!r}; choose from {', '.join(backends.DEVICES)}")
+        backends.resolve(d, adapter)
+    if adapter is not None and "wgpu" not in devices:
+        raise RaybenchError("--adapter applies to --device wgpu only")
+    builds = tuple(settings["builds"])
+    if builds and "cuda" not in devices:
+        raise RaybenchError("--build applies to --device cuda only")
+    wgpu_options, max_invocations = {}, 1024
+    if "wgpu" in devices:
+        chosen_adapter = backends.module("wgpu").choose(adapter)
+        wgpu_options = {"adapter": adapter} if adapter is not None else {}
+        max_invocations = chosen_adapter.adapter.limits["max-compute-invocations-per-workgroup"]
+    machine = describe()
+    points = suites.points(
+        tuple(settings["suites"]),
+        devices,
+        quick=settings["quick"],
+        kernels=tuple(settings["kernels"]),
+        accels=tuple(settings["accels"]),
+        wgpu=wgpu_options,
+        max_invocations=max_invocations,
+        gpus=len(machine["gpus"]),
+        builds=builds,
+    )
+    info = run_info(machine, label or machine_label(machine), {**settings, "devices": list(devices)}, argv)
+    return points, info
+
+
+class Records:
+    """A writer that keeps the records in a list: a cluster worker's run
+    (raybench.cluster.bench), sent back whole when it ends."""
+
+    def __init__(self):
+        self.records: list[dict] = []
+
+    def write(self, record: dict) -> None:
+        self.records.append(record)
+
+    @property
+    def count(self) -> int:
+        return len(self.records)
+
+
 def run(
-    points: list[Point], writer: ResultsWriter, run: dict, duration: float, seed: int, progress: bool = True
+    points: list[Point], writer: ResultsWriter | Records, run: dict, duration: float, seed: int, progress: bool = True
 ) -> int:
     """Measure every point in order, writing each record as soon as it is done.
     Returns how many points were written; Ctrl-C stops between frames and
