@@ -86,10 +86,11 @@ THREADS = 32 if _SIM else 256
 LEAF_SIZE = 4
 # A refitted tree is rebuilt once its SAH cost (Builder.read_cost) exceeds
 # REFIT_LIMIT times the cost it had fresh from its build: moved spheres
-# stretch its boxes, and each ray then visits more of them. A provisional
-# value, to be set from benchmarks/gpu_build.py's refit series on the H200
-# (walk time of the refitted tree against the rebuilt one, frame by frame,
-# against the build's time).
+# stretch its boxes, and each ray then visits more of them. In the orbits
+# measured on the H200 (benchmarks/gpu_build.py's refit series,
+# docs/performance.md) the cost levelled off below this and a refit plus the
+# walk stayed cheaper than a rebuild plus the walk throughout; the limit is
+# for motion that keeps stretching the boxes.
 REFIT_LIMIT = 1.3
 # Device bytes a Builder holds per sphere: keys and values twice (the sort's
 # two buffers), the links up (8 + 8), the heights (8), the counters (4), the
