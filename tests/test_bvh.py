@@ -261,6 +261,31 @@ def test_depth_is_bounded_for_a_chain(rng):
     assert depth > layout.MAX_DEPTH - 10, depth  # the guard was what stopped it
 
 
+@pytest.mark.parametrize("ties", [False, True])
+def test_median_split_halves_by_count(rng, ties):
+    """The fallback split by count: a selection in place, so the first half's
+    centres are no greater than the second's along the widest axis, and every
+    sphere keeps its row (its radius and index move with it)."""
+    n = int(rng.integers(2, 300))
+    centres = rng.integers(0, 4, (3, n)) if ties else rng.normal(size=(3, n))
+    px, py, pz = (np.ascontiguousarray(c, np.float32) for c in centres)
+    pr, idx = rng.random(n).astype(np.float32), np.arange(n, dtype=np.int32)
+    before = {(float(px[i]), float(py[i]), float(pz[i]), float(pr[i]), int(idx[i])) for i in range(n)}
+    s = int(rng.integers(0, n - 1))
+    e = int(rng.integers(s + 2, n + 1))
+    cbox = np.array([*(c[s:e].min() for c in (px, py, pz)), *(c[s:e].max() for c in (px, py, pz))], np.float32)
+    outside = [a.copy() for a in (px, py, pz, pr, idx)]
+    m = bvh._median_split(px, py, pz, pr, idx, s, e, cbox)
+    assert m == s + (e - s) // 2
+    ext = cbox[3:] - cbox[:3]
+    if ext.max() > 0:
+        key = (px, py, pz)[int(np.argmax(ext))]  # argmax: the first widest, as the builder picks
+        assert key[s:m].max() <= key[m:e].min()
+    assert {(float(px[i]), float(py[i]), float(pz[i]), float(pr[i]), int(idx[i])) for i in range(n)} == before
+    for a, old in zip((px, py, pz, pr, idx), outside):
+        assert np.array_equal(a[:s], old[:s]) and np.array_equal(a[e:], old[e:])
+
+
 def test_parallel_build_is_a_valid_tree(rng):
     """Large scenes split their top on all threads, build their subtrees on
     one thread each, then pack the rows: the same tree as on one thread."""

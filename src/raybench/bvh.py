@@ -156,15 +156,36 @@ def _swap(px, py, pz, pr, idx, i, j):
 
 @compiled.njit(nogil=True)
 def _median_split(px, py, pz, pr, idx, s, e, cbox):
-    """Split [s, e) in two halves by count, ordered along the centres' widest axis."""
+    """Split [s, e) in two halves by count along the centres' widest axis:
+    the first half's centres no greater than the second's. A selection in
+    place (Hoare's), not a sort: it compiles in a fraction of the time, and
+    the order within each half does not matter to the builder."""
     ext0, ext1, ext2 = cbox[3] - cbox[0], cbox[4] - cbox[1], cbox[5] - cbox[2]
     axis = 0 if ext0 >= ext1 and ext0 >= ext2 else (1 if ext1 >= ext2 else 2)
+    m = s + (e - s) // 2
     if max(ext0, max(ext1, ext2)) > 0:
-        key = (px if axis == 0 else (py if axis == 1 else pz))[s:e]
-        perm = np.argsort(key, kind="mergesort") + s
-        tx, ty, tz, tr, ti = px[perm], py[perm], pz[perm], pr[perm], idx[perm]
-        px[s:e], py[s:e], pz[s:e], pr[s:e], idx[s:e] = tx, ty, tz, tr, ti
-    return s + (e - s) // 2
+        key = px if axis == 0 else (py if axis == 1 else pz)
+        lo, hi = s, e - 1
+        while lo < hi:
+            pivot = key[lo + (hi - lo) // 2]
+            i, j = lo, hi
+            while i <= j:
+                while key[i] < pivot:
+                    i += 1
+                while key[j] > pivot:
+                    j -= 1
+                if i <= j:
+                    _swap(px, py, pz, pr, idx, i, j)
+                    i += 1
+                    j -= 1
+            # now key[lo..j] <= pivot <= key[i..hi], and key[j+1..i-1] == pivot
+            if m <= j:
+                hi = j
+            elif m >= i:
+                lo = i
+            else:
+                break
+    return m
 
 
 @compiled.njit(nogil=True, inline="always")
@@ -378,7 +399,8 @@ def _grow(px, py, pz, pr, idx, nodes, links, stack, top, used):
         if count == 0:
             continue  # an empty child: its box stays inverted
         _range_bounds(px, py, pz, pr, s, e, box, cbox)
-        nodes[parent, col : col + BOX_FLOATS] = box
+        for k in range(BOX_FLOATS):
+            nodes[parent, col + k] = box[k]
         if count <= LEAF_ALWAYS:
             continue
         if d + 1 + _log2ceil(count) >= MAX_DEPTH:  # deeper SAH splits could overflow the stack
@@ -627,7 +649,8 @@ def _grow_subtrees(p, q, r, nodes, links, tasks, base, ends, depths, ordered, fi
         parent, slot, s, e, d, buf = tasks[t, 0], tasks[t, 1], tasks[t, 2], tasks[t, 3], tasks[t, 4], tasks[t, 5]
         if buf == 1:
             qx, qy, qz, qr, qi = q
-            px[s:e], py[s:e], pz[s:e], pr[s:e], idx[s:e] = qx[s:e], qy[s:e], qz[s:e], qr[s:e], qi[s:e]
+            for i in range(s, e):
+                px[i], py[i], pz[i], pr[i], idx[i] = qx[i], qy[i], qz[i], qr[i], qi[i]
         _push(stack, 0, parent, slot, s, e, d)
         ends[t], depths[t] = _grow(px, py, pz, pr, idx, nodes, links, stack, 1, base + s)
         for i in range(s, e):
@@ -700,12 +723,16 @@ def memory_bytes(n: int) -> int:
     return max(n, 1) * BUILD_SPHERE_BYTES
 
 
-def compile_builder() -> None:
-    """Compile (or load from Numba's cache) the builder, both its ways, so build times leave it out."""
+def compile_builder(wide: bool = True) -> None:
+    """Compile (or load from Numba's cache) the builder's one-thread way and,
+    if `wide`, its way for more than WIDE spheres, so build times leave it out.
+    The wide way's parallel regions are most of the builder's compile (about
+    four fifths, docs/performance.md): a small scene does not pay for them."""
     spheres = np.ones((7, 9), np.float32)
     spheres[:3] = np.arange(27, dtype=np.float32).reshape(3, 9) % 5
     build(spheres, threads=1, _timed=False)
-    build(spheres, threads=1, _timed=False, _wide=2)
+    if wide:
+        build(spheres, threads=1, _timed=False, _wide=2)
 
 
 def _piece(spheres: int, threads: int) -> int:
@@ -794,7 +821,7 @@ def build(spheres: np.ndarray, threads: int | None = None, _timed: bool = True, 
         raise RaybenchError(f"bvh: at most {MAX_SPHERES:,} spheres, got {n:,}")
     threads = threads or os.cpu_count() or 1
     if _timed:
-        compile_builder()
+        compile_builder(wide=n > _wide)
     cx, cy, cz, r = (np.ascontiguousarray(spheres[k]) for k in range(4))
     start = time.perf_counter()
     if n > _wide:

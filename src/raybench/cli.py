@@ -787,7 +787,7 @@ def warmup(devices):
     import numpy as np
     from rich.progress import Progress
 
-    from . import backends, compiled, lighting
+    from . import backends, bvh, compiled, lighting
     from .camera import Camera
     from .scene import random_spheres
 
@@ -800,7 +800,10 @@ def warmup(devices):
     whitted = lighting.Shading.of(scene)
     jobs = [(d, accel, shading) for d in devices for accel in ("bvh", "none") for shading in ("thesis", "whitted")]
     with Progress(transient=True) as progress:
-        task = progress.add_task("compiling", total=len(jobs))
+        task = progress.add_task("compiling", total=len(jobs) + 1)
+        progress.update(task, description="the BVH's builder, for scenes of every size")
+        bvh.compile_builder()
+        progress.advance(task)
         for device, accel, shading in jobs:
             progress.update(task, description=f"{device}, {accel}, {shading}")
             options = {"whitted": whitted} if shading == "whitted" else {}
