@@ -9,6 +9,7 @@ RAYBENCH_REQUIRE_WGPU=1 (CI sets it): there that is a failure.
 
 from __future__ import annotations
 
+import ctypes.util
 import json
 
 import numpy as np
@@ -277,6 +278,24 @@ def test_auto_takes_cuda_then_a_wgpu_gpu_then_the_cpu(monkeypatch):
     assert backends.resolve("auto") == "wgpu" and backends.present() == ["cpu", "wgpu"]
     monkeypatch.setattr(backends, "cuda_available", lambda: True)
     assert backends.resolve("auto") == "cuda"
+
+
+def test_auto_asks_numba_cuda_only_where_nvidias_driver_loads(monkeypatch, tmp_path):
+    """Importing numba-cuda to ask for a GPU costs seconds: "auto" first
+    loads NVIDIA's driver library from where numba-cuda would, and asks
+    numba-cuda only if that library loads."""
+    asked = []
+
+    class Found:
+        available = staticmethod(lambda: True)
+        simulated = staticmethod(lambda: False)
+
+    monkeypatch.setattr(backends, "module", lambda name: asked.append(name) or Found)
+    monkeypatch.setattr(backends, "_driver_candidates", lambda: [str(tmp_path / "libcuda.so.1")])
+    assert not backends.cuda_available() and asked == []
+    libc = ctypes.util.find_library("c")  # a library that loads, standing in for the driver
+    monkeypatch.setattr(backends, "_driver_candidates", lambda: [str(tmp_path / "libcuda.so"), libc])
+    assert backends.cuda_available() and asked == ["cuda"]
 
 
 # --------------------------------------------------------------------------- the command line and the benchmark

@@ -1,12 +1,16 @@
 """The registry of backends: pick one by name, or "auto".
 
 Backends import lazily: numba-cuda and wgpu are only loaded when a GPU is
-asked about ("auto" asks about both).
+asked about ("auto" asks about both, and loads numba-cuda only where NVIDIA's
+driver library is present).
 """
 
 from __future__ import annotations
 
+import ctypes
 import importlib
+import os
+import sys
 
 from ..errors import RaybenchError
 
@@ -25,8 +29,36 @@ def module(name: str):
     return importlib.import_module(f".{name}", __name__)
 
 
+def _driver_candidates() -> list[str]:
+    """Where numba-cuda looks for NVIDIA's driver library (its
+    cudadrv.driver.locate_driver_and_loader): the names, then fixed folders."""
+    if sys.platform == "win32":
+        folders, names = ["\\windows\\system32"], ["nvcuda.dll"]
+    elif sys.platform == "darwin":
+        folders, names = ["/usr/local/cuda/lib"], ["libcuda.dylib"]
+    else:
+        folders, names = ["/usr/lib", "/usr/lib64"], ["libcuda.so", "libcuda.so.1"]
+    return names + [os.path.join(folder, name) for folder in folders for name in names]
+
+
+def _cuda_driver_loads() -> bool:
+    """NVIDIA's driver library loads from where numba-cuda would load it.
+    Without it numba-cuda finds no GPU either; asking this way takes a
+    millisecond, importing numba-cuda to ask takes 0.6-2 s, which every
+    "auto" on a machine without an NVIDIA GPU paid (docs/performance.md)."""
+    for candidate in _driver_candidates():
+        try:
+            ctypes.CDLL(candidate)
+        except OSError:
+            continue
+        return True
+    return False
+
+
 def cuda_available() -> bool:
     """A real CUDA GPU is usable (numba's simulator does not count)."""
+    if not _cuda_driver_loads():
+        return False
     try:
         mod = module("cuda")
     except ImportError:
