@@ -19,7 +19,7 @@ import pytest
 from PIL import Image
 
 import raybench
-from raybench import Camera, RaybenchError, camera_path, cluster, sharedframe
+from raybench import Camera, RaybenchError, camera_path, cluster, machine, sharedframe
 from raybench.cli import run
 
 pytest.importorskip("distributed")
@@ -64,7 +64,7 @@ def test_everything_listens_on_loopback_only(running):
 
 def test_workers_split_the_cores_and_go_without_dask_malloc_setting(running):
     env = running.client.run(lambda: (os.environ.get("NUMBA_NUM_THREADS"), os.environ.get("MALLOC_TRIM_THRESHOLD_")))
-    assert set(env.values()) == {(str(max(1, cluster.usable_cores() // 2)), None)}
+    assert set(env.values()) == {(str(max(1, machine.usable_cores() // 2)), None)}
 
 
 @pytest.mark.parametrize("accel", ["bvh", "none"])

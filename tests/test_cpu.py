@@ -1,5 +1,9 @@
 """The CPU backend against the float64 reference, on fresh random scenes."""
 
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from reference import check_frame, trace
@@ -66,3 +70,17 @@ def test_bands_cover_every_row_once(height, threads):
     assert rows == list(range(height))
     sizes = [b - a for a, b in bands(height, threads)]
     assert max(sizes) - min(sizes) <= 1
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="CPU affinity is Linux's")
+def test_threads_follow_the_cores_the_process_may_use():
+    """Under taskset or a container's cpuset the machine has more cores than
+    the process may use: the CPU backend's and the builder's default threads
+    are the usable ones, not os.cpu_count()."""
+    code = (
+        "import os; os.sched_setaffinity(0, {min(os.sched_getaffinity(0))}); "
+        "from raybench.backends import cpu; from raybench import machine; "
+        "print(cpu.default_threads(), machine.usable_cores(), os.cpu_count())"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out[:2] == ["1", "1"], out

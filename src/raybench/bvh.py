@@ -35,7 +35,6 @@ all coincide are split by count too.
 
 from __future__ import annotations
 
-import os
 import threading
 import time
 from dataclasses import dataclass
@@ -46,6 +45,7 @@ import numpy as np
 from . import compiled
 from .errors import RaybenchError
 from .layout import BOX_FLOATS, CHILD_BOX, COUNT, EMPTY, INNER, MAX_DEPTH, NODE_BYTES, NODE_FLOATS, PAD, REF
+from .machine import usable_cores
 
 BINS = 16
 LEAF_MAX = 8
@@ -819,7 +819,7 @@ def build(spheres: np.ndarray, threads: int | None = None, _timed: bool = True, 
     n = spheres.shape[1]
     if n > MAX_SPHERES:
         raise RaybenchError(f"bvh: at most {MAX_SPHERES:,} spheres, got {n:,}")
-    threads = threads or os.cpu_count() or 1
+    threads = threads or usable_cores()
     if _timed:
         compile_builder(wide=n > _wide)
     cx, cy, cz, r = (np.ascontiguousarray(spheres[k]) for k in range(4))

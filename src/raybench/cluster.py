@@ -45,6 +45,7 @@ from .backends.limits import PIXEL_BYTES, check_fits, host_available_bytes
 from .camera import Camera
 from .errors import RaybenchError, one_line
 from .kernels.whitted import KINDS
+from .machine import usable_cores
 from .render import Frame, Renderer
 from .scene import Scene
 
@@ -76,13 +77,6 @@ def gpu_count() -> int:
     from numba import cuda
 
     return len(cuda.gpus)
-
-
-def usable_cores() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
 
 
 def worker_specs(device: str, workers: int) -> dict:

@@ -21,7 +21,6 @@ can hold the two to equality rather than to a tolerance.
 from __future__ import annotations
 
 import functools
-import os
 import time
 from concurrent.futures import ThreadPoolExecutor
 
@@ -35,6 +34,7 @@ from ..kernels import whitted as whitted_mod
 from ..kernels.trace import FAR, ZERO
 from ..layout import BLUE, CHILD_BOX, COUNT, GREEN, INNER, NODE_FLOATS, PAD, RADIUS, RED, REF, STACK
 from ..lighting import Shading
+from ..machine import usable_cores
 from .contract import TracerBase, check_method, check_moved
 from .limits import (
     HOST_PIXEL_BYTES,
@@ -555,7 +555,7 @@ def chunks(height: int, threads: int) -> list[tuple[int, int]]:
 
 
 def default_threads() -> int:
-    return os.cpu_count() or 1
+    return usable_cores()
 
 
 def description() -> str:

@@ -9,11 +9,12 @@ lanes x 2); these are measured, so the floor in docs/performance.md and the
 
 from __future__ import annotations
 
-import os
 import time
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
+
+from ..machine import usable_cores
 
 CHAINS = 64  # CPU: independent accumulators, enough to hide FMA latency
 UNROLL = 8  # GPU: 8 chains x 8 per loop trip
@@ -41,7 +42,7 @@ def _cpu_kernel():
 def cpu_peak(threads: int | None = None, seconds: float = 1.0) -> dict:
     """FP32 GFLOP/s of `threads` threads (default: one per logical CPU), each
     running FMA chains; the best of three runs."""
-    threads = threads or os.cpu_count() or 1
+    threads = threads or usable_cores()
     kernel = _cpu_kernel()
     b, c = np.float32(0.999), np.float32(1e-4)
     kernel(1, b, c)

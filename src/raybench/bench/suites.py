@@ -58,11 +58,11 @@ its own; what a 2-core machine spends on it is mostly its BVH frames.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 
 from ..backends.limits import BUILDS, FAST_MAX_THREADS
 from ..errors import RaybenchError
+from ..machine import usable_cores
 
 SUITES = ("thesis", "constant-vs-runtime", "tuning", "scaling", "secondary", "multi-gpu", "dynamic")
 ACCELS = ("bvh", "none")
@@ -226,7 +226,7 @@ def points(
         if accel not in ACCELS:
             raise RaybenchError(f"accel: unknown accel {accel!r}; choose from {', '.join(ACCELS)}")
     runs = _runs(variants(kernels, accels), devices, wgpu or {}, builds)
-    cores = cores or os.cpu_count() or 1
+    cores = cores or usable_cores()
     out: list[Point] = []
     if "thesis" in suites:
         sizes = THESIS_SIZES[:1] if quick else THESIS_SIZES
