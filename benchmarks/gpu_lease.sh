@@ -33,6 +33,9 @@
 #            records, for raybench report's section across workers
 #   dynamic  the dynamic suite: moving spheres, the tree's update and the frame, cuda (both builds),
 #            cpu and wgpu (DYNAMIC_ARGS to change)
+#   startup  benchmarks/startup.py: the time to the first picture, cold and warm, each version of
+#            BASELINE (with its commit, BASELINE_COMMITS in the same order) then this one, on the
+#            cores STARTUP_CPUS (taskset -c; e.g. 0,1 for two) where set (STARTUP_ARGS to change)
 #   gpubuild benchmarks/gpu_build.py: the BVH built on the GPU against the host's binned SAH tree
 #            (build, refit, SAH cost, walks on both, leaf sizes), its records in gpu-build.json
 #            (GPUBUILD_ARGS to change, e.g. "--spheres 100000 --repeats 101")
@@ -130,6 +133,18 @@ for s in $STEPS; do
     multibench) bench multibench "${MULTIBENCH_S:-400}" --suite multi-gpu --device cuda --accel bvh ;;
     # shellcheck disable=SC2086
     dynamic) bench dynamic "${DYNAMIC_S:-300}" ${DYNAMIC_ARGS:---suite dynamic --device cuda --device cpu --device wgpu} ;;
+    startup)
+        commits=(${BASELINE_COMMITS:-}); i=0
+        for base in ${BASELINE:-}; do
+            # shellcheck disable=SC2086
+            step "startup-$base" "${STARTUP_S:-240}" env PYTHONPATH="/tmp/site:$PWD/$base" \
+                RAYBENCH_GIT_COMMIT="${commits[$i]:-unknown}" ${STARTUP_CPUS:+taskset -c $STARTUP_CPUS} \
+                python3 benchmarks/startup.py ${STARTUP_ARGS:---device cpu --runs 2}
+            i=$((i + 1))
+        done
+        # shellcheck disable=SC2086
+        step startup "${STARTUP_S:-240}" ${STARTUP_CPUS:+taskset -c $STARTUP_CPUS} \
+            python3 benchmarks/startup.py ${STARTUP_ARGS:---device cpu --runs 2} ;;
     gpubuild)
         # shellcheck disable=SC2086
         step gpubuild "${GPUBUILD_S:-420}" python3 benchmarks/gpu_build.py --json "$W/gpu-build.json" \

@@ -5,6 +5,10 @@ of JSON per measurement.
 
     python benchmarks/startup.py --device cpu --size 1680x1050 --spheres 1000
     python benchmarks/startup.py --device cpu --shading whitted
+
+The first line says what ran: the commit ($RAYBENCH_GIT_COMMIT where set),
+where raybench was imported from, and the machine: its processor and the
+cores this process may use (run it under `taskset -c 0,1` to time two).
 """
 
 import argparse
@@ -32,6 +36,13 @@ def main() -> int:
     parser.add_argument("--runs", type=int, default=3)
     args = parser.parse_args()
     python = sys.executable
+    describe = (
+        "import json, os, raybench, raybench.machine as m; "
+        "print(json.dumps({'what': 'run', 'git_commit': m.git_commit(), 'raybench': raybench.__file__, "
+        "'cpu': m.describe()['cpu'], 'usable_cores': len(os.sched_getaffinity(0))}))"
+    )
+    ran = subprocess.run([python, "-c", describe], check=True, capture_output=True, text=True)
+    print(ran.stdout.strip(), flush=True)
     with tempfile.TemporaryDirectory() as scratch:
         out = os.path.join(scratch, "x.png")
         base_env = dict(os.environ)
