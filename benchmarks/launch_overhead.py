@@ -7,6 +7,8 @@ Python, timed three ways (medians of --rounds, microseconds a launch):
              the arguments, choosing the overload)
   prepare    the arguments' conversion alone (_prepare_args, as launch does
              it before the driver call): no launch
+  prepared   cuda.core's launch of the kernel with the arguments converted
+             once, before the loop: what a launch costs without numba-cuda
 
 The GPU builder (backends/cuda_build.py) launches 20 kernels a build, so
 these say how much of a small scene's build is the host's (docs/performance.md,
@@ -22,7 +24,9 @@ import sys
 import time
 
 import numpy as np
+from cuda.core import LaunchConfig, launch
 from numba import cuda
+from numba.cuda.cudadrv import driver
 
 
 @cuda.jit
@@ -58,6 +62,8 @@ def main() -> int:
     parser.add_argument("--rounds", type=int, default=5)
     args = parser.parse_args()
     arrays = [cuda.to_device(np.zeros(1024, np.float32)) for _ in range(12)]
+    stream = driver._to_core_stream(0)  # the default stream, as numba-cuda hands it to cuda.core
+    config = LaunchConfig(grid=1, block=32)
     for kernel, count in ((one, 1), (four, 4), (twelve, 12)):
         given = arrays[:count]
         kernel[1, 32](*given)  # compile
@@ -66,13 +72,20 @@ def main() -> int:
         def prepare(compiled=compiled, given=given):
             retr, kernelargs = [], []
             for t, v in zip(compiled.argument_types, given):
-                compiled._prepare_args(t, v, 0, retr, kernelargs)
+                compiled._prepare_args(t, v, stream, retr, kernelargs)
+            return kernelargs
+
+        kernelargs = prepare()
+        handle = compiled._codelibrary.get_cufunc().kernel
 
         row = {
             "arrays": count,
             "dispatch_us": per_launch_us(lambda k=kernel, g=given: k[1, 32](*g), args.launches, args.rounds),
             "launch_us": per_launch_us(
-                lambda c=compiled, g=given: c.launch(g, (1, 1, 1), (32, 1, 1), 0, 0), args.launches, args.rounds
+                lambda c=compiled, g=given: c.launch(g, (1, 1, 1), (32, 1, 1), stream, 0), args.launches, args.rounds
+            ),
+            "prepared_us": per_launch_us(
+                lambda h=handle, a=kernelargs: launch(stream, config, h, *a), args.launches, args.rounds
             ),
             "prepare_us": per_launch_us(prepare, args.launches, args.rounds),
             "launches": args.launches,
