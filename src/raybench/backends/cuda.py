@@ -31,6 +31,7 @@ from ..layout import CHILD_BOX, INNER, NODE_BYTES, NODE_FLOATS, RADIUS, STACK
 from ..lighting import Shading
 from . import cuda_build
 from .contract import TracerBase, check_method, check_moved
+from .cuda_launch import Launches
 from .limits import (
     BUILDS,
     FAST_MAX_THREADS,
@@ -539,6 +540,10 @@ class Tracer(TracerBase):
         self.spheres = spheres
         self.width, self.height = width, height
         self.count = spheres.shape[1]
+        # a frame's launches with their arguments converted once: numba-cuda's
+        # conversion of a BVH kernel's twelve arrays took 0.1 ms, inside the
+        # kernel's timed span (cuda_launch; docs/performance.md)
+        self._launches = Launches(64)
         self.d_spheres = cuda.to_device(spheres if self.count else np.zeros((7, 1), np.float32))
         self.d_image = cuda.device_array((height, width, 3), dtype=np.uint8)
         self.d_hits = cuda.device_array((height, width), dtype=np.int32)
@@ -609,6 +614,7 @@ class Tracer(TracerBase):
             self._fresh_cost = self._builder.read_cost() if self.bvh.built_on == "gpu" else None
         else:
             self.bvh = cuda_build.upload(bvh_mod.build(self.spheres[:, :count]))
+        self._launches.clear()  # they hold the old tree's arrays
         self.build_s = self.bvh.build_s
         self.d_nodes, self.d_links = self.bvh.nodes, self.bvh.links  # the same bytes: one row holds both
         self.d_ordered, self.d_order = self.bvh.ordered, self.bvh.order
@@ -659,48 +665,39 @@ class Tracer(TracerBase):
         """The frame's kernel on grid, for rows first..end (default all) of a
         width x height frame."""
         end = height if end is None else end
+        launch = self._launches
         with warnings.catch_warnings():
             # Small frames cannot fill the GPU; that is the user's choice, not news.
             warnings.simplefilter("ignore", NumbaPerformanceWarning)
             if self.whitted is not None:
                 if self.accel == "bvh" and self.bvh.count != count:
                     self._build(count)
-                _zero_rays[1, len(KINDS)](self.d_rays)
-                self._kernel[grid, self.block](
-                    width, height, first, end, self.d_basis, self.d_spheres, count, self.d_materials, self.d_lights,
-                    self.d_pattern, self.d_params, self.d_nodes, self.d_links, self.d_ordered, self.d_order,
-                    self.d_image, self.d_hits, self.d_rays,
+                launch(_zero_rays, 1, len(KINDS), self.d_rays)
+                launch(
+                    self._kernel, grid, self.block, width, height, first, end, self.d_basis, self.d_spheres, count,
+                    self.d_materials, self.d_lights, self.d_pattern, self.d_params, self.d_nodes, self.d_links,
+                    self.d_ordered, self.d_order, self.d_image, self.d_hits, self.d_rays,
                 )  # fmt: skip
             elif self.accel == "bvh":
                 if self.bvh.count != count:  # a frame of fewer spheres: their own tree
                     self._build(count)
-                self._kernel[grid, self.block](
-                    width,
-                    height,
-                    first,
-                    end,
-                    self.d_basis,
-                    self.d_nodes,
-                    self.d_links,
-                    self.d_ordered,
-                    self.d_order,
-                    self.d_spheres,
-                    self.d_image,
-                    self.d_hits,
-                )
+                launch(
+                    self._kernel, grid, self.block, width, height, first, end, self.d_basis, self.d_nodes,
+                    self.d_links, self.d_ordered, self.d_order, self.d_spheres, self.d_image, self.d_hits,
+                )  # fmt: skip
             elif self.kernel == "fast":
                 # EO and the cull bound for this frame's camera, on the GPU, before the frame
-                _prepare_kernel[max(1, math.ceil(count / 256)), 256](
-                    self.d_basis, self.d_spheres, count, self.d_relative
-                )
-                self._kernel[grid, self.block](
-                    width, height, first, end, self.d_basis, self.d_spheres, self.d_relative, count, self.d_image,
-                    self.d_hits,
+                launch(_prepare_kernel, max(1, math.ceil(count / 256)), 256, self.d_basis, self.d_spheres, count,
+                       self.d_relative)  # fmt: skip
+                launch(
+                    self._kernel, grid, self.block, width, height, first, end, self.d_basis, self.d_spheres,
+                    self.d_relative, count, self.d_image, self.d_hits,
                 )  # fmt: skip
             else:
-                self._kernel[grid, self.block](
-                    width, height, first, end, self.d_basis, self.d_spheres, count, self.d_image, self.d_hits
-                )
+                launch(
+                    self._kernel, grid, self.block, width, height, first, end, self.d_basis, self.d_spheres, count,
+                    self.d_image, self.d_hits,
+                )  # fmt: skip
 
     def _prepare(self, basis: np.ndarray, count: int | None) -> int:
         """Upload the camera; the sphere count to trace."""

@@ -1,0 +1,105 @@
+"""A kernel launch with its arguments converted once, for launches repeated
+with the same arguments.
+
+numba-cuda converts every argument of every launch in Python: about 7 us a
+device array on the H200's host, so a kernel of 12 arrays costs 146 us to
+launch and 12 us with its arguments converted beforehand
+(`benchmarks/launch_overhead.py`, `benchmarks/results/h200/launch-overhead-20261130-y3.jsonl`).
+The GPU builder launches 20 kernels a build, each on the same arrays build
+after build, so below a few hundred thousand spheres the host's conversions
+were most of a build (docs/performance.md, issue 16).
+
+`Launches` keeps the prepared launches of a Tracer or a Builder by their
+arguments, so each is converted once; its owner clears it when it replaces
+an array the launches were prepared with (a rebuilt tree), which would
+otherwise stay alive in them.
+
+`Prepared(kernel, grid, block, *args)` launches once through numba-cuda
+(which compiles and checks the arguments), then keeps the converted
+arguments and launches again through cuda.core, as numba-cuda itself does
+after converting them. It holds the arguments, so the device pointers it
+converted stay valid. Under numba's simulator, or where a launch needs
+numba-cuda each time (host arrays copied over, a debug kernel), it launches
+through numba-cuda every time: the same kernel, the same arguments.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+
+import numba
+import numpy as np
+
+_SCALARS = (int, float, np.generic)
+
+
+class Launches:
+    """The last `size` launches, prepared, by kernel, grid, block and
+    arguments (arrays by identity: a kept launch holds its arrays, so an id
+    cannot be another array's while it is kept)."""
+
+    def __init__(self, size: int = 4):
+        self._kept: OrderedDict = OrderedDict()
+        self._size = size
+
+    def __call__(self, kernel, grid, block, *args) -> None:
+        key = (id(kernel), grid, block, *((type(a), a) if isinstance(a, _SCALARS) else id(a) for a in args))
+        step = self._kept.get(key)
+        if step is None:
+            self._kept[key] = Prepared(kernel, grid, block, *args)
+            if len(self._kept) > self._size:
+                self._kept.popitem(last=False)
+        else:
+            self._kept.move_to_end(key)
+            step()
+
+    def clear(self) -> None:
+        self._kept.clear()
+
+
+class Prepared:
+    def __init__(self, kernel, grid, block, *args):
+        self._kernel, self._grid, self._block, self._args = kernel, grid, block, args
+        kernel[grid, block](*args)
+        self._fast = _converted(kernel, grid, block, args)
+
+    @property
+    def converted(self) -> bool:
+        """Whether later launches skip numba-cuda's conversions."""
+        return self._fast is not None
+
+    def __call__(self) -> None:
+        if self._fast is None:
+            self._kernel[self._grid, self._block](*self._args)
+        else:
+            launch, launch_args = self._fast
+            launch(*launch_args)
+
+
+def _converted(kernel, grid, block, args):
+    """(cuda.core's launch, its arguments) for this launch, or None where the
+    kernel must go through numba-cuda each time. Reads numba-cuda's own
+    conversion (`_Kernel._prepare_args`, numba-cuda 0.30), whose version
+    pyproject.toml pins."""
+    if numba.config.ENABLE_CUDASIM:
+        return None
+    try:
+        from cuda.core import LaunchConfig, launch
+        from numba.cuda.cudadrv import driver
+    except ImportError:
+        return None
+    overloads = list(kernel.overloads.values())
+    if len(overloads) == 1:
+        compiled = overloads[0]
+    else:
+        compiled = kernel.overloads.get(tuple(kernel.typeof_pyval(a) for a in args))
+    if compiled is None or compiled.debug or compiled.cooperative:
+        return None
+    stream = driver._to_core_stream(0)
+    kernelargs, writeback = [], []
+    for ty, value in zip(compiled.argument_types, args):
+        compiled._prepare_args(ty, value, stream, writeback, kernelargs)
+    if writeback:  # a host array, copied to the device by each launch and back
+        return None
+    handle = compiled._codelibrary.get_cufunc().kernel
+    return launch, (stream, LaunchConfig(grid=grid, block=block), handle, *kernelargs)
