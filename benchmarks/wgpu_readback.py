@@ -1,11 +1,12 @@
 """Where a wgpu frame's time goes between the compute pass and the arrays on
 the host: the pass alone (GPU timestamps, and submit-to-done by the wall
 clock), then each step of the readback that Tracer.trace() does, timed apart:
-the copies out of the texture and the hits buffer, mapping each buffer, and
-the conversion into the (H, W, 3) image and (H, W) hits (the image's three
-ways: (H, W, 3) picked out of mapped memory at once, as before; a plane at a
-time; and copied out first, then a plane at a time, as trace() does now). Medians of --frames
-warm frames; one line of JSON per sphere count.
+the pass that packs the RGB bytes on the GPU and the copies after it
+(copy_submit, to done: copy_done), mapping each buffer, and the straight
+copies into the (H, W, 3) image and (H, W) hits. The way before, in the same
+run: the RGBA texture copied out as it is (rgba_copy_done), then the RGB
+channels picked out on the host a plane at a time (rgba_planes). Medians of
+--frames warm frames; one line of JSON per sphere count.
 
     python benchmarks/wgpu_readback.py --spheres 1000 --spheres 1000000
 """
@@ -38,18 +39,23 @@ def measure(spheres: int, width: int, height: int, frames: int, adapter: str | N
             "kernel",
             "pass_wall",
             "copy_submit",
+            "copy_done",
             "map_image",
             "map_hits",
-            "image_in_place",
-            "image_copy",
-            "image_planes_in_place",
-            "image_planes",
+            "image",
             "hits",
+            "rgba_copy_done",
+            "rgba_planes",
             "trace",
         )
     }
     with Tracer(scene.spheres, width, height, adapter=adapter) as tracer:
         tracer.compile()
+        row_bytes = -(-width * 4 // 256) * 256  # a texture-to-buffer copy's rows: WebGPU's alignment
+        rgba_read = tracer.device.create_buffer(
+            size=row_bytes * height, usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ
+        )
+        rgba = np.empty(row_bytes * height, np.uint8)
         for _ in range(3):
             tracer.trace(basis)
         for _ in range(frames):
@@ -67,38 +73,46 @@ def measure(spheres: int, width: int, height: int, frames: int, adapter: str | N
             start = time.perf_counter()
             encoder = tracer.device.create_command_encoder()
             tracer._encode_readback(encoder)
+            tracer.compute.encode_fence(encoder)
             tracer.device.queue.submit([encoder.finish()])
             steps["copy_submit"].append(ms(start))
+            tracer.compute.wait()
+            steps["copy_done"].append(ms(start))
             start = time.perf_counter()
             tracer.image_read.map_sync(wgpu.MapMode.READ)
             steps["map_image"].append(ms(start))
             start = time.perf_counter()
             tracer.hits_read.map_sync(wgpu.MapMode.READ)
             steps["map_hits"].append(ms(start))
-            mapped = np.frombuffer(tracer.image_read.read_mapped(copy=False), np.uint8)
-            start = time.perf_counter()  # the RGB channels picked out of mapped memory in place
-            tracer.image[...] = mapped.reshape(height, tracer.row_bytes // 4, 4)[:, :width, :3]
-            steps["image_in_place"].append(ms(start))
-            start = time.perf_counter()  # one plane at a time, out of mapped memory
-            pixels = mapped.reshape(height, tracer.row_bytes // 4, 4)[:, :width]
-            for channel in range(3):
-                tracer.image[:, :, channel] = pixels[:, :, channel]
-            steps["image_planes_in_place"].append(ms(start))
-            start = time.perf_counter()  # what trace() does: one straight copy out, then the planes
-            tracer.rgba[...] = mapped
-            steps["image_copy"].append(ms(start))
             start = time.perf_counter()
-            pixels = tracer.rgba.reshape(height, tracer.row_bytes // 4, 4)[:, :width]
-            for channel in range(3):
-                tracer.image[:, :, channel] = pixels[:, :, channel]
-            steps["image_planes"].append(ms(start))
-            del pixels
-            del mapped
+            tracer.image.reshape(-1)[...] = np.frombuffer(
+                tracer.image_read.read_mapped(copy=False), np.uint8, count=tracer.image.size
+            )
+            steps["image"].append(ms(start))
             start = time.perf_counter()
             tracer.hits[...] = np.frombuffer(tracer.hits_read.read_mapped(copy=False), np.int32).reshape(height, width)
             steps["hits"].append(ms(start))
             tracer.image_read.unmap()
             tracer.hits_read.unmap()
+            # the way before: the texture's RGBA rows copied out, the channels picked on the host
+            start = time.perf_counter()
+            encoder = tracer.device.create_command_encoder()
+            encoder.copy_texture_to_buffer(
+                {"texture": tracer.compute.texture, "mip_level": 0, "origin": (0, 0, 0)},
+                {"buffer": rgba_read, "offset": 0, "bytes_per_row": row_bytes, "rows_per_image": height},
+                (width, height, 1),
+            )
+            tracer.device.queue.submit([encoder.finish()])
+            rgba_read.map_sync(wgpu.MapMode.READ)
+            steps["rgba_copy_done"].append(ms(start))
+            start = time.perf_counter()
+            rgba[...] = np.frombuffer(rgba_read.read_mapped(copy=False), np.uint8)
+            pixels = rgba.reshape(height, row_bytes // 4, 4)[:, :width]
+            for channel in range(3):
+                tracer.image[:, :, channel] = pixels[:, :, channel]
+            steps["rgba_planes"].append(ms(start))
+            del pixels
+            rgba_read.unmap()
             # and the whole of trace(), as render() calls it
             start = time.perf_counter()
             tracer.trace(basis)

@@ -126,6 +126,36 @@ def test_every_pixel_is_written_whatever_the_workgroup(adapter, rng):
     assert np.array_equal(one.hits, raybench.render(scene, camera, 1, 1, device="cpu").hits)
 
 
+def test_the_packed_image_is_the_texture_read_back_as_it_is(adapter, rng):
+    """trace() reads the RGB bytes packed on the GPU (pack.wgsl): they must be
+    the texture's, read back the plain way (its RGBA rows copied out), at
+    sizes whose pixel count is and is not a multiple of the four a word group packs."""
+    import wgpu
+
+    from raybench.backends.wgpu.tracer import Tracer
+
+    scene, camera = KINDS["generated"](rng, int(rng.integers(1, 60)))
+    for width, height in [(1, 1), (3, 1), (5, 3), (int(rng.integers(1, 90)), int(rng.integers(1, 40)))]:
+        tracer = Tracer(scene.spheres, width, height, adapter=adapter)
+        image, _hits = tracer.trace(camera.basis(width, height))
+        row_bytes = -(-width * 4 // 256) * 256
+        plain = tracer.device.create_buffer(
+            size=row_bytes * height, usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ
+        )
+        encoder = tracer.device.create_command_encoder()
+        encoder.copy_texture_to_buffer(
+            {"texture": tracer.compute.texture, "mip_level": 0, "origin": (0, 0, 0)},
+            {"buffer": plain, "offset": 0, "bytes_per_row": row_bytes, "rows_per_image": height},
+            (width, height, 1),
+        )
+        tracer.device.queue.submit([encoder.finish()])
+        plain.map_sync(wgpu.MapMode.READ)
+        rgba = np.frombuffer(plain.read_mapped(), np.uint8).reshape(height, row_bytes // 4, 4)[:, :width]
+        plain.unmap()
+        assert np.array_equal(image, rgba[..., :3]), (width, height)
+        tracer.close()
+
+
 @pytest.mark.parametrize("accel", ["bvh", "none"])
 def test_sphere_prefix_zero_spheres_and_reused_buffers(adapter, rng, accel):
     """What the benchmark and the viewer use: frames of the first k spheres

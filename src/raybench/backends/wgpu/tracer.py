@@ -1,5 +1,6 @@
 """The wgpu backend's Tracer: the compute pass on a device of its own, and the
-frame read back to the host (texture -> buffer -> map) for trace(). With
+frame read back to the host (texture -> RGB bytes packed on the GPU -> buffer
+-> map) for trace(). With
 accel "bvh" (the default, as on cpu and cuda) the pass walks the BVH; "none"
 is the thesis's brute force, the simple kernel."""
 
@@ -14,8 +15,7 @@ from ..contract import TracerBase, check_moved
 from ..limits import HOST_PIXEL_BYTES, check_count, check_fits, check_size, host_available_bytes
 from . import adapters
 from .compute import RAY_KINDS, Compute, check_accel
-
-ROW_ALIGN = 256  # bytes_per_row of a texture-to-buffer copy: WebGPU's rule
+from .pack import Packer, packed_bytes
 
 
 def timestamp_period(device) -> float | None:
@@ -57,15 +57,16 @@ class Tracer(TracerBase):
         self.device = adapters.request_device(self.adapter)
         check_fits("host", width, height, 0, host_available_bytes(), HOST_PIXEL_BYTES)
         self.compute = Compute(
-            self.device, spheres, width, height, workgroup, accel, kernel, walk=walk, whitted=whitted
-        )
+            self.device, spheres, width, height, workgroup, accel, kernel,
+            extra_texture_usage=wgpu.TextureUsage.TEXTURE_BINDING, walk=walk, whitted=whitted,
+        )  # fmt: skip
+        self.packer = Packer(self.device, self.compute.texture, width, height)
         self.accel = accel
         self.walk = self.compute.walk  # the BVH walk: "ray" or "packet"; None for brute force
         self.workgroup = self.compute.workgroup
         self.width, self.height, self.count = width, height, spheres.shape[1]
-        self.row_bytes = -(-width * 4 // ROW_ALIGN) * ROW_ALIGN
         self.image_read = self.device.create_buffer(
-            size=self.row_bytes * height, usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ
+            size=packed_bytes(width, height), usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ
         )
         self.hits_read = self.device.create_buffer(
             size=width * height * 4, usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ
@@ -75,7 +76,6 @@ class Tracer(TracerBase):
                 size=RAY_KINDS * 4, usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ
             )
             self.ray_counts = np.zeros(RAY_KINDS, np.int64)
-        self.rgba = np.empty(self.row_bytes * height, np.uint8)  # the texture's rows as copied out
         self.image = np.empty((height, width, 3), np.uint8)
         self.hits = np.empty((height, width), np.int32)
         self.period_ns = timestamp_period(self.device) if self.compute.timestamps else None
@@ -111,11 +111,8 @@ class Tracer(TracerBase):
         self.device.queue.submit([encoder.finish()])
 
     def _encode_readback(self, encoder) -> None:
-        encoder.copy_texture_to_buffer(
-            {"texture": self.compute.texture, "mip_level": 0, "origin": (0, 0, 0)},
-            {"buffer": self.image_read, "offset": 0, "bytes_per_row": self.row_bytes, "rows_per_image": self.height},
-            (self.width, self.height, 1),
-        )
+        self.packer.encode(encoder)
+        encoder.copy_buffer_to_buffer(self.packer.packed, 0, self.image_read, 0, self.image_read.size)
         encoder.copy_buffer_to_buffer(self.compute.hits, 0, self.hits_read, 0, self.width * self.height * 4)
         if self.ray_counts is not None:
             encoder.copy_buffer_to_buffer(self.compute.rays, 0, self.rays_read, 0, RAY_KINDS * 4)
@@ -127,18 +124,16 @@ class Tracer(TracerBase):
         for buffer in (self.image_read, self.hits_read):
             buffer.map_sync(wgpu.MapMode.READ)
         try:
-            # One straight copy out of mapped memory, and the RGB channels
-            # picked from host memory (benchmarks/wgpu_readback.py times both).
-            self.rgba[...] = np.frombuffer(self.image_read.read_mapped(copy=False), np.uint8)
+            # straight copies out of mapped memory: the image's bytes packed on the GPU (pack.py)
+            self.image.reshape(-1)[...] = np.frombuffer(
+                self.image_read.read_mapped(copy=False), np.uint8, count=self.image.size
+            )
             self.hits[...] = np.frombuffer(self.hits_read.read_mapped(copy=False), np.int32).reshape(
                 self.height, self.width
             )
         finally:
             self.image_read.unmap()
             self.hits_read.unmap()
-        pixels = self.rgba.reshape(self.height, self.row_bytes // 4, 4)[:, : self.width]
-        for channel in range(3):  # one plane at a time: NumPy copies (H, W, 3) at once byte by byte, 10x slower
-            self.image[:, :, channel] = pixels[:, :, channel]
         if self.ray_counts is not None:
             self.rays_read.map_sync(wgpu.MapMode.READ)
             try:
