@@ -58,6 +58,9 @@ class Launches:
 
 
 class Prepared:
+    """One launch, made now through numba-cuda and kept ready to be made
+    again with the same arguments: call it."""
+
     def __init__(self, kernel, grid, block, *args):
         self._kernel, self._grid, self._block, self._args = kernel, grid, block, args
         kernel[grid, block](*args)
