@@ -26,14 +26,27 @@ def small(rng) -> int:
     return int(rng.integers(2, 33 if sim() else 5000))
 
 
-def gpu_tree(spheres, leaf_size=None, **options):
+def gpu_tree(spheres, leaf_size=None, quality=None, **options):
     from numba import cuda
 
     from raybench.backends import cuda_build
 
     n = spheres.shape[1]
-    builder = cuda_build.Builder(n, leaf_size) if leaf_size is not None and n >= 2 else None
+    given = (leaf_size is not None or quality is not None) and n >= 2
+    builder = cuda_build.Builder(n, leaf_size, quality) if given else None
     return cuda_build.build(spheres, cuda.to_device(spheres), builder, **options)
+
+
+def tree_model():
+    """benchmarks/gpu_tree_model.py: the GPU's tree built on the CPU."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).parent.parent / "benchmarks" / "gpu_tree_model.py"
+    spec = importlib.util.spec_from_file_location("gpu_tree_model", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def morton_reference(spheres) -> np.ndarray:
@@ -60,13 +73,59 @@ def test_gpu_tree_is_valid(rng, kind):
     up to leaf_size spheres, and none of more."""
     scene, _ = SCENES[kind](rng, small(rng))
     leaf_size = int(rng.integers(1, bvh.LEAF_MAX + 1))
-    tree = gpu_tree(scene.spheres, leaf_size)
+    tree = gpu_tree(scene.spheres, leaf_size, str(rng.choice(["sah", "lbvh"])))
     assert tree.built_on == ("gpu" if len(scene) >= 2 else "host")
     host = tree.to_host()
     check_tree(host, scene.spheres)
     assert tree.node_count == max(len(scene) - 1, 1)  # Karras's internal nodes, collapsed ones kept
     counts = host.links[:, layout.COUNT : layout.COUNT + 2]
     assert counts.max() <= leaf_size
+
+
+@pytest.mark.parametrize("kind", ["generated", "overlapping", "one_point", "duplicates", "line"])
+def test_model_gives_the_kernels_tree(rng, kind):
+    """benchmarks/gpu_tree_model.py, which measures the GPU trees' SAH cost
+    at sizes the simulator cannot build, gives the kernels' tree: every row
+    (collapsed ones too), the order, the depth, the rows reached and the
+    device's cost, bit for bit under the simulator (a GPU may fuse
+    multiply-adds: there the cost within rounding)."""
+    from raybench.backends import cuda_build
+
+    model = tree_model()
+    scene, _ = SCENES[kind](rng, max(small(rng), 2))
+    quality = str(rng.choice(cuda_build.QUALITIES))
+    leaf_size = int(rng.integers(1, bvh.LEAF_MAX + 1))
+    tree = gpu_tree(scene.spheres, leaf_size, quality)
+    nodes, order, ordered, depth, rows, cost = model.build(scene.spheres, quality, leaf_size)
+    got = tree.to_host()
+    assert np.array_equal(got.order, order) and np.array_equal(got.ordered, ordered)
+    assert depth == tree.depth
+    if sim():
+        assert np.array_equal(got.nodes.view(np.uint32), nodes.view(np.uint32))
+    else:
+        assert np.array_equal(got.links[:, layout.REF :], nodes.view(np.int32)[:, layout.REF :])
+    from numba import cuda
+
+    builder = cuda_build.Builder(len(scene), leaf_size, quality)
+    builder.launch_build(cuda.to_device(scene.spheres))
+    assert builder.read_rows() == rows
+    assert builder.read_cost() == (cost if sim() else pytest.approx(cost, rel=1e-5))
+
+
+def test_sah_leaves_are_the_cheapest_cut(rng):
+    """The "sah" leaves cut the LBVH where the SAH is least: its cost is no
+    more than that of any fixed leaf size up to the same most ("lbvh"
+    leaves: the same rows, cut elsewhere), and than a cut with no leaf of
+    more than one sphere."""
+    from raybench.backends import cuda_build
+
+    scene, _ = SCENES[str(rng.choice(["generated", "overlapping", "cloud"]))](rng, int(rng.integers(12, 33)))
+    best = tree_cost.sah_cost(gpu_tree(scene.spheres, bvh.LEAF_MAX, "sah").to_host().nodes)
+    for size in range(1, bvh.LEAF_MAX + 1):
+        fixed = gpu_tree(scene.spheres, size, "lbvh").to_host()
+        assert best <= tree_cost.sah_cost(fixed.nodes) * (1 + 1e-5)
+    with pytest.raises(ValueError, match="quality: must be one of sah, lbvh, got 'best'"):
+        cuda_build.Builder(4, quality="best")
 
 
 def test_sort_is_stable_by_morton_code(rng):

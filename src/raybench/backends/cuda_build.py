@@ -14,17 +14,19 @@ waits once, at the end, to read the tree's depth:
               their indices: the tie-break Karras's hierarchy needs;
   4. hierarchy Karras's internal nodes from the sorted codes, internal node i
               in row i (the root is row 0), each child a row (INNER) or, where
-              it covers at most LEAF_SIZE spheres, a leaf of them (ref: the
-              first one's place in leaf order). Equal codes are told apart by
+              it is one sphere, a leaf of it. Equal codes are told apart by
               their places, as Karras does: a key of code bits then place
               bits, all distinct;
   5. bounds up one thread per leaf climbs to the root; at each row the first of
               its two children to arrive stops, the second (an atomic counter
-              says which) unites both boxes and goes on. The same pass writes
-              the ordered spheres (the scene's very float32 values, as the host
-              builder does) and each row's height.
-Refit (spheres moved, same tree) is step 5 alone: the tree's shape is kept,
-its boxes are the moved spheres'.
+              says which) unites both boxes and goes on. On its way it cuts
+              the leaves: a row of few enough spheres becomes a leaf of them
+              (ref: the first one's place in leaf order) where the SAH says
+              (QUALITY). The same pass writes the ordered spheres (the
+              scene's very float32 values, as the host builder does), each
+              row's height and SAH cost.
+Refit (spheres moved, same tree) is step 5 alone, its leaves kept: the tree's
+shape is kept, its boxes are the moved spheres'.
 
 The walks' stack holds layout.STACK entries, so a tree must be at most
 MAX_DEPTH rows deep. A radix tree's depth is at most its keys' bits: 30 code
@@ -78,11 +80,16 @@ ONE_BLOCK = 32 if _SIM else 1024
 BOUNDS_BLOCKS = 4 * ONE_BLOCK
 # The other kernels: a thread an element, in blocks of THREADS.
 THREADS = 32 if _SIM else 256
-# Subtrees of at most LEAF_SIZE spheres become leaves (of consecutive
-# spheres in leaf order, which every LBVH subtree covers): fewer rows on a
-# ray's way (the host's tree keeps leaves of up to 3 spheres always, up to
-# bvh.LEAF_MAX where SAH says so). benchmarks/gpu_build.py measures the
-# choice.
+# Where leaves are cut. Every LBVH subtree covers consecutive spheres of the
+# leaf order, so any subtree can be stored as one leaf of them all.
+#   "lbvh": every subtree of at most LEAF_SIZE spheres is a leaf (the first
+#           GPU tree; the leaf-size sweep on the H200 found 2 and 4 alike).
+#   "sah":  a subtree of at most bvh.LEAF_MAX spheres is a leaf where its
+#           SAH cost as a leaf is no more than as a row with the best cut
+#           below it (the host's builder weighs the same, greedily), decided
+#           bottom-up in the pass that fits the boxes, at no extra launch.
+QUALITIES = ("sah", "lbvh")
+QUALITY = "sah"
 LEAF_SIZE = 4
 # A refitted tree is rebuilt once its SAH cost (Builder.read_cost) exceeds
 # REFIT_LIMIT times the cost it had fresh from its build: moved spheres
@@ -93,9 +100,10 @@ LEAF_SIZE = 4
 # for motion that keeps stretching the boxes.
 REFIT_LIMIT = 1.3
 # Device bytes a Builder holds per sphere: keys and values twice (the sort's
-# two buffers), the links up (8 + 8), the heights (8), the counters (4), the
-# node rows (64) and the ordered spheres (16); the histograms add under 1.
-DEVICE_SPHERE_BYTES = 16 + 16 + 8 + 4 + NODE_FLOATS * 4 + 16 + 1
+# two buffers), the links up (8 + 8), the rows' spans (8), what lies below
+# each child (heights and rows 16, costs 8), the counters (4), the node rows
+# (64) and the ordered spheres (16); the histograms add under 1.
+DEVICE_SPHERE_BYTES = 16 + 16 + 32 + 4 + NODE_FLOATS * 4 + 16 + 1
 # The padding of a sphere's box, as raybench.bvh.sphere_pad computes it.
 _PAD = PAD
 _BOX = BOX_FLOATS
@@ -317,26 +325,14 @@ def _delta(keys, n, i, j):
     return 32 + cuda.clz(np.uint32(i ^ j))
 
 
-@cuda.jit(device=True)
-def _link(links, row, slot, first, count, child_row, leaf_size):
-    """Child slot of row: the leaf of its `count` spheres from `first` if
-    they are at most leaf_size, else the row child_row."""
-    if count <= leaf_size:
-        links[row, _REF + slot] = first
-        links[row, _COUNT + slot] = count
-    else:
-        links[row, _REF + slot] = child_row
-        links[row, _COUNT + slot] = _INNER
-
-
 @compiled.cuda_jit()
-def _hierarchy(keys, n, leaf_size, links, up, leaf_up, live):
+def _hierarchy(keys, n, links, up, leaf_up, span):
     """Internal node i (row i): the range of sorted keys it covers, where it
-    splits, and its two children (Karras 2012, figure 4). up[row] and
+    splits, and its two children (Karras 2012, figure 4): a child of one
+    sphere a leaf of it, a child of more the row it starts (collapsed into a
+    leaf, or not, by _bounds_up, once its box is known). up[row] and
     leaf_up[leaf]: the parent's row times 2 plus the child's slot (the
-    root's: -1). live[row]: 1 where a walk can reach the row (the root, and
-    rows of over leaf_size spheres: a range shrinks downwards, so all their
-    ancestors are rows too)."""
+    root's: -1). span[row]: the first and last spheres it covers."""
     i = cuda.grid(1)
     if i >= n - 1:
         return
@@ -367,33 +363,60 @@ def _hierarchy(keys, n, leaf_size, links, up, leaf_up, live):
     gamma = i + split * d + min(d, 0)
     first = min(i, j)
     last = max(i, j)
-    # Each child covers consecutive leaves (first..gamma, gamma+1..last): one
-    # of at most leaf_size spheres is stored as a leaf of them all. Its
-    # subtree's rows stay, out of the walks' reach, so that the bounds still
-    # climb through them (their boxes unite to the leaf's).
-    live[i] = 1 if i == 0 or last - first + 1 > leaf_size else 0
-    _link(links, i, 0, first, gamma - first + 1, gamma, leaf_size)
-    _link(links, i, 1, gamma + 1, last - gamma, gamma + 1, leaf_size)
+    span[i, 0] = first
+    span[i, 1] = last
     if first == gamma:
+        links[i, _REF] = first
+        links[i, _COUNT] = 1
         leaf_up[gamma] = 2 * i
     else:
+        links[i, _REF] = gamma
+        links[i, _COUNT] = _INNER
         up[gamma] = 2 * i
     if last == gamma + 1:
+        links[i, _REF + 1] = gamma + 1
+        links[i, _COUNT + 1] = 1
         leaf_up[gamma + 1] = 2 * i + 1
     else:
+        links[i, _REF + 1] = gamma + 1
+        links[i, _COUNT + 1] = _INNER
         up[gamma + 1] = 2 * i + 1
     if i == 0:
         up[0] = -1
 
 
+@cuda.jit(device=True)
+def _half_area(lx, ly, lz, hx, hy, hz):
+    dx, dy, dz = max(hx - lx, np.float32(0)), max(hy - ly, np.float32(0)), max(hz - lz, np.float32(0))
+    return dx * dy + dy * dz + dz * dx
+
+
 @compiled.cuda_jit()
-def _bounds_up(spheres, n, order, leaf_up, up, nodes, links, heights, arrived, ordered, depth):
+def _bounds_up(
+    spheres, n, order, leaf_up, up, span, nodes, links, below, costs, arrived, ordered, stats, cost, leaf_max, sah
+):
     """Leaf k (its sphere order[k]) climbs to the root, each row's box
     written into its parent's slot; a row's second child to arrive (arrived
     counts them) unites the two boxes and climbs on, and sets the counter
-    back to 0 for the next pass. heights[2 * row + slot]: the child's height
-    (a leaf 0, a row 1 + its children's most); depth[0]: the root's.
-    Also writes leaf k's sphere into ordered (the scene's values)."""
+    back to 0 for the next pass. Also writes leaf k's sphere into ordered
+    (the scene's values).
+
+    On the way up, per child (index 2 * row + slot), what the walks see below
+    it: below[2 * index] its height (a leaf 0, a row 1 + its children's
+    most), below[2 * index + 1] the rows a walk reaches from it (a leaf 0),
+    costs[index] its SAH cost unnormalised (a leaf: count x its box's half
+    area; a row: NODE_COST x its half area plus its children's); stats: the
+    root's height and rows, cost[0] the tree's SAH cost (tree_cost.sah_cost's).
+
+    leaf_max > 0 (a build): the second arrival at a row of at most leaf_max
+    spheres makes it a leaf of them in its parent's slot (they are
+    consecutive: an LBVH row covers a range of the leaf order) where sah is
+    0, or where sah is 1 and the SAH says a leaf is cheaper than the row
+    with the best choice below it (a leaf's cost against the row's: the
+    optimal cut of this tree into leaves, as each row's cost is the cheapest
+    of its subtree's). Its rows stay, out of the walks' reach, so that
+    refits still climb through them. leaf_max == 0 (a refit): the links are
+    kept, and the costs are the tree's as it is."""
     k = cuda.grid(1)
     if k >= n:
         return
@@ -406,6 +429,9 @@ def _bounds_up(spheres, n, order, leaf_up, up, nodes, links, heights, arrived, o
     pr = r + (r + (abs(cx) + abs(cy) + abs(cz))) * _PAD
     lx, ly, lz, hx, hy, hz = cx - pr, cy - pr, cz - pr, cx + pr, cy + pr, cz + pr
     h = 0
+    w = 0
+    c = _half_area(lx, ly, lz, hx, hy, hz)  # a leaf of one sphere
+    a = c
     link = leaf_up[k]
     while link >= 0:
         row = link // 2
@@ -417,65 +443,42 @@ def _bounds_up(spheres, n, order, leaf_up, up, nodes, links, heights, arrived, o
         nodes[row, col + 3] = hx
         nodes[row, col + 4] = hy
         nodes[row, col + 5] = hz
-        if links[row, _COUNT + slot] != _INNER:
-            h = 0  # a leaf to the walks, whatever rows it collapsed
-        heights[link] = h
-        cuda.threadfence()  # the box and height are seen before the count
+        below[2 * link] = h
+        below[2 * link + 1] = w
+        costs[link] = c
+        cuda.threadfence()  # the box and the rest are seen before the count
         if cuda.atomic.add(arrived, row, 1) == 0:
             return  # the sibling, arriving second, goes on
         other = (1 - slot) * _BOX
+        sib = 2 * row + 1 - slot
         lx = min(lx, cuda.atomic.add(nodes, (row, other), np.float32(0)))
         ly = min(ly, cuda.atomic.add(nodes, (row, other + 1), np.float32(0)))
         lz = min(lz, cuda.atomic.add(nodes, (row, other + 2), np.float32(0)))
         hx = max(hx, cuda.atomic.add(nodes, (row, other + 3), np.float32(0)))
         hy = max(hy, cuda.atomic.add(nodes, (row, other + 4), np.float32(0)))
         hz = max(hz, cuda.atomic.add(nodes, (row, other + 5), np.float32(0)))
-        h = 1 + max(h, cuda.atomic.add(heights, 2 * row + 1 - slot, np.int32(0)))
+        h = 1 + max(h, cuda.atomic.add(below, 2 * sib, np.int32(0)))
+        w = 1 + w + cuda.atomic.add(below, 2 * sib + 1, np.int32(0))
+        # the two children's sum first: the same whichever arrived first
+        a = _half_area(lx, ly, lz, hx, hy, hz)
+        c = _NODE_COST * a + (c + cuda.atomic.add(costs, sib, np.float32(0)))
         arrived[row] = 0
         link = up[row]
-    depth[0] = h
-
-
-@cuda.jit(device=True)
-def _half_area(lx, ly, lz, hx, hy, hz):
-    dx, dy, dz = max(hx - lx, np.float32(0)), max(hy - ly, np.float32(0)), max(hz - lz, np.float32(0))
-    return dx * dy + dy * dz + dz * dx
-
-
-@compiled.cuda_jit()
-def _sah_parts(nodes, links, live, m, parts):
-    """tree_cost.sah_cost's sums on the device: parts[b] the SAH terms of
-    block b's live rows (NODE_COST times the row's half area, plus each leaf
-    child's count times its box's), parts[-1] the root's half area."""
-    i = cuda.grid(1)
-    t = cuda.threadIdx.x
-    acc = cuda.shared.array(THREADS, np.float32)
-    v = np.float32(0)
-    if i < m and live[i] != 0:
-        a = _half_area(
-            min(nodes[i, 0], nodes[i, 6]), min(nodes[i, 1], nodes[i, 7]), min(nodes[i, 2], nodes[i, 8]),
-            max(nodes[i, 3], nodes[i, 9]), max(nodes[i, 4], nodes[i, 10]), max(nodes[i, 5], nodes[i, 11]),
-        )  # fmt: skip
-        v = _NODE_COST * a
-        for slot in range(2):
-            count = links[i, _COUNT + slot]
-            if count > 0:
-                c = slot * _BOX
-                leaf = _half_area(
-                    nodes[i, c], nodes[i, c + 1], nodes[i, c + 2], nodes[i, c + 3], nodes[i, c + 4], nodes[i, c + 5]
-                )
-                v += np.float32(count) * leaf
-        if i == 0:
-            parts[parts.shape[0] - 1] = a
-    acc[t] = v
-    step = THREADS // 2
-    while step > 0:
-        cuda.syncthreads()
-        if t < step:
-            acc[t] += acc[t + step]
-        step //= 2
-    if t == 0:
-        parts[cuda.blockIdx.x] = acc[0]
+        if link >= 0:
+            parent = link // 2
+            pslot = link - 2 * parent
+            count = span[row, 1] - span[row, 0] + 1
+            leaf = np.float32(count) * a
+            if count <= leaf_max and (sah == 0 or leaf <= c):
+                links[parent, _REF + pslot] = span[row, 0]
+                links[parent, _COUNT + pslot] = count
+            if links[parent, _COUNT + pslot] != _INNER:
+                h = 0
+                w = 0
+                c = leaf
+    stats[0] = h
+    stats[1] = w
+    cost[0] = c / a if a > 0 else np.float32(0)
 
 
 @dataclass
@@ -511,11 +514,20 @@ class GpuTree:
 class Builder:
     """Builds (and refits) trees of n spheres on the GPU, its device arrays
     allocated once and reused by every build and refit: the dynamic case
-    builds every frame."""
+    builds every frame.
 
-    def __init__(self, n: int, leaf_size: int = LEAF_SIZE):
+    quality: "sah" (QUALITY, the default) cuts the LBVH into leaves where the
+    SAH says, of up to leaf_size spheres (default bvh.LEAF_MAX, as the host's
+    builder); "lbvh" makes every subtree of up to leaf_size spheres (default
+    LEAF_SIZE) a leaf, the first GPU tree, kept to be measured against."""
+
+    def __init__(self, n: int, leaf_size: int | None = None, quality: str | None = None):
+        quality = QUALITY if quality is None else quality
+        if quality not in QUALITIES:
+            raise ValueError(f"quality: must be one of {', '.join(QUALITIES)}, got {quality!r}")
         self.n = n
-        self.leaf_size = leaf_size
+        self.quality = quality
+        self.leaf_size = leaf_size if leaf_size is not None else (LEAF_SIZE if quality == "lbvh" else bvh_mod.LEAF_MAX)
         m = max(n - 1, 1)
         self.tiles = _blocks(n, SORT_TILE)
         self.bounds = cuda.device_array(6, np.float32)
@@ -527,12 +539,13 @@ class Builder:
         self.links = self.nodes.view(np.int32)
         self.up = cuda.device_array(m, np.int64)
         self.leaf_up = cuda.device_array(max(n, 1), np.int64)
-        self.heights = cuda.device_array(2 * m, np.int32)
+        self.span = cuda.device_array((m, 2), np.int32)
+        self.below = cuda.device_array(4 * m, np.int32)
+        self.costs = cuda.device_array(2 * m, np.float32)
         self.arrived = cuda.to_device(np.zeros(m, np.int32))  # each pass leaves it zero
         self.ordered = cuda.device_array((4, max(n, 1)), np.float32)
-        self.depth = cuda.device_array(1, np.int32)
-        self.live = cuda.device_array(m, np.int8)
-        self.cost_parts = cuda.device_array(_blocks(m, THREADS) + 1, np.float32)
+        self.stats = cuda.device_array(2, np.int32)  # the root's height and the rows a walk reaches
+        self.cost = cuda.device_array(1, np.float32)
         # the sorted values end in the buffer of the last pass: the order
         self.order = self.values[PASSES % 2]
 
@@ -542,7 +555,7 @@ class Builder:
         self.launch_codes(spheres)
         self.launch_sort()
         self.launch_hierarchy()
-        self.launch_refit(spheres)
+        self.launch_bounds(spheres)
 
     # The steps of a build, apart so that a benchmark can time each.
 
@@ -567,28 +580,37 @@ class Builder:
     def launch_hierarchy(self) -> None:
         """Step 4: the rows' links from the sorted codes."""
         _hierarchy[_blocks(self.n - 1, THREADS), THREADS](
-            self.keys[PASSES % 2], self.n, self.leaf_size, self.links, self.up, self.leaf_up, self.live
+            self.keys[PASSES % 2], self.n, self.links, self.up, self.leaf_up, self.span
         )
+
+    def launch_bounds(self, spheres) -> None:
+        """Step 5: the boxes bottom-up, and the leaves cut."""
+        self._up(spheres, self.leaf_size)
 
     def launch_refit(self, spheres) -> None:
         """Queue the boxes of the tree's rows recomputed from the spheres'
         positions now (the tree's shape kept); nothing waits."""
+        self._up(spheres, 0)
+
+    def _up(self, spheres, leaf_max: int) -> None:
         _bounds_up[_blocks(self.n, THREADS), THREADS](
-            spheres, self.n, self.order, self.leaf_up, self.up, self.nodes, self.links, self.heights, self.arrived,
-            self.ordered, self.depth,
+            spheres, self.n, self.order, self.leaf_up, self.up, self.span, self.nodes, self.links, self.below,
+            self.costs, self.arrived, self.ordered, self.stats, self.cost, leaf_max, int(self.quality != "lbvh"),
         )  # fmt: skip
 
     def read_cost(self) -> float:
-        """The tree's SAH cost (tree_cost.sah_cost's, summed on the device in
-        float32; waits for the queued work)."""
-        m = self.nodes.shape[0]
-        _sah_parts[_blocks(m, THREADS), THREADS](self.nodes, self.links, self.live, m, self.cost_parts)
-        parts = self.cost_parts.copy_to_host().astype(np.float64)
-        return float(parts[:-1].sum() / parts[-1]) if parts[-1] > 0 else 0.0
+        """The tree's SAH cost (tree_cost.sah_cost's, summed bottom-up on the
+        device in float32; waits for the queued work)."""
+        return float(self.cost.copy_to_host()[0])
 
     def read_depth(self) -> int:
         """The tree's depth (waits for the queued work)."""
-        return int(self.depth.copy_to_host()[0])
+        return int(self.stats.copy_to_host()[0])
+
+    def read_rows(self) -> int:
+        """The rows a walk reaches from the root (the collapsed subtrees'
+        rows not counted; waits for the queued work)."""
+        return int(self.stats.copy_to_host()[1])
 
     def tree(self, depth: int, build_s: float) -> GpuTree:
         return GpuTree(self.nodes, self.links, self.ordered, self.order, self.n, depth, build_s, "gpu")
