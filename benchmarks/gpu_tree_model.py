@@ -26,8 +26,9 @@ import numba
 import numpy as np
 
 from raybench import bvh, layout, tree_cost
+from raybench.backends import cuda_build
 
-AXIS_CELLS = 1024
+AXIS_CELLS = cuda_build.AXIS_CELLS
 PAD = layout.PAD
 NODE_COST = bvh.NODE_COST
 INNER = layout.INNER
@@ -123,8 +124,8 @@ def _half_area(lx, ly, lz, hx, hy, hz):
     return dx * dy + dy * dz + dz * dx
 
 
-TREELET = 8
-TREELET_GAIN = np.float32(0.999)
+TREELET = cuda_build.TREELET
+TREELET_GAIN = cuda_build._GAIN
 INF = np.float32(np.inf)
 
 
@@ -383,7 +384,7 @@ def build(spheres: np.ndarray, quality: str = "sah", leaf_size: int | None = Non
     """The GPU's tree of the (>= 4, n) spheres (n >= 2): (nodes, order,
     ordered, depth, rows reached, its SAH cost as the device sums it)."""
     n = spheres.shape[1]
-    leaf_max = leaf_size if leaf_size is not None else (4 if quality == "lbvh" else bvh.LEAF_MAX)
+    leaf_max = leaf_size if leaf_size is not None else (cuda_build.LEAF_SIZE if quality == "lbvh" else bvh.LEAF_MAX)
     restructure = int(quality == "treelet")
     order = np.argsort(morton(spheres), kind="stable").astype(np.int32)
     keys = morton(spheres)[order]

@@ -124,8 +124,40 @@ def test_sah_leaves_are_the_cheapest_cut(rng):
     for size in range(1, bvh.LEAF_MAX + 1):
         fixed = gpu_tree(scene.spheres, size, "lbvh").to_host()
         assert best <= tree_cost.sah_cost(fixed.nodes) * (1 + 1e-5)
-    with pytest.raises(ValueError, match="quality: must be one of sah, lbvh, got 'best'"):
+    with pytest.raises(ValueError, match="quality: must be one of sah, treelet, lbvh, got 'best'"):
         cuda_build.Builder(4, quality="best")
+
+
+@pytest.mark.parametrize("kind", ["generated", "cloud", "line", "duplicates"])
+def test_treelets_lower_the_cost_and_keep_leaves_ranges(rng, kind):
+    """The "treelet" tree: valid (every sphere in one leaf of consecutive
+    spheres, boxes nested, the depth its own), its rows' links up leading
+    back to the root (refits climb them), no costlier than the "sah" tree
+    of the same LBVH, and after a refit to the same spheres the same tree."""
+    from numba import cuda
+
+    from raybench.backends import cuda_build
+
+    scene, _ = SCENES[kind](rng, int(rng.integers(12, 33)))
+    sah = tree_cost.sah_cost(gpu_tree(scene.spheres, quality="sah").to_host().nodes)
+    builder = cuda_build.Builder(len(scene), quality="treelet")
+    d_spheres = cuda.to_device(scene.spheres)
+    builder.launch_build(d_spheres)
+    tree = builder.tree(builder.read_depth(), 0.0).to_host()
+    check_tree(tree, scene.spheres)
+    assert tree_cost.sah_cost(tree.nodes) <= sah * (1 + 1e-5)
+    assert builder.read_cost() == pytest.approx(tree_cost.sah_cost(tree.nodes), rel=1e-5)
+    up = builder.up.copy_to_host()
+    leaf_up = builder.leaf_up.copy_to_host()
+    for link in leaf_up:
+        seen = 0
+        while link >= 0:  # every sphere's way up ends at the root, in at most every row
+            link = up[link // 2]
+            seen += 1
+            assert seen <= len(scene)
+    builder.launch_refit(d_spheres)
+    again = builder.tree(builder.read_depth(), 0.0).to_host()
+    assert np.array_equal(again.nodes.view(np.uint32), tree.nodes.view(np.uint32))
 
 
 def test_sort_is_stable_by_morton_code(rng):
@@ -174,10 +206,13 @@ def test_too_deep_falls_back_to_the_host_build(rng):
 @pytest.mark.parametrize(
     "kind", ["generated", "inside", "overlapping", "one_point", "duplicates", "line", "one", "none"]
 )
-def test_gpu_tree_walks_give_the_brute_force(rng, kind):
-    """Both walks on the GPU's tree: the brute force's hits, bit for bit under
-    the simulator, within rounding on a GPU (its compiler may fuse
-    multiply-adds; test_bvh's CUDA test says the same)."""
+def test_gpu_tree_walks_give_the_brute_force(rng, monkeypatch, kind):
+    """Both walks on the GPU's tree (of any quality): the brute force's hits,
+    bit for bit under the simulator, within rounding on a GPU (its compiler
+    may fuse multiply-adds; test_bvh's CUDA test says the same)."""
+    from raybench.backends import cuda_build
+
+    monkeypatch.setattr(cuda_build, "QUALITY", str(rng.choice(cuda_build.QUALITIES)))
     scene, camera = SCENES[kind](rng, small(rng))
     width, height = (19, 13) if sim() else (643, 401)
     walk = str(rng.choice(cuda_backend.WALKS))

@@ -88,9 +88,21 @@ THREADS = 32 if _SIM else 256
 #           SAH cost as a leaf is no more than as a row with the best cut
 #           below it (the host's builder weighs the same, greedily), decided
 #           bottom-up in the pass that fits the boxes, at no extra launch.
-QUALITIES = ("sah", "lbvh")
+#   "treelet": "sah", and each row's subtree first made the cheapest tree
+#           over its treelet of TREELET pieces in their order (_treelet):
+#           the splits move along the Morton order where the SAH says.
+QUALITIES = ("sah", "treelet", "lbvh")
 QUALITY = "sah"
 LEAF_SIZE = 4
+# A treelet's pieces: the model of this build (benchmarks/gpu_tree_model.py)
+# found 5 to 16 alike (SAH cost within 0.1%), the pieces' order being what
+# bounds the gain; its interval programme costs K^3 / 6 sums a row.
+TREELET = 6
+# A treelet is rebuilt where that lowers its cost below _GAIN times what it
+# was: rounding alone never changes a tree (all spheres at one point stay a
+# balanced tree).
+_GAIN = np.float32(0.999)
+_INF = np.float32(np.inf)
 # A refitted tree is rebuilt once its SAH cost (Builder.read_cost) exceeds
 # REFIT_LIMIT times the cost it had fresh from its build: moved spheres
 # stretch its boxes, and each ray then visits more of them. In the orbits
@@ -101,9 +113,9 @@ LEAF_SIZE = 4
 REFIT_LIMIT = 1.3
 # Device bytes a Builder holds per sphere: keys and values twice (the sort's
 # two buffers), the links up (8 + 8), the rows' spans (8), what lies below
-# each child (heights and rows 16, costs 8), the counters (4), the node rows
-# (64) and the ordered spheres (16); the histograms add under 1.
-DEVICE_SPHERE_BYTES = 16 + 16 + 32 + 4 + NODE_FLOATS * 4 + 16 + 1
+# each child (heights and rows 16, costs 8, rows 8), the counters (4), the
+# node rows (64) and the ordered spheres (16); the histograms add under 1.
+DEVICE_SPHERE_BYTES = 16 + 16 + 40 + 4 + NODE_FLOATS * 4 + 16 + 1
 # The padding of a sphere's box, as raybench.bvh.sphere_pad computes it.
 _PAD = PAD
 _BOX = BOX_FLOATS
@@ -391,10 +403,203 @@ def _half_area(lx, ly, lz, hx, hy, hz):
     return dx * dy + dy * dz + dz * dx
 
 
+@cuda.jit(device=True)
+def _entry(nodes, links, span, kid, below, costs, row, slot, e, tb, tn, tf, tc, th, tw, tref, tcnt, trow):
+    """Entry e of the treelet: child slot of row, read by atomics that add
+    nothing (rows that other threads wrote: a plain load could find a stale
+    line in this SM's L1)."""
+    link = 2 * row + slot
+    for q in range(6):
+        tb[e, q] = cuda.atomic.add(nodes, (row, 6 * slot + q), np.float32(0))
+    tref[e] = cuda.atomic.add(links, (row, _REF + slot), np.int32(0))
+    tcnt[e] = cuda.atomic.add(links, (row, _COUNT + slot), np.int32(0))
+    trow[e] = cuda.atomic.add(kid, link, np.int32(0))
+    tc[e] = cuda.atomic.add(costs, link, np.float32(0))
+    th[e] = cuda.atomic.add(below, 2 * link, np.int32(0))
+    tw[e] = cuda.atomic.add(below, 2 * link + 1, np.int32(0))
+    if tcnt[e] == _INNER:
+        first = cuda.atomic.add(span, (tref[e], 0), np.int32(0))
+        tf[e] = first
+        tn[e] = cuda.atomic.add(span, (tref[e], 1), np.int32(0)) - first + 1
+    else:
+        tf[e] = tref[e]
+        tn[e] = tcnt[e]
+
+
+@cuda.jit(device=True)
+def _treelet(x, old, nodes, links, span, up, leaf_up, kid, below, costs, leaf_max):
+    """Row x's subtree (its rows' boxes, links and costs final) made the
+    cheapest tree over the same pieces in the same order. The treelet: x's
+    two children, then the one of largest area that is a row (not a leaf)
+    replaced by its two, up to TREELET pieces; the rows it frees (x's and
+    the replaced ones) hold the new tree, whose links, boxes, spans, costs
+    and links up are written here. The pieces keep their order (each covers
+    consecutive spheres, and every new row too: the leaves stay ranges of
+    the leaf order, and any row can still be cut into a leaf). The cheapest
+    tree over ordered pieces is an interval dynamic programme (interval
+    [i, j] at i * K + j: its box's half area, spheres, cost, best split,
+    whether a leaf, and as a row its height and the rows below); leaves are
+    cut in it as _bounds_up cuts them. x is changed only where the tree's
+    cost falls below _GAIN times old (x's cost as it is), so that
+    rounding never churns equal trees. Returns (cost, height, rows) of x
+    after, or (old, -1, -1) where nothing changed."""
+    K = TREELET
+    tb = cuda.local.array((K, 6), np.float32)
+    tn = cuda.local.array(K, np.int64)
+    tf = cuda.local.array(K, np.int64)
+    tc = cuda.local.array(K, np.float32)
+    th = cuda.local.array(K, np.int64)
+    tw = cuda.local.array(K, np.int64)
+    tref = cuda.local.array(K, np.int64)
+    tcnt = cuda.local.array(K, np.int64)
+    trow = cuda.local.array(K, np.int64)
+    rows = cuda.local.array(K, np.int64)
+    rows[0] = x
+    used = 1
+    _entry(nodes, links, span, kid, below, costs, x, 0, 0, tb, tn, tf, tc, th, tw, tref, tcnt, trow)
+    _entry(nodes, links, span, kid, below, costs, x, 1, 1, tb, tn, tf, tc, th, tw, tref, tcnt, trow)
+    size = 2
+    while size < K:
+        best = -1
+        best_area = np.float32(-1)
+        for e in range(size):
+            if tcnt[e] == _INNER:
+                ar = _half_area(tb[e, 0], tb[e, 1], tb[e, 2], tb[e, 3], tb[e, 4], tb[e, 5])
+                if ar > best_area:
+                    best_area = ar
+                    best = e
+        if best < 0:
+            break
+        r = tref[best]
+        rows[used] = r
+        used += 1
+        for e in range(size - 1, best, -1):
+            for q in range(6):
+                tb[e + 1, q] = tb[e, q]
+            tn[e + 1] = tn[e]
+            tf[e + 1] = tf[e]
+            tc[e + 1] = tc[e]
+            th[e + 1] = th[e]
+            tw[e + 1] = tw[e]
+            tref[e + 1] = tref[e]
+            tcnt[e + 1] = tcnt[e]
+            trow[e + 1] = trow[e]
+        _entry(nodes, links, span, kid, below, costs, r, 0, best, tb, tn, tf, tc, th, tw, tref, tcnt, trow)
+        _entry(nodes, links, span, kid, below, costs, r, 1, best + 1, tb, tn, tf, tc, th, tw, tref, tcnt, trow)
+        size += 1
+    if size < 3:
+        return old, -1, -1
+    # the cheapest tree over the ordered pieces: interval [i, j] at i * K + j
+    area = cuda.local.array(K * K, np.float32)
+    cnt = cuda.local.array(K * K, np.int64)
+    cost = cuda.local.array(K * K, np.float32)
+    split = cuda.local.array(K * K, np.int64)
+    leaf = cuda.local.array(K * K, np.int64)
+    hh = cuda.local.array(K * K, np.int64)
+    ww = cuda.local.array(K * K, np.int64)
+    for i in range(size):
+        lx, ly, lz, hx, hy, hz = tb[i, 0], tb[i, 1], tb[i, 2], tb[i, 3], tb[i, 4], tb[i, 5]
+        cost[i * K + i] = tc[i]
+        cnt[i * K + i] = tn[i]
+        hh[i * K + i] = th[i]
+        ww[i * K + i] = tw[i]
+        leaf[i * K + i] = 1 if tcnt[i] != _INNER else 0
+        for j in range(i + 1, size):
+            lx, ly, lz = min(lx, tb[j, 0]), min(ly, tb[j, 1]), min(lz, tb[j, 2])
+            hx, hy, hz = max(hx, tb[j, 3]), max(hy, tb[j, 4]), max(hz, tb[j, 5])
+            area[i * K + j] = _half_area(lx, ly, lz, hx, hy, hz)
+            cnt[i * K + j] = cnt[i * K + j - 1] + tn[j]
+    for length in range(2, size + 1):
+        for i in range(size - length + 1):
+            j = i + length - 1
+            best = _INF
+            at = i
+            for s in range(i, j):
+                v = cost[i * K + s] + cost[(s + 1) * K + j]
+                if v < best:
+                    best = v
+                    at = s
+            ij = i * K + j
+            inner = _NODE_COST * area[ij] + best
+            split[ij] = at
+            lc = np.float32(cnt[ij]) * area[ij]
+            hl = 0 if leaf[i * K + at] != 0 else hh[i * K + at]
+            hr = 0 if leaf[(at + 1) * K + j] != 0 else hh[(at + 1) * K + j]
+            wl = 0 if leaf[i * K + at] != 0 else ww[i * K + at]
+            wr = 0 if leaf[(at + 1) * K + j] != 0 else ww[(at + 1) * K + j]
+            hh[ij] = 1 + max(hl, hr)
+            ww[ij] = 1 + wl + wr
+            if length < size and cnt[ij] <= leaf_max and lc <= inner:
+                cost[ij] = lc
+                leaf[ij] = 1
+            else:
+                cost[ij] = inner
+                leaf[ij] = 0
+    whole = size - 1
+    if not cost[whole] < old * _GAIN:
+        return old, -1, -1
+    # the new rows, from the root down: interval, row (a stack of at most K)
+    stack = cuda.local.array((K, 3), np.int64)
+    stack[0, 0], stack[0, 1], stack[0, 2] = 0, whole, x
+    top = 1
+    used = 1
+    while top > 0:
+        top -= 1
+        i, j, row = stack[top, 0], stack[top, 1], stack[top, 2]
+        at = split[i * K + j]
+        for slot in range(2):
+            a = i if slot == 0 else at + 1
+            b = at if slot == 0 else j
+            link = 2 * row + slot
+            col = 6 * slot
+            if a == b:
+                for q in range(6):
+                    nodes[row, col + q] = tb[a, q]
+                links[row, _REF + slot] = tref[a]
+                links[row, _COUNT + slot] = tcnt[a]
+                kid[link] = trow[a]
+                costs[link] = tc[a]
+                below[2 * link] = th[a]
+                below[2 * link + 1] = tw[a]
+                if trow[a] >= 0:
+                    up[trow[a]] = link
+                else:
+                    leaf_up[tref[a]] = link
+                continue
+            child = rows[used]
+            used += 1
+            lx, ly, lz, hx, hy, hz = tb[a, 0], tb[a, 1], tb[a, 2], tb[a, 3], tb[a, 4], tb[a, 5]
+            for e in range(a + 1, b + 1):
+                lx, ly, lz = min(lx, tb[e, 0]), min(ly, tb[e, 1]), min(lz, tb[e, 2])
+                hx, hy, hz = max(hx, tb[e, 3]), max(hy, tb[e, 4]), max(hz, tb[e, 5])
+            nodes[row, col], nodes[row, col + 1], nodes[row, col + 2] = lx, ly, lz
+            nodes[row, col + 3], nodes[row, col + 4], nodes[row, col + 5] = hx, hy, hz
+            span[child, 0] = tf[a]
+            span[child, 1] = tf[b] + tn[b] - 1
+            kid[link] = child
+            up[child] = link
+            ab = a * K + b
+            costs[link] = cost[ab]
+            if leaf[ab] != 0:
+                links[row, _REF + slot] = tf[a]
+                links[row, _COUNT + slot] = cnt[ab]
+                below[2 * link] = 0
+                below[2 * link + 1] = 0
+            else:
+                links[row, _REF + slot] = child
+                links[row, _COUNT + slot] = _INNER
+                below[2 * link] = hh[ab]
+                below[2 * link + 1] = ww[ab]
+            stack[top, 0], stack[top, 1], stack[top, 2] = a, b, child
+            top += 1
+    return cost[whole], hh[whole], ww[whole]
+
+
 @compiled.cuda_jit()
 def _bounds_up(
-    spheres, n, order, leaf_up, up, span, nodes, links, below, costs, arrived, ordered, stats, cost, leaf_max, sah
-):
+    spheres, n, order, leaf_up, up, span, nodes, links, below, costs, kid, arrived, ordered, stats, cost, leaf_max,
+    sah, restructure,
+):  # fmt: skip
     """Leaf k (its sphere order[k]) climbs to the root, each row's box
     written into its parent's slot; a row's second child to arrive (arrived
     counts them) unites the two boxes and climbs on, and sets the counter
@@ -415,8 +620,10 @@ def _bounds_up(
     with the best choice below it (a leaf's cost against the row's: the
     optimal cut of this tree into leaves, as each row's cost is the cheapest
     of its subtree's). Its rows stay, out of the walks' reach, so that
-    refits still climb through them. leaf_max == 0 (a refit): the links are
-    kept, and the costs are the tree's as it is."""
+    refits still climb through them. Where restructure is 1, each row's
+    subtree is first made the cheapest over its treelet (_treelet; kid[index]
+    is the row below each child, -1 for a sphere). leaf_max == 0 (a refit):
+    the links are kept, and the costs are the tree's as it is."""
     k = cuda.grid(1)
     if k >= n:
         return
@@ -432,6 +639,7 @@ def _bounds_up(
     w = 0
     c = _half_area(lx, ly, lz, hx, hy, hz)  # a leaf of one sphere
     a = c
+    cur = -1
     link = leaf_up[k]
     while link >= 0:
         row = link // 2
@@ -446,6 +654,7 @@ def _bounds_up(
         below[2 * link] = h
         below[2 * link + 1] = w
         costs[link] = c
+        kid[link] = cur
         cuda.threadfence()  # the box and the rest are seen before the count
         if cuda.atomic.add(arrived, row, 1) == 0:
             return  # the sibling, arriving second, goes on
@@ -463,6 +672,11 @@ def _bounds_up(
         a = _half_area(lx, ly, lz, hx, hy, hz)
         c = _NODE_COST * a + (c + cuda.atomic.add(costs, sib, np.float32(0)))
         arrived[row] = 0
+        cur = row
+        if restructure != 0 and leaf_max > 0:
+            tc, th, tw = _treelet(row, c, nodes, links, span, up, leaf_up, kid, below, costs, leaf_max)
+            if th >= 0:
+                c, h, w = tc, th, tw
         link = up[row]
         if link >= 0:
             parent = link // 2
@@ -518,7 +732,8 @@ class Builder:
 
     quality: "sah" (QUALITY, the default) cuts the LBVH into leaves where the
     SAH says, of up to leaf_size spheres (default bvh.LEAF_MAX, as the host's
-    builder); "lbvh" makes every subtree of up to leaf_size spheres (default
+    builder); "treelet" also rebuilds each row's treelet where the SAH says;
+    "lbvh" makes every subtree of up to leaf_size spheres (default
     LEAF_SIZE) a leaf, the first GPU tree, kept to be measured against."""
 
     def __init__(self, n: int, leaf_size: int | None = None, quality: str | None = None):
@@ -542,6 +757,7 @@ class Builder:
         self.span = cuda.device_array((m, 2), np.int32)
         self.below = cuda.device_array(4 * m, np.int32)
         self.costs = cuda.device_array(2 * m, np.float32)
+        self.kid = cuda.device_array(2 * m, np.int32)
         self.arrived = cuda.to_device(np.zeros(m, np.int32))  # each pass leaves it zero
         self.ordered = cuda.device_array((4, max(n, 1)), np.float32)
         self.stats = cuda.device_array(2, np.int32)  # the root's height and the rows a walk reaches
@@ -595,7 +811,8 @@ class Builder:
     def _up(self, spheres, leaf_max: int) -> None:
         _bounds_up[_blocks(self.n, THREADS), THREADS](
             spheres, self.n, self.order, self.leaf_up, self.up, self.span, self.nodes, self.links, self.below,
-            self.costs, self.arrived, self.ordered, self.stats, self.cost, leaf_max, int(self.quality != "lbvh"),
+            self.costs, self.kid, self.arrived, self.ordered, self.stats, self.cost, leaf_max,
+            int(self.quality != "lbvh"), int(self.quality == "treelet"),
         )  # fmt: skip
 
     def read_cost(self) -> float:
