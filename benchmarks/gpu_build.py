@@ -28,13 +28,15 @@ with the machine and the commit):
 
 The GPU build's figures (time, steps, SAH cost, walks) are given for each
 quality of tree in --quality (default all of cuda_build.QUALITIES: "sah",
-the LBVH with its leaves cut where the SAH says, and "lbvh", the LBVH with
-fixed leaves of LEAF_SIZE), under "variants", side by side; the record's
+the LBVH with its leaves cut where the SAH says; "treelet", the same with
+each row's treelet rebuilt where the SAH says and the spheres reordered;
+"lbvh", the LBVH with fixed leaves of LEAF_SIZE), under "variants",
+side by side (a quality that fails is recorded with its error); the record's
 top-level gpu_* and walk_* fields are the default quality's
 (cuda_build.QUALITY), which the dynamic series use.
 
     python benchmarks/gpu_build.py --json out.json [--spheres 1000 --spheres 100000] [--repeats 51]
-        [--quality sah --quality lbvh] [--anim-frames 40 --anim-dt 0.1]
+        [--quality sah --quality treelet] [--anim-frames 40 --anim-dt 0.1]
 
 Issue 16's targets (H200): a build of 1,000,000 spheres in at most 5 ms,
 100,000 in 1 ms, the walk on the GPU's tree at most 10% slower than on the
@@ -147,12 +149,16 @@ def walks(spheres: np.ndarray, width: int, height: int, frames: int, qualities) 
             hits["host"] = tracer.hits.copy()
         with backends.tracer("cuda", spheres, width, height, build="gpu", walk=walk) as tracer:
             for quality in qualities:
-                builder = cuda_build.Builder(spheres.shape[1], quality=quality)
-                builder.launch_build(d_spheres)
-                use_tree(tracer, builder.tree(builder.read_depth(), 0.0))
-                tracer.trace(basis)
-                times = [tracer.timed_trace(basis) for _ in range(frames)]
                 entry = out.setdefault(quality, {})
+                try:
+                    builder = cuda_build.Builder(spheres.shape[1], quality=quality)
+                    builder.launch_build(d_spheres)
+                    use_tree(tracer, builder.tree(builder.read_depth(), 0.0))
+                    tracer.trace(basis)
+                    times = [tracer.timed_trace(basis) for _ in range(frames)]
+                except Exception as e:  # noqa: BLE001 (one quality failing leaves the others measured)
+                    entry["error"] = repr(e)
+                    continue
                 entry[f"walk_gpu_{walk}_ms"] = round(statistics.median(t or np.nan for t in times), 4)
                 entry[f"walk_gpu_over_host_{walk}"] = round(
                     entry[f"walk_gpu_{walk}_ms"] / out[f"walk_host_{walk}_ms"], 4
@@ -233,26 +239,34 @@ def main() -> int:
     parser.add_argument(
         "--quality", action="append", choices=cuda_build.QUALITIES, help="GPU trees to measure (default all)"
     )
+    parser.add_argument(
+        "--treelet-passes", type=int, default=cuda_build.TREELET_PASSES, help="bottom-up passes of treelets"
+    )
     parser.add_argument("--anim-frames", type=int, default=40, help="frames of moving spheres per policy")
     parser.add_argument("--anim-dt", type=float, default=0.1, help="seconds of the animation between frames")
     args = parser.parse_args()
+    cuda_build.TREELET_PASSES = args.treelet_passes
     width, height = (int(v) for v in args.size.split("x"))
     records = []
     for n in args.spheres or [1000, 100_000, 1_000_000]:
         spheres = raybench.random_spheres(n, seed=0).spheres
-        row = {"spheres": n, "width": width, "height": height}
+        row = {"spheres": n, "width": width, "height": height, "treelet_passes": cuda_build.TREELET_PASSES}
         row.update(host_build(spheres, args.repeats))
         qualities = args.quality or list(cuda_build.QUALITIES)
         walked = walks(spheres, width, height, args.frames, qualities)
         row.update({k: v for k, v in walked.items() if k.startswith("walk_host_")})
         variants = {}
         for quality in qualities:
+            if "error" in walked[quality]:
+                variants[quality] = walked[quality]
+                print(f"{n:>9,} spheres, {quality:>7}: {walked[quality]['error']}", file=sys.stderr, flush=True)
+                continue
             entry = gpu_build(spheres, args.repeats, quality)
             entry["sah_gpu_over_host"] = round(entry["gpu_sah"] / row["host_sah"], 4)
             entry.update(walked[quality])
             variants[quality] = entry
             print(
-                f"{n:>9,} spheres, {quality:>5}: build {entry['gpu_build_ms']:.3f} ms, SAH / host "
+                f"{n:>9,} spheres, {quality:>7}: build {entry['gpu_build_ms']:.3f} ms, SAH / host "
                 f"{entry['sah_gpu_over_host']:.3f}, walk / host: ray {entry['walk_gpu_over_host_ray']:.3f}, "
                 f"packet {entry['walk_gpu_over_host_packet']:.3f}",
                 file=sys.stderr,

@@ -1,7 +1,7 @@
 """A CPU model of the tree that backends/cuda_build.py builds on the GPU: the
-same Morton codes, the same stable order, Karras's hierarchy and the same
-bottom-up pass (boxes, SAH costs, the leaves it cuts) in the same float32
-arithmetic, written with NumPy and Numba's CPU compiler. Under numba's CUDA
+same Morton codes, the same stable order, Karras's hierarchy, the same
+bottom-up pass (boxes, SAH costs, the leaves it cuts, the treelets it
+rebuilds) and reorder, in the same float32 arithmetic, written with NumPy and Numba's CPU compiler. Under numba's CUDA
 simulator it gives the kernels' tree bit for bit (tests/test_cuda_build.py
 checks it); here it gives the SAH cost of the GPU's trees at sizes the
 simulator cannot build (100,000 and 1,000,000 spheres) on a machine with no
@@ -9,7 +9,7 @@ GPU. A GPU may fuse multiply-adds where the model does not, which can tip
 a leaf's choice where two costs tie to the last bit; the cost is the same to
 a few float32 epsilons.
 
-    python benchmarks/gpu_tree_model.py [--spheres 1000 --spheres 100000] [--quality sah --quality lbvh]
+    python benchmarks/gpu_tree_model.py [--spheres 1000 --spheres 100000] [--quality sah --quality treelet]
 
 prints, per sphere count and quality, the SAH cost of the model's tree over
 the host's binned SAH tree (raybench.bvh), as one JSON line each.
@@ -103,7 +103,7 @@ def hierarchy(keys, links, up, leaf_up, span):
         first = min(i, j)
         last = max(i, j)
         span[i, 0] = first
-        span[i, 1] = last
+        span[i, 1] = last - first + 1
         for slot in range(2):
             child = gamma + slot
             if (slot == 0 and first == gamma) or (slot == 1 and last == gamma + 1):
@@ -125,13 +125,17 @@ def _half_area(lx, ly, lz, hx, hy, hz):
 
 
 TREELET = cuda_build.TREELET
+SUBSETS = cuda_build.SUBSETS
 TREELET_GAIN = cuda_build._GAIN
 INF = np.float32(np.inf)
 
 
 @numba.njit(cache=False)
-def _entry(nodes, links, span, kid, below, costs, row, slot, e, tb, tn, tf, tc, th, tw, tref, tcnt, trow):
-    """Entry e of the treelet: child slot of row, as cuda_build._entry reads it."""
+def _entry(nodes, links, span, kid, below, costs, row, slot, e, tb, tn, tc, th, tw, tref, tcnt, trow):
+    """Piece e of a treelet: child slot of row (its box, link, row below,
+    cost, height, rows below, spheres), read by atomics that add nothing:
+    other threads wrote them, and a plain load could find a stale line in
+    this SM's L1."""
     link = 2 * row + slot
     for q in range(6):
         tb[e, q] = nodes[row, 6 * slot + q]
@@ -141,34 +145,69 @@ def _entry(nodes, links, span, kid, below, costs, row, slot, e, tb, tn, tf, tc, 
     tc[e] = costs[link]
     th[e] = below[2 * link]
     tw[e] = below[2 * link + 1]
-    if tcnt[e] == INNER:
-        tf[e] = span[tref[e], 0]
-        tn[e] = span[tref[e], 1] - span[tref[e], 0] + 1
-    else:
-        tf[e] = tref[e]
-        tn[e] = tcnt[e]
+    tn[e] = span[trow[e], 1] if trow[e] >= 0 else 1
 
 
 @numba.njit(cache=False)
-def treelet(x, old, nodes, links, span, up, leaf_up, kid, below, costs, leaf_max):
-    """cuda_build._treelet: row x's subtree, its rows' boxes, links and costs
-    final, restructured to the cheapest tree over the same ordered pieces;
-    returns (cost, height, rows) of x after, old its cost before."""
+def _union(tb, part, size):
+    """The box of the pieces in the bit set part."""
+    lx = ly = lz = INF
+    hx = hy = hz = -INF
+    for e in range(size):
+        if part & (1 << e):
+            lx, ly, lz = min(lx, tb[e, 0]), min(ly, tb[e, 1]), min(lz, tb[e, 2])
+            hx, hy, hz = max(hx, tb[e, 3]), max(hy, tb[e, 4]), max(hz, tb[e, 5])
+    return lx, ly, lz, hx, hy, hz
+
+
+@numba.njit(cache=False)
+def _piece(part):
+    """The piece of a set of one."""
+    e = 0
+    while (1 << e) != part:
+        e += 1
+    return e
+
+
+@numba.njit(cache=False)
+def _treelet(x, old, nodes, links, span, up, leaf_up, kid, below, costs, leaf_max):
+    """cuda_build._treelet. Row x's subtree (its rows' boxes, links and costs final) made the
+    cheapest tree over its treelet (Karras and Aila 2013): x's two
+    children, then, up to TREELET pieces, the piece of largest area that is
+    a row (not a leaf) replaced by its two children. The cheapest binary
+    tree over the pieces, in any order, by a programme over their subsets
+    (bit sets, each after its own subsets in numeric order: its box's half
+    area, spheres, cost, best split into two, whether a leaf, and as a child
+    its height and the rows a walk reaches below it); a set of spheres is
+    cut into a leaf as _bounds_up cuts. The rows the treelet frees (x's and
+    the replaced ones) hold the new tree: links, boxes, counts, costs and
+    links up written here. A leaf's spheres are now no range of the sort's
+    order: _reorder puts them in tree order and sets the leaves' refs.
+    x is changed only where the cost falls below TREELET_GAIN times old (x's cost
+    as it is), so that rounding never churns equal trees. Returns (cost,
+    height, rows) of x after, or (old, -1, -1) where nothing changed."""
     K = TREELET
-    tb = np.empty((K, 6), np.float32)
-    tn = np.empty(K, np.int64)
-    tf = np.empty(K, np.int64)
-    tc = np.empty(K, np.float32)
-    th = np.empty(K, np.int64)
-    tw = np.empty(K, np.int64)
-    tref = np.empty(K, np.int64)
-    tcnt = np.empty(K, np.int64)
-    trow = np.empty(K, np.int64)
-    rows = np.empty(K, np.int64)
+    tb = np.empty((TREELET, 6), np.float32)
+    tn = np.empty(TREELET, np.int32)
+    tc = np.empty(TREELET, np.float32)
+    th = np.empty(TREELET, np.int32)
+    tw = np.empty(TREELET, np.int32)
+    tref = np.empty(TREELET, np.int32)
+    tcnt = np.empty(TREELET, np.int32)
+    trow = np.empty(TREELET, np.int32)
+    rows = np.empty(TREELET, np.int32)
+    area = np.empty(SUBSETS, np.float32)
+    cnt = np.empty(SUBSETS, np.int32)
+    cost = np.empty(SUBSETS, np.float32)
+    split = np.empty(SUBSETS, np.int32)
+    hh = np.empty(SUBSETS, np.int32)
+    ww = np.empty(SUBSETS, np.int32)
+    leaf = np.empty(SUBSETS, np.int8)
+    stack = np.empty((TREELET, 2), np.int32)
     rows[0] = x
     used = 1
-    _entry(nodes, links, span, kid, below, costs, x, 0, 0, tb, tn, tf, tc, th, tw, tref, tcnt, trow)
-    _entry(nodes, links, span, kid, below, costs, x, 1, 1, tb, tn, tf, tc, th, tw, tref, tcnt, trow)
+    _entry(nodes, links, span, kid, below, costs, x, 0, 0, tb, tn, tc, th, tw, tref, tcnt, trow)
+    _entry(nodes, links, span, kid, below, costs, x, 1, 1, tb, tn, tc, th, tw, tref, tcnt, trow)
     size = 2
     while size < K:
         best = -1
@@ -184,130 +223,145 @@ def treelet(x, old, nodes, links, span, up, leaf_up, kid, below, costs, leaf_max
         r = tref[best]
         rows[used] = r
         used += 1
-        for e in range(size - 1, best, -1):
-            for q in range(6):
-                tb[e + 1, q] = tb[e, q]
-            tn[e + 1] = tn[e]
-            tf[e + 1] = tf[e]
-            tc[e + 1] = tc[e]
-            th[e + 1] = th[e]
-            tw[e + 1] = tw[e]
-            tref[e + 1] = tref[e]
-            tcnt[e + 1] = tcnt[e]
-            trow[e + 1] = trow[e]
-        _entry(nodes, links, span, kid, below, costs, r, 0, best, tb, tn, tf, tc, th, tw, tref, tcnt, trow)
-        _entry(nodes, links, span, kid, below, costs, r, 1, best + 1, tb, tn, tf, tc, th, tw, tref, tcnt, trow)
+        _entry(nodes, links, span, kid, below, costs, r, 0, best, tb, tn, tc, th, tw, tref, tcnt, trow)
+        _entry(nodes, links, span, kid, below, costs, r, 1, size, tb, tn, tc, th, tw, tref, tcnt, trow)
         size += 1
     if size < 3:
         return old, -1, -1
-    # the cheapest tree over the ordered pieces: interval [i, j] at i * K + j
-    area = np.empty(K * K, np.float32)
-    cnt = np.empty(K * K, np.int64)
-    cost = np.empty(K * K, np.float32)
-    split = np.empty(K * K, np.int64)
-    leaf = np.empty(K * K, np.int64)
-    hh = np.empty(K * K, np.int64)
-    ww = np.empty(K * K, np.int64)
-    for i in range(size):
-        lx, ly, lz, hx, hy, hz = tb[i, 0], tb[i, 1], tb[i, 2], tb[i, 3], tb[i, 4], tb[i, 5]
-        cost[i * K + i] = tc[i]
-        cnt[i * K + i] = tn[i]
-        hh[i * K + i] = th[i]
-        ww[i * K + i] = tw[i]
-        leaf[i * K + i] = 1 if tcnt[i] != INNER else 0
-        for j in range(i + 1, size):
-            lx, ly, lz = min(lx, tb[j, 0]), min(ly, tb[j, 1]), min(lz, tb[j, 2])
-            hx, hy, hz = max(hx, tb[j, 3]), max(hy, tb[j, 4]), max(hz, tb[j, 5])
-            area[i * K + j] = _half_area(lx, ly, lz, hx, hy, hz)
-            cnt[i * K + j] = cnt[i * K + j - 1] + tn[j]
-    for length in range(2, size + 1):
-        for i in range(size - length + 1):
-            j = i + length - 1
-            best = INF
-            at = i
-            for s in range(i, j):
-                v = cost[i * K + s] + cost[(s + 1) * K + j]
+    full = (1 << size) - 1
+    for sm in range(1, full + 1):
+        low = sm & -sm
+        if sm == low:
+            e = _piece(sm)
+            cnt[sm] = tn[e]
+            cost[sm] = tc[e]
+            hh[sm] = th[e]
+            ww[sm] = tw[e]
+            continue
+        lx, ly, lz, hx, hy, hz = _union(tb, sm, size)
+        area[sm] = _half_area(lx, ly, lz, hx, hy, hz)
+        cnt[sm] = cnt[low] + cnt[sm ^ low]
+        best = INF
+        at = low
+        p = (sm - 1) & sm
+        while p > 0:
+            if p & low:  # each split once: the side with the lowest piece first
+                v = cost[p] + cost[sm ^ p]
                 if v < best:
                     best = v
-                    at = s
-            ij = i * K + j
-            inner = NODE_COST * area[ij] + best
-            split[ij] = at
-            lc = np.float32(cnt[ij]) * area[ij]
-            hl = 0 if leaf[i * K + at] != 0 else hh[i * K + at]
-            hr = 0 if leaf[(at + 1) * K + j] != 0 else hh[(at + 1) * K + j]
-            wl = 0 if leaf[i * K + at] != 0 else ww[i * K + at]
-            wr = 0 if leaf[(at + 1) * K + j] != 0 else ww[(at + 1) * K + j]
-            hh[ij] = 1 + max(hl, hr)
-            ww[ij] = 1 + wl + wr
-            if length < size and cnt[ij] <= leaf_max and lc <= inner:
-                cost[ij] = lc
-                leaf[ij] = 1
-            else:
-                cost[ij] = inner
-                leaf[ij] = 0
-    whole = size - 1
-    if not cost[whole] < old * TREELET_GAIN:
+                    at = p
+            p = (p - 1) & sm
+        inner = NODE_COST * area[sm] + best
+        split[sm] = at
+        lc = np.float32(cnt[sm]) * area[sm]
+        if sm != full and cnt[sm] <= leaf_max and lc <= inner:
+            cost[sm] = lc
+            leaf[sm] = 1
+            hh[sm] = 0
+            ww[sm] = 0
+        else:
+            cost[sm] = inner
+            leaf[sm] = 0
+            hh[sm] = 1 + max(hh[at], hh[sm ^ at])
+            ww[sm] = 1 + ww[at] + ww[sm ^ at]
+    if not cost[full] < old * TREELET_GAIN:
         return old, -1, -1
-    # the new rows, from the root down: interval, row (a stack of at most K)
-    stack = np.empty((K, 3), np.int64)
-    stack[0, 0], stack[0, 1], stack[0, 2] = 0, whole, x
+    stack[0, 0] = full
+    stack[0, 1] = x
     top = 1
     used = 1
     while top > 0:
         top -= 1
-        i, j, row = stack[top, 0], stack[top, 1], stack[top, 2]
-        at = split[i * K + j]
+        sm = stack[top, 0]
+        row = stack[top, 1]
         for slot in range(2):
-            a = i if slot == 0 else at + 1
-            b = at if slot == 0 else j
+            part = split[sm] if slot == 0 else sm ^ split[sm]
             link = 2 * row + slot
             col = 6 * slot
-            if a == b:
+            if part & (part - 1) == 0:  # a piece: as it was, under a new parent
+                e = _piece(part)
                 for q in range(6):
-                    nodes[row, col + q] = tb[a, q]
-                links[row, REF + slot] = tref[a]
-                links[row, COUNT + slot] = tcnt[a]
-                kid[link] = trow[a]
-                costs[link] = tc[a]
-                below[2 * link] = th[a]
-                below[2 * link + 1] = tw[a]
-                if trow[a] >= 0:
-                    up[trow[a]] = link
+                    nodes[row, col + q] = tb[e, q]
+                links[row, REF + slot] = tref[e]
+                links[row, COUNT + slot] = tcnt[e]
+                kid[link] = trow[e]
+                costs[link] = tc[e]
+                below[2 * link] = th[e]
+                below[2 * link + 1] = tw[e]
+                if trow[e] >= 0:
+                    up[trow[e]] = link
                 else:
-                    leaf_up[tref[a]] = link
+                    leaf_up[tref[e]] = link
                 continue
             child = rows[used]
             used += 1
-            lx, ly, lz, hx, hy, hz = tb[a, 0], tb[a, 1], tb[a, 2], tb[a, 3], tb[a, 4], tb[a, 5]
-            for e in range(a + 1, b + 1):
-                lx, ly, lz = min(lx, tb[e, 0]), min(ly, tb[e, 1]), min(lz, tb[e, 2])
-                hx, hy, hz = max(hx, tb[e, 3]), max(hy, tb[e, 4]), max(hz, tb[e, 5])
-            nodes[row, col], nodes[row, col + 1], nodes[row, col + 2] = lx, ly, lz
-            nodes[row, col + 3], nodes[row, col + 4], nodes[row, col + 5] = hx, hy, hz
-            span[child, 0] = tf[a]
-            span[child, 1] = tf[b] + tn[b] - 1
+            lx, ly, lz, hx, hy, hz = _union(tb, part, size)
+            nodes[row, col] = lx
+            nodes[row, col + 1] = ly
+            nodes[row, col + 2] = lz
+            nodes[row, col + 3] = hx
+            nodes[row, col + 4] = hy
+            nodes[row, col + 5] = hz
+            span[child, 0] = -1  # no range of the sort's order
+            span[child, 1] = cnt[part]
             kid[link] = child
             up[child] = link
-            ab = a * K + b
-            costs[link] = cost[ab]
-            if leaf[ab] != 0:
-                links[row, REF + slot] = tf[a]
-                links[row, COUNT + slot] = cnt[ab]
-                below[2 * link] = 0
-                below[2 * link + 1] = 0
+            costs[link] = cost[part]
+            below[2 * link] = hh[part]
+            below[2 * link + 1] = ww[part]
+            if leaf[part] != 0:
+                links[row, REF + slot] = -1  # set by _reorder
+                links[row, COUNT + slot] = cnt[part]
             else:
                 links[row, REF + slot] = child
                 links[row, COUNT + slot] = INNER
-                below[2 * link] = hh[ab]
-                below[2 * link + 1] = ww[ab]
-            stack[top, 0], stack[top, 1], stack[top, 2] = a, b, child
+            stack[top, 0] = part
+            stack[top, 1] = child
             top += 1
-    return cost[whole], hh[whole], ww[whole]
+    return cost[full], hh[full], ww[full]
 
 
 @numba.njit(cache=False)
-def bounds_up(ordered, leaf_up, up, span, nodes, links, leaf_max, sah, restructure):
+def reorder(spheres, n, order, leaf_up, up, links, kid, span, order_out, leaf_up_out, ordered):
+    """After treelets, the spheres in the tree's order, so that every leaf
+    is again a range of them: leaf k's place is the spheres left of it in
+    the tree (on its way up, the left sibling's count wherever it is a right
+    child). Its sphere, its index and its link up go there; on the way up
+    while it is the leftmost sphere of the child it climbs from, it sets
+    that child's ref where the child is a leaf (every leaf has one leftmost
+    sphere)."""
+    for k in range(n):
+        _reorder_one(spheres, k, order, leaf_up, up, links, kid, span, order_out, leaf_up_out, ordered)
+
+
+@numba.njit(cache=False)
+def _reorder_one(spheres, k, order, leaf_up, up, links, kid, span, order_out, leaf_up_out, ordered):
+    rank = 0
+    link = leaf_up[k]
+    while link >= 0:
+        row = link // 2
+        if link - 2 * row == 1:
+            left = kid[2 * row]
+            rank += span[left, 1] if left >= 0 else 1
+        link = up[row]
+    s = order[k]
+    order_out[rank] = s
+    leaf_up_out[rank] = leaf_up[k]
+    for a in range(4):
+        ordered[a, rank] = spheres[a, s]
+    link = leaf_up[k]
+    while link >= 0:
+        row = link // 2
+        slot = link - 2 * row
+        if links[row, COUNT + slot] != INNER:
+            links[row, REF + slot] = rank
+        if slot == 1:
+            return
+        link = up[row]
+
+
+@numba.njit(cache=False)
+def bounds_up(ordered, leaf_up, up, span, nodes, links, kid, leaf_max, sah, restructure):
     """cuda_build._bounds_up, each row done once both its children are: the
     leaves in order, each climbing while it arrives second (as on the GPU,
     where the order of arrivals changes no value: min, max and a sum of two
@@ -317,7 +371,6 @@ def bounds_up(ordered, leaf_up, up, span, nodes, links, leaf_max, sah, restructu
     arrived = np.zeros(m, np.int32)
     below = np.zeros(4 * m, np.int32)
     costs = np.zeros(2 * m, np.float32)
-    kid = np.zeros(2 * m, np.int64)
     h = w = 0
     c = a = np.float32(0)
     for k in range(n):
@@ -361,14 +414,14 @@ def bounds_up(ordered, leaf_up, up, span, nodes, links, leaf_max, sah, restructu
             c = NODE_COST * a + (c + costs[sib])
             cur = row
             if restructure != 0 and leaf_max > 0:
-                c2, h2, w2 = treelet(row, c, nodes, links, span, up, leaf_up, kid, below, costs, leaf_max)
+                c2, h2, w2 = _treelet(row, c, nodes, links, span, up, leaf_up, kid, below, costs, leaf_max)
                 if h2 >= 0:
                     c, h, w = c2, h2, w2
             link = up[row]
             if link >= 0:
                 parent = link // 2
                 pslot = link - 2 * parent
-                count = span[row, 1] - span[row, 0] + 1
+                count = span[row, 1]
                 leaf = np.float32(count) * a
                 if count <= leaf_max and (sah == 0 or leaf <= c):
                     links[parent, REF + pslot] = span[row, 0]
@@ -397,7 +450,16 @@ def build(spheres: np.ndarray, quality: str = "sah", leaf_size: int | None = Non
     hierarchy(keys, links, up, leaf_up, span)
     ordered = np.ascontiguousarray(spheres[:4, order])
     sah = int(quality != "lbvh")
-    depth, rows, cost = bounds_up(ordered, leaf_up, up, span, nodes, links, leaf_max, sah, restructure)
+    kid = np.zeros(2 * m, np.int32)
+    depth, rows, cost = bounds_up(ordered, leaf_up, up, span, nodes, links, kid, leaf_max, sah, restructure)
+    for _ in range(cuda_build.TREELET_PASSES - 1 if restructure else 0):
+        depth, rows, cost = bounds_up(ordered, leaf_up, up, span, nodes, links, kid, leaf_max, sah, restructure)
+    if restructure:
+        tree_order = np.empty_like(order)
+        tree_up = np.empty_like(leaf_up)
+        ordered = np.empty_like(ordered)
+        reorder(spheres, n, order, leaf_up, up, links, kid, span, tree_order, tree_up, ordered)
+        order = tree_order
     return nodes, order, ordered, int(depth), int(rows), float(cost)
 
 
@@ -406,13 +468,13 @@ def main() -> int:
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--spheres", action="append", type=int, help="default: 1000, 100000, 1000000")
-    parser.add_argument("--quality", action="append", help="default: lbvh and sah")
+    parser.add_argument("--quality", action="append", choices=cuda_build.QUALITIES, help="default: all")
     args = parser.parse_args()
     for n in args.spheres or [1000, 100_000, 1_000_000]:
         spheres = raybench.random_spheres(n, seed=0).spheres
         host = bvh.build(spheres)
         host_sah = tree_cost.sah_cost(host.nodes)
-        for quality in args.quality or ["lbvh", "sah", "treelet"]:
+        for quality in args.quality or ["lbvh", "sah", "treelet"]:  # as cuda_build.QUALITIES, cheapest first
             start = time.perf_counter()
             nodes, _order, _ordered, depth, rows, cost = build(spheres, quality)
             seconds = time.perf_counter() - start

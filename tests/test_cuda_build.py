@@ -129,15 +129,17 @@ def test_sah_leaves_are_the_cheapest_cut(rng):
 
 
 @pytest.mark.parametrize("kind", ["generated", "cloud", "line", "duplicates"])
-def test_treelets_lower_the_cost_and_keep_leaves_ranges(rng, kind):
-    """The "treelet" tree: valid (every sphere in one leaf of consecutive
-    spheres, boxes nested, the depth its own), its rows' links up leading
-    back to the root (refits climb them), no costlier than the "sah" tree
-    of the same LBVH, and after a refit to the same spheres the same tree."""
+def test_treelets_lower_the_cost_and_keep_leaves_ranges(rng, monkeypatch, kind):
+    """The "treelet" tree, after 1 to 3 passes: valid (every sphere in one
+    leaf of consecutive spheres, boxes nested, the depth its own), its rows'
+    links up leading back to the root (refits climb them), no costlier than
+    the "sah" tree of the same LBVH, and after a refit to the same spheres
+    the same tree; the model's tree."""
     from numba import cuda
 
     from raybench.backends import cuda_build
 
+    monkeypatch.setattr(cuda_build, "TREELET_PASSES", int(rng.integers(1, 4)))
     scene, _ = SCENES[kind](rng, int(rng.integers(12, 33)))
     sah = tree_cost.sah_cost(gpu_tree(scene.spheres, quality="sah").to_host().nodes)
     builder = cuda_build.Builder(len(scene), quality="treelet")
@@ -158,6 +160,9 @@ def test_treelets_lower_the_cost_and_keep_leaves_ranges(rng, kind):
     builder.launch_refit(d_spheres)
     again = builder.tree(builder.read_depth(), 0.0).to_host()
     assert np.array_equal(again.nodes.view(np.uint32), tree.nodes.view(np.uint32))
+    nodes, order, _ordered, depth, _rows, _cost = tree_model().build(scene.spheres, "treelet")
+    assert np.array_equal(tree.order, order) and depth == tree.depth
+    assert np.array_equal(tree.links[:, layout.REF :], nodes.view(np.int32)[:, layout.REF :])
 
 
 def test_sort_is_stable_by_morton_code(rng):
@@ -317,6 +322,7 @@ def test_update_refits_within_the_limit_and_rebuilds_past_it(rng, monkeypatch, l
     from raybench.backends import cuda_build
 
     monkeypatch.setattr(cuda_build, "REFIT_LIMIT", limit)
+    monkeypatch.setattr(cuda_build, "QUALITY", str(rng.choice(cuda_build.QUALITIES)))
     scene, camera = SCENES["generated"](rng, int(rng.integers(10, 30)))
     with raybench.backends.tracer("cuda", scene.spheres, 19, 13, build="gpu") as tracer:
         before = tracer.d_links.copy_to_host()[:, layout.REF :]  # the rows' links, not their boxes

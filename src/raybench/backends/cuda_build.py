@@ -89,15 +89,24 @@ THREADS = 32 if _SIM else 256
 #           below it (the host's builder weighs the same, greedily), decided
 #           bottom-up in the pass that fits the boxes, at no extra launch.
 #   "treelet": "sah", and each row's subtree first made the cheapest tree
-#           over its treelet of TREELET pieces in their order (_treelet):
-#           the splits move along the Morton order where the SAH says.
+#           over its treelet of TREELET pieces (_treelet, Karras and Aila
+#           2013, one pass bottom-up), then the spheres put in the new tree's
+#           order (_reorder, one launch more).
 QUALITIES = ("sah", "treelet", "lbvh")
 QUALITY = "sah"
 LEAF_SIZE = 4
-# A treelet's pieces: the model of this build (benchmarks/gpu_tree_model.py)
-# found 5 to 16 alike (SAH cost within 0.1%), the pieces' order being what
-# bounds the gain; its interval programme costs K^3 / 6 sums a row.
+# A treelet's pieces. Its programme weighs 3^K / 2 splits a row, in local
+# arrays of 2^K entries (25 bytes each). The model of this build
+# (benchmarks/gpu_tree_model.py), at 100,000 spheres: SAH cost over the
+# host's 1.031 with 6 pieces, 1.026 with 8 (3.6 times the splits); pieces
+# kept in their Morton order instead (an interval programme, no reorder)
+# gave 1.070 whatever their number.
 TREELET = 6
+SUBSETS = 1 << TREELET
+# Bottom-up passes of treelets: each pass more lowers the cost less (the
+# model at 100,000 spheres: 1.031, 1.026, 1.025 times the host's after 1, 2,
+# 3), each a launch of the bottom-up pass and its treelets' work again.
+TREELET_PASSES = 1
 # A treelet is rebuilt where that lowers its cost below _GAIN times what it
 # was: rounding alone never changes a tree (all spheres at one point stay a
 # balanced tree).
@@ -114,8 +123,9 @@ REFIT_LIMIT = 1.3
 # Device bytes a Builder holds per sphere: keys and values twice (the sort's
 # two buffers), the links up (8 + 8), the rows' spans (8), what lies below
 # each child (heights and rows 16, costs 8, rows 8), the counters (4), the
-# node rows (64) and the ordered spheres (16); the histograms add under 1.
-DEVICE_SPHERE_BYTES = 16 + 16 + 40 + 4 + NODE_FLOATS * 4 + 16 + 1
+# node rows (64) and the ordered spheres (16); the histograms add under 1;
+# treelets add the leaves' links up in the tree's order (8).
+DEVICE_SPHERE_BYTES = 16 + 16 + 48 + 4 + NODE_FLOATS * 4 + 16 + 1
 # The padding of a sphere's box, as raybench.bvh.sphere_pad computes it.
 _PAD = PAD
 _BOX = BOX_FLOATS
@@ -344,7 +354,7 @@ def _hierarchy(keys, n, links, up, leaf_up, span):
     sphere a leaf of it, a child of more the row it starts (collapsed into a
     leaf, or not, by _bounds_up, once its box is known). up[row] and
     leaf_up[leaf]: the parent's row times 2 plus the child's slot (the
-    root's: -1). span[row]: the first and last spheres it covers."""
+    root's: -1). span[row]: the first sphere it covers and their count."""
     i = cuda.grid(1)
     if i >= n - 1:
         return
@@ -376,7 +386,7 @@ def _hierarchy(keys, n, links, up, leaf_up, span):
     first = min(i, j)
     last = max(i, j)
     span[i, 0] = first
-    span[i, 1] = last
+    span[i, 1] = last - first + 1
     if first == gamma:
         links[i, _REF] = first
         links[i, _COUNT] = 1
@@ -404,60 +414,95 @@ def _half_area(lx, ly, lz, hx, hy, hz):
 
 
 @cuda.jit(device=True)
-def _entry(nodes, links, span, kid, below, costs, row, slot, e, tb, tn, tf, tc, th, tw, tref, tcnt, trow):
-    """Entry e of the treelet: child slot of row, read by atomics that add
-    nothing (rows that other threads wrote: a plain load could find a stale
-    line in this SM's L1)."""
+def _load_f(a, i):
+    """a[i] (float32) through L2: an atomic that adds nothing."""
+    return cuda.atomic.add(a, i, np.float32(0))
+
+
+@cuda.jit(device=True)
+def _load_i(a, i):
+    """a[i] (int32) through L2: an atomic that adds nothing."""
+    return cuda.atomic.add(a, i, np.int32(0))
+
+
+@cuda.jit(device=True)
+def _entry(nodes, links, span, kid, below, costs, row, slot, e, tb, tn, tc, th, tw, tref, tcnt, trow):
+    """Piece e of a treelet: child slot of row (its box, link, row below,
+    cost, height, rows below, spheres), read by atomics that add nothing:
+    other threads wrote them, and a plain load could find a stale line in
+    this SM's L1."""
     link = 2 * row + slot
     for q in range(6):
-        tb[e, q] = cuda.atomic.add(nodes, (row, 6 * slot + q), np.float32(0))
-    tref[e] = cuda.atomic.add(links, (row, _REF + slot), np.int32(0))
-    tcnt[e] = cuda.atomic.add(links, (row, _COUNT + slot), np.int32(0))
-    trow[e] = cuda.atomic.add(kid, link, np.int32(0))
-    tc[e] = cuda.atomic.add(costs, link, np.float32(0))
-    th[e] = cuda.atomic.add(below, 2 * link, np.int32(0))
-    tw[e] = cuda.atomic.add(below, 2 * link + 1, np.int32(0))
-    if tcnt[e] == _INNER:
-        first = cuda.atomic.add(span, (tref[e], 0), np.int32(0))
-        tf[e] = first
-        tn[e] = cuda.atomic.add(span, (tref[e], 1), np.int32(0)) - first + 1
-    else:
-        tf[e] = tref[e]
-        tn[e] = tcnt[e]
+        tb[e, q] = _load_f(nodes, (row, 6 * slot + q))
+    tref[e] = _load_i(links, (row, _REF + slot))
+    tcnt[e] = _load_i(links, (row, _COUNT + slot))
+    trow[e] = _load_i(kid, link)
+    tc[e] = _load_f(costs, link)
+    th[e] = _load_i(below, 2 * link)
+    tw[e] = _load_i(below, 2 * link + 1)
+    tn[e] = _load_i(span, (trow[e], 1)) if trow[e] >= 0 else 1
+
+
+@cuda.jit(device=True)
+def _union(tb, part, size):
+    """The box of the pieces in the bit set part."""
+    lx = ly = lz = _INF
+    hx = hy = hz = -_INF
+    for e in range(size):
+        if part & (1 << e):
+            lx, ly, lz = min(lx, tb[e, 0]), min(ly, tb[e, 1]), min(lz, tb[e, 2])
+            hx, hy, hz = max(hx, tb[e, 3]), max(hy, tb[e, 4]), max(hz, tb[e, 5])
+    return lx, ly, lz, hx, hy, hz
+
+
+@cuda.jit(device=True)
+def _piece(part):
+    """The piece of a set of one."""
+    e = 0
+    while (1 << e) != part:
+        e += 1
+    return e
 
 
 @cuda.jit(device=True)
 def _treelet(x, old, nodes, links, span, up, leaf_up, kid, below, costs, leaf_max):
     """Row x's subtree (its rows' boxes, links and costs final) made the
-    cheapest tree over the same pieces in the same order. The treelet: x's
-    two children, then the one of largest area that is a row (not a leaf)
-    replaced by its two, up to TREELET pieces; the rows it frees (x's and
-    the replaced ones) hold the new tree, whose links, boxes, spans, costs
-    and links up are written here. The pieces keep their order (each covers
-    consecutive spheres, and every new row too: the leaves stay ranges of
-    the leaf order, and any row can still be cut into a leaf). The cheapest
-    tree over ordered pieces is an interval dynamic programme (interval
-    [i, j] at i * K + j: its box's half area, spheres, cost, best split,
-    whether a leaf, and as a row its height and the rows below); leaves are
-    cut in it as _bounds_up cuts them. x is changed only where the tree's
-    cost falls below _GAIN times old (x's cost as it is), so that
-    rounding never churns equal trees. Returns (cost, height, rows) of x
-    after, or (old, -1, -1) where nothing changed."""
+    cheapest tree over its treelet (Karras and Aila 2013): x's two
+    children, then, up to TREELET pieces, the piece of largest area that is
+    a row (not a leaf) replaced by its two children. The cheapest binary
+    tree over the pieces, in any order, by a programme over their subsets
+    (bit sets, each after its own subsets in numeric order: its box's half
+    area, spheres, cost, best split into two, whether a leaf, and as a child
+    its height and the rows a walk reaches below it); a set of spheres is
+    cut into a leaf as _bounds_up cuts. The rows the treelet frees (x's and
+    the replaced ones) hold the new tree: links, boxes, counts, costs and
+    links up written here. A leaf's spheres are now no range of the sort's
+    order: _reorder puts them in tree order and sets the leaves' refs.
+    x is changed only where the cost falls below _GAIN times old (x's cost
+    as it is), so that rounding never churns equal trees. Returns (cost,
+    height, rows) of x after, or (old, -1, -1) where nothing changed."""
     K = TREELET
-    tb = cuda.local.array((K, 6), np.float32)
-    tn = cuda.local.array(K, np.int64)
-    tf = cuda.local.array(K, np.int64)
-    tc = cuda.local.array(K, np.float32)
-    th = cuda.local.array(K, np.int64)
-    tw = cuda.local.array(K, np.int64)
-    tref = cuda.local.array(K, np.int64)
-    tcnt = cuda.local.array(K, np.int64)
-    trow = cuda.local.array(K, np.int64)
-    rows = cuda.local.array(K, np.int64)
+    tb = cuda.local.array((TREELET, 6), np.float32)
+    tn = cuda.local.array(TREELET, np.int32)
+    tc = cuda.local.array(TREELET, np.float32)
+    th = cuda.local.array(TREELET, np.int32)
+    tw = cuda.local.array(TREELET, np.int32)
+    tref = cuda.local.array(TREELET, np.int32)
+    tcnt = cuda.local.array(TREELET, np.int32)
+    trow = cuda.local.array(TREELET, np.int32)
+    rows = cuda.local.array(TREELET, np.int32)
+    area = cuda.local.array(SUBSETS, np.float32)
+    cnt = cuda.local.array(SUBSETS, np.int32)
+    cost = cuda.local.array(SUBSETS, np.float32)
+    split = cuda.local.array(SUBSETS, np.int32)
+    hh = cuda.local.array(SUBSETS, np.int32)
+    ww = cuda.local.array(SUBSETS, np.int32)
+    leaf = cuda.local.array(SUBSETS, np.int8)
+    stack = cuda.local.array((TREELET, 2), np.int32)
     rows[0] = x
     used = 1
-    _entry(nodes, links, span, kid, below, costs, x, 0, 0, tb, tn, tf, tc, th, tw, tref, tcnt, trow)
-    _entry(nodes, links, span, kid, below, costs, x, 1, 1, tb, tn, tf, tc, th, tw, tref, tcnt, trow)
+    _entry(nodes, links, span, kid, below, costs, x, 0, 0, tb, tn, tc, th, tw, tref, tcnt, trow)
+    _entry(nodes, links, span, kid, below, costs, x, 1, 1, tb, tn, tc, th, tw, tref, tcnt, trow)
     size = 2
     while size < K:
         best = -1
@@ -473,126 +518,138 @@ def _treelet(x, old, nodes, links, span, up, leaf_up, kid, below, costs, leaf_ma
         r = tref[best]
         rows[used] = r
         used += 1
-        for e in range(size - 1, best, -1):
-            for q in range(6):
-                tb[e + 1, q] = tb[e, q]
-            tn[e + 1] = tn[e]
-            tf[e + 1] = tf[e]
-            tc[e + 1] = tc[e]
-            th[e + 1] = th[e]
-            tw[e + 1] = tw[e]
-            tref[e + 1] = tref[e]
-            tcnt[e + 1] = tcnt[e]
-            trow[e + 1] = trow[e]
-        _entry(nodes, links, span, kid, below, costs, r, 0, best, tb, tn, tf, tc, th, tw, tref, tcnt, trow)
-        _entry(nodes, links, span, kid, below, costs, r, 1, best + 1, tb, tn, tf, tc, th, tw, tref, tcnt, trow)
+        _entry(nodes, links, span, kid, below, costs, r, 0, best, tb, tn, tc, th, tw, tref, tcnt, trow)
+        _entry(nodes, links, span, kid, below, costs, r, 1, size, tb, tn, tc, th, tw, tref, tcnt, trow)
         size += 1
     if size < 3:
         return old, -1, -1
-    # the cheapest tree over the ordered pieces: interval [i, j] at i * K + j
-    area = cuda.local.array(K * K, np.float32)
-    cnt = cuda.local.array(K * K, np.int64)
-    cost = cuda.local.array(K * K, np.float32)
-    split = cuda.local.array(K * K, np.int64)
-    leaf = cuda.local.array(K * K, np.int64)
-    hh = cuda.local.array(K * K, np.int64)
-    ww = cuda.local.array(K * K, np.int64)
-    for i in range(size):
-        lx, ly, lz, hx, hy, hz = tb[i, 0], tb[i, 1], tb[i, 2], tb[i, 3], tb[i, 4], tb[i, 5]
-        cost[i * K + i] = tc[i]
-        cnt[i * K + i] = tn[i]
-        hh[i * K + i] = th[i]
-        ww[i * K + i] = tw[i]
-        leaf[i * K + i] = 1 if tcnt[i] != _INNER else 0
-        for j in range(i + 1, size):
-            lx, ly, lz = min(lx, tb[j, 0]), min(ly, tb[j, 1]), min(lz, tb[j, 2])
-            hx, hy, hz = max(hx, tb[j, 3]), max(hy, tb[j, 4]), max(hz, tb[j, 5])
-            area[i * K + j] = _half_area(lx, ly, lz, hx, hy, hz)
-            cnt[i * K + j] = cnt[i * K + j - 1] + tn[j]
-    for length in range(2, size + 1):
-        for i in range(size - length + 1):
-            j = i + length - 1
-            best = _INF
-            at = i
-            for s in range(i, j):
-                v = cost[i * K + s] + cost[(s + 1) * K + j]
+    full = (1 << size) - 1
+    for sm in range(1, full + 1):
+        low = sm & -sm
+        if sm == low:
+            e = _piece(sm)
+            cnt[sm] = tn[e]
+            cost[sm] = tc[e]
+            hh[sm] = th[e]
+            ww[sm] = tw[e]
+            continue
+        lx, ly, lz, hx, hy, hz = _union(tb, sm, size)
+        area[sm] = _half_area(lx, ly, lz, hx, hy, hz)
+        cnt[sm] = cnt[low] + cnt[sm ^ low]
+        best = _INF
+        at = low
+        p = (sm - 1) & sm
+        while p > 0:
+            if p & low:  # each split once: the side with the lowest piece first
+                v = cost[p] + cost[sm ^ p]
                 if v < best:
                     best = v
-                    at = s
-            ij = i * K + j
-            inner = _NODE_COST * area[ij] + best
-            split[ij] = at
-            lc = np.float32(cnt[ij]) * area[ij]
-            hl = 0 if leaf[i * K + at] != 0 else hh[i * K + at]
-            hr = 0 if leaf[(at + 1) * K + j] != 0 else hh[(at + 1) * K + j]
-            wl = 0 if leaf[i * K + at] != 0 else ww[i * K + at]
-            wr = 0 if leaf[(at + 1) * K + j] != 0 else ww[(at + 1) * K + j]
-            hh[ij] = 1 + max(hl, hr)
-            ww[ij] = 1 + wl + wr
-            if length < size and cnt[ij] <= leaf_max and lc <= inner:
-                cost[ij] = lc
-                leaf[ij] = 1
-            else:
-                cost[ij] = inner
-                leaf[ij] = 0
-    whole = size - 1
-    if not cost[whole] < old * _GAIN:
+                    at = p
+            p = (p - 1) & sm
+        inner = _NODE_COST * area[sm] + best
+        split[sm] = at
+        lc = np.float32(cnt[sm]) * area[sm]
+        if sm != full and cnt[sm] <= leaf_max and lc <= inner:
+            cost[sm] = lc
+            leaf[sm] = 1
+            hh[sm] = 0
+            ww[sm] = 0
+        else:
+            cost[sm] = inner
+            leaf[sm] = 0
+            hh[sm] = 1 + max(hh[at], hh[sm ^ at])
+            ww[sm] = 1 + ww[at] + ww[sm ^ at]
+    if not cost[full] < old * _GAIN:
         return old, -1, -1
-    # the new rows, from the root down: interval, row (a stack of at most K)
-    stack = cuda.local.array((K, 3), np.int64)
-    stack[0, 0], stack[0, 1], stack[0, 2] = 0, whole, x
+    stack[0, 0] = full
+    stack[0, 1] = x
     top = 1
     used = 1
     while top > 0:
         top -= 1
-        i, j, row = stack[top, 0], stack[top, 1], stack[top, 2]
-        at = split[i * K + j]
+        sm = stack[top, 0]
+        row = stack[top, 1]
         for slot in range(2):
-            a = i if slot == 0 else at + 1
-            b = at if slot == 0 else j
+            part = split[sm] if slot == 0 else sm ^ split[sm]
             link = 2 * row + slot
             col = 6 * slot
-            if a == b:
+            if part & (part - 1) == 0:  # a piece: as it was, under a new parent
+                e = _piece(part)
                 for q in range(6):
-                    nodes[row, col + q] = tb[a, q]
-                links[row, _REF + slot] = tref[a]
-                links[row, _COUNT + slot] = tcnt[a]
-                kid[link] = trow[a]
-                costs[link] = tc[a]
-                below[2 * link] = th[a]
-                below[2 * link + 1] = tw[a]
-                if trow[a] >= 0:
-                    up[trow[a]] = link
+                    nodes[row, col + q] = tb[e, q]
+                links[row, _REF + slot] = tref[e]
+                links[row, _COUNT + slot] = tcnt[e]
+                kid[link] = trow[e]
+                costs[link] = tc[e]
+                below[2 * link] = th[e]
+                below[2 * link + 1] = tw[e]
+                if trow[e] >= 0:
+                    up[trow[e]] = link
                 else:
-                    leaf_up[tref[a]] = link
+                    leaf_up[tref[e]] = link
                 continue
             child = rows[used]
             used += 1
-            lx, ly, lz, hx, hy, hz = tb[a, 0], tb[a, 1], tb[a, 2], tb[a, 3], tb[a, 4], tb[a, 5]
-            for e in range(a + 1, b + 1):
-                lx, ly, lz = min(lx, tb[e, 0]), min(ly, tb[e, 1]), min(lz, tb[e, 2])
-                hx, hy, hz = max(hx, tb[e, 3]), max(hy, tb[e, 4]), max(hz, tb[e, 5])
-            nodes[row, col], nodes[row, col + 1], nodes[row, col + 2] = lx, ly, lz
-            nodes[row, col + 3], nodes[row, col + 4], nodes[row, col + 5] = hx, hy, hz
-            span[child, 0] = tf[a]
-            span[child, 1] = tf[b] + tn[b] - 1
+            lx, ly, lz, hx, hy, hz = _union(tb, part, size)
+            nodes[row, col] = lx
+            nodes[row, col + 1] = ly
+            nodes[row, col + 2] = lz
+            nodes[row, col + 3] = hx
+            nodes[row, col + 4] = hy
+            nodes[row, col + 5] = hz
+            span[child, 0] = -1  # no range of the sort's order
+            span[child, 1] = cnt[part]
             kid[link] = child
             up[child] = link
-            ab = a * K + b
-            costs[link] = cost[ab]
-            if leaf[ab] != 0:
-                links[row, _REF + slot] = tf[a]
-                links[row, _COUNT + slot] = cnt[ab]
-                below[2 * link] = 0
-                below[2 * link + 1] = 0
+            costs[link] = cost[part]
+            below[2 * link] = hh[part]
+            below[2 * link + 1] = ww[part]
+            if leaf[part] != 0:
+                links[row, _REF + slot] = -1  # set by _reorder
+                links[row, _COUNT + slot] = cnt[part]
             else:
                 links[row, _REF + slot] = child
                 links[row, _COUNT + slot] = _INNER
-                below[2 * link] = hh[ab]
-                below[2 * link + 1] = ww[ab]
-            stack[top, 0], stack[top, 1], stack[top, 2] = a, b, child
+            stack[top, 0] = part
+            stack[top, 1] = child
             top += 1
-    return cost[whole], hh[whole], ww[whole]
+    return cost[full], hh[full], ww[full]
+
+
+@compiled.cuda_jit()
+def _reorder(spheres, n, order, leaf_up, up, links, kid, span, order_out, leaf_up_out, ordered):
+    """After treelets, the spheres in the tree's order, so that every leaf
+    is again a range of them: leaf k's place is the spheres left of it in
+    the tree (on its way up, the left sibling's count wherever it is a right
+    child). Its sphere, its index and its link up go there; on the way up
+    while it is the leftmost sphere of the child it climbs from, it sets
+    that child's ref where the child is a leaf (every leaf has one leftmost
+    sphere)."""
+    k = cuda.grid(1)
+    if k >= n:
+        return
+    rank = 0
+    link = leaf_up[k]
+    while link >= 0:
+        row = link // 2
+        if link - 2 * row == 1:
+            left = kid[2 * row]
+            rank += span[left, 1] if left >= 0 else 1
+        link = up[row]
+    s = order[k]
+    order_out[rank] = s
+    leaf_up_out[rank] = leaf_up[k]
+    for a in range(4):
+        ordered[a, rank] = spheres[a, s]
+    link = leaf_up[k]
+    while link >= 0:
+        row = link // 2
+        slot = link - 2 * row
+        if links[row, _COUNT + slot] != _INNER:
+            links[row, _REF + slot] = rank
+        if slot == 1:
+            break
+        link = up[row]
 
 
 @compiled.cuda_jit()
@@ -681,7 +738,7 @@ def _bounds_up(
         if link >= 0:
             parent = link // 2
             pslot = link - 2 * parent
-            count = span[row, 1] - span[row, 0] + 1
+            count = span[row, 1]
             leaf = np.float32(count) * a
             if count <= leaf_max and (sah == 0 or leaf <= c):
                 links[parent, _REF + pslot] = span[row, 0]
@@ -753,7 +810,10 @@ class Builder:
         self.nodes = cuda.device_array((m, NODE_FLOATS), np.float32)
         self.links = self.nodes.view(np.int32)
         self.up = cuda.device_array(m, np.int64)
-        self.leaf_up = cuda.device_array(max(n, 1), np.int64)
+        # the leaves' links up in the sort's order, and in the tree's
+        # (after _reorder; refits climb from these)
+        self.sorted_up = cuda.device_array(max(n, 1), np.int64)
+        self.leaf_up = cuda.device_array(max(n, 1), np.int64) if quality == "treelet" else self.sorted_up
         self.span = cuda.device_array((m, 2), np.int32)
         self.below = cuda.device_array(4 * m, np.int32)
         self.costs = cuda.device_array(2 * m, np.float32)
@@ -763,7 +823,9 @@ class Builder:
         self.stats = cuda.device_array(2, np.int32)  # the root's height and the rows a walk reaches
         self.cost = cuda.device_array(1, np.float32)
         # the sorted values end in the buffer of the last pass: the order
-        self.order = self.values[PASSES % 2]
+        # (after treelets, the tree's order goes to the other buffer)
+        self.sorted = self.values[PASSES % 2]
+        self.order = self.values[1 - PASSES % 2] if quality == "treelet" else self.sorted
 
     def launch_build(self, spheres) -> None:
         """Queue the build of the first n spheres of the device array spheres
@@ -796,21 +858,29 @@ class Builder:
     def launch_hierarchy(self) -> None:
         """Step 4: the rows' links from the sorted codes."""
         _hierarchy[_blocks(self.n - 1, THREADS), THREADS](
-            self.keys[PASSES % 2], self.n, self.links, self.up, self.leaf_up, self.span
+            self.keys[PASSES % 2], self.n, self.links, self.up, self.sorted_up, self.span
         )
 
     def launch_bounds(self, spheres) -> None:
-        """Step 5: the boxes bottom-up, and the leaves cut."""
-        self._up(spheres, self.leaf_size)
+        """Step 5: the boxes bottom-up, and the leaves cut (and treelets
+        rebuilt, then the spheres put in the tree's order)."""
+        self._up(spheres, self.sorted, self.sorted_up, self.leaf_size)
+        if self.quality == "treelet":
+            for _ in range(TREELET_PASSES - 1):  # the treelets of the tree the last pass left
+                self._up(spheres, self.sorted, self.sorted_up, self.leaf_size)
+            _reorder[_blocks(self.n, THREADS), THREADS](
+                spheres, self.n, self.sorted, self.sorted_up, self.up, self.links, self.kid, self.span, self.order,
+                self.leaf_up, self.ordered,
+            )  # fmt: skip
 
     def launch_refit(self, spheres) -> None:
         """Queue the boxes of the tree's rows recomputed from the spheres'
         positions now (the tree's shape kept); nothing waits."""
-        self._up(spheres, 0)
+        self._up(spheres, self.order, self.leaf_up, 0)
 
-    def _up(self, spheres, leaf_max: int) -> None:
+    def _up(self, spheres, order, leaf_up, leaf_max: int) -> None:
         _bounds_up[_blocks(self.n, THREADS), THREADS](
-            spheres, self.n, self.order, self.leaf_up, self.up, self.span, self.nodes, self.links, self.below,
+            spheres, self.n, order, leaf_up, self.up, self.span, self.nodes, self.links, self.below,
             self.costs, self.kid, self.arrived, self.ordered, self.stats, self.cost, leaf_max,
             int(self.quality != "lbvh"), int(self.quality == "treelet"),
         )  # fmt: skip
