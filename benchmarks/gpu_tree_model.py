@@ -413,7 +413,7 @@ def bounds_up(ordered, leaf_up, up, span, nodes, links, kid, leaf_max, sah, rest
             a = _half_area(lx, ly, lz, hx, hy, hz)
             c = NODE_COST * a + (c + costs[sib])
             cur = row
-            if restructure != 0 and leaf_max > 0:
+            if restructure != 0 and leaf_max > 0 and span[row, 1] > 2:
                 c2, h2, w2 = _treelet(row, c, nodes, links, span, up, leaf_up, kid, below, costs, leaf_max)
                 if h2 >= 0:
                     c, h, w = c2, h2, w2

@@ -730,7 +730,7 @@ def _bounds_up(
         c = _NODE_COST * a + (c + cuda.atomic.add(costs, sib, np.float32(0)))
         arrived[row] = 0
         cur = row
-        if restructure != 0 and leaf_max > 0:
+        if restructure != 0 and leaf_max > 0 and span[row, 1] > 2:  # two spheres have one tree
             tc, th, tw = _treelet(row, c, nodes, links, span, up, leaf_up, kid, below, costs, leaf_max)
             if th >= 0:
                 c, h, w = tc, th, tw
