@@ -22,12 +22,21 @@ with the machine and the commit):
   build; with the refitted tree's SAH cost over its fresh cost, the series
   from which REFIT_LIMIT is chosen (rebuild once the walk's loss on the
   refitted tree exceeds the build's cost over the refit's);
-- the GPU tree's leaf size (cuda_build.LEAF_SIZE: subtrees of up to that
-  many spheres collapsed into leaves) swept over --leaf-size: its SAH cost
-  and both walks' times, to choose it.
+- the GPU tree's largest leaf (cuda_build.Builder's leaf_size, in the
+  default quality) swept over --leaf-size: its SAH cost and both walks'
+  times, to choose it.
+
+The GPU build's figures (time, steps, SAH cost, walks) are given for each
+quality of tree in --quality (default all of cuda_build.QUALITIES: "sah",
+the LBVH with its leaves cut where the SAH says; "treelet", the same with
+each row's treelet rebuilt where the SAH says and the spheres reordered;
+"lbvh", the LBVH with fixed leaves of LEAF_SIZE), under "variants",
+side by side (a quality that fails is recorded with its error); the record's
+top-level gpu_* and walk_* fields are the default quality's
+(cuda_build.QUALITY), which the dynamic series use.
 
     python benchmarks/gpu_build.py --json out.json [--spheres 1000 --spheres 100000] [--repeats 51]
-        [--anim-frames 40 --anim-dt 0.1]
+        [--quality sah --quality treelet] [--anim-frames 40 --anim-dt 0.1]
 
 Issue 16's targets (H200): a build of 1,000,000 spheres in at most 5 ms,
 100,000 in 1 ms, the walk on the GPU's tree at most 10% slower than on the
@@ -56,10 +65,10 @@ def events_ms(marks) -> list[float]:
     return [a.elapsed_time(b) for a, b in zip(marks, marks[1:])]
 
 
-def gpu_build(spheres: np.ndarray, repeats: int) -> dict:
+def gpu_build(spheres: np.ndarray, repeats: int, quality: str) -> dict:
     n = spheres.shape[1]
     d_spheres = cuda.to_device(spheres)
-    builder = cuda_build.Builder(n)  # the default leaf size
+    builder = cuda_build.Builder(n, quality=quality)  # its default leaf size
     for _ in range(3):  # compiled (or loaded from the cache), warm
         builder.launch_build(d_spheres)
         builder.read_depth()
@@ -73,7 +82,7 @@ def gpu_build(spheres: np.ndarray, repeats: int) -> dict:
         marks[2].record()
         builder.launch_hierarchy()
         marks[3].record()
-        builder.launch_refit(d_spheres)
+        builder.launch_bounds(d_spheres)
         marks[4].record()
         parts = events_ms(marks)
         whole.append(sum(parts))
@@ -88,7 +97,8 @@ def gpu_build(spheres: np.ndarray, repeats: int) -> dict:
         builder.launch_refit(d_spheres)
         marks[1].record()
         refit.append(events_ms(marks)[0])
-    tree = builder.tree(depth, 0.0).to_host()
+    builder.launch_build(d_spheres)  # the refits above kept the tree; its boxes fresh again
+    tree = builder.tree(builder.read_depth(), 0.0).to_host()
     return {
         "gpu_build_ms": round(statistics.median(whole), 4),
         "gpu_build_p5_p95_ms": [round(float(v), 4) for v in np.percentile(whole, [5, 95])],
@@ -97,6 +107,7 @@ def gpu_build(spheres: np.ndarray, repeats: int) -> dict:
         "gpu_refit_ms": round(statistics.median(refit), 4),
         "gpu_depth": depth,
         "gpu_rows": tree.node_count,
+        "gpu_rows_walked": builder.read_rows(),
         "gpu_sah": round(tree_cost.sah_cost(tree.nodes), 3),
     }
 
@@ -118,19 +129,41 @@ def host_build(spheres: np.ndarray, repeats: int) -> dict:
     }
 
 
-def walks(spheres: np.ndarray, width: int, height: int, frames: int) -> dict:
+def use_tree(tracer, tree) -> None:
+    """The tracer's tree replaced by tree (a cuda_build.GpuTree)."""
+    tracer.bvh = tree
+    tracer.d_nodes, tracer.d_links, tracer.d_ordered, tracer.d_order = tree.nodes, tree.links, tree.ordered, tree.order
+
+
+def walks(spheres: np.ndarray, width: int, height: int, frames: int, qualities) -> dict:
+    """Both walks' kernel times on the host's tree and on the GPU's tree of
+    each quality, and the share of hits differing from the host tree's."""
     basis = Camera().basis(width, height)
+    d_spheres = cuda.to_device(spheres)
     out, hits = {}, {}
-    for build in ("host", "gpu"):
-        for walk in ("ray", "packet"):
-            with backends.tracer("cuda", spheres, width, height, build=build, walk=walk) as tracer:
-                tracer.trace(basis)
-                times = [tracer.timed_trace(basis) for _ in range(frames)]  # None under the simulator
-                out[f"walk_{build}_{walk}_ms"] = round(statistics.median(t or np.nan for t in times), 4)
-                hits[build] = tracer.hits.copy()
-    out["hits_differ"] = float((hits["host"] != hits["gpu"]).mean())
     for walk in ("ray", "packet"):
-        out[f"walk_gpu_over_host_{walk}"] = round(out[f"walk_gpu_{walk}_ms"] / out[f"walk_host_{walk}_ms"], 4)
+        with backends.tracer("cuda", spheres, width, height, build="host", walk=walk) as tracer:
+            tracer.trace(basis)
+            times = [tracer.timed_trace(basis) for _ in range(frames)]  # None under the simulator
+            out[f"walk_host_{walk}_ms"] = round(statistics.median(t or np.nan for t in times), 4)
+            hits["host"] = tracer.hits.copy()
+        with backends.tracer("cuda", spheres, width, height, build="gpu", walk=walk) as tracer:
+            for quality in qualities:
+                entry = out.setdefault(quality, {})
+                try:
+                    builder = cuda_build.Builder(spheres.shape[1], quality=quality)
+                    builder.launch_build(d_spheres)
+                    use_tree(tracer, builder.tree(builder.read_depth(), 0.0))
+                    tracer.trace(basis)
+                    times = [tracer.timed_trace(basis) for _ in range(frames)]
+                except Exception as e:  # noqa: BLE001 (one quality failing leaves the others measured)
+                    entry["error"] = repr(e)
+                    continue
+                entry[f"walk_gpu_{walk}_ms"] = round(statistics.median(t or np.nan for t in times), 4)
+                entry[f"walk_gpu_over_host_{walk}"] = round(
+                    entry[f"walk_gpu_{walk}_ms"] / out[f"walk_host_{walk}_ms"], 4
+                )
+                entry["hits_differ"] = max(entry.get("hits_differ", 0.0), float((hits["host"] != tracer.hits).mean()))
     return out
 
 
@@ -176,8 +209,8 @@ def dynamic(spheres: np.ndarray, width: int, height: int, frames: int, dt: float
 
 
 def leaf_sizes(spheres: np.ndarray, width: int, height: int, frames: int, sizes) -> dict:
-    """Per leaf size: the GPU tree's SAH cost and both walks' kernel times
-    (the tracer's tree replaced by one built with that leaf size)."""
+    """Per largest leaf: the GPU tree's SAH cost (default quality) and both
+    walks' kernel times (the tracer's tree replaced by one built with it)."""
     basis = Camera().basis(width, height)
     d_spheres = cuda.to_device(spheres)
     out = {}
@@ -187,13 +220,7 @@ def leaf_sizes(spheres: np.ndarray, width: int, height: int, frames: int, sizes)
                 builder = cuda_build.Builder(spheres.shape[1], size)
                 builder.launch_build(d_spheres)
                 tree = builder.tree(builder.read_depth(), 0.0)
-                tracer.bvh = tree
-                tracer.d_nodes, tracer.d_links, tracer.d_ordered, tracer.d_order = (
-                    tree.nodes,
-                    tree.links,
-                    tree.ordered,
-                    tree.order,
-                )
+                use_tree(tracer, tree)
                 tracer.trace(basis)
                 times = [tracer.timed_trace(basis) for _ in range(frames)]
                 entry = out.setdefault(str(size), {"sah": round(tree_cost.sah_cost(tree.to_host().nodes), 3)})
@@ -208,19 +235,46 @@ def main() -> int:
     parser.add_argument("--size", default="1680x1050")
     parser.add_argument("--repeats", type=int, default=51, help="timed GPU builds (and refits) per count")
     parser.add_argument("--frames", type=int, default=15, help="timed frames per walk")
-    parser.add_argument("--leaf-size", type=int, action="append", help="leaf sizes to sweep (default 1, 2, 4, 8)")
+    parser.add_argument("--leaf-size", type=int, action="append", help="largest leaves to sweep (default 1, 2, 4, 8)")
+    parser.add_argument(
+        "--quality", action="append", choices=cuda_build.QUALITIES, help="GPU trees to measure (default all)"
+    )
+    parser.add_argument(
+        "--treelet-passes", type=int, default=cuda_build.TREELET_PASSES, help="bottom-up passes of treelets"
+    )
     parser.add_argument("--anim-frames", type=int, default=40, help="frames of moving spheres per policy")
     parser.add_argument("--anim-dt", type=float, default=0.1, help="seconds of the animation between frames")
     args = parser.parse_args()
+    cuda_build.TREELET_PASSES = args.treelet_passes
     width, height = (int(v) for v in args.size.split("x"))
     records = []
     for n in args.spheres or [1000, 100_000, 1_000_000]:
         spheres = raybench.random_spheres(n, seed=0).spheres
-        row = {"spheres": n, "width": width, "height": height}
-        row.update(gpu_build(spheres, args.repeats))
+        row = {"spheres": n, "width": width, "height": height, "treelet_passes": cuda_build.TREELET_PASSES}
         row.update(host_build(spheres, args.repeats))
-        row["sah_gpu_over_host"] = round(row["gpu_sah"] / row["host_sah"], 4)
-        row.update(walks(spheres, width, height, args.frames))
+        qualities = args.quality or list(cuda_build.QUALITIES)
+        walked = walks(spheres, width, height, args.frames, qualities)
+        row.update({k: v for k, v in walked.items() if k.startswith("walk_host_")})
+        variants = {}
+        for quality in qualities:
+            if "error" in walked[quality]:
+                variants[quality] = walked[quality]
+                print(f"{n:>9,} spheres, {quality:>7}: {walked[quality]['error']}", file=sys.stderr, flush=True)
+                continue
+            entry = gpu_build(spheres, args.repeats, quality)
+            entry["sah_gpu_over_host"] = round(entry["gpu_sah"] / row["host_sah"], 4)
+            entry.update(walked[quality])
+            variants[quality] = entry
+            print(
+                f"{n:>9,} spheres, {quality:>7}: build {entry['gpu_build_ms']:.3f} ms, SAH / host "
+                f"{entry['sah_gpu_over_host']:.3f}, walk / host: ray {entry['walk_gpu_over_host_ray']:.3f}, "
+                f"packet {entry['walk_gpu_over_host_packet']:.3f}",
+                file=sys.stderr,
+                flush=True,
+            )
+        row["variants"] = variants
+        row["quality"] = cuda_build.QUALITY
+        row.update(variants.get(cuda_build.QUALITY, {}))  # the default's, as the fields were before
         row["leaf_size"] = cuda_build.LEAF_SIZE
         row["leaf_sizes"] = leaf_sizes(spheres, width, height, args.frames, args.leaf_size or [1, 2, 4, 8])
         if args.anim_frames > 0:

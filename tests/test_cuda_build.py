@@ -26,14 +26,27 @@ def small(rng) -> int:
     return int(rng.integers(2, 33 if sim() else 5000))
 
 
-def gpu_tree(spheres, leaf_size=None, **options):
+def gpu_tree(spheres, leaf_size=None, quality=None, **options):
     from numba import cuda
 
     from raybench.backends import cuda_build
 
     n = spheres.shape[1]
-    builder = cuda_build.Builder(n, leaf_size) if leaf_size is not None and n >= 2 else None
+    given = (leaf_size is not None or quality is not None) and n >= 2
+    builder = cuda_build.Builder(n, leaf_size, quality) if given else None
     return cuda_build.build(spheres, cuda.to_device(spheres), builder, **options)
+
+
+def tree_model():
+    """benchmarks/gpu_tree_model.py: the GPU's tree built on the CPU."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).parent.parent / "benchmarks" / "gpu_tree_model.py"
+    spec = importlib.util.spec_from_file_location("gpu_tree_model", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def morton_reference(spheres) -> np.ndarray:
@@ -60,13 +73,99 @@ def test_gpu_tree_is_valid(rng, kind):
     up to leaf_size spheres, and none of more."""
     scene, _ = SCENES[kind](rng, small(rng))
     leaf_size = int(rng.integers(1, bvh.LEAF_MAX + 1))
-    tree = gpu_tree(scene.spheres, leaf_size)
+    tree = gpu_tree(scene.spheres, leaf_size, str(rng.choice(["sah", "lbvh"])))
     assert tree.built_on == ("gpu" if len(scene) >= 2 else "host")
     host = tree.to_host()
     check_tree(host, scene.spheres)
     assert tree.node_count == max(len(scene) - 1, 1)  # Karras's internal nodes, collapsed ones kept
     counts = host.links[:, layout.COUNT : layout.COUNT + 2]
     assert counts.max() <= leaf_size
+
+
+@pytest.mark.parametrize("kind", ["generated", "overlapping", "one_point", "duplicates", "line"])
+def test_model_gives_the_kernels_tree(rng, kind):
+    """benchmarks/gpu_tree_model.py, which measures the GPU trees' SAH cost
+    at sizes the simulator cannot build, gives the kernels' tree: every row
+    (collapsed ones too), the order, the depth, the rows reached and the
+    device's cost, bit for bit under the simulator. A GPU may fuse
+    multiply-adds, which can tip a choice between two costs equal to the
+    last bit (a leaf or a row, a treelet's split): there the same cost
+    within rounding."""
+    from raybench.backends import cuda_build
+
+    model = tree_model()
+    scene, _ = SCENES[kind](rng, max(small(rng), 2))
+    quality = str(rng.choice(cuda_build.QUALITIES))
+    leaf_size = int(rng.integers(1, bvh.LEAF_MAX + 1))
+    tree = gpu_tree(scene.spheres, leaf_size, quality)
+    nodes, order, ordered, depth, rows, cost = model.build(scene.spheres, quality, leaf_size)
+    got = tree.to_host()
+    if not sim():
+        assert tree_cost.sah_cost(got.nodes) == pytest.approx(tree_cost.sah_cost(nodes), rel=1e-4)
+        return
+    assert np.array_equal(got.order, order) and np.array_equal(got.ordered, ordered)
+    assert depth == tree.depth
+    assert np.array_equal(got.nodes.view(np.uint32), nodes.view(np.uint32))
+    from numba import cuda
+
+    builder = cuda_build.Builder(len(scene), leaf_size, quality)
+    builder.launch_build(cuda.to_device(scene.spheres))
+    assert builder.read_rows() == rows
+    assert builder.read_cost() == cost
+
+
+def test_sah_leaves_are_the_cheapest_cut(rng):
+    """The "sah" leaves cut the LBVH where the SAH is least: its cost is no
+    more than that of any fixed leaf size up to the same most ("lbvh"
+    leaves: the same rows, cut elsewhere), and than a cut with no leaf of
+    more than one sphere."""
+    from raybench.backends import cuda_build
+
+    scene, _ = SCENES[str(rng.choice(["generated", "overlapping", "cloud"]))](rng, int(rng.integers(12, 33)))
+    best = tree_cost.sah_cost(gpu_tree(scene.spheres, bvh.LEAF_MAX, "sah").to_host().nodes)
+    for size in range(1, bvh.LEAF_MAX + 1):
+        fixed = gpu_tree(scene.spheres, size, "lbvh").to_host()
+        assert best <= tree_cost.sah_cost(fixed.nodes) * (1 + 1e-5)
+    with pytest.raises(ValueError, match="quality: must be one of sah, treelet, lbvh, got 'best'"):
+        cuda_build.Builder(4, quality="best")
+
+
+@pytest.mark.parametrize("kind", ["generated", "cloud", "line", "duplicates"])
+def test_treelets_lower_the_cost_and_keep_leaves_ranges(rng, monkeypatch, kind):
+    """The "treelet" tree, after 1 to 3 passes: valid (every sphere in one
+    leaf of consecutive spheres, boxes nested, the depth its own), its rows'
+    links up leading back to the root (refits climb them), no costlier than
+    the "sah" tree of the same LBVH, and after a refit to the same spheres
+    the same tree; the model's tree."""
+    from numba import cuda
+
+    from raybench.backends import cuda_build
+
+    monkeypatch.setattr(cuda_build, "TREELET_PASSES", int(rng.integers(1, 4)))
+    scene, _ = SCENES[kind](rng, int(rng.integers(12, 33)))
+    sah = tree_cost.sah_cost(gpu_tree(scene.spheres, quality="sah").to_host().nodes)
+    builder = cuda_build.Builder(len(scene), quality="treelet")
+    d_spheres = cuda.to_device(scene.spheres)
+    builder.launch_build(d_spheres)
+    tree = builder.tree(builder.read_depth(), 0.0).to_host()
+    check_tree(tree, scene.spheres)
+    assert tree_cost.sah_cost(tree.nodes) <= sah * (1 + 1e-5)
+    assert builder.read_cost() == pytest.approx(tree_cost.sah_cost(tree.nodes), rel=1e-5)
+    up = builder.up.copy_to_host()
+    leaf_up = builder.leaf_up.copy_to_host()
+    for link in leaf_up:
+        seen = 0
+        while link >= 0:  # every sphere's way up ends at the root, in at most every row
+            link = up[link // 2]
+            seen += 1
+            assert seen <= len(scene)
+    builder.launch_refit(d_spheres)
+    again = builder.tree(builder.read_depth(), 0.0).to_host()
+    assert np.array_equal(again.nodes.view(np.uint32), tree.nodes.view(np.uint32))
+    if sim():  # on a GPU, fused multiply-adds may tip near ties (test_model_gives_the_kernels_tree)
+        nodes, order, _ordered, depth, _rows, _cost = tree_model().build(scene.spheres, "treelet")
+        assert np.array_equal(tree.order, order) and depth == tree.depth
+        assert np.array_equal(tree.links[:, layout.REF :], nodes.view(np.int32)[:, layout.REF :])
 
 
 def test_sort_is_stable_by_morton_code(rng):
@@ -115,10 +214,13 @@ def test_too_deep_falls_back_to_the_host_build(rng):
 @pytest.mark.parametrize(
     "kind", ["generated", "inside", "overlapping", "one_point", "duplicates", "line", "one", "none"]
 )
-def test_gpu_tree_walks_give_the_brute_force(rng, kind):
-    """Both walks on the GPU's tree: the brute force's hits, bit for bit under
-    the simulator, within rounding on a GPU (its compiler may fuse
-    multiply-adds; test_bvh's CUDA test says the same)."""
+def test_gpu_tree_walks_give_the_brute_force(rng, monkeypatch, kind):
+    """Both walks on the GPU's tree (of any quality): the brute force's hits,
+    bit for bit under the simulator, within rounding on a GPU (its compiler
+    may fuse multiply-adds; test_bvh's CUDA test says the same)."""
+    from raybench.backends import cuda_build
+
+    monkeypatch.setattr(cuda_build, "QUALITY", str(rng.choice(cuda_build.QUALITIES)))
     scene, camera = SCENES[kind](rng, small(rng))
     width, height = (19, 13) if sim() else (643, 401)
     walk = str(rng.choice(cuda_backend.WALKS))
@@ -223,6 +325,7 @@ def test_update_refits_within_the_limit_and_rebuilds_past_it(rng, monkeypatch, l
     from raybench.backends import cuda_build
 
     monkeypatch.setattr(cuda_build, "REFIT_LIMIT", limit)
+    monkeypatch.setattr(cuda_build, "QUALITY", str(rng.choice(cuda_build.QUALITIES)))
     scene, camera = SCENES["generated"](rng, int(rng.integers(10, 30)))
     with raybench.backends.tracer("cuda", scene.spheres, 19, 13, build="gpu") as tracer:
         before = tracer.d_links.copy_to_host()[:, layout.REF :]  # the rows' links, not their boxes

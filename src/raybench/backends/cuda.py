@@ -622,9 +622,9 @@ class Tracer(TracerBase):
     def _rows_walked(self) -> int:
         """The rows of the tree a walk can reach: all of a host-built tree's;
         of the GPU's, those its collapsed subtrees left out of reach not
-        counted (cuda_build's live flags, read once)."""
+        counted (counted by cuda_build's bottom-up pass)."""
         if self.bvh.built_on == "gpu":
-            return int(self._builder.live.copy_to_host().astype(np.int64).sum())
+            return self._builder.read_rows()
         return self.bvh.node_count
 
     def update(self, spheres: np.ndarray) -> str | None:
