@@ -51,6 +51,7 @@ from numba import config, cuda
 from .. import bvh as bvh_mod
 from .. import compiled
 from ..layout import BOX_FLOATS, COUNT, INNER, MAX_DEPTH, NODE_FLOATS, PAD, REF
+from .cuda_launch import Launches
 
 # Morton codes: 10 bits an axis.
 CODE_BITS = 30
@@ -826,6 +827,16 @@ class Builder:
         # (after treelets, the tree's order goes to the other buffer)
         self.sorted = self.values[PASSES % 2]
         self.order = self.values[1 - PASSES % 2] if quality == "treelet" else self.sorted
+        # the launches with their arguments converted once (cuda_launch): those
+        # on the builder's own arrays, and those on the caller's spheres, kept
+        # while the caller passes the same array
+        self._own, self._with, self._spheres = Launches(64), Launches(16), None
+
+    def _on(self, spheres) -> Launches:
+        if spheres is not self._spheres:
+            self._with.clear()
+            self._spheres = spheres
+        return self._with
 
     def launch_build(self, spheres) -> None:
         """Queue the build of the first n spheres of the device array spheres
@@ -840,26 +851,29 @@ class Builder:
     def launch_codes(self, spheres) -> None:
         """Steps 1 and 2: the centres' bounds, then each one's Morton code."""
         parts = min(_blocks(self.n, THREADS), BOUNDS_BLOCKS)
-        _bounds_parts[parts, THREADS](spheres, self.n, self.bound_parts)
-        _bounds_merge[1, ONE_BLOCK](self.bound_parts, parts, self.bounds)
-        _morton[_blocks(self.n, THREADS), THREADS](spheres, self.n, self.bounds, self.keys[0], self.values[0])
+        launch = self._on(spheres)
+        launch(_bounds_parts, parts, THREADS, spheres, self.n, self.bound_parts)
+        launch(_bounds_merge, 1, ONE_BLOCK, self.bound_parts, parts, self.bounds)
+        launch(_morton, _blocks(self.n, THREADS), THREADS, spheres, self.n, self.bounds, self.keys[0], self.values[0])
 
     def launch_sort(self) -> None:
         """Step 3: the (code, index) pairs sorted by code, stably."""
         for p in range(PASSES):
             src, dst = p % 2, 1 - p % 2
             shift = p * DIGIT_BITS
-            _count[self.tiles, SORT_THREADS](self.keys[src], self.n, shift, self.hist, self.tiles)
-            _scan[1, ONE_BLOCK](self.hist, RADIX * self.tiles)
-            _scatter[self.tiles, SORT_THREADS](
-                self.keys[src], self.values[src], self.n, shift, self.hist, self.tiles, self.keys[dst], self.values[dst]
-            )
+            self._own(_count, self.tiles, SORT_THREADS, self.keys[src], self.n, shift, self.hist, self.tiles)
+            self._own(_scan, 1, ONE_BLOCK, self.hist, RADIX * self.tiles)
+            self._own(
+                _scatter, self.tiles, SORT_THREADS, self.keys[src], self.values[src], self.n, shift, self.hist,
+                self.tiles, self.keys[dst], self.values[dst],
+            )  # fmt: skip
 
     def launch_hierarchy(self) -> None:
         """Step 4: the rows' links from the sorted codes."""
-        _hierarchy[_blocks(self.n - 1, THREADS), THREADS](
-            self.keys[PASSES % 2], self.n, self.links, self.up, self.sorted_up, self.span
-        )
+        self._own(
+            _hierarchy, _blocks(self.n - 1, THREADS), THREADS, self.keys[PASSES % 2], self.n, self.links, self.up,
+            self.sorted_up, self.span,
+        )  # fmt: skip
 
     def launch_bounds(self, spheres) -> None:
         """Step 5: the boxes bottom-up, and the leaves cut (and treelets
@@ -868,9 +882,9 @@ class Builder:
         if self.quality == "treelet":
             for _ in range(TREELET_PASSES - 1):  # the treelets of the tree the last pass left
                 self._up(spheres, self.sorted, self.sorted_up, self.leaf_size)
-            _reorder[_blocks(self.n, THREADS), THREADS](
-                spheres, self.n, self.sorted, self.sorted_up, self.up, self.links, self.kid, self.span, self.order,
-                self.leaf_up, self.ordered,
+            self._on(spheres)(
+                _reorder, _blocks(self.n, THREADS), THREADS, spheres, self.n, self.sorted, self.sorted_up, self.up,
+                self.links, self.kid, self.span, self.order, self.leaf_up, self.ordered,
             )  # fmt: skip
 
     def launch_refit(self, spheres) -> None:
@@ -879,10 +893,10 @@ class Builder:
         self._up(spheres, self.order, self.leaf_up, 0)
 
     def _up(self, spheres, order, leaf_up, leaf_max: int) -> None:
-        _bounds_up[_blocks(self.n, THREADS), THREADS](
-            spheres, self.n, order, leaf_up, self.up, self.span, self.nodes, self.links, self.below,
-            self.costs, self.kid, self.arrived, self.ordered, self.stats, self.cost, leaf_max,
-            int(self.quality != "lbvh"), int(self.quality == "treelet"),
+        self._on(spheres)(
+            _bounds_up, _blocks(self.n, THREADS), THREADS, spheres, self.n, order, leaf_up, self.up, self.span,
+            self.nodes, self.links, self.below, self.costs, self.kid, self.arrived, self.ordered, self.stats,
+            self.cost, leaf_max, int(self.quality != "lbvh"), int(self.quality == "treelet"),
         )  # fmt: skip
 
     def read_cost(self) -> float:
