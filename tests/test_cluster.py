@@ -36,6 +36,8 @@ def running():
     with cluster.Cluster(workers=2, device="cpu") as c:
         c.client.wait_for_workers(2)
         yield c
+    # the client's kept frame memory went with the cluster: nothing of this process is left in /dev/shm
+    assert not [name for name in blocks() if name.startswith(f"{sharedframe.PREFIX}{os.getpid()}-")]
 
 
 def scene_and_camera(rng, n=None):
@@ -86,26 +88,38 @@ def blocks() -> set[str]:
 
 
 @pytest.fixture
-def no_block_left():
+def no_block_left(running):
+    """Whatever a test leaves kept for the client's next frames, nothing is
+    left in /dev/shm once the client's kept memory is released."""
     before = blocks()
     yield
+    cluster.release(running.client)
     assert blocks() <= before, "a shared-memory block was left in /dev/shm"
 
 
+def mapped(client) -> list[int]:
+    """How many blocks each worker keeps mapped."""
+    return sorted(client.run(lambda: len(sharedframe._mapped)).values())
+
+
 def test_workers_on_this_host_write_into_the_clients_block(running, rng, no_block_left):
-    block = sharedframe.create(24, 16)
+    pool = sharedframe.Pool()
+    lease = pool.lease(24, 16)
     try:
         image = rng.integers(0, 256, (8, 24, 3), dtype=np.uint8)
         hits = rng.integers(-1, 100, (8, 24), dtype=np.int32)
-        wrote = running.client.submit(sharedframe.write_rows, block.address, 8, image, hits, pure=False).result()
+        wrote = running.client.submit(sharedframe.write_rows, lease.address, 8, image, hits, pure=False).result()
         assert wrote is True
-        np.testing.assert_array_equal(block.image[8:], image)
-        np.testing.assert_array_equal(block.hits[8:], hits)
+        np.testing.assert_array_equal(lease.image[8:], image)
+        np.testing.assert_array_equal(lease.hits[8:], hits)
         # a block the worker cannot open (as on another host): nothing written, and it says so
         elsewhere = (sharedframe.PREFIX + "elsewhere", 24, 16)
         assert running.client.submit(sharedframe.write_rows, elsewhere, 0, image, hits, pure=False).result() is False
     finally:
-        block.unlink()
+        lease.end()
+        pool.close()
+    # the frame is over: a task of it that starts now finds no block
+    assert running.client.submit(sharedframe.write_rows, lease.address, 0, image, hits, pure=False).result() is False
 
 
 def test_a_tile_task_on_this_host_sends_no_rows(running, rng, no_block_left):
@@ -113,15 +127,17 @@ def test_a_tile_task_on_this_host_sends_no_rows(running, rng, no_block_left):
     scene, camera = scene_and_camera(rng)
     spec = cluster._spec(40, 24, "cpu", "thesis", None, None, {})
     whole = raybench.render(scene, camera, 40, 24, device="cpu")
-    block = sharedframe.create(40, 24)
+    pool = sharedframe.Pool()
+    lease = pool.lease(40, 24)
     try:
-        task = running.client.submit(cluster._tile, scene, "test-scene", spec, camera, (8, 24), block.address)
+        task = running.client.submit(cluster._tile, scene, "test-scene", spec, camera, (8, 24), lease.address)
         first, image, hits, _, _ = task.result()
         assert (first, image, hits) == (8, None, None)
-        np.testing.assert_array_equal(block.image[8:], whole.image[8:])
-        np.testing.assert_array_equal(block.hits[8:], whole.hits[8:])
+        np.testing.assert_array_equal(lease.image[8:], whole.image[8:])
+        np.testing.assert_array_equal(lease.hits[8:], whole.hits[8:])
     finally:
-        block.unlink()
+        lease.end()
+        pool.close()
 
 
 @pytest.mark.parametrize("path", ["shared", "sent", "sent-by-workers", "no-room"])
@@ -130,11 +146,12 @@ def test_shared_and_sent_tiles_are_the_single_process_frame(running, rng, monkey
     sent-by-workers: a block the workers cannot open (another host's case),
     so each task falls back to sending its rows; no-room: /dev/shm too full
     for the frame, so no block is made and every tile is sent."""
+    cluster.release(running.client)  # no block kept from an earlier test: each path makes its own, or none
     if path == "no-room":
         monkeypatch.setattr(sharedframe, "_room", lambda size: False)
     if path == "sent-by-workers":
         monkeypatch.setattr(
-            sharedframe.SharedFrame, "address", property(lambda b: (b.name + "-elsewhere", b.width, b.height))
+            sharedframe.Lease, "address", property(lambda b: (b.name + "-elsewhere", b.width, b.height))
         )
     scene, camera = scene_and_camera(rng)
     width, height = SIZES[rng.integers(len(SIZES))]
@@ -168,10 +185,14 @@ def test_ctrl_c_during_a_frame_leaves_no_block(running, monkeypatch, no_block_le
 
 
 def test_a_frame_outlives_its_block(running, no_block_left):
-    """The block's name is gone when render returns; its memory stays the frame's until the frame is dropped."""
+    """The kept memory released while the frame is held: its name is gone at once; the memory stays the frame's
+    until the frame is dropped."""
     scene = raybench.random_spheres(5, seed=1)
     frame = cluster.render(running.client, scene, width=32, height=24, device="cpu", rows=8)
+    cluster.release(running.client)
     assert not any(name.startswith(f"{sharedframe.PREFIX}{os.getpid()}-") for name in blocks())
+    assert mapped(running.client) == [0, 0]  # the workers let go of their mappings too
+    np.testing.assert_array_equal(frame.image, raybench.render(scene, width=32, height=24, device="cpu").image)
     image, hits = frame.image.copy(), frame.hits.copy()
     del frame
     import gc
@@ -179,6 +200,100 @@ def test_a_frame_outlives_its_block(running, no_block_left):
     gc.collect()
     np.testing.assert_array_equal(image, raybench.render(scene, width=32, height=24, device="cpu").image)
     assert hits.shape == (24, 32)
+
+
+def test_frames_of_one_size_reuse_one_block(running, rng, no_block_left):
+    """Frames dropped in turn: one block made, and each frame is still the single-process one."""
+    cluster.release(running.client)
+    scene, _ = scene_and_camera(rng, 30)
+    for _ in range(3):
+        camera = scene_and_camera(rng)[1]
+        frame = cluster.render(running.client, scene, camera, 40, 32, device="cpu", rows=8)
+        whole = raybench.render(scene, camera, 40, 32, device="cpu")
+        np.testing.assert_array_equal(frame.image, whole.image)
+        np.testing.assert_array_equal(frame.hits, whole.hits)
+        del frame
+    pool = cluster._pool(running.client)
+    assert pool.made == 1 and pool.idle == 1
+    # between frames the block waits under a name of its own, which no frame's task has
+    assert len([n for n in blocks() if n.startswith(f"{sharedframe.PREFIX}{os.getpid()}-")]) == 1
+    assert max(mapped(running.client)) == 1  # each worker that wrote kept its one mapping
+
+
+def test_a_held_frame_is_not_written_by_the_next(running, rng, no_block_left):
+    """A frame held while the next is traced keeps its pixels; the two blocks then take turns."""
+    cluster.release(running.client)
+    scene, _ = scene_and_camera(rng, 30)
+    cameras = [scene_and_camera(rng)[1] for _ in range(4)]
+    wholes = [raybench.render(scene, c, 48, 24, device="cpu") for c in cameras]
+    held = [cluster.render(running.client, scene, cameras[0], 48, 24, device="cpu", rows=8)]
+    for n in range(1, 4):
+        held.append(cluster.render(running.client, scene, cameras[n], 48, 24, device="cpu", rows=8))
+        for frame, whole in zip(held, wholes[n - 1 : n + 1], strict=True):
+            np.testing.assert_array_equal(frame.image, whole.image)
+            np.testing.assert_array_equal(frame.hits, whole.hits)
+        held.pop(0)  # frame = render(...): the one before is let go once the next is made
+    assert cluster._pool(running.client).made == 2
+
+
+def test_another_size_gets_its_own_block(running, rng, no_block_left):
+    cluster.release(running.client)
+    scene, camera = scene_and_camera(rng, 30)
+    for width, height in [(40, 24), (56, 16), (40, 24)]:
+        frame = cluster.render(running.client, scene, camera, width, height, device="cpu", rows=8)
+        whole = raybench.render(scene, camera, width, height, device="cpu")
+        np.testing.assert_array_equal(frame.image, whole.image)
+        np.testing.assert_array_equal(frame.hits, whole.hits)
+        del frame
+    pool = cluster._pool(running.client)
+    assert pool.made == 3 and pool.idle == 1  # a size's blocks let go for the next size
+    assert len([n for n in blocks() if n.startswith(f"{sharedframe.PREFIX}{os.getpid()}-")]) == 1
+    assert max(mapped(running.client)) <= sharedframe.KEEP_BLOCKS
+
+
+def test_an_interrupted_frames_block_is_not_lent_again(running, monkeypatch, no_block_left):
+    import distributed
+
+    cluster.release(running.client)
+    scene = raybench.random_spheres(7, seed=3)
+    as_completed = distributed.as_completed
+
+    def interrupted(tasks):
+        yield next(iter(as_completed(tasks)))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(distributed, "as_completed", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        cluster.render(running.client, scene, width=32, height=32, device="cpu", rows=8)
+    assert not [n for n in blocks() if n.startswith(f"{sharedframe.PREFIX}{os.getpid()}-")]
+    monkeypatch.undo()
+    frame = cluster.render(running.client, scene, width=32, height=32, device="cpu", rows=8)
+    np.testing.assert_array_equal(frame.image, raybench.render(scene, width=32, height=32, device="cpu").image)
+    assert cluster._pool(running.client).made == 2  # a new block, not the one a late task might still write
+
+
+def test_without_a_block_the_tiles_are_sent(running, rng, monkeypatch, no_block_left):
+    """/dev/shm refuses the block (no room for its pages): the tiles are sent, and the frame is the same."""
+
+    def refused(*args):
+        raise OSError(28, "No space left on device")
+
+    cluster.release(running.client)
+    monkeypatch.setattr(sharedframe.Block, "__init__", refused)
+    scene, camera = scene_and_camera(rng)
+    frame = cluster.render(running.client, scene, camera, 40, 24, device="cpu", rows=8)
+    np.testing.assert_array_equal(frame.image, raybench.render(scene, camera, 40, 24, device="cpu").image)
+    assert cluster._pool(running.client).made == 0
+
+
+def test_closing_the_cluster_leaves_nothing_in_dev_shm():
+    """A cluster of its own, closed with a frame still held: no name left, and the frame stays valid."""
+    scene = raybench.random_spheres(9, seed=4)
+    with cluster.Cluster(workers=1, device="cpu") as own:
+        frame = cluster.render(own.client, scene, width=32, height=16, device="cpu", rows=8)
+        assert [n for n in blocks() if n.startswith(f"{sharedframe.PREFIX}{os.getpid()}-")]
+    assert not [n for n in blocks() if n.startswith(f"{sharedframe.PREFIX}{os.getpid()}-")]
+    np.testing.assert_array_equal(frame.image, raybench.render(scene, width=32, height=16, device="cpu").image)
 
 
 @pytest.mark.gpu
