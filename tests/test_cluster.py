@@ -346,6 +346,27 @@ def test_sequence_is_the_single_process_frames_and_resumes(running, rng, tmp_pat
             np.testing.assert_array_equal(png(paths[n]), renderer.render(cameras[n]).image)
 
 
+def test_sequence_png_level(running, rng, tmp_path):
+    """A sequence's frames deflated at SEQUENCE_PNG_LEVEL by default, stored at png_level=0; the same pixels;
+    a level out of range refused before any work."""
+    scene, camera = scene_and_camera(rng, 20)
+    cameras = camera_path.orbit(camera, 2)
+    (tmp_path / "default").mkdir()
+    (tmp_path / "stored").mkdir()
+    default = cluster.render_sequence(running.client, scene, cameras, tmp_path / "default", 48, 32, device="cpu")
+    stored = cluster.render_sequence(running.client, scene, cameras, tmp_path / "stored", 48, 32, device="cpu",
+                                     png_level=0)  # fmt: skip
+    raw = 48 * 32 * 3 + 32  # the pixels and a filter byte a row
+    for a, b in zip(default, stored, strict=True):
+        np.testing.assert_array_equal(png(a), png(b))
+        assert b.stat().st_size > raw > a.stat().st_size
+    assert cluster.SEQUENCE_PNG_LEVEL == 1
+    (tmp_path / "bad").mkdir()
+    with pytest.raises(RaybenchError, match="PNG level: must be a whole number 0"):
+        cluster.render_sequence(running.client, scene, cameras, tmp_path / "bad", 48, 32, device="cpu", png_level=10)
+    assert not any((tmp_path / "bad").iterdir())
+
+
 @pytest.mark.slow
 def test_a_worker_killed_mid_sequence_loses_nothing(running, rng, tmp_path):
     scene, camera = scene_and_camera(rng, 200)

@@ -67,6 +67,11 @@ TASKS_PER_WORKER = 4
 MAX_FRAMES_PER_TASK = 60
 # Warm renderers a worker keeps; each holds a frame's buffers and a tree.
 KEEP_RENDERERS = 2
+# zlib's level for a sequence's PNGs: encoding, not tracing, bounds a sequence
+# (155 ms a 1680x1050 frame at Pillow's default 6 against 3.4 ms of tracing on
+# an H200), and level 1 encodes several times faster in files at most a
+# quarter larger (docs/scaling.md has the measurements).
+SEQUENCE_PNG_LEVEL = 1
 
 
 # --- the cluster -------------------------------------------------------------------
@@ -308,11 +313,11 @@ def _hit_counts(scene: Scene, scene_key: str, spec: tuple, cameras: list[Camera]
         return [int((renderer.tracer.trace(c.basis(width, height))[1] >= 0).sum()) for c in cameras]
 
 
-def _frames(scene: Scene, scene_key: str, spec: tuple, numbered: list[tuple[int, Camera]]):
-    """A task: whole frames of a sequence; [(number, PNG bytes)]."""
+def _frames(scene: Scene, scene_key: str, spec: tuple, numbered: list[tuple[int, Camera]], level: int):
+    """A task: whole frames of a sequence; [(number, PNG bytes at zlib's level)]."""
     with _lock:
         renderer = _renderer(scene, scene_key, spec)
-        return [(n, renderer.render(camera, hits=False).png_bytes()) for n, camera in numbered]
+        return [(n, renderer.render(camera, hits=False).png_bytes(level)) for n, camera in numbered]
 
 
 # --- jobs -----------------------------------------------------------------------------
@@ -523,17 +528,21 @@ def render_sequence(
     shadow_samples: int | None = None,
     frames_per_task: int | None = None,
     on_frame: Callable[[int, Path], None] | None = None,
+    png_level: int = SEQUENCE_PNG_LEVEL,
     **options,
 ) -> list[Path]:
     """One PNG a camera, out_dir/frame_00000.png on, traced across the
-    cluster's workers in tasks of frames_per_task frames and each written
-    here, atomically, as it arrives. A frame already on disk is not traced
+    cluster's workers in tasks of frames_per_task frames, encoded there at
+    zlib's png_level (default SEQUENCE_PNG_LEVEL) and each written here,
+    atomically, as it arrives. A frame already on disk is not traced
     again (an interrupted sequence resumes); on_frame(number, path) is
     called for every frame, skipped ones first. The frames' paths, in order."""
     from distributed import as_completed
 
     from .files import write_atomic
+    from .render import check_png_level
 
+    check_png_level(png_level)
     cameras = list(cameras)
     for i, camera in enumerate(cameras):
         if not isinstance(camera, Camera):
@@ -556,7 +565,7 @@ def render_sequence(
         return paths
     runs = _runs(todo, len(found), frames_per_task)
     future, key = _scatter(client, scene)
-    tasks = [client.submit(_frames, future, key, spec, run, pure=False) for run in runs]
+    tasks = [client.submit(_frames, future, key, spec, run, png_level, pure=False) for run in runs]
     try:
         for task in as_completed(tasks):
             for n, png in task.result():
