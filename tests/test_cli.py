@@ -609,3 +609,13 @@ def test_render_png_level(capsys, tmp_path, out_dir):
 def test_render_png_level_out_of_range(capsys, tmp_path, out_dir, level):
     expect_error(capsys, tmp_path, ["render", "--spheres", 3, *TINY, "--png-level", level, "-o", out_dir / "x.png"],
                  "PNG level", "0", "9", level)  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "extra, needles",
+    [([], ["--gif applies to --path only"]), (["--path", "orbit"], ["--gif", "out.png", "must be a .gif file"])],
+)
+def test_render_gif_refused_before_work(capsys, tmp_path, out_dir, extra, needles):
+    gif = "out.gif" if not extra else "out.png"
+    expect_error(capsys, tmp_path, ["render", "--spheres", 3, *TINY, *extra, "--gif", out_dir / gif,
+                                    "-o", out_dir / ("frames" if extra else "x.png")], *needles)  # fmt: skip

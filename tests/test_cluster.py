@@ -19,6 +19,7 @@ import pytest
 from PIL import Image
 
 import raybench
+import raybench.gif
 from raybench import Camera, RaybenchError, camera_path, cluster, sharedframe
 from raybench.cli import run
 
@@ -426,9 +427,19 @@ def test_cli_renders_tiles_and_a_sequence_on_a_running_cluster(running, rng, tmp
     whole = raybench.render(raybench.random_spheres(25, seed), width=56, height=40, device="cpu")
     np.testing.assert_array_equal(png(out), whole.image)
     frames = tmp_path / "frames"
-    assert run(["render", *args, "--path", "orbit", "--frames", "3", "-o", str(frames)]) == 0
+    gif = tmp_path / "orbit.gif"
+    assert run(["render", *args, "--path", "orbit", "--frames", "3", "-o", str(frames), "--gif", str(gif)]) == 0
     assert sorted(p.name for p in frames.iterdir()) == [f"frame_{n:05d}.png" for n in range(3)]
-    assert "wrote 3 frames" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "wrote 3 frames" in out and f"wrote {gif}: 3 frames" in out
+    with Image.open(gif) as animated:
+        # Pillow merges a frame the same as the one before into it (an orbit's frames that see no
+        # sphere are the background alone), so the frames' times add up to 3 frames, not their count
+        durations = []
+        for n in range(animated.n_frames):
+            animated.seek(n)
+            durations.append(animated.info["duration"])
+        assert animated.size == (56, 40) and sum(durations) == 3 * 1000 / raybench.gif.FPS
 
 
 @pytest.mark.parametrize(

@@ -76,10 +76,10 @@ def options_by_device(options: dict) -> dict[str, dict]:
     return {device: {k: v for k, v in options.items() if k in OPTIONS[device]} for device in DEVICES}
 
 
-def check_output(path: Path, option: str = "-o") -> None:
+def check_output(path: Path, option: str = "-o", suffix: str = ".png") -> None:
     """Refuse an output we could not write before spending time on a render."""
-    if path.suffix.lower() != ".png":
-        raise RaybenchError(f"{option} {path}: the output must be a .png file")
+    if path.suffix.lower() != suffix:
+        raise RaybenchError(f"{option} {path}: the output must be a {suffix} file")
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise RaybenchError(f"{option} {path}: folder {folder} does not exist")
@@ -296,6 +296,12 @@ def main():
     help="zlib's level of the PNGs, 0 (none) to 9 (smallest): default 1 for a sequence (--path; encodes several "
     "times faster than 6, files a little larger), 6 for one frame",
 )
+@click.option(
+    "--gif",
+    type=click.Path(path_type=Path),
+    help="--path: also the whole sequence as one animated GIF at this path, 25 frames a second (Pillow, a palette a "
+    "frame)",
+)
 @cluster_options()
 def render(
     scene_file,
@@ -318,6 +324,7 @@ def render(
     camera_path,
     frames,
     png_level,
+    gif,
     workers,
     scheduler,
     tile,
@@ -344,12 +351,16 @@ def render(
         raise RaybenchError("--frames applies to --path only")
     if png_level is not None:
         check_png_level(png_level)
+    if gif is not None:
+        if camera_path is None:
+            raise RaybenchError("--gif applies to --path only")
+        check_output(gif, "--gif", ".gif")
     if camera_path is not None:
         if tile is not None:
             raise RaybenchError("--tile applies to one frame; a sequence's tasks are whole frames")
         level = SEQUENCE_PNG_LEVEL if png_level is None else png_level
         return _render_sequence(scene, camera_path, frames, output, width, height, device, shaded, options,
-                                workers, scheduler, connect_timeout, level)  # fmt: skip
+                                workers, scheduler, connect_timeout, level, gif)  # fmt: skip
     level = PNG_LEVEL if png_level is None else png_level
     output = output or Path("render.png")
     check_output(output)
@@ -395,7 +406,7 @@ def _render_tiles(scene, output, width, height, device, shaded, options, workers
 
 
 def _render_sequence(scene, spec, frames, output, width, height, device, shaded, options, workers, scheduler,
-                     timeout, level):  # fmt: skip
+                     timeout, level, gif):  # fmt: skip
     """render --path: a sequence of frames across the cluster, written as they
     arrive, with a progress bar; those on disk already are kept."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
@@ -425,6 +436,11 @@ def _render_sequence(scene, spec, frames, output, width, height, device, shaded,
         f"wrote {len(cameras)} frames to {output}/: {width}x{height}, {len(scene):,} spheres, "
         f"{time.perf_counter() - start:.2f} s including the cluster's start"
     )
+    if gif is not None:
+        from .gif import FPS, write_gif
+
+        write_gif([cluster.frame_path(output, n) for n in range(len(cameras))], gif)
+        click.echo(f"wrote {gif}: {len(cameras)} frames at {FPS} a second")
 
 
 def _view_help() -> str:
