@@ -140,7 +140,7 @@ def frame_job(client, args, scene, workers, shared=True) -> dict:
     seconds = timed(go, args.repeat)
     pool = cluster._pool(client)
     return {"width": width, "height": height, "frames": 1, "rows": rows, "tasks": math.ceil(height / rows),
-            "shared": shared and sharedframe.fits(width, height), "first_s": first_s, "seconds": seconds,
+            "shared": shared and pool.made > 0, "first_s": first_s, "seconds": seconds,
             "blocks_made": pool.made,  # 1: every repeat reused the first frame's block
             "workers_mapped": sorted(client.run(lambda: len(sharedframe._mapped)).values())}  # fmt: skip
 
