@@ -492,6 +492,33 @@ def test_ctrl_c_keeps_the_frames_written_and_stops_the_cluster(tmp_path):
             np.testing.assert_array_equal(png(f), renderer.render(cameras[int(f.stem[6:])]).image)
 
 
+@pytest.mark.slow
+def test_ctrl_c_during_a_frame_in_tiles_leaves_no_block_and_no_process(tmp_path):
+    """Ctrl-C at a terminal while the workers write a frame's tiles into its shared block."""
+    out = tmp_path / "frame.png"
+    argv = [sys.executable, "-m", "raybench", "render", "--spheres", "4000", "--size", "1024x1024", "--device", "cpu",
+            "--accel", "none", "--kernel", "simple", "--workers", "2", "-o", str(out)]  # fmt: skip
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    proc = subprocess.Popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    named = f"{sharedframe.PREFIX}{proc.pid}-"
+    try:
+        deadline = time.monotonic() + 120
+        while not any(name.startswith(named) for name in blocks()):  # the frame's block: its tiles are under way
+            assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read().decode()
+            time.sleep(0.1)
+        time.sleep(1)
+        family = psutil.Process(proc.pid).children(recursive=True)
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130 and err.decode().strip().splitlines()[-1] == "raybench: interrupted"
+    _, alive = psutil.wait_procs(family, timeout=20)
+    assert not alive, f"stray processes: {alive}"
+    assert not any(name.startswith(named) for name in blocks()) and not out.exists()
+
+
 def test_cuda_workers_are_pinned_one_gpu_each_within_those_visible(monkeypatch):
     monkeypatch.delenv("CUDA_VISIBLE_DEVICES", raising=False)
     assert [s["options"]["env"]["CUDA_VISIBLE_DEVICES"] for s in cluster.worker_specs("cuda", 3).values()] == [

@@ -197,7 +197,8 @@ class Cluster:
         return len(self.client.scheduler_info(n_workers=-1)["workers"])
 
     def close(self) -> None:
-        release(self.client)
+        # an embedded cluster's workers end with it, their mappings too: asked only when joined
+        release(self.client, workers=self.cluster is None)
         self.client.close()
         if self.cluster is not None:
             self.cluster.close()
@@ -373,17 +374,17 @@ def _pool(client) -> sharedframe.Pool:
     return held[1]
 
 
-def release(client) -> None:
+def release(client, workers: bool = True) -> None:
     """The shared memory that render() keeps for client's frames let go, here
-    and on its workers (Cluster.close() does this). Frames already returned
-    stay valid; a later render() starts afresh."""
+    and (workers) on its workers (Cluster.close() does this). Frames already
+    returned stay valid; a later render() starts afresh."""
     from distributed import TimeoutError as DaskTimeout
 
     held = _pools.pop(id(client), None)
     if held is None:
         return
     held[1].close()
-    if held[0]() is client and client.status == "running":
+    if workers and held[0]() is client and client.status == "running":
         # the workers' mappings keep a block's memory alive: dropped now, not when they next map one
         with contextlib.suppress(OSError, DaskTimeout, RuntimeError):
             client.run(sharedframe.forget)
