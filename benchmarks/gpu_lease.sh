@@ -29,6 +29,10 @@
 #            240-frame orbit at 1680x1050, an 8192x8192 frame in tiles, both at 100,000
 #            spheres, and the scaling model's terms (MULTIGPU_ARGS to change); needs the
 #            Dask wheels in .whl (benchmarks/dask_wheels.sh) and the machine kind nvidia-h200-x2
+#   shmpages benchmarks/shm_pages.py: an 8192x8192 frame's shared block made each way, and
+#            the copies once resident, on this host (no GPU used; SHMPAGES_ARGS to change)
+#   pnglevels benchmarks/png_levels.py: a 1680x1050 frame's PNG encode time and size at each zlib
+#            level (traced on cuda; PNGLEVELS_ARGS to change)
 #   multibench raybench bench --suite multi-gpu on cuda: the same throughput as results
 #            records, for raybench report's section across workers
 #   dynamic  the dynamic suite: moving spheres, the tree's update and the frame, cuda (both builds),
@@ -133,6 +137,13 @@ for s in $STEPS; do
         # shellcheck disable=SC2086
         step multigpu "${MULTIGPU_S:-420}" python3 benchmarks/multi_gpu.py --json "$W/multi_gpu.jsonl" \
             ${MULTIGPU_ARGS:---device cuda --workers 1 --workers 2 --spheres 100000 --orbit 240 --orbit-size 1680x1050 --frame 8192x8192} ;;
+    shmpages)
+        # shellcheck disable=SC2086
+        step shmpages "${SHMPAGES_S:-180}" python3 benchmarks/shm_pages.py ${SHMPAGES_ARGS:---frame 8192x8192 --repeat 3} ;;
+    pnglevels)
+        # shellcheck disable=SC2086
+        step pnglevels "${PNGLEVELS_S:-300}" python3 benchmarks/png_levels.py \
+            ${PNGLEVELS_ARGS:---device cuda --spheres 100000 --size 1680x1050 --rounds 7} ;;
     multibench) bench multibench "${MULTIBENCH_S:-400}" --suite multi-gpu --device cuda --accel bvh ;;
     # shellcheck disable=SC2086
     dynamic) bench dynamic "${DYNAMIC_S:-300}" ${DYNAMIC_ARGS:---suite dynamic --device cuda --device cpu --device wgpu} ;;

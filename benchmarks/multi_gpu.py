@@ -9,13 +9,17 @@ Jobs:
   orbit-png    the same frames through cluster.render_sequence: PNGs encoded
                on the workers, written here (what `raybench render --path` does)
   frame        one --frame sized frame in tiles (cluster.render): the workers
-               write their rows into the frame, made here in shared memory
+               write their rows into the frame, made here in shared memory and
+               kept from frame to frame; the first frame (the block made here,
+               the workers' mappings of it) is timed apart (first_s), after a
+               warming frame that sends its tiles
   frame-sent   the same frame with every tile sent to the client and assembled
                here (cluster.render(shared=False): a cluster across machines)
   terms        the scaling model's terms on this cluster (docs/scaling.md): the
                scene's broadcast, an empty task's cost, a tile's transfer, the
-               assembly of a sent frame, and a frame's rows written into shared
-               memory by the workers
+               assembly of a sent frame, a frame's shared block made here, and a
+               frame's rows written into shared memory by the workers, into a
+               new block and into one kept from frame to frame
 
 Every job is warmed first (each worker compiles, builds and uploads once),
 and timed over --repeat runs (median).
@@ -128,10 +132,17 @@ def frame_job(client, args, scene, workers, shared=True) -> dict:
             client, scene, None, width, height, args.device, rows=rows, shared=shared, **options(args)
         )
 
-    go()  # warm: every worker that got a tile compiled and built its tree
+    # warm: every worker that got a tile compiled and built its tree; with
+    # tiles sent, so that the shared path's first frame is timed on its own
+    cluster.release(client)
+    cluster.render(client, scene, None, width, height, args.device, rows=rows, shared=False, **options(args))
+    first_s = timed(go, 1)[0]  # shared: the block made here, and each worker's mapping of it
     seconds = timed(go, args.repeat)
+    pool = cluster._pool(client)
     return {"width": width, "height": height, "frames": 1, "rows": rows, "tasks": math.ceil(height / rows),
-            "shared": shared and sharedframe.fits(width, height), "seconds": seconds}  # fmt: skip
+            "shared": shared and pool.made > 0, "first_s": first_s, "seconds": seconds,
+            "blocks_made": pool.made,  # 1: every repeat reused the first frame's block
+            "workers_mapped": sorted(client.run(lambda: len(sharedframe._mapped)).values())}  # fmt: skip
 
 
 def frame_sent_job(client, args, scene, workers) -> dict:
@@ -155,22 +166,44 @@ def terms_job(client, args, scene, workers) -> dict:
                                         for _ in range(tiles)]), args.repeat)  # fmt: skip
     image = np.zeros((height, width, 3), np.uint8)
     assembly = timed(lambda: np.copyto(image, np.ones_like(image)), args.repeat)
-    # The shared path's cost a frame: a fresh block made here (as cluster.render
-    # makes one a frame), every tile's rows written into it by the workers in
-    # parallel; less the same tasks making their rows only.
+    # The shared path's cost a frame: every tile's rows written by the workers
+    # in parallel into a block made here, less the same tasks making their rows
+    # only. First into a new block (made here, mapped afresh by each worker: a
+    # session's first frame of a size), then into the block kept from frame to
+    # frame (every later frame of that size).
     bands = [(a, min(a + rows, height)) for a in range(0, height, rows)]
 
-    def shared_frame():
-        block = sharedframe.create(width, height)
+    def shared_frame(pool):
+        lease = pool.lease(width, height)
         try:
-            done = client.gather([client.submit(written, block.address, a, b, width, pure=False) for a, b in bands])
+            done = client.gather([client.submit(written, lease.address, a, b, width, pure=False) for a, b in bands])
         finally:
-            block.unlink()
+            lease.end()
         if not all(done):
             raise RuntimeError("a worker could not write into the shared block (another host? /dev/shm full?)")
 
+    def new_block():
+        client.run(sharedframe.forget)
+        pool = sharedframe.Pool()
+        try:
+            start = time.perf_counter()
+            shared_frame(pool)
+            return time.perf_counter() - start
+        finally:
+            pool.close()
+
     # None where the host has no room in /dev/shm for the frame (the frame job then sends its tiles)
-    shared = timed(shared_frame, args.repeat) if sharedframe.fits(width, height) else None
+    first = made = resident = None
+    if sharedframe.fits(width, height):
+        made = timed(lambda: sharedframe.Block(width, height).close(), args.repeat)
+        first = [new_block() for _ in range(args.repeat)]
+        kept = sharedframe.Pool()
+        try:
+            shared_frame(kept)
+            resident = timed(lambda: shared_frame(kept), args.repeat)
+        finally:
+            kept.close()
+            client.run(sharedframe.forget)
     unshared = timed(
         lambda: client.gather([client.submit(made_only, a, b, width, pure=False) for a, b in bands]), args.repeat
     )
@@ -181,9 +214,13 @@ def terms_job(client, args, scene, workers) -> dict:
         "tile_bytes": tile_bytes,
         "tile_transfer_ms": max(0.0, (statistics.median(fetched) - statistics.median(made)) * 1e3 / tiles),
         "assembly_ms_per_frame": statistics.median(assembly) * 1e3 * 7 / 3,
-        "shared_write_ms_per_frame": None
-        if shared is None
-        else max(0.0, (statistics.median(shared) - statistics.median(unshared)) * 1e3),
+        "block_made_ms": None if made is None else statistics.median(made) * 1e3,
+        "shared_first_ms_per_frame": None
+        if first is None
+        else max(0.0, (statistics.median(first) - statistics.median(unshared)) * 1e3),
+        "resident_write_ms_per_frame": None
+        if resident is None
+        else max(0.0, (statistics.median(resident) - statistics.median(unshared)) * 1e3),
         "shm_free_bytes": shm_free(),
         "shared_tasks": len(bands),
         "width": width,

@@ -590,3 +590,32 @@ def test_build_option_on_a_device_without_it_is_one_line(capsys, tmp_path):
     expect_error(
         capsys, tmp_path, ["bench", "--device", "cpu", "--build", "gpu", "--out", tmp_path / "r"], "--build", "cuda"
     )
+
+
+def test_render_png_level(capsys, tmp_path, out_dir):
+    """--png-level 0 stores the pixels uncompressed, the default (6) deflates them; the pixels are the same."""
+    files = {}
+    for name, level in (("stored", ["--png-level", 0]), ("default", [])):
+        files[name] = out_dir / f"{name}.png"
+        code, out, err = cli(capsys, "render", "--spheres", 20, "--size", "64x48", "--device", "cpu", *level,
+                             "-o", files[name])  # fmt: skip
+        assert code == 0, err
+    assert np.array_equal(read_png(files["stored"])[2], read_png(files["default"])[2])
+    raw = 64 * 48 * 3 + 48  # the pixels and a filter byte a row
+    assert files["stored"].stat().st_size > raw > files["default"].stat().st_size
+
+
+@pytest.mark.parametrize("level", ["10", "-1"])
+def test_render_png_level_out_of_range(capsys, tmp_path, out_dir, level):
+    expect_error(capsys, tmp_path, ["render", "--spheres", 3, *TINY, "--png-level", level, "-o", out_dir / "x.png"],
+                 "PNG level", "0", "9", level)  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "extra, needles",
+    [([], ["--gif applies to --path only"]), (["--path", "orbit"], ["--gif", "out.png", "must be a .gif file"])],
+)
+def test_render_gif_refused_before_work(capsys, tmp_path, out_dir, extra, needles):
+    gif = "out.gif" if not extra else "out.png"
+    expect_error(capsys, tmp_path, ["render", "--spheres", 3, *TINY, *extra, "--gif", out_dir / gif,
+                                    "-o", out_dir / ("frames" if extra else "x.png")], *needles)  # fmt: skip

@@ -19,6 +19,7 @@ import pytest
 from PIL import Image
 
 import raybench
+import raybench.gif
 from raybench import Camera, RaybenchError, camera_path, cluster, machine, sharedframe
 from raybench.cli import run
 
@@ -36,6 +37,8 @@ def running():
     with cluster.Cluster(workers=2, device="cpu") as c:
         c.client.wait_for_workers(2)
         yield c
+    # the client's kept frame memory went with the cluster: nothing of this process is left in /dev/shm
+    assert not [name for name in blocks() if name.startswith(f"{sharedframe.PREFIX}{os.getpid()}-")]
 
 
 def scene_and_camera(rng, n=None):
@@ -86,26 +89,38 @@ def blocks() -> set[str]:
 
 
 @pytest.fixture
-def no_block_left():
+def no_block_left(running):
+    """Whatever a test leaves kept for the client's next frames, nothing is
+    left in /dev/shm once the client's kept memory is released."""
     before = blocks()
     yield
+    cluster.release(running.client)
     assert blocks() <= before, "a shared-memory block was left in /dev/shm"
 
 
+def mapped(client) -> list[int]:
+    """How many blocks each worker keeps mapped."""
+    return sorted(client.run(lambda: len(sharedframe._mapped)).values())
+
+
 def test_workers_on_this_host_write_into_the_clients_block(running, rng, no_block_left):
-    block = sharedframe.create(24, 16)
+    pool = sharedframe.Pool()
+    lease = pool.lease(24, 16)
     try:
         image = rng.integers(0, 256, (8, 24, 3), dtype=np.uint8)
         hits = rng.integers(-1, 100, (8, 24), dtype=np.int32)
-        wrote = running.client.submit(sharedframe.write_rows, block.address, 8, image, hits, pure=False).result()
+        wrote = running.client.submit(sharedframe.write_rows, lease.address, 8, image, hits, pure=False).result()
         assert wrote is True
-        np.testing.assert_array_equal(block.image[8:], image)
-        np.testing.assert_array_equal(block.hits[8:], hits)
+        np.testing.assert_array_equal(lease.image[8:], image)
+        np.testing.assert_array_equal(lease.hits[8:], hits)
         # a block the worker cannot open (as on another host): nothing written, and it says so
         elsewhere = (sharedframe.PREFIX + "elsewhere", 24, 16)
         assert running.client.submit(sharedframe.write_rows, elsewhere, 0, image, hits, pure=False).result() is False
     finally:
-        block.unlink()
+        lease.end()
+        pool.close()
+    # the frame is over: a task of it that starts now finds no block
+    assert running.client.submit(sharedframe.write_rows, lease.address, 0, image, hits, pure=False).result() is False
 
 
 def test_a_tile_task_on_this_host_sends_no_rows(running, rng, no_block_left):
@@ -113,15 +128,17 @@ def test_a_tile_task_on_this_host_sends_no_rows(running, rng, no_block_left):
     scene, camera = scene_and_camera(rng)
     spec = cluster._spec(40, 24, "cpu", "thesis", None, None, {})
     whole = raybench.render(scene, camera, 40, 24, device="cpu")
-    block = sharedframe.create(40, 24)
+    pool = sharedframe.Pool()
+    lease = pool.lease(40, 24)
     try:
-        task = running.client.submit(cluster._tile, scene, "test-scene", spec, camera, (8, 24), block.address)
+        task = running.client.submit(cluster._tile, scene, "test-scene", spec, camera, (8, 24), lease.address)
         first, image, hits, _, _ = task.result()
         assert (first, image, hits) == (8, None, None)
-        np.testing.assert_array_equal(block.image[8:], whole.image[8:])
-        np.testing.assert_array_equal(block.hits[8:], whole.hits[8:])
+        np.testing.assert_array_equal(lease.image[8:], whole.image[8:])
+        np.testing.assert_array_equal(lease.hits[8:], whole.hits[8:])
     finally:
-        block.unlink()
+        lease.end()
+        pool.close()
 
 
 @pytest.mark.parametrize("path", ["shared", "sent", "sent-by-workers", "no-room"])
@@ -130,11 +147,12 @@ def test_shared_and_sent_tiles_are_the_single_process_frame(running, rng, monkey
     sent-by-workers: a block the workers cannot open (another host's case),
     so each task falls back to sending its rows; no-room: /dev/shm too full
     for the frame, so no block is made and every tile is sent."""
+    cluster.release(running.client)  # no block kept from an earlier test: each path makes its own, or none
     if path == "no-room":
         monkeypatch.setattr(sharedframe, "_room", lambda size: False)
     if path == "sent-by-workers":
         monkeypatch.setattr(
-            sharedframe.SharedFrame, "address", property(lambda b: (b.name + "-elsewhere", b.width, b.height))
+            sharedframe.Lease, "address", property(lambda b: (b.name + "-elsewhere", b.width, b.height))
         )
     scene, camera = scene_and_camera(rng)
     width, height = SIZES[rng.integers(len(SIZES))]
@@ -168,10 +186,14 @@ def test_ctrl_c_during_a_frame_leaves_no_block(running, monkeypatch, no_block_le
 
 
 def test_a_frame_outlives_its_block(running, no_block_left):
-    """The block's name is gone when render returns; its memory stays the frame's until the frame is dropped."""
+    """The kept memory released while the frame is held: its name is gone at once; the memory stays the frame's
+    until the frame is dropped."""
     scene = raybench.random_spheres(5, seed=1)
     frame = cluster.render(running.client, scene, width=32, height=24, device="cpu", rows=8)
+    cluster.release(running.client)
     assert not any(name.startswith(f"{sharedframe.PREFIX}{os.getpid()}-") for name in blocks())
+    assert mapped(running.client) == [0, 0]  # the workers let go of their mappings too
+    np.testing.assert_array_equal(frame.image, raybench.render(scene, width=32, height=24, device="cpu").image)
     image, hits = frame.image.copy(), frame.hits.copy()
     del frame
     import gc
@@ -179,6 +201,100 @@ def test_a_frame_outlives_its_block(running, no_block_left):
     gc.collect()
     np.testing.assert_array_equal(image, raybench.render(scene, width=32, height=24, device="cpu").image)
     assert hits.shape == (24, 32)
+
+
+def test_frames_of_one_size_reuse_one_block(running, rng, no_block_left):
+    """Frames dropped in turn: one block made, and each frame is still the single-process one."""
+    cluster.release(running.client)
+    scene, _ = scene_and_camera(rng, 30)
+    for _ in range(3):
+        camera = scene_and_camera(rng)[1]
+        frame = cluster.render(running.client, scene, camera, 40, 32, device="cpu", rows=8)
+        whole = raybench.render(scene, camera, 40, 32, device="cpu")
+        np.testing.assert_array_equal(frame.image, whole.image)
+        np.testing.assert_array_equal(frame.hits, whole.hits)
+        del frame
+    pool = cluster._pool(running.client)
+    assert pool.made == 1 and pool.idle == 1
+    # between frames the block waits under a name of its own, which no frame's task has
+    assert len([n for n in blocks() if n.startswith(f"{sharedframe.PREFIX}{os.getpid()}-")]) == 1
+    assert max(mapped(running.client)) == 1  # each worker that wrote kept its one mapping
+
+
+def test_a_held_frame_is_not_written_by_the_next(running, rng, no_block_left):
+    """A frame held while the next is traced keeps its pixels; the two blocks then take turns."""
+    cluster.release(running.client)
+    scene, _ = scene_and_camera(rng, 30)
+    cameras = [scene_and_camera(rng)[1] for _ in range(4)]
+    wholes = [raybench.render(scene, c, 48, 24, device="cpu") for c in cameras]
+    held = [cluster.render(running.client, scene, cameras[0], 48, 24, device="cpu", rows=8)]
+    for n in range(1, 4):
+        held.append(cluster.render(running.client, scene, cameras[n], 48, 24, device="cpu", rows=8))
+        for frame, whole in zip(held, wholes[n - 1 : n + 1], strict=True):
+            np.testing.assert_array_equal(frame.image, whole.image)
+            np.testing.assert_array_equal(frame.hits, whole.hits)
+        held.pop(0)  # frame = render(...): the one before is let go once the next is made
+    assert cluster._pool(running.client).made == 2
+
+
+def test_another_size_gets_its_own_block(running, rng, no_block_left):
+    cluster.release(running.client)
+    scene, camera = scene_and_camera(rng, 30)
+    for width, height in [(40, 24), (56, 16), (40, 24)]:
+        frame = cluster.render(running.client, scene, camera, width, height, device="cpu", rows=8)
+        whole = raybench.render(scene, camera, width, height, device="cpu")
+        np.testing.assert_array_equal(frame.image, whole.image)
+        np.testing.assert_array_equal(frame.hits, whole.hits)
+        del frame
+    pool = cluster._pool(running.client)
+    assert pool.made == 3 and pool.idle == 1  # a size's blocks let go for the next size
+    assert len([n for n in blocks() if n.startswith(f"{sharedframe.PREFIX}{os.getpid()}-")]) == 1
+    assert max(mapped(running.client)) <= sharedframe.KEEP_BLOCKS
+
+
+def test_an_interrupted_frames_block_is_not_lent_again(running, monkeypatch, no_block_left):
+    import distributed
+
+    cluster.release(running.client)
+    scene = raybench.random_spheres(7, seed=3)
+    as_completed = distributed.as_completed
+
+    def interrupted(tasks):
+        yield next(iter(as_completed(tasks)))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(distributed, "as_completed", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        cluster.render(running.client, scene, width=32, height=32, device="cpu", rows=8)
+    assert not [n for n in blocks() if n.startswith(f"{sharedframe.PREFIX}{os.getpid()}-")]
+    monkeypatch.undo()
+    frame = cluster.render(running.client, scene, width=32, height=32, device="cpu", rows=8)
+    np.testing.assert_array_equal(frame.image, raybench.render(scene, width=32, height=32, device="cpu").image)
+    assert cluster._pool(running.client).made == 2  # a new block, not the one a late task might still write
+
+
+def test_without_a_block_the_tiles_are_sent(running, rng, monkeypatch, no_block_left):
+    """/dev/shm refuses the block (no room for its pages): the tiles are sent, and the frame is the same."""
+
+    def refused(*args):
+        raise OSError(28, "No space left on device")
+
+    cluster.release(running.client)
+    monkeypatch.setattr(sharedframe.Block, "__init__", refused)
+    scene, camera = scene_and_camera(rng)
+    frame = cluster.render(running.client, scene, camera, 40, 24, device="cpu", rows=8)
+    np.testing.assert_array_equal(frame.image, raybench.render(scene, camera, 40, 24, device="cpu").image)
+    assert cluster._pool(running.client).made == 0
+
+
+def test_closing_the_cluster_leaves_nothing_in_dev_shm():
+    """A cluster of its own, closed with a frame still held: no name left, and the frame stays valid."""
+    scene = raybench.random_spheres(9, seed=4)
+    with cluster.Cluster(workers=1, device="cpu") as own:
+        frame = cluster.render(own.client, scene, width=32, height=16, device="cpu", rows=8)
+        assert [n for n in blocks() if n.startswith(f"{sharedframe.PREFIX}{os.getpid()}-")]
+    assert not [n for n in blocks() if n.startswith(f"{sharedframe.PREFIX}{os.getpid()}-")]
+    np.testing.assert_array_equal(frame.image, raybench.render(scene, width=32, height=16, device="cpu").image)
 
 
 @pytest.mark.gpu
@@ -229,6 +345,27 @@ def test_sequence_is_the_single_process_frames_and_resumes(running, rng, tmp_pat
     with raybench.Renderer(scene, 48, 32, device="cpu") as renderer:
         for n in (1, 4):
             np.testing.assert_array_equal(png(paths[n]), renderer.render(cameras[n]).image)
+
+
+def test_sequence_png_level(running, rng, tmp_path):
+    """A sequence's frames deflated at SEQUENCE_PNG_LEVEL by default, stored at png_level=0; the same pixels;
+    a level out of range refused before any work."""
+    scene, camera = scene_and_camera(rng, 20)
+    cameras = camera_path.orbit(camera, 2)
+    (tmp_path / "default").mkdir()
+    (tmp_path / "stored").mkdir()
+    default = cluster.render_sequence(running.client, scene, cameras, tmp_path / "default", 48, 32, device="cpu")
+    stored = cluster.render_sequence(running.client, scene, cameras, tmp_path / "stored", 48, 32, device="cpu",
+                                     png_level=0)  # fmt: skip
+    raw = 48 * 32 * 3 + 32  # the pixels and a filter byte a row
+    for a, b in zip(default, stored, strict=True):
+        np.testing.assert_array_equal(png(a), png(b))
+        assert b.stat().st_size > raw > a.stat().st_size
+    assert cluster.SEQUENCE_PNG_LEVEL == 1
+    (tmp_path / "bad").mkdir()
+    with pytest.raises(RaybenchError, match="PNG level: must be a whole number 0"):
+        cluster.render_sequence(running.client, scene, cameras, tmp_path / "bad", 48, 32, device="cpu", png_level=10)
+    assert not any((tmp_path / "bad").iterdir())
 
 
 @pytest.mark.slow
@@ -290,9 +427,19 @@ def test_cli_renders_tiles_and_a_sequence_on_a_running_cluster(running, rng, tmp
     whole = raybench.render(raybench.random_spheres(25, seed), width=56, height=40, device="cpu")
     np.testing.assert_array_equal(png(out), whole.image)
     frames = tmp_path / "frames"
-    assert run(["render", *args, "--path", "orbit", "--frames", "3", "-o", str(frames)]) == 0
+    gif = tmp_path / "orbit.gif"
+    assert run(["render", *args, "--path", "orbit", "--frames", "3", "-o", str(frames), "--gif", str(gif)]) == 0
     assert sorted(p.name for p in frames.iterdir()) == [f"frame_{n:05d}.png" for n in range(3)]
-    assert "wrote 3 frames" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "wrote 3 frames" in out and f"wrote {gif}: 3 frames" in out
+    with Image.open(gif) as animated:
+        # Pillow merges a frame the same as the one before into it (an orbit's frames that see no
+        # sphere are the background alone), so the frames' times add up to 3 frames, not their count
+        durations = []
+        for n in range(animated.n_frames):
+            animated.seek(n)
+            durations.append(animated.info["duration"])
+        assert animated.size == (56, 40) and sum(durations) == 3 * 1000 / raybench.gif.FPS
 
 
 @pytest.mark.parametrize(
@@ -343,6 +490,33 @@ def test_ctrl_c_keeps_the_frames_written_and_stops_the_cluster(tmp_path):
     with raybench.Renderer(scene, 160, 120, device="cpu", accel="none", kernel="simple") as renderer:
         for f in frames[:2] + frames[-1:]:  # the last one written whole too
             np.testing.assert_array_equal(png(f), renderer.render(cameras[int(f.stem[6:])]).image)
+
+
+@pytest.mark.slow
+def test_ctrl_c_during_a_frame_in_tiles_leaves_no_block_and_no_process(tmp_path):
+    """Ctrl-C at a terminal while the workers write a frame's tiles into its shared block."""
+    out = tmp_path / "frame.png"
+    argv = [sys.executable, "-m", "raybench", "render", "--spheres", "4000", "--size", "1024x1024", "--device", "cpu",
+            "--accel", "none", "--kernel", "simple", "--workers", "2", "-o", str(out)]  # fmt: skip
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    proc = subprocess.Popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    named = f"{sharedframe.PREFIX}{proc.pid}-"
+    try:
+        deadline = time.monotonic() + 120
+        while not any(name.startswith(named) for name in blocks()):  # the frame's block: its tiles are under way
+            assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read().decode()
+            time.sleep(0.1)
+        time.sleep(1)
+        family = psutil.Process(proc.pid).children(recursive=True)
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130 and err.decode().strip().splitlines()[-1] == "raybench: interrupted"
+    _, alive = psutil.wait_procs(family, timeout=20)
+    assert not alive, f"stray processes: {alive}"
+    assert not any(name.startswith(named) for name in blocks()) and not out.exists()
 
 
 def test_cuda_workers_are_pinned_one_gpu_each_within_those_visible(monkeypatch):

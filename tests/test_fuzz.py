@@ -297,6 +297,7 @@ OPTIONS = {
     "--adapter": ["llvmpipe", ""],
     "--accel": ["none", "bvh", "kd"],
     "--kernel": ["fast", "simple", "quick"],
+    "--png-level": ["0", "1", "9", "10", "-1", "x"],
     "-o": ["a.png", "b.PNG", "a.jpg", "/proc/a.png", "missing/a.png", ".", ""],
 }
 STRAY = st.sampled_from(["--json", "-h", "--bogus", "--", "-", "extra", "--size"])

@@ -76,10 +76,10 @@ def options_by_device(options: dict) -> dict[str, dict]:
     return {device: {k: v for k, v in options.items() if k in OPTIONS[device]} for device in DEVICES}
 
 
-def check_output(path: Path, option: str = "-o") -> None:
+def check_output(path: Path, option: str = "-o", suffix: str = ".png") -> None:
     """Refuse an output we could not write before spending time on a render."""
-    if path.suffix.lower() != ".png":
-        raise RaybenchError(f"{option} {path}: the output must be a .png file")
+    if path.suffix.lower() != suffix:
+        raise RaybenchError(f"{option} {path}: the output must be a {suffix} file")
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise RaybenchError(f"{option} {path}: folder {folder} does not exist")
@@ -290,6 +290,18 @@ def main():
     "(docs: raybench.camera_path); one PNG a frame in the folder -o, across the cluster's workers",
 )
 @click.option("--frames", type=int, help="--path: frames of the sequence (default 240)")
+@click.option(
+    "--png-level",
+    type=int,
+    help="zlib's level of the PNGs, 0 (none) to 9 (smallest): default 1 for a sequence (--path; encodes several "
+    "times faster than 6, files a little larger), 6 for one frame",
+)
+@click.option(
+    "--gif",
+    type=click.Path(path_type=Path),
+    help="--path: also the whole sequence as one animated GIF at this path, 25 frames a second (Pillow, a palette a "
+    "frame)",
+)
 @cluster_options()
 def render(
     scene_file,
@@ -311,6 +323,8 @@ def render(
     output,
     camera_path,
     frames,
+    png_level,
+    gif,
     workers,
     scheduler,
     tile,
@@ -320,6 +334,8 @@ def render(
     frames. With --workers or --scheduler, across a Dask cluster's workers:
     one frame in tiles of rows, a sequence in runs of frames."""
     from .backends import resolve
+    from .cluster import SEQUENCE_PNG_LEVEL
+    from .render import PNG_LEVEL, check_png_level
     from .render import render as render_frame
 
     scene = load_scene(scene_file, spheres, seed, materials)
@@ -333,23 +349,31 @@ def render(
         raise RaybenchError("give --workers (an embedded cluster) or --scheduler (a running one), not both")
     if camera_path is None and frames is not None:
         raise RaybenchError("--frames applies to --path only")
+    if png_level is not None:
+        check_png_level(png_level)
+    if gif is not None:
+        if camera_path is None:
+            raise RaybenchError("--gif applies to --path only")
+        check_output(gif, "--gif", ".gif")
     if camera_path is not None:
         if tile is not None:
             raise RaybenchError("--tile applies to one frame; a sequence's tasks are whole frames")
+        level = SEQUENCE_PNG_LEVEL if png_level is None else png_level
         return _render_sequence(scene, camera_path, frames, output, width, height, device, shaded, options,
-                                workers, scheduler, connect_timeout)  # fmt: skip
+                                workers, scheduler, connect_timeout, level, gif)  # fmt: skip
+    level = PNG_LEVEL if png_level is None else png_level
     output = output or Path("render.png")
     check_output(output)
     if workers is not None or scheduler is not None:
         return _render_tiles(scene, output, width, height, device, shaded, options, workers, scheduler, tile,
-                             connect_timeout)  # fmt: skip
+                             connect_timeout, level)  # fmt: skip
     if tile is not None:
         raise RaybenchError("--tile applies across a cluster: give --workers N or --scheduler ADDR")
     device = resolve(device, adapter)
     start = time.perf_counter()
     frame = render_frame(scene, width=width, height=height, device=device, **shaded, **options)
     elapsed = time.perf_counter() - start
-    frame.save(output)
+    frame.save(output, level)
     built = f", BVH built in {frame.build_s * 1e3:.1f} ms" if frame.build_s is not None else ""
     rays = ""
     if frame.rays is not None:
@@ -366,7 +390,7 @@ def _cluster(workers, device, scheduler, connect_timeout):
     return cluster.Cluster(workers=workers, device=device, scheduler=scheduler, timeout=connect_timeout)
 
 
-def _render_tiles(scene, output, width, height, device, shaded, options, workers, scheduler, tile, timeout):
+def _render_tiles(scene, output, width, height, device, shaded, options, workers, scheduler, tile, timeout, level):
     """render --workers/--scheduler: one frame in tiles across the cluster."""
     from . import cluster
 
@@ -374,7 +398,7 @@ def _render_tiles(scene, output, width, height, device, shaded, options, workers
     with _cluster(workers, device, scheduler, timeout) as running:
         frame = cluster.render(running.client, scene, None, width, height, device, rows=tile, **shaded, **options)
         count = running.workers
-    frame.save(output)
+    frame.save(output, level)
     click.echo(
         f"wrote {output}: {width}x{height}, {len(scene):,} spheres, {frame.device}, in tiles on {count} workers, "
         f"{time.perf_counter() - start:.2f} s including the cluster's start"
@@ -382,7 +406,7 @@ def _render_tiles(scene, output, width, height, device, shaded, options, workers
 
 
 def _render_sequence(scene, spec, frames, output, width, height, device, shaded, options, workers, scheduler,
-                     timeout):  # fmt: skip
+                     timeout, level, gif):  # fmt: skip
     """render --path: a sequence of frames across the cluster, written as they
     arrive, with a progress bar; those on disk already are kept."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
@@ -406,11 +430,17 @@ def _render_sequence(scene, spec, frames, output, width, height, device, shaded,
         with Progress(*columns, transient=True) as progress:
             bar = progress.add_task(f"frames on {running.workers} workers", total=len(cameras))
             cluster.render_sequence(running.client, scene, cameras, output, width, height, device, **shaded,
-                                    on_frame=lambda n, path: progress.advance(bar), **options)  # fmt: skip
+                                    on_frame=lambda n, path: progress.advance(bar), png_level=level,
+                                    **options)  # fmt: skip
     click.echo(
         f"wrote {len(cameras)} frames to {output}/: {width}x{height}, {len(scene):,} spheres, "
         f"{time.perf_counter() - start:.2f} s including the cluster's start"
     )
+    if gif is not None:
+        from .gif import FPS, write_gif
+
+        write_gif([cluster.frame_path(output, n) for n in range(len(cameras))], gif)
+        click.echo(f"wrote {gif}: {len(cameras)} frames at {FPS} a second")
 
 
 def _view_help() -> str:

@@ -18,7 +18,10 @@ this module decides only what a worker owns and what a task is:
   encoded on the worker).
 - A tile's rows do not travel where they need not: the client makes the frame
   in shared memory (raybench.sharedframe) and a worker on its host writes its
-  rows there; a worker on another host sends them through Dask.
+  rows there; a worker on another host sends them through Dask. The client
+  keeps that memory from frame to frame of one size (a sharedframe.Pool per
+  client, let go by release(client) or Cluster.close()), with its pages
+  resident, and the workers keep their mappings of it.
 
 Why the embedded workers differ from Dask's defaults (docs/scaling.md has
 the measurements): a Nanny's worker gets MALLOC_TRIM_THRESHOLD_=65536 in its
@@ -30,10 +33,12 @@ raybench's workers take one task at a time, without that variable.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import re
 import threading
+import weakref
 from collections import OrderedDict
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -63,6 +68,11 @@ TASKS_PER_WORKER = 4
 MAX_FRAMES_PER_TASK = 60
 # Warm renderers a worker keeps; each holds a frame's buffers and a tree.
 KEEP_RENDERERS = 2
+# zlib's level for a sequence's PNGs: encoding, not tracing, bounds a sequence
+# (155 ms a 1680x1050 frame at Pillow's default 6 against 3.4 ms of tracing on
+# an H200), and level 1 encodes 1.7-3.5 times faster, in files 27% larger
+# for a smooth picture and 5% smaller for a busy one (docs/scaling.md).
+SEQUENCE_PNG_LEVEL = 1
 
 
 # --- the cluster -------------------------------------------------------------------
@@ -181,6 +191,8 @@ class Cluster:
         return len(self.client.scheduler_info(n_workers=-1)["workers"])
 
     def close(self) -> None:
+        # an embedded cluster's workers end with it, their mappings too: asked only when joined
+        release(self.client, workers=self.cluster is None)
         self.client.close()
         if self.cluster is not None:
             self.cluster.close()
@@ -264,7 +276,7 @@ def _tile(
 ):
     """A task: rows first..end of the frame; (first, image rows, hit rows,
     rays by kind or None, BVH build seconds or None). With shared (the
-    address of the client's SharedFrame) the rows are written into it, once
+    address of the client's sharedframe.Lease) the rows are written into it, once
     from the tracer's own buffers, and come back as None; where this worker
     cannot open it (another host) they come back as before."""
     with _lock:
@@ -296,11 +308,11 @@ def _hit_counts(scene: Scene, scene_key: str, spec: tuple, cameras: list[Camera]
         return [int((renderer.tracer.trace(c.basis(width, height))[1] >= 0).sum()) for c in cameras]
 
 
-def _frames(scene: Scene, scene_key: str, spec: tuple, numbered: list[tuple[int, Camera]]):
-    """A task: whole frames of a sequence; [(number, PNG bytes)]."""
+def _frames(scene: Scene, scene_key: str, spec: tuple, numbered: list[tuple[int, Camera]], level: int):
+    """A task: whole frames of a sequence; [(number, PNG bytes at zlib's level)]."""
     with _lock:
         renderer = _renderer(scene, scene_key, spec)
-        return [(n, renderer.render(camera, hits=False).png_bytes()) for n, camera in numbered]
+        return [(n, renderer.render(camera, hits=False).png_bytes(level)) for n, camera in numbered]
 
 
 # --- jobs -----------------------------------------------------------------------------
@@ -340,6 +352,38 @@ def _scatter(client, scene: Scene):
     return future, future.key
 
 
+# Each client's frames in shared memory: id(client) -> (weak reference to the
+# client, its sharedframe.Pool), kept from job to job so that a frame of a size
+# seen before finds its block resident.
+_pools: dict[int, tuple] = {}
+
+
+def _pool(client) -> sharedframe.Pool:
+    held = _pools.get(id(client))
+    if held is None or held[0]() is not client:
+        if held is not None:  # a client of the same id, gone
+            held[1].close()
+        held = (weakref.ref(client), sharedframe.Pool())
+        _pools[id(client)] = held
+    return held[1]
+
+
+def release(client, workers: bool = True) -> None:
+    """The shared memory that render() keeps for client's frames let go, here
+    and (workers) on its workers (Cluster.close() does this). Frames already
+    returned stay valid; a later render() starts afresh."""
+    from distributed import TimeoutError as DaskTimeout
+
+    held = _pools.pop(id(client), None)
+    if held is None:
+        return
+    held[1].close()
+    if workers and held[0]() is client and client.status == "running":
+        # the workers' mappings keep a block's memory alive: dropped now, not when they next map one
+        with contextlib.suppress(OSError, DaskTimeout, RuntimeError):
+            client.run(sharedframe.forget)
+
+
 def tile_rows(height: int, workers: int) -> int:
     """Rows of a tile: about TASKS_PER_WORKER tiles a worker, whole packets of rows."""
     rows = math.ceil(height / max(1, workers * TASKS_PER_WORKER))
@@ -367,7 +411,11 @@ def render(
 
     shared (default): the frame is made in shared memory (raybench.sharedframe),
     and a worker on this host writes its rows into it, so that they do not
-    travel; a worker elsewhere sends them. shared=False: every tile is sent."""
+    travel; a worker elsewhere sends them. shared=False: every tile is sent.
+    The memory is kept for the client's next frame of this size, and reused
+    once the returned frame's arrays are gone: a frame held stays as it is,
+    and a caller who holds each frame until the next one is traced uses two
+    blocks in turn. release(client) lets it go."""
     from distributed import as_completed
 
     if camera is not None and not isinstance(camera, Camera):
@@ -390,15 +438,15 @@ def render(
     check_fits("host (where the frame is assembled)", width, height, 0, host_available_bytes(), PIXEL_BYTES)
     future, key = _scatter(client, scene)
     bands = [(a, min(a + rows, height)) for a in range(0, height, rows)]
-    block = None
+    lease, ok = None, False
     try:
-        block = sharedframe.create(width, height) if shared else None
-        address = None if block is None else block.address
+        lease = _pool(client).lease(width, height) if shared else None
+        address = None if lease is None else lease.address
         tasks = [client.submit(_tile, future, key, spec, camera, band, address, pure=False) for band in bands]
-        if block is None:
+        if lease is None:
             image, hits = np.empty((height, width, 3), np.uint8), np.empty((height, width), np.int32)
         else:
-            image, hits = block.image, block.hits
+            image, hits = lease.image, lease.hits
         rays, build_s = None, None
         try:
             for task in as_completed(tasks):
@@ -409,14 +457,15 @@ def render(
                 if band_rays is not None:
                     rays = {k: (rays or {}).get(k, 0) + n for k, n in band_rays.items()}
                 build_s = band_build if build_s is None else max(build_s, band_build or 0.0)
+            ok = True
         finally:
             client.cancel(tasks)
     finally:
-        # Done, failed or interrupted: the block's name goes now. The frame's
-        # arrays keep its memory; a task still running writes into memory
-        # that nobody reads, and one that starts later finds no block.
-        if block is not None:
-            block.unlink()
+        # Done, failed or interrupted: the block's name goes now, and a task
+        # that starts later finds none. Failed or interrupted: a task still
+        # running may write into the block, so it is not lent again.
+        if lease is not None:
+            lease.end(ok)
     return Frame(image=image, hits=hits, device=device, build_s=build_s, rays=rays)
 
 
@@ -474,17 +523,21 @@ def render_sequence(
     shadow_samples: int | None = None,
     frames_per_task: int | None = None,
     on_frame: Callable[[int, Path], None] | None = None,
+    png_level: int = SEQUENCE_PNG_LEVEL,
     **options,
 ) -> list[Path]:
     """One PNG a camera, out_dir/frame_00000.png on, traced across the
-    cluster's workers in tasks of frames_per_task frames and each written
-    here, atomically, as it arrives. A frame already on disk is not traced
+    cluster's workers in tasks of frames_per_task frames, encoded there at
+    zlib's png_level (default SEQUENCE_PNG_LEVEL) and each written here,
+    atomically, as it arrives. A frame already on disk is not traced
     again (an interrupted sequence resumes); on_frame(number, path) is
     called for every frame, skipped ones first. The frames' paths, in order."""
     from distributed import as_completed
 
     from .files import write_atomic
+    from .render import check_png_level
 
+    check_png_level(png_level)
     cameras = list(cameras)
     for i, camera in enumerate(cameras):
         if not isinstance(camera, Camera):
@@ -507,7 +560,7 @@ def render_sequence(
         return paths
     runs = _runs(todo, len(found), frames_per_task)
     future, key = _scatter(client, scene)
-    tasks = [client.submit(_frames, future, key, spec, run, pure=False) for run in runs]
+    tasks = [client.submit(_frames, future, key, spec, run, png_level, pure=False) for run in runs]
     try:
         for task in as_completed(tasks):
             for n, png in task.result():

@@ -17,6 +17,10 @@ from .kernels.whitted import KINDS
 from .lighting import Shading, check_shading
 from .scene import Scene
 
+# zlib's level for one picture: Pillow's default. A sequence's frames take a
+# lower one (raybench.cluster.SEQUENCE_PNG_LEVEL; docs/scaling.md says why).
+PNG_LEVEL = 6
+
 
 @dataclass
 class Frame:
@@ -39,27 +43,35 @@ class Frame:
     def height(self) -> int:
         return self.image.shape[0]
 
-    def png_bytes(self) -> bytes:
-        return png_bytes(self.image)
+    def png_bytes(self, level: int = PNG_LEVEL) -> bytes:
+        return png_bytes(self.image, level)
 
     def _repr_png_(self) -> bytes:
         return self.png_bytes()
 
-    def save(self, path) -> None:
-        """Write the image as PNG, atomically."""
+    def save(self, path, level: int = PNG_LEVEL) -> None:
+        """Write the image as PNG, atomically; level is zlib's (png_bytes)."""
         path = Path(path)
         if path.suffix.lower() != ".png":
             raise RaybenchError(f"{path}: the output must be a .png file")
-        write_atomic(path, self.png_bytes())
+        write_atomic(path, self.png_bytes(check_png_level(level)))
 
 
-def png_bytes(image: np.ndarray) -> bytes:
+def check_png_level(level) -> int:
+    if isinstance(level, bool) or not isinstance(level, int) or not 0 <= level <= 9:
+        raise RaybenchError(f"PNG level: must be a whole number 0 (no compression) to 9 (smallest), got {level!r}")
+    return level
+
+
+def png_bytes(image: np.ndarray, level: int = PNG_LEVEL) -> bytes:
     """An (H, W, 3) uint8 RGB image as PNG file contents: the one encoder every
-    sink that writes pictures uses (Frame.save, the viewer's screenshots)."""
+    sink that writes pictures uses (Frame.save, the viewer's screenshots, a
+    sequence's frames). level: zlib's, 0 (stored) to 9; 1 encodes several
+    times faster than 6, in files a little larger (docs/scaling.md)."""
     from PIL import Image
 
     buf = io.BytesIO()
-    Image.fromarray(image, "RGB").save(buf, format="PNG")
+    Image.fromarray(image, "RGB").save(buf, format="PNG", compress_level=check_png_level(level))
     return buf.getvalue()
 
 

@@ -1,27 +1,46 @@
-"""A frame's image and hits in one named block of shared memory, so that
-raybench.cluster's workers on the client's host write their tiles' rows
-straight into the frame instead of sending them through Dask.
+"""A frame's image and hits in shared memory that is kept from frame to frame,
+so that raybench.cluster's workers on the client's host write their tiles'
+rows straight into the frame instead of sending them through Dask, and do not
+pay for fresh pages every frame.
 
-The client creates the block (create), the workers attach it by name
-(write_rows), and the client unlinks the name as soon as the job ends, done or
-failed: the mapping stays valid without the name, so the frame's arrays
-outlive the job and nothing is left in /dev/shm. The block's memory is
-unmapped when the last of those arrays is garbage-collected.
+Why kept (docs/scaling.md has the figures): on the machines measured, memory
+first touched costs far more than the copy itself. Allocating a tmpfs page,
+zeroing it and filling a page table entry for it in each process that maps it
+runs at 0.4-1 GB/s, against 4-7 GB/s for a copy into pages already mapped. So:
 
-A worker on another host, or in another container, finds no block of that
-name (the name carries 64 random bits, so it is no other job's either) and
-write_rows says so; its task then sends its rows as before. So does one
-where /dev/shm has no room left for its rows.
+- The client's Pool makes a Block once per frame size: a file in /dev/shm,
+  its pages allocated at once (posix_fallocate, which also makes /dev/shm's
+  lack of room an error here rather than a SIGBUS in a worker) and mapped here
+  with their page tables filled (MAP_POPULATE).
+- For each frame the block is lent (Pool.lease) under a fresh name, which the
+  workers open, and renamed again as the frame ends: a task of an earlier
+  frame finds no block. A block whose frame failed is not lent again (one of
+  its tasks may still be writing) and its name is removed at once. The pool
+  removes every name as it closes (the client's session ends; at exit for one
+  left open).
+- A worker keeps its mapping of a block (write_rows), so its page tables are
+  filled once, not every frame.
+- The frame handed back is arrays over the block, not a copy: a copy out into
+  fresh memory costs what the block saves. The block goes back to its pool
+  only when the last of those arrays is gone, so a frame the caller holds is
+  never written again; a caller who holds one frame while the next is traced
+  gets a second block, and the two take turns.
+
+A worker on another host, or in another container, finds no file of that
+name (it carries 64 random bits, so it is no other job's either) and
+write_rows says so; its task then sends its rows as before.
 """
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import mmap
 import os
 import secrets
+import threading
 import weakref
-from multiprocessing.shared_memory import SharedMemory
+from collections import OrderedDict
 
 import numpy as np
 
@@ -31,6 +50,10 @@ _ALIGN = 64  # the hits start on a cache line
 # client's block here. Elsewhere every tile is sent (write_rows says False).
 SHM_DIR = "/dev/shm"
 _POPULATE = getattr(mmap, "MAP_POPULATE", 0)  # Linux
+# Idle blocks a pool keeps, and blocks a worker keeps mapped: two, so that a
+# caller who holds each frame until the next one is traced (frame = render();
+# frame.save()) finds the other block free every time.
+KEEP_BLOCKS = 2
 
 
 def _layout(width: int, height: int) -> tuple[int, int]:
@@ -41,7 +64,8 @@ def _layout(width: int, height: int) -> tuple[int, int]:
 
 
 def _views(buf, width: int, height: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(the whole block, image, hits) as arrays over buf."""
+    """(the whole block, image, hits) as arrays over buf; image and hits are
+    views of the whole (their .base), so it lives as long as either does."""
     offset, size = _layout(width, height)
     whole = np.ndarray((size,), np.uint8, buffer=buf)
     image = whole[: height * width * 3].reshape(height, width, 3)
@@ -50,9 +74,8 @@ def _views(buf, width: int, height: int) -> tuple[np.ndarray, np.ndarray, np.nda
 
 
 def _room(size: int) -> bool:
-    """Whether /dev/shm has size bytes free: a block is sparse, and one that
-    would not fit is better not begun. Without /dev/shm (not Linux) the
-    workers could not open a block by its file, so none is made."""
+    """Whether /dev/shm has size bytes free; without /dev/shm (not Linux)
+    the workers could not open a block by its file, so none is made."""
     try:
         stat = os.statvfs(SHM_DIR)
     except OSError:
@@ -60,54 +83,192 @@ def _room(size: int) -> bool:
     return stat.f_bavail * stat.f_frsize >= size
 
 
-class SharedFrame:
-    """A width x height frame's image (H, W, 3 uint8) and hits (H, W int32)
-    in a shared block created here. image and hits are NumPy arrays over it;
-    they keep the memory mapped for as long as either is alive."""
-
-    def __init__(self, width: int, height: int):
-        _, size = _layout(width, height)
-        self.name = f"{PREFIX}{os.getpid()}-{secrets.token_hex(8)}"
-        self.width, self.height = width, height
-        self._shm = SharedMemory(name=self.name, create=True, size=size)
-        whole, self.image, self.hits = _views(self._shm.buf, width, height)
-        # Closed (unmapped) when the last view of the block dies, not before:
-        # closing while a view is exported would fail, and so would the view.
-        weakref.finalize(whole, self._shm.close).atexit = False
-
-    @property
-    def address(self) -> tuple[str, int, int]:
-        """What a task needs to attach the block: (name, width, height)."""
-        return self.name, self.width, self.height
-
-    def unlink(self) -> None:
-        """Remove the block's name (again is harmless); the arrays stay valid."""
-        with contextlib.suppress(FileNotFoundError):
-            self._shm.unlink()
-
-
 def fits(width: int, height: int) -> bool:
-    """Whether this host can make a width x height SharedFrame now."""
+    """Whether this host can make a width x height block now."""
     return _room(_layout(width, height)[1])
 
 
-def create(width: int, height: int) -> SharedFrame | None:
-    """A SharedFrame, or None where this host cannot give one (no room in
-    /dev/shm, or no /dev/shm): the caller assembles as before."""
-    if not fits(width, height):
-        return None
-    try:
-        return SharedFrame(width, height)
-    except OSError:
-        return None
+def _fresh_name() -> str:
+    return f"{PREFIX}{os.getpid()}-{secrets.token_hex(8)}"
+
+
+class Block:
+    """A width x height frame's memory: a file in /dev/shm, its pages
+    allocated and mapped here. Raises OSError where that cannot be (no room)."""
+
+    def __init__(self, width: int, height: int):
+        self.width, self.height = width, height
+        self.size = _layout(width, height)[1]
+        self.retired = False  # its frame failed: not lent again
+        self.name = _fresh_name()
+        fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o600)
+        try:
+            os.ftruncate(fd, self.size)
+            os.posix_fallocate(fd, 0, self.size)
+            self._map = mmap.mmap(fd, self.size, flags=mmap.MAP_SHARED | _POPULATE)
+        except BaseException:
+            os.close(fd)
+            os.unlink(self.path)
+            raise
+        self.fd = fd
+
+    @property
+    def path(self) -> str:
+        return os.path.join(SHM_DIR, self.name)
+
+    def rename(self) -> str:
+        """A fresh name, atomically: a task that looks for the old one finds nothing."""
+        new = _fresh_name()
+        os.rename(self.path, os.path.join(SHM_DIR, new))
+        self.name = new
+        return new
+
+    def unlink(self) -> None:
+        """The name removed (again is harmless); the memory stays while it is mapped."""
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(self.path)
+
+    def close(self) -> None:
+        """The name removed and the file closed here; the memory goes with the
+        last mapping of it (arrays over this one, a worker's)."""
+        self.unlink()
+        if self.fd is not None:
+            os.close(self.fd)
+            self.fd = None
+        self._map = None  # unmapped by the mmap object itself, once no array needs it
+
+
+class Lease:
+    """A block lent to one frame: under a fresh name for the workers while the
+    frame is traced, with image (H, W, 3 uint8) and hits (H, W int32) over it.
+    The arrays stay valid after end(); the block returns to its pool when the
+    last of them is gone."""
+
+    def __init__(self, pool: Pool, block: Block):
+        self.name = block.rename()
+        self.width, self.height = block.width, block.height
+        self._block = block
+        whole, self.image, self.hits = _views(block._map, block.width, block.height)
+        weakref.finalize(whole, pool._returned, block).atexit = False
+
+    @property
+    def address(self) -> tuple[str, int, int]:
+        """What a task needs to find the block: (name, width, height)."""
+        return self.name, self.width, self.height
+
+    def end(self, ok: bool = True) -> None:
+        """The frame is over, and its name goes: done, the block waits under
+        another; failed or interrupted, a task may still write into it, so
+        its name is removed and it is not lent again."""
+        if ok and not self._block.retired:
+            with contextlib.suppress(FileNotFoundError):  # a pool closed meanwhile removed it
+                self._block.rename()
+        else:
+            self._block.retired = True
+            self._block.unlink()
+
+
+class Pool:
+    """The blocks of one client's frames: kept between frames of one size
+    (up to KEEP_BLOCKS idle), let go for another size or on close(). Every
+    block's name is removed by close(), and at exit for a pool left open;
+    only a process killed outright leaves its blocks in /dev/shm."""
+
+    def __init__(self, keep: int = KEEP_BLOCKS):
+        self.keep = keep
+        self.made = 0  # blocks made, for the tests and the benchmark: 1 a session where frames are dropped in turn
+        self._idle: list[Block] = []
+        self._live: set[Block] = set()  # idle and lent: the names to remove on close
+        self._size: tuple[int, int] | None = None
+        self._closed = False
+        self._lock = threading.Lock()  # _returned runs wherever the frame's last array dies
+        _open_pools.add(self)
+
+    def lease(self, width: int, height: int) -> Lease | None:
+        """A block for one width x height frame: an idle one, else a new one;
+        None where this host cannot give one (no /dev/shm, no room): the
+        caller assembles the frame as before."""
+        if self._closed:
+            raise ValueError("the pool is closed")
+        drop, block = [], None
+        with self._lock:
+            if self._size != (width, height):
+                drop, self._idle, self._size = self._idle, [], (width, height)
+            elif self._idle:
+                block = self._idle.pop()
+        for old in drop:
+            self._close(old)
+        if block is None:
+            if not fits(width, height):
+                return None
+            try:
+                block = Block(width, height)
+            except OSError:
+                return None
+            self.made += 1
+            with self._lock:
+                self._live.add(block)
+        try:
+            return Lease(self, block)
+        except BaseException:
+            self._close(block)
+            raise
+
+    def _returned(self, block: Block) -> None:
+        """The last array over a lent block is gone: kept for the next frame,
+        or closed."""
+        with self._lock:
+            keep = not (self._closed or block.retired) and self._size == (block.width, block.height)
+            if keep and len(self._idle) < self.keep:
+                self._idle.append(block)
+                return
+        self._close(block)
+
+    def _close(self, block: Block) -> None:
+        with self._lock:
+            self._live.discard(block)
+        block.close()
+
+    @property
+    def idle(self) -> int:
+        return len(self._idle)
+
+    def close(self) -> None:
+        """Every block's name removed; idle blocks closed, a lent one once
+        its frame's arrays are gone (they stay valid)."""
+        with self._lock:
+            self._closed, idle, self._idle = True, self._idle, []
+            live = list(self._live)
+        for block in live:
+            block.unlink()
+        for block in idle:
+            self._close(block)
+        _open_pools.discard(self)
+
+
+_open_pools: weakref.WeakSet = weakref.WeakSet()
+
+
+@atexit.register
+def _close_pools() -> None:
+    for pool in list(_open_pools):
+        pool.close()
+
+
+# --- on a worker --------------------------------------------------------------------
+
+# The blocks this process keeps mapped, the last KEEP_BLOCKS it wrote into:
+# (device, inode) -> mmap. A block's file is the same from frame to frame
+# under a new name each time, so its mapping, page tables filled, is reused.
+_mapped: OrderedDict = OrderedDict()
+_mapped_lock = threading.Lock()
 
 
 def write_rows(address: tuple[str, int, int], first: int, image: np.ndarray, hits: np.ndarray) -> bool:
-    """Rows first.. of the frame at address (SharedFrame.address) written
-    from image and hits; False, and nothing written, where this process
-    cannot open the block (another host, another container, not Linux) or
-    it has no room. Writing the same rows again writes the same bytes (a
-    retried task)."""
+    """Rows first.. of the frame at address (Lease.address) written from
+    image and hits; False, and nothing written, where this process cannot
+    open the block (another host, another container, not Linux, the frame
+    is over). Writing the same rows again writes the same bytes (a retried task)."""
     name, width, height = address
     offset, size = _layout(width, height)
     rows = len(image)
@@ -120,33 +281,46 @@ def write_rows(address: tuple[str, int, int], first: int, image: np.ndarray, hit
         # it with a resource tracker, one that an embedded cluster's workers
         # share with the client, and unlink or untrack the client's block.
         fd = os.open(os.path.join(SHM_DIR, name), os.O_RDWR)
-    except OSError:  # not on this host, or the job is over
+    except OSError:  # not on this host, or the frame is over
         return False
     try:
-        if os.fstat(fd).st_size != size:
+        stat = os.fstat(fd)
+        # Not a block of this size; or its pages not all allocated, where a
+        # write to a missing one with /dev/shm full would die of SIGBUS.
+        if stat.st_size != size or stat.st_blocks * 512 < size:
             return False
-        for start, rows_array in ((first * width * 3, image), (offset + first * width * 4, hits)):
-            if not _write(fd, start, rows_array):
-                return False
+        with _mapped_lock:
+            mapped = _mapping(fd, (stat.st_dev, stat.st_ino), size)
+            _copy_into(mapped, first * width * 3, image)
+            _copy_into(mapped, offset + first * width * 4, hits)
         return True
     finally:
         os.close(fd)
 
 
-def _write(fd: int, start: int, rows_array: np.ndarray) -> bool:
-    """rows_array's bytes at byte start of the block: its pages reserved first
-    (the block is sparse: a write to a page that tmpfs has no room for dies of
-    SIGBUS; a reservation that fails says so), then mapped with their page
-    tables filled at once, rather than page by page as the copy touches them."""
-    length = rows_array.nbytes
-    try:
-        os.posix_fallocate(fd, start, length)
-    except OSError:  # ENOSPC: /dev/shm is full
-        return False
-    base = start - start % mmap.ALLOCATIONGRANULARITY
-    with mmap.mmap(fd, start + length - base, flags=mmap.MAP_SHARED | _POPULATE, offset=base) as mapped:
-        _copy_into(mapped, start - base, rows_array)
-    return True
+def _mapping(fd: int, key: tuple[int, int], size: int) -> mmap.mmap:
+    """This process's mapping of the block open at fd: the kept one, or a new
+    one with its page tables filled at once (MAP_POPULATE: several times
+    faster than faulting its pages in one by one as a copy touches them)."""
+    mapped = _mapped.get(key)
+    if mapped is None:
+        mapped = mmap.mmap(fd, size, flags=mmap.MAP_SHARED | _POPULATE)
+        _mapped[key] = mapped
+        while len(_mapped) > KEEP_BLOCKS:
+            _mapped.popitem(last=False)[1].close()
+    _mapped.move_to_end(key)
+    return mapped
+
+
+def forget() -> int:
+    """Every block this process keeps mapped let go (its memory is freed once
+    the client's frames of it are gone too); how many. The client's session
+    asks its workers so as it closes."""
+    with _mapped_lock:
+        count = len(_mapped)
+        while _mapped:
+            _mapped.popitem()[1].close()
+    return count
 
 
 def _copy_into(mapped: mmap.mmap, at: int, rows_array: np.ndarray) -> None:
