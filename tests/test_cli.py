@@ -593,7 +593,7 @@ def test_build_option_on_a_device_without_it_is_one_line(capsys, tmp_path):
 
 
 def test_render_png_level(capsys, tmp_path, out_dir):
-    """--png-level 0 stores the pixels uncompressed, the default (6) deflates them; the pixels are the same."""
+    """--png-level 0 stores the pixels uncompressed, the default (1) deflates them; the pixels are the same."""
     files = {}
     for name, level in (("stored", ["--png-level", 0]), ("default", [])):
         files[name] = out_dir / f"{name}.png"

@@ -348,7 +348,7 @@ def test_sequence_is_the_single_process_frames_and_resumes(running, rng, tmp_pat
 
 
 def test_sequence_png_level(running, rng, tmp_path):
-    """A sequence's frames deflated at SEQUENCE_PNG_LEVEL by default, stored at png_level=0; the same pixels;
+    """A sequence's frames deflated at render.PNG_LEVEL by default, stored at png_level=0; the same pixels;
     a level out of range refused before any work."""
     scene, camera = scene_and_camera(rng, 20)
     cameras = camera_path.orbit(camera, 2)
@@ -361,7 +361,6 @@ def test_sequence_png_level(running, rng, tmp_path):
     for a, b in zip(default, stored, strict=True):
         np.testing.assert_array_equal(png(a), png(b))
         assert b.stat().st_size > raw > a.stat().st_size
-    assert cluster.SEQUENCE_PNG_LEVEL == 1
     (tmp_path / "bad").mkdir()
     with pytest.raises(RaybenchError, match="PNG level: must be a whole number 0"):
         cluster.render_sequence(running.client, scene, cameras, tmp_path / "bad", 48, 32, device="cpu", png_level=10)

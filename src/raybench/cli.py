@@ -293,8 +293,8 @@ def main():
 @click.option(
     "--png-level",
     type=int,
-    help="zlib's level of the PNGs, 0 (none) to 9 (smallest): default 1 for a sequence (--path; encodes several "
-    "times faster than 6, files a little larger), 6 for one frame",
+    help="zlib's level of the PNGs, 0 (none) to 9 (smallest); default 1, which encodes several times faster "
+    "than 6 in files a little larger",
 )
 @click.option(
     "--gif",
@@ -334,7 +334,6 @@ def render(
     frames. With --workers or --scheduler, across a Dask cluster's workers:
     one frame in tiles of rows, a sequence in runs of frames."""
     from .backends import resolve
-    from .cluster import SEQUENCE_PNG_LEVEL
     from .render import PNG_LEVEL, check_png_level
     from .render import render as render_frame
 
@@ -358,7 +357,7 @@ def render(
     if camera_path is not None:
         if tile is not None:
             raise RaybenchError("--tile applies to one frame; a sequence's tasks are whole frames")
-        level = SEQUENCE_PNG_LEVEL if png_level is None else png_level
+        level = PNG_LEVEL if png_level is None else png_level
         return _render_sequence(scene, camera_path, frames, output, width, height, device, shaded, options,
                                 workers, scheduler, connect_timeout, level, gif)  # fmt: skip
     level = PNG_LEVEL if png_level is None else png_level

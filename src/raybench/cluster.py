@@ -51,7 +51,7 @@ from .camera import Camera
 from .errors import RaybenchError, one_line
 from .kernels.whitted import KINDS
 from .machine import usable_cores
-from .render import Frame, Renderer
+from .render import PNG_LEVEL, Frame, Renderer
 from .scene import Scene
 
 HOST = "127.0.0.1"  # every process of an embedded cluster listens here only
@@ -68,11 +68,6 @@ TASKS_PER_WORKER = 4
 MAX_FRAMES_PER_TASK = 60
 # Warm renderers a worker keeps; each holds a frame's buffers and a tree.
 KEEP_RENDERERS = 2
-# zlib's level for a sequence's PNGs: encoding, not tracing, bounds a sequence
-# (155 ms a 1680x1050 frame at Pillow's default 6 against 3.4 ms of tracing on
-# an H200), and level 1 encodes 1.7-3.5 times faster, in files 27% larger
-# for a smooth picture and 5% smaller for a busy one (docs/scaling.md).
-SEQUENCE_PNG_LEVEL = 1
 
 
 # --- the cluster -------------------------------------------------------------------
@@ -523,12 +518,12 @@ def render_sequence(
     shadow_samples: int | None = None,
     frames_per_task: int | None = None,
     on_frame: Callable[[int, Path], None] | None = None,
-    png_level: int = SEQUENCE_PNG_LEVEL,
+    png_level: int = PNG_LEVEL,
     **options,
 ) -> list[Path]:
     """One PNG a camera, out_dir/frame_00000.png on, traced across the
     cluster's workers in tasks of frames_per_task frames, encoded there at
-    zlib's png_level (default SEQUENCE_PNG_LEVEL) and each written here,
+    zlib's png_level (default render.PNG_LEVEL) and each written here,
     atomically, as it arrives. A frame already on disk is not traced
     again (an interrupted sequence resumes); on_frame(number, path) is
     called for every frame, skipped ones first. The frames' paths, in order."""

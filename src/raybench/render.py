@@ -17,9 +17,12 @@ from .kernels.whitted import KINDS
 from .lighting import Shading, check_shading
 from .scene import Scene
 
-# zlib's level for one picture: Pillow's default. A sequence's frames take a
-# lower one (raybench.cluster.SEQUENCE_PNG_LEVEL; docs/scaling.md says why).
-PNG_LEVEL = 6
+# zlib's level for every PNG raybench writes, a frame or a sequence's: level 1
+# encodes 1.7-5.9 times faster than Pillow's default 6, in files 27% larger
+# for a smooth picture and 5% smaller for a busy one. At 6 the encoding was
+# most of a warm `raybench render` (0.85 of about 2 s at 1680x1050 on a
+# 2-vCPU machine) and bounded a sequence (docs/performance.md, docs/scaling.md).
+PNG_LEVEL = 1
 
 
 @dataclass
