@@ -271,17 +271,28 @@ def _tile(
 ):
     """A task: rows first..end of the frame; (first, image rows, hit rows,
     rays by kind or None, BVH build seconds or None). With shared (the
-    address of the client's sharedframe.Lease) the rows are written into it, once
-    from the tracer's own buffers, and come back as None; where this worker
-    cannot open it (another host) they come back as before."""
+    address of the client's sharedframe.Lease) the rows are written into it,
+    on cuda straight from the GPU, elsewhere once from the tracer's own
+    buffers, and come back as None; where this worker cannot open it (another
+    host) they come back as before."""
     with _lock:
         renderer = _renderer(scene, scene_key, spec)
         if shared is not None:
             tracer = renderer.tracer
-            image, hits = tracer.trace(camera.basis(renderer.width, renderer.height), rows=rows)
+            basis = camera.basis(renderer.width, renderer.height)
             first, end = rows
-            if sharedframe.write_rows(shared, first, image[first:end], hits[first:end]):
-                return first, None, None, _rays(tracer), tracer.build_s
+            if hasattr(tracer, "fetch_into"):
+                # cuda: the rows copied from the GPU straight into the frame, its
+                # mapping page-locked once, not through the tracer's buffers and a
+                # copy out of them (docs/scaling.md)
+                tracer.launch(basis, rows=rows)
+                if sharedframe.fill_rows(shared, first, end - first, tracer.fetch_into, pin=tracer.pin):
+                    return first, None, None, _rays(tracer), tracer.build_s
+                image, hits = tracer.fetch()
+            else:
+                image, hits = tracer.trace(basis, rows=rows)
+                if sharedframe.write_rows(shared, first, image[first:end], hits[first:end]):
+                    return first, None, None, _rays(tracer), tracer.build_s
             # traced already: the rows travel from the tracer's buffers
             return first, image[first:end].copy(), hits[first:end].copy(), _rays(tracer), tracer.build_s
         frame = renderer.render(camera, rows=rows)

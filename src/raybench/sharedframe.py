@@ -258,8 +258,9 @@ def _close_pools() -> None:
 # --- on a worker --------------------------------------------------------------------
 
 # The blocks this process keeps mapped, the last KEEP_BLOCKS it wrote into:
-# (device, inode) -> mmap. A block's file is the same from frame to frame
-# under a new name each time, so its mapping, page tables filled, is reused.
+# (device, inode) -> [mmap, pin handle or None]. A block's file is the same
+# from frame to frame under a new name each time, so its mapping, page tables
+# filled (and page-locked for a device's direct copies, where pinned), is reused.
 _mapped: OrderedDict = OrderedDict()
 _mapped_lock = threading.Lock()
 
@@ -269,13 +270,33 @@ def write_rows(address: tuple[str, int, int], first: int, image: np.ndarray, hit
     image and hits; False, and nothing written, where this process cannot
     open the block (another host, another container, not Linux, the frame
     is over). Writing the same rows again writes the same bytes (a retried task)."""
-    name, width, height = address
-    offset, size = _layout(width, height)
+    _name, width, height = address
     rows = len(image)
     if not (0 <= first and first + rows <= height and image.shape == (rows, width, 3) and hits.shape == (rows, width)):
         raise ValueError(
             f"rows {first}..{first + rows} ({image.shape}, {hits.shape}): not rows of a {width}x{height} frame"
         )
+
+    def copy(image_rows: np.ndarray, hit_rows: np.ndarray) -> None:
+        image_rows[...] = image
+        hit_rows[...] = hits
+
+    return fill_rows(address, first, rows, copy)
+
+
+def fill_rows(address: tuple[str, int, int], first: int, rows: int, fill, pin=None) -> bool:
+    """Rows first..first + rows of the frame at address written by
+    fill(image_rows, hit_rows), given this process's views of them in the
+    block; False, and nothing written, where this process cannot open the
+    block (as write_rows). pin(address, size), if given, is called once for
+    each mapping, with where it lies in this process's memory, and what it
+    returns is kept as long as the mapping is and dropped before it closes: a
+    cuda worker page-locks the mapping there, so that the GPU copies its rows
+    straight into the frame (cluster._tile)."""
+    name, width, height = address
+    offset, size = _layout(width, height)
+    if not (0 <= first and 0 <= rows and first + rows <= height):
+        raise ValueError(f"rows {first}..{first + rows}: not rows of a {width}x{height} frame")
     try:
         # The block's file, opened as itself: SharedMemory(name) would register
         # it with a resource tracker, one that an embedded cluster's workers
@@ -290,26 +311,38 @@ def write_rows(address: tuple[str, int, int], first: int, image: np.ndarray, hit
         if stat.st_size != size or stat.st_blocks * 512 < size:
             return False
         with _mapped_lock:
-            mapped = _mapping(fd, (stat.st_dev, stat.st_ino), size)
-            _copy_into(mapped, first * width * 3, image)
-            _copy_into(mapped, offset + first * width * 4, hits)
+            mapped = _mapping(fd, (stat.st_dev, stat.st_ino), size, pin)
+            _fill(mapped, width, height, first, rows, fill)
         return True
     finally:
         os.close(fd)
 
 
-def _mapping(fd: int, key: tuple[int, int], size: int) -> mmap.mmap:
+def _mapping(fd: int, key: tuple[int, int], size: int, pin) -> mmap.mmap:
     """This process's mapping of the block open at fd: the kept one, or a new
     one with its page tables filled at once (MAP_POPULATE: several times
-    faster than faulting its pages in one by one as a copy touches them)."""
-    mapped = _mapped.get(key)
-    if mapped is None:
-        mapped = mmap.mmap(fd, size, flags=mmap.MAP_SHARED | _POPULATE)
-        _mapped[key] = mapped
+    faster than faulting its pages in one by one as a copy touches them),
+    pinned by pin where given and not pinned yet."""
+    held = _mapped.get(key)
+    if held is None:
+        held = _mapped[key] = [mmap.mmap(fd, size, flags=mmap.MAP_SHARED | _POPULATE), None]
         while len(_mapped) > KEEP_BLOCKS:
-            _mapped.popitem(last=False)[1].close()
+            _unmap(_mapped.popitem(last=False)[1])
+    if pin is not None and held[1] is None:
+        held[1] = pin(*_address(held[0]))
     _mapped.move_to_end(key)
-    return mapped
+    return held[0]
+
+
+def _address(mapped: mmap.mmap) -> tuple[int, int]:
+    # through a view that is gone when this returns: a mapping cannot close under one
+    view = np.frombuffer(mapped, np.uint8)
+    return view.ctypes.data, view.nbytes
+
+
+def _unmap(held: list) -> None:
+    held[1] = None  # unpinned (the pin's object dropped) before the memory goes
+    held[0].close()
 
 
 def forget() -> int:
@@ -319,11 +352,12 @@ def forget() -> int:
     with _mapped_lock:
         count = len(_mapped)
         while _mapped:
-            _mapped.popitem()[1].close()
+            _unmap(_mapped.popitem()[1])
     return count
 
 
-def _copy_into(mapped: mmap.mmap, at: int, rows_array: np.ndarray) -> None:
-    # a function of its own, so that its view of the mapping is gone, even
+def _fill(mapped: mmap.mmap, width: int, height: int, first: int, rows: int, fill) -> None:
+    # a function of its own, so that its views of the mapping are gone, even
     # when it raises, before the mapping is closed (closing under a view fails)
-    np.frombuffer(mapped, np.uint8, rows_array.nbytes, at)[:] = rows_array.reshape(-1).view(np.uint8)
+    _whole, image, hits = _views(mapped, width, height)
+    fill(image[first : first + rows], hits[first : first + rows])

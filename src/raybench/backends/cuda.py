@@ -731,6 +731,28 @@ class Tracer(TracerBase):
             self.d_rays.copy_to_host(self.ray_counts)
         return self.image, self.hits
 
+    def fetch_into(self, image_rows: np.ndarray, hit_rows: np.ndarray) -> None:
+        """The rows of the last launch(rows=...) copied from the device
+        straight into image_rows and hit_rows (host arrays of those rows'
+        shapes, such as a frame's rows in shared memory, page-locked by pin()
+        for a direct copy), not through this tracer's own buffers; waits for
+        the kernel."""
+        first, end = self._rows
+        self.d_image[first:end].copy_to_host(image_rows)
+        self.d_hits[first:end].copy_to_host(hit_rows)
+        if self.ray_counts is not None:
+            self.d_rays.copy_to_host(self.ray_counts)
+
+    @staticmethod
+    def pin(address: int, size: int):
+        """The host memory at address page-locked for this device's copies as
+        long as the returned object lives (None under the simulator): a copy
+        from the device into it is then one DMA, not a copy into a pinned
+        buffer of the driver's and another out of it."""
+        if simulated():
+            return None
+        return cuda.current_context().mempin(None, address, size)
+
     def trace(
         self, basis: np.ndarray, count: int | None = None, rows: tuple[int, int] | None = None
     ) -> tuple[np.ndarray, np.ndarray]:
