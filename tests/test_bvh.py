@@ -364,11 +364,15 @@ def test_bvh_too_large_for_memory_is_one_line(monkeypatch):
     from raybench.backends import cpu
 
     scene = raybench.random_spheres(10000)
-    # room for the frame and the spheres, not for the tree
-    monkeypatch.setattr(cpu, "host_available_bytes", lambda: 64 * 48 * 14 + 10000 * 28 + 1000)
-    with pytest.raises(
-        raybench.RaybenchError,
-        match=r"bvh: 10,000 spheres need [0-9.]+ MiB for the BVH and the frame, "
-        r"more than the [0-9.]+ MiB available on the cpu",
-    ):
+    # room for the frame and the spheres, not for the tree: a pixel is 3
+    # colour bytes and a 4-byte hit index, held twice on the host; a sphere 7 float32
+    frame = 64 * 48 * 2 * (3 + 4)
+    available = frame + 10000 * 7 * 4 + 1000
+    monkeypatch.setattr(cpu, "host_available_bytes", lambda: available)
+    need = 10000 * bvh.BUILD_SPHERE_BYTES + frame
+    with pytest.raises(raybench.RaybenchError) as info:
         raybench.render(scene, width=64, height=48, device="cpu")
+    assert str(info.value) == (
+        f"bvh: 10,000 spheres need {need / 2**20:.1f} MiB for the BVH and the frame, "
+        f"more than the {available / 2**20:.1f} MiB available on the cpu; use fewer spheres or a smaller size"
+    )

@@ -40,6 +40,31 @@ def test_empty_scene_is_background(rng):
     assert np.abs(frame.image.astype(int) - expected).max() <= 1
 
 
+@pytest.mark.parametrize("options", [{"accel": "none", "kernel": "simple"}, {"accel": "bvh"}])
+def test_background_bytes_are_exact_and_saturate(options):
+    """The thesis's gradient (x / 1024, y / 1024, x / 786) to bytes, to the
+    byte: red is exact in float32 (a division by a power of two, then 255x and
+    a half, all under 2**24), so each of its bytes is known; past column 1024
+    it saturates at 255, and blue past 786 (a clamp that let 1.2 through would
+    wrap the byte round). Blue is held to the float64 value where that is not
+    within rounding of a half. A frame 1100 wide, 3 high: a scale or a clamp
+    off by one step changes some byte; test_empty_scene_is_background's
+    tolerance of 1 cannot see that."""
+    width, height = 1100, 3
+    frame = raybench.render(raybench.random_spheres(0), width=width, height=height, device="cpu", **options)
+    ys, xs = np.mgrid[0:height, 0:width]
+    red = np.floor(np.minimum(xs / 1024, 1) * 255 + 0.5)
+    green = np.floor(ys / 1024 * 255 + 0.5)
+    blue = np.minimum(xs / 786, 1) * 255 + 0.5
+    image = frame.image.astype(int)
+    assert np.array_equal(image[..., 0], red), np.argwhere(image[..., 0] != red)[:5]
+    assert np.array_equal(image[..., 1], green)
+    clear = np.abs(blue - np.round(blue)) > 1e-3  # not at a rounding boundary
+    assert np.array_equal(image[..., 2][clear], np.floor(blue)[clear])
+    assert np.abs(image[..., 2] - np.floor(blue)).max() <= 1
+    assert (image[:, 1024:, 0] == 255).all() and (image[:, 786:, 2] == 255).all()
+
+
 def test_threads_do_not_change_the_picture(rng):
     scene, camera = KINDS["cloud"](rng, 80)
     one = raybench.render(scene, camera, 50, 40, device="cpu", threads=1)

@@ -105,14 +105,18 @@ ROW_KERNELS = [
 @pytest.mark.slow
 @pytest.mark.parametrize("options, shading", ROW_KERNELS)
 def test_rows_are_the_whole_frames_rows(rng, options, shading):
-    """trace(rows=...) on every cuda kernel: a cluster's tile, each pixel as the whole frame has it."""
-    scene = raybench.random_spheres(int(rng.integers(1, 25)), seed=int(rng.integers(2**31)), materials=True)
+    """trace(rows=...) on every cuda kernel: a cluster's tile, each pixel as the whole frame has it.
+    Between the two, a frame looking away (background only) fills the
+    buffers, so a band left untraced cannot pass for traced."""
+    scene = raybench.random_spheres(int(rng.integers(10, 25)), seed=int(rng.integers(2**31)), materials=True)
     camera = raybench.Camera(position=tuple(rng.uniform(-0.3, 0.3, 3)))
-    width, height = (16, 11) if SIM else SIZES[0]  # three frames of every kernel: small on the simulator
+    away = raybench.Camera(position=camera.position, look_at=tuple(2 * np.array(camera.position) - camera.look_at))
+    width, height = (16, 11) if SIM else SIZES[0]  # four frames of every kernel: small on the simulator
     with raybench.Renderer(scene, width, height, device="cuda", shading=shading, **options) as renderer:
         whole = renderer.render(camera)
         first = int(rng.integers(0, height - 1))
         end = int(rng.integers(first + 1, height + 1))
+        assert (whole.hits[first:end] >= 0).any() and (renderer.render(away).hits == -1).all()
         band = renderer.render(camera, rows=(first, end))
         np.testing.assert_array_equal(band.image, whole.image[first:end])
         np.testing.assert_array_equal(band.hits, whole.hits[first:end])

@@ -48,13 +48,17 @@ def test_bad_arguments_are_refused(kwargs, message):
 
 @pytest.mark.parametrize("accel, shading", [("bvh", "thesis"), ("none", "thesis"), ("bvh", "whitted")])
 def test_rows_are_the_whole_frames_rows(rng, accel, shading):
-    """Renderer.render(rows=...): a cluster's tile, each pixel as the whole frame has it."""
-    scene = raybench.random_spheres(int(rng.integers(1, 60)), seed=int(rng.integers(2**31)), materials=True)
+    """Renderer.render(rows=...): a cluster's tile, each pixel as the whole frame has it.
+    Between the two, a frame looking away (background only) fills the
+    renderer's buffers, so a band left untraced cannot pass for traced."""
+    scene = raybench.random_spheres(int(rng.integers(10, 60)), seed=int(rng.integers(2**31)), materials=True)
     camera = raybench.Camera(position=tuple(rng.uniform(-0.3, 0.3, 3)))
+    away = raybench.Camera(position=camera.position, look_at=tuple(2 * np.array(camera.position) - camera.look_at))
     with raybench.Renderer(scene, 64, 48, device="cpu", threads=2, accel=accel, shading=shading) as renderer:
         whole = renderer.render(camera)
         first = 8 * int(rng.integers(0, 5))
         end = int(rng.integers(first + 1, 49))
+        assert (whole.hits[first:end] >= 0).any() and (renderer.render(away).hits == -1).all()
         band = renderer.render(camera, rows=(first, end))
         np.testing.assert_array_equal(band.image, whole.image[first:end])
         np.testing.assert_array_equal(band.hits, whole.hits[first:end])

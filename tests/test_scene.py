@@ -343,10 +343,18 @@ def test_constructor_refuses_non_finite_and_out_of_range(field, column, value, w
     assert str(info.value).startswith(where + ":"), str(info.value)
 
 
-def test_constructor_refuses_mismatched_counts():
-    centers, radii, colors = three_spheres()
-    with pytest.raises(RaybenchError, match="3 centers, 2 radii and 3 colors"):
-        Scene(centers, radii[:2], colors)
+@pytest.mark.parametrize("odd", [0, 1, 2])
+@pytest.mark.parametrize("count", [2, 4])
+def test_constructor_refuses_mismatched_counts(odd, count):
+    """Any one of the three arrays shorter or longer than the others: one
+    line naming the counts (not a NumPy error from joining them)."""
+    arrays = list(three_spheres())
+    arrays[odd] = np.resize(arrays[odd], (count, *arrays[odd].shape[1:]))
+    counts = [3, 3, 3]
+    counts[odd] = count
+    want = f"{counts[0]} centers, {counts[1]} radii and {counts[2]} colors"
+    with pytest.raises(RaybenchError, match=want):
+        Scene(*arrays)
 
 
 @pytest.mark.parametrize(
@@ -395,3 +403,19 @@ def test_random_spheres_camera_outside_for_tiny_n():
             scene = random_spheres(n, seed)
             distance = np.linalg.norm(scene.centers.astype(np.float64), axis=1)
             assert (distance > scene.radii).all(), f"n={n} seed={seed}: camera inside a sphere"
+
+
+def test_random_spheres_fill_the_16_10_view():
+    """random_spheres' centres are uniform over the view of a 16:10 picture
+    from the default camera (60 degrees high), at depths 5 to 25: every centre
+    inside that view, both edges of each axis reached, neither side favoured;
+    so a changed aspect, field of view or range of either axis fails."""
+    scene = random_spheres(20000, seed=3)
+    x, y, z = scene.centers.astype(np.float64).T
+    half_h = np.tan(np.radians(30.0))
+    half_w = half_h * 16 / 10
+    assert 5.0 <= z.min() and z.max() <= 25.0
+    for across, half in ((x / z, half_w), (y / z, half_h)):
+        assert np.abs(across).max() <= half * (1 + 1e-6)
+        assert across.max() >= half * 0.99 and across.min() <= -half * 0.99
+        assert abs(np.mean(across)) < 0.05 * half  # uniform: no side favoured

@@ -181,6 +181,20 @@ def test_total_internal_reflection_inside_glass(device):
 
 
 @pytest.mark.gpu
+def test_brute_force_is_the_bvh_bit_for_bit(rng):
+    """Whitted's rays by brute force (trace.scan) and through the BVH
+    (traverse.leaf_test) make the same test on the same float32 values, the
+    sphere a ray leaves skipped or met at its far root alike: the same frame
+    and the same rays, bit for bit, on a scene of mirrors and glass, where
+    secondary rays meet the spheres from outside and from inside."""
+    scene = raybench.random_spheres(40, seed=int(rng.integers(2**31)), materials=True)
+    bvh = frame(scene, "cpu", 40, 25, accel="bvh", samples=2)
+    none = frame(scene, "cpu", 40, 25, accel="none", samples=2)
+    assert bvh.rays["reflection"] > 100 and bvh.rays["refraction"] > 50  # not vacuous
+    assert np.array_equal(bvh.hits, none.hits) and bvh.rays == none.rays
+    assert np.array_equal(bvh.image, none.image), np.count_nonzero(bvh.image != none.image)
+
+
 @pytest.mark.parametrize("accel", ["bvh", "none"])
 def test_cuda_gives_the_cpu_frame(rng, accel):
     """Bit for bit under numba's simulator, which rounds as the CPU does; on
