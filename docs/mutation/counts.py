@@ -1,12 +1,28 @@
 import sqlite3
-order = ["kernels_intersect", "kernels_shade", "kernels_trace", "kernels_traverse", "kernels_whitted", "backends_cpu",
-         "backends_cuda", "backends_cuda_build", "backends_limits", "backends_contract", "backends_walks", "scene"]
+
+order = [
+    "kernels_intersect",
+    "kernels_shade",
+    "kernels_trace",
+    "kernels_traverse",
+    "kernels_whitted",
+    "backends_cpu",
+    "backends_cuda",
+    "backends_cuda_build",
+    "backends_limits",
+    "backends_contract",
+    "backends_walks",
+    "scene",
+]
 tot = [0] * 6
 print("| Module | Mutants | Filtered out | Left | Run (sampled) | Killed | Survived |")
 print("|---|---|---|---|---|---|---|")
 for n in order:
     db = sqlite3.connect(f"/tmp/cr/{n}.sqlite")
-    q = lambda s: db.execute(s).fetchone()[0]
+
+    def q(sql, db=db):
+        return db.execute(sql).fetchone()[0]
+
     total = q("select count(*) from mutation_specs")
     filt = q("select count(*) from work_results where output = 'Filtered operator'")
     run = q("select count(*) from work_results where output is not 'not sampled' and output is not 'Filtered operator'")
