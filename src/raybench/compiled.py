@@ -13,8 +13,10 @@ raybench starts a new folder. RAYBENCH_CACHE_DIR moves it (default
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
+import threading
 from pathlib import Path
 
 import numba
@@ -58,24 +60,74 @@ def _in_cache(decorator):
 
 
 def _tolerant(dispatcher):
-    """The dispatcher, its cache made an optimisation only: where the machine
-    code cannot be written (a full disk, a quota, ulimit -f) Numba raises
-    from inside the first call; then the call goes on with the code compiled,
-    and the next process compiles again. (Numba leaves no partial file: it
-    writes through a temporary one and removes it on error.)"""
+    """The dispatcher, its cache made an optimisation only, and safe for
+    several processes at once.
+
+    - Where the machine code cannot be written (a full disk, a quota, ulimit
+      -f) Numba raises from inside the first call; then the call goes on with
+      the code compiled, and the next process compiles again. (Numba leaves no
+      partial file: it writes through a temporary one and removes it on error.)
+    - Numba saves a compiled function as two files, an index naming the data
+      file of each signature and the data file, one after the other, without
+      a lock: two processes compiling two signatures of one function at once
+      (a cluster's workers, the tests' processes) can leave an index naming
+      for one signature the data file the other wrote, and a later process
+      then runs code compiled for other types (numba issue 10128). Each save
+      and load holds an exclusive lock on the cache folder's lock file."""
     cache = getattr(dispatcher, "_cache", None)
     save = getattr(cache, "save_overload", None)
-    if save is None:  # numba's CUDA simulator caches nothing
+    load = getattr(cache, "load_overload", None)
+    if save is None or load is None:  # numba's CUDA simulator caches nothing
         return dispatcher
 
     def save_overload(sig, data):
         try:
-            save(sig, data)
+            with _locked():
+                save(sig, data)
         except OSError:
             pass
 
+    def load_overload(*args, **kwargs):
+        with _locked():
+            return load(*args, **kwargs)
+
     cache.save_overload = save_overload
+    cache.load_overload = load_overload
     return dispatcher
+
+
+_held = threading.local()  # how deep this thread is in _locked(): a load within a save, say
+
+
+@contextlib.contextmanager
+def _locked():
+    """An exclusive lock on CACHE_DIR/.lock, between processes and threads,
+    taken again freely by the thread that holds it (fcntl; where there is
+    none, as on Windows, or the folder cannot be written, no lock: then
+    Numba writes nothing there either)."""
+    depth = getattr(_held, "depth", 0)
+    if depth:
+        _held.depth = depth + 1
+        try:
+            yield
+        finally:
+            _held.depth = depth
+        return
+    try:
+        import fcntl
+
+        CACHE_DIR.mkdir(parents=True, exist_ok=True)
+        fd = os.open(CACHE_DIR / ".lock", os.O_RDWR | os.O_CREAT, 0o644)
+    except (ImportError, OSError):
+        yield
+        return
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        _held.depth = 1
+        yield
+    finally:
+        _held.depth = 0
+        os.close(fd)  # closing it releases the lock
 
 
 def njit(**options):

@@ -1,0 +1,80 @@
+"""raybench.compiled: the disk cache of compiled code, shared by processes.
+
+Numba writes a function's cache as an index and data files, unlocked: eight
+processes compiling eight signatures of one function at once left, in one
+round of three tried by hand, an index whose entry for one signature named
+another's data file, and the next process to load it ran code compiled for
+other types ("can't unbox array", numba issue 10128). raybench's cache
+locks each save and load (compiled._locked); with the lock taken out, the
+first test failed 2 runs of 2 (an index entry lost)."""
+
+import os
+import subprocess
+import sys
+import textwrap
+import time
+
+DTYPES = ["float32", "float64", "int32", "int64", "uint8", "int16", "uint16", "int8"]
+
+MODULE = textwrap.dedent(
+    """
+    from raybench import compiled
+
+    @compiled.njit()
+    def weigh(a):
+        s = 0.0
+        for i in range(a.shape[0]):
+            s += a[i] * (i + 1)
+        return s
+    """
+)
+
+ONE = textwrap.dedent(
+    """
+    import sys, time
+    import numpy as np
+    import racy
+    a = np.arange(1, 40, dtype=sys.argv[1])
+    while time.time() < float(sys.argv[2]):
+        pass
+    racy.weigh(a)
+    """
+)
+
+CHECK = textwrap.dedent(
+    f"""
+    import numpy as np
+    import racy
+    for dtype in {DTYPES!r}:
+        a = np.arange(1, 40, dtype=dtype)
+        want = float((a.astype(np.float64) * np.arange(1, 40)).sum())
+        got = racy.weigh(a)
+        assert abs(got - want) <= 1e-3 * want, (dtype, got, want)
+    print("ok")
+    """
+)
+
+
+def test_processes_compiling_one_function_at_once_leave_a_cache_that_loads_right(tmp_path):
+    (tmp_path / "racy.py").write_text(MODULE)
+    src = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "src")
+    for round_ in range(2):
+        cache = tmp_path / f"cache-{round_}"
+        env = {**os.environ, "RAYBENCH_CACHE_DIR": str(cache), "PYTHONPATH": f"{tmp_path}{os.pathsep}{src}"}
+        start = time.time() + 3  # all start compiling together, after their imports
+        procs = [
+            subprocess.Popen([sys.executable, "-c", ONE, dtype, str(start)], env=env, cwd=tmp_path) for dtype in DTYPES
+        ]
+        assert [p.wait(timeout=300) for p in procs] == [0] * len(DTYPES)
+        assert len(list(cache.rglob("*.nbc"))) == len(DTYPES)  # every signature saved, none lost
+        check = subprocess.run([sys.executable, "-c", CHECK], env=env, cwd=tmp_path, capture_output=True, text=True)
+        assert check.returncode == 0 and check.stdout.strip() == "ok", check.stderr[-2000:]
+
+
+def test_the_cache_lock_is_taken_again_by_its_thread(tmp_path, monkeypatch):
+    """A load within a save (or any nesting in one thread) must not wait for itself."""
+    from raybench import compiled
+
+    monkeypatch.setattr(compiled, "CACHE_DIR", tmp_path)
+    with compiled._locked(), compiled._locked():
+        assert (tmp_path / ".lock").exists()
