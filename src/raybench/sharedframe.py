@@ -18,8 +18,9 @@ runs at 0.4-1 GB/s, against 4-7 GB/s for a copy into pages already mapped. So:
   its tasks may still be writing) and its name is removed at once. The pool
   removes every name as it closes (the client's session ends; at exit for one
   left open).
-- A worker keeps its mapping of a block (write_rows), so its page tables are
-  filled once, not every frame.
+- A worker keeps its mapping of a block (write_rows, fill_rows), so its page
+  tables are filled once, not every frame; a cuda worker page-locks it once
+  too, and its GPU copies the rows into it directly.
 - The frame handed back is arrays over the block, not a copy: a copy out into
   fresh memory costs what the block saves. The block goes back to its pool
   only when the last of those arrays is gone, so a frame the caller holds is
