@@ -13,8 +13,8 @@ from .. import animate, backends
 from ..camera import Camera
 from ..errors import RaybenchError
 from ..kernels.whitted import KINDS
-from ..lighting import Shading
 from ..machine import describe, git_commit
+from ..render import Renderer
 from ..scene import random_spheres
 from . import multi, suites
 from .results import ResultsWriter
@@ -84,7 +84,9 @@ def measure_dynamic(point: Point, scenes: Scenes, duration: float) -> dict:
     scene = scenes.get(point.spheres)
     basis = Camera().basis(point.width, point.height)
     orbits = animate.Orbits(scene.spheres, scenes.seed)
-    tracer = backends.tracer(point.device, scene.spheres, point.width, point.height, **tracer_options(point))
+    # made as a program makes it (raybench.Renderer); its tracer is timed
+    renderer = Renderer(scene, point.width, point.height, point.device, **tracer_options(point))
+    tracer = renderer.tracer
     clock = iter(range(1, 1 << 62))
 
     def frame() -> tuple[float, float, float | None, str | None]:
@@ -108,7 +110,7 @@ def measure_dynamic(point: Point, scenes: Scenes, duration: float) -> dict:
             frames.append(frame())
         walk = tracer.walk
     finally:
-        tracer.close()
+        renderer.close()
     frame_ms, update_ms = [f[0] for f in frames], [f[1] for f in frames]
     kernel_ms = [f[2] for f in frames if f[2] is not None]
     kinds = [f[3] for f in frames]
@@ -144,10 +146,14 @@ def measure(point: Point, scenes: Scenes, duration: float) -> dict:
     shaded = whitted(point)
     scene = scenes.get(point.spheres, materials=shaded)
     basis = Camera().basis(point.width, point.height)
-    opts = tracer_options(point)
-    if shaded:
-        opts["whitted"] = Shading.of(scene, point.options.get("depth"), point.options.get("shadow_samples"))
-    tracer = backends.tracer(point.device, scene.spheres, point.width, point.height, **opts)
+    # made as a program makes it (raybench.Renderer); its tracer is timed, the
+    # frame's kernel and readback without Renderer.render's copies
+    renderer = Renderer(
+        scene, point.width, point.height, point.device, "whitted" if shaded else "thesis",
+        point.options.get("depth") if shaded else None, point.options.get("shadow_samples") if shaded else None,
+        **tracer_options(point),
+    )  # fmt: skip
+    tracer = renderer.tracer
     try:
         build_s = tracer.build_s
         walk = tracer.walk  # cuda's BVH walk: "ray" or "packet", chosen by the tree
@@ -168,7 +174,7 @@ def measure(point: Point, scenes: Scenes, duration: float) -> dict:
                 frames.append(_frame(tracer, basis))
         counts = None if tracer.ray_counts is None else [int(c) for c in tracer.ray_counts]
     finally:
-        tracer.close()
+        renderer.close()
     frame_ms = [f for f, _ in frames]
     kernel_ms = [k for _, k in frames if k is not None]
     record = {
