@@ -72,11 +72,14 @@ def test_workers_split_the_cores_and_go_without_dask_malloc_setting(running):
 
 @pytest.mark.parametrize("accel", ["bvh", "none"])
 def test_tiles_are_the_single_process_frame_bit_for_bit(running, rng, accel):
-    scene, camera = scene_and_camera(rng)
     width, height = SIZES[rng.integers(len(SIZES))]
     rows = 8 * int(rng.integers(1, 4))
+    for _ in range(20):  # a scene whose frame has hits and misses both: a few spheres near the camera can fill it
+        scene, camera = scene_and_camera(rng)
+        whole = raybench.render(scene, camera, width, height, device="cpu", accel=accel)
+        if (whole.hits >= 0).any() and (whole.hits < 0).any():
+            break
     frame = cluster.render(running.client, scene, camera, width, height, device="cpu", rows=rows, accel=accel)
-    whole = raybench.render(scene, camera, width, height, device="cpu", accel=accel)
     assert frame.image.shape == (height, width, 3) and frame.device == "cpu"
     np.testing.assert_array_equal(frame.image, whole.image)
     np.testing.assert_array_equal(frame.hits, whole.hits)
@@ -171,7 +174,9 @@ def test_a_failed_job_leaves_no_block(running, no_block_left):
         cluster.render(running.client, raybench.random_spheres(3), width=32, height=32, device="cpu", accel="bogus")
 
 
-def test_ctrl_c_during_a_frame_leaves_no_block(running, monkeypatch, no_block_left):
+def interrupt_after_the_first_tile(monkeypatch) -> None:
+    """A Ctrl-C in the middle of a frame: distributed.as_completed gives the
+    first finished task, then raises KeyboardInterrupt."""
     import distributed
 
     as_completed = distributed.as_completed
@@ -181,6 +186,10 @@ def test_ctrl_c_during_a_frame_leaves_no_block(running, monkeypatch, no_block_le
         raise KeyboardInterrupt
 
     monkeypatch.setattr(distributed, "as_completed", interrupted)
+
+
+def test_ctrl_c_during_a_frame_leaves_no_block(running, monkeypatch, no_block_left):
+    interrupt_after_the_first_tile(monkeypatch)
     with pytest.raises(KeyboardInterrupt):
         cluster.render(running.client, raybench.random_spheres(3), width=32, height=32, device="cpu", rows=8)
 
@@ -253,17 +262,9 @@ def test_another_size_gets_its_own_block(running, rng, no_block_left):
 
 
 def test_an_interrupted_frames_block_is_not_lent_again(running, monkeypatch, no_block_left):
-    import distributed
-
     cluster.release(running.client)
     scene = raybench.random_spheres(7, seed=3)
-    as_completed = distributed.as_completed
-
-    def interrupted(tasks):
-        yield next(iter(as_completed(tasks)))
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(distributed, "as_completed", interrupted)
+    interrupt_after_the_first_tile(monkeypatch)
     with pytest.raises(KeyboardInterrupt):
         cluster.render(running.client, scene, width=32, height=32, device="cpu", rows=8)
     assert not [n for n in blocks() if n.startswith(f"{sharedframe.PREFIX}{os.getpid()}-")]
@@ -376,16 +377,17 @@ def test_a_worker_killed_mid_sequence_loses_nothing(running, rng, tmp_path):
     killed = []
 
     def on_frame(n, path):
-        if not killed and len(list(tmp_path.glob("frame_*.png"))) >= 3:
+        done = len(list(tmp_path.glob("frame_*.png")))  # frames arrive in any order: count them, not their index
+        if not killed and done >= 3:
             os.kill(victim, signal.SIGKILL)
-            killed.append(n)
+            killed.append(done)
 
     options = {"accel": "none", "kernel": "simple"}  # slow enough frames that the kill lands mid-sequence
     paths = cluster.render_sequence(
         running.client, scene, cameras, tmp_path, 160, 120, device="cpu", frames_per_task=1, on_frame=on_frame,
         **options,
     )  # fmt: skip
-    assert killed and killed[0] < len(cameras) - 1  # killed with frames still to come
+    assert killed and killed[0] < len(cameras)  # killed with frames still to come
     assert sorted(p.name for p in tmp_path.iterdir()) == [p.name for p in paths]
     with raybench.Renderer(scene, 160, 120, device="cpu", **options) as renderer:
         for path, cam in zip(paths, cameras, strict=True):
