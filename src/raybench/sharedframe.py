@@ -273,10 +273,8 @@ def write_rows(address: tuple[str, int, int], first: int, image: np.ndarray, hit
     is over). Writing the same rows again writes the same bytes (a retried task)."""
     _name, width, height = address
     rows = len(image)
-    if not (0 <= first and first + rows <= height and image.shape == (rows, width, 3) and hits.shape == (rows, width)):
-        raise ValueError(
-            f"rows {first}..{first + rows} ({image.shape}, {hits.shape}): not rows of a {width}x{height} frame"
-        )
+    if image.shape != (rows, width, 3) or hits.shape != (rows, width):  # fill_rows checks where the rows lie
+        raise ValueError(f"rows of shapes {image.shape}, {hits.shape}: not rows of a {width}x{height} frame")
 
     def copy(image_rows: np.ndarray, hit_rows: np.ndarray) -> None:
         image_rows[...] = image
