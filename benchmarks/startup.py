@@ -5,6 +5,7 @@ of JSON per measurement.
 
     python benchmarks/startup.py --device cpu --size 1680x1050 --spheres 1000
     python benchmarks/startup.py --device cpu --shading whitted
+    python benchmarks/startup.py --device cuda --build gpu
 
 The first line says what ran: the commit ($RAYBENCH_GIT_COMMIT where set),
 where raybench was imported from, and the machine: its processor and the
@@ -34,6 +35,7 @@ def main() -> int:
     parser.add_argument("--spheres", type=int, default=1000)
     parser.add_argument("--shading", default="thesis", choices=["thesis", "whitted"])
     parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--build", choices=["host", "gpu"], help="render's --build (cuda): where the BVH is built")
     args = parser.parse_args()
     python = sys.executable
     describe = (
@@ -53,6 +55,8 @@ def main() -> int:
                       "--device", device, "--shading", args.shading, "-o", out]  # fmt: skip
             if args.shading == "whitted":
                 render.insert(render.index("--spheres") + 2, "--materials")
+            if args.build:
+                render += ["--build", args.build]
             cold = []
             for run in range(args.runs):
                 env = {**base_env, "RAYBENCH_CACHE_DIR": os.path.join(scratch, f"cold-{device}-{run}")}
@@ -61,7 +65,7 @@ def main() -> int:
             warm = [timed(render, warm_env) for _ in range(args.runs)]
             for what, times in (("cold", cold), ("warm", warm)):
                 row = {"what": f"render {what}", "device": device, "shading": args.shading, "spheres": args.spheres,
-                       "size": args.size, "median_s": round(statistics.median(times), 3),
+                       "size": args.size, "build": args.build, "median_s": round(statistics.median(times), 3),
                        "runs_s": [round(t, 3) for t in times]}  # fmt: skip
                 print(json.dumps(row), flush=True)
     return 0

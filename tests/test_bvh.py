@@ -253,6 +253,29 @@ def test_tree_split_by_all_threads(rng, kind, monkeypatch):
     assert np.array_equal(many.links, one.links) and np.array_equal(many.order, one.order)
 
 
+@pytest.mark.parametrize("kind", [*sorted(SCENES), "chain"])
+def test_the_uncompiled_builder_gives_the_compiled_tree(rng, kind, monkeypatch):
+    """bvh.one_shot(): with the builder not in the cache, its own Python
+    builds the tree, which must be the compiled builder's bit for bit (the
+    chain takes the splits by count near MAX_DEPTH as well as SAH's)."""
+    scene, _ = chain(rng, 0) if kind == "chain" else SCENES[kind](rng, int(rng.integers(1, 1500)))
+    compiled_tree = bvh.build(scene.spheres)
+    started = []
+    monkeypatch.setattr(bvh.compiled, "is_ready", lambda name: False)
+    monkeypatch.setattr(bvh, "_compile_elsewhere", lambda: started.append(True))
+    with bvh.one_shot():
+        python_tree = bvh.build(scene.spheres)
+    assert python_tree.interpreted and not compiled_tree.interpreted and started == [True]
+    assert np.array_equal(python_tree.links, compiled_tree.links)  # every bit of every row, boxes too
+    assert np.array_equal(python_tree.ordered.view(np.int32), compiled_tree.ordered.view(np.int32))
+    assert np.array_equal(python_tree.order, compiled_tree.order) and python_tree.depth == compiled_tree.depth
+    # outside one_shot, and above WIDE within it, the builder is compiled
+    assert not bvh.build(scene.spheres).interpreted
+    if len(scene) > 2:
+        with bvh.one_shot():
+            assert not bvh.build(scene.spheres, _wide=2).interpreted
+
+
 def test_depth_is_bounded_for_a_chain(rng):
     """SAH would go as deep as the spheres are many; the builder switches to
     splits by count before the stack's depth."""

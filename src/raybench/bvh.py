@@ -35,9 +35,14 @@ all coincide are split by count too.
 
 from __future__ import annotations
 
+import atexit
+import contextlib
+import subprocess
+import sys
 import threading
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -84,7 +89,8 @@ class Bvh:
     ordered: np.ndarray  # (4, N) float32: cx, cy, cz, r in leaf order
     order: np.ndarray  # (N,) int32: original index of each ordered sphere
     depth: int  # deepest node (root = 1)
-    build_s: float  # seconds the build took (compiled code only)
+    build_s: float  # seconds the build took (compiled code only, unless interpreted)
+    interpreted: bool = False  # built by the builder's Python, uncompiled (one_shot)
 
     @property
     def count(self) -> int:
@@ -731,8 +737,92 @@ def compile_builder(wide: bool = True) -> None:
     spheres = np.ones((7, 9), np.float32)
     spheres[:3] = np.arange(27, dtype=np.float32).reshape(3, 9) % 5
     build(spheres, threads=1, _timed=False)
+    compiled.mark_ready(READY)
     if wide:
         build(spheres, threads=1, _timed=False, _wide=2)
+
+
+# --- a one-shot picture's tree, while the builder compiles elsewhere -------------------
+#
+# A process that makes one picture (raybench.render, `raybench render`) of a
+# scene of at most WIDE spheres, with the builder's one-thread way not yet in
+# the compile cache, builds its tree with that way's own code run as plain
+# Python (compiled.as_python): the same tree, bit for bit, in 0.2 s for
+# 1,000 spheres and 1.1 s for WIDE, against about 10 s to compile it on two
+# cores, which the first picture then does not wait for. A child process
+# compiles it into the cache meanwhile, beside the frame kernel's compile, and
+# the process waits for the child before it exits, leaving nothing running.
+# Objects that keep a scene for many frames (Renderer, the bench, the viewer)
+# compile the builder as before: their build times are compiled code's.
+
+READY = "builder"  # compiled.mark_ready's name for the one-thread way
+_one_shot = threading.local()
+_child: subprocess.Popen | None = None
+_CHILD_LOCK = threading.Lock()
+# the child compiles this very package: the folder it is in goes first on its path
+_CHILD = "import sys; sys.path.insert(0, sys.argv[1]); from raybench import bvh; bvh.compile_builder(wide=False)"
+
+
+@contextlib.contextmanager
+def one_shot():
+    """Within: a build of at most WIDE spheres runs the builder uncompiled if
+    the compile cache does not hold it yet, and has it compiled elsewhere."""
+    before = getattr(_one_shot, "on", False)
+    _one_shot.on = True
+    try:
+        yield
+    finally:
+        _one_shot.on = before
+
+
+def compiling_elsewhere() -> bool:
+    """Whether this process started the child that compiles the builder."""
+    return _child is not None
+
+
+def _interpret(n: int, wide: int) -> bool:
+    return getattr(_one_shot, "on", False) and n <= wide and not compiled.is_ready(READY)
+
+
+def _compile_elsewhere() -> None:
+    """Start the child that compiles the one-thread way into the cache, once
+    a process; the process waits for it at exit."""
+    global _child
+    with _CHILD_LOCK:
+        if _child is None:
+            _child = _start_child()
+            if _child is not None:
+                atexit.register(_child.wait)
+
+
+def _start_child() -> subprocess.Popen | None:
+    try:
+        return subprocess.Popen(
+            [sys.executable, "-c", _CHILD, str(Path(__file__).resolve().parent.parent)],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+    except OSError:
+        return None  # no child: the next process compiles, or runs uncompiled again
+
+
+def _build_narrow(code, cx, cy, cz, r):
+    """The one-thread way's tree: (nodes, ordered, order, depth). code: this
+    module, or compiled.as_python(this module) to run it uncompiled."""
+    n = cx.shape[0]
+    p = tuple(np.empty(n, np.float32) for _ in range(4)) + (np.empty(n, np.int32),)
+    # IEEE arithmetic, as compiled code's: no NumPy warnings on inf or nan when uncompiled
+    with np.errstate(all="ignore"):
+        code._prepare(cx, cy, cz, r, p, 0, n, np.empty(12, np.float32))
+        px, py, pz, pr, order = p
+        nodes = np.empty((2 * max(n, 1), NODE_FLOATS), np.float32)
+        stack = code._stack()
+        links = nodes.view(np.int32)
+        top = code._root(px, py, pz, pr, order, nodes, links, stack)
+        used, depth = code._grow(px, py, pz, pr, order, nodes, links, stack, top, 1)
+    # the centres are already in leaf order (the builder moved them), the very values of the scene
+    return nodes[:used].copy(), np.stack([px, py, pz, r[order]]), order, depth
 
 
 def _piece(spheres: int, threads: int) -> int:
@@ -815,12 +905,16 @@ def build(spheres: np.ndarray, threads: int | None = None, _timed: bool = True, 
     `threads` threads (default: all cores). Up to `_wide` spheres, on one
     thread; above, the top of the tree is split by all threads together, the
     subtrees below on one thread each. The tree is the same on any number of
-    threads."""
+    threads. Within one_shot(), a scene of up to `_wide` spheres may be built
+    by the builder's uncompiled Python, the same tree (Bvh.interpreted)."""
     n = spheres.shape[1]
     if n > MAX_SPHERES:
         raise RaybenchError(f"bvh: at most {MAX_SPHERES:,} spheres, got {n:,}")
     threads = threads or usable_cores()
-    if _timed:
+    interpret = _timed and _interpret(n, _wide)
+    if interpret:
+        _compile_elsewhere()
+    elif _timed:
         compile_builder(wide=n > _wide)
     cx, cy, cz, r = (np.ascontiguousarray(spheres[k]) for k in range(4))
     start = time.perf_counter()
@@ -836,16 +930,15 @@ def build(spheres: np.ndarray, threads: int | None = None, _timed: bool = True, 
             finally:
                 numba.set_num_threads(before)
     else:
-        p = tuple(np.empty(n, np.float32) for _ in range(4)) + (np.empty(n, np.int32),)
-        _prepare(cx, cy, cz, r, p, 0, n, np.empty(12, np.float32))
-        px, py, pz, pr, order = p
-        nodes = np.empty((2 * max(n, 1), NODE_FLOATS), np.float32)
-        stack = _stack()
-        links = nodes.view(np.int32)
-        top = _root(px, py, pz, pr, order, nodes, links, stack)
-        used, depth = _grow(px, py, pz, pr, order, nodes, links, stack, top, 1)
-        nodes = nodes[:used].copy()
-        # the centres are already in leaf order (the builder moved them), the very values of the scene
-        ordered = np.stack([px, py, pz, r[order]])
+        code = compiled.as_python(sys.modules[__name__]) if interpret else sys.modules[__name__]
+        nodes, ordered, order, depth = _build_narrow(code, cx, cy, cz, r)
     build_s = time.perf_counter() - start
-    return Bvh(nodes=nodes, links=nodes.view(np.int32), ordered=ordered, order=order, depth=int(depth), build_s=build_s)
+    return Bvh(
+        nodes=nodes,
+        links=nodes.view(np.int32),
+        ordered=ordered,
+        order=order,
+        depth=int(depth),
+        build_s=build_s,
+        interpreted=interpret,
+    )

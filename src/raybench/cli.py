@@ -374,6 +374,11 @@ def render(
     elapsed = time.perf_counter() - start
     frame.save(output, level)
     built = f", BVH built in {frame.build_s * 1e3:.1f} ms" if frame.build_s is not None else ""
+    if frame.build_s is not None:
+        from .bvh import compiling_elsewhere
+
+        if compiling_elsewhere():
+            built += " (uncompiled, as the builder compiles for later runs)"
     rays = ""
     if frame.rays is not None:
         rays = ", rays: " + ", ".join(f"{n:,} {kind}" for kind, n in frame.rays.items())
