@@ -276,6 +276,24 @@ def test_the_uncompiled_builder_gives_the_compiled_tree(rng, kind, monkeypatch):
             assert not bvh.build(scene.spheres, _wide=2).interpreted
 
 
+@pytest.mark.parametrize("ready", [False, True])
+def test_which_one_shot_builds_run_in_python(ready, monkeypatch):
+    """In Python: a scene of at most WIDE spheres whose builder is not cached
+    (compiled elsewhere meanwhile), and on a GPU device one of at most
+    GPU_PYTHON_MAX whatever the cache holds (no child: its process needs no
+    CPU compiler). Outside one_shot(), never."""
+    monkeypatch.setattr(bvh.compiled, "is_ready", lambda name: ready)
+    small, mid, large = bvh.GPU_PYTHON_MAX, bvh.GPU_PYTHON_MAX + 1, bvh.WIDE + 1
+    assert bvh._in_python(small, bvh.WIDE, "cuda") == (False, False)  # not within one_shot
+    with bvh.one_shot():
+        for device in ("cuda", "wgpu"):
+            assert bvh._in_python(small, bvh.WIDE, device) == (True, False)
+            assert bvh._in_python(mid, bvh.WIDE, device) == (not ready, not ready)
+            assert bvh._in_python(large, bvh.WIDE, device) == (False, False)
+        assert bvh._in_python(small, bvh.WIDE, "cpu") == (not ready, not ready)
+        assert bvh._in_python(large, bvh.WIDE, "cpu") == (False, False)
+
+
 def test_depth_is_bounded_for_a_chain(rng):
     """SAH would go as deep as the spheres are many; the builder switches to
     splits by count before the stack's depth."""

@@ -742,20 +742,25 @@ def compile_builder(wide: bool = True) -> None:
         build(spheres, threads=1, _timed=False, _wide=2)
 
 
-# --- a one-shot picture's tree, while the builder compiles elsewhere -------------------
+# --- a one-shot picture's tree, in Python --------------------------------------------
 #
 # A process that makes one picture (raybench.render, `raybench render`) of a
-# scene of at most WIDE spheres, with the builder's one-thread way not yet in
-# the compile cache, builds its tree with that way's own code run as plain
-# Python (compiled.as_python): the same tree, bit for bit, in 0.2 s for
-# 1,000 spheres and 1.1 s for WIDE, against about 10 s to compile it on two
-# cores, which the first picture then does not wait for. A child process
-# compiles it into the cache meanwhile, beside the frame kernel's compile, and
-# the process waits for the child before it exits, leaving nothing running.
+# scene of at most WIDE spheres may build its tree with the builder's own
+# code run as plain Python (compiled.as_python): the same tree, bit for bit,
+# in 0.2-0.3 s for 1,000 spheres and 1.1 s for WIDE. Where that is quicker:
+# - the builder is not yet in the compile cache: compiling it takes about
+#   10 s on two cores. A child process compiles it into the cache meanwhile,
+#   beside the frame kernel's compile, and the process waits for the child
+#   before it exits, leaving nothing running;
+# - the picture is traced on a GPU (cuda, wgpu) and the scene has at most
+#   GPU_PYTHON_MAX spheres: the compiled builder, even cached, needs Numba's
+#   CPU compiler started (its registries, and SciPy, which it imports), about
+#   0.5 s that nothing else of such a process needs (docs/performance.md).
 # Objects that keep a scene for many frames (Renderer, the bench, the viewer)
-# compile the builder as before: their build times are compiled code's.
+# build with the compiled builder: their build times are compiled code's.
 
 READY = "builder"  # compiled.mark_ready's name for the one-thread way
+GPU_PYTHON_MAX = 2048
 _one_shot = threading.local()
 _child: subprocess.Popen | None = None
 _CHILD_LOCK = threading.Lock()
@@ -765,8 +770,8 @@ _CHILD = "import sys; sys.path.insert(0, sys.argv[1]); from raybench import bvh;
 
 @contextlib.contextmanager
 def one_shot():
-    """Within: a build of at most WIDE spheres runs the builder uncompiled if
-    the compile cache does not hold it yet, and has it compiled elsewhere."""
+    """Within: a build of at most WIDE spheres may run the builder as plain
+    Python (above), and a build's way is told by last_build_in_python()."""
     before = getattr(_one_shot, "on", False)
     _one_shot.on = True
     try:
@@ -775,13 +780,24 @@ def one_shot():
         _one_shot.on = before
 
 
+def last_build_in_python() -> bool:
+    """Whether this thread's last build within one_shot() ran the builder as Python."""
+    return getattr(_one_shot, "python", False)
+
+
 def compiling_elsewhere() -> bool:
     """Whether this process started the child that compiles the builder."""
     return _child is not None
 
 
-def _interpret(n: int, wide: int) -> bool:
-    return getattr(_one_shot, "on", False) and n <= wide and not compiled.is_ready(READY)
+def _in_python(n: int, wide: int, device: str) -> tuple[bool, bool]:
+    """(whether to build in Python, whether to compile the builder elsewhere meanwhile)."""
+    if not getattr(_one_shot, "on", False) or n > wide:
+        return False, False
+    if device != "cpu" and n <= GPU_PYTHON_MAX:
+        return True, False
+    missing = not compiled.is_ready(READY)
+    return missing, missing
 
 
 def _compile_elsewhere() -> None:
@@ -900,21 +916,25 @@ def _build_wide(cx, cy, cz, r, threads: int, wide: int):
     return packed, ordered, p[4], max(depth, int(depths.max()))
 
 
-def build(spheres: np.ndarray, threads: int | None = None, _timed: bool = True, _wide: int = WIDE) -> Bvh:
+def build(
+    spheres: np.ndarray, threads: int | None = None, device: str = "cpu", _timed: bool = True, _wide: int = WIDE
+) -> Bvh:
     """The BVH of a (7, N) float32 sphere array (Scene.spheres), built on
     `threads` threads (default: all cores). Up to `_wide` spheres, on one
     thread; above, the top of the tree is split by all threads together, the
     subtrees below on one thread each. The tree is the same on any number of
-    threads. Within one_shot(), a scene of up to `_wide` spheres may be built
+    threads. device: the one whose walks the tree is for ("cpu", "cuda",
+    "wgpu"). Within one_shot(), a scene of up to `_wide` spheres may be built
     by the builder's uncompiled Python, the same tree (Bvh.interpreted)."""
     n = spheres.shape[1]
     if n > MAX_SPHERES:
         raise RaybenchError(f"bvh: at most {MAX_SPHERES:,} spheres, got {n:,}")
     threads = threads or usable_cores()
-    interpret = _timed and _interpret(n, _wide)
-    if interpret:
+    interpret, elsewhere = _in_python(n, _wide, device) if _timed else (False, False)
+    _one_shot.python = interpret
+    if elsewhere:
         _compile_elsewhere()
-    elif _timed:
+    elif _timed and not interpret:
         compile_builder(wide=n > _wide)
     cx, cy, cz, r = (np.ascontiguousarray(spheres[k]) for k in range(4))
     start = time.perf_counter()
