@@ -22,10 +22,14 @@ import tempfile
 import time
 
 
-def timed(command: list[str], env: dict) -> float:
+def timed(command: list[str], env: dict, said: list | None = None) -> float:
+    """The seconds command took; what it printed goes on `said` where given."""
     start = time.perf_counter()
-    subprocess.run(command, env=env, check=True, stdout=subprocess.DEVNULL)
-    return time.perf_counter() - start
+    ran = subprocess.run(command, env=env, check=True, stdout=subprocess.PIPE, text=True)
+    took = time.perf_counter() - start
+    if said is not None:
+        said.append(ran.stdout.strip())
+    return took
 
 
 def main() -> int:
@@ -57,16 +61,17 @@ def main() -> int:
                 render.insert(render.index("--spheres") + 2, "--materials")
             if args.build:
                 render += ["--build", args.build]
-            cold = []
+            # what render printed: its own time to the written picture, before the process ends
+            cold, warm, said = [], [], {"cold": [], "warm": []}
             for run in range(args.runs):
                 env = {**base_env, "RAYBENCH_CACHE_DIR": os.path.join(scratch, f"cold-{device}-{run}")}
-                cold.append(timed(render, env))
+                cold.append(timed(render, env, said["cold"]))
             warm_env = {**base_env, "RAYBENCH_CACHE_DIR": os.path.join(scratch, f"cold-{device}-0")}
-            warm = [timed(render, warm_env) for _ in range(args.runs)]
+            warm = [timed(render, warm_env, said["warm"]) for _ in range(args.runs)]
             for what, times in (("cold", cold), ("warm", warm)):
                 row = {"what": f"render {what}", "device": device, "shading": args.shading, "spheres": args.spheres,
                        "size": args.size, "build": args.build, "median_s": round(statistics.median(times), 3),
-                       "runs_s": [round(t, 3) for t in times]}  # fmt: skip
+                       "runs_s": [round(t, 3) for t in times], "said": said[what]}  # fmt: skip
                 print(json.dumps(row), flush=True)
     return 0
 
