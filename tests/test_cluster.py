@@ -532,6 +532,20 @@ def test_cuda_workers_are_pinned_one_gpu_each_within_those_visible(monkeypatch):
 
 
 @pytest.mark.slow
+def test_a_frames_tiles_are_dealt_to_every_worker(running, rng, no_block_left):
+    """As many tiles as workers: one on each, frame after frame (left to
+    Dask, the two tiles of a frame went to one of two GPUs for a whole run)."""
+    from distributed import get_task_stream
+
+    scene, camera = scene_and_camera(rng, 200)
+    workers = sorted(running.client.scheduler_info(n_workers=-1)["workers"])
+    for _ in range(3):
+        with get_task_stream(running.client) as stream:
+            cluster.render(running.client, scene, camera, 64, 16 * len(workers), "cpu", rows=16)
+        ran_on = sorted(t["worker"] for t in stream.data if "_tile" in str(t["key"]))
+        assert ran_on == workers, ran_on
+
+
 def test_a_worker_killed_mid_frame_loses_no_tile(running, rng, no_block_left):
     """A worker killed while it traces a tile: Dask traces that tile again elsewhere, and the frame is whole."""
     import threading
