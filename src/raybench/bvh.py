@@ -747,15 +747,16 @@ def compile_builder(wide: bool = True) -> None:
 # A process that makes one picture (raybench.render, `raybench render`) of a
 # scene of at most WIDE spheres may build its tree with the builder's own
 # code run as plain Python (compiled.as_python): the same tree, bit for bit,
-# in 0.2-0.3 s for 1,000 spheres and 1.1 s for WIDE. Where that is quicker:
-# - the builder is not yet in the compile cache: compiling it takes about
-#   10 s on two cores. A child process compiles it into the cache meanwhile,
-#   beside the frame kernel's compile, and the process waits for the child
-#   before it exits, leaving nothing running;
+# in a fraction of a second, where compiling the builder takes many seconds
+# (docs/performance.md has the figures). It does so where that is quicker:
+# - the builder is not yet in the compile cache. A child process compiles it
+#   into the cache meanwhile, beside the frame kernel's compile, and the
+#   process waits for the child before it exits, leaving nothing running;
 # - the picture is traced on a GPU (cuda, wgpu) and the scene has at most
 #   GPU_PYTHON_MAX spheres: the compiled builder, even cached, needs Numba's
-#   CPU compiler started (its registries, and SciPy, which it imports), about
-#   0.5 s that nothing else of such a process needs (docs/performance.md).
+#   CPU compiler started (its registries, and SciPy where it is installed),
+#   which nothing else of such a process needs and which costs more than
+#   Python's build of so few spheres.
 # Objects that keep a scene for many frames (Renderer, the bench, the viewer)
 # build with the compiled builder: their build times are compiled code's.
 
