@@ -1,0 +1,165 @@
+// Step 3 of the build (cuda_build._count, _scan, _scatter): the (code,
+// index) pairs sorted by code, an LSD radix sort of DIGIT_BITS a pass, each
+// pass three dispatches. A workgroup sorts a tile of TILE keys, each
+// invocation ITEMS consecutive ones. The scatter is stable, so equal codes
+// keep their indices' order, the tie-break Karras's hierarchy needs.
+//
+// Where cuda's scatter ranks a key among its digit's by counters per digit
+// and thread (32 KiB of shared memory, over WebGPU's 16 KiB default), this
+// one first sorts the tile by the digit in workgroup memory, one bit at a
+// time (a stable split by a scan of the zeros: DIGIT_BITS scans a pass),
+// so that a key's rank is its place past its digit's first in the tile.
+
+@group(0) @binding(1) var<storage, read> keys_in: array<u32>;
+@group(0) @binding(2) var<storage, read> values_in: array<u32>;
+// hist[d * tiles + b]: tile b's keys of digit d, then (after scan) where
+// the first of them goes.
+@group(0) @binding(3) var<storage, read_write> hist: array<u32>;
+@group(0) @binding(4) var<storage, read_write> keys_out: array<u32>;
+@group(0) @binding(5) var<storage, read_write> values_out: array<u32>;
+
+var<workgroup> counts: array<atomic<u32>, RADIX>;
+var<workgroup> sums: array<u32, THREADS>;
+var<workgroup> tile_k: array<u32, TILE>;
+var<workgroup> tile_v: array<u32, TILE>;
+var<workgroup> start: array<u32, RADIX>;
+
+fn digit(key: u32) -> u32 {
+    return (key >> params.shift) & (RADIX - 1u);
+}
+
+// The tile of a workgroup (workgroups laid out in 2-D past 65535).
+fn tile_of(wg: vec3<u32>, groups: vec3<u32>) -> u32 {
+    return wg.y * groups.x + wg.x;
+}
+
+// (v's exclusive prefix sum over the workgroup's invocations, their total):
+// Hillis and Steele's scan in sums. Every invocation calls it.
+fn workgroup_scan(t: u32, v: u32) -> vec2<u32> {
+    sums[t] = v;
+    for (var step = 1u; step < THREADS; step = step * 2u) {
+        workgroupBarrier();
+        var add = 0u;
+        if (t >= step) {
+            add = sums[t - step];
+        }
+        workgroupBarrier();
+        sums[t] = sums[t] + add;
+    }
+    workgroupBarrier();
+    let inclusive = sums[t];
+    let total = sums[THREADS - 1u];
+    workgroupBarrier();  // all have read before sums is written again
+    return vec2<u32>(inclusive - v, total);
+}
+
+@compute @workgroup_size(THREADS)
+fn count(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
+         @builtin(local_invocation_index) t: u32) {
+    let b = tile_of(wg, groups);
+    if (b >= params.tiles) {
+        return;
+    }
+    for (var d = t; d < RADIX; d = d + THREADS) {
+        atomicStore(&counts[d], 0u);
+    }
+    workgroupBarrier();
+    for (var k = 0u; k < ITEMS; k = k + 1u) {
+        let i = b * TILE + k * THREADS + t;
+        if (i < params.n) {
+            atomicAdd(&counts[digit(keys_in[i])], 1u);
+        }
+    }
+    workgroupBarrier();
+    for (var d = t; d < RADIX; d = d + THREADS) {
+        hist[d * params.tiles + b] = atomicLoad(&counts[d]);
+    }
+}
+
+// hist to its exclusive prefix sums: one workgroup, each invocation a run
+// of consecutive entries.
+@compute @workgroup_size(THREADS)
+fn scan(@builtin(local_invocation_index) t: u32) {
+    let m = RADIX * params.tiles;
+    let per = (m + THREADS - 1u) / THREADS;
+    let lo = min(t * per, m);
+    let hi = min(lo + per, m);
+    var s = 0u;
+    for (var i = lo; i < hi; i = i + 1u) {
+        s = s + hist[i];
+    }
+    var run = workgroup_scan(t, s).x;
+    for (var i = lo; i < hi; i = i + 1u) {
+        let v = hist[i];
+        hist[i] = run;
+        run = run + v;
+    }
+}
+
+@compute @workgroup_size(THREADS)
+fn scatter(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
+           @builtin(local_invocation_index) t: u32) {
+    let b = tile_of(wg, groups);
+    if (b >= params.tiles) {
+        return;
+    }
+    let base = b * TILE;
+    let valid = min(TILE, params.n - base);
+    // coalesced loads; past the end, keys of every digit bit set, which stay last
+    for (var k = 0u; k < ITEMS; k = k + 1u) {
+        let j = k * THREADS + t;
+        if (j < valid) {
+            tile_k[j] = keys_in[base + j];
+            tile_v[j] = values_in[base + j];
+        } else {
+            tile_k[j] = 0xffffffffu;
+            tile_v[j] = 0u;
+        }
+    }
+    workgroupBarrier();
+    // the tile sorted by the digit, stably, one bit at a time
+    for (var bit = 0u; bit < DIGIT_BITS; bit = bit + 1u) {
+        var mine_k: array<u32, ITEMS>;
+        var mine_v: array<u32, ITEMS>;
+        var zeros = 0u;
+        for (var k = 0u; k < ITEMS; k = k + 1u) {
+            mine_k[k] = tile_k[t * ITEMS + k];
+            mine_v[k] = tile_v[t * ITEMS + k];
+            zeros = zeros + (1u - ((mine_k[k] >> (params.shift + bit)) & 1u));
+        }
+        let scanned = workgroup_scan(t, zeros);  // its barriers: every key read before any is moved
+        var zero_at = scanned.x;
+        var one_at = scanned.y + t * ITEMS - scanned.x;
+        for (var k = 0u; k < ITEMS; k = k + 1u) {
+            var to: u32;
+            if (((mine_k[k] >> (params.shift + bit)) & 1u) == 0u) {
+                to = zero_at;
+                zero_at = zero_at + 1u;
+            } else {
+                to = one_at;
+                one_at = one_at + 1u;
+            }
+            tile_k[to] = mine_k[k];
+            tile_v[to] = mine_v[k];
+        }
+        workgroupBarrier();
+    }
+    // where each digit starts in the tile
+    for (var k = 0u; k < ITEMS; k = k + 1u) {
+        let j = t * ITEMS + k;
+        let d = digit(tile_k[j]);
+        if (j == 0u || digit(tile_k[j - 1u]) != d) {
+            start[d] = j;
+        }
+    }
+    workgroupBarrier();
+    for (var k = 0u; k < ITEMS; k = k + 1u) {
+        let j = k * THREADS + t;
+        if (j < valid) {
+            let d = digit(tile_k[j]);
+            let to = hist[d * params.tiles + b] + j - start[d];
+            keys_out[to] = tile_k[j];
+            values_out[to] = tile_v[j];
+        }
+    }
+}
