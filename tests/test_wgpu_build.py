@@ -53,15 +53,24 @@ def built(device, kernels, spheres, leaf_size=None, quality=None):
     return builder, builder.run(builder.encode_build)
 
 
-def assert_models_tree(builder, stats, spheres, quality, leaf_size):
+def assert_models_tree(builder, stats, spheres, quality, leaf_size, subnormal=False):
     """The model's tree: every row (collapsed ones too), the order, the
     ordered spheres, the depth, the rows reached and the cost, bit for bit.
     WGSL rounds +, - and * correctly; the builder keeps a compiler from
     fusing a product into a sum (build_common.wgsl's exact()), and rounds
     the Morton codes' one division correctly (cells_per_unit) and leaves the
-    cost's to the host, so nothing is left to differ."""
+    cost's to the host, so nothing is left to differ, but for one thing:
+    WGSL lets a GPU flush subnormal floats to zero. Where the scene's boxes
+    are so small that their half areas are subnormal (subnormal true: the
+    chain's), a GPU may then cut leaves elsewhere: there the tree is held to
+    be valid and of the model's cost within 1e-4 (a CPU driver, which keeps
+    subnormals, still bit for bit)."""
     nodes, order, ordered, depth, rows, cost = tree_model().build(spheres, quality, leaf_size)
     got = builder.to_host(stats.depth)
+    if subnormal and builder.device.adapter_info["adapter_type"] != "CPU":
+        check_tree(got, spheres)
+        assert tree_cost.sah_cost(got.nodes) == pytest.approx(tree_cost.sah_cost(nodes), rel=1e-4)
+        return
     assert np.array_equal(got.order, order)
     assert np.array_equal(got.ordered, ordered)
     assert np.array_equal(got.nodes.view(np.uint32), nodes.view(np.uint32))
@@ -77,7 +86,7 @@ def test_tree_is_the_models(device, kernels, rng, kind):
     quality = str(rng.choice(gpu_build.QUALITIES))
     leaf_size = int(rng.integers(1, bvh.LEAF_MAX + 1))
     builder, stats = built(device, kernels, scene.spheres, leaf_size, quality)
-    assert_models_tree(builder, stats, scene.spheres, quality, leaf_size)
+    assert_models_tree(builder, stats, scene.spheres, quality, leaf_size, subnormal=kind == "chain")
     check_tree(builder.to_host(stats.depth), scene.spheres)
     counts = builder.to_host(stats.depth).links[:, layout.COUNT : layout.COUNT + 2]
     assert counts.max() <= leaf_size
