@@ -261,3 +261,17 @@ def test_host_build_is_the_default_and_rebuilds_on_update(adapter, rng):
 def test_bad_build_options(adapter, options, match):
     with pytest.raises(raybench.RaybenchError, match=match):
         raybench.render(raybench.random_spheres(3), width=8, height=8, device="wgpu", adapter=adapter, **options)
+
+
+def test_the_windows_tracer_takes_the_build(device, adapter, rng):
+    """The viewer's copy-free path (viewer.zero_copy) builds where --build says."""
+    from types import SimpleNamespace
+
+    from raybench.viewer.zero_copy import InWindowTracer
+
+    scene, _ = SCENES["generated"](rng, 50)
+    tracer = InWindowTracer(device, adapters.choose(adapter))
+    for build in ("gpu", "host"):
+        request = SimpleNamespace(scene=scene, shading=None, width=8, height=8, options={"build": build})
+        tracer.prepare(request)
+        assert tracer.compute.build == build and tracer.compute.tree.built_on == build
