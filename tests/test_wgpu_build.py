@@ -103,6 +103,22 @@ def test_workgroups_past_a_dimensions_limit_wrap_to_a_second(device, kernels, rn
     assert_models_tree(builder, stats, scene.spheres, lbvh.QUALITY, bvh.LEAF_MAX)
 
 
+def test_scan_of_more_tiles_than_a_round_carries_over(device, rng, monkeypatch):
+    """A digit's counts of more tiles than the scan takes a round (made 256
+    here, so that some 270,000 spheres need two): the tree is still the
+    model's."""
+    monkeypatch.setattr(gpu_build, "SCAN_ITEMS", 1)
+    gpu_build.source.cache_clear()
+    try:
+        n = int(rng.integers(gpu_build.THREADS * gpu_build.TILE + 1, 270_000))
+        scene, _ = SCENES["generated"](rng, n)
+        builder, stats = built(device, gpu_build.Kernels(device), scene.spheres)
+        assert builder.tiles > gpu_build.THREADS
+        assert_models_tree(builder, stats, scene.spheres, lbvh.QUALITY, bvh.LEAF_MAX)
+    finally:
+        gpu_build.source.cache_clear()
+
+
 def test_sort_is_stable_by_morton_code(device, kernels, rng):
     """The leaf order is the spheres sorted by their Morton codes (worked out
     bit by bit in float32 with NumPy's correctly rounded division), equal

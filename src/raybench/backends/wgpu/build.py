@@ -48,6 +48,9 @@ THREADS = 256
 # a pass (5 passes for 30 bits, as cuda's).
 ITEMS = 4
 TILE = THREADS * ITEMS
+# The scan of a digit's counts over the tiles: SCAN_ITEMS an invocation,
+# SCAN_CHUNK = THREADS * SCAN_ITEMS a round (one round up to 4,194,304 spheres).
+SCAN_ITEMS = 4
 DIGIT_BITS = 6
 RADIX = 1 << DIGIT_BITS
 PASSES = -(-lbvh.CODE_BITS // DIGIT_BITS)
@@ -70,6 +73,8 @@ def constants() -> str:
         "THREADS": f"{THREADS}u",
         "ITEMS": f"{ITEMS}u",
         "TILE": f"{TILE}u",
+        "SCAN_ITEMS": f"{SCAN_ITEMS}u",
+        "SCAN_CHUNK": f"{THREADS * SCAN_ITEMS}u",
         "DIGIT_BITS": f"{DIGIT_BITS}u",
         "RADIX": f"{RADIX}u",
         "PARTS_AT": f"{PARTS_AT}u",
@@ -176,7 +181,7 @@ class Builder:
         self.bounds = buffer(4 * (PARTS_AT + 6 * PARTS))
         self.keys = (buffer(4 * n), buffer(4 * n))
         self.values = (buffer(4 * n), buffer(4 * n))
-        self.hist = buffer(4 * RADIX * self.tiles)
+        self.hist = buffer(4 * RADIX * (self.tiles + 1))  # the counts, then the digits' totals
         self.nodes = buffer(layout.NODE_BYTES * m)
         self.links = buffer(4 * (m + n + 2 * m))  # up, leaf_up, span
         self.scratch = device.create_buffer_with_data(data=np.zeros(7 * m, np.uint32).tobytes(), usage=storage)
@@ -209,7 +214,7 @@ class Builder:
             src, dst = p % 2, 1 - p % 2
             self._sort += [
                 ("count", bind("count", {0: passes[p], 1: self.keys[src], 3: self.hist}), grid(self.tiles)),
-                ("scan", bind("scan", {0: passes[p], 3: self.hist}), (1, 1)),
+                ("scan", bind("scan", {0: passes[p], 3: self.hist}), (RADIX, 1)),
                 ("scatter", bind("scatter", {0: passes[p], 1: self.keys[src], 2: self.values[src], 3: self.hist,
                                              4: self.keys[dst], 5: self.values[dst]}), grid(self.tiles)),
             ]  # fmt: skip

@@ -9,11 +9,17 @@
 // one first sorts the tile by the digit in workgroup memory, one bit at a
 // time (a stable split by a scan of the zeros: DIGIT_BITS scans a pass),
 // so that a key's rank is its place past its digit's first in the tile.
+//
+// And where cuda's scan is one block's over every digit's counts in a row,
+// this one is a workgroup a digit, each over its own tiles' counts (then
+// every digit's total, from which each scatter finds where its digits
+// start): one workgroup of WebGPU's 256 would walk n / 4096 counts each.
 
 @group(0) @binding(1) var<storage, read> keys_in: array<u32>;
 @group(0) @binding(2) var<storage, read> values_in: array<u32>;
-// hist[d * tiles + b]: tile b's keys of digit d, then (after scan) where
-// the first of them goes.
+// hist[d * tiles + b]: tile b's keys of digit d, then (after scan) how many
+// keys of digit d the tiles before b hold; hist[RADIX * tiles + d]: digit
+// d's keys in all.
 @group(0) @binding(3) var<storage, read_write> hist: array<u32>;
 @group(0) @binding(4) var<storage, read_write> keys_out: array<u32>;
 @group(0) @binding(5) var<storage, read_write> values_out: array<u32>;
@@ -23,6 +29,7 @@ var<workgroup> sums: array<u32, THREADS>;
 var<workgroup> tile_k: array<u32, TILE>;
 var<workgroup> tile_v: array<u32, TILE>;
 var<workgroup> start: array<u32, RADIX>;
+var<workgroup> first: array<u32, RADIX>;
 
 fn digit(key: u32) -> u32 {
     return (key >> params.shift) & (RADIX - 1u);
@@ -76,23 +83,35 @@ fn count(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) groups: 
     }
 }
 
-// hist to its exclusive prefix sums: one workgroup, each invocation a run
-// of consecutive entries.
+// Digit d's counts (workgroup d) to their exclusive prefix sums over the
+// tiles, SCAN_CHUNK at a time (each invocation SCAN_ITEMS consecutive
+// ones), and their total.
 @compute @workgroup_size(THREADS)
-fn scan(@builtin(local_invocation_index) t: u32) {
-    let m = RADIX * params.tiles;
-    let per = (m + THREADS - 1u) / THREADS;
-    let lo = min(t * per, m);
-    let hi = min(lo + per, m);
-    var s = 0u;
-    for (var i = lo; i < hi; i = i + 1u) {
-        s = s + hist[i];
+fn scan(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) t: u32) {
+    let tiles = params.tiles;
+    let row = wg.x * tiles;
+    var carry = 0u;
+    for (var base = 0u; base < tiles; base = base + SCAN_CHUNK) {
+        var v: array<u32, SCAN_ITEMS>;
+        var s = 0u;
+        for (var k = 0u; k < SCAN_ITEMS; k = k + 1u) {
+            let j = base + t * SCAN_ITEMS + k;
+            v[k] = select(0u, hist[row + j], j < tiles);
+            s = s + v[k];
+        }
+        let scanned = workgroup_scan(t, s);
+        var run = carry + scanned.x;
+        for (var k = 0u; k < SCAN_ITEMS; k = k + 1u) {
+            let j = base + t * SCAN_ITEMS + k;
+            if (j < tiles) {
+                hist[row + j] = run;
+            }
+            run = run + v[k];
+        }
+        carry = carry + scanned.y;
     }
-    var run = workgroup_scan(t, s).x;
-    for (var i = lo; i < hi; i = i + 1u) {
-        let v = hist[i];
-        hist[i] = run;
-        run = run + v;
+    if (t == 0u) {
+        hist[RADIX * tiles + wg.x] = carry;
     }
 }
 
@@ -105,6 +124,12 @@ fn scatter(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) groups
     }
     let base = b * TILE;
     let valid = min(TILE, params.n - base);
+    // where each digit's keys start: the digits' totals scanned
+    let total = select(0u, hist[RADIX * params.tiles + t], t < RADIX);
+    let before = workgroup_scan(t, total).x;
+    if (t < RADIX) {
+        first[t] = before;
+    }
     // coalesced loads; past the end, keys of every digit bit set, which stay last
     for (var k = 0u; k < ITEMS; k = k + 1u) {
         let j = k * THREADS + t;
@@ -157,7 +182,7 @@ fn scatter(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) groups
         let j = k * THREADS + t;
         if (j < valid) {
             let d = digit(tile_k[j]);
-            let to = hist[d * params.tiles + b] + j - start[d];
+            let to = first[d] + hist[d * params.tiles + b] + j - start[d];
             keys_out[to] = tile_k[j];
             values_out[to] = tile_v[j];
         }
