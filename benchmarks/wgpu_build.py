@@ -18,7 +18,7 @@ Without timestamps (an adapter without "timestamp-query") the GPU times are
 null and only the wall times are given.
 
     python benchmarks/wgpu_build.py --json out.json [--adapter NAME] [--spheres 1000 --spheres 100000]
-        [--repeats 21] [--quality sah --quality lbvh] [--frames 11]
+        [--repeats 21] [--quality sah --quality lbvh] [--frames 11] [--split-bits 1 --split-bits 3]
 
 The same figures for numba-cuda's build: benchmarks/gpu_build.py.
 """
@@ -143,21 +143,30 @@ def main() -> int:
     parser.add_argument("--quality", action="append", choices=gpu_build.QUALITIES, help="default all")
     parser.add_argument("--frames", type=int, default=11, help="timed frames per walk (0: no walk)")
     parser.add_argument("--size", default="1680x1050", help="the walk's frame")
+    parser.add_argument(
+        "--split-bits",
+        action="append",
+        type=int,
+        choices=(1, 2, 3),
+        help=f"the sort's bits a round in its tiles (default {gpu_build.SPLIT_BITS}); repeat to compare",
+    )
     args = parser.parse_args()
     width, height = (int(v) for v in args.size.split("x"))
     adapter = adapters.choose(args.adapter)
     device = adapters.request_device(adapter)
-    records = []
+    records, splits = [], args.split_bits or [gpu_build.SPLIT_BITS]
     for n in args.spheres or [1000, 100_000, 1_000_000]:
         spheres = raybench.random_spheres(n, seed=0).spheres
         host = host_build(spheres, args.repeats)
         if args.frames > 0:
             host["walk_host_ms"] = walk_ms(args.adapter, spheres, width, height, args.frames, "host")
-        for quality in args.quality or gpu_build.QUALITIES:
-            row = {"spheres": n, "quality": quality, "adapter": adapter.describe(), **host}
+        for quality, bits in [(q, b) for q in args.quality or gpu_build.QUALITIES for b in splits]:
+            gpu_build.SPLIT_BITS = bits
+            gpu_build.source.cache_clear()
+            row = {"spheres": n, "quality": quality, "split_bits": bits, "adapter": adapter.describe(), **host}
             row.update(gpu_build_times(device, spheres, args.repeats, quality))
             row["sah_gpu_over_host"] = round(row["gpu_sah"] / row["host_sah"], 4)
-            if args.frames > 0 and quality == gpu_build.lbvh.QUALITY:  # the Tracer builds the default quality
+            if args.frames > 0 and quality == gpu_build.lbvh.QUALITY and bits == splits[0]:  # the Tracer's quality
                 row["walk_gpu_ms"] = walk_ms(args.adapter, spheres, width, height, args.frames, "gpu")
                 row["walk_gpu_over_host"] = round(row["walk_gpu_ms"] / row["walk_host_ms"], 4)
             print(json.dumps(row), flush=True)

@@ -119,6 +119,19 @@ def test_scan_of_more_tiles_than_a_round_carries_over(device, rng, monkeypatch):
         gpu_build.source.cache_clear()
 
 
+def test_splits_of_fewer_bits_sort_alike(device, rng, monkeypatch):
+    """The tile's sort by the digit in rounds of 1 or 2 bits (3 by default):
+    the same tree, the model's."""
+    monkeypatch.setattr(gpu_build, "SPLIT_BITS", int(rng.choice([1, 2])))
+    gpu_build.source.cache_clear()
+    try:
+        scene, _ = SCENES["generated"](rng, sizes(rng))
+        builder, stats = built(device, gpu_build.Kernels(device), scene.spheres)
+        assert_models_tree(builder, stats, scene.spheres, lbvh.QUALITY, bvh.LEAF_MAX)
+    finally:
+        gpu_build.source.cache_clear()
+
+
 def test_sort_is_stable_by_morton_code(device, kernels, rng):
     """The leaf order is the spheres sorted by their Morton codes (worked out
     bit by bit in float32 with NumPy's correctly rounded division), equal

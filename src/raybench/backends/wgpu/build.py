@@ -44,31 +44,34 @@ QUALITIES = ("sah", "lbvh")
 # A workgroup: WebGPU's default most invocations.
 THREADS = 256
 # The sort: a workgroup sorts a tile of THREADS * ITEMS keys (keys and
-# values in workgroup memory: 8 KiB of WebGPU's 16 KiB default), DIGIT_BITS
-# a pass (5 passes for 30 bits, as cuda's).
+# values in workgroup memory: 8 KiB of WebGPU's 16 KiB default, the scan's
+# 4 KiB beside), DIGIT_BITS a pass (5 passes for 30 bits, as cuda's), the
+# tile first sorted by the digit SPLIT_BITS at a time (a workgroup scan a
+# round, its barriers the sort's floor: 3 bits, 8 buckets whose counts are
+# packed two to a word, a vec4 of them; 1 and 2 work too, to be measured
+# against: benchmarks/wgpu_build.py --split-bits).
 ITEMS = 4
 TILE = THREADS * ITEMS
-# The scan of a digit's counts over the tiles: SCAN_ITEMS an invocation,
-# SCAN_CHUNK = THREADS * SCAN_ITEMS a round (one round up to 4,194,304 spheres).
-SCAN_ITEMS = 4
 DIGIT_BITS = 6
 RADIX = 1 << DIGIT_BITS
 PASSES = -(-lbvh.CODE_BITS // DIGIT_BITS)
+SPLIT_BITS = 3
+# The scan of a digit's counts over the tiles: SCAN_ITEMS an invocation,
+# SCAN_CHUNK = THREADS * SCAN_ITEMS a round (one round up to 4,194,304 spheres).
+SCAN_ITEMS = 4
 # The centres' box: at most PARTS workgroups, merged by one.
 PARTS = THREADS
 PARTS_AT = 16  # where the parts start in the bounds buffer (after the box and the cells per unit)
 MAX_GROUPS = 65535  # a dispatch's workgroups a dimension, WebGPU's default
 PARAM_BYTES = 32  # build_common.wgsl's struct Params
 STATS_BYTES = 16
-# Device bytes a Builder holds per sphere: keys and values twice (16), the
-# links up and spans (16), below, costs and arrivals (28), the node rows
-# (64), the ordered spheres (16); the histograms add under 1.
-DEVICE_SPHERE_BYTES = 16 + 16 + 28 + layout.NODE_BYTES + 16 + 1
 
 
 def constants() -> str:
     """The WGSL constants, from their Python definitions (float32 values
     whose repr is exact)."""
+    if SPLIT_BITS not in (1, 2, 3) or DIGIT_BITS % SPLIT_BITS or TILE >= 1 << 16:
+        raise ValueError(f"SPLIT_BITS: 1, 2 or 3 dividing DIGIT_BITS ({DIGIT_BITS}), got {SPLIT_BITS}")
     values = {
         "THREADS": f"{THREADS}u",
         "ITEMS": f"{ITEMS}u",
@@ -77,6 +80,8 @@ def constants() -> str:
         "SCAN_CHUNK": f"{THREADS * SCAN_ITEMS}u",
         "DIGIT_BITS": f"{DIGIT_BITS}u",
         "RADIX": f"{RADIX}u",
+        "SPLIT_BITS": f"{SPLIT_BITS}u",
+        "BUCKETS": f"{1 << SPLIT_BITS}u",
         "PARTS_AT": f"{PARTS_AT}u",
         "CELL_BITS": f"{lbvh.CODE_BITS // 3}u",
         "AXIS_CELLS": f"{lbvh.AXIS_CELLS}u",
