@@ -10,7 +10,7 @@ it differs from cuda's kernels):
   build_sort.wgsl   the LSD radix sort, PASSES passes of count, scan and scatter;
   build_tree.wgsl   Karras's hierarchy, then the bottom-up pass: boxes, SAH
                     leaf cuts, heights, the SAH cost, the ordered spheres.
-A build is 4 + 3 * PASSES dispatches in one compute pass (WebGPU makes
+A build is 5 + 3 * PASSES (20) dispatches in one compute pass (WebGPU makes
 each dispatch's writes visible to the next), then one 16-byte read: the
 tree's depth, for the guard below. A refit is two dispatches.
 
