@@ -304,3 +304,15 @@ def test_the_windows_tracer_takes_the_build(device, adapter, rng):
         request = SimpleNamespace(scene=scene, shading=None, width=8, height=8, options={"build": build})
         tracer.prepare(request)
         assert tracer.compute.build == build and tracer.compute.tree.built_on == build
+
+
+def test_dynamic_point_refits_on_wgpu(adapter, monkeypatch):
+    """The dynamic suite's point on wgpu with build "gpu": every frame's
+    update a refit on the GPU (the limit made infinite), inside the frame."""
+    from raybench.bench import runner, suites
+
+    monkeypatch.setattr(lbvh, "REFIT_LIMIT", np.inf)
+    options = {"accel": "bvh", "motion": "orbits", "build": "gpu", "adapter": adapter}
+    record = runner.measure_dynamic(suites.Point("dynamic", "wgpu", 16, 8, 300, options), runner.Scenes(0), 0.05)
+    assert record["updates"] == {"refit": record["frames"]} and record["frames"] >= runner.MIN_FRAMES
+    assert 0 < record["update_ms"]["median"] <= record["frame_ms"]["median"]
