@@ -96,8 +96,8 @@ def test_workgroups_past_a_dimensions_limit_wrap_to_a_second(device, kernels, rn
     """Dispatches of more workgroups than a dimension takes go 2-D (grid()):
     with the limit made tiny, every step's workgroups wrap, and those past
     the end do nothing; the tree is still the model's."""
-    monkeypatch.setattr(gpu_build, "MAX_GROUPS", int(rng.integers(1, 4)))
-    scene, _ = SCENES["generated"](rng, int(rng.integers(2 * gpu_build.TILE, 4 * gpu_build.TILE)))
+    monkeypatch.setattr(gpu_build, "MAX_GROUPS", int(rng.integers(1, 3)))
+    scene, _ = SCENES["generated"](rng, int(rng.integers(2 * gpu_build.TILE + 1, 4 * gpu_build.TILE)))  # 3+ tiles
     builder, stats = built(device, kernels, scene.spheres)
     assert max(y for _, _, (_, y) in builder.steps()["sort"]) > 1
     assert_models_tree(builder, stats, scene.spheres, lbvh.QUALITY, bvh.LEAF_MAX)
