@@ -333,12 +333,12 @@ def build(device, spheres: np.ndarray, builder: Builder | None, max_depth: int =
     the submission to the tree ready to walk (its depth read back)."""
     n = spheres.shape[1]
     if builder is None or n < 2:
-        return upload(device, bvh_mod.build(spheres))
+        return upload(device, bvh_mod.build(spheres, device="wgpu"))
     if builder.n != n:
         raise ValueError(f"builder: built for {builder.n} spheres, given {n}")
     start = time.perf_counter()
     stats = builder.run(builder.encode_build)
     if stats.depth > max_depth:
-        return upload(device, bvh_mod.build(spheres))
+        return upload(device, bvh_mod.build(spheres, device="wgpu"))
     seconds = time.perf_counter() - start
     return Tree(builder.nodes, builder.ordered, builder.order, n, stats.depth, seconds, "gpu", stats.cost)
