@@ -43,6 +43,9 @@
 #   gpubuild benchmarks/gpu_build.py: the BVH built on the GPU against the host's binned SAH tree
 #            (build, refit, SAH cost, walks on both, leaf sizes), its records in gpu-build.json
 #            (GPUBUILD_ARGS to change, e.g. "--spheres 100000 --repeats 101")
+#   wgpubuild benchmarks/wgpu_build.py: the same BVH built in WGSL through wgpu (build by step,
+#            refit, SAH cost, the walk on both trees), its records in wgpu-build.json
+#            (WGPUBUILD_ARGS to change)
 #
 # Carries .whl (NumPy 2.4: the machine's 2.5 breaks numba 0.68.0; wgpu, cffi,
 # pycparser, rendercanvas, glfw) and .gl (the Vulkan and GL loaders as Debian
@@ -163,6 +166,10 @@ for s in $STEPS; do
         # shellcheck disable=SC2086
         step gpubuild "${GPUBUILD_S:-420}" python3 benchmarks/gpu_build.py --json "$W/gpu-build.json" \
             ${GPUBUILD_ARGS:-} ;;
+    wgpubuild)
+        # shellcheck disable=SC2086
+        step wgpubuild "${WGPUBUILD_S:-420}" python3 benchmarks/wgpu_build.py --json "$W/wgpu-build.json" \
+            ${WGPUBUILD_ARGS:-} ;;
     *) echo "unknown step $s" | tee -a "$W/steps.log" ;;
     esac
 done

@@ -3,7 +3,8 @@ same Morton codes, the same stable order, Karras's hierarchy, the same
 bottom-up pass (boxes, SAH costs, the leaves it cuts, the treelets it
 rebuilds) and reorder, in the same float32 arithmetic, written with NumPy and Numba's CPU compiler. Under numba's CUDA
 simulator it gives the kernels' tree bit for bit (tests/test_cuda_build.py
-checks it); here it gives the SAH cost of the GPU's trees at sizes the
+checks it), as it gives the WGSL port's, backends/wgpu/build.py's, on
+lavapipe (tests/test_wgpu_build.py); here it gives the SAH cost of the GPU's trees at sizes the
 simulator cannot build (100,000 and 1,000,000 spheres) on a machine with no
 GPU. A GPU may fuse multiply-adds where the model does not, which can tip
 a leaf's choice where two costs tie to the last bit; the cost is the same to

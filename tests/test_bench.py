@@ -565,23 +565,28 @@ def test_multi_gpu_suite_on_cpu_workers_end_to_end(tmp_path, capsys):
     assert next(tmp_path.glob("report-*/ci-multi-gpu.png")).stat().st_size > 1000
 
 
-def test_builds_split_cuda_bvh_points_only():
-    """--build host --build gpu: each cuda BVH point twice, one per build;
-    brute force and the other devices once, as without."""
-    plain = suites.points(["scaling"], ["cpu", "cuda"], accels=("bvh", "none"))
-    both = suites.points(["scaling"], ["cpu", "cuda"], accels=("bvh", "none"), builds=("host", "gpu"))
-    cuda_bvh = [p for p in plain if p.device == "cuda" and p.options["accel"] == "bvh"]
-    assert len(both) == len(plain) + len(cuda_bvh)
+def test_builds_split_gpu_bvh_points_only():
+    """--build host --build gpu: each cuda and wgpu BVH point twice, one per
+    build; brute force and the cpu once, as without."""
+    devices, wgpu = ["cpu", "cuda", "wgpu"], {"adapter": "x"}
+    plain = suites.points(["scaling"], devices, accels=("bvh", "none"), wgpu=wgpu)
+    both = suites.points(["scaling"], devices, accels=("bvh", "none"), wgpu=wgpu, builds=("host", "gpu"))
+    gpu_bvh = [p for p in plain if p.device != "cpu" and p.options["accel"] == "bvh"]
+    assert {p.device for p in gpu_bvh} == {"cuda", "wgpu"}
+    assert len(both) == len(plain) + len(gpu_bvh)
     for build in ("host", "gpu"):
-        assert [p.spheres for p in both if p.options.get("build") == build] == [p.spheres for p in cuda_bvh]
+        got = [(p.device, p.spheres) for p in both if p.options.get("build") == build]
+        assert got == [(p.device, p.spheres) for p in gpu_bvh]
     assert all("build" not in p.options for p in both if p.device == "cpu" or p.options["accel"] == "none")
 
 
-def test_dynamic_points_are_bvh_with_cuda_once_per_build():
+def test_dynamic_points_are_bvh_with_cuda_and_wgpu_once_per_build():
     pts = suites.points(["dynamic"], ["cpu", "cuda", "wgpu"], wgpu={"adapter": "x"})
     assert {p.spheres for p in pts} == set(suites.DYNAMIC_COUNTS)
     assert all(p.options["accel"] == "bvh" and p.options["motion"] == "orbits" for p in pts)
-    assert sorted(p.options.get("build", "-") for p in pts if p.spheres == 10_000) == ["-", "-", "gpu", "host"]
+    builds = sorted((p.device, p.options.get("build", "-")) for p in pts if p.spheres == 10_000)
+    assert builds == [("cpu", "-"), ("cuda", "gpu"), ("cuda", "host"), ("wgpu", "gpu"), ("wgpu", "host")]
+    assert all(p.options["adapter"] == "x" for p in pts if p.device == "wgpu")
     only = suites.points(["dynamic"], ["cuda"], builds=("gpu",))
     assert {p.options["build"] for p in only} == {"gpu"}
 

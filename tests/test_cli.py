@@ -580,8 +580,9 @@ def test_warmup_refuses_an_unknown_device(capsys):
 
 
 def test_build_option_on_a_device_without_it_is_one_line(capsys, tmp_path):
-    """--build is cuda's (where the BVH is built); cpu refuses it, and bench
-    without cuda among its devices too; a bad value is click's one line."""
+    """--build is cuda's and wgpu's (where the BVH is built); cpu refuses it,
+    and bench without cuda or wgpu among its devices too; a bad value is
+    click's one line."""
     out = tmp_path / "x.png"
     expect_error(
         capsys, tmp_path, ["render", "--spheres", 3, *TINY, "--build", "gpu", "-o", out], "'build'", "device cpu"

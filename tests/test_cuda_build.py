@@ -5,6 +5,7 @@ give the brute force's hits. Under numba's simulator where there is no GPU
 
 import numpy as np
 import pytest
+from gpu_trees import morton_reference, tree_model
 from scenes import IN_VIEW, SCENES
 from test_bvh import brute, check_tree
 
@@ -35,35 +36,6 @@ def gpu_tree(spheres, leaf_size=None, quality=None, **options):
     given = (leaf_size is not None or quality is not None) and n >= 2
     builder = cuda_build.Builder(n, leaf_size, quality) if given else None
     return cuda_build.build(spheres, cuda.to_device(spheres), builder, **options)
-
-
-def tree_model():
-    """benchmarks/gpu_tree_model.py: the GPU's tree built on the CPU."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).parent.parent / "benchmarks" / "gpu_tree_model.py"
-    spec = importlib.util.spec_from_file_location("gpu_tree_model", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-def morton_reference(spheres) -> np.ndarray:
-    """Each centre's 30-bit Morton code in the centres' box, bit by bit:
-    10 bits an axis, x highest."""
-    n = spheres.shape[1]
-    cells = np.zeros((3, n), np.int64)
-    for a in range(3):
-        c = spheres[a]
-        lo, hi = c.min(), c.max()
-        if hi > lo:
-            cells[a] = np.minimum(((c - lo) * (np.float32(1024) / (hi - lo))).astype(np.int64), 1023)
-    code = np.zeros(n, np.int64)
-    for b in range(10):
-        for a in range(3):
-            code |= ((cells[a] >> b) & 1) << (3 * b + 2 - a)
-    return code
 
 
 @pytest.mark.parametrize("kind", ["generated", "cloud", "one_point", "duplicates", "line", "chain"])

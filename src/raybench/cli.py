@@ -224,7 +224,7 @@ def build_option(multiple: bool = False):
         "builds" if multiple else "build",
         multiple=multiple,
         type=click.Choice(BUILDS),
-        help="cuda, with the BVH: where its tree is built: host (the CPU's binned SAH tree, uploaded; the "
+        help="cuda and wgpu, with the BVH: where its tree is built: host (the CPU's binned SAH tree, uploaded; the "
         "default) or gpu (an LBVH built on the GPU, where it is walked)" + ("; repeat for both" if multiple else ""),
     )
 

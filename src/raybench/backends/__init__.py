@@ -19,7 +19,7 @@ CHOICES = ("auto",) + DEVICES
 OPTIONS = {
     "cpu": ("threads", "constant_count", "kernel", "accel", "whitted"),
     "cuda": ("block", "constant_count", "kernel", "rays", "tile", "trip", "accel", "walk", "build", "whitted"),
-    "wgpu": ("workgroup", "adapter", "accel", "kernel", "walk", "whitted"),
+    "wgpu": ("workgroup", "adapter", "accel", "kernel", "walk", "build", "whitted"),
 }
 
 
@@ -104,7 +104,7 @@ def present() -> list[str]:
 def tracer(device: str, spheres, width: int, height: int, **options):
     """A Tracer of the (resolved) device for this scene and size; options are
     the device's own (cpu: threads; cuda: block, rays, tile, trip, walk, build; wgpu: workgroup,
-    adapter) and accel ("bvh", the default, or "none"), kernel and
+    adapter, walk, build) and accel ("bvh", the default, or "none"), kernel and
     constant_count."""
     name = resolve(device, options.get("adapter") if device == "wgpu" else None)
     for key in options:

@@ -29,11 +29,10 @@ from ..kernels.trace import FAR, ZERO
 from ..kernels.whitted import KINDS, RAY_FLOATS, RAY_INTS, RAY_STACK
 from ..layout import CHILD_BOX, INNER, NODE_BYTES, NODE_FLOATS, RADIUS, STACK
 from ..lighting import Shading
-from . import cuda_build
+from . import cuda_build, limits
 from .contract import TracerBase, check_method, check_moved
 from .cuda_launch import Launches
 from .limits import (
-    BUILDS,
     FAST_MAX_THREADS,
     HOST_PIXEL_BYTES,
     PIXEL_BYTES,
@@ -66,13 +65,7 @@ DEFAULT_BUILD = "host"
 
 def check_build(build, accel: str) -> str | None:
     """The build for a tracer of accel (None for brute force, which builds nothing)."""
-    if build is None:
-        return DEFAULT_BUILD if accel == "bvh" else None
-    if accel != "bvh":
-        raise RaybenchError("build: applies to the BVH only (accel='bvh'), not to brute force")
-    if build not in BUILDS:
-        raise RaybenchError(f"build: must be one of {', '.join(BUILDS)}, got {shown(build)}")
-    return build
+    return limits.check_build(build, accel, DEFAULT_BUILD)
 
 
 def choose_walk(nodes: int) -> str:

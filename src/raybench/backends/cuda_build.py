@@ -49,13 +49,11 @@ import numpy as np
 from numba import config, cuda
 
 from .. import bvh as bvh_mod
-from .. import compiled
+from .. import compiled, lbvh
 from ..layout import BOX_FLOATS, COUNT, INNER, MAX_DEPTH, NODE_FLOATS, PAD, REF
+from ..lbvh import AXIS_CELLS, CODE_BITS, LEAF_SIZE, REFIT_LIMIT  # noqa: F401 - read as cuda_build.*
 from .cuda_launch import Launches
 
-# Morton codes: 10 bits an axis.
-CODE_BITS = 30
-AXIS_CELLS = 1 << (CODE_BITS // 3)
 # The radix sort: DIGIT_BITS a pass (5 passes for 30 bits); a block of
 # SORT_THREADS threads sorts a tile of SORT_THREADS * ITEMS keys, each thread
 # ITEMS consecutive ones, so its counts per digit (RADIX x SORT_THREADS, 32
@@ -94,8 +92,7 @@ THREADS = 32 if _SIM else 256
 #           2013, one pass bottom-up), then the spheres put in the new tree's
 #           order (_reorder, one launch more).
 QUALITIES = ("sah", "treelet", "lbvh")
-QUALITY = "sah"
-LEAF_SIZE = 4
+QUALITY = lbvh.QUALITY
 # A treelet's pieces. Its programme weighs 3^K / 2 splits a row, in local
 # arrays of 2^K entries (25 bytes each). The model of this build
 # (benchmarks/gpu_tree_model.py), at 100,000 spheres: SAH cost over the
@@ -113,14 +110,6 @@ TREELET_PASSES = 1
 # balanced tree).
 _GAIN = np.float32(0.999)
 _INF = np.float32(np.inf)
-# A refitted tree is rebuilt once its SAH cost (Builder.read_cost) exceeds
-# REFIT_LIMIT times the cost it had fresh from its build: moved spheres
-# stretch its boxes, and each ray then visits more of them. In the orbits
-# measured on the H200 (benchmarks/gpu_build.py's refit series,
-# docs/performance.md) the cost levelled off below this and a refit plus the
-# walk stayed cheaper than a rebuild plus the walk throughout; the limit is
-# for motion that keeps stretching the boxes.
-REFIT_LIMIT = 1.3
 # Device bytes a Builder holds per sphere: keys and values twice (the sort's
 # two buffers), the links up (8 + 8), the rows' spans (8), what lies below
 # each child (heights and rows 16, costs 8, rows 8), the counters (4), the

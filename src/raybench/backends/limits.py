@@ -137,9 +137,21 @@ def check_kernel(kernel, constant_count: bool) -> str:
 
 
 ACCELS = ("bvh", "none")
-# Where a GPU's tree is built (cuda): "host" (raybench.bvh's binned SAH tree,
-# uploaded) or "gpu" (backends.cuda_build's LBVH, built where it is walked).
+# Where a GPU's tree is built (cuda, wgpu): "host" (raybench.bvh's binned SAH
+# tree, uploaded) or "gpu" (the LBVH of backends.cuda_build or
+# backends.wgpu.build, built where it is walked).
 BUILDS = ("host", "gpu")
+
+
+def check_build(build, accel: str, default: str) -> str | None:
+    """The build for a tracer of accel (None for brute force, which builds nothing)."""
+    if build is None:
+        return default if accel == "bvh" else None
+    if accel != "bvh":
+        raise RaybenchError("build: applies to the BVH only (accel='bvh'), not to brute force")
+    if build not in BUILDS:
+        raise RaybenchError(f"build: must be one of {', '.join(BUILDS)}, got {shown(build)}")
+    return build
 
 
 def check_accel(accel, kernel, brute_force_options: dict) -> tuple[str, str | None]:

@@ -41,7 +41,7 @@ def tracer_options(point: Point) -> dict:
         opts["kernel"] = point.options["kernel"]
     if "accel" in point.options:
         opts["accel"] = point.options["accel"]
-    if "build" in point.options:  # cuda's: where its tree is built
+    if "build" in point.options:  # cuda's and wgpu's: where the tree is built
         opts["build"] = point.options["build"]
     if point.options.get("count") == "constant":
         opts["constant_count"] = True
@@ -289,8 +289,8 @@ def plan(settings: dict, label: str | None = None, argv: list[str] | None = None
     if adapter is not None and "wgpu" not in devices:
         raise RaybenchError("--adapter applies to --device wgpu only")
     builds = tuple(settings["builds"])
-    if builds and "cuda" not in devices:
-        raise RaybenchError("--build applies to --device cuda only")
+    if builds and not {"cuda", "wgpu"} & set(devices):
+        raise RaybenchError("--build applies to --device cuda and wgpu only")
     wgpu_options, max_invocations = {}, 1024
     if "wgpu" in devices:
         chosen_adapter = backends.module("wgpu").choose(adapter)

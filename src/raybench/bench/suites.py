@@ -45,11 +45,11 @@ The report sets each count's throughput against linear (N x one worker's).
 The dynamic suite (issue 16) moves the spheres every frame
 (raybench.animate.Orbits, seeded like the scene, DYNAMIC_DT seconds of
 motion a frame) and times what a frame then costs: the tree's update (cuda
-with build "gpu": refitted on the GPU, or rebuilt past the refit limit;
-cuda with build "host", cpu and wgpu: rebuilt on the host and, on a GPU,
-uploaded) plus the frame. At 10,000, 100,000 and 1,000,000 spheres at
-1680x1050, through the BVH (brute force has no tree to update), cuda once
-per build (both by default, or those --build names).
+and wgpu with build "gpu": refitted on the GPU, or rebuilt past the refit
+limit; cuda and wgpu with build "host", and cpu: rebuilt on the host and,
+on a GPU, uploaded) plus the frame. At 10,000, 100,000 and 1,000,000 spheres at
+1680x1050, through the BVH (brute force has no tree to update), cuda and
+wgpu once per build (both by default, or those --build names).
 
 `--suite all` includes the secondary suite: all means every suite, and the cap keeps the
 suite's brute force within minutes a point, as the scaling suite's keeps
@@ -174,8 +174,8 @@ def _runs(ways, devices, wgpu: dict, builds=()) -> list[tuple[dict, str]]:
     """(options, device) for each way and device: cpu and cuda every way; wgpu
     every way it has, with its own options (the adapter named): the BVH, and
     brute force once whatever the kernels asked for, with its one kernel
-    (simple). builds: where cuda's trees are built ("host", "gpu"), the BVH
-    once for each; none given, the backend's default."""
+    (simple). builds: where cuda's and wgpu's trees are built ("host",
+    "gpu"), the BVH once for each; none given, the backend's default."""
     out = []
     for way in ways:
         for d in devices:
@@ -189,7 +189,11 @@ def _runs(ways, devices, wgpu: dict, builds=()) -> list[tuple[dict, str]]:
             way = {**way, "kernel": "simple"} if way["accel"] == "none" else dict(way)
             if way not in own:
                 own.append(way)
-        out += [({**way, **wgpu}, "wgpu") for way in own]
+        for way in own:
+            if way["accel"] == "bvh" and builds:
+                out += [({**way, **wgpu, "build": b}, "wgpu") for b in builds]
+            else:
+                out.append(({**way, **wgpu}, "wgpu"))
     return out
 
 

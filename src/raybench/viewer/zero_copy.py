@@ -71,6 +71,7 @@ class InWindowTracer:
             extra_texture_usage=wgpu.TextureUsage.TEXTURE_BINDING,
             walk=options.pop("walk", None),
             whitted=request.shading,
+            build=options.pop("build", None),
         )
         compile_s = compute.compile()
         if request.shading is not None and self._rays_read is None:

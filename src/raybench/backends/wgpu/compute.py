@@ -3,8 +3,9 @@
 Kept apart from the Tracer so that the viewer can run it on the window's own
 device and draw the texture it writes, in the same command buffer, with no
 copy (the thesis's pipeline); the Tracer adds the readback for trace().
-The BVH is built here too, on the host (raybench.bvh, as for the cpu and cuda
-backends), so that both get the tree of each frame's sphere count.
+The BVH is built here too, so that both get the tree of each frame's sphere
+count: on the host (raybench.bvh, as for the cpu backend; the default), or
+on the GPU (build.py, the LBVH cuda builds too).
 """
 
 from __future__ import annotations
@@ -15,13 +16,14 @@ import time
 import numpy as np
 
 from ... import bvh as bvh_mod
-from ... import layout, lighting
+from ... import layout, lbvh, lighting
 from ...errors import RaybenchError, shown
 from ...kernels import whitted
 from ...lighting import Shading
-from ..limits import HOST_PIXEL_BYTES, check_bvh_fits, host_available_bytes
+from ..limits import HOST_PIXEL_BYTES, check_build, check_bvh_fits, host_available_bytes
 from ..limits import check_accel as check_accel_and_kernel
 from ..walks import check_walk
+from . import build as gpu_build
 from . import shader
 
 FRAME_FORMAT = "rgba8unorm"
@@ -37,6 +39,10 @@ DEFAULT_WORKGROUP = {"none": (16, 16), "ray": (16, 16), "packet": (8, 8)}
 # time at 1,000 to 1,000,000 spheres, where cuda's packets are 37% faster at
 # 1,000,000 (docs/performance.md); walk="packet" measures it on another GPU.
 PACKET_FEATURE = "subgroup"
+# The tree is the host's unless build "gpu" is asked for, as on cuda: the
+# GPU's LBVH is the cheaper build, the host's SAH tree the faster walk
+# (docs/performance.md); no GPU has timed the WGSL build yet.
+DEFAULT_BUILD = "host"
 RAY_KINDS = len(whitted.KINDS)
 
 
@@ -111,14 +117,6 @@ def sphere_rows(spheres: np.ndarray) -> np.ndarray:
     return rows
 
 
-def ordered_rows(tree: bvh_mod.Bvh) -> np.ndarray:
-    """bvh.ordered's (4, N) columns -> (N, 4) rows, the shader's array<vec4<f32>>
-    (one row at least: a binding cannot be empty)."""
-    rows = np.zeros((max(tree.count, 1), 4), np.float32)
-    rows[: tree.count] = tree.ordered.T
-    return rows
-
-
 def material_rows(materials: np.ndarray) -> np.ndarray:
     """lighting.materials_array's (5, N) columns -> (N, 5) rows, the shader's
     struct Material (one row at least: a binding cannot be empty)."""
@@ -151,7 +149,8 @@ class Compute:
     """One scene at one size on one device: encode() records a frame's compute
     pass into a command encoder; texture and hits hold the result. With the
     BVH, build_s is the last build's seconds (the build alone, as on cuda),
-    and walk says how the pass walks it: "ray" (the default) or "packet"."""
+    build where it was built ("host" or "gpu", as on cuda), and walk how the
+    pass walks it: "ray" (the default) or "packet"."""
 
     def __init__(
         self,
@@ -165,12 +164,14 @@ class Compute:
         extra_texture_usage: int = 0,
         walk: str | None = None,
         whitted: Shading | None = None,
+        build: str | None = None,
     ):
         import wgpu
 
         self.device = device
         limits = dict(device.limits)
         self.accel = check_accel(accel, kernel)
+        self.build = check_build(build, self.accel, DEFAULT_BUILD)
         walk = check_walk(walk, self.accel)
         if whitted is not None and walk == "packet":
             raise RaybenchError("walk 'packet': applies to the thesis's shading only; Whitted's rays walk one by one")
@@ -226,6 +227,8 @@ class Compute:
         self.scene_spheres = spheres
         self.tree = None
         self.build_s = None
+        self.builder = None  # build "gpu": kept for the next build of as many spheres
+        self.kernels = None  # build "gpu": the build's pipelines, compiled once
         if self.accel == "bvh":
             self._build(self.count)
         self.timestamps = "timestamp-query" in device.features
@@ -275,26 +278,41 @@ class Compute:
 
     def update(self, spheres: np.ndarray) -> str | None:
         """The spheres moved (checked by the Tracer): uploaded over the old
-        ones, their tree rebuilt on the host. "build", or None for brute force."""
+        ones. Their tree follows, as on cuda: with build "gpu" refitted on
+        the GPU while its SAH cost stays within lbvh.REFIT_LIMIT of its fresh
+        cost, else rebuilt; with build "host" rebuilt on the host. "refit" or
+        "build", or None for brute force."""
         self.device.queue.write_buffer(self.spheres, 0, sphere_rows(spheres).tobytes())
         self.scene_spheres = spheres
         if self.tree is None:
             return None
+        refit_s = 0.0
+        if self.tree.built_on == "gpu":
+            start = time.perf_counter()
+            stats = self.builder.run(self.builder.encode_refit)  # after the upload, queued first
+            refit_s = time.perf_counter() - start
+            if stats.cost <= lbvh.REFIT_LIMIT * self.tree.cost:
+                self.build_s = refit_s
+                return "refit"
         self._build(self.tree.count)
+        self.build_s += refit_s  # the refit that was not enough, then the build
         return "build"
 
     def _build(self, count: int) -> None:
-        """Build the BVH of the first `count` spheres on the host and upload it
+        """Build the BVH of the first `count` spheres: on the host, uploaded
         (the nodes as the builder wrote them: floats and int32 links in one
-        buffer, which the shader's struct Node reads as both)."""
-        import wgpu
-
-        tree = bvh_mod.build(self.scene_spheres[:, :count], device="wgpu")
-        usage = wgpu.BufferUsage.STORAGE
-        order = tree.order if tree.count else np.zeros(1, np.int32)
-        self.nodes = self.device.create_buffer_with_data(data=tree.nodes.tobytes(), usage=usage)
-        self.ordered = self.device.create_buffer_with_data(data=ordered_rows(tree).tobytes(), usage=usage)
-        self.order = self.device.create_buffer_with_data(data=order.tobytes(), usage=usage)
+        buffer, which the shader's struct Node reads as both), or on the GPU
+        from the spheres already there (build.py; the host's tree where the
+        GPU's is too deep or there are under two spheres)."""
+        spheres = self.scene_spheres[:, :count]
+        if self.build == "gpu" and count >= 2:
+            if self.builder is None or self.builder.n != count:
+                self.kernels = self.kernels or gpu_build.Kernels(self.device)
+                self.builder = gpu_build.Builder(self.device, self.spheres, count, kernels=self.kernels)
+            tree = gpu_build.build(self.device, spheres, self.builder)
+        else:
+            tree = gpu_build.upload(self.device, bvh_mod.build(spheres, device="wgpu"))
+        self.nodes, self.ordered, self.order = tree.nodes, tree.ordered, tree.order
         self.tree, self.build_s = tree, tree.build_s
         if self.pipeline is not None:
             self._bind()

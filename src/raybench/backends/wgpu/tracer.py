@@ -48,6 +48,7 @@ class Tracer(TracerBase):
         kernel: str | None = None,
         walk: str | None = None,
         whitted: Shading | None = None,
+        build: str | None = None,
     ):
         import wgpu
 
@@ -58,10 +59,11 @@ class Tracer(TracerBase):
         check_fits("host", width, height, 0, host_available_bytes(), HOST_PIXEL_BYTES)
         self.compute = Compute(
             self.device, spheres, width, height, workgroup, accel, kernel,
-            extra_texture_usage=wgpu.TextureUsage.TEXTURE_BINDING, walk=walk, whitted=whitted,
+            extra_texture_usage=wgpu.TextureUsage.TEXTURE_BINDING, walk=walk, whitted=whitted, build=build,
         )  # fmt: skip
         self.packer = Packer(self.device, self.compute.texture, width, height)
         self.accel = accel
+        self.build = self.compute.build  # where the BVH is built: "host" or "gpu"; None for brute force
         self.walk = self.compute.walk  # the BVH walk: "ray" or "packet"; None for brute force
         self.workgroup = self.compute.workgroup
         self.width, self.height, self.count = width, height, spheres.shape[1]
@@ -97,7 +99,8 @@ class Tracer(TracerBase):
         return self.compute.compile()
 
     def update(self, spheres: np.ndarray) -> str | None:
-        """The spheres moved: the contract's update (a tree rebuilt on the host)."""
+        """The spheres moved: the contract's update (Compute.update: a refit
+        or a build on the GPU with build "gpu", a build on the host else)."""
         return self.compute.update(check_moved(spheres, self.compute.scene_spheres))
 
     def _count(self, count) -> int:

@@ -1,0 +1,187 @@
+"""The BVH built on the GPU through wgpu (backends.wgpu.build) against the
+host's binned SAH build (raybench.bvh), on random_spheres(n, seed=0), one
+JSON record per sphere count and quality (printed as it is measured, and all
+of them written to --json with the machine and the commit):
+
+- the GPU build's time, warm: GPU timestamps around its one compute pass
+  (median of --repeats), each step's time (the steps then in a pass each,
+  timestamps around each: a pass more per step than a build has), and the
+  wall time from the submission to the depth read back (the tree ready to
+  walk, Python's encoding and the map included);
+- the refit's time (the boxes from the same spheres, the tree kept), by timestamps;
+- the host build's time (compiled code, every core, as raybench reports it);
+- the SAH cost of both trees (raybench.tree_cost), their depths and rows;
+- with --frames > 0, the walk's time on each tree (Tracer.timed_trace, the
+  default camera at --size), median of --frames.
+
+Without timestamps (an adapter without "timestamp-query") the GPU times are
+null and only the wall times are given.
+
+    python benchmarks/wgpu_build.py --json out.json [--adapter NAME] [--spheres 1000 --spheres 100000]
+        [--repeats 21] [--quality sah --quality lbvh] [--frames 11] [--split-bits 1 --split-bits 3]
+
+The same figures for numba-cuda's build: benchmarks/gpu_build.py.
+"""
+
+import argparse
+import json
+import statistics
+import sys
+import time
+
+import numpy as np
+
+import raybench
+from raybench import Camera, backends, bvh, machine, tree_cost
+from raybench.backends.wgpu import adapters, compute
+from raybench.backends.wgpu import build as gpu_build
+from raybench.backends.wgpu.tracer import timestamp_period
+
+
+class Clock:
+    """GPU timestamps around compute passes: begin_end(i) is the
+    timestamp_writes of pass i; read() their ms once the work is submitted."""
+
+    def __init__(self, device, passes: int):
+        import wgpu
+
+        self.device, self.passes = device, passes
+        self.period = timestamp_period(device) if "timestamp-query" in device.features else None
+        if self.period is None:
+            return
+        self.queries = device.create_query_set(type="timestamp", count=2 * passes)
+        self.resolved = device.create_buffer(
+            size=16 * passes, usage=wgpu.BufferUsage.QUERY_RESOLVE | wgpu.BufferUsage.COPY_SRC
+        )
+
+    def begin_end(self, i: int):
+        if self.period is None:
+            return None
+        return {"query_set": self.queries, "beginning_of_pass_write_index": 2 * i, "end_of_pass_write_index": 2 * i + 1}
+
+    def resolve(self, encoder) -> None:
+        if self.period is not None:
+            encoder.resolve_query_set(self.queries, 0, 2 * self.passes, self.resolved, 0)
+
+    def read(self) -> list[float] | None:
+        if self.period is None:
+            return None
+        ticks = np.frombuffer(self.device.queue.read_buffer(self.resolved), np.uint64).reshape(-1, 2)
+        return [float(end - begin) * self.period / 1e6 for begin, end in ticks]
+
+
+def median(values) -> float | None:
+    return None if not values or values[0] is None else round(statistics.median(values), 4)
+
+
+def gpu_build_times(device, spheres: np.ndarray, repeats: int, quality: str) -> dict:
+    import wgpu
+
+    n = spheres.shape[1]
+    buffer = device.create_buffer_with_data(data=compute.sphere_rows(spheres).tobytes(), usage=wgpu.BufferUsage.STORAGE)
+    builder = gpu_build.Builder(device, buffer, n, quality=quality)
+    for _ in range(3):  # the pipelines compiled by the driver, warm
+        builder.run(builder.encode_build)
+    steps = builder.steps()
+    whole, per_step, wall, refit = Clock(device, 1), Clock(device, len(steps)), [], []
+    times = {"build": [], "refit": [], **{s: [] for s in steps}}
+    for _ in range(repeats):
+        start = time.perf_counter()
+        stats = builder.run(lambda e: (builder.encode(e, [d for s in steps.values() for d in s], whole.begin_end(0)),
+                                       whole.resolve(e)))  # fmt: skip
+        wall.append((time.perf_counter() - start) * 1e3)
+        times["build"].append((whole.read() or [None])[0])
+        start = time.perf_counter()
+        builder.run(lambda e: ([builder.encode(e, d, per_step.begin_end(i)) for i, d in enumerate(steps.values())],
+                               per_step.resolve(e)))  # fmt: skip
+        for name, ms in zip(steps, per_step.read() or [None] * len(steps)):
+            times[name].append(ms)
+        start = time.perf_counter()
+        builder.run(lambda e: (builder.encode(e, builder._refit, whole.begin_end(0)), whole.resolve(e)))
+        refit.append((time.perf_counter() - start) * 1e3)
+        times["refit"].append((whole.read() or [None])[0])
+    tree = builder.to_host(stats.depth)
+    return {
+        "gpu_build_ms": median(times["build"]),
+        "gpu_build_steps_ms": {s: median(times[s]) for s in steps},
+        "gpu_build_wall_ms": median(wall),
+        "gpu_refit_ms": median(times["refit"]),
+        "gpu_refit_wall_ms": median(refit),
+        "gpu_depth": stats.depth,
+        "gpu_rows": tree.node_count,
+        "gpu_rows_walked": stats.rows,
+        "gpu_sah": round(tree_cost.sah_cost(tree.nodes), 3),
+        "dispatches": sum(len(s) for s in steps.values()),
+    }
+
+
+def host_build(spheres: np.ndarray, repeats: int) -> dict:
+    bvh.compile_builder()
+    times = [bvh.build(spheres, _timed=False).build_s * 1e3 for _ in range(max(3, repeats // 5))]
+    tree = bvh.build(spheres, _timed=False)
+    return {
+        "host_build_ms": round(statistics.median(times), 3),
+        "host_depth": tree.depth,
+        "host_rows": tree.node_count,
+        "host_sah": round(tree_cost.sah_cost(tree.nodes), 3),
+    }
+
+
+def walk_ms(adapter, spheres, width: int, height: int, frames: int, build: str) -> float:
+    basis = Camera().basis(width, height)
+    with backends.tracer("wgpu", spheres, width, height, adapter=adapter, build=build) as tracer:
+        tracer.trace(basis)
+        return round(statistics.median(tracer.timed_trace(basis) for _ in range(frames)), 4)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--json", required=True, help="file to write the records to")
+    parser.add_argument("--adapter", help="the wgpu adapter (default: the best GPU; name a CPU driver to use it)")
+    parser.add_argument("--spheres", action="append", type=int, help="default: 1000, 100000, 1000000")
+    parser.add_argument("--repeats", type=int, default=21, help="timed builds per count")
+    parser.add_argument("--quality", action="append", choices=gpu_build.QUALITIES, help="default all")
+    parser.add_argument("--frames", type=int, default=11, help="timed frames per walk (0: no walk)")
+    parser.add_argument("--size", default="1680x1050", help="the walk's frame")
+    parser.add_argument(
+        "--split-bits",
+        action="append",
+        type=int,
+        choices=(1, 2, 3),
+        help=f"the sort's bits a round in its tiles (default {gpu_build.SPLIT_BITS}); repeat to compare",
+    )
+    args = parser.parse_args()
+    width, height = (int(v) for v in args.size.split("x"))
+    adapter = adapters.choose(args.adapter)
+    device = adapters.request_device(adapter)
+    records, splits = [], args.split_bits or [gpu_build.SPLIT_BITS]
+    for n in args.spheres or [1000, 100_000, 1_000_000]:
+        spheres = raybench.random_spheres(n, seed=0).spheres
+        host = host_build(spheres, args.repeats)
+        if args.frames > 0:
+            host["walk_host_ms"] = walk_ms(args.adapter, spheres, width, height, args.frames, "host")
+        for quality, bits in [(q, b) for q in args.quality or gpu_build.QUALITIES for b in splits]:
+            gpu_build.SPLIT_BITS = bits
+            gpu_build.source.cache_clear()
+            row = {"spheres": n, "quality": quality, "split_bits": bits, "adapter": adapter.describe(), **host}
+            row.update(gpu_build_times(device, spheres, args.repeats, quality))
+            row["sah_gpu_over_host"] = round(row["gpu_sah"] / row["host_sah"], 4)
+            if args.frames > 0 and quality == gpu_build.lbvh.QUALITY and bits == splits[0]:  # the Tracer's quality
+                row["walk_gpu_ms"] = walk_ms(args.adapter, spheres, width, height, args.frames, "gpu")
+                row["walk_gpu_over_host"] = round(row["walk_gpu_ms"] / row["walk_host_ms"], 4)
+            print(json.dumps(row), flush=True)
+            records.append(row)
+    out = {
+        "benchmark": "wgpu_build",
+        "argv": sys.argv,
+        "git_commit": machine.git_commit(),
+        "machine": machine.describe(),
+        "records": records,
+    }
+    with open(args.json, "w") as f:
+        json.dump(out, f, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
