@@ -568,6 +568,7 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
     once, the nearest inner child next and the others pushed. Each ray gets
     the nearest sphere of all it could hit, ties to the smaller index."""
     stack_row = np.empty(WIDE_STACK, np.int32)
+    stack_count = np.empty(WIDE_STACK, np.int32)
     dx = np.empty(PACKET, np.float32)
     dy = np.empty(PACKET, np.float32)
     dz = np.empty(PACKET, np.float32)
@@ -626,26 +627,32 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
                         j -= 1
                     chosen[j] = c
                     entered += 1
+                # nearest first: leaves up to the nearest inner child tested
+                # now, that child walked next, everything farther pushed (the
+                # farthest first), leaves too, so that a near inner child's
+                # hits can rule out a farther leaf's spheres
                 node = row
                 row = -1
                 for j in range(entered):
                     c = chosen[j]
                     ref, count = wide_links[node, W_REF + c], wide_links[node, W_COUNT + c]
-                    if count != INNER:
+                    if row < 0 and count != INNER:
                         _packet_leaf(ox, oy, oz, margin, dx, dy, dz, ordered, order, ref, count, spread, closest,
                                      hit, hit_d, closest_bits, spread_bits)  # fmt: skip
                     elif row < 0:
                         row = ref
-                # the other inner children, the farthest pushed first
-                for j in range(entered - 1, -1, -1):
-                    c = chosen[j]
-                    ref = wide_links[node, W_REF + c]
-                    if wide_links[node, W_COUNT + c] == INNER and ref != row:
-                        stack_row[top] = ref
-                        top += 1
-                if row < 0 and top > 0:
+                        for i in range(entered - 1, j, -1):
+                            stack_row[top] = wide_links[node, W_REF + chosen[i]]
+                            stack_count[top] = wide_links[node, W_COUNT + chosen[i]]
+                            top += 1
+                        break
+                while row < 0 and top > 0:
                     top -= 1
-                    row = stack_row[top]
+                    if stack_count[top] == INNER:
+                        row = stack_row[top]
+                    else:
+                        _packet_leaf(ox, oy, oz, margin, dx, dy, dz, ordered, order, stack_row[top], stack_count[top],
+                                     spread, closest, hit, hit_d, closest_bits, spread_bits)  # fmt: skip
             _colour_packet(x0, y0, spheres, hit, hit_d, rgb, paint)
             if x0 + PACKET_W <= width and y0 + PACKET_H <= end_row:
                 for line in range(PACKET_H):
