@@ -124,6 +124,8 @@ def orbit_png_job(client, args, scene, workers) -> dict:
 
 
 def frame_job(client, args, scene, workers, shared=True) -> dict:
+    from distributed import get_task_stream
+
     width, height = parse_size(args.frame)
     rows = args.tile or cluster.tile_rows(height, workers)
 
@@ -137,12 +139,30 @@ def frame_job(client, args, scene, workers, shared=True) -> dict:
     cluster.release(client)
     cluster.render(client, scene, None, width, height, args.device, rows=rows, shared=False, **options(args))
     first_s = timed(go, 1)[0]  # shared: the block made here, and each worker's mapping of it
-    seconds = timed(go, args.repeat)
+    with get_task_stream(client) as stream:
+        seconds = timed(go, args.repeat)
     pool = cluster._pool(client)
     return {"width": width, "height": height, "frames": 1, "rows": rows, "tasks": math.ceil(height / rows),
             "shared": shared and pool.made > 0, "first_s": first_s, "seconds": seconds,
             "blocks_made": pool.made,  # 1: every repeat reused the first frame's block
-            "workers_mapped": sorted(client.run(lambda: len(sharedframe._mapped)).values())}  # fmt: skip
+            "workers_mapped": sorted(client.run(lambda: len(sharedframe._mapped)).values()),
+            **busy_in_tasks(stream.data, args.repeat, sum(seconds))}  # fmt: skip
+
+
+def busy_in_tasks(stream, frames: int, wall_s: float) -> dict:
+    """Where a frame's time went, from the scheduler's task stream: each worker's
+    time computing its tiles, a frame; the busiest worker's; and what is left of
+    the frame outside the busiest worker's tiles (the scheduler's rounds, the
+    results' travel, the client's lease of the block and the Frame)."""
+    busy = {}
+    for task in stream:
+        if "_tile" in str(task["key"]):
+            for part in task["startstops"]:
+                if part["action"] == "compute":
+                    busy[task["worker"]] = busy.get(task["worker"], 0.0) + part["stop"] - part["start"]
+    per_frame = sorted(round(1e3 * b / frames, 2) for b in busy.values())
+    busiest = max(per_frame, default=0.0)
+    return {"tile_ms_per_frame": per_frame, "outside_tiles_ms_per_frame": round(1e3 * wall_s / frames - busiest, 2)}
 
 
 def frame_sent_job(client, args, scene, workers) -> dict:

@@ -5,6 +5,7 @@ of JSON per measurement.
 
     python benchmarks/startup.py --device cpu --size 1680x1050 --spheres 1000
     python benchmarks/startup.py --device cpu --shading whitted
+    python benchmarks/startup.py --device cuda --build gpu
 
 The first line says what ran: the commit ($RAYBENCH_GIT_COMMIT where set),
 where raybench was imported from, and the machine: its processor and the
@@ -21,10 +22,14 @@ import tempfile
 import time
 
 
-def timed(command: list[str], env: dict) -> float:
+def timed(command: list[str], env: dict, said: list | None = None) -> float:
+    """The seconds command took; what it printed goes on `said` where given."""
     start = time.perf_counter()
-    subprocess.run(command, env=env, check=True, stdout=subprocess.DEVNULL)
-    return time.perf_counter() - start
+    ran = subprocess.run(command, env=env, check=True, stdout=subprocess.PIPE, text=True)
+    took = time.perf_counter() - start
+    if said is not None:
+        said.append(ran.stdout.strip())
+    return took
 
 
 def main() -> int:
@@ -34,6 +39,7 @@ def main() -> int:
     parser.add_argument("--spheres", type=int, default=1000)
     parser.add_argument("--shading", default="thesis", choices=["thesis", "whitted"])
     parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--build", choices=["host", "gpu"], help="render's --build (cuda): where the BVH is built")
     args = parser.parse_args()
     python = sys.executable
     describe = (
@@ -53,16 +59,19 @@ def main() -> int:
                       "--device", device, "--shading", args.shading, "-o", out]  # fmt: skip
             if args.shading == "whitted":
                 render.insert(render.index("--spheres") + 2, "--materials")
-            cold = []
+            if args.build:
+                render += ["--build", args.build]
+            # what render printed: its own time to the written picture, before the process ends
+            cold, warm, said = [], [], {"cold": [], "warm": []}
             for run in range(args.runs):
                 env = {**base_env, "RAYBENCH_CACHE_DIR": os.path.join(scratch, f"cold-{device}-{run}")}
-                cold.append(timed(render, env))
+                cold.append(timed(render, env, said["cold"]))
             warm_env = {**base_env, "RAYBENCH_CACHE_DIR": os.path.join(scratch, f"cold-{device}-0")}
-            warm = [timed(render, warm_env) for _ in range(args.runs)]
+            warm = [timed(render, warm_env, said["warm"]) for _ in range(args.runs)]
             for what, times in (("cold", cold), ("warm", warm)):
                 row = {"what": f"render {what}", "device": device, "shading": args.shading, "spheres": args.spheres,
-                       "size": args.size, "median_s": round(statistics.median(times), 3),
-                       "runs_s": [round(t, 3) for t in times]}  # fmt: skip
+                       "size": args.size, "build": args.build, "median_s": round(statistics.median(times), 3),
+                       "runs_s": [round(t, 3) for t in times], "said": said[what]}  # fmt: skip
                 print(json.dumps(row), flush=True)
     return 0
 

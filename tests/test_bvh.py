@@ -2,6 +2,8 @@
 exactly the brute-force picture and hit indices (the brute-force kernels are
 held to the float64 reference by test_cpu and test_fast)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from scenes import IN_VIEW, KINDS, SCENES, chain, one_point
@@ -307,6 +309,16 @@ def test_collapse_to_4_wide(rng, kind):
     assert len(wide) <= b.node_count
 
 
+def test_collapse_of_a_tree_built_in_python_is_the_same(rng):
+    """A one-shot picture's tree (built by the builder's Python) is collapsed
+    by the same code run as Python: the same rows as compiled."""
+    scene, _ = SCENES[str(rng.choice(["generated", "layouts", "cloud", "duplicates"]))](rng, int(rng.integers(1, 400)))
+    tree = bvh.build(scene.spheres)
+    python = dataclasses.replace(tree, interpreted=True)
+    # bit for bit (the link columns read as floats hold NaNs: INNER is -1)
+    assert np.array_equal(bvh.collapse(python).view(np.int32), bvh.collapse(tree).view(np.int32))
+
+
 @pytest.mark.parametrize("kind", sorted(SCENES))
 def test_tree_split_by_all_threads(rng, kind, monkeypatch):
     """Ranges of over bvh.WIDE spheres are split by all threads together, each
@@ -320,6 +332,47 @@ def test_tree_split_by_all_threads(rng, kind, monkeypatch):
     check_tree(one, scene.spheres)
     many = bvh.build(scene.spheres, threads=int(rng.integers(2, 6)), _wide=wide)
     assert np.array_equal(many.links, one.links) and np.array_equal(many.order, one.order)
+
+
+@pytest.mark.parametrize("kind", [*sorted(SCENES), "chain"])
+def test_the_uncompiled_builder_gives_the_compiled_tree(rng, kind, monkeypatch):
+    """bvh.one_shot(): with the builder not in the cache, its own Python
+    builds the tree, which must be the compiled builder's bit for bit (the
+    chain takes the splits by count near MAX_DEPTH as well as SAH's)."""
+    scene, _ = chain(rng, 0) if kind == "chain" else SCENES[kind](rng, int(rng.integers(1, 1500)))
+    compiled_tree = bvh.build(scene.spheres)
+    started = []
+    monkeypatch.setattr(bvh.compiled, "is_ready", lambda name: False)
+    monkeypatch.setattr(bvh, "_compile_elsewhere", lambda: started.append(True))
+    with bvh.one_shot():
+        python_tree = bvh.build(scene.spheres)
+    assert python_tree.interpreted and not compiled_tree.interpreted and started == [True]
+    assert np.array_equal(python_tree.links, compiled_tree.links)  # every bit of every row, boxes too
+    assert np.array_equal(python_tree.ordered.view(np.int32), compiled_tree.ordered.view(np.int32))
+    assert np.array_equal(python_tree.order, compiled_tree.order) and python_tree.depth == compiled_tree.depth
+    # outside one_shot, and above WIDE within it, the builder is compiled
+    assert not bvh.build(scene.spheres).interpreted
+    if len(scene) > 2:
+        with bvh.one_shot():
+            assert not bvh.build(scene.spheres, _wide=2).interpreted
+
+
+@pytest.mark.parametrize("ready", [False, True])
+def test_which_one_shot_builds_run_in_python(ready, monkeypatch):
+    """In Python: a scene of at most WIDE spheres whose builder is not cached
+    (compiled elsewhere meanwhile), and on a GPU device one of at most
+    GPU_PYTHON_MAX whatever the cache holds (no child: its process needs no
+    CPU compiler). Outside one_shot(), never."""
+    monkeypatch.setattr(bvh.compiled, "is_ready", lambda name: ready)
+    small, mid, large = bvh.GPU_PYTHON_MAX, bvh.GPU_PYTHON_MAX + 1, bvh.WIDE + 1
+    assert bvh._in_python(small, bvh.WIDE, "cuda") == (False, False)  # not within one_shot
+    with bvh.one_shot():
+        for device in ("cuda", "wgpu"):
+            assert bvh._in_python(small, bvh.WIDE, device) == (True, False)
+            assert bvh._in_python(mid, bvh.WIDE, device) == (not ready, not ready)
+            assert bvh._in_python(large, bvh.WIDE, device) == (False, False)
+        assert bvh._in_python(small, bvh.WIDE, "cpu") == (not ready, not ready)
+        assert bvh._in_python(large, bvh.WIDE, "cpu") == (False, False)
 
 
 def test_depth_is_bounded_for_a_chain(rng):

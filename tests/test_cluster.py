@@ -135,8 +135,9 @@ def test_a_tile_task_on_this_host_sends_no_rows(running, rng, no_block_left):
     lease = pool.lease(40, 24)
     try:
         task = running.client.submit(cluster._tile, scene, "test-scene", spec, camera, (8, 24), lease.address)
-        first, image, hits, _, _ = task.result()
+        first, image, hits, _, _, worker = task.result()
         assert (first, image, hits) == (8, None, None)
+        assert worker in running.client.scheduler_info(n_workers=-1)["workers"]
         np.testing.assert_array_equal(lease.image[8:], whole.image[8:])
         np.testing.assert_array_equal(lease.hits[8:], whole.hits[8:])
     finally:
@@ -532,6 +533,40 @@ def test_cuda_workers_are_pinned_one_gpu_each_within_those_visible(monkeypatch):
 
 
 @pytest.mark.slow
+def test_a_frames_tiles_are_dealt_to_every_worker(running, rng, no_block_left):
+    """As many tiles as workers: one on each, frame after frame (left to
+    Dask, the two tiles of a frame went to one of two GPUs for a whole run)."""
+    from distributed import get_task_stream
+
+    scene, camera = scene_and_camera(rng, 200)
+    workers = sorted(running.client.scheduler_info(n_workers=-1)["workers"])
+    for _ in range(3):
+        with get_task_stream(running.client) as stream:
+            cluster.render(running.client, scene, camera, 64, 16 * len(workers), "cpu", rows=16)
+        ran_on = sorted(t["worker"] for t in stream.data if "_tile" in str(t["key"]))
+        assert ran_on == workers, ran_on
+
+
+def test_the_workers_devices_are_asked_once_for_a_clients_frames(running, rng, monkeypatch, no_block_left):
+    """A round trip to every worker each frame was a few ms of it: asked once,
+    and again only after a frame whose tiles ran elsewhere than expected."""
+    asked = []
+    real = cluster.check_workers
+    monkeypatch.setattr(cluster, "check_workers", lambda *a, **k: asked.append(1) or real(*a, **k))
+    monkeypatch.setattr(cluster, "_known", {})
+    scene, camera = scene_and_camera(rng, 100)
+    for _ in range(3):
+        cluster.render(running.client, scene, camera, 32, 32, "cpu", rows=16)
+    assert len(asked) == 1
+    key = next(iter(cluster._known))
+    ref, answers = cluster._known[key]
+    cluster._known[key] = (ref, {"tcp://127.0.0.1:1": "cpu", **answers})  # a worker gone since
+    frame = cluster.render(running.client, scene, camera, 32, 48, "cpu", rows=16)
+    assert frame.image.shape == (48, 32, 3) and key not in cluster._known  # forgotten: asked again next time
+    cluster.render(running.client, scene, camera, 32, 32, "cpu", rows=16)
+    assert len(asked) == 2
+
+
 def test_a_worker_killed_mid_frame_loses_no_tile(running, rng, no_block_left):
     """A worker killed while it traces a tile: Dask traces that tile again elsewhere, and the frame is whole."""
     import threading

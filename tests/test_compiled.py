@@ -14,6 +14,8 @@ import sys
 import textwrap
 import time
 
+import pytest
+
 DTYPES = ["float32", "float64", "int32", "int64", "uint8", "int16", "uint16", "int8"]
 
 MODULE = textwrap.dedent(
@@ -78,3 +80,25 @@ def test_the_cache_lock_is_taken_again_by_its_thread(tmp_path, monkeypatch):
     monkeypatch.setattr(compiled, "CACHE_DIR", tmp_path)
     with compiled._locked(), compiled._locked():
         assert (tmp_path / ".lock").exists()
+
+
+@pytest.mark.slow
+def test_a_first_picture_does_not_wait_for_the_builders_compile(tmp_path, rng):
+    """`raybench render` with an empty cache: the tree is built by the
+    builder's Python while a child compiles it into the cache; the process
+    waits for the child (the cache then holds the builder), and the next
+    process builds with the compiled builder the same picture."""
+    src = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "src")
+    env = {**os.environ, "RAYBENCH_CACHE_DIR": str(tmp_path / "cache"), "PYTHONPATH": src}
+    spheres, seed = str(int(rng.integers(50, 800))), str(int(rng.integers(2**31)))
+    runs = []
+    for name in ("cold.png", "warm.png"):
+        args = ["render", "--device", "cpu", "--spheres", spheres, "--seed", seed, "--size", "96x64", "-o", name]
+        command = [sys.executable, "-m", "raybench", *args]
+        proc = subprocess.run(command, env=env, cwd=tmp_path, capture_output=True, text=True, timeout=600)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        runs.append(proc.stdout)
+        ready = list((tmp_path / "cache").glob("*/ready/builder"))
+        assert len(ready) == 1, list((tmp_path / "cache").rglob("*"))  # the child finished before the process ended
+    assert "as it compiles for later runs" in runs[0] and "Python" not in runs[1], runs
+    assert (tmp_path / "cold.png").read_bytes() == (tmp_path / "warm.png").read_bytes()

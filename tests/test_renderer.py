@@ -27,8 +27,46 @@ def test_frames_are_render_frames(rng, device, shading):
 def test_a_closed_renderer_says_so():
     renderer = raybench.Renderer(raybench.random_spheres(3), 8, 8, device="cpu")
     renderer.close()
-    with pytest.raises(raybench.RaybenchError, match="renderer: it is closed"):
-        renderer.render()
+    for call in (renderer.render, renderer.compile, lambda: renderer.update(raybench.random_spheres(3).spheres)):
+        with pytest.raises(raybench.RaybenchError, match="renderer: it is closed"):
+            call()
+
+
+@pytest.mark.parametrize("accel", ["bvh", "none"])
+def test_count_and_update_give_the_frames_of_those_spheres(rng, accel):
+    """render(count=k) is the frame of the scene's first k spheres, and after
+    update(moved) the frame of the moved spheres: each against a one-shot
+    render() of a scene made of exactly those spheres."""
+    n = int(rng.integers(20, 80))
+    scene = raybench.random_spheres(n, seed=int(rng.integers(2**31)))
+    camera = raybench.Camera(position=tuple(rng.uniform(-0.5, 0.5, 3)))
+    k = int(rng.integers(1, n))
+    moved = scene.spheres.copy()
+    moved[:3] += rng.uniform(-1.5, 1.5, (3, n)).astype(np.float32)
+    with raybench.Renderer(scene, 40, 30, device="cpu", accel=accel) as renderer:
+        assert renderer.compile() >= 0
+        first_k = renderer.render(camera, count=k)
+        assert renderer.update(moved) == ("build" if accel == "bvh" else None)
+        after = renderer.render(camera)
+        with pytest.raises(raybench.RaybenchError, match="sphere count"):
+            renderer.render(camera, count=n + 1)
+    moved_scene = raybench.Scene(moved[:3].T, moved[3], moved[4:7].T)
+    for got, alone in ((first_k, scene.head(k)), (after, moved_scene)):
+        want = raybench.render(alone, camera, 40, 30, device="cpu", accel=accel)
+        assert np.array_equal(got.image, want.image) and np.array_equal(got.hits, want.hits)
+    assert not np.array_equal(first_k.hits, after.hits)
+
+
+def test_a_shading_made_ahead_is_whitted_shading(rng):
+    scene = raybench.random_spheres(int(rng.integers(5, 40)), seed=int(rng.integers(2**31)), materials=True)
+    depth, samples = int(rng.integers(1, 6)), int(rng.integers(1, 5))
+    shading = raybench.lighting.Shading.of(scene, depth, samples)
+    with raybench.Renderer(scene, 24, 16, device="cpu", shading=shading) as renderer:
+        got = renderer.render()
+    want = raybench.render(scene, None, 24, 16, device="cpu", shading="whitted", depth=depth, shadow_samples=samples)
+    assert np.array_equal(got.image, want.image) and got.rays == want.rays
+    with pytest.raises(raybench.RaybenchError, match="a Shading holds its own"):
+        raybench.Renderer(scene, 8, 8, device="cpu", shading=shading, depth=2)
 
 
 @pytest.mark.parametrize(

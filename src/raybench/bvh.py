@@ -35,9 +35,14 @@ all coincide are split by count too.
 
 from __future__ import annotations
 
+import atexit
+import contextlib
+import subprocess
+import sys
 import threading
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -102,7 +107,8 @@ class Bvh:
     ordered: np.ndarray  # (4, N) float32: cx, cy, cz, r in leaf order
     order: np.ndarray  # (N,) int32: original index of each ordered sphere
     depth: int  # deepest node (root = 1)
-    build_s: float  # seconds the build took (compiled code only)
+    build_s: float  # seconds the build took (compiled code only, unless interpreted)
+    interpreted: bool = False  # built by the builder's Python, uncompiled (one_shot)
 
     @property
     def count(self) -> int:
@@ -749,8 +755,108 @@ def compile_builder(wide: bool = True) -> None:
     spheres = np.ones((7, 9), np.float32)
     spheres[:3] = np.arange(27, dtype=np.float32).reshape(3, 9) % 5
     build(spheres, threads=1, _timed=False)
+    compiled.mark_ready(READY)
     if wide:
         build(spheres, threads=1, _timed=False, _wide=2)
+
+
+# --- a one-shot picture's tree, in Python --------------------------------------------
+#
+# A process that makes one picture (raybench.render, `raybench render`) of a
+# scene of at most WIDE spheres may build its tree with the builder's own
+# code run as plain Python (compiled.as_python): the same tree, bit for bit,
+# in 0.2-0.3 s for 1,000 spheres and 1.1 s for WIDE. Where that is quicker:
+# - the builder is not yet in the compile cache: compiling it takes about
+#   10 s on two cores. A child process compiles it into the cache meanwhile,
+#   beside the frame kernel's compile, and the process waits for the child
+#   before it exits, leaving nothing running;
+# - the picture is traced on a GPU (cuda, wgpu) and the scene has at most
+#   GPU_PYTHON_MAX spheres: the compiled builder, even cached, needs Numba's
+#   CPU compiler started (its registries, and SciPy, which it imports), about
+#   0.5 s that nothing else of such a process needs (docs/performance.md).
+# Objects that keep a scene for many frames (Renderer, the bench, the viewer)
+# build with the compiled builder: their build times are compiled code's.
+
+READY = "builder"  # compiled.mark_ready's name for the one-thread way
+GPU_PYTHON_MAX = 2048
+_one_shot = threading.local()
+_child: subprocess.Popen | None = None
+_CHILD_LOCK = threading.Lock()
+# the child compiles this very package: the folder it is in goes first on its path
+_CHILD = "import sys; sys.path.insert(0, sys.argv[1]); from raybench import bvh; bvh.compile_builder(wide=False)"
+
+
+@contextlib.contextmanager
+def one_shot():
+    """Within: a build of at most WIDE spheres may run the builder as plain
+    Python (above), and a build's way is told by last_build_in_python()."""
+    before = getattr(_one_shot, "on", False)
+    _one_shot.on = True
+    try:
+        yield
+    finally:
+        _one_shot.on = before
+
+
+def last_build_in_python() -> bool:
+    """Whether this thread's last build within one_shot() ran the builder as Python."""
+    return getattr(_one_shot, "python", False)
+
+
+def compiling_elsewhere() -> bool:
+    """Whether this process started the child that compiles the builder."""
+    return _child is not None
+
+
+def _in_python(n: int, wide: int, device: str) -> tuple[bool, bool]:
+    """(whether to build in Python, whether to compile the builder elsewhere meanwhile)."""
+    if not getattr(_one_shot, "on", False) or n > wide:
+        return False, False
+    if device != "cpu" and n <= GPU_PYTHON_MAX:
+        return True, False
+    missing = not compiled.is_ready(READY)
+    return missing, missing
+
+
+def _compile_elsewhere() -> None:
+    """Start the child that compiles the one-thread way into the cache, once
+    a process; the process waits for it at exit."""
+    global _child
+    with _CHILD_LOCK:
+        if _child is None:
+            _child = _start_child()
+            if _child is not None:
+                atexit.register(_child.wait)
+
+
+def _start_child() -> subprocess.Popen | None:
+    try:
+        return subprocess.Popen(
+            [sys.executable, "-c", _CHILD, str(Path(__file__).resolve().parent.parent)],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+    except OSError:
+        return None  # no child: the next process compiles, or runs uncompiled again
+
+
+def _build_narrow(code, cx, cy, cz, r):
+    """The one-thread way's tree: (nodes, ordered, order, depth). code: this
+    module, or compiled.as_python(this module) to run it uncompiled."""
+    n = cx.shape[0]
+    p = tuple(np.empty(n, np.float32) for _ in range(4)) + (np.empty(n, np.int32),)
+    # IEEE arithmetic, as compiled code's: no NumPy warnings on inf or nan when uncompiled
+    with np.errstate(all="ignore"):
+        code._prepare(cx, cy, cz, r, p, 0, n, np.empty(12, np.float32))
+        px, py, pz, pr, order = p
+        nodes = np.empty((2 * max(n, 1), NODE_FLOATS), np.float32)
+        stack = code._stack()
+        links = nodes.view(np.int32)
+        top = code._root(px, py, pz, pr, order, nodes, links, stack)
+        used, depth = code._grow(px, py, pz, pr, order, nodes, links, stack, top, 1)
+    # the centres are already in leaf order (the builder moved them), the very values of the scene
+    return nodes[:used].copy(), np.stack([px, py, pz, r[order]]), order, depth
 
 
 def _piece(spheres: int, threads: int) -> int:
@@ -828,17 +934,25 @@ def _build_wide(cx, cy, cz, r, threads: int, wide: int):
     return packed, ordered, p[4], max(depth, int(depths.max()))
 
 
-def build(spheres: np.ndarray, threads: int | None = None, _timed: bool = True, _wide: int = WIDE) -> Bvh:
+def build(
+    spheres: np.ndarray, threads: int | None = None, device: str = "cpu", _timed: bool = True, _wide: int = WIDE
+) -> Bvh:
     """The BVH of a (7, N) float32 sphere array (Scene.spheres), built on
     `threads` threads (default: all cores). Up to `_wide` spheres, on one
     thread; above, the top of the tree is split by all threads together, the
     subtrees below on one thread each. The tree is the same on any number of
-    threads."""
+    threads. device: the one whose walks the tree is for ("cpu", "cuda",
+    "wgpu"). Within one_shot(), a scene of up to `_wide` spheres may be built
+    by the builder's uncompiled Python, the same tree (Bvh.interpreted)."""
     n = spheres.shape[1]
     if n > MAX_SPHERES:
         raise RaybenchError(f"bvh: at most {MAX_SPHERES:,} spheres, got {n:,}")
     threads = threads or usable_cores()
-    if _timed:
+    interpret, elsewhere = _in_python(n, _wide, device) if _timed else (False, False)
+    _one_shot.python = interpret
+    if elsewhere:
+        _compile_elsewhere()
+    elif _timed and not interpret:
         compile_builder(wide=n > _wide)
     cx, cy, cz, r = (np.ascontiguousarray(spheres[k]) for k in range(4))
     start = time.perf_counter()
@@ -854,19 +968,18 @@ def build(spheres: np.ndarray, threads: int | None = None, _timed: bool = True, 
             finally:
                 numba.set_num_threads(before)
     else:
-        p = tuple(np.empty(n, np.float32) for _ in range(4)) + (np.empty(n, np.int32),)
-        _prepare(cx, cy, cz, r, p, 0, n, np.empty(12, np.float32))
-        px, py, pz, pr, order = p
-        nodes = np.empty((2 * max(n, 1), NODE_FLOATS), np.float32)
-        stack = _stack()
-        links = nodes.view(np.int32)
-        top = _root(px, py, pz, pr, order, nodes, links, stack)
-        used, depth = _grow(px, py, pz, pr, order, nodes, links, stack, top, 1)
-        nodes = nodes[:used].copy()
-        # the centres are already in leaf order (the builder moved them), the very values of the scene
-        ordered = np.stack([px, py, pz, r[order]])
+        code = compiled.as_python(sys.modules[__name__]) if interpret else sys.modules[__name__]
+        nodes, ordered, order, depth = _build_narrow(code, cx, cy, cz, r)
     build_s = time.perf_counter() - start
-    return Bvh(nodes=nodes, links=nodes.view(np.int32), ordered=ordered, order=order, depth=int(depth), build_s=build_s)
+    return Bvh(
+        nodes=nodes,
+        links=nodes.view(np.int32),
+        ordered=ordered,
+        order=order,
+        depth=int(depth),
+        build_s=build_s,
+        interpreted=interpret,
+    )
 
 
 # ---------------------------------------------------------------- the 4-wide tree (the CPU's walk)
@@ -951,7 +1064,11 @@ def compile_collapse() -> None:
 
 def collapse(tree: Bvh) -> np.ndarray:
     """The 4-wide rows (layout.WIDE_FLOATS float32 columns; the int32 view holds
-    the links) of a binary tree, over the same ordered spheres."""
+    the links) of a binary tree, over the same ordered spheres. A tree the
+    builder's Python made (one_shot) is collapsed by the same code as Python
+    too, so a one-shot picture compiles no collapse either: at most WIDE
+    spheres, a few ms."""
     wide = np.empty((max(len(tree.nodes), 1), WIDE_FLOATS), np.float32)
-    used = _collapse(tree.nodes, tree.links, wide, wide.view(np.int32))
-    return wide[:used].copy()
+    code = compiled.as_python(sys.modules[__name__]) if tree.interpreted else sys.modules[__name__]
+    used = code._collapse(tree.nodes, tree.links, wide, wide.view(np.int32))
+    return wide[: int(used)].copy()

@@ -383,6 +383,13 @@ def render(
     elapsed = time.perf_counter() - start
     frame.save(output, level)
     built = f", BVH built in {frame.build_s * 1e3:.1f} ms" if frame.build_s is not None else ""
+    if frame.build_s is not None:
+        from . import bvh
+
+        if bvh.compiling_elsewhere():
+            built += " (by the builder's Python, as it compiles for later runs)"
+        elif bvh.last_build_in_python():
+            built += " (by the builder's Python: for one picture, quicker than starting Numba's CPU compiler)"
     rays = ""
     if frame.rays is not None:
         rays = ", rays: " + ", ".join(f"{n:,} {kind}" for kind, n in frame.rays.items())

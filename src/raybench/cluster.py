@@ -232,6 +232,28 @@ def check_workers(client, device: str, **options) -> dict[str, str]:
     return answers
 
 
+# Each client's workers' devices (check_workers), asked once for a client's frames and again
+# after a frame failed: the round trip to every worker was a few ms of each frame, which
+# the scheduler's tiles cannot hide (docs/scaling.md). A worker that joins later and lacks
+# the device fails its tile with an error that names it (_tile).
+_known: dict[tuple, tuple] = {}
+
+
+def _known_key(client, device: str, options: dict) -> tuple:
+    return (id(client), device, options.get("adapter"))
+
+
+def _known_workers(client, device: str, options: dict) -> dict[str, str]:
+    key = _known_key(client, device, options)
+    held = _known.get(key)
+    if held is None or held[0]() is not client:
+        for gone in [k for k, (ref, _) in _known.items() if ref() is None]:
+            del _known[gone]
+        held = (weakref.ref(client), check_workers(client, device, **options))
+        _known[key] = held
+    return held[1]
+
+
 def _worker_device(device: str, adapter: str | None) -> str:
     from . import backends
 
@@ -269,14 +291,26 @@ def _renderer(scene: Scene, scene_key: str, spec: tuple) -> Renderer:
 def _tile(
     scene: Scene, scene_key: str, spec: tuple, camera: Camera, rows: tuple[int, int], shared: tuple | None = None
 ):
-    """A task: rows first..end of the frame; (first, image rows, hit rows,
+    """A task: _tile_rows's answer, and the address of the worker that ran it."""
+    from distributed import get_worker
+
+    return (*_tile_rows(scene, scene_key, spec, camera, rows, shared), get_worker().address)
+
+
+def _tile_rows(scene: Scene, scene_key: str, spec: tuple, camera: Camera, rows: tuple[int, int], shared):
+    """Rows first..end of the frame; (first, image rows, hit rows,
     rays by kind or None, BVH build seconds or None). With shared (the
     address of the client's sharedframe.Lease) the rows are written into it,
     on cuda straight from the GPU, elsewhere once from the tracer's own
     buffers, and come back as None; where this worker cannot open it (another
     host) they come back as before."""
     with _lock:
-        renderer = _renderer(scene, scene_key, spec)
+        try:
+            renderer = _renderer(scene, scene_key, spec)
+        except RaybenchError as exc:
+            from distributed import get_worker
+
+            raise RaybenchError(f"worker {get_worker().address}: {exc}") from None
         if shared is not None:
             tracer = renderer.tracer
             basis = camera.basis(renderer.width, renderer.height)
@@ -411,9 +445,10 @@ def render(
     **options,
 ) -> Frame:
     """raybench.render() across the cluster's workers: the frame cut in
-    bands of `rows` rows (default: tile_rows()), traced where Dask puts
-    them and assembled here, bit for bit the frame one process traces on
-    the same device: "cpu" or "cuda" (the devices that trace rows).
+    bands of `rows` rows (default: tile_rows()), dealt to the workers in
+    turn (Dask may move a band to an idle worker) and assembled here, bit
+    for bit the frame one process traces on the same device: "cpu" or
+    "cuda" (the devices that trace rows).
 
     shared (default): the frame is made in shared memory (raybench.sharedframe),
     and a worker on this host writes its rows into it, so that they do not
@@ -428,7 +463,8 @@ def render(
         raise RaybenchError(f"camera: must be a raybench.Camera or None, got {type(camera).__name__}")
     spec = _spec(width, height, device, shading, depth, shadow_samples, options)
     width, height = spec[0], spec[1]
-    found = check_workers(client, device, **options)
+    known = _known_key(client, device, options)
+    found = _known_workers(client, device, options)
     device = next(iter(found.values()))
     if device not in ("cpu", "cuda"):
         raise RaybenchError(f"device {device}: traces whole frames only; a frame in tiles needs device cpu or cuda")
@@ -440,23 +476,34 @@ def render(
             f"rows: a tile's rows must be a multiple of {TILE_ALIGN}, at least {TILE_ALIGN}, got {rows!r}"
         )
     camera = camera or scene.camera or Camera()
-    # The frame is assembled here, whole: refused before any work if it cannot be.
-    check_fits("host (where the frame is assembled)", width, height, 0, host_available_bytes(), PIXEL_BYTES)
+    # The frame is assembled here, whole: refused before any work if it cannot be
+    # (unless a kept block of its size is there to be lent: no new memory).
+    if not (shared and _pool(client).can_lend(width, height)):
+        check_fits("host (where the frame is assembled)", width, height, 0, host_available_bytes(), PIXEL_BYTES)
     future, key = _scatter(client, scene)
     bands = [(a, min(a + rows, height)) for a in range(0, height, rows)]
     lease, ok = None, False
     try:
         lease = _pool(client).lease(width, height) if shared else None
         address = None if lease is None else lease.address
-        tasks = [client.submit(_tile, future, key, spec, camera, band, address, pure=False) for band in bands]
+        # The tiles placed on the workers in turn. Left to Dask, the two tiles of an 8192x8192
+        # frame went to one of two GPUs for a whole run (lease z4: 1.00x). Loosely: a worker that
+        # dies or lags has its tiles run, or stolen, by the others.
+        places = sorted(found)
+        tasks = [
+            client.submit(_tile, future, key, spec, camera, band, address, pure=False,
+                          workers=[places[i % len(places)]], allow_other_workers=True)
+            for i, band in enumerate(bands)
+        ]  # fmt: skip
         if lease is None:
             image, hits = np.empty((height, width, 3), np.uint8), np.empty((height, width), np.int32)
         else:
             image, hits = lease.image, lease.hits
-        rays, build_s = None, None
+        rays, build_s, ran = None, None, set()
         try:
             for task in as_completed(tasks):
-                first, band_image, band_hits, band_rays, band_build = task.result()
+                first, band_image, band_hits, band_rays, band_build, worker = task.result()
+                ran.add(worker)
                 if band_image is not None:  # sent: a worker that could not write to the block, or none
                     image[first : first + len(band_image)] = band_image
                     hits[first : first + len(band_hits)] = band_hits
@@ -465,7 +512,10 @@ def render(
                 build_s = band_build if build_s is None else max(build_s, band_build or 0.0)
             ok = True
         finally:
-            client.cancel(tasks)
+            if not ok:  # the others are not wanted now (a round trip to the scheduler: not paid when all are done)
+                client.cancel(tasks)
+            if not ok or ran != set(places[: len(bands)]):  # the workers are not those known: asked again next time
+                _known.pop(known, None)
     finally:
         # Done, failed or interrupted: the block's name goes now, and a task
         # that starts later finds none. Failed or interrupted: a task still

@@ -17,6 +17,7 @@ import contextlib
 import hashlib
 import os
 import threading
+import types
 from pathlib import Path
 
 import numba
@@ -143,3 +144,33 @@ def cuda_jit(**options):
     if numba.config.ENABLE_CUDASIM:
         return cuda.jit(**options)
     return _in_cache(cuda.jit(cache=True, **options))
+
+
+def is_ready(name: str) -> bool:
+    """Whether mark_ready(name) was said in this cache: the functions it
+    names are compiled and saved here."""
+    return (CACHE_DIR / "ready" / name).exists()
+
+
+def mark_ready(name: str) -> None:
+    """Say, for later processes, that the functions `name` stands for are
+    compiled and saved in this cache (a cache that cannot be written says
+    nothing)."""
+    try:
+        (CACHE_DIR / "ready").mkdir(parents=True, exist_ok=True)
+        (CACHE_DIR / "ready" / name).touch()
+    except OSError:
+        pass
+
+
+def as_python(module) -> types.SimpleNamespace:
+    """The module's compiled functions as the plain Python they were written
+    in, calling one another as plain Python too (a function's globals are the
+    namespace, in which each compiled function is replaced by its Python):
+    the same algorithm, run by the interpreter, compiling nothing."""
+    space = dict(vars(module))
+    for name, value in vars(module).items():
+        if isinstance(value, numba.core.dispatcher.Dispatcher):
+            f = value.py_func
+            space[name] = types.FunctionType(f.__code__, space, f.__name__, f.__defaults__, f.__closure__)
+    return types.SimpleNamespace(**space)

@@ -88,7 +88,9 @@ class Renderer:
                 renderer.render(camera).save(...)
 
     device, shading, depth, shadow_samples and the device's options are
-    render()'s (below)."""
+    render()'s (below); shading may also be a lighting.Shading made ahead
+    (Shading.of(scene, ...)), which is Whitted shading with its arrays. For
+    spheres that move, update(spheres) moves them between frames."""
 
     def __init__(
         self,
@@ -96,7 +98,7 @@ class Renderer:
         width: int = 800,
         height: int = 600,
         device: str = "auto",
-        shading: str = "thesis",
+        shading: str | Shading = "thesis",
         depth: int | None = None,
         shadow_samples: int | None = None,
         **options,
@@ -104,7 +106,11 @@ class Renderer:
         if not isinstance(scene, Scene):
             raise RaybenchError(f"scene: must be a raybench.Scene, got {type(scene).__name__}")
         width, height = check_size(width, height)
-        if check_shading(shading) == "whitted":
+        if isinstance(shading, Shading):
+            if depth is not None or shadow_samples is not None:
+                raise RaybenchError("depth and shadow_samples: a Shading holds its own; give one or the other")
+            options["whitted"], shading = shading, "whitted"
+        elif check_shading(shading) == "whitted":
             options["whitted"] = Shading.of(scene, depth, shadow_samples)
         elif depth is not None or shadow_samples is not None:
             raise RaybenchError("depth and shadow_samples: apply to shading='whitted' only")
@@ -113,37 +119,60 @@ class Renderer:
 
     @property
     def device(self) -> str:
-        return self.tracer.name
+        return self._open().name
 
-    def render(self, camera: Camera | None = None, hits: bool = True, rows: tuple[int, int] | None = None) -> Frame:
+    def compile(self) -> float:
+        """Compile the kernel (or load it from the cache) and build what the
+        first frame needs, ahead of it; the seconds that took. render() does
+        it by itself when it has not been done."""
+        return self._open().compile()
+
+    def update(self, spheres: np.ndarray) -> str | None:
+        """Move the spheres (a (7, N) float32 array of the scene's N spheres,
+        as Scene.spheres) for the next frames: "refit" where the tree's boxes
+        were refitted on the GPU (cuda, build="gpu"), "build" where the tree
+        was rebuilt, None for brute force."""
+        return self._open().update(spheres)
+
+    def render(
+        self,
+        camera: Camera | None = None,
+        hits: bool = True,
+        rows: tuple[int, int] | None = None,
+        count: int | None = None,
+    ) -> Frame:
         """One frame as seen by camera (default: the scene's own camera, else
         Camera()); a Frame of its own arrays. hits=False leaves Frame.hits
         None and saves copying them. rows=(first, end): only those rows of
         the frame, each pixel as the whole frame has it (a tile of
         raybench.cluster's render; first a multiple of 8 on the cpu), on
-        devices that trace rows (cpu and cuda)."""
-        if self.tracer is None:
-            raise RaybenchError("renderer: it is closed; make a new Renderer")
+        devices that trace rows (cpu and cuda). count: only the scene's first
+        count spheres (the thesis's test 7 ramps it), without a new tree or
+        upload where the device allows."""
+        tracer = self._open()
         _check_camera(camera)
         camera = camera or self.scene.camera or Camera()
         basis = camera.basis(self.width, self.height)
         if rows is None:
-            image, hit_ids = self.tracer.trace(basis)
-        elif not self.tracer.traces_rows:
-            raise RaybenchError(
-                f"rows: device {self.tracer.name} traces whole frames only; tiles need device cpu or cuda"
-            )
+            image, hit_ids = tracer.trace(basis, count)
+        elif not tracer.traces_rows:
+            raise RaybenchError(f"rows: device {tracer.name} traces whole frames only; tiles need device cpu or cuda")
         else:
-            image, hit_ids = self.tracer.trace(basis, rows=rows)
+            image, hit_ids = tracer.trace(basis, count, rows=rows)
             image, hit_ids = image[rows[0] : rows[1]], hit_ids[rows[0] : rows[1]]
-        counts = self.tracer.ray_counts
+        counts = tracer.ray_counts
         return Frame(
             image=image.copy(),
             hits=hit_ids.copy() if hits else None,
-            device=self.tracer.name,
-            build_s=self.tracer.build_s,
+            device=tracer.name,
+            build_s=tracer.build_s,
             rays=None if counts is None else dict(zip(KINDS, counts.tolist())),
         )
+
+    def _open(self):
+        if self.tracer is None:
+            raise RaybenchError("renderer: it is closed; make a new Renderer")
+        return self.tracer
 
     def close(self) -> None:
         if self.tracer is not None:
@@ -180,8 +209,11 @@ def render(
     "simple" on cpu and cuda, "simple" only on wgpu and under Whitted
     shading)."""
     _check_camera(camera)  # before any work
-    with Renderer(scene, width, height, device, shading, depth, shadow_samples, **options) as renderer:
-        return renderer.render(camera)
+    from . import bvh  # here: `import raybench` does not import Numba
+
+    # one frame: a small scene's tree may be built uncompiled while the builder compiles (bvh.one_shot)
+    with bvh.one_shot(), Renderer(scene, width, height, device, shading, depth, shadow_samples, **options) as r:
+        return r.render(camera)
 
 
 def _check_camera(camera) -> None:

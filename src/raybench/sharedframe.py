@@ -215,6 +215,11 @@ class Pool:
             self._close(block)
             raise
 
+    def can_lend(self, width: int, height: int) -> bool:
+        """Whether lease(width, height) would lend a block kept idle, making none."""
+        with self._lock:
+            return not self._closed and self._size == (width, height) and bool(self._idle)
+
     def _returned(self, block: Block) -> None:
         """The last array over a lent block is gone: kept for the next frame,
         or closed."""

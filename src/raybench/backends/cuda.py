@@ -613,7 +613,7 @@ class Tracer(TracerBase):
             # the fresh tree's SAH cost: what update()'s refits are held to
             self._fresh_cost = self._builder.read_cost() if self.bvh.built_on == "gpu" else None
         else:
-            self.bvh = cuda_build.upload(bvh_mod.build(self.spheres[:, :count]))
+            self.bvh = cuda_build.upload(bvh_mod.build(self.spheres[:, :count], device="cuda"))
         self._launches.clear()  # they hold the old tree's arrays
         self.build_s = self.bvh.build_s
         self.d_nodes, self.d_links = self.bvh.nodes, self.bvh.links  # the same bytes: one row holds both

@@ -939,11 +939,11 @@ def build(spheres: np.ndarray, d_spheres, builder: Builder | None = None, max_de
     than max_depth. build_s: from the first launch to the tree ready to walk."""
     n = spheres.shape[1]
     if n < 2:
-        return upload(bvh_mod.build(spheres))
+        return upload(bvh_mod.build(spheres, device="cuda"))
     start = time.perf_counter()
     builder = builder if builder is not None and builder.n == n else Builder(n)
     builder.launch_build(d_spheres)
     depth = builder.read_depth()
     if depth > max_depth:
-        return upload(bvh_mod.build(spheres))
+        return upload(bvh_mod.build(spheres, device="cuda"))
     return builder.tree(depth, time.perf_counter() - start)

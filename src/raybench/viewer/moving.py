@@ -1,6 +1,7 @@
 """--animate: the spheres move every frame (raybench.animate.Orbits, seed 0,
-at the request's time), and the tracer's tree follows (Tracer.update: a
-refit or a build, timed apart from the trace, for the title).
+at the request's time), and the tree follows (Renderer.update, or the
+window's wgpu pass's: a refit or a build, timed apart from the trace, for the
+title).
 
 Used where frames are traced: the worker's thread (cpu, cuda) and the
 window's own wgpu pass, each with its own MovingSpheres.
@@ -20,14 +21,15 @@ class MovingSpheres:
         self._orbits: Orbits | None = None
         self._scene = None
 
-    def update(self, tracer, request) -> tuple[float | None, str | None]:
-        """Move tracer's spheres to where request.time puts them, if it has a
-        time: (the update's ms, "refit" or "build"); (None, None) if not."""
+    def update(self, traced, request) -> tuple[float | None, str | None]:
+        """Move the spheres of `traced` (a Renderer, or anything with its
+        update(spheres)) to where request.time puts them, if it has a time:
+        (the update's ms, "refit" or "build"); (None, None) if not."""
         if request.time is None:
             return None, None
         if self._scene is not request.scene:
             self._orbits, self._scene = Orbits(request.scene.spheres, 0), request.scene
         spheres = self._orbits.at(request.time)
         start = time.perf_counter()
-        kind = tracer.update(spheres)
+        kind = traced.update(spheres)
         return (time.perf_counter() - start) * 1e3, kind

@@ -1,11 +1,13 @@
 """The tracing thread: frames are traced here, off the window's event loop.
 
-The thread only calls the backends' tracers (the same Tracer objects that
-render() and the benchmark use); it never traces by itself. It keeps one tracer
-and replaces it when the device, size, scene, options or shading change. Every tracer
-is made, used and closed on this one thread, which is what makes switching the
-device while a frame is in flight safe: the switch only changes the next
-request, and a CUDA context never crosses threads.
+The thread traces through a raybench.Renderer, as a program would (and as
+render(), the benchmark and the cluster's workers do); it never traces by
+itself. It keeps one Renderer and replaces it when the device, size, scene,
+options or shading change. Every Renderer is made, used and closed on this one
+thread, which is what makes switching the device while a frame is in flight
+safe: the switch only changes the next request, and a CUDA context never
+crosses threads. (wgpu on the window's own GPU traces in the window instead,
+into the texture it draws: zero_copy.py.)
 
 The CPU kernels run with the GIL released (nogil), so the window stays
 responsive while all cores trace; numba's CUDA simulator is pure Python and
@@ -20,12 +22,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import backends
 from ..camera import Camera
 from ..errors import RaybenchError
-from ..kernels.whitted import KINDS
 from ..lighting import Shading
-from ..render import Frame
+from ..render import Frame, Renderer
 from ..scene import Scene
 from .moving import MovingSpheres
 from .pacing import Handoff
@@ -50,7 +50,7 @@ class TracedFrame:
     request: TraceRequest
     frame: Frame  # or a zero_copy.DrawnFrame: traced by wgpu into the window's texture
     rgba: np.ndarray | None  # (H, W, 4) uint8: the frame as the texture wants it (None: already there)
-    trace_ms: float  # camera basis, trace and copy to the host: the whole frame (wgpu: the pass)
+    trace_ms: float  # Renderer.render: camera basis, trace, copy to the host (wgpu in the window: the pass)
     compile_s: float | None  # set on the first frame of a new tracer
     update_ms: float | None = None  # --animate: the tree's update before the trace (not in trace_ms)
     update: str | None = None  # its kind: "refit" or "build" (None: brute force, or not animated)
@@ -92,9 +92,9 @@ class TraceWorker:
         self._wake = threading.Condition()
         self._request: TraceRequest | None = None
         self._closing = False
-        self._tracer = None
-        self._tracer_key = None
-        self._tracer_scene = None
+        self._renderer = None
+        self._renderer_key = None
+        self._renderer_scene = None
         self._moving = MovingSpheres()
         self._thread = threading.Thread(target=self._run, name="raybench-trace", daemon=True)
         self._thread.start()
@@ -109,7 +109,7 @@ class TraceWorker:
             self._wake.notify()
 
     def close(self, timeout: float | None = None) -> None:
-        """Stop after the frame in flight, if any, and release the tracer."""
+        """Stop after the frame in flight, if any, and release the Renderer."""
         with self._wake:
             self._closing = True
             self._wake.notify()
@@ -131,49 +131,45 @@ class TraceWorker:
                     except Exception:  # noqa: BLE001
                         pass  # the window is gone; nobody is waiting for this frame
         finally:
-            self._drop_tracer()
+            self._drop_renderer()
 
     def _trace(self, request: TraceRequest) -> TracedFrame | TraceFailed:
         try:
-            compile_s = self._ensure_tracer(request)
-            update_ms, update = self._moving.update(self._tracer, request)
+            compile_s = self._ensure_renderer(request)
+            update_ms, update = self._moving.update(self._renderer, request)
             start = time.perf_counter()
-            image, hits = self._tracer.trace(request.camera.basis(request.width, request.height), request.count)
+            frame = self._renderer.render(request.camera, count=request.count)
             trace_ms = (time.perf_counter() - start) * 1e3
-            # The tracer reuses its buffers for the next frame: the Frame gets copies, as render() gives.
-            counts = self._tracer.ray_counts
-            rays = None if counts is None else dict(zip(KINDS, counts.tolist()))
-            frame = Frame(image=image.copy(), hits=hits.copy(), device=self._tracer.name, rays=rays)
             return TracedFrame(request, frame, to_rgba(frame.image), trace_ms, compile_s, update_ms, update)
         except RaybenchError as exc:
-            self._drop_tracer()
+            self._drop_renderer()
             return TraceFailed(request, str(exc))
         except Exception as exc:  # noqa: BLE001 - shown in the title; the window must live on
-            self._drop_tracer()
+            self._drop_renderer()
             return TraceFailed(request, f"{request.device} failed: {type(exc).__name__}: {exc}")
 
-    def _ensure_tracer(self, request: TraceRequest) -> float | None:
-        """Make the tracer this request needs, if it is not the one held; the
+    def _ensure_renderer(self, request: TraceRequest) -> float | None:
+        """Make the Renderer this request needs, if it is not the one held; the
         seconds its compilation took (None if it was already there)."""
-        options = request.options
         key = (request.device, id(request.scene), id(request.shading), request.width, request.height)
-        key += (tuple(sorted(options.items())),)
-        if key == self._tracer_key:
+        key += (tuple(sorted(request.options.items())),)
+        if key == self._renderer_key:
             return None
-        self._drop_tracer()
-        if request.shading is not None:
-            options = {**options, "whitted": request.shading}
-        tracer = backends.tracer(request.device, request.scene.spheres, request.width, request.height, **options)
+        self._drop_renderer()
+        shading = "thesis" if request.shading is None else request.shading
+        renderer = Renderer(
+            request.scene, request.width, request.height, request.device, shading=shading, **request.options
+        )
         try:
-            compile_s = tracer.compile()
+            compile_s = renderer.compile()
         except BaseException:
-            tracer.close()
+            renderer.close()
             raise
         # The scene and shading are held with the key: their id()s must not be reused while the key is.
-        self._tracer, self._tracer_key, self._tracer_scene = tracer, key, (request.scene, request.shading)
+        self._renderer, self._renderer_key, self._renderer_scene = renderer, key, (request.scene, request.shading)
         return compile_s
 
-    def _drop_tracer(self) -> None:
-        if self._tracer is not None:
-            self._tracer.close()
-        self._tracer, self._tracer_key, self._tracer_scene = None, None, None
+    def _drop_renderer(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+        self._renderer, self._renderer_key, self._renderer_scene = None, None, None

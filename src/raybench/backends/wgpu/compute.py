@@ -289,7 +289,7 @@ class Compute:
         buffer, which the shader's struct Node reads as both)."""
         import wgpu
 
-        tree = bvh_mod.build(self.scene_spheres[:, :count])
+        tree = bvh_mod.build(self.scene_spheres[:, :count], device="wgpu")
         usage = wgpu.BufferUsage.STORAGE
         order = tree.order if tree.count else np.zeros(1, np.int32)
         self.nodes = self.device.create_buffer_with_data(data=tree.nodes.tobytes(), usage=usage)
