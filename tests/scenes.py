@@ -3,6 +3,7 @@
 import numpy as np
 
 from raybench import Camera, Scene, random_spheres
+from raybench.scene import LAYOUTS
 
 
 def random_camera(rng) -> Camera:
@@ -19,6 +20,13 @@ def colors(rng, n):
 def generated(rng, n):
     """random_spheres, the benchmark's scenes, from the default camera."""
     return random_spheres(n, int(rng.integers(2**31))), Camera()
+
+
+def layouts(rng, n):
+    """random_spheres in one of its denser layouts (larger overlapping
+    spheres, clusters, a wide depth range), from the default camera."""
+    layout = str(rng.choice([x for x in LAYOUTS if x != "even"]))
+    return random_spheres(n, int(rng.integers(2**31)), layout=layout), Camera()
 
 
 def cloud(rng, n):
@@ -71,6 +79,7 @@ def radii_mixed(rng, n):
 
 KINDS = {
     "generated": generated,
+    "layouts": layouts,
     "cloud": cloud,
     "inside": inside,
     "overlapping": overlapping,
@@ -137,4 +146,4 @@ def chain(rng, n):
 DEGENERATE = {"one_point": one_point, "duplicates": duplicates, "line": line, "one": one, "none": none, "chain": chain}
 SCENES = {**KINDS, **DEGENERATE}
 # scenes whose spheres are always in front of their camera
-IN_VIEW = {"generated", "inside", "overlapping", "radii_mixed", "one_point", "duplicates", "one"}
+IN_VIEW = {"generated", "layouts", "inside", "overlapping", "radii_mixed", "one_point", "duplicates", "one"}

@@ -269,10 +269,15 @@ def test_scaling_points():
     for device in ("cpu", "cuda"):
         for accel in ("none", "bvh"):
             mine = [p for p in pts if p.device == device and p.options["accel"] == accel]
-            assert [p.spheres for p in mine if (p.width, p.height) == (1680, 1050)] == list(suites.SCALING_COUNTS)
-            assert [(p.width, p.height, p.spheres) for p in mine][-1] == (1920, 1080, 1_000_000)
+            even = [p for p in mine if "layout" not in p.options]
+            assert [p.spheres for p in even if (p.width, p.height) == (1680, 1050)] == list(suites.SCALING_COUNTS)
+            assert [(p.width, p.height, p.spheres) for p in even][-1] == (1920, 1080, 1_000_000)
             # only brute force is capped; the BVH runs every count
             assert all(("cap_s" in p.options) == (accel == "none") for p in mine)
+            # the denser layouts: the BVH only, each at every count of theirs
+            dense = [(p.options["layout"], p.spheres) for p in mine if "layout" in p.options]
+            want = [(lay, n) for lay in suites.SCALING_LAYOUTS for n in suites.SCALING_LAYOUT_COUNTS]
+            assert dense == (want if accel == "bvh" else [])
     assert suites.SCALING_COUNTS[0] == 10 and suites.SCALING_COUNTS[-1] == 1_000_000
     quick = suites.points(["scaling"], ["cpu"], quick=True, accels=suites.ACCELS)
     assert max(p.spheres for p in quick) <= 10_000 and len(quick) < len(pts) / 3

@@ -2,6 +2,8 @@
 exactly the brute-force picture and hit indices (the brute-force kernels are
 held to the float64 reference by test_cpu and test_fast)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from scenes import IN_VIEW, KINDS, SCENES, chain, one_point
@@ -22,9 +24,16 @@ def brute(scene, camera, width, height):
 # --- the walk gives the brute-force picture ----------------------------------
 
 
+@pytest.fixture(params=[2, 4], ids=["binary", "wide"])
+def tree_width(request, monkeypatch):
+    """The CPU packets' tree: the binary one, and the same collapsed into 4-wide nodes."""
+    monkeypatch.setattr(cpu_backend, "TREE_WIDTH", request.param)
+    return request.param
+
+
 @pytest.mark.parametrize("kind", sorted(SCENES))
-def test_cpu_bvh_equals_brute_force(rng, kind):
-    n = int(rng.integers(1, 400))
+def test_cpu_bvh_equals_brute_force(rng, kind, tree_width):
+    n = int(rng.integers(1, 400 if tree_width == 2 else 3000))
     scene, camera = SCENES[kind](rng, n)
     width, height = int(rng.integers(20, 60)), int(rng.integers(10, 40))
     want = brute(scene, camera, width, height)
@@ -36,7 +45,7 @@ def test_cpu_bvh_equals_brute_force(rng, kind):
 
 
 @pytest.mark.parametrize("size", [(1, 1), (1, 5), (9, 3), (33, 7), (17, 70), (47, 21)])
-def test_cpu_packets_at_the_edges(rng, size):
+def test_cpu_packets_at_the_edges(rng, size, tree_width):
     """The CPU walks packets of cpu.PACKET_W x PACKET_H rays: images and
     chunks of rows that are no whole number of packets, and more threads
     than rows."""
@@ -46,7 +55,7 @@ def test_cpu_packets_at_the_edges(rng, size):
     assert np.array_equal(got.hits, want.hits) and np.array_equal(got.image, want.image)
 
 
-def test_ties_go_to_the_smaller_index(rng):
+def test_ties_go_to_the_smaller_index(rng, tree_width):
     """Identical spheres: brute force shows the first; so must the walk."""
     scene, camera = one_point(rng, 64)
     s = scene.spheres.copy()
@@ -236,6 +245,78 @@ def check_tree(b: bvh.Bvh, spheres: np.ndarray):
 def test_tree_structure(rng, kind):
     scene, _ = SCENES[kind](rng, int(rng.integers(1, 3000)))
     check_tree(bvh.build(scene.spheres), scene.spheres)
+
+
+def binary_subtrees(b: bvh.Bvh):
+    """Every child of the binary tree: (its box, its ref and count; an inner
+    child's ref replaced by the set of leaves below it)."""
+    out, leaves = [], {}
+
+    def below(row):
+        if row not in leaves:
+            got = set()
+            for slot in range(2):
+                ref, count = int(b.links[row, 12 + slot]), int(b.links[row, 14 + slot])
+                got |= below(ref) if count == layout.INNER else ({(ref, count)} if count else set())
+            leaves[row] = frozenset(got)
+        return leaves[row]
+
+    for row in range(b.node_count):
+        for slot in range(2):
+            ref, count = int(b.links[row, 12 + slot]), int(b.links[row, 14 + slot])
+            if count:
+                key = below(ref) if count == layout.INNER else (ref, count)
+                out.append((tuple(b.nodes[row, 6 * slot : 6 * slot + 6].tolist()), key))
+    return out
+
+
+@pytest.mark.parametrize("kind", sorted(SCENES))
+def test_collapse_to_4_wide(rng, kind):
+    """bvh.collapse: each wide child is a child of the binary tree (the same
+    box, over the same leaves), every binary leaf is in the wide tree once,
+    the empty slots are count 0 at the point box, and a wide node has 4
+    children unless none of them is an inner node that could be opened."""
+    scene, _ = SCENES[kind](rng, int(rng.integers(0, 3000)))
+    b = bvh.build(scene.spheres)
+    wide = bvh.collapse(b)
+    links = wide.view(np.int32)
+    binary = set(binary_subtrees(b))
+    leaves_of = {}
+
+    def walk(row):
+        got = set()
+        for c in range(layout.WIDTH):
+            box = tuple(float(wide[row, lo + c]) for lo in layout.W_LO + layout.W_HI)
+            ref, count = int(links[row, layout.W_REF + c]), int(links[row, layout.W_COUNT + c])
+            if count == 0:
+                assert box == (float(layout.EMPTY),) * 6
+                continue
+            key = walk(ref) if count == layout.INNER else (ref, count)
+            assert (box, key) in binary
+            got |= key if count == layout.INNER else {key}
+        leaves_of[row] = frozenset(got)
+        return leaves_of[row]
+
+    everything = walk(0)
+    assert len(leaves_of) == len(wide)  # every row reached, once
+    leaves = [key for _, key in binary if isinstance(key, tuple)]
+    assert everything == set(leaves) and len(leaves) == len(set(leaves))
+    # a node of fewer than 4 children has no inner one left to open
+    counts = links[:, layout.W_COUNT : layout.W_COUNT + layout.WIDTH]
+    children = (counts != 0).sum(axis=1)
+    inner = (counts == layout.INNER).sum(axis=1)
+    assert ((children == 4) | (inner == 0)).all() and (children[1:] >= 2).all()
+    assert len(wide) <= b.node_count
+
+
+def test_collapse_of_a_tree_built_in_python_is_the_same(rng):
+    """A one-shot picture's tree (built by the builder's Python) is collapsed
+    by the same code run as Python: the same rows as compiled."""
+    scene, _ = SCENES[str(rng.choice(["generated", "layouts", "cloud", "duplicates"]))](rng, int(rng.integers(1, 400)))
+    tree = bvh.build(scene.spheres)
+    python = dataclasses.replace(tree, interpreted=True)
+    # bit for bit (the link columns read as floats hold NaNs: INNER is -1)
+    assert np.array_equal(bvh.collapse(python).view(np.int32), bvh.collapse(tree).view(np.int32))
 
 
 @pytest.mark.parametrize("kind", sorted(SCENES))

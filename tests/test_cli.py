@@ -336,6 +336,28 @@ def test_seed_with_scene(capsys, tmp_path, scene_file, out_dir):
     )
 
 
+def test_layout_with_scene(capsys, tmp_path, scene_file, out_dir):
+    expect_error(
+        capsys, tmp_path, ["render", "--scene", scene_file, "--layout", "dense", *TINY, "-o", out_dir / "x.png"],
+        "--layout",
+    )  # fmt: skip
+
+
+def test_render_layout_is_random_spheres_layout(capsys, tmp_path, out_dir):
+    """--layout: the picture of random_spheres(n, seed, layout=...), not the even spread's."""
+    from raybench import random_spheres, render
+
+    got = {}
+    for layout in ("clusters", None):
+        extra = ["--layout", layout] if layout else []
+        target = out_dir / f"{layout}.png"
+        code, out, err = cli(capsys, "render", "--spheres", 300, "--seed", 4, *extra, *TINY, "-o", target)
+        assert code == 0, err
+        got[layout] = read_png(target)[2]
+    want = render(random_spheres(300, 4, layout="clusters"), None, 16, 12, device="cpu").image
+    assert np.array_equal(got["clusters"], want) and not np.array_equal(got["clusters"], got[None])
+
+
 @pytest.mark.parametrize("count", [-1, 100_000_001])
 def test_bad_sphere_count(capsys, tmp_path, out_dir, count):
     expect_error(

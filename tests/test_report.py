@@ -587,6 +587,27 @@ def test_scaling_series_keeps_skipped_points(rng):
         assert all((p["build_s"] is not None) == (s["accel"] == "bvh") for p in s["points"] if not p["skipped"])
 
 
+def test_scaling_layouts_are_series_of_their_own(rng, tmp_path):
+    """The denser scenes' points (options "layout") form their own series,
+    named for the layout, beside the even spread's, in the table too."""
+    layouts = [
+        {**r, "options": {**r["options"], "layout": lay}}
+        for lay in ("dense", "deep")
+        for r in scaling(rng)
+        if r["options"]["accel"] == "bvh"
+    ]
+    series = report.scaling_series(scaling(rng) + layouts)
+    ways = {(s["device"], s["way"]) for s in series}
+    assert {(d, f"BVH, {lay} scene") for d in ("cpu", "cuda") for lay in ("dense", "deep")} <= ways
+    assert len(series) == 8 and all(len(s["points"]) == 6 for s in series)
+    path = tmp_path / "r.jsonl"
+    with ResultsWriter(path) as w:
+        for r in scaling(rng) + layouts:
+            w.write(r)
+    assert "BVH, clusters scene" not in (text := report.write_report([path], tmp_path / "rep").read_text())
+    assert "BVH, deep scene" in text
+
+
 def test_bvh_records_get_their_own_column(rng):
     recs = thesis(rng) + [{**r, "options": {**r["options"], "accel": "bvh"}} for r in thesis(rng)]
     assert set(report.group(recs)) == {A, "alpha, BVH"}

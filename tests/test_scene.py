@@ -154,6 +154,42 @@ def test_random_spheres_zero_and_bad_arguments():
             random_spheres(3, bad)
 
 
+def occupied(scene: Scene, cells=(128, 80)) -> float:
+    """The share of a grid of cells over the view that holds a sphere's centre."""
+    x, y, z = scene.centers.astype(np.float64).T
+    u = np.clip(((x / z) / (TAN30 * ASPECT) + 1) / 2 * cells[0], 0, cells[0] - 1).astype(int)
+    v = np.clip(((y / z) / TAN30 + 1) / 2 * cells[1], 0, cells[1] - 1).astype(int)
+    return len(set(zip(u.tolist(), v.tolist()))) / (cells[0] * cells[1])
+
+
+@pytest.mark.parametrize("layout", [x for x in scene_module.LAYOUTS if x != "even"])
+def test_denser_layouts(rng, layout):
+    """Each layout: deterministic by seed, n spheres in front of the camera
+    (none reaching it), and what its name says, measured against the even spread of the same n and seed."""
+    n, seed = int(rng.integers(20_000, 60_000)), int(rng.integers(0, 2**32))
+    scene = random_spheres(n, seed, layout=layout)
+    even = random_spheres(n, seed)
+    assert np.array_equal(scene.spheres, random_spheres(n, seed, layout=layout).spheres)
+    assert not np.array_equal(scene.spheres, random_spheres(n, seed + 1, layout=layout).spheres)
+    assert len(scene) == n
+    centers, radii = scene.centers.astype(np.float64), scene.radii.astype(np.float64)
+    assert (radii > 0).all() and (np.linalg.norm(centers, axis=1) > radii).all()
+    z = centers[:, 2]
+    if layout == "dense":  # spheres 3 times larger: 9 times the coverage
+        assert coverage(scene) / coverage(even) == pytest.approx(9.0, rel=0.05)
+    elif layout == "deep":  # three decades of depth, the even one's angular sizes
+        assert z.min() < 1.05 and z.max() > 950 and np.median(z) == pytest.approx(np.sqrt(1000), rel=0.1)
+        assert coverage(scene) == pytest.approx(coverage(even), rel=0.05)
+    else:  # clusters: the centres in far fewer cells of the view than the even ones
+        assert occupied(scene) < 0.8 * occupied(even)
+
+
+def test_bad_layout_is_refused():
+    for bad in ("Even", "", None, 3):
+        with pytest.raises(RaybenchError, match="layout"):
+            random_spheres(3, 0, layout=bad)
+
+
 # --------------------------------------------------------------------------- bad input
 
 

@@ -20,6 +20,7 @@ from .backends.limits import ACCELS, BUILDS, KERNELS
 from .errors import RaybenchError, device_failure, one_line
 from .files import check_writable
 from .lighting import SHADINGS
+from .scene import LAYOUTS
 
 SIZE_HELP = "image size as WIDTHxHEIGHT, e.g. 1680x1050"
 
@@ -92,21 +93,22 @@ def check_output(path: Path, option: str = "-o", suffix: str = ".png") -> None:
     check_writable(path, option)
 
 
-def load_scene(scene_file, spheres, seed, materials=False):
+def load_scene(scene_file, spheres, seed, materials=False, layout=None):
     """The scene of --scene (a file, or an example's name: raybench.examples)
-    or --spheres N (--seed, --materials)."""
+    or --spheres N (--seed, --materials, --layout)."""
     from . import examples
     from .scene import Scene, random_spheres
 
     if (scene_file is None) == (spheres is None):
         raise RaybenchError("give exactly one of --scene FILE or --spheres N")
     if scene_file is not None:
-        if seed is not None or materials:
-            raise RaybenchError(f"{'--seed' if seed is not None else '--materials'} applies to --spheres only")
+        given = [name for name, value in (("--seed", seed), ("--materials", materials), ("--layout", layout)) if value]
+        if seed is not None or given:
+            raise RaybenchError(f"{'--seed' if seed is not None else given[0]} applies to --spheres only")
         if scene_file in examples.NAMES and not Path(scene_file).exists():
             return Scene.load(examples.path(scene_file))
         return Scene.load(scene_file)
-    return random_spheres(spheres, 0 if seed is None else seed, materials=materials)
+    return random_spheres(spheres, 0 if seed is None else seed, materials=materials, layout=layout or "even")
 
 
 def shading_options(shading, depth, shadow_samples) -> dict:
@@ -273,6 +275,12 @@ def main():
 
 @main.command()
 @scene_options("render")
+@click.option(
+    "--layout",
+    type=click.Choice(LAYOUTS),
+    help="how the random spheres are spread: even (the default, the benchmark's), or a denser scene: dense "
+    "(larger, overlapping spheres), clusters, deep (depths 1 to 1,000)",
+)
 @size_option()
 @device_option()
 @tracer_options()
@@ -308,6 +316,7 @@ def render(
     spheres,
     seed,
     materials,
+    layout,
     size,
     device,
     threads,
@@ -337,7 +346,7 @@ def render(
     from .render import PNG_LEVEL, check_png_level
     from .render import render as render_frame
 
-    scene = load_scene(scene_file, spheres, seed, materials)
+    scene = load_scene(scene_file, spheres, seed, materials, layout)
     width, height = parse_size(size)
     shaded = shading_options(shading, depth, shadow_samples)
     options = device_options(

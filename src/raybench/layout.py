@@ -59,3 +59,22 @@ MAX_DEPTH = 48
 # Walk stack entries: one per level on the way down is the most a
 # near-first walk keeps (each level pushes at most its far child).
 STACK = MAX_DEPTH + 2
+
+# ---------------------------------------------------------------- 4-wide BVH nodes (the CPU's)
+# wide: (M, WIDE_FLOATS) float32, one 128-byte row a node (two cache lines):
+# up to WIDTH children, their boxes as structure of arrays (the WIDTH low x
+# planes side by side, then the low y, ..., the high z), so that one SIMD
+# register holds one plane of all the node's boxes; then, in the int32 view
+# (wide_links), the children's refs and counts as in the binary rows:
+# INNER where ref is a wide row, else a leaf of `count` spheres from `ref`
+# in the binary tree's ordered spheres. A slot without a child has count 0
+# and the point box at (EMPTY, EMPTY, EMPTY), which no ray's slabs enter
+# but by an exact three-way tie, and then as a leaf of no spheres.
+WIDTH = 4
+W_LO = (0, 4, 8)  # W_LO[axis] + c: child c's low plane on that axis
+W_HI = (12, 16, 20)
+W_REF = 24
+W_COUNT = 28
+WIDE_FLOATS = 32
+# A near-first walk of the wide tree pushes at most WIDTH - 1 children a level.
+WIDE_STACK = (WIDTH - 1) * MAX_DEPTH + 2

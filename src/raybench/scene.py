@@ -297,7 +297,7 @@ def _short(text: str) -> str:
     return text if len(text) <= 40 else text[:37] + "..."
 
 
-def random_spheres(n: int, seed: int = 0, materials: bool = False) -> Scene:
+def random_spheres(n: int, seed: int = 0, materials: bool = False, layout: str = "even") -> Scene:
     """n spheres in front of the default camera, sized so that any n from 10 to
     1,000,000 covers the picture about twice over: a full, varied image.
 
@@ -308,11 +308,25 @@ def random_spheres(n: int, seed: int = 0, materials: bool = False) -> Scene:
 
     materials: the same spheres, lit for Whitted shading by one area light
     above and behind the camera, with mixed materials (mixed_materials).
+
+    layout: how the spheres are spread (LAYOUTS). "even", the above, is the
+    benchmark's scene; the others are denser scenes, so that a tree is not
+    tuned to the even spread alone (issue 16):
+    - "dense": the same spread with spheres 3 times larger (about 18 layers
+      over the picture), most overlapping many others;
+    - "clusters": tight blobs of about 100 spheres each, the blobs spread as
+      "even" spreads spheres and covering about half the picture; each blob
+      is several layers deep, and much of the view is empty;
+    - "deep": depths from 1 to 1,000 (log-uniform) instead of 5 to 25, with
+      the even layout's angular sizes, so that spheres' sizes in the scene
+      span a factor of 1,000 and near small spheres hide far huge ones.
     """
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not (0 <= n <= MAX_GENERATED):
         raise RaybenchError(f"sphere count: must be an integer from 0 to {MAX_GENERATED:,}, got {shown(n)}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise RaybenchError(f"seed: must be a non-negative integer, got {shown(seed)}")
+    if layout not in LAYOUTS:
+        raise RaybenchError(f"layout: must be one of {', '.join(LAYOUTS)}, got {shown(layout)}")
     need = n * GENERATE_BYTES
     available = host_available_bytes()
     if need > available:
@@ -323,17 +337,63 @@ def random_spheres(n: int, seed: int = 0, materials: bool = False) -> Scene:
     rng = np.random.default_rng(seed)
     plane_h = 2.0 * math.tan(math.radians(30.0))
     plane_w = plane_h * ASPECT
-    depth = rng.uniform(5.0, 25.0, n)
-    u = rng.uniform(-0.5, 0.5, n) * plane_w
-    v = rng.uniform(-0.5, 0.5, n) * plane_h
-    centers = np.stack([u * depth, v * depth, depth], axis=1)
-    angular = math.sqrt(COVERAGE * plane_w * plane_h / (math.pi * max(n, 1)))
-    # Few spheres are large; none may reach the camera.
-    radii = np.minimum(depth * angular * rng.uniform(0.5, 1.5, n), 0.5 * depth)
+    if layout == "even":
+        centers, radii = _even(rng, n, plane_w, plane_h)
+    else:
+        # a stream of its own, so that "even" stays what it always drew
+        centers, radii = _LAYOUTS[layout](np.random.default_rng([seed, 0x1A7]), n, plane_w, plane_h)
     colors = rng.uniform(0.25, 1.0, (n, 3))
     if not materials:
         return Scene(centers, radii, colors)
     return Scene(centers, radii, colors, materials=mixed_materials(n, seed), lights=[MIXED_LIGHT])
+
+
+def _even(rng, n, plane_w, plane_h, scale=1.0, depths=(5.0, 25.0), log_depth=False):
+    """Centres uniform over the view at the given depths (log-uniform if
+    log_depth), angular radii sized for COVERAGE times scale squared."""
+    if log_depth:
+        depth = np.exp(rng.uniform(math.log(depths[0]), math.log(depths[1]), n))
+    else:
+        depth = rng.uniform(depths[0], depths[1], n)
+    u = rng.uniform(-0.5, 0.5, n) * plane_w
+    v = rng.uniform(-0.5, 0.5, n) * plane_h
+    centers = np.stack([u * depth, v * depth, depth], axis=1)
+    angular = scale * math.sqrt(COVERAGE * plane_w * plane_h / (math.pi * max(n, 1)))
+    # Few spheres are large; none may reach the camera.
+    radii = np.minimum(depth * angular * rng.uniform(0.5, 1.5, n), 0.5 * depth)
+    return centers, radii
+
+
+def _dense(rng, n, plane_w, plane_h):
+    return _even(rng, n, plane_w, plane_h, scale=3.0)
+
+
+def _deep(rng, n, plane_w, plane_h):
+    return _even(rng, n, plane_w, plane_h, depths=(1.0, 1000.0), log_depth=True)
+
+
+# The clusters layout: spheres a blob, and the share of the picture the blobs cover.
+CLUSTER_SIZE = 100
+CLUSTER_COVERAGE = 0.5
+
+
+def _clusters(rng, n, plane_w, plane_h):
+    k = max(1, round(n / CLUSTER_SIZE))
+    hub, _ = _even(rng, k, plane_w, plane_h)
+    # a blob's angular radius, and its spheres' sized to cover its disc about 4 times
+    blob = math.sqrt(CLUSTER_COVERAGE * plane_w * plane_h / (math.pi * k))
+    which = rng.integers(0, k, n)
+    depth = hub[which, 2]
+    centers = hub[which] + rng.normal(0.0, 0.5, (n, 3)) * (blob * depth)[:, None]
+    per_blob = max(n / k, 1.0)
+    radii = depth * blob * math.sqrt(4.0 / per_blob) * rng.uniform(0.5, 1.5, n)
+    # none may reach the camera
+    radii = np.minimum(radii, 0.5 * np.linalg.norm(centers, axis=1))
+    return centers, radii
+
+
+_LAYOUTS = {"dense": _dense, "clusters": _clusters, "deep": _deep}
+LAYOUTS = ("even", *_LAYOUTS)
 
 
 # The light of the materials scenes: above the view and behind the camera,

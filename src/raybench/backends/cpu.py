@@ -32,7 +32,23 @@ from .. import compiled, kernels
 from ..errors import RaybenchError, shown
 from ..kernels import whitted as whitted_mod
 from ..kernels.trace import FAR, ZERO
-from ..layout import BLUE, CHILD_BOX, COUNT, GREEN, INNER, NODE_FLOATS, PAD, RADIUS, RED, REF, STACK
+from ..layout import (
+    BLUE,
+    CHILD_BOX,
+    COUNT,
+    GREEN,
+    INNER,
+    NODE_FLOATS,
+    PAD,
+    RADIUS,
+    RED,
+    REF,
+    STACK,
+    W_COUNT,
+    W_REF,
+    WIDE_STACK,
+    WIDTH,
+)
 from ..lighting import Shading
 from ..machine import usable_cores
 from .contract import TracerBase, check_method, check_moved
@@ -215,6 +231,10 @@ _fast_band = _wide_band if _has_avx512() else _pairs_band
 # 8x4, the shape before; with today's walk 16x16 is as fast on one core and
 # 16x8 the faster at 1,000 spheres with two threads (docs/performance.md).
 PACKET_W, PACKET_H = 16, 8
+# The tree the packets walk: 2, the binary SAH tree (bvh.build) as every
+# device walks it; 4, the same tree collapsed into 4-wide nodes
+# (bvh.collapse, _bvh_packets_wide). Read when a Tracer is made.
+TREE_WIDTH = 4
 PACKET = PACKET_W * PACKET_H
 _MIDDLE = (PACKET_H // 2) * PACKET_W + PACKET_W // 2
 
@@ -277,6 +297,15 @@ def _packet_box(nodes, row, col, ox, oy, oz, margin, ix, iy, iz, spread, closest
     hz = nodes[row, col + 5] + margin - oz
     if _missed_by_all(lx, ly, lz, hx, hy, hz, spread):
         return False
+    return _rows_enter(lx, ly, lz, hx, hy, hz, ix, iy, iz, closest)
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _rows_enter(lx, ly, lz, hx, hy, hz, ix, iy, iz, closest):
+    """Whether any ray of the packet enters the box of planes (lx, ..., hz)
+    relative to the rays' origin nearer than its closest hit: the rays a row
+    of the packet at a time (SIMD), stopping at the first row with a ray
+    that enters (_packet_box)."""
     for first in range(0, PACKET, PACKET_W):
         entered = False
         for k in range(first, first + PACKET_W):
@@ -489,6 +518,154 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
                         _put_pixel(y, x, k, rgb, hit, image, hits)
 
 
+@numba.njit(inline="always", error_model="numpy")
+def _wide_mask(wide, row, ox, oy, oz, margin, spread):
+    """The first step of _packet_box for all WIDTH boxes of a wide node at
+    once: a bit set for each box that the interval test for the whole
+    packet (_missed_by_all's arithmetic) does not rule out. One loop over
+    the boxes, without branches, on planes stored side by side (layout.W_LO,
+    W_HI), that only reads memory and ORs the bits together: LLVM makes it
+    SIMD, the four boxes in one register (vminps, vmaxps on xmm). Storing
+    the planes or the outcomes to arrays in the loop kept it scalar (LLVM
+    will not check a loop of 4 for overlapping arrays at run time)."""
+    x0, x1, y0, y1, z0, z1, reach = spread[0], spread[1], spread[2], spread[3], spread[4], spread[5], spread[6]
+    w = wide[row]
+    mask = 0
+    for c in range(_U(WIDTH)):
+        lx = w[c] - margin - ox
+        ly = w[_U(4) + c] - margin - oy
+        lz = w[_U(8) + c] - margin - oz
+        hx = w[_U(12) + c] + margin - ox
+        hy = w[_U(16) + c] + margin - oy
+        hz = w[_U(20) + c] + margin - oz
+        near = max(
+            min(min(lx * x0, hx * x0), min(lx * x1, hx * x1)),
+            max(
+                min(min(ly * y0, hy * y0), min(ly * y1, hy * y1)),
+                min(min(lz * z0, hz * z0), min(lz * z1, hz * z1)),
+            ),
+        )
+        far = min(
+            max(max(lx * x0, hx * x0), max(lx * x1, hx * x1)),
+            min(
+                max(max(ly * y0, hy * y0), max(ly * y1, hy * y1)),
+                max(max(lz * z0, hz * z0), max(lz * z1, hz * z1)),
+            ),
+        )
+        kept = (near <= far) & (far > ZERO) & (near <= reach)
+        mask |= np.int64(kept) << np.int64(c)
+    return mask
+
+
+@compiled.njit(nogil=True, error_model="numpy")
+def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links, ordered, order, spheres, image,
+                      hits):  # fmt: skip
+    """_bvh_packets on the 4-wide tree (bvh.collapse): the same packets,
+    the same box, leaf and shading steps, a wide node's four boxes put
+    through the packet's interval test together (_wide_mask), then each
+    box it leaves through the rays' own test (_rows_enter); the entered
+    children visited nearest first along the packet's middle ray, leaves at
+    once, the nearest inner child next and the others pushed. Each ray gets
+    the nearest sphere of all it could hit, ties to the smaller index."""
+    stack_row = np.empty(WIDE_STACK, np.int32)
+    stack_count = np.empty(WIDE_STACK, np.int32)
+    dx = np.empty(PACKET, np.float32)
+    dy = np.empty(PACKET, np.float32)
+    dz = np.empty(PACKET, np.float32)
+    ix = np.empty(PACKET, np.float32)
+    iy = np.empty(PACKET, np.float32)
+    iz = np.empty(PACKET, np.float32)
+    closest = np.empty(PACKET, np.float32)
+    spread = np.empty(7, np.float32)
+    closest_bits, spread_bits = closest.view(np.int32), spread.view(np.int32)
+    hit = np.empty(PACKET, np.int32)
+    hit_d = np.empty(PACKET, np.float32)
+    rgb = np.empty((3, PACKET), np.uint8)
+    paint = np.empty((4, PACKET), np.float32)
+    along = np.empty(WIDTH, np.float32)
+    chosen = np.empty(WIDTH, np.int64)
+    ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
+    margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
+    for y0 in range(first_row, end_row, PACKET_H):
+        for x0 in range(0, width, PACKET_W):
+            for k in range(PACKET):
+                x = min(x0 + k % PACKET_W, width - 1)
+                y = min(y0 + k // PACKET_W, end_row - 1)
+                dx[k], dy[k], dz[k] = _primary_ray_v(x, y, width, height, basis)
+            for k in range(PACKET):
+                ix[k] = _inverse(dx[k])
+                iy[k] = _inverse(dy[k])
+                iz[k] = _inverse(dz[k])
+            for k in range(PACKET):
+                closest[k] = FAR
+                hit[k] = -1
+                hit_d[k] = ZERO
+            _spread(ix, iy, iz, spread)
+            cdx, cdy, cdz = dx[_MIDDLE], dy[_MIDDLE], dz[_MIDDLE]
+            row = 0
+            top = 0
+            while row >= 0:
+                mask = _wide_mask(wide, row, ox, oy, oz, margin, spread)
+                entered = 0
+                for c in range(WIDTH):
+                    if not (mask >> c) & 1:
+                        continue
+                    lx = wide[row, c] - margin - ox
+                    ly = wide[row, 4 + c] - margin - oy
+                    lz = wide[row, 8 + c] - margin - oz
+                    hx = wide[row, 12 + c] + margin - ox
+                    hy = wide[row, 16 + c] + margin - oy
+                    hz = wide[row, 20 + c] + margin - oz
+                    if not _rows_enter(lx, ly, lz, hx, hy, hz, ix, iy, iz, closest):
+                        continue
+                    # where the box's centre lies along the middle ray: insertion
+                    # into chosen[:entered], nearest first
+                    along[c] = (lx + hx) * cdx + (ly + hy) * cdy + (lz + hz) * cdz
+                    j = entered
+                    while j > 0 and along[chosen[j - 1]] > along[c]:
+                        chosen[j] = chosen[j - 1]
+                        j -= 1
+                    chosen[j] = c
+                    entered += 1
+                # nearest first: leaves up to the nearest inner child tested
+                # now, that child walked next, everything farther pushed (the
+                # farthest first), leaves too, so that a near inner child's
+                # hits can rule out a farther leaf's spheres
+                node = row
+                row = -1
+                for j in range(entered):
+                    c = chosen[j]
+                    ref, count = wide_links[node, W_REF + c], wide_links[node, W_COUNT + c]
+                    if row < 0 and count != INNER:
+                        _packet_leaf(ox, oy, oz, margin, dx, dy, dz, ordered, order, ref, count, spread, closest,
+                                     hit, hit_d, closest_bits, spread_bits)  # fmt: skip
+                    elif row < 0:
+                        row = ref
+                        for i in range(entered - 1, j, -1):
+                            stack_row[top] = wide_links[node, W_REF + chosen[i]]
+                            stack_count[top] = wide_links[node, W_COUNT + chosen[i]]
+                            top += 1
+                        break
+                while row < 0 and top > 0:
+                    top -= 1
+                    if stack_count[top] == INNER:
+                        row = stack_row[top]
+                    else:
+                        _packet_leaf(ox, oy, oz, margin, dx, dy, dz, ordered, order, stack_row[top], stack_count[top],
+                                     spread, closest, hit, hit_d, closest_bits, spread_bits)  # fmt: skip
+            _colour_packet(x0, y0, spheres, hit, hit_d, rgb, paint)
+            if x0 + PACKET_W <= width and y0 + PACKET_H <= end_row:
+                for line in range(PACKET_H):
+                    for i in range(PACKET_W):
+                        _put_pixel(y0 + line, x0 + i, line * PACKET_W + i, rgb, hit, image, hits)
+            else:
+                for k in range(PACKET):
+                    x = x0 + k % PACKET_W
+                    y = y0 + k // PACKET_W
+                    if x < width and y < end_row:
+                        _put_pixel(y, x, k, rgb, hit, image, hits)
+
+
 @numba.njit(inline="always")
 def _whitted_rows(render_pixel, first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern,
                   params, tree, image, hits, counts):  # fmt: skip
@@ -631,7 +808,8 @@ class Tracer(TracerBase):
             self.shaded = spheres if self.count else np.zeros((7, 1), np.float32)
             self.bands = chunks(height, self.threads)
             workers = min(self.threads, len(self.bands))
-            self._kernel = _bvh_packets
+            self.tree_width = TREE_WIDTH
+            self._kernel = _bvh_packets_wide if self.tree_width == 4 else _bvh_packets
             self._build(self.count)
         else:
             self.bands = bands(height, self.threads)
@@ -656,9 +834,16 @@ class Tracer(TracerBase):
         return "build"
 
     def _build(self, count: int) -> None:
-        """The BVH of the first `count` spheres; its build time in build_s."""
+        """The BVH of the first `count` spheres; its build time in build_s
+        (with the collapse into 4-wide nodes, where the packets walk those)."""
         self.bvh = bvh_mod.build(self.spheres[:, :count], threads=min(self.threads, default_threads()))
         self.build_s = self.bvh.build_s
+        if self.whitted is None and getattr(self, "tree_width", 2) == 4:
+            if not self.bvh.interpreted:
+                bvh_mod.compile_collapse()
+            start = time.perf_counter()
+            self.wide = bvh_mod.collapse(self.bvh)
+            self.build_s += time.perf_counter() - start
 
     def _tree(self, count):
         """The BVH's arrays for the walk; brute force's stand-in, with no node."""
@@ -678,12 +863,13 @@ class Tracer(TracerBase):
             if self.bvh.count != count:  # a frame of fewer spheres: their own tree
                 self._build(count)
             b = self.bvh
+            nodes = self.wide if self.tree_width == 4 else b.nodes
             return (
                 self.width,
                 self.height,
                 basis,
-                b.nodes,
-                b.links,
+                nodes,
+                nodes.view(np.int32),
                 b.ordered,
                 b.order,
                 self.shaded,

@@ -14,6 +14,8 @@ A record (format "raybench-results", version 1):
                  tuning points carry "label", e.g. "2x cores" or "one per row";
                  "accel": "bvh" | "none" (absent in older records: none), "kernel"
                  for brute force; scaling's and secondary's brute-force points carry "cap_s";
+                 scaling's points of a denser scene carry "layout" (random_spheres's:
+                 "dense", "clusters", "deep"; absent: "even");
                  secondary's points carry "shading": "thesis" (primary rays, the baseline) or
                  "whitted" with "depth" and "shadow_samples" (the materials scene,
                  random_spheres(n, seed, materials=True)); multi-gpu's carry "workers" (of

@@ -56,16 +56,18 @@ def whitted(point: Point) -> bool:
 
 class Scenes:
     """The benchmark's scenes: random_spheres(n, seed), made once each, the same
-    on every device; with materials (the same spheres, lit) for Whitted points."""
+    on every device; with materials (the same spheres, lit) for Whitted points;
+    in another layout (the scaling suite's denser scenes) where a point says so."""
 
     def __init__(self, seed: int):
         self.seed = seed
         self._cache = {}
 
-    def get(self, n: int, materials: bool = False):
-        if (n, materials) not in self._cache:
-            self._cache[n, materials] = random_spheres(n, self.seed, materials=materials)
-        return self._cache[n, materials]
+    def get(self, n: int, materials: bool = False, layout: str = "even"):
+        key = (n, materials, layout)
+        if key not in self._cache:
+            self._cache[key] = random_spheres(n, self.seed, materials=materials, layout=layout)
+        return self._cache[key]
 
 
 def _frame(tracer, basis, count=None) -> tuple[float, float | None]:
@@ -144,7 +146,7 @@ def measure(point: Point, scenes: Scenes, duration: float) -> dict:
     them (every frame of a point casts the same: scene, camera and the area
     light's sample pattern are fixed)."""
     shaded = whitted(point)
-    scene = scenes.get(point.spheres, materials=shaded)
+    scene = scenes.get(point.spheres, materials=shaded, layout=point.options.get("layout", "even"))
     basis = Camera().basis(point.width, point.height)
     # made as a program makes it (raybench.Renderer); its tracer is timed, the
     # frame's kernel and readback without Renderer.render's copies

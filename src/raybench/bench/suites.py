@@ -7,6 +7,11 @@ Those are brute force (accel "none"), as in the thesis; with accel "bvh"
 asked for too, the same points are measured through the BVH beside them.
 The scaling suite goes past the thesis: 10 to 1,000,000 spheres, brute
 force and BVH, brute force stopping where its frames would pass a time cap.
+Beside the even spread of random_spheres it measures the BVH on the denser
+layouts (random_spheres(n, seed, layout=...): larger overlapping spheres,
+clusters, a wide depth range) at 10,000 to 1,000,000 spheres, so that a
+tree tuned to the even spread alone shows (issue 16). Only the BVH: brute
+force tests every sphere whatever the layout.
 
 The secondary suite asks whether the GPU's lead holds for secondary rays
 (issue 14): Whitted frames of the materials scene (random_spheres(n, seed,
@@ -80,6 +85,13 @@ SCALING_COUNTS = (10, 30, 100, 300, 1000, 3000, 10_000, 30_000, 100_000, 300_000
 SCALING_SIZE = (1680, 1050)
 SCALING_EXTRA = ((1920, 1080), 1_000_000)
 QUICK_SCALING_COUNTS = (10, 100, 1000, 10_000)
+# The denser layouts of random_spheres (scene.LAYOUTS but "even"), BVH only:
+# nine points a device, each the --duration (10 s by default) and a second
+# of warm-up, so about 2 minutes more of the suite on any machine; --quick
+# adds three small points (1,000 spheres at 640x400).
+SCALING_LAYOUTS = ("dense", "clusters", "deep")
+SCALING_LAYOUT_COUNTS = (10_000, 100_000, 1_000_000)
+QUICK_SCALING_LAYOUT_COUNTS = (1000,)
 QUICK_SCALING_SIZE = (640, 400)
 # Brute force is not measured where its frame is predicted (linear in spheres
 # and pixels, from the last count measured) to take longer than this.
@@ -294,6 +306,13 @@ def points(
             if not quick:
                 (ew, eh), en = SCALING_EXTRA
                 out.append(Point("scaling", device, ew, eh, en, dict(opts)))
+            if way["accel"] == "bvh":
+                layout_counts = QUICK_SCALING_LAYOUT_COUNTS if quick else SCALING_LAYOUT_COUNTS
+                out += [
+                    Point("scaling", device, w, h, n, {**opts, "layout": layout})
+                    for layout in SCALING_LAYOUTS
+                    for n in layout_counts
+                ]
     if "secondary" in suites:
         # Whitted's brute force is the simple kernel's loop, whatever kernels were
         # asked for; its thesis-shading twin uses the same loop, so that the two

@@ -359,19 +359,21 @@ def way_of(r: dict) -> str:
 
 
 def scaling_series(records: list[dict]) -> list[dict]:
-    """The scaling suite: one series per (device, way of tracing, size), points
-    sorted by sphere count; each point's median frame (and kernel) ms, rays/s
-    and build s, or the reason it was skipped."""
+    """The scaling suite: one series per (device, way of tracing, size, scene
+    layout), points sorted by sphere count; each point's median frame (and
+    kernel) ms, rays/s and build s, or the reason it was skipped."""
     out: dict[tuple, dict] = {}
     for r in records:
         if r["suite"] != "scaling":
             continue
-        key = (r["device"], way_of(r), r["width"], r["height"])
+        layout = (r.get("options") or {}).get("layout")
+        way = way_of(r) + (f", {layout} scene" if layout else "")
+        key = (r["device"], way, r["width"], r["height"])
         s = out.setdefault(
             key,
             {
                 "device": r["device"],
-                "way": way_of(r),
+                "way": way,
                 "accel": accel_of(r),
                 "width": r["width"],
                 "height": r["height"],

@@ -1,0 +1,266 @@
+"""raybench's CPU BVH walk against Mitsuba 3 on Embree, side by side, on the
+same rays (issue 16, item 6).
+
+Mitsuba is no raybench dependency: run this with a Python that has both,
+for example a venv of its own with raybench's pinned numpy and numba:
+
+    python3 -m venv /work/venv-mitsuba
+    /work/venv-mitsuba/bin/pip install mitsuba numpy==2.4.6 numba==0.68.1 \\
+        psutil py-cpuinfo click rich pillow
+    PYTHONPATH=src /work/venv-mitsuba/bin/python benchmarks/embree_side_by_side.py \\
+        --out benchmarks/results/epyc-2c-cpu-only/embree-side-by-side.jsonl
+
+What each side does, a frame:
+- raybench: a whole frame of the CPU backend through its BVH (Tracer.trace:
+  the primary rays made, walked, the hits shaded into the picture), on every
+  usable core;
+- Mitsuba (variant llvm_ad_rgb, whose ray tracing is Embree's):
+  Scene.ray_intersect_preliminary on the same primary rays, made beforehand
+  as NumPy float32 arrays exactly as raybench's kernel makes them
+  (kernels.trace.primary_ray) and held evaluated in Dr.Jit: the closest hit
+  (t, which sphere) and nothing else, no shading, with coherent=True (the rays
+  are a camera's), on Dr.Jit's thread pool (every core by default).
+Mitsuba is given less work than raybench, so a ratio in raybench's favour
+is not flattered.
+
+The spheres: every sphere its own Mitsuba `sphere` shape (the exact sphere
+test of Embree user geometry, which is how Mitsuba traces a sphere); its
+scene loads slowly (minutes at 100,000 spheres on 2 cores), so past
+--max-shapes spheres it uses one `ellipsoids` shape of all of them instead
+(scale r on every axis, extent 1: the same spheres, an ellipsoid's test),
+measured beside the spheres at --both-at spheres so the two can be compared.
+
+Before any timing, each side's hit sphere of every ray is compared: the
+record gives the share of rays that agree (misses included), so a ratio is
+of the same work.
+
+Timing: warm frames on both sides (compiled, a first frame and warm-up
+frames left out), then --rounds rounds of --frames frames a side, the two
+sides alternating which goes first each round, so that a neighbour's load on
+a shared machine falls on both; medians over every frame of a side.
+
+One JSON line per (layout, spheres, Mitsuba's shape), to stdout and --out.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import time
+from datetime import UTC, datetime
+
+import numpy as np
+
+import raybench
+from raybench import Camera, backends
+from raybench.backends.cpu import default_threads
+from raybench.machine import git_commit, usable_cores
+from raybench.scene import LAYOUTS
+
+
+def primary_rays(basis: np.ndarray, width: int, height: int):
+    """The unit directions of every pixel's ray, row by row, in float32
+    exactly as kernels.trace.primary_ray computes them (IEEE float32 each
+    step, no fused multiply-add)."""
+    f32 = np.float32
+    half, one = f32(0.5), f32(1.0)
+    x = np.arange(width, dtype=f32)[None, :]
+    y = np.arange(height, dtype=f32)[:, None]
+    u = np.broadcast_to((x + half) / f32(width) - half, (height, width))
+    v = np.broadcast_to(half - (y + half) / f32(height), (height, width))
+    d = [basis[1, a] + basis[2, a] * u + basis[3, a] * v for a in range(3)]
+    inv = one / np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    return [np.ascontiguousarray((c * inv).astype(f32).ravel()) for c in d]
+
+
+def mitsuba_scene(mi, spheres: np.ndarray, shape: str):
+    """The spheres as a Mitsuba scene: one `sphere` shape each (keys in index
+    order, so a hit's shape_index is the sphere's index) or one `ellipsoids`
+    shape (prim_index)."""
+    n = spheres.shape[1]
+    if shape == "sphere":
+        doc = {"type": "scene"}
+        for i in range(n):
+            doc[f"s{i:08d}"] = {
+                "type": "sphere",
+                "center": [float(spheres[0, i]), float(spheres[1, i]), float(spheres[2, i])],
+                "radius": float(spheres[3, i]),
+            }
+        return mi.load_dict(doc)
+    r = spheres[3][:, None]
+    quaternions = np.zeros((n, 4), np.float32)
+    quaternions[:, 3] = 1.0
+    return mi.load_dict(
+        {
+            "type": "scene",
+            "e": {
+                "type": "ellipsoids",
+                "centers": mi.TensorXf(np.ascontiguousarray(spheres[0:3].T)),
+                "scales": mi.TensorXf(np.ascontiguousarray(np.repeat(r, 3, axis=1))),
+                "quaternions": mi.TensorXf(quaternions),
+                "extent": 1.0,
+            },
+        }
+    )
+
+
+def median_ms(times):
+    return statistics.median(times) * 1e3
+
+
+def compare(layout, n, shape, width, height, rounds, frames, warmup, seed, mi, dr, base):
+    scene = raybench.random_spheres(n, seed, layout=layout)
+    basis = Camera().basis(width, height)
+    rays = width * height
+
+    start = time.perf_counter()
+    tracer = backends.tracer("cpu", scene.spheres, width, height, accel="bvh")
+    make_s = time.perf_counter() - start
+    start = time.perf_counter()
+    ms = mitsuba_scene(mi, scene.spheres, shape)
+    load_s = time.perf_counter() - start
+    dx, dy, dz = primary_rays(basis, width, height)
+    o = basis[0]
+    ray = mi.Ray3f(
+        mi.Point3f(mi.Float(np.full(rays, o[0], np.float32)), mi.Float(np.full(rays, o[1], np.float32)),
+                   mi.Float(np.full(rays, o[2], np.float32))),
+        mi.Vector3f(mi.Float(dx), mi.Float(dy), mi.Float(dz)),
+    )  # fmt: skip
+    dr.eval(ray)
+    dr.sync_thread()
+
+    def ours():
+        tracer.trace(basis)
+
+    def theirs():
+        pi = ms.ray_intersect_preliminary(ray, coherent=True)
+        index = pi.shape_index if shape == "sphere" else pi.prim_index
+        dr.eval(pi.t, index)
+        dr.sync_thread()
+        return pi.t, index
+
+    try:
+        # the first frames: compiled, and the hits of each compared
+        start = time.perf_counter()
+        ours()
+        our_first = time.perf_counter() - start
+        start = time.perf_counter()
+        t, index = theirs()
+        their_first = time.perf_counter() - start
+        t = np.asarray(t)
+        their_hits = np.where(np.isfinite(t), np.asarray(index).astype(np.int64), -1)
+        our_hits = tracer.hits.ravel().astype(np.int64)
+        agree = float(np.mean(our_hits == their_hits))
+        for _ in range(warmup):
+            ours()
+            theirs()
+        times = {"raybench": [], "mitsuba": []}
+        sides = [("raybench", ours), ("mitsuba", theirs)]
+        for r in range(rounds):
+            for name, side in sides if r % 2 == 0 else sides[::-1]:
+                for _ in range(frames):
+                    start = time.perf_counter()
+                    side()
+                    times[name].append(time.perf_counter() - start)
+    finally:
+        tracer.close()
+    ours_ms, theirs_ms = median_ms(times["raybench"]), median_ms(times["mitsuba"])
+    return {
+        **base,
+        "layout": layout,
+        "spheres": n,
+        "seed": seed,
+        "width": width,
+        "height": height,
+        "mitsuba_shape": shape,
+        "raybench_ms": ours_ms,
+        "mitsuba_ms": theirs_ms,
+        "ratio": theirs_ms / ours_ms,
+        "raybench_rays_per_s": rays / (ours_ms / 1e3),
+        "mitsuba_rays_per_s": rays / (theirs_ms / 1e3),
+        "raybench_frames_ms": [x * 1e3 for x in times["raybench"]],
+        "mitsuba_frames_ms": [x * 1e3 for x in times["mitsuba"]],
+        "hits_agree": agree,
+        "rays_hit": float(np.mean(our_hits >= 0)),
+        "raybench_build_s": tracer.build_s,
+        "raybench_tracer_s": make_s,
+        "raybench_first_frame_s": our_first,
+        "mitsuba_load_s": load_s,
+        "mitsuba_first_frame_s": their_first,
+    }
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--spheres", type=int, nargs="+", default=[1000, 10_000, 100_000])
+    p.add_argument("--layouts", nargs="+", default=list(LAYOUTS), choices=LAYOUTS)
+    p.add_argument("--size", default="1680x1050")
+    p.add_argument("--rounds", type=int, default=7)
+    p.add_argument("--frames", type=int, default=3, help="frames a side in each round")
+    p.add_argument("--warmup", type=int, default=2, help="frames a side after the first, untimed")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--max-shapes",
+        type=int,
+        default=100_000,
+        help="past this many spheres, Mitsuba gets one ellipsoids shape instead of a sphere shape each",
+    )
+    p.add_argument(
+        "--both-at", type=int, nargs="*", default=[10_000], help="sphere counts measured with both Mitsuba shapes"
+    )
+    p.add_argument("--label", default="", help="a note kept in every record, e.g. the machine's state")
+    p.add_argument("--out", help="append the JSON lines to this file too")
+    args = p.parse_args()
+    width, height = (int(v) for v in args.size.split("x"))
+
+    import drjit as dr
+    import mitsuba as mi
+
+    mi.set_variant("llvm_ad_rgb")
+    try:
+        from raybench.machine import cpu
+
+        processor = cpu()
+    except ImportError:  # psutil or py-cpuinfo missing: the model name alone
+        processor = {"model": platform.processor()}
+    base = {
+        "what": "embree_side_by_side",
+        "date": datetime.now(UTC).isoformat(timespec="seconds"),
+        "raybench_commit": git_commit(),
+        "mitsuba": mi.__version__,
+        "drjit": dr.__version__,
+        "mitsuba_variant": mi.variant(),
+        "mitsuba_threads": dr.thread_count(),
+        "raybench_threads": default_threads(),
+        "numba": __import__("numba").__version__,
+        "processor": processor,
+        "usable_cores": usable_cores(),
+        "load_average": os.getloadavg(),
+        "label": args.label,
+    }
+    for n in args.spheres:
+        for layout in args.layouts:
+            shapes = ["sphere"] if n <= args.max_shapes else ["ellipsoids"]
+            if n in args.both_at:
+                shapes = ["sphere", "ellipsoids"]
+            for shape in shapes:
+                record = compare(
+                    layout, n, shape, width, height, args.rounds, args.frames, args.warmup, args.seed, mi, dr, base
+                )
+                line = json.dumps(record)
+                print(
+                    f"{layout:9s} {n:>9,} {shape:10s} raybench {record['raybench_ms']:8.2f} ms  "
+                    f"mitsuba {record['mitsuba_ms']:8.2f} ms  ratio {record['ratio']:.2f}  "
+                    f"agree {record['hits_agree']:.5f}  load {record['mitsuba_load_s']:.1f} s",
+                    flush=True,
+                )
+                if args.out:
+                    with open(args.out, "a") as f:
+                        f.write(line + "\n")
+
+
+if __name__ == "__main__":
+    main()
