@@ -315,8 +315,12 @@ def test_collapse_of_a_tree_built_in_python_is_the_same(rng):
     scene, _ = SCENES[str(rng.choice(["generated", "layouts", "cloud", "duplicates"]))](rng, int(rng.integers(1, 400)))
     tree = bvh.build(scene.spheres)
     python = dataclasses.replace(tree, interpreted=True)
+    assert bvh.collapse_in_python(python) and not bvh.collapse_in_python(tree)
     # bit for bit (the link columns read as floats hold NaNs: INNER is -1)
     assert np.array_equal(bvh.collapse(python).view(np.int32), bvh.collapse(tree).view(np.int32))
+    with bvh.one_shot():  # a compiled tree of at most WIDE spheres, within one_shot: collapsed as Python too
+        assert bvh.collapse_in_python(tree)
+        assert np.array_equal(bvh.collapse(tree).view(np.int32), bvh.collapse(python).view(np.int32))
 
 
 @pytest.mark.parametrize("kind", sorted(SCENES))

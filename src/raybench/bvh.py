@@ -1063,13 +1063,18 @@ def compile_collapse() -> None:
               np.zeros((1, WIDE_FLOATS), np.float32), np.zeros((1, WIDE_FLOATS), np.int32))  # fmt: skip
 
 
+def collapse_in_python(tree: Bvh) -> bool:
+    """Whether collapse(tree) runs _collapse as Python: for a tree of at most
+    WIDE spheres within one_shot(), where it takes a few ms, less than
+    loading the compiled collapse, let alone compiling it."""
+    return tree.interpreted or (getattr(_one_shot, "on", False) and tree.count <= WIDE)
+
+
 def collapse(tree: Bvh) -> np.ndarray:
     """The 4-wide rows (layout.WIDE_FLOATS float32 columns; the int32 view holds
-    the links) of a binary tree, over the same ordered spheres. A tree the
-    builder's Python made (one_shot) is collapsed by the same code as Python
-    too, so a one-shot picture compiles no collapse either: at most WIDE
-    spheres, a few ms."""
+    the links) of a binary tree, over the same ordered spheres (see
+    collapse_in_python for the way it runs)."""
     wide = np.empty((max(len(tree.nodes), 1), WIDE_FLOATS), np.float32)
-    code = compiled.as_python(sys.modules[__name__]) if tree.interpreted else sys.modules[__name__]
+    code = compiled.as_python(sys.modules[__name__]) if collapse_in_python(tree) else sys.modules[__name__]
     used = code._collapse(tree.nodes, tree.links, wide, wide.view(np.int32))
     return wide[: int(used)].copy()

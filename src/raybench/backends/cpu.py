@@ -839,7 +839,7 @@ class Tracer(TracerBase):
         self.bvh = bvh_mod.build(self.spheres[:, :count], threads=min(self.threads, default_threads()))
         self.build_s = self.bvh.build_s
         if self.whitted is None and getattr(self, "tree_width", 2) == 4:
-            if not self.bvh.interpreted:
+            if not bvh_mod.collapse_in_python(self.bvh):
                 bvh_mod.compile_collapse()
             start = time.perf_counter()
             self.wide = bvh_mod.collapse(self.bvh)
