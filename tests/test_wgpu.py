@@ -458,12 +458,16 @@ def test_bench_points_for_wgpu_bvh():
         for accel, kernel in (("bvh", None), ("none", "simple"))
     } | {("test7", "none", "simple")}
     scaling = [p for p in gpu if p.suite == "scaling" and p.options["accel"] == "bvh"]
-    assert [p.spheres for p in scaling] == list(suites.QUICK_SCALING_COUNTS)
+    even = [p.spheres for p in scaling if "layout" not in p.options]
+    assert even == list(suites.QUICK_SCALING_COUNTS)
+    # the denser layouts' points beside them, BVH only, as on every device
+    denser = sorted((p.options["layout"], p.spheres) for p in scaling if "layout" in p.options)
+    assert denser == sorted((lay, n) for lay in suites.SCALING_LAYOUTS for n in suites.QUICK_SCALING_LAYOUT_COUNTS)
     assert all("cap_s" not in p.options for p in scaling)  # only brute force is capped
     shapes = {tuple(p.options["workgroup"]) for p in gpu if p.suite == "tuning" and p.options["accel"] == "bvh"}
     assert (32, 32) in shapes  # the adapter's limit, not the CUDA walk's register bound
     bvh_only = suites.points(("thesis", "scaling"), ("wgpu",), quick=True, accels=("bvh",))
-    assert bvh_only and all(p.options == {"accel": "bvh"} for p in bvh_only)
+    assert bvh_only and all(p.options == {"accel": "bvh"} for p in bvh_only if "layout" not in p.options)
 
 
 @pytest.mark.parametrize("way", [{"accel": "none", "kernel": "simple"}, {"accel": "bvh"}])
