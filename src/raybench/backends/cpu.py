@@ -391,6 +391,44 @@ def _put_pixel(y, x, k, rgb, hit, image, hits):
     hits[y, x] = hit[k]
 
 
+@numba.njit(inline="always")
+def _start_packet(x0, y0, end_row, width, height, basis, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, spread):
+    """The packet of rays from pixel (x0, y0): their directions and inverses,
+    nothing hit yet, and their spread (_spread). Inlined into each packet
+    walk; separate loops, each simple enough for LLVM to make SIMD."""
+    for k in range(PACKET):
+        # rays off the chunk trace a copy of its last row or column, unstored
+        x = min(x0 + k % PACKET_W, width - 1)
+        y = min(y0 + k // PACKET_W, end_row - 1)
+        dx[k], dy[k], dz[k] = _primary_ray_v(x, y, width, height, basis)
+    for k in range(PACKET):
+        ix[k] = _inverse(dx[k])
+        iy[k] = _inverse(dy[k])
+        iz[k] = _inverse(dz[k])
+    for k in range(PACKET):
+        closest[k] = FAR
+        hit[k] = -1
+        hit_d[k] = ZERO
+    _spread(ix, iy, iz, spread)
+
+
+@numba.njit(inline="always")
+def _store_packet(x0, y0, end_row, width, spheres, hit, hit_d, rgb, paint, image, hits):
+    """The packet's pixels shaded and stored, those inside the frame's rows."""
+    _colour_packet(x0, y0, spheres, hit, hit_d, rgb, paint)
+    if x0 + PACKET_W <= width and y0 + PACKET_H <= end_row:
+        # a whole packet: rows of pixels stored without a test each
+        for line in range(PACKET_H):
+            for i in range(PACKET_W):
+                _put_pixel(y0 + line, x0 + i, line * PACKET_W + i, rgb, hit, image, hits)
+    else:
+        for k in range(PACKET):
+            x = x0 + k % PACKET_W
+            y = y0 + k // PACKET_W
+            if x < width and y < end_row:
+                _put_pixel(y, x, k, rgb, hit, image, hits)
+
+
 @compiled.njit(nogil=True, error_model="numpy")
 def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered, order, spheres, image, hits):
     """The rows first_row..end_row, a PACKET_W x PACKET_H packet of rays at a time: the
@@ -416,21 +454,7 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
     margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
     for y0 in range(first_row, end_row, PACKET_H):
         for x0 in range(0, width, PACKET_W):
-            # separate loops, each simple enough for LLVM to make SIMD
-            for k in range(PACKET):
-                # rays off the chunk trace a copy of its last row or column, unstored
-                x = min(x0 + k % PACKET_W, width - 1)
-                y = min(y0 + k // PACKET_W, end_row - 1)
-                dx[k], dy[k], dz[k] = _primary_ray_v(x, y, width, height, basis)
-            for k in range(PACKET):
-                ix[k] = _inverse(dx[k])
-                iy[k] = _inverse(dy[k])
-                iz[k] = _inverse(dz[k])
-            for k in range(PACKET):
-                closest[k] = FAR
-                hit[k] = -1
-                hit_d[k] = ZERO
-            _spread(ix, iy, iz, spread)
+            _start_packet(x0, y0, end_row, width, height, basis, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, spread)
             cdx, cdy, cdz = dx[_MIDDLE], dy[_MIDDLE], dz[_MIDDLE]
             row = 0
             top = 0
@@ -504,18 +528,7 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
                 if row < 0 and top > 0:
                     top -= 1
                     row = stack_row[top]
-            _colour_packet(x0, y0, spheres, hit, hit_d, rgb, paint)
-            if x0 + PACKET_W <= width and y0 + PACKET_H <= end_row:
-                # a whole packet: rows of pixels stored without a test each
-                for line in range(PACKET_H):
-                    for i in range(PACKET_W):
-                        _put_pixel(y0 + line, x0 + i, line * PACKET_W + i, rgb, hit, image, hits)
-            else:
-                for k in range(PACKET):
-                    x = x0 + k % PACKET_W
-                    y = y0 + k // PACKET_W
-                    if x < width and y < end_row:
-                        _put_pixel(y, x, k, rgb, hit, image, hits)
+            _store_packet(x0, y0, end_row, width, spheres, hit, hit_d, rgb, paint, image, hits)
 
 
 @numba.njit(inline="always", error_model="numpy")
@@ -588,19 +601,7 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
     margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
     for y0 in range(first_row, end_row, PACKET_H):
         for x0 in range(0, width, PACKET_W):
-            for k in range(PACKET):
-                x = min(x0 + k % PACKET_W, width - 1)
-                y = min(y0 + k // PACKET_W, end_row - 1)
-                dx[k], dy[k], dz[k] = _primary_ray_v(x, y, width, height, basis)
-            for k in range(PACKET):
-                ix[k] = _inverse(dx[k])
-                iy[k] = _inverse(dy[k])
-                iz[k] = _inverse(dz[k])
-            for k in range(PACKET):
-                closest[k] = FAR
-                hit[k] = -1
-                hit_d[k] = ZERO
-            _spread(ix, iy, iz, spread)
+            _start_packet(x0, y0, end_row, width, height, basis, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, spread)
             cdx, cdy, cdz = dx[_MIDDLE], dy[_MIDDLE], dz[_MIDDLE]
             row = 0
             top = 0
@@ -653,17 +654,7 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
                     else:
                         _packet_leaf(ox, oy, oz, margin, dx, dy, dz, ordered, order, stack_row[top], stack_count[top],
                                      spread, closest, hit, hit_d, closest_bits, spread_bits)  # fmt: skip
-            _colour_packet(x0, y0, spheres, hit, hit_d, rgb, paint)
-            if x0 + PACKET_W <= width and y0 + PACKET_H <= end_row:
-                for line in range(PACKET_H):
-                    for i in range(PACKET_W):
-                        _put_pixel(y0 + line, x0 + i, line * PACKET_W + i, rgb, hit, image, hits)
-            else:
-                for k in range(PACKET):
-                    x = x0 + k % PACKET_W
-                    y = y0 + k // PACKET_W
-                    if x < width and y < end_row:
-                        _put_pixel(y, x, k, rgb, hit, image, hits)
+            _store_packet(x0, y0, end_row, width, spheres, hit, hit_d, rgb, paint, image, hits)
 
 
 @numba.njit(inline="always")
