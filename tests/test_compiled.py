@@ -9,6 +9,7 @@ locks each save and load (compiled._locked); with the lock taken out, the
 first test failed 2 runs of 2 (an index entry lost)."""
 
 import os
+import signal
 import subprocess
 import sys
 import textwrap
@@ -102,3 +103,31 @@ def test_a_first_picture_does_not_wait_for_the_builders_compile(tmp_path, rng):
         assert len(ready) == 1, list((tmp_path / "cache").rglob("*"))  # the child finished before the process ended
     assert "as it compiles for later runs" in runs[0] and "Python" not in runs[1], runs
     assert (tmp_path / "cold.png").read_bytes() == (tmp_path / "warm.png").read_bytes()
+
+
+@pytest.mark.slow
+def test_ctrl_c_while_the_builders_compile_is_awaited_is_quiet(tmp_path):
+    """Ctrl-C (SIGINT to the process group, as a terminal sends it) after the
+    picture is written, while the process waits for the child that compiles
+    the builder: no traceback, the picture kept, the child stopped."""
+    import psutil
+
+    src = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "src")
+    env = {**os.environ, "RAYBENCH_CACHE_DIR": str(tmp_path / "cache"), "PYTHONPATH": src}
+    args = ["render", "--device", "cpu", "--spheres", "300", "--size", "64x48", "-o", "x.png"]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "raybench", *args], env=env, cwd=tmp_path, text=True,
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True,
+    )  # fmt: skip
+    try:
+        said = proc.stdout.readline()  # the picture is written
+        assert "as it compiles for later runs" in said, said
+        children = psutil.Process(proc.pid).children()
+        assert children, "the child had finished already: nothing waited for"
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        proc.kill()
+    assert "Traceback" not in err and not err.strip(), err
+    assert (tmp_path / "x.png").stat().st_size > 0
+    assert not any(psutil.pid_exists(c.pid) and c.status() != psutil.STATUS_ZOMBIE for c in children)

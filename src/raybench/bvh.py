@@ -827,7 +827,18 @@ def _compile_elsewhere() -> None:
         if _child is None:
             _child = _start_child()
             if _child is not None:
-                atexit.register(_child.wait)
+                atexit.register(_wait_for_child, _child)
+
+
+def _wait_for_child(child: subprocess.Popen) -> None:
+    """At exit: wait for the child's compile. Ctrl-C meanwhile (the picture is
+    written by then) stops the child and ends the wait without a traceback; the
+    next process compiles the builder."""
+    try:
+        child.wait()
+    except KeyboardInterrupt:
+        child.kill()
+        child.wait()
 
 
 def _start_child() -> subprocess.Popen | None:
