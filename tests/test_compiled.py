@@ -8,6 +8,7 @@ other types ("can't unbox array", numba issue 10128). raybench's cache
 locks each save and load (compiled._locked); with the lock taken out, the
 first test failed 2 runs of 2 (an index entry lost)."""
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -119,15 +120,23 @@ def test_ctrl_c_while_the_builders_compile_is_awaited_is_quiet(tmp_path):
         [sys.executable, "-m", "raybench", *args], env=env, cwd=tmp_path, text=True,
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True,
     )  # fmt: skip
+    children = []
     try:
-        said = proc.stdout.readline()  # the picture is written
+        # the child held stopped, so that it is still compiling when the picture is written
+        deadline = time.monotonic() + 120
+        while not (children := psutil.Process(proc.pid).children()) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert children, "no child was started"
+        for child in children:
+            child.suspend()
+        said = proc.stdout.readline()  # the picture is written; the process waits for its child
         assert "as it compiles for later runs" in said, said
-        children = psutil.Process(proc.pid).children()
-        assert children, "the child had finished already: nothing waited for"
         os.killpg(proc.pid, signal.SIGINT)
         _, err = proc.communicate(timeout=120)
     finally:
-        proc.kill()
+        for process in (proc, *children):  # nothing left behind, whatever failed
+            with contextlib.suppress(psutil.Error, OSError):
+                process.kill()
     assert "Traceback" not in err and not err.strip(), err
     assert (tmp_path / "x.png").stat().st_size > 0
     assert not any(psutil.pid_exists(c.pid) and c.status() != psutil.STATUS_ZOMBIE for c in children)
