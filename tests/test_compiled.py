@@ -107,10 +107,17 @@ def test_a_first_picture_does_not_wait_for_the_builders_compile(tmp_path, rng):
 
 
 @pytest.mark.slow
-def test_ctrl_c_while_the_builders_compile_is_awaited_is_quiet(tmp_path):
-    """Ctrl-C (SIGINT to the process group, as a terminal sends it) after the
-    picture is written, while the process waits for the child that compiles
-    the builder: no traceback, the picture kept, the child stopped."""
+@pytest.mark.parametrize("when", ["before the picture", "after the picture"])
+def test_ctrl_c_with_the_builders_compile_under_way_ends_the_process(tmp_path, when):
+    """Ctrl-C (SIGINT to the process group, as a terminal sends it) while the
+    child that compiles the builder cannot act on it (held stopped): the process
+    ends, with no traceback, and the child is stopped.
+
+    Before the picture is written (the frame kernel compiling): one line,
+    'interrupted', exit 130, no picture. Without stopping the child there, the
+    process hung at exit waiting for it. After the picture: the picture kept,
+    and the signal lands either in the wait for the child at exit (quiet) or
+    just before it (one line); CI's loaded machine once found the second."""
     import psutil
 
     src = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "src")
@@ -122,21 +129,27 @@ def test_ctrl_c_while_the_builders_compile_is_awaited_is_quiet(tmp_path):
     )  # fmt: skip
     children = []
     try:
-        # the child held stopped, so that it is still compiling when the picture is written
         deadline = time.monotonic() + 120
         while not (children := psutil.Process(proc.pid).children()) and time.monotonic() < deadline:
             time.sleep(0.01)
         assert children, "no child was started"
         for child in children:
             child.suspend()
-        said = proc.stdout.readline()  # the picture is written; the process waits for its child
-        assert "as it compiles for later runs" in said, said
+        if when == "after the picture":
+            said = proc.stdout.readline()  # the picture is written; the process heads for its exit
+            assert "as it compiles for later runs" in said, said
         os.killpg(proc.pid, signal.SIGINT)
-        _, err = proc.communicate(timeout=120)
+        out, err = proc.communicate(timeout=120)
     finally:
         for process in (proc, *children):  # nothing left behind, whatever failed
             with contextlib.suppress(psutil.Error, OSError):
                 process.kill()
-    assert "Traceback" not in err and not err.strip(), err
-    assert (tmp_path / "x.png").stat().st_size > 0
+    assert "Traceback" not in err, err
+    if when == "after the picture":
+        assert err.strip() in ("", "raybench: interrupted"), err
+        assert (tmp_path / "x.png").stat().st_size > 0
+    else:
+        # the frame kernel's compile takes seconds on a fresh cache: the signal lands in it
+        assert err.strip() == "raybench: interrupted" and proc.returncode == 130, (proc.returncode, out, err)
+        assert not (tmp_path / "x.png").exists()
     assert not any(psutil.pid_exists(c.pid) and c.status() != psutil.STATUS_ZOMBIE for c in children)

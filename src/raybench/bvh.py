@@ -821,24 +821,37 @@ def _in_python(n: int, wide: int, device: str) -> tuple[bool, bool]:
 
 def _compile_elsewhere() -> None:
     """Start the child that compiles the one-thread way into the cache, once
-    a process; the process waits for it at exit."""
+    a process; the process waits for it at exit (wait_for_compiling_elsewhere)."""
     global _child
     with _CHILD_LOCK:
         if _child is None:
             _child = _start_child()
             if _child is not None:
-                atexit.register(_wait_for_child, _child)
+                atexit.register(wait_for_compiling_elsewhere)
 
 
-def _wait_for_child(child: subprocess.Popen) -> None:
-    """At exit: wait for the child's compile. Ctrl-C meanwhile (the picture is
-    written by then) stops the child and ends the wait without a traceback; the
-    next process compiles the builder."""
+def wait_for_compiling_elsewhere() -> None:
+    """Wait for the child's compile, if one was started. Ctrl-C meanwhile (the
+    picture is written by then) stops the child and ends the wait without a
+    traceback; the next process compiles the builder. The CLI calls this before
+    it exits, where it catches Ctrl-C itself; at exit it runs again, for scripts."""
+    if _child is None:
+        return
     try:
-        child.wait()
+        _child.wait()
     except KeyboardInterrupt:
-        child.kill()
-        child.wait()
+        _child.kill()
+        _child.wait()
+
+
+def stop_compiling_elsewhere() -> None:
+    """Stop the child that compiles the builder, if one runs: Ctrl-C before
+    the process reached its wait. A terminal's Ctrl-C reaches the child too, but
+    a child that cannot act on it (held stopped, or the signal sent to this
+    process alone) would hold the wait for as long as it compiles."""
+    if _child is not None:
+        _child.kill()  # a child already ended is not signalled (Popen.send_signal polls first)
+        _child.wait()
 
 
 def _start_child() -> subprocess.Popen | None:

@@ -902,6 +902,16 @@ def _cuda_reason() -> str:
         return f"numba-cuda is not installed: {exc}"
 
 
+def _interrupted() -> int:
+    """Ctrl-C: one line, exit 130, and a child compiling the builder for later
+    runs (bvh.one_shot) stopped rather than awaited."""
+    bvh = sys.modules.get("raybench.bvh")  # not imported: no child was started
+    if bvh is not None:
+        bvh.stop_compiling_elsewhere()
+    click.echo("raybench: interrupted", err=True)
+    return 130
+
+
 def run(argv=None) -> int:
     """Entry point: turn every user error into one line and exit code 2."""
     try:
@@ -923,9 +933,8 @@ def run(argv=None) -> int:
     except click.ClickException as exc:
         click.echo(f"raybench: error: {one_line(exc.format_message())}", err=True)
         return exc.exit_code
-    except click.exceptions.Abort:
-        click.echo("raybench: interrupted", err=True)
-        return 130
+    except (click.exceptions.Abort, KeyboardInterrupt):
+        return _interrupted()
     except MemoryError:
         # Checked before the large allocations (limits.host_available_bytes);
         # this is for the rest, under a ulimit or cgroup limit we could not foresee.
@@ -935,9 +944,6 @@ def run(argv=None) -> int:
             err=True,
         )
         return 2
-    except KeyboardInterrupt:
-        click.echo("raybench: interrupted", err=True)
-        return 130
     except Exception as exc:
         failure = device_failure(exc)
         if failure is None:
@@ -948,4 +954,14 @@ def run(argv=None) -> int:
 
 
 def entry() -> None:
-    sys.exit(run())
+    try:
+        code = run()
+        # A one-shot picture may have started a child that compiles the builder
+        # for later runs (bvh.one_shot): it is awaited here, where Ctrl-C is caught,
+        # rather than during the interpreter's shutdown, where it would print a traceback.
+        bvh = sys.modules.get("raybench.bvh")  # not imported: no child was started
+        if bvh is not None:
+            bvh.wait_for_compiling_elsewhere()  # Ctrl-C meanwhile stops the child, quietly
+    except KeyboardInterrupt:  # Ctrl-C between run's own handlers and the wait
+        code = _interrupted()
+    sys.exit(code)
