@@ -181,8 +181,8 @@ def interrupt_after_the_first_tile(monkeypatch) -> None:
 
     as_completed = distributed.as_completed
 
-    def interrupted(tasks):
-        yield next(iter(as_completed(tasks)))
+    def interrupted(tasks, **options):
+        yield next(iter(as_completed(tasks, **options)))
         raise KeyboardInterrupt
 
     monkeypatch.setattr(distributed, "as_completed", interrupted)
@@ -244,6 +244,49 @@ def test_a_held_frame_is_not_written_by_the_next(running, rng, no_block_left):
             np.testing.assert_array_equal(frame.hits, whole.hits)
         held.pop(0)  # frame = render(...): the one before is let go once the next is made
     assert cluster._pool(running.client).made == 2
+
+
+def tile_keys(client) -> int:
+    """How many of the client's tiles the scheduler still holds."""
+    return client.run_on_scheduler(lambda dask_scheduler: sum("_tile" in str(k) for k in dask_scheduler.tasks))
+
+
+def test_a_frames_tiles_are_held_only_until_the_next_frames_go(running, rng, no_block_left):
+    """The last frame's tiles are let go once the next frame's are submitted
+    (so that their release does not go out alone just before them), never
+    more than one frame's, and none once the client's frames are released."""
+    cluster.release(running.client)
+    scene, camera = scene_and_camera(rng, 20)
+    tiles = int(rng.integers(2, 6))
+    for _ in range(3):
+        frame = cluster.render(running.client, scene, camera, 24, 8 * tiles, device="cpu", rows=8)
+        assert tile_keys(running.client) == tiles
+        del frame
+    cluster.release(running.client)
+    deadline = time.monotonic() + 30
+    while tile_keys(running.client) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert tile_keys(running.client) == 0
+
+
+def test_the_workers_devices_are_asked_again_after_a_while_or_a_failure(running, rng, monkeypatch, no_block_left):
+    asked = []
+    check = cluster.check_workers
+    monkeypatch.setattr(cluster, "check_workers", lambda *a, **k: asked.append(1) or check(*a, **k))
+    cluster.release(running.client)
+    scene, camera = scene_and_camera(rng, 10)
+    for _ in range(3):
+        cluster.render(running.client, scene, camera, 24, 16, device="cpu", rows=8)
+    assert len(asked) == 1  # well within WORKERS_FRESH_S
+    monkeypatch.setattr(cluster, "WORKERS_FRESH_S", 0.0)
+    for _ in range(2):
+        cluster.render(running.client, scene, camera, 24, 16, device="cpu", rows=8)
+    assert len(asked) == 3
+    monkeypatch.setattr(cluster, "WORKERS_FRESH_S", 3600.0)
+    with pytest.raises(RaybenchError, match="accel: must be one of"):
+        cluster.render(running.client, scene, camera, 24, 16, device="cpu", rows=8, accel="bogus")
+    cluster.render(running.client, scene, camera, 24, 16, device="cpu", rows=8)
+    assert len(asked) == 4  # the failed frame used the answer kept; the next one asked afresh
 
 
 def test_another_size_gets_its_own_block(running, rng, no_block_left):

@@ -38,6 +38,7 @@ import math
 import os
 import re
 import threading
+import time
 import weakref
 from collections import OrderedDict
 from collections.abc import Callable, Iterable
@@ -68,6 +69,10 @@ TASKS_PER_WORKER = 4
 MAX_FRAMES_PER_TASK = 60
 # Warm renderers a worker keeps; each holds a frame's buffers and a tree.
 KEEP_RENDERERS = 2
+# How long render() trusts its last answer of which workers there are and
+# what device each has (about the interval at which a Dask client refreshes
+# its own view of the scheduler).
+WORKERS_FRESH_S = 2.0
 
 
 # --- the cluster -------------------------------------------------------------------
@@ -363,33 +368,67 @@ def _scatter(client, scene: Scene):
     return future, future.key
 
 
-# Each client's frames in shared memory: id(client) -> (weak reference to the
-# client, its sharedframe.Pool), kept from job to job so that a frame of a size
-# seen before finds its block resident.
-_pools: dict[int, tuple] = {}
+class _Session:
+    """What render() keeps for one client from frame to frame. A frame's fixed
+    cost is Dask's round of its tiles (docs/scaling.md), so nothing else asks
+    the cluster what a recent frame asked:
+
+    - pool: the frames' shared memory, a frame size's block kept resident;
+    - the workers' devices (check_workers), asked again after WORKERS_FRESH_S,
+      so that workers that came or went are seen; a tile that lands on a worker
+      lacking the device still fails naming it (_tile);
+    - last: the last frame's tiles, let go only once the next frame's are
+      submitted. Let go at the end of their frame, their release went to the
+      scheduler just before the next frame's tiles, which then waited out the
+      client's batching interval (10 ms in distributed 2026.8) behind it."""
+
+    def __init__(self, client):
+        self.client = weakref.ref(client)
+        self.pool = sharedframe.Pool()
+        self.found: dict[tuple, tuple[float, dict[str, str]]] = {}
+        self.last: list = []
+
+    def workers(self, client, device: str, options: dict) -> dict[str, str]:
+        key = (device, options.get("adapter"))
+        asked = self.found.get(key)
+        if asked is None or time.monotonic() - asked[0] > WORKERS_FRESH_S:
+            asked = self.found[key] = (time.monotonic(), check_workers(client, device, **options))
+        return asked[1]
+
+    def close(self) -> None:
+        self.pool.close()
+        self.found.clear()
+        self.last = []
+
+
+# Each client's _Session: id(client) -> _Session, kept from job to job.
+_sessions: dict[int, _Session] = {}
+
+
+def _session(client) -> _Session:
+    held = _sessions.get(id(client))
+    if held is None or held.client() is not client:
+        if held is not None:  # a client of the same id, gone
+            held.close()
+        held = _sessions[id(client)] = _Session(client)
+    return held
 
 
 def _pool(client) -> sharedframe.Pool:
-    held = _pools.get(id(client))
-    if held is None or held[0]() is not client:
-        if held is not None:  # a client of the same id, gone
-            held[1].close()
-        held = (weakref.ref(client), sharedframe.Pool())
-        _pools[id(client)] = held
-    return held[1]
+    return _session(client).pool
 
 
 def release(client, workers: bool = True) -> None:
     """The shared memory that render() keeps for client's frames let go, here
-    and (workers) on its workers (Cluster.close() does this). Frames already
-    returned stay valid; a later render() starts afresh."""
+    and (workers) on its workers (Cluster.close() does this), with the rest it
+    keeps for them. Frames already returned stay valid; a later render() starts afresh."""
     from distributed import TimeoutError as DaskTimeout
 
-    held = _pools.pop(id(client), None)
+    held = _sessions.pop(id(client), None)
     if held is None:
         return
-    held[1].close()
-    if workers and held[0]() is client and client.status == "running":
+    held.close()
+    if workers and held.client() is client and client.status == "running":
         # the workers' mappings keep a block's memory alive: dropped now, not when they next map one
         with contextlib.suppress(OSError, DaskTimeout, RuntimeError):
             client.run(sharedframe.forget)
@@ -434,7 +473,8 @@ def render(
         raise RaybenchError(f"camera: must be a raybench.Camera or None, got {type(camera).__name__}")
     spec = _spec(width, height, device, shading, depth, shadow_samples, options)
     width, height = spec[0], spec[1]
-    found = check_workers(client, device, **options)
+    session = _session(client)
+    found = session.workers(client, device, options)
     device = next(iter(found.values()))
     if device not in ("cpu", "cuda"):
         raise RaybenchError(f"device {device}: traces whole frames only; a frame in tiles needs device cpu or cuda")
@@ -448,13 +488,13 @@ def render(
     camera = camera or scene.camera or Camera()
     # The frame is assembled here, whole: refused before any work if it cannot be
     # (unless a kept block of its size is there to be lent: no new memory).
-    if not (shared and _pool(client).can_lend(width, height)):
+    if not (shared and session.pool.can_lend(width, height)):
         check_fits("host (where the frame is assembled)", width, height, 0, host_available_bytes(), PIXEL_BYTES)
     future, key = _scatter(client, scene)
     bands = [(a, min(a + rows, height)) for a in range(0, height, rows)]
     lease, ok = None, False
     try:
-        lease = _pool(client).lease(width, height) if shared else None
+        lease = session.pool.lease(width, height) if shared else None
         address = None if lease is None else lease.address
         # The tiles dealt to the workers in turn: left to Dask, a frame's few tiles, whose inputs
         # every worker holds, could all go to one GPU (docs/scaling.md). Loosely: a worker that
@@ -465,24 +505,29 @@ def render(
                           workers=[places[i % len(places)]], allow_other_workers=True)
             for i, band in enumerate(bands)
         ]  # fmt: skip
+        session.last = []  # the last frame's tiles let go: their release goes out with these
         if lease is None:
             image, hits = np.empty((height, width, 3), np.uint8), np.empty((height, width), np.int32)
         else:
             image, hits = lease.image, lease.hits
-        rays, build_s = None, None
+        rays, build_s, sent = None, None, False
         try:
-            for task in as_completed(tasks):
-                first, band_image, band_hits, band_rays, band_build = task.result()
+            # the results fetched as each tile ends, side by side, not one round trip after another
+            for _task, (first, band_image, band_hits, band_rays, band_build) in as_completed(tasks, with_results=True):
                 if band_image is not None:  # sent: a worker that could not write to the block, or none
                     image[first : first + len(band_image)] = band_image
                     hits[first : first + len(band_hits)] = band_hits
+                    sent = True
                 if band_rays is not None:
                     rays = {k: (rays or {}).get(k, 0) + n for k, n in band_rays.items()}
                 build_s = band_build if build_s is None else max(build_s, band_build or 0.0)
             ok = True
+            if not sent:  # held till the next frame's tiles go (_Session); sent rows are not held on the workers
+                session.last = tasks
         finally:
             if not ok:  # the others are not wanted now (a round trip to the scheduler: not paid when all are done)
                 client.cancel(tasks)
+                session.found.clear()  # the next frame asks the workers afresh
     finally:
         # Done, failed or interrupted: the block's name goes now, and a task
         # that starts later finds none. Failed or interrupted: a task still
