@@ -75,6 +75,49 @@ def test_processes_compiling_one_function_at_once_leave_a_cache_that_loads_right
         assert check.returncode == 0 and check.stdout.strip() == "ok", check.stderr[-2000:]
 
 
+WHITTED_ONE = textwrap.dedent(
+    """
+    import sys
+    import raybench
+    scene = raybench.random_spheres(30, seed=1, materials=True)
+    raybench.render(scene, None, 16, 8, device="cpu", shading="whitted", accel=sys.argv[1])
+    """
+)
+
+WHITTED_BOTH = textwrap.dedent(
+    """
+    import sys
+    import numpy as np
+    import raybench
+    scene = raybench.random_spheres(int(sys.argv[1]), seed=int(sys.argv[2]), materials=True)
+    frames = [raybench.render(scene, None, 48, 32, device="cpu", shading="whitted", accel=accel, threads=1)
+              for accel in ("bvh", "none")]
+    assert frames[0].rays == frames[1].rays and frames[0].rays["reflection"] > 0, [f.rays for f in frames]
+    assert np.array_equal(frames[0].hits, frames[1].hits) and np.array_equal(frames[0].image, frames[1].image)
+    print("ok")
+    """
+)
+
+
+@pytest.mark.slow
+def test_whitted_kernels_cached_by_different_processes_load_together(tmp_path, rng):
+    """Whitted's kernel through the tree and by brute force, each compiled
+    into the cache by a process of its own, then both loaded by one process:
+    each calls its own search. Their searches were once one symbol name in
+    both (Numba names a function by its qualified name and a per-process
+    counter): brute force's kernel, loaded second, called the tree's walk on
+    a tree of no nodes, and the process died of a segfault."""
+    src = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "src")
+    env = {**os.environ, "RAYBENCH_CACHE_DIR": str(tmp_path / "cache"), "PYTHONPATH": src}
+    procs = [subprocess.Popen([sys.executable, "-c", WHITTED_ONE, accel], env=env) for accel in ("bvh", "none")]
+    assert [p.wait(timeout=600) for p in procs] == [0, 0]
+    args = [str(int(rng.integers(20, 200))), str(int(rng.integers(2**31)))]
+    both = subprocess.run(
+        [sys.executable, "-c", WHITTED_BOTH, *args], env=env, capture_output=True, text=True, timeout=600
+    )  # fmt: skip
+    assert both.returncode == 0 and both.stdout.strip() == "ok", (both.returncode, both.stderr[-2000:])
+
+
 def test_the_cache_lock_is_taken_again_by_its_thread(tmp_path, monkeypatch):
     """A load within a save (or any nesting in one thread) must not wait for itself."""
     from raybench import compiled

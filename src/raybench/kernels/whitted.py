@@ -93,11 +93,20 @@ def build(jit, call, search, shade_hit, shade_miss):
     # walk inlined at both of find's call sites, the shadow rays' and the
     # others', made the kernel about twice as long to compile for the same
     # frame time (docs/performance.md, "Time to the first picture").
-    @call
     def find(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, spheres, count, tree, stack_row, stack_t):
         """The nearest sphere (or, any_hit, any) with 0 < t < t_max along a
         secondary ray: (index or -1, t, half-chord)."""
         return search(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, spheres, count, tree, stack_row, stack_t)
+
+    # Each program's find named after its search. Numba names a compiled
+    # function's symbol by its qualified name and a counter of the process
+    # that compiled it, so two programs' finds, compiled into the disk cache
+    # by different processes, could carry one symbol name; loaded into one
+    # process, the second kernel called the first one's find (brute force's
+    # kernel walked the tree it has none of: a segfault; test_compiled).
+    find.__name__ = f"find_{search.__name__}"
+    find.__qualname__ = find.__qualname__.replace("find", find.__name__)
+    find = call(find)
 
     @jit
     def push(rays_f, rays_i, top, ox, oy, oz, dx, dy, dz, wr, wg, wb, depth, kind, own, inside):
