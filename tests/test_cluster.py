@@ -181,8 +181,8 @@ def interrupt_after_the_first_tile(monkeypatch) -> None:
 
     as_completed = distributed.as_completed
 
-    def interrupted(tasks, **options):
-        yield next(iter(as_completed(tasks, **options)))
+    def interrupted(tasks):
+        yield next(iter(as_completed(tasks)))
         raise KeyboardInterrupt
 
     monkeypatch.setattr(distributed, "as_completed", interrupted)

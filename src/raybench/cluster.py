@@ -512,8 +512,10 @@ def render(
             image, hits = lease.image, lease.hits
         rays, build_s, sent = None, None, False
         try:
-            # the results fetched as each tile ends, side by side, not one round trip after another
-            for _task, (first, band_image, band_hits, band_rays, band_build) in as_completed(tasks, with_results=True):
+            # one tile's result fetched at a time (not with_results=True, which fetches every
+            # finished tile's at once: sent rows would then all be held here beside the frame)
+            for task in as_completed(tasks):
+                first, band_image, band_hits, band_rays, band_build = task.result()
                 if band_image is not None:  # sent: a worker that could not write to the block, or none
                     image[first : first + len(band_image)] = band_image
                     hits[first : first + len(band_hits)] = band_hits
