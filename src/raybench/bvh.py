@@ -840,8 +840,7 @@ def wait_for_compiling_elsewhere() -> None:
     try:
         _child.wait()
     except KeyboardInterrupt:
-        _child.kill()
-        _child.wait()
+        stop_compiling_elsewhere()
 
 
 def stop_compiling_elsewhere() -> None:
