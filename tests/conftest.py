@@ -14,10 +14,12 @@ if "NUMBA_ENABLE_CUDASIM" not in os.environ:
 
 @pytest.fixture
 def rng(request):
-    """A fresh random generator per test; its seed is printed when the test fails."""
-    seed = int(np.random.SeedSequence().entropy % 2**63)
+    """A fresh random generator per test; its seed is printed when the test
+    fails, and RAYBENCH_TEST_SEED=that seed gives the same inputs again."""
+    given = os.environ.get("RAYBENCH_TEST_SEED")
+    seed = int(given) if given else int(np.random.SeedSequence().entropy % 2**63)
     request.node.user_properties.append(("seed", seed))
-    print(f"random seed: {seed}")
+    print(f"random seed: {seed} (RAYBENCH_TEST_SEED={seed} repeats it)")
     return np.random.default_rng(seed)
 
 
