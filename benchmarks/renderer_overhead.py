@@ -1,16 +1,19 @@
 """What raybench.Renderer costs over the backend's own Tracer, warm, side by
 side: the Tracer's trace() (its buffers reused), Renderer.render() (a Frame
-of its own arrays) and Renderer.render(hits=False), taken in turn frame by
-frame, medians. Where the device times its kernel (cuda), also the kernel
-alone and the frame's bytes at the host link's speed, measured here by a
-copy of as many bytes from the device into pinned memory, so that the whole
-frame can be held to the kernel plus its copy. One line of JSON a size.
+of its own arrays, dropped at once, so its arrays are traced into again),
+Renderer.render(hits=False), and Renderer.render() by a caller who keeps the
+last KEPT frames (new arrays each frame), taken in turn frame by frame,
+medians. Where the device times its kernel (cuda), also the kernel alone and
+the frame's bytes at the host link's speed, measured here by a copy of as
+many bytes from the device into pinned memory, so that the whole frame can
+be held to the kernel plus its copy. One line of JSON a size.
 
     python benchmarks/renderer_overhead.py --device cpu --spheres 1000 --frames 31
     python benchmarks/renderer_overhead.py --device cuda --spheres 1000 --spheres 100000
 """
 
 import argparse
+import collections
 import json
 import statistics
 import sys
@@ -20,6 +23,8 @@ import numpy as np
 
 import raybench
 from raybench import machine
+
+KEPT = 10
 
 
 def timed(call) -> float:
@@ -48,12 +53,20 @@ def measure(n: int, width: int, height: int, device: str, frames: int) -> dict:
     scene = raybench.random_spheres(n, seed=0)
     camera = raybench.Camera()
     basis = camera.basis(width, height)
-    with raybench.Renderer(scene, width, height, device=device) as renderer:
+    kept = collections.deque(maxlen=KEPT)
+    # the kept frames from a renderer of their own: from the one timed with
+    # frames dropped, they would take the arrays that its next frame would
+    # trace into again, and leave it fresh memory each frame
+    with (
+        raybench.Renderer(scene, width, height, device=device) as renderer,
+        raybench.Renderer(scene, width, height, device=device) as keeper,
+    ):
         tracer = renderer.tracer
         ways = {
             "tracer_trace": lambda: tracer.trace(basis),
             "renderer_render": lambda: renderer.render(camera),
             "renderer_render_no_hits": lambda: renderer.render(camera, hits=False),
+            "renderer_render_kept": lambda: kept.append(keeper.render(camera)),
         }
         for call in ways.values():  # warm: compiled, built, buffers made
             call()
@@ -64,11 +77,13 @@ def measure(n: int, width: int, height: int, device: str, frames: int) -> dict:
                 times[name].append(timed(call))
             if device == "cuda":
                 kernel.append(tracer.timed_trace(basis))
-        row = {"device": tracer.name, "spheres": n, "width": width, "height": height, "frames": frames}
+        kept.clear()
+        row = {"device": tracer.name, "spheres": n, "width": width, "height": height, "frames": frames, "kept": KEPT}
         row.update({f"{name}_ms": round(statistics.median(t), 3) for name, t in times.items()})
         base = row["tracer_trace_ms"]
         row["render_over_trace"] = round(row["renderer_render_ms"] / base, 3)
         row["render_no_hits_over_trace"] = round(row["renderer_render_no_hits_ms"] / base, 3)
+        row["render_kept_over_trace"] = round(row["renderer_render_kept_ms"] / base, 3)
         if device == "cuda":
             frame_bytes = width * height * (3 + 4)  # the image's RGB bytes and the int32 hits
             row["kernel_ms"] = round(statistics.median(kernel), 3)

@@ -26,3 +26,11 @@ def test_tracer_keeps_the_contract(device, accel, request):
         assert hits.shape == (8, 16) and hits.dtype == np.int32
         ms = tracer.timed_trace(raybench.Camera().basis(16, 8))
         assert ms is None or ms >= 0
+        # arrays handed to it between frames are those the next frame is traced into, and returned
+        own = image.copy(), hits.copy()
+        tracer.image, tracer.hits = tracer.host_array(image.shape, np.uint8), tracer.host_array(hits.shape, np.int32)
+        handed = tracer.image, tracer.hits
+        got = tracer.trace(raybench.Camera().basis(16, 8))
+        assert got[0] is handed[0] and got[1] is handed[1]
+        np.testing.assert_array_equal(got[0], own[0])
+        np.testing.assert_array_equal(got[1], own[1])

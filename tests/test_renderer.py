@@ -1,9 +1,12 @@
 """Renderer: a scene kept ready across frames gives render()'s frames."""
 
+import weakref
+
 import numpy as np
 import pytest
 
 import raybench
+from raybench.render import KEEP_LENT
 
 
 @pytest.mark.parametrize(
@@ -108,3 +111,138 @@ def test_rows_are_the_whole_frames_rows(rng, accel, shading):
         for bad in [(3, 10), (8, 8), (0, 49), (-8, 8), "rows"]:
             with pytest.raises(raybench.RaybenchError, match="rows"):
                 renderer.render(camera, rows=bad)
+
+
+# Frames of their own arrays, not copies (Renderer.render; the tracer writes
+# into arrays it is handed, recycled from Frames that are gone). On cuda, under
+# numba's simulator where there is no GPU; wgpu where it finds an adapter.
+OWN_ARRAYS_DEVICES = [
+    "cpu",
+    pytest.param("cuda", marks=pytest.mark.gpu),
+    pytest.param("wgpu", marks=pytest.mark.gpu),
+]
+
+
+def _renderer(device, request, scene, width=24, height=16, **options):
+    """A renderer on device; wgpu on the adapter the tests use."""
+    if device == "wgpu":
+        options["adapter"] = request.getfixturevalue("adapter")
+    return raybench.Renderer(scene, width, height, device=device, **options)
+
+
+def _cameras(rng, n):
+    """n cameras near the default one, towards the spheres: different pictures."""
+    return [raybench.Camera(position=tuple(rng.uniform(-1, 1, 3)), look_at=(0, 0, 15)) for _ in range(n)]
+
+
+def _address(array) -> int:
+    return array.__array_interface__["data"][0]
+
+
+def _counting_host_arrays(renderer) -> list:
+    """The data addresses of every array the renderer's tracer makes for
+    frames from now on (its host_array, wrapped)."""
+    made, make = [], renderer.tracer.host_array
+
+    def host_array(shape, dtype):
+        array = make(shape, dtype)
+        made.append(_address(array))
+        return array
+
+    renderer.tracer.host_array = host_array
+    return made
+
+
+@pytest.mark.parametrize("device", OWN_ARRAYS_DEVICES)
+def test_kept_frames_are_never_written(rng, device, request):
+    """A frame the caller keeps, and a view of a frame the caller dropped, stay
+    as they were traced through later frames of other cameras (frames
+    dropped, hits=False, tiles, the tracer's own trace()), each against a
+    copy taken at once."""
+    scene = raybench.random_spheres(int(rng.integers(20, 40)), seed=int(rng.integers(2**31)))
+    cameras = _cameras(rng, 3 if device == "cuda" else 8)  # numba's simulator: a second a frame
+    with _renderer(device, request, scene) as renderer:
+        kept = renderer.render(cameras[0])
+        kept_copy = (kept.image.copy(), kept.hits.copy())
+        dropped = renderer.render(cameras[1])
+        image_rows, hit_column = dropped.image[4:9], dropped.hits[:, 5]
+        weak = weakref.ref(dropped.hits)  # a weak reference alone could bring the array back
+        views_copy = (image_rows.copy(), hit_column.copy(), dropped.hits.copy())
+        del dropped
+        for camera in cameras[2:]:
+            renderer.render(camera)
+            renderer.render(camera, hits=False)
+            if renderer.tracer.traces_rows:
+                renderer.render(camera, rows=(8, 16))
+            renderer.tracer.trace(camera.basis(24, 16))
+        assert not all(np.array_equal(kept_copy[0], renderer.render(c).image) for c in cameras[1:])
+        np.testing.assert_array_equal(kept.image, kept_copy[0])
+        np.testing.assert_array_equal(kept.hits, kept_copy[1])
+        np.testing.assert_array_equal(image_rows, views_copy[0])
+        np.testing.assert_array_equal(hit_column, views_copy[1])
+        np.testing.assert_array_equal(weak(), views_copy[2])
+
+
+@pytest.mark.parametrize("device", OWN_ARRAYS_DEVICES)
+def test_dropped_frames_arrays_are_traced_into_again(rng, device, request):
+    """Frames dropped in turn are traced into a few arrays, again and again:
+    each frame's arrays are ones the tracer made for frames (not copies),
+    and a frame dropped before the next is traced gives it its arrays."""
+    scene = raybench.random_spheres(int(rng.integers(5, 40)), seed=int(rng.integers(2**31)))
+    with _renderer(device, request, scene) as renderer:
+        made = _counting_host_arrays(renderer)
+        frame = renderer.render()
+        for camera in _cameras(rng, 6):  # the last frame held while the next is traced
+            frame = renderer.render(camera)
+            assert {_address(frame.image), _address(frame.hits)} <= set(made)
+        assert len(made) == 2 * 2  # an image and hits for the frame held, and for the next
+        address = _address(frame.image), _address(frame.hits)
+        del frame
+        frame = renderer.render()
+        assert (_address(frame.image), _address(frame.hits)) == address
+        for _ in range(3):  # hits=False: the tracer's own hits, none made
+            assert renderer.render(hits=False).hits is None
+        assert len(made) == 2 * 2
+        # frames kept: new arrays each, and the renderer keeps at most a few of them
+        frames = [renderer.render() for _ in range(6)]
+        assert len({_address(f.image) for f in [frame, *frames]}) == 7
+        assert len(renderer._images._lent) <= KEEP_LENT
+
+
+@pytest.mark.parametrize(
+    "device, accel",
+    [
+        ("cpu", "bvh"),
+        ("cpu", "none"),
+        pytest.param("cuda", "bvh", marks=pytest.mark.gpu),  # brute force: a minute on numba's simulator
+        pytest.param("wgpu", "bvh", marks=pytest.mark.gpu),
+        pytest.param("wgpu", "none", marks=pytest.mark.gpu),
+    ],
+)
+def test_frames_in_recycled_arrays_are_the_tracers_frames(rng, device, accel, request):
+    """Frames traced into arrays that held other frames are bit for bit the
+    tracer's own trace() of a fresh tracer, hits=False and tiles included."""
+    small = device == "cuda"  # numba's simulator: seconds a frame, more with every sphere of brute force
+    scene = raybench.random_spheres(int(rng.integers(5, 15 if small else 80)), seed=int(rng.integers(2**31)))
+    cameras = _cameras(rng, 3 if small else 5)
+    width, height = (16, 16) if small else (32, 24)
+    with _renderer(device, request, scene, width, height, accel=accel) as renderer:
+        got = []
+        for camera in cameras:
+            renderer.render(cameras[0])  # dropped: its arrays are the next frame's
+            frame = renderer.render(camera)
+            got.append((frame.image.copy(), frame.hits.copy(), renderer.render(camera, hits=False).image))
+            del frame
+        tiles = renderer.tracer.traces_rows
+        if tiles:
+            rows = [renderer.render(c, rows=(8, height)) for c in cameras]
+    options = {"adapter": request.getfixturevalue("adapter")} if device == "wgpu" else {}
+    with raybench.backends.tracer(device, scene.spheres, width, height, accel=accel, **options) as tracer:
+        for i, (camera, (image, hits, image_no_hits)) in enumerate(zip(cameras, got)):
+            want_image, want_hits = (a.copy() for a in tracer.trace(camera.basis(width, height)))
+            np.testing.assert_array_equal(image, want_image)
+            np.testing.assert_array_equal(hits, want_hits)
+            np.testing.assert_array_equal(image_no_hits, want_image)
+            if tiles:
+                np.testing.assert_array_equal(rows[i].image, want_image[8:])
+                np.testing.assert_array_equal(rows[i].hits, want_hits[8:])

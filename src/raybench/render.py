@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import io
+import sys
+import weakref
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,7 +30,8 @@ PNG_LEVEL = 1
 @dataclass
 class Frame:
     """A traced picture: image is (H, W, 3) uint8 RGB, row 0 at the top; hits
-    holds the index of the sphere seen in each pixel, -1 where the ray missed."""
+    holds the index of the sphere seen in each pixel, -1 where the ray missed.
+    Its arrays are its own: no later frame writes into them."""
 
     image: np.ndarray
     hits: np.ndarray | None  # None where the caller asked for none (Renderer.render(hits=False))
@@ -78,6 +81,55 @@ def png_bytes(image: np.ndarray, level: int = PNG_LEVEL) -> bytes:
     return buf.getvalue()
 
 
+# The arrays a Renderer lends to Frames and keeps, of each kind (images,
+# hits): enough for a frame held while the next is traced and one more in
+# flight (the viewer's), so that a caller who drops its frames in turn traces
+# into the same few arrays; past that, arrays that callers keep are forgotten.
+KEEP_LENT = 3
+
+
+def _refs(arrays: list, i: int) -> int:
+    return sys.getrefcount(arrays[i])
+
+
+# _refs of an array that nothing but the list holds, counted as _free counts.
+_ALONE = _refs([np.empty(0)], 0)
+
+
+def _free(arrays: list, i: int) -> bool:
+    """Whether nothing but the list holds arrays[i]: no Frame, no view of it
+    (a NumPy view holds the array that owns its memory: np.empty's, or
+    cuda.pinned_array's, whose own base is not an array), no weak reference
+    that could bring one back. A frame's arrays are the owners themselves."""
+    return _refs(arrays, i) <= _ALONE and not weakref.getweakrefcount(arrays[i])
+
+
+class _Lent:
+    """Arrays of one kind (a frame's images, or its hits) that a Renderer's
+    tracer writes frames into and lends to the Frames, taken back for a
+    later frame once nothing else holds them: a frame traces into memory
+    already mapped, and no Frame or view a caller keeps is ever written."""
+
+    def __init__(self):
+        self._lent: list[np.ndarray] = []
+
+    def take(self, tracer, like: np.ndarray) -> np.ndarray:
+        """An array that nothing else holds: the last one freed, else a new
+        one like `like` from the tracer (in the memory it writes into best)."""
+        for i in reversed(range(len(self._lent))):
+            if _free(self._lent, i):
+                return self._lent.pop(i)
+        return tracer.host_array(like.shape, like.dtype)
+
+    def lend(self, array: np.ndarray) -> None:
+        """array is a Frame's now (or free again, where none took it)."""
+        self._lent.append(array)
+        if len(self._lent) > KEEP_LENT:
+            # one that a caller still holds is the caller's (the oldest), else the oldest free one goes
+            held = [i for i in range(len(self._lent)) if not _free(self._lent, i)]
+            del self._lent[held[0] if held else 0]
+
+
 class Renderer:
     """A scene kept ready on a device, frame after frame: its tree, the
     device's buffers and the compiled kernel are made once, here, and each
@@ -116,6 +168,7 @@ class Renderer:
             raise RaybenchError("depth and shadow_samples: apply to shading='whitted' only")
         self.scene, self.width, self.height, self.shading = scene, width, height, shading
         self.tracer = backends.tracer(device, scene.spheres, width, height, **options)
+        self._images, self._hits = _Lent(), _Lent()
 
     @property
     def device(self) -> str:
@@ -142,9 +195,10 @@ class Renderer:
         count: int | None = None,
     ) -> Frame:
         """One frame as seen by camera (default: the scene's own camera, else
-        Camera()); a Frame of its own arrays. hits=False leaves Frame.hits
-        None and saves copying them. rows=(first, end): only those rows of
-        the frame, each pixel as the whole frame has it (a tile of
+        Camera()); a Frame of its own arrays, those the tracer wrote (not
+        copies), which no later frame writes. hits=False leaves Frame.hits
+        None. rows=(first, end): only those rows of the frame (copied out of
+        the tracer's), each pixel as the whole frame has it (a tile of
         raybench.cluster's render; first a multiple of 8 on the cpu), on
         devices that trace rows (cpu and cuda). count: only the scene's first
         count spheres (the thesis's test 7 ramps it), without a new tree or
@@ -153,17 +207,34 @@ class Renderer:
         _check_camera(camera)
         camera = camera or self.scene.camera or Camera()
         basis = camera.basis(self.width, self.height)
-        if rows is None:
-            image, hit_ids = tracer.trace(basis, count)
-        elif not tracer.traces_rows:
+        if rows is not None and not tracer.traces_rows:
             raise RaybenchError(f"rows: device {tracer.name} traces whole frames only; tiles need device cpu or cuda")
-        else:
-            image, hit_ids = tracer.trace(basis, count, rows=rows)
-            image, hit_ids = image[rows[0] : rows[1]], hit_ids[rows[0] : rows[1]]
+        # The frame is traced into arrays that nothing else holds, handed to
+        # the tracer for this trace: a whole frame's become the Frame's, not
+        # copied (12 MB a frame at 1680x1050); a tile's rows are copied out
+        # (a view would keep the whole frame's arrays alive with each tile).
+        # The tracer keeps its own arrays, for callers of tracer.trace(), and
+        # writes hits into them where the Frame has none.
+        own = tracer.image, tracer.hits
+        taken = self._images.take(tracer, own[0]), self._hits.take(tracer, own[1]) if hits else None
+        tracer.image, tracer.hits = taken[0], own[1] if taken[1] is None else taken[1]
+        try:
+            if rows is None:
+                image, hit_ids = tracer.trace(basis, count)
+            else:
+                image, hit_ids = tracer.trace(basis, count, rows=rows)
+                first, end = rows
+                image, hit_ids = image[first:end].copy(), hit_ids[first:end].copy() if hits else None
+        finally:
+            tracer.image, tracer.hits = own
+            # a Frame's now, or free again (a tile's, a failed trace's)
+            self._images.lend(taken[0])
+            if taken[1] is not None:
+                self._hits.lend(taken[1])
         counts = tracer.ray_counts
         return Frame(
-            image=image.copy(),
-            hits=hit_ids.copy() if hits else None,
+            image=image,
+            hits=hit_ids if hits else None,
             device=tracer.name,
             build_s=tracer.build_s,
             rays=None if counts is None else dict(zip(KINDS, counts.tolist())),
@@ -178,6 +249,7 @@ class Renderer:
         if self.tracer is not None:
             self.tracer.close()
             self.tracer = None
+            self._images, self._hits = _Lent(), _Lent()  # the free arrays go (cuda's are page-locked)
 
     def __enter__(self) -> Renderer:
         return self

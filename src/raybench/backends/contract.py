@@ -3,7 +3,9 @@ the viewer and the tests rely on, written down once.
 
 A Tracer is made for one scene at one size; it keeps what a frame needs
 (the tree, the buffers, the compiled kernel) between frames, and traces a
-frame on each call into buffers it reuses.
+frame on each call into its host arrays `image` and `hits`, the same ones
+frame after frame unless its caller hands it others: a Renderer gives each
+frame arrays of their own that way, without a copy (render.Renderer).
 """
 
 from __future__ import annotations
@@ -28,6 +30,12 @@ class Tracer(Protocol):
     # The last frame's rays by kind (kernels.whitted.KINDS), as the kernel
     # counted them; None under the thesis's shading: one primary ray a pixel.
     ray_counts: np.ndarray | None
+    # The host arrays the next trace() writes, (H, W, 3) uint8 and (H, W)
+    # int32: read at each trace, never kept elsewhere (in converted launch
+    # arguments, say), so a caller may replace them between frames with
+    # C-contiguous arrays of the same shape and type (host_array's).
+    image: np.ndarray
+    hits: np.ndarray
 
     def compile(self) -> float:
         """Compile what a frame needs, tracing nothing; the seconds it took."""
@@ -35,8 +43,14 @@ class Tracer(Protocol):
 
     def trace(self, basis: np.ndarray, count: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Trace a frame of the first `count` spheres (default all) seen from
-        Camera.basis(); the (H, W, 3) uint8 image and (H, W) int32 hits, in
-        buffers the next frame overwrites."""
+        Camera.basis(); the (H, W, 3) uint8 image and (H, W) int32 hits:
+        the arrays self.image and self.hits, which the next frame overwrites
+        unless they are replaced first."""
+        ...
+
+    def host_array(self, shape: tuple, dtype) -> np.ndarray:
+        """A new array for frames (an image or hits to replace self.image or
+        self.hits), in the host memory this device writes frames into best."""
         ...
 
     def timed_trace(self, basis: np.ndarray, count: int | None = None) -> float | None:
@@ -73,6 +87,9 @@ class TracerBase:
 
     def describe(self) -> dict | None:
         return None
+
+    def host_array(self, shape: tuple, dtype) -> np.ndarray:
+        return np.empty(shape, dtype)
 
     def close(self) -> None:
         pass

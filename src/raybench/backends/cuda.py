@@ -540,16 +540,8 @@ class Tracer(TracerBase):
         self.d_spheres = cuda.to_device(spheres if self.count else np.zeros((7, 1), np.float32))
         self.d_image = cuda.device_array((height, width, 3), dtype=np.uint8)
         self.d_hits = cuda.device_array((height, width), dtype=np.int32)
-        self.image = (
-            cuda.pinned_array((height, width, 3), dtype=np.uint8)
-            if not simulated()
-            else np.empty((height, width, 3), np.uint8)
-        )
-        self.hits = (
-            cuda.pinned_array((height, width), dtype=np.int32)
-            if not simulated()
-            else np.empty((height, width), np.int32)
-        )
+        self.image = self.host_array((height, width, 3), np.uint8)
+        self.hits = self.host_array((height, width), np.int32)
         self.d_basis = cuda.device_array((4, 3), dtype=np.float32)
         self.constant_count = bool(constant_count)
         self.bvh = None
@@ -735,6 +727,11 @@ class Tracer(TracerBase):
         self.d_hits[first:end].copy_to_host(hit_rows)
         if self.ray_counts is not None:
             self.d_rays.copy_to_host(self.ray_counts)
+
+    def host_array(self, shape: tuple, dtype) -> np.ndarray:
+        """A new array for frames, page-locked (not under the simulator): the
+        copy from the device into it is one DMA (the contract's host_array)."""
+        return np.empty(shape, dtype) if simulated() else cuda.pinned_array(shape, dtype=dtype)
 
     @staticmethod
     def pin(address: int, size: int):
