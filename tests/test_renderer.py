@@ -203,10 +203,19 @@ def test_dropped_frames_arrays_are_traced_into_again(rng, device, request):
         for _ in range(3):  # hits=False: the tracer's own hits, none made
             assert renderer.render(hits=False).hits is None
         assert len(made) == 2 * 2
-        # frames kept: new arrays each, and the renderer keeps at most a few of them
+        # frames kept: KEEP_LENT of them in the renderer's arrays, made once,
+        # the rest copies, each of its own memory
         frames = [renderer.render() for _ in range(6)]
         assert len({_address(f.image) for f in [frame, *frames]}) == 7
-        assert len(renderer._images._lent) <= KEEP_LENT
+        assert len(made) == 2 * KEEP_LENT
+        lent = [f for f in [frame, *frames] if _address(f.image) in made]
+        assert len(lent) == KEEP_LENT and all(_address(f.hits) in made for f in lent)
+        # dropped again, their arrays are traced into again: no more made
+        del frame, frames, lent
+        for _ in range(3):
+            frame = renderer.render()
+            assert {_address(frame.image), _address(frame.hits)} <= set(made)
+        assert len(made) == 2 * KEEP_LENT
 
 
 @pytest.mark.parametrize(

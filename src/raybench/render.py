@@ -81,10 +81,11 @@ def png_bytes(image: np.ndarray, level: int = PNG_LEVEL) -> bytes:
     return buf.getvalue()
 
 
-# The arrays a Renderer lends to Frames and keeps, of each kind (images,
-# hits): enough for a frame held while the next is traced and one more in
-# flight (the viewer's), so that a caller who drops its frames in turn traces
-# into the same few arrays; past that, arrays that callers keep are forgotten.
+# The arrays of each kind (images, hits) a Renderer traces frames into and
+# lends to them: enough for a frame held while the next is traced and one
+# more in flight (the viewer's). A caller who drops its frames in turn traces
+# into these few; one who keeps more gets copies, as a fresh array faulted in
+# by the kernel's threads costs more than a copy into it (docs/performance.md).
 KEEP_LENT = 3
 
 
@@ -105,29 +106,25 @@ def _free(arrays: list, i: int) -> bool:
 
 
 class _Lent:
-    """Arrays of one kind (a frame's images, or its hits) that a Renderer's
-    tracer writes frames into and lends to the Frames, taken back for a
-    later frame once nothing else holds them: a frame traces into memory
-    already mapped, and no Frame or view a caller keeps is ever written."""
+    """The arrays of one kind (a frame's images, or its hits) that a
+    Renderer's tracer writes frames into and lends to the Frames, each traced
+    into again once nothing else holds it: no Frame or view a caller keeps is
+    ever written."""
 
     def __init__(self):
-        self._lent: list[np.ndarray] = []
+        self._arrays: list[np.ndarray] = []  # at most KEEP_LENT, each a Frame's or free
 
-    def take(self, tracer, like: np.ndarray) -> np.ndarray:
-        """An array that nothing else holds: the last one freed, else a new
-        one like `like` from the tracer (in the memory it writes into best)."""
-        for i in reversed(range(len(self._lent))):
-            if _free(self._lent, i):
-                return self._lent.pop(i)
-        return tracer.host_array(like.shape, like.dtype)
-
-    def lend(self, array: np.ndarray) -> None:
-        """array is a Frame's now (or free again, where none took it)."""
-        self._lent.append(array)
-        if len(self._lent) > KEEP_LENT:
-            # one that a caller still holds is the caller's (the oldest), else the oldest free one goes
-            held = [i for i in range(len(self._lent)) if not _free(self._lent, i)]
-            del self._lent[held[0] if held else 0]
+    def take(self, tracer, like: np.ndarray) -> np.ndarray | None:
+        """An array that nothing else holds now; a new one like `like` from
+        the tracer (in the memory it writes frames into best) while there are
+        fewer than KEEP_LENT; else None: callers hold them all."""
+        for i in range(len(self._arrays)):
+            if _free(self._arrays, i):
+                return self._arrays[i]
+        if len(self._arrays) < KEEP_LENT:
+            self._arrays.append(tracer.host_array(like.shape, like.dtype))
+            return self._arrays[-1]
+        return None
 
 
 class Renderer:
@@ -195,10 +192,11 @@ class Renderer:
         count: int | None = None,
     ) -> Frame:
         """One frame as seen by camera (default: the scene's own camera, else
-        Camera()); a Frame of its own arrays, those the tracer wrote (not
-        copies), which no later frame writes. hits=False leaves Frame.hits
-        None. rows=(first, end): only those rows of the frame (copied out of
-        the tracer's), each pixel as the whole frame has it (a tile of
+        Camera()); a Frame of its own arrays, which no later frame writes:
+        those the tracer wrote, not copies, unless the caller still holds
+        KEEP_LENT earlier frames. hits=False leaves Frame.hits None.
+        rows=(first, end): only those rows of the frame (copied out of the
+        tracer's), each pixel as the whole frame has it (a tile of
         raybench.cluster's render; first a multiple of 8 on the cpu), on
         devices that trace rows (cpu and cuda). count: only the scene's first
         count spheres (the thesis's test 7 ramps it), without a new tree or
@@ -211,30 +209,32 @@ class Renderer:
             raise RaybenchError(f"rows: device {tracer.name} traces whole frames only; tiles need device cpu or cuda")
         # The frame is traced into arrays that nothing else holds, handed to
         # the tracer for this trace: a whole frame's become the Frame's, not
-        # copied (12 MB a frame at 1680x1050); a tile's rows are copied out
-        # (a view would keep the whole frame's arrays alive with each tile).
-        # The tracer keeps its own arrays, for callers of tracer.trace(), and
-        # writes hits into them where the Frame has none.
+        # copied (12 MB a frame at 1680x1050). Where callers hold every lent
+        # array, and for a tile's rows (a view would keep a whole frame's
+        # arrays alive with each tile), the frame is copied out of the
+        # tracer's own arrays, which it keeps for callers of tracer.trace().
         own = tracer.image, tracer.hits
-        taken = self._images.take(tracer, own[0]), self._hits.take(tracer, own[1]) if hits else None
-        tracer.image, tracer.hits = taken[0], own[1] if taken[1] is None else taken[1]
+        whole = rows is None
+        into = (
+            self._images.take(tracer, own[0]) if whole else None,
+            self._hits.take(tracer, own[1]) if whole and hits else None,
+        )
+        tracer.image = own[0] if into[0] is None else into[0]
+        tracer.hits = own[1] if into[1] is None else into[1]
         try:
-            if rows is None:
+            if whole:
                 image, hit_ids = tracer.trace(basis, count)
             else:
                 image, hit_ids = tracer.trace(basis, count, rows=rows)
-                first, end = rows
-                image, hit_ids = image[first:end].copy(), hit_ids[first:end].copy() if hits else None
+                image, hit_ids = image[rows[0] : rows[1]], hit_ids[rows[0] : rows[1]]
         finally:
             tracer.image, tracer.hits = own
-            # a Frame's now, or free again (a tile's, a failed trace's)
-            self._images.lend(taken[0])
-            if taken[1] is not None:
-                self._hits.lend(taken[1])
+        image = image.copy() if into[0] is None else image
+        hit_ids = None if not hits else hit_ids.copy() if into[1] is None else hit_ids
         counts = tracer.ray_counts
         return Frame(
             image=image,
-            hits=hit_ids if hits else None,
+            hits=hit_ids,
             device=tracer.name,
             build_s=tracer.build_s,
             rays=None if counts is None else dict(zip(KINDS, counts.tolist())),
