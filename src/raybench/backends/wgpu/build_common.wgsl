@@ -30,10 +30,9 @@ fn element(wg: vec3<u32>, groups: vec3<u32>, t: u32) -> u32 {
 }
 
 // x, rounded to float32 on its own: WGSL lets a compiler fuse a product
-// into a following sum (one rounding less, as CUDA's fma) or regroup a sum
-// of three, and an OR with a uniform it cannot know keeps it from doing
-// either. The model and the cuda simulator round every product and sum in
-// the order written; with this, so does the WGSL.
+// into a following sum (one rounding less, as CUDA's fma), and an OR with a
+// uniform it cannot know keeps it from doing so. The model and the cuda
+// simulator round every product; with this, so does the WGSL.
 fn exact(x: f32) -> f32 {
     return bitcast<f32>(bitcast<u32>(x) | params.zero);
 }

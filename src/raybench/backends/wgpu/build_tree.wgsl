@@ -166,7 +166,7 @@ fn await_scratch(i: u32) -> u32 {
 
 fn half_area(lo: vec3<f32>, hi: vec3<f32>) -> f32 {
     let d = max(hi - lo, vec3<f32>(0.0));
-    return exact(exact(d.x * d.y) + exact(d.y * d.z)) + exact(d.z * d.x);
+    return (exact(d.x * d.y) + exact(d.y * d.z)) + exact(d.z * d.x);
 }
 
 // Leaf k (its sphere order[k]) climbs to the root, as cuda_build._bounds_up
@@ -222,7 +222,7 @@ fn bounds_up(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) grou
         w = 1u + w + await_scratch(2u * sib + 1u);
         // the two children's sum first: the same whichever arrived first
         a = half_area(lo, hi);
-        c = exact(NODE_COST * a) + exact(c + bitcast<f32>(await_scratch(4u * m + sib)));
+        c = exact(NODE_COST * a) + (c + bitcast<f32>(await_scratch(4u * m + sib)));
         link = links[row];
         if (link != NONE) {
             let parent = link / 2u;
