@@ -59,15 +59,19 @@ def assert_models_tree(builder, stats, spheres, quality, leaf_size, subnormal=Fa
     WGSL rounds +, - and * correctly; the builder keeps a compiler from
     fusing a product into a sum (build_common.wgsl's exact()), and rounds
     the Morton codes' one division correctly (cells_per_unit) and leaves the
-    cost's to the host, so nothing is left to differ, but for one thing:
-    WGSL lets a GPU flush subnormal floats to zero. Where the scene's boxes
-    are so small that their half areas are subnormal (subnormal true: the
-    chain's), a GPU may then cut leaves elsewhere: there the tree is held to
-    be valid and of the model's cost within 1e-4 (a CPU driver, which keeps
-    subnormals, still bit for bit)."""
+    cost's to the host, so nothing is left to differ on a CPU driver. A GPU
+    differs in two things. WGSL lets it flush subnormal floats to zero:
+    where the scene's boxes are so small that their half areas are subnormal
+    (subnormal true: the chain's), it may then cut leaves elsewhere, and
+    there the tree is held to be valid and of the model's cost within 1e-4.
+    And the H200 gave the model's tree, row for row, with the cost it sums
+    one float32 step off in 7 builds of 300 (lease a5; pinning the order of
+    every sum of three changed none of them): on a GPU the cost is held to
+    a few steps of float32."""
     nodes, order, ordered, depth, rows, cost = tree_model().build(spheres, quality, leaf_size)
     got = builder.to_host(stats.depth)
-    if subnormal and builder.device.adapter_info["adapter_type"] != "CPU":
+    on_gpu = builder.device.adapter_info["adapter_type"] != "CPU"
+    if subnormal and on_gpu:
         check_tree(got, spheres)
         assert tree_cost.sah_cost(got.nodes) == pytest.approx(tree_cost.sah_cost(nodes), rel=1e-4)
         return
@@ -75,7 +79,10 @@ def assert_models_tree(builder, stats, spheres, quality, leaf_size, subnormal=Fa
     assert np.array_equal(got.ordered, ordered)
     assert np.array_equal(got.nodes.view(np.uint32), nodes.view(np.uint32))
     assert (stats.depth, stats.rows) == (depth, rows)
-    assert np.float32(stats.cost) == np.float32(cost)
+    if on_gpu:
+        assert stats.cost == pytest.approx(float(cost), rel=4 * np.finfo(np.float32).eps)
+    else:
+        assert np.float32(stats.cost) == np.float32(cost)
 
 
 @pytest.mark.parametrize("kind", ["generated", "overlapping", "cloud", "one_point", "duplicates", "line", "chain"])
@@ -185,14 +192,21 @@ def test_builder_refuses_what_it_cannot_build(device, kernels):
 )
 def test_gpu_tree_walks_give_the_brute_force(adapter, rng, monkeypatch, kind):
     """The walk on the GPU's tree (of either quality): the brute force's hits
-    and picture, bit for bit (a CPU driver rounds every operation to
-    float32 as the CPU does; test_wgpu says what a GPU may change)."""
+    and picture, bit for bit on a CPU driver, which rounds every operation to
+    float32 as the CPU does. A GPU's compiler may fuse multiply-adds, and
+    the H200 gave colours one step off (lease a4): there, as test_wgpu holds
+    its walks, hits of all but 1 pixel in 1,000 and colours within a step."""
     monkeypatch.setattr(lbvh, "QUALITY", str(rng.choice(gpu_build.QUALITIES)))
     scene, camera = SCENES[kind](rng, int(rng.integers(2, 400)))
     width, height = 61, 37
     gpu = raybench.render(scene, camera, width, height, device="wgpu", adapter=adapter, build="gpu")
     cpu = brute(scene, camera, width, height)
-    assert np.array_equal(gpu.hits, cpu.hits) and np.array_equal(gpu.image, cpu.image)
+    if adapters.choose(adapter).type == "CPU":
+        assert np.array_equal(gpu.hits, cpu.hits) and np.array_equal(gpu.image, cpu.image)
+    else:
+        differ = gpu.hits != cpu.hits
+        assert differ.mean() < 1e-3, (kind, np.count_nonzero(differ))
+        assert np.abs(gpu.image.astype(int) - cpu.image.astype(int))[~differ].max(initial=0) <= 1, kind
     if kind in ("one_point", "one") or (kind in IN_VIEW and len(scene) >= 100):  # not vacuous: a hit
         assert (cpu.hits >= 0).any()
 
