@@ -71,7 +71,8 @@ export PYTHONPATH=/tmp/site:$PWD/src PYTHONUNBUFFERED=1
 OUT=${OUT:-/tmp/out}; W=/tmp/lease; rm -rf "$W"; mkdir -p "$W" "$OUT"
 LABEL=${LABEL:-h200}; DURATION=${DURATION:-1}
 echo "$RAYBENCH_GIT_COMMIT" > "$W/git_commit.txt"
-STEPS=${STEPS:-info pytest kernels scaling thesis wgpu tuning}
+# STEPS unset: the steps below; STEPS="": none (the wheels installed, for commands of ones own after)
+STEPS=${STEPS-info pytest kernels scaling thesis wgpu tuning}
 step() {  # step NAME SECONDS COMMAND...: its output to $W/NAME.log, how it ended to steps.log
     local name=$1 limit=$2; shift 2
     local t0=$SECONDS
