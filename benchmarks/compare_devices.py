@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from raybench import Camera, backends, random_spheres
+from raybench import Camera, backends, files, random_spheres
 from raybench.cli import parse_size
 
 
@@ -87,8 +87,8 @@ def main():
         results["speedup_cuda_over_cpu"] = results["cpu"]["median_frame_ms"] / results["cuda"]["median_frame_ms"]
         print(json.dumps(results["comparison"]), f"speedup {results['speedup_cuda_over_cpu']:.1f}x")
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump({"spheres": args.spheres, "size": [width, height], "frames": args.frames, **results}, f, indent=1)
+        record = {"spheres": args.spheres, "size": [width, height], "frames": args.frames, **results}
+        files.write_atomic(args.json, json.dumps(record, indent=1).encode())
 
 
 if __name__ == "__main__":

@@ -53,7 +53,7 @@ import numpy as np
 from numba import cuda
 
 import raybench
-from raybench import Camera, backends, bvh, machine, tree_cost
+from raybench import Camera, backends, bvh, files, machine, tree_cost
 from raybench.backends import cuda_build
 
 STEPS = ("codes", "sort", "hierarchy", "bounds")
@@ -288,8 +288,7 @@ def main() -> int:
         "machine": machine.describe(),
         "records": records,
     }
-    with open(args.json, "w") as f:
-        json.dump(out, f, indent=1)
+    files.write_atomic(args.json, json.dumps(out, indent=1).encode())
     return 0
 
 

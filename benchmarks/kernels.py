@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 import raybench
-from raybench import backends, machine
+from raybench import backends, files, machine
 from raybench.bench import peak
 
 
@@ -121,8 +121,7 @@ def main():
             }
             out["sweep"].append(rec)
             print(json.dumps(rec), flush=True)
-    with open(args.json, "w") as f:
-        json.dump(out, f, indent=1)
+    files.write_atomic(args.json, json.dumps(out, indent=1).encode())
 
 
 if __name__ == "__main__":

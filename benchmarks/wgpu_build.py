@@ -32,7 +32,7 @@ import time
 import numpy as np
 
 import raybench
-from raybench import Camera, backends, bvh, machine, tree_cost
+from raybench import Camera, backends, bvh, files, machine, tree_cost
 from raybench.backends.wgpu import adapters, compute
 from raybench.backends.wgpu import build as gpu_build
 from raybench.backends.wgpu.tracer import timestamp_period
@@ -178,8 +178,7 @@ def main() -> int:
         "machine": machine.describe(),
         "records": records,
     }
-    with open(args.json, "w") as f:
-        json.dump(out, f, indent=1)
+    files.write_atomic(args.json, json.dumps(out, indent=1).encode())
     return 0
 
 

@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from raybench import Camera, backends, random_spheres
+from raybench import Camera, backends, files, random_spheres
 from raybench.cli import parse_pair, parse_size
 from raybench.machine import describe, git_commit
 
@@ -68,20 +68,16 @@ def main():
     adapter = next(iter(gpus.values())).describe()
     print(json.dumps({"adapter": adapter, "same_picture": same, "summary": summary}, indent=1))
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump(
-                {
-                    "argv": vars(args),
-                    "git_commit": git_commit(),
-                    "machine": describe(),
-                    "adapter": adapter,
-                    "same_picture": same,
-                    "rounds": rounds,
-                    "summary": summary,
-                },
-                f,
-                indent=1,
-            )
+        record = {
+            "argv": vars(args),
+            "git_commit": git_commit(),
+            "machine": describe(),
+            "adapter": adapter,
+            "same_picture": same,
+            "rounds": rounds,
+            "summary": summary,
+        }
+        files.write_atomic(args.json, json.dumps(record, indent=1).encode())
 
 
 if __name__ == "__main__":
