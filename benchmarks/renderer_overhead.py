@@ -2,11 +2,11 @@
 side: the Tracer's trace() (its buffers reused), Renderer.render() (a Frame
 of its own arrays, dropped at once, so its arrays are traced into again),
 Renderer.render(hits=False), and Renderer.render() by a caller who keeps the
-last KEPT frames (new arrays each frame), taken in turn frame by frame,
-medians. Where the device times its kernel (cuda), also the kernel alone and
-the frame's bytes at the host link's speed, measured here by a copy of as
-many bytes from the device into pinned memory, so that the whole frame can
-be held to the kernel plus its copy. One line of JSON a size.
+last KEPT frames (past the Renderer's lent arrays, copies), taken in turn
+frame by frame, medians. Where the device times its kernel (cuda), also the
+kernel alone and the frame's bytes at the host link's speed, measured here
+by a copy of as many bytes from the device into pinned memory, so that the
+whole frame can be held to the kernel plus its copy. One line of JSON a size.
 
     python benchmarks/renderer_overhead.py --device cpu --spheres 1000 --frames 31
     python benchmarks/renderer_overhead.py --device cuda --spheres 1000 --spheres 100000

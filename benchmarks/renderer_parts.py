@@ -36,8 +36,7 @@ def parts(device: str, n: int) -> dict:
         renderer.render(camera)
         tracer.trace(basis)
         own = tracer.image, tracer.hits
-        pairs = [(tracer.host_array(own[0].shape, own[0].dtype), tracer.host_array(own[1].shape, own[1].dtype))]
-        pairs.append((tracer.host_array(own[0].shape, own[0].dtype), tracer.host_array(own[1].shape, own[1].dtype)))
+        pairs = [tuple(tracer.host_array(a.shape, a.dtype) for a in own) for _ in range(2)]
         turn = [0]
 
         def trace_swapped():
