@@ -289,6 +289,24 @@ def test_the_workers_devices_are_asked_again_after_a_while_or_a_failure(running,
     assert len(asked) == 4  # the failed frame used the answer kept; the next one asked afresh
 
 
+def test_a_scene_changed_in_place_is_traced_as_changed(running, rng, no_block_left):
+    """The scene's key is its hash, taken every frame: spheres moved in place
+    between two frames of one Scene object are the next frame's spheres, not
+    the workers' kept tree of the old ones."""
+    for _ in range(20):
+        scene, camera = scene_and_camera(rng, 40)
+        first = cluster.render(running.client, scene, camera, 40, 32, device="cpu", rows=8)
+        if (first.hits >= 0).sum() > 20:
+            break
+    seen = np.unique(first.hits[first.hits >= 0])
+    scene.spheres[0, seen] += np.float32(rng.uniform(0.2, 0.5))  # the spheres in view, moved to the right
+    frame = cluster.render(running.client, scene, camera, 40, 32, device="cpu", rows=8)
+    whole = raybench.render(scene, camera, 40, 32, device="cpu")
+    np.testing.assert_array_equal(frame.image, whole.image)
+    np.testing.assert_array_equal(frame.hits, whole.hits)
+    assert not np.array_equal(frame.hits, first.hits)  # the change is in the picture
+
+
 def test_another_size_gets_its_own_block(running, rng, no_block_left):
     cluster.release(running.client)
     scene, camera = scene_and_camera(rng, 30)
