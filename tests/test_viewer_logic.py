@@ -834,7 +834,10 @@ def test_worker_traces_off_the_event_loop():
         worker.close()
     assert isinstance(result, TracedFrame)
     assert frame_s > 0.1, "the frame was too quick to show anything"
-    assert slowest < 0.05, f"an event took {slowest * 1e3:.0f} ms while a {frame_s:.2f} s frame was traced"
+    # A kernel that held the GIL would stall an event for about the whole frame; a busy CI
+    # machine's scheduler may stall one for some ms. So the bound grows with the frame.
+    bound = max(0.05, frame_s / 4)
+    assert slowest < bound, f"an event took {slowest * 1e3:.0f} ms while a {frame_s:.2f} s frame was traced"
 
 
 # ---------------------------------------------------------------- bad input: one line, exit 2, before any window
