@@ -43,11 +43,12 @@ def _vector(value, name: str) -> tuple[float, float, float]:
     return vec
 
 
-# A frame's basis is made every frame, so these two are NumPy's own arithmetic
-# without its calls' cost (120 -> 17 us a basis on the 2-vCPU machine):
-# np.linalg.norm of a vector is the square root of its dot with itself, and
-# np.cross multiplies, then subtracts, as Python's floats do here. The basis
-# is bit for bit NumPy's (tests/test_camera.py).
+# A basis is made every frame, and on three numbers NumPy's calls cost far more
+# than their arithmetic (docs/performance.md, "What a Renderer costs over its
+# Tracer"). So these two are that arithmetic alone: np.linalg.norm of a vector
+# is the square root of its dot with itself, and np.cross multiplies, then
+# subtracts, as Python's floats do here. The basis stays bit for bit NumPy's
+# (tests/test_camera.py).
 
 
 def _norm(v: np.ndarray) -> float:
