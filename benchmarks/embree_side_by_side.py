@@ -37,7 +37,11 @@ of the same work.
 Timing: warm frames on both sides (compiled, a first frame and warm-up
 frames left out), then --rounds rounds of --frames frames a side, the two
 sides alternating which goes first each round, so that a neighbour's load on
-a shared machine falls on both; medians over every frame of a side.
+a shared machine falls on both; medians over every frame of a side. Each
+side's frames of a round begin after --settle seconds idle: a thread pool
+spins a while after its work before it sleeps, and without the pause
+raybench's frames right after Mitsuba's were up to 45% slower than after
+its own (docs/performance.md).
 
 One JSON line per (layout, spheres, Mitsuba's shape), to stdout and --out.
 """
@@ -111,7 +115,7 @@ def median_ms(times):
     return statistics.median(times) * 1e3
 
 
-def compare(layout, n, shape, width, height, rounds, frames, warmup, seed, mi, dr, base):
+def compare(layout, n, shape, width, height, rounds, frames, warmup, settle, seed, mi, dr, base):
     scene = raybench.random_spheres(n, seed, layout=layout)
     basis = Camera().basis(width, height)
     rays = width * height
@@ -161,6 +165,7 @@ def compare(layout, n, shape, width, height, rounds, frames, warmup, seed, mi, d
         sides = [("raybench", ours), ("mitsuba", theirs)]
         for r in range(rounds):
             for name, side in sides if r % 2 == 0 else sides[::-1]:
+                time.sleep(settle)  # the other side's idle threads asleep again: they spin a while after its work
                 for _ in range(frames):
                     start = time.perf_counter()
                     side()
@@ -201,6 +206,13 @@ def main():
     p.add_argument("--rounds", type=int, default=7)
     p.add_argument("--frames", type=int, default=3, help="frames a side in each round")
     p.add_argument("--warmup", type=int, default=2, help="frames a side after the first, untimed")
+    p.add_argument(
+        "--settle",
+        type=float,
+        default=0.3,
+        help="seconds idle before each side's frames of a round (0: none, as before 2026-12-01): the side "
+        "that ran last keeps its threads spinning a while, slowing the other's next frames (docs/performance.md)",
+    )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument(
         "--max-shapes",
@@ -240,6 +252,7 @@ def main():
         "usable_cores": usable_cores(),
         "load_average": os.getloadavg(),
         "label": args.label,
+        "settle_s": args.settle,
     }
     for n in args.spheres:
         for layout in args.layouts:
@@ -248,7 +261,19 @@ def main():
                 shapes = ["sphere", "ellipsoids"]
             for shape in shapes:
                 record = compare(
-                    layout, n, shape, width, height, args.rounds, args.frames, args.warmup, args.seed, mi, dr, base
+                    layout,
+                    n,
+                    shape,
+                    width,
+                    height,
+                    args.rounds,
+                    args.frames,
+                    args.warmup,
+                    args.settle,
+                    args.seed,
+                    mi,
+                    dr,
+                    base,
                 )
                 line = json.dumps(record)
                 print(
