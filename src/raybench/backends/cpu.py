@@ -375,7 +375,7 @@ def _colour_packet(x0, y0, spheres, hit, hit_d, rgb, paint):
         paint[3, k] = spheres[RADIUS, j]
     for k in range(PACKET):
         hr, hg, hb = _shade_hit_v(paint[0, k], paint[1, k], paint[2, k], paint[3, k], hit_d[k])
-        mr, mg, mb = _shade_miss_v(np.float32(x0 + k % PACKET_W), np.float32(y0 + k // PACKET_W))
+        mr, mg, mb = _shade_miss_v(np.float32(np.int32(x0 + k % PACKET_W)), np.float32(np.int32(y0 + k // PACKET_W)))
         got = hit[k] >= 0
         rgb[0, k] = _to_byte_v(hr if got else mr)
         rgb[1, k] = _to_byte_v(hg if got else mg)
@@ -397,9 +397,12 @@ def _start_packet(x0, y0, end_row, width, height, basis, dx, dy, dz, ix, iy, iz,
     nothing hit yet, and their spread (_spread). Inlined into each packet
     walk; separate loops, each simple enough for LLVM to make SIMD."""
     for k in range(PACKET):
-        # rays off the chunk trace a copy of its last row or column, unstored
-        x = min(x0 + k % PACKET_W, width - 1)
-        y = min(y0 + k // PACKET_W, end_row - 1)
+        # rays off the chunk trace a copy of its last row or column, unstored;
+        # a pixel's coordinates as int32 (exact: a side is at most
+        # limits.MAX_SIDE), which AVX2 turns into float32 eight at a time,
+        # where an int64 takes a scalar conversion each (docs/performance.md)
+        x = np.int32(min(x0 + k % PACKET_W, width - 1))
+        y = np.int32(min(y0 + k // PACKET_W, end_row - 1))
         dx[k], dy[k], dz[k] = _primary_ray_v(x, y, width, height, basis)
     for k in range(PACKET):
         ix[k] = _inverse(dx[k])
