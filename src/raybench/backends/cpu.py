@@ -384,10 +384,14 @@ def _colour_packet(x0, y0, spheres, hit, hit_d, rgb, paint):
 
 @numba.njit(inline="always")
 def _put_pixel(y, x, k, rgb, hit, image, hits):
-    """Store ray k's bytes and hit index at pixel (x, y)."""
-    image[y, x, 0] = rgb[0, k]
-    image[y, x, 1] = rgb[1, k]
-    image[y, x, 2] = rgb[2, k]
+    """Store ray k's bytes and hit index at pixel (x, y), each at least 0.
+    Unsigned indices (_U), as in the cull loops: a signed one carries
+    Python's negative-index wraparound, a shift, a mask and an add for each
+    of a pixel's four stores (what they cost: docs/performance.md)."""
+    y, x, k = _U(y), _U(x), _U(k)
+    image[y, x, _U(0)] = rgb[_U(0), k]
+    image[y, x, _U(1)] = rgb[_U(1), k]
+    image[y, x, _U(2)] = rgb[_U(2), k]
     hits[y, x] = hit[k]
 
 
