@@ -40,8 +40,8 @@ sides alternating which goes first each round, so that a neighbour's load on
 a shared machine falls on both; medians over every frame of a side. Each
 side's frames of a round begin after --settle seconds idle: a thread pool
 spins a while after its work before it sleeps, and without the pause
-raybench's frames right after Mitsuba's were up to 45% slower than after
-its own (docs/performance.md).
+raybench's frames right after Mitsuba's were slower than after its own
+(docs/performance.md).
 
 One JSON line per (layout, spheres, Mitsuba's shape), to stdout and --out.
 """
@@ -115,7 +115,10 @@ def median_ms(times):
     return statistics.median(times) * 1e3
 
 
-def compare(layout, n, shape, width, height, rounds, frames, warmup, settle, seed, mi, dr, base):
+def compare(layout, n, shape, width, height, args, mi, dr, base):
+    """One record: raybench against Mitsuba on one scene (args: the command's
+    --rounds, --frames, --warmup, --settle and --seed)."""
+    rounds, frames, warmup, settle, seed = args.rounds, args.frames, args.warmup, args.settle, args.seed
     scene = raybench.random_spheres(n, seed, layout=layout)
     basis = Camera().basis(width, height)
     rays = width * height
@@ -260,21 +263,7 @@ def main():
             if n in args.both_at:
                 shapes = ["sphere", "ellipsoids"]
             for shape in shapes:
-                record = compare(
-                    layout,
-                    n,
-                    shape,
-                    width,
-                    height,
-                    args.rounds,
-                    args.frames,
-                    args.warmup,
-                    args.settle,
-                    args.seed,
-                    mi,
-                    dr,
-                    base,
-                )
+                record = compare(layout, n, shape, width, height, args, mi, dr, base)
                 line = json.dumps(record)
                 print(
                     f"{layout:9s} {n:>9,} {shape:10s} raybench {record['raybench_ms']:8.2f} ms  "
