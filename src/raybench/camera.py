@@ -88,9 +88,10 @@ class Camera:
             raise RaybenchError(f"camera.fov_deg: must be in (0, 180) degrees, got {shown(self.fov_deg)}")
         object.__setattr__(self, "fov_deg", fov)
         forward = np.subtract(look, pos)
-        if not _norm(forward) > 0.0:
+        length = _norm(forward)
+        if not length > 0.0:
             raise RaybenchError("camera.look_at: must differ from camera.position")
-        if not _norm(_cross(forward.tolist(), up)) > 1e-12 * _norm(forward) * max(_norm(np.array(up)), 1e-300):
+        if not _norm(_cross(forward.tolist(), up)) > 1e-12 * length * max(_norm(np.array(up)), 1e-300):
             raise RaybenchError("camera.up: must not be zero or parallel to the view direction (look_at - position)")
 
     def basis(self, width: int, height: int) -> np.ndarray:
