@@ -11,8 +11,33 @@ from dataclasses import dataclass
 import numpy as np
 from reference import rays
 
-# Weights under half a byte's step are not traced further (the kernel's CUTOFF).
+# The weight a pixel may drop in all, half a byte's step (the kernel's CUTOFF).
 CUTOFF = 0.5 / 255.0
+
+
+def fresnel(cos_i, eta):
+    """Exact dielectric reflectance of unpolarised light, eta = n1 / n2: (R, cos_t), R = 1 past the critical angle."""
+    k = 1.0 - eta**2 * (1.0 - cos_i**2)
+    if k < 0:
+        return 1.0, 0.0
+    cos_t = np.sqrt(k)
+    rs = (eta * cos_i - cos_t) / (eta * cos_i + cos_t) if eta * cos_i + cos_t > 0 else 0.0
+    rp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t) if cos_i + eta * cos_t > 0 else 0.0
+    return 0.5 * (rs**2 + rp**2), cos_t
+
+
+def prune(wmax, kr, kt, slack):
+    """The drop budget's rule: the lighter child dropped first, then the
+    other, each while its weight fits in the slack left; the kept share the
+    rest. (keep reflection, keep refraction, each kept child's slack)."""
+    drop = {"r": False, "t": False}
+    weights = {"r": wmax * kr, "t": wmax * kt}
+    for child in ("t", "r") if weights["t"] <= weights["r"] else ("r", "t"):
+        if weights[child] <= slack:
+            drop[child] = True
+            slack -= weights[child]
+    kept = (not drop["r"]) + (not drop["t"])
+    return not drop["r"], not drop["t"], slack / kept if kept else slack
 
 
 @dataclass
@@ -20,6 +45,7 @@ class WhittedReference:
     color: np.ndarray  # (H, W, 3) float64 before clamping
     hits: np.ndarray  # (H, W) the primary ray's sphere, -1 for none
     rays: np.ndarray  # (4,) primary, shadow, reflection, refraction rays cast
+    truncated: np.ndarray  # (H, W) the weight (largest channel) that met the depth limit unspent
 
 
 class Model:
@@ -35,6 +61,7 @@ class Model:
         self.depth = shading.depth
         self.samples = shading.shadow_samples
         self.counts = np.zeros(4, np.int64)
+        self.truncated = 0.0  # the current pixel's weight stopped by the depth limit
 
     def first_hit(self, o, d, t_max, own, own_inside):
         """(index, t) of the nearest crossing ahead, 0 < t < t_max; the
@@ -70,7 +97,7 @@ class Model:
                     continue
                 l_dir = to_light / dist
                 facing = n @ l_dir
-                if facing <= 0:
+                if facing <= 0 or power.max() <= 0:
                     continue
                 self.counts[1] += 1
                 if self.first_hit(p, l_dir, dist, i, inside)[0] >= 0:
@@ -82,7 +109,7 @@ class Model:
                     specular = specular + power * share * self.specular[i] * rv ** self.shininess[i]
         return diffuse, specular
 
-    def radiance(self, o, d, weight, depth, own, own_inside, pixel_background):
+    def radiance(self, o, d, weight, slack, depth, own, own_inside, pixel_background):
         i, t = self.first_hit(o, d, np.inf, own, own_inside)
         if i < 0:
             return pixel_background, i
@@ -95,36 +122,37 @@ class Model:
         kr, kt = self.reflect[i], self.transmit[i]
         keep = 1.0 - kr - kt
         if self.lights.shape[1]:
-            diffuse, specular = self.local(p, n, -d, i, inside)
-            color = keep * diffuse + specular
+            # shadow rays only from a surface whose own light can show
+            if self.specular[i] > 0 or keep * self.colors[i].max() > 0:
+                diffuse, specular = self.local(p, n, -d, i, inside)
+                color = keep * diffuse + specular
+            else:
+                color = np.zeros(3)
         else:  # no lights: the thesis's colour, darkened towards the rim
             chord = self.centers[i] - o
             v = chord @ d
             half_chord = np.sqrt(max(self.radii[i] ** 2 - (chord @ chord - v * v), 0.0))
             color = keep * (self.colors[i] - (self.radii[i] - half_chord) / self.radii[i])
-        if depth >= self.depth or (kr <= 0 and kt <= 0):
+        if kr <= 0 and kt <= 0:
             return color, i
+        if depth >= self.depth:
+            self.truncated += weight.max() * (kr + kt)
+            return color, i
+        refracted = None
         if kt > 0:
-            ior = self.ior[i]
-            eta = ior if inside else 1.0 / ior
-            k = 1.0 - eta**2 * (1.0 - cos_i**2)
-            if k < 0:  # total internal reflection
-                kr, kt = kr + kt, 0.0
-            else:
-                cos_t = np.sqrt(k)
-                r0 = ((1.0 - ior) / (1.0 + ior)) ** 2
-                c = 1.0 - (cos_t if eta > 1.0 else cos_i)
-                fresnel = r0 + (1.0 - r0) * c**5
-                kr, kt = kr + kt * fresnel, kt * (1.0 - fresnel)
-                if (weight * kt).max() > CUTOFF:
-                    self.counts[3] += 1
-                    refracted = eta * d + (eta * cos_i - cos_t) * n
-                    light, _ = self.radiance(p, refracted, weight * kt, depth + 1, i, not inside, pixel_background)
-                    color = color + kt * light
-        if (weight * kr).max() > CUTOFF:
+            eta = self.ior[i] if inside else 1.0 / self.ior[i]
+            reflectance, cos_t = fresnel(cos_i, eta)
+            kr, kt = kr + kt * reflectance, kt * (1.0 - reflectance)
+            refracted = eta * d + (eta * cos_i - cos_t) * n
+        keep_r, keep_t, child_slack = prune(weight.max(), kr, kt, slack)
+        if keep_t:
+            self.counts[3] += 1
+            light, _ = self.radiance(p, refracted, weight * kt, child_slack, depth + 1, i, not inside, pixel_background)
+            color = color + kt * light
+        if keep_r:
             self.counts[2] += 1
             reflected = d + 2 * cos_i * n
-            light, _ = self.radiance(p, reflected, weight * kr, depth + 1, i, inside, pixel_background)
+            light, _ = self.radiance(p, reflected, weight * kr, child_slack, depth + 1, i, inside, pixel_background)
             color = color + kr * light
         return color, i
 
@@ -134,9 +162,12 @@ def trace(scene, shading, camera, width, height) -> WhittedReference:
     pos, dirs = rays(camera, width, height)
     color = np.zeros((height, width, 3))
     hits = np.full((height, width), -1)
+    truncated = np.zeros((height, width))
     for y in range(height):
         for x in range(width):
             background = model.background if model.background is not None else np.array([x / 1024, y / 1024, x / 786])
             model.counts[0] += 1
-            color[y, x], hits[y, x] = model.radiance(pos, dirs[y, x], np.ones(3), 0, -1, False, background)
-    return WhittedReference(color, hits, model.counts)
+            model.truncated = 0.0
+            color[y, x], hits[y, x] = model.radiance(pos, dirs[y, x], np.ones(3), CUTOFF, 0, -1, False, background)
+            truncated[y, x] = model.truncated
+    return WhittedReference(color, hits, model.counts, truncated)

@@ -11,10 +11,24 @@ A pixel's rays, each counted by kind:
 - a reflected ray where the material reflects or Fresnel sends light back;
 - a refracted ray (Snell's law) where it transmits, unless the angle is past
   the critical one (total internal reflection: all of it is reflected).
-Fresnel by Schlick's approximation splits a transmitting material's weight
-between the two. A ray is not spawned past `depth` bounces, nor when its
-weight, the product of the coefficients along its path, falls under CUTOFF
-on every channel: it could not move a byte.
+Shadow rays are cast only from a surface whose own light can show (some of
+its weight left for its colour, or a specular glint): a perfect mirror or
+clear glass casts none. The exact dielectric Fresnel equations (unpolarised
+light, the mean of the s and p reflectances) split a transmitting
+material's weight between the two, so glass of the surrounding index
+(ior 1) reflects nothing and vanishes.
+
+A ray is not spawned past `depth` bounces. Under that, a branch is dropped
+only from a budget: each pixel may drop branches whose weights (the product
+of the coefficients along the path, the largest channel) add up to at most
+CUTOFF, half a byte's step, so the dropped light together cannot move the
+pixel by a byte where no light is brighter than 1. The budget travels with
+the rays (`slack`): a hit drops its lighter child, then the other, while each
+fits in what is left of its ray's slack, and the children it keeps share the
+rest equally (`prune`). A subtree never drops more than the slack it was
+given, so the whole pixel never drops more than CUTOFF; and the rule needs
+nothing but the ray itself, so a wavefront of rays (kernels/wavefront.py)
+drops exactly the branches the per-pixel stack drops.
 
 Where the scene has no lights, a hit's local colour is the thesis's own
 (shade.shade_hit), so a scene of neither lights nor mirrors nor glass gives
@@ -62,15 +76,19 @@ FAR = np.float32(3.0e38)
 # pending on each level above it and pushes two, so MAX_DEPTH + 1 suffice.
 MAX_DEPTH = 16
 RAY_STACK = MAX_DEPTH + 2
-# A pending ray: origin, direction, weight (rgb) as float32 ...
-RAY_FLOATS = 9
+# A pending ray: origin, direction, weight (rgb) and slack as float32 ...
+RAY_FLOATS = 10
 # ... and its depth, kind, the sphere it leaves and whether it goes into it.
 RAY_INTS = 4
 # Ray kinds, the columns of the ray counts.
 PRIMARY, SHADOW, REFLECTION, REFRACTION = range(4)
 KINDS = ("primary", "shadow", "reflection", "refraction")
-# Weights under half a byte's step cannot change a pixel.
+# The weight a pixel may drop in all, half a byte's step: together the dropped
+# branches cannot change the pixel (the module's docstring).
 CUTOFF = np.float32(0.5 / 255.0)
+# Keeps Fresnel's quotients finite where both cosines are 0 (a grazing ray
+# into index-matched glass), giving reflectance 0 there as everywhere else.
+FRESNEL_TINY = np.float32(1e-30)
 # The offset of a secondary ray's origin, of |P|_1: 16 float32 epsilons.
 OFFSET = np.float32(2.0**-19)
 # The frame's settings, one small float32 array (lighting.Shading.params).
@@ -109,7 +127,80 @@ def build(jit, call, search, shade_hit, shade_miss):
     find = call(find)
 
     @jit
-    def push(rays_f, rays_i, top, ox, oy, oz, dx, dy, dz, wr, wg, wb, depth, kind, own, inside):
+    def fresnel(cos_i, inside, ior):
+        """Snell and the exact dielectric Fresnel equations at a hit, cos_i
+        on the side the ray comes from: (reflectance, cos_t, eta), eta = n1 /
+        n2; reflectance 1 past the critical angle (cos_t 0 there)."""
+        eta = ior if inside else ONE / ior
+        k = ONE - eta * eta * (ONE - cos_i * cos_i)
+        if k < ZERO:  # total internal reflection
+            return ONE, ZERO, eta
+        cos_t = np.float32(math.sqrt(k))
+        a = eta * cos_i
+        rs = (a - cos_t) / max(a + cos_t, FRESNEL_TINY)
+        b = eta * cos_t
+        rp = (cos_i - b) / max(cos_i + b, FRESNEL_TINY)
+        return np.float32(0.5) * (rs * rs + rp * rp), cos_t, eta
+
+    @jit
+    def prune(wmax, kr, kt, slack):
+        """Which of a hit's two children to cast, and the slack each takes:
+        (cast reflection, its slack, cast refraction, its slack). wmax: the
+        ray's largest weight channel; kr, kt: the children's coefficients (0:
+        no such child). The lighter child is dropped first, then the other,
+        each while its weight fits in the slack left; those kept share the
+        rest equally (the module's docstring)."""
+        mr = wmax * kr
+        mt = wmax * kt
+        drop_r = False
+        drop_t = False
+        if mt <= mr:
+            if mt <= slack:
+                drop_t = True
+                slack -= mt
+            if mr <= slack:
+                drop_r = True
+                slack -= mr
+        else:
+            if mr <= slack:
+                drop_r = True
+                slack -= mr
+            if mt <= slack:
+                drop_t = True
+                slack -= mt
+        if not drop_r and not drop_t:
+            slack *= np.float32(0.5)
+        return not drop_r, slack, not drop_t, slack
+
+    @jit
+    def branches(dx, dy, dz, nx, ny, nz, cos_i, inside, kr, kt, ior, wmax, slack):
+        """A hit's two children (kr > 0 or kt > 0): (kr and kt after Fresnel,
+        the refracted direction, then prune's answer). (nx, ny, nz): the unit
+        normal on the ray's side; wmax, slack: the ray's largest weight and
+        its slack."""
+        tx = ZERO
+        ty = ZERO
+        tz = ZERO
+        if kt > ZERO:
+            reflectance, cos_t, eta = fresnel(cos_i, inside, ior)
+            kr += kt * reflectance
+            kt *= ONE - reflectance
+            a = eta * cos_i - cos_t
+            tx = eta * dx + a * nx
+            ty = eta * dy + a * ny
+            tz = eta * dz + a * nz
+        cast_r, slack_r, cast_t, slack_t = prune(wmax, kr, kt, slack)
+        return kr, kt, tx, ty, tz, cast_r, slack_r, cast_t, slack_t
+
+    @jit
+    def shows(i, keep, spheres, materials):
+        """Whether sphere i's own light can reach the picture: some weight
+        left for its colour, or a glint. Only then are its shadow rays cast."""
+        colour = max(spheres[RED, i], max(spheres[GREEN, i], spheres[BLUE, i]))
+        return materials[SPECULAR, i] > ZERO or keep * colour > ZERO
+
+    @jit
+    def push(rays_f, rays_i, top, ox, oy, oz, dx, dy, dz, wr, wg, wb, slack, depth, kind, own, inside):
         rays_f[top, 0] = ox
         rays_f[top, 1] = oy
         rays_f[top, 2] = oz
@@ -119,6 +210,7 @@ def build(jit, call, search, shade_hit, shade_miss):
         rays_f[top, 6] = wr
         rays_f[top, 7] = wg
         rays_f[top, 8] = wb
+        rays_f[top, 9] = slack
         rays_i[top, 0] = depth
         rays_i[top, 1] = kind
         rays_i[top, 2] = own
@@ -159,14 +251,16 @@ def build(jit, call, search, shade_hit, shade_miss):
                 facing = nx * lx + ny * ly + nz * lz
                 if facing <= ZERO:  # the light is behind the surface: no shadow ray needed
                     continue
+                cr = lights[LRED, light] * share
+                cg = lights[LGREEN, light] * share
+                cb = lights[LBLUE, light] * share
+                if max(cr, max(cg, cb)) <= ZERO:  # a dark light adds nothing, blocked or not
+                    continue
                 shadows += 1
                 blocker, _t, _d = find(px, py, pz, lx, ly, lz, dist, True, i, inside, spheres, count, tree,
                                        stack_row, stack_t)  # fmt: skip
                 if blocker >= 0:
                     continue
-                cr = lights[LRED, light] * share
-                cg = lights[LGREEN, light] * share
-                cb = lights[LBLUE, light] * share
                 dr += cr * kr * facing
                 dg += cg * kg * facing
                 db += cb * kb * facing
@@ -202,13 +296,13 @@ def build(jit, call, search, shade_hit, shade_miss):
         n_shadow = 0
         n_reflect = 0
         n_refract = 0
-        top = push(rays_f, rays_i, 0, basis[0, 0], basis[0, 1], basis[0, 2], dx, dy, dz, ONE, ONE, ONE, 0,
-                   PRIMARY, -1, 0)  # fmt: skip
+        top = push(rays_f, rays_i, 0, basis[0, 0], basis[0, 1], basis[0, 2], dx, dy, dz, ONE, ONE, ONE, CUTOFF,
+                   0, PRIMARY, -1, 0)  # fmt: skip
         while top > 0:
             top -= 1
             ox, oy, oz = rays_f[top, 0], rays_f[top, 1], rays_f[top, 2]
             dx, dy, dz = rays_f[top, 3], rays_f[top, 4], rays_f[top, 5]
-            wr, wg, wb = rays_f[top, 6], rays_f[top, 7], rays_f[top, 8]
+            wr, wg, wb, slack = rays_f[top, 6], rays_f[top, 7], rays_f[top, 8], rays_f[top, 9]
             depth, kind, own, own_inside = rays_i[top, 0], rays_i[top, 1], rays_i[top, 2], rays_i[top, 3]
             if kind == PRIMARY:
                 n_primary += 1
@@ -245,14 +339,15 @@ def build(jit, call, search, shade_hit, shade_miss):
             kt = materials[TRANSMIT, i]
             keep = ONE - kr - kt
             if lit:
-                lr, lg, lb, sr, sg, sb, shadows = local_light(
-                    px, py, pz, nx, ny, nz, -dx, -dy, -dz, i, inside, spheres, count, materials, lights, pattern,
-                    params, tree, stack_row, stack_t,
-                )  # fmt: skip
-                n_shadow += shadows
-                red += wr * (keep * lr + sr)
-                green += wg * (keep * lg + sg)
-                blue += wb * (keep * lb + sb)
+                if shows(i, keep, spheres, materials):
+                    lr, lg, lb, sr, sg, sb, shadows = local_light(
+                        px, py, pz, nx, ny, nz, -dx, -dy, -dz, i, inside, spheres, count, materials, lights, pattern,
+                        params, tree, stack_row, stack_t,
+                    )  # fmt: skip
+                    n_shadow += shadows
+                    red += wr * (keep * lr + sr)
+                    green += wg * (keep * lg + sg)
+                    blue += wb * (keep * lb + sb)
             else:
                 lr, lg, lb = shade_hit(spheres[RED, i], spheres[GREEN, i], spheres[BLUE, i], r, d)
                 red += wr * (keep * lr)
@@ -260,40 +355,20 @@ def build(jit, call, search, shade_hit, shade_miss):
                 blue += wb * (keep * lb)
             if depth >= max_depth or (kr <= ZERO and kt <= ZERO):
                 continue
+            kr, kt, tx, ty, tz, cast_r, slack_r, cast_t, slack_t = branches(
+                dx, dy, dz, nx, ny, nz, cos_i, inside, kr, kt, materials[IOR, i], max(wr, max(wg, wb)), slack
+            )
             offset = OFFSET * (abs(px) + abs(py) + abs(pz))
-            if kt > ZERO:
-                # Snell: eta = n1 / n2, from the side the ray comes from
-                ior = materials[IOR, i]
-                eta = ior if inside else ONE / ior
-                k = ONE - eta * eta * (ONE - cos_i * cos_i)
-                if k < ZERO:  # total internal reflection
-                    kr += kt
-                    kt = ZERO
-                else:
-                    cos_t = np.float32(math.sqrt(k))
-                    r0 = (ONE - ior) / (ONE + ior)
-                    r0 *= r0
-                    # Schlick, with the angle on the optically thinner side
-                    c = ONE - (cos_t if eta > ONE else cos_i)
-                    fresnel = r0 + (ONE - r0) * c * c * c * c * c
-                    kr += kt * fresnel
-                    kt *= ONE - fresnel
-                    tr, tg, tb = wr * kt, wg * kt, wb * kt
-                    if max(tr, max(tg, tb)) > CUTOFF:
-                        a = eta * cos_i - cos_t
-                        tx = eta * dx + a * nx
-                        ty = eta * dy + a * ny
-                        tz = eta * dz + a * nz
-                        # it goes through the surface: from outside into the sphere, or out of it
-                        top = push(rays_f, rays_i, top, px - offset * nx, py - offset * ny, pz - offset * nz,
-                                   tx, ty, tz, tr, tg, tb, depth + 1, REFRACTION, i,
-                                   0 if inside else 1)  # fmt: skip
-            rr, rg, rb = wr * kr, wg * kr, wb * kr
-            if max(rr, max(rg, rb)) > CUTOFF:
+            if cast_t:
+                # it goes through the surface: from outside into the sphere, or out of it
+                top = push(rays_f, rays_i, top, px - offset * nx, py - offset * ny, pz - offset * nz, tx, ty, tz,
+                           wr * kt, wg * kt, wb * kt, slack_t, depth + 1, REFRACTION, i,
+                           0 if inside else 1)  # fmt: skip
+            if cast_r:
                 two_cos = TWO * cos_i
                 top = push(rays_f, rays_i, top, px + offset * nx, py + offset * ny, pz + offset * nz,
-                           dx + two_cos * nx, dy + two_cos * ny, dz + two_cos * nz, rr, rg, rb, depth + 1,
-                           REFLECTION, i, 1 if inside else 0)  # fmt: skip
+                           dx + two_cos * nx, dy + two_cos * ny, dz + two_cos * nz, wr * kr, wg * kr, wb * kr,
+                           slack_r, depth + 1, REFLECTION, i, 1 if inside else 0)  # fmt: skip
         return red, green, blue, first_hit, n_primary, n_shadow, n_reflect, n_refract
 
     return whitted_pixel

@@ -33,6 +33,8 @@ struct Lighting {
 const RAY_STACK: u32 = WHITTED_RAY_STACK;
 const CUTOFF: f32 = WHITTED_CUTOFF;
 const OFFSET: f32 = WHITTED_OFFSET;
+// Keeps Fresnel's quotients finite where both cosines are 0.
+const FRESNEL_TINY: f32 = 1e-30;
 const PRIMARY: i32 = 0;
 const REFLECTION: i32 = 2;
 const REFRACTION: i32 = 3;
@@ -41,6 +43,7 @@ struct Ray {
     o: vec3<f32>,
     d: vec3<f32>,
     w: vec3<f32>,
+    slack: f32,
     depth: u32,
     kind: i32,
     own: i32,
@@ -90,13 +93,16 @@ fn local_light(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, i: i32, inside: bool) -
             if (facing <= 0.0) {
                 continue;
             }
+            let cr = l.power.x * share;
+            let cg = l.power.y * share;
+            let cb = l.power.z * share;
+            if (max(cr, max(cg, cb)) <= 0.0) {  // a dark light adds nothing, blocked or not
+                continue;
+            }
             shadows = shadows + 1u;
             if (find(p, vec3<f32>(lx, ly, lz), dist, true, i, inside).index >= 0) {
                 continue;
             }
-            let cr = l.power.x * share;
-            let cg = l.power.y * share;
-            let cb = l.power.z * share;
             dr = dr + cr * s.red * facing;
             dg = dg + cg * s.green * facing;
             db = db + cb * s.blue * facing;
@@ -112,6 +118,63 @@ fn local_light(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, i: i32, inside: bool) -
         }
     }
     return Local(vec3<f32>(dr, dg, db), vec3<f32>(sr, sg, sb), shadows);
+}
+
+// Snell and the exact dielectric Fresnel equations (whitted.fresnel):
+// reflectance, cos_t, eta.
+fn fresnel(cos_i: f32, inside: bool, ior: f32) -> vec3<f32> {
+    var eta = 1.0 / ior;
+    if (inside) {
+        eta = ior;
+    }
+    let k = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
+    if (k < 0.0) {  // total internal reflection
+        return vec3<f32>(1.0, 0.0, eta);
+    }
+    let cos_t = sqrt(k);
+    let a = eta * cos_i;
+    let rs = (a - cos_t) / max(a + cos_t, FRESNEL_TINY);
+    let b = eta * cos_t;
+    let rp = (cos_i - b) / max(cos_i + b, FRESNEL_TINY);
+    return vec3<f32>(0.5 * (rs * rs + rp * rp), cos_t, eta);
+}
+
+// whitted.prune: which children to cast, and the slack each takes.
+struct Pruned {
+    reflect: bool,
+    transmit: bool,
+    slack: f32,
+}
+
+fn prune(wmax: f32, kr: f32, kt: f32, slack_in: f32) -> Pruned {
+    let mr = wmax * kr;
+    let mt = wmax * kt;
+    var slack = slack_in;
+    var drop_r = false;
+    var drop_t = false;
+    if (mt <= mr) {
+        if (mt <= slack) {
+            drop_t = true;
+            slack = slack - mt;
+        }
+        if (mr <= slack) {
+            drop_r = true;
+            slack = slack - mr;
+        }
+    } else {
+        if (mr <= slack) {
+            drop_r = true;
+            slack = slack - mr;
+        }
+        if (mt <= slack) {
+            drop_t = true;
+            slack = slack - mt;
+        }
+    }
+    if (!drop_r && !drop_t) {
+        slack = slack * 0.5;
+    }
+    return Pruned(!drop_r, !drop_t, slack);
 }
 
 // The pixel's colour and primary hit; counts: its rays by kind.
@@ -131,7 +194,7 @@ fn whitted_pixel(x: u32, y: u32) -> Shaded {
     var first_hit = -1;
     var counts = vec4<u32>(0u, 0u, 0u, 0u);
     var pending: array<Ray, RAY_STACK>;
-    pending[0] = Ray(frame.origin.xyz, primary_ray(x, y), vec3<f32>(1.0, 1.0, 1.0), 0u, PRIMARY, -1, false);
+    pending[0] = Ray(frame.origin.xyz, primary_ray(x, y), vec3<f32>(1.0, 1.0, 1.0), CUTOFF, 0u, PRIMARY, -1, false);
     var top = 1u;
     while (top > 0u) {
         top = top - 1u;
@@ -181,57 +244,43 @@ fn whitted_pixel(x: u32, y: u32) -> Shaded {
         var kt = m.transmit;
         let keep = 1.0 - kr - kt;
         if (lit) {
-            let l = local_light(vec3<f32>(px, py, pz), vec3<f32>(nx, ny, nz), vec3<f32>(-dx, -dy, -dz), i, inside);
-            counts.y = counts.y + l.shadows;
-            color = color + ray.w * (keep * l.diffuse + l.specular);
+            // shadow rays only from a surface whose own light can show (whitted.shows)
+            if (m.specular > 0.0 || keep * max(s.red, max(s.green, s.blue)) > 0.0) {
+                let l = local_light(vec3<f32>(px, py, pz), vec3<f32>(nx, ny, nz), vec3<f32>(-dx, -dy, -dz), i, inside);
+                counts.y = counts.y + l.shadows;
+                color = color + ray.w * (keep * l.diffuse + l.specular);
+            }
         } else {
             color = color + ray.w * (keep * shade_hit(s, found.d));
         }
         if (ray.depth >= lighting.sizes.z || (kr <= 0.0 && kt <= 0.0)) {
             continue;
         }
-        let offset = OFFSET * (abs(px) + abs(py) + abs(pz));
+        // whitted.branches
+        var tdir = vec3<f32>(0.0, 0.0, 0.0);
         if (kt > 0.0) {
-            // Snell: eta = n1 / n2, from the side the ray comes from
-            let ior = m.ior;
-            var eta = 1.0 / ior;
-            if (inside) {
-                eta = ior;
-            }
-            let k = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
-            if (k < 0.0) {  // total internal reflection
-                kr = kr + kt;
-                kt = 0.0;
-            } else {
-                let cos_t = sqrt(k);
-                var r0 = (1.0 - ior) / (1.0 + ior);
-                r0 = r0 * r0;
-                // Schlick, with the angle on the optically thinner side
-                var c = 1.0 - cos_i;
-                if (eta > 1.0) {
-                    c = 1.0 - cos_t;
-                }
-                let fresnel = r0 + (1.0 - r0) * c * c * c * c * c;
-                kr = kr + kt * fresnel;
-                kt = kt * (1.0 - fresnel);
-                let tw = ray.w * kt;
-                if (max(tw.x, max(tw.y, tw.z)) > CUTOFF) {
-                    let a = eta * cos_i - cos_t;
-                    pending[top] = Ray(
-                        vec3<f32>(px - offset * nx, py - offset * ny, pz - offset * nz),
-                        vec3<f32>(eta * dx + a * nx, eta * dy + a * ny, eta * dz + a * nz),
-                        tw, ray.depth + 1u, REFRACTION, i, !inside);
-                    top = top + 1u;
-                }
-            }
+            let f = fresnel(cos_i, inside, m.ior);
+            kr = kr + kt * f.x;
+            kt = kt * (1.0 - f.x);
+            let eta = f.z;
+            let a = eta * cos_i - f.y;
+            tdir = vec3<f32>(eta * dx + a * nx, eta * dy + a * ny, eta * dz + a * nz);
         }
-        let rw = ray.w * kr;
-        if (max(rw.x, max(rw.y, rw.z)) > CUTOFF) {
+        let pruned = prune(max(ray.w.x, max(ray.w.y, ray.w.z)), kr, kt, ray.slack);
+        let offset = OFFSET * (abs(px) + abs(py) + abs(pz));
+        if (pruned.transmit) {
+            // it goes through the surface: from outside into the sphere, or out of it
+            pending[top] = Ray(
+                vec3<f32>(px - offset * nx, py - offset * ny, pz - offset * nz),
+                tdir, ray.w * kt, pruned.slack, ray.depth + 1u, REFRACTION, i, !inside);
+            top = top + 1u;
+        }
+        if (pruned.reflect) {
             let two_cos = 2.0 * cos_i;
             pending[top] = Ray(
                 vec3<f32>(px + offset * nx, py + offset * ny, pz + offset * nz),
                 vec3<f32>(dx + two_cos * nx, dy + two_cos * ny, dz + two_cos * nz),
-                rw, ray.depth + 1u, REFLECTION, i, inside);
+                ray.w * kr, pruned.slack, ray.depth + 1u, REFLECTION, i, inside);
             top = top + 1u;
         }
     }
