@@ -8,7 +8,7 @@ for example a venv of its own with raybench's pinned numpy and numba:
     /work/venv-mitsuba/bin/pip install mitsuba numpy==2.4.6 numba==0.68.1 \\
         psutil py-cpuinfo click rich pillow
     PYTHONPATH=src /work/venv-mitsuba/bin/python benchmarks/embree_side_by_side.py \\
-        --out benchmarks/results/epyc-2c-cpu-only/embree-side-by-side.jsonl
+        --out benchmarks/results/archive/epyc-2c-cpu-only/embree/embree-side-by-side.jsonl
 
 What each side does, a frame:
 - raybench: a whole frame of the CPU backend through its BVH (Tracer.trace:
