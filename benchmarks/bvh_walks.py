@@ -1,19 +1,20 @@
-"""The BVH walk at the issue's sizes, one line of JSON per (device, size): the
-median kernel time (CUDA events, wgpu GPU timestamps; on the CPU the whole
-frame's wall time), rays a second, the build's time, and which raybench ran.
+"""The BVH walk at the issue's sizes: one record of the results schema (suite "scaling",
+accel "bvh") per (device, size), with the frames' and, on cuda and wgpu, the kernel's own times
+(CUDA events, wgpu GPU timestamps), the walk that ran and the build's time. `raybench report`
+reads them.
 
-For A/B runs of two versions in one lease, side by side: run it once per
-version's source tree, alternating, e.g.
+For A/B runs of two versions in one lease, side by side: run it once per version's source tree,
+alternating, each with its own --label, e.g.
 
-    PYTHONPATH=old/src python benchmarks/bvh_walks.py --device cuda
-    PYTHONPATH=src     python benchmarks/bvh_walks.py --device cuda
+    PYTHONPATH=old/src python benchmarks/bvh_walks.py --device cuda --label old --out walks.jsonl
+    PYTHONPATH=src     python benchmarks/bvh_walks.py --device cuda --label new --out walks.jsonl
 """
 
 import argparse
-import json
-import statistics
 import sys
 import time
+
+import _harness
 
 import raybench
 from raybench import Camera, RaybenchError, backends
@@ -38,29 +39,31 @@ def one(device: str, spheres: int, width: int, height: int, frames: int, block, 
         options["threads"] = threads
     tracer = backends.tracer(device, scene.spheres, width, height, accel="bvh", **options)
     try:
+        start = time.perf_counter()
         tracer.trace(basis)  # warm: compiled, uploaded
-        times = []
+        first_s = time.perf_counter() - start
+        whole, kernel = [], []
         for _ in range(frames):
             start = time.perf_counter()
             kernel_ms = tracer.timed_trace(basis)
-            times.append(kernel_ms if kernel_ms is not None else (time.perf_counter() - start) * 1e3)
-        ms = statistics.median(times)
+            whole.append((time.perf_counter() - start) * 1e3)
+            if kernel_ms is not None:
+                kernel.append(kernel_ms)
         shape = getattr(tracer, "block", None) or getattr(tracer, "workgroup", None)  # cuda's, wgpu's
-        return {
-            "device": device,
-            "walk": getattr(tracer, "walk", None),
-            "block": shape,
-            "spheres": spheres,
-            "width": width,
-            "height": height,
-            "frames": frames,
-            "median_ms": round(ms, 4),
-            "grays_per_s": round(width * height / ms / 1e6, 3),
-            "build_ms": round(tracer.build_s * 1e3, 1),
-            "kernel_time": kernel_ms is not None,
-            "threads": getattr(tracer, "threads", None),
-            "raybench": raybench.__file__,
-        }
+        used = {"accel": "bvh"}
+        if shape is not None:
+            used["block"] = list(shape)
+        if getattr(tracer, "threads", None) is not None:
+            used["threads"] = tracer.threads
+        record = _harness.point(
+            "scaling", device, width, height, spheres, used, whole, kernel or None,
+            first_frame_s=first_s, compile_s=None, build_s=tracer.build_s,
+        )  # fmt: skip
+        # rays a second from the kernel's own time where the device gives it, as the report does
+        record["rays_per_s"] = width * height / ((record["kernel_ms"] or record["frame_ms"])["median"] / 1e3)
+        record["walk"] = getattr(tracer, "walk", None)
+        record["raybench"] = raybench.__file__  # which source tree ran (A/B runs)
+        return record
     finally:
         tracer.close()
 
@@ -69,7 +72,6 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--device", action="append", choices=["cpu", "cuda", "wgpu"])
     parser.add_argument("--size", action="append", choices=sorted(SIZES))
-    parser.add_argument("--frames", type=int, default=9)
     parser.add_argument(
         "--block",
         type=int,
@@ -82,17 +84,18 @@ def main() -> int:
         help="cuda's and wgpu's BVH walk, ray or packet (default: on cuda chosen by the tree's size, on wgpu ray)",
     )
     parser.add_argument("--threads", type=int, help="cpu's threads (default: every core)")
+    _harness.add_common(parser, frames=9)
     args = parser.parse_args()
-    if args.frames < 1:
-        parser.error(f"--frames: must be at least 1, got {args.frames}")
+    _harness.check_common(parser, args)
     if args.threads is not None and args.threads < 1:
         parser.error(f"--threads: must be at least 1, got {args.threads}")
+    settings = {"block": args.block, "walk": args.walk, "threads": args.threads, "frames": args.frames}
     try:
-        for device in args.device or ["cuda"]:
-            for size in args.size or list(ISSUE_SIZES):
-                print(
-                    json.dumps(one(device, *SIZES[size], args.frames, args.block, args.walk, args.threads)), flush=True
-                )
+        with _harness.Records("bvh_walks", args, settings) as out:
+            for _ in range(args.rounds):
+                for device in args.device or ["cuda"]:
+                    for size in args.size or list(ISSUE_SIZES):
+                        out.write(one(device, *SIZES[size], args.frames, args.block, args.walk, args.threads))
     except RaybenchError as error:
         print(f"bvh_walks: {error}", file=sys.stderr)
         return 2

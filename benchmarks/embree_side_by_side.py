@@ -8,7 +8,7 @@ for example a venv of its own with raybench's pinned numpy and numba:
     /work/venv-mitsuba/bin/pip install mitsuba numpy==2.4.6 numba==0.68.1 \\
         psutil py-cpuinfo click rich pillow
     PYTHONPATH=src /work/venv-mitsuba/bin/python benchmarks/embree_side_by_side.py \\
-        --out benchmarks/results/epyc-2c-cpu-only/embree-side-by-side.jsonl
+        --out benchmarks/results/archive/epyc-2c-cpu-only/embree/embree-side-by-side.jsonl
 
 What each side does, a frame:
 - raybench: a whole frame of the CPU backend through its BVH (Tracer.trace:
@@ -41,7 +41,7 @@ a shared machine falls on both; medians over every frame of a side. Each
 side's frames of a round begin after --settle seconds idle: a thread pool
 spins a while after its work before it sleeps, and without the pause
 raybench's frames right after Mitsuba's were slower than after its own
-(docs/performance.md).
+(docs/embree.md#against-mitsuba-3-on-embree-side-by-side-2-vcpu-machine).
 
 One JSON line per (layout, spheres, Mitsuba's shape), to stdout and --out.
 """
@@ -214,7 +214,7 @@ def main():
         type=float,
         default=0.3,
         help="seconds idle before each side's frames of a round (0: none, as before 2026-12-01): the side "
-        "that ran last keeps its threads spinning a while, slowing the other's next frames (docs/performance.md)",
+        "that ran last keeps its threads spinning a while, slowing the other's next frames (docs/embree.md)",
     )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument(

@@ -109,10 +109,11 @@ for s in $STEPS; do
             for base in ${BASELINE:-}; do
                 # shellcheck disable=SC2086
                 step "walks-$base-$round" "${WALKS_S:-60}" env PYTHONPATH="/tmp/site:$PWD/$base" \
-                    python3 benchmarks/bvh_walks.py ${WALKS_ARGS:---device cuda --device wgpu}
+                    python3 benchmarks/bvh_walks.py --label "walks-$base" ${WALKS_ARGS:---device cuda --device wgpu}
             done
             # shellcheck disable=SC2086
-            step "walks-$round" "${WALKS_S:-60}" python3 benchmarks/bvh_walks.py ${WALKS_ARGS:---device cuda --device wgpu}
+            step "walks-$round" "${WALKS_S:-60}" python3 benchmarks/bvh_walks.py --label walks \
+                ${WALKS_ARGS:---device cuda --device wgpu}
         done ;;
     builds)
         for round in 1 2; do

@@ -5,7 +5,7 @@ differently in the two kernels), and a sweep of the CUDA fast kernel's shape. Wr
 
     python benchmarks/kernels.py --json kernels.json [--frames 7] [--sweep | --sweep-trip]
 
-The figures in docs/performance.md come from this script.
+The figures in docs/floors.md come from this script.
 """
 
 import argparse

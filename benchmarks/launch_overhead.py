@@ -11,8 +11,8 @@ Python, timed three ways (medians of --rounds, microseconds a launch):
              once, before the loop: what a launch costs without numba-cuda
 
 The GPU builder (backends/cuda_build.py) launches 20 kernels a build, so
-these say how much of a small scene's build is the host's (docs/performance.md,
-issue 16). Needs a CUDA GPU.
+these say how much of a small scene's build is the host's
+(docs/startup.md#a-launchs-arguments-converted-once-leases-y3-and-y4). Needs a CUDA GPU.
 
     python benchmarks/launch_overhead.py --launches 2000 --rounds 5
 """

@@ -1,18 +1,18 @@
-"""Whitted shading's throughput, one line of JSON per (device, spheres, accel):
-the issue's scene (random_spheres(n, materials=True): mixed materials, one
-area light), depth 5, 4 shadow samples, 1680x1050 by default. Median kernel
-time (CUDA events, wgpu GPU timestamps; on the CPU the frame's wall time),
-median whole frame, the rays the kernel counted by kind, and rays a second
-with every kind counted, over the kernel time and over the whole frame.
+"""Whitted shading's throughput: one record of the results schema (suite "secondary", shading
+"whitted") per (device, spheres, accel): the issue's scene (random_spheres(n, materials=True):
+mixed materials, one area light), depth 5, 4 shadow samples, 1680x1050 by default. The frames'
+times and the kernel's own (CUDA events, wgpu GPU timestamps), the rays the kernel counted by
+kind, and rays a second with every kind counted. `raybench report` reads them.
 
-For A/B runs of two versions, as bvh_walks.py: PYTHONPATH=old/src, then src.
+For A/B runs of two versions, as bvh_walks.py: PYTHONPATH=old/src, then src, each with its --label.
 """
 
 import argparse
 import json
-import statistics
 import sys
 import time
+
+import _harness
 
 import raybench
 from raybench import Camera, RaybenchError, backends, lighting
@@ -35,28 +35,23 @@ def one(device, spheres, width, height, frames, accel, depth, samples, block=Non
             kernel.append(kernel_ms if kernel_ms is not None else whole[-1])
         rays = dict(zip(("primary", "shadow", "reflection", "refraction"), tracer.ray_counts.tolist()))
         total = sum(rays.values())
-        kernel_ms, frame_ms = statistics.median(kernel), statistics.median(whole)
-        return {
-            "device": device,
-            "accel": accel,
-            "block": getattr(tracer, "block", None) or getattr(tracer, "workgroup", None),
-            **_resources(tracer),
-            "spheres": spheres,
-            "width": width,
-            "height": height,
-            "depth": depth,
-            "shadow_samples": samples,
-            "frames": frames,
-            "kernel_ms": round(kernel_ms, 4),
-            "frame_ms": round(frame_ms, 4),
-            "first_frame_s": round(first_s, 2),
-            "rays": rays,
-            "grays_per_s_kernel": round(total / kernel_ms / 1e6, 4),
-            "grays_per_s_frame": round(total / frame_ms / 1e6, 4),
-            "kernel_time": tracer.timed_trace(basis) is not None,
-            "threads": getattr(tracer, "threads", None),
-            "raybench": raybench.__file__,
-        }
+        timed = kernel_ms is not None  # the last frame's: whether the device times its kernel
+        used = {"accel": accel, "shading": "whitted", "depth": depth, "shadow_samples": samples}
+        shape = getattr(tracer, "block", None) or getattr(tracer, "workgroup", None)
+        if shape is not None:
+            used["block"] = list(shape)
+        if getattr(tracer, "threads", None) is not None:
+            used["threads"] = tracer.threads
+        record = _harness.point(
+            "secondary", device, width, height, spheres, used, whole, kernel if timed else None,
+            first_frame_s=first_s, compile_s=None, build_s=getattr(tracer, "build_s", None),
+            rays=rays, rays_per_frame=total,
+        )  # fmt: skip
+        record["rays_per_s"] = total / (record["frame_ms"]["median"] / 1e3)
+        record["kernel_rays_per_s"] = total / (record["kernel_ms"]["median"] / 1e3) if timed else None
+        record.update(_resources(tracer))
+        record["raybench"] = raybench.__file__  # which source tree ran (A/B runs)
+        return record
 
 
 def _resources(tracer) -> dict:
@@ -81,20 +76,38 @@ def main() -> int:
     parser.add_argument("--spheres", action="append", type=int)
     parser.add_argument("--accel", action="append", choices=["bvh", "none"])
     parser.add_argument("--size", default="1680x1050")
-    parser.add_argument("--frames", type=int, default=7)
     parser.add_argument("--depth", type=int, default=5)
     parser.add_argument("--shadow-samples", type=int, default=4)
     parser.add_argument("--block", type=int, nargs=2, metavar=("X", "Y"), help="cuda's block, wgpu's workgroup")
+    _harness.add_common(parser, frames=7)
     args = parser.parse_args()
+    _harness.check_common(parser, args)
     width, height = (int(v) for v in args.size.split("x"))
-    for device in args.device or ["cuda"]:
-        for accel in args.accel or ["bvh"]:
-            for n in args.spheres or [1000, 10_000, 100_000]:
-                try:
-                    row = one(device, n, width, height, args.frames, accel, args.depth, args.shadow_samples, args.block)
-                except RaybenchError as exc:
-                    row = {"device": device, "accel": accel, "spheres": n, "error": str(exc)}
-                print(json.dumps(row), flush=True)
+    settings = {"size": args.size, "depth": args.depth, "shadow_samples": args.shadow_samples, "frames": args.frames}
+    with _harness.Records("whitted_rays", args, settings) as out:
+        for _ in range(args.rounds):
+            for device in args.device or ["cuda"]:
+                for accel in args.accel or ["bvh"]:
+                    for n in args.spheres or [1000, 10_000, 100_000]:
+                        try:
+                            out.write(
+                                one(
+                                    device,
+                                    n,
+                                    width,
+                                    height,
+                                    args.frames,
+                                    accel,
+                                    args.depth,
+                                    args.shadow_samples,
+                                    args.block,
+                                )
+                            )
+                        except RaybenchError as exc:  # the point is not measured: said on stderr, the run goes on
+                            print(
+                                json.dumps({"device": device, "accel": accel, "spheres": n, "error": str(exc)}),
+                                file=sys.stderr,
+                            )
     return 0
 
 

@@ -1,53 +1,141 @@
-"""The READMEs as a newcomer meets them: the two commands first, every
-relative link and image pointing at a file that exists, and the Python
-example running as written."""
+"""The docs as a reader meets them. Every relative link in the Markdown pages names a file that
+exists, and every #anchor a heading of the page it points to (GitHub's slugs); comments and
+docstrings that cite a page as ``docs/page.md`` or ``docs/page.md#anchor`` are held to the same.
+The README opens with the two commands, and its Python example runs as written.
+
+Plain text only, no Markdown library: the pages are read once, a few hundred KB in all."""
 
 import re
+from functools import cache
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-DOCS = ["README.md", "benchmarks/README.md", "experiments/README.md"]
-LINK = re.compile(r"!?\[[^\]]*\]\(([^)\s]+)\)")
+
+# The pages whose links are checked: the docs, the READMEs a reader starts from, and the results'.
+PAGES = sorted(
+    {
+        *ROOT.glob("docs/*.md"),
+        ROOT / "README.md",
+        *ROOT.glob("benchmarks/**/README.md"),
+        ROOT / "experiments" / "README.md",
+    }
+)
+
+LINK = re.compile(r"!?\[((?:[^\[\]]|\[[^\]]*\])*)\]\(\s*<?([^)\s>]+)>?(?:\s+\"[^\"]*\")?\s*\)")
+CODE_SPAN = re.compile(r"(`+)(?:(?!\1).)+?\1")
+FENCE = re.compile(r"^\s*(```|~~~)")
+HEADING = re.compile(r"^(#{1,6})\s+(.*?)\s*#*\s*$")
+# A page cited in source text: docs/name.md, optionally with its #anchor.
+CITED = re.compile(r"docs/([\w.-]+\.md)(#[\w-]+)?")
+SOURCE_SUFFIXES = {".py", ".sh", ".md", ".wgsl", ".toml"}
 
 
-def prose(text: str) -> str:
-    """The text outside fenced code blocks, where a link is a link."""
-    return re.sub(r"^```.*?^```", "", text, flags=re.S | re.M)
+def slug(heading: str) -> str:
+    """GitHub's anchor for a heading: its text as rendered (links to their text, no code or
+    emphasis marks), lowercased, every character but letters, digits, '_', '-' and spaces
+    dropped, spaces to hyphens."""
+    text = re.sub(r"!?\[([^\]]*)\]\([^)]*\)", r"\1", heading)
+    text = text.replace("`", "").replace("*", "")
+    text = re.sub(r"[^\w\- ]", "", text.strip().lower())
+    return text.replace(" ", "-")
 
 
-def anchors(text: str) -> set[str]:
-    """GitHub's anchors for the headings: lower case, punctuation dropped, spaces to hyphens."""
-    heads = re.findall(r"^#+ (.+)$", prose(text), flags=re.M)
-    return {re.sub(r"[^\w\- ]", "", h.strip().lower()).replace(" ", "-") for h in heads}
+def prose_lines(text: str, spans: bool = False):
+    """(line number, line) outside fenced and indented code blocks; inline code spans blanked
+    unless ``spans``."""
+    fenced = False
+    for number, line in enumerate(text.splitlines(), 1):
+        if FENCE.match(line):
+            fenced = not fenced
+            continue
+        if not fenced and not line.startswith("    "):
+            yield number, line if spans else CODE_SPAN.sub("", line)
 
 
-def links(doc: str) -> list[str]:
-    return [t for t in LINK.findall(prose((ROOT / doc).read_text())) if not re.match(r"[a-z]+:", t)]
+@cache
+def anchors(page: Path) -> frozenset:
+    """The anchors GitHub gives a page's headings: a repeated heading's second is slug-1."""
+    seen: dict[str, int] = {}
+    for _, line in prose_lines(page.read_text(), spans=True):
+        m = HEADING.match(line)
+        if m:
+            s = slug(m.group(2))
+            n = seen.get(s, 0)
+            seen[s] = n + 1
+            if n:
+                seen.setdefault(f"{s}-{n}", 1)
+    return frozenset(seen)
 
 
-@pytest.mark.parametrize("doc", DOCS)
-def test_every_relative_link_resolves(doc):
-    found = links(doc)
+def broken_links(page: Path) -> list[str]:
+    """Each relative link of the page whose file is missing or whose anchor is not a heading."""
     broken = []
-    for target in found:
-        path, _, anchor = target.partition("#")
-        file = (ROOT / doc).parent / path if path else ROOT / doc
-        if not file.exists():
-            broken.append(target)
-        elif anchor and file.suffix == ".md" and anchor not in anchors(file.read_text()):
-            broken.append(target)
-    assert not broken, f"{doc}: links to nothing: {broken}"
+    for number, line in prose_lines(page.read_text()):
+        for m in LINK.finditer(line):
+            target = m.group(2)
+            if re.match(r"^[a-z][a-z0-9+.-]*:", target):  # http:, https:, mailto:
+                continue
+            path, _, anchor = target.partition("#")
+            dest = (page.parent / path).resolve() if path else page
+            where = f"{page.relative_to(ROOT) if page.is_relative_to(ROOT) else page.name}:{number}: {target}"
+            if not dest.exists():
+                broken.append(f"{where} (no such file)")
+            elif anchor and dest.suffix == ".md" and anchor not in anchors(dest):
+                broken.append(f"{where} (no heading #{anchor} in {dest.name})")
+    return broken
 
 
-def test_the_link_check_sees_links_and_broken_ones(tmp_path):
-    """The check itself: it finds links and images, skips code and URLs, and a missing file is broken."""
-    text = "[a](README.md) ![b](docs/x.png) [c](https://e/x) [d](#raybench)\n```\n[e](nothing)\n```\n"
-    assert LINK.findall(prose(text)) == ["README.md", "docs/x.png", "https://e/x", "#raybench"]
-    assert "raybench" in anchors((ROOT / "README.md").read_text())
-    assert not (ROOT / "docs/x.png").exists()
+def test_slugs_are_githubs():
+    assert slug("Whitted shading (issue 14): secondary rays") == "whitted-shading-issue-14-secondary-rays"
+    assert slug("The wgpu frame's readback (lease x1 and x4)") == "the-wgpu-frames-readback-lease-x1-and-x4"
+    assert slug("`Camera.basis` and **NumPy**") == "camerabasis-and-numpy"
+    assert slug("A [link](x.md) in it") == "a-link-in-it"
+
+
+def test_a_repeated_heading_gets_a_number(tmp_path):
+    page = tmp_path / "p.md"
+    page.write_text("# T\n## The floor\n## The floor\n```\n## Not a heading\n```\n## The `floor`\n")
+    assert anchors(page) == {"t", "the-floor", "the-floor-1", "the-floor-2"}
+
+
+def test_a_broken_link_is_found(tmp_path):
+    (tmp_path / "there.md").write_text("# There\n\n## A section\n")
+    page = tmp_path / "p.md"
+    page.write_text(
+        "# P\n[ok](there.md#a-section) [ok](#p) [web](https://example.com/x#y) `[code](gone.md)`\n"
+        "[gone](gone.md) [no anchor](there.md#b-section) [self](#q)\n"
+    )
+    found = broken_links(page)
+    assert [f.split(": ", 1)[1] for f in found] == [
+        "gone.md (no such file)",
+        "there.md#b-section (no heading #b-section in there.md)",
+        "#q (no heading #q in p.md)",
+    ]
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(ROOT)))
+def test_links_resolve(page):
+    assert broken_links(page) == []
+
+
+def test_pages_cited_in_source_exist():
+    """A comment, docstring or script that names docs/page.md#anchor names a page that exists,
+    and a heading of it."""
+    missing = []
+    for folder in ("src", "benchmarks", "tests", "experiments"):
+        for path in (ROOT / folder).rglob("*"):
+            if path.suffix not in SOURCE_SUFFIXES or not path.is_file() or path == Path(__file__):
+                continue
+            for number, line in enumerate(path.read_text(errors="replace").splitlines(), 1):
+                for m in CITED.finditer(line):
+                    page = ROOT / "docs" / m.group(1)
+                    anchor = (m.group(2) or "#")[1:]
+                    if not page.exists() or (anchor and anchor not in anchors(page)):
+                        missing.append(f"{path.relative_to(ROOT)}:{number}: {m.group(0)}")
+    assert missing == []
 
 
 def test_readme_opens_with_the_two_commands():

@@ -829,9 +829,9 @@ def test_report_secondary_section(tmp_path, rng):
 
 OLD_RESULTS = [
     "benchmarks/results/h100/results-20261122-234729.jsonl",
-    "benchmarks/results/h200/thesis-20261129-d.jsonl",
+    "benchmarks/results/h200/kernels/thesis-20261129-d.jsonl",
     "benchmarks/results/epyc-2c-lavapipe/results-20261123-030724.jsonl",
-    "benchmarks/results/epyc-2c-cpu-only/scaling-20261123.jsonl",
+    "benchmarks/results/epyc-2c-cpu-only/bvh-walk/scaling-20261123.jsonl",
 ]
 
 

@@ -149,7 +149,7 @@ def _log2ceil(n):
 def _range_bounds(px, py, pz, pr, s, e, box, cbox):
     """box: union of the spheres' padded boxes over [s, e); cbox: bounds of their centres."""
     # in locals, not box[]: stores to an array that may alias px cannot stay in
-    # registers (2.6 against 3.6 ns a sphere, measured alone on a Zen 4 core)
+    # registers (measured alone: about a quarter less time a sphere)
     inf = np.float32(np.inf)
     lx = ly = lz = clx = cly = clz = inf
     hx = hy = hz = chx = chy = chz = -inf
@@ -503,8 +503,8 @@ def _bin_jobs(level, jobs, p, q, axis, lo, scale, mid, counts, bins, first, step
     axis: counts[j]; bins[j]: each bin's box, then its centres' box."""
     last = BINS - 1
     # each thread bins in its own arrays: bins[j] beside another thread's
-    # bins[j + 1] share cache lines, which cost 16 threads 212 ms of thread
-    # time binning a 1,000,000-sphere tree's top, against 116 ms so (1 thread: 77)
+    # bins[j + 1] share cache lines, which all the threads write, every sphere
+    # (what that cost: docs/gpu-build.md#the-build-on-every-thread-kept)
     n = np.empty(BINS, np.int64)
     b = np.empty((BINS, 12), np.float32)
     for j in range(first, jobs.shape[0], step):
@@ -710,8 +710,8 @@ def _pack(nodes, links, tasks, base, ends, starts, packed, packed_links, first, 
 
 # One parallel region per step, each thread taking every parts-th job. Numba's
 # threads, not a Python pool: with a pool, each thread's call unboxed its
-# twenty-odd arguments while holding the GIL, one thread after another,
-# which cost about 0.7 ms a step on 16 threads (10 levels of 2 steps each).
+# twenty-odd arguments while holding the GIL, one thread after another
+# (docs/gpu-build.md#the-build-on-every-thread-kept).
 @compiled.njit(nogil=True, parallel=True)
 def _prepare_all(cx, cy, cz, r, p, piece, bounds, parts):
     for w in numba.prange(parts):
@@ -751,7 +751,8 @@ def compile_builder(wide: bool = True) -> None:
     """Compile (or load from Numba's cache) the builder's one-thread way and,
     if `wide`, its way for more than WIDE spheres, so build times leave it out.
     The wide way's parallel regions are most of the builder's compile (about
-    four fifths, docs/performance.md): a small scene does not pay for them."""
+    four fifths, docs/startup.md#the-builder-compiled-only-where-a-scene-needs-it-lease-y1):
+    a small scene does not pay for them."""
     spheres = np.ones((7, 9), np.float32)
     spheres[:3] = np.arange(27, dtype=np.float32).reshape(3, 9) % 5
     build(spheres, threads=1, _timed=False)
@@ -766,7 +767,8 @@ def compile_builder(wide: bool = True) -> None:
 # scene of at most WIDE spheres may build its tree with the builder's own
 # code run as plain Python (compiled.as_python): the same tree, bit for bit,
 # in a fraction of a second, where compiling the builder takes many seconds
-# (docs/performance.md has the figures). It does so where that is quicker:
+# (docs/startup.md#a-one-shot-pictures-tree-built-by-the-builders-python-leases-z1-and-z3).
+# It does so where that is quicker:
 # - the builder is not yet in the compile cache. A child process compiles it
 #   into the cache meanwhile, beside the frame kernel's compile, and the
 #   process waits for the child before it exits, leaving nothing running;

@@ -7,15 +7,16 @@ with no GPU library imported.
 CODE_BITS = 30
 AXIS_CELLS = 1 << (CODE_BITS // 3)
 # Leaves of quality "lbvh": every subtree of at most LEAF_SIZE spheres (the
-# leaf-size sweep on the H200 found 2 and 4 alike). "sah" cuts leaves of up
+# leaf-size sweep found 2 and 4 alike, 8 worse:
+# docs/gpu-build.md#measured-on-the-h200-leases-x2-and-x4). "sah" cuts leaves of up
 # to bvh.LEAF_MAX where the SAH says (cuda_build's QUALITIES).
 LEAF_SIZE = 4
 QUALITY = "sah"
 # A refitted tree is rebuilt once its SAH cost (Builder.read_cost) exceeds
 # REFIT_LIMIT times the cost it had fresh from its build: moved spheres
 # stretch its boxes, and each ray then visits more of them. In the orbits
-# measured on the H200 (benchmarks/gpu_build.py's refit series,
-# docs/performance.md) the cost levelled off below this and a refit plus the
-# walk stayed cheaper than a rebuild plus the walk throughout; the limit is
-# for motion that keeps stretching the boxes.
+# measured (benchmarks/gpu_build.py's refit series,
+# docs/gpu-build.md#measured-on-the-h200-leases-x2-and-x4) the cost levelled
+# off below this and a refit plus the walk stayed cheaper than a rebuild plus
+# the walk throughout; the limit is for motion that keeps stretching the boxes.
 REFIT_LIMIT = 1.3

@@ -20,10 +20,11 @@ from .lighting import Shading, check_shading
 from .scene import Scene
 
 # zlib's level for every PNG raybench writes, a frame or a sequence's: level 1
-# encodes 1.7-5.9 times faster than Pillow's default 6, in files 27% larger
-# for a smooth picture and 5% smaller for a busy one. At 6 the encoding was
-# most of a warm `raybench render` (0.85 of about 2 s at 1680x1050 on a
-# 2-vCPU machine) and bounded a sequence (docs/performance.md, docs/scaling.md).
+# encodes several times faster than Pillow's default 6, in files a little
+# larger for a smooth picture and smaller for a busy one. At 6 the encoding was
+# most of a warm `raybench render` and bounded a sequence
+# (docs/startup.md#the-builder-compiled-only-where-a-scene-needs-it-lease-y1,
+# docs/scaling.md#the-png-sequence-is-bound-by-encoding).
 PNG_LEVEL = 1
 
 
@@ -85,7 +86,8 @@ def png_bytes(image: np.ndarray, level: int = PNG_LEVEL) -> bytes:
 # lends to them: enough for a frame held while the next is traced and one
 # more in flight (the viewer's). A caller who drops its frames in turn traces
 # into these few; one who keeps more gets copies, as a fresh array faulted in
-# by the kernel's threads costs more than a copy into it (docs/performance.md).
+# by the kernel's threads costs more than a copy into it
+# (docs/startup.md#what-a-renderer-costs-over-its-tracer-2-vcpu-machine).
 KEEP_LENT = 3
 
 

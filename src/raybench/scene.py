@@ -311,7 +311,7 @@ def random_spheres(n: int, seed: int = 0, materials: bool = False, layout: str =
 
     layout: how the spheres are spread (LAYOUTS). "even", the above, is the
     benchmark's scene; the others are denser scenes, so that a tree is not
-    tuned to the even spread alone (issue 16):
+    tuned to the even spread alone (docs/bvh-walk.md#denser-scenes-issue-16-item-6):
     - "dense": the same spread with spheres 3 times larger (about 18 layers
       over the picture), most overlapping many others;
     - "clusters": tight blobs of about 100 spheres each, the blobs spread as

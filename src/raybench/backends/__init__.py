@@ -45,7 +45,8 @@ def _cuda_driver_loads() -> bool:
     """NVIDIA's driver library loads from where numba-cuda would load it.
     Without it numba-cuda finds no GPU either; asking this way takes a
     millisecond, importing numba-cuda to ask takes 0.6-2 s, which every
-    "auto" on a machine without an NVIDIA GPU paid (docs/performance.md)."""
+    "auto" on a machine without an NVIDIA GPU paid
+    (docs/startup.md#the-builder-compiled-only-where-a-scene-needs-it-lease-y1)."""
     for candidate in _driver_candidates():
         try:
             ctypes.CDLL(candidate)

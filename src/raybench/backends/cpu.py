@@ -84,12 +84,13 @@ _shade_hit_v, _shade_miss_v, _to_byte_v = _kb.shade_hit, _kb.shade_miss, _kb.to_
 
 # The cull loops index the spheres with unsigned integers: a signed index
 # carries Python's negative-index wraparound, a select per lane that LLVM
-# turns into gathers (the cull on 16 rays: 118 -> 62 ms, one Zen 4 core). The
-# CUDA fast kernel does the same for the same reason.
+# turns into gathers, which halved the cull's speed (step 5 of
+# docs/floors.md#each-version-against-the-floor). The CUDA fast kernel does the
+# same for the same reason.
 _U = np.uint64
 # Spheres per cull group in the fast kernels: a group's cull test is one
-# loop that LLVM turns into SIMD. 32 measured fastest on a 2-core EPYC
-# (16: 1.6, 32: 2.8, 48: 1.0 G tests/s a thread; 48 did not vectorise).
+# loop that LLVM turns into SIMD. 32 measured fastest: 16 and 64 were slower,
+# and 48 did not vectorise (steps 3 and 4 of docs/floors.md#each-version-against-the-floor).
 GROUP = 32
 # Rays side by side in the AVX-512 kernel: one 16-lane register of float32.
 WIDE = 16
@@ -191,7 +192,7 @@ def _wide_band(first_row, end_row, width, height, basis, spheres, relative, coun
                         # Most spheres of a group that passed are still missed by
                         # all 16 rays: one SIMD test across the rays first keeps
                         # the scalar loop for the spheres some ray may hit
-                        # (1,000 spheres: 173 -> 152 ms on one Zen 4 core).
+                        # (step 5 of docs/floors.md#each-version-against-the-floor).
                         some = False
                         for k in range(WIDE):
                             some |= _may_hit(ex[i], ey[i], ez[i], es[i], dx[k], dy[k], dz[k])
@@ -216,10 +217,10 @@ def _has_avx512() -> bool:
         return False
 
 
-# Which loop vectorises best depends on the register width: on the H100
-# machine's AVX-512 Xeon (16 threads) the wide kernel takes 90 ms a frame
-# against 185 ms for the pairs kernel; on a 2-core AVX2 EPYC the pairs kernel
-# is the faster by 20% (docs/performance.md).
+# Which loop vectorises best depends on the register width: with AVX-512 the
+# wide kernel (16 rays side by side) took half the pairs kernel's time, with
+# AVX2 the pairs kernel was the faster (step 4 of
+# docs/floors.md#each-version-against-the-floor).
 _fast_band = _wide_band if _has_avx512() else _pairs_band
 
 
@@ -227,9 +228,9 @@ _fast_band = _wide_band if _has_avx512() else _pairs_band
 # pixels, eight AVX-512 or sixteen AVX2 registers of float32 per ray
 # component. Once the walk stopped reducing the packet's entry distances
 # (the children ordered along the middle ray instead), larger packets paid:
-# of 4x4 to 32x8 on one Zen 4 core, 16x8 was the fastest, 8-10% ahead of
-# 8x4, the shape before; with today's walk 16x16 is as fast on one core and
-# 16x8 the faster at 1,000 spheres with two threads (docs/performance.md).
+# of 4x4 to 32x8, 16x8 was the fastest, ahead of 8x4, the shape before; 16x16
+# is as fast on one core and slower at 1,000 spheres on two threads
+# (docs/bvh-walk.md#measured-cpu-only-machine-amd-epyc-2-vcpus-shared).
 PACKET_W, PACKET_H = 16, 8
 # The tree the packets walk: 2, the binary SAH tree (bvh.build) as every
 # device walks it; 4, the same tree collapsed into 4-wide nodes
@@ -387,7 +388,8 @@ def _put_pixel(y, x, k, rgb, hit, image, hits):
     """Store ray k's bytes and hit index at pixel (x, y), each at least 0.
     Unsigned indices (_U), as in the cull loops: a signed one carries
     Python's negative-index wraparound, a shift, a mask and an add for each
-    of a pixel's four stores (what they cost: docs/performance.md)."""
+    of a pixel's four stores (what they cost:
+    docs/embree.md#against-mitsuba-3-on-embree-side-by-side-2-vcpu-machine)."""
     y, x, k = _U(y), _U(x), _U(k)
     image[y, x, _U(0)] = rgb[_U(0), k]
     image[y, x, _U(1)] = rgb[_U(1), k]
@@ -404,7 +406,8 @@ def _start_packet(x0, y0, end_row, width, height, basis, dx, dy, dz, ix, iy, iz,
         # rays off the chunk trace a copy of its last row or column, unstored;
         # a pixel's coordinates as int32 (exact: a side is at most
         # limits.MAX_SIDE), which AVX2 turns into float32 eight at a time,
-        # where an int64 takes a scalar conversion each (docs/performance.md)
+        # where an int64 takes a scalar conversion each
+        # (docs/embree.md#against-mitsuba-3-on-embree-side-by-side-2-vcpu-machine)
         x = np.int32(min(x0 + k % PACKET_W, width - 1))
         y = np.int32(min(y0 + k // PACKET_W, end_row - 1))
         dx[k], dy[k], dz[k] = _primary_ray_v(x, y, width, height, basis)

@@ -44,22 +44,22 @@ from .limits import (
 )
 from .walks import WALKS, check_walk
 
-# The fastest measured (docs/performance.md): simple on an H100; fast (with
-# TRIP) and the BVH walked a ray at a time on the H200, where 8x8 also makes
-# a warp a compact 8x4 patch of pixels whose rays cross much the same nodes
-# (the tuning suite: 8x8 0.407 ms, 16x16 0.452, 8x32 0.464 at 1,000
-# spheres); the BVH's packets in 8x4 blocks, one warp (8x8: 6.20 ms against
-# 5.82 at 1,000,000 spheres).
+# The fastest measured: simple in 16x16 blocks; fast (with TRIP) in 8x8
+# (docs/floors.md#each-version-against-the-floor); the BVH walked a ray at a
+# time in 8x8, which also makes a warp a compact 8x4 patch of pixels whose rays
+# cross much the same nodes (the tuning suite, docs/bvh-walk.md#gpu-measured-on-the-h200);
+# the BVH's packets in 8x4 blocks, one warp, faster than 8x8 and 16x8
+# (docs/bvh-walk.md#packets-of-rays-on-the-gpu-leases-g-to-i-kept).
 DEFAULT_BLOCK = {"simple": (16, 16), "fast": (8, 8), "ray": (8, 8), "packet": (8, 4)}
-# The walk by default: packets once the tree outgrows the L1 cache (an
-# H100's or H200's is 256 KiB an SM): on the H200 the first packets
-# (children ordered by vote) crossed a ray at a time between 10,000 spheres
-# (a 264 KiB tree) and 30,000 (795 KiB); today's take 37% off at 1,000,000
-# and tie at 1,000 (25 KiB) (docs/performance.md).
+# The walk by default: packets once the tree outgrows the L1 cache (256 KiB
+# an SM on the GPUs measured): the packets cost more node visits than a ray
+# at a time and save fetches, so they pay once the tree is fetched from L2;
+# measured, the two crossed as the tree outgrew L1
+# (docs/bvh-walk.md#packets-of-rays-on-the-gpu-leases-g-to-i-kept).
 PACKET_TREE_BYTES = 256 * 1024
 # The default stays the host's SAH tree for scenes that do not move: the
-# walk on the GPU's LBVH measured 8-22% slower on the H200, past issue 16's
-# 10% (docs/performance.md); the build is paid once, the walk every frame.
+# walk on any tree built on the GPU measured slower than on the host's, and
+# the build is paid once, the walk every frame (docs/gpu-build.md#where-it-stands).
 DEFAULT_BUILD = "host"
 
 
@@ -86,8 +86,9 @@ _ray_axes, _children, _leaf_hits, _centre = _k.ray_axes, _k.children, _k.leaf_hi
 RAYS = 8
 TILE = 256
 # Spheres tested per trip of the cull loop, one branch for all of them: 3
-# with 8x8 blocks measured 0.573-0.580 ms on the H200 against 0.610-0.617 for
-# 2 with 16x4, the earlier default, in the same run (docs/performance.md).
+# with 8x8 blocks measured 6% faster than 2 with 16x4, the earlier default, in
+# the same run; 4 no faster, with more registers (step 5 of
+# docs/floors.md#each-version-against-the-floor).
 TRIP = 3
 MAX_TRIP = 4
 MAX_RAYS = 16
@@ -197,8 +198,9 @@ def _bvh_packet_kernel(width, height, first, end, basis, nodes, links, ordered, 
     ray tests only the leaves it enters itself, so the node, the stack's rows
     and every branch are the same in all the block's threads: one node fetch
     serves them all, and they never diverge. The children are taken in the
-    order of their centres along the block's central ray (12% faster than
-    voting on the order, docs/performance.md). The votes are the block's
+    order of their centres along the block's central ray (faster than voting
+    on the order: docs/bvh-walk.md#packets-of-rays-on-the-gpu-leases-g-to-i-kept).
+    The votes are the block's
     barriers (syncthreads_or), which the CUDA simulator has too, so the
     tests run this very code; in a one-warp block (8x4, the default) they
     cost what warp votes do (measured). Every thread takes part in every
@@ -354,7 +356,7 @@ def fast_kernel(rays: int = RAYS, tile: int = TILE, trip: int = TRIP):
             hit[j] = -1
             hit_d[j] = ZERO
         # Unsigned indices: a signed one makes every shared-memory read check
-        # for Python's negative indexing (0.80 against 0.74 ms on an H100).
+        # for Python's negative indexing (step 4 of docs/floors.md#each-version-against-the-floor).
         me = _U(cuda.threadIdx.y * bw + cuda.threadIdx.x)
         total = _U(count)
         for base in range(_U(0), total, _U(tile)):
@@ -374,7 +376,8 @@ def fast_kernel(rays: int = RAYS, tile: int = TILE, trip: int = TRIP):
             while k < n:
                 # `trip` spheres a trip, one branch for all on the farthest v
                 # of all the thread's rays: the loop is then mostly arithmetic
-                # (docs/performance.md has what each step bought).
+                # (docs/floors.md#each-version-against-the-floor has what each
+                # step bought).
                 while k < n:
                     for q in range(trip):
                         vmax[q] = farthest(sx[k + _U(q)], sy[k + _U(q)], sz[k + _U(q)], dx, dy, dz, v)
@@ -534,8 +537,9 @@ class Tracer(TracerBase):
         self.width, self.height = width, height
         self.count = spheres.shape[1]
         # a frame's launches with their arguments converted once: numba-cuda's
-        # conversion of a BVH kernel's twelve arrays took 0.1 ms, inside the
-        # kernel's timed span (cuda_launch; docs/performance.md)
+        # conversion of a BVH kernel's arrays, every launch, fell inside the
+        # kernel's timed span (cuda_launch;
+        # docs/startup.md#a-launchs-arguments-converted-once-leases-y3-and-y4)
         self._launches = Launches(64)
         self.d_spheres = cuda.to_device(spheres if self.count else np.zeros((7, 1), np.float32))
         self.d_image = cuda.device_array((height, width, 3), dtype=np.uint8)

@@ -1,13 +1,14 @@
 """A kernel launch with its arguments converted once, for launches repeated
 with the same arguments.
 
-numba-cuda converts every argument of every launch in Python: about 7 us a
-device array on the H200's host, so a kernel of 12 arrays costs 146 us to
-launch and 12 us with its arguments converted beforehand
-(`benchmarks/launch_overhead.py`, `benchmarks/results/h200/launch-overhead-20261130-y3.jsonl`).
+numba-cuda converts every argument of every launch in Python, some
+microseconds a device array, so a kernel of many arrays costs far more to
+launch than with its arguments converted beforehand (`benchmarks/launch_overhead.py`
+measures it; docs/startup.md#a-launchs-arguments-converted-once-leases-y3-and-y4).
 The GPU builder launches 20 kernels a build, each on the same arrays build
 after build, so below a few hundred thousand spheres the host's conversions
-were most of a build (docs/performance.md, issue 16).
+were most of a build
+(docs/gpu-build.md#the-trees-quality-raised-on-the-gpu-sah-leaves-and-treelets).
 
 `Launches` keeps the prepared launches of a Tracer or a Builder by their
 arguments, so each is converted once; its owner clears it when it replaces

@@ -121,8 +121,8 @@ def _cgroup_headroom(root: str = "/sys/fs/cgroup", proc: str = "/proc/self/cgrou
 KERNELS = ("fast", "simple")
 # Threads per block the fast CUDA kernel can always launch: its per-thread rays
 # take registers, and 256 threads x 255 registers (the most a thread can have)
-# fit the 64K registers of every CUDA multiprocessor. 32x32 failed on an H100
-# with CUDA_ERROR_LAUNCH_OUT_OF_RESOURCES.
+# fit the 64K registers of every CUDA multiprocessor. 32x32 can fail with
+# CUDA_ERROR_LAUNCH_OUT_OF_RESOURCES.
 FAST_MAX_THREADS = 256
 
 

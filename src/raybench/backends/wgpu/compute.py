@@ -32,16 +32,18 @@ UNIFORM_BYTES = 80  # shader's struct Frame: four vec4s, four u32s
 # The default workgroups: WebGPU's default limit (256 invocations), so they
 # run on every adapter (the thesis's 32x32 runs where the adapter allows
 # 1024); for the packet walk 8x8, two NVIDIA warps, each an 8x4 packet of
-# pixels (on the H200 0.5-3% faster than 8x4, and 16x16 and 32x8 slower).
+# pixels (measured a little faster than 8x4, and 16x16 and 32x8 slower:
+# docs/bvh-walk.md#tried-packets-on-wgpu-leases-r-and-s-kept-as-an-option-not-the-default).
 DEFAULT_WORKGROUP = {"none": (16, 16), "ray": (16, 16), "packet": (8, 8)}
 # The packet walk's votes are subgroup operations (packet.wgsl). It is no
-# default: on the H200 through Vulkan it was 4-27% slower than a ray at a
-# time at 1,000 to 1,000,000 spheres, where cuda's packets are 37% faster at
-# 1,000,000 (docs/performance.md); walk="packet" measures it on another GPU.
+# default: on the one GPU measured through Vulkan it was slower than a ray at
+# a time at every size, where cuda's packets are faster on large trees
+# (docs/bvh-walk.md#tried-packets-on-wgpu-leases-r-and-s-kept-as-an-option-not-the-default);
+# walk="packet" measures it on another GPU.
 PACKET_FEATURE = "subgroup"
 # The tree is the host's unless build "gpu" is asked for, as on cuda: the
 # GPU's LBVH is the cheaper build, the host's SAH tree the faster walk
-# (docs/performance.md); no GPU has timed the WGSL build yet.
+# (docs/gpu-build.md#the-same-build-in-wgsl-wgpu).
 DEFAULT_BUILD = "host"
 RAY_KINDS = len(whitted.KINDS)
 

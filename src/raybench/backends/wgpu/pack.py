@@ -2,10 +2,9 @@
 
 The trace pass writes an RGBA texture, which the viewer draws as it is.
 trace() needs (H, W, 3) bytes on the host: picking RGB out of RGBA rows there
-took 3.5 ms of a 1680x1050 frame on the H200's host, after a straight copy
-out of the mapped buffer of 0.9 ms (docs/performance.md, the wgpu frame's
-readback). Packed on the GPU, the readback is one straight copy of the
-frame's own bytes.
+took several times as long as the straight copy out of the mapped buffer
+(docs/wgpu.md#the-wgpu-frames-readback-lease-x1-and-x4). Packed on the GPU,
+the readback is one straight copy of the frame's own bytes.
 """
 
 from __future__ import annotations

@@ -6,8 +6,8 @@
 // too: one fetch of a node serves the subgroup, which never diverges. Needs
 // the adapter's "subgroup" feature; a workgroup of several subgroups walks as
 // that many packets, each as correct as one. Only where asked for (walk
-// "packet"): on the H200 through Vulkan it measured slower than a ray at a
-// time (compute.py says by how much).
+// "packet"): on the GPU measured through Vulkan it was slower than a ray at a
+// time (compute.py says where that is measured).
 
 // What an invocation pushes for a child its ray does not enter: beyond any
 // closest hit (FAR at most), so it never votes to pop that child.
