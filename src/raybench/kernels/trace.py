@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from ..layout import BLUE, CX, CY, CZ, GREEN, RADIUS, RED
-from . import intersect, shade, traverse, whitted
+from . import intersect, shade, traverse, wavefront, whitted
 
 ZERO = np.float32(0.0)
 ONE = np.float32(1.0)
@@ -136,7 +136,9 @@ def build(jit, call=None):
         return scan(ox, oy, oz, dx, dy, dz, t_max, any_hit, True, own, own_inside, spheres, count)
 
     def whitted_program(search):
-        whitted_pixel = whitted.build(jit, call, search, shade_hit, shade_miss)
+        stages = whitted.build(jit, call, search, shade_hit, shade_miss)
+        whitted_pixel = stages.whitted_pixel
+        wavefronts[search.__name__] = wavefront.build(jit, stages, primary_ray, shade_hit)
 
         @jit
         def render_pixel_whitted(x, y, width, height, basis, spheres, count, materials, lights, pattern, params, tree,
@@ -158,8 +160,11 @@ def build(jit, call=None):
 
         return render_pixel_whitted
 
-    # Whitted's pixel through the BVH and by brute force
+    # Whitted's pixel through the BVH and by brute force, and the wavefront's
+    # stages for each (kernels/wavefront.py)
+    wavefronts = {}
     render_pixel_whitted = {"bvh": whitted_program(search_tree), "none": whitted_program(search_all)}
+    whitted_wavefront = {"bvh": wavefronts["search_tree"], "none": wavefronts["search_all"]}
 
     @jit
     def prepare(i, basis, spheres, relative):
@@ -194,6 +199,7 @@ def build(jit, call=None):
         nearest_hit=nearest_hit,
         scan=scan,
         render_pixel_whitted=render_pixel_whitted,
+        whitted_wavefront=whitted_wavefront,
         walk=walk,
         intersect_ahead=intersect_ahead,
     )

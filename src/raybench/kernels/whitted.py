@@ -43,6 +43,7 @@ no offset alone can.
 """
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -104,7 +105,8 @@ PARAMS = 10
 def build(jit, call, search, shade_hit, shade_miss):
     """Whitted's pixel program over `search`, the nearest (or any) hit of
     any ray: through the tree or over every sphere (trace.search_tree and
-    search_all), one program for each, so neither carries the other's code."""
+    search_all), one program for each, so neither carries the other's code;
+    and the parts of it that the wavefront's stages share (a namespace)."""
 
     # `find` is the program's one call boundary on the CPU (call: a plain
     # numba.njit there; every other function is inlined into the kernel): the
@@ -218,6 +220,74 @@ def build(jit, call, search, shade_hit, shade_miss):
         return top + 1
 
     @jit
+    def background(fx, fy, params):
+        """What a ray that meets nothing sees from pixel (fx, fy)."""
+        if params[P_GRADIENT] > ZERO:
+            return shade_miss(fx, fy)
+        return params[P_BACKGROUND], params[P_BACKGROUND + 1], params[P_BACKGROUND + 2]
+
+    @jit
+    def surface(ox, oy, oz, dx, dy, dz, t, i, spheres):
+        """The hit of a ray on sphere i at t: (point, unit normal on the ray's
+        side, cos_i on that side, whether the ray meets the sphere from
+        within)."""
+        px = ox + t * dx
+        py = oy + t * dy
+        pz = oz + t * dz
+        inv_r = ONE / spheres[RADIUS, i]
+        nx = (px - spheres[CX, i]) * inv_r
+        ny = (py - spheres[CY, i]) * inv_r
+        nz = (pz - spheres[CZ, i]) * inv_r
+        inv_n = ONE / np.float32(math.sqrt(nx * nx + ny * ny + nz * nz))
+        nx *= inv_n
+        ny *= inv_n
+        nz *= inv_n
+        cos_i = -(nx * dx + ny * dy + nz * dz)
+        inside = cos_i < ZERO  # the ray meets the sphere from within
+        if inside:
+            nx, ny, nz, cos_i = -nx, -ny, -nz, -cos_i
+        return px, py, pz, nx, ny, nz, cos_i, inside
+
+    @jit
+    def light_samples(light, lights, params):
+        """Shadow rays to one light: 1 to a point light, the frame's samples
+        to an area light; and each one's share of the light."""
+        samples = np.int32(params[P_SAMPLES]) if lights[LRADIUS, light] > ZERO else 1
+        return samples, ONE / np.float32(samples)
+
+    @jit
+    def toward(px, py, pz, nx, ny, nz, light, s, share, lights, pattern):
+        """The shadow ray from (px, py, pz) to sample s of a light: (unit
+        direction, length, the cosine with the normal, the sample's rgb);
+        the cosine is 0 where no ray is cast: the light behind the surface,
+        at the point, or dark (it adds nothing, blocked or not)."""
+        radius = lights[LRADIUS, light]
+        lx = lights[LX, light] + radius * pattern[0, s] - px
+        ly = lights[LY, light] + radius * pattern[1, s] - py
+        lz = lights[LZ, light] + radius * pattern[2, s] - pz
+        dist = np.float32(math.sqrt(lx * lx + ly * ly + lz * lz))
+        cr = lights[LRED, light] * share
+        cg = lights[LGREEN, light] * share
+        cb = lights[LBLUE, light] * share
+        if dist <= ZERO or max(cr, max(cg, cb)) <= ZERO:
+            return lx, ly, lz, dist, ZERO, cr, cg, cb
+        lx /= dist
+        ly /= dist
+        lz /= dist
+        facing = max(nx * lx + ny * ly + nz * lz, ZERO)
+        return lx, ly, lz, dist, facing, cr, cg, cb
+
+    @jit
+    def glint(ks, shininess, facing, nx, ny, nz, vx, vy, vz, lx, ly, lz):
+        """Phong's highlight of one light sample: the light's mirror direction
+        against the viewer's."""
+        if ks > ZERO:
+            rv = TWO * facing * (nx * vx + ny * vy + nz * vz) - (lx * vx + ly * vy + lz * vz)
+            if rv > ZERO:
+                return ks * np.float32(math.pow(rv, shininess))
+        return ZERO
+
+    @jit
     def local_light(px, py, pz, nx, ny, nz, vx, vy, vz, i, inside, spheres, count, materials, lights, pattern, params,
                     tree, stack_row, stack_t):  # fmt: skip
         """The hit's diffuse (ambient and Lambert) and specular (Phong) light,
@@ -235,26 +305,10 @@ def build(jit, call, search, shade_hit, shade_miss):
         shininess = materials[SHININESS, i]
         shadows = 0
         for light in range(np.int32(params[P_LIGHTS])):
-            radius = lights[LRADIUS, light]
-            samples = np.int32(params[P_SAMPLES]) if radius > ZERO else 1
-            share = ONE / np.float32(samples)
+            samples, share = light_samples(light, lights, params)
             for s in range(samples):
-                lx = lights[LX, light] + radius * pattern[0, s] - px
-                ly = lights[LY, light] + radius * pattern[1, s] - py
-                lz = lights[LZ, light] + radius * pattern[2, s] - pz
-                dist = np.float32(math.sqrt(lx * lx + ly * ly + lz * lz))
-                if dist <= ZERO:
-                    continue
-                lx /= dist
-                ly /= dist
-                lz /= dist
-                facing = nx * lx + ny * ly + nz * lz
-                if facing <= ZERO:  # the light is behind the surface: no shadow ray needed
-                    continue
-                cr = lights[LRED, light] * share
-                cg = lights[LGREEN, light] * share
-                cb = lights[LBLUE, light] * share
-                if max(cr, max(cg, cb)) <= ZERO:  # a dark light adds nothing, blocked or not
+                lx, ly, lz, dist, facing, cr, cg, cb = toward(px, py, pz, nx, ny, nz, light, s, share, lights, pattern)
+                if facing <= ZERO:
                     continue
                 shadows += 1
                 blocker, _t, _d = find(px, py, pz, lx, ly, lz, dist, True, i, inside, spheres, count, tree,
@@ -264,14 +318,10 @@ def build(jit, call, search, shade_hit, shade_miss):
                 dr += cr * kr * facing
                 dg += cg * kg * facing
                 db += cb * kb * facing
-                if ks > ZERO:
-                    # Phong: the light's mirror direction against the viewer's
-                    rv = TWO * facing * (nx * vx + ny * vy + nz * vz) - (lx * vx + ly * vy + lz * vz)
-                    if rv > ZERO:
-                        glint = ks * np.float32(math.pow(rv, shininess))
-                        sr += cr * glint
-                        sg += cg * glint
-                        sb += cb * glint
+                g = glint(ks, shininess, facing, nx, ny, nz, vx, vy, vz, lx, ly, lz)
+                sr += cr * g
+                sg += cg * g
+                sb += cb * g
         return dr, dg, db, sr, sg, sb, shadows
 
     @jit
@@ -280,12 +330,7 @@ def build(jit, call, search, shade_hit, shade_miss):
         """Colour (rgb, unclamped), primary hit and the rays cast by kind for
         pixel (x, y). primary_ray: trace.primary_ray's direction, given."""
         dx, dy, dz = primary_ray
-        fx = np.float32(x)
-        fy = np.float32(y)
-        if params[P_GRADIENT] > ZERO:
-            br, bg, bb = shade_miss(fx, fy)
-        else:
-            br, bg, bb = params[P_BACKGROUND], params[P_BACKGROUND + 1], params[P_BACKGROUND + 2]
+        br, bg, bb = background(np.float32(x), np.float32(y), params)
         max_depth = np.int32(params[P_DEPTH])
         lit = params[P_LIGHTS] > ZERO
         red = ZERO
@@ -319,22 +364,7 @@ def build(jit, call, search, shade_hit, shade_miss):
                 green += wg * bg
                 blue += wb * bb
                 continue
-            r = spheres[RADIUS, i]
-            px = ox + t * dx
-            py = oy + t * dy
-            pz = oz + t * dz
-            inv_r = ONE / r
-            nx = (px - spheres[CX, i]) * inv_r
-            ny = (py - spheres[CY, i]) * inv_r
-            nz = (pz - spheres[CZ, i]) * inv_r
-            inv_n = ONE / np.float32(math.sqrt(nx * nx + ny * ny + nz * nz))
-            nx *= inv_n
-            ny *= inv_n
-            nz *= inv_n
-            cos_i = -(nx * dx + ny * dy + nz * dz)
-            inside = cos_i < ZERO  # the ray meets the sphere from within
-            if inside:
-                nx, ny, nz, cos_i = -nx, -ny, -nz, -cos_i
+            px, py, pz, nx, ny, nz, cos_i, inside = surface(ox, oy, oz, dx, dy, dz, t, i, spheres)
             kr = materials[REFLECT, i]
             kt = materials[TRANSMIT, i]
             keep = ONE - kr - kt
@@ -349,7 +379,7 @@ def build(jit, call, search, shade_hit, shade_miss):
                     green += wg * (keep * lg + sg)
                     blue += wb * (keep * lb + sb)
             else:
-                lr, lg, lb = shade_hit(spheres[RED, i], spheres[GREEN, i], spheres[BLUE, i], r, d)
+                lr, lg, lb = shade_hit(spheres[RED, i], spheres[GREEN, i], spheres[BLUE, i], spheres[RADIUS, i], d)
                 red += wr * (keep * lr)
                 green += wg * (keep * lg)
                 blue += wb * (keep * lb)
@@ -371,4 +401,14 @@ def build(jit, call, search, shade_hit, shade_miss):
                            slack_r, depth + 1, REFLECTION, i, 1 if inside else 0)  # fmt: skip
         return red, green, blue, first_hit, n_primary, n_shadow, n_reflect, n_refract
 
-    return whitted_pixel
+    return SimpleNamespace(
+        whitted_pixel=whitted_pixel,
+        find=find,
+        background=background,
+        surface=surface,
+        shows=shows,
+        light_samples=light_samples,
+        toward=toward,
+        glint=glint,
+        branches=branches,
+    )
