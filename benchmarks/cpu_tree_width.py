@@ -20,8 +20,9 @@ import numpy as np
 import raybench
 from raybench import Camera
 from raybench.backends import cpu
+from raybench.host import usable_cores
 from raybench.machine import cpu as processor
-from raybench.machine import git_commit, usable_cores
+from raybench.machine import git_commit
 from raybench.scene import LAYOUTS
 
 

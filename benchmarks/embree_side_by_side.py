@@ -61,7 +61,8 @@ import numpy as np
 import raybench
 from raybench import Camera, backends
 from raybench.backends.cpu import default_threads
-from raybench.machine import git_commit, usable_cores
+from raybench.host import usable_cores
+from raybench.machine import git_commit
 from raybench.scene import LAYOUTS
 
 

@@ -17,10 +17,10 @@ from pathlib import Path
 import numpy as np
 
 from . import lighting
-from .backends.limits import host_available_bytes
 from .camera import MAX_MAGNITUDE, Camera
 from .errors import RaybenchError, shown
 from .files import read_json, write_atomic
+from .host import host_available_bytes
 
 FORMAT = "raybench-scene"
 VERSION = 2

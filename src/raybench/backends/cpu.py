@@ -30,6 +30,7 @@ import numpy as np
 from .. import bvh as bvh_mod
 from .. import compiled, kernels
 from ..errors import RaybenchError, shown
+from ..host import host_available_bytes, usable_cores
 from ..kernels import whitted as whitted_mod
 from ..kernels.trace import FAR, ZERO
 from ..layout import (
@@ -50,7 +51,6 @@ from ..layout import (
     WIDTH,
 )
 from ..lighting import Shading
-from ..machine import usable_cores
 from .contract import TracerBase, check_method, check_moved
 from .limits import (
     HOST_PIXEL_BYTES,
@@ -58,7 +58,6 @@ from .limits import (
     check_count,
     check_fits,
     check_rows,
-    host_available_bytes,
 )
 
 MAX_THREADS = 4096

@@ -67,7 +67,7 @@ from dataclasses import dataclass, field
 
 from ..backends.limits import BUILDS, FAST_MAX_THREADS
 from ..errors import RaybenchError
-from ..machine import usable_cores
+from ..host import usable_cores
 
 SUITES = ("thesis", "constant-vs-runtime", "tuning", "scaling", "secondary", "multi-gpu", "dynamic")
 ACCELS = ("bvh", "none")

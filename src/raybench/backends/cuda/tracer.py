@@ -1,15 +1,5 @@
-"""CUDA backend: numba-cuda, in blocks of a chosen shape. With the BVH (accel
-"bvh", the default) one thread traces one pixel, walking the tree's nodes
-from global memory, either on its own or with the block's other rays as one
-packet (walk "ray" or "packet"; by default chosen by the tree's size). Brute
-force (accel "none") has two kernels: the simple one is the thesis's, one
-thread per pixel; the fast one gives each thread several pixels and stages
-the spheres through shared memory.
-
-The per-pixel functions are the same Python source the CPU runs (raybench.kernels),
-compiled as CUDA device functions. Under NUMBA_ENABLE_CUDASIM=1 it runs in
-numba's simulator, which is how the tests check it on machines without a GPU.
-"""
+"""The CUDA Tracer: its kernels (the per-pixel functions of raybench.kernels,
+compiled as CUDA device functions), their launches and their buffers."""
 
 from __future__ import annotations
 
@@ -19,30 +9,33 @@ import time
 import warnings
 
 import numpy as np
-from numba import config, cuda
+from numba import cuda
 from numba.cuda.core.errors import NumbaPerformanceWarning
 
-from .. import bvh as bvh_mod
-from .. import compiled, kernels
-from ..errors import RaybenchError, shown
-from ..kernels.trace import FAR, ZERO
-from ..kernels.whitted import KINDS, RAY_FLOATS, RAY_INTS, RAY_STACK
-from ..layout import CHILD_BOX, INNER, NODE_BYTES, NODE_FLOATS, RADIUS, STACK
-from ..lighting import Shading
-from . import cuda_build, limits
-from .contract import TracerBase, check_method, check_moved
-from .cuda_launch import Launches
-from .limits import (
+from ... import bvh as bvh_mod
+from ... import compiled, kernels
+from ...errors import RaybenchError, shown
+from ...host import host_available_bytes
+from ...kernels.trace import FAR, ZERO
+from ...kernels.whitted import KINDS, RAY_FLOATS, RAY_INTS, RAY_STACK
+from ...layout import CHILD_BOX, INNER, NODE_BYTES, NODE_FLOATS, RADIUS, STACK
+from ...lighting import Shading
+from .. import limits
+from ..contract import TracerBase, check_method, check_moved
+from ..limits import (
     FAST_MAX_THREADS,
     HOST_PIXEL_BYTES,
     PIXEL_BYTES,
+    WALKS,
     check_bvh_fits,
     check_count,
     check_fits,
     check_rows,
-    host_available_bytes,
+    check_walk,
 )
-from .walks import WALKS, check_walk
+from . import build as cuda_build
+from .device import require, simulated
+from .launch import Launches
 
 # The fastest measured (docs/performance.md): simple on an H100; fast (with
 # TRIP) and the BVH walked a ray at a time on the H200, where 8x8 also makes
@@ -413,36 +406,6 @@ def _constant_kernel(count: int):
     return render_kernel
 
 
-def simulated() -> bool:
-    return bool(config.ENABLE_CUDASIM)
-
-
-def available() -> bool:
-    return cuda.is_available()
-
-
-def unavailable_reason() -> str:
-    reason = " ".join((cuda.cuda_error() or "no CUDA device was found").split())
-    return (
-        "device cuda: no usable NVIDIA GPU (numba-cuda looked for the CUDA driver and a CUDA device: "
-        f"{reason}); use --device cpu"
-    )
-
-
-def require() -> None:
-    if not available():
-        raise RaybenchError(unavailable_reason())
-
-
-def description() -> str:
-    require()
-    if simulated():
-        return "cuda (numba's CUDA simulator)"
-    dev = cuda.get_current_device()
-    name = dev.name.decode() if isinstance(dev.name, bytes) else dev.name
-    return f"cuda ({name})"
-
-
 def _check_block(block, kernel: str) -> tuple[int, int]:
     try:
         bx, by = (int(v) for v in block)
@@ -535,7 +498,7 @@ class Tracer(TracerBase):
         self.count = spheres.shape[1]
         # a frame's launches with their arguments converted once: numba-cuda's
         # conversion of a BVH kernel's twelve arrays took 0.1 ms, inside the
-        # kernel's timed span (cuda_launch; docs/performance.md)
+        # kernel's timed span (cuda.launch; docs/performance.md)
         self._launches = Launches(64)
         self.d_spheres = cuda.to_device(spheres if self.count else np.zeros((7, 1), np.float32))
         self.d_image = cuda.device_array((height, width, 3), dtype=np.uint8)
