@@ -27,9 +27,8 @@ def brute(scene, camera, width, height):
 
 
 @pytest.fixture(params=[2, 4], ids=["binary", "wide"])
-def tree_width(request, monkeypatch):
+def tree_width(request):
     """The CPU packets' tree: the binary one, and the same collapsed into 4-wide nodes."""
-    monkeypatch.setattr(cpu_backend, "TREE_WIDTH", request.param)
     return request.param
 
 
@@ -39,7 +38,7 @@ def test_cpu_bvh_equals_brute_force(rng, kind, tree_width):
     scene, camera = SCENES[kind](rng, n)
     width, height = int(rng.integers(20, 60)), int(rng.integers(10, 40))
     want = brute(scene, camera, width, height)
-    got = raybench.render(scene, camera, width, height, device="cpu", accel="bvh", threads=3)
+    got = raybench.render(scene, camera, width, height, device="cpu", accel="bvh", threads=3, tree_width=tree_width)
     assert np.array_equal(got.hits, want.hits), (got.hits != want.hits).sum()
     assert np.array_equal(got.image, want.image)
     if kind in IN_VIEW and n >= 100:  # not vacuous: something was hit (a few spheres may all be out of view)
@@ -53,7 +52,7 @@ def test_cpu_packets_at_the_edges(rng, size, tree_width):
     than rows."""
     scene, camera = KINDS["generated"](rng, int(rng.integers(50, 300)))
     want = brute(scene, camera, *size)
-    got = raybench.render(scene, camera, *size, device="cpu", threads=int(rng.integers(1, 9)))
+    got = raybench.render(scene, camera, *size, device="cpu", threads=int(rng.integers(1, 9)), tree_width=tree_width)
     assert np.array_equal(got.hits, want.hits) and np.array_equal(got.image, want.image)
 
 
@@ -63,8 +62,22 @@ def test_ties_go_to_the_smaller_index(rng, tree_width):
     s = scene.spheres.copy()
     s[3] = 1.5
     same = Scene(s[0:3].T, s[3], s[4:7].T)
-    frame = raybench.render(same, camera, 24, 16, device="cpu")
+    frame = raybench.render(same, camera, 24, 16, device="cpu", tree_width=tree_width)
     assert set(np.unique(frame.hits)) <= {-1, 0} and (frame.hits == 0).any()
+
+
+def test_tree_width_is_an_option_of_the_bvh_packets(rng):
+    """tree_width picks the CPU packets' tree; it means nothing to brute force
+    or to Whitted's walk, and only 2 and 4 are built."""
+    spheres = raybench.random_spheres(5, int(rng.integers(2**31))).spheres
+    for options, message in (
+        ({"accel": "none", "tree_width": 2}, "tree_width: applies to the BVH's packets only"),
+        ({"tree_width": 3}, "tree_width: must be one of 2, 4, got 3"),
+    ):
+        with pytest.raises(raybench.RaybenchError, match=message):
+            raybench.backends.tracer("cpu", spheres, 8, 8, **options)
+    with pytest.raises(raybench.RaybenchError, match="option 'tree_width' does not apply to device cuda"):
+        raybench.backends.tracer("cuda", spheres, 8, 8, tree_width=2)
 
 
 def test_sphere_prefix_builds_its_own_tree(rng):

@@ -11,7 +11,7 @@ import click
 
 from ..errors import RaybenchError
 from ..files import check_writable
-from ..scene import LAYOUTS
+from ..scene import SPREADS
 from .options import (
     check_output,
     cluster_options,
@@ -32,7 +32,7 @@ from .options import (
 @scene_options("render")
 @click.option(
     "--layout",
-    type=click.Choice(LAYOUTS),
+    type=click.Choice(SPREADS),
     help="how the random spheres are spread: even (the default, the benchmark's), or a denser scene: dense "
     "(larger, overlapping spheres), clusters, deep (depths 1 to 1,000)",
 )

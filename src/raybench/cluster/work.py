@@ -290,25 +290,25 @@ def _tile(
             tracer = renderer.tracer
             basis = camera.basis(renderer.width, renderer.height)
             first, end = rows
-            if hasattr(tracer, "fetch_into"):
+            if tracer.fetches_into:
                 # cuda: the rows copied from the GPU straight into the frame, its
                 # mapping page-locked once, not through the tracer's buffers and a
                 # copy out of them (docs/scaling.md)
                 tracer.launch(basis, rows=rows)
                 if sharedframe.fill_rows(shared, first, end - first, tracer.fetch_into, pin=tracer.pin):
-                    return first, None, None, _rays(tracer), tracer.build_s
+                    return first, None, None, _ray_counts(tracer), tracer.build_s
                 image, hits = tracer.fetch()
             else:
                 image, hits = tracer.trace(basis, rows=rows)
                 if sharedframe.write_rows(shared, first, image[first:end], hits[first:end]):
-                    return first, None, None, _rays(tracer), tracer.build_s
+                    return first, None, None, _ray_counts(tracer), tracer.build_s
             # traced already: the rows travel from the tracer's buffers
-            return first, image[first:end].copy(), hits[first:end].copy(), _rays(tracer), tracer.build_s
+            return first, image[first:end].copy(), hits[first:end].copy(), _ray_counts(tracer), tracer.build_s
         frame = renderer.render(camera, rows=rows)
     return rows[0], frame.image, frame.hits, frame.rays, frame.build_s
 
 
-def _rays(tracer) -> dict | None:
+def _ray_counts(tracer) -> dict | None:
     """The last trace's rays by kind, as Frame.rays has them."""
     counts = tracer.ray_counts
     return None if counts is None else dict(zip(KINDS, counts.tolist()))

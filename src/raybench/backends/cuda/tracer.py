@@ -16,7 +16,7 @@ from ... import bvh as bvh_mod
 from ... import compiled, kernels
 from ...errors import RaybenchError, shown
 from ...host import host_available_bytes
-from ...kernels.trace import FAR, ZERO
+from ...kernels.constants import FAR, ZERO
 from ...kernels.whitted import KINDS, RAY_FLOATS, RAY_INTS, RAY_STACK
 from ...layout import CHILD_BOX, INNER, NODE_BYTES, NODE_FLOATS, RADIUS, STACK
 from ...lighting import Shading
@@ -73,18 +73,19 @@ _prepare_one, _may_hit, _along, _intersect_relative = _k.prepare, _k.may_hit, _k
 _render_pixel_bvh = _k.render_pixel_bvh
 _ray_axes, _children, _leaf_hits, _centre = _k.ray_axes, _k.children, _k.leaf_hits, _k.centre_along
 
-# Fast kernel defaults: each thread traces RAYS pixels, one above the other a
-# block height apart, so every sphere read from shared memory serves RAYS
-# tests; spheres are staged TILE at a time (16 bytes each).
-RAYS = 8
-TILE = 256
+# Fast kernel defaults (its options rays and tile): each thread traces
+# RAYS_PER_THREAD pixels, one above the other a block height apart, so every
+# sphere read from shared memory serves that many tests; spheres are staged
+# in shared memory STAGED at a time (16 bytes each).
+RAYS_PER_THREAD = 8
+STAGED = 256
 # Spheres tested per trip of the cull loop, one branch for all of them: 3
 # with 8x8 blocks measured 0.573-0.580 ms on the H200 against 0.610-0.617 for
 # 2 with 16x4, the earlier default, in the same run (docs/performance.md).
 TRIP = 3
 MAX_TRIP = 4
-MAX_RAYS = 16
-MAX_TILE = 3071  # 48 KiB of shared memory (with a pad slot), what every CUDA GPU gives a block
+MAX_RAYS_PER_THREAD = 16
+MAX_STAGED = 3071  # 48 KiB of shared memory (with a pad slot), what every CUDA GPU gives a block
 _U = np.uint64
 
 
@@ -285,7 +286,7 @@ def _prepare_kernel(basis, spheres, count, relative):
 
 
 @functools.cache
-def fast_kernel(rays: int = RAYS, tile: int = TILE, trip: int = TRIP):
+def fast_kernel(rays: int = RAYS_PER_THREAD, tile: int = STAGED, trip: int = TRIP):
     """The fast kernel for `rays` pixels per thread, `tile` spheres per
     shared-memory tile and `trip` spheres per trip of the cull loop
     (compile-time constants: the per-thread arrays must have a fixed size to
@@ -438,6 +439,7 @@ class Tracer(TracerBase):
 
     name = "cuda"
     traces_rows = True
+    fetches_into = True
 
     def __init__(
         self,
@@ -463,16 +465,16 @@ class Tracer(TracerBase):
             {"rays": rays is not None, "tile": tile is not None, "trip": trip is not None},
             whitted,
         )
-        rays = RAYS if rays is None else rays
-        tile = TILE if tile is None else tile
+        rays = RAYS_PER_THREAD if rays is None else rays
+        tile = STAGED if tile is None else tile
         trip = TRIP if trip is None else trip
         walk = check_walk(walk, self.accel)
         self.build = check_build(build, self.accel)
         block_given = block is not None
         if not block_given:  # for an auto walk, replaced below once the tree has chosen it
             block = DEFAULT_BLOCK[self.kernel or walk or "ray"]
-        self.rays = _check_int("rays", rays, 1, MAX_RAYS) if self.kernel == "fast" else 1
-        self.tile = _check_int("tile", tile, 1, MAX_TILE)
+        self.rays = _check_int("rays", rays, 1, MAX_RAYS_PER_THREAD) if self.kernel == "fast" else 1
+        self.tile = _check_int("tile", tile, 1, MAX_STAGED)
         self.trip = _check_int("trip", trip, 1, MAX_TRIP)
         self.block = _check_block(block, self.kernel or walk or "ray")
         free, _total = cuda.current_context().get_memory_info()

@@ -64,7 +64,6 @@ SCAN_ITEMS = 4
 PARTS = THREADS
 PARTS_AT = 16  # where the parts start in the bounds buffer (after the box and the cells per unit)
 MAX_GROUPS = 65535  # a dispatch's workgroups a dimension, WebGPU's default
-PARAM_BYTES = 32  # build_common.wgsl's struct Params
 STATS_BYTES = 16
 
 
