@@ -21,13 +21,13 @@ import time
 import raybench
 from raybench import Camera, backends, machine
 from raybench.backends.cpu import default_threads
-from raybench.scene import LAYOUTS
+from raybench.scene import SPREADS
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--spheres", type=int, action="append", help="sphere counts (repeat; default 1000)")
-    parser.add_argument("--layout", action="append", choices=LAYOUTS, help="layouts (repeat; default all)")
+    parser.add_argument("--layout", action="append", choices=SPREADS, help="layouts (repeat; default all)")
     parser.add_argument("--size", default="1680x1050")
     parser.add_argument("--rounds", type=int, default=9)
     parser.add_argument("--frames", type=int, default=2, help="frames a view in each round")
@@ -36,7 +36,7 @@ def main(argv=None) -> int:
     print(json.dumps({"what": "run", "git_commit": machine.git_commit(), "machine": machine.describe()["cpu"],
                       "threads": default_threads()}), flush=True)  # fmt: skip
     for n in args.spheres or [1000]:
-        for layout in args.layout or LAYOUTS:
+        for layout in args.layout or SPREADS:
             scene = raybench.random_spheres(n, seed=0, layout=layout)
             # The view benchmarks/embree_side_by_side.py traces, and the same camera turned round.
             views = {"frame": Camera(), "fixed": Camera(look_at=(0.0, 0.0, -1.0))}

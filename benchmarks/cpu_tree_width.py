@@ -1,5 +1,5 @@
 """The CPU's packet walk on the binary SAH tree against the same tree
-collapsed into 4-wide nodes (backends.cpu.TREE_WIDTH, issue 16 item 6),
+collapsed into 4-wide nodes (the cpu Tracer's tree_width, issue 16 item 6),
 side by side in one process: a Tracer of each over the same scene, warm
 frames, then --rounds rounds of --frames frames each, the two alternating
 which goes first each round (a shared machine's load falls on both);
@@ -20,15 +20,16 @@ import numpy as np
 import raybench
 from raybench import Camera
 from raybench.backends import cpu
+from raybench.host import usable_cores
 from raybench.machine import cpu as processor
-from raybench.machine import git_commit, usable_cores
-from raybench.scene import LAYOUTS
+from raybench.machine import git_commit
+from raybench.scene import SPREADS
 
 
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--spheres", type=int, nargs="+", default=[1000, 10_000, 100_000, 1_000_000])
-    p.add_argument("--layouts", nargs="+", default=["even"], choices=LAYOUTS)
+    p.add_argument("--layouts", nargs="+", default=["even"], choices=SPREADS)
     p.add_argument("--size", default="1680x1050")
     p.add_argument("--rounds", type=int, default=5)
     p.add_argument("--frames", type=int, default=2)
@@ -53,8 +54,7 @@ def main():
             tracers = {}
             try:
                 for w in (2, 4):
-                    cpu.TREE_WIDTH = w
-                    tracers[w] = cpu.Tracer(scene.spheres, width, height, threads=args.threads)
+                    tracers[w] = cpu.Tracer(scene.spheres, width, height, threads=args.threads, tree_width=w)
                     tracers[w].compile()
                     for _ in range(2):
                         tracers[w].trace(basis)

@@ -61,8 +61,9 @@ import numpy as np
 import raybench
 from raybench import Camera, backends
 from raybench.backends.cpu import default_threads
-from raybench.machine import git_commit, usable_cores
-from raybench.scene import LAYOUTS
+from raybench.host import usable_cores
+from raybench.machine import git_commit
+from raybench.scene import SPREADS
 
 
 def primary_rays(basis: np.ndarray, width: int, height: int):
@@ -204,7 +205,7 @@ def compare(layout, n, shape, width, height, args, mi, dr, base):
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--spheres", type=int, nargs="+", default=[1000, 10_000, 100_000])
-    p.add_argument("--layouts", nargs="+", default=list(LAYOUTS), choices=LAYOUTS)
+    p.add_argument("--layouts", nargs="+", default=list(SPREADS), choices=SPREADS)
     p.add_argument("--size", default="1680x1050")
     p.add_argument("--rounds", type=int, default=7)
     p.add_argument("--frames", type=int, default=3, help="frames a side in each round")

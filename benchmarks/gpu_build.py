@@ -1,4 +1,4 @@
-"""The BVH built on the GPU (backends.cuda_build) against the host's binned
+"""The BVH built on the GPU (backends.cuda.build) against the host's binned
 SAH build (raybench.bvh), on random_spheres(n, seed=0), one JSON record per
 sphere count (printed as it is measured, and all of them written to --json
 with the machine and the commit):
@@ -10,7 +10,7 @@ with the machine and the commit):
 - the refit's time (the boxes from moved spheres, the tree kept), by events;
 - the host build's time (compiled code, every core, as raybench reports it)
   and its upload;
-- the SAH cost of both trees (raybench.tree_cost), and their depths and rows;
+- the SAH cost of both trees (raybench.bvh.cost), and their depths and rows;
 - the walk's kernel time on each tree (1680x1050, the default camera), both
   walks (a ray at a time, packets), median of --frames, and the share of
   pixels whose hit differs between the two trees (0 on a GPU, up to the
@@ -53,8 +53,9 @@ import numpy as np
 from numba import cuda
 
 import raybench
-from raybench import Camera, backends, bvh, files, machine, tree_cost
-from raybench.backends import cuda_build
+from raybench import Camera, backends, bvh, files, machine
+from raybench.backends.cuda import build as cuda_build
+from raybench.bvh import cost as tree_cost
 
 STEPS = ("codes", "sort", "hierarchy", "bounds")
 

@@ -1,4 +1,4 @@
-"""A CPU model of the tree that backends/cuda_build.py builds on the GPU: the
+"""A CPU model of the tree that backends/cuda/build.py builds on the GPU: the
 same Morton codes, the same stable order, Karras's hierarchy, the same
 bottom-up pass (boxes, SAH costs, the leaves it cuts, the treelets it
 rebuilds) and reorder, in the same float32 arithmetic, written with NumPy and Numba's CPU compiler. Under numba's CUDA
@@ -26,8 +26,9 @@ import time
 import numba
 import numpy as np
 
-from raybench import bvh, layout, tree_cost
-from raybench.backends import cuda_build
+from raybench import bvh, layout
+from raybench.backends.cuda import build as cuda_build
+from raybench.bvh import cost as tree_cost
 
 AXIS_CELLS = cuda_build.AXIS_CELLS
 PAD = layout.PAD

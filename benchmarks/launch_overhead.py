@@ -10,7 +10,7 @@ Python, timed three ways (medians of --rounds, microseconds a launch):
   prepared   cuda.core's launch of the kernel with the arguments converted
              once, before the loop: what a launch costs without numba-cuda
 
-The GPU builder (backends/cuda_build.py) launches 20 kernels a build, so
+The GPU builder (backends/cuda/build.py) launches 20 kernels a build, so
 these say how much of a small scene's build is the host's
 (docs/startup.md#a-launchs-arguments-converted-once-leases-y3-and-y4). Needs a CUDA GPU.
 

@@ -42,7 +42,8 @@ import time
 import numpy as np
 
 import raybench
-from raybench import Camera, camera_path, cluster, sharedframe
+from raybench import Camera, camera_path, cluster
+from raybench.cluster import sharedframe, work
 
 
 def array_of(nbytes: int):
@@ -97,7 +98,7 @@ def orbit_job(client, args, scene, workers) -> dict:
     width, height = parse_size(args.orbit_size)
     cameras = camera_path.orbit(scene.camera or Camera(position=(0, 0, -1), look_at=(0, 0, 2)), args.orbit)
     per_task = args.frames_per_task or min(
-        cluster.MAX_FRAMES_PER_TASK, math.ceil(len(cameras) / (workers * cluster.TASKS_PER_WORKER))
+        work.MAX_FRAMES_PER_TASK, math.ceil(len(cameras) / (workers * work.TASKS_PER_WORKER))
     )
 
     def go(frames=cameras):
@@ -141,7 +142,7 @@ def frame_job(client, args, scene, workers, shared=True) -> dict:
     first_s = timed(go, 1)[0]  # shared: the block made here, and each worker's mapping of it
     with get_task_stream(client) as stream:
         seconds = timed(go, args.repeat)
-    pool = cluster._pool(client)
+    pool = work._pool(client)
     return {"width": width, "height": height, "frames": 1, "rows": rows, "tasks": math.ceil(height / rows),
             "shared": shared and pool.made > 0, "first_s": first_s, "seconds": seconds,
             "blocks_made": pool.made,  # 1: every repeat reused the first frame's block

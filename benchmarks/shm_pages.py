@@ -31,7 +31,7 @@ import time
 
 import numpy as np
 
-from raybench import sharedframe
+from raybench.cluster import sharedframe
 
 MADV_POPULATE_WRITE = 23  # linux/mman.h; Python 3.11's mmap module does not name it
 

@@ -10,7 +10,7 @@ of them written to --json with the machine and the commit):
   walk, Python's encoding and the map included);
 - the refit's time (the boxes from the same spheres, the tree kept), by timestamps;
 - the host build's time (compiled code, every core, as raybench reports it);
-- the SAH cost of both trees (raybench.tree_cost), their depths and rows;
+- the SAH cost of both trees (raybench.bvh.cost), their depths and rows;
 - with --frames > 0, the walk's time on each tree (Tracer.timed_trace, the
   default camera at --size), median of --frames.
 
@@ -32,10 +32,11 @@ import time
 import numpy as np
 
 import raybench
-from raybench import Camera, backends, bvh, files, machine, tree_cost
+from raybench import Camera, backends, bvh, files, machine
 from raybench.backends.wgpu import adapters, compute
 from raybench.backends.wgpu import build as gpu_build
 from raybench.backends.wgpu.tracer import timestamp_period
+from raybench.bvh import cost as tree_cost
 
 
 class Clock:

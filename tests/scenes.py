@@ -3,7 +3,7 @@
 import numpy as np
 
 from raybench import Camera, Scene, random_spheres
-from raybench.scene import LAYOUTS
+from raybench.scene import SPREADS
 
 
 def random_camera(rng) -> Camera:
@@ -25,7 +25,7 @@ def generated(rng, n):
 def layouts(rng, n):
     """random_spheres in one of its denser layouts (larger overlapping
     spheres, clusters, a wide depth range), from the default camera."""
-    layout = str(rng.choice([x for x in LAYOUTS if x != "even"]))
+    layout = str(rng.choice([x for x in SPREADS if x != "even"]))
     return random_spheres(n, int(rng.integers(2**31)), layout=layout), Camera()
 
 

@@ -9,9 +9,11 @@ import pytest
 from scenes import IN_VIEW, KINDS, SCENES, chain, one_point
 
 import raybench
-from raybench import Scene, bvh, kernels, layout
+from raybench import Scene, bvh, compiled, kernels, layout
 from raybench.backends import cpu as cpu_backend
 from raybench.backends import cuda as cuda_backend
+from raybench.backends import limits
+from raybench.bvh import oneshot, sah
 
 # The algorithm as plain Python on NumPy float32 scalars, run without a compiler.
 K = kernels.build(lambda f: f)
@@ -25,9 +27,8 @@ def brute(scene, camera, width, height):
 
 
 @pytest.fixture(params=[2, 4], ids=["binary", "wide"])
-def tree_width(request, monkeypatch):
+def tree_width(request):
     """The CPU packets' tree: the binary one, and the same collapsed into 4-wide nodes."""
-    monkeypatch.setattr(cpu_backend, "TREE_WIDTH", request.param)
     return request.param
 
 
@@ -37,7 +38,7 @@ def test_cpu_bvh_equals_brute_force(rng, kind, tree_width):
     scene, camera = SCENES[kind](rng, n)
     width, height = int(rng.integers(20, 60)), int(rng.integers(10, 40))
     want = brute(scene, camera, width, height)
-    got = raybench.render(scene, camera, width, height, device="cpu", accel="bvh", threads=3)
+    got = raybench.render(scene, camera, width, height, device="cpu", accel="bvh", threads=3, tree_width=tree_width)
     assert np.array_equal(got.hits, want.hits), (got.hits != want.hits).sum()
     assert np.array_equal(got.image, want.image)
     if kind in IN_VIEW and n >= 100:  # not vacuous: something was hit (a few spheres may all be out of view)
@@ -51,7 +52,7 @@ def test_cpu_packets_at_the_edges(rng, size, tree_width):
     than rows."""
     scene, camera = KINDS["generated"](rng, int(rng.integers(50, 300)))
     want = brute(scene, camera, *size)
-    got = raybench.render(scene, camera, *size, device="cpu", threads=int(rng.integers(1, 9)))
+    got = raybench.render(scene, camera, *size, device="cpu", threads=int(rng.integers(1, 9)), tree_width=tree_width)
     assert np.array_equal(got.hits, want.hits) and np.array_equal(got.image, want.image)
 
 
@@ -61,8 +62,22 @@ def test_ties_go_to_the_smaller_index(rng, tree_width):
     s = scene.spheres.copy()
     s[3] = 1.5
     same = Scene(s[0:3].T, s[3], s[4:7].T)
-    frame = raybench.render(same, camera, 24, 16, device="cpu")
+    frame = raybench.render(same, camera, 24, 16, device="cpu", tree_width=tree_width)
     assert set(np.unique(frame.hits)) <= {-1, 0} and (frame.hits == 0).any()
+
+
+def test_tree_width_is_an_option_of_the_bvh_packets(rng):
+    """tree_width picks the CPU packets' tree; it means nothing to brute force
+    or to Whitted's walk, and only 2 and 4 are built."""
+    spheres = raybench.random_spheres(5, int(rng.integers(2**31))).spheres
+    for options, message in (
+        ({"accel": "none", "tree_width": 2}, "tree_width: applies to the BVH's packets only"),
+        ({"tree_width": 3}, "tree_width: must be one of 2, 4, got 3"),
+    ):
+        with pytest.raises(raybench.RaybenchError, match=message):
+            raybench.backends.tracer("cpu", spheres, 8, 8, **options)
+    with pytest.raises(raybench.RaybenchError, match="option 'tree_width' does not apply to device cuda"):
+        raybench.backends.tracer("cuda", spheres, 8, 8, tree_width=2)
 
 
 def test_sphere_prefix_builds_its_own_tree(rng):
@@ -81,7 +96,7 @@ def test_sphere_prefix_builds_its_own_tree(rng):
 @pytest.mark.slow
 @pytest.mark.gpu
 @pytest.mark.skipif(not cuda_backend.available(), reason="no CUDA GPU and the simulator is off")
-@pytest.mark.parametrize("walk", cuda_backend.WALKS)
+@pytest.mark.parametrize("walk", limits.WALKS)
 @pytest.mark.parametrize("kind", ["generated", "inside", "one_point", "duplicates", "line", "none"])
 def test_cuda_bvh_equals_brute_force(rng, kind, walk):
     """The walks compiled for CUDA: bit for bit under the simulator, within
@@ -331,7 +346,7 @@ def test_tree_split_by_all_threads(rng, kind, monkeypatch):
     same on any number of threads."""
     scene, _ = SCENES[kind](rng, int(rng.integers(1, 3000)))
     wide = int(rng.integers(2, 64))
-    monkeypatch.setattr(bvh, "SLICE", int(rng.integers(1, 300)))
+    monkeypatch.setattr(sah, "SLICE", int(rng.integers(1, 300)))
     one = bvh.build(scene.spheres, threads=1, _wide=wide)
     check_tree(one, scene.spheres)
     many = bvh.build(scene.spheres, threads=int(rng.integers(2, 6)), _wide=wide)
@@ -346,8 +361,8 @@ def test_the_uncompiled_builder_gives_the_compiled_tree(rng, kind, monkeypatch):
     scene, _ = chain(rng, 0) if kind == "chain" else SCENES[kind](rng, int(rng.integers(1, 1500)))
     compiled_tree = bvh.build(scene.spheres)
     started = []
-    monkeypatch.setattr(bvh.compiled, "is_ready", lambda name: False)
-    monkeypatch.setattr(bvh, "_compile_elsewhere", lambda: started.append(True))
+    monkeypatch.setattr(compiled, "is_ready", lambda name: False)
+    monkeypatch.setattr(oneshot, "compile_elsewhere", lambda: started.append(True))
     with bvh.one_shot():
         python_tree = bvh.build(scene.spheres)
     assert python_tree.interpreted and not compiled_tree.interpreted and started == [True]
@@ -367,16 +382,16 @@ def test_which_one_shot_builds_run_in_python(ready, monkeypatch):
     (compiled elsewhere meanwhile), and on a GPU device one of at most
     GPU_PYTHON_MAX whatever the cache holds (no child: its process needs no
     CPU compiler). Outside one_shot(), never."""
-    monkeypatch.setattr(bvh.compiled, "is_ready", lambda name: ready)
+    monkeypatch.setattr(compiled, "is_ready", lambda name: ready)
     small, mid, large = bvh.GPU_PYTHON_MAX, bvh.GPU_PYTHON_MAX + 1, bvh.WIDE + 1
-    assert bvh._in_python(small, bvh.WIDE, "cuda") == (False, False)  # not within one_shot
+    assert oneshot.in_python(small, bvh.WIDE, "cuda") == (False, False)  # not within one_shot
     with bvh.one_shot():
         for device in ("cuda", "wgpu"):
-            assert bvh._in_python(small, bvh.WIDE, device) == (True, False)
-            assert bvh._in_python(mid, bvh.WIDE, device) == (not ready, not ready)
-            assert bvh._in_python(large, bvh.WIDE, device) == (False, False)
-        assert bvh._in_python(small, bvh.WIDE, "cpu") == (not ready, not ready)
-        assert bvh._in_python(large, bvh.WIDE, "cpu") == (False, False)
+            assert oneshot.in_python(small, bvh.WIDE, device) == (True, False)
+            assert oneshot.in_python(mid, bvh.WIDE, device) == (not ready, not ready)
+            assert oneshot.in_python(large, bvh.WIDE, device) == (False, False)
+        assert oneshot.in_python(small, bvh.WIDE, "cpu") == (not ready, not ready)
+        assert oneshot.in_python(large, bvh.WIDE, "cpu") == (False, False)
 
 
 def test_depth_is_bounded_for_a_chain(rng):
@@ -401,7 +416,7 @@ def test_median_split_halves_by_count(rng, ties):
     e = int(rng.integers(s + 2, n + 1))
     cbox = np.array([*(c[s:e].min() for c in (px, py, pz)), *(c[s:e].max() for c in (px, py, pz))], np.float32)
     outside = [a.copy() for a in (px, py, pz, pr, idx)]
-    m = bvh._median_split(px, py, pz, pr, idx, s, e, cbox)
+    m = sah._median_split(px, py, pz, pr, idx, s, e, cbox)
     assert m == s + (e - s) // 2
     ext = cbox[3:] - cbox[:3]
     if ext.max() > 0:
@@ -445,14 +460,16 @@ def test_cuda_walk_is_chosen_by_the_tree_size():
     their own default block; a ray at a time below, in its own."""
     if not cuda_backend.available():
         pytest.skip("no CUDA GPU and the simulator is off")
-    small_rows = cuda_backend.PACKET_TREE_BYTES // layout.NODE_BYTES
-    assert cuda_backend.choose_walk(small_rows) == "ray"
-    assert cuda_backend.choose_walk(small_rows + 1) == "packet"
+    small_rows = cuda_backend.tracer.PACKET_TREE_BYTES // layout.NODE_BYTES
+    assert cuda_backend.tracer.choose_walk(small_rows) == "ray"
+    assert cuda_backend.tracer.choose_walk(small_rows + 1) == "packet"
     for n, walk in ((50, "ray"), (30000, "packet")):
         tracer = raybench.backends.tracer("cuda", raybench.random_spheres(n).spheres, 16, 8)
         try:
             assert (tracer.walk, tracer.block) == (walk, cuda_backend.DEFAULT_BLOCK[walk])
-            assert (tracer.bvh.node_count * layout.NODE_BYTES > cuda_backend.PACKET_TREE_BYTES) == (walk == "packet")
+            assert (tracer.bvh.node_count * layout.NODE_BYTES > cuda_backend.tracer.PACKET_TREE_BYTES) == (
+                walk == "packet"
+            )
         finally:
             tracer.close()
 

@@ -240,7 +240,7 @@ def test_cuda_unavailable_in_process(capsys, tmp_path, out_dir, monkeypatch):
     except ImportError:
         pass  # numba-cuda missing: run() meets the real ImportError path below
     else:
-        monkeypatch.setattr(cuda_backend, "available", lambda: False)
+        monkeypatch.setattr(cuda_backend.device, "available", lambda: False)
     line = expect_error(
         capsys,
         tmp_path,

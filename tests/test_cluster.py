@@ -20,8 +20,10 @@ from PIL import Image
 
 import raybench
 import raybench.gif
-from raybench import Camera, RaybenchError, camera_path, cluster, machine, sharedframe
+from raybench import Camera, RaybenchError, camera_path, cluster, host
+from raybench.bench import machines
 from raybench.cli import run
+from raybench.cluster import sharedframe, work
 
 pytest.importorskip("distributed")
 
@@ -67,7 +69,7 @@ def test_everything_listens_on_loopback_only(running):
 
 def test_workers_split_the_cores_and_go_without_dask_malloc_setting(running):
     env = running.client.run(lambda: (os.environ.get("NUMBA_NUM_THREADS"), os.environ.get("MALLOC_TRIM_THRESHOLD_")))
-    assert set(env.values()) == {(str(max(1, machine.usable_cores() // 2)), None)}
+    assert set(env.values()) == {(str(max(1, host.usable_cores() // 2)), None)}
 
 
 @pytest.mark.parametrize("accel", ["bvh", "none"])
@@ -129,12 +131,12 @@ def test_workers_on_this_host_write_into_the_clients_block(running, rng, no_bloc
 def test_a_tile_task_on_this_host_sends_no_rows(running, rng, no_block_left):
     """_tile on a worker with the client's block: its rows are in the block, and none come back."""
     scene, camera = scene_and_camera(rng)
-    spec = cluster._spec(40, 24, "cpu", "thesis", None, None, {})
+    spec = work._spec(40, 24, "cpu", "thesis", None, None, {})
     whole = raybench.render(scene, camera, 40, 24, device="cpu")
     pool = sharedframe.Pool()
     lease = pool.lease(40, 24)
     try:
-        task = running.client.submit(cluster._tile, scene, "test-scene", spec, camera, (8, 24), lease.address)
+        task = running.client.submit(work._tile, scene, "test-scene", spec, camera, (8, 24), lease.address)
         first, image, hits, _, _ = task.result()
         assert (first, image, hits) == (8, None, None)
         np.testing.assert_array_equal(lease.image[8:], whole.image[8:])
@@ -223,7 +225,7 @@ def test_frames_of_one_size_reuse_one_block(running, rng, no_block_left):
         np.testing.assert_array_equal(frame.image, whole.image)
         np.testing.assert_array_equal(frame.hits, whole.hits)
         del frame
-    pool = cluster._pool(running.client)
+    pool = work._pool(running.client)
     assert pool.made == 1 and pool.idle == 1
     # between frames the block waits under a name of its own, which no frame's task has
     assert len([n for n in blocks() if n.startswith(f"{sharedframe.PREFIX}{os.getpid()}-")]) == 1
@@ -243,7 +245,7 @@ def test_a_held_frame_is_not_written_by_the_next(running, rng, no_block_left):
             np.testing.assert_array_equal(frame.image, whole.image)
             np.testing.assert_array_equal(frame.hits, whole.hits)
         held.pop(0)  # frame = render(...): the one before is let go once the next is made
-    assert cluster._pool(running.client).made == 2
+    assert work._pool(running.client).made == 2
 
 
 def tile_keys(client) -> int:
@@ -271,18 +273,18 @@ def test_a_frames_tiles_are_held_only_until_the_next_frames_go(running, rng, no_
 
 def test_the_workers_devices_are_asked_again_after_a_while_or_a_failure(running, rng, monkeypatch, no_block_left):
     asked = []
-    check = cluster.check_workers
-    monkeypatch.setattr(cluster, "check_workers", lambda *a, **k: asked.append(1) or check(*a, **k))
+    check = work.check_workers
+    monkeypatch.setattr(work, "check_workers", lambda *a, **k: asked.append(1) or check(*a, **k))
     cluster.release(running.client)
     scene, camera = scene_and_camera(rng, 10)
     for _ in range(3):
         cluster.render(running.client, scene, camera, 24, 16, device="cpu", rows=8)
     assert len(asked) == 1  # well within WORKERS_FRESH_S
-    monkeypatch.setattr(cluster, "WORKERS_FRESH_S", 0.0)
+    monkeypatch.setattr(work, "WORKERS_FRESH_S", 0.0)
     for _ in range(2):
         cluster.render(running.client, scene, camera, 24, 16, device="cpu", rows=8)
     assert len(asked) == 3
-    monkeypatch.setattr(cluster, "WORKERS_FRESH_S", 3600.0)
+    monkeypatch.setattr(work, "WORKERS_FRESH_S", 3600.0)
     with pytest.raises(RaybenchError, match="accel: must be one of"):
         cluster.render(running.client, scene, camera, 24, 16, device="cpu", rows=8, accel="bogus")
     cluster.render(running.client, scene, camera, 24, 16, device="cpu", rows=8)
@@ -316,7 +318,7 @@ def test_another_size_gets_its_own_block(running, rng, no_block_left):
         np.testing.assert_array_equal(frame.image, whole.image)
         np.testing.assert_array_equal(frame.hits, whole.hits)
         del frame
-    pool = cluster._pool(running.client)
+    pool = work._pool(running.client)
     assert pool.made == 3 and pool.idle == 1  # a size's blocks let go for the next size
     assert len([n for n in blocks() if n.startswith(f"{sharedframe.PREFIX}{os.getpid()}-")]) == 1
     assert max(mapped(running.client)) <= sharedframe.KEEP_BLOCKS
@@ -332,7 +334,7 @@ def test_an_interrupted_frames_block_is_not_lent_again(running, monkeypatch, no_
     monkeypatch.undo()
     frame = cluster.render(running.client, scene, width=32, height=32, device="cpu", rows=8)
     np.testing.assert_array_equal(frame.image, raybench.render(scene, width=32, height=32, device="cpu").image)
-    assert cluster._pool(running.client).made == 2  # a new block, not the one a late task might still write
+    assert work._pool(running.client).made == 2  # a new block, not the one a late task might still write
 
 
 def test_without_a_block_the_tiles_are_sent(running, rng, monkeypatch, no_block_left):
@@ -346,7 +348,7 @@ def test_without_a_block_the_tiles_are_sent(running, rng, monkeypatch, no_block_
     scene, camera = scene_and_camera(rng)
     frame = cluster.render(running.client, scene, camera, 40, 24, device="cpu", rows=8)
     np.testing.assert_array_equal(frame.image, raybench.render(scene, camera, 40, 24, device="cpu").image)
-    assert cluster._pool(running.client).made == 0
+    assert work._pool(running.client).made == 0
 
 
 def test_closing_the_cluster_leaves_nothing_in_dev_shm():
@@ -371,7 +373,7 @@ def test_cuda_tiles_are_the_single_process_frame_bit_for_bit(running, rng):
 
 
 def test_a_frame_too_large_to_assemble_here_is_refused_before_work(running, monkeypatch):
-    monkeypatch.setattr(cluster, "host_available_bytes", lambda: 64 * 48 * 7 - 1)
+    monkeypatch.setattr(work, "host_available_bytes", lambda: 64 * 48 * 7 - 1)
     with pytest.raises(RaybenchError, match=r"64x48 .* more than .* on the host \(where the frame is assembled\)"):
         cluster.render(running.client, raybench.random_spheres(3), width=64, height=48, device="cpu")
 
@@ -664,7 +666,7 @@ def test_cli_bench_runs_once_a_machine_on_a_worker(running, tmp_path, capsys):
     settings = json.loads(run_info)["settings"]
     assert settings["worker"] in workers and settings["pid"] == workers[settings["worker"]] != os.getpid()
     assert settings["host"] == socket.gethostname() and settings["devices"] == ["cpu"]
-    assert records[0]["run"]["label"] == cluster._slug(socket.gethostname())
+    assert records[0]["run"]["label"] == machines._slug(socket.gethostname())
     assert [r["spheres"] for r in records] == [100, 500, 1000] and all(r["device"] == "cpu" for r in records)
     assert len(list(out.glob("report-*/report.md"))) == 1
 
@@ -672,13 +674,13 @@ def test_cli_bench_runs_once_a_machine_on_a_worker(running, tmp_path, capsys):
 @pytest.mark.slow
 def test_cli_bench_puts_two_machines_side_by_side(running, tmp_path, monkeypatch, capsys):
     # one host here: each worker is made a machine of its own
-    monkeypatch.setattr(cluster, "machine_key", lambda worker: worker["id"])
+    monkeypatch.setattr(machines, "machine_key", lambda worker: worker["id"])
     monkeypatch.setenv("RAYBENCH_SCHEDULER", running.client.scheduler.address)
     out = tmp_path / "out"
     assert run([*BENCH, "--label", "lab", "--out", str(out)]) == 0
     assert "on 2 machines of" in capsys.readouterr().out
     records = bench_records(out)
-    host = cluster._slug(socket.gethostname())
+    host = machines._slug(socket.gethostname())
     labels = {f"lab-{host}", f"lab-{host}-2"}
     assert {r["run"]["label"] for r in records} == labels and len(records) == 6
     assert {r["run"]["settings"]["worker"] for r in records} == set(running.client.run(os.getpid))
@@ -710,7 +712,7 @@ def test_cli_bench_ctrl_c_keeps_the_machines_records_written(running, tmp_path, 
         on_records([{"suite": "thesis", "n": 1}, {"suite": "thesis", "n": 2}])
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cluster, "bench", one_machine_then_ctrl_c)
+    monkeypatch.setattr(machines, "bench", one_machine_then_ctrl_c)
     out = tmp_path / "out"
     with pytest.raises(SystemExit) as stopped:
         run([*BENCH, "--scheduler", running.client.scheduler.address, "--out", str(out)])

@@ -104,8 +104,8 @@ def test_threads_follow_the_cores_the_process_may_use():
     are the usable ones, not os.cpu_count()."""
     code = (
         "import os; os.sched_setaffinity(0, {min(os.sched_getaffinity(0))}); "
-        "from raybench.backends import cpu; from raybench import machine; "
-        "print(cpu.default_threads(), machine.usable_cores(), os.cpu_count())"
+        "from raybench.backends import cpu; from raybench import host; "
+        "print(cpu.default_threads(), host.usable_cores(), os.cpu_count())"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
     assert out[:2] == ["1", "1"], out

@@ -1,4 +1,4 @@
-"""The BVH built on the GPU (backends.cuda_build): a valid tree in the layout
+"""The BVH built on the GPU (backends.cuda.build): a valid tree in the layout
 every walk reads, its sort checked against NumPy's, and walks through it that
 give the brute force's hits. Under numba's simulator where there is no GPU
 (scenes of tens of spheres: every simulated thread is a Python thread)."""
@@ -10,8 +10,10 @@ from scenes import IN_VIEW, SCENES
 from test_bvh import brute, check_tree
 
 import raybench
-from raybench import bvh, layout, tree_cost
+from raybench import bvh, layout
 from raybench.backends import cuda as cuda_backend
+from raybench.backends import limits
+from raybench.bvh.cost import sah_cost
 
 pytestmark = [
     pytest.mark.gpu,
@@ -30,7 +32,7 @@ def small(rng) -> int:
 def gpu_tree(spheres, leaf_size=None, quality=None, **options):
     from numba import cuda
 
-    from raybench.backends import cuda_build
+    from raybench.backends.cuda import build as cuda_build
 
     n = spheres.shape[1]
     given = (leaf_size is not None or quality is not None) and n >= 2
@@ -63,7 +65,7 @@ def test_model_gives_the_kernels_tree(rng, kind):
     multiply-adds, which can tip a choice between two costs equal to the
     last bit (a leaf or a row, a treelet's split): there the same cost
     within rounding."""
-    from raybench.backends import cuda_build
+    from raybench.backends.cuda import build as cuda_build
 
     model = tree_model()
     scene, _ = SCENES[kind](rng, max(small(rng), 2))
@@ -73,7 +75,7 @@ def test_model_gives_the_kernels_tree(rng, kind):
     nodes, order, ordered, depth, rows, cost = model.build(scene.spheres, quality, leaf_size)
     got = tree.to_host()
     if not sim():
-        assert tree_cost.sah_cost(got.nodes) == pytest.approx(tree_cost.sah_cost(nodes), rel=1e-4)
+        assert sah_cost(got.nodes) == pytest.approx(sah_cost(nodes), rel=1e-4)
         return
     assert np.array_equal(got.order, order) and np.array_equal(got.ordered, ordered)
     assert depth == tree.depth
@@ -91,13 +93,13 @@ def test_sah_leaves_are_the_cheapest_cut(rng):
     more than that of any fixed leaf size up to the same most ("lbvh"
     leaves: the same rows, cut elsewhere), and than a cut with no leaf of
     more than one sphere."""
-    from raybench.backends import cuda_build
+    from raybench.backends.cuda import build as cuda_build
 
     scene, _ = SCENES[str(rng.choice(["generated", "overlapping", "cloud"]))](rng, int(rng.integers(12, 33)))
-    best = tree_cost.sah_cost(gpu_tree(scene.spheres, bvh.LEAF_MAX, "sah").to_host().nodes)
+    best = sah_cost(gpu_tree(scene.spheres, bvh.LEAF_MAX, "sah").to_host().nodes)
     for size in range(1, bvh.LEAF_MAX + 1):
         fixed = gpu_tree(scene.spheres, size, "lbvh").to_host()
-        assert best <= tree_cost.sah_cost(fixed.nodes) * (1 + 1e-5)
+        assert best <= sah_cost(fixed.nodes) * (1 + 1e-5)
     with pytest.raises(ValueError, match="quality: must be one of sah, treelet, lbvh, got 'best'"):
         cuda_build.Builder(4, quality="best")
 
@@ -111,18 +113,18 @@ def test_treelets_lower_the_cost_and_keep_leaves_ranges(rng, monkeypatch, kind):
     the same tree; the model's tree."""
     from numba import cuda
 
-    from raybench.backends import cuda_build
+    from raybench.backends.cuda import build as cuda_build
 
     monkeypatch.setattr(cuda_build, "TREELET_PASSES", int(rng.integers(1, 4)))
     scene, _ = SCENES[kind](rng, int(rng.integers(12, 33)))
-    sah = tree_cost.sah_cost(gpu_tree(scene.spheres, quality="sah").to_host().nodes)
+    sah = sah_cost(gpu_tree(scene.spheres, quality="sah").to_host().nodes)
     builder = cuda_build.Builder(len(scene), quality="treelet")
     d_spheres = cuda.to_device(scene.spheres)
     builder.launch_build(d_spheres)
     tree = builder.tree(builder.read_depth(), 0.0).to_host()
     check_tree(tree, scene.spheres)
-    assert tree_cost.sah_cost(tree.nodes) <= sah * (1 + 1e-5)
-    assert builder.read_cost() == pytest.approx(tree_cost.sah_cost(tree.nodes), rel=1e-5)
+    assert sah_cost(tree.nodes) <= sah * (1 + 1e-5)
+    assert builder.read_cost() == pytest.approx(sah_cost(tree.nodes), rel=1e-5)
     up = builder.up.copy_to_host()
     leaf_up = builder.leaf_up.copy_to_host()
     for link in leaf_up:
@@ -146,7 +148,7 @@ def test_sort_is_stable_by_morton_code(rng):
     made to collide often (centres on a coarse grid)."""
     from numba import cuda
 
-    from raybench.backends import cuda_build
+    from raybench.backends.cuda import build as cuda_build
 
     n = small(rng)
     scene, _ = SCENES["generated"](rng, n)
@@ -190,12 +192,12 @@ def test_gpu_tree_walks_give_the_brute_force(rng, monkeypatch, kind):
     """Both walks on the GPU's tree (of any quality): the brute force's hits,
     bit for bit under the simulator, within rounding on a GPU (its compiler
     may fuse multiply-adds; test_bvh's CUDA test says the same)."""
-    from raybench.backends import cuda_build
+    from raybench.backends.cuda import build as cuda_build
 
     monkeypatch.setattr(cuda_build, "QUALITY", str(rng.choice(cuda_build.QUALITIES)))
     scene, camera = SCENES[kind](rng, small(rng))
     width, height = (19, 13) if sim() else (643, 401)
-    walk = str(rng.choice(cuda_backend.WALKS))
+    walk = str(rng.choice(limits.WALKS))
     gpu = raybench.render(scene, camera, width, height, device="cuda", build="gpu", walk=walk, block=(8, 4))
     cpu = brute(scene, camera, width, height)
     if sim():
@@ -236,7 +238,7 @@ def test_build_is_an_option_of_cuda_only():
 
 
 def test_sah_cost_of_a_tree_by_hand():
-    """tree_cost.sah_cost against a tree worked out by hand. Row 0: a leaf of
+    """sah_cost against a tree worked out by hand. Row 0: a leaf of
     2 spheres in [0,1]^3 and a row in [2,3]x[0,1]x[0,1]; row 1: a leaf of 1
     in [2,3]x[0,1]x[0,0.5] and an empty child. Half areas (dx dy + dy dz +
     dz dx): root 7, leaf 3, row 1 2, its leaf 2; so (2 * 7 + 2 * 3 + 2 * 2 +
@@ -251,10 +253,10 @@ def test_sah_cost_of_a_tree_by_hand():
     nodes[1, 6:9], nodes[1, 9:12] = layout.EMPTY, -layout.EMPTY
     links[1, layout.REF : layout.REF + 2] = [2, 3]
     links[1, layout.COUNT : layout.COUNT + 2] = [1, 0]
-    assert tree_cost.sah_cost(nodes) == pytest.approx(26 / 7)
+    assert sah_cost(nodes) == pytest.approx(26 / 7)
     # a row no walk reaches (cuda_build leaves collapsed subtrees' rows) adds nothing
     dead = np.concatenate([nodes, nodes[:1] * 100])
-    assert tree_cost.sah_cost(dead) == pytest.approx(26 / 7)
+    assert sah_cost(dead) == pytest.approx(26 / 7)
 
 
 # --- spheres that move: refit, or rebuild ------------------------------------
@@ -269,24 +271,24 @@ def moved(rng, spheres, scale):
 
 def test_device_sah_cost_is_tree_costs(rng):
     """Builder.read_cost, summed on the device over the rows a walk reaches,
-    against tree_cost.sah_cost on the tree copied back: fresh, then refitted
+    against sah_cost on the tree copied back: fresh, then refitted
     to moved spheres."""
     from numba import cuda
 
-    from raybench.backends import cuda_build
+    from raybench.backends.cuda import build as cuda_build
 
     scene, _ = SCENES["generated"](rng, small(rng))
     builder = cuda_build.Builder(len(scene), int(rng.integers(1, 5)))
     d_spheres = cuda.to_device(scene.spheres)
     builder.launch_build(d_spheres)
     tree = builder.tree(builder.read_depth(), 0.0)
-    assert builder.read_cost() == pytest.approx(tree_cost.sah_cost(tree.to_host().nodes), rel=1e-5)
+    assert builder.read_cost() == pytest.approx(sah_cost(tree.to_host().nodes), rel=1e-5)
     spheres = moved(rng, scene.spheres, 3.0)
     d_spheres.copy_to_device(spheres)
     builder.launch_refit(d_spheres)
     refitted = tree.to_host()
     check_tree(refitted, spheres)
-    assert builder.read_cost() == pytest.approx(tree_cost.sah_cost(refitted.nodes), rel=1e-5)
+    assert builder.read_cost() == pytest.approx(sah_cost(refitted.nodes), rel=1e-5)
 
 
 @pytest.mark.parametrize("limit,want", [(np.inf, "refit"), (0.0, "build")])
@@ -294,7 +296,7 @@ def test_update_refits_within_the_limit_and_rebuilds_past_it(rng, monkeypatch, l
     """Tracer.update: a refit keeps the tree's rows (its links), a rebuild
     makes new ones; either way the frame is the brute force's of the moved
     spheres."""
-    from raybench.backends import cuda_build
+    from raybench.backends.cuda import build as cuda_build
 
     monkeypatch.setattr(cuda_build, "REFIT_LIMIT", limit)
     monkeypatch.setattr(cuda_build, "QUALITY", str(rng.choice(cuda_build.QUALITIES)))

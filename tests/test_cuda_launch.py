@@ -1,4 +1,4 @@
-"""backends.cuda_launch: a launch repeated with its arguments converted once
+"""backends.cuda.launch: a launch repeated with its arguments converted once
 does what numba-cuda's own launch does. Under numba's simulator it launches
 through numba-cuda every time; on a GPU the test also requires the fast path."""
 
@@ -7,7 +7,7 @@ import pytest
 from numba import cuda
 
 from raybench.backends import cuda as cuda_backend
-from raybench.backends.cuda_launch import Prepared
+from raybench.backends.cuda.launch import Prepared
 
 pytestmark = [
     pytest.mark.gpu,

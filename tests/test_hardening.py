@@ -344,7 +344,7 @@ def test_memory_is_checked_against_the_ulimit_before_allocating(tmp_path, args, 
 def test_host_available_bytes_honours_rlimit_as():
     import psutil
 
-    from raybench.backends.limits import host_available_bytes
+    from raybench.host import host_available_bytes
 
     soft, hard = resource.getrlimit(resource.RLIMIT_AS)
     used = psutil.Process().memory_info().vms
@@ -675,7 +675,7 @@ def test_option_values_are_shown_as_plain_numbers(options, needle):
 def test_cgroup_memory_limit_is_read(tmp_path, version):
     """A container's limit, as cgroup v1 and v2 show it (a fake /sys tree):
     the limit less the usage; no limit where it says "max" or a huge number."""
-    from raybench.backends.limits import _cgroup_headroom
+    from raybench.host import _cgroup_headroom
 
     proc = tmp_path / "cgroup"
     proc.write_text("0::/box\n" if version == 2 else "4:memory:/box\n1:cpu:/\n")

@@ -162,7 +162,7 @@ def occupied(scene: Scene, cells=(128, 80)) -> float:
     return len(set(zip(u.tolist(), v.tolist()))) / (cells[0] * cells[1])
 
 
-@pytest.mark.parametrize("layout", [x for x in scene_module.LAYOUTS if x != "even"])
+@pytest.mark.parametrize("layout", [x for x in scene_module.SPREADS if x != "even"])
 def test_denser_layouts(rng, layout):
     """Each layout: deterministic by seed, n spheres in front of the camera
     (none reaching it), and what its name says, measured against the even spread of the same n and seed."""

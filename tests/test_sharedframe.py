@@ -1,4 +1,4 @@
-"""raybench.sharedframe in one process (it plays the worker too): blocks kept
+"""raybench.cluster.sharedframe in one process (it plays the worker too): blocks kept
 from frame to frame, never lent while a frame over them is held, and no name
 left in /dev/shm."""
 
@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from raybench import sharedframe
+from raybench.cluster import sharedframe
 
 pytestmark = pytest.mark.skipif(not Path(sharedframe.SHM_DIR).is_dir(), reason="no /dev/shm (not Linux)")
 
@@ -125,7 +125,7 @@ def test_no_room_no_block(pool, monkeypatch):
 
 def test_a_process_that_never_closes_its_pool_leaves_nothing(tmp_path):
     script = (
-        "import os, sys; from raybench import sharedframe\n"
+        "import os, sys; from raybench.cluster import sharedframe\n"
         "pool = sharedframe.Pool(); lease = pool.lease(32, 8); lease.end(); kept = pool.lease(32, 8)\n"
         "print(os.getpid()); sys.stdout.flush()\n"
     )

@@ -796,7 +796,7 @@ def test_worker_switches_cpu_to_cuda_and_back():
 
 
 def test_worker_reports_an_unusable_device_and_goes_on(monkeypatch):
-    monkeypatch.setattr(cuda_backend, "available", lambda: False)
+    monkeypatch.setattr(cuda_backend.device, "available", lambda: False)
     scene = random_spheres(5, 1)
     failed, traced = run_worker([request_for(scene, "cuda"), request_for(scene, "cpu")])
     assert isinstance(failed, TraceFailed) and "device cuda" in failed.message
@@ -898,7 +898,7 @@ def test_view_bad_input_is_one_line_and_exit_2(capsys, tmp_path, monkeypatch, ar
 
 
 def test_view_cuda_without_gpu_is_refused_before_the_window(capsys, monkeypatch):
-    monkeypatch.setattr(cuda_backend, "available", lambda: False)
+    monkeypatch.setattr(cuda_backend.device, "available", lambda: False)
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     code = run(["view", "--spheres", "3", "--device", "cuda"])

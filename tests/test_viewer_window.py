@@ -375,7 +375,7 @@ def test_tab_switches_live_to_cuda_or_its_simulator_and_draws_the_same_picture(d
 
 
 def test_switching_to_cuda_where_there_is_none_stays_on_the_cpu(display, monkeypatch):
-    monkeypatch.setattr(cuda_backend, "available", lambda: False)
+    monkeypatch.setattr(cuda_backend.device, "available", lambda: False)
     titles = []
     steps = [(press("Tab"), first_frame), (lambda w: titles.append(w.state.title()), first_frame)]
     script, window = play(state_for(random_spheres(5, 1), 1), (40, 30), steps)

@@ -17,9 +17,11 @@ from scenes import IN_VIEW, SCENES
 from test_bvh import brute, check_tree
 
 import raybench
-from raybench import bvh, layout, lbvh, tree_cost
+from raybench import bvh, layout
 from raybench.backends.wgpu import adapters, compute
 from raybench.backends.wgpu import build as gpu_build
+from raybench.bvh import lbvh
+from raybench.bvh.cost import sah_cost
 
 pytestmark = pytest.mark.gpu
 
@@ -73,7 +75,7 @@ def assert_models_tree(builder, stats, spheres, quality, leaf_size, subnormal=Fa
     on_gpu = builder.device.adapter_info["adapter_type"] != "CPU"
     if subnormal and on_gpu:
         check_tree(got, spheres)
-        assert tree_cost.sah_cost(got.nodes) == pytest.approx(tree_cost.sah_cost(nodes), rel=1e-4)
+        assert sah_cost(got.nodes) == pytest.approx(sah_cost(nodes), rel=1e-4)
         return
     assert np.array_equal(got.order, order)
     assert np.array_equal(got.ordered, ordered)
@@ -236,7 +238,7 @@ def moved(rng, spheres, scale):
 
 def test_refit_fits_the_moved_spheres(device, kernels, rng):
     """A refit keeps the rows' links and fits their boxes to the moved
-    spheres (a valid tree of them); its cost is tree_cost.sah_cost's of the
+    spheres (a valid tree of them); its cost is sah_cost's of the
     tree it leaves. Refitted back to the first spheres, it is the fresh tree
     again, bit for bit."""
     scene, _ = SCENES["generated"](rng, sizes(rng))
@@ -244,14 +246,14 @@ def test_refit_fits_the_moved_spheres(device, kernels, rng):
     builder = gpu_build.Builder(device, spheres, len(scene), kernels=kernels)
     stats = builder.run(builder.encode_build)
     fresh = builder.to_host(stats.depth)
-    assert stats.cost == pytest.approx(tree_cost.sah_cost(fresh.nodes), rel=1e-5)
+    assert stats.cost == pytest.approx(sah_cost(fresh.nodes), rel=1e-5)
     other = moved(rng, scene.spheres, 3.0)
     device.queue.write_buffer(spheres, 0, compute.sphere_rows(other).tobytes())
     refit = builder.run(builder.encode_refit)
     tree = builder.to_host(refit.depth)
     check_tree(tree, other)
     assert np.array_equal(tree.links[:, layout.REF :], fresh.links[:, layout.REF :])
-    assert refit.cost == pytest.approx(tree_cost.sah_cost(tree.nodes), rel=1e-5)
+    assert refit.cost == pytest.approx(sah_cost(tree.nodes), rel=1e-5)
     assert refit.depth == stats.depth
     device.queue.write_buffer(spheres, 0, compute.sphere_rows(scene.spheres).tobytes())
     again = builder.run(builder.encode_refit)

@@ -1,6 +1,6 @@
 """The pinhole camera and the per-frame basis every backend's kernel reads.
 
-Convention (design.md): forward = normalize(look_at - position),
+Convention (every backend's, and tests/reference.py's): forward = normalize(look_at - position),
 right = normalize(cross(forward, up)), true_up = cross(right, forward); the view
 plane sits at distance 1 along forward, plane_h = 2 tan(fov/2) high and
 plane_w = plane_h * W / H wide. Row 0 of the image is the top.

@@ -122,7 +122,7 @@ def json_depth(text: str, lines: bool = False) -> tuple[int, int]:
 _DECODER = json.JSONDecoder(object_pairs_hook=_unique_keys)
 
 
-def check_depth(text: str, where: str, lines: bool = False) -> None:
+def check_nesting(text: str, where: str, lines: bool = False) -> None:
     """Refuse text nested deeper than MAX_JSON_DEPTH, naming the line."""
     depth, line = json_depth(text, lines)
     if depth > MAX_JSON_DEPTH:
@@ -132,7 +132,7 @@ def check_depth(text: str, where: str, lines: bool = False) -> None:
 
 def parse(text: str, where: str):
     """The JSON document text, with no key twice in an object, its depth
-    already checked (check_depth). Any fault is one RaybenchError starting
+    already checked (check_nesting). Any fault is one RaybenchError starting
     with `where` (a file's path, or "path: line N")."""
     try:
         return _DECODER.decode(text)
@@ -149,7 +149,7 @@ def parse(text: str, where: str):
 def loads(text: str, where: str):
     """The JSON document text, strictly: nesting at most MAX_JSON_DEPTH deep,
     no key twice in an object."""
-    check_depth(text, where)
+    check_nesting(text, where)
     return parse(text, where)
 
 

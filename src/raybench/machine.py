@@ -14,16 +14,6 @@ import subprocess
 from importlib import metadata
 from pathlib import Path
 
-
-def usable_cores() -> int:
-    """The cores this process may run on: its affinity (taskset, a
-    container's cpuset), not the machine's count."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
-
-
 # FP32 lanes per multiprocessor by compute capability (CUDA C Programming
 # Guide, "Arithmetic Instructions" throughput table).
 _FP32_PER_SM = {

@@ -283,10 +283,10 @@ def render(
     "simple" on cpu and cuda, "simple" only on wgpu and under Whitted
     shading)."""
     _check_camera(camera)  # before any work
-    from . import bvh  # here: `import raybench` does not import Numba
+    from .bvh import oneshot  # here: `import raybench` does not import Numba
 
     # one frame: a small scene's tree may be built uncompiled while the builder compiles (bvh.one_shot)
-    with bvh.one_shot(), Renderer(scene, width, height, device, shading, depth, shadow_samples, **options) as r:
+    with oneshot.one_shot(), Renderer(scene, width, height, device, shading, depth, shadow_samples, **options) as r:
         return r.render(camera)
 
 

@@ -17,10 +17,10 @@ from pathlib import Path
 import numpy as np
 
 from . import lighting
-from .backends.limits import host_available_bytes
 from .camera import MAX_MAGNITUDE, Camera
 from .errors import RaybenchError, shown
 from .files import read_json, write_atomic
+from .host import host_available_bytes
 
 FORMAT = "raybench-scene"
 VERSION = 2
@@ -309,7 +309,7 @@ def random_spheres(n: int, seed: int = 0, materials: bool = False, layout: str =
     materials: the same spheres, lit for Whitted shading by one area light
     above and behind the camera, with mixed materials (mixed_materials).
 
-    layout: how the spheres are spread (LAYOUTS). "even", the above, is the
+    layout: how the spheres are spread (one of SPREADS). "even", the above, is the
     benchmark's scene; the others are denser scenes, so that a tree is not
     tuned to the even spread alone (docs/bvh-walk.md#denser-scenes-issue-16-item-6):
     - "dense": the same spread with spheres 3 times larger (about 18 layers
@@ -325,8 +325,8 @@ def random_spheres(n: int, seed: int = 0, materials: bool = False, layout: str =
         raise RaybenchError(f"sphere count: must be an integer from 0 to {MAX_GENERATED:,}, got {shown(n)}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise RaybenchError(f"seed: must be a non-negative integer, got {shown(seed)}")
-    if layout not in LAYOUTS:
-        raise RaybenchError(f"layout: must be one of {', '.join(LAYOUTS)}, got {shown(layout)}")
+    if layout not in SPREADS:
+        raise RaybenchError(f"layout: must be one of {', '.join(SPREADS)}, got {shown(layout)}")
     need = n * GENERATE_BYTES
     available = host_available_bytes()
     if need > available:
@@ -341,7 +341,7 @@ def random_spheres(n: int, seed: int = 0, materials: bool = False, layout: str =
         centers, radii = _even(rng, n, plane_w, plane_h)
     else:
         # a stream of its own, so that "even" stays what it always drew
-        centers, radii = _LAYOUTS[layout](np.random.default_rng([seed, 0x1A7]), n, plane_w, plane_h)
+        centers, radii = _SPREADS[layout](np.random.default_rng([seed, 0x1A7]), n, plane_w, plane_h)
     colors = rng.uniform(0.25, 1.0, (n, 3))
     if not materials:
         return Scene(centers, radii, colors)
@@ -372,7 +372,7 @@ def _deep(rng, n, plane_w, plane_h):
     return _even(rng, n, plane_w, plane_h, depths=(1.0, 1000.0), log_depth=True)
 
 
-# The clusters layout: spheres a blob, and the share of the picture the blobs cover.
+# The clusters spread: spheres a blob, and the share of the picture the blobs cover.
 CLUSTER_SIZE = 100
 CLUSTER_COVERAGE = 0.5
 
@@ -392,8 +392,8 @@ def _clusters(rng, n, plane_w, plane_h):
     return centers, radii
 
 
-_LAYOUTS = {"dense": _dense, "clusters": _clusters, "deep": _deep}
-LAYOUTS = ("even", *_LAYOUTS)
+_SPREADS = {"dense": _dense, "clusters": _clusters, "deep": _deep}
+SPREADS = ("even", *_SPREADS)
 
 
 # The light of the materials scenes: above the view and behind the camera,

@@ -17,7 +17,7 @@ from ..errors import RaybenchError
 DEVICES = ("cpu", "cuda", "wgpu")
 CHOICES = ("auto",) + DEVICES
 OPTIONS = {
-    "cpu": ("threads", "constant_count", "kernel", "accel", "whitted"),
+    "cpu": ("threads", "constant_count", "kernel", "accel", "whitted", "tree_width"),
     "cuda": ("block", "constant_count", "kernel", "rays", "tile", "trip", "accel", "walk", "build", "whitted"),
     "wgpu": ("workgroup", "adapter", "accel", "kernel", "walk", "build", "whitted"),
 }
@@ -104,7 +104,7 @@ def present() -> list[str]:
 
 def tracer(device: str, spheres, width: int, height: int, **options):
     """A Tracer of the (resolved) device for this scene and size; options are
-    the device's own (cpu: threads; cuda: block, rays, tile, trip, walk, build; wgpu: workgroup,
+    the device's own (cpu: threads, tree_width; cuda: block, rays, tile, trip, walk, build; wgpu: workgroup,
     adapter, walk, build) and accel ("bvh", the default, or "none"), kernel and
     constant_count."""
     name = resolve(device, options.get("adapter") if device == "wgpu" else None)

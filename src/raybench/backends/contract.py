@@ -36,6 +36,14 @@ class Tracer(Protocol):
     # C-contiguous arrays of the same shape and type (host_array's).
     image: np.ndarray
     hits: np.ndarray
+    # trace() takes rows=(first, end), tracing only those rows of the frame
+    # (the tiles of raybench.cluster): the cpu's and cuda's do.
+    traces_rows: bool
+    # launch(basis, rows=...), then fetch_into(image_rows, hit_rows) copies
+    # those rows from the device straight into the caller's memory, which
+    # pin(address, size) page-locks (fetch() into the tracer's own arrays
+    # instead): cuda's does, for a cluster's frame in shared memory.
+    fetches_into: bool
 
     def compile(self) -> float:
         """Compile what a frame needs, tracing nothing; the seconds it took."""
@@ -81,9 +89,8 @@ class TracerBase:
     walk: str | None = None
     build_s: float | None = None
     ray_counts: np.ndarray | None = None
-    # trace() takes rows=(first, end), tracing only those rows of the frame
-    # (the tiles of raybench.cluster); the cpu's and cuda's do.
     traces_rows: bool = False
+    fetches_into: bool = False
 
     def describe(self) -> dict | None:
         return None

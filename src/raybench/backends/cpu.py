@@ -30,8 +30,9 @@ import numpy as np
 from .. import bvh as bvh_mod
 from .. import compiled, kernels
 from ..errors import RaybenchError, shown
+from ..host import host_available_bytes, usable_cores
 from ..kernels import whitted as whitted_mod
-from ..kernels.trace import FAR, ZERO
+from ..kernels.constants import FAR, ZERO
 from ..layout import (
     BLUE,
     CHILD_BOX,
@@ -45,12 +46,13 @@ from ..layout import (
     REF,
     STACK,
     W_COUNT,
+    W_HI,
+    W_LO,
     W_REF,
     WIDE_STACK,
     WIDTH,
 )
 from ..lighting import Shading
-from ..machine import usable_cores
 from .contract import TracerBase, check_method, check_moved
 from .limits import (
     HOST_PIXEL_BYTES,
@@ -58,7 +60,6 @@ from .limits import (
     check_count,
     check_fits,
     check_rows,
-    host_available_bytes,
 )
 
 MAX_THREADS = 4096
@@ -232,11 +233,16 @@ _fast_band = _wide_band if _has_avx512() else _pairs_band
 # is as fast on one core and slower at 1,000 spheres on two threads
 # (docs/bvh-walk.md#measured-cpu-only-machine-amd-epyc-2-vcpus-shared).
 PACKET_W, PACKET_H = 16, 8
-# The tree the packets walk: 2, the binary SAH tree (bvh.build) as every
-# device walks it; 4, the same tree collapsed into 4-wide nodes
-# (bvh.collapse, _bvh_packets_wide). Read when a Tracer is made.
+# The tree the packets walk by default (the Tracer's tree_width): 2, the
+# binary SAH tree (bvh.build) as every device walks it; 4, the same tree
+# collapsed into 4-wide nodes (bvh.collapse, _bvh_packets_wide).
 TREE_WIDTH = 4
+TREE_WIDTHS = (2, 4)
 PACKET = PACKET_W * PACKET_H
+# The wide rows' plane columns by axis (layout.W_LO, W_HI), as plain ints: read
+# as compile-time constants, as literal offsets were.
+LO_X, LO_Y, LO_Z = W_LO
+HI_X, HI_Y, HI_Z = W_HI
 _MIDDLE = (PACKET_H // 2) * PACKET_W + PACKET_W // 2
 
 
@@ -555,12 +561,12 @@ def _wide_mask(wide, row, ox, oy, oz, margin, spread):
     w = wide[row]
     mask = 0
     for c in range(_U(WIDTH)):
-        lx = w[c] - margin - ox
-        ly = w[_U(4) + c] - margin - oy
-        lz = w[_U(8) + c] - margin - oz
-        hx = w[_U(12) + c] + margin - ox
-        hy = w[_U(16) + c] + margin - oy
-        hz = w[_U(20) + c] + margin - oz
+        lx = w[_U(LO_X) + c] - margin - ox
+        ly = w[_U(LO_Y) + c] - margin - oy
+        lz = w[_U(LO_Z) + c] - margin - oz
+        hx = w[_U(HI_X) + c] + margin - ox
+        hy = w[_U(HI_Y) + c] + margin - oy
+        hz = w[_U(HI_Z) + c] + margin - oz
         near = max(
             min(min(lx * x0, hx * x0), min(lx * x1, hx * x1)),
             max(
@@ -621,12 +627,12 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
                 for c in range(WIDTH):
                     if not (mask >> c) & 1:
                         continue
-                    lx = wide[row, c] - margin - ox
-                    ly = wide[row, 4 + c] - margin - oy
-                    lz = wide[row, 8 + c] - margin - oz
-                    hx = wide[row, 12 + c] + margin - ox
-                    hy = wide[row, 16 + c] + margin - oy
-                    hz = wide[row, 20 + c] + margin - oz
+                    lx = wide[row, LO_X + c] - margin - ox
+                    ly = wide[row, LO_Y + c] - margin - oy
+                    lz = wide[row, LO_Z + c] - margin - oz
+                    hx = wide[row, HI_X + c] + margin - ox
+                    hy = wide[row, HI_Y + c] + margin - oy
+                    hz = wide[row, HI_Z + c] + margin - oz
                     if not _rows_enter(lx, ly, lz, hx, hy, hz, ix, iy, iz, closest):
                         continue
                     # where the box's centre lies along the middle ray: insertion
@@ -766,8 +772,14 @@ class Tracer(TracerBase):
         kernel: str | None = None,
         accel: str | None = None,
         whitted: Shading | None = None,
+        tree_width: int | None = None,
     ):
         self.accel, self.kernel = check_method(accel, kernel, constant_count, {}, whitted)
+        if tree_width is not None:
+            if self.accel != "bvh" or whitted is not None:
+                raise RaybenchError("tree_width: applies to the BVH's packets only (accel='bvh', thesis shading)")
+            if tree_width not in TREE_WIDTHS:
+                raise RaybenchError(f"tree_width: must be one of 2, 4, got {shown(tree_width)}")
         if threads is None:
             threads = default_threads()
         if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or not 1 <= threads <= MAX_THREADS:
@@ -792,6 +804,7 @@ class Tracer(TracerBase):
         self.build_s = None
         self.whitted = whitted
         self.ray_counts = None
+        self.tree_width = None  # the packets' tree: with the BVH under the thesis's shading
         if whitted is not None:
             # rows take unequal time (mirrors and glass cost more): pulled in chunks, as the BVH's
             self.bands = chunks(height, self.threads)
@@ -809,7 +822,7 @@ class Tracer(TracerBase):
             self.shaded = spheres if self.count else np.zeros((7, 1), np.float32)
             self.bands = chunks(height, self.threads)
             workers = min(self.threads, len(self.bands))
-            self.tree_width = TREE_WIDTH
+            self.tree_width = TREE_WIDTH if tree_width is None else int(tree_width)
             self._kernel = _bvh_packets_wide if self.tree_width == 4 else _bvh_packets
             self._build(self.count)
         else:
@@ -839,7 +852,7 @@ class Tracer(TracerBase):
         (with the collapse into 4-wide nodes, where the packets walk those)."""
         self.bvh = bvh_mod.build(self.spheres[:, :count], threads=min(self.threads, default_threads()))
         self.build_s = self.bvh.build_s
-        if self.whitted is None and getattr(self, "tree_width", 2) == 4:
+        if self.tree_width == 4:
             if not bvh_mod.collapse_in_python(self.bvh):
                 bvh_mod.compile_collapse()
             start = time.perf_counter()

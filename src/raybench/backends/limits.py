@@ -1,10 +1,8 @@
 """Limits checked before anything is allocated or launched: sizes, memory, counts."""
 
 import numbers
-import resource
 
 import numpy as np
-import psutil
 
 from ..errors import RaybenchError, shown
 
@@ -70,54 +68,6 @@ def check_count(count, loaded: int, constant: bool = False) -> int:
     return int(count)
 
 
-def host_available_bytes() -> int:
-    """What this process may still allocate: the free memory, or less where a
-    ulimit (address space, data) or the cgroup's memory limit leaves less.
-    Beyond it an allocation ends in a MemoryError or the OOM killer."""
-    available = psutil.virtual_memory().available
-    memory = psutil.Process().memory_info()
-    for which, used in ((resource.RLIMIT_AS, memory.vms), (resource.RLIMIT_DATA, getattr(memory, "data", 0))):
-        soft = resource.getrlimit(which)[0]
-        if soft != resource.RLIM_INFINITY:
-            available = min(available, max(soft - used, 0))
-    cgroup = _cgroup_headroom()
-    if cgroup is not None:
-        available = min(available, cgroup)
-    return available
-
-
-def _cgroup_headroom(root: str = "/sys/fs/cgroup", proc: str = "/proc/self/cgroup") -> int | None:
-    """The cgroup's memory limit less its usage (cgroup v2, else v1), or None
-    where there is no limit. The process's own cgroup is read first, then
-    the root of the hierarchy, which is the container's own in a container."""
-    paths = [""]
-    try:
-        with open(proc, encoding="ascii") as f:
-            for line in f:
-                _, controllers, where = line.rstrip("\n").split(":", 2)
-                if controllers in ("", "memory") and where not in ("", "/"):
-                    paths.insert(0, where)
-    except (OSError, ValueError):
-        pass
-    for limit_file, usage_file in (
-        ("{}{}/memory.max", "{}{}/memory.current"),
-        ("{}/memory{}/memory.limit_in_bytes", "{}/memory{}/memory.usage_in_bytes"),
-    ):
-        for where in paths:
-            try:
-                with open(limit_file.format(root, where), encoding="ascii") as f:
-                    limit = f.read().strip()
-                with open(usage_file.format(root, where), encoding="ascii") as f:
-                    usage = int(f.read())
-            except (OSError, ValueError):
-                continue
-            # "max" (v2) or a huge number (v1): no limit
-            if limit == "max" or int(limit) >= 2**62:
-                return None
-            return max(int(limit) - usage, 0)
-    return None
-
-
 KERNELS = ("fast", "simple")
 # Threads per block the fast CUDA kernel can always launch: its per-thread rays
 # take registers, and 256 threads x 255 registers (the most a thread can have)
@@ -138,7 +88,7 @@ def check_kernel(kernel, constant_count: bool) -> str:
 
 ACCELS = ("bvh", "none")
 # Where a GPU's tree is built (cuda, wgpu): "host" (raybench.bvh's binned SAH
-# tree, uploaded) or "gpu" (the LBVH of backends.cuda_build or
+# tree, uploaded) or "gpu" (the LBVH of backends.cuda.build or
 # backends.wgpu.build, built where it is walked).
 BUILDS = ("host", "gpu")
 
@@ -190,3 +140,21 @@ def check_bvh_fits(device: str, spheres: int, available: float, per_sphere: int,
 
 def _bytes(n: float) -> str:
     return f"{n / 2**30:.2f} GiB" if n >= 2**30 else f"{n / 2**20:.1f} MiB"
+
+
+# The GPU backends' two BVH walks: a ray at a time (kernels.traverse, the
+# CPU's code), or a group of pixels' rays as one packet, which visits a node
+# if any of its rays enters it (cuda: a block's rays, voting with its
+# barriers; wgpu: a subgroup's, voting with subgroup operations). Each backend
+# says which it takes by default.
+WALKS = ("ray", "packet")
+
+
+def check_walk(walk, accel: str) -> str | None:
+    if walk is None:
+        return None
+    if accel != "bvh":
+        raise RaybenchError("walk: applies to the BVH walk only (accel='bvh'), not to brute force")
+    if walk not in WALKS:
+        raise RaybenchError(f"walk: must be one of {', '.join(WALKS)}, got {shown(walk)}")
+    return walk

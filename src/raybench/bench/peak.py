@@ -14,7 +14,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from ..machine import usable_cores
+from ..host import usable_cores
 
 CHAINS = 64  # CPU: independent accumulators, enough to hide FMA latency
 UNROLL = 8  # GPU: 8 chains x 8 per loop trip

@@ -59,7 +59,7 @@ from pathlib import Path
 
 from ..backends.limits import MAX_SIDE
 from ..errors import RaybenchError, shown
-from ..files import check_depth, check_writable, parse, read_text
+from ..files import check_nesting, check_writable, parse, read_text
 
 FORMAT = "raybench-results"
 VERSION = 1
@@ -135,7 +135,7 @@ def read(path) -> list[dict]:
     not ours, or damaged before its end, is an error naming the line."""
     path = Path(path)
     text = read_text(path, "results file")
-    check_depth(text, str(path), lines=True)
+    check_nesting(text, str(path), lines=True)
     lines = text.split("\n")
     # The last line holding anything: only it may be cut short. Found once, so reading is linear.
     last = max((i for i, line in enumerate(lines, 1) if line.strip()), default=0)

@@ -277,7 +277,7 @@ def run_info(machine: dict, label: str, settings: dict, argv: list[str] | None =
 def plan(settings: dict, label: str | None = None, argv: list[str] | None = None) -> tuple[list[Point], dict]:
     """This machine's points of the bench's settings, and the run info its
     records carry: the same on the command line's machine and inside a
-    cluster's worker (raybench.cluster.bench), each with its own machine's
+    cluster's worker (raybench.bench.machines.bench), each with its own machine's
     description. settings["devices"] empty: every device present here; each
     named is checked here. Its other keys are the CLI's: suites, kernels,
     accels, builds, duration_s, quick, seed, adapter (any more are kept in
@@ -316,7 +316,7 @@ def plan(settings: dict, label: str | None = None, argv: list[str] | None = None
 
 class Records:
     """A writer that keeps the records in a list: a cluster worker's run
-    (raybench.cluster.bench), sent back whole when it ends."""
+    (raybench.bench.machines.bench), sent back whole when it ends."""
 
     def __init__(self):
         self.records: list[dict] = []

@@ -67,7 +67,7 @@ from dataclasses import dataclass, field
 
 from ..backends.limits import BUILDS, FAST_MAX_THREADS
 from ..errors import RaybenchError
-from ..machine import usable_cores
+from ..host import usable_cores
 
 SUITES = ("thesis", "constant-vs-runtime", "tuning", "scaling", "secondary", "multi-gpu", "dynamic")
 ACCELS = ("bvh", "none")
@@ -85,7 +85,7 @@ SCALING_COUNTS = (10, 30, 100, 300, 1000, 3000, 10_000, 30_000, 100_000, 300_000
 SCALING_SIZE = (1680, 1050)
 SCALING_EXTRA = ((1920, 1080), 1_000_000)
 QUICK_SCALING_COUNTS = (10, 100, 1000, 10_000)
-# The denser layouts of random_spheres (scene.LAYOUTS but "even"), BVH only:
+# The denser layouts of random_spheres (scene.SPREADS but "even"), BVH only:
 # nine points a device, each the --duration (10 s by default) and a second
 # of warm-up, so about 2 minutes more of the suite on any machine; --quick
 # adds three small points (1,000 spheres at 640x400).

@@ -5,7 +5,8 @@ import math
 
 import numpy as np
 
-ZERO = np.float32(0.0)
+from .constants import ZERO
+
 # The cull test's slack, relative to |EO|^2 + r^2: 64 float32 epsilons, several
 # times the rounding of either discriminant (derivation in prepare_sphere).
 CULL_SLACK = np.float32(64.0 * 2.0**-24)

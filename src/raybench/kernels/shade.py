@@ -2,9 +2,8 @@
 
 import numpy as np
 
-ZERO = np.float32(0.0)
-ONE = np.float32(1.0)
-HALF = np.float32(0.5)
+from .constants import HALF, ONE, ZERO
+
 BYTE = np.float32(255.0)
 MISS_XY = np.float32(1024.0)
 MISS_Z = np.float32(786.0)

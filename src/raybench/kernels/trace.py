@@ -11,12 +11,7 @@ import numpy as np
 
 from ..layout import BLUE, CX, CY, CZ, GREEN, RADIUS, RED
 from . import intersect, shade, traverse, wavefront, whitted
-
-ZERO = np.float32(0.0)
-ONE = np.float32(1.0)
-HALF = np.float32(0.5)
-# Farther than any hit: the validated scene keeps coordinates under 1e15.
-FAR = np.float32(3.0e38)
+from .constants import FAR, HALF, ONE, ZERO
 
 
 def build(jit, call=None):

@@ -20,14 +20,12 @@ so 1/d stays finite and (plane - origin) * (1/d) cannot be inf * 0.
 import numpy as np
 
 from ..layout import CHILD_BOX, COUNT, INNER, PAD, REF
+from .constants import FAR, ONE, ZERO
 
-ZERO = np.float32(0.0)
-ONE = np.float32(1.0)
 # Small enough that replacing a zero component moves the ray by under 1e-20
 # of its length (far under the padding), large enough that 1/TINY times the
 # largest scene extent (2e15) is finite in float32.
 TINY = np.float32(1e-20)
-FAR = np.float32(3.0e38)
 # Array indices are unsigned: a signed one carries Python's negative-index
 # wraparound, a compare and a select on every node and sphere read of the
 # walk (the CUDA fast kernel and the CPU's cull loops dropped it the same way).

@@ -1,4 +1,4 @@
-"""The BVH built on the GPU through wgpu: backends/cuda_build.py's LBVH
+"""The BVH built on the GPU through wgpu: backends/cuda/build.py's LBVH
 (Karras 2012) ported to WGSL compute shaders, in raybench.bvh's node layout,
 so the walks read it unchanged. The same algorithm and arithmetic: the tree
 is benchmarks/gpu_tree_model.py's, bit for bit (tests/test_wgpu_build.py).
@@ -38,7 +38,8 @@ from importlib import resources
 import numpy as np
 
 from ... import bvh as bvh_mod
-from ... import layout, lbvh
+from ... import layout
+from ...bvh import lbvh
 
 QUALITIES = ("sah", "lbvh")
 # A workgroup: WebGPU's default most invocations.
@@ -63,7 +64,6 @@ SCAN_ITEMS = 4
 PARTS = THREADS
 PARTS_AT = 16  # where the parts start in the bounds buffer (after the box and the cells per unit)
 MAX_GROUPS = 65535  # a dispatch's workgroups a dimension, WebGPU's default
-PARAM_BYTES = 32  # build_common.wgsl's struct Params
 STATS_BYTES = 16
 
 
@@ -147,7 +147,7 @@ def _params(n: int, shift: int, leaf_max: int, sah: int, parts: int) -> bytes:
 @dataclass
 class Stats:
     """What the bottom-up pass leaves: the root's height (the tree's depth),
-    the rows a walk reaches, the SAH cost (tree_cost.sah_cost's, summed in
+    the rows a walk reaches, the SAH cost (bvh.cost.sah_cost's, summed in
     float32 as the model does)."""
 
     depth: int

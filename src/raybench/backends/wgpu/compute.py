@@ -16,13 +16,14 @@ import time
 import numpy as np
 
 from ... import bvh as bvh_mod
-from ... import layout, lbvh, lighting
+from ... import layout, lighting
+from ...bvh import lbvh
 from ...errors import RaybenchError, shown
+from ...host import host_available_bytes
 from ...kernels import whitted
 from ...lighting import Shading
-from ..limits import HOST_PIXEL_BYTES, check_build, check_bvh_fits, host_available_bytes
+from ..limits import HOST_PIXEL_BYTES, check_build, check_bvh_fits, check_walk
 from ..limits import check_accel as check_accel_and_kernel
-from ..walks import check_walk
 from . import build as gpu_build
 from . import shader
 

@@ -10,9 +10,10 @@ import time
 
 import numpy as np
 
+from ...host import host_available_bytes
 from ...lighting import Shading
 from ..contract import TracerBase, check_moved
-from ..limits import HOST_PIXEL_BYTES, check_count, check_fits, check_size, host_available_bytes
+from ..limits import HOST_PIXEL_BYTES, check_count, check_fits, check_size
 from . import adapters
 from .compute import RAY_KINDS, Compute, check_accel
 from .pack import Packer, packed_bytes

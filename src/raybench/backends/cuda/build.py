@@ -48,11 +48,12 @@ from dataclasses import dataclass
 import numpy as np
 from numba import config, cuda
 
-from .. import bvh as bvh_mod
-from .. import compiled, lbvh
-from ..layout import BOX_FLOATS, COUNT, INNER, MAX_DEPTH, NODE_FLOATS, PAD, REF
-from ..lbvh import AXIS_CELLS, CODE_BITS, LEAF_SIZE, REFIT_LIMIT  # noqa: F401 - read as cuda_build.*
-from .cuda_launch import Launches
+from ... import bvh as bvh_mod
+from ... import compiled
+from ...bvh import lbvh
+from ...bvh.lbvh import AXIS_CELLS, CODE_BITS, LEAF_SIZE, REFIT_LIMIT  # noqa: F401 - read as cuda_build.*
+from ...layout import BOX_FLOATS, COUNT, INNER, MAX_DEPTH, NODE_FLOATS, PAD, REF
+from .launch import Launches
 
 # The radix sort: DIGIT_BITS a pass (5 passes for 30 bits); a block of
 # SORT_THREADS threads sorts a tile of SORT_THREADS * ITEMS keys, each thread
@@ -659,7 +660,7 @@ def _bounds_up(
     most), below[2 * index + 1] the rows a walk reaches from it (a leaf 0),
     costs[index] its SAH cost unnormalised (a leaf: count x its box's half
     area; a row: NODE_COST x its half area plus its children's); stats: the
-    root's height and rows, cost[0] the tree's SAH cost (tree_cost.sah_cost's).
+    root's height and rows, cost[0] the tree's SAH cost (bvh.cost.sah_cost's).
 
     leaf_max > 0 (a build): the second arrival at a row of at most leaf_max
     spheres makes it a leaf of them in its parent's slot (they are
@@ -817,7 +818,7 @@ class Builder:
         # (after treelets, the tree's order goes to the other buffer)
         self.sorted = self.values[PASSES % 2]
         self.order = self.values[1 - PASSES % 2] if quality == "treelet" else self.sorted
-        # the launches with their arguments converted once (cuda_launch): those
+        # the launches with their arguments converted once (cuda.launch): those
         # on the builder's own arrays, and those on the caller's spheres, kept
         # while the caller passes the same array
         self._own, self._with, self._spheres = Launches(64), Launches(16), None
@@ -890,7 +891,7 @@ class Builder:
         )  # fmt: skip
 
     def read_cost(self) -> float:
-        """The tree's SAH cost (tree_cost.sah_cost's, summed bottom-up on the
+        """The tree's SAH cost (bvh.cost.sah_cost's, summed bottom-up on the
         device in float32; waits for the queued work)."""
         return float(self.cost.copy_to_host()[0])
 

@@ -1,6 +1,6 @@
-"""The bounding volume hierarchy over the spheres: its builder and its layout.
+"""The BVH's builder on the host: binned SAH over the spheres, compiled with Numba.
 
-Builder: top-down binned SAH (surface area heuristic), compiled with Numba.
+Top-down binned SAH (surface area heuristic).
 An LBVH (Morton codes) builds faster on a GPU, but its splits fall at fixed
 spatial midpoints whatever the spheres do, and for the benchmark's scenes
 (spheres bunched in a view frustum, radii shrinking with the count) that gives
@@ -11,23 +11,6 @@ cores, and the trace, done every frame, is what the tree must serve.
 Every thread takes part from the root down: a range of many spheres is split
 by all of them at once, and smaller ranges are subtrees built one per thread.
 
-Layout, shared by every backend (they get the same arrays; raybench.layout
-names the columns):
-  nodes  (M, NODE_FLOATS) float32, one 64-byte row per node, one cache line:
-         the boxes of BOTH children (from CHILD_BOX[c]: lo xyz, hi xyz), so one
-         row fetch tests two boxes; columns REF + c and COUNT + c hold int32
-         (the `links` view of the same memory): the children's refs and counts.
-           count == INNER: ref is the child node's row;
-           count >= 0:     a leaf of `count` spheres from `ref` in `ordered`
-                           (0: an empty child, whose box is inverted: lo EMPTY, hi -EMPTY).
-  ordered (4, N) float32: centre and radius of the spheres in leaf order,
-         the very float32 values of the scene, so the exact test's arithmetic
-         is the brute-force path's.
-  order  (N,) int32: the original index of each ordered sphere; hits report it.
-Node 0 is the root. Every box is the union of its spheres' boxes, each sphere's
-box padded by PAD (see sphere_pad) so a box never excludes a hit the exact
-float32 test reports.
-
 Depth is bounded by MAX_DEPTH whatever the input: where SAH splits would go
 deeper, the builder splits by count (object median), and spheres whose centres
 all coincide are split by count too.
@@ -35,21 +18,18 @@ all coincide are split by count too.
 
 from __future__ import annotations
 
-import atexit
-import contextlib
-import subprocess
 import sys
 import threading
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 import numba
 import numpy as np
 
-from . import compiled
-from .errors import RaybenchError
-from .layout import (
+from .. import compiled
+from ..errors import RaybenchError
+from ..host import usable_cores
+from ..layout import (
     BOX_FLOATS,
     CHILD_BOX,
     COUNT,
@@ -60,15 +40,8 @@ from .layout import (
     NODE_FLOATS,
     PAD,
     REF,
-    W_COUNT,
-    W_HI,
-    W_LO,
-    W_REF,
-    WIDE_FLOATS,
-    WIDE_STACK,
-    WIDTH,
 )
-from .machine import usable_cores
+from . import oneshot
 
 BINS = 16
 LEAF_MAX = 8
@@ -742,11 +715,6 @@ def _pack_all(nodes, links, tasks, base, ends, starts, packed, packed_links, par
         _pack(nodes, links, tasks, base, ends, starts, packed, packed_links, w, parts)
 
 
-def memory_bytes(n: int) -> int:
-    """Host bytes a build of n spheres holds at its peak."""
-    return max(n, 1) * BUILD_SPHERE_BYTES
-
-
 def compile_builder(wide: bool = True) -> None:
     """Compile (or load from Numba's cache) the builder's one-thread way and,
     if `wide`, its way for more than WIDE spheres, so build times leave it out.
@@ -756,115 +724,9 @@ def compile_builder(wide: bool = True) -> None:
     spheres = np.ones((7, 9), np.float32)
     spheres[:3] = np.arange(27, dtype=np.float32).reshape(3, 9) % 5
     build(spheres, threads=1, _timed=False)
-    compiled.mark_ready(READY)
+    compiled.mark_ready(oneshot.READY)
     if wide:
         build(spheres, threads=1, _timed=False, _wide=2)
-
-
-# --- a one-shot picture's tree, in Python --------------------------------------------
-#
-# A process that makes one picture (raybench.render, `raybench render`) of a
-# scene of at most WIDE spheres may build its tree with the builder's own
-# code run as plain Python (compiled.as_python): the same tree, bit for bit,
-# in a fraction of a second, where compiling the builder takes many seconds
-# (docs/startup.md#a-one-shot-pictures-tree-built-by-the-builders-python-leases-z1-and-z3).
-# It does so where that is quicker:
-# - the builder is not yet in the compile cache. A child process compiles it
-#   into the cache meanwhile, beside the frame kernel's compile, and the
-#   process waits for the child before it exits, leaving nothing running;
-# - the picture is traced on a GPU (cuda, wgpu) and the scene has at most
-#   GPU_PYTHON_MAX spheres: the compiled builder, even cached, needs Numba's
-#   CPU compiler started (its registries, and SciPy where it is installed),
-#   which nothing else of such a process needs and which costs more than
-#   Python's build of so few spheres.
-# Objects that keep a scene for many frames (Renderer, the bench, the viewer)
-# build with the compiled builder: their build times are compiled code's.
-
-READY = "builder"  # compiled.mark_ready's name for the one-thread way
-GPU_PYTHON_MAX = 2048
-_one_shot = threading.local()
-_child: subprocess.Popen | None = None
-_CHILD_LOCK = threading.Lock()
-# the child compiles this very package: the folder it is in goes first on its path
-_CHILD = "import sys; sys.path.insert(0, sys.argv[1]); from raybench import bvh; bvh.compile_builder(wide=False)"
-
-
-@contextlib.contextmanager
-def one_shot():
-    """Within: a build of at most WIDE spheres may run the builder as plain
-    Python (above), and a build's way is told by last_build_in_python()."""
-    before = getattr(_one_shot, "on", False)
-    _one_shot.on = True
-    try:
-        yield
-    finally:
-        _one_shot.on = before
-
-
-def last_build_in_python() -> bool:
-    """Whether this thread's last build within one_shot() ran the builder as Python."""
-    return getattr(_one_shot, "python", False)
-
-
-def compiling_elsewhere() -> bool:
-    """Whether this process started the child that compiles the builder."""
-    return _child is not None
-
-
-def _in_python(n: int, wide: int, device: str) -> tuple[bool, bool]:
-    """(whether to build in Python, whether to compile the builder elsewhere meanwhile)."""
-    if not getattr(_one_shot, "on", False) or n > wide:
-        return False, False
-    if device != "cpu" and n <= GPU_PYTHON_MAX:
-        return True, False
-    missing = not compiled.is_ready(READY)
-    return missing, missing
-
-
-def _compile_elsewhere() -> None:
-    """Start the child that compiles the one-thread way into the cache, once
-    a process; the process waits for it at exit (wait_for_compiling_elsewhere)."""
-    global _child
-    with _CHILD_LOCK:
-        if _child is None:
-            _child = _start_child()
-            if _child is not None:
-                atexit.register(wait_for_compiling_elsewhere)
-
-
-def wait_for_compiling_elsewhere() -> None:
-    """Wait for the child's compile, if one was started. Ctrl-C meanwhile (the
-    picture is written by then) stops the child and ends the wait without a
-    traceback; the next process compiles the builder. The CLI calls this before
-    it exits, where it catches Ctrl-C itself; at exit it runs again, for scripts."""
-    if _child is None:
-        return
-    try:
-        _child.wait()
-    except KeyboardInterrupt:
-        stop_compiling_elsewhere()
-
-
-def stop_compiling_elsewhere() -> None:
-    """Stop the child that compiles the builder, if one runs: Ctrl-C before
-    the process reached its wait. A terminal's Ctrl-C reaches the child too, but
-    a child that cannot act on it (held stopped, or the signal sent to this
-    process alone) would hold the wait for as long as it compiles."""
-    if _child is not None:
-        _child.kill()  # a child already ended is not signalled (Popen.send_signal polls first)
-        _child.wait()
-
-
-def _start_child() -> subprocess.Popen | None:
-    try:
-        return subprocess.Popen(
-            [sys.executable, "-c", _CHILD, str(Path(__file__).resolve().parent.parent)],
-            stdin=subprocess.DEVNULL,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
-        )
-    except OSError:
-        return None  # no child: the next process compiles, or runs uncompiled again
 
 
 def _build_narrow(code, cx, cy, cz, r):
@@ -968,16 +830,16 @@ def build(
     thread; above, the top of the tree is split by all threads together, the
     subtrees below on one thread each. The tree is the same on any number of
     threads. device: the one whose walks the tree is for ("cpu", "cuda",
-    "wgpu"). Within one_shot(), a scene of up to `_wide` spheres may be built
+    "wgpu"). Within oneshot.one_shot(), a scene of up to `_wide` spheres may be built
     by the builder's uncompiled Python, the same tree (Bvh.interpreted)."""
     n = spheres.shape[1]
     if n > MAX_SPHERES:
         raise RaybenchError(f"bvh: at most {MAX_SPHERES:,} spheres, got {n:,}")
     threads = threads or usable_cores()
-    interpret, elsewhere = _in_python(n, _wide, device) if _timed else (False, False)
-    _one_shot.python = interpret
+    interpret, elsewhere = oneshot.in_python(n, _wide, device) if _timed else (False, False)
+    oneshot.note_build(interpret)
     if elsewhere:
-        _compile_elsewhere()
+        oneshot.compile_elsewhere()
     elif _timed and not interpret:
         compile_builder(wide=n > _wide)
     cx, cy, cz, r = (np.ascontiguousarray(spheres[k]) for k in range(4))
@@ -1006,100 +868,3 @@ def build(
         build_s=build_s,
         interpreted=interpret,
     )
-
-
-# ---------------------------------------------------------------- the 4-wide tree (the CPU's walk)
-
-
-@compiled.njit(nogil=True)
-def _collapse(nodes, links, wide, wide_links):
-    """Collapse the binary tree (nodes, links) into 4-wide rows (layout.W_*):
-    each wide node takes a binary node's two children and, while it has
-    fewer than WIDTH, opens its inner child of largest box surface area
-    (its two children take its place), as Embree's and tinybvh's BVH4 are
-    made from a binary SAH tree. Empty children (count 0) are dropped. The
-    rows number the wide nodes depth first, the root first; returns how
-    many rows were used."""
-    # per slot of the node being made: the binary (row, column) of its box, its ref and count
-    box_row = np.empty(WIDTH, np.int64)
-    box_col = np.empty(WIDTH, np.int64)
-    ref = np.empty(WIDTH, np.int32)
-    count = np.empty(WIDTH, np.int32)
-    # pending: (binary row whose children a wide row gets, that wide row)
-    pending = np.empty((WIDE_STACK * 4, 2), np.int64)
-    pending[0, 0], pending[0, 1] = 0, 0
-    top, used = 1, 1
-    while top > 0:
-        top -= 1
-        b, w = pending[top, 0], pending[top, 1]
-        k = 0
-        for c in range(2):
-            if links[b, COUNT + c] != 0:
-                box_row[k], box_col[k] = b, CHILD_BOX[c]
-                ref[k], count[k] = links[b, REF + c], links[b, COUNT + c]
-                k += 1
-        while k < WIDTH:
-            best, best_area = -1, np.float32(-1.0)
-            for s in range(k):
-                if count[s] == INNER:
-                    r, c0 = box_row[s], box_col[s]
-                    a = _area(nodes[r, c0], nodes[r, c0 + 1], nodes[r, c0 + 2], nodes[r, c0 + 3],
-                              nodes[r, c0 + 4], nodes[r, c0 + 5])  # fmt: skip
-                    if a > best_area:
-                        best, best_area = s, a
-            if best < 0:
-                break
-            inner = ref[best]
-            # the opened child's children take its slot and the next free one
-            # (a binary inner node has two; were one empty, it is dropped)
-            k -= 1
-            box_row[best], box_col[best], ref[best], count[best] = box_row[k], box_col[k], ref[k], count[k]
-            for c in range(2):
-                if links[inner, COUNT + c] != 0:
-                    box_row[k], box_col[k] = inner, CHILD_BOX[c]
-                    ref[k], count[k] = links[inner, REF + c], links[inner, COUNT + c]
-                    k += 1
-        for s in range(WIDTH):
-            for axis in range(3):
-                if s < k:
-                    wide[w, W_LO[axis] + s] = nodes[box_row[s], box_col[s] + axis]
-                    wide[w, W_HI[axis] + s] = nodes[box_row[s], box_col[s] + 3 + axis]
-                else:
-                    wide[w, W_LO[axis] + s] = EMPTY
-                    wide[w, W_HI[axis] + s] = EMPTY
-            if s < k and count[s] == INNER:
-                wide_links[w, W_REF + s] = used
-                wide_links[w, W_COUNT + s] = INNER
-                pending[top, 0], pending[top, 1] = ref[s], used
-                top += 1
-                used += 1
-            elif s < k:
-                wide_links[w, W_REF + s] = ref[s]
-                wide_links[w, W_COUNT + s] = count[s]
-            else:
-                wide_links[w, W_REF + s] = 0
-                wide_links[w, W_COUNT + s] = 0
-    return used
-
-
-def compile_collapse() -> None:
-    """Compile (or load) _collapse, outside any timing."""
-    _collapse(np.zeros((1, NODE_FLOATS), np.float32), np.zeros((1, NODE_FLOATS), np.int32),
-              np.zeros((1, WIDE_FLOATS), np.float32), np.zeros((1, WIDE_FLOATS), np.int32))  # fmt: skip
-
-
-def collapse_in_python(tree: Bvh) -> bool:
-    """Whether collapse(tree) runs _collapse as Python: for a tree of at most
-    WIDE spheres within one_shot(), where it takes a few ms, less than
-    loading the compiled collapse, let alone compiling it."""
-    return tree.interpreted or (getattr(_one_shot, "on", False) and tree.count <= WIDE)
-
-
-def collapse(tree: Bvh) -> np.ndarray:
-    """The 4-wide rows (layout.WIDE_FLOATS float32 columns; the int32 view holds
-    the links) of a binary tree, over the same ordered spheres (see
-    collapse_in_python for the way it runs)."""
-    wide = np.empty((max(len(tree.nodes), 1), WIDE_FLOATS), np.float32)
-    code = compiled.as_python(sys.modules[__name__]) if collapse_in_python(tree) else sys.modules[__name__]
-    used = code._collapse(tree.nodes, tree.links, wide, wide.view(np.int32))
-    return wide[: int(used)].copy()

@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .bvh import NODE_COST
-from .layout import CHILD_BOX, COUNT, INNER, REF
+from ..layout import CHILD_BOX, COUNT, INNER, REF
+from .sah import NODE_COST
 
 
 def _half_area(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:

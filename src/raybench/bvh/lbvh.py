@@ -1,4 +1,4 @@
-"""The LBVH that both GPU builders build (backends/cuda_build.py in
+"""The LBVH that both GPU builders build (backends/cuda/build.py in
 numba-cuda, backends/wgpu/build.py in WGSL): its parameters, defined once,
 with no GPU library imported.
 """

@@ -1,15 +1,5 @@
-"""CUDA backend: numba-cuda, in blocks of a chosen shape. With the BVH (accel
-"bvh", the default) one thread traces one pixel, walking the tree's nodes
-from global memory, either on its own or with the block's other rays as one
-packet (walk "ray" or "packet"; by default chosen by the tree's size). Brute
-force (accel "none") has two kernels: the simple one is the thesis's, one
-thread per pixel; the fast one gives each thread several pixels and stages
-the spheres through shared memory.
-
-The per-pixel functions are the same Python source the CPU runs (raybench.kernels),
-compiled as CUDA device functions. Under NUMBA_ENABLE_CUDASIM=1 it runs in
-numba's simulator, which is how the tests check it on machines without a GPU.
-"""
+"""The CUDA Tracer: its kernels (the per-pixel functions of raybench.kernels,
+compiled as CUDA device functions), their launches and their buffers."""
 
 from __future__ import annotations
 
@@ -19,30 +9,33 @@ import time
 import warnings
 
 import numpy as np
-from numba import config, cuda
+from numba import cuda
 from numba.cuda.core.errors import NumbaPerformanceWarning
 
-from .. import bvh as bvh_mod
-from .. import compiled, kernels
-from ..errors import RaybenchError, shown
-from ..kernels.trace import FAR, ZERO
-from ..kernels.whitted import KINDS, RAY_FLOATS, RAY_INTS, RAY_STACK
-from ..layout import CHILD_BOX, INNER, NODE_BYTES, NODE_FLOATS, RADIUS, STACK
-from ..lighting import Shading
-from . import cuda_build, limits
-from .contract import TracerBase, check_method, check_moved
-from .cuda_launch import Launches
-from .limits import (
+from ... import bvh as bvh_mod
+from ... import compiled, kernels
+from ...errors import RaybenchError, shown
+from ...host import host_available_bytes
+from ...kernels.constants import FAR, ZERO
+from ...kernels.whitted import KINDS, RAY_FLOATS, RAY_INTS, RAY_STACK
+from ...layout import CHILD_BOX, INNER, NODE_BYTES, NODE_FLOATS, RADIUS, STACK
+from ...lighting import Shading
+from .. import limits
+from ..contract import TracerBase, check_method, check_moved
+from ..limits import (
     FAST_MAX_THREADS,
     HOST_PIXEL_BYTES,
     PIXEL_BYTES,
+    WALKS,
     check_bvh_fits,
     check_count,
     check_fits,
     check_rows,
-    host_available_bytes,
+    check_walk,
 )
-from .walks import WALKS, check_walk
+from . import build as cuda_build
+from .device import require, simulated
+from .launch import Launches
 
 # The fastest measured: simple in 16x16 blocks; fast (with TRIP) in 8x8
 # (docs/floors.md#each-version-against-the-floor); the BVH walked a ray at a
@@ -80,19 +73,20 @@ _prepare_one, _may_hit, _along, _intersect_relative = _k.prepare, _k.may_hit, _k
 _render_pixel_bvh = _k.render_pixel_bvh
 _ray_axes, _children, _leaf_hits, _centre = _k.ray_axes, _k.children, _k.leaf_hits, _k.centre_along
 
-# Fast kernel defaults: each thread traces RAYS pixels, one above the other a
-# block height apart, so every sphere read from shared memory serves RAYS
-# tests; spheres are staged TILE at a time (16 bytes each).
-RAYS = 8
-TILE = 256
+# Fast kernel defaults (its options rays and tile): each thread traces
+# RAYS_PER_THREAD pixels, one above the other a block height apart, so every
+# sphere read from shared memory serves that many tests; spheres are staged
+# in shared memory STAGED at a time (16 bytes each).
+RAYS_PER_THREAD = 8
+STAGED = 256
 # Spheres tested per trip of the cull loop, one branch for all of them: 3
 # with 8x8 blocks measured 6% faster than 2 with 16x4, the earlier default, in
 # the same run; 4 no faster, with more registers (step 5 of
 # docs/floors.md#each-version-against-the-floor).
 TRIP = 3
 MAX_TRIP = 4
-MAX_RAYS = 16
-MAX_TILE = 3071  # 48 KiB of shared memory (with a pad slot), what every CUDA GPU gives a block
+MAX_RAYS_PER_THREAD = 16
+MAX_STAGED = 3071  # 48 KiB of shared memory (with a pad slot), what every CUDA GPU gives a block
 _U = np.uint64
 
 
@@ -294,7 +288,7 @@ def _prepare_kernel(basis, spheres, count, relative):
 
 
 @functools.cache
-def fast_kernel(rays: int = RAYS, tile: int = TILE, trip: int = TRIP):
+def fast_kernel(rays: int = RAYS_PER_THREAD, tile: int = STAGED, trip: int = TRIP):
     """The fast kernel for `rays` pixels per thread, `tile` spheres per
     shared-memory tile and `trip` spheres per trip of the cull loop
     (compile-time constants: the per-thread arrays must have a fixed size to
@@ -416,36 +410,6 @@ def _constant_kernel(count: int):
     return render_kernel
 
 
-def simulated() -> bool:
-    return bool(config.ENABLE_CUDASIM)
-
-
-def available() -> bool:
-    return cuda.is_available()
-
-
-def unavailable_reason() -> str:
-    reason = " ".join((cuda.cuda_error() or "no CUDA device was found").split())
-    return (
-        "device cuda: no usable NVIDIA GPU (numba-cuda looked for the CUDA driver and a CUDA device: "
-        f"{reason}); use --device cpu"
-    )
-
-
-def require() -> None:
-    if not available():
-        raise RaybenchError(unavailable_reason())
-
-
-def description() -> str:
-    require()
-    if simulated():
-        return "cuda (numba's CUDA simulator)"
-    dev = cuda.get_current_device()
-    name = dev.name.decode() if isinstance(dev.name, bytes) else dev.name
-    return f"cuda ({name})"
-
-
 def _check_block(block, kernel: str) -> tuple[int, int]:
     try:
         bx, by = (int(v) for v in block)
@@ -478,6 +442,7 @@ class Tracer(TracerBase):
 
     name = "cuda"
     traces_rows = True
+    fetches_into = True
 
     def __init__(
         self,
@@ -503,16 +468,16 @@ class Tracer(TracerBase):
             {"rays": rays is not None, "tile": tile is not None, "trip": trip is not None},
             whitted,
         )
-        rays = RAYS if rays is None else rays
-        tile = TILE if tile is None else tile
+        rays = RAYS_PER_THREAD if rays is None else rays
+        tile = STAGED if tile is None else tile
         trip = TRIP if trip is None else trip
         walk = check_walk(walk, self.accel)
         self.build = check_build(build, self.accel)
         block_given = block is not None
         if not block_given:  # for an auto walk, replaced below once the tree has chosen it
             block = DEFAULT_BLOCK[self.kernel or walk or "ray"]
-        self.rays = _check_int("rays", rays, 1, MAX_RAYS) if self.kernel == "fast" else 1
-        self.tile = _check_int("tile", tile, 1, MAX_TILE)
+        self.rays = _check_int("rays", rays, 1, MAX_RAYS_PER_THREAD) if self.kernel == "fast" else 1
+        self.tile = _check_int("tile", tile, 1, MAX_STAGED)
         self.trip = _check_int("trip", trip, 1, MAX_TRIP)
         self.block = _check_block(block, self.kernel or walk or "ray")
         free, _total = cuda.current_context().get_memory_info()
@@ -538,7 +503,7 @@ class Tracer(TracerBase):
         self.count = spheres.shape[1]
         # a frame's launches with their arguments converted once: numba-cuda's
         # conversion of a BVH kernel's arrays, every launch, fell inside the
-        # kernel's timed span (cuda_launch;
+        # kernel's timed span (cuda.launch;
         # docs/startup.md#a-launchs-arguments-converted-once-leases-y3-and-y4)
         self._launches = Launches(64)
         self.d_spheres = cuda.to_device(spheres if self.count else np.zeros((7, 1), np.float32))

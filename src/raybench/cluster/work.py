@@ -17,7 +17,7 @@ this module decides only what a worker owns and what a task is:
   whole frame's render, on cpu and cuda) or a run of whole frames of a sequence (their PNGs,
   encoded on the worker).
 - A tile's rows do not travel where they need not: the client makes the frame
-  in shared memory (raybench.sharedframe) and a worker on its host writes its
+  in shared memory (raybench.cluster.sharedframe) and a worker on its host writes its
   rows there; a worker on another host sends them through Dask. The client
   keeps that memory from frame to frame of one size (a sharedframe.Pool per
   client, let go by release(client) or Cluster.close()), with its pages
@@ -36,7 +36,6 @@ from __future__ import annotations
 import contextlib
 import math
 import os
-import re
 import threading
 import time
 import weakref
@@ -46,14 +45,14 @@ from pathlib import Path
 
 import numpy as np
 
+from ..backends.limits import PIXEL_BYTES, check_fits
+from ..camera import Camera
+from ..errors import RaybenchError, one_line
+from ..host import host_available_bytes, usable_cores
+from ..kernels.whitted import KINDS
+from ..render import PNG_LEVEL, Frame, Renderer
+from ..scene import Scene
 from . import sharedframe
-from .backends.limits import PIXEL_BYTES, check_fits, host_available_bytes
-from .camera import Camera
-from .errors import RaybenchError, one_line
-from .kernels.whitted import KINDS
-from .machine import usable_cores
-from .render import PNG_LEVEL, Frame, Renderer
-from .scene import Scene
 
 HOST = "127.0.0.1"  # every process of an embedded cluster listens here only
 SCHEDULER_ENV = "RAYBENCH_SCHEDULER"
@@ -80,7 +79,7 @@ WORKERS_FRESH_S = 2.0
 
 def gpu_count() -> int:
     """NVIDIA GPUs this process can use (0 under numba's simulator)."""
-    from . import backends
+    from .. import backends
 
     if not backends.cuda_available():
         return 0
@@ -152,7 +151,7 @@ class Cluster:
         import dask
         from distributed import Client, Scheduler, SpecCluster
 
-        from . import backends
+        from .. import backends
 
         scheduler = scheduler or os.environ.get(SCHEDULER_ENV) or None
         self.cluster = None
@@ -238,7 +237,7 @@ def check_workers(client, device: str, **options) -> dict[str, str]:
 
 
 def _worker_device(device: str, adapter: str | None) -> str:
-    from . import backends
+    from .. import backends
 
     return backends.resolve(device, adapter)
 
@@ -249,7 +248,7 @@ _renderers: OrderedDict = OrderedDict()
 # One task at a time touches a worker's renderers: a worker started with
 # several threads (a cluster joined by address) would otherwise trace two
 # tasks into one renderer's buffers at once.
-_lock = threading.Lock()
+task_lock = threading.Lock()
 
 
 def _renderer(scene: Scene, scene_key: str, spec: tuple) -> Renderer:
@@ -280,7 +279,7 @@ def _tile(
     on cuda straight from the GPU, elsewhere once from the tracer's own
     buffers, and come back as None; where this worker cannot open it (another
     host) they come back as before."""
-    with _lock:
+    with task_lock:
         try:
             renderer = _renderer(scene, scene_key, spec)
         except RaybenchError as exc:  # a worker that joined after check_workers, say
@@ -291,25 +290,25 @@ def _tile(
             tracer = renderer.tracer
             basis = camera.basis(renderer.width, renderer.height)
             first, end = rows
-            if hasattr(tracer, "fetch_into"):
+            if tracer.fetches_into:
                 # cuda: the rows copied from the GPU straight into the frame, its
                 # mapping page-locked once, not through the tracer's buffers and a
                 # copy out of them (docs/scaling.md)
                 tracer.launch(basis, rows=rows)
                 if sharedframe.fill_rows(shared, first, end - first, tracer.fetch_into, pin=tracer.pin):
-                    return first, None, None, _rays(tracer), tracer.build_s
+                    return first, None, None, _ray_counts(tracer), tracer.build_s
                 image, hits = tracer.fetch()
             else:
                 image, hits = tracer.trace(basis, rows=rows)
                 if sharedframe.write_rows(shared, first, image[first:end], hits[first:end]):
-                    return first, None, None, _rays(tracer), tracer.build_s
+                    return first, None, None, _ray_counts(tracer), tracer.build_s
             # traced already: the rows travel from the tracer's buffers
-            return first, image[first:end].copy(), hits[first:end].copy(), _rays(tracer), tracer.build_s
+            return first, image[first:end].copy(), hits[first:end].copy(), _ray_counts(tracer), tracer.build_s
         frame = renderer.render(camera, rows=rows)
     return rows[0], frame.image, frame.hits, frame.rays, frame.build_s
 
 
-def _rays(tracer) -> dict | None:
+def _ray_counts(tracer) -> dict | None:
     """The last trace's rays by kind, as Frame.rays has them."""
     counts = tracer.ray_counts
     return None if counts is None else dict(zip(KINDS, counts.tolist()))
@@ -319,14 +318,14 @@ def _hit_counts(scene: Scene, scene_key: str, spec: tuple, cameras: list[Camera]
     """A task: whole frames traced in the renderer's own buffers, each
     reduced to the count of its pixels that hit a sphere."""
     width, height = spec[0], spec[1]
-    with _lock:
+    with task_lock:
         renderer = _renderer(scene, scene_key, spec)
         return [int((renderer.tracer.trace(c.basis(width, height))[1] >= 0).sum()) for c in cameras]
 
 
 def _frames(scene: Scene, scene_key: str, spec: tuple, numbered: list[tuple[int, Camera]], level: int):
     """A task: whole frames of a sequence; [(number, PNG bytes at zlib's level)]."""
-    with _lock:
+    with task_lock:
         renderer = _renderer(scene, scene_key, spec)
         return [(n, renderer.render(camera, hits=False).png_bytes(level)) for n, camera in numbered]
 
@@ -336,7 +335,7 @@ def _frames(scene: Scene, scene_key: str, spec: tuple, numbered: list[tuple[int,
 
 def _spec(width, height, device, shading, depth, shadow_samples, options) -> tuple:
     """What names a worker's renderer besides the scene: hashable, picklable."""
-    from .backends.limits import check_size
+    from ..backends.limits import check_size
 
     width, height = check_size(width, height)
     return (width, height, device, shading, depth, shadow_samples, tuple(sorted(options.items())))
@@ -460,7 +459,7 @@ def render(
     for bit the frame one process traces on the same device: "cpu" or
     "cuda" (the devices that trace rows).
 
-    shared (default): the frame is made in shared memory (raybench.sharedframe),
+    shared (default): the frame is made in shared memory (raybench.cluster.sharedframe),
     and a worker on this host writes its rows into it, so that they do not
     travel; a worker elsewhere sends them. shared=False: every tile is sent.
     The memory is kept for the client's next frame of this size, and reused
@@ -604,8 +603,8 @@ def render_sequence(
     called for every frame, skipped ones first. The frames' paths, in order."""
     from distributed import as_completed
 
-    from .files import write_atomic
-    from .render import check_png_level
+    from ..files import write_atomic
+    from ..render import check_png_level
 
     check_png_level(png_level)
     cameras = list(cameras)
@@ -641,140 +640,3 @@ def render_sequence(
         # Ctrl-C or an error: what is written stays; what is queued is dropped.
         client.cancel(tasks)
     return paths
-
-
-# --- the benchmark on every machine ----------------------------------------------------
-
-
-def machine_key(worker: dict) -> str:
-    """The machine a worker runs on, from its entry in the scheduler's
-    worker info: its host's address."""
-    return worker["host"]
-
-
-def bench_workers(client) -> dict[str, str]:
-    """One worker per machine of the cluster: {worker address: machine key},
-    the first worker of each machine by address. A machine with several
-    workers (one per GPU, say) runs the benchmark once: two runs at once on
-    one machine would share its cores, memory bandwidth and GPUs, and each
-    would measure the other."""
-    from distributed import TimeoutError as DaskTimeout
-
-    try:
-        workers = client.scheduler_info(n_workers=-1)["workers"]
-    except (OSError, DaskTimeout) as exc:
-        raise RaybenchError(f"cluster: its scheduler did not answer ({one_line(exc)})") from None
-    machines: dict[str, str] = {}
-    for address, info in sorted(workers.items()):
-        machines.setdefault(machine_key(info), address)
-    if not machines:
-        raise RaybenchError("cluster: it has no workers")
-    return {address: key for key, address in machines.items()}
-
-
-def _slug(text: str) -> str:
-    return re.sub(r"[^A-Za-z0-9._-]+", "-", text).strip("-.")[:40] or "machine"
-
-
-def bench_labels(hosts: dict[str, str], label: str | None) -> dict[str, str]:
-    """Each worker's run label: its host name (after label and a dash, if
-    given), made unique with -2, -3, ... where two machines share a name."""
-    out, seen = {}, {}
-    for address, host in hosts.items():
-        name = _slug(host) if label is None else f"{label}-{_slug(host)}"
-        seen[name] = seen.get(name, 0) + 1
-        out[address] = name if seen[name] == 1 else f"{name}-{seen[name]}"
-    return out
-
-
-def _bench_check(devices: list[str], adapter: str | None) -> str:
-    """On a worker: its host name, once each device asked for is found there."""
-    import socket
-
-    from . import backends
-
-    for d in devices:
-        backends.resolve(d, adapter if d == "wgpu" else None)
-    return socket.gethostname()
-
-
-def _bench_run(settings: dict, label: str, argv: list[str]) -> list[dict]:
-    """A task: the bench's points measured on this worker's machine, by the
-    same loop as on the command line (bench.runner.run); its records."""
-    import socket
-
-    from .bench import runner
-
-    settings = {**settings, "host": socket.gethostname(), "pid": os.getpid()}
-    points, info = runner.plan(settings, label, argv)
-    records = runner.Records()
-    with _lock:  # no tile or frame task of this worker at the same time
-        runner.run(points, records, info, settings["duration_s"], settings["seed"], progress=False)
-    return records.records
-
-
-def bench(
-    client,
-    settings: dict,
-    label: str | None = None,
-    on_records: Callable[[list[dict]], None] | None = None,
-    argv: list[str] | None = None,
-) -> int:
-    """The benchmark (settings as bench.runner.plan takes them) on one
-    worker of each machine of the cluster (bench_workers()), all machines at
-    once, each with its own machine's description and devices (settings'
-    devices, checked on every machine first; none given: each machine's
-    own). A machine's records come back whole when its run ends, and go to
-    on_records(records) as they arrive. Each run's settings say which worker
-    ("worker"), host and process ran it. Returns how many records came; a
-    machine whose run failed is an error naming its worker, raised once the
-    others have finished."""
-    import sys
-
-    from distributed import TimeoutError as DaskTimeout
-    from distributed import as_completed
-
-    if "multi-gpu" in settings["suites"]:
-        raise RaybenchError("--suite multi-gpu: starts its own workers; run it on one machine, without --scheduler")
-    chosen = bench_workers(client)
-    try:
-        answers = client.run(
-            _bench_check, list(settings["devices"]), settings.get("adapter"), workers=list(chosen), on_error="return"
-        )
-    except (OSError, DaskTimeout) as exc:
-        raise RaybenchError(f"cluster: its workers did not answer ({one_line(exc)})") from None
-    for worker, answer in sorted(answers.items()):
-        if isinstance(answer, BaseException):
-            raise RaybenchError(f"worker {worker}: {one_line(answer)}")
-    labels = bench_labels({address: answers[address] for address in chosen}, label)
-    argv = sys.argv[1:] if argv is None else list(argv)
-    tasks = {
-        client.submit(
-            _bench_run,
-            {**settings, "worker": address},
-            labels[address],
-            argv,
-            workers=[address],
-            allow_other_workers=False,
-            pure=False,
-        ): address
-        for address in chosen
-    }
-    count, failed = 0, []
-    try:
-        for task in as_completed(tasks):
-            try:
-                records = task.result()
-            except Exception as exc:  # noqa: BLE001 - any machine's failure is named once the others end
-                failed.append(f"worker {tasks[task]}: {one_line(exc)}")
-                continue
-            count += len(records)
-            if on_records is not None:
-                on_records(records)
-    finally:
-        # Ctrl-C or an error: what arrived is kept; what is queued is dropped.
-        client.cancel(list(tasks))
-    if failed:
-        more = f" (and {len(failed) - 1} other machines failed)" if len(failed) > 1 else ""
-        raise RaybenchError(failed[0] + more)
-    return count

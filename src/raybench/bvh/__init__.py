@@ -1,0 +1,69 @@
+"""The bounding volume hierarchy over the spheres, one layout for every backend.
+
+  sah      the host's builder (binned SAH, compiled with Numba)
+  wide     its 4-wide collapse, which the CPU walks
+  oneshot  when a one-picture process runs the builder as plain Python
+  lbvh     the parameters of the GPU builders' LBVH
+  cost     a tree's SAH cost, whoever built it
+
+Layout, shared by every backend (they get the same arrays; raybench.layout
+names the columns):
+  nodes  (M, NODE_FLOATS) float32, one 64-byte row per node, one cache line:
+         the boxes of BOTH children (from CHILD_BOX[c]: lo xyz, hi xyz), so one
+         row fetch tests two boxes; columns REF + c and COUNT + c hold int32
+         (the `links` view of the same memory): the children's refs and counts.
+           count == INNER: ref is the child node's row;
+           count >= 0:     a leaf of `count` spheres from `ref` in `ordered`
+                           (0: an empty child, whose box is inverted: lo EMPTY, hi -EMPTY).
+  ordered (4, N) float32: centre and radius of the spheres in leaf order,
+         the very float32 values of the scene, so the exact test's arithmetic
+         is the brute-force path's.
+  order  (N,) int32: the original index of each ordered sphere; hits report it.
+Node 0 is the root. Every box is the union of its spheres' boxes, each sphere's
+box padded by PAD (see sphere_pad) so a box never excludes a hit the exact
+float32 test reports.
+"""
+
+from .oneshot import (
+    GPU_PYTHON_MAX,
+    compiling_elsewhere,
+    last_build_in_python,
+    one_shot,
+    stop_compiling_elsewhere,
+    wait_for_compiling_elsewhere,
+)
+from .sah import (
+    BUILD_SPHERE_BYTES,
+    DEVICE_SPHERE_BYTES,
+    LEAF_MAX,
+    MAX_SPHERES,
+    NODE_COST,
+    WIDE,
+    Bvh,
+    build,
+    compile_builder,
+    sphere_pad,
+)
+from .wide import collapse, collapse_in_python, compile_collapse
+
+__all__ = [
+    "BUILD_SPHERE_BYTES",
+    "DEVICE_SPHERE_BYTES",
+    "GPU_PYTHON_MAX",
+    "LEAF_MAX",
+    "MAX_SPHERES",
+    "NODE_COST",
+    "WIDE",
+    "Bvh",
+    "build",
+    "collapse",
+    "collapse_in_python",
+    "compile_builder",
+    "compile_collapse",
+    "compiling_elsewhere",
+    "last_build_in_python",
+    "one_shot",
+    "sphere_pad",
+    "stop_compiling_elsewhere",
+    "wait_for_compiling_elsewhere",
+]

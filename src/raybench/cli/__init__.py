@@ -1,0 +1,95 @@
+"""The command line: raybench render | view | info | bench | warmup | report.
+
+One module a command (render.py, view.py, ...), the options they share
+written once (options.py); this module gathers them under one group, and
+run() turns every mistake a user can make into one line on stderr and exit
+code 2: no traceback reaches the terminal for input we can name.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import click
+
+from .. import __version__
+from ..errors import RaybenchError, device_failure, one_line
+from . import bench, info, render, report, view, warmup
+from .options import device_options, parse_pair, parse_size
+
+__all__ = ["device_options", "entry", "main", "parse_pair", "parse_size", "run"]
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(version=__version__, prog_name="raybench")
+def main():
+    """raybench: the thesis's ray tracer on CPU and GPU, and what the GPU buys."""
+
+
+for _command in (render.render, view.view, info.info, bench.bench, warmup.warmup, report.report_cmd):
+    main.add_command(_command)
+
+
+def _interrupted() -> int:
+    """Ctrl-C: one line, exit 130, and a child compiling the builder for later
+    runs (bvh.one_shot) stopped rather than awaited."""
+    oneshot = sys.modules.get("raybench.bvh.oneshot")  # not imported: no child was started
+    if oneshot is not None:
+        oneshot.stop_compiling_elsewhere()
+    click.echo("raybench: interrupted", err=True)
+    return 130
+
+
+def run(argv=None) -> int:
+    """Entry point: turn every user error into one line and exit code 2."""
+    try:
+        main.main(args=argv, prog_name="raybench", standalone_mode=False)
+    except RaybenchError as exc:
+        click.echo(f"raybench: error: {one_line(exc)}", err=True)
+        return 2
+    except click.exceptions.NoArgsIsHelpError as exc:
+        click.echo(exc.ctx.get_help() if exc.ctx else str(exc))
+        return 2
+    except click.UsageError as exc:
+        hint = (
+            f" (see 'raybench {exc.ctx.command_path.split(' ', 1)[1]} --help')"
+            if exc.ctx and " " in exc.ctx.command_path
+            else " (see 'raybench --help')"
+        )
+        click.echo(f"raybench: error: {one_line(exc.format_message())}{hint}", err=True)
+        return 2
+    except click.ClickException as exc:
+        click.echo(f"raybench: error: {one_line(exc.format_message())}", err=True)
+        return exc.exit_code
+    except (click.exceptions.Abort, KeyboardInterrupt):
+        return _interrupted()
+    except MemoryError:
+        # Checked before the large allocations (limits.host_available_bytes);
+        # this is for the rest, under a ulimit or cgroup limit we could not foresee.
+        click.echo(
+            "raybench: error: out of memory (a ulimit or container limit may be lower than the free memory); "
+            "use a smaller --size or fewer --spheres",
+            err=True,
+        )
+        return 2
+    except Exception as exc:
+        failure = device_failure(exc)
+        if failure is None:
+            raise
+        click.echo(f"raybench: error: {one_line(failure)}; the run was stopped", err=True)
+        return 2
+    return 0
+
+
+def entry() -> None:
+    try:
+        code = run()
+        # A one-shot picture may have started a child that compiles the builder
+        # for later runs (bvh.one_shot): it is awaited here, where Ctrl-C is caught,
+        # rather than during the interpreter's shutdown, where it would print a traceback.
+        oneshot = sys.modules.get("raybench.bvh.oneshot")  # not imported: no child was started
+        if oneshot is not None:
+            oneshot.wait_for_compiling_elsewhere()  # Ctrl-C meanwhile stops the child, quietly
+    except KeyboardInterrupt:  # Ctrl-C between run's own handlers and the wait
+        code = _interrupted()
+    sys.exit(code)

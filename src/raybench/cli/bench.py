@@ -1,0 +1,197 @@
+"""raybench bench: the thesis's experiments on this machine, or on every machine
+of a Dask cluster, then a report."""
+
+from __future__ import annotations
+
+import os
+import re
+import sys
+from pathlib import Path
+
+import click
+
+from ..backends.limits import ACCELS, KERNELS
+from ..errors import RaybenchError, device_failure, one_line
+from .options import adapter_option, build_option, connect_timeout_option, open_cluster, scheduler_option
+
+
+@click.command()
+@click.option(
+    "--suite",
+    "suites",
+    multiple=True,
+    default=("thesis",),
+    show_default=True,
+    help="thesis, constant-vs-runtime, tuning, scaling, secondary (Whitted frames: shadows, mirrors, "
+    "glass), dynamic (spheres that move every frame: the tree's update and the frame), or all (every "
+    "one; brute force past a frame-time cap is skipped in scaling and secondary); repeat for several",
+)
+@click.option(
+    "--device", "devices", multiple=True, help="cpu, cuda or wgpu; repeat for several (default: every device present)"
+)
+@adapter_option()
+@click.option(
+    "--duration", type=float, help="seconds of timed frames per point, after warm-up (default 10; 0.5 with --quick)"
+)
+@click.option(
+    "--kernel",
+    "kernels",
+    multiple=True,
+    type=click.Choice(KERNELS),
+    help="kernels for the thesis and tuning suites; repeat for both (default fast; "
+    "constant-vs-runtime always uses simple, the only one with a compile-time count, "
+    "and so does secondary's brute force, the only one Whitted shading has)",
+)
+@click.option(
+    "--accel",
+    "accels",
+    multiple=True,
+    type=click.Choice(ACCELS),
+    help="bvh, none (brute force), or both repeated (the default): the thesis, tuning, scaling and "
+    "secondary suites measure each; constant-vs-runtime and test 7 are brute force only",
+)
+@build_option(multiple=True)
+@click.option("--quick", is_flag=True, help="a reduced set of points: about a minute on a 2-core laptop")
+@click.option(
+    "--out",
+    "out_dir",
+    type=click.Path(path_type=Path),
+    help="folder for the results and the report (default: raybench-results/<machine>, or /cluster with --scheduler)",
+)
+@click.option(
+    "--label",
+    help="short machine name used in the report (default: from the GPU or CPU name; with --scheduler, each "
+    "machine's host name, after this label and a dash if given)",
+)
+@click.option("--seed", type=int, default=0, show_default=True, help="seed of the random scenes")
+@click.option("--no-report", is_flag=True, help="only write the results; skip the report")
+@scheduler_option(
+    "run the suites on every machine of the running Dask cluster whose scheduler is at this address, "
+    "once a machine (on one of its workers), with its own devices and description; each machine's "
+    "records arrive when its run ends, into one results file and one report, the machines side by side"
+)
+@connect_timeout_option()
+def bench(
+    suites,
+    devices,
+    adapter,
+    kernels,
+    accels,
+    builds,
+    duration,
+    quick,
+    out_dir,
+    label,
+    seed,
+    no_report,
+    scheduler,
+    connect_timeout,
+):
+    """Run the thesis's experiments on this machine, then write a report;
+    with --scheduler, on every machine of a Dask cluster.
+
+    Results go to a JSON Lines file, one record per point as soon as it is
+    measured (across a cluster: each machine's as its run ends): an
+    interrupted run (Ctrl-C) keeps every record written.
+    """
+    import datetime
+
+    from ..bench import runner
+    from ..bench import suites as suites_mod
+    from ..bench.results import ResultsWriter
+
+    chosen = suites_mod.SUITES if "all" in suites else tuple(dict.fromkeys(suites))
+    for s in chosen:
+        if s not in suites_mod.SUITES:
+            raise RaybenchError(f"--suite: unknown suite {s!r}; choose from {', '.join(suites_mod.SUITES)} or all")
+    scheduler = scheduler or os.environ.get("RAYBENCH_SCHEDULER") or None
+    if scheduler is not None and "all" in suites:
+        chosen = tuple(s for s in chosen if s != "multi-gpu")  # it starts workers of its own: one machine's
+    if duration is None:
+        duration = 0.5 if quick else 10.0
+    if not 0.05 <= duration <= 3600:
+        raise RaybenchError(f"--duration: must be from 0.05 to 3600 seconds, got {duration:g}")
+    if seed < 0:
+        raise RaybenchError(f"--seed: must be >= 0, got {seed}")
+    if label is not None and not re.fullmatch(r"[A-Za-z0-9._-]+", label):
+        raise RaybenchError(f"--label: use letters, digits, '.', '_' and '-' only, got {label!r}")
+    if out_dir is not None and out_dir.exists() and not out_dir.is_dir():
+        raise RaybenchError(f"--out {out_dir}: is a file, not a folder")
+    settings = {
+        "suites": list(chosen),
+        "devices": list(dict.fromkeys(devices)),  # none: each machine's own, as plan() finds them
+        "kernels": list(dict.fromkeys(kernels)) or ["fast"],
+        "accels": list(dict.fromkeys(accels)) or list(ACCELS),
+        "builds": list(dict.fromkeys(builds)),
+        "duration_s": duration,
+        "quick": quick,
+        "seed": seed,
+        "adapter": adapter,
+    }
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    if scheduler is not None:
+        from ..bench import machines as on_machines
+
+        out_dir = out_dir or Path("raybench-results") / (label or "cluster")
+        results_path = out_dir / f"results-{stamp}.jsonl"
+        with open_cluster(None, "auto", scheduler, connect_timeout) as running:
+            machines = on_machines.bench_workers(running.client)
+            click.echo(
+                f"{', '.join(settings['suites'])} on {len(machines)} machine{'s' if len(machines) != 1 else ''} "
+                f"of {scheduler}, {duration:g} s a point; results: {results_path}"
+            )
+            with ResultsWriter(results_path) as writer:
+                _bench_into(
+                    writer,
+                    results_path,
+                    lambda: on_machines.bench(
+                        running.client, settings, label, lambda rs: [writer.write(r) for r in rs]
+                    ),
+                )
+    else:
+        points, info = runner.plan(settings, label)
+        label = info["label"]
+        out_dir = out_dir or Path("raybench-results") / label
+        if out_dir.exists() and not out_dir.is_dir():
+            raise RaybenchError(f"--out {out_dir}: is a file, not a folder")
+        results_path = out_dir / f"results-{stamp}.jsonl"
+        devices = info["settings"]["devices"]
+        click.echo(f"{len(points)} points on {', '.join(devices)}, {duration:g} s each; results: {results_path}")
+        with ResultsWriter(results_path) as writer:
+            _bench_into(
+                writer,
+                results_path,
+                lambda: runner.run(points, writer, info, duration, seed, progress=sys.stderr.isatty()),
+            )
+    click.echo(f"wrote {writer.count} results to {results_path}")
+    if not no_report:
+        from ..bench import report
+
+        path = report.write_report([results_path], out_dir / f"report-{stamp}")
+        click.echo(f"report: {path}")
+
+
+def _bench_into(writer, results_path, measure) -> None:
+    """bench's measure() into writer: a failure or Ctrl-C says how many of
+    its records are kept, all of them on disk already."""
+    try:
+        measure()
+    except Exception as exc:
+        failure = device_failure(exc) or (one_line(exc) if isinstance(exc, RaybenchError) else None)
+        if failure is None:
+            raise
+        kept = (
+            f"the {writer.count} finished points are in {results_path}"
+            if writer.count
+            else "no point had finished; no results were written"
+        )
+        raise RaybenchError(f"{failure}; {kept}") from None
+    except KeyboardInterrupt:
+        click.echo(
+            f"raybench: interrupted; the {writer.count} finished points are in {results_path} "
+            f"(report them with: raybench report {results_path})"
+            if writer.count
+            else "raybench: interrupted before the first point finished; no results were written",
+            err=True,
+        )
+        raise SystemExit(130) from None

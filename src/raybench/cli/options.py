@@ -1,0 +1,263 @@
+"""What the commands share: the options written once, and their parsing into
+what render(), the viewer and the backends take."""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+
+import click
+
+from ..backends.limits import ACCELS, BUILDS, KERNELS
+from ..errors import RaybenchError
+from ..files import check_writable
+from ..lighting import SHADINGS
+
+SIZE_HELP = "image size as WIDTHxHEIGHT, e.g. 1680x1050"
+
+
+def parse_pair(text: str, option: str, example: str) -> tuple[int, int]:
+    """'AxB' -> (A, B), for --size and --block."""
+    match = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text, re.ASCII)
+    if not match:
+        raise RaybenchError(f"{option}: must be two whole numbers joined by x, e.g. {example}, got {text!r}")
+    return int(match[1]), int(match[2])
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    from ..backends.limits import check_size
+
+    width, height = parse_pair(text, "--size", "800x600")
+    check_size(width, height)
+    return width, height
+
+
+def parse_block(text: str) -> tuple[int, int]:
+    return parse_pair(text, "--block", "16x16")
+
+
+def device_options(
+    *, threads=None, block=None, workgroup=None, adapter=None, kernel=None, accel=None, build=None
+) -> dict:
+    """The device options given on the command line (render's and view's),
+    parsed: one that does not apply to the device is refused by the backend,
+    in one line. Those not given are left to the backend's defaults."""
+    options = {}
+    if kernel is not None:
+        options["kernel"] = kernel
+    if accel is not None:
+        options["accel"] = accel
+    if build is not None:
+        options["build"] = build
+    if threads is not None:
+        options["threads"] = threads
+    if block is not None:
+        options["block"] = parse_block(block)
+    if workgroup is not None:
+        options["workgroup"] = parse_pair(workgroup, "--workgroup", "16x16")
+    if adapter is not None:
+        options["adapter"] = adapter
+    return options
+
+
+def options_by_device(options: dict) -> dict[str, dict]:
+    """Each device's share of device_options(), as backends.OPTIONS names
+    them: the window switches device live, and each takes its own."""
+    from ..backends import DEVICES, OPTIONS
+
+    return {device: {k: v for k, v in options.items() if k in OPTIONS[device]} for device in DEVICES}
+
+
+def check_output(path: Path, option: str = "-o", suffix: str = ".png") -> None:
+    """Refuse an output we could not write before spending time on a render."""
+    if path.suffix.lower() != suffix:
+        raise RaybenchError(f"{option} {path}: the output must be a {suffix} file")
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise RaybenchError(f"{option} {path}: folder {folder} does not exist")
+    if path.is_dir():
+        raise RaybenchError(f"{option} {path}: is a folder; give a file name")
+    if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise RaybenchError(f"{option} {path}: not writable; choose another path")
+    # os.access answers for the permissions only (and yes to root): creating a
+    # file there answers for read-only file systems and the rest too.
+    check_writable(path, option)
+
+
+def load_scene(scene_file, spheres, seed, materials=False, layout=None):
+    """The scene of --scene (a file, or an example's name: raybench.examples)
+    or --spheres N (--seed, --materials, --layout)."""
+    from .. import examples
+    from ..scene import Scene, random_spheres
+
+    if (scene_file is None) == (spheres is None):
+        raise RaybenchError("give exactly one of --scene FILE or --spheres N")
+    if scene_file is not None:
+        given = [name for name, value in (("--seed", seed), ("--materials", materials), ("--layout", layout)) if value]
+        if seed is not None or given:
+            raise RaybenchError(f"{'--seed' if seed is not None else given[0]} applies to --spheres only")
+        if scene_file in examples.NAMES and not Path(scene_file).exists():
+            return Scene.load(examples.path(scene_file))
+        return Scene.load(scene_file)
+    return random_spheres(spheres, 0 if seed is None else seed, materials=materials, layout=layout or "even")
+
+
+def shading_options(shading, depth, shadow_samples) -> dict:
+    """render()'s shading arguments from --shading, --depth, --shadow-samples."""
+    if shading != "whitted" and (depth is not None or shadow_samples is not None):
+        raise RaybenchError("--depth and --shadow-samples apply to --shading whitted only")
+    return {"shading": shading, "depth": depth, "shadow_samples": shadow_samples}
+
+
+# --- options that render and view share, each written once ------------------------
+
+
+def stacked(*decorators):
+    """One decorator of several click options, shown in the order given."""
+
+    def apply(f):
+        for decorator in reversed(decorators):
+            f = decorator(f)
+        return f
+
+    return apply
+
+
+def scene_options(verb: str):
+    """--scene, --spheres, --seed, --materials: the scene to render or show."""
+    return stacked(
+        click.option(
+            "--scene",
+            "scene_file",
+            type=click.Path(dir_okay=False),
+            help=f"scene JSON file to {verb}, or the name of an example: whitted",
+        ),
+        click.option("--spheres", type=int, help=f"{verb} N random spheres instead of a scene file"),
+        click.option("--seed", type=int, help="seed of the random spheres (default 0)"),
+        click.option(
+            "--materials",
+            is_flag=True,
+            help="the random spheres with mixed materials (plastic, mirrors, glass) and an area light",
+        ),
+    )
+
+
+def shading_option_group():
+    """--shading, --depth, --shadow-samples."""
+    return stacked(
+        click.option(
+            "--shading",
+            type=click.Choice(SHADINGS),
+            default="thesis",
+            show_default=True,
+            help="thesis: each sphere's colour darkened towards its rim; whitted: the scene's lights with "
+            "shadows, mirrors and glass",
+        ),
+        click.option("--depth", type=int, help="whitted: bounces of reflection and refraction (default 5)"),
+        click.option(
+            "--shadow-samples", type=int, help="whitted: shadow rays to each area light, for soft shadows (default 4)"
+        ),
+    )
+
+
+def size_option(help_text: str = SIZE_HELP):
+    return click.option("--size", default="800x600", show_default=True, help=help_text)
+
+
+def device_option(what: str = "where to trace"):
+    return click.option(
+        "--device",
+        default="auto",
+        show_default=True,
+        type=click.Choice(["auto", "cpu", "cuda", "wgpu"]),
+        help=f"{what}: auto picks cuda when a usable NVIDIA GPU is present, else wgpu on a GPU, else cpu",
+    )
+
+
+def adapter_option(whose: str = "wgpu"):
+    return click.option(
+        "--adapter",
+        help=f"{whose}: the adapter whose name contains this (default: the best GPU; a CPU "
+        "driver such as llvmpipe only when named)",
+    )
+
+
+def tracer_options(adapter_whose: str = "wgpu"):
+    """The options device_options() takes: how to trace, on each device."""
+    return stacked(
+        click.option("--threads", type=int, help="cpu: number of threads (default: all cores)"),
+        click.option(
+            "--block",
+            help=(
+                "cuda: thread block shape XxY (default 8x8 for the fast kernel and the BVH walked a ray at a time, "
+                "8x4 for its packets on large trees, 16x16 simple)"
+            ),
+        ),
+        click.option("--workgroup", help="wgpu: workgroup shape XxY (default 16x16)"),
+        adapter_option(adapter_whose),
+        click.option(
+            "--accel",
+            type=click.Choice(ACCELS),
+            help="bvh: walk a bounding volume hierarchy (the default); none: brute force, every sphere for "
+            "every ray (the thesis's algorithm; the default where --kernel is given). Same picture",
+        ),
+        click.option(
+            "--kernel",
+            type=click.Choice(KERNELS),
+            help="brute force only: simple, the thesis's loop, a pixel at a time; fast (its default on cpu and "
+            "cuda), rays grouped and certain misses skipped, the same picture; wgpu has simple only",
+        ),
+        build_option(),
+    )
+
+
+def build_option(multiple: bool = False):
+    return click.option(
+        "--build",
+        "builds" if multiple else "build",
+        multiple=multiple,
+        type=click.Choice(BUILDS),
+        help="cuda and wgpu, with the BVH: where its tree is built: host (the CPU's binned SAH tree, uploaded; the "
+        "default) or gpu (an LBVH built on the GPU, where it is walked)" + ("; repeat for both" if multiple else ""),
+    )
+
+
+def cluster_options():
+    """--workers, --scheduler, --tile, --connect-timeout: where a Dask cluster's workers trace."""
+    return stacked(
+        click.option(
+            "--workers",
+            type=click.IntRange(min=1),
+            help="trace across an embedded Dask cluster of N worker processes on this machine (one per GPU on "
+            "cuda; on the cpu, sharing the cores)",
+        ),
+        scheduler_option("trace across the running Dask cluster whose scheduler is at this address"),
+        click.option(
+            "--tile",
+            type=int,
+            help="across a cluster: rows of one frame's tiles, a multiple of 8 (default: about 4 tiles a worker)",
+        ),
+        connect_timeout_option(),
+    )
+
+
+def scheduler_option(what: str):
+    return click.option("--scheduler", help=f"{what}, e.g. tcp://10.0.0.5:8786 (default: $RAYBENCH_SCHEDULER)")
+
+
+def connect_timeout_option():
+    return click.option(
+        "--connect-timeout",
+        type=click.FloatRange(min=0.1, max=3600),
+        default=10.0,
+        show_default=True,
+        help="seconds to try the scheduler's address before giving up",
+    )
+
+
+def open_cluster(workers, device, scheduler, connect_timeout):
+    """The embedded cluster of --workers, or the running one at --scheduler."""
+    from ..cluster import Cluster
+
+    return Cluster(workers=workers, device=device, scheduler=scheduler, timeout=connect_timeout)

@@ -1,0 +1,36 @@
+"""raybench report: result files into a Markdown report with plots and verdicts."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from ..errors import one_line
+
+
+@click.command(name="report")
+@click.argument("results", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option(
+    "-o",
+    "--out",
+    "out_dir",
+    type=click.Path(path_type=Path),
+    default=Path("raybench-report"),
+    show_default=True,
+    help="folder for report.md and its plots",
+)
+def report_cmd(results, out_dir):
+    """Turn result files (JSON Lines from `raybench bench`) into a Markdown report
+    with plots and a verdict on each of the thesis's claims. Several files (two
+    machines, say) go side by side in one report."""
+    import warnings
+
+    from ..bench import report
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        path = report.write_report(list(results), out_dir)
+    for w in caught:
+        click.echo(f"raybench: warning: {one_line(w.message)}", err=True)
+    click.echo(f"report: {path}")

@@ -1,0 +1,153 @@
+"""raybench view: the real-time window."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from ..errors import RaybenchError
+from .options import (
+    check_output,
+    device_option,
+    device_options,
+    load_scene,
+    options_by_device,
+    parse_size,
+    scene_options,
+    shading_option_group,
+    shading_options,
+    size_option,
+    tracer_options,
+)
+
+
+def _view_help() -> str:
+    from ..viewer.bindings import help_lines
+
+    # "\b" keeps click from re-wrapping the key table.
+    return (
+        "Open a window that shows frames as fast as the device traces them.\n\n"
+        "The title bar shows the device, the sphere count, the resolution, the frame time "
+        "(averaged over the last second), frames per second, the shading and rays per second "
+        "(under whitted shading every ray cast counts: primary, shadow, reflection, refraction). "
+        "The picture is the one `raybench render` writes for the same view and shading, byte for byte.\n\n"
+        "\b\nKeys:\n" + "\n".join("  " + line for line in help_lines())
+    )
+
+
+@click.command(help=_view_help())
+@scene_options("show")
+@size_option("window size as WIDTHxHEIGHT, e.g. 1680x1050")
+@device_option("where to trace first (switch live with Tab)")
+@tracer_options(adapter_whose="wgpu, and the window")
+@shading_option_group()
+@click.option(
+    "--animate",
+    is_flag=True,
+    help="the spheres move every frame (orbits, raybench.animate), the tree following them; the title shows "
+    "its update (refit or build) and the trace apart",
+)
+@click.option("--frames", type=click.IntRange(min=1), help="close after N traced frames are shown")
+@click.option(
+    "--screenshot",
+    type=click.Path(path_type=Path),
+    help="with --frames: save the last frame, as drawn in the window, to this PNG file",
+)
+def view(
+    scene_file,
+    spheres,
+    seed,
+    materials,
+    size,
+    device,
+    threads,
+    block,
+    workgroup,
+    adapter,
+    accel,
+    kernel,
+    build,
+    shading,
+    depth,
+    shadow_samples,
+    animate,
+    frames,
+    screenshot,
+):
+    from .. import backends
+    from ..lighting import Shading
+    from ..scene import Scene
+    from ..viewer import view as open_viewer
+
+    scene = load_scene(scene_file, spheres, seed, materials)
+    width, height = parse_size(size)
+    shaded = shading_options(shading, depth, shadow_samples)
+    # checked here, before the window opens: a Whitted frame of no spheres
+    whitted = Shading.of(Scene([], [], []), depth, shadow_samples) if shading == "whitted" else None
+    if screenshot is not None:
+        if frames is None:
+            raise RaybenchError(
+                "--screenshot needs --frames N (the frame to save); in the window, P saves a screenshot"
+            )
+        check_output(screenshot, "--screenshot")
+    device = backends.resolve(device, adapter)
+    # render's options, through render's path, then each device's share of them
+    options = options_by_device(
+        device_options(
+            threads=threads, block=block, workgroup=workgroup, adapter=adapter, kernel=kernel, accel=accel, build=build
+        )
+    )
+    # Bad options are refused before the window opens, on each device they would
+    # reach: the first one, the cpu, cuda where there is one (a switch to it says
+    # so otherwise), and wgpu where it is the first or was given its own options
+    # (an adapter is looked for only then).
+    for name, given in options.items():
+        if not given or (name == "wgpu" and device != "wgpu" and not {"adapter", "workgroup"} & given.keys()):
+            continue
+        if name == "cuda" and device != "cuda":
+            try:
+                backends.resolve("cuda")
+            except RaybenchError:
+                continue
+        _check_options(name, given, whitted)
+    seed = None if scene_file is not None else (0 if seed is None else seed)
+    window = open_viewer(
+        scene,
+        device=device,
+        seed=seed,
+        size=(width, height),
+        options=options,
+        frames=frames,
+        screenshot=screenshot,
+        animate=animate,
+        **shaded,
+    )
+    if frames is not None and window.state.frames_shown < frames:
+        raise RaybenchError(
+            f"the window was closed after {window.state.frames_shown} of {frames} frames"
+            + ("; no screenshot written" if screenshot is not None else "")
+        )
+    if frames is not None:
+        shown = window.state.shown
+        lit = "" if shown.request.shading is None else ", whitted"
+        last = (
+            f"{shown.frame.width}x{shown.frame.height}, {shown.request.count:,} spheres, {shown.frame.device}{lit}, "
+            f"frame {frames} traced in {shown.trace_ms:.1f} ms"
+        )
+        click.echo(
+            f"wrote {screenshot}: {last}" if screenshot is not None else f"showed {frames} frames; the last: {last}"
+        )
+
+
+def _check_options(device: str, options: dict, whitted=None) -> None:
+    """Refuse bad device options (--threads, --block, --accel, ...) before a
+    window opens: the backend itself checks them, on an empty 1x1 tracer
+    (with whitted, a lighting.Shading of no spheres: under Whitted shading)."""
+    import numpy as np
+
+    from .. import backends
+
+    if whitted is not None:
+        options = {**options, "whitted": whitted}
+    backends.tracer(device, np.zeros((7, 0), np.float32), 1, 1, **options).close()
