@@ -18,7 +18,20 @@ DEVICES = ("cpu", "cuda", "wgpu")
 CHOICES = ("auto",) + DEVICES
 OPTIONS = {
     "cpu": ("threads", "constant_count", "kernel", "accel", "whitted", "tree_width"),
-    "cuda": ("block", "constant_count", "kernel", "rays", "tile", "trip", "accel", "walk", "build", "whitted"),
+    "cuda": (
+        "block",
+        "constant_count",
+        "kernel",
+        "rays",
+        "tile",
+        "trip",
+        "accel",
+        "walk",
+        "build",
+        "whitted",
+        "schedule",
+        "wave_grid",
+    ),  # fmt: skip
     "wgpu": ("workgroup", "adapter", "accel", "kernel", "walk", "build", "whitted"),
 }
 

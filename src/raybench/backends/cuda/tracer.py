@@ -36,6 +36,7 @@ from ..limits import (
 from . import build as cuda_build
 from .device import require, simulated
 from .launch import Launches
+from .wavefront import Wavefront
 
 # The fastest measured: simple in 16x16 blocks; fast (with TRIP) in 8x8
 # (docs/floors.md#each-version-against-the-floor); the BVH walked a ray at a
@@ -59,6 +60,25 @@ DEFAULT_BUILD = "host"
 def check_build(build, accel: str) -> str | None:
     """The build for a tracer of accel (None for brute force, which builds nothing)."""
     return limits.check_build(build, accel, DEFAULT_BUILD)
+
+
+SCHEDULES = ("wavefront", "pixel")
+
+
+def check_schedule(schedule, whitted) -> str | None:
+    """How Whitted's rays are spread over threads: "wavefront" (the default:
+    a bounce's rays of every pixel at once, a stage a kernel; wavefront.py)
+    or "pixel" (a thread traces its pixel's whole tree of rays). None for the
+    thesis's shading, whose only rays are the primary ones."""
+    if whitted is None:
+        if schedule is not None:
+            raise RaybenchError(f"schedule {schedule!r}: applies to Whitted shading only")
+        return None
+    if schedule is None:
+        return "wavefront"
+    if schedule not in SCHEDULES:
+        raise RaybenchError(f"schedule: must be one of {', '.join(SCHEDULES)}, got {shown(schedule)}")
+    return schedule
 
 
 def choose_walk(nodes: int) -> str:
@@ -459,6 +479,8 @@ class Tracer(TracerBase):
         walk: str | None = None,
         build: str | None = None,
         whitted: Shading | None = None,
+        schedule: str | None = None,
+        wave_grid: int | None = None,
     ):
         require()
         self.accel, self.kernel = check_method(
@@ -519,6 +541,8 @@ class Tracer(TracerBase):
         self._fresh_cost = None
         self.walk = None
         self.whitted = whitted
+        self.schedule = check_schedule(schedule, whitted)
+        self._wavefront = None
         self.ray_counts = None
         if whitted is not None:
             if walk == "packet":
@@ -526,6 +550,9 @@ class Tracer(TracerBase):
                     "walk 'packet': applies to the thesis's shading only; Whitted's rays walk one by one"
                 )
             self._kernel = _whitted_kernel
+            if self.schedule == "wavefront":
+                grid = None if wave_grid is None else _check_int("wave_grid", wave_grid, 1, 1 << 20)
+                self._wavefront = Wavefront(width, height, whitted.depth, grid)
             if self.accel == "bvh":
                 self._build(self.count)
                 self.walk = "ray"
@@ -626,6 +653,10 @@ class Tracer(TracerBase):
             if self.whitted is not None:
                 if self.accel == "bvh" and self.bvh.count != count:
                     self._build(count)
+                self._last = (grid, width, height, count, first, end)
+                if self._wavefront is not None:
+                    self._wavefront.launch(self, count, first, end)
+                    return
                 launch(_zero_rays, 1, len(KINDS), self.d_rays)
                 launch(
                     self._kernel, grid, self.block, width, height, first, end, self.d_basis, self.d_spheres, count,
@@ -674,6 +705,7 @@ class Tracer(TracerBase):
     def fetch(self) -> tuple[np.ndarray, np.ndarray]:
         """Copy the last frame (or its rows, where launch() was given rows)
         to the host (waits for the kernel)."""
+        self._settle()
         if self._rows is not None:
             first, end = self._rows
             self.d_image[first:end].copy_to_host(self.image[first:end])
@@ -691,6 +723,7 @@ class Tracer(TracerBase):
         shapes, such as a frame's rows in shared memory, page-locked by pin()
         for a direct copy), not through this tracer's own buffers; waits for
         the kernel."""
+        self._settle()
         first, end = self._rows
         self.d_image[first:end].copy_to_host(image_rows)
         self.d_hits[first:end].copy_to_host(hit_rows)
@@ -731,9 +764,18 @@ class Tracer(TracerBase):
         start.record()
         self._launch(self.grid, self.width, self.height, count)
         end.record()
+        if self._wavefront is not None and self._wavefront.overflowed():
+            # the queues were short for this frame: made longer, and the frame traced and timed again
+            return self.timed_trace(basis, count)
         self.fetch()
         end.synchronize()
         return start.elapsed_time(end)
+
+    def _settle(self) -> None:
+        """Where the wavefront's queues were short for the last frame, trace
+        it again with longer ones until they hold it (waits for the frame)."""
+        while self._wavefront is not None and self._wavefront.overflowed():
+            self._launch(*self._last)
 
     def close(self) -> None:
         """Device buffers go with the object; nothing to release by hand."""

@@ -1,0 +1,303 @@
+"""Whitted shading on CUDA by ray, not by pixel: kernels/wavefront.py's
+stages, each a kernel over a queue, a wave a bounce.
+
+A frame: the primary rays into the first queue; then for each bounce up to
+the depth, three launches: extend (each ray's nearest hit), shade (the
+light that needs no ray, shadow rays into the shadow queue, children into
+the next wave's queue) and shadow (any hit along each shadow ray); then the
+pixels' summed light into bytes. The counts of the queues stay on the GPU:
+the host launches every stage of every wave at once and waits only for the
+frame, and a stage reads how many rays its queue holds where it runs.
+
+Slots in a queue are claimed a block at a time: each thread adds its
+rays' number to a counter in shared memory, then one thread claims the
+block's total from the queue's count with one global atomic. A queue that
+would overflow keeps the count of the rays it was asked to hold; the frame
+is then traced again with queues that fit (Wavefront.trace), so no ray is
+ever lost.
+
+A stage's kernel is launched on `grid` blocks of BLOCK threads, each thread
+taking the rays i, i + the grid's threads, ... of the queue: by default as
+many blocks as a full queue needs (a thread a ray); fewer make each thread
+loop over several (persistent threads over a static share).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import cuda
+
+from ... import compiled, kernels
+from ...kernels.wavefront import R_KIND, R_PIXEL, RAY_IDS, RAY_ROWS, SHADOW_IDS, SHADOW_ROWS
+from ...kernels.whitted import KINDS, PRIMARY
+from ...layout import STACK
+from .launch import Launches
+
+_k = kernels.build(cuda.jit(device=True))
+_tree = _k.whitted_wavefront["bvh"]
+_every = _k.whitted_wavefront["none"]
+_to_byte = _k.to_byte
+
+BLOCK = 128
+# Queues start at this many rays a pixel traced (the rays of a wave; the
+# shadow rays of a wave), and double when a frame finds them short.
+RAYS_A_PIXEL = 1
+SHADOWS_A_PIXEL = 2
+# Where the counts live: counts[wave] rays in wave's queue, counts[SHADOW_BASE
+# + wave] shadow rays cast in that wave, counts[OVERFLOW] set where a queue
+# was too short.
+MAX_WAVES = 18
+SHADOW_BASE = MAX_WAVES
+OVERFLOW = 2 * MAX_WAVES
+COUNTS = OVERFLOW + 1
+
+
+@cuda.jit(device=True)
+def _claim(n, shared, counts, which, capacity):
+    """The first of n slots for this thread in the queue whose count is
+    counts[which] (module docstring); every thread of the block calls it.
+    Flags counts[OVERFLOW] where the block's slots run past capacity."""
+    mine = 0
+    if n > 0:
+        mine = cuda.atomic.add(shared, 0, n)
+    cuda.syncthreads()
+    if cuda.threadIdx.x == 0:
+        total = shared[0]
+        shared[0] = 0
+        start = 0
+        if total > 0:
+            start = cuda.atomic.add(counts, which, total)
+            if start + total > capacity:
+                counts[OVERFLOW] = 1
+        shared[1] = start
+    cuda.syncthreads()
+    first = shared[1] + mine
+    cuda.syncthreads()  # shared[1] is read by all before the next claim writes it
+    return first
+
+
+@cuda.jit(device=True)
+def _add(accum, pixel, red, green, blue):
+    """A pixel's light += (red, green, blue), as integers (kernels/wavefront.py)."""
+    if red != 0:
+        cuda.atomic.add(accum, (0, pixel), _tree.fixed(red))
+    if green != 0:
+        cuda.atomic.add(accum, (1, pixel), _tree.fixed(green))
+    if blue != 0:
+        cuda.atomic.add(accum, (2, pixel), _tree.fixed(blue))
+
+
+@compiled.cuda_jit()
+def _start(counts, rays, accum, first_pixel, pixels):
+    """A frame's counts and ray tally zeroed, and its pixels' sums."""
+    i = cuda.grid(1)
+    if i < COUNTS:
+        counts[i] = 0
+    if i < len(KINDS):
+        rays[i] = 0
+    if i < pixels:
+        accum[0, first_pixel + i] = 0
+        accum[1, first_pixel + i] = 0
+        accum[2, first_pixel + i] = 0
+
+
+@compiled.cuda_jit()
+def _primary(rays_f, rays_i, counts, first_pixel, pixels, width, height, basis):
+    i = cuda.grid(1)
+    if i == 0:
+        counts[0] = pixels
+    if i < pixels:
+        _tree.emit_primary(rays_f, rays_i, i, first_pixel + i, width, height, basis)
+
+
+@compiled.cuda_jit()
+def _extend(rays_f, rays_i, counts, wave, capacity, spheres, count, nodes, links, ordered, order, hit_i, hit_t,
+            hit_d, hits, width, rays):  # fmt: skip
+    """Each ray's nearest hit; the primary rays' into `hits`; the rays by
+    kind into `rays` (a block's tally, then one atomic a kind)."""
+    tally = cuda.shared.array(4, np.int32)
+    me = cuda.threadIdx.x
+    if me < 4:
+        tally[me] = 0
+    cuda.syncthreads()
+    n = min(counts[wave], capacity)
+    stack_row = cuda.local.array(STACK, np.int32)
+    stack_t = cuda.local.array(STACK, np.float32)
+    tree = (nodes, links, ordered, order)
+    i = cuda.grid(1)
+    while i < n:
+        if nodes.shape[0] > 0:
+            h, t, d = _tree.extend(rays_f, rays_i, i, spheres, count, tree, stack_row, stack_t)
+        else:
+            h, t, d = _every.extend(rays_f, rays_i, i, spheres, count, tree, stack_row, stack_t)
+        hit_i[i] = h
+        hit_t[i] = t
+        hit_d[i] = d
+        kind = rays_i[R_KIND, i]
+        if kind == PRIMARY:
+            pixel = rays_i[R_PIXEL, i]
+            hits[pixel // width, pixel % width] = h
+        cuda.atomic.add(tally, kind, 1)
+        i += cuda.gridsize(1)
+    cuda.syncthreads()
+    if me < 4 and me != 1 and tally[me] > 0:
+        cuda.atomic.add(rays, me, np.int64(tally[me]))
+
+
+@compiled.cuda_jit()
+def _shade(rays_f, rays_i, counts, wave, capacity, hit_i, hit_t, hit_d, next_f, next_i, next_capacity, shadows_f,
+           shadows_i, shadow_capacity, spheres, materials, lights, pattern, params, width, max_depth,
+           accum):  # fmt: skip
+    """Each ray's hit shaded: its light that needs no ray into its pixel,
+    its shadow rays into the shadow queue, its children into the next."""
+    shared = cuda.shared.array(2, np.int32)
+    if cuda.threadIdx.x == 0:
+        shared[0] = 0
+    cuda.syncthreads()
+    n = min(counts[wave], capacity)
+    base = cuda.blockIdx.x * cuda.blockDim.x
+    while base < n:  # the same trips in every thread of the block: _claim's barriers
+        i = base + cuda.threadIdx.x
+        h = -1
+        n_shadows = 0
+        n_children = 0
+        px = py = pz = nx = ny = nz = cos_i = keep = kr = kt = tx = ty = tz = slack_r = slack_t = np.float32(0.0)
+        inside = cast_r = cast_t = False
+        if i < n:
+            h = hit_i[i]
+            pixel = rays_i[R_PIXEL, i]
+            if h < 0:
+                red, green, blue = _tree.missed(rays_f, rays_i, i, width, params)
+            else:
+                (red, green, blue, n_shadows, px, py, pz, nx, ny, nz, cos_i, inside, keep, kr, kt, tx, ty, tz,
+                 cast_r, slack_r, cast_t, slack_t) = _tree.shade(
+                    rays_f, rays_i, i, h, hit_t[i], hit_d[i], max_depth, spheres, materials, lights, pattern, params
+                )  # fmt: skip
+                n_children = (1 if cast_r else 0) + (1 if cast_t else 0)
+            _add(accum, pixel, red, green, blue)
+        first_shadow = _claim(n_shadows, shared, counts, SHADOW_BASE + wave, shadow_capacity)
+        first_child = _claim(n_children, shared, counts, wave + 1, next_capacity)
+        if n_shadows > 0:
+            _tree.put_shadows(shadows_f, shadows_i, first_shadow, shadow_capacity, rays_f, rays_i, i, h, px, py, pz,
+                              nx, ny, nz, inside, keep, spheres, materials, lights, pattern, params)  # fmt: skip
+        if n_children > 0:
+            _tree.put_children(next_f, next_i, first_child, next_capacity, rays_f, rays_i, i, h, px, py, pz, nx, ny,
+                               nz, cos_i, inside, kr, kt, tx, ty, tz, cast_r, slack_r, cast_t, slack_t)  # fmt: skip
+        base += cuda.gridsize(1)
+
+
+@compiled.cuda_jit()
+def _shadow(shadows_f, shadows_i, counts, wave, capacity, spheres, count, nodes, links, ordered, order, accum,
+            rays):  # fmt: skip
+    """Each shadow ray of the wave: its light into its pixel where no
+    sphere blocks it."""
+    n = min(counts[SHADOW_BASE + wave], capacity)
+    if cuda.grid(1) == 0 and n > 0:
+        cuda.atomic.add(rays, 1, np.int64(n))
+    stack_row = cuda.local.array(STACK, np.int32)
+    stack_t = cuda.local.array(STACK, np.float32)
+    tree = (nodes, links, ordered, order)
+    i = cuda.grid(1)
+    while i < n:
+        if nodes.shape[0] > 0:
+            free = _tree.unblocked(shadows_f, shadows_i, i, spheres, count, tree, stack_row, stack_t)
+        else:
+            free = _every.unblocked(shadows_f, shadows_i, i, spheres, count, tree, stack_row, stack_t)
+        if free:
+            _add(accum, shadows_i[0, i], shadows_f[7, i], shadows_f[8, i], shadows_f[9, i])
+        i += cuda.gridsize(1)
+
+
+@compiled.cuda_jit()
+def _finish(accum, first_pixel, pixels, width, image):
+    """The pixels' summed light into bytes."""
+    i = cuda.grid(1)
+    if i < pixels:
+        pixel = first_pixel + i
+        y = pixel // width
+        x = pixel % width
+        image[y, x, 0] = _to_byte(_tree.resolve(accum[0, pixel]))
+        image[y, x, 1] = _to_byte(_tree.resolve(accum[1, pixel]))
+        image[y, x, 2] = _to_byte(_tree.resolve(accum[2, pixel]))
+
+
+class Wavefront:
+    """The queues of a cuda Tracer's Whitted frames, kept between frames,
+    and the launches of one frame. grid: the blocks a stage runs on (None:
+    as many as its queue's capacity needs, a thread a ray)."""
+
+    def __init__(self, width: int, height: int, depth: int, grid: int | None = None):
+        self.width, self.height, self.depth, self.grid = width, height, depth, grid
+        self._launches = Launches(16 * (MAX_WAVES + 2))
+        pixels = width * height
+        self.d_counts = cuda.device_array(COUNTS, np.int32)
+        self.d_accum = cuda.device_array((3, max(pixels, 1)), np.int64)
+        self._allocate(max(pixels * RAYS_A_PIXEL, BLOCK), max(pixels * SHADOWS_A_PIXEL, BLOCK))
+        self.retraced = 0  # frames traced again with longer queues
+
+    def _allocate(self, rays: int, shadows: int) -> None:
+        self.ray_capacity, self.shadow_capacity = rays, shadows
+        self.queues = [
+            (cuda.device_array((RAY_ROWS, rays), np.float32), cuda.device_array((RAY_IDS, rays), np.int32))
+            for _ in range(2)
+        ]
+        self.d_hit_i = cuda.device_array(rays, np.int32)
+        self.d_hit_t = cuda.device_array(rays, np.float32)
+        self.d_hit_d = cuda.device_array(rays, np.float32)
+        self.d_shadows_f = cuda.device_array((SHADOW_ROWS, shadows), np.float32)
+        self.d_shadows_i = cuda.device_array((SHADOW_IDS, shadows), np.int32)
+        self._launches.clear()
+
+    def _blocks(self, capacity: int) -> int:
+        needed = math.ceil(capacity / BLOCK)
+        return needed if self.grid is None else min(self.grid, needed)
+
+    def launch(self, tracer, count: int, first: int, end: int) -> None:
+        """Every launch of one frame of rows first..end, on tracer's buffers
+        (spheres, tree, shading, image, hits, ray tally)."""
+        launch = self._launches
+        width = self.width
+        first_pixel, pixels = first * width, (end - first) * width
+        blocks = max(1, math.ceil(max(pixels, COUNTS) / BLOCK))
+        launch(_start, blocks, BLOCK, self.d_counts, tracer.d_rays, self.d_accum, first_pixel, pixels)
+        rays_f, rays_i = self.queues[0]
+        launch(_primary, max(1, math.ceil(pixels / BLOCK)), BLOCK, rays_f, rays_i, self.d_counts, first_pixel, pixels,
+               width, self.height, tracer.d_basis)  # fmt: skip
+        tree = (tracer.d_nodes, tracer.d_links, tracer.d_ordered, tracer.d_order)
+        ray_blocks = self._blocks(self.ray_capacity)
+        shadow_blocks = self._blocks(self.shadow_capacity)
+        for wave in range(self.depth + 1):
+            rays_f, rays_i = self.queues[wave % 2]
+            next_f, next_i = self.queues[(wave + 1) % 2]
+            launch(_extend, ray_blocks, BLOCK, rays_f, rays_i, self.d_counts, wave, self.ray_capacity,
+                   tracer.d_spheres, count, *tree, self.d_hit_i, self.d_hit_t, self.d_hit_d, tracer.d_hits, width,
+                   tracer.d_rays)  # fmt: skip
+            launch(_shade, ray_blocks, BLOCK, rays_f, rays_i, self.d_counts, wave, self.ray_capacity, self.d_hit_i,
+                   self.d_hit_t, self.d_hit_d, next_f, next_i, self.ray_capacity, self.d_shadows_f,
+                   self.d_shadows_i, self.shadow_capacity, tracer.d_spheres, tracer.d_materials, tracer.d_lights,
+                   tracer.d_pattern, tracer.d_params, width, self.depth, self.d_accum)  # fmt: skip
+            launch(_shadow, shadow_blocks, BLOCK, self.d_shadows_f, self.d_shadows_i, self.d_counts, wave,
+                   self.shadow_capacity, tracer.d_spheres, count, *tree, self.d_accum, tracer.d_rays)  # fmt: skip
+        launch(_finish, max(1, math.ceil(pixels / BLOCK)), BLOCK, self.d_accum, first_pixel, pixels, width,
+               tracer.d_image)  # fmt: skip
+
+    def overflowed(self) -> bool:
+        """Whether the last frame's queues were too short (waits for it);
+        if so they are made long enough for it, to trace it again."""
+        counts = self.d_counts.copy_to_host()
+        if not counts[OVERFLOW]:
+            return False
+        rays = max(self.ray_capacity, int(counts[: self.depth + 2].max()))
+        shadows = max(self.shadow_capacity, int(counts[SHADOW_BASE : SHADOW_BASE + self.depth + 1].max()))
+        self._allocate(_grown(rays, self.ray_capacity), _grown(shadows, self.shadow_capacity))
+        self.retraced += 1
+        return True
+
+
+def _grown(needed: int, capacity: int) -> int:
+    """A capacity for `needed` slots: doubled until it holds them."""
+    while capacity < needed:
+        capacity *= 2
+    return capacity
