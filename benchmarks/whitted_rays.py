@@ -18,11 +18,15 @@ import raybench
 from raybench import Camera, RaybenchError, backends, lighting
 
 
-def one(device, spheres, width, height, frames, accel, depth, samples, block=None) -> dict:
+def one(device, spheres, width, height, frames, accel, depth, samples, block=None, schedule=None, wave_grid=None):
     scene = raybench.random_spheres(spheres, seed=0, materials=True)
     shading = lighting.Shading.of(scene, depth, samples)
     basis = Camera().basis(width, height)
     options = {"cuda": {"block": block}, "wgpu": {"workgroup": block}}.get(device, {}) if block else {}
+    if schedule is not None:
+        options["schedule"] = schedule
+    if wave_grid is not None and schedule == "wavefront":
+        options["wave_grid"] = wave_grid
     with backends.tracer(device, scene.spheres, width, height, accel=accel, whitted=shading, **options) as tracer:
         start = time.perf_counter()
         tracer.trace(basis)  # compiled, uploaded
@@ -37,6 +41,10 @@ def one(device, spheres, width, height, frames, accel, depth, samples, block=Non
         total = sum(rays.values())
         timed = kernel_ms is not None  # the last frame's: whether the device times its kernel
         used = {"accel": accel, "shading": "whitted", "depth": depth, "shadow_samples": samples}
+        if schedule is not None:
+            used["schedule"] = schedule
+        if "wave_grid" in options:
+            used["wave_grid"] = wave_grid
         shape = getattr(tracer, "block", None) or getattr(tracer, "workgroup", None)
         if shape is not None:
             used["block"] = list(shape)
@@ -79,6 +87,10 @@ def main() -> int:
     parser.add_argument("--depth", type=int, default=5)
     parser.add_argument("--shadow-samples", type=int, default=4)
     parser.add_argument("--block", type=int, nargs=2, metavar=("X", "Y"), help="cuda's block, wgpu's workgroup")
+    parser.add_argument(
+        "--schedule", action="append", choices=["wavefront", "pixel"], help="cuda: how Whitted's rays are scheduled"
+    )
+    parser.add_argument("--wave-grid", type=int, help="cuda's wavefront: blocks a stage (default: a thread a ray)")
     _harness.add_common(parser, frames=7)
     args = parser.parse_args()
     _harness.check_common(parser, args)
@@ -87,7 +99,8 @@ def main() -> int:
     with _harness.Records("whitted_rays", args, settings) as out:
         for _ in range(args.rounds):
             for device in args.device or ["cuda"]:
-                for accel in args.accel or ["bvh"]:
+                schedules = (args.schedule or [None]) if device == "cuda" else [None]
+                for accel, schedule in ((a, s) for a in args.accel or ["bvh"] for s in schedules):
                     for n in args.spheres or [1000, 10_000, 100_000]:
                         try:
                             out.write(
@@ -101,6 +114,8 @@ def main() -> int:
                                     args.depth,
                                     args.shadow_samples,
                                     args.block,
+                                    schedule,
+                                    args.wave_grid,
                                 )
                             )
                         except RaybenchError as exc:  # the point is not measured: said on stderr, the run goes on
