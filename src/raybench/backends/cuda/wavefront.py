@@ -36,9 +36,14 @@ from ...layout import STACK
 from .launch import Launches
 
 _k = kernels.build(cuda.jit(device=True))
-_tree = _k.whitted_wavefront["bvh"]
-_every = _k.whitted_wavefront["none"]
-_to_byte = _k.to_byte
+# module globals, which is how kernels can see them: the stages through the
+# tree and by brute force (only extend and the shadow test search)
+_tree, _every = _k.whitted_wavefront["bvh"], _k.whitted_wavefront["none"]
+_extend_tree, _extend_every = _tree.extend, _every.extend
+_unblocked_tree, _unblocked_every = _tree.unblocked, _every.unblocked
+_emit_primary, _missed, _shade_ray = _tree.emit_primary, _tree.missed, _tree.shade
+_put_shadows, _put_children = _tree.put_shadows, _tree.put_children
+_fixed, _resolve, _to_byte = _tree.fixed, _tree.resolve, _k.to_byte
 
 BLOCK = 128
 # Queues start at this many rays a pixel traced (the rays of a wave; the
@@ -82,11 +87,11 @@ def _claim(n, shared, counts, which, capacity):
 def _add(accum, pixel, red, green, blue):
     """A pixel's light += (red, green, blue), as integers (kernels/wavefront.py)."""
     if red != 0:
-        cuda.atomic.add(accum, (0, pixel), _tree.fixed(red))
+        cuda.atomic.add(accum, (0, pixel), _fixed(red))
     if green != 0:
-        cuda.atomic.add(accum, (1, pixel), _tree.fixed(green))
+        cuda.atomic.add(accum, (1, pixel), _fixed(green))
     if blue != 0:
-        cuda.atomic.add(accum, (2, pixel), _tree.fixed(blue))
+        cuda.atomic.add(accum, (2, pixel), _fixed(blue))
 
 
 @compiled.cuda_jit()
@@ -109,7 +114,7 @@ def _primary(rays_f, rays_i, counts, first_pixel, pixels, width, height, basis):
     if i == 0:
         counts[0] = pixels
     if i < pixels:
-        _tree.emit_primary(rays_f, rays_i, i, first_pixel + i, width, height, basis)
+        _emit_primary(rays_f, rays_i, i, first_pixel + i, width, height, basis)
 
 
 @compiled.cuda_jit()
@@ -129,9 +134,9 @@ def _extend(rays_f, rays_i, counts, wave, capacity, spheres, count, nodes, links
     i = cuda.grid(1)
     while i < n:
         if nodes.shape[0] > 0:
-            h, t, d = _tree.extend(rays_f, rays_i, i, spheres, count, tree, stack_row, stack_t)
+            h, t, d = _extend_tree(rays_f, rays_i, i, spheres, count, tree, stack_row, stack_t)
         else:
-            h, t, d = _every.extend(rays_f, rays_i, i, spheres, count, tree, stack_row, stack_t)
+            h, t, d = _extend_every(rays_f, rays_i, i, spheres, count, tree, stack_row, stack_t)
         hit_i[i] = h
         hit_t[i] = t
         hit_d[i] = d
@@ -169,10 +174,10 @@ def _shade(rays_f, rays_i, counts, wave, capacity, hit_i, hit_t, hit_d, next_f, 
             h = hit_i[i]
             pixel = rays_i[R_PIXEL, i]
             if h < 0:
-                red, green, blue = _tree.missed(rays_f, rays_i, i, width, params)
+                red, green, blue = _missed(rays_f, rays_i, i, width, params)
             else:
                 (red, green, blue, n_shadows, px, py, pz, nx, ny, nz, cos_i, inside, keep, kr, kt, tx, ty, tz,
-                 cast_r, slack_r, cast_t, slack_t) = _tree.shade(
+                 cast_r, slack_r, cast_t, slack_t) = _shade_ray(
                     rays_f, rays_i, i, h, hit_t[i], hit_d[i], max_depth, spheres, materials, lights, pattern, params
                 )  # fmt: skip
                 n_children = (1 if cast_r else 0) + (1 if cast_t else 0)
@@ -180,10 +185,10 @@ def _shade(rays_f, rays_i, counts, wave, capacity, hit_i, hit_t, hit_d, next_f, 
         first_shadow = _claim(n_shadows, shared, counts, SHADOW_BASE + wave, shadow_capacity)
         first_child = _claim(n_children, shared, counts, wave + 1, next_capacity)
         if n_shadows > 0:
-            _tree.put_shadows(shadows_f, shadows_i, first_shadow, shadow_capacity, rays_f, rays_i, i, h, px, py, pz,
+            _put_shadows(shadows_f, shadows_i, first_shadow, shadow_capacity, rays_f, rays_i, i, h, px, py, pz,
                               nx, ny, nz, inside, keep, spheres, materials, lights, pattern, params)  # fmt: skip
         if n_children > 0:
-            _tree.put_children(next_f, next_i, first_child, next_capacity, rays_f, rays_i, i, h, px, py, pz, nx, ny,
+            _put_children(next_f, next_i, first_child, next_capacity, rays_f, rays_i, i, h, px, py, pz, nx, ny,
                                nz, cos_i, inside, kr, kt, tx, ty, tz, cast_r, slack_r, cast_t, slack_t)  # fmt: skip
         base += cuda.gridsize(1)
 
@@ -202,9 +207,9 @@ def _shadow(shadows_f, shadows_i, counts, wave, capacity, spheres, count, nodes,
     i = cuda.grid(1)
     while i < n:
         if nodes.shape[0] > 0:
-            free = _tree.unblocked(shadows_f, shadows_i, i, spheres, count, tree, stack_row, stack_t)
+            free = _unblocked_tree(shadows_f, shadows_i, i, spheres, count, tree, stack_row, stack_t)
         else:
-            free = _every.unblocked(shadows_f, shadows_i, i, spheres, count, tree, stack_row, stack_t)
+            free = _unblocked_every(shadows_f, shadows_i, i, spheres, count, tree, stack_row, stack_t)
         if free:
             _add(accum, shadows_i[0, i], shadows_f[7, i], shadows_f[8, i], shadows_f[9, i])
         i += cuda.gridsize(1)
@@ -218,9 +223,9 @@ def _finish(accum, first_pixel, pixels, width, image):
         pixel = first_pixel + i
         y = pixel // width
         x = pixel % width
-        image[y, x, 0] = _to_byte(_tree.resolve(accum[0, pixel]))
-        image[y, x, 1] = _to_byte(_tree.resolve(accum[1, pixel]))
-        image[y, x, 2] = _to_byte(_tree.resolve(accum[2, pixel]))
+        image[y, x, 0] = _to_byte(_resolve(accum[0, pixel]))
+        image[y, x, 1] = _to_byte(_resolve(accum[1, pixel]))
+        image[y, x, 2] = _to_byte(_resolve(accum[2, pixel]))
 
 
 class Wavefront:
