@@ -542,7 +542,7 @@ class Tracer(TracerBase):
         self.walk = None
         self.whitted = whitted
         self.schedule = check_schedule(schedule, whitted)
-        self._wavefront = None
+        self._wavefront = None  # the wavefront's queues and launches (schedule "wavefront")
         self.ray_counts = None
         if whitted is not None:
             if walk == "packet":
@@ -770,6 +770,12 @@ class Tracer(TracerBase):
         self.fetch()
         end.synchronize()
         return start.elapsed_time(end)
+
+    @property
+    def wavefront(self):
+        """The Wavefront that traces this tracer's Whitted frames, None where
+        they are traced a pixel a thread (its `mark` times its stages)."""
+        return self._wavefront
 
     def _settle(self) -> None:
         """Where the wavefront's queues were short for the last frame, trace

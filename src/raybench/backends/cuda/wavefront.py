@@ -231,7 +231,10 @@ def _finish(accum, first_pixel, pixels, width, image):
 class Wavefront:
     """The queues of a cuda Tracer's Whitted frames, kept between frames,
     and the launches of one frame. grid: the blocks a stage runs on (None:
-    as many as its queue's capacity needs, a thread a ray)."""
+    as many as its queue's capacity needs, a thread a ray). mark: None, or
+    a function called with a stage's name after each launch (each wave's
+    extend, shade and shadow, and "start" and "finish"), for a benchmark to
+    record a CUDA event there (benchmarks/wavefront_stages.py)."""
 
     def __init__(self, width: int, height: int, depth: int, grid: int | None = None):
         self.width, self.height, self.depth, self.grid = width, height, depth, grid
@@ -241,6 +244,7 @@ class Wavefront:
         self.d_accum = cuda.device_array((3, max(pixels, 1)), np.int64)
         self._allocate(max(pixels * RAYS_A_PIXEL, BLOCK), max(pixels * SHADOWS_A_PIXEL, BLOCK))
         self.retraced = 0  # frames traced again with longer queues
+        self.mark = None
 
     def _allocate(self, rays: int, shadows: int) -> None:
         self.ray_capacity, self.shadow_capacity = rays, shadows
@@ -270,6 +274,8 @@ class Wavefront:
         rays_f, rays_i = self.queues[0]
         launch(_primary, max(1, math.ceil(pixels / BLOCK)), BLOCK, rays_f, rays_i, self.d_counts, first_pixel, pixels,
                width, self.height, tracer.d_basis)  # fmt: skip
+        mark = self.mark or _unmarked
+        mark("start")
         tree = (tracer.d_nodes, tracer.d_links, tracer.d_ordered, tracer.d_order)
         ray_blocks = self._blocks(self.ray_capacity)
         shadow_blocks = self._blocks(self.shadow_capacity)
@@ -279,14 +285,18 @@ class Wavefront:
             launch(_extend, ray_blocks, BLOCK, rays_f, rays_i, self.d_counts, wave, self.ray_capacity,
                    tracer.d_spheres, count, *tree, self.d_hit_i, self.d_hit_t, self.d_hit_d, tracer.d_hits, width,
                    tracer.d_rays)  # fmt: skip
+            mark("extend")
             launch(_shade, ray_blocks, BLOCK, rays_f, rays_i, self.d_counts, wave, self.ray_capacity, self.d_hit_i,
                    self.d_hit_t, self.d_hit_d, next_f, next_i, self.ray_capacity, self.d_shadows_f,
                    self.d_shadows_i, self.shadow_capacity, tracer.d_spheres, tracer.d_materials, tracer.d_lights,
                    tracer.d_pattern, tracer.d_params, width, self.depth, self.d_accum)  # fmt: skip
+            mark("shade")
             launch(_shadow, shadow_blocks, BLOCK, self.d_shadows_f, self.d_shadows_i, self.d_counts, wave,
                    self.shadow_capacity, tracer.d_spheres, count, *tree, self.d_accum, tracer.d_rays)  # fmt: skip
+            mark("shadow")
         launch(_finish, max(1, math.ceil(pixels / BLOCK)), BLOCK, self.d_accum, first_pixel, pixels, width,
                tracer.d_image)  # fmt: skip
+        mark("finish")
 
     def overflowed(self) -> bool:
         """Whether the last frame's queues were too short (waits for it);
@@ -299,6 +309,10 @@ class Wavefront:
         self._allocate(_grown(rays, self.ray_capacity), _grown(shadows, self.shadow_capacity))
         self.retraced += 1
         return True
+
+
+def _unmarked(_stage: str) -> None:
+    pass
 
 
 def _grown(needed: int, capacity: int) -> int:
