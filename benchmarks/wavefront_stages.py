@@ -1,6 +1,6 @@
 """Where a cuda wavefront frame's time goes: each stage of each wave timed by CUDA events
 (Wavefront.mark), summed by stage, medians over frames; and the frame's kernel time with each
-grid a stage may run on (--wave-grid: blocks of 128 threads; 0 for a thread a ray), the grids
+grid a stage may run on (--wave-grid: blocks of 128 threads; 0 for the default), the grids
 taking turns frame by frame. The issue's scene: random_spheres(n, materials=True), depth 5,
 4 shadow samples, 1680x1050 by default. Needs a CUDA GPU.
 """
@@ -23,7 +23,7 @@ def main() -> int:
     parser.add_argument("--depth", type=int, default=5)
     parser.add_argument("--shadow-samples", type=int, default=4)
     parser.add_argument("--frames", type=int, default=7)
-    parser.add_argument("--wave-grid", type=int, action="append", help="0: a thread a ray (the default)")
+    parser.add_argument("--wave-grid", type=int, action="append", help="blocks a stage (0: the default)")
     args = parser.parse_args()
     width, height = (int(v) for v in args.size.split("x"))
     for n in args.spheres or [1000, 10_000, 100_000]:

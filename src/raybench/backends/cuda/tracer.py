@@ -551,7 +551,7 @@ class Tracer(TracerBase):
                 )
             self._kernel = _whitted_kernel
             if self.schedule == "wavefront":
-                grid = None if wave_grid is None else _check_int("wave_grid", wave_grid, 1, 1 << 20)
+                grid = None if wave_grid is None else _check_int("wave_grid", wave_grid, 1, 1 << 24)
                 self._wavefront = Wavefront(width, height, whitted.depth, grid)
             if self.accel == "bvh":
                 self._build(self.count)

@@ -17,9 +17,12 @@ is then traced again with queues that fit (Wavefront.trace), so no ray is
 ever lost.
 
 A stage's kernel is launched on `grid` blocks of BLOCK threads, each thread
-taking the rays i, i + the grid's threads, ... of the queue: by default as
-many blocks as a full queue needs (a thread a ray); fewer make each thread
-loop over several (persistent threads over a static share).
+taking the rays i, i + the grid's threads, ... of the queue: by default
+GRID_PER_SM blocks a multiprocessor, twice what it holds at once, each
+thread looping over its share (persistent threads). A grid of a thread a
+ray measured slower: most of its blocks find their wave's queue short of
+them and exit, a launch's worth of blocks for nothing, at every stage
+(docs/whitted.md).
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from ... import compiled, kernels
 from ...kernels.wavefront import R_KIND, R_PIXEL, RAY_IDS, RAY_ROWS, SHADOW_IDS, SHADOW_ROWS
 from ...kernels.whitted import KINDS, PRIMARY
 from ...layout import STACK
+from .device import simulated
 from .launch import Launches
 
 _k = kernels.build(cuda.jit(device=True))
@@ -46,6 +50,7 @@ _put_shadows, _put_children = _tree.put_shadows, _tree.put_children
 _fixed, _resolve, _to_byte = _tree.fixed, _tree.resolve, _k.to_byte
 
 BLOCK = 128
+GRID_PER_SM = 32
 # Queues start at this many rays a pixel traced (the rays of a wave; the
 # shadow rays of a wave), and double when a frame finds them short.
 RAYS_A_PIXEL = 1
@@ -95,17 +100,14 @@ def _add(accum, pixel, red, green, blue):
 
 
 @compiled.cuda_jit()
-def _start(counts, rays, accum, first_pixel, pixels):
-    """A frame's counts and ray tally zeroed, and its pixels' sums."""
+def _start(counts, rays):
+    """A frame's counts and ray tally zeroed (its pixels' sums were, by the
+    last frame's _finish)."""
     i = cuda.grid(1)
     if i < COUNTS:
         counts[i] = 0
     if i < len(KINDS):
         rays[i] = 0
-    if i < pixels:
-        accum[0, first_pixel + i] = 0
-        accum[1, first_pixel + i] = 0
-        accum[2, first_pixel + i] = 0
 
 
 @compiled.cuda_jit()
@@ -217,15 +219,16 @@ def _shadow(shadows_f, shadows_i, counts, wave, capacity, spheres, count, nodes,
 
 @compiled.cuda_jit()
 def _finish(accum, first_pixel, pixels, width, image):
-    """The pixels' summed light into bytes."""
+    """The pixels' summed light into bytes, and the sums zeroed for the
+    next frame (a pass over them the frame's start need not make)."""
     i = cuda.grid(1)
     if i < pixels:
         pixel = first_pixel + i
         y = pixel // width
         x = pixel % width
-        image[y, x, 0] = _to_byte(_resolve(accum[0, pixel]))
-        image[y, x, 1] = _to_byte(_resolve(accum[1, pixel]))
-        image[y, x, 2] = _to_byte(_resolve(accum[2, pixel]))
+        for c in range(3):
+            image[y, x, c] = _to_byte(_resolve(accum[c, pixel]))
+            accum[c, pixel] = 0
 
 
 class Wavefront:
@@ -237,11 +240,12 @@ class Wavefront:
     record a CUDA event there (benchmarks/wavefront_stages.py)."""
 
     def __init__(self, width: int, height: int, depth: int, grid: int | None = None):
-        self.width, self.height, self.depth, self.grid = width, height, depth, grid
+        self.width, self.height, self.depth = width, height, depth
+        self.grid = _default_grid() if grid is None else grid
         self._launches = Launches(16 * (MAX_WAVES + 2))
         pixels = width * height
         self.d_counts = cuda.device_array(COUNTS, np.int32)
-        self.d_accum = cuda.device_array((3, max(pixels, 1)), np.int64)
+        self.d_accum = cuda.to_device(np.zeros((3, max(pixels, 1)), np.int64))
         self._allocate(max(pixels * RAYS_A_PIXEL, BLOCK), max(pixels * SHADOWS_A_PIXEL, BLOCK))
         self.retraced = 0  # frames traced again with longer queues
         self.mark = None
@@ -260,8 +264,7 @@ class Wavefront:
         self._launches.clear()
 
     def _blocks(self, capacity: int) -> int:
-        needed = math.ceil(capacity / BLOCK)
-        return needed if self.grid is None else min(self.grid, needed)
+        return max(1, min(self.grid, math.ceil(capacity / BLOCK)))
 
     def launch(self, tracer, count: int, first: int, end: int) -> None:
         """Every launch of one frame of rows first..end, on tracer's buffers
@@ -269,8 +272,7 @@ class Wavefront:
         launch = self._launches
         width = self.width
         first_pixel, pixels = first * width, (end - first) * width
-        blocks = max(1, math.ceil(max(pixels, COUNTS) / BLOCK))
-        launch(_start, blocks, BLOCK, self.d_counts, tracer.d_rays, self.d_accum, first_pixel, pixels)
+        launch(_start, 1, COUNTS, self.d_counts, tracer.d_rays)
         rays_f, rays_i = self.queues[0]
         launch(_primary, max(1, math.ceil(pixels / BLOCK)), BLOCK, rays_f, rays_i, self.d_counts, first_pixel, pixels,
                width, self.height, tracer.d_basis)  # fmt: skip
@@ -309,6 +311,13 @@ class Wavefront:
         self._allocate(_grown(rays, self.ray_capacity), _grown(shadows, self.shadow_capacity))
         self.retraced += 1
         return True
+
+
+def _default_grid() -> int:
+    """GRID_PER_SM blocks on each of the device's multiprocessors (numba's
+    simulator: one block)."""
+    device = cuda.get_current_device()
+    return getattr(device, "MULTIPROCESSOR_COUNT", 1) * GRID_PER_SM if not simulated() else 1
 
 
 def _unmarked(_stage: str) -> None:
