@@ -464,18 +464,30 @@ def test_only_shadow_rays_that_can_count_are_cast(request, device):
     assert counts["glint"] == counts["tinted"] > 20
 
 
-# The wavefront (cuda's default under Whitted shading) casts the per-pixel
-# program's rays and sums the same light, in another order.
-def schedules(scene, width, height, camera=None, **options):
-    return [frame(scene, "cuda", width, height, camera, schedule=s, **options) for s in ("pixel", "wavefront")]
+# The wavefront (the GPUs' default under Whitted shading) casts the
+# per-pixel program's rays and sums the same light, in another order.
+GPUS = [pytest.param("cuda", marks=pytest.mark.gpu), pytest.param("wgpu", marks=pytest.mark.gpu)]
 
 
-def assert_same_frame(pixel, wave):
-    """Bit for bit under numba's simulator, which rounds as the CPU does and
-    whose wavefront sums as integers what the pixel program sums as floats
-    (to the same bytes at this scale); on a GPU within a step but at a few
-    pixels, as the CPU against the GPU."""
-    if backends.module("cuda").simulated():
+def schedules(scene, device, width, height, request, **options):
+    options = {**options, **device_options(device, request)}
+    return [frame(scene, device, width, height, schedule=s, **options) for s in ("pixel", "wavefront")]
+
+
+def rounds_as_the_cpu(device, request) -> bool:
+    """Whether the device rounds as the CPU does: numba's simulator, or a CPU
+    adapter (lavapipe)."""
+    if device == "cuda":
+        return backends.module("cuda").simulated()
+    return backends.module("wgpu").choose(request.getfixturevalue("adapter")).type == "CPU"
+
+
+def assert_same_frame(pixel, wave, exact):
+    """Bit for bit where the device rounds as the CPU does (the wavefront
+    sums as integers what the pixel program sums as floats, to the same
+    bytes at this scale); on a GPU within a step but at a few pixels, as the
+    CPU against the GPU."""
+    if exact:
         assert np.array_equal(pixel.image, wave.image) and np.array_equal(pixel.hits, wave.hits)
         assert pixel.rays == wave.rays
     else:
@@ -488,16 +500,16 @@ def assert_same_frame(pixel, wave):
 KINDS_OF_RAYS = ("primary", "shadow", "reflection", "refraction")
 
 
-@pytest.mark.gpu
+@pytest.mark.parametrize("device", GPUS)
 @pytest.mark.parametrize("accel", ["bvh", "none"])
-def test_the_cuda_wavefront_is_the_pixel_program(rng, accel):
-    pixel, wave = schedules(lit_scene(rng, 10), 24, 16, accel=accel, samples=2)
+def test_the_wavefront_is_the_pixel_program(rng, request, device, accel):
+    pixel, wave = schedules(lit_scene(rng, 10), device, 24, 16, request, accel=accel, samples=2)
     assert wave.rays["reflection"] > 0 and wave.rays["refraction"] > 0 and wave.rays["shadow"] > 0
-    assert_same_frame(pixel, wave)
+    assert_same_frame(pixel, wave, rounds_as_the_cpu(device, request))
 
 
-@pytest.mark.gpu
-def test_the_wavefronts_queues_grow_to_hold_a_frame():
+@pytest.mark.parametrize("device", GPUS)
+def test_the_wavefronts_queues_grow_to_hold_a_frame(request, device):
     """A frame whose waves outgrow the queues a wavefront starts with (a ray
     and two shadow rays a pixel): glass that fills the view, with a glint
     (so its shadow rays are cast) under two area lights, so every primary
@@ -507,13 +519,14 @@ def test_the_wavefronts_queues_grow_to_hold_a_frame():
     lamps = [Light(position=(-3.0, 4.0, -4.0), radius=0.5), Light(position=(3.0, 4.0, -4.0), radius=0.5)]
     scene = Scene(np.zeros((1, 3)), np.array([3.0]), np.ones((1, 3)), Camera(position=(0, 0, -5)),
                   materials=[glass], lights=lamps, background=(0.3, 0.4, 0.5))  # fmt: skip
-    tracer = backends.tracer("cuda", scene.spheres, 12, 8, whitted=lighting.Shading.of(scene, 3, 4))
+    options = device_options(device, request)
+    tracer = backends.tracer(device, scene.spheres, 12, 8, whitted=lighting.Shading.of(scene, 3, 4), **options)
     first = tracer.trace(Camera(position=(0, 0, -5)).basis(12, 8))[0].copy()
     assert tracer.wavefront.retraced >= 1
     assert tracer.ray_counts[1] >= 8 * 12 * 8 and tracer.ray_counts[2] + tracer.ray_counts[3] >= 2 * 12 * 8
-    pixel, wave = schedules(scene, 12, 8, depth=3, samples=4)
+    pixel, wave = schedules(scene, device, 12, 8, request, depth=3, samples=4)
     assert np.array_equal(first, wave.image)
-    assert_same_frame(pixel, wave)
+    assert_same_frame(pixel, wave, rounds_as_the_cpu(device, request))
 
 
 @pytest.mark.parametrize(
@@ -521,11 +534,16 @@ def test_the_wavefronts_queues_grow_to_hold_a_frame():
     [
         ({"schedule": "warp"}, r"schedule: must be one of wavefront, pixel"),
         ({"shading": "thesis", "schedule": "pixel"}, r"schedule 'pixel': applies to Whitted shading only"),
-        ({"schedule": "wavefront", "wave_grid": 0}, r"wave_grid: must be an integer from 1"),
     ],
 )
-@pytest.mark.gpu
-def test_bad_schedules_are_refused(options, message):
-    options = {"shading": "whitted", **options}
+@pytest.mark.parametrize("device", GPUS)
+def test_bad_schedules_are_refused(request, device, options, message):
+    options = {"shading": "whitted", **options, **device_options(device, request)}
     with pytest.raises(raybench.RaybenchError, match=message):
-        raybench.render(raybench.random_spheres(3), width=8, height=8, device="cuda", **options)
+        raybench.render(raybench.random_spheres(3), width=8, height=8, device=device, **options)
+
+
+@pytest.mark.gpu
+def test_a_wave_grid_is_checked():
+    with pytest.raises(raybench.RaybenchError, match=r"wave_grid: must be an integer from 1"):
+        raybench.render(raybench.random_spheres(3), width=8, height=8, device="cuda", shading="whitted", wave_grid=0)

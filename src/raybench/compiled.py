@@ -142,6 +142,7 @@ def cuda_jit(**options):
     from numba import cuda
 
     if numba.config.ENABLE_CUDASIM:
+        options.pop("max_registers", None)  # a register budget means nothing there, and its jit refuses one
         return cuda.jit(**options)
     return _in_cache(cuda.jit(cache=True, **options))
 

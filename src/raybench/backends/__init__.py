@@ -32,7 +32,7 @@ OPTIONS = {
         "schedule",
         "wave_grid",
     ),  # fmt: skip
-    "wgpu": ("workgroup", "adapter", "accel", "kernel", "walk", "build", "whitted"),
+    "wgpu": ("workgroup", "adapter", "accel", "kernel", "walk", "build", "whitted", "schedule"),
 }
 
 

@@ -158,3 +158,22 @@ def check_walk(walk, accel: str) -> str | None:
     if walk not in WALKS:
         raise RaybenchError(f"walk: must be one of {', '.join(WALKS)}, got {shown(walk)}")
     return walk
+
+
+SCHEDULES = ("wavefront", "pixel")
+
+
+def check_schedule(schedule, whitted) -> str | None:
+    """How Whitted's rays are spread over threads: "wavefront" (the default:
+    a bounce's rays of every pixel at once, a stage a kernel; wavefront.py)
+    or "pixel" (a thread traces its pixel's whole tree of rays). None for the
+    thesis's shading, whose only rays are the primary ones."""
+    if whitted is None:
+        if schedule is not None:
+            raise RaybenchError(f"schedule {shown(schedule)}: applies to Whitted shading only")
+        return None
+    if schedule is None:
+        return "wavefront"
+    if schedule not in SCHEDULES:
+        raise RaybenchError(f"schedule: must be one of {', '.join(SCHEDULES)}, got {shown(schedule)}")
+    return schedule

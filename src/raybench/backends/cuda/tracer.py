@@ -31,6 +31,7 @@ from ..limits import (
     check_count,
     check_fits,
     check_rows,
+    check_schedule,
     check_walk,
 )
 from . import build as cuda_build
@@ -60,25 +61,6 @@ DEFAULT_BUILD = "host"
 def check_build(build, accel: str) -> str | None:
     """The build for a tracer of accel (None for brute force, which builds nothing)."""
     return limits.check_build(build, accel, DEFAULT_BUILD)
-
-
-SCHEDULES = ("wavefront", "pixel")
-
-
-def check_schedule(schedule, whitted) -> str | None:
-    """How Whitted's rays are spread over threads: "wavefront" (the default:
-    a bounce's rays of every pixel at once, a stage a kernel; wavefront.py)
-    or "pixel" (a thread traces its pixel's whole tree of rays). None for the
-    thesis's shading, whose only rays are the primary ones."""
-    if whitted is None:
-        if schedule is not None:
-            raise RaybenchError(f"schedule {schedule!r}: applies to Whitted shading only")
-        return None
-    if schedule is None:
-        return "wavefront"
-    if schedule not in SCHEDULES:
-        raise RaybenchError(f"schedule: must be one of {', '.join(SCHEDULES)}, got {shown(schedule)}")
-    return schedule
 
 
 def choose_walk(nodes: int) -> str:

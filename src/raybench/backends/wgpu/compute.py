@@ -22,10 +22,11 @@ from ...errors import RaybenchError, shown
 from ...host import host_available_bytes
 from ...kernels import whitted
 from ...lighting import Shading
-from ..limits import HOST_PIXEL_BYTES, check_build, check_bvh_fits, check_walk
+from ..limits import HOST_PIXEL_BYTES, check_build, check_bvh_fits, check_schedule, check_walk
 from ..limits import check_accel as check_accel_and_kernel
 from . import build as gpu_build
 from . import shader
+from .wavefront import Wavefront
 
 FRAME_FORMAT = "rgba8unorm"
 SPHERE_FLOATS = 8  # shader's struct Sphere: the 7 columns and a pad
@@ -168,6 +169,7 @@ class Compute:
         walk: str | None = None,
         whitted: Shading | None = None,
         build: str | None = None,
+        schedule: str | None = None,
     ):
         import wgpu
 
@@ -182,6 +184,8 @@ class Compute:
         # the shader's entry point: the walk's, or Whitted shading's (either accel)
         self.program = "whitted" if whitted is not None else (self.walk or "ray")
         self.whitted = whitted
+        self.schedule = check_schedule(schedule, whitted)
+        self.wavefront = None  # the wavefront's pipelines and queues (schedule "wavefront")
         if self.walk == "packet" and PACKET_FEATURE not in device.features:
             raise RaybenchError(
                 f"walk: the packet walk votes with subgroup operations, and this device has no "
@@ -241,6 +245,8 @@ class Compute:
                 size=16, usage=wgpu.BufferUsage.QUERY_RESOLVE | wgpu.BufferUsage.COPY_SRC
             )
             self.times = device.create_buffer(size=16, usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ)
+        if self.schedule == "wavefront":
+            self.wavefront = Wavefront(self, whitted.depth)
         # Waiting for a submission: map a buffer it copies into. (wgpu-py 0.32's
         # queue.on_submitted_work_done_sync fails with a ctypes TypeError.)
         self.fence = device.create_buffer(size=4, usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ)
@@ -250,6 +256,10 @@ class Compute:
         if self.pipeline is not None:
             return 0.0
         start = time.perf_counter()
+        if self.wavefront is not None:
+            self.wavefront.compile()
+            self.pipeline = self.wavefront  # compiled: its pipelines
+            return time.perf_counter() - start
         module = self.device.create_shader_module(code=shader.source(self.workgroup, self.accel, self.program))
         self.pipeline = self.device.create_compute_pipeline(
             layout="auto", compute={"module": module, "entry_point": shader.ENTRY[self.program]}
@@ -259,6 +269,8 @@ class Compute:
 
     def _bind(self) -> None:
         """The bind group of the current buffers (a rebuild makes new ones for the tree)."""
+        if self.wavefront is not None:
+            return  # the wavefront binds its own, at its next frame
         entries = [
             {"binding": 0, "resource": {"buffer": self.uniform}},
             {"binding": 1, "resource": {"buffer": self.spheres}},
@@ -334,6 +346,15 @@ class Compute:
             if timed
             else None
         )
+        if self.wavefront is not None:
+            compute_pass = encoder.begin_compute_pass(timestamp_writes=writes)
+            self.wavefront.encode(compute_pass)
+            compute_pass.end()
+            self.wavefront.encode_state_read(encoder)
+            if timed:
+                encoder.resolve_query_set(self.queries, 0, 2, self.resolved, 0)
+                encoder.copy_buffer_to_buffer(self.resolved, 0, self.times, 0, 16)
+            return
         if self.whitted is not None:
             encoder.clear_buffer(self.rays, 0, RAY_KINDS * 4)
         compute_pass = encoder.begin_compute_pass(timestamp_writes=writes)

@@ -14,7 +14,7 @@ import functools
 from importlib import resources
 
 from ... import layout, lighting
-from ...kernels import traverse, whitted
+from ...kernels import traverse, wavefront, whitted
 
 ACCELS = {"bvh": "traverse.wgsl", "none": "brute.wgsl"}
 PIECES = ("common.wgsl", "intersect.wgsl", "shade.wgsl", "trace.wgsl")
@@ -44,7 +44,22 @@ WHITTED_CONSTANTS = {
     "MAX_SAMPLES": f"{lighting.MAX_SHADOW_SAMPLES}u",
 }
 
-# The entry point of each walk, and of Whitted shading (either accel).
+# The wavefront's (wavefront.wgsl; its state words as backends/wgpu/wavefront.py lays them out).
+MAX_WAVES = whitted.MAX_DEPTH + 2
+WAVEFRONT_CONSTANTS = {
+    "WF_RAY_ROWS": f"{wavefront.RAY_ROWS}u",
+    "WF_RAY_IDS": f"{wavefront.RAY_IDS}u",
+    "WF_SHADOW_ROWS": f"{wavefront.SHADOW_ROWS}u",
+    "WF_SHADOW_IDS": f"{wavefront.SHADOW_IDS}u",
+    "WF_SHADOW_BASE": f"{MAX_WAVES}u",
+    "WF_OVERFLOW": f"{2 * MAX_WAVES}u",
+    "WF_WAVE": f"{2 * MAX_WAVES + 1}u",
+    "WF_STATE": f"{2 * MAX_WAVES + 2}u",
+    "WF_CLAMP": repr(float(wavefront.CLAMP)),
+}
+
+# The entry point of each walk, and of Whitted shading (either accel); the
+# wavefront's entry points are wavefront.py's.
 ENTRY = {"ray": "main", "packet": "main_packet", "whitted": "main_whitted"}
 
 
@@ -58,8 +73,10 @@ def source(workgroup: tuple[int, int], accel: str, walk: str = "ray") -> str:
         extra = [_piece("packet.wgsl")]
     elif walk == "whitted":
         extra = [_piece("whitted.wgsl")]
+    elif walk == "wavefront":
+        extra = [_piece("whitted.wgsl"), _piece("wavefront.wgsl")]
     text = "\n".join([_piece(p) for p in PIECES] + [_piece(ACCELS[accel])] + extra)
     text = text.replace("WORKGROUP_X", f"{workgroup[0]}u").replace("WORKGROUP_Y", f"{workgroup[1]}u")
-    for name, value in {**BVH_CONSTANTS, **WHITTED_CONSTANTS}.items():
+    for name, value in {**BVH_CONSTANTS, **WHITTED_CONSTANTS, **WAVEFRONT_CONSTANTS}.items():
         text = text.replace(name, value)
     return text

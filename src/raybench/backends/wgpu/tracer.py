@@ -50,6 +50,7 @@ class Tracer(TracerBase):
         walk: str | None = None,
         whitted: Shading | None = None,
         build: str | None = None,
+        schedule: str | None = None,
     ):
         import wgpu
 
@@ -61,11 +62,13 @@ class Tracer(TracerBase):
         self.compute = Compute(
             self.device, spheres, width, height, workgroup, accel, kernel,
             extra_texture_usage=wgpu.TextureUsage.TEXTURE_BINDING, walk=walk, whitted=whitted, build=build,
+            schedule=schedule,
         )  # fmt: skip
         self.packer = Packer(self.device, self.compute.texture, width, height)
         self.accel = accel
         self.build = self.compute.build  # where the BVH is built: "host" or "gpu"; None for brute force
         self.walk = self.compute.walk  # the BVH walk: "ray" or "packet"; None for brute force
+        self.schedule = self.compute.schedule  # Whitted's: "wavefront" or "pixel"; None for the thesis's
         self.workgroup = self.compute.workgroup
         self.width, self.height, self.count = width, height, spheres.shape[1]
         self.image_read = self.device.create_buffer(
@@ -150,6 +153,8 @@ class Tracer(TracerBase):
         """Trace a frame of the first `count` spheres (default all) into
         self.image and self.hits, which are reused between frames."""
         self._submit(basis, self._count(count), timed=False, readback=True)
+        if not self._settled():
+            return self.trace(basis, count)
         return self._fetch()
 
     def timed_trace(self, basis: np.ndarray, count: int | None = None) -> float:
@@ -159,6 +164,8 @@ class Tracer(TracerBase):
         count = self._count(count)
         if self.period_ns:
             self._submit(basis, count, timed=True, readback=True)
+            if not self._settled():
+                return self.timed_trace(basis, count)
             kernel_ms = self.compute.read_kernel_ms(self.period_ns)
         else:
             self.compute.compile()
@@ -169,11 +176,25 @@ class Tracer(TracerBase):
             self.device.queue.submit([encoder.finish()])
             self.compute.wait()
             kernel_ms = (time.perf_counter() - start) * 1e3
+            if not self._settled():
+                return self.timed_trace(basis, count)
             encoder = self.device.create_command_encoder()
             self._encode_readback(encoder)
             self.device.queue.submit([encoder.finish()])
         self._fetch()
         return kernel_ms
+
+    @property
+    def wavefront(self):
+        """The Wavefront that traces this tracer's Whitted frames, None where
+        they are traced a pixel an invocation."""
+        return self.compute.wavefront
+
+    def _settled(self) -> bool:
+        """Whether the last frame needs no second trace: False where the
+        wavefront's queues were short for it (now made longer; waits for
+        the frame)."""
+        return self.compute.wavefront is None or not self.compute.wavefront.overflowed()
 
     def close(self) -> None:
         """wgpu releases the buffers and the device with the objects."""
