@@ -25,7 +25,7 @@ def one(device, spheres, width, height, frames, accel, depth, samples, block=Non
     options = {"cuda": {"block": block}, "wgpu": {"workgroup": block}}.get(device, {}) if block else {}
     if schedule is not None:
         options["schedule"] = schedule
-    if wave_grid is not None and schedule == "wavefront":
+    if wave_grid is not None and schedule == "wavefront" and device == "cuda":
         options["wave_grid"] = wave_grid
     with backends.tracer(device, scene.spheres, width, height, accel=accel, whitted=shading, **options) as tracer:
         start = time.perf_counter()
@@ -88,7 +88,7 @@ def main() -> int:
     parser.add_argument("--shadow-samples", type=int, default=4)
     parser.add_argument("--block", type=int, nargs=2, metavar=("X", "Y"), help="cuda's block, wgpu's workgroup")
     parser.add_argument(
-        "--schedule", action="append", choices=["wavefront", "pixel"], help="cuda: how Whitted's rays are scheduled"
+        "--schedule", action="append", choices=["wavefront", "pixel"], help="cuda and wgpu: how Whitted's rays are scheduled"
     )
     parser.add_argument("--wave-grid", type=int, help="cuda's wavefront: blocks a stage (default: a thread a ray)")
     _harness.add_common(parser, frames=7)
@@ -99,7 +99,7 @@ def main() -> int:
     with _harness.Records("whitted_rays", args, settings) as out:
         for _ in range(args.rounds):
             for device in args.device or ["cuda"]:
-                schedules = (args.schedule or [None]) if device == "cuda" else [None]
+                schedules = (args.schedule or [None]) if device in ("cuda", "wgpu") else [None]
                 for accel, schedule in ((a, s) for a in args.accel or ["bvh"] for s in schedules):
                     for n in args.spheres or [1000, 10_000, 100_000]:
                         try:

@@ -46,6 +46,7 @@ class InWindowTracer:
         self._scene = None
         self._started = 0.0
         self._rays_read = None  # where a Whitted pass's ray counts are copied, to be read back
+        self._traced = None  # the last frame's camera basis and sphere count, to trace it again
 
     def prepare(self, request) -> float | None:
         """Make the Compute this request needs, if it is not the one held; the
@@ -84,9 +85,8 @@ class InWindowTracer:
     def encode(self, encoder, request) -> None:
         """Record the frame's compute pass (timed where the device has timestamps)."""
         count = check_count(request.count, self.compute.count)
-        self.compute.encode(
-            encoder, request.camera.basis(request.width, request.height), count, timed=self.period_ns is not None
-        )
+        self._traced = (request.camera.basis(request.width, request.height), count)
+        self.compute.encode(encoder, *self._traced, timed=self.period_ns is not None)
         if self.compute.whitted is not None:
             encoder.copy_buffer_to_buffer(self.compute.rays, 0, self._rays_read, 0, RAY_KINDS * 4)
         if self.period_ns is None:
@@ -102,7 +102,17 @@ class InWindowTracer:
         return (time.perf_counter() - self._started) * 1e3
 
     def frame(self, request) -> DrawnFrame:
-        """The frame, once its submission has completed (this waits for it)."""
+        """The frame, once its submission has completed (this waits for it).
+        Where the wavefront's queues were short for it, it is traced again
+        into the same texture with longer ones, which the next draw shows."""
+        wavefront = self.compute.wavefront
+        while wavefront is not None and wavefront.overflowed():
+            encoder = self.device.create_command_encoder()
+            self.compute.encode(encoder, *self._traced)
+            encoder.copy_buffer_to_buffer(self.compute.rays, 0, self._rays_read, 0, RAY_KINDS * 4)
+            self.compute.encode_fence(encoder)
+            self.device.queue.submit([encoder.finish()])
+            self.compute.wait()
         return DrawnFrame(request.width, request.height, "wgpu", self.adapter.label(), self._read_rays(request))
 
     def _read_rays(self, request) -> dict | None:
