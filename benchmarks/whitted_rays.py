@@ -88,9 +88,9 @@ def main() -> int:
     parser.add_argument("--shadow-samples", type=int, default=4)
     parser.add_argument("--block", type=int, nargs=2, metavar=("X", "Y"), help="cuda's block, wgpu's workgroup")
     parser.add_argument(
-        "--schedule", action="append", choices=["wavefront", "pixel"], help="cuda and wgpu: how Whitted's rays are scheduled"
+        "--schedule", action="append", choices=["wavefront", "pixel"], help="cuda, wgpu: how Whitted's rays go"
     )
-    parser.add_argument("--wave-grid", type=int, help="cuda's wavefront: blocks a stage (default: a thread a ray)")
+    parser.add_argument("--wave-grid", type=int, help="cuda's wavefront: blocks a stage (default: 32 a multiprocessor)")
     _harness.add_common(parser, frames=7)
     args = parser.parse_args()
     _harness.check_common(parser, args)
