@@ -33,6 +33,7 @@ import numpy as np
 from numba import cuda
 
 from ... import compiled, kernels
+from ...errors import RaybenchError
 from ...kernels.wavefront import R_KIND, R_PIXEL, RAY_IDS, RAY_ROWS, SHADOW_IDS, SHADOW_ROWS
 from ...kernels.whitted import KINDS, PRIMARY
 from ...layout import STACK
@@ -62,6 +63,9 @@ MAX_WAVES = 18
 SHADOW_BASE = MAX_WAVES
 OVERFLOW = 2 * MAX_WAVES
 COUNTS = OVERFLOW + 1
+# Device bytes a slot: a ray in both queues (floats, ints) and its hit; a shadow ray.
+RAY_BYTES = 2 * (RAY_ROWS + RAY_IDS) * 4 + 12
+SHADOW_BYTES = (SHADOW_ROWS + SHADOW_IDS) * 4
 
 
 @cuda.jit(device=True)
@@ -253,6 +257,15 @@ class Wavefront:
         self.mark = None
 
     def _allocate(self, rays: int, shadows: int) -> None:
+        needed = rays * RAY_BYTES + shadows * SHADOW_BYTES
+        if not simulated():
+            free, _total = cuda.current_context().get_memory_info()
+            if needed > free:
+                raise RaybenchError(
+                    f"schedule 'wavefront': its queues need {needed / 2**30:.1f} GiB and the GPU has "
+                    f"{free / 2**30:.1f} GiB free; use a smaller frame or schedule='pixel'"
+                )
+        self.queues = None  # the old ones go first
         self.ray_capacity, self.shadow_capacity = rays, shadows
         self.queues = [
             (cuda.device_array((RAY_ROWS, rays), np.float32), cuda.device_array((RAY_IDS, rays), np.int32))
