@@ -2,19 +2,15 @@
 their trees with: the model of the GPU's tree, and the Morton codes worked
 out bit by bit."""
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 
 
 def tree_model():
-    """benchmarks/gpu_tree_model.py: the GPU's tree built on the CPU."""
-    path = Path(__file__).parent.parent / "benchmarks" / "gpu_tree_model.py"
-    spec = importlib.util.spec_from_file_location("gpu_tree_model", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    """raybench.bvh.lbvh_model: the GPU's tree built on the CPU, from the
+    GPU builder's own steps (bvh/lbvh_steps.py) compiled by numba.njit."""
+    from raybench.bvh import lbvh_model
+
+    return lbvh_model
 
 
 def morton_reference(spheres) -> np.ndarray:

@@ -58,8 +58,9 @@ def test_gpu_tree_is_valid(rng, kind):
 
 @pytest.mark.parametrize("kind", ["generated", "overlapping", "one_point", "duplicates", "line"])
 def test_model_gives_the_kernels_tree(rng, kind):
-    """benchmarks/gpu_tree_model.py, which measures the GPU trees' SAH cost
-    at sizes the simulator cannot build, gives the kernels' tree: every row
+    """raybench.bvh.lbvh_model, with which benchmarks/gpu_tree_model.py
+    measures the GPU trees' SAH cost at sizes the simulator cannot build,
+    gives the kernels' tree: every row
     (collapsed ones too), the order, the depth, the rows reached and the
     device's cost, bit for bit under the simulator. A GPU may fuse
     multiply-adds, which can tip a choice between two costs equal to the
@@ -137,7 +138,9 @@ def test_treelets_lower_the_cost_and_keep_leaves_ranges(rng, monkeypatch, kind):
     again = builder.tree(builder.read_depth(), 0.0).to_host()
     assert np.array_equal(again.nodes.view(np.uint32), tree.nodes.view(np.uint32))
     if sim():  # on a GPU, fused multiply-adds may tip near ties (test_model_gives_the_kernels_tree)
-        nodes, order, _ordered, depth, _rows, _cost = tree_model().build(scene.spheres, "treelet")
+        nodes, order, _ordered, depth, _rows, _cost = tree_model().build(
+            scene.spheres, "treelet", passes=cuda_build.TREELET_PASSES
+        )
         assert np.array_equal(tree.order, order) and depth == tree.depth
         assert np.array_equal(tree.links[:, layout.REF :], nodes.view(np.int32)[:, layout.REF :])
 

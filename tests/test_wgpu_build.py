@@ -1,5 +1,5 @@
 """The BVH built on the GPU through wgpu (backends.wgpu.build): the model's
-tree (benchmarks/gpu_tree_model.py) bit for bit, a valid tree in the layout
+tree (raybench.bvh.lbvh_model) bit for bit, a valid tree in the layout
 every walk reads, its sort against NumPy's, walks through it that give the
 brute force's hits, and refits. On lavapipe in CI; on whatever adapter is
 here otherwise.

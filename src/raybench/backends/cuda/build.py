@@ -50,7 +50,7 @@ from numba import config, cuda
 
 from ... import bvh as bvh_mod
 from ... import compiled
-from ...bvh import lbvh
+from ...bvh import lbvh, lbvh_steps
 from ...bvh.lbvh import AXIS_CELLS, CODE_BITS, LEAF_SIZE, REFIT_LIMIT  # noqa: F401 - read as cuda_build.*
 from ...layout import BOX_FLOATS, COUNT, INNER, MAX_DEPTH, NODE_FLOATS, PAD, REF
 from .launch import Launches
@@ -90,28 +90,17 @@ THREADS = 32 if _SIM else 256
 #           below it (the host's builder weighs the same, greedily), decided
 #           bottom-up in the pass that fits the boxes, at no extra launch.
 #   "treelet": "sah", and each row's subtree first made the cheapest tree
-#           over its treelet of TREELET pieces (_treelet, Karras and Aila
+#           over its treelet of TREELET pieces (lbvh_steps' treelet, Karras and Aila
 #           2013, one pass bottom-up), then the spheres put in the new tree's
 #           order (_reorder, one launch more).
 QUALITIES = ("sah", "treelet", "lbvh")
 QUALITY = lbvh.QUALITY
-# A treelet's pieces. Its programme weighs 3^K / 2 splits a row, in local
-# arrays of 2^K entries (25 bytes each). The model of this build
-# (benchmarks/gpu_tree_model.py), at 100,000 spheres: SAH cost over the
-# host's 1.031 with 6 pieces, 1.026 with 8 (3.6 times the splits); pieces
-# kept in their Morton order instead (an interval programme, no reorder)
-# gave 1.070 whatever their number.
-TREELET = 6
-SUBSETS = 1 << TREELET
-# Bottom-up passes of treelets: each pass more lowers the cost less (the
-# model at 100,000 spheres: 1.031, 1.026, 1.025 times the host's after 1, 2,
-# 3), each a launch of the bottom-up pass and its treelets' work again.
-TREELET_PASSES = 1
-# A treelet is rebuilt where that lowers its cost below _GAIN times what it
-# was: rounding alone never changes a tree (all spheres at one point stay a
-# balanced tree).
-_GAIN = np.float32(0.999)
-_INF = np.float32(np.inf)
+# A treelet's pieces, the passes of treelets and the gain that rebuilds one:
+# bvh/lbvh_steps.py, where the treelet step is written once. TREELET_PASSES
+# is read at each build (a benchmark's --treelet-passes sets it).
+TREELET = lbvh_steps.TREELET
+SUBSETS = lbvh_steps.SUBSETS
+TREELET_PASSES = lbvh_steps.TREELET_PASSES
 # Device bytes a Builder holds per sphere: keys and values twice (the sort's
 # two buffers), the links up (8 + 8), the rows' spans (8), what lies below
 # each child (heights and rows 16, costs 8, rows 8), the counters (4), the
@@ -326,83 +315,12 @@ def _scatter(keys, values, n, shift, offsets, blocks, keys_out, values_out):
             values_out[to] = tile_v[j]
 
 
-@cuda.jit(device=True)
-def _delta(keys, n, i, j):
-    """Karras's delta: the length of the common prefix of keys i and j (code
-    bits, then place bits where the codes are equal); -1 off the ends."""
-    if j < 0 or j >= n:
-        return -1
-    a = keys[i]
-    b = keys[j]
-    if a != b:
-        return cuda.clz(np.uint32(a ^ b))
-    return 32 + cuda.clz(np.uint32(i ^ j))
-
-
 @compiled.cuda_jit()
 def _hierarchy(keys, n, links, up, leaf_up, span):
-    """Internal node i (row i): the range of sorted keys it covers, where it
-    splits, and its two children (Karras 2012, figure 4): a child of one
-    sphere a leaf of it, a child of more the row it starts (collapsed into a
-    leaf, or not, by _bounds_up, once its box is known). up[row] and
-    leaf_up[leaf]: the parent's row times 2 plus the child's slot (the
-    root's: -1). span[row]: the first sphere it covers and their count."""
+    """Internal node i (row i) from the sorted keys: bvh.lbvh_steps's hierarchy_row."""
     i = cuda.grid(1)
-    if i >= n - 1:
-        return
-    # the direction of the range: towards the neighbour sharing more bits
-    d = 1 if _delta(keys, n, i, i + 1) > _delta(keys, n, i, i - 1) else -1
-    least = _delta(keys, n, i, i - d)
-    # an upper bound of the range's length, then the length by binary search
-    most = 2
-    while _delta(keys, n, i, i + most * d) > least:
-        most *= 2
-    length = 0
-    step = most // 2
-    while step >= 1:
-        if _delta(keys, n, i, i + (length + step) * d) > least:
-            length += step
-        step //= 2
-    j = i + length * d
-    node = _delta(keys, n, i, j)
-    # the split: the last key sharing more than `node` bits with key i
-    split = 0
-    step = length
-    while True:
-        step = (step + 1) // 2
-        if _delta(keys, n, i, i + (split + step) * d) > node:
-            split += step
-        if step <= 1:
-            break
-    gamma = i + split * d + min(d, 0)
-    first = min(i, j)
-    last = max(i, j)
-    span[i, 0] = first
-    span[i, 1] = last - first + 1
-    if first == gamma:
-        links[i, _REF] = first
-        links[i, _COUNT] = 1
-        leaf_up[gamma] = 2 * i
-    else:
-        links[i, _REF] = gamma
-        links[i, _COUNT] = _INNER
-        up[gamma] = 2 * i
-    if last == gamma + 1:
-        links[i, _REF + 1] = gamma + 1
-        links[i, _COUNT + 1] = 1
-        leaf_up[gamma + 1] = 2 * i + 1
-    else:
-        links[i, _REF + 1] = gamma + 1
-        links[i, _COUNT + 1] = _INNER
-        up[gamma + 1] = 2 * i + 1
-    if i == 0:
-        up[0] = -1
-
-
-@cuda.jit(device=True)
-def _half_area(lx, ly, lz, hx, hy, hz):
-    dx, dy, dz = max(hx - lx, np.float32(0)), max(hy - ly, np.float32(0)), max(hz - lz, np.float32(0))
-    return dx * dy + dy * dz + dz * dx
+    if i < n - 1:
+        _hierarchy_row(keys, n, i, links, up, leaf_up, span)
 
 
 @cuda.jit(device=True)
@@ -417,231 +335,26 @@ def _load_i(a, i):
     return cuda.atomic.add(a, i, np.int32(0))
 
 
-@cuda.jit(device=True)
-def _entry(nodes, links, span, kid, below, costs, row, slot, e, tb, tn, tc, th, tw, tref, tcnt, trow):
-    """Piece e of a treelet: child slot of row (its box, link, row below,
-    cost, height, rows below, spheres), read by atomics that add nothing:
-    other threads wrote them, and a plain load could find a stale line in
-    this SM's L1."""
-    link = 2 * row + slot
-    for q in range(6):
-        tb[e, q] = _load_f(nodes, (row, 6 * slot + q))
-    tref[e] = _load_i(links, (row, _REF + slot))
-    tcnt[e] = _load_i(links, (row, _COUNT + slot))
-    trow[e] = _load_i(kid, link)
-    tc[e] = _load_f(costs, link)
-    th[e] = _load_i(below, 2 * link)
-    tw[e] = _load_i(below, 2 * link + 1)
-    tn[e] = _load_i(span, (trow[e], 1)) if trow[e] >= 0 else 1
-
-
-@cuda.jit(device=True)
-def _union(tb, part, size):
-    """The box of the pieces in the bit set part."""
-    lx = ly = lz = _INF
-    hx = hy = hz = -_INF
-    for e in range(size):
-        if part & (1 << e):
-            lx, ly, lz = min(lx, tb[e, 0]), min(ly, tb[e, 1]), min(lz, tb[e, 2])
-            hx, hy, hz = max(hx, tb[e, 3]), max(hy, tb[e, 4]), max(hz, tb[e, 5])
-    return lx, ly, lz, hx, hy, hz
-
-
-@cuda.jit(device=True)
-def _piece(part):
-    """The piece of a set of one."""
-    e = 0
-    while (1 << e) != part:
-        e += 1
-    return e
-
-
-@cuda.jit(device=True)
-def _treelet(x, old, nodes, links, span, up, leaf_up, kid, below, costs, leaf_max):
-    """Row x's subtree (its rows' boxes, links and costs final) made the
-    cheapest tree over its treelet (Karras and Aila 2013): x's two
-    children, then, up to TREELET pieces, the piece of largest area that is
-    a row (not a leaf) replaced by its two children. The cheapest binary
-    tree over the pieces, in any order, by a programme over their subsets
-    (bit sets, each after its own subsets in numeric order: its box's half
-    area, spheres, cost, best split into two, whether a leaf, and as a child
-    its height and the rows a walk reaches below it); a set of spheres is
-    cut into a leaf as _bounds_up cuts. The rows the treelet frees (x's and
-    the replaced ones) hold the new tree: links, boxes, counts, costs and
-    links up written here. A leaf's spheres are now no range of the sort's
-    order: _reorder puts them in tree order and sets the leaves' refs.
-    x is changed only where the cost falls below _GAIN times old (x's cost
-    as it is), so that rounding never churns equal trees. Returns (cost,
-    height, rows) of x after, or (old, -1, -1) where nothing changed."""
-    K = TREELET
-    tb = cuda.local.array((TREELET, 6), np.float32)
-    tn = cuda.local.array(TREELET, np.int32)
-    tc = cuda.local.array(TREELET, np.float32)
-    th = cuda.local.array(TREELET, np.int32)
-    tw = cuda.local.array(TREELET, np.int32)
-    tref = cuda.local.array(TREELET, np.int32)
-    tcnt = cuda.local.array(TREELET, np.int32)
-    trow = cuda.local.array(TREELET, np.int32)
-    rows = cuda.local.array(TREELET, np.int32)
-    area = cuda.local.array(SUBSETS, np.float32)
-    cnt = cuda.local.array(SUBSETS, np.int32)
-    cost = cuda.local.array(SUBSETS, np.float32)
-    split = cuda.local.array(SUBSETS, np.int32)
-    hh = cuda.local.array(SUBSETS, np.int32)
-    ww = cuda.local.array(SUBSETS, np.int32)
-    leaf = cuda.local.array(SUBSETS, np.int8)
-    stack = cuda.local.array((TREELET, 2), np.int32)
-    rows[0] = x
-    used = 1
-    _entry(nodes, links, span, kid, below, costs, x, 0, 0, tb, tn, tc, th, tw, tref, tcnt, trow)
-    _entry(nodes, links, span, kid, below, costs, x, 1, 1, tb, tn, tc, th, tw, tref, tcnt, trow)
-    size = 2
-    while size < K:
-        best = -1
-        best_area = np.float32(-1)
-        for e in range(size):
-            if tcnt[e] == _INNER:
-                ar = _half_area(tb[e, 0], tb[e, 1], tb[e, 2], tb[e, 3], tb[e, 4], tb[e, 5])
-                if ar > best_area:
-                    best_area = ar
-                    best = e
-        if best < 0:
-            break
-        r = tref[best]
-        rows[used] = r
-        used += 1
-        _entry(nodes, links, span, kid, below, costs, r, 0, best, tb, tn, tc, th, tw, tref, tcnt, trow)
-        _entry(nodes, links, span, kid, below, costs, r, 1, size, tb, tn, tc, th, tw, tref, tcnt, trow)
-        size += 1
-    if size < 3:
-        return old, -1, -1
-    full = (1 << size) - 1
-    for sm in range(1, full + 1):
-        low = sm & -sm
-        if sm == low:
-            e = _piece(sm)
-            cnt[sm] = tn[e]
-            cost[sm] = tc[e]
-            hh[sm] = th[e]
-            ww[sm] = tw[e]
-            continue
-        lx, ly, lz, hx, hy, hz = _union(tb, sm, size)
-        area[sm] = _half_area(lx, ly, lz, hx, hy, hz)
-        cnt[sm] = cnt[low] + cnt[sm ^ low]
-        best = _INF
-        at = low
-        p = (sm - 1) & sm
-        while p > 0:
-            if p & low:  # each split once: the side with the lowest piece first
-                v = cost[p] + cost[sm ^ p]
-                if v < best:
-                    best = v
-                    at = p
-            p = (p - 1) & sm
-        inner = _NODE_COST * area[sm] + best
-        split[sm] = at
-        lc = np.float32(cnt[sm]) * area[sm]
-        if sm != full and cnt[sm] <= leaf_max and lc <= inner:
-            cost[sm] = lc
-            leaf[sm] = 1
-            hh[sm] = 0
-            ww[sm] = 0
-        else:
-            cost[sm] = inner
-            leaf[sm] = 0
-            hh[sm] = 1 + max(hh[at], hh[sm ^ at])
-            ww[sm] = 1 + ww[at] + ww[sm ^ at]
-    if not cost[full] < old * _GAIN:
-        return old, -1, -1
-    stack[0, 0] = full
-    stack[0, 1] = x
-    top = 1
-    used = 1
-    while top > 0:
-        top -= 1
-        sm = stack[top, 0]
-        row = stack[top, 1]
-        for slot in range(2):
-            part = split[sm] if slot == 0 else sm ^ split[sm]
-            link = 2 * row + slot
-            col = 6 * slot
-            if part & (part - 1) == 0:  # a piece: as it was, under a new parent
-                e = _piece(part)
-                for q in range(6):
-                    nodes[row, col + q] = tb[e, q]
-                links[row, _REF + slot] = tref[e]
-                links[row, _COUNT + slot] = tcnt[e]
-                kid[link] = trow[e]
-                costs[link] = tc[e]
-                below[2 * link] = th[e]
-                below[2 * link + 1] = tw[e]
-                if trow[e] >= 0:
-                    up[trow[e]] = link
-                else:
-                    leaf_up[tref[e]] = link
-                continue
-            child = rows[used]
-            used += 1
-            lx, ly, lz, hx, hy, hz = _union(tb, part, size)
-            nodes[row, col] = lx
-            nodes[row, col + 1] = ly
-            nodes[row, col + 2] = lz
-            nodes[row, col + 3] = hx
-            nodes[row, col + 4] = hy
-            nodes[row, col + 5] = hz
-            span[child, 0] = -1  # no range of the sort's order
-            span[child, 1] = cnt[part]
-            kid[link] = child
-            up[child] = link
-            costs[link] = cost[part]
-            below[2 * link] = hh[part]
-            below[2 * link + 1] = ww[part]
-            if leaf[part] != 0:
-                links[row, _REF + slot] = -1  # set by _reorder
-                links[row, _COUNT + slot] = cnt[part]
-            else:
-                links[row, _REF + slot] = child
-                links[row, _COUNT + slot] = _INNER
-            stack[top, 0] = part
-            stack[top, 1] = child
-            top += 1
-    return cost[full], hh[full], ww[full]
+# Karras's hierarchy row, the treelet step and the reorder, written once
+# (bvh/lbvh_steps.py): compiled here for the GPU, and by numba.njit for the
+# CPU model of this build (bvh/lbvh_model.py). Their target is numba.cuda
+# (its local.array and clz); under the simulator, which swaps its own cuda in
+# for the numba.cuda a function names in its globals only, the CPU's (the
+# same answers: np.empty and a count of leading zeros).
+_target = lbvh_steps.cpu_target(lambda f: f) if _SIM else cuda
+_steps = lbvh_steps.build(cuda.jit(device=True), _target, _load_f, _load_i)
+_hierarchy_row = _steps.hierarchy_row
+_half_area = _steps.half_area
+_treelet = _steps.treelet
+_reorder_one = _steps.reorder_one
 
 
 @compiled.cuda_jit()
 def _reorder(spheres, n, order, leaf_up, up, links, kid, span, order_out, leaf_up_out, ordered):
-    """After treelets, the spheres in the tree's order, so that every leaf
-    is again a range of them: leaf k's place is the spheres left of it in
-    the tree (on its way up, the left sibling's count wherever it is a right
-    child). Its sphere, its index and its link up go there; on the way up
-    while it is the leftmost sphere of the child it climbs from, it sets
-    that child's ref where the child is a leaf (every leaf has one leftmost
-    sphere)."""
+    """After treelets, the spheres in the tree's order (bvh.lbvh_steps's reorder_one, a thread a sphere)."""
     k = cuda.grid(1)
-    if k >= n:
-        return
-    rank = 0
-    link = leaf_up[k]
-    while link >= 0:
-        row = link // 2
-        if link - 2 * row == 1:
-            left = kid[2 * row]
-            rank += span[left, 1] if left >= 0 else 1
-        link = up[row]
-    s = order[k]
-    order_out[rank] = s
-    leaf_up_out[rank] = leaf_up[k]
-    for a in range(4):
-        ordered[a, rank] = spheres[a, s]
-    link = leaf_up[k]
-    while link >= 0:
-        row = link // 2
-        slot = link - 2 * row
-        if links[row, _COUNT + slot] != _INNER:
-            links[row, _REF + slot] = rank
-        if slot == 1:
-            break
-        link = up[row]
+    if k < n:
+        _reorder_one(spheres, k, order, leaf_up, up, links, kid, span, order_out, leaf_up_out, ordered)
 
 
 @compiled.cuda_jit()

@@ -1,7 +1,7 @@
 """The BVH built on the GPU through wgpu: backends/cuda/build.py's LBVH
 (Karras 2012) ported to WGSL compute shaders, in raybench.bvh's node layout,
 so the walks read it unchanged. The same algorithm and arithmetic: the tree
-is benchmarks/gpu_tree_model.py's, bit for bit (tests/test_wgpu_build.py).
+is raybench.bvh.lbvh_model's, bit for bit (tests/test_wgpu_build.py).
 
 The steps (the .wgsl pieces say how each is done in WGSL, and why where
 it differs from cuda's kernels):
