@@ -9,9 +9,13 @@ script writes, and a script is its setup and a timed call.
     with _harness.Records("bvh_walks", args, settings={...}) as out:
         out.write(_harness.point("scaling", device, width, height, spheres, options, frames_ms, kernel_ms))
 
-Records go to stdout, one JSON line each, and to --out (a .jsonl, appended) when given. Scripts
-that measure something other than a suite's frames (builds, start-up, launches) cannot use the
-schema yet; benchmarks/README.md lists which scripts use this harness and which do not.
+What is no suite's frame (a build, a start-up, a launch, a part of a frame) is a record of the
+schema's "parts" suite, made by part():
+
+    with _harness.Records("bvh_build", args, settings={...}) as out:
+        out.write(_harness.part("bvh-build", "cpu", _harness.timings(build, args.frames), spheres=n))
+
+Records go to stdout, one JSON line each, and to --out (a .jsonl, appended) when given.
 """
 
 from __future__ import annotations
@@ -19,8 +23,10 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from collections.abc import Callable, Mapping
 
+import raybench
 from raybench.bench import results
 from raybench.bench.runner import run_info
 from raybench.bench.stats import summarize
@@ -44,15 +50,57 @@ def check_common(parser: argparse.ArgumentParser, args) -> None:
         parser.error(f"--label: letters, digits, '.', '_' and '-', at most 64, got {args.label!r}")
 
 
-def paired(variants: Mapping[str, Callable[[], float]], rounds: int) -> dict[str, list[float]]:
+def paired(variants: Mapping, rounds: int) -> dict:
     """Each variant's samples over `rounds` rounds: a round calls every variant once, and the
-    order turns round by round (a, b; b, a; ...), so a drift in the machine falls on both."""
+    order turns round by round (a, b; b, a; ...), so a drift in the machine falls on both. A
+    variant returns one sample, or a list of them (several frames in its turn)."""
     names = list(variants)
-    samples: dict[str, list[float]] = {name: [] for name in names}
+    samples: dict = {name: [] for name in names}
     for r in range(rounds):
         for name in names if r % 2 == 0 else names[::-1]:
-            samples[name].append(variants[name]())
+            got = variants[name]()
+            samples[name].extend(got if isinstance(got, list) else [got])
     return samples
+
+
+def timings(call: Callable[[], object], times: int) -> list[float]:
+    """call() timed `times` times, one after another: the wall-clock milliseconds of each."""
+    out = []
+    for _ in range(times):
+        start = time.perf_counter()
+        call()
+        out.append((time.perf_counter() - start) * 1e3)
+    return out
+
+
+def timed(call: Callable[[], object]) -> Callable[[], float]:
+    """call as a variant of paired(): it returns the milliseconds that one call took."""
+    return lambda: timings(call, 1)[0]
+
+
+def part(
+    quantity: str,
+    device: str,
+    times_ms: list[float],
+    *,
+    spheres: int | None = None,
+    width: int | None = None,
+    height: int | None = None,
+    options: dict | None = None,
+    values: dict | None = None,
+) -> dict:
+    """A record of the "parts" suite (raybench.bench.results.PART): a quantity timed apart from
+    any suite's frames, its median, p5 and p95 from bench.stats; values: other figures measured
+    with it, by name (numbers or None)."""
+    record = {"suite": "parts", "quantity": quantity, "device": device, "samples": len(times_ms)}
+    for key, value in (("spheres", spheres), ("width", width), ("height", height)):
+        if value is not None:
+            record[key] = value
+    record["options"] = {key: value for key, value in (options or {}).items() if value is not None}
+    record["time_ms"] = summarize(times_ms)
+    if values:
+        record["values"] = values
+    return record
 
 
 def point(
@@ -93,6 +141,7 @@ class Records:
     run, printed, and appended to --out."""
 
     def __init__(self, script: str, args, settings: dict):
+        settings = {**settings, "raybench": raybench.__file__}  # which source tree ran (A/B runs)
         self.run = run_info(describe(), args.label or script, settings, argv=[f"benchmarks/{script}.py", *sys.argv[1:]])
         self.writer = results.ResultsWriter(args.out) if args.out else None
 

@@ -1,12 +1,12 @@
-"""What raybench.Renderer costs over the backend's own Tracer, warm, side by
-side: the Tracer's trace() (its buffers reused), Renderer.render() (a Frame
-of its own arrays, dropped at once, so its arrays are traced into again),
-Renderer.render(hits=False), and Renderer.render() by a caller who keeps the
-last KEPT frames (past the Renderer's lent arrays, copies), taken in turn
-frame by frame, medians. Where the device times its kernel (cuda), also the
-kernel alone and the frame's bytes at the host link's speed, measured here
-by a copy of as many bytes from the device into pinned memory, so that the
-whole frame can be held to the kernel plus its copy. One line of JSON a size.
+"""What raybench.Renderer costs over the backend's own Tracer, warm, side by side: the Tracer's
+trace() (its buffers reused), Renderer.render() (a Frame of its own arrays, dropped at once, so
+its arrays are traced into again), Renderer.render(hits=False), and Renderer.render() by a
+caller who keeps the last KEPT frames (past the Renderer's lent arrays, copies), taken in turn
+frame by frame. Where the device times its kernel (cuda), also the kernel alone and the frame's
+bytes at the host link's speed, measured here by a copy of as many bytes from the device into
+pinned memory, so that the whole frame can be held to the kernel plus its copy. Records of the
+results schema's "parts" suite, a way and size each (quantity "tracer-trace", "renderer-render",
+..., "kernel", "copy-to-host"), each with its ratio to the Tracer's trace.
 
     python benchmarks/renderer_overhead.py --device cpu --spheres 1000 --frames 31
     python benchmarks/renderer_overhead.py --device cuda --spheres 1000 --spheres 100000
@@ -14,42 +14,33 @@ whole frame can be held to the kernel plus its copy. One line of JSON a size.
 
 import argparse
 import collections
-import json
 import statistics
 import sys
-import time
 
+import _harness
 import numpy as np
 
 import raybench
-from raybench import machine
 
 KEPT = 10
 
 
-def timed(call) -> float:
-    start = time.perf_counter()
-    call()
-    return (time.perf_counter() - start) * 1e3
-
-
-def copy_ms(nbytes: int, repeats: int = 11) -> float:
-    """A copy of nbytes from the GPU into page-locked host memory, median ms."""
+def copy_ms(nbytes: int, repeats: int = 11) -> list[float]:
+    """Copies of nbytes from the GPU into page-locked host memory, ms each."""
     from numba import cuda
 
     device = cuda.device_array(nbytes, np.uint8)
     host = cuda.pinned_array(nbytes, np.uint8)
-    times = []
-    for _ in range(repeats):
+
+    def copy():
         cuda.synchronize()
-        start = time.perf_counter()
         device.copy_to_host(host)
         cuda.synchronize()
-        times.append((time.perf_counter() - start) * 1e3)
-    return statistics.median(times)
+
+    return _harness.timings(copy, repeats)
 
 
-def measure(n: int, width: int, height: int, device: str, frames: int) -> dict:
+def measure(out, n: int, width: int, height: int, device: str, frames: int) -> None:
     scene = raybench.random_spheres(n, seed=0)
     camera = raybench.Camera()
     basis = camera.basis(width, height)
@@ -63,34 +54,26 @@ def measure(n: int, width: int, height: int, device: str, frames: int) -> dict:
     ):
         tracer = renderer.tracer
         ways = {
-            "tracer_trace": lambda: tracer.trace(basis),
-            "renderer_render": lambda: renderer.render(camera),
-            "renderer_render_no_hits": lambda: renderer.render(camera, hits=False),
-            "renderer_render_kept": lambda: kept.append(keeper.render(camera)),
+            "tracer-trace": lambda: tracer.trace(basis),
+            "renderer-render": lambda: renderer.render(camera),
+            "renderer-render-no-hits": lambda: renderer.render(camera, hits=False),
+            "renderer-render-kept": lambda: kept.append(keeper.render(camera)),
         }
         for call in ways.values():  # warm: compiled, built, buffers made
             call()
-        times = {name: [] for name in ways}
-        kernel = []
-        for _ in range(frames):
-            for name, call in ways.items():
-                times[name].append(timed(call))
-            if device == "cuda":
-                kernel.append(tracer.timed_trace(basis))
-        kept.clear()
-        row = {"device": tracer.name, "spheres": n, "width": width, "height": height, "frames": frames, "kept": KEPT}
-        row.update({f"{name}_ms": round(statistics.median(t), 3) for name, t in times.items()})
-        base = row["tracer_trace_ms"]
-        row["render_over_trace"] = round(row["renderer_render_ms"] / base, 3)
-        row["render_no_hits_over_trace"] = round(row["renderer_render_no_hits_ms"] / base, 3)
-        row["render_kept_over_trace"] = round(row["renderer_render_kept_ms"] / base, 3)
+        times = _harness.paired({name: _harness.timed(call) for name, call in ways.items()}, frames)
         if device == "cuda":
-            frame_bytes = width * height * (3 + 4)  # the image's RGB bytes and the int32 hits
-            row["kernel_ms"] = round(statistics.median(kernel), 3)
-            row["copy_ms"] = round(copy_ms(frame_bytes), 3)
-            floor = row["kernel_ms"] + row["copy_ms"]
-            row["render_over_kernel_plus_copy"] = round(row["renderer_render_ms"] / floor, 3)
-        return row
+            times["kernel"] = [tracer.timed_trace(basis) for _ in range(frames)]
+            times["copy-to-host"] = copy_ms(width * height * (3 + 4))  # the image's RGB bytes and the int32 hits
+        kept.clear()
+        base = statistics.median(times["tracer-trace"])
+        for name, samples in times.items():
+            values = {"over_trace": round(statistics.median(samples) / base, 3)}
+            if name == "renderer-render-kept":
+                values["kept"] = KEPT
+            if name == "copy-to-host":
+                values = {"bytes": width * height * 7}
+            out.write(_harness.part(name, tracer.name, samples, spheres=n, width=width, height=height, values=values))
 
 
 def main() -> int:
@@ -98,12 +81,14 @@ def main() -> int:
     parser.add_argument("--device", default="cpu", choices=("cpu", "cuda", "wgpu"))
     parser.add_argument("--spheres", type=int, action="append", help="default: 1000")
     parser.add_argument("--size", default="1680x1050")
-    parser.add_argument("--frames", type=int, default=31)
+    _harness.add_common(parser, frames=31)
     args = parser.parse_args()
+    _harness.check_common(parser, args)
     width, height = (int(v) for v in args.size.split("x"))
-    print(json.dumps({"what": "run", "git_commit": machine.git_commit(), "machine": machine.describe()["cpu"]}))
-    for n in args.spheres or [1000]:
-        print(json.dumps(measure(n, width, height, args.device, args.frames)), flush=True)
+    with _harness.Records("renderer_overhead", args, {"device": args.device}) as out:
+        for _ in range(args.rounds):
+            for n in args.spheres or [1000]:
+                measure(out, n, width, height, args.device, args.frames)
     return 0
 
 

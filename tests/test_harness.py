@@ -59,3 +59,24 @@ def test_bad_common_flags_are_refused():
         _args("--frames", "0")
     with pytest.raises(SystemExit):
         _args("--label", "has space")
+
+
+def test_paired_takes_a_turns_list_of_samples():
+    samples = harness.paired({"a": lambda: [1.0, 2.0], "b": lambda: 3.0}, 2)
+    assert samples == {"a": [1.0, 2.0, 1.0, 2.0], "b": [3.0, 3.0]}
+
+
+def test_parts_records_are_the_schemas(tmp_path):
+    """What is no suite's frame (a build, a start-up) is a record of the "parts" suite: its
+    quantity, its time's median, p5 and p95, and figures by name; report reads it."""
+    out = tmp_path / "r.jsonl"
+    with harness.Records("probe", _args("--out", str(out)), {}) as records:
+        records.write(harness.part("bvh-build", "cpu", [3.0, 1.0, 2.0], spheres=10, values={"depth": 4}))
+        records.write(harness.part("startup-cold", "cuda", [900.0], width=64, height=32, options={"kernel": None}))
+        with pytest.raises(Exception, match="quantity"):
+            records.write(harness.part("a build", "cpu", [1.0]))
+    read = results.read(out)
+    assert read[0]["quantity"] == "bvh-build" and read[0]["time_ms"]["median"] == 2.0 and read[0]["samples"] == 3
+    assert read[0]["values"] == {"depth": 4} and "width" not in read[0] and read[1]["options"] == {}
+    assert read[0]["run"]["settings"]["raybench"].endswith("__init__.py")
+    assert len(harness.timings(lambda: None, 4)) == 4

@@ -881,3 +881,35 @@ def test_report_with_dynamic_section(tmp_path, rng):
         and "| GPU | host | 1680x1050 | 100,000 | 25.0 | 40.0 |" in section
     )
     assert "| 25% | 9 / 1 |" in section and "| 0 / 10 |" in section
+
+
+def part(quantity, median, label="alpha", **fields):
+    """A record of the parts suite (results.PART): a quantity timed apart from any frame."""
+    return {
+        "suite": "parts",
+        "quantity": quantity,
+        "device": "cpu",
+        "time_ms": ms(median),
+        "run": {"id": f"{label}-{DATE}", "date": DATE, "label": label, "machine": machine()},
+        **fields,
+    }
+
+
+def test_report_with_parts_section(tmp_path, rng):
+    """What the benchmark scripts time apart from frames (a build, a start-up) has a table of its
+    own, read beside a suite's records and alone; each needs a quantity and a time."""
+    parts = [
+        part("bvh-build", 41.0, spheres=100_000, options={"threads": 2}, samples=5, values={"depth": 19}),
+        part("startup-warm", 812.0, width=320, height=200, spheres=1000, values={"sah_over_host": None}),
+    ]
+    path = write(tmp_path / "r.jsonl", thesis(rng) + parts)
+    text = report.write_report([path], tmp_path / "rep").read_text()
+    section = text[text.index("## Beyond the thesis: parts timed apart") : text.index("## Sources")]
+    assert "| bvh-build | CPU | 100,000 | – | threads 2 | 41.0 | 36.9-45.1 | 5 | depth 19 |" in section
+    assert "| startup-warm | CPU | 1,000 | 320x200 | – | 812 |" in section and "sah_over_host –" in section
+    alone = write(tmp_path / "parts.jsonl", parts)
+    assert "## Beyond the thesis: parts timed apart" in report.write_report([alone], tmp_path / "rep2").read_text()
+    for broken in ({"time_ms": None}, {"quantity": "a build"}, {"values": {"depth": "deep"}}):
+        bad = write(tmp_path / "bad.jsonl", [{**parts[0], **broken}])
+        with pytest.raises(RaybenchError):
+            report.write_report([bad], tmp_path / "rep3")

@@ -5,7 +5,7 @@ every point it finished.
 A record (format "raybench-results", version 1):
 
     suite        "thesis" | "test7" | "constant-vs-runtime" | "tuning" | "scaling" | "secondary" |
-                 "multi-gpu" | "dynamic"
+                 "multi-gpu" | "dynamic" | "parts" (below)
     test         the thesis's test number (1-3 GPU, 4-6 CPU by resolution; 7 the ramp), else null
     device       "cpu" | "cuda"
     width, height, spheres
@@ -15,7 +15,8 @@ A record (format "raybench-results", version 1):
                  "accel": "bvh" | "none" (absent in older records: none), "kernel"
                  for brute force; scaling's and secondary's brute-force points carry "cap_s";
                  scaling's points of a denser scene carry "layout" (random_spheres's:
-                 "dense", "clusters", "deep"; absent: "even");
+                 "dense", "clusters", "deep"; absent: "even"), and the cpu's, where its
+                 tree was chosen, "tree_width" (2 or 4: the cpu Tracer's tree_width);
                  secondary's points carry "shading": "thesis" (primary rays, the baseline) or
                  "whitted" with "depth" and "shadow_samples" (the materials scene,
                  random_spheres(n, seed, materials=True)); multi-gpu's carry "workers" (of
@@ -43,6 +44,15 @@ A record (format "raybench-results", version 1):
     compile_s       compiling the kernel for the point, if it was not yet compiled, else 0
     series       test7 only: {"spheres": [...], "frame_ms": [...], "kernel_ms": [... or null]},
                  one entry per frame after the first
+    suite "parts": what a benchmark script times that is no suite's frame (a build, a
+                 start-up, a launch, a part of a frame, an encoding), in place of the fields
+                 above but suite, device, options and run:
+        quantity     what was timed, a name (e.g. "bvh-build", "startup-warm", "launch")
+        spheres, width, height   the scene's and the image's, where there are ones
+        samples      how many timings time_ms summarises
+        time_ms      {median, p5, p95, mean?, min?, max?}: one timing of the quantity
+        values       other figures measured with it, by name (an SAH cost, a depth, bytes),
+                     numbers or null
     skipped      instead of frames, frame_ms, ...: why the point was not measured (the
                  scaling and secondary suites' brute force), e.g.
                  "predicted 4.2 s a frame, over the 1 s cap", with predicted_ms
@@ -383,6 +393,20 @@ MEASURED = _compile(
         "update_share?": _number,
     }
 )
+# suite "parts": a quantity timed apart from any suite's frames (benchmarks/_harness.part)
+PART = _compile(
+    {
+        "quantity": _name,
+        "device": _one_of("cpu", "cuda", "wgpu"),
+        "spheres?": _count,
+        "width?": _size,
+        "height?": _size,
+        "options?": _object_of(_option),
+        "samples?": _count,
+        "time_ms": TIMES,
+        "values?": _object_of(_or_null(_number)),
+    }
+)
 SKIPPED = _compile({"skipped": _text, "predicted_ms?": _or_null(_number)})
 SERIES = _compile(
     {"series": {"spheres": _list(_count), "frame_ms": _list(_time), "kernel_ms?": _or_null(_list(_time))}}
@@ -396,7 +420,10 @@ def check_record(record: dict, where: str, runs: list | None = None) -> None:
     runs: the run objects already checked; every record of a run repeats
     its run, which is then compared (at C speed) rather than checked again."""
     try:
-        POINT(record)
+        if record.get("suite") == "parts":
+            PART(record)
+        else:
+            POINT(record)
         if "run" not in record:
             raise _Bad("present", "nothing").at("run")
         if runs is None or record["run"] not in runs:
@@ -406,6 +433,8 @@ def check_record(record: dict, where: str, runs: list | None = None) -> None:
                 raise bad.at("run") from None
             if runs is not None and len(runs) < 16:
                 runs.append(record["run"])
+        if record["suite"] == "parts":
+            return
         if "skipped" in record:
             SKIPPED(record)
             if record["suite"] not in ("scaling", "secondary"):

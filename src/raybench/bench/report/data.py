@@ -28,6 +28,15 @@ def _check(record: dict, path, number: int) -> None:
     for key in ("suite", "device"):
         if not isinstance(record.get(key), str):
             _bad(path, number, f"field {key!r} missing")
+    if record["suite"] == "parts":  # a quantity timed apart (results.PART): its own table
+        stats = record.get("time_ms")
+        if not isinstance(stats, dict) or not all(
+            isinstance(stats.get(k), (int, float)) for k in ("median", "p5", "p95")
+        ):
+            _bad(path, number, "field 'time_ms' lacks median/p5/p95")
+        if not isinstance(record.get("run"), dict) or not isinstance(record["run"].get("label"), str):
+            _bad(path, number, "field 'run' lacks label or machine")
+        return
     for key in ("width", "height", "spheres"):
         if not isinstance(record.get(key), int):
             _bad(path, number, f"field {key!r} missing or not a whole number")
@@ -68,10 +77,11 @@ def _point_key(r: dict) -> tuple:
     return (
         r["suite"],
         r.get("test"),
+        r.get("quantity"),
         r["device"],
-        r["width"],
-        r["height"],
-        r["spheres"],
+        r.get("width"),
+        r.get("height"),
+        r.get("spheres"),
         json.dumps(r.get("options") or {}, sort_keys=True),
     )
 
@@ -140,9 +150,10 @@ def group(records: list[dict]) -> dict[str, list[dict]]:
 
 def _describe_point(r: dict) -> str:
     opts = ", ".join(f"{k} {fmt_opt(v)}" for k, v in (r.get("options") or {}).items())
-    return f"{r['suite']} {r['device']} {r['width']}x{r['height']} {r['spheres']} spheres" + (
-        f" ({opts})" if opts else ""
-    )
+    what = f"{r['suite']} {r['quantity']}" if r["suite"] == "parts" else r["suite"]
+    size = f" {r['width']}x{r['height']}" if "width" in r and "height" in r else ""
+    spheres = f" {r['spheres']} spheres" if "spheres" in r else ""
+    return f"{what} {r['device']}{size}{spheres}" + (f" ({opts})" if opts else "")
 
 
 def fmt_opt(v) -> str:
@@ -355,7 +366,10 @@ def constant_vs_runtime(records: list[dict], device: str) -> list[dict]:
 
 
 def way_of(r: dict) -> str:
-    return "BVH" if accel_of(r) == "bvh" else f"brute force, {kernel_of(r)} kernel"
+    if accel_of(r) == "bvh":
+        width = (r.get("options") or {}).get("tree_width")  # the cpu's binary or 4-wide tree, where chosen
+        return f"BVH, {width}-wide tree" if width else "BVH"
+    return f"brute force, {kernel_of(r)} kernel"
 
 
 def scaling_series(records: list[dict]) -> list[dict]:
@@ -532,3 +546,22 @@ def multi_gpu_series(records: list[dict]) -> list[dict]:
             p["speedup"] = p["frames_per_s"] / one if one else None
             p["efficiency"] = p["speedup"] / p["workers"] if one else None
     return sorted(out.values(), key=lambda s: (s["device"], s["job"] or "", s["width"] * s["height"]))
+
+
+def parts_rows(records: list[dict]) -> list[dict]:
+    """The parts suite: one row per quantity timed (results.PART), in the order
+    measured: what, on which device, of what scene, and its time and figures."""
+    return [
+        {
+            "quantity": r["quantity"],
+            "device": r["device"],
+            "spheres": r.get("spheres"),
+            "size": f"{r['width']}x{r['height']}" if "width" in r and "height" in r else None,
+            "options": r.get("options") or {},
+            "time_ms": r["time_ms"],
+            "samples": r.get("samples"),
+            "values": r.get("values") or {},
+        }
+        for r in records
+        if r["suite"] == "parts"
+    ]

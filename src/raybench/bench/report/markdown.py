@@ -25,6 +25,7 @@ from .data import (
     load,
     machine_of,
     multi_gpu_series,
+    parts_rows,
     scaling_series,
     secondary_points,
     speedups,
@@ -645,6 +646,39 @@ def _section_dynamic(w: _Writer, label: str, records: list[dict]) -> None:
     w(_table(header, rows), "")
 
 
+def _section_parts(w: _Writer, label: str, records: list[dict]) -> None:
+    """The parts suite of one run: what a benchmark script timed that is no suite's frame (a build, a
+    start-up, a launch, a part of a frame), a row each, as measured."""
+    rows = parts_rows(records)
+    w(f"### {escape(label)}: parts timed apart", "")
+    header = ["quantity", "device", "spheres", "size", "options", "median ms", "p5-p95 ms", "samples", "figures"]
+    w(
+        _table(
+            header,
+            [
+                [
+                    escape(p["quantity"]),
+                    escape(DEVICE_NAMES.get(p["device"], p["device"])),
+                    f"{p['spheres']:,}" if p["spheres"] is not None else "–",
+                    p["size"] or "–",
+                    escape(", ".join(f"{k} {fmt_opt(v)}" for k, v in p["options"].items())) or "–",
+                    fmt_ms(p["time_ms"]["median"]),
+                    f"{fmt_ms(p['time_ms']['p5'])}-{fmt_ms(p['time_ms']['p95'])}",
+                    p["samples"] if p["samples"] is not None else "–",
+                    escape(
+                        ", ".join(
+                            f"{k} {v:,}" if isinstance(v, int) else f"{k} {fmt_num(v)}" for k, v in p["values"].items()
+                        )
+                    )
+                    or "–",
+                ]
+                for p in rows
+            ],
+        ),
+        "",
+    )
+
+
 def _claims_table(machines: dict[str, list[dict]]) -> tuple[str, dict[str, list[dict]]]:
     judged = {label: verdicts(records) for label, records in machines.items()}
     header = ["#", "the thesis's claim", "what the thesis measured"] + [escape(label) for label in machines]
@@ -666,13 +700,15 @@ def write_report(paths: list, out_dir) -> Path:
         raise RaybenchError(f"{out_dir}: is a file, not a folder for the report")
     machines, notes = load(paths)
     # the scaling, secondary, multi-gpu and dynamic suites are no part of the thesis's claims: each its own section
-    beyond: dict[str, dict[str, list[dict]]] = {"scaling": {}, "secondary": {}, "multi-gpu": {}, "dynamic": {}}
+    beyond: dict[str, dict[str, list[dict]]] = {
+        "scaling": {}, "secondary": {}, "multi-gpu": {}, "dynamic": {}, "parts": {},
+    }  # fmt: skip
     for records in machines.values():
         for r in records:
             if r["suite"] in beyond:
                 beyond[r["suite"]].setdefault(r["run"]["label"], []).append(r)
     scaling, secondary = beyond["scaling"], beyond["secondary"]
-    multi_gpu, dynamic = beyond["multi-gpu"], beyond["dynamic"]
+    multi_gpu, dynamic, parts = beyond["multi-gpu"], beyond["dynamic"], beyond["parts"]
     machines = {k: v for k, v in ((k, [r for r in v if r["suite"] not in beyond]) for k, v in machines.items()) if v}
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -687,6 +723,7 @@ def write_report(paths: list, out_dir) -> Path:
             + list(secondary)
             + list(multi_gpu)
             + list(dynamic)
+            + list(parts)
         )
     )
     w(f"# raybench: the 2010 GPU ray-tracing thesis, measured again on {escape(names)}", "")
@@ -729,6 +766,10 @@ def write_report(paths: list, out_dir) -> Path:
         w("## Beyond the thesis: spheres that move", "")
         for label, records in dynamic.items():
             _section_dynamic(w, label, records)
+    if parts:
+        w("## Beyond the thesis: parts timed apart", "")
+        for label, records in parts.items():
+            _section_parts(w, label, records)
     w("## Sources", "")
     w(*[f"- `{Path(p)}`" for p in paths], "")
     if notes:
