@@ -171,6 +171,15 @@ def walks(spheres: np.ndarray, width: int, height: int, frames: int, qualities) 
 POLICIES = {"default": ("gpu", None), "refit-only": ("gpu", np.inf), "rebuild": ("gpu", 0.0), "host": ("host", None)}
 
 
+def gpu_cost(tracer) -> float | None:
+    """The SAH cost of the tree the Tracer walks (bvh.cost.sah_cost, on the host), where the GPU
+    built it; else None."""
+    tree = tracer.bvh
+    if tree is None or getattr(tree, "built_on", None) != "gpu":
+        return None
+    return tree_cost.sah_cost(tree.to_host().nodes)
+
+
 def dynamic(spheres: np.ndarray, width: int, height: int, frames: int, dt: float) -> dict:
     """Per policy: per frame, the update's wall ms and kind, the walk's kernel
     ms, the whole frame's wall ms (update, walk, image and hits to the host)
@@ -188,6 +197,7 @@ def dynamic(spheres: np.ndarray, width: int, height: int, frames: int, dt: float
         try:
             with backends.tracer("cuda", spheres, width, height, build=build) as tracer:
                 tracer.trace(basis)
+                fresh = gpu_cost(tracer)
                 series = {"update_ms": [], "kind": [], "walk_ms": [], "frame_ms": [], "cost_ratio": []}
                 for frame in moved:
                     start = time.perf_counter()
@@ -198,9 +208,11 @@ def dynamic(spheres: np.ndarray, width: int, height: int, frames: int, dt: float
                     series["update_ms"].append(round(update_ms, 4))
                     series["kind"].append(kind)
                     series["walk_ms"].append(round(walk_ms or np.nan, 4))
-                    fresh = getattr(tracer, "_fresh_cost", None)
-                    if build == "gpu" and fresh:
-                        series["cost_ratio"].append(round(tracer._builder.read_cost() / fresh, 4))
+                    cost = gpu_cost(tracer)
+                    if kind == "build":  # a fresh tree, as the Tracer's refit limit counts from
+                        fresh = cost
+                    if cost is not None and fresh:
+                        series["cost_ratio"].append(round(cost / fresh, 4))
                 series["median_frame_ms"] = round(statistics.median(series["frame_ms"]), 4)
                 series["fps"] = round(1e3 / series["median_frame_ms"], 2)
                 out[name] = series

@@ -142,11 +142,11 @@ def frame_job(client, args, scene, workers, shared=True) -> dict:
     first_s = timed(go, 1)[0]  # shared: the block made here, and each worker's mapping of it
     with get_task_stream(client) as stream:
         seconds = timed(go, args.repeat)
-    pool = work._pool(client)
+    pool = work.pool(client)
     return {"width": width, "height": height, "frames": 1, "rows": rows, "tasks": math.ceil(height / rows),
             "shared": shared and pool.made > 0, "first_s": first_s, "seconds": seconds,
             "blocks_made": pool.made,  # 1: every repeat reused the first frame's block
-            "workers_mapped": sorted(client.run(lambda: len(sharedframe._mapped)).values()),
+            "workers_mapped": sorted(client.run(sharedframe.mapped_blocks).values()),
             **busy_in_tasks(stream.data, args.repeat, sum(seconds))}  # fmt: skip
 
 

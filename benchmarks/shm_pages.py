@@ -43,7 +43,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     width, height = (int(v) for v in args.frame.lower().split("x"))
     size = width * height * 7
-    if not sharedframe._room(2 * size):
+    if not sharedframe.room(2 * size):
         raise SystemExit(f"{sharedframe.SHM_DIR}: no room for two {args.frame} blocks")
 
     def new_file() -> int:

@@ -1,35 +1,33 @@
 """Time to the first picture, in fresh processes: `import raybench`, then
 `raybench render` cold (an empty compile cache: a new RAYBENCH_CACHE_DIR)
-and warm (the cache the cold runs filled), each a median of --runs. One line
-of JSON per measurement.
+and warm (the cache the cold runs filled), each --frames runs. One record of
+the results schema's "parts" suite per measurement (quantity "import",
+"startup-cold", "startup-warm").
 
     python benchmarks/startup.py --device cpu --size 1680x1050 --spheres 1000
     python benchmarks/startup.py --device cpu --shading whitted
     python benchmarks/startup.py --device cuda --build gpu
 
-The first line says what ran: the commit ($RAYBENCH_GIT_COMMIT where set),
-where raybench was imported from, and the machine: its processor and the
+Each record's run says what ran: the commit ($RAYBENCH_GIT_COMMIT where set),
+where raybench was imported from, and the machine; its usable_cores value the
 cores this process may use (run it under `taskset -c 0,1` to time two).
 """
 
 import argparse
-import json
 import os
-import statistics
 import subprocess
 import sys
 import tempfile
-import time
+
+import _harness
+
+from raybench.cli import parse_size
+from raybench.host import usable_cores
 
 
-def timed(command: list[str], env: dict, said: list | None = None) -> float:
-    """The seconds command took; what it printed goes on `said` where given."""
-    start = time.perf_counter()
-    ran = subprocess.run(command, env=env, check=True, stdout=subprocess.PIPE, text=True)
-    took = time.perf_counter() - start
-    if said is not None:
-        said.append(ran.stdout.strip())
-    return took
+def timed(command: list[str], env: dict) -> float:
+    """The ms command took, to the end of its process."""
+    return _harness.timings(lambda: subprocess.run(command, env=env, check=True, stdout=subprocess.DEVNULL), 1)[0]
 
 
 def main() -> int:
@@ -38,41 +36,41 @@ def main() -> int:
     parser.add_argument("--size", default="1680x1050")
     parser.add_argument("--spheres", type=int, default=1000)
     parser.add_argument("--shading", default="thesis", choices=["thesis", "whitted"])
-    parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--build", choices=["host", "gpu"], help="render's --build (cuda): where the BVH is built")
+    _harness.add_common(parser, frames=3)
     args = parser.parse_args()
+    _harness.check_common(parser, args)
+    width, height = parse_size(args.size)
     python = sys.executable
-    describe = (
-        "import json, os, raybench, raybench.machine as m; "
-        "print(json.dumps({'what': 'run', 'git_commit': m.git_commit(), 'raybench': raybench.__file__, "
-        "'cpu': m.describe()['cpu'], 'usable_cores': len(os.sched_getaffinity(0))}))"
-    )
-    ran = subprocess.run([python, "-c", describe], check=True, capture_output=True, text=True)
-    print(ran.stdout.strip(), flush=True)
-    with tempfile.TemporaryDirectory() as scratch:
+    settings = {"shading": args.shading, "build": args.build}
+    with tempfile.TemporaryDirectory() as scratch, _harness.Records("startup", args, settings) as records:
         out = os.path.join(scratch, "x.png")
         base_env = dict(os.environ)
-        imports = [timed([python, "-c", "import raybench"], base_env) for _ in range(args.runs)]
-        print(json.dumps({"what": "import raybench", "median_s": round(statistics.median(imports), 3)}), flush=True)
-        for device in args.device or ["cpu"]:
-            render = [python, "-m", "raybench", "render", "--spheres", str(args.spheres), "--size", args.size,
-                      "--device", device, "--shading", args.shading, "-o", out]  # fmt: skip
-            if args.shading == "whitted":
-                render.insert(render.index("--spheres") + 2, "--materials")
-            if args.build:
-                render += ["--build", args.build]
-            # what render printed: its own time to the written picture, before the process ends
-            cold, warm, said = [], [], {"cold": [], "warm": []}
-            for run in range(args.runs):
-                env = {**base_env, "RAYBENCH_CACHE_DIR": os.path.join(scratch, f"cold-{device}-{run}")}
-                cold.append(timed(render, env, said["cold"]))
-            warm_env = {**base_env, "RAYBENCH_CACHE_DIR": os.path.join(scratch, f"cold-{device}-0")}
-            warm = [timed(render, warm_env, said["warm"]) for _ in range(args.runs)]
-            for what, times in (("cold", cold), ("warm", warm)):
-                row = {"what": f"render {what}", "device": device, "shading": args.shading, "spheres": args.spheres,
-                       "size": args.size, "build": args.build, "median_s": round(statistics.median(times), 3),
-                       "runs_s": [round(t, 3) for t in times], "said": said[what]}  # fmt: skip
-                print(json.dumps(row), flush=True)
+        values = {"usable_cores": usable_cores()}
+        imports = [timed([python, "-c", "import raybench"], base_env) for _ in range(args.frames)]
+        records.write(_harness.part("import", "cpu", imports, values=values))
+        for _ in range(args.rounds):
+            for device in args.device or ["cpu"]:
+                render = [python, "-m", "raybench", "render", "--spheres", str(args.spheres), "--size", args.size,
+                          "--device", device, "--shading", args.shading, "-o", out]  # fmt: skip
+                if args.shading == "whitted":
+                    render.insert(render.index("--spheres") + 2, "--materials")
+                if args.build:
+                    render += ["--build", args.build]
+                cold = []
+                for run in range(args.frames):
+                    env = {**base_env, "RAYBENCH_CACHE_DIR": os.path.join(scratch, f"cold-{device}-{run}")}
+                    cold.append(timed(render, env))
+                warm_env = {**base_env, "RAYBENCH_CACHE_DIR": os.path.join(scratch, f"cold-{device}-0")}
+                warm = [timed(render, warm_env) for _ in range(args.frames)]
+                options = {"shading": args.shading, "build": args.build}
+                for what, times in (("cold", cold), ("warm", warm)):
+                    records.write(
+                        _harness.part(
+                            f"startup-{what}", device, times, spheres=args.spheres, width=width, height=height,
+                            options=options, values=values,
+                        )
+                    )  # fmt: skip
     return 0
 
 

@@ -1,7 +1,9 @@
 """Warm starts of several versions and render options side by side: each
 variant's cache filled by one cold run, then its warm runs interleaved with
 the others', round by round, so that a slow spell of the machine falls on
-every variant alike. One line of JSON a run, then each variant's median.
+every variant alike. One record of the results schema's "parts" suite a
+version and variant for its cold run (quantity "startup-cold") and one for
+its warm runs ("startup-warm"), options naming the version and the variant.
 
     python benchmarks/startup_paired.py --version base=base-a48cd5b --version new=src \\
         --variant "host=--device cuda --build host" --variant "gpu=--device cuda --build gpu"
@@ -15,28 +17,29 @@ each variant of the last version.
 
 import argparse
 import io
-import json
 import os
 import pstats
 import shlex
-import statistics
 import subprocess
 import sys
 import tempfile
-import time
+
+import _harness
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="append", required=True, help="NAME=DIR")
     parser.add_argument("--variant", action="append", required=True, help="NAME=ARGS")
-    parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--profile", metavar="DIR", help="write cProfile listings of warm runs here")
+    _harness.add_common(parser, frames=1, rounds=5)
     args = parser.parse_args()
+    _harness.check_common(parser, args)
     versions = dict(v.split("=", 1) for v in args.version)
     variants = {name: shlex.split(rest) for name, rest in (v.split("=", 1) for v in args.variant)}
     path = os.environ.get("PYTHONPATH", "")
-    with tempfile.TemporaryDirectory() as scratch:
+    settings = {"versions": [f"{k}={v}" for k, v in versions.items()], "variants": args.variant}
+    with tempfile.TemporaryDirectory() as scratch, _harness.Records("startup_paired", args, settings) as records:
         out = os.path.join(scratch, "x.png")
 
         def run(version, variant, profile=None):
@@ -47,25 +50,22 @@ def main() -> int:
             }
             command = [sys.executable, *(["-m", "cProfile", "-o", profile] if profile else []), "-m", "raybench"]
             command += ["render", "--spheres", "1000", "--size", "1680x1050", *variants[variant], "-o", out]
-            start = time.perf_counter()
-            ran = subprocess.run(command, env=env, capture_output=True, text=True, check=True)
-            return time.perf_counter() - start, ran.stdout.strip()
+            return _harness.timings(lambda: subprocess.run(command, env=env, capture_output=True, check=True), 1)[0]
+
+        def write(what, version, variant, times):
+            given = variants[variant]
+            device = given[given.index("--device") + 1] if "--device" in given[:-1] else "cpu"
+            options = {"version": version, "variant": variant}
+            records.write(_harness.part(f"startup-{what}", device, times, options=options))
 
         for version in versions:
             for variant in variants:
-                took, said = run(version, variant)
-                print(json.dumps({"what": "cold", "version": version, "variant": variant, "s": round(took, 3),
-                                  "said": said}), flush=True)  # fmt: skip
-        warm = {(v, w): [] for v in versions for w in variants}
-        for round_ in range(args.rounds):
-            for key in warm:
-                took, _ = run(*key)
-                warm[key].append(took)
-                print(json.dumps({"what": "warm", "round": round_, "version": key[0], "variant": key[1],
-                                  "s": round(took, 3)}), flush=True)  # fmt: skip
+                write("cold", version, variant, [run(version, variant)])
+        keys = [(v, w) for v in versions for w in variants]
+        warm = _harness.paired({key: (lambda key=key: [run(*key) for _ in range(args.frames)]) for key in keys},
+                               args.rounds)  # fmt: skip
         for (version, variant), times in warm.items():
-            print(json.dumps({"what": "warm median", "version": version, "variant": variant,
-                              "median_s": round(statistics.median(times), 3)}), flush=True)  # fmt: skip
+            write("warm", version, variant, times)
         if args.profile:
             os.makedirs(args.profile, exist_ok=True)
             last = list(versions)[-1]

@@ -98,7 +98,7 @@ def gpu_build_times(device, spheres: np.ndarray, repeats: int, quality: str) -> 
         for name, ms in zip(steps, per_step.read() or [None] * len(steps)):
             times[name].append(ms)
         start = time.perf_counter()
-        builder.run(lambda e: (builder.encode(e, builder._refit, whole.begin_end(0)), whole.resolve(e)))
+        builder.run(lambda e: (builder.encode_refit(e, whole.begin_end(0)), whole.resolve(e)))
         refit.append((time.perf_counter() - start) * 1e3)
         times["refit"].append((whole.read() or [None])[0])
     tree = builder.to_host(stats.depth)

@@ -72,7 +72,7 @@ def measure(spheres: int, width: int, height: int, frames: int, adapter: str | N
             # the readback, step by step
             start = time.perf_counter()
             encoder = tracer.device.create_command_encoder()
-            tracer._encode_readback(encoder)
+            tracer.encode_readback(encoder)
             tracer.compute.encode_fence(encoder)
             tracer.device.queue.submit([encoder.finish()])
             steps["copy_submit"].append(ms(start))

@@ -105,7 +105,7 @@ def no_block_left(running):
 
 def mapped(client) -> list[int]:
     """How many blocks each worker keeps mapped."""
-    return sorted(client.run(lambda: len(sharedframe._mapped)).values())
+    return sorted(client.run(sharedframe.mapped_blocks).values())
 
 
 def test_workers_on_this_host_write_into_the_clients_block(running, rng, no_block_left):
@@ -154,7 +154,7 @@ def test_shared_and_sent_tiles_are_the_single_process_frame(running, rng, monkey
     for the frame, so no block is made and every tile is sent."""
     cluster.release(running.client)  # no block kept from an earlier test: each path makes its own, or none
     if path == "no-room":
-        monkeypatch.setattr(sharedframe, "_room", lambda size: False)
+        monkeypatch.setattr(sharedframe, "room", lambda size: False)
     if path == "sent-by-workers":
         monkeypatch.setattr(
             sharedframe.Lease, "address", property(lambda b: (b.name + "-elsewhere", b.width, b.height))
@@ -225,7 +225,7 @@ def test_frames_of_one_size_reuse_one_block(running, rng, no_block_left):
         np.testing.assert_array_equal(frame.image, whole.image)
         np.testing.assert_array_equal(frame.hits, whole.hits)
         del frame
-    pool = work._pool(running.client)
+    pool = work.pool(running.client)
     assert pool.made == 1 and pool.idle == 1
     # between frames the block waits under a name of its own, which no frame's task has
     assert len([n for n in blocks() if n.startswith(f"{sharedframe.PREFIX}{os.getpid()}-")]) == 1
@@ -245,7 +245,7 @@ def test_a_held_frame_is_not_written_by_the_next(running, rng, no_block_left):
             np.testing.assert_array_equal(frame.image, whole.image)
             np.testing.assert_array_equal(frame.hits, whole.hits)
         held.pop(0)  # frame = render(...): the one before is let go once the next is made
-    assert work._pool(running.client).made == 2
+    assert work.pool(running.client).made == 2
 
 
 def tile_keys(client) -> int:
@@ -318,7 +318,7 @@ def test_another_size_gets_its_own_block(running, rng, no_block_left):
         np.testing.assert_array_equal(frame.image, whole.image)
         np.testing.assert_array_equal(frame.hits, whole.hits)
         del frame
-    pool = work._pool(running.client)
+    pool = work.pool(running.client)
     assert pool.made == 3 and pool.idle == 1  # a size's blocks let go for the next size
     assert len([n for n in blocks() if n.startswith(f"{sharedframe.PREFIX}{os.getpid()}-")]) == 1
     assert max(mapped(running.client)) <= sharedframe.KEEP_BLOCKS
@@ -334,7 +334,7 @@ def test_an_interrupted_frames_block_is_not_lent_again(running, monkeypatch, no_
     monkeypatch.undo()
     frame = cluster.render(running.client, scene, width=32, height=32, device="cpu", rows=8)
     np.testing.assert_array_equal(frame.image, raybench.render(scene, width=32, height=32, device="cpu").image)
-    assert work._pool(running.client).made == 2  # a new block, not the one a late task might still write
+    assert work.pool(running.client).made == 2  # a new block, not the one a late task might still write
 
 
 def test_without_a_block_the_tiles_are_sent(running, rng, monkeypatch, no_block_left):
@@ -348,7 +348,7 @@ def test_without_a_block_the_tiles_are_sent(running, rng, monkeypatch, no_block_
     scene, camera = scene_and_camera(rng)
     frame = cluster.render(running.client, scene, camera, 40, 24, device="cpu", rows=8)
     np.testing.assert_array_equal(frame.image, raybench.render(scene, camera, 40, 24, device="cpu").image)
-    assert work._pool(running.client).made == 0
+    assert work.pool(running.client).made == 0
 
 
 def test_closing_the_cluster_leaves_nothing_in_dev_shm():

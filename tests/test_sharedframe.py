@@ -52,7 +52,7 @@ def test_dropped_frames_reuse_one_block_and_one_mapping(pool, rng):
         assert sharedframe.write_rows(lease.address, 0, *rows(rng, 8, 32))
         lease.end()
         del lease
-    assert pool.made == 1 and pool.idle == 1 and len(sharedframe._mapped) == 1
+    assert pool.made == 1 and pool.idle == 1 and sharedframe.mapped_blocks() == 1
 
 
 def test_a_held_frame_is_never_lent_again(pool, rng):
@@ -114,12 +114,12 @@ def test_a_worker_keeps_at_most_two_mappings(pool, rng):
     for lease in leases:
         assert sharedframe.write_rows(lease.address, 0, *rows(rng, 8, 32))
         lease.end()
-    assert len(sharedframe._mapped) == sharedframe.KEEP_BLOCKS
-    assert sharedframe.forget() == sharedframe.KEEP_BLOCKS and not sharedframe._mapped
+    assert sharedframe.mapped_blocks() == sharedframe.KEEP_BLOCKS
+    assert sharedframe.forget() == sharedframe.KEEP_BLOCKS and not sharedframe.mapped_blocks()
 
 
 def test_no_room_no_block(pool, monkeypatch):
-    monkeypatch.setattr(sharedframe, "_room", lambda size: False)
+    monkeypatch.setattr(sharedframe, "room", lambda size: False)
     assert pool.lease(32, 8) is None and pool.made == 0
 
 

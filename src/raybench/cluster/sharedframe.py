@@ -74,7 +74,7 @@ def _views(buf, width: int, height: int) -> tuple[np.ndarray, np.ndarray, np.nda
     return whole, image, hits
 
 
-def _room(size: int) -> bool:
+def room(size: int) -> bool:
     """Whether /dev/shm has size bytes free; without /dev/shm (not Linux)
     the workers could not open a block by its file, so none is made."""
     try:
@@ -86,7 +86,7 @@ def _room(size: int) -> bool:
 
 def fits(width: int, height: int) -> bool:
     """Whether this host can make a width x height block now."""
-    return _room(_layout(width, height)[1])
+    return room(_layout(width, height)[1])
 
 
 def _fresh_name() -> str:
@@ -347,6 +347,12 @@ def _address(mapped: mmap.mmap) -> tuple[int, int]:
 def _unmap(held: list) -> None:
     held[1] = None  # unpinned (the pin's object dropped) before the memory goes
     held[0].close()
+
+
+def mapped_blocks() -> int:
+    """How many blocks this process keeps mapped (at most KEEP_BLOCKS)."""
+    with _mapped_lock:
+        return len(_mapped)
 
 
 def forget() -> int:

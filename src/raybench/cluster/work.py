@@ -413,7 +413,8 @@ def _session(client) -> _Session:
     return held
 
 
-def _pool(client) -> sharedframe.Pool:
+def pool(client) -> sharedframe.Pool:
+    """The shared memory that render() keeps for client's frames (Pool.made: the blocks it made)."""
     return _session(client).pool
 
 

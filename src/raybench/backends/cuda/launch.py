@@ -80,16 +80,40 @@ class Prepared:
             launch(*launch_args)
 
 
+# numba-cuda's own conversion of a launch's arguments (`_Kernel._prepare_args`,
+# numba-cuda 0.30, whose version pyproject.toml pins), read here and nowhere
+# else: the three functions below are what Prepared and
+# benchmarks/launch_overhead.py take apart.
+
+
+def core_stream():
+    """numba-cuda's default stream, as it hands it to cuda.core."""
+    from numba.cuda.cudadrv import driver
+
+    return driver._to_core_stream(0)
+
+
+def convert_args(compiled, args, stream) -> tuple[list, list]:
+    """The compiled kernel's (an entry of kernel.overloads) arguments converted as numba-cuda
+    converts them for a launch on stream: (the launch's arguments, what it copies back)."""
+    kernelargs, writeback = [], []
+    for ty, value in zip(compiled.argument_types, args):
+        compiled._prepare_args(ty, value, stream, writeback, kernelargs)
+    return kernelargs, writeback
+
+
+def kernel_handle(compiled):
+    """The compiled kernel's cuda.core kernel, which cuda.core's launch takes."""
+    return compiled._codelibrary.get_cufunc().kernel
+
+
 def _converted(kernel, grid, block, args):
     """(cuda.core's launch, its arguments) for this launch, or None where the
-    kernel must go through numba-cuda each time. Reads numba-cuda's own
-    conversion (`_Kernel._prepare_args`, numba-cuda 0.30), whose version
-    pyproject.toml pins."""
+    kernel must go through numba-cuda each time."""
     if numba.config.ENABLE_CUDASIM:
         return None
     try:
         from cuda.core import LaunchConfig, launch
-        from numba.cuda.cudadrv import driver
     except ImportError:
         return None
     overloads = list(kernel.overloads.values())
@@ -99,11 +123,8 @@ def _converted(kernel, grid, block, args):
         compiled = kernel.overloads.get(tuple(kernel.typeof_pyval(a) for a in args))
     if compiled is None or compiled.debug or compiled.cooperative:
         return None
-    stream = driver._to_core_stream(0)
-    kernelargs, writeback = [], []
-    for ty, value in zip(compiled.argument_types, args):
-        compiled._prepare_args(ty, value, stream, writeback, kernelargs)
+    stream = core_stream()
+    kernelargs, writeback = convert_args(compiled, args, stream)
     if writeback:  # a host array, copied to the device by each launch and back
         return None
-    handle = compiled._codelibrary.get_cufunc().kernel
-    return launch, (stream, LaunchConfig(grid=grid, block=block), handle, *kernelargs)
+    return launch, (stream, LaunchConfig(grid=grid, block=block), kernel_handle(compiled), *kernelargs)

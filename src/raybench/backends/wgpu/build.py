@@ -250,10 +250,10 @@ class Builder:
     def encode_build(self, encoder) -> None:
         self.encode(encoder, [d for step in self.steps().values() for d in step])
 
-    def encode_refit(self, encoder) -> None:
+    def encode_refit(self, encoder, timestamp_writes=None) -> None:
         """The boxes of the tree's rows recomputed from the spheres' positions
         now (its shape kept), its cost and depth the refitted tree's."""
-        self.encode(encoder, self._refit)
+        self.encode(encoder, self._refit, timestamp_writes)
 
     def run(self, encode) -> Stats:
         """Submit encode(encoder)'s work and wait for its stats."""

@@ -114,10 +114,12 @@ class Tracer(TracerBase):
         encoder = self.device.create_command_encoder()
         self.compute.encode(encoder, basis, count, timed=timed)
         if readback:
-            self._encode_readback(encoder)
+            self.encode_readback(encoder)
         self.device.queue.submit([encoder.finish()])
 
-    def _encode_readback(self, encoder) -> None:
+    def encode_readback(self, encoder) -> None:
+        """Queue the frame's copy to the host on encoder: its RGB bytes packed on the GPU, then the
+        image, the hits (and the ray counts) into the buffers that fetching maps."""
         self.packer.encode(encoder)
         encoder.copy_buffer_to_buffer(self.packer.packed, 0, self.image_read, 0, self.image_read.size)
         encoder.copy_buffer_to_buffer(self.compute.hits, 0, self.hits_read, 0, self.width * self.height * 4)
@@ -179,7 +181,7 @@ class Tracer(TracerBase):
             if not self._settled():
                 return self.timed_trace(basis, count)
             encoder = self.device.create_command_encoder()
-            self._encode_readback(encoder)
+            self.encode_readback(encoder)
             self.device.queue.submit([encoder.finish()])
         self._fetch()
         return kernel_ms
