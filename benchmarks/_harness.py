@@ -152,9 +152,12 @@ class Records:
         if self.writer is not None:
             self.writer.write(record)
 
+    def close(self) -> None:
+        if self.writer is not None:
+            self.writer.close()
+
     def __enter__(self):
         return self
 
     def __exit__(self, *exc):
-        if self.writer is not None:
-            self.writer.close()
+        self.close()

@@ -1,9 +1,10 @@
 """Where a frame's time goes inside a Dask worker, against a plain process:
 issue 17's probe saw 4.1 ms a frame in a worker's task loop where a plain
-process took 2.5 ms. One line of JSON per case, each the median over rounds
-of a loop of --frames frames of one warm Renderer (render(camera), which
-copies the image and the hits out of the tracer's buffers, then hits.max(),
-as the probe's loop):
+process took 2.5 ms. One record of the results schema's "parts" suite per
+case (quantity "dask-" and the case), a sample a round: the ms a frame of a
+loop of --frames frames of one warm Renderer (render(camera), which copies
+the image and the hits out of the tracer's buffers, then hits.max(), as the
+probe's loop):
 
   plain            this loop in a fresh process, raybench's environment
   plain-malloc     the same with MALLOC_TRIM_THRESHOLD_=65536, which a Dask
@@ -15,9 +16,10 @@ as the probe's loop):
   copy / copy-malloc   the loop's copies alone (np.copy of a frame's image and
                    hits, then hits.max()), without and with the variable
   empty-task       Dask's cost of one task: a no-op submitted and waited for,
-                   one at a time (latency) and 400 at once (per task)
+                   one at a time (latency) and 400 at once (per task), on
+                   each worker case's cluster
 
-    PYTHONPATH=src python benchmarks/dask_overhead.py --device cpu --size 1680x1050 --spheres 1000 --json out.jsonl
+    PYTHONPATH=src python benchmarks/dask_overhead.py --device cpu --size 1680x1050 --spheres 1000 --out out.jsonl
 """
 
 from __future__ import annotations
@@ -25,11 +27,11 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import statistics
 import subprocess
 import sys
 import time
 
+import _harness
 import numpy as np
 
 import raybench
@@ -67,20 +69,6 @@ def copies(width, height, frames, rounds) -> list[float]:
 
 def noop():
     return None
-
-
-def record(case, ms, args, **extra) -> dict:
-    return {
-        "case": case,
-        "device": args.device,
-        "width": args.width,
-        "height": args.height,
-        "spheres": args.spheres,
-        "frames": args.frames,
-        "ms_per_frame_median": round(statistics.median(ms), 4) if ms else None,
-        "ms_per_frame_rounds": [round(x, 4) for x in ms],
-        **extra,
-    }
 
 
 def in_process(args, env: dict, what: str) -> list[float]:
@@ -130,12 +118,11 @@ def main(argv=None) -> int:
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--size", default="1680x1050")
     parser.add_argument("--spheres", type=int, default=1000)
-    parser.add_argument("--frames", type=int, default=20)
-    parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--accel", default="bvh")
-    parser.add_argument("--json", help="append the records here (JSON Lines)")
     parser.add_argument("--child", help=argparse.SUPPRESS)
+    _harness.add_common(parser, frames=20, rounds=5)
     args = parser.parse_args(argv)
+    _harness.check_common(parser, args)
     args.width, args.height = (int(v) for v in args.size.lower().split("x"))
     scene = raybench.random_spheres(args.spheres, seed=0)
     if args.child == "loop":
@@ -144,27 +131,22 @@ def main(argv=None) -> int:
     if args.child == "copy":
         print(json.dumps(copies(args.width, args.height, args.frames, args.rounds)))
         return 0
-    records = [
-        record("copy", in_process(args, {}, "copy"), args),
-        record("copy-malloc", in_process(args, MALLOC, "copy"), args),
-        record("plain", in_process(args, {}, "loop"), args),
-        record("plain-malloc", in_process(args, MALLOC, "loop"), args),
-    ]
-    for case, env, config in (
-        ("worker", None, None),
-        ("worker-dask-env", MALLOC, None),
-        ("worker-noprofile", None, {"distributed.worker.profile.enabled": False}),
-    ):
-        ms, latency, each = on_worker(args, scene, env, config)
-        records.append(record(case, ms, args, empty_task_latency_ms=round(latency, 3), empty_task_ms=round(each, 3)))
-    for rec in records:
-        rec["raybench"] = raybench.__version__
-        rec["git_commit"] = os.environ.get("RAYBENCH_GIT_COMMIT")
-        print(json.dumps(rec))
-    if args.json:
-        with open(args.json, "a") as out:
-            for rec in records:
-                out.write(json.dumps(rec) + "\n")
+    fields = {"spheres": args.spheres, "width": args.width, "height": args.height, "options": {"accel": args.accel}}
+    with _harness.Records("dask_overhead", args, {"device": args.device}) as out:
+        processes = (("copy", {}, "copy"), ("copy-malloc", MALLOC, "copy"), ("plain", {}, "loop"),
+                     ("plain-malloc", MALLOC, "loop"))  # fmt: skip
+        for case, env, what in processes:
+            out.write(_harness.part(f"dask-{case}", args.device, in_process(args, env, what), **fields))
+        for case, env, config in (
+            ("worker", None, None),
+            ("worker-dask-env", MALLOC, None),
+            ("worker-noprofile", None, {"distributed.worker.profile.enabled": False}),
+        ):
+            ms, latency, each = on_worker(args, scene, env, config)
+            out.write(_harness.part(f"dask-{case}", args.device, ms, **fields))
+            tasks = {"options": {"cluster": case}}
+            out.write(_harness.part("dask-empty-task-latency", args.device, [latency], **tasks))
+            out.write(_harness.part("dask-empty-task", args.device, [each], **tasks))
     return 0
 
 

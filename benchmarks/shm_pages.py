@@ -16,19 +16,22 @@ Once resident:
   copy, map+populate  mapped afresh with MAP_POPULATE, then copied (a worker's first frame of a block)
   copy out          the frame copied out of the block into new memory (what a copy a frame would cost)
 
-    PYTHONPATH=src python benchmarks/shm_pages.py --frame 8192x8192 --repeat 3
+One record of the results schema's "parts" suite a way (quantity "shm-" and the way's name,
+"shm-touch", "shm-copy-mapped", ...), with the block's bytes and the rate.
+
+    PYTHONPATH=src python benchmarks/shm_pages.py --frame 8192x8192 --frames 3
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import mmap
 import os
+import re
 import statistics
 import sys
-import time
 
+import _harness
 import numpy as np
 
 from raybench.cluster import sharedframe
@@ -39,8 +42,9 @@ MADV_POPULATE_WRITE = 23  # linux/mman.h; Python 3.11's mmap module does not nam
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--frame", default="8192x8192")
-    parser.add_argument("--repeat", type=int, default=3)
+    _harness.add_common(parser, frames=3)
     args = parser.parse_args(argv)
+    _harness.check_common(parser, args)
     width, height = (int(v) for v in args.frame.lower().split("x"))
     size = width * height * 7
     if not sharedframe.room(2 * size):
@@ -72,25 +76,25 @@ def main(argv=None) -> int:
         with mapped(fd) as m:
             m.madvise(MADV_POPULATE_WRITE)
 
-    def report(name, seconds):
-        median = statistics.median(seconds)
-        print(json.dumps({"what": name, "frame": args.frame, "bytes": size, "median_ms": median * 1e3,
-                          "fastest_ms": min(seconds) * 1e3, "gb_per_s": size / median / 1e9,
-                          "repeat": len(seconds)}), flush=True)  # fmt: skip
+    out = _harness.Records("shm_pages", args, {"frame": args.frame})
+
+    def report(name, times_ms):
+        quantity = "shm-" + re.sub(r"[^a-z]+", "-", name).strip("-")
+        rate = size / (statistics.median(times_ms) / 1e3) / 1e9
+        out.write(_harness.part(quantity, "cpu", times_ms, width=width, height=height,
+                                values={"bytes": size, "gb_per_s": rate}))  # fmt: skip
 
     first = {"touch": touch, "populate": populate, "fallocate": fallocate,
              "fallocate+populate": fallocate_populate, "madvise": madvise}  # fmt: skip
     for name, make in first.items():
-        seconds = []
-        for _ in range(args.repeat):
+        times = []
+        for _ in range(args.frames * args.rounds):
             fd = new_file()
             try:
-                start = time.perf_counter()
-                make(fd)
-                seconds.append(time.perf_counter() - start)
+                times += _harness.timings(lambda fd=fd, make=make: make(fd), 1)
             finally:
                 os.close(fd)
-        report(name, seconds)
+        report(name, times)
 
     fd = new_file()
     os.posix_fallocate(fd, 0, size)
@@ -109,19 +113,16 @@ def main(argv=None) -> int:
             "copy, map+populate": lambda: copy_fresh(True),
             "copy out": lambda: block.copy(),
         }
-        for name, f in copies.items():
-            seconds = []
-            for _ in range(args.repeat):
-                start = time.perf_counter()
-                f()
-                seconds.append(time.perf_counter() - start)
-            report(name, seconds)
+        times = _harness.paired({name: _harness.timed(f) for name, f in copies.items()}, args.frames * args.rounds)
+        for name, samples in times.items():
+            report(name, samples)
 
     try:
         with mapped(fd, True) as kept:
             resident(kept)
     finally:
         os.close(fd)
+        out.close()
     return 0
 
 

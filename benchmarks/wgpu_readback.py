@@ -6,17 +6,18 @@ the pass that packs the RGB bytes on the GPU and the copies after it
 copies into the (H, W, 3) image and (H, W) hits. The way before, in the same
 run: the RGBA texture copied out as it is (rgba_copy_done), then the RGB
 channels picked out on the host a plane at a time (rgba_planes). Medians of
---frames warm frames; one line of JSON per sphere count.
+--frames warm frames a round. One record of the results schema's "parts"
+suite per step and sphere count (quantity "readback-" and the step, e.g.
+"readback-copy-done"), options naming the adapter.
 
     python benchmarks/wgpu_readback.py --spheres 1000 --spheres 1000000
 """
 
 import argparse
-import json
-import statistics
 import sys
 import time
 
+import _harness
 import numpy as np
 
 
@@ -118,26 +119,27 @@ def measure(spheres: int, width: int, height: int, frames: int, adapter: str | N
             tracer.trace(basis)
             steps["trace"].append(ms(start))
         described = tracer.describe()
-    return {
-        "what": "wgpu readback",
-        "spheres": spheres,
-        "size": f"{width}x{height}",
-        "frames": frames,
-        "adapter": described,
-        "median_ms": {k: round(statistics.median(v), 3) for k, v in steps.items() if v},
-    }
+    return described, {k: v for k, v in steps.items() if v}
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--spheres", type=int, action="append")
     parser.add_argument("--size", default="1680x1050")
-    parser.add_argument("--frames", type=int, default=30)
     parser.add_argument("--adapter", help="a wgpu adapter by name (default: the best GPU)")
+    _harness.add_common(parser, frames=30)
     args = parser.parse_args()
+    _harness.check_common(parser, args)
     width, height = (int(v) for v in args.size.split("x"))
-    for n in args.spheres or [1000, 100_000, 1_000_000]:
-        print(json.dumps(measure(n, width, height, args.frames, args.adapter)), flush=True)
+    with _harness.Records("wgpu_readback", args, {"adapter": args.adapter}) as out:
+        for _ in range(args.rounds):
+            for n in args.spheres or [1000, 100_000, 1_000_000]:
+                described, steps = measure(n, width, height, args.frames, args.adapter)
+                options = {"adapter": str(described.get("name", ""))[:100]}
+                for step, times in steps.items():
+                    quantity = "readback-" + step.replace("_", "-")
+                    out.write(_harness.part(quantity, "wgpu", times, spheres=n, width=width, height=height,
+                                            options=options))  # fmt: skip
     return 0
 
 
