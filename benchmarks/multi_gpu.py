@@ -1,6 +1,8 @@
-"""Throughput of 1..N raybench.cluster workers (issue 17): one line of JSON
-per (job, workers), and at the end each job's efficiency against linear
-(throughput with N workers / (N x with one)).
+"""Throughput of 1..N raybench.cluster workers (issue 17): one record of the
+results schema's "multi-gpu" suite per (job, workers) (options job "sequence"
+or "frame", delivery as below; `raybench report` gives each job's efficiency
+against linear, throughput with N workers / (N x with one)), and the terms
+job's terms as records of its "parts" suite (quantity "cluster-" and the term).
 
 Jobs:
   orbit        --orbit frames of an orbit at --orbit-size, traced in tasks of
@@ -22,16 +24,15 @@ Jobs:
                new block and into one kept from frame to frame
 
 Every job is warmed first (each worker compiles, builds and uploads once),
-and timed over --repeat runs (median).
+and timed over --frames runs.
 
     PYTHONPATH=src python benchmarks/multi_gpu.py --device cuda --workers 1 --workers 2 \\
-        --spheres 100000 --frame 8192x8192 --orbit 240 --orbit-size 1680x1050 --json multi_gpu.jsonl
+        --spheres 100000 --frame 8192x8192 --orbit 240 --orbit-size 1680x1050 --out multi_gpu.jsonl
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import statistics
@@ -39,6 +40,7 @@ import sys
 import tempfile
 import time
 
+import _harness
 import numpy as np
 
 import raybench
@@ -86,12 +88,8 @@ def parse_size(text: str) -> tuple[int, int]:
 
 
 def timed(f, repeat: int) -> list[float]:
-    out = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        f()
-        out.append(time.perf_counter() - start)
-    return out
+    """The seconds of each of `repeat` calls of f."""
+    return [ms / 1e3 for ms in _harness.timings(f, repeat)]
 
 
 def orbit_job(client, args, scene, workers) -> dict:
@@ -105,7 +103,7 @@ def orbit_job(client, args, scene, workers) -> dict:
         cluster.trace_frames(client, scene, frames, width, height, args.device, per_task, **options(args))
 
     go(cameras[: workers * per_task])  # warm: a task on every worker
-    seconds = timed(go, args.repeat)
+    seconds = timed(go, args.frames)
     return {"width": width, "height": height, "frames": len(cameras), "tasks": math.ceil(len(cameras) / per_task),
             "seconds": seconds}  # fmt: skip
 
@@ -116,7 +114,7 @@ def orbit_png_job(client, args, scene, workers) -> dict:
     with tempfile.TemporaryDirectory() as warm:
         cluster.render_sequence(client, scene, cameras[:workers], warm, width, height, args.device, **options(args))
     seconds = []
-    for _ in range(args.repeat):
+    for _ in range(args.frames):
         with tempfile.TemporaryDirectory() as out:
             start = time.perf_counter()
             cluster.render_sequence(client, scene, cameras, out, width, height, args.device, **options(args))
@@ -141,13 +139,13 @@ def frame_job(client, args, scene, workers, shared=True) -> dict:
     cluster.render(client, scene, None, width, height, args.device, rows=rows, shared=False, **options(args))
     first_s = timed(go, 1)[0]  # shared: the block made here, and each worker's mapping of it
     with get_task_stream(client) as stream:
-        seconds = timed(go, args.repeat)
+        seconds = timed(go, args.frames)
     pool = work.pool(client)
     return {"width": width, "height": height, "frames": 1, "rows": rows, "tasks": math.ceil(height / rows),
             "shared": shared and pool.made > 0, "first_s": first_s, "seconds": seconds,
             "blocks_made": pool.made,  # 1: every repeat reused the first frame's block
             "workers_mapped": sorted(client.run(sharedframe.mapped_blocks).values()),
-            **busy_in_tasks(stream.data, args.repeat, sum(seconds))}  # fmt: skip
+            **busy_in_tasks(stream.data, args.frames, sum(seconds))}  # fmt: skip
 
 
 def busy_in_tasks(stream, frames: int, wall_s: float) -> dict:
@@ -174,19 +172,19 @@ def terms_job(client, args, scene, workers) -> dict:
     """The scaling model's terms, each the median of --repeat."""
     width, height = parse_size(args.frame)
     # a key of its own each time (hash=False), so that nothing is found on the workers already
-    broadcast = timed(lambda: client.scatter(scene, broadcast=True, hash=False).release(), args.repeat)
+    broadcast = timed(lambda: client.scatter(scene, broadcast=True, hash=False).release(), args.frames)
     n = 200
-    empty = timed(lambda: client.gather([client.submit(nothing, pure=False) for _ in range(n)]), args.repeat)
+    empty = timed(lambda: client.gather([client.submit(nothing, pure=False) for _ in range(n)]), args.frames)
     rows = cluster.tile_rows(height, workers)
     tile_bytes = rows * width * 7  # RGB bytes and an int32 hit a pixel
     tiles = 16
     fetched = timed(
-        lambda: client.gather([client.submit(array_of, tile_bytes, pure=False) for _ in range(tiles)]), args.repeat
+        lambda: client.gather([client.submit(array_of, tile_bytes, pure=False) for _ in range(tiles)]), args.frames
     )
     made = timed(lambda: client.gather([client.submit(lambda b: array_of(b).sum(), tile_bytes, pure=False)
-                                        for _ in range(tiles)]), args.repeat)  # fmt: skip
+                                        for _ in range(tiles)]), args.frames)  # fmt: skip
     image = np.zeros((height, width, 3), np.uint8)
-    assembly = timed(lambda: np.copyto(image, np.ones_like(image)), args.repeat)
+    assembly = timed(lambda: np.copyto(image, np.ones_like(image)), args.frames)
     # The shared path's cost a frame: every tile's rows written by the workers
     # in parallel into a block made here, less the same tasks making their rows
     # only. First into a new block (made here, mapped afresh by each worker: a
@@ -216,36 +214,36 @@ def terms_job(client, args, scene, workers) -> dict:
     # None where the host has no room in /dev/shm for the frame (the frame job then sends its tiles)
     first = made = resident = None
     if sharedframe.fits(width, height):
-        made = timed(lambda: sharedframe.Block(width, height).close(), args.repeat)
-        first = [new_block() for _ in range(args.repeat)]
+        made = timed(lambda: sharedframe.Block(width, height).close(), args.frames)
+        first = [new_block() for _ in range(args.frames)]
         kept = sharedframe.Pool()
         try:
             shared_frame(kept)
-            resident = timed(lambda: shared_frame(kept), args.repeat)
+            resident = timed(lambda: shared_frame(kept), args.frames)
         finally:
             kept.close()
             client.run(sharedframe.forget)
     unshared = timed(
-        lambda: client.gather([client.submit(made_only, a, b, width, pure=False) for a, b in bands]), args.repeat
+        lambda: client.gather([client.submit(made_only, a, b, width, pure=False) for a, b in bands]), args.frames
     )
+    # each term a difference of medians or a share of one: one figure, not a run of samples
     return {
-        "scene_bytes": int(scene.spheres.nbytes),
-        "broadcast_s": statistics.median(broadcast),
-        "empty_task_ms": statistics.median(empty) * 1e3 / n,
-        "tile_bytes": tile_bytes,
-        "tile_transfer_ms": max(0.0, (statistics.median(fetched) - statistics.median(made)) * 1e3 / tiles),
-        "assembly_ms_per_frame": statistics.median(assembly) * 1e3 * 7 / 3,
-        "block_made_ms": None if made is None else statistics.median(made) * 1e3,
-        "shared_first_ms_per_frame": None
-        if first is None
-        else max(0.0, (statistics.median(first) - statistics.median(unshared)) * 1e3),
-        "resident_write_ms_per_frame": None
-        if resident is None
-        else max(0.0, (statistics.median(resident) - statistics.median(unshared)) * 1e3),
+        "terms_ms": {
+            "broadcast": statistics.median(broadcast) * 1e3,
+            "empty_task": statistics.median(empty) * 1e3 / n,
+            "tile_transfer": max(0.0, (statistics.median(fetched) - statistics.median(made)) * 1e3 / tiles),
+            "assembly_per_frame": statistics.median(assembly) * 1e3 * 7 / 3,
+            "block_made": None if made is None else statistics.median(made) * 1e3,
+            "shared_first_per_frame": None
+            if first is None
+            else max(0.0, (statistics.median(first) - statistics.median(unshared)) * 1e3),
+            "resident_write_per_frame": None
+            if resident is None
+            else max(0.0, (statistics.median(resident) - statistics.median(unshared)) * 1e3),
+        },
+        "broadcast_bytes": int(scene.spheres.nbytes),
+        "tile_transfer_bytes": tile_bytes,
         "shm_free_bytes": shm_free(),
-        "shared_tasks": len(bands),
-        "width": width,
-        "height": height,
     }
 
 
@@ -266,38 +264,50 @@ def main(argv=None) -> int:
     parser.add_argument("--orbit", type=int, default=240, help="frames of the orbit")
     parser.add_argument("--orbit-size", default="1680x1050")
     parser.add_argument("--frames-per-task", type=int, help="the orbit's frames a task (default as render_sequence)")
-    parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--json", help="append the records here (JSON Lines)")
+    _harness.add_common(parser, frames=3)
     args = parser.parse_args(argv)
+    _harness.check_common(parser, args)
     scene = raybench.random_spheres(args.spheres, seed=0)
     jobs = args.job or list(JOBS)
-    records = []
-    for workers in args.workers or [1, 2]:
-        with cluster.Cluster(workers=workers, device=args.device) as running:
-            running.client.wait_for_workers(workers)
-            for job in jobs:
-                rec = JOBS[job](running.client, args, scene, workers)
-                rec = {"job": job, "device": args.device, "workers": workers, "spheres": args.spheres,
-                       "options": options(args), **rec}  # fmt: skip
-                if "seconds" in rec:
-                    rec["median_s"] = statistics.median(rec["seconds"])
-                    rec["frames_per_s"] = rec["frames"] / rec["median_s"]
-                rec["git_commit"] = os.environ.get("RAYBENCH_GIT_COMMIT")
-                records.append(rec)
-                print(json.dumps(rec), flush=True)
-    for job in jobs:
-        one = [r for r in records if r["job"] == job and r["workers"] == 1 and "frames_per_s" in r]
-        for rec in records:
-            if rec["job"] == job and "frames_per_s" in rec and one:
-                rec["speedup"] = rec["frames_per_s"] / one[0]["frames_per_s"]
-                rec["efficiency"] = rec["speedup"] / rec["workers"]
-                print(f"{job}: {rec['workers']} workers {rec['frames_per_s']:.3g} frames/s, "
-                      f"{rec['speedup']:.2f}x one, {rec['efficiency']:.0%} of linear")  # fmt: skip
-    if args.json:
-        with open(args.json, "a") as out:
-            for rec in records:
-                out.write(json.dumps(rec) + "\n")
+    with _harness.Records("multi_gpu", args, {"jobs": jobs}) as out:
+        for _ in range(args.rounds):
+            for workers in args.workers or [1, 2]:
+                with cluster.Cluster(workers=workers, device=args.device) as running:
+                    running.client.wait_for_workers(workers)
+                    for job in jobs:
+                        for record in records_of(job, JOBS[job](running.client, args, scene, workers), args, workers):
+                            out.write(record)
     return 0
+
+
+# job -> the suite's job and how its frames came back
+DELIVERY = {"orbit": ("sequence", "counts"), "orbit-png": ("sequence", "png"), "frame": ("frame", "shared"),
+            "frame-sent": ("frame", "sent")}  # fmt: skip
+
+
+def records_of(job: str, got: dict, args, workers: int) -> list[dict]:
+    """A job's records: a point of the multi-gpu suite (ms a frame of each run), or the terms."""
+    if job == "terms":
+        return [
+            _harness.part(f"cluster-{term.replace('_', '-')}", args.device, [ms], spheres=args.spheres,
+                          options={"workers": workers}, values={"bytes": got.get(f"{term}_bytes")})
+            for term, ms in got["terms_ms"].items()
+            if ms is not None and ms > 0
+        ]  # fmt: skip
+    kind, delivery = DELIVERY[job]
+    if kind == "frame" and not got.get("shared"):  # no room in /dev/shm: the tiles were sent
+        delivery = "sent"
+    opts = {**options(args), "workers": workers, "job": kind, "delivery": delivery}
+    if kind == "sequence":
+        opts["frames"] = got["frames"]
+    frame_ms = [s * 1e3 / got["frames"] for s in got["seconds"]]
+    record = _harness.point("multi-gpu", args.device, got["width"], got["height"], args.spheres, opts, frame_ms)
+    record["frames_per_s"] = 1e3 / record["frame_ms"]["median"]
+    if "first_s" in got:
+        record["first_frame_s"] = got["first_s"]
+    record.update({k: got[k] for k in ("tasks", "blocks_made", "workers_mapped", "tile_ms_per_frame",
+                                       "outside_tiles_ms_per_frame") if k in got})  # fmt: skip
+    return [record]
 
 
 if __name__ == "__main__":

@@ -22,6 +22,8 @@ A record (format "raybench-results", version 1):
                  random_spheres(n, seed, materials=True)); multi-gpu's carry "workers" (of
                  raybench.cluster), "job": "frame" (one frame in tiles) or "sequence" (an
                  orbit of "frames" frames), and on the cpu "threads" (a worker's);
+                 benchmarks/multi_gpu.py's also "delivery": "shared" or "sent" (a frame's
+                 tiles), "counts" or "png" (an orbit's frames);
                  "build": "host" | "gpu" where
                  cuda's tree is built (cuda's BVH points, when asked for; always in dynamic);
                  dynamic's points carry "motion": "orbits" (raybench.animate.Orbits)

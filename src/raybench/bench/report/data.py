@@ -530,10 +530,13 @@ def multi_gpu_series(records: list[dict]) -> list[dict]:
         if r["suite"] != "multi-gpu" or "skipped" in r:
             continue
         opts = r.get("options") or {}
-        key = (r["device"], opts.get("job"), r["width"], r["height"], r["spheres"], opts.get("frames"))
+        # delivery (benchmarks/multi_gpu.py's): how a job's frames came back, where it says
+        key = (r["device"], opts.get("job"), opts.get("delivery"), r["width"], r["height"], r["spheres"],
+               opts.get("frames"))  # fmt: skip
         s = out.setdefault(
             key,
-            {"device": r["device"], "job": opts.get("job"), "width": r["width"], "height": r["height"],
+            {"device": r["device"], "job": opts.get("job"), "delivery": opts.get("delivery"), "width": r["width"],
+             "height": r["height"],
              "spheres": r["spheres"], "frames": opts.get("frames"), "points": []},
         )  # fmt: skip
         fps = 1e3 / float(r["frame_ms"]["median"])

@@ -510,6 +510,8 @@ def _section_multi_gpu(w: _Writer, label: str, slug: str, records: list[dict]) -
     rows = []
     for s in series:
         job = "one frame in tiles" if s["job"] == "frame" else f"{s['frames']} frames"
+        if s.get("delivery"):
+            job += f" ({s['delivery']})"
         for p in s["points"]:
             rows.append(
                 [
