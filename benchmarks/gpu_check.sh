@@ -30,4 +30,4 @@ d = np.abs(a - b).max(axis=2)
 print(f"CLI PNGs cpu vs cuda: {a.shape[1]}x{a.shape[0]}, identical pixels {(d == 0).mean():.6%}, "
       f"{(d > 0).sum()} differ, max {d.max()} step(s)")
 PY
-python3 benchmarks/compare_devices.py --spheres 1000 --size 1680x1050 --frames 20 --json "$OUT/compare.json"
+python3 benchmarks/compare_devices.py --spheres 1000 --size 1680x1050 --frames 20 --out "$OUT/compare.jsonl"

@@ -13,7 +13,7 @@ export RAYBENCH_GIT_COMMIT
 python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site .whl/*.whl || exit 1
 export PYTHONPATH=/tmp/site:$PWD/src PYTHONUNBUFFERED=1
 OUT=${OUT:-/tmp/out}; mkdir -p "$OUT"
-python3 benchmarks/kernels.py --json "$OUT/kernels.json" ${SWEEP:+--sweep} 2>&1 | grep -v '"rays"' | tee "$OUT/kernels.log"
+python3 benchmarks/kernels.py --out "$OUT/kernels.jsonl" ${SWEEP:+--sweep} 2>&1 | grep -v '"fast-kernel-shape"' | tee "$OUT/kernels.log"
 python3 - "$OUT" <<'PY' | tee -a "$OUT/kernels.log"
 import re, sys
 from raybench.backends import cuda as cb

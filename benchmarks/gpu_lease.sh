@@ -93,8 +93,8 @@ for s in $STEPS; do
         # PYTEST_ARGS is read as shell words, so that a marker expression can be quoted in it
         eval "pytest_args=(${PYTEST_ARGS:--m \"not window\"})"
         step pytest "${PYTEST_S:-300}" python3 -m pytest -q -p no:cacheprovider "${pytest_args[@]}" ;;
-    kernels) step kernels "${KERNELS_S:-80}" python3 benchmarks/kernels.py --json "$W/kernels.json" --frames 7 ;;
-    trip) step trip "${TRIP_S:-120}" python3 benchmarks/kernels.py --json "$W/trip.json" --frames 7 --skip-peak \
+    kernels) step kernels "${KERNELS_S:-80}" python3 benchmarks/kernels.py --out "$W/kernels.jsonl" --frames 7 ;;
+    trip) step trip "${TRIP_S:-120}" python3 benchmarks/kernels.py --out "$W/trip.jsonl" --frames 7 --skip-peak \
             --sweep-trip ;;
     scaling)
         # shellcheck disable=SC2086
@@ -136,15 +136,15 @@ for s in $STEPS; do
     warmup) step warmup "${WARMUP_S:-300}" python3 -m raybench warmup --device cuda ;;
     overhead)
         # shellcheck disable=SC2086
-        step overhead "${OVERHEAD_S:-300}" python3 benchmarks/dask_overhead.py --json "$W/dask_overhead.jsonl" \
+        step overhead "${OVERHEAD_S:-300}" python3 benchmarks/dask_overhead.py --out "$W/dask_overhead.jsonl" \
             ${OVERHEAD_ARGS:---device cuda --size 1680x1050 --spheres 100000 --frames 60} ;;
     multigpu)
         # shellcheck disable=SC2086
-        step multigpu "${MULTIGPU_S:-420}" python3 benchmarks/multi_gpu.py --json "$W/multi_gpu.jsonl" \
+        step multigpu "${MULTIGPU_S:-420}" python3 benchmarks/multi_gpu.py --out "$W/multi_gpu.jsonl" \
             ${MULTIGPU_ARGS:---device cuda --workers 1 --workers 2 --spheres 100000 --orbit 240 --orbit-size 1680x1050 --frame 8192x8192} ;;
     shmpages)
         # shellcheck disable=SC2086
-        step shmpages "${SHMPAGES_S:-180}" python3 benchmarks/shm_pages.py ${SHMPAGES_ARGS:---frame 8192x8192 --repeat 3} ;;
+        step shmpages "${SHMPAGES_S:-180}" python3 benchmarks/shm_pages.py ${SHMPAGES_ARGS:---frame 8192x8192 --frames 3} ;;
     pnglevels)
         # shellcheck disable=SC2086
         step pnglevels "${PNGLEVELS_S:-300}" python3 benchmarks/png_levels.py \
@@ -158,12 +158,12 @@ for s in $STEPS; do
             # shellcheck disable=SC2086
             step "startup-$base" "${STARTUP_S:-240}" env PYTHONPATH="/tmp/site:$PWD/$base" \
                 RAYBENCH_GIT_COMMIT="${commits[$i]:-unknown}" ${STARTUP_CPUS:+taskset -c $STARTUP_CPUS} \
-                python3 benchmarks/startup.py ${STARTUP_ARGS:---device cpu --runs 2}
+                python3 benchmarks/startup.py ${STARTUP_ARGS:---device cpu --frames 2}
             i=$((i + 1))
         done
         # shellcheck disable=SC2086
         step startup "${STARTUP_S:-240}" ${STARTUP_CPUS:+taskset -c $STARTUP_CPUS} \
-            python3 benchmarks/startup.py ${STARTUP_ARGS:---device cpu --runs 2} ;;
+            python3 benchmarks/startup.py ${STARTUP_ARGS:---device cpu --frames 2} ;;
     gpubuild)
         # shellcheck disable=SC2086
         step gpubuild "${GPUBUILD_S:-420}" python3 benchmarks/gpu_build.py --json "$W/gpu-build.json" \

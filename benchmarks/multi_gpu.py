@@ -265,6 +265,7 @@ def main(argv=None) -> int:
     parser.add_argument("--orbit-size", default="1680x1050")
     parser.add_argument("--frames-per-task", type=int, help="the orbit's frames a task (default as render_sequence)")
     _harness.add_common(parser, frames=3)
+    parser.add_argument("--repeat", dest="frames", type=int, help=argparse.SUPPRESS)  # its name before --frames
     args = parser.parse_args(argv)
     _harness.check_common(parser, args)
     scene = raybench.random_spheres(args.spheres, seed=0)

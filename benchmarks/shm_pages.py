@@ -43,6 +43,7 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--frame", default="8192x8192")
     _harness.add_common(parser, frames=3)
+    parser.add_argument("--repeat", dest="frames", type=int, help=argparse.SUPPRESS)  # its name before --frames
     args = parser.parse_args(argv)
     _harness.check_common(parser, args)
     width, height = (int(v) for v in args.frame.lower().split("x"))

@@ -38,6 +38,7 @@ def main() -> int:
     parser.add_argument("--shading", default="thesis", choices=["thesis", "whitted"])
     parser.add_argument("--build", choices=["host", "gpu"], help="render's --build (cuda): where the BVH is built")
     _harness.add_common(parser, frames=3)
+    parser.add_argument("--runs", dest="frames", type=int, help=argparse.SUPPRESS)  # its name before --frames
     args = parser.parse_args()
     _harness.check_common(parser, args)
     width, height = parse_size(args.size)
