@@ -1,10 +1,13 @@
 """The BVH built on the GPU through wgpu (backends.wgpu.build) against the
-host's binned SAH build (raybench.bvh), on random_spheres(n, seed=0), one
-JSON record per sphere count and quality (printed as it is measured, and all
-of them written to --json with the machine and the commit):
+host's binned SAH build (raybench.bvh), on random_spheres(n, seed=0), as
+records of the results schema: the builds and refits in its "parts" suite
+(quantity "bvh-build" for the host's; "gpu-build", "gpu-build-wall",
+"gpu-build-" and a step, "gpu-refit", "gpu-refit-wall", options naming the
+quality and the sort's bits a round, the trees' SAH costs, depths and rows
+as figures), the walks on each tree in its "scaling" suite (option build):
 
 - the GPU build's time, warm: GPU timestamps around its one compute pass
-  (median of --repeats), each step's time (the steps then in a pass each,
+  (--frames builds), each step's time (the steps then in a pass each,
   timestamps around each: a pass more per step than a build has), and the
   wall time from the submission to the depth read back (the tree ready to
   walk, Python's encoding and the map included);
@@ -12,27 +15,26 @@ of them written to --json with the machine and the commit):
 - the host build's time (compiled code, every core, as raybench reports it);
 - the SAH cost of both trees (raybench.bvh.cost), their depths and rows;
 - with --frames > 0, the walk's time on each tree (Tracer.timed_trace, the
-  default camera at --size), median of --frames.
+  default camera at --size), --walk-frames frames.
 
-Without timestamps (an adapter without "timestamp-query") the GPU times are
-null and only the wall times are given.
+Without timestamps (an adapter without "timestamp-query") only the wall
+times are recorded.
 
-    python benchmarks/wgpu_build.py --json out.json [--adapter NAME] [--spheres 1000 --spheres 100000]
-        [--repeats 21] [--quality sah --quality lbvh] [--frames 11] [--split-bits 1 --split-bits 3]
+    python benchmarks/wgpu_build.py --out out.jsonl [--adapter NAME] [--spheres 1000 --spheres 100000]
+        [--frames 21] [--quality sah --quality lbvh] [--walk-frames 11] [--split-bits 1 --split-bits 3]
 
 The same figures for numba-cuda's build: benchmarks/gpu_build.py.
 """
 
 import argparse
-import json
-import statistics
 import sys
 import time
 
+import _harness
 import numpy as np
 
 import raybench
-from raybench import Camera, backends, bvh, files, machine
+from raybench import Camera, backends, bvh
 from raybench.backends.wgpu import adapters, compute
 from raybench.backends.wgpu import build as gpu_build
 from raybench.backends.wgpu.tracer import timestamp_period
@@ -71,10 +73,6 @@ class Clock:
         return [float(end - begin) * self.period / 1e6 for begin, end in ticks]
 
 
-def median(values) -> float | None:
-    return None if not values or values[0] is None else round(statistics.median(values), 4)
-
-
 def gpu_build_times(device, spheres: np.ndarray, repeats: int, quality: str) -> dict:
     import wgpu
 
@@ -102,47 +100,42 @@ def gpu_build_times(device, spheres: np.ndarray, repeats: int, quality: str) -> 
         refit.append((time.perf_counter() - start) * 1e3)
         times["refit"].append((whole.read() or [None])[0])
     tree = builder.to_host(stats.depth)
-    return {
-        "gpu_build_ms": median(times["build"]),
-        "gpu_build_steps_ms": {s: median(times[s]) for s in steps},
-        "gpu_build_wall_ms": median(wall),
-        "gpu_refit_ms": median(times["refit"]),
-        "gpu_refit_wall_ms": median(refit),
-        "gpu_depth": stats.depth,
-        "gpu_rows": tree.node_count,
-        "gpu_rows_walked": stats.rows,
-        "gpu_sah": round(tree_cost.sah_cost(tree.nodes), 3),
-        "dispatches": sum(len(s) for s in steps.values()),
-    }
+    timings = {"gpu-build": times["build"], "gpu-build-wall": wall, "gpu-refit": times["refit"],
+               "gpu-refit-wall": refit, **{f"gpu-build-{s}": times[s] for s in steps}}  # fmt: skip
+    figures = {"depth": stats.depth, "rows": tree.node_count, "rows_walked": stats.rows,
+               "sah": round(tree_cost.sah_cost(tree.nodes), 3),
+               "dispatches": sum(len(s) for s in steps.values())}  # fmt: skip
+    # None where the adapter has no timestamps
+    return {name: ms for name, ms in timings.items() if ms and ms[0] is not None}, figures
 
 
 def host_build(spheres: np.ndarray, repeats: int) -> dict:
+    """The host's builds, a record of the parts suite (its tree's SAH cost among its figures)."""
     bvh.compile_builder()
-    times = [bvh.build(spheres, _timed=False).build_s * 1e3 for _ in range(max(3, repeats // 5))]
-    tree = bvh.build(spheres, _timed=False)
-    return {
-        "host_build_ms": round(statistics.median(times), 3),
-        "host_depth": tree.depth,
-        "host_rows": tree.node_count,
-        "host_sah": round(tree_cost.sah_cost(tree.nodes), 3),
-    }
+    times = [bvh.build(spheres).build_s * 1e3 for _ in range(max(3, repeats // 5))]
+    tree = bvh.build(spheres)
+    values = {"depth": tree.depth, "rows": tree.node_count, "sah": round(tree_cost.sah_cost(tree.nodes), 3)}
+    return _harness.part("bvh-build", "cpu", times, spheres=spheres.shape[1], values=values)
 
 
-def walk_ms(adapter, spheres, width: int, height: int, frames: int, build: str) -> float:
+def walk(adapter, spheres, width: int, height: int, frames: int, build: str) -> dict:
+    """The walk on the tree built where `build` says: a point of the scaling suite."""
     basis = Camera().basis(width, height)
     with backends.tracer("wgpu", spheres, width, height, adapter=adapter, build=build) as tracer:
         tracer.trace(basis)
-        return round(statistics.median(tracer.timed_trace(basis) for _ in range(frames)), 4)
+        kernel = []
+        wall = _harness.timings(lambda: kernel.append(tracer.timed_trace(basis)), frames)
+        kernel = kernel if kernel[0] is not None else None
+        return _harness.point("scaling", "wgpu", width, height, spheres.shape[1], {"accel": "bvh", "build": build},
+                              wall, kernel, build_s=tracer.build_s)  # fmt: skip
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--json", required=True, help="file to write the records to")
     parser.add_argument("--adapter", help="the wgpu adapter (default: the best GPU; name a CPU driver to use it)")
     parser.add_argument("--spheres", action="append", type=int, help="default: 1000, 100000, 1000000")
-    parser.add_argument("--repeats", type=int, default=21, help="timed builds per count")
     parser.add_argument("--quality", action="append", choices=gpu_build.QUALITIES, help="default all")
-    parser.add_argument("--frames", type=int, default=11, help="timed frames per walk (0: no walk)")
+    parser.add_argument("--walk-frames", type=int, default=11, help="timed frames per walk (0: no walk)")
     parser.add_argument("--size", default="1680x1050", help="the walk's frame")
     parser.add_argument(
         "--split-bits",
@@ -151,35 +144,35 @@ def main() -> int:
         choices=(1, 2, 3),
         help=f"the sort's bits a round in its tiles (default {gpu_build.SPLIT_BITS}); repeat to compare",
     )
+    _harness.add_common(parser, frames=21)
     args = parser.parse_args()
+    _harness.check_common(parser, args)
     width, height = (int(v) for v in args.size.split("x"))
     adapter = adapters.choose(args.adapter)
     device = adapters.request_device(adapter)
-    records, splits = [], args.split_bits or [gpu_build.SPLIT_BITS]
-    for n in args.spheres or [1000, 100_000, 1_000_000]:
-        spheres = raybench.random_spheres(n, seed=0).spheres
-        host = host_build(spheres, args.repeats)
-        if args.frames > 0:
-            host["walk_host_ms"] = walk_ms(args.adapter, spheres, width, height, args.frames, "host")
-        for quality, bits in [(q, b) for q in args.quality or gpu_build.QUALITIES for b in splits]:
-            gpu_build.SPLIT_BITS = bits
-            gpu_build.source.cache_clear()
-            row = {"spheres": n, "quality": quality, "split_bits": bits, "adapter": adapter.describe(), **host}
-            row.update(gpu_build_times(device, spheres, args.repeats, quality))
-            row["sah_gpu_over_host"] = round(row["gpu_sah"] / row["host_sah"], 4)
-            if args.frames > 0 and quality == gpu_build.lbvh.QUALITY and bits == splits[0]:  # the Tracer's quality
-                row["walk_gpu_ms"] = walk_ms(args.adapter, spheres, width, height, args.frames, "gpu")
-                row["walk_gpu_over_host"] = round(row["walk_gpu_ms"] / row["walk_host_ms"], 4)
-            print(json.dumps(row), flush=True)
-            records.append(row)
-    out = {
-        "benchmark": "wgpu_build",
-        "argv": sys.argv,
-        "git_commit": machine.git_commit(),
-        "machine": machine.describe(),
-        "records": records,
-    }
-    files.write_atomic(args.json, json.dumps(out, indent=1).encode())
+    splits = args.split_bits or [gpu_build.SPLIT_BITS]
+    name = str(adapter.describe().get("name", ""))[:100]
+    with _harness.Records("wgpu_build", args, {"adapter": name, "split_bits": splits}) as out:
+        for n in args.spheres or [1000, 100_000, 1_000_000]:
+            spheres = raybench.random_spheres(n, seed=0).spheres
+            host = host_build(spheres, args.frames)
+            out.write(host)
+            if args.walk_frames > 0:
+                host_walk = walk(args.adapter, spheres, width, height, args.walk_frames, "host")
+                out.write(host_walk)
+            for quality, bits in [(q, b) for q in args.quality or gpu_build.QUALITIES for b in splits]:
+                gpu_build.SPLIT_BITS = bits
+                gpu_build.source.cache_clear()
+                timings, figures = gpu_build_times(device, spheres, args.frames, quality)
+                figures["sah_over_host"] = round(figures["sah"] / host["values"]["sah"], 4)
+                options = {"quality": quality, "split_bits": bits, "adapter": name}
+                for quantity, times in timings.items():
+                    out.write(_harness.part(quantity, "wgpu", times, spheres=n, options=options,
+                                            values=figures if quantity == "gpu-build-wall" else None))  # fmt: skip
+                if args.walk_frames > 0 and quality == gpu_build.lbvh.QUALITY and bits == splits[0]:
+                    out.write(
+                        walk(args.adapter, spheres, width, height, args.walk_frames, "gpu")
+                    )  # the Tracer's quality
     return 0
 
 

@@ -913,3 +913,30 @@ def test_report_with_parts_section(tmp_path, rng):
         bad = write(tmp_path / "bad.jsonl", [{**parts[0], **broken}])
         with pytest.raises(RaybenchError):
             report.write_report([bad], tmp_path / "rep3")
+
+
+def test_scaling_ways_name_a_chosen_tree_width_and_a_tree_built_on_the_gpu():
+    from raybench.bench.report.data import way_of
+
+    bvh = {"accel": "bvh"}
+    assert way_of({"options": bvh}) == "BVH" and way_of({"options": {**bvh, "build": "host"}}) == "BVH"
+    assert way_of({"options": {**bvh, "tree_width": 4}}) == "BVH, 4-wide tree"
+    assert way_of({"options": {**bvh, "build": "gpu"}}) == "BVH, built on the GPU"
+    assert way_of({"options": {"accel": "none", "kernel": "fast"}}) == "brute force, fast kernel"
+
+
+def test_multi_gpu_deliveries_are_series_of_their_own():
+    from raybench.bench.report.data import multi_gpu_series
+
+    records = []
+    for delivery, fps in (("shared", 40.0), ("sent", 20.0)):
+        for workers in (1, 2):
+            r = rec("multi-gpu", "cuda", 1000, 1e3 / (fps * workers), size=(8192, 8192))
+            r["options"] = {"workers": workers, "job": "frame", "delivery": delivery}
+            records.append(r)
+    series = multi_gpu_series(records)
+    assert [s["delivery"] for s in series] == ["shared", "sent"] or [s["delivery"] for s in series] == [
+        "sent",
+        "shared",
+    ]
+    assert all(len(s["points"]) == 2 and s["points"][1]["speedup"] == pytest.approx(2.0) for s in series)

@@ -367,8 +367,9 @@ def constant_vs_runtime(records: list[dict], device: str) -> list[dict]:
 
 def way_of(r: dict) -> str:
     if accel_of(r) == "bvh":
-        width = (r.get("options") or {}).get("tree_width")  # the cpu's binary or 4-wide tree, where chosen
-        return f"BVH, {width}-wide tree" if width else "BVH"
+        opts = r.get("options") or {}
+        way = f"BVH, {opts['tree_width']}-wide tree" if opts.get("tree_width") else "BVH"  # the cpu's, where chosen
+        return way + (", built on the GPU" if opts.get("build") == "gpu" else "")
     return f"brute force, {kernel_of(r)} kernel"
 
 
