@@ -1,10 +1,15 @@
 """The BVH built on the GPU (backends.cuda.build) against the host's binned
-SAH build (raybench.bvh), on random_spheres(n, seed=0), one JSON record per
-sphere count (printed as it is measured, and all of them written to --json
-with the machine and the commit):
+SAH build (raybench.bvh), on random_spheres(n, seed=0), as records of the
+results schema: the builds and refits in its "parts" suite (quantity
+"bvh-build" and "bvh-upload" for the host's; "gpu-build", "gpu-build-wall",
+"gpu-build-" and a step, "gpu-refit", options naming the quality, the trees'
+SAH costs, depths and rows as figures), the walks on each tree in its
+"scaling" suite (options build and quality, the walk that ran), the leaf-size
+sweep in "parts" (quantity "gpu-tree-leaf-walk", the walk's kernel time), the
+moving spheres in its "dynamic" suite (option policy):
 
-- the GPU build's time, warm: CUDA events around all its kernels (median of
-  --repeats), each step's share (events between the steps), and the wall
+- the GPU build's time, warm: CUDA events around all its kernels (--frames
+  builds), each step's share (events between the steps), and the wall
   time from the first launch to the depth read back (the tree ready to walk,
   Python's launch overhead included);
 - the refit's time (the boxes from moved spheres, the tree kept), by events;
@@ -35,7 +40,7 @@ side by side (a quality that fails is recorded with its error); the record's
 top-level gpu_* and walk_* fields are the default quality's
 (cuda_build.QUALITY), which the dynamic series use.
 
-    python benchmarks/gpu_build.py --json out.json [--spheres 1000 --spheres 100000] [--repeats 51]
+    python benchmarks/gpu_build.py --out out.jsonl [--spheres 1000 --spheres 100000] [--frames 51]
         [--quality sah --quality treelet] [--anim-frames 40 --anim-dt 0.1]
 
 Issue 16's targets (H200): a build of 1,000,000 spheres in at most 5 ms,
@@ -44,17 +49,17 @@ host's.
 """
 
 import argparse
-import json
-import statistics
 import sys
 import time
 
+import _harness
 import numpy as np
 from numba import cuda
 
 import raybench
-from raybench import Camera, backends, bvh, files, machine
+from raybench import Camera, backends, bvh
 from raybench.backends.cuda import build as cuda_build
+from raybench.bench.stats import summarize
 from raybench.bvh import cost as tree_cost
 
 STEPS = ("codes", "sort", "hierarchy", "bounds")
@@ -66,7 +71,8 @@ def events_ms(marks) -> list[float]:
     return [a.elapsed_time(b) for a, b in zip(marks, marks[1:])]
 
 
-def gpu_build(spheres: np.ndarray, repeats: int, quality: str) -> dict:
+def gpu_build(spheres: np.ndarray, repeats: int, quality: str) -> tuple[dict, dict]:
+    """({quantity: ms of each build}, the tree's figures)."""
     n = spheres.shape[1]
     d_spheres = cuda.to_device(spheres)
     builder = cuda_build.Builder(n, quality=quality)  # its default leaf size
@@ -100,34 +106,30 @@ def gpu_build(spheres: np.ndarray, repeats: int, quality: str) -> dict:
         refit.append(events_ms(marks)[0])
     builder.launch_build(d_spheres)  # the refits above kept the tree; its boxes fresh again
     tree = builder.tree(builder.read_depth(), 0.0).to_host()
-    return {
-        "gpu_build_ms": round(statistics.median(whole), 4),
-        "gpu_build_p5_p95_ms": [round(float(v), 4) for v in np.percentile(whole, [5, 95])],
-        "gpu_build_steps_ms": {k: round(statistics.median(v), 4) for k, v in steps.items()},
-        "gpu_build_wall_ms": round(statistics.median(wall), 4),
-        "gpu_refit_ms": round(statistics.median(refit), 4),
-        "gpu_depth": depth,
-        "gpu_rows": tree.node_count,
-        "gpu_rows_walked": builder.read_rows(),
-        "gpu_sah": round(tree_cost.sah_cost(tree.nodes), 3),
-    }
+    timings = {"gpu-build": whole, "gpu-build-wall": wall, "gpu-refit": refit,
+               **{f"gpu-build-{s}": v for s, v in steps.items()}}  # fmt: skip
+    figures = {"depth": depth, "rows": tree.node_count, "rows_walked": builder.read_rows(),
+               "sah": round(tree_cost.sah_cost(tree.nodes), 3)}  # fmt: skip
+    # the simulator's events time nothing: no record of them
+    return {name: ms for name, ms in timings.items() if min(ms) > 0}, figures
 
 
-def host_build(spheres: np.ndarray, repeats: int) -> dict:
+def host_build(spheres: np.ndarray, repeats: int) -> list[dict]:
+    """The host's builds and the tree's upload, records of the parts suite."""
     bvh.compile_builder()
-    times = [bvh.build(spheres, _timed=False).build_s * 1e3 for _ in range(max(3, repeats // 5))]
-    tree = bvh.build(spheres, _timed=False)
-    start = time.perf_counter()
-    cuda_build.upload(tree)
-    cuda.synchronize()
-    upload_ms = (time.perf_counter() - start) * 1e3
-    return {
-        "host_build_ms": round(statistics.median(times), 3),
-        "host_upload_ms": round(upload_ms, 3),
-        "host_depth": tree.depth,
-        "host_rows": tree.node_count,
-        "host_sah": round(tree_cost.sah_cost(tree.nodes), 3),
-    }
+    times = [bvh.build(spheres).build_s * 1e3 for _ in range(max(3, repeats // 5))]
+    tree = bvh.build(spheres)
+
+    def upload():
+        cuda_build.upload(tree)
+        cuda.synchronize()
+
+    n = spheres.shape[1]
+    values = {"depth": tree.depth, "rows": tree.node_count, "sah": round(tree_cost.sah_cost(tree.nodes), 3)}
+    return [
+        _harness.part("bvh-build", "cpu", times, spheres=n, values=values),
+        _harness.part("bvh-upload", "cuda", _harness.timings(upload, 1), spheres=n),
+    ]
 
 
 def use_tree(tracer, tree) -> None:
@@ -136,35 +138,45 @@ def use_tree(tracer, tree) -> None:
     tracer.d_nodes, tracer.d_links, tracer.d_ordered, tracer.d_order = tree.nodes, tree.links, tree.ordered, tree.order
 
 
-def walks(spheres: np.ndarray, width: int, height: int, frames: int, qualities) -> dict:
-    """Both walks' kernel times on the host's tree and on the GPU's tree of
-    each quality, and the share of hits differing from the host tree's."""
+def timed_frames(tracer, basis, frames: int) -> tuple[list[float], list[float] | None]:
+    """Whole frames' ms, and the kernel's (None under the simulator)."""
+    tracer.trace(basis)
+    kernel = []
+    wall = _harness.timings(lambda: kernel.append(tracer.timed_trace(basis)), frames)
+    return wall, (kernel if kernel[0] is not None else None)
+
+
+def walks(spheres: np.ndarray, width: int, height: int, frames: int, qualities) -> list[dict]:
+    """Both walks on the host's tree and on the GPU's tree of each quality: points of the
+    scaling suite, the GPU trees' with the share of hits differing from the host tree's (a
+    quality that fails is left out, its error on stderr)."""
     basis = Camera().basis(width, height)
     d_spheres = cuda.to_device(spheres)
-    out, hits = {}, {}
+    n = spheres.shape[1]
+    out = []
     for walk in ("ray", "packet"):
         with backends.tracer("cuda", spheres, width, height, build="host", walk=walk) as tracer:
-            tracer.trace(basis)
-            times = [tracer.timed_trace(basis) for _ in range(frames)]  # None under the simulator
-            out[f"walk_host_{walk}_ms"] = round(statistics.median(t or np.nan for t in times), 4)
-            hits["host"] = tracer.hits.copy()
+            options = {"accel": "bvh", "build": "host", "walk": walk}
+            record = _harness.point("scaling", "cuda", width, height, n, options, *timed_frames(tracer, basis, frames),
+                                    build_s=tracer.build_s)  # fmt: skip
+            record["walk"] = walk
+            out.append(record)
+            host_hits = tracer.hits.copy()
         with backends.tracer("cuda", spheres, width, height, build="gpu", walk=walk) as tracer:
             for quality in qualities:
-                entry = out.setdefault(quality, {})
                 try:
-                    builder = cuda_build.Builder(spheres.shape[1], quality=quality)
+                    builder = cuda_build.Builder(n, quality=quality)
                     builder.launch_build(d_spheres)
                     use_tree(tracer, builder.tree(builder.read_depth(), 0.0))
-                    tracer.trace(basis)
-                    times = [tracer.timed_trace(basis) for _ in range(frames)]
+                    timed = timed_frames(tracer, basis, frames)
                 except Exception as e:  # noqa: BLE001 (one quality failing leaves the others measured)
-                    entry["error"] = repr(e)
+                    print(f"{n:>9,} spheres, {quality}, {walk} walk: {e!r}", file=sys.stderr, flush=True)
                     continue
-                entry[f"walk_gpu_{walk}_ms"] = round(statistics.median(t or np.nan for t in times), 4)
-                entry[f"walk_gpu_over_host_{walk}"] = round(
-                    entry[f"walk_gpu_{walk}_ms"] / out[f"walk_host_{walk}_ms"], 4
-                )
-                entry["hits_differ"] = max(entry.get("hits_differ", 0.0), float((hits["host"] != tracer.hits).mean()))
+                options = {"accel": "bvh", "build": "gpu", "quality": quality, "walk": walk}
+                record = _harness.point("scaling", "cuda", width, height, n, options, *timed)
+                record["walk"] = walk
+                record["hits_differ"] = float((host_hits != tracer.hits).mean())
+                out.append(record)
     return out
 
 
@@ -180,16 +192,16 @@ def gpu_cost(tracer) -> float | None:
     return tree_cost.sah_cost(tree.to_host().nodes)
 
 
-def dynamic(spheres: np.ndarray, width: int, height: int, frames: int, dt: float) -> dict:
-    """Per policy: per frame, the update's wall ms and kind, the walk's kernel
-    ms, the whole frame's wall ms (update, walk, image and hits to the host)
-    and, on the GPU's trees, the SAH cost over the fresh tree's."""
+def dynamic(spheres: np.ndarray, width: int, height: int, frames: int, dt: float) -> list[dict]:
+    """Per policy, a point of the dynamic suite: per frame, the update's wall ms and kind, the
+    walk's kernel ms, the whole frame's wall ms (update, walk, image and hits to the host) and,
+    on the GPU's trees, the SAH cost over the fresh tree's (cost_ratio)."""
     from raybench import animate
 
     basis = Camera().basis(width, height)
     orbits = animate.Orbits(spheres, 0)
     moved = [orbits.at(k * dt) for k in range(1, frames + 1)]
-    out = {}
+    out = []
     for name, (build, limit) in POLICIES.items():
         saved = cuda_build.REFIT_LIMIT
         if limit is not None:
@@ -198,35 +210,39 @@ def dynamic(spheres: np.ndarray, width: int, height: int, frames: int, dt: float
             with backends.tracer("cuda", spheres, width, height, build=build) as tracer:
                 tracer.trace(basis)
                 fresh = gpu_cost(tracer)
-                series = {"update_ms": [], "kind": [], "walk_ms": [], "frame_ms": [], "cost_ratio": []}
+                update_ms, kinds, walk_ms, frame_ms, cost_ratio = [], [], [], [], []
                 for frame in moved:
                     start = time.perf_counter()
                     kind = tracer.update(frame)
-                    update_ms = (time.perf_counter() - start) * 1e3
-                    walk_ms = tracer.timed_trace(basis)
-                    series["frame_ms"].append(round((time.perf_counter() - start) * 1e3, 4))
-                    series["update_ms"].append(round(update_ms, 4))
-                    series["kind"].append(kind)
-                    series["walk_ms"].append(round(walk_ms or np.nan, 4))
+                    update_ms.append((time.perf_counter() - start) * 1e3)
+                    walk_ms.append(tracer.timed_trace(basis))
+                    frame_ms.append((time.perf_counter() - start) * 1e3)
+                    kinds.append(kind)
                     cost = gpu_cost(tracer)
                     if kind == "build":  # a fresh tree, as the Tracer's refit limit counts from
                         fresh = cost
                     if cost is not None and fresh:
-                        series["cost_ratio"].append(round(cost / fresh, 4))
-                series["median_frame_ms"] = round(statistics.median(series["frame_ms"]), 4)
-                series["fps"] = round(1e3 / series["median_frame_ms"], 2)
-                out[name] = series
+                        cost_ratio.append(round(cost / fresh, 4))
         finally:
             cuda_build.REFIT_LIMIT = saved
+        options = {"accel": "bvh", "motion": "orbits", "build": build, "policy": name}
+        record = _harness.point("dynamic", "cuda", width, height, spheres.shape[1], options, frame_ms,
+                                walk_ms if walk_ms[0] is not None else None)  # fmt: skip
+        record["update_ms"] = summarize(update_ms)
+        record["updates"] = {k: kinds.count(k) for k in ("refit", "build") if k in kinds}
+        record["update_share"] = sum(update_ms) / sum(frame_ms)
+        record["frames_per_s"] = 1e3 / record["frame_ms"]["median"]
+        record["cost_ratio"] = cost_ratio
+        out.append(record)
     return out
 
 
-def leaf_sizes(spheres: np.ndarray, width: int, height: int, frames: int, sizes) -> dict:
-    """Per largest leaf: the GPU tree's SAH cost (default quality) and both
-    walks' kernel times (the tracer's tree replaced by one built with it)."""
+def leaf_sizes(spheres: np.ndarray, width: int, height: int, frames: int, sizes) -> list[dict]:
+    """Per largest leaf: both walks' kernel times on the GPU tree of the default quality (the
+    tracer's tree replaced by one built with it), records of the parts suite with its SAH cost."""
     basis = Camera().basis(width, height)
     d_spheres = cuda.to_device(spheres)
-    out = {}
+    out = []
     for walk in ("ray", "packet"):
         with backends.tracer("cuda", spheres, width, height, build="gpu", walk=walk) as tracer:
             for size in sizes:
@@ -234,20 +250,23 @@ def leaf_sizes(spheres: np.ndarray, width: int, height: int, frames: int, sizes)
                 builder.launch_build(d_spheres)
                 tree = builder.tree(builder.read_depth(), 0.0)
                 use_tree(tracer, tree)
-                tracer.trace(basis)
-                times = [tracer.timed_trace(basis) for _ in range(frames)]
-                entry = out.setdefault(str(size), {"sah": round(tree_cost.sah_cost(tree.to_host().nodes), 3)})
-                entry[f"walk_{walk}_ms"] = round(statistics.median(t or np.nan for t in times), 4)
+                wall, kernel = timed_frames(tracer, basis, frames)
+                options = {"leaf_size": size, "walk": walk, "timing": "kernel" if kernel else "frame"}
+                out.append(
+                    _harness.part(
+                        "gpu-tree-leaf-walk", "cuda", kernel or wall, spheres=spheres.shape[1], width=width,
+                        height=height, options=options,
+                        values={"sah": round(tree_cost.sah_cost(tree.to_host().nodes), 3)},
+                    )
+                )  # fmt: skip
     return out
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--json", required=True, help="file for all the records, with the machine and commit")
     parser.add_argument("--spheres", action="append", type=int, help="default: 1000, 100000, 1000000")
     parser.add_argument("--size", default="1680x1050")
-    parser.add_argument("--repeats", type=int, default=51, help="timed GPU builds (and refits) per count")
-    parser.add_argument("--frames", type=int, default=15, help="timed frames per walk")
+    parser.add_argument("--walk-frames", type=int, default=15, help="timed frames per walk")
     parser.add_argument("--leaf-size", type=int, action="append", help="largest leaves to sweep (default 1, 2, 4, 8)")
     parser.add_argument(
         "--quality", action="append", choices=cuda_build.QUALITIES, help="GPU trees to measure (default all)"
@@ -257,51 +276,34 @@ def main() -> int:
     )
     parser.add_argument("--anim-frames", type=int, default=40, help="frames of moving spheres per policy")
     parser.add_argument("--anim-dt", type=float, default=0.1, help="seconds of the animation between frames")
+    _harness.add_common(parser, frames=51)
+    parser.add_argument("--repeats", dest="frames", type=int, help=argparse.SUPPRESS)  # its name before --frames
     args = parser.parse_args()
+    _harness.check_common(parser, args)
     cuda_build.TREELET_PASSES = args.treelet_passes
     width, height = (int(v) for v in args.size.split("x"))
-    records = []
-    for n in args.spheres or [1000, 100_000, 1_000_000]:
-        spheres = raybench.random_spheres(n, seed=0).spheres
-        row = {"spheres": n, "width": width, "height": height, "treelet_passes": cuda_build.TREELET_PASSES}
-        row.update(host_build(spheres, args.repeats))
-        qualities = args.quality or list(cuda_build.QUALITIES)
-        walked = walks(spheres, width, height, args.frames, qualities)
-        row.update({k: v for k, v in walked.items() if k.startswith("walk_host_")})
-        variants = {}
-        for quality in qualities:
-            if "error" in walked[quality]:
-                variants[quality] = walked[quality]
-                print(f"{n:>9,} spheres, {quality:>7}: {walked[quality]['error']}", file=sys.stderr, flush=True)
-                continue
-            entry = gpu_build(spheres, args.repeats, quality)
-            entry["sah_gpu_over_host"] = round(entry["gpu_sah"] / row["host_sah"], 4)
-            entry.update(walked[quality])
-            variants[quality] = entry
-            print(
-                f"{n:>9,} spheres, {quality:>7}: build {entry['gpu_build_ms']:.3f} ms, SAH / host "
-                f"{entry['sah_gpu_over_host']:.3f}, walk / host: ray {entry['walk_gpu_over_host_ray']:.3f}, "
-                f"packet {entry['walk_gpu_over_host_packet']:.3f}",
-                file=sys.stderr,
-                flush=True,
-            )
-        row["variants"] = variants
-        row["quality"] = cuda_build.QUALITY
-        row.update(variants.get(cuda_build.QUALITY, {}))  # the default's, as the fields were before
-        row["leaf_size"] = cuda_build.LEAF_SIZE
-        row["leaf_sizes"] = leaf_sizes(spheres, width, height, args.frames, args.leaf_size or [1, 2, 4, 8])
-        if args.anim_frames > 0:
-            row["dynamic"] = dynamic(spheres, width, height, args.anim_frames, args.anim_dt)
-        print(json.dumps(row), flush=True)
-        records.append(row)
-    out = {
-        "benchmark": "gpu_build",
-        "argv": sys.argv,
-        "git_commit": machine.git_commit(),
-        "machine": machine.describe(),
-        "records": records,
-    }
-    files.write_atomic(args.json, json.dumps(out, indent=1).encode())
+    settings = {"treelet_passes": args.treelet_passes, "quality": cuda_build.QUALITY, "leaf_size": cuda_build.LEAF_SIZE}
+    with _harness.Records("gpu_build", args, settings) as out:
+        for n in args.spheres or [1000, 100_000, 1_000_000]:
+            spheres = raybench.random_spheres(n, seed=0).spheres
+            host = host_build(spheres, args.frames)
+            for record in host:
+                out.write(record)
+            qualities = args.quality or list(cuda_build.QUALITIES)
+            for record in walks(spheres, width, height, args.walk_frames, qualities):
+                out.write(record)
+            for quality in qualities:
+                timings, figures = gpu_build(spheres, args.frames, quality)
+                figures["sah_over_host"] = round(figures["sah"] / host[0]["values"]["sah"], 4)
+                options = {"quality": quality, "treelet_passes": args.treelet_passes}
+                for quantity, times in timings.items():
+                    out.write(_harness.part(quantity, "cuda", times, spheres=n, options=options,
+                                            values=figures if quantity == "gpu-build-wall" else None))  # fmt: skip
+            for record in leaf_sizes(spheres, width, height, args.walk_frames, args.leaf_size or [1, 2, 4, 8]):
+                out.write(record)
+            if args.anim_frames > 0:
+                for record in dynamic(spheres, width, height, args.anim_frames, args.anim_dt):
+                    out.write(record)
     return 0
 
 

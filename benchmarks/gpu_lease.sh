@@ -166,11 +166,11 @@ for s in $STEPS; do
             python3 benchmarks/startup.py ${STARTUP_ARGS:---device cpu --frames 2} ;;
     gpubuild)
         # shellcheck disable=SC2086
-        step gpubuild "${GPUBUILD_S:-420}" python3 benchmarks/gpu_build.py --json "$W/gpu-build.json" \
+        step gpubuild "${GPUBUILD_S:-420}" python3 benchmarks/gpu_build.py --out "$W/gpu-build.jsonl" \
             ${GPUBUILD_ARGS:-} ;;
     wgpubuild)
         # shellcheck disable=SC2086
-        step wgpubuild "${WGPUBUILD_S:-420}" python3 benchmarks/wgpu_build.py --json "$W/wgpu-build.json" \
+        step wgpubuild "${WGPUBUILD_S:-420}" python3 benchmarks/wgpu_build.py --out "$W/wgpu-build.jsonl" \
             ${WGPUBUILD_ARGS:-} ;;
     *) echo "unknown step $s" | tee -a "$W/steps.log" ;;
     esac

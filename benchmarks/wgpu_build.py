@@ -145,6 +145,7 @@ def main() -> int:
         help=f"the sort's bits a round in its tiles (default {gpu_build.SPLIT_BITS}); repeat to compare",
     )
     _harness.add_common(parser, frames=21)
+    parser.add_argument("--repeats", dest="frames", type=int, help=argparse.SUPPRESS)  # its name before --frames
     args = parser.parse_args()
     _harness.check_common(parser, args)
     width, height = (int(v) for v in args.size.split("x"))

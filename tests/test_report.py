@@ -922,6 +922,8 @@ def test_scaling_ways_name_a_chosen_tree_width_and_a_tree_built_on_the_gpu():
     assert way_of({"options": bvh}) == "BVH" and way_of({"options": {**bvh, "build": "host"}}) == "BVH"
     assert way_of({"options": {**bvh, "tree_width": 4}}) == "BVH, 4-wide tree"
     assert way_of({"options": {**bvh, "build": "gpu"}}) == "BVH, built on the GPU"
+    gpu_tree = {**bvh, "build": "gpu", "quality": "treelet", "walk": "packet"}
+    assert way_of({"options": gpu_tree}) == "BVH, built on the GPU (treelet), packet walk"
     assert way_of({"options": {"accel": "none", "kernel": "fast"}}) == "brute force, fast kernel"
 
 

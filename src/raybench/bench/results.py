@@ -17,6 +17,8 @@ A record (format "raybench-results", version 1):
                  scaling's points of a denser scene carry "layout" (random_spheres's:
                  "dense", "clusters", "deep"; absent: "even"), and the cpu's, where its
                  tree was chosen, "tree_width" (2 or 4: the cpu Tracer's tree_width);
+                 benchmarks/gpu_build.py's BVH points also "quality" (of a tree built on
+                 the GPU) and "walk" ("ray" or "packet"); its dynamic points "policy";
                  secondary's points carry "shading": "thesis" (primary rays, the baseline) or
                  "whitted" with "depth" and "shadow_samples" (the materials scene,
                  random_spheres(n, seed, materials=True)); multi-gpu's carry "workers" (of

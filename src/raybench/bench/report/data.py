@@ -369,7 +369,9 @@ def way_of(r: dict) -> str:
     if accel_of(r) == "bvh":
         opts = r.get("options") or {}
         way = f"BVH, {opts['tree_width']}-wide tree" if opts.get("tree_width") else "BVH"  # the cpu's, where chosen
-        return way + (", built on the GPU" if opts.get("build") == "gpu" else "")
+        if opts.get("build") == "gpu":
+            way += ", built on the GPU" + (f" ({opts['quality']})" if opts.get("quality") else "")
+        return way + (f", {opts['walk']} walk" if opts.get("walk") else "")
     return f"brute force, {kernel_of(r)} kernel"
 
 
@@ -421,6 +423,8 @@ def dynamic_points(records: list[dict]) -> list[dict]:
         if r["suite"] != "dynamic" or "skipped" in r:
             continue
         build = (r.get("options") or {}).get("build", "host")
+        if (r.get("options") or {}).get("policy"):  # benchmarks/gpu_build.py's update policies
+            build += f" ({r['options']['policy']})"
         out.append(
             {
                 "device": r["device"],
