@@ -7,8 +7,7 @@ for example a venv of its own with raybench's pinned numpy and numba:
     python3 -m venv /work/venv-mitsuba
     /work/venv-mitsuba/bin/pip install mitsuba numpy==2.4.6 numba==0.68.1 \\
         psutil py-cpuinfo click rich pillow
-    PYTHONPATH=src /work/venv-mitsuba/bin/python benchmarks/embree_side_by_side.py \\
-        --out benchmarks/results/archive/epyc-2c-cpu-only/embree/embree-side-by-side.jsonl
+    PYTHONPATH=src /work/venv-mitsuba/bin/python benchmarks/embree_side_by_side.py --out embree.jsonl
 
 What each side does, a frame:
 - raybench: a whole frame of the CPU backend through its BVH (Tracer.trace:
@@ -43,26 +42,25 @@ spins a while after its work before it sleeps, and without the pause
 raybench's frames right after Mitsuba's were slower than after its own
 (docs/embree.md#against-mitsuba-3-on-embree-side-by-side-2-vcpu-machine).
 
-One JSON line per (layout, spheres, Mitsuba's shape), to stdout and --out.
+Records of the results schema per (layout, spheres, Mitsuba's shape): raybench's frames a point
+of its "scaling" suite (accel "bvh", option layout), Mitsuba's intersections a record of its
+"parts" suite (quantity "embree-intersect", options naming the shape and the variant, with the
+share of hits that agree, Mitsuba over raybench, and its scene's load and first frame).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import platform
 import statistics
+import sys
 import time
-from datetime import UTC, datetime
 
+import _harness
 import numpy as np
 
 import raybench
 from raybench import Camera, backends
 from raybench.backends.cpu import default_threads
-from raybench.host import usable_cores
-from raybench.machine import git_commit
 from raybench.scene import SPREADS
 
 
@@ -112,13 +110,9 @@ def mitsuba_scene(mi, spheres: np.ndarray, shape: str):
     )
 
 
-def median_ms(times):
-    return statistics.median(times) * 1e3
-
-
-def compare(layout, n, shape, width, height, args, mi, dr, base):
-    """One record: raybench against Mitsuba on one scene (args: the command's
-    --rounds, --frames, --warmup, --settle and --seed)."""
+def compare(layout, n, shape, width, height, args, mi, dr) -> list[dict]:
+    """Two records: raybench's frames and Mitsuba's intersections of one scene (args: the
+    command's --rounds, --frames, --warmup, --settle and --seed)."""
     rounds, frames, warmup, settle, seed = args.rounds, args.frames, args.warmup, args.settle, args.seed
     scene = raybench.random_spheres(n, seed, layout=layout)
     basis = Camera().basis(width, height)
@@ -165,41 +159,33 @@ def compare(layout, n, shape, width, height, args, mi, dr, base):
         for _ in range(warmup):
             ours()
             theirs()
-        times = {"raybench": [], "mitsuba": []}
-        sides = [("raybench", ours), ("mitsuba", theirs)]
-        for r in range(rounds):
-            for name, side in sides if r % 2 == 0 else sides[::-1]:
-                time.sleep(settle)  # the other side's idle threads asleep again: they spin a while after its work
-                for _ in range(frames):
-                    start = time.perf_counter()
-                    side()
-                    times[name].append(time.perf_counter() - start)
+
+        def turn(side):
+            time.sleep(settle)  # the other side's idle threads asleep again: they spin a while after its work
+            return _harness.timings(side, frames)
+
+        times = _harness.paired({"raybench": lambda: turn(ours), "mitsuba": lambda: turn(theirs)}, rounds)
     finally:
         tracer.close()
-    ours_ms, theirs_ms = median_ms(times["raybench"]), median_ms(times["mitsuba"])
-    return {
-        **base,
-        "layout": layout,
-        "spheres": n,
-        "seed": seed,
-        "width": width,
-        "height": height,
-        "mitsuba_shape": shape,
-        "raybench_ms": ours_ms,
-        "mitsuba_ms": theirs_ms,
-        "ratio": theirs_ms / ours_ms,
-        "raybench_rays_per_s": rays / (ours_ms / 1e3),
-        "mitsuba_rays_per_s": rays / (theirs_ms / 1e3),
-        "raybench_frames_ms": [x * 1e3 for x in times["raybench"]],
-        "mitsuba_frames_ms": [x * 1e3 for x in times["mitsuba"]],
+    options = {"accel": "bvh", "threads": default_threads(), "seed": seed}
+    if layout != "even":
+        options["layout"] = layout
+    ours_record = _harness.point("scaling", "cpu", width, height, n, options, times["raybench"],
+                                 first_frame_s=our_first, build_s=tracer.build_s)  # fmt: skip
+    ours_record["tracer_s"] = make_s
+    values = {
         "hits_agree": agree,
         "rays_hit": float(np.mean(our_hits >= 0)),
-        "raybench_build_s": tracer.build_s,
-        "raybench_tracer_s": make_s,
-        "raybench_first_frame_s": our_first,
-        "mitsuba_load_s": load_s,
-        "mitsuba_first_frame_s": their_first,
+        "over_raybench": statistics.median(times["mitsuba"]) / statistics.median(times["raybench"]),
+        "rays_per_s": rays / (statistics.median(times["mitsuba"]) / 1e3),
+        "load_s": load_s,
+        "first_frame_s": their_first,
     }
+    theirs_options = {"layout": layout, "shape": shape, "variant": mi.variant(), "threads": dr.thread_count(),
+                      "seed": seed}  # fmt: skip
+    theirs_record = _harness.part("embree-intersect", "cpu", times["mitsuba"], spheres=n, width=width, height=height,
+                                  options=theirs_options, values=values)  # fmt: skip
+    return [ours_record, theirs_record]
 
 
 def main():
@@ -207,8 +193,6 @@ def main():
     p.add_argument("--spheres", type=int, nargs="+", default=[1000, 10_000, 100_000])
     p.add_argument("--layouts", nargs="+", default=list(SPREADS), choices=SPREADS)
     p.add_argument("--size", default="1680x1050")
-    p.add_argument("--rounds", type=int, default=7)
-    p.add_argument("--frames", type=int, default=3, help="frames a side in each round")
     p.add_argument("--warmup", type=int, default=2, help="frames a side after the first, untimed")
     p.add_argument(
         "--settle",
@@ -227,55 +211,28 @@ def main():
     p.add_argument(
         "--both-at", type=int, nargs="*", default=[10_000], help="sphere counts measured with both Mitsuba shapes"
     )
-    p.add_argument("--label", default="", help="a note kept in every record, e.g. the machine's state")
-    p.add_argument("--out", help="append the JSON lines to this file too")
+    p.add_argument("--note", default="", help="a note kept in the run's settings, e.g. the machine's state")
+    _harness.add_common(p, frames=3, rounds=7)
     args = p.parse_args()
+    _harness.check_common(p, args)
     width, height = (int(v) for v in args.size.split("x"))
 
     import drjit as dr
     import mitsuba as mi
 
     mi.set_variant("llvm_ad_rgb")
-    try:
-        from raybench.machine import cpu
-
-        processor = cpu()
-    except ImportError:  # psutil or py-cpuinfo missing: the model name alone
-        processor = {"model": platform.processor()}
-    base = {
-        "what": "embree_side_by_side",
-        "date": datetime.now(UTC).isoformat(timespec="seconds"),
-        "raybench_commit": git_commit(),
-        "mitsuba": mi.__version__,
-        "drjit": dr.__version__,
-        "mitsuba_variant": mi.variant(),
-        "mitsuba_threads": dr.thread_count(),
-        "raybench_threads": default_threads(),
-        "numba": __import__("numba").__version__,
-        "processor": processor,
-        "usable_cores": usable_cores(),
-        "load_average": os.getloadavg(),
-        "label": args.label,
-        "settle_s": args.settle,
-    }
-    for n in args.spheres:
-        for layout in args.layouts:
-            shapes = ["sphere"] if n <= args.max_shapes else ["ellipsoids"]
-            if n in args.both_at:
-                shapes = ["sphere", "ellipsoids"]
-            for shape in shapes:
-                record = compare(layout, n, shape, width, height, args, mi, dr, base)
-                line = json.dumps(record)
-                print(
-                    f"{layout:9s} {n:>9,} {shape:10s} raybench {record['raybench_ms']:8.2f} ms  "
-                    f"mitsuba {record['mitsuba_ms']:8.2f} ms  ratio {record['ratio']:.2f}  "
-                    f"agree {record['hits_agree']:.5f}  load {record['mitsuba_load_s']:.1f} s",
-                    flush=True,
-                )
-                if args.out:
-                    with open(args.out, "a") as f:
-                        f.write(line + "\n")
+    settings = {"mitsuba": mi.__version__, "drjit": dr.__version__, "note": args.note, "settle_s": args.settle}
+    with _harness.Records("embree_side_by_side", args, settings) as out:
+        for n in args.spheres:
+            for layout in args.layouts:
+                shapes = ["sphere"] if n <= args.max_shapes else ["ellipsoids"]
+                if n in args.both_at:
+                    shapes = ["sphere", "ellipsoids"]
+                for shape in shapes:
+                    for record in compare(layout, n, shape, width, height, args, mi, dr):
+                        out.write(record)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())
