@@ -1,10 +1,11 @@
 """A CPU model of the tree that backends/cuda/build.py builds on the GPU: the
 same Morton codes, the same stable order, Karras's hierarchy, the same
 bottom-up pass (boxes, SAH costs, the leaves it cuts, the treelets it
-rebuilds) and reorder, in the same float32 arithmetic. The hierarchy's rows,
-the treelet step and the reorder are the GPU's own functions
-(bvh/lbvh_steps.py) compiled by numba.njit; the bottom-up pass is a loop
-over the leaves in order where the GPU has a thread a leaf. Under numba's
+rebuilds) and reorder, in the same float32 arithmetic: the GPU's own steps
+(bvh/lbvh_steps.py: a hierarchy row, a leaf's climb, the treelet step, a
+sphere's reorder) compiled by numba.njit, each a loop over the rows, leaves
+or spheres where the GPU has a thread each (the leaves in order: each row is
+done once both its children are, and the last leaf reaches the root). Under numba's
 CUDA simulator it gives the kernels' tree bit for bit (tests/test_cuda_build.py
 checks it), as it gives the WGSL port's, backends/wgpu/build.py's, on
 lavapipe (tests/test_wgpu_build.py); benchmarks/gpu_tree_model.py uses it for
@@ -22,13 +23,9 @@ import numpy as np
 
 from .. import layout
 from . import lbvh, lbvh_steps
-from .sah import LEAF_MAX, NODE_COST
+from .sah import LEAF_MAX
 
 AXIS_CELLS = lbvh.AXIS_CELLS
-PAD = layout.PAD
-INNER = layout.INNER
-REF = layout.REF
-COUNT = layout.COUNT
 QUALITIES = ("sah", "treelet", "lbvh")  # backends/cuda/build.py's
 
 
@@ -38,11 +35,10 @@ def _load(a, i):
 
 
 _jit = numba.njit(cache=False)
-_steps = lbvh_steps.build(_jit, lbvh_steps.cpu_target(_jit), _load, _load)
+_steps = lbvh_steps.build(_jit, lbvh_steps.cpu_target(_jit), _load, _load, _jit(lbvh_steps.cpu_arrive))
 _hierarchy_row = _steps.hierarchy_row
-_half_area = _steps.half_area
-_treelet = _steps.treelet
 _reorder_one = _steps.reorder_one
+_climb = _steps.climb
 
 
 def morton(spheres: np.ndarray) -> np.ndarray:
@@ -76,76 +72,24 @@ def reorder(spheres, n, order, leaf_up, up, links, kid, span, order_out, leaf_up
 
 
 @numba.njit(cache=False)
-def bounds_up(ordered, leaf_up, up, span, nodes, links, kid, leaf_max, sah, restructure):
+def bounds_up(spheres, order, leaf_up, up, span, nodes, links, kid, ordered, leaf_max, sah, restructure):
     """backends/cuda/build.py's _bounds_up, each row done once both its children are: the
     leaves in order, each climbing while it arrives second (as on the GPU,
     where the order of arrivals changes no value: min, max and a sum of two
-    are commutative). Returns (depth, rows reached, SAH cost)."""
-    n = ordered.shape[1]
+    are commutative); the last leaf reaches the root. Returns (depth, rows reached, SAH cost)."""
+    n = order.shape[0]
     m = nodes.shape[0]
     arrived = np.zeros(m, np.int32)
     below = np.zeros(4 * m, np.int32)
     costs = np.zeros(2 * m, np.float32)
-    h = w = 0
-    c = a = np.float32(0)
+    stats = np.zeros(2, np.int32)
+    cost = np.zeros(1, np.float32)
     for k in range(n):
-        cx, cy, cz, r = ordered[0, k], ordered[1, k], ordered[2, k], ordered[3, k]
-        pr = r + (r + (abs(cx) + abs(cy) + abs(cz))) * PAD
-        lx, ly, lz, hx, hy, hz = cx - pr, cy - pr, cz - pr, cx + pr, cy + pr, cz + pr
-        h = 0
-        w = 0
-        c = _half_area(lx, ly, lz, hx, hy, hz)
-        a = c
-        cur = -1
-        link = leaf_up[k]
-        while link >= 0:
-            row = link // 2
-            slot = link - 2 * row
-            col = slot * 6
-            nodes[row, col] = lx
-            nodes[row, col + 1] = ly
-            nodes[row, col + 2] = lz
-            nodes[row, col + 3] = hx
-            nodes[row, col + 4] = hy
-            nodes[row, col + 5] = hz
-            below[2 * link] = h
-            below[2 * link + 1] = w
-            costs[link] = c
-            kid[link] = cur
-            arrived[row] += 1
-            if arrived[row] == 1:
-                break
-            other = (1 - slot) * 6
-            sib = 2 * row + 1 - slot
-            lx = min(lx, nodes[row, other])
-            ly = min(ly, nodes[row, other + 1])
-            lz = min(lz, nodes[row, other + 2])
-            hx = max(hx, nodes[row, other + 3])
-            hy = max(hy, nodes[row, other + 4])
-            hz = max(hz, nodes[row, other + 5])
-            h = 1 + max(h, below[2 * sib])
-            w = 1 + w + below[2 * sib + 1]
-            a = _half_area(lx, ly, lz, hx, hy, hz)
-            c = NODE_COST * a + (c + costs[sib])
-            cur = row
-            if restructure != 0 and leaf_max > 0 and span[row, 1] > 2:
-                c2, h2, w2 = _treelet(row, c, nodes, links, span, up, leaf_up, kid, below, costs, leaf_max)
-                if h2 >= 0:
-                    c, h, w = c2, h2, w2
-            link = up[row]
-            if link >= 0:
-                parent = link // 2
-                pslot = link - 2 * parent
-                count = span[row, 1]
-                leaf = np.float32(count) * a
-                if count <= leaf_max and (sah == 0 or leaf <= c):
-                    links[parent, REF + pslot] = span[row, 0]
-                    links[parent, COUNT + pslot] = count
-                if links[parent, COUNT + pslot] != INNER:
-                    h = 0
-                    w = 0
-                    c = leaf
-    return h, w, (c / a if a > 0 else np.float32(0))
+        _climb(
+            spheres, k, order, leaf_up, up, span, nodes, links, below, costs, kid, arrived, ordered, stats, cost,
+            leaf_max, sah, restructure,
+        )  # fmt: skip
+    return stats[0], stats[1], cost[0]
 
 
 def build(spheres: np.ndarray, quality: str = "sah", leaf_size: int | None = None, passes: int | None = None):
@@ -164,12 +108,13 @@ def build(spheres: np.ndarray, quality: str = "sah", leaf_size: int | None = Non
     leaf_up = np.zeros(n, np.int64)
     span = np.zeros((m, 2), np.int32)
     hierarchy(keys, links, up, leaf_up, span)
-    ordered = np.ascontiguousarray(spheres[:4, order])
+    ordered = np.empty((4, n), np.float32)
     sah = int(quality != "lbvh")
     kid = np.zeros(2 * m, np.int32)
-    depth, rows, cost = bounds_up(ordered, leaf_up, up, span, nodes, links, kid, leaf_max, sah, restructure)
+    args = (spheres, order, leaf_up, up, span, nodes, links, kid, ordered, leaf_max, sah, restructure)
+    depth, rows, cost = bounds_up(*args)
     for _ in range((passes or lbvh_steps.TREELET_PASSES) - 1 if restructure else 0):
-        depth, rows, cost = bounds_up(ordered, leaf_up, up, span, nodes, links, kid, leaf_max, sah, restructure)
+        depth, rows, cost = bounds_up(*args)
     if restructure:
         tree_order = np.empty_like(order)
         tree_up = np.empty_like(leaf_up)

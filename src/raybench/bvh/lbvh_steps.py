@@ -1,12 +1,15 @@
-"""The LBVH's per-thread steps, written once: Karras's hierarchy row, the
-treelet step (Karras and Aila 2013) and the reorder after it. build(...)
+"""The LBVH's per-thread steps, written once: Karras's hierarchy row, a
+leaf's climb of the bottom-up pass (boxes, SAH costs, the leaves cut), the
+treelet step it takes at each row (Karras and Aila 2013) and the reorder
+after it. build(...)
 compiles them for one target, as kernels.build does for the walks:
 numba.cuda.jit(device=True) for the GPU builder (backends/cuda/build.py),
 numba.njit or plain Python for the CPU model of its tree (bvh/lbvh_model.py,
 the test oracle of both GPU builders). The steps read what other threads
 wrote through load_f and load_i (on the GPU atomics that add nothing, past
-a stale L1 line; on the CPU plain loads), so both targets run the same
-arithmetic in the same order and build the same tree.
+a stale L1 line; on the CPU plain loads) and count a row's arrivals through
+arrive (on the GPU a fence, then an atomic add), so both targets run the
+same arithmetic in the same order and build the same tree.
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ import types
 
 import numpy as np
 
-from ..layout import COUNT, INNER, REF
+from ..layout import BOX_FLOATS, COUNT, INNER, PAD, REF
 from .sah import NODE_COST
 
 # A treelet's pieces. Its programme weighs 3^K / 2 splits a row, in local
@@ -59,11 +62,19 @@ def clz32(x):
     return k
 
 
-def build(jit, target, load_f, load_i) -> types.SimpleNamespace:
+def cpu_arrive(arrived, row):
+    """A child's arrival at row on the CPU, one leaf climbing at a time: the arrivals before it."""
+    before = arrived[row]
+    arrived[row] = before + 1
+    return before
+
+
+def build(jit, target, load_f, load_i, arrive) -> types.SimpleNamespace:
     """The steps compiled by jit. target: numba.cuda on the GPU (its
     local.array and clz), cpu_target(jit) on the CPU; load_f and
     load_i read a[i] of a float32 and an int32 array that other threads
-    write."""
+    write; arrive(arrived, row) counts a child's arrival at row, its box and
+    the rest seen by the sibling first, and returns the arrivals before it."""
 
     @jit
     def delta(keys, n, i, j):
@@ -137,6 +148,16 @@ def build(jit, target, load_f, load_i) -> types.SimpleNamespace:
     def half_area(lx, ly, lz, hx, hy, hz):
         dx, dy, dz = max(hx - lx, np.float32(0)), max(hy - ly, np.float32(0)), max(hz - lz, np.float32(0))
         return dx * dy + dy * dz + dz * dx
+
+    @jit
+    def put_box(nodes, row, col, lx, ly, lz, hx, hy, hz):
+        """A child's box into its row's slot at column col."""
+        nodes[row, col] = lx
+        nodes[row, col + 1] = ly
+        nodes[row, col + 2] = lz
+        nodes[row, col + 3] = hx
+        nodes[row, col + 4] = hy
+        nodes[row, col + 5] = hz
 
     @jit
     def entry(nodes, links, span, kid, below, costs, row, slot, e, tb, tn, tc, th, tw, tref, tcnt, trow):
@@ -301,12 +322,7 @@ def build(jit, target, load_f, load_i) -> types.SimpleNamespace:
                 child = rows[used]
                 used += 1
                 lx, ly, lz, hx, hy, hz = union(tb, part, size)
-                nodes[row, col] = lx
-                nodes[row, col + 1] = ly
-                nodes[row, col + 2] = lz
-                nodes[row, col + 3] = hx
-                nodes[row, col + 4] = hy
-                nodes[row, col + 5] = hz
+                put_box(nodes, row, col, lx, ly, lz, hx, hy, hz)
                 span[child, 0] = -1  # no range of the sort's order
                 span[child, 1] = cnt[part]
                 kid[link] = child
@@ -357,7 +373,99 @@ def build(jit, target, load_f, load_i) -> types.SimpleNamespace:
                 break
             link = up[row]
 
+    @jit
+    def climb(
+        spheres, k, order, leaf_up, up, span, nodes, links, below, costs, kid, arrived, ordered, stats, cost,
+        leaf_max, sah, restructure,
+    ):  # fmt: skip
+        """Leaf k (its sphere order[k]) climbs to the root, each row's box
+        written into its parent's slot; a row's second child to arrive (arrived
+        counts them) unites the two boxes and climbs on, and sets the counter
+        back to 0 for the next pass. Also writes leaf k's sphere into ordered
+        (the scene's values).
+
+        On the way up, per child (index 2 * row + slot), what the walks see below
+        it: below[2 * index] its height (a leaf 0, a row 1 + its children's
+        most), below[2 * index + 1] the rows a walk reaches from it (a leaf 0),
+        costs[index] its SAH cost unnormalised (a leaf: count x its box's half
+        area; a row: NODE_COST x its half area plus its children's); stats: the
+        root's height and rows, cost[0] the tree's SAH cost (bvh.cost.sah_cost's),
+        written by the leaf that reaches the root.
+
+        leaf_max > 0 (a build): the second arrival at a row of at most leaf_max
+        spheres makes it a leaf of them in its parent's slot (they are
+        consecutive: an LBVH row covers a range of the leaf order) where sah is
+        0, or where sah is 1 and the SAH says a leaf is cheaper than the row
+        with the best choice below it (a leaf's cost against the row's: the
+        optimal cut of this tree into leaves, as each row's cost is the cheapest
+        of its subtree's). Its rows stay, out of the walks' reach, so that
+        refits still climb through them. Where restructure is 1, each row's
+        subtree is first made the cheapest over its treelet (treelet; kid[index]
+        is the row below each child, -1 for a sphere). leaf_max == 0 (a refit):
+        the links are kept, and the costs are the tree's as it is."""
+        s = order[k]
+        cx, cy, cz, r = spheres[0, s], spheres[1, s], spheres[2, s], spheres[3, s]
+        ordered[0, k] = cx
+        ordered[1, k] = cy
+        ordered[2, k] = cz
+        ordered[3, k] = r
+        pr = r + (r + (abs(cx) + abs(cy) + abs(cz))) * PAD
+        lx, ly, lz, hx, hy, hz = cx - pr, cy - pr, cz - pr, cx + pr, cy + pr, cz + pr
+        h = 0
+        w = 0
+        c = half_area(lx, ly, lz, hx, hy, hz)  # a leaf of one sphere
+        a = c
+        cur = -1
+        link = leaf_up[k]
+        while link >= 0:
+            row = link // 2
+            slot = link - 2 * row
+            col = slot * BOX_FLOATS
+            put_box(nodes, row, col, lx, ly, lz, hx, hy, hz)
+            below[2 * link] = h
+            below[2 * link + 1] = w
+            costs[link] = c
+            kid[link] = cur
+            if arrive(arrived, row) == 0:
+                return  # the sibling, arriving second, goes on
+            other = (1 - slot) * BOX_FLOATS
+            sib = 2 * row + 1 - slot
+            lx = min(lx, load_f(nodes, (row, other)))
+            ly = min(ly, load_f(nodes, (row, other + 1)))
+            lz = min(lz, load_f(nodes, (row, other + 2)))
+            hx = max(hx, load_f(nodes, (row, other + 3)))
+            hy = max(hy, load_f(nodes, (row, other + 4)))
+            hz = max(hz, load_f(nodes, (row, other + 5)))
+            h = 1 + max(h, load_i(below, 2 * sib))
+            w = 1 + w + load_i(below, 2 * sib + 1)
+            # the two children's sum first: the same whichever arrived first
+            a = half_area(lx, ly, lz, hx, hy, hz)
+            c = NODE_COST * a + (c + load_f(costs, sib))
+            arrived[row] = 0
+            cur = row
+            if restructure != 0 and leaf_max > 0 and span[row, 1] > 2:  # two spheres have one tree
+                tc, th, tw = treelet(row, c, nodes, links, span, up, leaf_up, kid, below, costs, leaf_max)
+                if th >= 0:
+                    c, h, w = tc, th, tw
+            link = up[row]
+            if link >= 0:
+                parent = link // 2
+                pslot = link - 2 * parent
+                count = span[row, 1]
+                leaf = np.float32(count) * a
+                if count <= leaf_max and (sah == 0 or leaf <= c):
+                    links[parent, REF + pslot] = span[row, 0]
+                    links[parent, COUNT + pslot] = count
+                if links[parent, COUNT + pslot] != INNER:
+                    h = 0
+                    w = 0
+                    c = leaf
+        stats[0] = h
+        stats[1] = w
+        cost[0] = c / a if a > 0 else np.float32(0)
+
     return types.SimpleNamespace(
+        climb=climb,
         delta=delta,
         hierarchy_row=hierarchy_row,
         half_area=half_area,

@@ -52,7 +52,7 @@ from ... import bvh as bvh_mod
 from ... import compiled
 from ...bvh import lbvh, lbvh_steps
 from ...bvh.lbvh import AXIS_CELLS, CODE_BITS, LEAF_SIZE, REFIT_LIMIT  # noqa: F401 - read as cuda_build.*
-from ...layout import BOX_FLOATS, COUNT, INNER, MAX_DEPTH, NODE_FLOATS, PAD, REF
+from ...layout import MAX_DEPTH, NODE_FLOATS
 from .launch import Launches
 
 # The radix sort: DIGIT_BITS a pass (5 passes for 30 bits); a block of
@@ -107,13 +107,6 @@ TREELET_PASSES = lbvh_steps.TREELET_PASSES
 # node rows (64) and the ordered spheres (16); the histograms add under 1;
 # treelets add the leaves' links up in the tree's order (8).
 DEVICE_SPHERE_BYTES = 16 + 16 + 48 + 4 + NODE_FLOATS * 4 + 16 + 1
-# The padding of a sphere's box, as raybench.bvh.sphere_pad computes it.
-_PAD = PAD
-_BOX = BOX_FLOATS
-_INNER = INNER
-_REF = REF
-_COUNT = COUNT
-_NODE_COST = bvh_mod.NODE_COST
 
 
 def _blocks(n: int, per: int) -> int:
@@ -335,18 +328,24 @@ def _load_i(a, i):
     return cuda.atomic.add(a, i, np.int32(0))
 
 
-# Karras's hierarchy row, the treelet step and the reorder, written once
+@cuda.jit(device=True)
+def _arrive(arrived, row):
+    """A child's arrival at row: the arrivals before it."""
+    cuda.threadfence()  # the box and the rest are seen before the count
+    return cuda.atomic.add(arrived, row, 1)
+
+
+# Karras's hierarchy row, a leaf's climb, the treelet step and the reorder, written once
 # (bvh/lbvh_steps.py): compiled here for the GPU, and by numba.njit for the
 # CPU model of this build (bvh/lbvh_model.py). Their target is numba.cuda
 # (its local.array and clz); under the simulator, which swaps its own cuda in
 # for the numba.cuda a function names in its globals only, the CPU's (the
 # same answers: np.empty and a count of leading zeros).
 _target = lbvh_steps.cpu_target(lambda f: f) if _SIM else cuda
-_steps = lbvh_steps.build(cuda.jit(device=True), _target, _load_f, _load_i)
+_steps = lbvh_steps.build(cuda.jit(device=True), _target, _load_f, _load_i, _arrive)
 _hierarchy_row = _steps.hierarchy_row
-_half_area = _steps.half_area
-_treelet = _steps.treelet
 _reorder_one = _steps.reorder_one
+_climb = _steps.climb
 
 
 @compiled.cuda_jit()
@@ -362,99 +361,15 @@ def _bounds_up(
     spheres, n, order, leaf_up, up, span, nodes, links, below, costs, kid, arrived, ordered, stats, cost, leaf_max,
     sah, restructure,
 ):  # fmt: skip
-    """Leaf k (its sphere order[k]) climbs to the root, each row's box
-    written into its parent's slot; a row's second child to arrive (arrived
-    counts them) unites the two boxes and climbs on, and sets the counter
-    back to 0 for the next pass. Also writes leaf k's sphere into ordered
-    (the scene's values).
-
-    On the way up, per child (index 2 * row + slot), what the walks see below
-    it: below[2 * index] its height (a leaf 0, a row 1 + its children's
-    most), below[2 * index + 1] the rows a walk reaches from it (a leaf 0),
-    costs[index] its SAH cost unnormalised (a leaf: count x its box's half
-    area; a row: NODE_COST x its half area plus its children's); stats: the
-    root's height and rows, cost[0] the tree's SAH cost (bvh.cost.sah_cost's).
-
-    leaf_max > 0 (a build): the second arrival at a row of at most leaf_max
-    spheres makes it a leaf of them in its parent's slot (they are
-    consecutive: an LBVH row covers a range of the leaf order) where sah is
-    0, or where sah is 1 and the SAH says a leaf is cheaper than the row
-    with the best choice below it (a leaf's cost against the row's: the
-    optimal cut of this tree into leaves, as each row's cost is the cheapest
-    of its subtree's). Its rows stay, out of the walks' reach, so that
-    refits still climb through them. Where restructure is 1, each row's
-    subtree is first made the cheapest over its treelet (_treelet; kid[index]
-    is the row below each child, -1 for a sphere). leaf_max == 0 (a refit):
-    the links are kept, and the costs are the tree's as it is."""
+    """Step 5, a thread a leaf: leaf k climbs to the root (bvh.lbvh_steps's climb:
+    the boxes, heights, rows and SAH costs bottom-up, the leaves cut, the
+    treelets rebuilt where restructure is 1; leaf_max == 0, a refit)."""
     k = cuda.grid(1)
-    if k >= n:
-        return
-    s = order[k]
-    cx, cy, cz, r = spheres[0, s], spheres[1, s], spheres[2, s], spheres[3, s]
-    ordered[0, k] = cx
-    ordered[1, k] = cy
-    ordered[2, k] = cz
-    ordered[3, k] = r
-    pr = r + (r + (abs(cx) + abs(cy) + abs(cz))) * _PAD
-    lx, ly, lz, hx, hy, hz = cx - pr, cy - pr, cz - pr, cx + pr, cy + pr, cz + pr
-    h = 0
-    w = 0
-    c = _half_area(lx, ly, lz, hx, hy, hz)  # a leaf of one sphere
-    a = c
-    cur = -1
-    link = leaf_up[k]
-    while link >= 0:
-        row = link // 2
-        slot = link - 2 * row
-        col = slot * _BOX
-        nodes[row, col] = lx
-        nodes[row, col + 1] = ly
-        nodes[row, col + 2] = lz
-        nodes[row, col + 3] = hx
-        nodes[row, col + 4] = hy
-        nodes[row, col + 5] = hz
-        below[2 * link] = h
-        below[2 * link + 1] = w
-        costs[link] = c
-        kid[link] = cur
-        cuda.threadfence()  # the box and the rest are seen before the count
-        if cuda.atomic.add(arrived, row, 1) == 0:
-            return  # the sibling, arriving second, goes on
-        other = (1 - slot) * _BOX
-        sib = 2 * row + 1 - slot
-        lx = min(lx, cuda.atomic.add(nodes, (row, other), np.float32(0)))
-        ly = min(ly, cuda.atomic.add(nodes, (row, other + 1), np.float32(0)))
-        lz = min(lz, cuda.atomic.add(nodes, (row, other + 2), np.float32(0)))
-        hx = max(hx, cuda.atomic.add(nodes, (row, other + 3), np.float32(0)))
-        hy = max(hy, cuda.atomic.add(nodes, (row, other + 4), np.float32(0)))
-        hz = max(hz, cuda.atomic.add(nodes, (row, other + 5), np.float32(0)))
-        h = 1 + max(h, cuda.atomic.add(below, 2 * sib, np.int32(0)))
-        w = 1 + w + cuda.atomic.add(below, 2 * sib + 1, np.int32(0))
-        # the two children's sum first: the same whichever arrived first
-        a = _half_area(lx, ly, lz, hx, hy, hz)
-        c = _NODE_COST * a + (c + cuda.atomic.add(costs, sib, np.float32(0)))
-        arrived[row] = 0
-        cur = row
-        if restructure != 0 and leaf_max > 0 and span[row, 1] > 2:  # two spheres have one tree
-            tc, th, tw = _treelet(row, c, nodes, links, span, up, leaf_up, kid, below, costs, leaf_max)
-            if th >= 0:
-                c, h, w = tc, th, tw
-        link = up[row]
-        if link >= 0:
-            parent = link // 2
-            pslot = link - 2 * parent
-            count = span[row, 1]
-            leaf = np.float32(count) * a
-            if count <= leaf_max and (sah == 0 or leaf <= c):
-                links[parent, _REF + pslot] = span[row, 0]
-                links[parent, _COUNT + pslot] = count
-            if links[parent, _COUNT + pslot] != _INNER:
-                h = 0
-                w = 0
-                c = leaf
-    stats[0] = h
-    stats[1] = w
-    cost[0] = c / a if a > 0 else np.float32(0)
+    if k < n:
+        _climb(
+            spheres, k, order, leaf_up, up, span, nodes, links, below, costs, kid, arrived, ordered, stats, cost,
+            leaf_max, sah, restructure,
+        )  # fmt: skip
 
 
 @dataclass
