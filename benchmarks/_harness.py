@@ -63,6 +63,11 @@ def paired(variants: Mapping, rounds: int) -> dict:
     return samples
 
 
+def median(samples: list[float]) -> float:
+    """The median of samples, as bench.stats gives it (a ratio's terms, a share)."""
+    return summarize(samples)["median"]
+
+
 def timings(call: Callable[[], object], times: int) -> list[float]:
     """call() timed `times` times, one after another: the wall-clock milliseconds of each."""
     out = []

@@ -12,7 +12,6 @@ share of the frame).
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
 
 import _harness
@@ -53,7 +52,7 @@ def main(argv=None) -> int:
                     times = _harness.paired(variants, args.rounds)
                 finally:
                     tracer.close()
-                share = statistics.median(times["fixed"]) / statistics.median(times["frame"])
+                share = _harness.median(times["fixed"]) / _harness.median(times["frame"])
                 for name, quantity in (("frame", "cpu-frame"), ("fixed", "cpu-frame-fixed")):
                     out.write(
                         _harness.part(

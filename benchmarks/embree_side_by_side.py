@@ -51,7 +51,6 @@ share of hits that agree, Mitsuba over raybench, and its scene's load and first 
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
 import time
 
@@ -176,8 +175,8 @@ def compare(layout, n, shape, width, height, args, mi, dr) -> list[dict]:
     values = {
         "hits_agree": agree,
         "rays_hit": float(np.mean(our_hits >= 0)),
-        "over_raybench": statistics.median(times["mitsuba"]) / statistics.median(times["raybench"]),
-        "rays_per_s": rays / (statistics.median(times["mitsuba"]) / 1e3),
+        "over_raybench": _harness.median(times["mitsuba"]) / _harness.median(times["raybench"]),
+        "rays_per_s": rays / (_harness.median(times["mitsuba"]) / 1e3),
         "load_s": load_s,
         "first_frame_s": their_first,
     }

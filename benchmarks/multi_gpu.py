@@ -35,7 +35,6 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import statistics
 import sys
 import tempfile
 import time
@@ -229,17 +228,17 @@ def terms_job(client, args, scene, workers) -> dict:
     # each term a difference of medians or a share of one: one figure, not a run of samples
     return {
         "terms_ms": {
-            "broadcast": statistics.median(broadcast) * 1e3,
-            "empty_task": statistics.median(empty) * 1e3 / n,
-            "tile_transfer": max(0.0, (statistics.median(fetched) - statistics.median(made)) * 1e3 / tiles),
-            "assembly_per_frame": statistics.median(assembly) * 1e3 * 7 / 3,
-            "block_made": None if made is None else statistics.median(made) * 1e3,
+            "broadcast": _harness.median(broadcast) * 1e3,
+            "empty_task": _harness.median(empty) * 1e3 / n,
+            "tile_transfer": max(0.0, (_harness.median(fetched) - _harness.median(made)) * 1e3 / tiles),
+            "assembly_per_frame": _harness.median(assembly) * 1e3 * 7 / 3,
+            "block_made": None if made is None else _harness.median(made) * 1e3,
             "shared_first_per_frame": None
             if first is None
-            else max(0.0, (statistics.median(first) - statistics.median(unshared)) * 1e3),
+            else max(0.0, (_harness.median(first) - _harness.median(unshared)) * 1e3),
             "resident_write_per_frame": None
             if resident is None
-            else max(0.0, (statistics.median(resident) - statistics.median(unshared)) * 1e3),
+            else max(0.0, (_harness.median(resident) - _harness.median(unshared)) * 1e3),
         },
         "broadcast_bytes": int(scene.spheres.nbytes),
         "tile_transfer_bytes": tile_bytes,

@@ -14,7 +14,6 @@ results schema's "parts" suite, a way and size each (quantity "tracer-trace", "r
 
 import argparse
 import collections
-import statistics
 import sys
 
 import _harness
@@ -66,9 +65,9 @@ def measure(out, n: int, width: int, height: int, device: str, frames: int) -> N
             times["kernel"] = [tracer.timed_trace(basis) for _ in range(frames)]
             times["copy-to-host"] = copy_ms(width * height * (3 + 4))  # the image's RGB bytes and the int32 hits
         kept.clear()
-        base = statistics.median(times["tracer-trace"])
+        base = _harness.median(times["tracer-trace"])
         for name, samples in times.items():
-            values = {"over_trace": round(statistics.median(samples) / base, 3)}
+            values = {"over_trace": round(_harness.median(samples) / base, 3)}
             if name == "renderer-render-kept":
                 values["kept"] = KEPT
             if name == "copy-to-host":

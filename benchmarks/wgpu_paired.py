@@ -8,7 +8,6 @@ is the CPU's and the median of its rounds' kernel time over the CPU's frame.
 """
 
 import argparse
-import statistics
 import sys
 import time
 
@@ -76,7 +75,7 @@ def main() -> int:
                 record["same_picture"] = same[shape]
                 if record["kernel_ms"]:
                     ratios = [k / c for k, c in zip(kernels[shape], times["cpu"])]
-                    record["wgpu_over_cpu_time"] = statistics.median(ratios)
+                    record["wgpu_over_cpu_time"] = _harness.median(ratios)
                 out.write(record)
     finally:
         cpu.close()
