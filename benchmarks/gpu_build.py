@@ -8,7 +8,7 @@ SAH costs, depths and rows as figures), the walks on each tree in its
 sweep in "parts" (quantity "gpu-tree-leaf-walk", the walk's kernel time), the
 moving spheres in its "dynamic" suite (option policy):
 
-- the GPU build's time, warm: CUDA events around all its kernels (--frames
+- the GPU build's time, warm: CUDA events around all its kernels (--repeats
   builds), each step's share (events between the steps), and the wall
   time from the first launch to the depth read back (the tree ready to walk,
   Python's launch overhead included);
@@ -17,7 +17,7 @@ moving spheres in its "dynamic" suite (option policy):
   and its upload;
 - the SAH cost of both trees (raybench.bvh.cost), and their depths and rows;
 - the walk's kernel time on each tree (1680x1050, the default camera), both
-  walks (a ray at a time, packets), median of --frames, and the share of
+  walks (a ray at a time, packets), --frames frames, and the share of
   pixels whose hit differs between the two trees (0 on a GPU, up to the
   compiler's fused multiply-adds; the tests hold it to the brute force);
 - moving spheres (raybench.animate.Orbits, seed 0, --anim-frames frames
@@ -40,7 +40,7 @@ side by side (a quality that fails is recorded with its error); the record's
 top-level gpu_* and walk_* fields are the default quality's
 (cuda_build.QUALITY), which the dynamic series use.
 
-    python benchmarks/gpu_build.py --out out.jsonl [--spheres 1000 --spheres 100000] [--frames 51]
+    python benchmarks/gpu_build.py --out out.jsonl [--spheres 1000 --spheres 100000] [--repeats 51]
         [--quality sah --quality treelet] [--anim-frames 40 --anim-dt 0.1]
 
 Issue 16's targets (H200): a build of 1,000,000 spheres in at most 5 ms,
@@ -266,7 +266,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--spheres", action="append", type=int, help="default: 1000, 100000, 1000000")
     parser.add_argument("--size", default="1680x1050")
-    parser.add_argument("--walk-frames", type=int, default=15, help="timed frames per walk")
+    parser.add_argument("--repeats", type=int, default=51, help="timed GPU builds (and refits) per count")
     parser.add_argument("--leaf-size", type=int, action="append", help="largest leaves to sweep (default 1, 2, 4, 8)")
     parser.add_argument(
         "--quality", action="append", choices=cuda_build.QUALITIES, help="GPU trees to measure (default all)"
@@ -276,30 +276,31 @@ def main() -> int:
     )
     parser.add_argument("--anim-frames", type=int, default=40, help="frames of moving spheres per policy")
     parser.add_argument("--anim-dt", type=float, default=0.1, help="seconds of the animation between frames")
-    _harness.add_common(parser, frames=51)
-    parser.add_argument("--repeats", dest="frames", type=int, help=argparse.SUPPRESS)  # its name before --frames
+    _harness.add_common(parser, frames=15)  # frames per walk
     args = parser.parse_args()
     _harness.check_common(parser, args)
+    if args.repeats < 1:
+        parser.error(f"--repeats: must be at least 1, got {args.repeats}")
     cuda_build.TREELET_PASSES = args.treelet_passes
     width, height = (int(v) for v in args.size.split("x"))
     settings = {"treelet_passes": args.treelet_passes, "quality": cuda_build.QUALITY, "leaf_size": cuda_build.LEAF_SIZE}
     with _harness.Records("gpu_build", args, settings) as out:
         for n in args.spheres or [1000, 100_000, 1_000_000]:
             spheres = raybench.random_spheres(n, seed=0).spheres
-            host = host_build(spheres, args.frames)
+            host = host_build(spheres, args.repeats)
             for record in host:
                 out.write(record)
             qualities = args.quality or list(cuda_build.QUALITIES)
-            for record in walks(spheres, width, height, args.walk_frames, qualities):
+            for record in walks(spheres, width, height, args.frames, qualities):
                 out.write(record)
             for quality in qualities:
-                timings, figures = gpu_build(spheres, args.frames, quality)
+                timings, figures = gpu_build(spheres, args.repeats, quality)
                 figures["sah_over_host"] = round(figures["sah"] / host[0]["values"]["sah"], 4)
                 options = {"quality": quality, "treelet_passes": args.treelet_passes}
                 for quantity, times in timings.items():
                     out.write(_harness.part(quantity, "cuda", times, spheres=n, options=options,
                                             values=figures if quantity == "gpu-build-wall" else None))  # fmt: skip
-            for record in leaf_sizes(spheres, width, height, args.walk_frames, args.leaf_size or [1, 2, 4, 8]):
+            for record in leaf_sizes(spheres, width, height, args.frames, args.leaf_size or [1, 2, 4, 8]):
                 out.write(record)
             if args.anim_frames > 0:
                 for record in dynamic(spheres, width, height, args.anim_frames, args.anim_dt):

@@ -7,7 +7,7 @@ quality and the sort's bits a round, the trees' SAH costs, depths and rows
 as figures), the walks on each tree in its "scaling" suite (option build):
 
 - the GPU build's time, warm: GPU timestamps around its one compute pass
-  (--frames builds), each step's time (the steps then in a pass each,
+  (--repeats builds), each step's time (the steps then in a pass each,
   timestamps around each: a pass more per step than a build has), and the
   wall time from the submission to the depth read back (the tree ready to
   walk, Python's encoding and the map included);
@@ -15,13 +15,13 @@ as figures), the walks on each tree in its "scaling" suite (option build):
 - the host build's time (compiled code, every core, as raybench reports it);
 - the SAH cost of both trees (raybench.bvh.cost), their depths and rows;
 - with --frames > 0, the walk's time on each tree (Tracer.timed_trace, the
-  default camera at --size), --walk-frames frames.
+  default camera at --size), --frames frames (0: no walk).
 
 Without timestamps (an adapter without "timestamp-query") only the wall
 times are recorded.
 
     python benchmarks/wgpu_build.py --out out.jsonl [--adapter NAME] [--spheres 1000 --spheres 100000]
-        [--frames 21] [--quality sah --quality lbvh] [--walk-frames 11] [--split-bits 1 --split-bits 3]
+        [--repeats 21] [--quality sah --quality lbvh] [--frames 11] [--split-bits 1 --split-bits 3]
 
 The same figures for numba-cuda's build: benchmarks/gpu_build.py.
 """
@@ -135,7 +135,7 @@ def main() -> int:
     parser.add_argument("--adapter", help="the wgpu adapter (default: the best GPU; name a CPU driver to use it)")
     parser.add_argument("--spheres", action="append", type=int, help="default: 1000, 100000, 1000000")
     parser.add_argument("--quality", action="append", choices=gpu_build.QUALITIES, help="default all")
-    parser.add_argument("--walk-frames", type=int, default=11, help="timed frames per walk (0: no walk)")
+    parser.add_argument("--repeats", type=int, default=21, help="timed builds per count")
     parser.add_argument("--size", default="1680x1050", help="the walk's frame")
     parser.add_argument(
         "--split-bits",
@@ -144,10 +144,13 @@ def main() -> int:
         choices=(1, 2, 3),
         help=f"the sort's bits a round in its tiles (default {gpu_build.SPLIT_BITS}); repeat to compare",
     )
-    _harness.add_common(parser, frames=21)
-    parser.add_argument("--repeats", dest="frames", type=int, help=argparse.SUPPRESS)  # its name before --frames
+    _harness.add_common(parser, frames=11)  # frames per walk; 0: no walk
     args = parser.parse_args()
+    walk_frames = args.frames
+    args.frames = max(args.frames, 1)  # 0 is allowed here: no walk
     _harness.check_common(parser, args)
+    if args.repeats < 1:
+        parser.error(f"--repeats: must be at least 1, got {args.repeats}")
     width, height = (int(v) for v in args.size.split("x"))
     adapter = adapters.choose(args.adapter)
     device = adapters.request_device(adapter)
@@ -156,24 +159,22 @@ def main() -> int:
     with _harness.Records("wgpu_build", args, {"adapter": name, "split_bits": splits}) as out:
         for n in args.spheres or [1000, 100_000, 1_000_000]:
             spheres = raybench.random_spheres(n, seed=0).spheres
-            host = host_build(spheres, args.frames)
+            host = host_build(spheres, args.repeats)
             out.write(host)
-            if args.walk_frames > 0:
-                host_walk = walk(args.adapter, spheres, width, height, args.walk_frames, "host")
+            if walk_frames > 0:
+                host_walk = walk(args.adapter, spheres, width, height, walk_frames, "host")
                 out.write(host_walk)
             for quality, bits in [(q, b) for q in args.quality or gpu_build.QUALITIES for b in splits]:
                 gpu_build.SPLIT_BITS = bits
                 gpu_build.source.cache_clear()
-                timings, figures = gpu_build_times(device, spheres, args.frames, quality)
+                timings, figures = gpu_build_times(device, spheres, args.repeats, quality)
                 figures["sah_over_host"] = round(figures["sah"] / host["values"]["sah"], 4)
                 options = {"quality": quality, "split_bits": bits, "adapter": name}
                 for quantity, times in timings.items():
                     out.write(_harness.part(quantity, "wgpu", times, spheres=n, options=options,
                                             values=figures if quantity == "gpu-build-wall" else None))  # fmt: skip
-                if args.walk_frames > 0 and quality == gpu_build.lbvh.QUALITY and bits == splits[0]:
-                    out.write(
-                        walk(args.adapter, spheres, width, height, args.walk_frames, "gpu")
-                    )  # the Tracer's quality
+                if walk_frames > 0 and quality == gpu_build.lbvh.QUALITY and bits == splits[0]:
+                    out.write(walk(args.adapter, spheres, width, height, walk_frames, "gpu"))  # the Tracer's quality
     return 0
 
 
