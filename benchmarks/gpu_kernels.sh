@@ -21,7 +21,7 @@ import raybench
 # compile the default fast kernel through a real frame, then read its PTX
 t = cb.Tracer(raybench.random_spheres(300).spheres, 64, 64)
 t.trace(raybench.Camera().basis(64, 64))
-ptx = next(iter(t._kernel.inspect_asm().values()))
+ptx = next(iter(t.kernels()["frame"].inspect_asm().values()))
 open(f"{sys.argv[1]}/fast.ptx", "w").write(ptx)
 print("fast kernel PTX:", {p: len(re.findall(re.escape(p), ptx)) for p in
       ("ld.local", "st.local", "ld.shared", "ld.global", "fma.rn.f32", "mul.rn.f32", "setp", "bra", "mul.wide")})

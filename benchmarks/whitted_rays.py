@@ -63,19 +63,20 @@ def one(device, spheres, width, height, frames, accel, depth, samples, block=Non
 
 
 def _resources(tracer) -> dict:
-    """cuda: the Whitted kernel's registers and local memory a thread (spills
-    and the stacks); other devices: nothing."""
+    """cuda: each Whitted kernel's registers and local memory a thread (spills
+    and the stacks), by kernel (the frame's, or the wavefront's stages);
+    other devices: nothing."""
     if tracer.name != "cuda":
         return {}
-    kernel = tracer._kernel
-    try:
-        (signature,) = kernel.overloads.keys()
-        return {
-            "regs": kernel.get_regs_per_thread(signature),
-            "local_bytes": kernel.get_local_mem_per_thread(signature),
-        }
-    except Exception as exc:  # noqa: BLE001 - a numba-cuda without the query: the record says so
-        return {"resources": f"unknown ({exc.__class__.__name__})"}
+    out = {}
+    for name, kernel in tracer.kernels().items():
+        try:
+            (signature,) = kernel.overloads.keys()
+            out[f"regs_{name}"] = kernel.get_regs_per_thread(signature)
+            out[f"local_bytes_{name}"] = kernel.get_local_mem_per_thread(signature)
+        except Exception as exc:  # noqa: BLE001 - a numba-cuda without the query: the record says so
+            out[f"resources_{name}"] = f"unknown ({exc.__class__.__name__})"
+    return out
 
 
 def main() -> int:

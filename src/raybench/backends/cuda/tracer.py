@@ -753,6 +753,12 @@ class Tracer(TracerBase):
         end.synchronize()
         return start.elapsed_time(end)
 
+    def kernels(self) -> dict:
+        """The compiled kernels a frame launches, by name: {"frame": ...}, or
+        the wavefront's stages; for benchmarks that read their registers or
+        their assembly."""
+        return self._wavefront.kernels() if self._wavefront is not None else {"frame": self._kernel}
+
     @property
     def wavefront(self):
         """The Wavefront that traces this tracer's Whitted frames, None where

@@ -315,6 +315,11 @@ class Wavefront:
                tracer.d_image)  # fmt: skip
         mark("finish")
 
+    @staticmethod
+    def kernels() -> dict:
+        """The stages' kernels by name (Tracer.kernels)."""
+        return {"extend": _extend, "shade": _shade, "shadow": _shadow}
+
     def overflowed(self) -> bool:
         """Whether the last frame's queues were too short (waits for it);
         if so they are made long enough for it, to trace it again."""
