@@ -37,12 +37,9 @@ from types import SimpleNamespace
 import numpy as np
 
 from ..layout import BLUE, GREEN, IOR, RADIUS, RED, REFLECT, SHININESS, SPECULAR, TRANSMIT
+from .constants import FAR, ONE, TWO, ZERO
 from .whitted import CUTOFF, OFFSET, P_AMBIENT, P_LIGHTS, PRIMARY, REFLECTION, REFRACTION
 
-ZERO = np.float32(0.0)
-ONE = np.float32(1.0)
-TWO = np.float32(2.0)
-FAR = np.float32(3.0e38)
 RAY_ROWS = 10
 RAY_IDS = 5
 R_PIXEL, R_DEPTH, R_KIND, R_OWN, R_INSIDE = range(RAY_IDS)

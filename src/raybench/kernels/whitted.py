@@ -68,11 +68,8 @@ from ..layout import (
     SPECULAR,
     TRANSMIT,
 )
+from .constants import FAR, ONE, TWO, ZERO
 
-ZERO = np.float32(0.0)
-ONE = np.float32(1.0)
-TWO = np.float32(2.0)
-FAR = np.float32(3.0e38)
 # Pending rays a pixel may hold: a ray at depth k leaves at most one sibling
 # pending on each level above it and pushes two, so MAX_DEPTH + 1 suffice.
 MAX_DEPTH = 16
