@@ -64,7 +64,66 @@ from .limits import (
 
 MAX_THREADS = 4096
 
-_k = kernels.build(numba.njit(inline="always"), call=numba.njit(nogil=True))
+# A hit's shadow rays to one light, traced together (issue 27): its samples,
+# LANES at a time, walk the 4-wide tree as one packet of rays from one origin
+# (the hit point), any hit, each ray with its own length (the distance to
+# its sample) and done once blocked, the packet once all are
+# (_shadow_packet). The pixel program, written once, calls them through
+# whitted.build's `shadows` pair: cast traces a light's samples before its
+# loop over them, blocked reads the answer. LANES: the issue's scene's area
+# light has 4 samples, one SSE register of float32.
+LANES = 4
+_DEAD = np.float32(-np.inf)  # a lane's length once blocked or where no ray is cast: no box is entered
+
+
+def _packet_shadows(jit, find, toward):
+    """whitted.build's `shadows` for the CPU's packets: (cast, blocked).
+    tree: (nodes, links, ordered, order, wide, wide_links, rays, spread,
+    stack), the last three the thread's own (_whitted_rows_packets)."""
+
+    @jit
+    def cast(px, py, pz, nx, ny, nz, light, samples, share, own, own_inside, spheres, count, lights, pattern, tree,
+             stack_row, stack_t):  # fmt: skip
+        """Bit s set where sample s's ray is blocked; 0 for samples whose
+        ray is not cast (toward's facing 0)."""
+        rays = tree[6]
+        batch = np.int64(0)
+        for first in range(0, samples, LANES):
+            live = np.int64(0)
+            lead = -1
+            for k in range(LANES):
+                s = first + k
+                rays[6, k] = _DEAD
+                if s < samples:
+                    lx, ly, lz, dist, facing, _r, _g, _b = toward(px, py, pz, nx, ny, nz, light, s, share, lights,
+                                                                  pattern)  # fmt: skip
+                    if facing > ZERO:
+                        rays[0, k] = lx
+                        rays[1, k] = ly
+                        rays[2, k] = lz
+                        rays[6, k] = dist
+                        live |= np.int64(1) << np.int64(k)
+                        if lead < 0:
+                            lead = k
+            if lead < 0:
+                continue
+            for k in range(LANES):  # lanes without a ray follow the first live one: the spread stays tight
+                if not (live >> np.int64(k)) & np.int64(1):
+                    rays[0, k] = rays[0, lead]
+                    rays[1, k] = rays[1, lead]
+                    rays[2, k] = rays[2, lead]
+            batch |= _shadow_packet(px, py, pz, rays, tree[7], tree[8], tree[4], tree[5], tree[2], tree[3], own,
+                                    own_inside, live) << np.int64(first)  # fmt: skip
+        return batch
+
+    @jit
+    def blocked(batch, s, px, py, pz, lx, ly, lz, dist, own, own_inside, spheres, count, tree, stack_row, stack_t):
+        return (batch >> np.int64(s)) & np.int64(1) != 0
+
+    return cast, blocked
+
+
+_k = kernels.build(numba.njit(inline="always"), call=numba.njit(nogil=True), shadows=_packet_shadows)
 # module globals, which is how jitted code can see them
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
 _prepare_one, _may_hit, _intersect_relative = _k.prepare, _k.may_hit, _k.intersect_relative
@@ -81,6 +140,7 @@ _primary_ray_v, _intersect_relative_v, _inverse, _centre = (
     _kb.inverse,
     _kb.centre_along,
 )
+_intersect_ahead_v = _kb.intersect_ahead
 _shade_hit_v, _shade_miss_v, _to_byte_v = _kb.shade_hit, _kb.shade_miss, _kb.to_byte
 
 # The cull loops index the spheres with unsigned integers: a signed index
@@ -673,6 +733,114 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
             _store_packet(x0, y0, end_row, width, spheres, hit, hit_d, rgb, paint, image, hits)
 
 
+@numba.njit(inline="always", error_model="numpy")
+def _lanes_enter(lx, ly, lz, hx, hy, hz, ix, iy, iz, closest):
+    """_rows_enter for a shadow packet: whether any of its LANES rays enters
+    the box (planes relative to their origin) nearer than its length."""
+    entered = False
+    for k in range(LANES):
+        t1, t2 = lx * ix[k], hx * ix[k]
+        t3, t4 = ly * iy[k], hy * iy[k]
+        t5, t6 = lz * iz[k], hz * iz[k]
+        near = max(min(t1, t2), max(min(t3, t4), min(t5, t6)))
+        far = min(max(t1, t2), min(max(t3, t4), max(t5, t6)))
+        entered |= (near <= far) & (far > ZERO) & (near <= closest[k])
+    return entered
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _lanes_leaf(ox, oy, oz, dx, dy, dz, closest, ordered, order, first, count, own, own_inside):
+    """A leaf's spheres against a shadow packet's rays: the bits of the rays
+    that one of them blocks (0 < t < the ray's length), each such ray's
+    length made _DEAD. The test of traverse.leaf_test, on the same float32
+    values: the sphere `own` the rays leave skipped, or with own_inside met
+    at its far root (intersect_ahead)."""
+    hits = np.int64(0)
+    for j in range(first, first + count):
+        original = order[j]
+        if original == own and not own_inside:
+            continue
+        ex, ey, ez, r = ordered[0, j] - ox, ordered[1, j] - oy, ordered[2, j] - oz, ordered[3, j]
+        far_only = original == own
+        for k in range(LANES):
+            t, _d = _intersect_ahead_v(ex, ey, ez, r, dx[k], dy[k], dz[k], far_only)
+            c = closest[k]
+            hit = (t > ZERO) & (t < c)
+            closest[k] = _DEAD if hit else c
+            hits |= np.int64(hit) << np.int64(k)
+    return hits
+
+
+@numba.njit(nogil=True, error_model="numpy")
+def _shadow_packet(ox, oy, oz, rays, spread, stack, wide, wide_links, ordered, order, own, own_inside, live):
+    """Any hit of each of a shadow packet's rays from (ox, oy, oz) through
+    the 4-wide tree: the bits of the rays blocked, of those in `live`.
+    rays[0:3]: the unit directions; rays[6]: each ray's length, _DEAD where
+    no ray is cast (rays[3:6]: their inverses, written here); spread (7) and
+    stack (layout.WIDE_STACK): scratch. A ray is blocked where some sphere
+    has 0 < t < its length, which no order of the walk changes: the answer
+    of traverse.walk's any hit, ray by ray. A node's children are tested as
+    _bvh_packets_wide tests them (_wide_mask, then the rays' own test), the
+    leaves at once and the inner children walked after; a blocked ray enters
+    nothing more, and the walk ends once every ray is blocked."""
+    dx, dy, dz, ix, iy, iz, closest = rays[0], rays[1], rays[2], rays[3], rays[4], rays[5], rays[6]
+    for k in range(LANES):
+        ix[k] = _inverse(dx[k])
+        iy[k] = _inverse(dy[k])
+        iz[k] = _inverse(dz[k])
+    for a, inv in enumerate((ix, iy, iz)):
+        lo = hi = inv[0]
+        for k in range(1, LANES):
+            lo = min(lo, inv[k])
+            hi = max(hi, inv[k])
+        spread[2 * a] = lo
+        spread[2 * a + 1] = hi
+    reach = closest[0]
+    for k in range(1, LANES):
+        reach = max(reach, closest[k])
+    spread[6] = reach
+    margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
+    blocked = np.int64(0)
+    row = 0
+    top = 0
+    while row >= 0:
+        mask = _wide_mask(wide, row, ox, oy, oz, margin, spread)
+        node = row
+        row = -1
+        for c in range(WIDTH):
+            if not (mask >> c) & 1:
+                continue
+            lx = wide[node, LO_X + c] - margin - ox
+            ly = wide[node, LO_Y + c] - margin - oy
+            lz = wide[node, LO_Z + c] - margin - oz
+            hx = wide[node, HI_X + c] + margin - ox
+            hy = wide[node, HI_Y + c] + margin - oy
+            hz = wide[node, HI_Z + c] + margin - oz
+            if not _lanes_enter(lx, ly, lz, hx, hy, hz, ix, iy, iz, closest):
+                continue
+            ref, count = wide_links[node, W_REF + c], wide_links[node, W_COUNT + c]
+            if count == INNER:
+                if row < 0:
+                    row = ref
+                else:
+                    stack[top] = ref
+                    top += 1
+            elif count > 0:
+                hits = _lanes_leaf(ox, oy, oz, dx, dy, dz, closest, ordered, order, ref, count, own, own_inside)
+                if hits:
+                    blocked |= hits
+                    if blocked & live == live:
+                        return live
+                    reach = closest[0]
+                    for k in range(1, LANES):
+                        reach = max(reach, closest[k])
+                    spread[6] = reach
+        if row < 0 and top > 0:
+            top -= 1
+            row = stack[top]
+    return blocked & live
+
+
 @numba.njit(inline="always")
 def _whitted_rows(render_pixel, first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern,
                   params, tree, image, hits, counts):  # fmt: skip
@@ -721,7 +889,23 @@ def _whitted_rows_all(first_row, end_row, width, height, basis, spheres, count, 
                   pattern, params, tree, image, hits, counts)  # fmt: skip
 
 
-WHITTED_ROWS = {"bvh": _whitted_rows_bvh, "none": _whitted_rows_all}
+_whitted_packets_pixel = _k.render_pixel_whitted["packets"]
+
+
+@compiled.njit(nogil=True)
+def _whitted_rows_packets(first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern,
+                          params, tree, image, hits, counts):  # fmt: skip
+    """_whitted_rows_bvh with each hit's shadow rays to a light as packets
+    (_packet_shadows) through the 4-wide tree; tree: (nodes, links, ordered,
+    order, wide, wide_links), given the thread's scratch for the packets."""
+    nodes, links, ordered, order, wide, wide_links = tree
+    own = (nodes, links, ordered, order, wide, wide_links, np.empty((7, LANES), np.float32), np.empty(7, np.float32),
+           np.empty(WIDE_STACK, np.int32))  # fmt: skip
+    _whitted_rows(_whitted_packets_pixel, first_row, end_row, width, height, basis, spheres, count, materials, lights,
+                  pattern, params, own, image, hits, counts)  # fmt: skip
+
+
+WHITTED_ROWS = {"bvh": _whitted_rows_bvh, "none": _whitted_rows_all, "packets": _whitted_rows_packets}
 
 
 # Chunks of rows per thread for the BVH: enough that the last chunk to finish
@@ -776,8 +960,8 @@ class Tracer(TracerBase):
     ):
         self.accel, self.kernel = check_method(accel, kernel, constant_count, {}, whitted)
         if tree_width is not None:
-            if self.accel != "bvh" or whitted is not None:
-                raise RaybenchError("tree_width: applies to the BVH's packets only (accel='bvh', thesis shading)")
+            if self.accel != "bvh":
+                raise RaybenchError("tree_width: applies to the BVH's packets only (accel='bvh')")
             if tree_width not in TREE_WIDTHS:
                 raise RaybenchError(f"tree_width: must be one of 2, 4, got {shown(tree_width)}")
         if threads is None:
@@ -804,12 +988,16 @@ class Tracer(TracerBase):
         self.build_s = None
         self.whitted = whitted
         self.ray_counts = None
-        self.tree_width = None  # the packets' tree: with the BVH under the thesis's shading
+        self.tree_width = None  # the packets' tree: with the BVH
         if whitted is not None:
             # rows take unequal time (mirrors and glass cost more): pulled in chunks, as the BVH's
             self.bands = chunks(height, self.threads)
             workers = min(self.threads, len(self.bands))
-            self._kernel = WHITTED_ROWS[self.accel]
+            if self.accel == "bvh":
+                # 4: the shadow rays as packets through the 4-wide tree; 2: every
+                # ray alone through the binary tree
+                self.tree_width = TREE_WIDTH if tree_width is None else int(tree_width)
+            self._kernel = WHITTED_ROWS["packets" if self.tree_width == 4 else self.accel]
             self._row_rays = np.zeros((height, len(whitted_mod.KINDS)), np.int64)
             self.ray_counts = np.zeros(len(whitted_mod.KINDS), np.int64)
             self._none = np.zeros((0, NODE_FLOATS), np.float32)
@@ -866,6 +1054,8 @@ class Tracer(TracerBase):
         if self.bvh.count != count:  # a frame of fewer spheres: their own tree
             self._build(count)
         b = self.bvh
+        if self.tree_width == 4:
+            return (b.nodes, b.links, b.ordered, b.order, self.wide, self.wide.view(np.int32))
         return (b.nodes, b.links, b.ordered, b.order)
 
     def _args(self, basis, count):
