@@ -70,9 +70,13 @@ MAX_THREADS = 4096
 # its sample) and done once blocked, the packet once all are
 # (_shadow_packet). The pixel program, written once, calls them through
 # whitted.build's `shadows` pair: cast traces a light's samples before its
-# loop over them, blocked reads the answer. LANES: the issue's scene's area
-# light has 4 samples, one SSE register of float32.
-LANES = 4
+# loop over them, blocked reads the answer. LANES: the loops over a packet's
+# rays become SIMD only from 16 (LLVM's loop vectoriser leaves loops of fewer
+# iterations scalar: tried 4 and 8, also with the rays' bits ORed as
+# _wide_mask does), so a light of 4 samples fills a quarter of the lanes;
+# they cost little next to four rays' scalar walks
+# (docs/whitted.md#cpu-shadow-rays-as-packets-issue-27).
+LANES = 16
 _DEAD = np.float32(-np.inf)  # a lane's length once blocked or where no ray is cast: no box is entered
 
 
@@ -93,15 +97,15 @@ def _packet_shadows(jit, find, toward):
             lead = -1
             for k in range(LANES):
                 s = first + k
-                rays[6, k] = _DEAD
+                rays[_LEN, k] = _DEAD
                 if s < samples:
                     lx, ly, lz, dist, facing, _r, _g, _b = toward(px, py, pz, nx, ny, nz, light, s, share, lights,
                                                                   pattern)  # fmt: skip
                     if facing > ZERO:
-                        rays[0, k] = lx
-                        rays[1, k] = ly
-                        rays[2, k] = lz
-                        rays[6, k] = dist
+                        rays[_DX, k] = lx
+                        rays[_DY, k] = ly
+                        rays[_DZ, k] = lz
+                        rays[_LEN, k] = dist
                         live |= np.int64(1) << np.int64(k)
                         if lead < 0:
                             lead = k
@@ -109,9 +113,9 @@ def _packet_shadows(jit, find, toward):
                 continue
             for k in range(LANES):  # lanes without a ray follow the first live one: the spread stays tight
                 if not (live >> np.int64(k)) & np.int64(1):
-                    rays[0, k] = rays[0, lead]
-                    rays[1, k] = rays[1, lead]
-                    rays[2, k] = rays[2, lead]
+                    rays[_DX, k] = rays[_DX, lead]
+                    rays[_DY, k] = rays[_DY, lead]
+                    rays[_DZ, k] = rays[_DZ, lead]
             batch |= _shadow_packet(px, py, pz, rays, tree[7], tree[8], tree[4], tree[5], tree[2], tree[3], own,
                                     own_inside, live) << np.int64(first)  # fmt: skip
         return batch
@@ -733,80 +737,113 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
             _store_packet(x0, y0, end_row, width, spheres, hit, hit_d, rgb, paint, image, hits)
 
 
+# A shadow packet's rows (_packet_shadows' rays): directions, their
+# inverses, lengths. The loops index the one array by row, not through a row
+# per name: each slice taken costs the runtime's reference counting, calls
+# that were a large part of a packet's fixed cost.
+_DX, _DY, _DZ, _IX, _IY, _IZ, _LEN = range(7)
+
+
 @numba.njit(inline="always", error_model="numpy")
-def _lanes_enter(lx, ly, lz, hx, hy, hz, ix, iy, iz, closest):
+def _lanes_enter(lx, ly, lz, hx, hy, hz, rays):
     """_rows_enter for a shadow packet: whether any of its LANES rays enters
     the box (planes relative to their origin) nearer than its length."""
     entered = False
     for k in range(LANES):
-        t1, t2 = lx * ix[k], hx * ix[k]
-        t3, t4 = ly * iy[k], hy * iy[k]
-        t5, t6 = lz * iz[k], hz * iz[k]
+        t1, t2 = lx * rays[_IX, k], hx * rays[_IX, k]
+        t3, t4 = ly * rays[_IY, k], hy * rays[_IY, k]
+        t5, t6 = lz * rays[_IZ, k], hz * rays[_IZ, k]
         near = max(min(t1, t2), max(min(t3, t4), min(t5, t6)))
         far = min(max(t1, t2), min(max(t3, t4), max(t5, t6)))
-        entered |= (near <= far) & (far > ZERO) & (near <= closest[k])
+        entered |= (near <= far) & (far > ZERO) & (near <= rays[_LEN, k])
     return entered
 
 
 @numba.njit(inline="always", error_model="numpy")
-def _lanes_leaf(ox, oy, oz, dx, dy, dz, closest, ordered, order, first, count, own, own_inside):
-    """A leaf's spheres against a shadow packet's rays: the bits of the rays
-    that one of them blocks (0 < t < the ray's length), each such ray's
-    length made _DEAD. The test of traverse.leaf_test, on the same float32
-    values: the sphere `own` the rays leave skipped, or with own_inside met
-    at its far root (intersect_ahead)."""
-    hits = np.int64(0)
+def _lanes_leaf(ox, oy, oz, margin, rays, spread, ordered, order, first, count, own, own_inside):
+    """A leaf's spheres against a shadow packet's rays: whether one of them
+    blocks a ray (0 < t < the ray's length), each such ray's length made
+    _DEAD. The test of traverse.leaf_test, on the same float32 values: the
+    sphere `own` the rays leave skipped, or with own_inside met at its far
+    root (intersect_ahead). A sphere whose padded box no ray enters is
+    skipped after one test for the packet (_missed_by_all, as _packet_leaf
+    does). The loop over the rays has no branch and no reduction but an OR:
+    LLVM makes it SIMD."""
+    hits = False
     for j in range(first, first + count):
         original = order[j]
         if original == own and not own_inside:
             continue
-        ex, ey, ez, r = ordered[0, j] - ox, ordered[1, j] - oy, ordered[2, j] - oz, ordered[3, j]
+        cx, cy, cz, r = ordered[0, j], ordered[1, j], ordered[2, j], ordered[3, j]
+        pr = r + bvh_mod.sphere_pad(cx, cy, cz, r)
+        if _missed_by_all(
+            cx - pr - margin - ox,
+            cy - pr - margin - oy,
+            cz - pr - margin - oz,
+            cx + pr + margin - ox,
+            cy + pr + margin - oy,
+            cz + pr + margin - oz,
+            spread,
+        ):
+            continue
+        ex, ey, ez = cx - ox, cy - oy, cz - oz
         far_only = original == own
         for k in range(LANES):
-            t, _d = _intersect_ahead_v(ex, ey, ez, r, dx[k], dy[k], dz[k], far_only)
-            c = closest[k]
+            t, _d = _intersect_ahead_v(ex, ey, ez, r, rays[_DX, k], rays[_DY, k], rays[_DZ, k], far_only)
+            c = rays[_LEN, k]
             hit = (t > ZERO) & (t < c)
-            closest[k] = _DEAD if hit else c
-            hits |= np.int64(hit) << np.int64(k)
+            rays[_LEN, k] = _DEAD if hit else c
+            hits |= hit
     return hits
 
 
-@numba.njit(nogil=True, error_model="numpy")
+@numba.njit(inline="always")
+def _reach(rays):
+    """The packet's longest ray: _DEAD once every ray is blocked."""
+    reach = rays[_LEN, 0]
+    for k in range(1, LANES):
+        reach = max(reach, rays[_LEN, k])
+    return reach
+
+
+# Inlined into the pixel program (its own call cost 5% of the frame at
+# 10,000 spheres): compiled there with the program's error model, which
+# leaves its loops over the rays SIMD (they divide by nothing).
+@numba.njit(inline="always", error_model="numpy")
 def _shadow_packet(ox, oy, oz, rays, spread, stack, wide, wide_links, ordered, order, own, own_inside, live):
     """Any hit of each of a shadow packet's rays from (ox, oy, oz) through
     the 4-wide tree: the bits of the rays blocked, of those in `live`.
-    rays[0:3]: the unit directions; rays[6]: each ray's length, _DEAD where
-    no ray is cast (rays[3:6]: their inverses, written here); spread (7) and
-    stack (layout.WIDE_STACK): scratch. A ray is blocked where some sphere
-    has 0 < t < its length, which no order of the walk changes: the answer
-    of traverse.walk's any hit, ray by ray. A node's children are tested as
-    _bvh_packets_wide tests them (_wide_mask, then the rays' own test), the
-    leaves at once and the inner children walked after; a blocked ray enters
-    nothing more, and the walk ends once every ray is blocked."""
-    dx, dy, dz, ix, iy, iz, closest = rays[0], rays[1], rays[2], rays[3], rays[4], rays[5], rays[6]
+    rays[_DX:_DZ + 1]: the unit directions; rays[_LEN]: each ray's length,
+    _DEAD where no ray is cast (rays[_IX:_IZ + 1]: their inverses, written
+    here); spread (7 + WIDTH) and stack (layout.WIDE_STACK): scratch. A
+    ray is blocked where some sphere has 0 < t < its length, which no order
+    of the walk changes: the answer of traverse.walk's any hit, ray by ray.
+    A node's children are tested as _bvh_packets_wide tests them
+    (_wide_mask, then the rays' own test), the leaves at once, the inner
+    children pushed nearest on top along the first ray (spread[7:] holds
+    where each lies); a blocked ray enters nothing more, and the walk ends
+    once every ray is blocked."""
     for k in range(LANES):
-        ix[k] = _inverse(dx[k])
-        iy[k] = _inverse(dy[k])
-        iz[k] = _inverse(dz[k])
-    for a, inv in enumerate((ix, iy, iz)):
-        lo = hi = inv[0]
+        rays[_IX, k] = _inverse(rays[_DX, k])
+        rays[_IY, k] = _inverse(rays[_DY, k])
+        rays[_IZ, k] = _inverse(rays[_DZ, k])
+    for a in range(3):
+        lo = hi = rays[_IX + a, 0]
         for k in range(1, LANES):
-            lo = min(lo, inv[k])
-            hi = max(hi, inv[k])
+            lo = min(lo, rays[_IX + a, k])
+            hi = max(hi, rays[_IX + a, k])
         spread[2 * a] = lo
         spread[2 * a + 1] = hi
-    reach = closest[0]
-    for k in range(1, LANES):
-        reach = max(reach, closest[k])
-    spread[6] = reach
+    spread[6] = _reach(rays)
     margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
-    blocked = np.int64(0)
     row = 0
     top = 0
+    cdx, cdy, cdz = rays[_DX, 0], rays[_DY, 0], rays[_DZ, 0]
     while row >= 0:
         mask = _wide_mask(wide, row, ox, oy, oz, margin, spread)
         node = row
         row = -1
+        base = top
         for c in range(WIDTH):
             if not (mask >> c) & 1:
                 continue
@@ -816,38 +853,47 @@ def _shadow_packet(ox, oy, oz, rays, spread, stack, wide, wide_links, ordered, o
             hx = wide[node, HI_X + c] + margin - ox
             hy = wide[node, HI_Y + c] + margin - oy
             hz = wide[node, HI_Z + c] + margin - oz
-            if not _lanes_enter(lx, ly, lz, hx, hy, hz, ix, iy, iz, closest):
+            if not _lanes_enter(lx, ly, lz, hx, hy, hz, rays):
                 continue
             ref, count = wide_links[node, W_REF + c], wide_links[node, W_COUNT + c]
             if count == INNER:
-                if row < 0:
-                    row = ref
-                else:
-                    stack[top] = ref
-                    top += 1
-            elif count > 0:
-                hits = _lanes_leaf(ox, oy, oz, dx, dy, dz, closest, ordered, order, ref, count, own, own_inside)
-                if hits:
-                    blocked |= hits
-                    if blocked & live == live:
-                        return live
-                    reach = closest[0]
-                    for k in range(1, LANES):
-                        reach = max(reach, closest[k])
-                    spread[6] = reach
-        if row < 0 and top > 0:
+                # pushed in order of where the box's centre lies along the
+                # first ray, the nearest on top: a blocker near the origin
+                # (the commonest: a neighbour) ends the walk soonest
+                along = (lx + hx) * cdx + (ly + hy) * cdy + (lz + hz) * cdz
+                j = top
+                while j > base and spread[7 + j - base - 1] < along:
+                    stack[j] = stack[j - 1]
+                    spread[7 + j - base] = spread[7 + j - base - 1]
+                    j -= 1
+                stack[j] = ref
+                spread[7 + j - base] = along
+                top += 1
+            elif count > 0 and _lanes_leaf(ox, oy, oz, margin, rays, spread, ordered, order, ref, count, own,
+                                           own_inside):  # fmt: skip
+                reach = _reach(rays)
+                if reach == _DEAD:  # every ray blocked
+                    return live
+                spread[6] = reach
+        if top > 0:
             top -= 1
             row = stack[top]
-    return blocked & live
+    bits = np.int64(0)  # the rays blocked: those whose length was made _DEAD (a live ray's is positive)
+    for k in range(LANES):
+        if rays[_LEN, k] == _DEAD:
+            bits |= np.int64(1) << np.int64(k)
+    return bits & live
 
 
 @numba.njit(inline="always")
 def _whitted_rows(render_pixel, first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern,
                   params, tree, image, hits, counts):  # fmt: skip
     """Whitted shading of the rows first_row..end_row with render_pixel (the
-    program through the tree or by brute force), a ray at a time (secondary
-    rays scatter: no packet keeps them together); counts[y]: the rays row y
-    cast, by kind."""
+    program through the tree, with or without shadow packets, or by brute
+    force), a pixel at a time: its primary, reflected and refracted rays one
+    by one (they scatter: no packet keeps them together), its shadow rays
+    to a light one by one or as a packet (_packet_shadows); counts[y]: the
+    rays row y cast, by kind."""
     stack_row = np.empty(STACK, np.int32)
     stack_t = np.empty(STACK, np.float32)
     rays_f = np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_FLOATS), np.float32)
@@ -899,8 +945,10 @@ def _whitted_rows_packets(first_row, end_row, width, height, basis, spheres, cou
     (_packet_shadows) through the 4-wide tree; tree: (nodes, links, ordered,
     order, wide, wide_links), given the thread's scratch for the packets."""
     nodes, links, ordered, order, wide, wide_links = tree
-    own = (nodes, links, ordered, order, wide, wide_links, np.empty((7, LANES), np.float32), np.empty(7, np.float32),
-           np.empty(WIDE_STACK, np.int32))  # fmt: skip
+    rays = np.empty((7, LANES), np.float32)
+    spread = np.empty(7 + WIDTH, np.float32)
+    stack = np.empty(WIDE_STACK, np.int32)
+    own = (nodes, links, ordered, order, wide, wide_links, rays, spread, stack)
     _whitted_rows(_whitted_packets_pixel, first_row, end_row, width, height, basis, spheres, count, materials, lights,
                   pattern, params, own, image, hits, counts)  # fmt: skip
 
