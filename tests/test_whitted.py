@@ -197,6 +197,21 @@ def test_brute_force_is_the_bvh_bit_for_bit(rng):
     assert np.array_equal(bvh.image, none.image), np.count_nonzero(bvh.image != none.image)
 
 
+@pytest.mark.parametrize("samples", [1, 5, 17, 64])
+def test_cpu_shadow_packets_are_its_rays_one_at_a_time(rng, samples):
+    """The CPU traces a hit's shadow rays to a light as packets through the
+    4-wide tree (tree_width 4, the default): the frame, hits and rays of each
+    ray walked alone through the binary tree (tree_width 2), bit for bit,
+    for a point light (one ray), and area lights of packets under, over and
+    many times what one holds (cpu.LANES), through glass and mirrors."""
+    scene = lit_scene(rng, 30)
+    alone = frame(scene, "cpu", 32, 20, samples=samples, tree_width=2)
+    packets = frame(scene, "cpu", 32, 20, samples=samples)
+    assert packets.rays["shadow"] > 0 and packets.rays["refraction"] > 0  # not vacuous
+    assert np.array_equal(alone.hits, packets.hits) and alone.rays == packets.rays
+    assert np.array_equal(alone.image, packets.image), np.count_nonzero(alone.image != packets.image)
+
+
 @pytest.mark.parametrize("accel", ["bvh", "none"])
 def test_cuda_gives_the_cpu_frame(rng, accel):
     """Bit for bit under numba's simulator, which rounds as the CPU does; on

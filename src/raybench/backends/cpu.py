@@ -64,7 +64,70 @@ from .limits import (
 
 MAX_THREADS = 4096
 
-_k = kernels.build(numba.njit(inline="always"), call=numba.njit(nogil=True))
+# A hit's shadow rays to one light, traced together (issue 27): its samples,
+# LANES at a time, walk the 4-wide tree as one packet of rays from one origin
+# (the hit point), any hit, each ray with its own length (the distance to
+# its sample) and done once blocked, the packet once all are
+# (_shadow_packet). The pixel program, written once, calls them through
+# whitted.build's `shadows` pair: cast traces a light's samples before its
+# loop over them, blocked reads the answer. LANES: the loops over a packet's
+# rays become SIMD only from 16 (LLVM's loop vectoriser leaves loops of fewer
+# iterations scalar: tried 4 and 8, also with the rays' bits ORed as
+# _wide_mask does), so a light of 4 samples fills a quarter of the lanes;
+# they cost little next to four rays' scalar walks
+# (docs/whitted.md#cpu-shadow-rays-as-packets-issue-27).
+LANES = 16
+_DEAD = np.float32(-np.inf)  # a lane's length once blocked or where no ray is cast: no box is entered
+
+
+def _packet_shadows(jit, find, toward):
+    """whitted.build's `shadows` for the CPU's packets: (cast, blocked).
+    tree: (nodes, links, ordered, order, wide, wide_links, rays, spread,
+    stack), the last three the thread's own (_whitted_rows_packets)."""
+
+    @jit
+    def cast(px, py, pz, nx, ny, nz, light, samples, share, own, own_inside, spheres, count, lights, pattern, tree,
+             stack_row, stack_t):  # fmt: skip
+        """Bit s set where sample s's ray is blocked; 0 for samples whose
+        ray is not cast (toward's facing 0)."""
+        rays = tree[6]
+        batch = np.int64(0)
+        for first in range(0, samples, LANES):
+            live = np.int64(0)
+            lead = -1
+            for k in range(LANES):
+                s = first + k
+                rays[_LEN, k] = _DEAD
+                if s < samples:
+                    lx, ly, lz, dist, facing, _r, _g, _b = toward(px, py, pz, nx, ny, nz, light, s, share, lights,
+                                                                  pattern)  # fmt: skip
+                    if facing > ZERO:
+                        rays[_DX, k] = lx
+                        rays[_DY, k] = ly
+                        rays[_DZ, k] = lz
+                        rays[_LEN, k] = dist
+                        live |= np.int64(1) << np.int64(k)
+                        if lead < 0:
+                            lead = k
+            if lead < 0:
+                continue
+            for k in range(LANES):  # lanes without a ray follow the first live one: the spread stays tight
+                if not (live >> np.int64(k)) & np.int64(1):
+                    rays[_DX, k] = rays[_DX, lead]
+                    rays[_DY, k] = rays[_DY, lead]
+                    rays[_DZ, k] = rays[_DZ, lead]
+            batch |= _shadow_packet(px, py, pz, rays, tree[7], tree[8], tree[4], tree[5], tree[2], tree[3], own,
+                                    own_inside, live) << np.int64(first)  # fmt: skip
+        return batch
+
+    @jit
+    def blocked(batch, s, px, py, pz, lx, ly, lz, dist, own, own_inside, spheres, count, tree, stack_row, stack_t):
+        return (batch >> np.int64(s)) & np.int64(1) != 0
+
+    return cast, blocked
+
+
+_k = kernels.build(numba.njit(inline="always"), call=numba.njit(nogil=True), shadows=_packet_shadows)
 # module globals, which is how jitted code can see them
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
 _prepare_one, _may_hit, _intersect_relative = _k.prepare, _k.may_hit, _k.intersect_relative
@@ -81,6 +144,7 @@ _primary_ray_v, _intersect_relative_v, _inverse, _centre = (
     _kb.inverse,
     _kb.centre_along,
 )
+_intersect_ahead_v = _kb.intersect_ahead
 _shade_hit_v, _shade_miss_v, _to_byte_v = _kb.shade_hit, _kb.shade_miss, _kb.to_byte
 
 # The cull loops index the spheres with unsigned integers: a signed index
@@ -673,13 +737,163 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
             _store_packet(x0, y0, end_row, width, spheres, hit, hit_d, rgb, paint, image, hits)
 
 
+# A shadow packet's rows (_packet_shadows' rays): directions, their
+# inverses, lengths. The loops index the one array by row, not through a row
+# per name: each slice taken costs the runtime's reference counting, calls
+# that were a large part of a packet's fixed cost.
+_DX, _DY, _DZ, _IX, _IY, _IZ, _LEN = range(7)
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _lanes_enter(lx, ly, lz, hx, hy, hz, rays):
+    """_rows_enter for a shadow packet: whether any of its LANES rays enters
+    the box (planes relative to their origin) nearer than its length."""
+    entered = False
+    for k in range(LANES):
+        t1, t2 = lx * rays[_IX, k], hx * rays[_IX, k]
+        t3, t4 = ly * rays[_IY, k], hy * rays[_IY, k]
+        t5, t6 = lz * rays[_IZ, k], hz * rays[_IZ, k]
+        near = max(min(t1, t2), max(min(t3, t4), min(t5, t6)))
+        far = min(max(t1, t2), min(max(t3, t4), max(t5, t6)))
+        entered |= (near <= far) & (far > ZERO) & (near <= rays[_LEN, k])
+    return entered
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _lanes_leaf(ox, oy, oz, margin, rays, spread, ordered, order, first, count, own, own_inside):
+    """A leaf's spheres against a shadow packet's rays: whether one of them
+    blocks a ray (0 < t < the ray's length), each such ray's length made
+    _DEAD. The test of traverse.leaf_test, on the same float32 values: the
+    sphere `own` the rays leave skipped, or with own_inside met at its far
+    root (intersect_ahead). A sphere whose padded box no ray enters is
+    skipped after one test for the packet (_missed_by_all, as _packet_leaf
+    does). The loop over the rays has no branch and no reduction but an OR:
+    LLVM makes it SIMD."""
+    hits = False
+    for j in range(first, first + count):
+        original = order[j]
+        if original == own and not own_inside:
+            continue
+        cx, cy, cz, r = ordered[0, j], ordered[1, j], ordered[2, j], ordered[3, j]
+        pr = r + bvh_mod.sphere_pad(cx, cy, cz, r)
+        if _missed_by_all(
+            cx - pr - margin - ox,
+            cy - pr - margin - oy,
+            cz - pr - margin - oz,
+            cx + pr + margin - ox,
+            cy + pr + margin - oy,
+            cz + pr + margin - oz,
+            spread,
+        ):
+            continue
+        ex, ey, ez = cx - ox, cy - oy, cz - oz
+        far_only = original == own
+        for k in range(LANES):
+            t, _d = _intersect_ahead_v(ex, ey, ez, r, rays[_DX, k], rays[_DY, k], rays[_DZ, k], far_only)
+            c = rays[_LEN, k]
+            hit = (t > ZERO) & (t < c)
+            rays[_LEN, k] = _DEAD if hit else c
+            hits |= hit
+    return hits
+
+
+@numba.njit(inline="always")
+def _reach(rays):
+    """The packet's longest ray: _DEAD once every ray is blocked."""
+    reach = rays[_LEN, 0]
+    for k in range(1, LANES):
+        reach = max(reach, rays[_LEN, k])
+    return reach
+
+
+# Inlined into the pixel program (its own call cost 5% of the frame at
+# 10,000 spheres): compiled there with the program's error model, which
+# leaves its loops over the rays SIMD (they divide by nothing).
+@numba.njit(inline="always", error_model="numpy")
+def _shadow_packet(ox, oy, oz, rays, spread, stack, wide, wide_links, ordered, order, own, own_inside, live):
+    """Any hit of each of a shadow packet's rays from (ox, oy, oz) through
+    the 4-wide tree: the bits of the rays blocked, of those in `live`.
+    rays[_DX:_DZ + 1]: the unit directions; rays[_LEN]: each ray's length,
+    _DEAD where no ray is cast (rays[_IX:_IZ + 1]: their inverses, written
+    here); spread (7 + WIDTH) and stack (layout.WIDE_STACK): scratch. A
+    ray is blocked where some sphere has 0 < t < its length, which no order
+    of the walk changes: the answer of traverse.walk's any hit, ray by ray.
+    A node's children are tested as _bvh_packets_wide tests them
+    (_wide_mask, then the rays' own test), the leaves at once, the inner
+    children pushed nearest on top along the first ray (spread[7:] holds
+    where each lies); a blocked ray enters nothing more, and the walk ends
+    once every ray is blocked."""
+    for k in range(LANES):
+        rays[_IX, k] = _inverse(rays[_DX, k])
+        rays[_IY, k] = _inverse(rays[_DY, k])
+        rays[_IZ, k] = _inverse(rays[_DZ, k])
+    for a in range(3):
+        lo = hi = rays[_IX + a, 0]
+        for k in range(1, LANES):
+            lo = min(lo, rays[_IX + a, k])
+            hi = max(hi, rays[_IX + a, k])
+        spread[2 * a] = lo
+        spread[2 * a + 1] = hi
+    spread[6] = _reach(rays)
+    margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
+    row = 0
+    top = 0
+    cdx, cdy, cdz = rays[_DX, 0], rays[_DY, 0], rays[_DZ, 0]
+    while row >= 0:
+        mask = _wide_mask(wide, row, ox, oy, oz, margin, spread)
+        node = row
+        row = -1
+        base = top
+        for c in range(WIDTH):
+            if not (mask >> c) & 1:
+                continue
+            lx = wide[node, LO_X + c] - margin - ox
+            ly = wide[node, LO_Y + c] - margin - oy
+            lz = wide[node, LO_Z + c] - margin - oz
+            hx = wide[node, HI_X + c] + margin - ox
+            hy = wide[node, HI_Y + c] + margin - oy
+            hz = wide[node, HI_Z + c] + margin - oz
+            if not _lanes_enter(lx, ly, lz, hx, hy, hz, rays):
+                continue
+            ref, count = wide_links[node, W_REF + c], wide_links[node, W_COUNT + c]
+            if count == INNER:
+                # pushed in order of where the box's centre lies along the
+                # first ray, the nearest on top: a blocker near the origin
+                # (the commonest: a neighbour) ends the walk soonest
+                along = (lx + hx) * cdx + (ly + hy) * cdy + (lz + hz) * cdz
+                j = top
+                while j > base and spread[7 + j - base - 1] < along:
+                    stack[j] = stack[j - 1]
+                    spread[7 + j - base] = spread[7 + j - base - 1]
+                    j -= 1
+                stack[j] = ref
+                spread[7 + j - base] = along
+                top += 1
+            elif count > 0 and _lanes_leaf(ox, oy, oz, margin, rays, spread, ordered, order, ref, count, own,
+                                           own_inside):  # fmt: skip
+                reach = _reach(rays)
+                if reach == _DEAD:  # every ray blocked
+                    return live
+                spread[6] = reach
+        if top > 0:
+            top -= 1
+            row = stack[top]
+    bits = np.int64(0)  # the rays blocked: those whose length was made _DEAD (a live ray's is positive)
+    for k in range(LANES):
+        if rays[_LEN, k] == _DEAD:
+            bits |= np.int64(1) << np.int64(k)
+    return bits & live
+
+
 @numba.njit(inline="always")
 def _whitted_rows(render_pixel, first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern,
                   params, tree, image, hits, counts):  # fmt: skip
     """Whitted shading of the rows first_row..end_row with render_pixel (the
-    program through the tree or by brute force), a ray at a time (secondary
-    rays scatter: no packet keeps them together); counts[y]: the rays row y
-    cast, by kind."""
+    program through the tree, with or without shadow packets, or by brute
+    force), a pixel at a time: its primary, reflected and refracted rays one
+    by one (they scatter: no packet keeps them together), its shadow rays
+    to a light one by one or as a packet (_packet_shadows); counts[y]: the
+    rays row y cast, by kind."""
     stack_row = np.empty(STACK, np.int32)
     stack_t = np.empty(STACK, np.float32)
     rays_f = np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_FLOATS), np.float32)
@@ -721,7 +935,25 @@ def _whitted_rows_all(first_row, end_row, width, height, basis, spheres, count, 
                   pattern, params, tree, image, hits, counts)  # fmt: skip
 
 
-WHITTED_ROWS = {"bvh": _whitted_rows_bvh, "none": _whitted_rows_all}
+_whitted_packets_pixel = _k.render_pixel_whitted["packets"]
+
+
+@compiled.njit(nogil=True)
+def _whitted_rows_packets(first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern,
+                          params, tree, image, hits, counts):  # fmt: skip
+    """_whitted_rows_bvh with each hit's shadow rays to a light as packets
+    (_packet_shadows) through the 4-wide tree; tree: (nodes, links, ordered,
+    order, wide, wide_links), given the thread's scratch for the packets."""
+    nodes, links, ordered, order, wide, wide_links = tree
+    rays = np.empty((7, LANES), np.float32)
+    spread = np.empty(7 + WIDTH, np.float32)
+    stack = np.empty(WIDE_STACK, np.int32)
+    own = (nodes, links, ordered, order, wide, wide_links, rays, spread, stack)
+    _whitted_rows(_whitted_packets_pixel, first_row, end_row, width, height, basis, spheres, count, materials, lights,
+                  pattern, params, own, image, hits, counts)  # fmt: skip
+
+
+WHITTED_ROWS = {"bvh": _whitted_rows_bvh, "none": _whitted_rows_all, "packets": _whitted_rows_packets}
 
 
 # Chunks of rows per thread for the BVH: enough that the last chunk to finish
@@ -776,8 +1008,8 @@ class Tracer(TracerBase):
     ):
         self.accel, self.kernel = check_method(accel, kernel, constant_count, {}, whitted)
         if tree_width is not None:
-            if self.accel != "bvh" or whitted is not None:
-                raise RaybenchError("tree_width: applies to the BVH's packets only (accel='bvh', thesis shading)")
+            if self.accel != "bvh":
+                raise RaybenchError("tree_width: applies to the BVH's packets only (accel='bvh')")
             if tree_width not in TREE_WIDTHS:
                 raise RaybenchError(f"tree_width: must be one of 2, 4, got {shown(tree_width)}")
         if threads is None:
@@ -804,12 +1036,16 @@ class Tracer(TracerBase):
         self.build_s = None
         self.whitted = whitted
         self.ray_counts = None
-        self.tree_width = None  # the packets' tree: with the BVH under the thesis's shading
+        self.tree_width = None  # the packets' tree: with the BVH
         if whitted is not None:
             # rows take unequal time (mirrors and glass cost more): pulled in chunks, as the BVH's
             self.bands = chunks(height, self.threads)
             workers = min(self.threads, len(self.bands))
-            self._kernel = WHITTED_ROWS[self.accel]
+            if self.accel == "bvh":
+                # 4: the shadow rays as packets through the 4-wide tree; 2: every
+                # ray alone through the binary tree
+                self.tree_width = TREE_WIDTH if tree_width is None else int(tree_width)
+            self._kernel = WHITTED_ROWS["packets" if self.tree_width == 4 else self.accel]
             self._row_rays = np.zeros((height, len(whitted_mod.KINDS)), np.int64)
             self.ray_counts = np.zeros(len(whitted_mod.KINDS), np.int64)
             self._none = np.zeros((0, NODE_FLOATS), np.float32)
@@ -866,6 +1102,8 @@ class Tracer(TracerBase):
         if self.bvh.count != count:  # a frame of fewer spheres: their own tree
             self._build(count)
         b = self.bvh
+        if self.tree_width == 4:
+            return (b.nodes, b.links, b.ordered, b.order, self.wide, self.wide.view(np.int32))
         return (b.nodes, b.links, b.ordered, b.order)
 
     def _args(self, basis, count):

@@ -14,11 +14,14 @@ from . import intersect, shade, traverse, wavefront, whitted
 from .constants import FAR, HALF, ONE, ZERO
 
 
-def build(jit, call=None):
+def build(jit, call=None, shadows=None):
     """The algorithm compiled with `jit`; a namespace of its functions.
     call: the decorator of Whitted shading's search for a ray's hit (default
     jit), which the CPU compiles as one function called from both of its call
-    sites rather than as two inlined copies of the walk (whitted.build)."""
+    sites rather than as two inlined copies of the walk (whitted.build).
+    shadows: a backend's own way to trace a hit's shadow rays to a light
+    (whitted.build's `shadows`, the CPU's packets): then a third Whitted
+    program, render_pixel_whitted["packets"], through the tree with them."""
     call = call or jit
     intersect_relative, intersect_sphere, prepare_sphere, may_hit, along, intersect_ahead = intersect.build(jit)
     shade_hit, shade_miss, to_byte = shade.build(jit)
@@ -117,8 +120,9 @@ def build(jit, call=None):
     @jit
     def search_tree(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, spheres, count, tree, stack_row,
                     stack_t):  # fmt: skip
-        """Whitted's rays through the BVH, tree = (nodes, links, ordered, order)."""
-        nodes, links, ordered, order = tree
+        """Whitted's rays through the BVH, tree = (nodes, links, ordered, order),
+        or a backend's longer tuple that starts with them (the CPU's packets)."""
+        nodes, links, ordered, order = tree[0], tree[1], tree[2], tree[3]
         return walk(
             ox, oy, oz, dx, dy, dz, t_max, any_hit, True, own, own_inside, nodes, links, ordered, order, stack_row,
             stack_t,
@@ -130,10 +134,13 @@ def build(jit, call=None):
         """Whitted's rays by brute force, every sphere tested (the tree unused)."""
         return scan(ox, oy, oz, dx, dy, dz, t_max, any_hit, True, own, own_inside, spheres, count)
 
-    def whitted_program(search):
-        stages = whitted.build(jit, call, search, shade_hit, shade_miss)
+    def whitted_program(search, shadows=None):
+        if shadows is None:
+            stages = whitted.build(jit, call, search, shade_hit, shade_miss)
+            wavefronts[search.__name__] = wavefront.build(jit, stages, primary_ray, shade_hit)
+        else:
+            stages = whitted.build(jit, call, search, shade_hit, shade_miss, shadows, name="_packets")
         whitted_pixel = stages.whitted_pixel
-        wavefronts[search.__name__] = wavefront.build(jit, stages, primary_ray, shade_hit)
 
         @jit
         def render_pixel_whitted(x, y, width, height, basis, spheres, count, materials, lights, pattern, params, tree,
@@ -160,6 +167,8 @@ def build(jit, call=None):
     wavefronts = {}
     render_pixel_whitted = {"bvh": whitted_program(search_tree), "none": whitted_program(search_all)}
     whitted_wavefront = {"bvh": wavefronts["search_tree"], "none": wavefronts["search_all"]}
+    if shadows is not None:
+        render_pixel_whitted["packets"] = whitted_program(search_tree, shadows)
 
     @jit
     def prepare(i, basis, spheres, relative):

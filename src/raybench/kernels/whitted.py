@@ -99,11 +99,37 @@ P_LIGHTS = 9
 PARAMS = 10
 
 
-def build(jit, call, search, shade_hit, shade_miss):
+def per_ray(jit, find, toward):
+    """The shadow rays of a hit to one light a ray at a time, each through
+    `find` as it is cast (the GPUs'; the default of build's `shadows`):
+    (cast, blocked), the pair that local_light calls. cast(...), before the
+    light's samples, traces nothing (0); blocked(batch, s, ...) walks sample
+    s's ray, stopping at its first blocker."""
+
+    @jit
+    def cast(px, py, pz, nx, ny, nz, light, samples, share, own, own_inside, spheres, count, lights, pattern, tree,
+             stack_row, stack_t):  # fmt: skip
+        return 0
+
+    @jit
+    def blocked(batch, s, px, py, pz, lx, ly, lz, dist, own, own_inside, spheres, count, tree, stack_row, stack_t):
+        blocker, _t, _d = find(px, py, pz, lx, ly, lz, dist, True, own, own_inside, spheres, count, tree, stack_row,
+                               stack_t)  # fmt: skip
+        return blocker >= 0
+
+    return cast, blocked
+
+
+def build(jit, call, search, shade_hit, shade_miss, shadows=per_ray, name=""):
     """Whitted's pixel program over `search`, the nearest (or any) hit of
     any ray: through the tree or over every sphere (trace.search_tree and
     search_all), one program for each, so neither carries the other's code;
-    and the parts of it that the wavefront's stages share (a namespace)."""
+    and the parts of it that the wavefront's stages share (a namespace).
+    shadows(jit, find, toward): how a hit's shadow rays to one light are
+    traced, the pair (cast, blocked) of per_ray's shape: per_ray by default;
+    the CPU's packets (backends/cpu.py) trace a light's samples together in
+    cast, and blocked reads the answer. name: told to find's symbol, where
+    one process holds two programs over one search (the note on find)."""
 
     # `find` is the program's one call boundary on the CPU (call: a plain
     # numba.njit there; every other function is inlined into the kernel): the
@@ -121,7 +147,7 @@ def build(jit, call, search, shade_hit, shade_miss):
     # by different processes, could carry one symbol name; loaded into one
     # process, the second kernel called the first one's find (brute force's
     # kernel walked the tree it has none of: a segfault; test_compiled).
-    find.__name__ = f"find_{search.__name__}"
+    find.__name__ = f"find_{search.__name__}{name}"
     find.__qualname__ = find.__qualname__.replace("find", find.__name__)
     find = call(find)
 
@@ -274,6 +300,8 @@ def build(jit, call, search, shade_hit, shade_miss):
         facing = max(nx * lx + ny * ly + nz * lz, ZERO)
         return lx, ly, lz, dist, facing, cr, cg, cb
 
+    cast, blocked = shadows(jit, find, toward)
+
     @jit
     def glint(ks, shininess, facing, nx, ny, nz, vx, vy, vz, lx, ly, lz):
         """Phong's highlight of one light sample: the light's mirror direction
@@ -303,14 +331,15 @@ def build(jit, call, search, shade_hit, shade_miss):
         shadows = 0
         for light in range(np.int32(params[P_LIGHTS])):
             samples, share = light_samples(light, lights, params)
+            batch = cast(px, py, pz, nx, ny, nz, light, samples, share, i, inside, spheres, count, lights, pattern,
+                         tree, stack_row, stack_t)  # fmt: skip
             for s in range(samples):
                 lx, ly, lz, dist, facing, cr, cg, cb = toward(px, py, pz, nx, ny, nz, light, s, share, lights, pattern)
                 if facing <= ZERO:
                     continue
                 shadows += 1
-                blocker, _t, _d = find(px, py, pz, lx, ly, lz, dist, True, i, inside, spheres, count, tree,
-                                       stack_row, stack_t)  # fmt: skip
-                if blocker >= 0:
+                if blocked(batch, s, px, py, pz, lx, ly, lz, dist, i, inside, spheres, count, tree, stack_row,
+                           stack_t):  # fmt: skip
                     continue
                 dr += cr * kr * facing
                 dg += cg * kg * facing
