@@ -349,16 +349,16 @@ def device_options(device, request) -> dict:
 
 
 def lossless_scene(rng, n, lights):
-    """n spheres apart that absorb nothing and show no light of their own:
-    clear glass (transmit 1, random index) or perfect mirrors (reflect 1),
-    with random colours that must not show, in front of the camera at z = 5
-    to 9, in a uniform background of a random colour."""
-    centers, radii = [], []
-    while len(centers) < n:
-        c, r = rng.uniform([-2, -1.2, 5], [2, 1.2, 9]), rng.uniform(1.2, 2.0)
-        if all(np.linalg.norm(c - c2) > r + r2 for c2, r2 in zip(centers, radii, strict=True)):
-            centers.append(c)
-            radii.append(r)
+    """n (1 to 4) spheres apart that absorb nothing and show no light of
+    their own: clear glass (transmit 1, random index) or perfect mirrors
+    (reflect 1), with random colours that must not show, in front of the
+    camera at z = 5 to 9, in a uniform background of a random colour."""
+    if n == 1:
+        centers, radii = [rng.uniform([-0.5, -0.3, 5], [0.5, 0.3, 9])], [rng.uniform(1.2, 2.0)]
+    else:  # one to a cell of a 2x2 grid, jittered: never two overlapping (cells 2.3 apart at least)
+        cells = rng.permutation([(-2.3, -1.3), (2.3, -1.3), (-2.3, 1.3), (2.3, 1.3)])[:n]
+        centers = [(x + rng.uniform(-0.15, 0.15), y + rng.uniform(-0.15, 0.15), rng.uniform(6, 9)) for x, y in cells]
+        radii = list(rng.uniform(0.9, 1.1, n))
     kinds = rng.integers(2, size=n)
     kinds[0] = 0  # glass at least once
     materials = [
