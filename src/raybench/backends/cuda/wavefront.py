@@ -336,8 +336,7 @@ class Wavefront:
 def _default_grid() -> int:
     """GRID_PER_SM blocks on each of the device's multiprocessors (numba's
     simulator: one block)."""
-    device = cuda.get_current_device()
-    return getattr(device, "MULTIPROCESSOR_COUNT", 1) * GRID_PER_SM if not simulated() else 1
+    return 1 if simulated() else cuda.get_current_device().MULTIPROCESSOR_COUNT * GRID_PER_SM
 
 
 def _unmarked(_stage: str) -> None:
