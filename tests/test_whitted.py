@@ -197,6 +197,7 @@ def test_brute_force_is_the_bvh_bit_for_bit(rng):
     assert np.array_equal(bvh.image, none.image), np.count_nonzero(bvh.image != none.image)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("samples", [1, 5, 17, 64])
 def test_cpu_shadow_packets_are_its_rays_one_at_a_time(rng, samples):
     """The CPU traces a hit's shadow rays to a light as packets through the
@@ -342,6 +343,12 @@ def test_wgpu_brute_force_is_its_bvh_on_a_large_scene(adapter):
 # vanish, glass of the surrounding index is invisible, and only rays that can
 # change the picture are cast.
 EVERY_DEVICE = ["cpu", pytest.param("cuda", marks=pytest.mark.gpu), pytest.param("wgpu", marks=pytest.mark.gpu)]
+# cuda under numba's simulator takes 5 s or more a case here (the project's mark for slow)
+EVERY_DEVICE_SLOW_CUDA = [
+    "cpu",
+    pytest.param("cuda", marks=[pytest.mark.gpu, pytest.mark.slow]),
+    pytest.param("wgpu", marks=pytest.mark.gpu),
+]
 
 
 def device_options(device, request) -> dict:
@@ -377,7 +384,7 @@ def lossless_scene(rng, n, lights):
     )
 
 
-@pytest.mark.parametrize("device", EVERY_DEVICE)
+@pytest.mark.parametrize("device", EVERY_DEVICE_SLOW_CUDA)
 @pytest.mark.parametrize("n", [1, 4])
 def test_lossless_spheres_vanish_in_a_uniform_background(rng, request, device, n):
     """Every path ends in the background with all its weight, so each pixel
@@ -419,12 +426,12 @@ def test_three_glass_balls_vanish(request, device):
         materials=[glass] * 3,
         background=(0.8, 0.5, 0.3),
     )
-    got = frame(scene, device, 21, 15, depth=16, **device_options(device, request))
-    assert got.hits[7, 10] == 0
-    assert np.abs(got.image[7, 10].astype(int) - [204, 128, 77]).max() <= 1, got.image[7, 10]
+    got = frame(scene, device, 11, 7, depth=16, **device_options(device, request))
+    assert got.hits[3, 5] == 0
+    assert np.abs(got.image[3, 5].astype(int) - [204, 128, 77]).max() <= 1, got.image[3, 5]
 
 
-@pytest.mark.parametrize("device", EVERY_DEVICE)
+@pytest.mark.parametrize("device", EVERY_DEVICE_SLOW_CUDA)
 def test_index_matched_glass_is_invisible(rng, request, device):
     """Glass of index 1 in air reflects nothing (exact Fresnel; Schlick left
     it a rim) and bends nothing: the frame with it is the frame without it,
@@ -481,7 +488,7 @@ def test_only_shadow_rays_that_can_count_are_cast(request, device):
 
 # The wavefront (the GPUs' default under Whitted shading) casts the
 # per-pixel program's rays and sums the same light, in another order.
-GPUS = [pytest.param("cuda", marks=pytest.mark.gpu), pytest.param("wgpu", marks=pytest.mark.gpu)]
+GPUS = [pytest.param("cuda", marks=[pytest.mark.gpu, pytest.mark.slow]), pytest.param("wgpu", marks=pytest.mark.gpu)]
 
 
 def schedules(scene, device, width, height, request, **options):
@@ -551,7 +558,9 @@ def test_the_wavefronts_queues_grow_to_hold_a_frame(request, device):
         ({"shading": "thesis", "schedule": "pixel"}, r"schedule 'pixel': applies to Whitted shading only"),
     ],
 )
-@pytest.mark.parametrize("device", GPUS)
+@pytest.mark.parametrize(
+    "device", [pytest.param("cuda", marks=pytest.mark.gpu), pytest.param("wgpu", marks=pytest.mark.gpu)]
+)
 def test_bad_schedules_are_refused(request, device, options, message):
     options = {"shading": "whitted", **options, **device_options(device, request)}
     with pytest.raises(raybench.RaybenchError, match=message):
