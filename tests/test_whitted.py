@@ -249,10 +249,27 @@ def test_version_2_round_trip(tmp_path, rng):
     np.testing.assert_array_equal(lighting.Shading.of(back).materials, lighting.Shading.of(scene).materials)
 
 
+def test_numpy_scalars_make_a_scene_that_saves(tmp_path, rng):
+    """A material or light given NumPy scalars keeps Python floats: the scene
+    saves as JSON and loads back the same."""
+    scene = Scene(
+        np.zeros((1, 3)), np.ones(1), np.ones((1, 3)),
+        materials=[Material(ior=np.float32(1.5), transmit=np.float64(0.5), shininess=np.int64(8))],
+        lights=[Light(position=(0, 5, 0), intensity=np.float32(0.5), radius=np.float16(0.25))],
+    )  # fmt: skip
+    scene.save(tmp_path / "s.json")
+    back = Scene.load(tmp_path / "s.json")
+    assert back.to_dict() == scene.to_dict() and type(back.materials[0].ior) is float
+
+
 @pytest.mark.parametrize(
     "edit, message",
     [
-        (lambda d: d["spheres"][3].update(material={"ior": -1}), r"spheres\[3\]\.material\.ior: must be > 0"),
+        (lambda d: d["spheres"][3].update(material={"ior": -1}), r"spheres\[3\]\.material\.ior: must be >= 0\.01"),
+        # an index that float32 would round to 0 (a division by zero in the kernels), or near it
+        (lambda d: d["spheres"][3].update(material={"ior": 1e-50, "transmit": 1}), r"material\.ior: must be >= 0\.01"),
+        (lambda d: d["spheres"][0].update(material={"ior": 10**400}), r"material\.ior: must be a finite number, got a"),
+        (lambda d: d["lights"][0].update(intensity=float("nan")), r"lights\[0\]\.intensity: must be a finite number"),
         (lambda d: d["spheres"][0].update(material={"reflect": 0.7, "transmit": 0.6}), r"reflect \+ transmit"),
         (lambda d: d["spheres"][1].update(material={"shiny": 1}), r"spheres\[1\]\.material\.shiny: unknown"),
         (lambda d: d["spheres"][2].update(material={"reflect": True}), r"material\.reflect: must be a number"),

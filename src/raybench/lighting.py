@@ -26,6 +26,9 @@ DEFAULT_AMBIENT = (0.1, 0.1, 0.1)
 MAX_INTENSITY = 1e6
 MAX_SHININESS = 1e4
 MAX_IOR = 100.0
+# The least index of refraction: eta (an index over another) then stays
+# within [1 / MAX_IOR, MAX_IOR], far from float32's under- and overflow.
+MIN_IOR = 1.0 / MAX_IOR
 # The area lights' sample points: fixed, so that frames are reproducible and
 # devices comparable; the seed is the thesis's year.
 PATTERN_SEED = 2010
@@ -36,9 +39,14 @@ def _number(value, where: str, low: float, high: float, low_open: bool = False) 
     `where` otherwise."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise RaybenchError(f"{where}: must be a number, got {value!r}")
-    value = float(value)
+    try:
+        value = float(value)
+    except OverflowError:  # an integer past float's range
+        raise RaybenchError(f"{where}: must be a finite number, got an integer of {len(str(value))} digits") from None
+    if not math.isfinite(value):
+        raise RaybenchError(f"{where}: must be a finite number, got {value}")
     low_ok = value > low if low_open else value >= low
-    if not (math.isfinite(value) and low_ok and value <= high):
+    if not (low_ok and value <= high):
         bound = f"> {low:g}" if low_open else f">= {low:g}"
         raise RaybenchError(f"{where}: must be {bound} and at most {high:g}, got {value:g}")
     return value
@@ -69,11 +77,10 @@ class Material:
         self.check("material")
 
     def check(self, where: str) -> None:
-        _number(self.specular, f"{where}.specular", 0.0, 1.0)
-        _number(self.shininess, f"{where}.shininess", 0.0, MAX_SHININESS)
-        _number(self.reflect, f"{where}.reflect", 0.0, 1.0)
-        _number(self.transmit, f"{where}.transmit", 0.0, 1.0)
-        _number(self.ior, f"{where}.ior", 0.0, MAX_IOR, low_open=True)
+        # each field kept as a Python float (a NumPy scalar given would not save as JSON)
+        for key, low, high in (("specular", 0.0, 1.0), ("shininess", 0.0, MAX_SHININESS), ("reflect", 0.0, 1.0),
+                               ("transmit", 0.0, 1.0), ("ior", MIN_IOR, MAX_IOR)):  # fmt: skip
+            object.__setattr__(self, key, _number(getattr(self, key), f"{where}.{key}", low, high))
         if self.reflect + self.transmit > 1.0:
             raise RaybenchError(
                 f"{where}: reflect + transmit must be at most 1, got {self.reflect:g} + {self.transmit:g}"
@@ -115,8 +122,8 @@ class Light:
     def check(self, where: str) -> None:
         object.__setattr__(self, "position", _vector(self.position, f"{where}.position"))
         object.__setattr__(self, "color", check_colour(self.color, f"{where}.color"))
-        _number(self.intensity, f"{where}.intensity", 0.0, MAX_INTENSITY)
-        _number(self.radius, f"{where}.radius", 0.0, MAX_MAGNITUDE)
+        object.__setattr__(self, "intensity", _number(self.intensity, f"{where}.intensity", 0.0, MAX_INTENSITY))
+        object.__setattr__(self, "radius", _number(self.radius, f"{where}.radius", 0.0, MAX_MAGNITUDE))
 
     def to_dict(self) -> dict:
         doc = {"position": list(self.position), "color": list(self.color), "intensity": self.intensity}
