@@ -18,7 +18,7 @@ ever lost.
 
 A stage's kernel is launched on `grid` blocks of BLOCK threads, each thread
 taking the rays i, i + the grid's threads, ... of the queue: by default
-GRID_PER_SM blocks a multiprocessor, twice what it holds at once, each
+GRID_PER_SM blocks a multiprocessor, more than it holds at once, each
 thread looping over its share (persistent threads). A grid of a thread a
 ray measured slower: most of its blocks find their wave's queue short of
 them and exit, a launch's worth of blocks for nothing, at every stage
