@@ -68,6 +68,8 @@ TASKS_PER_WORKER = 4
 MAX_FRAMES_PER_TASK = 60
 # Warm renderers a worker keeps; each holds a frame's buffers and a tree.
 KEEP_RENDERERS = 2
+# How often a sequence's run of frames is sent again when the workers it was on are lost with it.
+SEQUENCE_RETRIES = 3
 # How long render() trusts its last answer of which workers there are and
 # what device each has (about the interval at which a Dask client refreshes
 # its own view of the scheduler).
@@ -603,6 +605,7 @@ def render_sequence(
     again (an interrupted sequence resumes); on_frame(number, path) is
     called for every frame, skipped ones first. The frames' paths, in order."""
     from distributed import as_completed
+    from distributed.client import FutureCancelledError
 
     from ..files import write_atomic
     from ..render import check_png_level
@@ -630,14 +633,33 @@ def render_sequence(
         return paths
     runs = _runs(todo, len(found), frames_per_task)
     future, key = _scatter(client, scene)
-    tasks = [client.submit(_frames, future, key, spec, run, png_level, pure=False) for run in runs]
+    tries = {client.submit(_frames, future, key, spec, run, png_level, pure=False): (run, 0) for run in runs}
+    submitted = list(tries)
+    pending = as_completed(submitted)
     try:
-        for task in as_completed(tasks):
-            for n, png in task.result():
+        for task in pending:
+            run, tried = tries.pop(task)
+            try:
+                done = task.result()
+            except FutureCancelledError:
+                # A worker lost mid-sequence can take the scene's last copy, and the scheduler then
+                # forgets the tasks that needed it: the scene is scattered again and the run sent again.
+                if tried >= SEQUENCE_RETRIES:
+                    raise RaybenchError(
+                        f"cluster: frames {run[0][0]} to {run[-1][0]} were lost {tried + 1} times with their "
+                        "workers; the frames written so far are kept: run the sequence again to resume"
+                    ) from None
+                future, key = _scatter(client, scene)
+                again = client.submit(_frames, future, key, spec, run, png_level, pure=False)
+                tries[again] = (run, tried + 1)
+                submitted.append(again)
+                pending.add(again)
+                continue
+            for n, png in done:
                 write_atomic(paths[n], png)
                 if on_frame is not None:
                     on_frame(n, paths[n])
     finally:
         # Ctrl-C or an error: what is written stays; what is queued is dropped.
-        client.cancel(tasks)
+        client.cancel(submitted)
     return paths
