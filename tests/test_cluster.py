@@ -459,6 +459,31 @@ def test_a_worker_killed_mid_sequence_loses_nothing(running, rng, tmp_path):
     assert victim not in running.client.run(os.getpid).values()
 
 
+def test_a_sequence_whose_scene_is_lost_sends_its_frames_again(running, rng, tmp_path):
+    """The scene's scattered copies lost mid-sequence (as when the workers
+    holding them die): the scheduler forgets the tasks that needed them, and
+    render_sequence scatters the scene again and sends those frames again,
+    so none is missing and each is the frame render() makes."""
+    scene, camera = scene_and_camera(rng, 30)
+    cameras = camera_path.orbit(camera, 8)
+    lost = []
+
+    def on_frame(n, path):
+        if not lost:
+            futures = list(work._scattered.values())
+            running.client.cancel(futures)  # every copy of the scene forgotten at once
+            lost.append(len(futures))
+
+    paths = cluster.render_sequence(
+        running.client, scene, cameras, tmp_path, 48, 32, device="cpu", frames_per_task=1, on_frame=on_frame
+    )
+    assert lost and lost[0] >= 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == [p.name for p in paths]
+    with raybench.Renderer(scene, 48, 32, device="cpu") as renderer:
+        for path, cam in zip(paths, cameras, strict=True):
+            np.testing.assert_array_equal(png(path), renderer.render(cam).image)
+
+
 def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
