@@ -64,7 +64,7 @@ from .limits import (
 
 MAX_THREADS = 4096
 
-# A hit's shadow rays to one light, traced together (issue 27): its samples,
+# A hit's shadow rays to one light, traced together: its samples,
 # LANES at a time, walk the 4-wide tree as one packet of rays from one origin
 # (the hit point), any hit, each ray with its own length (the distance to
 # its sample) and done once blocked, the packet once all are
@@ -806,9 +806,10 @@ def _reach(rays):
     return reach
 
 
-# Inlined into the pixel program (its own call cost 5% of the frame at
-# 10,000 spheres): compiled there with the program's error model, which
-# leaves its loops over the rays SIMD (they divide by nothing).
+# Inlined into the pixel program (a call of its own measured slower,
+# docs/whitted.md#cpu-shadow-rays-as-packets-issue-27): compiled there with the
+# program's error model, which leaves its loops over the rays SIMD (they
+# divide by nothing).
 @numba.njit(inline="always", error_model="numpy")
 def _shadow_packet(ox, oy, oz, rays, spread, stack, wide, wide_links, ordered, order, own, own_inside, live):
     """Any hit of each of a shadow packet's rays from (ox, oy, oz) through

@@ -82,8 +82,7 @@ _ray_axes, _children, _leaf_hits, _centre = _k.ray_axes, _k.children, _k.leaf_hi
 RAYS_PER_THREAD = 8
 STAGED = 256
 # Spheres tested per trip of the cull loop, one branch for all of them: 3
-# with 8x8 blocks measured 6% faster than 2 with 16x4, the earlier default, in
-# the same run; 4 no faster, with more registers (step 5 of
+# measured fastest with 8x8 blocks; 4 no faster, with more registers (step 5 of
 # docs/floors.md#each-version-against-the-floor).
 TRIP = 3
 MAX_TRIP = 4

@@ -123,8 +123,8 @@ def _primary(rays_f, rays_i, counts, first_pixel, pixels, width, height, basis):
         _emit_primary(rays_f, rays_i, i, first_pixel + i, width, height, basis)
 
 
-# 56 registers, not the 72 numba-cuda gives it: 9 blocks a multiprocessor
-# instead of 7, and the walk's latency better hidden (docs/whitted.md#the-wavefront-issue-27)
+# Registers capped: more blocks resident on a multiprocessor hide more of the
+# walk's latency, which bounds it (docs/whitted.md#the-wavefront-issue-27)
 @compiled.cuda_jit(max_registers=56)
 def _extend(rays_f, rays_i, counts, wave, capacity, spheres, count, nodes, links, ordered, order, hit_i, hit_t,
             hit_d, hits, width, rays):  # fmt: skip
