@@ -1,7 +1,8 @@
 // kernels/wavefront.py: Whitted shading by ray, a stage an entry point over
 // queues of rays (backends/wgpu/wavefront.py dispatches them); the same
 // formulas in the same order as whitted.wgsl's pixel program, whose
-// functions (find, fresnel, prune, shade_hit, shade_miss) it calls.
+// functions (find, surface, shows, samples_of, toward, glint, branches,
+// shade_hit, shade_miss) it calls.
 //
 // Every stage runs on `waves.groups` workgroups of WF_GROUP invocations,
 // each taking the slots base + its index, base + the grid's invocations, ...
@@ -161,51 +162,6 @@ fn background_of(pixel: i32) -> vec3<f32> {
     return lighting.background.xyz;
 }
 
-// whitted.toward: a shadow ray to sample s of a light; facing 0 where none is cast.
-struct Toward {
-    l: vec3<f32>,
-    dist: f32,
-    facing: f32,
-    c: vec3<f32>,
-}
-
-fn toward(p: vec3<f32>, n: vec3<f32>, light: u32, s: u32, share: f32) -> Toward {
-    let lamp = lighting.lights[light];
-    let radius = lamp.position.w;
-    let q = lighting.pattern[s];
-    var lx = lamp.position.x + radius * q.x - p.x;
-    var ly = lamp.position.y + radius * q.y - p.y;
-    var lz = lamp.position.z + radius * q.z - p.z;
-    let dist = sqrt(lx * lx + ly * ly + lz * lz);
-    let c = vec3<f32>(lamp.power.x * share, lamp.power.y * share, lamp.power.z * share);
-    if (dist <= 0.0 || max(c.x, max(c.y, c.z)) <= 0.0) {
-        return Toward(vec3<f32>(lx, ly, lz), dist, 0.0, c);
-    }
-    lx = lx / dist;
-    ly = ly / dist;
-    lz = lz / dist;
-    let facing = max(n.x * lx + n.y * ly + n.z * lz, 0.0);
-    return Toward(vec3<f32>(lx, ly, lz), dist, facing, c);
-}
-
-fn samples_of(light: u32) -> u32 {
-    if (lighting.lights[light].position.w > 0.0) {
-        return lighting.sizes.y;
-    }
-    return 1u;
-}
-
-// whitted.glint
-fn glint(ks: f32, shininess: f32, facing: f32, n: vec3<f32>, v: vec3<f32>, l: vec3<f32>) -> f32 {
-    if (ks > 0.0) {
-        let rv = 2.0 * facing * (n.x * v.x + n.y * v.y + n.z * v.z) - (l.x * v.x + l.y * v.y + l.z * v.z);
-        if (rv > 0.0) {
-            return ks * pow(rv, shininess);
-        }
-    }
-    return 0.0;
-}
-
 var<workgroup> wg_count: atomic<u32>;
 var<workgroup> wg_base: u32;
 var<workgroup> wg_n: u32;
@@ -315,58 +271,28 @@ fn main_wf_shade(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocat
         let i = base + me;
         var h = -1;
         var n_shadows = 0u;
-        var cast_r = false;
-        var cast_t = false;
         var ray: WaveRay;
-        var p = vec3<f32>(0.0);
-        var nrm = vec3<f32>(0.0);
-        var cos_i = 0.0;
-        var inside = false;
+        var hit = Surface(vec3<f32>(0.0), vec3<f32>(0.0), 0.0, false);
         var keep = 0.0;
-        var kr = 0.0;
-        var kt = 0.0;
-        var tdir = vec3<f32>(0.0);
-        var slack = 0.0;
+        var b = Branches(0.0, 0.0, vec3<f32>(0.0), Pruned(false, false, 0.0));
         if (i < n) {
             ray = load_ray(queue, i);
             h = wf_i[hit_i(i)];
             if (h < 0) {
                 add_light(ray.pixel, ray.w * background_of(ray.pixel));
             } else {
-                // whitted.surface
                 let s = spheres[h];
-                let t = wf_f[hit_f(0u, i)];
-                p = ray.o + t * ray.d;
-                let inv_r = 1.0 / s.r;
-                var nx = (p.x - s.cx) * inv_r;
-                var ny = (p.y - s.cy) * inv_r;
-                var nz = (p.z - s.cz) * inv_r;
-                let inv_n = 1.0 / sqrt(nx * nx + ny * ny + nz * nz);
-                nx = nx * inv_n;
-                ny = ny * inv_n;
-                nz = nz * inv_n;
-                cos_i = -(nx * ray.d.x + ny * ray.d.y + nz * ray.d.z);
-                inside = cos_i < 0.0;
-                if (inside) {
-                    nx = -nx;
-                    ny = -ny;
-                    nz = -nz;
-                    cos_i = -cos_i;
-                }
-                nrm = vec3<f32>(nx, ny, nz);
+                hit = surface(ray.o, ray.d, wf_f[hit_f(0u, i)], s);
                 let m = materials[h];
-                kr = m.reflect;
-                kt = m.transmit;
-                keep = 1.0 - kr - kt;
+                keep = 1.0 - m.reflect - m.transmit;
                 if (lighting.sizes.x > 0u) {
-                    // whitted.shows: shadow rays only from a surface whose own light can show
-                    if (m.specular > 0.0 || keep * max(s.red, max(s.green, s.blue)) > 0.0) {
+                    if (shows(s, m, keep)) {
                         add_light(ray.pixel, ray.w * (keep * (lighting.ambient.xyz * vec3<f32>(s.red, s.green, s.blue))));
                         for (var light = 0u; light < lighting.sizes.x; light = light + 1u) {
                             let samples = samples_of(light);
                             let share = 1.0 / f32(samples);
                             for (var k = 0u; k < samples; k = k + 1u) {
-                                if (toward(p, nrm, light, k, share).facing > 0.0) {
+                                if (toward(hit.p, hit.n, light, k, share).facing > 0.0) {
                                     n_shadows = n_shadows + 1u;
                                 }
                             }
@@ -375,24 +301,12 @@ fn main_wf_shade(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocat
                 } else {
                     add_light(ray.pixel, ray.w * (keep * shade_hit(s, wf_f[hit_f(1u, i)])));
                 }
-                if (ray.depth < lighting.sizes.z && (kr > 0.0 || kt > 0.0)) {
-                    // whitted.branches
-                    if (kt > 0.0) {
-                        let f = fresnel(cos_i, inside, m.ior);
-                        kr = kr + kt * f.x;
-                        kt = kt * (1.0 - f.x);
-                        let eta = f.z;
-                        let a = eta * cos_i - f.y;
-                        tdir = vec3<f32>(eta * ray.d.x + a * nx, eta * ray.d.y + a * ny, eta * ray.d.z + a * nz);
-                    }
-                    let pruned = prune(max(ray.w.x, max(ray.w.y, ray.w.z)), kr, kt, ray.slack);
-                    cast_r = pruned.reflect;
-                    cast_t = pruned.transmit;
-                    slack = pruned.slack;
+                if (ray.depth < lighting.sizes.z && (m.reflect > 0.0 || m.transmit > 0.0)) {
+                    b = branches(ray.d, hit, m.reflect, m.transmit, m.ior, ray.w, ray.slack);
                 }
             }
         }
-        let n_children = select(0u, 1u, cast_r) + select(0u, 1u, cast_t);
+        let n_children = select(0u, 1u, b.pruned.reflect) + select(0u, 1u, b.pruned.transmit);
         let first_shadow = claim(n_shadows, SHADOW_BASE + wave, waves.shadow_capacity, me);
         let first_child = claim(n_children, wave + 1u, waves.ray_capacity, me);
         if (n_shadows > 0u) {
@@ -400,6 +314,8 @@ fn main_wf_shade(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocat
             let s = spheres[h];
             let m = materials[h];
             let kd = keep * vec3<f32>(s.red, s.green, s.blue);
+            let p = hit.p;
+            let nrm = hit.n;
             let v = -ray.d;
             var k = first_shadow;
             for (var light = 0u; light < lighting.sizes.x; light = light + 1u) {
@@ -424,7 +340,7 @@ fn main_wf_shade(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocat
                         wf_f[shadow_f(9u, k)] = ray.w.z * (to.c.z * kd.z * to.facing + to.c.z * g);
                         wf_i[shadow_i(0u, k)] = ray.pixel;
                         wf_i[shadow_i(1u, k)] = h;
-                        wf_i[shadow_i(2u, k)] = select(0, 1, inside);
+                        wf_i[shadow_i(2u, k)] = select(0, 1, hit.inside);
                     }
                     k = k + 1u;
                 }
@@ -432,19 +348,21 @@ fn main_wf_shade(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocat
         }
         if (n_children > 0u) {
             // wavefront.put_children: the refraction first, then the reflection
+            let p = hit.p;
+            let nrm = hit.n;
             let offset = OFFSET * (abs(p.x) + abs(p.y) + abs(p.z));
             var k = first_child;
-            if (cast_t) {
+            if (b.pruned.transmit) {
                 if (k < waves.ray_capacity) {
-                    put_ray(next, k, p - offset * nrm, tdir, ray.w * kt, slack, ray.pixel, ray.depth + 1u, REFRACTION,
-                            h, !inside);
+                    put_ray(next, k, p - offset * nrm, b.tdir, ray.w * b.kt, b.pruned.slack, ray.pixel, ray.depth + 1u,
+                            REFRACTION, h, !hit.inside);
                 }
                 k = k + 1u;
             }
-            if (cast_r && k < waves.ray_capacity) {
-                let two_cos = 2.0 * cos_i;
-                put_ray(next, k, p + offset * nrm, ray.d + two_cos * nrm, ray.w * kr, slack, ray.pixel,
-                        ray.depth + 1u, REFLECTION, h, inside);
+            if (b.pruned.reflect && k < waves.ray_capacity) {
+                let two_cos = 2.0 * hit.cos_i;
+                put_ray(next, k, p + offset * nrm, ray.d + two_cos * nrm, ray.w * b.kr, b.pruned.slack, ray.pixel,
+                        ray.depth + 1u, REFLECTION, h, hit.inside);
             }
         }
     }

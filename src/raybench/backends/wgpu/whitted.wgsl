@@ -58,6 +58,52 @@ struct Local {
     shadows: u32,
 }
 
+// whitted.light_samples: shadow rays to one light.
+fn samples_of(light: u32) -> u32 {
+    if (lighting.lights[light].position.w > 0.0) {
+        return lighting.sizes.y;
+    }
+    return 1u;
+}
+
+// whitted.toward: a shadow ray to sample s of a light; facing 0 where none is cast.
+struct Toward {
+    l: vec3<f32>,
+    dist: f32,
+    facing: f32,
+    c: vec3<f32>,
+}
+
+fn toward(p: vec3<f32>, n: vec3<f32>, light: u32, s: u32, share: f32) -> Toward {
+    let lamp = lighting.lights[light];
+    let radius = lamp.position.w;
+    let q = lighting.pattern[s];
+    var lx = lamp.position.x + radius * q.x - p.x;
+    var ly = lamp.position.y + radius * q.y - p.y;
+    var lz = lamp.position.z + radius * q.z - p.z;
+    let dist = sqrt(lx * lx + ly * ly + lz * lz);
+    let c = vec3<f32>(lamp.power.x * share, lamp.power.y * share, lamp.power.z * share);
+    if (dist <= 0.0 || max(c.x, max(c.y, c.z)) <= 0.0) {  // at the light, or a dark light: it adds nothing
+        return Toward(vec3<f32>(lx, ly, lz), dist, 0.0, c);
+    }
+    lx = lx / dist;
+    ly = ly / dist;
+    lz = lz / dist;
+    let facing = max(n.x * lx + n.y * ly + n.z * lz, 0.0);
+    return Toward(vec3<f32>(lx, ly, lz), dist, facing, c);
+}
+
+// whitted.glint: Phong's highlight of one light sample.
+fn glint(ks: f32, shininess: f32, facing: f32, n: vec3<f32>, v: vec3<f32>, l: vec3<f32>) -> f32 {
+    if (ks > 0.0) {
+        let rv = 2.0 * facing * (n.x * v.x + n.y * v.y + n.z * v.z) - (l.x * v.x + l.y * v.y + l.z * v.z);
+        if (rv > 0.0) {
+            return ks * pow(rv, shininess);
+        }
+    }
+    return 0.0;
+}
+
 fn local_light(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, i: i32, inside: bool) -> Local {
     let s = spheres[i];
     var dr = lighting.ambient.x * s.red;
@@ -70,51 +116,24 @@ fn local_light(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, i: i32, inside: bool) -
     let shininess = materials[i].shininess;
     var shadows = 0u;
     for (var light = 0u; light < lighting.sizes.x; light = light + 1u) {
-        let l = lighting.lights[light];
-        let radius = l.position.w;
-        var samples = 1u;
-        if (radius > 0.0) {
-            samples = lighting.sizes.y;
-        }
+        let samples = samples_of(light);
         let share = 1.0 / f32(samples);
         for (var k = 0u; k < samples; k = k + 1u) {
-            let q = lighting.pattern[k];
-            var lx = l.position.x + radius * q.x - p.x;
-            var ly = l.position.y + radius * q.y - p.y;
-            var lz = l.position.z + radius * q.z - p.z;
-            let dist = sqrt(lx * lx + ly * ly + lz * lz);
-            if (dist <= 0.0) {
-                continue;
-            }
-            lx = lx / dist;
-            ly = ly / dist;
-            lz = lz / dist;
-            let facing = n.x * lx + n.y * ly + n.z * lz;
-            if (facing <= 0.0) {
-                continue;
-            }
-            let cr = l.power.x * share;
-            let cg = l.power.y * share;
-            let cb = l.power.z * share;
-            if (max(cr, max(cg, cb)) <= 0.0) {  // a dark light adds nothing, blocked or not
+            let to = toward(p, n, light, k, share);
+            if (to.facing <= 0.0) {
                 continue;
             }
             shadows = shadows + 1u;
-            if (find(p, vec3<f32>(lx, ly, lz), dist, true, i, inside).index >= 0) {
+            if (find(p, to.l, to.dist, true, i, inside).index >= 0) {
                 continue;
             }
-            dr = dr + cr * s.red * facing;
-            dg = dg + cg * s.green * facing;
-            db = db + cb * s.blue * facing;
-            if (ks > 0.0) {
-                let rv = 2.0 * facing * (n.x * v.x + n.y * v.y + n.z * v.z) - (lx * v.x + ly * v.y + lz * v.z);
-                if (rv > 0.0) {
-                    let glint = ks * pow(rv, shininess);
-                    sr = sr + cr * glint;
-                    sg = sg + cg * glint;
-                    sb = sb + cb * glint;
-                }
-            }
+            dr = dr + to.c.x * s.red * to.facing;
+            dg = dg + to.c.y * s.green * to.facing;
+            db = db + to.c.z * s.blue * to.facing;
+            let g = glint(ks, shininess, to.facing, n, v, to.l);
+            sr = sr + to.c.x * g;
+            sg = sg + to.c.y * g;
+            sb = sb + to.c.z * g;
         }
     }
     return Local(vec3<f32>(dr, dg, db), vec3<f32>(sr, sg, sb), shadows);
@@ -177,6 +196,66 @@ fn prune(wmax: f32, kr: f32, kt: f32, slack_in: f32) -> Pruned {
     return Pruned(!drop_r, !drop_t, slack);
 }
 
+// whitted.surface: the hit of a ray on sphere s at t, the normal and cos_i
+// on the side the ray comes from.
+struct Surface {
+    p: vec3<f32>,
+    n: vec3<f32>,
+    cos_i: f32,
+    inside: bool,
+}
+
+fn surface(o: vec3<f32>, d: vec3<f32>, t: f32, s: Sphere) -> Surface {
+    let px = o.x + t * d.x;
+    let py = o.y + t * d.y;
+    let pz = o.z + t * d.z;
+    let inv_r = 1.0 / s.r;
+    var nx = (px - s.cx) * inv_r;
+    var ny = (py - s.cy) * inv_r;
+    var nz = (pz - s.cz) * inv_r;
+    let inv_n = 1.0 / sqrt(nx * nx + ny * ny + nz * nz);
+    nx = nx * inv_n;
+    ny = ny * inv_n;
+    nz = nz * inv_n;
+    var cos_i = -(nx * d.x + ny * d.y + nz * d.z);
+    let inside = cos_i < 0.0;  // the ray meets the sphere from within
+    if (inside) {
+        nx = -nx;
+        ny = -ny;
+        nz = -nz;
+        cos_i = -cos_i;
+    }
+    return Surface(vec3<f32>(px, py, pz), vec3<f32>(nx, ny, nz), cos_i, inside);
+}
+
+// whitted.shows: only then are the hit's shadow rays cast.
+fn shows(s: Sphere, m: Material, keep: f32) -> bool {
+    return m.specular > 0.0 || keep * max(s.red, max(s.green, s.blue)) > 0.0;
+}
+
+// whitted.branches: a hit's two children (kr > 0 or kt > 0).
+struct Branches {
+    kr: f32,
+    kt: f32,
+    tdir: vec3<f32>,
+    pruned: Pruned,
+}
+
+fn branches(d: vec3<f32>, hit: Surface, kr_in: f32, kt_in: f32, ior: f32, w: vec3<f32>, slack: f32) -> Branches {
+    var kr = kr_in;
+    var kt = kt_in;
+    var tdir = vec3<f32>(0.0, 0.0, 0.0);
+    if (kt > 0.0) {
+        let f = fresnel(hit.cos_i, hit.inside, ior);
+        kr = kr + kt * f.x;
+        kt = kt * (1.0 - f.x);
+        let eta = f.z;
+        let a = eta * hit.cos_i - f.y;
+        tdir = vec3<f32>(eta * d.x + a * hit.n.x, eta * d.y + a * hit.n.y, eta * d.z + a * hit.n.z);
+    }
+    return Branches(kr, kt, tdir, prune(max(w.x, max(w.y, w.z)), kr, kt, slack));
+}
+
 // The pixel's colour and primary hit; counts: its rays by kind.
 struct Shaded {
     color: vec3<f32>,
@@ -199,9 +278,6 @@ fn whitted_pixel(x: u32, y: u32) -> Shaded {
     while (top > 0u) {
         top = top - 1u;
         let ray = pending[top];
-        let dx = ray.d.x;
-        let dy = ray.d.y;
-        let dz = ray.d.z;
         if (ray.kind == PRIMARY) {
             counts.x = counts.x + 1u;
         } else if (ray.kind == REFLECTION) {
@@ -219,68 +295,35 @@ fn whitted_pixel(x: u32, y: u32) -> Shaded {
             continue;
         }
         let s = spheres[i];
-        let t = found.t;
-        let px = ray.o.x + t * dx;
-        let py = ray.o.y + t * dy;
-        let pz = ray.o.z + t * dz;
-        let inv_r = 1.0 / s.r;
-        var nx = (px - s.cx) * inv_r;
-        var ny = (py - s.cy) * inv_r;
-        var nz = (pz - s.cz) * inv_r;
-        let inv_n = 1.0 / sqrt(nx * nx + ny * ny + nz * nz);
-        nx = nx * inv_n;
-        ny = ny * inv_n;
-        nz = nz * inv_n;
-        var cos_i = -(nx * dx + ny * dy + nz * dz);
-        let inside = cos_i < 0.0;  // the ray meets the sphere from within
-        if (inside) {
-            nx = -nx;
-            ny = -ny;
-            nz = -nz;
-            cos_i = -cos_i;
-        }
+        let hit = surface(ray.o, ray.d, found.t, s);
         let m = materials[i];
-        var kr = m.reflect;
-        var kt = m.transmit;
-        let keep = 1.0 - kr - kt;
+        let keep = 1.0 - m.reflect - m.transmit;
         if (lit) {
-            // shadow rays only from a surface whose own light can show (whitted.shows)
-            if (m.specular > 0.0 || keep * max(s.red, max(s.green, s.blue)) > 0.0) {
-                let l = local_light(vec3<f32>(px, py, pz), vec3<f32>(nx, ny, nz), vec3<f32>(-dx, -dy, -dz), i, inside);
+            if (shows(s, m, keep)) {
+                let l = local_light(hit.p, hit.n, -ray.d, i, hit.inside);
                 counts.y = counts.y + l.shadows;
                 color = color + ray.w * (keep * l.diffuse + l.specular);
             }
         } else {
             color = color + ray.w * (keep * shade_hit(s, found.d));
         }
-        if (ray.depth >= lighting.sizes.z || (kr <= 0.0 && kt <= 0.0)) {
+        if (ray.depth >= lighting.sizes.z || (m.reflect <= 0.0 && m.transmit <= 0.0)) {
             continue;
         }
-        // whitted.branches
-        var tdir = vec3<f32>(0.0, 0.0, 0.0);
-        if (kt > 0.0) {
-            let f = fresnel(cos_i, inside, m.ior);
-            kr = kr + kt * f.x;
-            kt = kt * (1.0 - f.x);
-            let eta = f.z;
-            let a = eta * cos_i - f.y;
-            tdir = vec3<f32>(eta * dx + a * nx, eta * dy + a * ny, eta * dz + a * nz);
-        }
-        let pruned = prune(max(ray.w.x, max(ray.w.y, ray.w.z)), kr, kt, ray.slack);
-        let offset = OFFSET * (abs(px) + abs(py) + abs(pz));
-        if (pruned.transmit) {
+        let b = branches(ray.d, hit, m.reflect, m.transmit, m.ior, ray.w, ray.slack);
+        let p = hit.p;
+        let n = hit.n;
+        let offset = OFFSET * (abs(p.x) + abs(p.y) + abs(p.z));
+        if (b.pruned.transmit) {
             // it goes through the surface: from outside into the sphere, or out of it
-            pending[top] = Ray(
-                vec3<f32>(px - offset * nx, py - offset * ny, pz - offset * nz),
-                tdir, ray.w * kt, pruned.slack, ray.depth + 1u, REFRACTION, i, !inside);
+            pending[top] = Ray(p - offset * n, b.tdir, ray.w * b.kt, b.pruned.slack, ray.depth + 1u, REFRACTION, i,
+                               !hit.inside);
             top = top + 1u;
         }
-        if (pruned.reflect) {
-            let two_cos = 2.0 * cos_i;
-            pending[top] = Ray(
-                vec3<f32>(px + offset * nx, py + offset * ny, pz + offset * nz),
-                vec3<f32>(dx + two_cos * nx, dy + two_cos * ny, dz + two_cos * nz),
-                ray.w * kr, pruned.slack, ray.depth + 1u, REFLECTION, i, inside);
+        if (b.pruned.reflect) {
+            let two_cos = 2.0 * hit.cos_i;
+            pending[top] = Ray(p + offset * n, ray.d + two_cos * n, ray.w * b.kr, b.pruned.slack, ray.depth + 1u,
+                               REFLECTION, i, hit.inside);
             top = top + 1u;
         }
     }
