@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...errors import RaybenchError
 from ...kernels import wavefront as stages
 from . import shader
 
@@ -79,8 +80,6 @@ class Wavefront:
         ints = (2 * stages.RAY_IDS + 1) * rays + stages.SHADOW_IDS * shadows
         limit = min(self.device.limits["max-storage-buffer-binding-size"], self.device.limits["max-buffer-size"])
         if max(floats, ints) * 4 > limit:
-            from ...errors import RaybenchError
-
             raise RaybenchError(
                 f"schedule 'wavefront': its queues ({max(floats, ints) * 4 / 2**20:.0f} MiB) exceed this device's "
                 f"largest buffer ({limit / 2**20:.0f} MiB); use a smaller frame or schedule='pixel'"
