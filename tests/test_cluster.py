@@ -37,7 +37,7 @@ def running():
     for accel in ("bvh", "none"):
         raybench.render(raybench.random_spheres(3), width=16, height=8, device="cpu", accel=accel)
     with cluster.Cluster(workers=2, device="cpu") as c:
-        c.client.wait_for_workers(2)
+        c.client.wait_for_workers(2, timeout=120)
         yield c
     # the client's kept frame memory went with the cluster: nothing of this process is left in /dev/shm
     assert not [name for name in blocks() if name.startswith(f"{sharedframe.PREFIX}{os.getpid()}-")]
@@ -51,6 +51,15 @@ def scene_and_camera(rng, n=None):
 
 def png(path) -> np.ndarray:
     return np.asarray(Image.open(path).convert("RGB"))
+
+
+def ended(proc) -> str:
+    """A child's stderr, for a failed check: the child is killed first, so
+    that reading its pipe cannot wait on a process that is still running."""
+    if proc.poll() is None:
+        os.killpg(proc.pid, signal.SIGKILL)
+    _, err = proc.communicate(timeout=60)
+    return err.decode(errors="replace")[-2000:]
 
 
 def test_everything_listens_on_loopback_only(running):
@@ -114,18 +123,26 @@ def test_workers_on_this_host_write_into_the_clients_block(running, rng, no_bloc
     try:
         image = rng.integers(0, 256, (8, 24, 3), dtype=np.uint8)
         hits = rng.integers(-1, 100, (8, 24), dtype=np.int32)
-        wrote = running.client.submit(sharedframe.write_rows, lease.address, 8, image, hits, pure=False).result()
+        wrote = running.client.submit(sharedframe.write_rows, lease.address, 8, image, hits, pure=False).result(
+            timeout=120
+        )
         assert wrote is True
         np.testing.assert_array_equal(lease.image[8:], image)
         np.testing.assert_array_equal(lease.hits[8:], hits)
         # a block the worker cannot open (as on another host): nothing written, and it says so
         elsewhere = (sharedframe.PREFIX + "elsewhere", 24, 16)
-        assert running.client.submit(sharedframe.write_rows, elsewhere, 0, image, hits, pure=False).result() is False
+        assert (
+            running.client.submit(sharedframe.write_rows, elsewhere, 0, image, hits, pure=False).result(timeout=120)
+            is False
+        )
     finally:
         lease.end()
         pool.close()
     # the frame is over: a task of it that starts now finds no block
-    assert running.client.submit(sharedframe.write_rows, lease.address, 0, image, hits, pure=False).result() is False
+    assert (
+        running.client.submit(sharedframe.write_rows, lease.address, 0, image, hits, pure=False).result(timeout=120)
+        is False
+    )
 
 
 def test_a_tile_task_on_this_host_sends_no_rows(running, rng, no_block_left):
@@ -137,7 +154,7 @@ def test_a_tile_task_on_this_host_sends_no_rows(running, rng, no_block_left):
     lease = pool.lease(40, 24)
     try:
         task = running.client.submit(work._tile, scene, "test-scene", spec, camera, (8, 24), lease.address)
-        first, image, hits, _, _ = task.result()
+        first, image, hits, _, _ = task.result(timeout=120)
         assert (first, image, hits) == (8, None, None)
         np.testing.assert_array_equal(lease.image[8:], whole.image[8:])
         np.testing.assert_array_equal(lease.hits[8:], whole.hits[8:])
@@ -560,7 +577,7 @@ def test_ctrl_c_keeps_the_frames_written_and_stops_the_cluster(tmp_path):
     try:
         deadline = time.monotonic() + 120
         while len(list(out.glob("frame_*.png"))) < 3:
-            assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read().decode()
+            assert proc.poll() is None and time.monotonic() < deadline, ended(proc)
             time.sleep(0.1)
         family = psutil.Process(proc.pid).children(recursive=True)
         assert len(family) >= 2  # the nannies and their workers
@@ -593,7 +610,7 @@ def test_ctrl_c_during_a_frame_in_tiles_leaves_no_block_and_no_process(tmp_path)
     try:
         deadline = time.monotonic() + 120
         while not any(name.startswith(named) for name in blocks()):  # the frame's block: its tiles are under way
-            assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read().decode()
+            assert proc.poll() is None and time.monotonic() < deadline, ended(proc)
             time.sleep(0.1)
         time.sleep(1)
         family = psutil.Process(proc.pid).children(recursive=True)

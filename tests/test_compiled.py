@@ -71,7 +71,9 @@ def test_processes_compiling_one_function_at_once_leave_a_cache_that_loads_right
         ]
         assert [p.wait(timeout=300) for p in procs] == [0] * len(DTYPES)
         assert len(list(cache.rglob("*.nbc"))) == len(DTYPES)  # every signature saved, none lost
-        check = subprocess.run([sys.executable, "-c", CHECK], env=env, cwd=tmp_path, capture_output=True, text=True)
+        check = subprocess.run(
+            [sys.executable, "-c", CHECK], env=env, cwd=tmp_path, capture_output=True, text=True, timeout=600
+        )
         assert check.returncode == 0 and check.stdout.strip() == "ok", check.stderr[-2000:]
 
 

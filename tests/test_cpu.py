@@ -107,5 +107,7 @@ def test_threads_follow_the_cores_the_process_may_use():
         "from raybench.backends import cpu; from raybench import host; "
         "print(cpu.default_threads(), host.usable_cores(), os.cpu_count())"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=300
+    ).stdout.split()
     assert out[:2] == ["1", "1"], out

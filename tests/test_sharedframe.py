@@ -130,5 +130,7 @@ def test_a_process_that_never_closes_its_pool_leaves_nothing(tmp_path):
         "print(os.getpid()); sys.stdout.flush()\n"
     )
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
-    pid = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True).stdout
+    pid = subprocess.run(
+        [sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True, timeout=300
+    ).stdout
     assert not list(Path(sharedframe.SHM_DIR).glob(f"{sharedframe.PREFIX}{pid.strip()}-*"))

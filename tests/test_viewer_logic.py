@@ -820,7 +820,8 @@ def test_worker_traces_off_the_event_loop():
         # the thesis's loop: the BVH and the fast kernel would trace this frame too quickly to tell
         worker.submit(request_for(scene, "cpu", width=400, height=300, options={"threads": 1, **slow}))
         slowest = 0.0
-        while not done.is_set():
+        deadline = time.monotonic() + 300  # a guard against a frame that never ends, not a timing
+        while not done.is_set() and time.monotonic() < deadline:
             t = time.perf_counter()
             state.handle_event(key("d"))
             state.handle_event(key("d", "key_up"))
