@@ -22,8 +22,7 @@ import _harness
 import numpy as np
 
 import raybench
-from raybench import Camera, lighting
-from raybench.backends import cpu
+from raybench import Camera, backends, lighting
 
 SIDES = {"per_ray": 2, "packets": 4}
 
@@ -39,7 +38,7 @@ def one(records, spheres, width, height, threads, frames, depth, samples):
     shading = lighting.Shading.of(scene, depth, samples)
     basis = Camera().basis(width, height)
     tracers = {
-        side: cpu.Tracer(scene.spheres, width, height, threads=threads, whitted=shading, tree_width=w)
+        side: backends.tracer("cpu", scene.spheres, width, height, threads=threads, whitted=shading, tree_width=w)
         for side, w in SIDES.items()
     }
     try:

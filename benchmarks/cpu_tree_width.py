@@ -15,8 +15,7 @@ import _harness
 import numpy as np
 
 import raybench
-from raybench import Camera
-from raybench.backends import cpu
+from raybench import Camera, backends
 from raybench.scene import SPREADS
 
 
@@ -39,7 +38,9 @@ def main() -> int:
                 tracers = {}
                 try:
                     for w in (2, 4):
-                        tracers[w] = cpu.Tracer(scene.spheres, width, height, threads=args.threads, tree_width=w)
+                        tracers[w] = backends.tracer(
+                            "cpu", scene.spheres, width, height, threads=args.threads, tree_width=w
+                        )
                         tracers[w].compile()
                         for _ in range(2):
                             tracers[w].trace(basis)

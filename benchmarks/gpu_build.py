@@ -23,7 +23,7 @@ moving spheres in its "dynamic" suite (option policy):
 - moving spheres (raybench.animate.Orbits, seed 0, --anim-frames frames
   --anim-dt seconds apart): per frame, the tree's update (Tracer.update:
   refit or build) and the walk, under four policies: the default
-  (cuda_build.REFIT_LIMIT), refit only, rebuild every frame, and the host's
+  (lbvh.REFIT_LIMIT), refit only, rebuild every frame, and the host's
   build; with the refitted tree's SAH cost over its fresh cost, the series
   from which REFIT_LIMIT is chosen (rebuild once the walk's loss on the
   refitted tree exceeds the build's cost over the refit's);
@@ -61,6 +61,7 @@ from raybench import Camera, backends, bvh
 from raybench.backends.cuda import build as cuda_build
 from raybench.bench.stats import summarize
 from raybench.bvh import cost as tree_cost
+from raybench.bvh import lbvh
 
 STEPS = ("codes", "sort", "hierarchy", "bounds")
 
@@ -71,11 +72,11 @@ def events_ms(marks) -> list[float]:
     return [a.elapsed_time(b) for a, b in zip(marks, marks[1:])]
 
 
-def gpu_build(spheres: np.ndarray, repeats: int, quality: str) -> tuple[dict, dict]:
+def gpu_build(spheres: np.ndarray, repeats: int, quality: str, passes: int) -> tuple[dict, dict]:
     """({quantity: ms of each build}, the tree's figures)."""
     n = spheres.shape[1]
     d_spheres = cuda.to_device(spheres)
-    builder = cuda_build.Builder(n, quality=quality)  # its default leaf size
+    builder = cuda_build.Builder(n, quality=quality, treelet_passes=passes)  # its default leaf size
     for _ in range(3):  # compiled (or loaded from the cache), warm
         builder.launch_build(d_spheres)
         builder.read_depth()
@@ -146,7 +147,7 @@ def timed_frames(tracer, basis, frames: int) -> tuple[list[float], list[float] |
     return wall, (kernel if kernel[0] is not None else None)
 
 
-def walks(spheres: np.ndarray, width: int, height: int, frames: int, qualities) -> list[dict]:
+def walks(spheres: np.ndarray, width: int, height: int, frames: int, qualities, passes: int) -> list[dict]:
     """Both walks on the host's tree and on the GPU's tree of each quality: points of the
     scaling suite, the GPU trees' with the share of hits differing from the host tree's (a
     quality that fails is left out, its error on stderr)."""
@@ -165,7 +166,7 @@ def walks(spheres: np.ndarray, width: int, height: int, frames: int, qualities) 
         with backends.tracer("cuda", spheres, width, height, build="gpu", walk=walk) as tracer:
             for quality in qualities:
                 try:
-                    builder = cuda_build.Builder(n, quality=quality)
+                    builder = cuda_build.Builder(n, quality=quality, treelet_passes=passes)
                     builder.launch_build(d_spheres)
                     use_tree(tracer, builder.tree(builder.read_depth(), 0.0))
                     timed = timed_frames(tracer, basis, frames)
@@ -203,28 +204,23 @@ def dynamic(spheres: np.ndarray, width: int, height: int, frames: int, dt: float
     moved = [orbits.at(k * dt) for k in range(1, frames + 1)]
     out = []
     for name, (build, limit) in POLICIES.items():
-        saved = cuda_build.REFIT_LIMIT
-        if limit is not None:
-            cuda_build.REFIT_LIMIT = limit
-        try:
-            with backends.tracer("cuda", spheres, width, height, build=build) as tracer:
-                tracer.trace(basis)
-                fresh = gpu_cost(tracer)
-                update_ms, kinds, walk_ms, frame_ms, cost_ratio = [], [], [], [], []
-                for frame in moved:
-                    start = time.perf_counter()
-                    kind = tracer.update(frame)
-                    update_ms.append((time.perf_counter() - start) * 1e3)
-                    walk_ms.append(tracer.timed_trace(basis))
-                    frame_ms.append((time.perf_counter() - start) * 1e3)
-                    kinds.append(kind)
-                    cost = gpu_cost(tracer)
-                    if kind == "build":  # a fresh tree, as the Tracer's refit limit counts from
-                        fresh = cost
-                    if cost is not None and fresh:
-                        cost_ratio.append(round(cost / fresh, 4))
-        finally:
-            cuda_build.REFIT_LIMIT = saved
+        policy = {} if limit is None else {"refit_limit": limit}
+        with backends.tracer("cuda", spheres, width, height, build=build, **policy) as tracer:
+            tracer.trace(basis)
+            fresh = gpu_cost(tracer)
+            update_ms, kinds, walk_ms, frame_ms, cost_ratio = [], [], [], [], []
+            for frame in moved:
+                start = time.perf_counter()
+                kind = tracer.update(frame)
+                update_ms.append((time.perf_counter() - start) * 1e3)
+                walk_ms.append(tracer.timed_trace(basis))
+                frame_ms.append((time.perf_counter() - start) * 1e3)
+                kinds.append(kind)
+                cost = gpu_cost(tracer)
+                if kind == "build":  # a fresh tree, as the Tracer's refit limit counts from
+                    fresh = cost
+                if cost is not None and fresh:
+                    cost_ratio.append(round(cost / fresh, 4))
         options = {"accel": "bvh", "motion": "orbits", "build": build, "policy": name}
         record = _harness.point("dynamic", "cuda", width, height, spheres.shape[1], options, frame_ms,
                                 walk_ms if walk_ms[0] is not None else None)  # fmt: skip
@@ -271,9 +267,7 @@ def main() -> int:
     parser.add_argument(
         "--quality", action="append", choices=cuda_build.QUALITIES, help="GPU trees to measure (default all)"
     )
-    parser.add_argument(
-        "--treelet-passes", type=int, default=cuda_build.TREELET_PASSES, help="bottom-up passes of treelets"
-    )
+    parser.add_argument("--treelet-passes", type=int, default=lbvh.TREELET_PASSES, help="bottom-up passes of treelets")
     parser.add_argument("--anim-frames", type=int, default=40, help="frames of moving spheres per policy")
     parser.add_argument("--anim-dt", type=float, default=0.1, help="seconds of the animation between frames")
     _harness.add_common(parser, frames=15)  # frames per walk
@@ -281,7 +275,6 @@ def main() -> int:
     _harness.check_common(parser, args)
     if args.repeats < 1:
         parser.error(f"--repeats: must be at least 1, got {args.repeats}")
-    cuda_build.TREELET_PASSES = args.treelet_passes
     width, height = (int(v) for v in args.size.split("x"))
     settings = {"treelet_passes": args.treelet_passes, "quality": cuda_build.QUALITY, "leaf_size": cuda_build.LEAF_SIZE}
     with _harness.Records("gpu_build", args, settings) as out:
@@ -291,10 +284,10 @@ def main() -> int:
             for record in host:
                 out.write(record)
             qualities = args.quality or list(cuda_build.QUALITIES)
-            for record in walks(spheres, width, height, args.frames, qualities):
+            for record in walks(spheres, width, height, args.frames, qualities, args.treelet_passes):
                 out.write(record)
             for quality in qualities:
-                timings, figures = gpu_build(spheres, args.repeats, quality)
+                timings, figures = gpu_build(spheres, args.repeats, quality, args.treelet_passes)
                 figures["sah_over_host"] = round(figures["sah"] / host[0]["values"]["sah"], 4)
                 options = {"quality": quality, "treelet_passes": args.treelet_passes}
                 for quantity, times in timings.items():

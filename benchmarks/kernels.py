@@ -35,7 +35,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", default="1680x1050")
     ap.add_argument("--spheres", type=int, default=1000)
-    ap.add_argument("--sweep", action="store_true", help="the CUDA fast kernel's rays, tile and block shapes")
+    ap.add_argument("--sweep", action="store_true", help="the CUDA fast kernel's rays, spheres staged and block shapes")
     ap.add_argument("--sweep-trip", action="store_true", help="its spheres per trip of the cull loop")
     ap.add_argument("--skip-peak", action="store_true")
     _harness.add_common(ap, frames=7)
@@ -81,9 +81,9 @@ def main():
         if (args.sweep or args.sweep_trip) and "cuda" in devices:
             if args.sweep:
                 shapes = [
-                    (rays, tile, 2, block)
+                    (rays, staged, 2, block)
                     for rays in (1, 2, 4, 8, 16)
-                    for tile in (128, 256, 512)
+                    for staged in (128, 256, 512)
                     for block in ((32, 2), (16, 4), (32, 4), (32, 8), (16, 16), (64, 4), (128, 1))
                 ]
             else:  # spheres per trip of the cull loop, around the default shape, twice over
@@ -93,12 +93,12 @@ def main():
                     for trip in (1, 2, 3, 4)
                     for block in ((16, 4), (32, 2), (8, 8))
                 ]
-            for rays, tile, trip, block in shapes:
-                tracer = backends.tracer("cuda", scene.spheres, w, h, rays=rays, tile=tile, trip=trip, block=block)
+            for rays, staged, trip, block in shapes:
+                tracer = backends.tracer("cuda", scene.spheres, w, h, rays=rays, staged=staged, trip=trip, block=block)
                 tracer.compile()
                 _wall, kern = frames(tracer, basis, args.frames)
                 tracer.close()
-                options = {"rays": rays, "tile": tile, "trip": trip, "block": list(block)}
+                options = {"rays": rays, "staged": staged, "trip": trip, "block": list(block)}
                 median = sorted(kern)[len(kern) // 2]
                 out.write(
                     _harness.part(

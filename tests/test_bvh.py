@@ -12,7 +12,7 @@ import raybench
 from raybench import Scene, bvh, compiled, kernels, layout
 from raybench.backends import cpu as cpu_backend
 from raybench.backends import cuda as cuda_backend
-from raybench.backends import limits
+from raybench.backends import options as device_options
 from raybench.bvh import oneshot, sah
 
 # The algorithm as plain Python on NumPy float32 scalars, run without a compiler.
@@ -96,7 +96,7 @@ def test_sphere_prefix_builds_its_own_tree(rng):
 @pytest.mark.slow
 @pytest.mark.gpu
 @pytest.mark.skipif(not cuda_backend.available(), reason="no CUDA GPU and the simulator is off")
-@pytest.mark.parametrize("walk", limits.WALKS)
+@pytest.mark.parametrize("walk", device_options.WALKS)
 @pytest.mark.parametrize("kind", ["generated", "inside", "one_point", "duplicates", "line", "none"])
 def test_cuda_bvh_equals_brute_force(rng, kind, walk):
     """The walks compiled for CUDA: bit for bit under the simulator, within

@@ -12,7 +12,8 @@ from test_bvh import brute, check_tree
 import raybench
 from raybench import bvh, layout
 from raybench.backends import cuda as cuda_backend
-from raybench.backends import limits
+from raybench.backends import options as device_options
+from raybench.bvh import lbvh
 from raybench.bvh.cost import sah_cost
 
 pytestmark = [
@@ -106,7 +107,7 @@ def test_sah_leaves_are_the_cheapest_cut(rng):
 
 
 @pytest.mark.parametrize("kind", ["generated", "cloud", "line", "duplicates"])
-def test_treelets_lower_the_cost_and_keep_leaves_ranges(rng, monkeypatch, kind):
+def test_treelets_lower_the_cost_and_keep_leaves_ranges(rng, kind):
     """The "treelet" tree, after 1 to 3 passes: valid (every sphere in one
     leaf of consecutive spheres, boxes nested, the depth its own), its rows'
     links up leading back to the root (refits climb them), no costlier than
@@ -116,10 +117,10 @@ def test_treelets_lower_the_cost_and_keep_leaves_ranges(rng, monkeypatch, kind):
 
     from raybench.backends.cuda import build as cuda_build
 
-    monkeypatch.setattr(cuda_build, "TREELET_PASSES", int(rng.integers(1, 4)))
+    passes = int(rng.integers(1, 4))
     scene, _ = SCENES[kind](rng, int(rng.integers(12, 33)))
     sah = sah_cost(gpu_tree(scene.spheres, quality="sah").to_host().nodes)
-    builder = cuda_build.Builder(len(scene), quality="treelet")
+    builder = cuda_build.Builder(len(scene), quality="treelet", treelet_passes=passes)
     d_spheres = cuda.to_device(scene.spheres)
     builder.launch_build(d_spheres)
     tree = builder.tree(builder.read_depth(), 0.0).to_host()
@@ -138,9 +139,7 @@ def test_treelets_lower_the_cost_and_keep_leaves_ranges(rng, monkeypatch, kind):
     again = builder.tree(builder.read_depth(), 0.0).to_host()
     assert np.array_equal(again.nodes.view(np.uint32), tree.nodes.view(np.uint32))
     if sim():  # on a GPU, fused multiply-adds may tip near ties (test_model_gives_the_kernels_tree)
-        nodes, order, _ordered, depth, _rows, _cost = tree_model().build(
-            scene.spheres, "treelet", passes=cuda_build.TREELET_PASSES
-        )
+        nodes, order, _ordered, depth, _rows, _cost = tree_model().build(scene.spheres, "treelet", passes=passes)
         assert np.array_equal(tree.order, order) and depth == tree.depth
         assert np.array_equal(tree.links[:, layout.REF :], nodes.view(np.int32)[:, layout.REF :])
 
@@ -191,17 +190,17 @@ def test_too_deep_falls_back_to_the_host_build(rng):
 @pytest.mark.parametrize(
     "kind", ["generated", "inside", "overlapping", "one_point", "duplicates", "line", "one", "none"]
 )
-def test_gpu_tree_walks_give_the_brute_force(rng, monkeypatch, kind):
+def test_gpu_tree_walks_give_the_brute_force(rng, kind):
     """Both walks on the GPU's tree (of any quality): the brute force's hits,
     bit for bit under the simulator, within rounding on a GPU (its compiler
     may fuse multiply-adds; test_bvh's CUDA test says the same)."""
-    from raybench.backends.cuda import build as cuda_build
-
-    monkeypatch.setattr(cuda_build, "QUALITY", str(rng.choice(cuda_build.QUALITIES)))
+    quality = str(rng.choice(lbvh.QUALITIES))
     scene, camera = SCENES[kind](rng, small(rng))
     width, height = (19, 13) if sim() else (643, 401)
-    walk = str(rng.choice(limits.WALKS))
-    gpu = raybench.render(scene, camera, width, height, device="cuda", build="gpu", walk=walk, block=(8, 4))
+    walk = str(rng.choice(device_options.WALKS))
+    gpu = raybench.render(
+        scene, camera, width, height, device="cuda", build="gpu", quality=quality, walk=walk, block=(8, 4)
+    )
     cpu = brute(scene, camera, width, height)
     if sim():
         assert np.array_equal(gpu.hits, cpu.hits) and np.array_equal(gpu.image, cpu.image)
@@ -295,16 +294,15 @@ def test_device_sah_cost_is_tree_costs(rng):
 
 
 @pytest.mark.parametrize("limit,want", [(np.inf, "refit"), (0.0, "build")])
-def test_update_refits_within_the_limit_and_rebuilds_past_it(rng, monkeypatch, limit, want):
+def test_update_refits_within_the_limit_and_rebuilds_past_it(rng, limit, want):
     """Tracer.update: a refit keeps the tree's rows (its links), a rebuild
     makes new ones; either way the frame is the brute force's of the moved
     spheres."""
-    from raybench.backends.cuda import build as cuda_build
-
-    monkeypatch.setattr(cuda_build, "REFIT_LIMIT", limit)
-    monkeypatch.setattr(cuda_build, "QUALITY", str(rng.choice(cuda_build.QUALITIES)))
+    quality = str(rng.choice(lbvh.QUALITIES))
     scene, camera = SCENES["generated"](rng, int(rng.integers(10, 30)))
-    with raybench.backends.tracer("cuda", scene.spheres, 19, 13, build="gpu") as tracer:
+    with raybench.backends.tracer(
+        "cuda", scene.spheres, 19, 13, build="gpu", quality=quality, refit_limit=limit
+    ) as tracer:
         before = tracer.d_links.copy_to_host()[:, layout.REF :]  # the rows' links, not their boxes
         spheres = moved(rng, scene.spheres, 2.0)
         assert tracer.update(spheres) == want

@@ -93,7 +93,7 @@ def test_both_cpu_fast_loops_equal_simple(rng, band):
     scene, camera = KINDS["overlapping"](rng, int(rng.integers(1, 120)))
     width, height = int(rng.integers(1, 50)), int(rng.integers(1, 20))
     simple = raybench.render(scene, camera, width, height, device="cpu", kernel="simple")
-    tracer = cpu.Tracer(scene.spheres, width, height, kernel="fast", threads=2)
+    tracer = raybench.backends.tracer("cpu", scene.spheres, width, height, kernel="fast", threads=2)
     tracer._kernel = getattr(cpu, band)
     tracer.trace(camera.basis(width, height))
     assert np.array_equal(simple.hits, tracer.hits) and np.array_equal(simple.image, tracer.image)
@@ -114,7 +114,7 @@ def test_cpu_fast_sphere_prefix(rng):
 # any waits at a barrier: 128 threads of the last shape took minutes there,
 # so it gets 32 threads under the simulator and the real shape on a GPU.
 @pytest.mark.parametrize(
-    "rays,tile,trip,block",
+    "rays,staged,trip,block",
     [
         (3, 8, 3, (4, 2)),
         (1, 45, 4, (5, 3)),
@@ -123,14 +123,14 @@ def test_cpu_fast_sphere_prefix(rng):
         (8, 256, 4, (8, 4) if cuda_backend.simulated() else (16, 4)),
     ],
 )
-def test_cuda_fast_shapes_equal_cpu(rng, rays, tile, trip, block):
-    """Every way of cutting the work (rays per thread, spheres per shared
-    tile and per trip of the cull loop, block shape, counts that are not a
-    multiple of the tile or the trip) gives the CPU's picture: bit for bit
+def test_cuda_fast_shapes_equal_cpu(rng, rays, staged, trip, block):
+    """Every way of cutting the work (rays per thread, spheres staged in
+    shared memory at a time and per trip of the cull loop, block shape, counts
+    that are not a multiple of the staged batch or the trip) gives the CPU's picture: bit for bit
     under the simulator, within rounding on a GPU."""
     scene, camera = KINDS["overlapping"](rng, 40)
     width, height = (19, 23) if cuda_backend.simulated() else (301, 203)
-    gpu = raybench.render(scene, camera, width, height, device="cuda", rays=rays, tile=tile, trip=trip, block=block)
+    gpu = raybench.render(scene, camera, width, height, device="cuda", rays=rays, staged=staged, trip=trip, block=block)
     cpu = raybench.render(scene, camera, width, height, device="cpu", kernel="simple")
     if cuda_backend.simulated():
         assert np.array_equal(gpu.hits, cpu.hits) and np.array_equal(gpu.image, cpu.image)
@@ -145,7 +145,7 @@ def test_cuda_fast_shapes_equal_cpu(rng, rays, tile, trip, block):
         ("cpu", {"kernel": "quick"}, "kernel: must be one of"),
         ("cpu", {"kernel": "fast", "constant_count": True}, "simple kernel only"),
         ("cuda", {"rays": 0}, "rays: must be an integer from 1 to 16"),
-        ("cuda", {"tile": 5000}, "tile: must be an integer from 1 to 3071"),
+        ("cuda", {"staged": 5000}, "staged: must be an integer from 1 to 3071"),
         ("cuda", {"block": (32, 32), "kernel": "fast"}, "fast kernel takes at most 256 threads"),
     ],
 )

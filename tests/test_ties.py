@@ -46,7 +46,7 @@ KERNELS = [
     ("cpu", {"accel": "bvh"}, (48, 32)),
     ("cuda", {"kernel": "simple"}, (16, 12) if SIM else (320, 200)),
     ("cuda", {"kernel": "fast"}, (16, 12) if SIM else (320, 200)),
-    ("cuda", {"kernel": "fast", "rays": 2, "tile": 5, "trip": 2, "block": (4, 2)}, (16, 12) if SIM else (320, 200)),
+    ("cuda", {"kernel": "fast", "rays": 2, "staged": 5, "trip": 2, "block": (4, 2)}, (16, 12) if SIM else (320, 200)),
     ("cuda", {"accel": "bvh"}, (16, 12) if SIM else (320, 200)),
 ]
 
@@ -57,9 +57,10 @@ def _frame(scene, camera, device, options, size):
     width, height = size
     if band is None:
         return raybench.render(scene, camera, width, height, device=device, **options)
+    from raybench import backends
     from raybench.backends import cpu
 
-    tracer = cpu.Tracer(scene.spheres, width, height, threads=2, **options)
+    tracer = backends.tracer("cpu", scene.spheres, width, height, threads=2, **options)
     tracer._kernel = getattr(cpu, band)
     tracer.trace(camera.basis(width, height))
     return raybench.Frame(tracer.image.copy(), tracer.hits.copy(), "cpu")

@@ -192,16 +192,16 @@ def test_builder_refuses_what_it_cannot_build(device, kernels):
 @pytest.mark.parametrize(
     "kind", ["generated", "inside", "overlapping", "one_point", "duplicates", "line", "one", "none"]
 )
-def test_gpu_tree_walks_give_the_brute_force(adapter, rng, monkeypatch, kind):
+def test_gpu_tree_walks_give_the_brute_force(adapter, rng, kind):
     """The walk on the GPU's tree (of either quality): the brute force's hits
     and picture, bit for bit on a CPU driver, which rounds every operation to
     float32 as the CPU does. A GPU's compiler may fuse multiply-adds, and
     the H200 gave colours one step off (lease a4): there, as test_wgpu holds
     its walks, hits of all but 1 pixel in 1,000 and colours within a step."""
-    monkeypatch.setattr(lbvh, "QUALITY", str(rng.choice(gpu_build.QUALITIES)))
+    quality = str(rng.choice(gpu_build.QUALITIES))
     scene, camera = SCENES[kind](rng, int(rng.integers(2, 400)))
     width, height = 61, 37
-    gpu = raybench.render(scene, camera, width, height, device="wgpu", adapter=adapter, build="gpu")
+    gpu = raybench.render(scene, camera, width, height, device="wgpu", adapter=adapter, build="gpu", quality=quality)
     cpu = brute(scene, camera, width, height)
     if adapters.choose(adapter).type == "CPU":
         assert np.array_equal(gpu.hits, cpu.hits) and np.array_equal(gpu.image, cpu.image)
@@ -262,13 +262,14 @@ def test_refit_fits_the_moved_spheres(device, kernels, rng):
 
 
 @pytest.mark.parametrize("limit,want", [(np.inf, "refit"), (0.0, "build")])
-def test_update_refits_within_the_limit_and_rebuilds_past_it(adapter, rng, monkeypatch, limit, want):
+def test_update_refits_within_the_limit_and_rebuilds_past_it(adapter, rng, limit, want):
     """Tracer.update: a refit keeps the tree's rows (its links), a rebuild
     makes new ones; either way the frame is the brute force's of the moved
     spheres."""
-    monkeypatch.setattr(lbvh, "REFIT_LIMIT", limit)
     scene, camera = SCENES["generated"](rng, int(rng.integers(10, 300)))
-    with raybench.backends.tracer("wgpu", scene.spheres, 19, 13, adapter=adapter, build="gpu") as tracer:
+    with raybench.backends.tracer(
+        "wgpu", scene.spheres, 19, 13, adapter=adapter, build="gpu", refit_limit=limit
+    ) as tracer:
         c = tracer.compute
 
         def links():

@@ -13,27 +13,12 @@ import os
 import sys
 
 from ..errors import RaybenchError
+from .options import NAMES, checked
 
 DEVICES = ("cpu", "cuda", "wgpu")
 CHOICES = ("auto",) + DEVICES
-OPTIONS = {
-    "cpu": ("threads", "constant_count", "kernel", "accel", "whitted", "tree_width"),
-    "cuda": (
-        "block",
-        "constant_count",
-        "kernel",
-        "rays",
-        "tile",
-        "trip",
-        "accel",
-        "walk",
-        "build",
-        "whitted",
-        "schedule",
-        "wave_grid",
-    ),  # fmt: skip
-    "wgpu": ("workgroup", "adapter", "accel", "kernel", "walk", "build", "whitted", "schedule"),
-}
+# Each device's options, by name: backends/options.py, where they are checked.
+OPTIONS = NAMES
 
 
 def module(name: str):
@@ -115,14 +100,13 @@ def present() -> list[str]:
     return ["cpu"] + (["cuda"] if cuda_available() else []) + (["wgpu"] if wgpu_gpu_available() else [])
 
 
-def tracer(device: str, spheres, width: int, height: int, **options):
-    """A Tracer of the (resolved) device for this scene and size; options are
-    the device's own (cpu: threads, tree_width; cuda: block, rays, tile, trip, walk, build; wgpu: workgroup,
-    adapter, walk, build) and accel ("bvh", the default, or "none"), kernel and
-    constant_count."""
+def tracer(device: str, spheres, width: int, height: int, whitted=None, **options):
+    """A Tracer of the (resolved) device for this scene and size. options:
+    the device's own (backends/options.py: cpu's threads and tree_width;
+    cuda's block, rays, staged, trip, walk, build and the GPU build's
+    variants; wgpu's workgroup, adapter, walk and build; on every device
+    accel, "bvh" (the default) or "none", and brute force's kernel), checked
+    there in one place. whitted: the lighting.Shading of a Whitted frame,
+    None for the thesis's shading."""
     name = resolve(device, options.get("adapter") if device == "wgpu" else None)
-    for key in options:
-        if key not in OPTIONS[name]:
-            allowed = ", ".join(OPTIONS[name])
-            raise RaybenchError(f"option {key!r} does not apply to device {name} (its options: {allowed})")
-    return module(name).Tracer(spheres, width, height, **options)
+    return module(name).Tracer(spheres, width, height, checked(name, options, whitted), whitted)

@@ -15,7 +15,6 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from ..errors import RaybenchError
-from .limits import check_accel, check_kernel
 
 
 @runtime_checkable
@@ -24,6 +23,9 @@ class Tracer(Protocol):
     width: int
     height: int
     count: int  # spheres loaded
+    # The device's options as backends/options.py checked them (CpuOptions,
+    # CudaOptions or WgpuOptions), defaults filled in.
+    options: object
     accel: str  # "bvh" or "none"
     walk: str | None  # the BVH walk ("ray" or "packet"), None where the device has one kind or for brute force
     build_s: float | None  # the last BVH build's seconds, apart from any frame; None for brute force
@@ -118,24 +120,3 @@ def check_moved(spheres, like: np.ndarray) -> np.ndarray:
             f"{spheres.dtype}"
         )
     return spheres
-
-
-def check_method(
-    accel, kernel, constant_count: bool, brute_force_options: dict, whitted=None
-) -> tuple[str, str | None]:
-    """The prologue of the cpu and cuda Tracers: the acceleration structure
-    and, for brute force, the kernel (None with the BVH). brute_force_options:
-    which options that only brute force takes were given. whitted: the
-    lighting.Shading of a Whitted frame, whose brute force is the simple
-    kernel's loop over every sphere, for every kind of ray."""
-    given_kernel = kernel
-    accel, kernel = check_accel(accel, kernel, {"constant_count": constant_count, **brute_force_options})
-    if whitted is not None:
-        thesis_only = {"kernel 'fast'": given_kernel == "fast", "constant_count": constant_count, **brute_force_options}
-        refused = [name for name, on in thesis_only.items() if on]
-        if refused:
-            raise RaybenchError(
-                f"{refused[0]}: applies to the thesis's shading only; Whitted's brute force is the simple kernel"
-            )
-        return accel, "simple" if accel == "none" else None
-    return accel, check_kernel(kernel, constant_count) if accel == "none" else None

@@ -29,7 +29,6 @@ import numpy as np
 
 from .. import bvh as bvh_mod
 from .. import compiled, kernels
-from ..errors import RaybenchError, shown
 from ..host import host_available_bytes, usable_cores
 from ..kernels import whitted as whitted_mod
 from ..kernels.constants import FAR, ZERO
@@ -53,7 +52,7 @@ from ..layout import (
     WIDTH,
 )
 from ..lighting import Shading
-from .contract import TracerBase, check_method, check_moved
+from .contract import TracerBase, check_moved
 from .limits import (
     HOST_PIXEL_BYTES,
     check_bvh_fits,
@@ -61,8 +60,7 @@ from .limits import (
     check_fits,
     check_rows,
 )
-
-MAX_THREADS = 4096
+from .options import CpuOptions, checked
 
 # A hit's shadow rays to one light, traced together: its samples,
 # LANES at a time, walk the 4-wide tree as one packet of rays from one origin
@@ -297,11 +295,6 @@ _fast_band = _wide_band if _has_avx512() else _pairs_band
 # is as fast on one core and slower at 1,000 spheres on two threads
 # (docs/bvh-walk.md#measured-cpu-only-machine-amd-epyc-2-vcpus-shared).
 PACKET_W, PACKET_H = 16, 8
-# The tree the packets walk by default (the Tracer's tree_width): 2, the
-# binary SAH tree (bvh.build) as every device walks it; 4, the same tree
-# collapsed into 4-wide nodes (bvh.collapse, _bvh_packets_wide).
-TREE_WIDTH = 4
-TREE_WIDTHS = (2, 4)
 PACKET = PACKET_W * PACKET_H
 # The wide rows' plane columns by axis (layout.W_LO, W_HI), as plain ints: read
 # as compile-time constants, as literal offsets were.
@@ -1000,23 +993,16 @@ class Tracer(TracerBase):
         spheres: np.ndarray,
         width: int,
         height: int,
-        threads: int | None = None,
-        constant_count: bool = False,
-        kernel: str | None = None,
-        accel: str | None = None,
+        options: CpuOptions | None = None,
         whitted: Shading | None = None,
-        tree_width: int | None = None,
     ):
-        self.accel, self.kernel = check_method(accel, kernel, constant_count, {}, whitted)
-        if tree_width is not None:
-            if self.accel != "bvh":
-                raise RaybenchError("tree_width: applies to the BVH's packets only (accel='bvh')")
-            if tree_width not in TREE_WIDTHS:
-                raise RaybenchError(f"tree_width: must be one of 2, 4, got {shown(tree_width)}")
-        if threads is None:
-            threads = default_threads()
-        if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or not 1 <= threads <= MAX_THREADS:
-            raise RaybenchError(f"threads: must be an integer from 1 to {MAX_THREADS}, got {shown(threads)}")
+        """options: the device's (backends.options.checked("cpu", ...); None
+        for the defaults); whitted: the Shading of a Whitted frame, None for
+        the thesis's shading."""
+        if options is None:
+            options = checked("cpu", {}, whitted)
+        self.options = options
+        self.accel, self.kernel = options.accel, options.kernel
         check_fits("cpu", width, height, spheres.shape[1], host_available_bytes(), HOST_PIXEL_BYTES)
         if self.accel == "bvh":
             check_bvh_fits(
@@ -1026,13 +1012,13 @@ class Tracer(TracerBase):
                 bvh_mod.BUILD_SPHERE_BYTES,
                 width * height * HOST_PIXEL_BYTES,
             )
-        self.threads = int(threads)
+        self.threads = options.threads
         self.spheres = spheres
         self.count = spheres.shape[1]
         self.width, self.height = width, height
         self.image = np.empty((height, width, 3), dtype=np.uint8)
         self.hits = np.empty((height, width), dtype=np.int32)
-        self.constant_count = bool(constant_count)
+        self.constant_count = options.constant_count
         self.bvh = None
         self.build_s = None
         self.whitted = whitted
@@ -1045,7 +1031,7 @@ class Tracer(TracerBase):
             if self.accel == "bvh":
                 # 4: the shadow rays as packets through the 4-wide tree; 2: every
                 # ray alone through the binary tree
-                self.tree_width = TREE_WIDTH if tree_width is None else int(tree_width)
+                self.tree_width = options.tree_width
             self._kernel = WHITTED_ROWS["packets" if self.tree_width == 4 else self.accel]
             self._row_rays = np.zeros((height, len(whitted_mod.KINDS)), np.int64)
             self.ray_counts = np.zeros(len(whitted_mod.KINDS), np.int64)
@@ -1059,7 +1045,7 @@ class Tracer(TracerBase):
             self.shaded = spheres if self.count else np.zeros((7, 1), np.float32)
             self.bands = chunks(height, self.threads)
             workers = min(self.threads, len(self.bands))
-            self.tree_width = TREE_WIDTH if tree_width is None else int(tree_width)
+            self.tree_width = options.tree_width
             self._kernel = _bvh_packets_wide if self.tree_width == 4 else _bvh_packets
             self._build(self.count)
         else:

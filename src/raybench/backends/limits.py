@@ -68,64 +68,6 @@ def check_count(count, loaded: int, constant: bool = False) -> int:
     return int(count)
 
 
-KERNELS = ("fast", "simple")
-# Threads per block the fast CUDA kernel can always launch: its per-thread rays
-# take registers, and 256 threads x 255 registers (the most a thread can have)
-# fit the 64K registers of every CUDA multiprocessor. 32x32 can fail with
-# CUDA_ERROR_LAUNCH_OUT_OF_RESOURCES.
-FAST_MAX_THREADS = 256
-
-
-def check_kernel(kernel, constant_count: bool) -> str:
-    """The kernel's name, checked: "simple" (the thesis's loop, one pixel at a
-    time) or "fast" (rays grouped, certain misses culled; the same pixels)."""
-    if kernel not in KERNELS:
-        raise RaybenchError(f"kernel: must be one of {', '.join(KERNELS)}, got {shown(kernel)}")
-    if constant_count and kernel != "simple":
-        raise RaybenchError("constant_count: applies to the simple kernel only; add kernel='simple' (--kernel simple)")
-    return kernel
-
-
-ACCELS = ("bvh", "none")
-# Where a GPU's tree is built (cuda, wgpu): "host" (raybench.bvh's binned SAH
-# tree, uploaded) or "gpu" (the LBVH of backends.cuda.build or
-# backends.wgpu.build, built where it is walked).
-BUILDS = ("host", "gpu")
-
-
-def check_build(build, accel: str, default: str) -> str | None:
-    """The build for a tracer of accel (None for brute force, which builds nothing)."""
-    if build is None:
-        return default if accel == "bvh" else None
-    if accel != "bvh":
-        raise RaybenchError("build: applies to the BVH only (accel='bvh'), not to brute force")
-    if build not in BUILDS:
-        raise RaybenchError(f"build: must be one of {', '.join(BUILDS)}, got {shown(build)}")
-    return build
-
-
-def check_accel(accel, kernel, brute_force_options: dict) -> tuple[str, str | None]:
-    """(accel, kernel), checked. accel "bvh" walks a bounding volume hierarchy;
-    "none" tests every sphere with the chosen kernel (default "fast"). The
-    kernel and the options of the brute-force kernels (brute_force_options:
-    name -> given) mean nothing to the BVH walk: asking for one without an
-    accel implies accel "none"; asking for one with accel "bvh" is an error."""
-    given = [name for name, on in brute_force_options.items() if on]
-    if kernel is not None:
-        given.insert(0, "kernel")
-    if accel is None:
-        accel = "none" if given else "bvh"
-    if accel not in ACCELS:
-        raise RaybenchError(f"accel: must be one of {', '.join(ACCELS)}, got {shown(accel)}")
-    if accel == "bvh":
-        if given:
-            raise RaybenchError(
-                f"{given[0]}: applies to brute force only (accel='none', --accel none), not to the BVH walk"
-            )
-        return accel, None
-    return accel, "fast" if kernel is None else kernel
-
-
 def check_bvh_fits(device: str, spheres: int, available: float, per_sphere: int, pixel_bytes_needed: int = 0) -> None:
     """A BVH of `spheres` spheres (per_sphere bytes each, at most) and the
     frame must fit in what the device has free."""
@@ -140,40 +82,3 @@ def check_bvh_fits(device: str, spheres: int, available: float, per_sphere: int,
 
 def _bytes(n: float) -> str:
     return f"{n / 2**30:.2f} GiB" if n >= 2**30 else f"{n / 2**20:.1f} MiB"
-
-
-# The GPU backends' two BVH walks: a ray at a time (kernels.traverse, the
-# CPU's code), or a group of pixels' rays as one packet, which visits a node
-# if any of its rays enters it (cuda: a block's rays, voting with its
-# barriers; wgpu: a subgroup's, voting with subgroup operations). Each backend
-# says which it takes by default.
-WALKS = ("ray", "packet")
-
-
-def check_walk(walk, accel: str) -> str | None:
-    if walk is None:
-        return None
-    if accel != "bvh":
-        raise RaybenchError("walk: applies to the BVH walk only (accel='bvh'), not to brute force")
-    if walk not in WALKS:
-        raise RaybenchError(f"walk: must be one of {', '.join(WALKS)}, got {shown(walk)}")
-    return walk
-
-
-SCHEDULES = ("wavefront", "pixel")
-
-
-def check_schedule(schedule, whitted) -> str | None:
-    """How Whitted's rays are spread over threads: "wavefront" (the default:
-    a bounce's rays of every pixel at once, a stage a kernel; wavefront.py)
-    or "pixel" (a thread traces its pixel's whole tree of rays). None for the
-    thesis's shading, whose only rays are the primary ones."""
-    if whitted is None:
-        if schedule is not None:
-            raise RaybenchError(f"schedule {shown(schedule)}: applies to Whitted shading only")
-        return None
-    if schedule is None:
-        return "wavefront"
-    if schedule not in SCHEDULES:
-        raise RaybenchError(f"schedule: must be one of {', '.join(SCHEDULES)}, got {shown(schedule)}")
-    return schedule

@@ -65,7 +65,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..backends.limits import BUILDS, FAST_MAX_THREADS
+from ..backends.options import BUILDS, FAST_MAX_THREADS
 from ..errors import RaybenchError
 from ..host import usable_cores
 
@@ -290,7 +290,10 @@ def points(
                         for b in blocks
                     ]
                     continue
-                if way.get("kernel", "bvh") in ("fast", "bvh"):  # larger blocks cannot launch (limits.FAST_MAX_THREADS)
+                if way.get("kernel", "bvh") in (
+                    "fast",
+                    "bvh",
+                ):  # larger blocks cannot launch (options.FAST_MAX_THREADS)
                     blocks = tuple(b for b in blocks if b[0] * b[1] <= FAST_MAX_THREADS)
                 out += [
                     Point("tuning", device, w, h, n, {"block": list(b), "label": f"{b[0]}x{b[1]}", **way})

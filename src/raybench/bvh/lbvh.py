@@ -9,9 +9,18 @@ AXIS_CELLS = 1 << (CODE_BITS // 3)
 # Leaves of quality "lbvh": every subtree of at most LEAF_SIZE spheres (the
 # leaf-size sweep found 2 and 4 alike, 8 worse:
 # docs/gpu-build.md#measured-on-the-h200-leases-x2-and-x4). "sah" cuts leaves of up
-# to bvh.LEAF_MAX where the SAH says (cuda_build's QUALITIES).
+# to bvh.LEAF_MAX where the SAH says.
 LEAF_SIZE = 4
+# Where the leaves are cut: "sah" as the SAH says; "treelet" also rebuilds
+# each row's treelet where the SAH says (cuda only); "lbvh" keeps every
+# subtree of LEAF_SIZE spheres a leaf, the first GPU tree, kept to be
+# measured against.
+QUALITIES = ("sah", "treelet", "lbvh")
 QUALITY = "sah"
+# Bottom-up passes of treelets: each pass more lowers the cost less (the
+# model at 100,000 spheres: 1.031, 1.026, 1.025 times the host's after 1, 2,
+# 3), each a launch of the bottom-up pass and its treelets' work again.
+TREELET_PASSES = 1
 # A refitted tree is rebuilt once its SAH cost (Builder.read_cost) exceeds
 # REFIT_LIMIT times the cost it had fresh from its build: moved spheres
 # stretch its boxes, and each ray then visits more of them. In the orbits

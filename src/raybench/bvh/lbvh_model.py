@@ -26,7 +26,7 @@ from . import lbvh, lbvh_steps
 from .sah import LEAF_MAX
 
 AXIS_CELLS = lbvh.AXIS_CELLS
-QUALITIES = ("sah", "treelet", "lbvh")  # backends/cuda/build.py's
+QUALITIES = lbvh.QUALITIES
 
 
 @numba.njit(cache=False)
@@ -95,7 +95,7 @@ def bounds_up(spheres, order, leaf_up, up, span, nodes, links, kid, ordered, lea
 def build(spheres: np.ndarray, quality: str = "sah", leaf_size: int | None = None, passes: int | None = None):
     """The GPU's tree of the (>= 4, n) spheres (n >= 2): (nodes, order,
     ordered, depth, rows reached, its SAH cost as the device sums it).
-    passes: the bottom-up passes of treelets (default lbvh_steps.TREELET_PASSES)."""
+    passes: the bottom-up passes of treelets (default lbvh.TREELET_PASSES)."""
     n = spheres.shape[1]
     leaf_max = leaf_size if leaf_size is not None else (lbvh.LEAF_SIZE if quality == "lbvh" else LEAF_MAX)
     restructure = int(quality == "treelet")
@@ -113,7 +113,7 @@ def build(spheres: np.ndarray, quality: str = "sah", leaf_size: int | None = Non
     kid = np.zeros(2 * m, np.int32)
     args = (spheres, order, leaf_up, up, span, nodes, links, kid, ordered, leaf_max, sah, restructure)
     depth, rows, cost = bounds_up(*args)
-    for _ in range((passes or lbvh_steps.TREELET_PASSES) - 1 if restructure else 0):
+    for _ in range((passes or lbvh.TREELET_PASSES) - 1 if restructure else 0):
         depth, rows, cost = bounds_up(*args)
     if restructure:
         tree_order = np.empty_like(order)

@@ -29,10 +29,6 @@ from .sah import NODE_COST
 # no reorder) gave 1.070 whatever their number.
 TREELET = 6
 SUBSETS = 1 << TREELET
-# Bottom-up passes of treelets: each pass more lowers the cost less (the
-# model at 100,000 spheres: 1.031, 1.026, 1.025 times the host's after 1, 2,
-# 3), each a launch of the bottom-up pass and its treelets' work again.
-TREELET_PASSES = 1
 # A treelet is rebuilt where that lowers its cost below GAIN times what it
 # was: rounding alone never changes a tree (all spheres at one point stay a
 # balanced tree).

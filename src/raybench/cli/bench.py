@@ -10,7 +10,7 @@ from pathlib import Path
 
 import click
 
-from ..backends.limits import ACCELS, KERNELS
+from ..backends.options import ACCELS, KERNELS
 from ..errors import RaybenchError, device_failure, one_line
 from .options import adapter_option, build_option, connect_timeout_option, open_cluster, scheduler_option
 

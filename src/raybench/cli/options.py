@@ -9,7 +9,7 @@ from pathlib import Path
 
 import click
 
-from ..backends.limits import ACCELS, BUILDS, KERNELS
+from ..backends.options import ACCELS, BUILDS, KERNELS
 from ..errors import RaybenchError
 from ..files import check_writable
 from ..lighting import SHADINGS

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..backends.limits import check_count
+from ..backends.options import checked
 from ..backends.wgpu.compute import RAY_KINDS, Compute
 from ..backends.wgpu.tracer import timestamp_period
 from ..kernels.whitted import KINDS
@@ -59,20 +60,15 @@ class InWindowTracer:
         self.compute, self._key, self._scene = None, None, None
         import wgpu
 
-        # accel and kernel as the Tracer takes them: the BVH unless brute force is asked for;
-        # a frame of another sphere count (+, -, the ramp) gets its tree in encode()
+        # checked as the Tracer's are; a frame of another sphere count (+, -, the ramp) gets its tree in encode()
         compute = Compute(
             self.device,
             request.scene.spheres,
             request.width,
             request.height,
-            options.pop("workgroup", None),
-            options.pop("accel", None),
-            options.pop("kernel", None),
+            checked("wgpu", options, request.shading),
+            request.shading,
             extra_texture_usage=wgpu.TextureUsage.TEXTURE_BINDING,
-            walk=options.pop("walk", None),
-            whitted=request.shading,
-            build=options.pop("build", None),
         )
         compile_s = compute.compile()
         if request.shading is not None and self._rays_read is None:

@@ -18,7 +18,8 @@ numba's simulator, which is how the tests check it on machines without a GPU.
 
 from __future__ import annotations
 
+from ..options import DEFAULT_BLOCK
 from .device import available, description, require, simulated, unavailable_reason
-from .tracer import DEFAULT_BLOCK, Tracer
+from .tracer import Tracer
 
 __all__ = ["DEFAULT_BLOCK", "Tracer", "available", "description", "require", "simulated", "unavailable_reason"]

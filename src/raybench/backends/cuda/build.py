@@ -51,7 +51,7 @@ from numba import config, cuda
 from ... import bvh as bvh_mod
 from ... import compiled
 from ...bvh import lbvh, lbvh_steps
-from ...bvh.lbvh import AXIS_CELLS, CODE_BITS, LEAF_SIZE, REFIT_LIMIT  # noqa: F401 - read as cuda_build.*
+from ...bvh.lbvh import AXIS_CELLS, CODE_BITS, LEAF_SIZE
 from ...layout import MAX_DEPTH, NODE_FLOATS
 from .launch import Launches
 
@@ -93,14 +93,11 @@ THREADS = 32 if _SIM else 256
 #           over its treelet of TREELET pieces (lbvh_steps' treelet, Karras and Aila
 #           2013, one pass bottom-up), then the spheres put in the new tree's
 #           order (_reorder, one launch more).
-QUALITIES = ("sah", "treelet", "lbvh")
-QUALITY = lbvh.QUALITY
-# A treelet's pieces, the passes of treelets and the gain that rebuilds one:
-# bvh/lbvh_steps.py, where the treelet step is written once. TREELET_PASSES
-# is read at each build (a benchmark's --treelet-passes sets it).
+QUALITIES, QUALITY = lbvh.QUALITIES, lbvh.QUALITY
+# A treelet's pieces and the gain that rebuilds one: bvh/lbvh_steps.py,
+# where the treelet step is written once.
 TREELET = lbvh_steps.TREELET
 SUBSETS = lbvh_steps.SUBSETS
-TREELET_PASSES = lbvh_steps.TREELET_PASSES
 # Device bytes a Builder holds per sphere: keys and values twice (the sort's
 # two buffers), the links up (8 + 8), the rows' spans (8), what lies below
 # each child (heights and rows 16, costs 8, rows 8), the counters (4), the
@@ -411,14 +408,18 @@ class Builder:
     SAH says, of up to leaf_size spheres (default bvh.LEAF_MAX, as the host's
     builder); "treelet" also rebuilds each row's treelet where the SAH says;
     "lbvh" makes every subtree of up to leaf_size spheres (default
-    LEAF_SIZE) a leaf, the first GPU tree, kept to be measured against."""
+    LEAF_SIZE) a leaf, the first GPU tree, kept to be measured against.
+    treelet_passes: the bottom-up passes of treelets of "treelet" (default
+    lbvh.TREELET_PASSES)."""
 
-    def __init__(self, n: int, leaf_size: int | None = None, quality: str | None = None):
+    def __init__(self, n: int, leaf_size: int | None = None, quality: str | None = None,
+                 treelet_passes: int | None = None):  # fmt: skip
         quality = QUALITY if quality is None else quality
         if quality not in QUALITIES:
             raise ValueError(f"quality: must be one of {', '.join(QUALITIES)}, got {quality!r}")
         self.n = n
         self.quality = quality
+        self.treelet_passes = lbvh.TREELET_PASSES if treelet_passes is None else treelet_passes
         self.leaf_size = leaf_size if leaf_size is not None else (LEAF_SIZE if quality == "lbvh" else bvh_mod.LEAF_MAX)
         m = max(n - 1, 1)
         self.tiles = _blocks(n, SORT_TILE)
@@ -499,7 +500,7 @@ class Builder:
         rebuilt, then the spheres put in the tree's order)."""
         self._up(spheres, self.sorted, self.sorted_up, self.leaf_size)
         if self.quality == "treelet":
-            for _ in range(TREELET_PASSES - 1):  # the treelets of the tree the last pass left
+            for _ in range(self.treelet_passes - 1):  # the treelets of the tree the last pass left
                 self._up(spheres, self.sorted, self.sorted_up, self.leaf_size)
             self._on(spheres)(
                 _reorder, _blocks(self.n, THREADS), THREADS, spheres, self.n, self.sorted, self.sorted_up, self.up,

@@ -14,53 +14,32 @@ from numba.cuda.core.errors import NumbaPerformanceWarning
 
 from ... import bvh as bvh_mod
 from ... import compiled, kernels
-from ...errors import RaybenchError, shown
 from ...host import host_available_bytes
 from ...kernels.constants import FAR, ZERO
 from ...kernels.whitted import KINDS, RAY_FLOATS, RAY_INTS, RAY_STACK
 from ...layout import CHILD_BOX, INNER, NODE_BYTES, NODE_FLOATS, RADIUS, STACK
 from ...lighting import Shading
-from .. import limits
-from ..contract import TracerBase, check_method, check_moved
+from ..contract import TracerBase, check_moved
 from ..limits import (
-    FAST_MAX_THREADS,
     HOST_PIXEL_BYTES,
     PIXEL_BYTES,
-    WALKS,
     check_bvh_fits,
     check_count,
     check_fits,
     check_rows,
-    check_schedule,
-    check_walk,
 )
+from ..options import DEFAULT_BLOCK, RAYS_PER_THREAD, STAGED, TRIP, CudaOptions, checked
 from . import build as cuda_build
 from .device import require, simulated
 from .launch import Launches
 from .wavefront import Wavefront
 
-# The fastest measured: simple in 16x16 blocks; fast (with TRIP) in 8x8
-# (docs/floors.md#each-version-against-the-floor); the BVH walked a ray at a
-# time in 8x8, which also makes a warp a compact 8x4 patch of pixels whose rays
-# cross much the same nodes (the tuning suite, docs/bvh-walk.md#gpu-measured-on-the-h200);
-# the BVH's packets in 8x4 blocks, one warp, faster than 8x8 and 16x8
-# (docs/bvh-walk.md#packets-of-rays-on-the-gpu-leases-g-to-i-kept).
-DEFAULT_BLOCK = {"simple": (16, 16), "fast": (8, 8), "ray": (8, 8), "packet": (8, 4)}
 # The walk by default: packets once the tree outgrows the L1 cache (256 KiB
 # an SM on the GPUs measured): the packets cost more node visits than a ray
 # at a time and save fetches, so they pay once the tree is fetched from L2;
 # measured, the two crossed as the tree outgrew L1
 # (docs/bvh-walk.md#packets-of-rays-on-the-gpu-leases-g-to-i-kept).
 PACKET_TREE_BYTES = 256 * 1024
-# The default stays the host's SAH tree for scenes that do not move: the
-# walk on any tree built on the GPU measured slower than on the host's, and
-# the build is paid once, the walk every frame (docs/gpu-build.md#where-it-stands).
-DEFAULT_BUILD = "host"
-
-
-def check_build(build, accel: str) -> str | None:
-    """The build for a tracer of accel (None for brute force, which builds nothing)."""
-    return limits.check_build(build, accel, DEFAULT_BUILD)
 
 
 def choose_walk(nodes: int) -> str:
@@ -75,19 +54,6 @@ _prepare_one, _may_hit, _along, _intersect_relative = _k.prepare, _k.may_hit, _k
 _render_pixel_bvh = _k.render_pixel_bvh
 _ray_axes, _children, _leaf_hits, _centre = _k.ray_axes, _k.children, _k.leaf_hits, _k.centre_along
 
-# Fast kernel defaults (its options rays and tile): each thread traces
-# RAYS_PER_THREAD pixels, one above the other a block height apart, so every
-# sphere read from shared memory serves that many tests; spheres are staged
-# in shared memory STAGED at a time (16 bytes each).
-RAYS_PER_THREAD = 8
-STAGED = 256
-# Spheres tested per trip of the cull loop, one branch for all of them: 3
-# measured fastest with 8x8 blocks; 4 no faster, with more registers (step 5 of
-# docs/floors.md#each-version-against-the-floor).
-TRIP = 3
-MAX_TRIP = 4
-MAX_RAYS_PER_THREAD = 16
-MAX_STAGED = 3071  # 48 KiB of shared memory (with a pad slot), what every CUDA GPU gives a block
 _U = np.uint64
 
 
@@ -289,12 +255,12 @@ def _prepare_kernel(basis, spheres, count, relative):
 
 
 @functools.cache
-def fast_kernel(rays: int = RAYS_PER_THREAD, tile: int = STAGED, trip: int = TRIP):
-    """The fast kernel for `rays` pixels per thread, `tile` spheres per
-    shared-memory tile and `trip` spheres per trip of the cull loop
+def fast_kernel(rays: int = RAYS_PER_THREAD, staged: int = STAGED, trip: int = TRIP):
+    """The fast kernel for `rays` pixels per thread, `staged` spheres staged
+    in shared memory at a time and `trip` spheres per trip of the cull loop
     (compile-time constants: the per-thread arrays must have a fixed size to
     live in registers); one compilation per combination."""
-    slots = tile + trip - 1  # room for the pads of a tile that is not a whole number of trips
+    slots = staged + trip - 1  # room for the pads of a batch that is not a whole number of trips
 
     @cuda.jit(device=True)
     def farthest(ex, ey, ez, dx, dy, dz, v):
@@ -322,8 +288,8 @@ def fast_kernel(rays: int = RAYS_PER_THREAD, tile: int = STAGED, trip: int = TRI
 
     @cuda.jit
     def kernel(width, height, first, end, basis, spheres, relative, count, image, hits):
-        """`rays` pixels per thread; the block walks the spheres a tile at a time
-        through shared memory, each thread scanning them two at a time with
+        """`rays` pixels per thread; the block walks the spheres `staged` at a
+        time through shared memory, each thread scanning them two at a time with
         the cull test on all its rays and stopping for the exact test only
         where the cull cannot rule a hit out. Same arithmetic, same order of
         spheres, same pixels as _render_kernel."""
@@ -354,9 +320,9 @@ def fast_kernel(rays: int = RAYS_PER_THREAD, tile: int = STAGED, trip: int = TRI
         # for Python's negative indexing (step 4 of docs/floors.md#each-version-against-the-floor).
         me = _U(cuda.threadIdx.y * bw + cuda.threadIdx.x)
         total = _U(count)
-        for base in range(_U(0), total, _U(tile)):
-            n = min(_U(tile), total - base)
-            cuda.syncthreads()  # every thread is done with the previous tile
+        for base in range(_U(0), total, _U(staged)):
+            n = min(_U(staged), total - base)
+            cuda.syncthreads()  # every thread is done with the previous batch
             for k in range(me, n, _U(bw * bh)):
                 sx[k] = relative[0, base + k]
                 sy[k] = relative[1, base + k]
@@ -411,32 +377,6 @@ def _constant_kernel(count: int):
     return render_kernel
 
 
-def _check_block(block, kernel: str) -> tuple[int, int]:
-    try:
-        bx, by = (int(v) for v in block)
-    except (TypeError, ValueError):
-        raise RaybenchError(f"block: must be two integers (x, y), got {shown(block)}") from None
-    if bx < 1 or by < 1 or bx * by > 1024:
-        raise RaybenchError(f"block: each side must be >= 1 and x*y at most 1024 threads, got {bx}x{by}")
-    if kernel == "fast" and bx * by > FAST_MAX_THREADS:
-        raise RaybenchError(
-            f"block: the fast kernel takes at most {FAST_MAX_THREADS} threads per block (its rays "
-            f"need the registers), got {bx}x{by}; use a smaller block or --kernel simple"
-        )
-    if kernel in WALKS and bx * by > FAST_MAX_THREADS:
-        raise RaybenchError(
-            f"block: the BVH walk takes at most {FAST_MAX_THREADS} threads per block (its stack and "
-            f"ray need the registers), got {bx}x{by}; use a smaller block"
-        )
-    return bx, by
-
-
-def _check_int(name: str, value, low: int, high: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
-        raise RaybenchError(f"{name}: must be an integer from {low} to {high}, got {shown(value)}")
-    return int(value)
-
-
 class Tracer(TracerBase):
     """Keeps the spheres and the frame buffers on the GPU between frames
     (the contract: backends.contract.Tracer)."""
@@ -450,39 +390,21 @@ class Tracer(TracerBase):
         spheres: np.ndarray,
         width: int,
         height: int,
-        block=None,
-        constant_count: bool = False,
-        kernel: str | None = None,
-        rays: int | None = None,
-        tile: int | None = None,
-        trip: int | None = None,
-        accel: str | None = None,
-        walk: str | None = None,
-        build: str | None = None,
+        options: CudaOptions | None = None,
         whitted: Shading | None = None,
-        schedule: str | None = None,
-        wave_grid: int | None = None,
     ):
+        """options: the device's (backends.options.checked("cuda", ...); None
+        for the defaults); whitted: the Shading of a Whitted frame, None for
+        the thesis's shading."""
         require()
-        self.accel, self.kernel = check_method(
-            accel,
-            kernel,
-            constant_count,
-            {"rays": rays is not None, "tile": tile is not None, "trip": trip is not None},
-            whitted,
-        )
-        rays = RAYS_PER_THREAD if rays is None else rays
-        tile = STAGED if tile is None else tile
-        trip = TRIP if trip is None else trip
-        walk = check_walk(walk, self.accel)
-        self.build = check_build(build, self.accel)
-        block_given = block is not None
-        if not block_given:  # for an auto walk, replaced below once the tree has chosen it
-            block = DEFAULT_BLOCK[self.kernel or walk or "ray"]
-        self.rays = _check_int("rays", rays, 1, MAX_RAYS_PER_THREAD) if self.kernel == "fast" else 1
-        self.tile = _check_int("tile", tile, 1, MAX_STAGED)
-        self.trip = _check_int("trip", trip, 1, MAX_TRIP)
-        self.block = _check_block(block, self.kernel or walk or "ray")
+        if options is None:
+            options = checked("cuda", {}, whitted)
+        self.options = options
+        self.accel, self.kernel, self.build = options.accel, options.kernel, options.build
+        walk = options.walk
+        # for a walk the tree chooses, replaced below once it has chosen
+        self.block = options.block or DEFAULT_BLOCK[self.kernel or walk or "ray"]
+        self.rays, self.staged, self.trip = options.rays, options.staged, options.trip
         free, _total = cuda.current_context().get_memory_info()
         check_fits("cuda GPU", width, height, spheres.shape[1], free)
         check_fits("host", width, height, 0, host_available_bytes(), HOST_PIXEL_BYTES)
@@ -515,25 +437,20 @@ class Tracer(TracerBase):
         self.image = self.host_array((height, width, 3), np.uint8)
         self.hits = self.host_array((height, width), np.int32)
         self.d_basis = cuda.device_array((4, 3), dtype=np.float32)
-        self.constant_count = bool(constant_count)
+        self.constant_count = options.constant_count
         self.bvh = None
         self.build_s = None
         self._builder = None
         self._fresh_cost = None
         self.walk = None
         self.whitted = whitted
-        self.schedule = check_schedule(schedule, whitted)
+        self.schedule = options.schedule
         self._wavefront = None  # the wavefront's queues and launches (schedule "wavefront")
         self.ray_counts = None
         if whitted is not None:
-            if walk == "packet":
-                raise RaybenchError(
-                    "walk 'packet': applies to the thesis's shading only; Whitted's rays walk one by one"
-                )
             self._kernel = _whitted_kernel
             if self.schedule == "wavefront":
-                grid = None if wave_grid is None else _check_int("wave_grid", wave_grid, 1, 1 << 24)
-                self._wavefront = Wavefront(width, height, whitted.depth, grid)
+                self._wavefront = Wavefront(width, height, whitted.depth, options.wave_grid)
             if self.accel == "bvh":
                 self._build(self.count)
                 self.walk = "ray"
@@ -552,10 +469,10 @@ class Tracer(TracerBase):
             self._build(self.count)
             self.walk = choose_walk(self._rows_walked()) if walk is None else walk
             self._kernel = _bvh_packet_kernel if self.walk == "packet" else _bvh_kernel
-            if not block_given:
+            if options.block is None:
                 self.block = DEFAULT_BLOCK[self.walk]
         elif self.kernel == "fast":
-            self._kernel = fast_kernel(self.rays, self.tile, self.trip)
+            self._kernel = fast_kernel(self.rays, self.staged, self.trip)
             self.d_relative = cuda.device_array((4, max(self.count, 1)), dtype=np.float32)
         else:
             self._kernel = _constant_kernel(self.count) if self.constant_count else _render_kernel
@@ -570,7 +487,11 @@ class Tracer(TracerBase):
         tree ready to walk."""
         if self.build == "gpu":
             if self._builder is None or self._builder.n != count:
-                self._builder = cuda_build.Builder(count) if count >= 2 else None
+                self._builder = (
+                    cuda_build.Builder(count, quality=self.options.quality, treelet_passes=self.options.treelet_passes)
+                    if count >= 2
+                    else None
+                )
             self.bvh = cuda_build.build(self.spheres[:, :count], self.d_spheres, self._builder)
             # the fresh tree's SAH cost: what update()'s refits are held to
             self._fresh_cost = self._builder.read_cost() if self.bvh.built_on == "gpu" else None
@@ -594,7 +515,7 @@ class Tracer(TracerBase):
         the next frames show spheres, a (7, N) float32 array like the first.
         Their tree follows: with build "gpu" refitted on the GPU (its shape
         kept, its boxes the spheres' new ones) while its SAH cost stays
-        within cuda_build.REFIT_LIMIT of its fresh cost, else rebuilt; with
+        within options.refit_limit of its fresh cost, else rebuilt; with
         build "host" rebuilt on the host. Returns "refit" or "build" (None
         for brute force, which has no tree); build_s is what it took, the
         tree ready to walk."""
@@ -609,7 +530,7 @@ class Tracer(TracerBase):
             self._builder.launch_refit(self.d_spheres)
             cost = self._builder.read_cost()  # waits for the refit
             refit_s = time.perf_counter() - start
-            if cost <= cuda_build.REFIT_LIMIT * self._fresh_cost:
+            if cost <= self.options.refit_limit * self._fresh_cost:
                 self.build_s = refit_s
                 return "refit"
         self._build(self.bvh.count)

@@ -13,8 +13,8 @@ Nothing here imports wgpu until an adapter is asked for.
 
 from __future__ import annotations
 
+from ..options import DEFAULT_WORKGROUP
 from .adapters import choose, found, gpu_present
-from .compute import DEFAULT_WORKGROUP
 from .tracer import Tracer
 
 __all__ = ["DEFAULT_WORKGROUP", "Tracer", "choose", "description", "found", "gpu_present", "require"]

@@ -17,13 +17,12 @@ import numpy as np
 
 from ... import bvh as bvh_mod
 from ... import layout, lighting
-from ...bvh import lbvh
-from ...errors import RaybenchError, shown
+from ...errors import RaybenchError
 from ...host import host_available_bytes
 from ...kernels import whitted
 from ...lighting import Shading
-from ..limits import HOST_PIXEL_BYTES, check_build, check_bvh_fits, check_schedule, check_walk
-from ..limits import check_accel as check_accel_and_kernel
+from ..limits import HOST_PIXEL_BYTES, check_bvh_fits
+from ..options import WgpuOptions
 from . import build as gpu_build
 from . import shader
 from .wavefront import Wavefront
@@ -31,48 +30,18 @@ from .wavefront import Wavefront
 FRAME_FORMAT = "rgba8unorm"
 SPHERE_FLOATS = 8  # shader's struct Sphere: the 7 columns and a pad
 UNIFORM_BYTES = 80  # shader's struct Frame: four vec4s, four u32s
-# The default workgroups: WebGPU's default limit (256 invocations), so they
-# run on every adapter (the thesis's 32x32 runs where the adapter allows
-# 1024); for the packet walk 8x8, two NVIDIA warps, each an 8x4 packet of
-# pixels (measured a little faster than 8x4, and 16x16 and 32x8 slower:
-# docs/bvh-walk.md#tried-packets-on-wgpu-leases-r-and-s-kept-as-an-option-not-the-default).
-DEFAULT_WORKGROUP = {"none": (16, 16), "ray": (16, 16), "packet": (8, 8)}
 # The packet walk's votes are subgroup operations (packet.wgsl). It is no
 # default: on the one GPU measured through Vulkan it was slower than a ray at
 # a time at every size, where cuda's packets are faster on large trees
 # (docs/bvh-walk.md#tried-packets-on-wgpu-leases-r-and-s-kept-as-an-option-not-the-default);
 # walk="packet" measures it on another GPU.
 PACKET_FEATURE = "subgroup"
-# The tree is the host's unless build "gpu" is asked for, as on cuda: the
-# GPU's LBVH is the cheaper build, the host's SAH tree the faster walk
-# (docs/gpu-build.md#the-same-build-in-wgsl-wgpu).
-DEFAULT_BUILD = "host"
 RAY_KINDS = len(whitted.KINDS)
 
 
-def check_kernel(kernel) -> None:
-    if kernel != "simple":
-        raise RaybenchError(
-            f"kernel: the wgpu backend has the simple kernel only (the thesis's loop, one "
-            f"invocation per pixel), got {shown(kernel)}; use --kernel simple"
-        )
-
-
-def check_accel(accel, kernel) -> str:
-    """accel, checked: "bvh" (the default, as on cpu and cuda) or "none", brute
-    force, whose one kernel is the simple one; a kernel named without an
-    accel means brute force, with "bvh" it is an error."""
-    accel, _ = check_accel_and_kernel(accel, kernel, {})
-    if accel == "none":
-        check_kernel("simple" if kernel is None else kernel)
-    return accel
-
-
-def check_workgroup(workgroup, limits: dict) -> tuple[int, int]:
-    try:
-        x, y = (int(v) for v in workgroup)
-    except (TypeError, ValueError):
-        raise RaybenchError(f"workgroup: must be two integers (x, y), got {shown(workgroup)}") from None
+def check_workgroup(workgroup: tuple[int, int], limits: dict) -> tuple[int, int]:
+    """A workgroup (x, y) of positive integers (WgpuOptions), against this adapter's limits."""
+    x, y = workgroup
     most = limits["max-compute-invocations-per-workgroup"]
     max_x, max_y = limits["max-compute-workgroup-size-x"], limits["max-compute-workgroup-size-y"]
     if x < 1 or y < 1 or x > max_x or y > max_y or x * y > most:
@@ -162,37 +131,27 @@ class Compute:
         spheres: np.ndarray,
         width: int,
         height: int,
-        workgroup=None,
-        accel: str | None = None,
-        kernel: str | None = None,
-        extra_texture_usage: int = 0,
-        walk: str | None = None,
+        options: WgpuOptions,
         whitted: Shading | None = None,
-        build: str | None = None,
-        schedule: str | None = None,
+        extra_texture_usage: int = 0,
     ):
         import wgpu
 
         self.device = device
         limits = dict(device.limits)
-        self.accel = check_accel(accel, kernel)
-        self.build = check_build(build, self.accel, DEFAULT_BUILD)
-        walk = check_walk(walk, self.accel)
-        if whitted is not None and walk == "packet":
-            raise RaybenchError("walk 'packet': applies to the thesis's shading only; Whitted's rays walk one by one")
-        self.walk = (walk or "ray") if self.accel == "bvh" else None
+        self.options = options
+        self.accel, self.build, self.walk = options.accel, options.build, options.walk
         # the shader's entry point: the walk's, or Whitted shading's (either accel)
         self.program = "whitted" if whitted is not None else (self.walk or "ray")
         self.whitted = whitted
-        self.schedule = check_schedule(schedule, whitted)
+        self.schedule = options.schedule
         self.wavefront = None  # the wavefront's pipelines and queues (schedule "wavefront")
         if self.walk == "packet" and PACKET_FEATURE not in device.features:
             raise RaybenchError(
                 f"walk: the packet walk votes with subgroup operations, and this device has no "
                 f"{PACKET_FEATURE!r} feature; use walk='ray'"
             )
-        default = DEFAULT_WORKGROUP[self.walk or self.accel]
-        self.workgroup = check_workgroup(default if workgroup is None else workgroup, limits)
+        self.workgroup = check_workgroup(options.workgroup, limits)
         self.count = spheres.shape[1]
         check_frame_fits(width, height, self.count, self.workgroup, limits, self.accel)
         if self.accel == "bvh":
@@ -294,7 +253,7 @@ class Compute:
     def update(self, spheres: np.ndarray) -> str | None:
         """The spheres moved (checked by the Tracer): uploaded over the old
         ones. Their tree follows, as on cuda: with build "gpu" refitted on
-        the GPU while its SAH cost stays within lbvh.REFIT_LIMIT of its fresh
+        the GPU while its SAH cost stays within options.refit_limit of its fresh
         cost, else rebuilt; with build "host" rebuilt on the host. "refit" or
         "build", or None for brute force."""
         self.device.queue.write_buffer(self.spheres, 0, sphere_rows(spheres).tobytes())
@@ -306,7 +265,7 @@ class Compute:
             start = time.perf_counter()
             stats = self.builder.run(self.builder.encode_refit)  # after the upload, queued first
             refit_s = time.perf_counter() - start
-            if stats.cost <= lbvh.REFIT_LIMIT * self.tree.cost:
+            if stats.cost <= self.options.refit_limit * self.tree.cost:
                 self.build_s = refit_s
                 return "refit"
         self._build(self.tree.count)
@@ -323,7 +282,9 @@ class Compute:
         if self.build == "gpu" and count >= 2:
             if self.builder is None or self.builder.n != count:
                 self.kernels = self.kernels or gpu_build.Kernels(self.device)
-                self.builder = gpu_build.Builder(self.device, self.spheres, count, kernels=self.kernels)
+                self.builder = gpu_build.Builder(
+                    self.device, self.spheres, count, quality=self.options.quality, kernels=self.kernels
+                )
             tree = gpu_build.build(self.device, spheres, self.builder)
         else:
             tree = gpu_build.upload(self.device, bvh_mod.build(spheres, device="wgpu"))

@@ -14,8 +14,9 @@ from ...host import host_available_bytes
 from ...lighting import Shading
 from ..contract import TracerBase, check_moved
 from ..limits import HOST_PIXEL_BYTES, check_count, check_fits, check_size
+from ..options import WgpuOptions, checked
 from . import adapters
-from .compute import RAY_KINDS, Compute, check_accel
+from .compute import RAY_KINDS, Compute
 from .pack import Packer, packed_bytes
 
 
@@ -43,29 +44,26 @@ class Tracer(TracerBase):
         spheres: np.ndarray,
         width: int,
         height: int,
-        workgroup=None,
-        adapter: str | None = None,
-        accel: str | None = None,
-        kernel: str | None = None,
-        walk: str | None = None,
+        options: WgpuOptions | None = None,
         whitted: Shading | None = None,
-        build: str | None = None,
-        schedule: str | None = None,
     ):
+        """options: the device's (backends.options.checked("wgpu", ...); None
+        for the defaults); whitted: the Shading of a Whitted frame, None for
+        the thesis's shading."""
         import wgpu
 
-        accel = check_accel(accel, kernel)
+        if options is None:
+            options = checked("wgpu", {}, whitted)
         check_size(width, height)
-        self.adapter = adapters.choose(adapter)
+        self.adapter = adapters.choose(options.adapter)
         self.device = adapters.request_device(self.adapter)
         check_fits("host", width, height, 0, host_available_bytes(), HOST_PIXEL_BYTES)
         self.compute = Compute(
-            self.device, spheres, width, height, workgroup, accel, kernel,
-            extra_texture_usage=wgpu.TextureUsage.TEXTURE_BINDING, walk=walk, whitted=whitted, build=build,
-            schedule=schedule,
-        )  # fmt: skip
+            self.device, spheres, width, height, options, whitted, extra_texture_usage=wgpu.TextureUsage.TEXTURE_BINDING
+        )
         self.packer = Packer(self.device, self.compute.texture, width, height)
-        self.accel = accel
+        self.options = options
+        self.accel = options.accel
         self.build = self.compute.build  # where the BVH is built: "host" or "gpu"; None for brute force
         self.walk = self.compute.walk  # the BVH walk: "ray" or "packet"; None for brute force
         self.schedule = self.compute.schedule  # Whitted's: "wavefront" or "pixel"; None for the thesis's
