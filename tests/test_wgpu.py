@@ -19,6 +19,8 @@ from scenes import IN_VIEW, KINDS, SCENES, one_point
 
 import raybench
 from raybench import backends
+from raybench.backends import options
+from raybench.backends.options import checked
 from raybench.backends.wgpu import adapters, compute
 from raybench.cli import run
 from raybench.render import Frame
@@ -136,7 +138,7 @@ def test_the_packed_image_is_the_texture_read_back_as_it_is(adapter, rng):
 
     scene, camera = KINDS["generated"](rng, int(rng.integers(1, 60)))
     for width, height in [(1, 1), (3, 1), (5, 3), (int(rng.integers(1, 90)), int(rng.integers(1, 40)))]:
-        tracer = Tracer(scene.spheres, width, height, adapter=adapter)
+        tracer = Tracer(scene.spheres, width, height, checked("wgpu", {"adapter": adapter}))
         image, _hits = tracer.trace(camera.basis(width, height))
         row_bytes = -(-width * 4 // 256) * 256
         plain = tracer.device.create_buffer(
@@ -227,10 +229,10 @@ def test_wgpu_walks_a_ray_at_a_time_unless_asked_for_packets(adapter):
     measured slower on the H200); packets, where asked for, in their own."""
     for n in (50, 30000):
         tracer = backends.tracer("wgpu", raybench.random_spheres(n).spheres, 16, 8, adapter=adapter)
-        assert (tracer.walk, tracer.workgroup) == ("ray", compute.DEFAULT_WORKGROUP["ray"])
+        assert (tracer.walk, tracer.workgroup) == ("ray", options.DEFAULT_WORKGROUP["ray"])
     if has_subgroups(adapter):
         tracer = backends.tracer("wgpu", raybench.random_spheres(50).spheres, 16, 8, adapter=adapter, walk="packet")
-        assert (tracer.walk, tracer.workgroup) == ("packet", compute.DEFAULT_WORKGROUP["packet"])
+        assert (tracer.walk, tracer.workgroup) == ("packet", options.DEFAULT_WORKGROUP["packet"])
     given = backends.tracer(
         "wgpu", raybench.random_spheres(50).spheres, 16, 8, adapter=adapter, walk="ray", workgroup=(4, 4)
     )
@@ -246,7 +248,7 @@ def test_packets_without_subgroups_are_refused_in_one_line(adapter):
     device = adapters.choose(adapter).adapter.request_device_sync(required_features=[])
     assert compute.PACKET_FEATURE not in device.features
     with pytest.raises(raybench.RaybenchError, match="walk: the packet walk votes with subgroup operations"):
-        compute.Compute(device, raybench.random_spheres(3).spheres, 8, 8, walk="packet")
+        compute.Compute(device, raybench.random_spheres(3).spheres, 8, 8, checked("wgpu", {"walk": "packet"}))
 
 
 def test_a_name_that_matches_no_adapter_lists_those_found(adapter):
