@@ -11,7 +11,7 @@ import click
 
 from ..backends.limits import ACCELS, BUILDS, KERNELS
 from ..errors import RaybenchError
-from ..files import check_writable
+from ..files import check_writable, output_mode
 from ..lighting import SHADINGS
 
 SIZE_HELP = "image size as WIDTHxHEIGHT, e.g. 1680x1050"
@@ -74,11 +74,13 @@ def check_output(path: Path, option: str = "-o", suffix: str = ".png") -> None:
     if path.suffix.lower() != suffix:
         raise RaybenchError(f"{option} {path}: the output must be a {suffix} file")
     folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
+    if not os.path.isdir(folder):
         raise RaybenchError(f"{option} {path}: folder {folder} does not exist")
-    if path.is_dir():
+    if os.path.isdir(path):
         raise RaybenchError(f"{option} {path}: is a folder; give a file name")
-    if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+    # what is there: a FIFO or a device is refused (never replaced), a name too long for the file system too
+    output_mode(path, option)
+    if not os.access(folder, os.W_OK) or (os.path.exists(path) and not os.access(path, os.W_OK)):
         raise RaybenchError(f"{option} {path}: not writable; choose another path")
     # os.access answers for the permissions only (and yes to root): creating a
     # file there answers for read-only file systems and the rest too.

@@ -10,7 +10,7 @@ from pathlib import Path
 import click
 
 from ..errors import RaybenchError
-from ..files import check_writable
+from ..files import check_writable, make_folder
 from ..scene import SPREADS
 from .options import (
     check_output,
@@ -181,12 +181,8 @@ def _render_sequence(scene, spec, frames, output, width, height, device, shaded,
         raise RaybenchError("--path: give -o DIR, the folder to write the frames in")
     if output.suffix.lower() == ".png":
         raise RaybenchError(f"-o {output}: with --path, a folder for the frames, not a .png file")
-    if output.exists() and not output.is_dir():
-        raise RaybenchError(f"-o {output}: is a file; give a folder for the frames")
     cameras = camera_path.load(spec, 240 if frames is None else frames, scene.camera)
-    if not output.parent.is_dir():
-        raise RaybenchError(f"-o {output}: folder {output.parent} does not exist")
-    output.mkdir(exist_ok=True)
+    make_folder(output, "-o")
     check_writable(cluster.frame_path(output, 0), "-o")
     start = time.perf_counter()
     with open_cluster(workers, device, scheduler, timeout) as running:
