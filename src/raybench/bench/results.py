@@ -66,7 +66,6 @@ A record (format "raybench-results", version 1):
 from __future__ import annotations
 
 import json
-import os
 import re
 import warnings
 from pathlib import Path
