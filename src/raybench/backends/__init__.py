@@ -125,4 +125,13 @@ def tracer(device: str, spheres, width: int, height: int, **options):
         if key not in OPTIONS[name]:
             allowed = ", ".join(OPTIONS[name])
             raise RaybenchError(f"option {key!r} does not apply to device {name} (its options: {allowed})")
+    if options.get("whitted") is not None:
+        import numpy as np
+
+        from ..lighting import Shading
+
+        shading = options["whitted"]
+        if not isinstance(shading, Shading):
+            raise RaybenchError(f"whitted: must be a raybench.lighting.Shading, got {type(shading).__name__}")
+        shading.check(np.shape(spheres)[-1])
     return module(name).Tracer(spheres, width, height, **options)

@@ -9,7 +9,14 @@ from pathlib import Path
 
 import click
 
-from ..backends.limits import ACCELS, BUILDS, KERNELS
+from ..backends.limits import (
+    ACCELS,
+    BUILDS,
+    KERNELS,
+    WORKERS_PER_CORE,
+    check_connect_timeout,
+    check_worker_count,
+)
 from ..errors import RaybenchError
 from ..files import check_writable, output_mode
 from ..lighting import SHADINGS
@@ -230,9 +237,11 @@ def cluster_options():
     return stacked(
         click.option(
             "--workers",
-            type=click.IntRange(min=1),
+            type=int,
+            callback=_checked(check_worker_count),
             help="trace across an embedded Dask cluster of N worker processes on this machine (one per GPU on "
-            "cuda; on the cpu, sharing the cores)",
+            f"cuda; on the cpu, sharing the cores; at most {WORKERS_PER_CORE} a core, and as many as the memory "
+            "holds)",
         ),
         scheduler_option("trace across the running Dask cluster whose scheduler is at this address"),
         click.option(
@@ -251,11 +260,27 @@ def scheduler_option(what: str):
 def connect_timeout_option():
     return click.option(
         "--connect-timeout",
-        type=click.FloatRange(min=0.1, max=3600),
+        type=float,
+        callback=_checked(check_connect_timeout),
         default=10.0,
         show_default=True,
         help="seconds to try the scheduler's address before giving up",
     )
+
+
+def _checked(check):
+    """A click callback that checks an option's value by raybench's own rule
+    (the one the Python API applies), as a usage error naming the option."""
+
+    def callback(ctx, param, value):
+        if value is None:
+            return None
+        try:
+            return check(value)
+        except RaybenchError as exc:
+            raise click.BadParameter(str(exc)) from None
+
+    return callback
 
 
 def open_cluster(workers, device, scheduler, connect_timeout):

@@ -45,7 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..backends.limits import PIXEL_BYTES, check_fits
+from ..backends.limits import PIXEL_BYTES, check_connect_timeout, check_fits, check_worker_count
 from ..camera import Camera
 from ..errors import RaybenchError, one_line
 from ..host import host_available_bytes, usable_cores
@@ -156,6 +156,7 @@ class Cluster:
         from .. import backends
 
         scheduler = scheduler or os.environ.get(SCHEDULER_ENV) or None
+        timeout = check_connect_timeout(timeout)
         self.cluster = None
         if scheduler is not None:
             if workers is not None:
@@ -167,8 +168,7 @@ class Cluster:
             raise RaybenchError("device wgpu: the cluster runs cpu or cuda workers")
         if workers is None:
             workers = default_workers(device)
-        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-            raise RaybenchError(f"workers: must be a whole number >= 1, got {workers!r}")
+        workers = check_worker_count(workers)
         if device == "cuda" and not backends.module("cuda").simulated() and workers > gpu_count():
             raise RaybenchError(f"workers: {workers} cuda workers need {workers} GPUs; this machine has {gpu_count()}")
         # Dask's default sets MALLOC_TRIM_THRESHOLD_ in a worker's environment;
@@ -211,6 +211,7 @@ def connect(address: str, timeout: float = CONNECT_TIMEOUT_S):
     reached within timeout seconds."""
     from distributed import Client
 
+    timeout = check_connect_timeout(timeout)
     try:
         return Client(address, timeout=timeout)
     except (OSError, TimeoutError, ValueError) as exc:
