@@ -45,6 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import sequence
 from ..backends.limits import PIXEL_BYTES, check_connect_timeout, check_fits, check_worker_count
 from ..camera import Camera
 from ..errors import RaybenchError, one_line
@@ -52,6 +53,7 @@ from ..host import host_available_bytes, usable_cores
 from ..kernels.whitted import KINDS
 from ..render import PNG_LEVEL, Frame, Renderer
 from ..scene import Scene
+from ..sequence import frame_path
 from . import sharedframe
 
 HOST = "127.0.0.1"  # every process of an embedded cluster listens here only
@@ -579,10 +581,6 @@ def trace_frames(
         client.cancel(tasks)
 
 
-def frame_path(out_dir: Path, number: int) -> Path:
-    return Path(out_dir) / f"frame_{number:05d}.png"
-
-
 def render_sequence(
     client,
     scene: Scene,
@@ -603,8 +601,10 @@ def render_sequence(
     cluster's workers in tasks of frames_per_task frames, encoded there at
     zlib's png_level (default render.PNG_LEVEL) and each written here,
     atomically, as it arrives. A frame already on disk is not traced
-    again (an interrupted sequence resumes); on_frame(number, path) is
-    called for every frame, skipped ones first. The frames' paths, in order."""
+    again (an interrupted sequence resumes), once raybench.sequence.prepare
+    has found the folder to hold nothing but frames of this sequence (one
+    line, before any work, otherwise); on_frame(number, path) is called for
+    every frame, skipped ones first. The frames' paths, in order."""
     from distributed import as_completed
     from distributed.client import FutureCancelledError
 
@@ -620,12 +620,14 @@ def render_sequence(
     if not out_dir.is_dir():
         raise RaybenchError(f"{out_dir}: not a folder; make it first")
     spec = _spec(width, height, device, shading, depth, shadow_samples, options)
+    marker = sequence.identity(scene, cameras, spec[0], spec[1], shading, depth, shadow_samples)
+    missing = set(sequence.prepare(out_dir, marker))
     found = check_workers(client, device, **options)
     spec = (spec[0], spec[1], next(iter(found.values())), *spec[3:])
     paths = [frame_path(out_dir, n) for n in range(len(cameras))]
     todo = []
     for n, path in enumerate(paths):
-        if path.exists():
+        if n not in missing:
             if on_frame is not None:
                 on_frame(n, path)
         else:
