@@ -4,8 +4,8 @@
 Each frame gets its own 256-colour palette (Pillow's adaptive one), so the GIF
 is an approximation of the PNGs, which stay the exact frames. Pillow holds
 every frame, palettised (1 byte a pixel), until the file is written, and the
-file itself is made in memory: about BYTES_PER_PIXEL bytes a pixel of every
-frame (240 frames at 1680x1050 are some 850 MB), checked before the
+file itself is made in memory: up to about BYTES_PER_PIXEL bytes a pixel of
+every frame (240 frames at 1680x1050 are some 1.7 GB), checked before the
 sequence is traced.
 """
 
@@ -24,10 +24,13 @@ from .files import write_atomic
 FPS = 25
 # A GIF's width and height are 16-bit fields.
 MAX_SIDE = 65535
-# Memory while a GIF is made, a pixel of each frame: the palettised frames
-# Pillow holds (1) and the file in memory (up to about 1 for busy frames;
-# measured 30 frames of 1600x1000 noise: 100 MB over 48 MB of frames).
-BYTES_PER_PIXEL = 2
+# Memory while a GIF is made, in bytes a pixel of a frame: each frame
+# Pillow holds palettised, with its part of the file made in memory
+# (BYTES_PER_PIXEL), and once the frame being read and quantised (RGB,
+# copies; WORKING_BYTES_PER_PIXEL). Measured with frames of 6000x5000 of
+# busy pixels: 460 MiB over the start for 1 frame, 757 MiB for 4.
+BYTES_PER_PIXEL = 4
+WORKING_BYTES_PER_PIXEL = 16
 
 
 def check_path(path) -> Path:
@@ -46,7 +49,8 @@ def check_fits(frames: int, width: int, height: int) -> None:
 
     if width > MAX_SIDE or height > MAX_SIDE:
         raise RaybenchError(f"--gif: a GIF is at most {MAX_SIDE} pixels a side, the frames are {width}x{height}")
-    need, available = frames * width * height * BYTES_PER_PIXEL, host_available_bytes()
+    need = width * height * (frames * BYTES_PER_PIXEL + WORKING_BYTES_PER_PIXEL)
+    available = host_available_bytes()
     if need > available:
         raise RaybenchError(
             f"--gif: {frames} frames of {width}x{height} need about {need / 2**30:.2f} GiB while the GIF is made, "
