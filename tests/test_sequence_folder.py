@@ -62,7 +62,7 @@ PLANTS = {
     "another size": lambda path, rng: path.write_bytes(picture(rng, W + int(rng.integers(1, 9)), H)),
 }
 NEEDLE = {"garbage": "is not a PNG image", "text": "is not a PNG image", "folder": "is a folder, not a frame",
-          "symlink": "is a symlink, not a frame", "fifo": "is a special file, not a frame",
+          "symlink": "is a symlink, not a frame", "fifo": "is a pipe, not a frame",
           "another size": f"this sequence's frames {W}x{H}"}  # fmt: skip
 
 

@@ -49,7 +49,7 @@ def read_text(path, what: str, max_bytes: int | None = None) -> str:
         with os.fdopen(fd, "rb") as f:
             info = os.fstat(f.fileno())
             if not stat.S_ISREG(info.st_mode):
-                raise RaybenchError(f"{path}: the {what} must be a regular file, not a {_kind(info.st_mode)}")
+                raise RaybenchError(f"{path}: the {what} must be a regular file, not a {file_kind(info.st_mode)}")
             if info.st_size > max_bytes:
                 raise RaybenchError(
                     f"{path}: the {what} is {info.st_size / 2**20:,.0f} MiB, over the limit of "
@@ -67,7 +67,8 @@ def read_text(path, what: str, max_bytes: int | None = None) -> str:
         raise RaybenchError(f"{path}: cannot read the {what}: not UTF-8 text (byte {exc.start})") from None
 
 
-def _kind(mode: int) -> str:
+def file_kind(mode: int) -> str:
+    """What a file that is not a regular one is, in a message: a folder, a pipe, ..."""
     if stat.S_ISDIR(mode):
         return "folder"
     if stat.S_ISFIFO(mode):
@@ -194,7 +195,7 @@ def output_mode(path, what: str = "") -> int | None:
         return None
     if not stat.S_ISREG(info.st_mode):
         raise RaybenchError(
-            f"{label}: is a {_kind(info.st_mode)}, not a regular file; raybench writes regular files only "
+            f"{label}: is a {file_kind(info.st_mode)}, not a regular file; raybench writes regular files only "
             "and leaves this one as it is: choose another path"
         )
     return stat.S_IMODE(info.st_mode)
@@ -319,7 +320,7 @@ class Appended:
         if not stat.S_ISREG(info.st_mode):
             os.close(fd)
             label = f"{self.what} {self.path}" if self.what else str(self.path)
-            raise RaybenchError(f"{label}: is a {_kind(info.st_mode)}, not a regular file; choose another path")
+            raise RaybenchError(f"{label}: is a {file_kind(info.st_mode)}, not a regular file; choose another path")
         return fd
 
     def close(self) -> None:

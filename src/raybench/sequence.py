@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import RaybenchError
-from .files import output_mode, read_json, write_atomic
+from .files import file_kind, output_mode, read_json, write_atomic
 
 MARKER = ".raybench-sequence.json"
 FORMAT = "raybench-sequence"
@@ -119,7 +119,7 @@ def _frame_there(path: Path, where: str, width: int, height: int) -> bool:
         raise RaybenchError(f"{where}: cannot look at {path.name} ({exc.strerror or exc})") from None
     fix = "remove it, and the frame is traced again"
     if not stat.S_ISREG(info.st_mode):
-        kind = "symlink" if stat.S_ISLNK(info.st_mode) else "folder" if stat.S_ISDIR(info.st_mode) else "special file"
+        kind = "symlink" if stat.S_ISLNK(info.st_mode) else file_kind(info.st_mode)
         raise RaybenchError(f"{where}: {path.name} is a {kind}, not a frame; {fix}")
     size = png_size(path)
     if size is None:

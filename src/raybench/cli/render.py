@@ -187,10 +187,10 @@ def _render_sequence(scene, spec, frames, output, width, height, device, shaded,
 
         check_fits(len(cameras), width, height)
     make_folder(output, "-o")
-    check_writable(cluster.frame_path(output, 0), "-o")
     # the frames there already checked before a worker starts: this sequence's, or one line
     marker = sequence.identity(scene, cameras, width, height, **shaded)
     todo = sequence.prepare(output, marker, "-o")
+    check_writable(cluster.frame_path(output, todo[0] if todo else 0), "-o")
     start = time.perf_counter()
     with open_cluster(workers, device, scheduler, timeout) as running:
         columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
