@@ -172,3 +172,59 @@ def test_workers_have_an_upper_bound_said_in_one_line(capsys, monkeypatch, rng):
         with pytest.raises(RaybenchError, match=f"at most {most}"):
             raybench.cluster.Cluster(workers=workers, device="cpu")
     assert started == []
+
+
+def test_thread_stacks_count_against_an_address_space_limit():
+    """Under ulimit -v each thread's stack takes address space: the memory
+    check counts the threads the work starts."""
+    import resource
+
+    import psutil
+
+    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+    resource.setrlimit(resource.RLIMIT_AS, (psutil.Process().memory_info().vms + 2**30, hard))
+    try:
+        without, with_16 = raybench.host.host_available_bytes(), raybench.host.host_available_bytes(16)
+    finally:
+        resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
+    stacks = 16 * raybench.host.thread_stack_bytes()
+    assert abs((without - with_16) - stacks) < 64 * 2**20, (without, with_16, stacks)
+
+
+def test_many_threads_under_a_memory_ulimit_are_one_line(tmp_path):
+    """A frame that fits a 4 GiB address space, but not with the stacks of
+    64 threads: one line and exit 2 (it was "can't start new thread", a
+    traceback, once the frame's memory was taken)."""
+    import os
+    import resource
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_AS, (4 * 2**30, resource.RLIM_INFINITY))
+
+    out = tmp_path / "x.png"
+    proc = subprocess.run(
+        [sys.executable, "-m", "raybench", "render", "--spheres", "3", "--size", "16000x16000", "--threads", "64",
+         "--device", "cpu", "-o", str(out)],
+        preexec_fn=limit, capture_output=True, text=True, timeout=300,
+        env=dict(os.environ, PYTHONPATH=str(Path(raybench.__file__).parent.parent)),
+    )  # fmt: skip
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert "16000x16000 with 3 spheres needs" in proc.stderr and not out.exists()
+
+
+def test_a_thread_that_cannot_start_is_one_line(capsys, monkeypatch, tmp_path):
+    """Wherever a thread is refused (a library's own, or ulimit -u): one line."""
+    import sys
+
+    monkeypatch.chdir(tmp_path)
+
+    def refused(*args, **kwargs):
+        raise RuntimeError("can't start new thread")
+
+    monkeypatch.setattr(sys.modules["raybench.render"], "render", refused)
+    assert run(["render", "--spheres", "3", "--size", "8x6", "--device", "cpu", "-o", "x.png"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cannot start a thread: out of memory" in err and "Traceback" not in err

@@ -1017,7 +1017,8 @@ class Tracer(TracerBase):
             threads = default_threads()
         if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or not 1 <= threads <= MAX_THREADS:
             raise RaybenchError(f"threads: must be an integer from 1 to {MAX_THREADS}, got {shown(threads)}")
-        check_fits("cpu", width, height, spheres.shape[1], host_available_bytes(), HOST_PIXEL_BYTES)
+        # the threads' stacks counted: under ulimit -v they take address space the frame then lacks
+        check_fits("cpu", width, height, spheres.shape[1], host_available_bytes(int(threads)), HOST_PIXEL_BYTES)
         if self.accel == "bvh":
             check_bvh_fits(
                 "cpu",
