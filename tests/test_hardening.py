@@ -657,6 +657,25 @@ def test_results_writer_on_a_full_disk_leaves_no_empty_file(tmp_path, monkeypatc
     assert not path.exists() and list(tmp_path.iterdir()) == []  # nor the folder made for it
 
 
+def test_bench_on_a_full_disk_leaves_no_results_file(capsys, tmp_path, monkeypatch):
+    """bench's first record meets a full disk: one line that says nothing
+    was written, and nothing is (the results file was left empty, 0 bytes)."""
+    from raybench.bench import runner
+
+    def full(fd):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    def one_point(points, writer, *args, **kwargs):
+        monkeypatch.setattr(files.os, "fsync", full)
+        writer.write(rec("thesis", "cpu", 100, 5.0))
+
+    monkeypatch.setattr(runner, "run", one_point)
+    before = tree(tmp_path)
+    line = one_line(capsys, ["bench", "--quick", "--device", "cpu", "--out", tmp_path / "out", "--suite", "thesis"],
+                    "No space left on device", "no results were written")  # fmt: skip
+    assert "results-" in line and tree(tmp_path) == before
+
+
 # --- found by the fuzzer ----------------------------------------------------------------------
 
 
