@@ -228,3 +228,66 @@ def test_a_thread_that_cannot_start_is_one_line(capsys, monkeypatch, tmp_path):
     assert run(["render", "--spheres", "3", "--size", "8x6", "--device", "cpu", "-o", "x.png"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "cannot start a thread: out of memory" in err and "Traceback" not in err
+
+
+# --- the fuzzer, on update() ------------------------------------------------------------
+
+HOSTILE = [np.nan, np.inf, -np.inf, 0.0, -0.0, -1.0, 1e-46, 1.5, 2.0, 1e15, 1.1e15, 1e38, -1e38, 3.4e38]
+
+
+def test_fuzz_update(tmp_path):
+    """Generated sphere arrays for update(): mostly a moved scene, with some
+    fields set to hostile values, some arrays of another shape, dtype or
+    layout. The property: update() takes exactly what Scene() takes (the one
+    rule), in one line otherwise; what it takes renders as a new Renderer of
+    that scene renders, even after the caller overwrites its array."""
+    from collections import Counter
+
+    from hypothesis import given
+    from hypothesis import strategies as st
+    from test_fuzz import budget
+
+    seen = Counter()
+    base = raybench.random_spheres(12, seed=5)
+
+    @budget(60)
+    @given(data=st.data())
+    def one(data):
+        seen["tried"] += 1
+        spheres = base.spheres.copy()
+        spheres[CX : CZ + 1] += np.float32(data.draw(st.floats(-2, 2)))
+        for _ in range(data.draw(st.integers(0, 3))):
+            row, column = data.draw(st.integers(0, 6)), data.draw(st.integers(0, len(base) - 1))
+            spheres[row, column] = data.draw(st.sampled_from(HOSTILE))
+        kind = data.draw(st.sampled_from(["array"] * 6 + ["float64", "transposed", "short", "list", "strided"]))
+        given_array = {
+            "array": spheres,
+            "float64": spheres.astype(np.float64),
+            "transposed": np.asfortranarray(spheres),  # the right shape and dtype, another layout: taken, as C
+            "short": spheres[:, :-1],
+            "list": spheres.tolist(),
+            "strided": np.repeat(spheres, 2, axis=1)[:, ::2],  # a view, not contiguous: taken, as C
+        }[kind]
+        try:
+            expected = scene_of(spheres)  # its own copy: the caller's array is overwritten below
+            valid = True
+        except RaybenchError:
+            valid = False
+        with raybench.Renderer(base, 16, 8, device="cpu") as renderer:
+            try:
+                renderer.update(given_array)
+            except RaybenchError as exc:
+                assert "\n" not in str(exc) and "np." not in str(exc) and len(str(exc)) < 400, exc
+                assert not valid or kind in ("float64", "short", "list"), (kind, exc)
+                seen["refused"] += 1
+                return
+            assert valid and kind in ("array", "transposed", "strided"), kind
+            if isinstance(given_array, np.ndarray):
+                given_array[...] = 0  # overwritten by the caller after the update
+            frame = renderer.render()
+        np.testing.assert_array_equal(frame.image, raybench.render(expected, width=16, height=8, device="cpu").image)
+        seen["taken"] += 1
+
+    one()
+    print(f"update calls: {dict(seen)}")
+    assert seen["taken"] >= 0.2 * seen["tried"] and seen["refused"] >= 0.2 * seen["tried"], seen

@@ -128,9 +128,10 @@ def test_frames_without_a_marker_are_kept_where_their_size_is_right(tmp_path, rn
     assert json.loads((tmp_path / sequence.MARKER).read_text()) == mine
 
 
-def test_a_damaged_marker_is_one_line(tmp_path, rng):
+def test_a_damaged_marker_is_one_line_where_frames_are_there(tmp_path, rng):
     (tmp_path / sequence.MARKER).write_text("{not json")
-    with pytest.raises(RaybenchError, match="not valid JSON.*remove it"):
+    sequence.frame_path(tmp_path, 2).write_bytes(picture(rng))
+    with pytest.raises(RaybenchError, match="is damaged \\(not valid JSON.*its 1 frames cannot be told"):
         sequence.prepare(tmp_path, marker_of(rng)[1])
 
 
@@ -194,3 +195,72 @@ def test_a_gif_that_cannot_be_made_is_refused_before_tracing(capsys, monkeypatch
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "2 frames of 64x48 need about" in err and "available" in err
     assert not Path("frames").exists() and not no_cluster
+
+
+# --- the fuzzer, on sequence folders --------------------------------------------------------
+
+SLOTS = ["missing", "missing", "good", "good", "good", "another size", "garbage", "folder", "symlink", "fifo"]
+
+
+def test_fuzz_sequence_folders(tmp_path):
+    """Generated frame folders: each frame's place empty, a good frame, or
+    something else; a marker absent, this sequence's, another's or broken.
+    The property, against a model of the rule: prepare() returns exactly the
+    missing frames where every frame there is a PNG of this size and no
+    marker of another sequence covers them, and else refuses in one line
+    naming the first fault; the frames are never touched."""
+    from collections import Counter
+
+    from hypothesis import given
+    from hypothesis import strategies as st
+    from test_fuzz import budget
+
+    seen = Counter()
+    rng = np.random.default_rng(29)
+    good, other_size = picture(rng), picture(rng, W, H + 3)
+    _, mine = marker_of(rng, seed=1)
+    _, theirs = marker_of(rng, seed=2)
+    case = iter(range(1 << 30))
+
+    @budget(80)
+    @given(slots=st.lists(st.sampled_from(SLOTS), min_size=FRAMES, max_size=FRAMES),
+           mark=st.sampled_from(["none", "mine", "theirs", "broken"]))  # fmt: skip
+    def one(slots, mark):
+        seen["tried"] += 1
+        folder = tmp_path / str(next(case))
+        folder.mkdir()
+        for n, slot in enumerate(slots):
+            path = sequence.frame_path(folder, n)
+            if slot == "good":
+                path.write_bytes(good)
+            elif slot == "another size":
+                path.write_bytes(other_size)
+            elif slot != "missing":
+                PLANTS[slot](path, rng)
+        if mark != "none":
+            text = "{broken" if mark == "broken" else json.dumps(mine if mark == "mine" else theirs)
+            (folder / sequence.MARKER).write_text(text)
+        before = {k: v for k, v in contents(folder).items() if k != sequence.MARKER}
+        bad = [n for n, slot in enumerate(slots) if slot not in ("missing", "good")]
+        kept = sum(slot == "good" for slot in slots)
+        try:
+            todo = sequence.prepare(folder, mine)
+        except RaybenchError as exc:
+            assert "\n" not in str(exc), exc
+            if bad:
+                assert f"frame_{bad[0]:05d}.png" in str(exc), (slots, exc)
+            elif mark == "broken":
+                assert kept and f"its sequence marker {sequence.MARKER} is damaged" in str(exc), (slots, exc)
+            else:
+                assert mark == "theirs" and kept and "frames of another sequence" in str(exc), (slots, mark, exc)
+            seen["refused"] += 1
+        else:
+            assert not bad and not (mark in ("theirs", "broken") and kept), (slots, mark)
+            assert todo == [n for n, slot in enumerate(slots) if slot == "missing"]
+            assert json.loads((folder / sequence.MARKER).read_text()) == mine
+            seen["prepared"] += 1
+        assert {k: v for k, v in contents(folder).items() if k != sequence.MARKER} == before
+
+    one()
+    print(f"sequence folders: {dict(seen)}")
+    assert seen["prepared"] >= 0.1 * seen["tried"] and seen["refused"] >= 0.3 * seen["tried"], seen

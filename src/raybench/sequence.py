@@ -88,24 +88,26 @@ def prepare(out_dir, marker: dict, option: str = "") -> list[int]:
             todo.append(n)
     mark = out_dir / MARKER
     output_mode(mark, option)  # a marker that is not a regular file is refused, as any output
-    old = _old_marker(mark, where) if os.path.lexists(mark) else None
-    if old is not None and old != marker and kept:
-        differ = [_SAID[k] for k in _SAID if old.get(k) != marker.get(k)] or ["marker"]
+    old, damaged = None, None
+    if os.path.lexists(mark):
+        try:
+            old = read_json(mark, "sequence marker")
+        except RaybenchError as exc:
+            damaged = str(exc).split(": ", 1)[-1]
+    if kept and damaged is not None:
+        raise RaybenchError(
+            f"{where}: its sequence marker {MARKER} is damaged ({damaged}), so its {kept} frames cannot be told "
+            "to be this sequence's; remove the marker if they are, or the frames if not"
+        )
+    if kept and old is not None and old != marker:
+        differ = [_SAID[k] for k in _SAID if not isinstance(old, dict) or old.get(k) != marker.get(k)]
         raise RaybenchError(
             f"{where}: holds {kept} frames of another sequence (its {', '.join(differ)} differ from this run's); "
             "give another folder, or remove its frames to trace this sequence there"
         )
-    if old != marker:
+    if old != marker:  # none, or one of no frames here: this sequence's from now on
         write_atomic(mark, (json.dumps(marker, indent=1) + "\n").encode(), option)
     return todo
-
-
-def _old_marker(mark: Path, where: str) -> dict | None:
-    try:
-        doc = read_json(mark, "sequence marker")
-    except RaybenchError as exc:
-        raise RaybenchError(f"{where}: {exc}; remove it (and the frames, if they are not this sequence's)") from None
-    return doc if isinstance(doc, dict) else {}
 
 
 def _frame_there(path: Path, where: str, width: int, height: int) -> bool:
