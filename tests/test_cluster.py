@@ -20,7 +20,7 @@ from PIL import Image
 
 import raybench
 import raybench.gif
-from raybench import Camera, RaybenchError, camera_path, cluster, host
+from raybench import Camera, RaybenchError, camera_path, cluster, host, sequence
 from raybench.bench import machines
 from raybench.cli import run
 from raybench.cluster import sharedframe, work
@@ -468,7 +468,7 @@ def test_a_worker_killed_mid_sequence_loses_nothing(running, rng, tmp_path):
         **options,
     )  # fmt: skip
     assert killed and killed[0] < len(cameras)  # killed with frames still to come
-    assert sorted(p.name for p in tmp_path.iterdir()) == [p.name for p in paths]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [sequence.MARKER, *(p.name for p in paths)]
     with raybench.Renderer(scene, 160, 120, device="cpu", **options) as renderer:
         for path, cam in zip(paths, cameras, strict=True):
             np.testing.assert_array_equal(png(path), renderer.render(cam).image)
@@ -495,7 +495,7 @@ def test_a_sequence_whose_scene_is_lost_sends_its_frames_again(running, rng, tmp
         running.client, scene, cameras, tmp_path, 48, 32, device="cpu", frames_per_task=1, on_frame=on_frame
     )
     assert lost and lost[0] >= 1
-    assert sorted(p.name for p in tmp_path.iterdir()) == [p.name for p in paths]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [sequence.MARKER, *(p.name for p in paths)]
     with raybench.Renderer(scene, 48, 32, device="cpu") as renderer:
         for path, cam in zip(paths, cameras, strict=True):
             np.testing.assert_array_equal(png(path), renderer.render(cam).image)
@@ -535,7 +535,7 @@ def test_cli_renders_tiles_and_a_sequence_on_a_running_cluster(running, rng, tmp
     frames = tmp_path / "frames"
     gif = tmp_path / "orbit.gif"
     assert run(["render", *args, "--path", "orbit", "--frames", "3", "-o", str(frames), "--gif", str(gif)]) == 0
-    assert sorted(p.name for p in frames.iterdir()) == [f"frame_{n:05d}.png" for n in range(3)]
+    assert sorted(p.name for p in frames.iterdir()) == [sequence.MARKER, *(f"frame_{n:05d}.png" for n in range(3))]
     out = capsys.readouterr().out
     assert "wrote 3 frames" in out and f"wrote {gif}: 3 frames" in out
     with Image.open(gif) as animated:
@@ -589,8 +589,8 @@ def test_ctrl_c_keeps_the_frames_written_and_stops_the_cluster(tmp_path):
     assert proc.returncode == 130 and err.decode().strip().splitlines()[-1] == "raybench: interrupted"
     _, alive = psutil.wait_procs(family, timeout=20)
     assert not alive, f"stray processes: {alive}"
-    frames = sorted(out.iterdir())
-    assert 3 <= len(frames) < 2000 and all(f.name.startswith("frame_") and f.suffix == ".png" for f in frames)
+    frames = sorted(out.glob("frame_*.png"))
+    assert 3 <= len(frames) < 2000 and sorted(out.iterdir()) == [out / sequence.MARKER, *frames]
     cameras = camera_path.orbit(Camera(), 2000)
     scene = raybench.random_spheres(200, 0)
     with raybench.Renderer(scene, 160, 120, device="cpu", accel="none", kernel="simple") as renderer:

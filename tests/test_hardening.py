@@ -619,30 +619,61 @@ def test_results_torn_by_sigkill_keep_every_whole_record(tmp_path):
     assert any("cut short" in n for n in notes)
 
 
-def test_results_writer_on_a_full_disk_keeps_the_records_before(tmp_path):
-    """The disk fills while a record is written: one line, and the records before it are read back."""
+def test_results_writer_on_a_full_disk_keeps_the_records_before(tmp_path, monkeypatch):
+    """The disk fills while a record is written: one line, the part of it
+    that reached the disk cut off again, the records before it read back."""
+    real_write = os.write
 
-    class Full:
-        def __init__(self, real):
-            self.real = real
-
-        def write(self, text):
-            self.real.write(text[: len(text) // 3])  # part of the line reached the disk
-            self.real.flush()
-            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-
-        def close(self):
-            self.real.close()
+    def full(fd, data):
+        real_write(fd, bytes(data[: len(data) // 3]))  # part of the line reached the disk
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
     path = tmp_path / "r.jsonl"
     writer = results.ResultsWriter(path)
     writer.write(rec("thesis", "cpu", 100, 5.0))
-    writer._file = Full(writer._file)
+    monkeypatch.setattr(files.os, "write", full)
     with pytest.raises(RaybenchError, match="No space left on device.*the 1 records before this one are kept"):
         writer.write(rec("thesis", "cpu", 200, 5.0))
+    monkeypatch.undo()
     writer.close()
-    with pytest.warns(UserWarning, match="line 2 is cut short"):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no half line left to warn of
         assert [r["spheres"] for r in results.read(path)] == [100]
+
+
+def test_results_writer_on_a_full_disk_leaves_no_empty_file(tmp_path, monkeypatch):
+    """The disk is full at the first record: one line, and no results file
+    (it used to be left empty, 0 bytes, while bench said nothing was written)."""
+
+    def full(fd):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    path = tmp_path / "out" / "r.jsonl"
+    writer = results.ResultsWriter(path)
+    monkeypatch.setattr(files.os, "fsync", full)
+    with pytest.raises(RaybenchError, match="No space left on device.*nothing was changed"):
+        writer.write(rec("thesis", "cpu", 100, 5.0))
+    writer.close()
+    assert not path.exists() and list(tmp_path.iterdir()) == []  # nor the folder made for it
+
+
+def test_bench_on_a_full_disk_leaves_no_results_file(capsys, tmp_path, monkeypatch):
+    """bench's first record meets a full disk: one line that says nothing
+    was written, and nothing is (the results file was left empty, 0 bytes)."""
+    from raybench.bench import runner
+
+    def full(fd):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    def one_point(points, writer, *args, **kwargs):
+        monkeypatch.setattr(files.os, "fsync", full)
+        writer.write(rec("thesis", "cpu", 100, 5.0))
+
+    monkeypatch.setattr(runner, "run", one_point)
+    before = tree(tmp_path)
+    line = one_line(capsys, ["bench", "--quick", "--device", "cpu", "--out", tmp_path / "out", "--suite", "thesis"],
+                    "No space left on device", "no results were written")  # fmt: skip
+    assert "results-" in line and tree(tmp_path) == before
 
 
 # --- found by the fuzzer ----------------------------------------------------------------------

@@ -3,7 +3,8 @@ half-written is ever left behind.
 
 Every file raybench reads (scenes, results) goes through read_text, and every
 JSON document through loads: one place bounds what a file may cost. Every file
-it writes goes through write_atomic.
+it writes goes through write_atomic (Appended, a results file, makes its file
+there), which writes regular files only (output_mode).
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ def read_text(path, what: str, max_bytes: int | None = None) -> str:
         with os.fdopen(fd, "rb") as f:
             info = os.fstat(f.fileno())
             if not stat.S_ISREG(info.st_mode):
-                raise RaybenchError(f"{path}: the {what} must be a regular file, not a {_kind(info.st_mode)}")
+                raise RaybenchError(f"{path}: the {what} must be a regular file, not a {file_kind(info.st_mode)}")
             if info.st_size > max_bytes:
                 raise RaybenchError(
                     f"{path}: the {what} is {info.st_size / 2**20:,.0f} MiB, over the limit of "
@@ -66,14 +67,17 @@ def read_text(path, what: str, max_bytes: int | None = None) -> str:
         raise RaybenchError(f"{path}: cannot read the {what}: not UTF-8 text (byte {exc.start})") from None
 
 
-def _kind(mode: int) -> str:
+def file_kind(mode: int) -> str:
+    """What a file that is not a regular one is, in a message: a folder, a pipe, ..."""
     if stat.S_ISDIR(mode):
         return "folder"
     if stat.S_ISFIFO(mode):
         return "pipe"
     if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
         return "device"
-    return "special file"  # a socket cannot be opened: os.open says so first
+    if stat.S_ISSOCK(mode):
+        return "socket"
+    return "special file"
 
 
 class DuplicateKey(RaybenchError):
@@ -172,11 +176,38 @@ def _umask() -> int:
     return mask
 
 
+def output_mode(path, what: str = "") -> int | None:
+    """What an output path holds, checked before anything is written there:
+    the mode of the regular file there (a write keeps it), or None where there
+    is nothing, or a symlink (a write replaces the link, never its target, and
+    the new file gets the umask's mode, never the target's). A folder, a FIFO,
+    a device or a socket is refused in one line and left as it is; so is a
+    name the file system cannot hold (over 255 bytes) or a place that cannot
+    be looked into. `what` names the output in the message ("-o", "--gif")."""
+    label = f"{what} {path}" if what else str(path)
+    try:
+        info = os.lstat(path)
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        raise RaybenchError(f"{label}: cannot write there ({exc.strerror or exc}); choose another path") from None
+    if stat.S_ISLNK(info.st_mode):
+        return None
+    if not stat.S_ISREG(info.st_mode):
+        raise RaybenchError(
+            f"{label}: is a {file_kind(info.st_mode)}, not a regular file; raybench writes regular files only "
+            "and leaves this one as it is: choose another path"
+        )
+    return stat.S_IMODE(info.st_mode)
+
+
 def check_writable(path, option: str) -> None:
-    """Refuse an output path whose folder we cannot create a file in, by
-    creating (and removing) one there: permissions as the kernel sees them,
-    read-only file systems included, before any time is spent on the work."""
+    """Refuse an output path that could not be written, before any time is
+    spent on the work: what is there (output_mode), and whether a file can be
+    created in its folder, found by creating (and removing) one there:
+    permissions as the kernel sees them, read-only file systems included."""
     path = Path(path)
+    output_mode(path, option)
     try:
         fd, tmp = tempfile.mkstemp(prefix=".raybench-probe.", dir=path.parent)
     except OSError as exc:
@@ -187,24 +218,47 @@ def check_writable(path, option: str) -> None:
     os.unlink(tmp)
 
 
-def write_atomic(path, data: bytes) -> None:
-    """Write data to path through a temporary file in the same folder and a
-    rename, so a reader (or a crash) never sees half a file.
+def make_folder(path, option: str) -> Path:
+    """The output folder path, made where it is missing (its parent must
+    exist); one line where it cannot be (read-only, no permission, a name too
+    long, a file in the way)."""
+    path = Path(path)
+    if not os.path.isdir(path.parent):
+        raise RaybenchError(f"{option} {path}: folder {path.parent} does not exist")
+    try:
+        path.mkdir(exist_ok=True)
+    except FileExistsError:
+        raise RaybenchError(f"{option} {path}: is a file; give a folder") from None
+    except OSError as exc:
+        raise RaybenchError(
+            f"{option} {path}: cannot make the folder ({exc.strerror or exc}); choose another path"
+        ) from None
+    if not path.is_dir():  # a link to a file
+        raise RaybenchError(f"{option} {path}: is not a folder; give a folder")
+    return path
 
-    The temporary file is created exclusively under a random name (mkstemp:
-    O_EXCL, no link followed), so nothing planted in the folder can redirect
-    the write. A file that is replaced keeps its mode; a new one gets the
-    umask's. On any failure (a full disk, an interrupt) the temporary file is
-    removed and the old file, if any, is left as it was."""
+
+def write_atomic(path, data: bytes, what: str = "") -> None:
+    """Write data to path through a temporary file in the same folder and a
+    rename, so a reader (or a crash) never sees half a file: the one way
+    raybench writes an output.
+
+    Only a regular file is replaced (output_mode): a FIFO, a device or a
+    folder at path is refused and left as it is. The temporary file is
+    created exclusively under a random name (mkstemp: O_EXCL, no link
+    followed), so nothing planted in the folder can redirect the write. A
+    regular file that is replaced keeps its mode; a new one, or one written
+    where a symlink was, gets the umask's. On any failure (a full disk, an
+    interrupt) the temporary file is removed and the old file, if any, is
+    left as it was."""
     path = Path(path)
     folder = path.parent
-    if not folder.is_dir():
+    if not os.path.isdir(folder):
         raise RaybenchError(f"{path}: cannot write: folder {folder} does not exist")
-    if path.is_dir():
+    if os.path.isdir(path):
         raise RaybenchError(f"{path}: cannot write: it is a folder; give a file name")
-    try:
-        mode = stat.S_IMODE(os.stat(path).st_mode)
-    except OSError:
+    mode = output_mode(path, what)
+    if mode is None:
         mode = 0o666 & ~_umask()
     with _ctrl_c_held():
         try:
@@ -218,6 +272,7 @@ def write_atomic(path, data: bytes) -> None:
                 f.flush()
                 os.fchmod(f.fileno(), mode)
                 os.fsync(f.fileno())
+            output_mode(path, what)  # again, just before the rename: what was planted meanwhile is not replaced
             os.replace(tmp, path)
         except BaseException as exc:
             try:
@@ -227,6 +282,52 @@ def write_atomic(path, data: bytes) -> None:
             if isinstance(exc, OSError):
                 raise RaybenchError(f"{path}: cannot write ({exc.strerror or exc}); nothing was changed") from None
             raise
+
+
+class Appended:
+    """An output that grows by whole pieces (a results file's records), each
+    on disk before append() returns. The first piece makes the file through
+    write_atomic, so a failure before it (a full disk) leaves no empty file;
+    later pieces are appended to that regular file (a link put in its place
+    meanwhile is not followed), and one that fails part way is cut off
+    again: the file holds the pieces before it, whole."""
+
+    def __init__(self, path, what: str = ""):
+        self.path, self.what = Path(path), what
+        self._fd: int | None = None
+
+    def append(self, data: bytes) -> None:
+        if self._fd is None:
+            if output_mode(self.path, self.what) is None:  # nothing there yet (or a link, replaced)
+                write_atomic(self.path, data, self.what)
+                self._fd = self._open()
+                return
+            self._fd = self._open()
+        size = os.fstat(self._fd).st_size
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[os.write(self._fd, view) :]
+            os.fsync(self._fd)
+        except BaseException:
+            with contextlib.suppress(OSError):
+                os.ftruncate(self._fd, size)
+            raise
+
+    def _open(self) -> int:
+        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            os.close(fd)
+            label = f"{self.what} {self.path}" if self.what else str(self.path)
+            raise RaybenchError(f"{label}: is a {file_kind(info.st_mode)}, not a regular file; choose another path")
+        return fd
+
+    def close(self) -> None:
+        if self._fd is not None:
+            with contextlib.suppress(OSError):
+                os.close(self._fd)
+            self._fd = None
 
 
 @contextlib.contextmanager

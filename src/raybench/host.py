@@ -19,13 +19,35 @@ def usable_cores() -> int:
         return os.cpu_count() or 1
 
 
-def host_available_bytes() -> int:
+# A thread's stack where RLIMIT_STACK sets none: glibc's default on x86-64 and arm64.
+DEFAULT_STACK_BYTES = 8 * 2**20
+
+
+def thread_stack_bytes() -> int:
+    """The address space a new thread reserves for its stack: Python's
+    threading.stack_size() where set, else RLIMIT_STACK's soft limit, as
+    glibc's threads take it."""
+    import threading
+
+    chosen = threading.stack_size()
+    if chosen:
+        return chosen
+    soft = resource.getrlimit(resource.RLIMIT_STACK)[0]
+    return DEFAULT_STACK_BYTES if soft == resource.RLIM_INFINITY else soft
+
+
+def host_available_bytes(threads: int = 0) -> int:
     """What this process may still allocate: the free memory, or less where a
     ulimit (address space, data) or the cgroup's memory limit leaves less.
-    Beyond it an allocation ends in a MemoryError or the OOM killer."""
+    Beyond it an allocation ends in a MemoryError or the OOM killer.
+
+    threads: the threads the work will start. Under an address-space limit
+    (ulimit -v) each one's stack counts against it, untouched or not: a
+    frame that fitted without them failed with "can't start new thread"."""
     available = psutil.virtual_memory().available
     memory = psutil.Process().memory_info()
-    for which, used in ((resource.RLIMIT_AS, memory.vms), (resource.RLIMIT_DATA, getattr(memory, "data", 0))):
+    stacks = threads * thread_stack_bytes()
+    for which, used in ((resource.RLIMIT_AS, memory.vms + stacks), (resource.RLIMIT_DATA, getattr(memory, "data", 0))):
         soft = resource.getrlimit(which)[0]
         if soft != resource.RLIM_INFINITY:
             available = min(available, max(soft - used, 0))

@@ -59,6 +59,11 @@ def check_colour(value, where: str) -> tuple[float, float, float]:
     return vec
 
 
+# Each Material field's range, as Material checks it and Shading.check its row.
+_RANGES = {"specular": (0.0, 1.0), "shininess": (0.0, MAX_SHININESS), "reflect": (0.0, 1.0), "transmit": (0.0, 1.0),
+           "ior": (MIN_IOR, MAX_IOR)}  # fmt: skip
+
+
 @dataclass(frozen=True)
 class Material:
     """How a sphere answers light under Whitted shading; its diffuse colour
@@ -78,8 +83,7 @@ class Material:
 
     def check(self, where: str) -> None:
         # each field kept as a Python float (a NumPy scalar given would not save as JSON)
-        for key, low, high in (("specular", 0.0, 1.0), ("shininess", 0.0, MAX_SHININESS), ("reflect", 0.0, 1.0),
-                               ("transmit", 0.0, 1.0), ("ior", MIN_IOR, MAX_IOR)):  # fmt: skip
+        for key, (low, high) in _RANGES.items():
             object.__setattr__(self, key, _number(getattr(self, key), f"{where}.{key}", low, high))
         if self.reflect + self.transmit > 1.0:
             raise RaybenchError(
@@ -217,6 +221,60 @@ class Shading:
             depth=depth,
             shadow_samples=samples,
         )
+
+    def check(self, spheres: int) -> None:
+        """Refuse, in one line, a Shading that does not fit a scene of
+        `spheres` spheres (one made with Shading.of for another scene, or
+        by hand), or whose arrays say what no Material, Light or setting
+        can: the kernels index and divide by them unchecked."""
+        fix = "make it with Shading.of(scene) for the scene traced"
+
+        def array(name: str, rows: int, columns: int | None) -> np.ndarray:
+            value = getattr(self, name)
+            if (
+                not isinstance(value, np.ndarray)
+                or value.dtype != np.float32
+                or value.ndim != (1 if rows is None else 2)
+                or (rows is not None and value.shape[0] != rows)
+                or (columns is not None and value.shape[-1] != columns)
+                or value.shape[-1] < 1
+                or not value.flags.c_contiguous
+            ):
+                want = f"({rows}, {'n' if columns is None else columns})" if rows is not None else f"({columns},)"
+                got = f"{value.shape} {value.dtype}" if isinstance(value, np.ndarray) else type(value).__name__
+                raise RaybenchError(f"shading: {name} must be a C-contiguous {want} float32 array, got {got}; {fix}")
+            return value
+
+        params = array("params", None, whitted.PARAMS)
+        if spheres and getattr(self.materials, "shape", (0, 0))[-1] != spheres:
+            got = getattr(self.materials, "shape", ("?", "?"))[-1]
+            raise RaybenchError(f"shading: made for a scene of {got} spheres, this one has {spheres}; {fix}")
+        materials = array("materials", layout.MATERIAL_ROWS, spheres) if spheres else None
+        lights = array("lights", layout.LIGHT_ROWS, None)
+        pattern = array("pattern", 3, None)
+        depth, samples, count = (float(params[k]) for k in (whitted.P_DEPTH, whitted.P_SAMPLES, whitted.P_LIGHTS))
+        if depth != self.depth or samples != self.shadow_samples:
+            raise RaybenchError(f"shading: depth and shadow_samples differ from its params; {fix}")
+        check_depth(self.depth)
+        check_shadow_samples(self.shadow_samples)
+        if not (count == int(count) and 0 <= count <= min(lights.shape[1], MAX_LIGHTS)):
+            raise RaybenchError(f"shading: {count:g} lights in params, {lights.shape[1]} in its lights array; {fix}")
+        if pattern.shape[1] < self.shadow_samples:
+            raise RaybenchError(f"shading: {pattern.shape[1]} sample points for {self.shadow_samples} samples; {fix}")
+        ranges = [("params", params[: whitted.P_GRADIENT], 0.0, 1.0), ("pattern", pattern, -1.0, 1.0),
+                  ("lights", lights[layout.LX : layout.LZ + 1], -MAX_MAGNITUDE, MAX_MAGNITUDE),
+                  ("lights", lights[layout.LRED : layout.LBLUE + 1], 0.0, MAX_INTENSITY),
+                  ("lights", lights[layout.LRADIUS], 0.0, MAX_MAGNITUDE)]  # fmt: skip
+        if materials is not None:
+            rows = {"specular": layout.SPECULAR, "shininess": layout.SHININESS, "reflect": layout.REFLECT,
+                    "transmit": layout.TRANSMIT, "ior": layout.IOR}  # fmt: skip
+            for key, (low, high) in _RANGES.items():
+                ranges.append((f"materials' {key}", materials[rows[key]], low, high))
+            shares = materials[layout.REFLECT] + materials[layout.TRANSMIT]
+            ranges.append(("materials' reflect + transmit", shares, 0.0, 1.0 + 1e-6))
+        for name, values, low, high in ranges:
+            if values.size and not (values.min() >= low and values.max() <= high):  # NaN fails both
+                raise RaybenchError(f"shading: {name} must be in [{low:g}, {high:g}]; {fix}")
 
 
 def _integer(value, where: str, low: int, high: int) -> int:

@@ -21,6 +21,7 @@ from .camera import MAX_MAGNITUDE, Camera
 from .errors import RaybenchError, shown
 from .files import read_json, write_atomic
 from .host import host_available_bytes
+from .layout import BLUE, CX, CZ, RADIUS, RED
 
 FORMAT = "raybench-scene"
 VERSION = 2
@@ -59,6 +60,8 @@ class Scene:
         ambient=lighting.DEFAULT_AMBIENT,
         background=None,
     ):
+        if camera is not None and not isinstance(camera, Camera):
+            raise RaybenchError(f"scene: camera must be a raybench.Camera or None, got {shown(camera)}")
         centers = _array(centers, 3, "centers")
         radii = _array(radii, None, "radii")
         colors = _array(colors, 3, "colors")
@@ -67,24 +70,7 @@ class Scene:
                 f"scene: {len(centers)} centers, {len(radii)} radii and {len(colors)} colors: "
                 "each sphere needs one of each"
             )
-        for name, values in (("center", centers), ("radius", radii)):
-            bad = ~(np.isfinite(values) & (np.abs(values) <= MAX_MAGNITUDE))
-            if bad.any():
-                i = int(np.argwhere(bad)[0][0])
-                raise RaybenchError(
-                    f"spheres[{i}].{name}: must be finite and at most {MAX_MAGNITUDE:g} in magnitude, "
-                    f"got {values[i].tolist()}"
-                )
-        # Checked as stored: a radius that rounds to 0 in float32 is no sphere.
-        bad = ~(radii.astype(np.float32) > 0)
-        if bad.any():
-            i = int(np.argmax(bad))
-            why = f" (0 in float32; the smallest radius is {_TINY:g})" if radii[i] > 0 else ""
-            raise RaybenchError(f"spheres[{i}].radius: must be > 0, got {shown(radii[i])}{why}")
-        bad = ~((colors >= 0.0) & (colors <= 1.0))
-        if bad.any():
-            i = int(np.argwhere(bad)[0][0])
-            raise RaybenchError(f"spheres[{i}].color: each channel must be in [0, 1], got {colors[i].tolist()}")
+        check_values(centers, radii, colors)
         self.spheres = np.ascontiguousarray(np.concatenate([centers.T, radii[None, :], colors.T]).astype(np.float32))
         self.camera = camera
         if materials is not None:
@@ -245,6 +231,57 @@ class Scene:
 
 # The smallest positive float32 (a subnormal): any smaller radius is stored as 0.
 _TINY = float(np.finfo(np.float32).smallest_subnormal)
+
+
+def check_values(centers, radii, colors, where: str = "") -> None:
+    """The rule every sphere meets, wherever spheres come from (a scene file,
+    Scene(), Renderer.update): a centre finite and at most MAX_MAGNITUDE in
+    each coordinate, a radius above 0 as float32 stores it and at most
+    MAX_MAGNITUDE, each colour channel in [0, 1]. centers (n, 3), radii (n,),
+    colors (n, 3), of any float type; the first sphere that breaks it is one
+    line, after `where` ("update: "). NaN fails every comparison, so one pass
+    of reductions answers for the valid case, and only a fault is searched."""
+    if not len(radii):
+        return
+    radius_low = np.float32(radii.min())  # as stored: a radius that rounds to 0 in float32 is no sphere
+    if (
+        centers.max() <= MAX_MAGNITUDE
+        and centers.min() >= -MAX_MAGNITUDE
+        and radius_low > 0
+        and radii.max() <= MAX_MAGNITUDE
+        and colors.min() >= 0.0
+        and colors.max() <= 1.0
+    ):
+        return
+    for name, values in (("center", centers), ("radius", radii)):
+        bad = ~(np.isfinite(values) & (np.abs(values) <= MAX_MAGNITUDE))
+        if bad.any():
+            i = int(np.argwhere(bad)[0][0])
+            raise RaybenchError(
+                f"{where}spheres[{i}].{name}: must be finite and at most {MAX_MAGNITUDE:g} in magnitude, "
+                f"got {_plain(values[i])}"
+            )
+    bad = ~(radii.astype(np.float32) > 0)
+    if bad.any():
+        i = int(np.argmax(bad))
+        why = f" (0 in float32; the smallest radius is {_TINY:g})" if radii[i] > 0 else ""
+        raise RaybenchError(f"{where}spheres[{i}].radius: must be > 0, got {_plain(radii[i])}{why}")
+    bad = ~((colors >= 0.0) & (colors <= 1.0))
+    i = int(np.argwhere(bad)[0][0])
+    raise RaybenchError(f"{where}spheres[{i}].color: each channel must be in [0, 1], got {_plain(colors[i])}")
+
+
+def _plain(values):
+    """A number or a row of them as its type prints it: float32's shortest
+    form (0.5, not 0.5034334063529968 for 0.5034334)."""
+    listed = [float(str(v)) for v in np.atleast_1d(values)]
+    return listed if np.ndim(values) else listed[0]
+
+
+def check_spheres(spheres: np.ndarray, where: str = "") -> None:
+    """check_values of a (7, n) sphere array, as Scene.spheres holds them
+    (raybench.layout's rows)."""
+    check_values(spheres[CX : CZ + 1].T, spheres[RADIUS], spheres[RED : BLUE + 1].T, where)
 
 
 def _array(values, columns: int | None, name: str) -> np.ndarray:

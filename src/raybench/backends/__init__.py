@@ -109,4 +109,12 @@ def tracer(device: str, spheres, width: int, height: int, whitted=None, **option
     there in one place. whitted: the lighting.Shading of a Whitted frame,
     None for the thesis's shading."""
     name = resolve(device, options.get("adapter") if device == "wgpu" else None)
+    if whitted is not None:
+        import numpy as np
+
+        from ..lighting import Shading
+
+        if not isinstance(whitted, Shading):
+            raise RaybenchError(f"whitted: must be a raybench.lighting.Shading, got {type(whitted).__name__}")
+        whitted.check(np.shape(spheres)[-1])
     return module(name).Tracer(spheres, width, height, checked(name, options, whitted), whitted)

@@ -111,12 +111,18 @@ class TracerBase:
 
 
 def check_moved(spheres, like: np.ndarray) -> np.ndarray:
-    """Tracer.update's spheres, checked: an array of the shape and type of
-    the tracer's own (like)."""
-    spheres = np.ascontiguousarray(spheres)  # rows as the kernels and the uploads read them
-    if spheres.shape != like.shape or spheres.dtype != np.float32:
+    """Tracer.update's spheres, checked as a scene file's are (scene.check_values:
+    no NaN or infinity, radii above 0, colours in [0, 1], centres within
+    range), in an array of the shape and type of the tracer's own (like).
+    A copy, the tracer's own: the caller's array, changed after the update,
+    would otherwise be traced against the tree of what it held before."""
+    from ..scene import check_spheres  # here: the scene imports what the backends' package does
+
+    given = np.asarray(spheres)
+    if given.shape != like.shape or given.dtype != np.float32:
         raise RaybenchError(
-            f"update: spheres must be a {like.shape} float32 array like the tracer's, got {spheres.shape} "
-            f"{spheres.dtype}"
+            f"update: spheres must be a {like.shape} float32 array like the tracer's, got {given.shape} {given.dtype}"
         )
+    spheres = np.array(given, order="C", copy=True)  # rows as the kernels and the uploads read them
+    check_spheres(spheres, "update: ")
     return spheres

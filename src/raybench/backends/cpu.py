@@ -1003,7 +1003,8 @@ class Tracer(TracerBase):
             options = checked("cpu", {}, whitted)
         self.options = options
         self.accel, self.kernel = options.accel, options.kernel
-        check_fits("cpu", width, height, spheres.shape[1], host_available_bytes(), HOST_PIXEL_BYTES)
+        # the threads' stacks counted: under ulimit -v they take address space the frame then lacks
+        check_fits("cpu", width, height, spheres.shape[1], host_available_bytes(options.threads), HOST_PIXEL_BYTES)
         if self.accel == "bvh":
             check_bvh_fits(
                 "cpu",

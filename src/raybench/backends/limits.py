@@ -1,10 +1,12 @@
 """Limits checked before anything is allocated or launched: sizes, memory, counts."""
 
+import math
 import numbers
 
 import numpy as np
 
 from ..errors import RaybenchError, shown
+from ..host import host_available_bytes, usable_cores
 
 MAX_SIDE = 65536
 # Per pixel: 3 colour bytes and a 4-byte hit index, on the device; the host
@@ -82,3 +84,53 @@ def check_bvh_fits(device: str, spheres: int, available: float, per_sphere: int,
 
 def _bytes(n: float) -> str:
     return f"{n / 2**30:.2f} GiB" if n >= 2**30 else f"{n / 2**20:.1f} MiB"
+
+
+# --- a cluster's: raybench.cluster and the command line check by these alike
+
+CONNECT_TIMEOUT_S = (0.1, 3600.0)
+
+
+def check_connect_timeout(timeout) -> float:
+    """Seconds to try a scheduler's address: a finite number in CONNECT_TIMEOUT_S
+    (Dask took NaN, and failed on it with a KeyError)."""
+    low, high = CONNECT_TIMEOUT_S
+    if (
+        isinstance(timeout, (bool, np.bool_))
+        or not isinstance(timeout, numbers.Real)
+        or not math.isfinite(timeout)
+        or not low <= timeout <= high
+    ):
+        raise RaybenchError(
+            f"connect timeout: must be a number of seconds from {low:g} to {high:g}, got {shown(timeout)}"
+        )
+    return float(timeout)
+
+
+# The embedded cluster's worker processes on this machine: beyond WORKERS_PER_CORE
+# a core they only take turns on the same cores, and each holds about
+# WORKER_BYTES (its Python, NumPy, Numba and Dask: 244 MiB measured after a frame).
+WORKERS_PER_CORE = 4
+WORKER_BYTES = 256 * 2**20
+
+
+def max_workers() -> tuple[int, str]:
+    """The most worker processes an embedded cluster may start here, and why."""
+    cores = usable_cores()
+    by_cores = WORKERS_PER_CORE * cores
+    by_memory = max(1, host_available_bytes() // WORKER_BYTES)
+    if by_memory < by_cores:
+        return int(
+            by_memory
+        ), f"each worker process takes about {_bytes(WORKER_BYTES)}, of the {_bytes(host_available_bytes())} available"
+    return by_cores, f"{WORKERS_PER_CORE} a core, of the {cores} this process may use"
+
+
+def check_worker_count(workers) -> int:
+    """An embedded cluster's worker count: a whole number from 1 to max_workers()."""
+    if not is_integer(workers) or workers < 1:
+        raise RaybenchError(f"workers: must be a whole number >= 1, got {shown(workers)}")
+    most, why = max_workers()
+    if workers > most:
+        raise RaybenchError(f"workers: at most {most} on this machine ({why}), got {int(workers):,}")
+    return int(workers)

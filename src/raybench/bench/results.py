@@ -66,14 +66,13 @@ A record (format "raybench-results", version 1):
 from __future__ import annotations
 
 import json
-import os
 import re
 import warnings
 from pathlib import Path
 
 from ..backends.limits import MAX_SIDE
 from ..errors import RaybenchError, shown
-from ..files import check_nesting, check_writable, parse, read_text
+from ..files import Appended, check_nesting, check_writable, parse, read_text
 
 FORMAT = "raybench-results"
 VERSION = 1
@@ -105,6 +104,7 @@ class ResultsWriter:
         if not existing.is_dir():
             raise RaybenchError(f"{self.path}: cannot write results: {existing} is not a folder")
         check_writable(existing / self.path.name, "results")
+        self._existing = existing  # the folders below it are made with the first record
         self._file = None
         self.count = 0
 
@@ -113,28 +113,37 @@ class ResultsWriter:
         if self._file is None:
             try:
                 self.path.parent.mkdir(parents=True, exist_ok=True)
-                self._file = open(self.path, "a", encoding="utf-8")
             except OSError as exc:
                 raise RaybenchError(f"{self.path}: cannot write results ({exc.strerror or exc})") from None
-        # One write of a whole line, then fsync: a crash can at worst leave a
-        # half line at the end, which the reader skips with a warning.
+            self._file = Appended(self.path, "results")
+        # One record a piece, on disk before the next point starts; one that
+        # fails part way is cut off, and the first makes the file whole or not
+        # at all (files.Appended): a full disk leaves no empty file.
         try:
-            self._file.write(line + "\n")
-            self._file.flush()
-            os.fsync(self._file.fileno())
-        except OSError as exc:
+            self._file.append((line + "\n").encode("utf-8"))
+        except RaybenchError:
+            if not self.count:  # no file was made: nor are the folders made for it left
+                self._remove_made_folders()
+            raise
+        except OSError as exc:  # (the first record's failure is write_atomic's one line: nothing was changed)
             raise RaybenchError(
-                f"{self.path}: cannot write results ({exc.strerror or exc}); the {self.count} records before "
-                "this one are kept"
+                f"{self.path}: cannot write results ({exc.strerror or exc}); the {self.count} records before this one "
+                "are kept"
             ) from None
         self.count += 1
 
     def close(self) -> None:
         if self._file is not None:
+            self._file.close()
+
+    def _remove_made_folders(self) -> None:
+        folder = self.path.parent
+        while folder != self._existing and self._existing in folder.parents:
             try:
-                self._file.close()
+                folder.rmdir()  # only where empty
             except OSError:
-                pass  # write() has reported it; every finished record is on disk
+                return
+            folder = folder.parent
 
     def __enter__(self):
         return self

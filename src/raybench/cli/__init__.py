@@ -40,6 +40,18 @@ def _interrupted() -> int:
     return 130
 
 
+OUT_OF_MEMORY = (
+    "out of memory (a ulimit or container limit may be lower than the free memory); "
+    "use a smaller --size or fewer --spheres"
+)
+
+
+def _no_thread(exc: BaseException) -> bool:
+    """Python's error where the system refuses a new thread (EAGAIN: its
+    stack's address space under ulimit -v, or ulimit -u's processes)."""
+    return type(exc) is RuntimeError and str(exc) == "can't start new thread"
+
+
 def run(argv=None) -> int:
     """Entry point: turn every user error into one line and exit code 2."""
     try:
@@ -66,13 +78,14 @@ def run(argv=None) -> int:
     except MemoryError:
         # Checked before the large allocations (limits.host_available_bytes);
         # this is for the rest, under a ulimit or cgroup limit we could not foresee.
-        click.echo(
-            "raybench: error: out of memory (a ulimit or container limit may be lower than the free memory); "
-            "use a smaller --size or fewer --spheres",
-            err=True,
-        )
+        click.echo(f"raybench: error: {OUT_OF_MEMORY}", err=True)
         return 2
     except Exception as exc:
+        if _no_thread(exc):
+            # The same, for the threads: their stacks are counted in the check
+            # (host_available_bytes), but a library may start threads of its own.
+            click.echo(f"raybench: error: cannot start a thread: {OUT_OF_MEMORY}; or fewer --threads", err=True)
+            return 2
         failure = device_failure(exc)
         if failure is None:
             raise

@@ -9,9 +9,10 @@ from pathlib import Path
 
 import click
 
+from ..backends.limits import WORKERS_PER_CORE, check_connect_timeout, check_worker_count
 from ..backends.options import ACCELS, BUILDS, KERNELS
 from ..errors import RaybenchError
-from ..files import check_writable
+from ..files import check_writable, output_mode
 from ..lighting import SHADINGS
 
 SIZE_HELP = "image size as WIDTHxHEIGHT, e.g. 1680x1050"
@@ -74,11 +75,13 @@ def check_output(path: Path, option: str = "-o", suffix: str = ".png") -> None:
     if path.suffix.lower() != suffix:
         raise RaybenchError(f"{option} {path}: the output must be a {suffix} file")
     folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
+    if not os.path.isdir(folder):
         raise RaybenchError(f"{option} {path}: folder {folder} does not exist")
-    if path.is_dir():
+    if os.path.isdir(path):
         raise RaybenchError(f"{option} {path}: is a folder; give a file name")
-    if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+    # what is there: a FIFO or a device is refused (never replaced), a name too long for the file system too
+    output_mode(path, option)
+    if not os.access(folder, os.W_OK) or (os.path.exists(path) and not os.access(path, os.W_OK)):
         raise RaybenchError(f"{option} {path}: not writable; choose another path")
     # os.access answers for the permissions only (and yes to root): creating a
     # file there answers for read-only file systems and the rest too.
@@ -228,9 +231,11 @@ def cluster_options():
     return stacked(
         click.option(
             "--workers",
-            type=click.IntRange(min=1),
+            type=int,
+            callback=_checked(check_worker_count),
             help="trace across an embedded Dask cluster of N worker processes on this machine (one per GPU on "
-            "cuda; on the cpu, sharing the cores)",
+            f"cuda; on the cpu, sharing the cores; at most {WORKERS_PER_CORE} a core, and as many as the memory "
+            "holds)",
         ),
         scheduler_option("trace across the running Dask cluster whose scheduler is at this address"),
         click.option(
@@ -249,11 +254,27 @@ def scheduler_option(what: str):
 def connect_timeout_option():
     return click.option(
         "--connect-timeout",
-        type=click.FloatRange(min=0.1, max=3600),
+        type=float,
+        callback=_checked(check_connect_timeout),
         default=10.0,
         show_default=True,
         help="seconds to try the scheduler's address before giving up",
     )
+
+
+def _checked(check):
+    """A click callback that checks an option's value by raybench's own rule
+    (the one the Python API applies), as a usage error naming the option."""
+
+    def callback(ctx, param, value):
+        if value is None:
+            return None
+        try:
+            return check(value)
+        except RaybenchError as exc:
+            raise click.BadParameter(str(exc)) from None
+
+    return callback
 
 
 def open_cluster(workers, device, scheduler, connect_timeout):

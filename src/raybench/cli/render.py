@@ -10,7 +10,7 @@ from pathlib import Path
 import click
 
 from ..errors import RaybenchError
-from ..files import check_writable
+from ..files import check_writable, make_folder
 from ..scene import SPREADS
 from .options import (
     check_output,
@@ -175,19 +175,22 @@ def _render_sequence(scene, spec, frames, output, width, height, device, shaded,
     arrive, with a progress bar; those on disk already are kept."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
-    from .. import camera_path, cluster
+    from .. import camera_path, cluster, sequence
 
     if output is None:
         raise RaybenchError("--path: give -o DIR, the folder to write the frames in")
     if output.suffix.lower() == ".png":
         raise RaybenchError(f"-o {output}: with --path, a folder for the frames, not a .png file")
-    if output.exists() and not output.is_dir():
-        raise RaybenchError(f"-o {output}: is a file; give a folder for the frames")
     cameras = camera_path.load(spec, 240 if frames is None else frames, scene.camera)
-    if not output.parent.is_dir():
-        raise RaybenchError(f"-o {output}: folder {output.parent} does not exist")
-    output.mkdir(exist_ok=True)
-    check_writable(cluster.frame_path(output, 0), "-o")
+    if gif is not None:
+        from ..gif import check_fits
+
+        check_fits(len(cameras), width, height)
+    make_folder(output, "-o")
+    # the frames there already checked before a worker starts: this sequence's, or one line
+    marker = sequence.identity(scene, cameras, width, height, **shaded)
+    todo = sequence.prepare(output, marker, "-o")
+    check_writable(cluster.frame_path(output, todo[0] if todo else 0), "-o")
     start = time.perf_counter()
     with open_cluster(workers, device, scheduler, timeout) as running:
         columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
@@ -197,11 +200,13 @@ def _render_sequence(scene, spec, frames, output, width, height, device, shaded,
                                     on_frame=lambda n, path: progress.advance(bar), png_level=level,
                                     **options)  # fmt: skip
     click.echo(
-        f"wrote {len(cameras)} frames to {output}/: {width}x{height}, {len(scene):,} spheres, "
+        f"wrote {len(todo)} frames to {output}/"
+        + (f" (the other {len(cameras) - len(todo)} were there already)" if len(todo) < len(cameras) else "")
+        + f": {width}x{height}, {len(scene):,} spheres, "
         f"{time.perf_counter() - start:.2f} s including the cluster's start"
     )
     if gif is not None:
         from ..gif import FPS, write_gif
 
-        write_gif([cluster.frame_path(output, n) for n in range(len(cameras))], gif)
+        write_gif([cluster.frame_path(output, n) for n in range(len(cameras))], gif, size=(width, height))
         click.echo(f"wrote {gif}: {len(cameras)} frames at {FPS} a second")

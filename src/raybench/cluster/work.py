@@ -45,13 +45,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..backends.limits import PIXEL_BYTES, check_fits
+from .. import sequence
+from ..backends.limits import PIXEL_BYTES, check_connect_timeout, check_fits, check_worker_count
 from ..camera import Camera
 from ..errors import RaybenchError, one_line
 from ..host import host_available_bytes, usable_cores
 from ..kernels.whitted import KINDS
 from ..render import PNG_LEVEL, Frame, Renderer
 from ..scene import Scene
+from ..sequence import frame_path
 from . import sharedframe
 
 HOST = "127.0.0.1"  # every process of an embedded cluster listens here only
@@ -156,6 +158,7 @@ class Cluster:
         from .. import backends
 
         scheduler = scheduler or os.environ.get(SCHEDULER_ENV) or None
+        timeout = check_connect_timeout(timeout)
         self.cluster = None
         if scheduler is not None:
             if workers is not None:
@@ -167,8 +170,7 @@ class Cluster:
             raise RaybenchError("device wgpu: the cluster runs cpu or cuda workers")
         if workers is None:
             workers = default_workers(device)
-        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-            raise RaybenchError(f"workers: must be a whole number >= 1, got {workers!r}")
+        workers = check_worker_count(workers)
         if device == "cuda" and not backends.module("cuda").simulated() and workers > gpu_count():
             raise RaybenchError(f"workers: {workers} cuda workers need {workers} GPUs; this machine has {gpu_count()}")
         # Dask's default sets MALLOC_TRIM_THRESHOLD_ in a worker's environment;
@@ -211,6 +213,7 @@ def connect(address: str, timeout: float = CONNECT_TIMEOUT_S):
     reached within timeout seconds."""
     from distributed import Client
 
+    timeout = check_connect_timeout(timeout)
     try:
         return Client(address, timeout=timeout)
     except (OSError, TimeoutError, ValueError) as exc:
@@ -578,10 +581,6 @@ def trace_frames(
         client.cancel(tasks)
 
 
-def frame_path(out_dir: Path, number: int) -> Path:
-    return Path(out_dir) / f"frame_{number:05d}.png"
-
-
 def render_sequence(
     client,
     scene: Scene,
@@ -602,8 +601,10 @@ def render_sequence(
     cluster's workers in tasks of frames_per_task frames, encoded there at
     zlib's png_level (default render.PNG_LEVEL) and each written here,
     atomically, as it arrives. A frame already on disk is not traced
-    again (an interrupted sequence resumes); on_frame(number, path) is
-    called for every frame, skipped ones first. The frames' paths, in order."""
+    again (an interrupted sequence resumes), once raybench.sequence.prepare
+    has found the folder to hold nothing but frames of this sequence (one
+    line, before any work, otherwise); on_frame(number, path) is called for
+    every frame, skipped ones first. The frames' paths, in order."""
     from distributed import as_completed
     from distributed.client import FutureCancelledError
 
@@ -619,12 +620,14 @@ def render_sequence(
     if not out_dir.is_dir():
         raise RaybenchError(f"{out_dir}: not a folder; make it first")
     spec = _spec(width, height, device, shading, depth, shadow_samples, options)
+    marker = sequence.identity(scene, cameras, spec[0], spec[1], shading, depth, shadow_samples)
+    missing = set(sequence.prepare(out_dir, marker))
     found = check_workers(client, device, **options)
     spec = (spec[0], spec[1], next(iter(found.values())), *spec[3:])
     paths = [frame_path(out_dir, n) for n in range(len(cameras))]
     todo = []
     for n, path in enumerate(paths):
-        if path.exists():
+        if n not in missing:
             if on_frame is not None:
                 on_frame(n, path)
         else:
