@@ -55,16 +55,60 @@ def png(path) -> np.ndarray:
 
 def test_everything_listens_on_loopback_only(running):
     info = running.client.scheduler_info(n_workers=-1)
-    assert info["address"].startswith("tcp://127.0.0.1:")
+    assert info["address"].startswith("tls://127.0.0.1:")
     assert len(info["workers"]) == 2
     for address, worker in info["workers"].items():
-        assert address.startswith("tcp://127.0.0.1:")
-        assert worker["nanny"].startswith("tcp://127.0.0.1:")
+        assert address.startswith("tls://127.0.0.1:")
+        assert worker["nanny"].startswith("tls://127.0.0.1:")
     pids = [os.getpid(), *running.client.run(os.getpid).values()]
     pids += [psutil.Process(p).ppid() for p in pids[1:]]  # the nannies
     listening = [c for p in set(pids) for c in psutil.Process(p).net_connections("inet") if c.status == "LISTEN"]
     assert len(listening) >= 4  # the scheduler's, the workers' and the nannies' at least
     assert {c.laddr.ip for c in listening} == {"127.0.0.1"}
+
+
+def outsider_gets_in(address: str, security) -> bool:
+    """Whether a connection to address with security's credentials (None:
+    none, plain TCP to the same port) gets through Dask's handshake, within 10 s."""
+    import asyncio
+
+    from distributed.comm import connect
+
+    async def attempt():
+        if security is None:
+            comm = await connect("tcp://" + address.split("://", 1)[1], timeout=5)
+        else:
+            comm = await connect(address, timeout=5, **security.get_connection_args("client"))
+        try:  # a request the scheduler and every worker answers
+            await comm.write({"op": "identity", "reply": True})
+            return isinstance(await asyncio.wait_for(comm.read(), 5), dict)
+        finally:
+            comm.abort()
+
+    try:
+        return asyncio.run(asyncio.wait_for(attempt(), 10))
+    except (OSError, TimeoutError, EOFError):  # distributed's CommClosedError is an OSError
+        return False
+
+
+def test_an_outsider_cannot_connect_to_the_embedded_cluster(running):
+    """Every port of the embedded cluster (scheduler, workers, nannies) takes
+    only the cluster's own credentials: plain TCP, or TLS with another key,
+    is refused; the cluster's own get in (so the refusals are the credentials')."""
+    from distributed.security import Security
+
+    info = running.client.scheduler_info(n_workers=-1)
+    addresses = [info["address"], *info["workers"], *(w["nanny"] for w in info["workers"].values())]
+    assert len(addresses) == 5
+    stranger = Security.temporary()  # a valid TLS client, signed by a CA of its own
+    for address in addresses:
+        assert not outsider_gets_in(address, None), address
+        assert not outsider_gets_in(address, stranger), address
+        assert outsider_gets_in(address, running.cluster.security), address
+    from distributed import Client
+
+    with pytest.raises((OSError, TimeoutError)):
+        Client(info["address"], security=stranger, timeout=3)
 
 
 def test_workers_split_the_cores_and_go_without_dask_malloc_setting(running):

@@ -7,8 +7,13 @@ this module decides only what a worker owns and what a task is:
 - A worker owns one device: an embedded cluster starts one worker process
   per GPU, each pinned to its GPU by CUDA_VISIBLE_DEVICES, or with no GPU N
   processes that share the cores (each traces on cores // N threads). Every
-  embedded process listens on 127.0.0.1 only. A scheduler's address
-  (scheduler=, or RAYBENCH_SCHEDULER) joins a cluster started elsewhere.
+  embedded process listens on 127.0.0.1 only, and only over TLS with a key
+  made for this cluster and held in memory (Dask's Security.temporary()):
+  whoever can reach a Dask port can run code there, so no other process,
+  another user's least of all, gets in. A scheduler's address (scheduler=,
+  or RAYBENCH_SCHEDULER) joins a cluster started elsewhere, trusted with
+  code execution in this process (Dask sends pickles both ways); tls://
+  addresses take the CA, certificate and key given, or Dask's config.
 - A worker keeps a warm Renderer per (scene, size, device, options): the
   scene is scattered once to every worker (broadcast), tasks name it by its
   key, and the kernels, the tree and the device's buffers are made on the
@@ -90,10 +95,11 @@ def gpu_count() -> int:
     return len(cuda.gpus)
 
 
-def worker_specs(device: str, workers: int) -> dict:
+def worker_specs(device: str, workers: int, security=None) -> dict:
     """The SpecCluster worker specs of an embedded cluster: `workers` Nanny
     processes on 127.0.0.1, one task at a time each; on cuda each pinned to
-    one GPU, on the cpu each given its share of the cores."""
+    one GPU, on the cpu each given its share of the cores. security (a
+    distributed Security): their connections' (tls:// where it holds keys)."""
     from distributed import Nanny
 
     try:
@@ -118,6 +124,8 @@ def worker_specs(device: str, workers: int) -> dict:
             "options": {
                 "nthreads": 1,
                 "host": HOST,
+                "protocol": _protocol(security),
+                "security": security,
                 "dashboard_address": f"{HOST}:0",  # Dask's HTTP server (health, metrics) is always started
                 "env": env,
                 "memory_limit": memory,
@@ -125,6 +133,22 @@ def worker_specs(device: str, workers: int) -> dict:
             },
         }
     return specs
+
+
+def _protocol(security) -> str:
+    return "tls" if security is not None and security.require_encryption else "tcp"
+
+
+def embedded_security():
+    """The credentials of a new embedded cluster: a self-signed key and
+    certificate made now, in memory, that every process of the cluster and
+    its client present to each other (mutual TLS): a process without them is
+    refused. Dask passes them to the workers it starts through their
+    nannies' pipes; they are on no disk but for the moment each process
+    loads them (distributed.security, a private temporary folder)."""
+    from distributed.security import Security
+
+    return Security.temporary()
 
 
 def default_workers(device: str) -> int:
@@ -141,7 +165,11 @@ class Cluster:
 
     device picks the embedded workers' kind ("auto": one per GPU where
     there is one, else the CPU); scheduler (default: RAYBENCH_SCHEDULER)
-    joins an existing cluster, tried for timeout seconds."""
+    joins an existing cluster, tried for timeout seconds. security (a
+    distributed.security.Security): an embedded cluster's connections, by
+    default TLS with credentials made for it alone (embedded_security();
+    Security() gives plain TCP, which any local process can join); a joined
+    one's, by default Dask's config (distributed.comm.tls)."""
 
     def __init__(
         self,
@@ -149,6 +177,7 @@ class Cluster:
         device: str = "auto",
         scheduler: str | None = None,
         timeout: float = CONNECT_TIMEOUT_S,
+        security=None,
     ):
         import dask
         from distributed import Client, Scheduler, SpecCluster
@@ -160,7 +189,7 @@ class Cluster:
         if scheduler is not None:
             if workers is not None:
                 raise RaybenchError("workers: a joined cluster has its own; give workers or a scheduler, not both")
-            self.client = connect(scheduler, timeout)
+            self.client = connect(scheduler, timeout, security)
             return
         device = backends.resolve(device)
         if device == "wgpu":
@@ -175,10 +204,15 @@ class Cluster:
         # raybench's workers go without it (the module's docstring says why).
         environ = dict(dask.config.get("distributed.nanny.pre-spawn-environ"))
         environ.pop("MALLOC_TRIM_THRESHOLD_", None)
+        if security is None:
+            security = embedded_security()
+        scheduler_options = {"host": HOST, "port": 0, "dashboard_address": f"{HOST}:0",
+                             "protocol": _protocol(security), "security": security}  # fmt: skip
         with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}):
             self.cluster = SpecCluster(
-                scheduler={"cls": Scheduler, "options": {"host": HOST, "port": 0, "dashboard_address": f"{HOST}:0"}},
-                workers=worker_specs(device, workers),
+                scheduler={"cls": Scheduler, "options": scheduler_options},
+                workers=worker_specs(device, workers, security),
+                security=security,
                 silence_logs=40,  # errors only: a restarted worker's warnings are Dask's to handle
             )
         try:
@@ -206,13 +240,14 @@ class Cluster:
         self.close()
 
 
-def connect(address: str, timeout: float = CONNECT_TIMEOUT_S):
+def connect(address: str, timeout: float = CONNECT_TIMEOUT_S, security=None):
     """A Client of the scheduler at address, or one line saying it was not
-    reached within timeout seconds."""
+    reached within timeout seconds. security: a distributed Security (for
+    tls:// addresses), by default Dask's config."""
     from distributed import Client
 
     try:
-        return Client(address, timeout=timeout)
+        return Client(address, timeout=timeout, security=security)
     except (OSError, TimeoutError, ValueError) as exc:
         reason = " ".join(str(exc).split()) or type(exc).__name__
         raise RaybenchError(f"scheduler {address}: unreachable within {timeout:g} s ({reason})") from None
