@@ -3,6 +3,7 @@ cluster of 2 worker processes (raybench's own, 127.0.0.1 only), shared by
 the module's tests; each result is checked against the same work done in
 this one process."""
 
+import contextlib
 import json
 import os
 import re
@@ -10,6 +11,7 @@ import signal
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -53,27 +55,62 @@ def png(path) -> np.ndarray:
     return np.asarray(Image.open(path).convert("RGB"))
 
 
-def ended(proc) -> str:
-    """A child's stderr, for a failed check: the child is killed first, so
-    that reading its pipe cannot wait on a process that is still running."""
-    if proc.poll() is None:
-        os.killpg(proc.pid, signal.SIGKILL)
-    _, err = proc.communicate(timeout=60)
-    return err.decode(errors="replace")[-2000:]
-
-
 def test_everything_listens_on_loopback_only(running):
     info = running.client.scheduler_info(n_workers=-1)
-    assert info["address"].startswith("tcp://127.0.0.1:")
+    assert info["address"].startswith("tls://127.0.0.1:")
     assert len(info["workers"]) == 2
     for address, worker in info["workers"].items():
-        assert address.startswith("tcp://127.0.0.1:")
-        assert worker["nanny"].startswith("tcp://127.0.0.1:")
+        assert address.startswith("tls://127.0.0.1:")
+        assert worker["nanny"].startswith("tls://127.0.0.1:")
     pids = [os.getpid(), *running.client.run(os.getpid).values()]
     pids += [psutil.Process(p).ppid() for p in pids[1:]]  # the nannies
     listening = [c for p in set(pids) for c in psutil.Process(p).net_connections("inet") if c.status == "LISTEN"]
     assert len(listening) >= 4  # the scheduler's, the workers' and the nannies' at least
     assert {c.laddr.ip for c in listening} == {"127.0.0.1"}
+
+
+def outsider_gets_in(address: str, security) -> bool:
+    """Whether a connection to address with security's credentials (None:
+    none, plain TCP to the same port) gets through Dask's handshake, within 10 s."""
+    import asyncio
+
+    from distributed.comm import connect
+
+    async def attempt():
+        if security is None:
+            comm = await connect("tcp://" + address.split("://", 1)[1], timeout=5)
+        else:
+            comm = await connect(address, timeout=5, **security.get_connection_args("client"))
+        try:  # a request the scheduler and every worker answers
+            await comm.write({"op": "identity", "reply": True})
+            return isinstance(await asyncio.wait_for(comm.read(), 5), dict)
+        finally:
+            comm.abort()
+
+    try:
+        return asyncio.run(asyncio.wait_for(attempt(), 10))
+    except (OSError, TimeoutError, EOFError):  # distributed's CommClosedError is an OSError
+        return False
+
+
+def test_an_outsider_cannot_connect_to_the_embedded_cluster(running):
+    """Every port of the embedded cluster (scheduler, workers, nannies) takes
+    only the cluster's own credentials: plain TCP, or TLS with another key,
+    is refused; the cluster's own get in (so the refusals are the credentials')."""
+    from distributed.security import Security
+
+    info = running.client.scheduler_info(n_workers=-1)
+    addresses = [info["address"], *info["workers"], *(w["nanny"] for w in info["workers"].values())]
+    assert len(addresses) == 5
+    stranger = Security.temporary()  # a valid TLS client, signed by a CA of its own
+    for address in addresses:
+        assert not outsider_gets_in(address, None), address
+        assert not outsider_gets_in(address, stranger), address
+        assert outsider_gets_in(address, running.cluster.security), address
+    from distributed import Client
+
+    with pytest.raises((OSError, TimeoutError)):
+        Client(info["address"], security=stranger, timeout=3)
 
 
 def test_workers_split_the_cores_and_go_without_dask_malloc_setting(running):
@@ -520,11 +557,75 @@ def test_an_unreachable_scheduler_is_one_line_within_the_timeout(capsys):
 
 
 def test_a_worker_without_the_device_is_named(running):
-    with pytest.raises(RaybenchError, match=r"^worker tcp://127\.0\.0\.1:\d+: .*no-such-adapter"):
+    with pytest.raises(RaybenchError, match=r"^worker tls://127\.0\.0\.1:\d+: .*no-such-adapter"):
         cluster.check_workers(running.client, "wgpu", adapter="no-such-adapter")
 
 
-def test_cli_renders_tiles_and_a_sequence_on_a_running_cluster(running, rng, tmp_path, monkeypatch, capsys):
+@pytest.fixture(scope="module")
+def credentials(running, tmp_path_factory) -> dict[str, str]:
+    """The running cluster's CA, certificate and key as PEM files, as a
+    user of a tls:// scheduler holds them: by option name."""
+    folder = tmp_path_factory.mktemp("tls")
+    security = running.cluster.security
+    files = {"--tls-ca": security.tls_ca_file, "--tls-cert": security.tls_client_cert,
+             "--tls-key": security.tls_client_key}  # fmt: skip
+    for name, pem in files.items():
+        (folder / name[2:]).write_text(pem)
+    return {name: str(folder / name[2:]) for name in files}
+
+
+def tls_args(credentials) -> list[str]:
+    return [arg for name, path in credentials.items() for arg in (name, path)]
+
+
+@pytest.fixture
+def dask_tls(credentials):
+    """The credentials in Dask's own config, where a client finds them without options."""
+    import dask
+
+    config = {
+        "distributed.comm.tls.ca-file": credentials["--tls-ca"],
+        "distributed.comm.tls.client.cert": credentials["--tls-cert"],
+        "distributed.comm.tls.client.key": credentials["--tls-key"],
+    }
+    with dask.config.set(config):
+        yield
+
+
+def test_a_tls_scheduler_without_credentials_is_one_line(running, capsys, monkeypatch):
+    monkeypatch.delenv("RAYBENCH_SCHEDULER", raising=False)
+    address = running.client.scheduler.address
+    assert run(["render", "--spheres", "3", "--size", "16x8", "--scheduler", address]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"raybench: error: scheduler {address}: a tls:// address needs this client's TLS ")
+    assert "--tls-ca" in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--tls-ca", "{ca}"], "--tls-ca: apply to --scheduler tls://... only"),
+        (["--scheduler", "tcp://127.0.0.1:1", "--tls-ca", "{ca}"], "the scheduler's address must be tls://"),
+        (["--scheduler", "tls://127.0.0.1:1", "--tls-ca", "{ca}"], "give --tls-ca and --tls-cert"),
+        (["--scheduler", "tls://127.0.0.1:1", "--tls-ca", "no-such-file"], "'no-such-file' does not exist"),
+    ],
+)
+def test_bad_tls_options_are_one_line(argv, message, credentials, capsys, monkeypatch):
+    monkeypatch.delenv("RAYBENCH_SCHEDULER", raising=False)
+    argv = [a.format(ca=credentials["--tls-ca"]) for a in argv]
+    assert run(["render", "--spheres", "3", *argv]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1
+
+
+def test_help_says_a_scheduler_is_trusted_with_code_execution(capsys):
+    for command in ("render", "bench"):
+        assert run([command, "--help"]) == 0
+        text = " ".join(capsys.readouterr().out.split())
+        assert "trusted with code execution" in text and "--tls-ca" in text and "tls://" in text
+
+
+def test_cli_renders_tiles_and_a_sequence_on_a_running_cluster(running, rng, tmp_path, monkeypatch, capsys, dask_tls):
     monkeypatch.setenv("RAYBENCH_SCHEDULER", running.client.scheduler.address)
     seed = int(rng.integers(1000))
     out = tmp_path / "tiles.png"
@@ -565,6 +666,34 @@ def test_cli_refuses_bad_cluster_options_in_one_line(argv, message, capsys, monk
     assert message in err and err.count("\n") == 1
 
 
+@contextlib.contextmanager
+def interrupted_when(argv, ready):
+    """argv run in a session of its own, sent SIGINT as a terminal sends
+    Ctrl-C (to the whole process group, workers included) once ready(proc);
+    yields (proc, its children then, its stderr) once it ended. Every wait is
+    bounded; a child still there is killed before its pipe is read."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    with tempfile.TemporaryFile() as errors:
+        proc = subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL, stderr=errors, start_new_session=True)
+        family = []
+        try:
+            deadline = time.monotonic() + 120
+            while not (seen := ready(proc)) and proc.poll() is None and time.monotonic() < deadline:
+                time.sleep(0.1)
+            with contextlib.suppress(psutil.NoSuchProcess):
+                family = psutil.Process(proc.pid).children(recursive=True)
+            os.killpg(proc.pid, signal.SIGINT)
+            proc.wait(timeout=60)
+        finally:
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait(timeout=30)
+        errors.seek(0)
+        text = errors.read().decode()
+    assert seen, f"not under way in time (exit {proc.returncode}): {text}"
+    yield proc, family, text
+
+
 @pytest.mark.slow
 def test_ctrl_c_keeps_the_frames_written_and_stops_the_cluster(tmp_path):
     """Ctrl-C at a terminal: SIGINT to the whole process group, workers included."""
@@ -572,21 +701,10 @@ def test_ctrl_c_keeps_the_frames_written_and_stops_the_cluster(tmp_path):
     argv = [sys.executable, "-m", "raybench", "render", "--spheres", "200", "--size", "160x120", "--device", "cpu",
             "--accel", "none", "--kernel", "simple", "--workers", "2", "--path", "orbit", "--frames", "2000",
             "-o", str(out)]  # fmt: skip
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
-    proc = subprocess.Popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
-    try:
-        deadline = time.monotonic() + 120
-        while len(list(out.glob("frame_*.png"))) < 3:
-            assert proc.poll() is None and time.monotonic() < deadline, ended(proc)
-            time.sleep(0.1)
-        family = psutil.Process(proc.pid).children(recursive=True)
-        assert len(family) >= 2  # the nannies and their workers
-        os.killpg(proc.pid, signal.SIGINT)
-        _, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-    assert proc.returncode == 130 and err.decode().strip().splitlines()[-1] == "raybench: interrupted"
+    with interrupted_when(argv, lambda proc: len(list(out.glob("frame_*.png"))) >= 3) as (proc, family, err):
+        assert len(family) >= 2  # the workers
+    # one line, no worker's traceback (the blank line before it is click's, after the terminal's ^C)
+    assert proc.returncode == 130 and err.strip() == "raybench: interrupted", err
     _, alive = psutil.wait_procs(family, timeout=20)
     assert not alive, f"stray processes: {alive}"
     frames = sorted(out.glob("frame_*.png"))
@@ -604,22 +722,16 @@ def test_ctrl_c_during_a_frame_in_tiles_leaves_no_block_and_no_process(tmp_path)
     out = tmp_path / "frame.png"
     argv = [sys.executable, "-m", "raybench", "render", "--spheres", "4000", "--size", "1024x1024", "--device", "cpu",
             "--accel", "none", "--kernel", "simple", "--workers", "2", "-o", str(out)]  # fmt: skip
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
-    proc = subprocess.Popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
-    named = f"{sharedframe.PREFIX}{proc.pid}-"
-    try:
-        deadline = time.monotonic() + 120
-        while not any(name.startswith(named) for name in blocks()):  # the frame's block: its tiles are under way
-            assert proc.poll() is None and time.monotonic() < deadline, ended(proc)
-            time.sleep(0.1)
-        time.sleep(1)
-        family = psutil.Process(proc.pid).children(recursive=True)
-        os.killpg(proc.pid, signal.SIGINT)
-        _, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-    assert proc.returncode == 130 and err.decode().strip().splitlines()[-1] == "raybench: interrupted"
+
+    def tiles_under_way(proc) -> bool:  # the frame's block is there, a second ago
+        if any(name.startswith(f"{sharedframe.PREFIX}{proc.pid}-") for name in blocks()):
+            time.sleep(1)
+            return True
+        return False
+
+    with interrupted_when(argv, tiles_under_way) as (proc, family, err):
+        named = f"{sharedframe.PREFIX}{proc.pid}-"
+    assert proc.returncode == 130 and err.strip() == "raybench: interrupted", err
     _, alive = psutil.wait_procs(family, timeout=20)
     assert not alive, f"stray processes: {alive}"
     assert not any(name.startswith(named) for name in blocks()) and not out.exists()
@@ -661,7 +773,8 @@ def test_a_worker_killed_mid_frame_loses_no_tile(running, rng, no_block_left):
     job = threading.Thread(
         target=lambda: done.setdefault(
             "frame", cluster.render(running.client, scene, camera, 96, 240, "cpu", rows=8, **options)
-        )
+        ),
+        daemon=True,  # left behind, not awaited at exit, should it hang
     )
     pids = running.client.run(os.getpid)
     job.start()
@@ -696,10 +809,10 @@ def bench_records(out):
     return records
 
 
-def test_cli_bench_runs_once_a_machine_on_a_worker(running, tmp_path, capsys):
+def test_cli_bench_runs_once_a_machine_on_a_worker(running, tmp_path, capsys, credentials):
     address = running.client.scheduler.address
     out = tmp_path / "out"
-    assert run([*BENCH, "--scheduler", address, "--out", str(out)]) == 0
+    assert run([*BENCH, "--scheduler", address, *tls_args(credentials), "--out", str(out)]) == 0
     assert "on 1 machine of" in capsys.readouterr().out  # both workers are on 127.0.0.1: one machine
     records = bench_records(out)
     workers = running.client.run(os.getpid)
@@ -714,7 +827,7 @@ def test_cli_bench_runs_once_a_machine_on_a_worker(running, tmp_path, capsys):
 
 
 @pytest.mark.slow
-def test_cli_bench_puts_two_machines_side_by_side(running, tmp_path, monkeypatch, capsys):
+def test_cli_bench_puts_two_machines_side_by_side(running, tmp_path, monkeypatch, capsys, dask_tls):
     # one host here: each worker is made a machine of its own
     monkeypatch.setattr(machines, "machine_key", lambda worker: worker["id"])
     monkeypatch.setenv("RAYBENCH_SCHEDULER", running.client.scheduler.address)
@@ -740,16 +853,17 @@ def test_cli_bench_on_an_unreachable_scheduler_is_one_line(capsys):
     assert err.startswith(f"raybench: error: scheduler {address}: unreachable within 1 s") and err.count("\n") == 1
 
 
-def test_cli_bench_names_the_worker_that_lacks_a_device(running, tmp_path, capsys):
+def test_cli_bench_names_the_worker_that_lacks_a_device(running, tmp_path, capsys, credentials):
     address = running.client.scheduler.address
-    argv = ["bench", "--quick", "--device", "wgpu", "--adapter", "no-such-adapter", "--scheduler", address]
+    argv = ["bench", "--quick", "--device", "wgpu", "--adapter", "no-such-adapter", "--scheduler", address,
+            *tls_args(credentials)]  # fmt: skip
     assert run([*argv, "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
-    assert re.match(r"raybench: error: worker tcp://127\.0\.0\.1:\d+: .*no-such-adapter", err) and err.count("\n") == 1
+    assert re.match(r"raybench: error: worker tls://127\.0\.0\.1:\d+: .*no-such-adapter", err) and err.count("\n") == 1
     assert not (tmp_path / "out").exists()
 
 
-def test_cli_bench_ctrl_c_keeps_the_machines_records_written(running, tmp_path, monkeypatch, capsys):
+def test_cli_bench_ctrl_c_keeps_the_machines_records_written(running, tmp_path, monkeypatch, capsys, dask_tls):
     def one_machine_then_ctrl_c(client, settings, label, on_records):
         on_records([{"suite": "thesis", "n": 1}, {"suite": "thesis", "n": 2}])
         raise KeyboardInterrupt

@@ -134,3 +134,25 @@ def test_a_process_that_never_closes_its_pool_leaves_nothing(tmp_path):
         [sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True, timeout=300
     ).stdout
     assert not list(Path(sharedframe.SHM_DIR).glob(f"{sharedframe.PREFIX}{pid.strip()}-*"))
+
+
+def test_a_killed_clients_block_is_removed_by_the_next_and_a_live_ones_kept(pool):
+    """SIGKILL of a client mid-frame leaves its block (nothing of it runs
+    again); the next client's first block removes it. A live process's
+    block (this one's) is left alone."""
+    killed = (
+        "import os, signal; from raybench.cluster import sharedframe\n"
+        "lease = sharedframe.Pool().lease(64, 32)\n"
+        "print(os.getpid(), flush=True); os.kill(os.getpid(), signal.SIGKILL)\n"
+    )
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    done = subprocess.run([sys.executable, "-c", killed], env=env, capture_output=True, text=True, timeout=120)
+    assert done.returncode == -9
+    left = list(Path(sharedframe.SHM_DIR).glob(f"{sharedframe.PREFIX}{done.stdout.strip()}-*"))
+    assert len(left) == 1  # what the kill leaks
+    live = pool.lease(16, 8)  # this process's: alive
+    nxt = "from raybench.cluster import sharedframe; sharedframe.Pool().lease(16, 8).end()"
+    subprocess.run([sys.executable, "-c", nxt], env=env, capture_output=True, timeout=120, check=True)
+    assert not left[0].exists()
+    assert Path(sharedframe.SHM_DIR, live.name).exists()
+    live.end()

@@ -13,6 +13,13 @@ its ray crosses, which varies across the picture, so equal bands would
 leave threads idle: the threads instead pull small chunks of rows from a
 shared iterator until none are left.
 
+Ctrl-C mid-frame: the bands run on the pool's threads (one thread's too),
+while the main thread only waits, and so takes the signal at once; it then
+sets the tracer's stop flag, which every kernel reads before each row (or
+row of packets), and waits for the kernels to return: a frame of minutes
+stops within a row's time, at no measured cost to a frame
+(docs/performance.md#ctrl-c-mid-frame).
+
 fastmath stays off: the float32 arithmetic is then exactly IEEE, so the CPU image
 is bit-identical to the CUDA kernel run under numba's simulator, and the tests
 can hold the two to equality rather than to a tolerance.
@@ -22,6 +29,7 @@ from __future__ import annotations
 
 import functools
 import time
+from concurrent import futures
 from concurrent.futures import ThreadPoolExecutor
 
 import numba
@@ -160,8 +168,10 @@ WIDE = 16
 
 
 @compiled.njit(nogil=True)
-def _render_band(first_row, end_row, width, height, basis, spheres, count, image, hits):
+def _render_band(first_row, end_row, width, height, basis, spheres, count, image, hits, stop):
     for y in range(first_row, end_row):
+        if stop[0]:
+            return
         for x in range(width):
             _render_pixel(x, y, width, height, basis, spheres, count, image, hits)
 
@@ -172,8 +182,10 @@ def _constant_band(count: int):
     constant, as in the thesis's tests 1 to 6); one compilation per count."""
 
     @numba.njit(nogil=True)
-    def render_band(first_row, end_row, width, height, basis, spheres, _count, image, hits):
+    def render_band(first_row, end_row, width, height, basis, spheres, _count, image, hits, stop):
         for y in range(first_row, end_row):
+            if stop[0]:
+                return
             for x in range(width):
                 _render_pixel(x, y, width, height, basis, spheres, count, image, hits)
 
@@ -187,7 +199,7 @@ def _prepare(basis, spheres, count, relative):
 
 
 @compiled.njit(nogil=True)
-def _pairs_band(first_row, end_row, width, height, basis, spheres, relative, count, image, hits):
+def _pairs_band(first_row, end_row, width, height, basis, spheres, relative, count, image, hits, stop):
     """The fast kernel for AVX2 and narrower: the rows of a band two pixels at
     a time, the spheres GROUP at a time. The cull test of a whole group on
     both rays is one SIMD loop across the spheres (each sphere's EO loaded
@@ -197,6 +209,8 @@ def _pairs_band(first_row, end_row, width, height, basis, spheres, relative, cou
     ex, ey, ez, es = relative[0], relative[1], relative[2], relative[3]
     radius = spheres[RADIUS]
     for y in range(first_row, end_row):
+        if stop[0]:
+            return
         for x in range(0, width, 2):
             x1 = min(x + 1, width - 1)  # an odd width traces its last pixel twice, stores it once
             ax, ay, az = _primary_ray(x, y, width, height, basis)
@@ -226,7 +240,7 @@ def _pairs_band(first_row, end_row, width, height, basis, spheres, relative, cou
 
 
 @compiled.njit(nogil=True)
-def _wide_band(first_row, end_row, width, height, basis, spheres, relative, count, image, hits):
+def _wide_band(first_row, end_row, width, height, basis, spheres, relative, count, image, hits, stop):
     """The fast kernel for AVX-512: WIDE pixels of a row side by side, so the
     cull test of each sphere is one SIMD compare across the rays; a group of
     GROUP spheres is walked again with the exact test only where some ray
@@ -240,6 +254,8 @@ def _wide_band(first_row, end_row, width, height, basis, spheres, relative, coun
     hit = np.empty(WIDE, np.int64)
     hit_d = np.empty(WIDE, np.float32)
     for y in range(first_row, end_row):
+        if stop[0]:
+            return
         for x in range(0, width, WIDE):
             for k in range(WIDE):  # pixels past the edge trace a copy of the last one, unstored
                 dx[k], dy[k], dz[k] = _primary_ray(min(x + k, width - 1), y, width, height, basis)
@@ -503,7 +519,7 @@ def _store_packet(x0, y0, end_row, width, spheres, hit, hit_d, rgb, paint, image
 
 
 @compiled.njit(nogil=True, error_model="numpy")
-def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered, order, spheres, image, hits):
+def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered, order, spheres, image, hits, stop):
     """The rows first_row..end_row, a PACKET_W x PACKET_H packet of rays at a time: the
     packet walks the tree together, a node entered if any of its rays
     enters it, each box and leaf test run across the packet's rays (loops
@@ -526,6 +542,8 @@ def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered
     ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
     margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
     for y0 in range(first_row, end_row, PACKET_H):
+        if stop[0]:
+            return
         for x0 in range(0, width, PACKET_W):
             _start_packet(x0, y0, end_row, width, height, basis, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, spread)
             cdx, cdy, cdz = dx[_MIDDLE], dy[_MIDDLE], dz[_MIDDLE]
@@ -645,7 +663,7 @@ def _wide_mask(wide, row, ox, oy, oz, margin, spread):
 
 @compiled.njit(nogil=True, error_model="numpy")
 def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links, ordered, order, spheres, image,
-                      hits):  # fmt: skip
+                      hits, stop):  # fmt: skip
     """_bvh_packets on the 4-wide tree (bvh.collapse): the same packets,
     the same box, leaf and shading steps, a wide node's four boxes put
     through the packet's interval test together (_wide_mask), then each
@@ -673,6 +691,8 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
     ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
     margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
     for y0 in range(first_row, end_row, PACKET_H):
+        if stop[0]:
+            return
         for x0 in range(0, width, PACKET_W):
             _start_packet(x0, y0, end_row, width, height, basis, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, spread)
             cdx, cdy, cdz = dx[_MIDDLE], dy[_MIDDLE], dz[_MIDDLE]
@@ -881,7 +901,7 @@ def _shadow_packet(ox, oy, oz, rays, spread, stack, wide, wide_links, ordered, o
 
 @numba.njit(inline="always")
 def _whitted_rows(render_pixel, first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern,
-                  params, tree, image, hits, counts):  # fmt: skip
+                  params, tree, image, hits, counts, stop):  # fmt: skip
     """Whitted shading of the rows first_row..end_row with render_pixel (the
     program through the tree, with or without shadow packets, or by brute
     force), a pixel at a time: its primary, reflected and refracted rays one
@@ -893,6 +913,8 @@ def _whitted_rows(render_pixel, first_row, end_row, width, height, basis, sphere
     rays_f = np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_FLOATS), np.float32)
     rays_i = np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_INTS), np.int32)
     for y in range(first_row, end_row):
+        if stop[0]:
+            return
         primary = shadow = reflection = refraction = 0
         for x in range(width):
             a, b, c, d = render_pixel(
@@ -917,16 +939,16 @@ _whitted_bvh_pixel, _whitted_all_pixel = _k.render_pixel_whitted["bvh"], _k.rend
 # in every new process (tried: each run added an index entry, none was hit).
 @compiled.njit(nogil=True)
 def _whitted_rows_bvh(first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern, params,
-                      tree, image, hits, counts):  # fmt: skip
+                      tree, image, hits, counts, stop):  # fmt: skip
     _whitted_rows(_whitted_bvh_pixel, first_row, end_row, width, height, basis, spheres, count, materials, lights,
-                  pattern, params, tree, image, hits, counts)  # fmt: skip
+                  pattern, params, tree, image, hits, counts, stop)  # fmt: skip
 
 
 @compiled.njit(nogil=True)
 def _whitted_rows_all(first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern, params,
-                      tree, image, hits, counts):  # fmt: skip
+                      tree, image, hits, counts, stop):  # fmt: skip
     _whitted_rows(_whitted_all_pixel, first_row, end_row, width, height, basis, spheres, count, materials, lights,
-                  pattern, params, tree, image, hits, counts)  # fmt: skip
+                  pattern, params, tree, image, hits, counts, stop)  # fmt: skip
 
 
 _whitted_packets_pixel = _k.render_pixel_whitted["packets"]
@@ -934,7 +956,7 @@ _whitted_packets_pixel = _k.render_pixel_whitted["packets"]
 
 @compiled.njit(nogil=True)
 def _whitted_rows_packets(first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern,
-                          params, tree, image, hits, counts):  # fmt: skip
+                          params, tree, image, hits, counts, stop):  # fmt: skip
     """_whitted_rows_bvh with each hit's shadow rays to a light as packets
     (_packet_shadows) through the 4-wide tree; tree: (nodes, links, ordered,
     order, wide, wide_links), given the thread's scratch for the packets."""
@@ -944,7 +966,7 @@ def _whitted_rows_packets(first_row, end_row, width, height, basis, spheres, cou
     stack = np.empty(WIDE_STACK, np.int32)
     own = (nodes, links, ordered, order, wide, wide_links, rays, spread, stack)
     _whitted_rows(_whitted_packets_pixel, first_row, end_row, width, height, basis, spheres, count, materials, lights,
-                  pattern, params, own, image, hits, counts)  # fmt: skip
+                  pattern, params, own, image, hits, counts, stop)  # fmt: skip
 
 
 WHITTED_ROWS = {"bvh": _whitted_rows_bvh, "none": _whitted_rows_all, "packets": _whitted_rows_packets}
@@ -1057,8 +1079,11 @@ class Tracer(TracerBase):
                 self.relative = np.zeros((4, self.count), np.float32)
             else:
                 self._kernel = _constant_band(self.count) if self.constant_count else _render_band
-        self._pool = ThreadPoolExecutor(workers) if workers > 1 else None
+        # Every band is traced on the pool's threads, a single one too: the
+        # main thread only waits, so that Ctrl-C reaches it mid-frame (trace).
+        self._pool = ThreadPoolExecutor(workers)
         self._workers = workers
+        self._stop = np.zeros(1, np.uint8)  # set: every kernel returns at its next row (trace)
 
     def update(self, spheres: np.ndarray) -> str | None:
         """The spheres moved: the next frames trace them, through a tree
@@ -1095,6 +1120,9 @@ class Tracer(TracerBase):
         return (b.nodes, b.links, b.ordered, b.order)
 
     def _args(self, basis, count):
+        return (*self._kernel_args(basis, count), self._stop)
+
+    def _kernel_args(self, basis, count):
         if self.whitted is not None:
             w = self.whitted
             return (self.width, self.height, basis, self.spheres, count, w.materials, w.lights, w.pattern, w.params,
@@ -1143,23 +1171,43 @@ class Tracer(TracerBase):
             first, end = check_rows(rows, self.height, PACKET_H)
             cut = chunks if self.accel == "bvh" or self.whitted is not None else _bands_of
             bands = [(first + a, first + b) for a, b in cut(end - first, self.threads)]
-        if self._pool is None:
-            self._kernel(first, end, *args)
-        elif self.accel == "bvh" or self.whitted is not None:
+        if self._pool is None:  # closed, and used again
+            self._pool = ThreadPoolExecutor(self._workers)
+        if self.accel == "bvh" or self.whitted is not None:
             pending = iter(bands)  # next() on it is atomic under the GIL
 
             def pull():
                 for a, b in pending:
                     self._kernel(a, b, *args)
 
-            for job in [self._pool.submit(pull) for _ in range(self._workers)]:
-                job.result()
+            jobs = [self._pool.submit(pull) for _ in range(self._workers)]
         else:
-            for job in [self._pool.submit(self._kernel, a, b, *args) for a, b in bands]:
-                job.result()
+            jobs = [self._pool.submit(self._kernel, a, b, *args) for a, b in bands]
+        self._finish(jobs)
         if self.ray_counts is not None:
             self.ray_counts[:] = self._row_rays[first:end].sum(axis=0)
         return self.image, self.hits
+
+    def _finish(self, jobs) -> None:
+        """Wait for the frame's bands. Ctrl-C (or a band's error) meanwhile:
+        the kernels still running are told to stop, return at their next row,
+        and are awaited before it goes on, so that no thread writes into
+        the buffers of an abandoned frame (or the next one); a second Ctrl-C
+        while they return is not let out, as the wait is a row's time."""
+        try:
+            for job in jobs:
+                job.result()
+        except BaseException:
+            self._stop[0] = 1
+            while True:
+                try:
+                    futures.wait(jobs)
+                    break
+                except KeyboardInterrupt:
+                    continue
+            raise
+        finally:
+            self._stop[0] = 0
 
     def timed_trace(self, basis: np.ndarray, count: int | None = None) -> float | None:
         """trace(); the CPU has no separate kernel time to report: None."""

@@ -12,7 +12,15 @@ import click
 
 from ..backends.options import ACCELS, KERNELS
 from ..errors import RaybenchError, device_failure, one_line
-from .options import adapter_option, build_option, connect_timeout_option, open_cluster, scheduler_option
+from .options import (
+    adapter_option,
+    build_option,
+    connect_timeout_option,
+    open_cluster,
+    scheduler_option,
+    scheduler_security,
+    tls_options,
+)
 
 
 @click.command()
@@ -70,6 +78,7 @@ from .options import adapter_option, build_option, connect_timeout_option, open_
     "once a machine (on one of its workers), with its own devices and description; each machine's "
     "records arrive when its run ends, into one results file and one report, the machines side by side"
 )
+@tls_options()
 @connect_timeout_option()
 def bench(
     suites,
@@ -85,6 +94,9 @@ def bench(
     seed,
     no_report,
     scheduler,
+    tls_ca,
+    tls_cert,
+    tls_key,
     connect_timeout,
 ):
     """Run the thesis's experiments on this machine, then write a report;
@@ -105,6 +117,7 @@ def bench(
         if s not in suites_mod.SUITES:
             raise RaybenchError(f"--suite: unknown suite {s!r}; choose from {', '.join(suites_mod.SUITES)} or all")
     scheduler = scheduler or os.environ.get("RAYBENCH_SCHEDULER") or None
+    security = scheduler_security(scheduler, tls_ca, tls_cert, tls_key)
     if scheduler is not None and "all" in suites:
         chosen = tuple(s for s in chosen if s != "multi-gpu")  # it starts workers of its own: one machine's
     if duration is None:
@@ -134,7 +147,7 @@ def bench(
 
         out_dir = out_dir or Path("raybench-results") / (label or "cluster")
         results_path = out_dir / f"results-{stamp}.jsonl"
-        with open_cluster(None, "auto", scheduler, connect_timeout) as running:
+        with open_cluster(None, "auto", scheduler, connect_timeout, security) as running:
             machines = on_machines.bench_workers(running.client)
             click.echo(
                 f"{', '.join(settings['suites'])} on {len(machines)} machine{'s' if len(machines) != 1 else ''} "

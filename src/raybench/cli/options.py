@@ -227,7 +227,7 @@ def build_option(multiple: bool = False):
 
 
 def cluster_options():
-    """--workers, --scheduler, --tile, --connect-timeout: where a Dask cluster's workers trace."""
+    """--workers, --scheduler (and its --tls-*), --tile, --connect-timeout: where a Dask cluster's workers trace."""
     return stacked(
         click.option(
             "--workers",
@@ -238,6 +238,7 @@ def cluster_options():
             "holds)",
         ),
         scheduler_option("trace across the running Dask cluster whose scheduler is at this address"),
+        tls_options(),
         click.option(
             "--tile",
             type=int,
@@ -247,8 +248,52 @@ def cluster_options():
     )
 
 
+# What --help says of every scheduler: Dask moves pickles both ways.
+TRUSTED = (
+    "; the scheduler and its workers are trusted with code execution in this process (Dask sends pickles): "
+    "give only a cluster you control, on a private network or over tls://"
+)
+
+
 def scheduler_option(what: str):
-    return click.option("--scheduler", help=f"{what}, e.g. tcp://10.0.0.5:8786 (default: $RAYBENCH_SCHEDULER)")
+    return click.option(
+        "--scheduler",
+        help=f"{what}, e.g. tls://10.0.0.5:8786 or tcp://10.0.0.5:8786 (default: $RAYBENCH_SCHEDULER){TRUSTED}",
+    )
+
+
+def tls_options():
+    """--tls-ca, --tls-cert, --tls-key: this client's credentials for a tls:// scheduler."""
+    readable = click.Path(exists=True, dir_okay=False, readable=True)
+    config = "(default: Dask's config, distributed.comm.tls."
+    return stacked(
+        click.option("--tls-ca", type=readable,
+                     help=f"--scheduler tls://: the CA certificate (PEM) of the cluster's {config}ca-file)"),
+        click.option("--tls-cert", type=readable,
+                     help=f"--scheduler tls://: this client's certificate (PEM) {config}client.cert)"),
+        click.option("--tls-key", type=readable,
+                     help=f"--scheduler tls://: this client's private key (PEM), where --tls-cert's file does not "
+                     f"hold it {config}client.key)"),
+    )  # fmt: skip
+
+
+def scheduler_security(scheduler, tls_ca, tls_cert, tls_key):
+    """The distributed Security of --tls-ca/--tls-cert/--tls-key for the
+    scheduler's address; None (Dask's own config) where none is given."""
+    given = {"--tls-ca": tls_ca, "--tls-cert": tls_cert, "--tls-key": tls_key}
+    if not any(given.values()):
+        return None
+    named = ", ".join(name for name, value in given.items() if value)
+    if scheduler is None:
+        raise RaybenchError(f"{named}: apply to --scheduler tls://... only")
+    if not scheduler.startswith("tls://"):
+        raise RaybenchError(f"{named}: the scheduler's address must be tls://..., got {scheduler}")
+    if not (tls_ca and tls_cert):
+        raise RaybenchError("--scheduler tls://: give --tls-ca and --tls-cert (and --tls-key unless the "
+                            "certificate's file holds the key) together")  # fmt: skip
+    from distributed.security import Security
+
+    return Security(require_encryption=True, tls_ca_file=tls_ca, tls_client_cert=tls_cert, tls_client_key=tls_key)
 
 
 def connect_timeout_option():
@@ -277,8 +322,9 @@ def _checked(check):
     return callback
 
 
-def open_cluster(workers, device, scheduler, connect_timeout):
-    """The embedded cluster of --workers, or the running one at --scheduler."""
+def open_cluster(workers, device, scheduler, connect_timeout, security=None):
+    """The embedded cluster of --workers, or the running one at --scheduler
+    (security: scheduler_security's)."""
     from ..cluster import Cluster
 
-    return Cluster(workers=workers, device=device, scheduler=scheduler, timeout=connect_timeout)
+    return Cluster(workers=workers, device=device, scheduler=scheduler, timeout=connect_timeout, security=security)

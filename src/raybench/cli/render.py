@@ -21,6 +21,7 @@ from .options import (
     open_cluster,
     parse_size,
     scene_options,
+    scheduler_security,
     shading_option_group,
     shading_options,
     size_option,
@@ -91,6 +92,9 @@ def render(
     gif,
     workers,
     scheduler,
+    tls_ca,
+    tls_cert,
+    tls_key,
     tile,
     connect_timeout,
 ):
@@ -110,6 +114,7 @@ def render(
     scheduler = scheduler or os.environ.get("RAYBENCH_SCHEDULER") or None
     if workers is not None and scheduler is not None:
         raise RaybenchError("give --workers (an embedded cluster) or --scheduler (a running one), not both")
+    security = scheduler_security(scheduler, tls_ca, tls_cert, tls_key)
     if camera_path is None and frames is not None:
         raise RaybenchError("--frames applies to --path only")
     if png_level is not None:
@@ -123,13 +128,13 @@ def render(
             raise RaybenchError("--tile applies to one frame; a sequence's tasks are whole frames")
         level = PNG_LEVEL if png_level is None else png_level
         return _render_sequence(scene, camera_path, frames, output, width, height, device, shaded, options,
-                                workers, scheduler, connect_timeout, level, gif)  # fmt: skip
+                                workers, scheduler, security, connect_timeout, level, gif)  # fmt: skip
     level = PNG_LEVEL if png_level is None else png_level
     output = output or Path("render.png")
     check_output(output)
     if workers is not None or scheduler is not None:
-        return _render_tiles(scene, output, width, height, device, shaded, options, workers, scheduler, tile,
-                             connect_timeout, level)  # fmt: skip
+        return _render_tiles(scene, output, width, height, device, shaded, options, workers, scheduler, security,
+                             tile, connect_timeout, level)  # fmt: skip
     if tile is not None:
         raise RaybenchError("--tile applies across a cluster: give --workers N or --scheduler ADDR")
     device = resolve(device, adapter)
@@ -154,12 +159,13 @@ def render(
     )
 
 
-def _render_tiles(scene, output, width, height, device, shaded, options, workers, scheduler, tile, timeout, level):
+def _render_tiles(scene, output, width, height, device, shaded, options, workers, scheduler, security, tile, timeout,
+                  level):  # fmt: skip
     """render --workers/--scheduler: one frame in tiles across the cluster."""
     from .. import cluster
 
     start = time.perf_counter()
-    with open_cluster(workers, device, scheduler, timeout) as running:
+    with open_cluster(workers, device, scheduler, timeout, security) as running:
         frame = cluster.render(running.client, scene, None, width, height, device, rows=tile, **shaded, **options)
         count = running.workers
     frame.save(output, level)
@@ -170,7 +176,7 @@ def _render_tiles(scene, output, width, height, device, shaded, options, workers
 
 
 def _render_sequence(scene, spec, frames, output, width, height, device, shaded, options, workers, scheduler,
-                     timeout, level, gif):  # fmt: skip
+                     security, timeout, level, gif):  # fmt: skip
     """render --path: a sequence of frames across the cluster, written as they
     arrive, with a progress bar; those on disk already are kept."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
@@ -192,7 +198,7 @@ def _render_sequence(scene, spec, frames, output, width, height, device, shaded,
     todo = sequence.prepare(output, marker, "-o")
     check_writable(cluster.frame_path(output, todo[0] if todo else 0), "-o")
     start = time.perf_counter()
-    with open_cluster(workers, device, scheduler, timeout) as running:
+    with open_cluster(workers, device, scheduler, timeout, security) as running:
         columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
         with Progress(*columns, transient=True) as progress:
             bar = progress.add_task(f"frames on {running.workers} workers", total=len(cameras))

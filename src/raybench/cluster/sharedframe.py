@@ -9,6 +9,7 @@ zeroing it and filling a page table entry for it in each process that maps it
 runs at 0.4-1 GB/s, against 4-7 GB/s for a copy into pages already mapped. So:
 
 - The client's Pool makes a Block once per frame size: a file in /dev/shm,
+  named after the client's process id (raybench-PID-...),
   its pages allocated at once (posix_fallocate, which also makes /dev/shm's
   lack of room an error here rather than a SIGBUS in a worker) and mapped here
   with their page tables filled (MAP_POPULATE).
@@ -17,7 +18,10 @@ runs at 0.4-1 GB/s, against 4-7 GB/s for a copy into pages already mapped. So:
   frame finds no block. A block whose frame failed is not lent again (one of
   its tasks may still be writing) and its name is removed at once. The pool
   removes every name as it closes (the client's session ends; at exit for one
-  left open).
+  left open). A client killed outright (SIGKILL, a crash) cannot: the first
+  block that a later client makes removes the blocks of every raybench
+  process that is gone (remove_stale), so at most one run's are left, and
+  only until the next.
 - A worker keeps its mapping of a block (write_rows, fill_rows), so its page
   tables are filled once, not every frame; a cuda worker page-locks it once
   too, and its GPU copies the rows into it directly.
@@ -93,11 +97,49 @@ def _fresh_name() -> str:
     return f"{PREFIX}{os.getpid()}-{secrets.token_hex(8)}"
 
 
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's
+        return True
+    return True
+
+
+def remove_stale() -> list[str]:
+    """The blocks in /dev/shm of raybench clients that are gone (their
+    process id, in the name, is no process's), this user's only, removed;
+    their names. A live client's blocks are never touched."""
+    removed = []
+    try:
+        names = os.listdir(SHM_DIR)
+    except OSError:
+        return removed
+    for name in names:
+        owner = name[len(PREFIX) :].split("-", 1)[0]
+        if not (name.startswith(PREFIX) and owner.isdigit()) or _alive(int(owner)):
+            continue
+        path = os.path.join(SHM_DIR, name)
+        with contextlib.suppress(OSError):  # gone meanwhile, or not ours
+            if os.lstat(path).st_uid == os.geteuid():
+                os.unlink(path)
+                removed.append(name)
+    return removed
+
+
+_swept = False  # remove_stale ran in this process, as its first block was made
+
+
 class Block:
     """A width x height frame's memory: a file in /dev/shm, its pages
     allocated and mapped here. Raises OSError where that cannot be (no room)."""
 
     def __init__(self, width: int, height: int):
+        global _swept
+        if not _swept:
+            _swept = True
+            remove_stale()
         self.width, self.height = width, height
         self.size = _layout(width, height)[1]
         self.retired = False  # its frame failed: not lent again

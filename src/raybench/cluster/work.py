@@ -7,8 +7,13 @@ this module decides only what a worker owns and what a task is:
 - A worker owns one device: an embedded cluster starts one worker process
   per GPU, each pinned to its GPU by CUDA_VISIBLE_DEVICES, or with no GPU N
   processes that share the cores (each traces on cores // N threads). Every
-  embedded process listens on 127.0.0.1 only. A scheduler's address
-  (scheduler=, or RAYBENCH_SCHEDULER) joins a cluster started elsewhere.
+  embedded process listens on 127.0.0.1 only, and only over TLS with a key
+  made for this cluster and held in memory (Dask's Security.temporary()):
+  whoever can reach a Dask port can run code there, so no other process,
+  another user's least of all, gets in. A scheduler's address (scheduler=,
+  or RAYBENCH_SCHEDULER) joins a cluster started elsewhere, trusted with
+  code execution in this process (Dask sends pickles both ways); tls://
+  addresses take the CA, certificate and key given, or Dask's config.
 - A worker keeps a warm Renderer per (scene, size, device, options): the
   scene is scattered once to every worker (broadcast), tasks name it by its
   key, and the kernels, the tree and the device's buffers are made on the
@@ -34,6 +39,7 @@ raybench's workers take one task at a time, without that variable.
 from __future__ import annotations
 
 import contextlib
+import logging
 import math
 import os
 import threading
@@ -70,8 +76,15 @@ TASKS_PER_WORKER = 4
 MAX_FRAMES_PER_TASK = 60
 # Warm renderers a worker keeps; each holds a frame's buffers and a tree.
 KEEP_RENDERERS = 2
-# How often a sequence's run of frames is sent again when the workers it was on are lost with it.
-SEQUENCE_RETRIES = 3
+# How often a task (a tile, a run of frames) is sent again when the workers it was on are lost
+# with it, and how long the client waits, each time, for a worker to trace it (a nanny restarts a
+# killed worker, in a few seconds on the machines measured).
+LOST_RETRIES = 3
+RESTART_WAIT_S = 60.0
+# What an embedded cluster's Dask logs to the terminal (the nannies set it in this process too):
+# critical failures only. What it logs as errors (a lost worker's scattered scene, the tasks
+# forgotten with it; a restarted worker's warnings) raybench handles, or says in one line.
+DASK_LOGS = logging.CRITICAL
 # How long render() trusts its last answer of which workers there are and
 # what device each has (about the interval at which a Dask client refreshes
 # its own view of the scheduler).
@@ -92,10 +105,11 @@ def gpu_count() -> int:
     return len(cuda.gpus)
 
 
-def worker_specs(device: str, workers: int) -> dict:
+def worker_specs(device: str, workers: int, security=None) -> dict:
     """The SpecCluster worker specs of an embedded cluster: `workers` Nanny
     processes on 127.0.0.1, one task at a time each; on cuda each pinned to
-    one GPU, on the cpu each given its share of the cores."""
+    one GPU, on the cpu each given its share of the cores. security (a
+    distributed Security): their connections' (tls:// where it holds keys)."""
     from distributed import Nanny
 
     try:
@@ -120,13 +134,43 @@ def worker_specs(device: str, workers: int) -> dict:
             "options": {
                 "nthreads": 1,
                 "host": HOST,
+                "protocol": _protocol(security),
+                "security": security,
                 "dashboard_address": f"{HOST}:0",  # Dask's HTTP server (health, metrics) is always started
                 "env": env,
+                "preload": [__name__],  # dask_setup: Ctrl-C is the client's to handle
                 "memory_limit": memory,
-                "silence_logs": 40,  # errors only: a restarted worker's warnings are Dask's to handle
+                "silence_logs": DASK_LOGS,
             },
         }
     return specs
+
+
+def _protocol(security) -> str:
+    return "tls" if security is not None and security.require_encryption else "tcp"
+
+
+def embedded_security():
+    """The credentials of a new embedded cluster: a self-signed key and
+    certificate made now, in memory, that every process of the cluster and
+    its client present to each other (mutual TLS): a process without them is
+    refused. Dask passes them to the workers it starts through their
+    nannies' pipes; they are on no disk but for the moment each process
+    loads them (distributed.security, a private temporary folder)."""
+    from distributed.security import Security
+
+    return Security.temporary()
+
+
+def dask_setup(worker) -> None:
+    """Dask's hook as each embedded worker starts (worker_specs preloads this
+    module there): Ctrl-C at a terminal reaches the whole process group, and
+    each worker printed its own KeyboardInterrupt's tracebacks; the client
+    handles it and ends the cluster, workers included, so they ignore it."""
+    import signal
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def default_workers(device: str) -> int:
@@ -143,7 +187,11 @@ class Cluster:
 
     device picks the embedded workers' kind ("auto": one per GPU where
     there is one, else the CPU); scheduler (default: RAYBENCH_SCHEDULER)
-    joins an existing cluster, tried for timeout seconds."""
+    joins an existing cluster, tried for timeout seconds. security (a
+    distributed.security.Security): an embedded cluster's connections, by
+    default TLS with credentials made for it alone (embedded_security();
+    Security() gives plain TCP, which any local process can join); a joined
+    one's, by default Dask's config (distributed.comm.tls)."""
 
     def __init__(
         self,
@@ -151,6 +199,7 @@ class Cluster:
         device: str = "auto",
         scheduler: str | None = None,
         timeout: float = CONNECT_TIMEOUT_S,
+        security=None,
     ):
         import dask
         from distributed import Client, Scheduler, SpecCluster
@@ -163,7 +212,7 @@ class Cluster:
         if scheduler is not None:
             if workers is not None:
                 raise RaybenchError("workers: a joined cluster has its own; give workers or a scheduler, not both")
-            self.client = connect(scheduler, timeout)
+            self.client = connect(scheduler, timeout, security)
             return
         device = backends.resolve(device)
         if device == "wgpu":
@@ -177,11 +226,16 @@ class Cluster:
         # raybench's workers go without it (the module's docstring says why).
         environ = dict(dask.config.get("distributed.nanny.pre-spawn-environ"))
         environ.pop("MALLOC_TRIM_THRESHOLD_", None)
+        if security is None:
+            security = embedded_security()
+        scheduler_options = {"host": HOST, "port": 0, "dashboard_address": f"{HOST}:0",
+                             "protocol": _protocol(security), "security": security}  # fmt: skip
         with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}):
             self.cluster = SpecCluster(
-                scheduler={"cls": Scheduler, "options": {"host": HOST, "port": 0, "dashboard_address": f"{HOST}:0"}},
-                workers=worker_specs(device, workers),
-                silence_logs=40,  # errors only: a restarted worker's warnings are Dask's to handle
+                scheduler={"cls": Scheduler, "options": scheduler_options},
+                workers=worker_specs(device, workers, security),
+                security=security,
+                silence_logs=DASK_LOGS,
             )
         try:
             self.client = Client(self.cluster)
@@ -208,14 +262,23 @@ class Cluster:
         self.close()
 
 
-def connect(address: str, timeout: float = CONNECT_TIMEOUT_S):
+def connect(address: str, timeout: float = CONNECT_TIMEOUT_S, security=None):
     """A Client of the scheduler at address, or one line saying it was not
-    reached within timeout seconds."""
+    reached within timeout seconds. security: a distributed Security (for
+    tls:// addresses), by default Dask's config."""
     from distributed import Client
+    from distributed.security import Security
 
     timeout = check_connect_timeout(timeout)
+    if security is None:
+        security = Security()  # Dask's config (distributed.comm.tls), as Client would read it
+    if address.startswith("tls://") and not (security.tls_ca_file and security.tls_client_cert):
+        raise RaybenchError(
+            f"scheduler {address}: a tls:// address needs this client's TLS credentials: give --tls-ca, "
+            "--tls-cert and --tls-key (Cluster(security=...)), or set Dask's distributed.comm.tls config"
+        )
     try:
-        return Client(address, timeout=timeout)
+        return Client(address, timeout=timeout, security=security)
     except (OSError, TimeoutError, ValueError) as exc:
         reason = " ".join(str(exc).split()) or type(exc).__name__
         raise RaybenchError(f"scheduler {address}: unreachable within {timeout:g} s ({reason})") from None
@@ -364,12 +427,41 @@ def _scatter(client, scene: Scene):
     held = (id(client), f"Scene-{tokenize(scene)}")
     future = _scattered.get(held)
     if future is None or future.client is not client or future.status != "finished":
-        future = client.scatter(scene, broadcast=True, hash=True)
+        try:
+            future = client.scatter(scene, broadcast=True, hash=True)
+        except (OSError, TimeoutError) as exc:
+            raise RaybenchError(f"cluster: the scene could not be sent to its workers ({one_line(exc)})") from None
         _scattered[held] = future
         while len(_scattered) > KEEP_RENDERERS:
             _scattered.popitem(last=False)[1].release()
     _scattered.move_to_end(held)
     return future, future.key
+
+
+def _send_again(client, scene: Scene, tried: int, what: str):
+    """(future, key) of the scene to send a lost task again with: a worker
+    that dies (killed, crashed, out of memory) can take the scene's last copy
+    with it, and the scheduler then forgets the tasks that needed it. The
+    client waits up to RESTART_WAIT_S for a worker (the nannies restart
+    theirs), scatters the scene again, and the task goes again, up to
+    LOST_RETRIES times; else one line saying what was lost."""
+    from distributed import TimeoutError as DaskTimeout
+
+    if tried >= LOST_RETRIES:
+        raise RaybenchError(f"cluster: {what} were lost {tried + 1} times with their workers")
+    try:
+        client.wait_for_workers(1, timeout=RESTART_WAIT_S)
+    except (OSError, DaskTimeout):
+        raise RaybenchError(
+            f"cluster: its workers were lost, with {what}, and none was back within {RESTART_WAIT_S:g} s"
+        ) from None
+    return _scatter(client, scene)
+
+
+def _killed(exc) -> RaybenchError:
+    """One line for a task that Dask gave up on: its workers died with it
+    (distributed.scheduler.allowed-failures times)."""
+    return RaybenchError(f"cluster: a task's workers kept dying under it ({one_line(exc)})")
 
 
 class _Session:
@@ -471,8 +563,13 @@ def render(
     The memory is kept for the client's next frame of this size, and reused
     once the returned frame's arrays are gone: a frame held stays as it is,
     and a caller who holds each frame until the next one is traced uses two
-    blocks in turn. release(client) lets it go."""
+    blocks in turn. release(client) lets it go.
+
+    A tile lost with its workers is traced again (_send_again); where that
+    cannot be, one line says so (RaybenchError)."""
     from distributed import as_completed
+    from distributed.client import FutureCancelledError
+    from distributed.scheduler import KilledWorker
 
     if camera is not None and not isinstance(camera, Camera):
         raise RaybenchError(f"camera: must be a raybench.Camera or None, got {type(camera).__name__}")
@@ -519,8 +616,21 @@ def render(
         try:
             # one tile's result fetched at a time (not with_results=True, which fetches every
             # finished tile's at once: sent rows would then all be held here beside the frame)
-            for task in as_completed(tasks):
-                first, band_image, band_hits, band_rays, band_build = task.result()
+            tries = {task: (band, 0) for task, band in zip(tasks, bands, strict=True)}
+            pending = as_completed(tasks)
+            for task in pending:
+                band, tried = tries.pop(task)
+                try:
+                    first, band_image, band_hits, band_rays, band_build = task.result()
+                except FutureCancelledError:  # lost with its workers: sent again (Dask alone cannot)
+                    future, key = _send_again(client, scene, tried, f"rows {band[0]} to {band[1]} of the frame")
+                    again = client.submit(_tile, future, key, spec, camera, band, address, pure=False)
+                    tries[again] = (band, tried + 1)
+                    tasks.append(again)
+                    pending.add(again)
+                    continue
+                except KilledWorker as exc:
+                    raise _killed(exc) from None
                 if band_image is not None:  # sent: a worker that could not write to the block, or none
                     image[first : first + len(band_image)] = band_image
                     hits[first : first + len(band_hits)] = band_hits
@@ -607,6 +717,7 @@ def render_sequence(
     every frame, skipped ones first. The frames' paths, in order."""
     from distributed import as_completed
     from distributed.client import FutureCancelledError
+    from distributed.scheduler import KilledWorker
 
     from ..files import write_atomic
     from ..render import check_png_level
@@ -644,20 +755,18 @@ def render_sequence(
             run, tried = tries.pop(task)
             try:
                 done = task.result()
-            except FutureCancelledError:
-                # A worker lost mid-sequence can take the scene's last copy, and the scheduler then
-                # forgets the tasks that needed it: the scene is scattered again and the run sent again.
-                if tried >= SEQUENCE_RETRIES:
-                    raise RaybenchError(
-                        f"cluster: frames {run[0][0]} to {run[-1][0]} were lost {tried + 1} times with their "
-                        "workers; the frames written so far are kept: run the sequence again to resume"
-                    ) from None
-                future, key = _scatter(client, scene)
+            except FutureCancelledError:  # lost with its workers: sent again (Dask alone cannot)
+                try:
+                    future, key = _send_again(client, scene, tried, f"frames {run[0][0]} to {run[-1][0]}")
+                except RaybenchError as exc:
+                    raise RaybenchError(f"{exc}; the frames written are kept: run it again to resume") from None
                 again = client.submit(_frames, future, key, spec, run, png_level, pure=False)
                 tries[again] = (run, tried + 1)
                 submitted.append(again)
                 pending.add(again)
                 continue
+            except KilledWorker as exc:
+                raise RaybenchError(f"{_killed(exc)}; the frames written are kept: run it again to resume") from None
             for n, png in done:
                 write_atomic(paths[n], png)
                 if on_frame is not None:
