@@ -18,7 +18,7 @@ import pytest
 from PIL import Image
 
 import raybench
-from raybench import Camera, RaybenchError, camera_path, cluster
+from raybench import Camera, RaybenchError, camera_path, cluster, sequence
 from raybench.cluster import work
 
 pytest.importorskip("distributed")
@@ -100,7 +100,7 @@ def test_the_only_worker_killed_mid_sequence_loses_no_frame(lone, rng, tmp_path)
     )
     kill_when_busy(lone.client, pid, "_frames", job)
     paths = finished(job)
-    assert sorted(p.name for p in tmp_path.iterdir()) == [p.name for p in paths]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [sequence.MARKER, *(p.name for p in paths)]
     with raybench.Renderer(scene, 96, 72, device="cpu", **OPTIONS) as renderer:
         for path, camera in zip(paths, cameras, strict=True):
             np.testing.assert_array_equal(np.asarray(Image.open(path).convert("RGB")), renderer.render(camera).image)
