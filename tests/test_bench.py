@@ -246,6 +246,10 @@ def test_quick_run_end_to_end(tmp_path, capsys):
         (["--duration", "0"], "--duration"),
         (["--duration", "99999"], "--duration"),
         (["--label", "a b"], "--label"),
+        # what the results' reader refuses is refused before the work, not after
+        (["--label", ".."], "--label: must be a name of letters, digits"),
+        (["--label", "x" * 65], "--label"),
+        (["--seed", "18446744073709551616"], "--seed: must be a whole number from 0 to 1e+15"),
     ],
 )
 def test_bench_bad_input(tmp_path, capsys, args, needle):

@@ -12,6 +12,7 @@ import contextlib
 import json
 import os
 import re
+import shutil
 import signal
 import stat
 import tempfile
@@ -60,6 +61,10 @@ def read_text(path, what: str, max_bytes: int | None = None) -> str:
         raise RaybenchError(f"{path}: cannot read the {what} ({exc.strerror or exc})") from None
     if len(data) > max_bytes:
         raise RaybenchError(f"{path}: the {what} is over the limit of {max_bytes / 2**20:,.0f} MiB")
+    if data.startswith(b"\xef\xbb\xbf"):  # JSON forbids it; the parser's own message would not name it
+        raise RaybenchError(
+            f"{path}: the {what} starts with a UTF-8 byte-order mark (BOM); save it as UTF-8 without a BOM"
+        )
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as exc:
@@ -227,6 +232,54 @@ def write_atomic(path, data: bytes) -> None:
             if isinstance(exc, OSError):
                 raise RaybenchError(f"{path}: cannot write ({exc.strerror or exc}); nothing was changed") from None
             raise
+
+
+@contextlib.contextmanager
+def folder_atomic(path, replaceable=lambda entry: False):
+    """A folder made whole or not at all: yields a new hidden folder beside
+    path to fill, which then takes path's place by a rename, so a crash, a
+    Ctrl-C or a full disk never leaves a half-made folder under path's name.
+    An existing path is replaced only if replaceable(entry) holds for each
+    of its entries (what an earlier run of the same writer left); else it is
+    refused before anything is made. On any failure the new folder is removed."""
+    path = Path(path)
+    if path.exists() or path.is_symlink():
+        if path.is_symlink() or not path.is_dir():
+            raise RaybenchError(f"{path}: is not a folder; choose another output folder")
+        foreign = [e.name for e in path.iterdir() if not replaceable(e)]
+        if foreign:
+            raise RaybenchError(
+                f"{path}: holds {shown_name(foreign[0])}{f' and {len(foreign) - 1} more' if len(foreign) > 1 else ''}, "
+                "which this would replace; choose a new or empty output folder"
+            )
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        staged = Path(tempfile.mkdtemp(prefix=f".{path.name[:100]}.", suffix=".partial", dir=path.parent))
+    except OSError as exc:
+        raise RaybenchError(f"{path}: cannot create the folder ({exc.strerror or exc})") from None
+    try:
+        yield staged
+        with _ctrl_c_held():
+            os.chmod(staged, 0o777 & ~_umask())  # mkdtemp's is 0700
+            old = None
+            if path.exists():
+                old = path.with_name(f".{path.name[:100]}.{os.urandom(6).hex()}.old")
+                os.rename(path, old)
+            os.rename(staged, path)
+            if old is not None:
+                shutil.rmtree(old, ignore_errors=True)
+    except BaseException as exc:
+        shutil.rmtree(staged, ignore_errors=True)
+        if isinstance(exc, OSError):
+            raise RaybenchError(f"{path}: cannot write ({exc.strerror or exc}); nothing was changed") from None
+        if isinstance(exc, RaybenchError) and str(staged) in str(exc):  # the name the user gave, not ours
+            raise RaybenchError(str(exc).replace(str(staged), str(path))) from None
+        raise
+
+
+def shown_name(name: str) -> str:
+    """A file name in a message: quoted as Python writes it, cut to 60 characters."""
+    return repr(name[:60])
 
 
 @contextlib.contextmanager

@@ -23,7 +23,9 @@ from ..errors import one_line
 def report_cmd(results, out_dir):
     """Turn result files (JSON Lines from `raybench bench`) into a Markdown report
     with plots and a verdict on each of the thesis's claims. Several files (two
-    machines, say) go side by side in one report."""
+    machines, say) go side by side in one report. A folder stands for every
+    .jsonl file under it; those that are not raybench results are skipped,
+    with a warning each. The report folder is made whole, then put in place."""
     import warnings
 
     from ..bench import report

@@ -11,7 +11,7 @@ import re
 from pathlib import Path
 
 from ...errors import RaybenchError
-from ...files import write_atomic
+from ...files import folder_atomic, write_atomic
 from ...kernels.whitted import KINDS
 from . import charts
 from .data import (
@@ -700,7 +700,8 @@ def write_report(paths: list, out_dir) -> Path:
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise RaybenchError(f"{out_dir}: is a file, not a folder for the report")
-    machines, notes = load(paths)
+    sources: list = []
+    machines, notes = load(paths, sources)
     # the scaling, secondary, multi-gpu and dynamic suites are no part of the thesis's claims: each its own section
     beyond: dict[str, dict[str, list[dict]]] = {
         "scaling": {}, "secondary": {}, "multi-gpu": {}, "dynamic": {}, "parts": {},
@@ -709,15 +710,21 @@ def write_report(paths: list, out_dir) -> Path:
         for r in records:
             if r["suite"] in beyond:
                 beyond[r["suite"]].setdefault(r["run"]["label"], []).append(r)
+    machines = {k: v for k, v in ((k, [r for r in v if r["suite"] not in beyond]) for k, v in machines.items()) if v}
+    # built aside and renamed into place: never a half-made report under out_dir's name
+    with folder_atomic(out_dir, _ours) as staged:
+        _write(sources, machines, notes, beyond, _Writer(staged))
+    return out_dir / "report.md"
+
+
+def _ours(entry: Path) -> bool:
+    """What an earlier report left in its folder, which a new one may replace."""
+    return entry.is_file() and not entry.is_symlink() and (entry.name == "report.md" or entry.suffix == ".png")
+
+
+def _write(sources, machines, notes, beyond, w: _Writer) -> None:
     scaling, secondary = beyond["scaling"], beyond["secondary"]
     multi_gpu, dynamic, parts = beyond["multi-gpu"], beyond["dynamic"], beyond["parts"]
-    machines = {k: v for k, v in ((k, [r for r in v if r["suite"] not in beyond]) for k, v in machines.items()) if v}
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise RaybenchError(f"{out_dir}: cannot create the report folder ({exc.strerror or exc})") from None
-
-    w = _Writer(out_dir)
     names = ", ".join(
         dict.fromkeys(
             [records[0]["run"]["label"] for records in machines.values() if records]
@@ -773,10 +780,9 @@ def write_report(paths: list, out_dir) -> Path:
         for label, records in parts.items():
             _section_parts(w, label, records)
     w("## Sources", "")
-    w(*[f"- `{Path(p)}`" for p in paths], "")
+    # a file's name is the user's text like any other: escaped, never a code span it could end
+    w(*[f"- {escape(p)}" for p in sources], "")
     if notes:
         w("## Notes", "")
         w(*[f"- {escape(n)}" for n in notes], "")
-    report = out_dir / "report.md"
-    write_atomic(report, "\n".join(w.lines).encode("utf-8"))
-    return report
+    write_atomic(w.out_dir / "report.md", "\n".join(w.lines).encode("utf-8"))
