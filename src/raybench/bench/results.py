@@ -157,7 +157,11 @@ def read(path) -> list[dict]:
     below. A half-written last line is skipped with a warning; a file that is
     not ours, or damaged before its end, is an error naming the line."""
     path = Path(path)
-    text = read_text(path, "results file")
+    return parse_records(read_text(path, "results file"), path)
+
+
+def parse_records(text: str, path) -> list[dict]:
+    """The records of a results file's text (read()), path naming it in messages."""
     check_nesting(text, str(path), lines=True)
     lines = text.split("\n")
     # The last line holding anything: only it may be cut short. Found once, so reading is linear.

@@ -171,6 +171,13 @@ def bench(
 
         path = report.write_report([results_path], out_dir / f"report-{stamp}")
         click.echo(f"report: {path}")
+    if writer.count:
+        from .. import references
+        from ..bench import headline
+        from ..bench.results import read
+
+        for line in headline.summary(read(results_path), references.load()):
+            click.echo(line)
 
 
 def _bench_into(writer, results_path, measure) -> None:

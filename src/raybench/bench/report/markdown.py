@@ -10,17 +10,21 @@ import json
 import re
 from pathlib import Path
 
+from ... import references as raybench_references
 from ...errors import RaybenchError
 from ...files import folder_atomic, write_atomic
 from ...kernels.whitted import KINDS
+from .. import headline
 from . import charts
 from .data import (
     DEVICE_NAMES,
+    accel_of,
     constant_vs_runtime,
     cpu_tuning,
     dynamic_points,
     fmt_opt,
     gpu_tuning,
+    kernel_of,
     largest_group,
     load,
     machine_of,
@@ -694,9 +698,65 @@ def _claims_table(machines: dict[str, list[dict]]) -> tuple[str, dict[str, list[
     return _table(header, rows), judged
 
 
-def write_report(paths: list, out_dir) -> Path:
+def _section_references(w: _Writer, machines: dict[str, list[dict]], references: list[dict]) -> None:
+    """The headline beside the reference machines, and the claims that need a GPU judged,
+    where a machine here has none, with each reference GPU: always named as another machine."""
+    mine = [r for records in machines.values() for r in records]
+    w("## Beside the reference machines", "")
+    w(
+        "raybench ships results measured on other machines (benchmarks/make_references.py makes them from the "
+        "records under benchmarks/results/). They are **not** this run's machines: each is named, with the "
+        "commit it was measured at. `raybench report --no-references` leaves this section out.",
+        "",
+    )
+    table = headline.rows(mine, references)
+    if table:
+        w(f"The {escape(headline.DEFINITION)} (raybench.bench.headline):", "")
+        rows = [
+            [
+                escape(r["label"]) + (" (reference: another machine)" if r["reference"] else ""),
+                escape(r["name"]),
+                fmt_num(r["value"]),
+                fmt_x(r["cpu_ratio"]) if r["cpu_ratio"] else "–",
+                escape(r["commit"] or "not recorded"),
+            ]
+            for r in table
+        ]
+        w(_table(["machine", "device", "million rays/s", "x this run's CPU", "commit"], rows), "")
+    by_ref: dict[str, list[dict]] = {}
+    for r in references:
+        by_ref.setdefault(r["run"]["label"], []).append(r)
+    for label, records in machines.items():
+        cpu = [r for r in records if r["device"] == "cpu" and r["suite"] == "thesis"]
+        if not cpu or any(r["device"] == "cuda" for r in records):
+            continue
+        way = (accel_of(cpu[0]), kernel_of(cpu[0]))
+        for ref, ref_records in by_ref.items():
+            gpu = [r for r in ref_records if r["device"] == "cuda" and (accel_of(r), kernel_of(r)) == way]
+            if not any(r["suite"] == "thesis" for r in gpu):
+                continue
+            machine = {**cpu[0]["run"]["machine"], "gpus": gpu[0]["run"]["machine"].get("gpus") or []}
+            paired = [{**r, "run": {**r["run"], "machine": machine}} for r in records + gpu]
+            judged = [v for v in verdicts(paired) if v["number"] in (1, 3, 4, 6)]
+            gpu_name = headline.device_name(gpu[0]["run"]["machine"], "cuda")
+            w(
+                f"### {escape(label)}: the claims that need a GPU, with the {escape(gpu_name)} of {escape(ref)} "
+                "(another machine)",
+                "",
+                f"This machine has no GPU in these results; below, its CPU is set against {escape(ref)}'s GPU, "
+                f"measured elsewhere (commit {escape(gpu[0]['run'].get('git_commit') or 'not recorded')}, "
+                f"{escape(gpu[0]['run'].get('date') or 'date not recorded')}). Claims 4 and 6 are that GPU's alone.",
+                "",
+            )
+            rows = [[v["number"], v["claim"], f"**{v['verdict']}**: {escape(v['measured'])}"] for v in judged]
+            w(_table(["#", "the thesis's claim", f"this CPU with {escape(ref)}'s GPU"], rows), "")
+
+
+def write_report(paths: list, out_dir, references: bool = True) -> Path:
     """Read the results files, write out_dir/report.md and its PNG plots
-    (out_dir is created if needed), and return the path of report.md."""
+    (out_dir is created if needed), and return the path of report.md.
+    references: place the machines against raybench's reference machines
+    (raybench.references), and judge the claims a missing GPU leaves open with theirs."""
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise RaybenchError(f"{out_dir}: is a file, not a folder for the report")
@@ -713,7 +773,7 @@ def write_report(paths: list, out_dir) -> Path:
     machines = {k: v for k, v in ((k, [r for r in v if r["suite"] not in beyond]) for k, v in machines.items()) if v}
     # built aside and renamed into place: never a half-made report under out_dir's name
     with folder_atomic(out_dir, _ours) as staged:
-        _write(sources, machines, notes, beyond, _Writer(staged))
+        _write(sources, machines, notes, beyond, _Writer(staged), raybench_references.load() if references else None)
     return out_dir / "report.md"
 
 
@@ -722,7 +782,7 @@ def _ours(entry: Path) -> bool:
     return entry.is_file() and not entry.is_symlink() and (entry.name == "report.md" or entry.suffix == ".png")
 
 
-def _write(sources, machines, notes, beyond, w: _Writer) -> None:
+def _write(sources, machines, notes, beyond, w: _Writer, references: list[dict] | None) -> None:
     scaling, secondary = beyond["scaling"], beyond["secondary"]
     multi_gpu, dynamic, parts = beyond["multi-gpu"], beyond["dynamic"], beyond["parts"]
     names = ", ".join(
@@ -751,6 +811,8 @@ def _write(sources, machines, notes, beyond, w: _Writer) -> None:
     table, judged = _claims_table(machines)
     w(table, "", "How the verdicts are decided:", "")
     w(*[f"- {rule}" for rule in RULES], "")
+    if references:
+        _section_references(w, machines, references)
     taken: set = set()
     for label, records in machines.items():
         slug = _slug(label, taken)
