@@ -39,8 +39,8 @@ def read_text(path, what: str, max_bytes: int | None = None) -> str:
     max_bytes = MAX_FILE_BYTES if max_bytes is None else max_bytes
     try:
         # O_NONBLOCK: opening a FIFO with no writer returns at once instead of
-        # waiting; the fstat below then refuses it.
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+        # waiting; the fstat below then refuses it. (Windows has neither.)
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0))
     except FileNotFoundError:
         raise RaybenchError(f"{path}: no such {what}") from None
     except OSError as exc:
@@ -221,8 +221,11 @@ def write_atomic(path, data: bytes) -> None:
             with os.fdopen(fd, "wb") as f:
                 f.write(data)
                 f.flush()
-                os.fchmod(f.fileno(), mode)
+                if hasattr(os, "fchmod"):  # not on Windows before Python 3.13: chmod by name below
+                    os.fchmod(f.fileno(), mode)
                 os.fsync(f.fileno())
+            if not hasattr(os, "fchmod"):
+                os.chmod(tmp, mode)
             os.replace(tmp, path)
         except BaseException as exc:
             try:

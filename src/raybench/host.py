@@ -5,9 +5,13 @@ imports nothing of raybench; machine.py describes the machine for records."""
 from __future__ import annotations
 
 import os
-import resource
 
 import psutil
+
+try:
+    import resource  # Unix only: the ulimits below
+except ImportError:
+    resource = None
 
 
 def usable_cores() -> int:
@@ -25,7 +29,12 @@ def host_available_bytes() -> int:
     Beyond it an allocation ends in a MemoryError or the OOM killer."""
     available = psutil.virtual_memory().available
     memory = psutil.Process().memory_info()
-    for which, used in ((resource.RLIMIT_AS, memory.vms), (resource.RLIMIT_DATA, getattr(memory, "data", 0))):
+    limits = (
+        ()
+        if resource is None
+        else ((resource.RLIMIT_AS, memory.vms), (resource.RLIMIT_DATA, getattr(memory, "data", 0)))
+    )
+    for which, used in limits:
         soft = resource.getrlimit(which)[0]
         if soft != resource.RLIM_INFINITY:
             available = min(available, max(soft - used, 0))
