@@ -93,12 +93,20 @@ def _tolerant(dispatcher):
 
     def load_overload(*args, **kwargs):
         with _locked():
-            return load(*args, **kwargs)
+            found = load(*args, **kwargs)
+        hook = on_compile
+        if found is None and hook is not None:  # not in the cache: Numba compiles it now
+            hook()
+        return found
 
     cache.save_overload = save_overload
     cache.load_overload = load_overload
     return dispatcher
 
+
+# Called, with no arguments, each time a function of raybench is not in the
+# cache and is about to be compiled (cli.compiling says so on a terminal).
+on_compile = None
 
 _held = threading.local()  # how deep this thread is in _locked(): a load within a save, say
 
