@@ -170,7 +170,7 @@ def bench(
         from ..bench import report
 
         path = report.write_report([results_path], out_dir / f"report-{stamp}")
-        click.echo(f"report: {path}")
+        click.echo(f"report: {path} (and {path.with_suffix('.html')}, one page that works offline)")
     if writer.count:
         from .. import references
         from ..bench import headline

@@ -41,4 +41,4 @@ def report_cmd(results, out_dir, references):
         path = report.write_report(list(results), out_dir, references)
     for w in caught:
         click.echo(f"raybench: warning: {one_line(w.message)}", err=True)
-    click.echo(f"report: {path}")
+    click.echo(f"report: {path} (and {path.with_suffix('.html')}, one page that works offline)")

@@ -15,7 +15,7 @@ from ...errors import RaybenchError
 from ...files import folder_atomic, write_atomic
 from ...kernels.whitted import KINDS
 from .. import headline
-from . import charts
+from . import charts, html
 from .data import (
     DEVICE_NAMES,
     accel_of,
@@ -753,8 +753,9 @@ def _section_references(w: _Writer, machines: dict[str, list[dict]], references:
 
 
 def write_report(paths: list, out_dir, references: bool = True) -> Path:
-    """Read the results files, write out_dir/report.md and its PNG plots
-    (out_dir is created if needed), and return the path of report.md.
+    """Read the results files, write out_dir/report.md and its PNG plots, and
+    report.html beside them (out_dir is created if needed), and return the
+    path of report.md.
     references: place the machines against raybench's reference machines
     (raybench.references), and judge the claims a missing GPU leaves open with theirs."""
     out_dir = Path(out_dir)
@@ -779,7 +780,11 @@ def write_report(paths: list, out_dir, references: bool = True) -> Path:
 
 def _ours(entry: Path) -> bool:
     """What an earlier report left in its folder, which a new one may replace."""
-    return entry.is_file() and not entry.is_symlink() and (entry.name == "report.md" or entry.suffix == ".png")
+    return (
+        entry.is_file()
+        and not entry.is_symlink()
+        and (entry.name in ("report.md", "report.html") or entry.suffix == ".png")
+    )
 
 
 def _write(sources, machines, notes, beyond, w: _Writer, references: list[dict] | None) -> None:
@@ -848,3 +853,4 @@ def _write(sources, machines, notes, beyond, w: _Writer, references: list[dict] 
         w("## Notes", "")
         w(*[f"- {escape(n)}" for n in notes], "")
     write_atomic(w.out_dir / "report.md", "\n".join(w.lines).encode("utf-8"))
+    write_atomic(w.out_dir / "report.html", html.render(sources, machines, notes, references).encode("utf-8"))
