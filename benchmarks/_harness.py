@@ -29,7 +29,7 @@ from collections.abc import Callable, Mapping
 import raybench
 from raybench.bench import results
 from raybench.bench.runner import run_info
-from raybench.bench.stats import summarize
+from raybench.bench.stats import kept_samples, summarize
 from raybench.machine import describe
 
 
@@ -103,6 +103,7 @@ def part(
             record[key] = value
     record["options"] = {key: value for key, value in (options or {}).items() if value is not None}
     record["time_ms"] = summarize(times_ms)
+    record["samples_ms"] = kept_samples(times_ms)
     if values:
         record["values"] = values
     return record
@@ -134,6 +135,7 @@ def point(
         "options": options,
         "frames": len(frames_ms),
         "frame_ms": frame,
+        "samples_ms": kept_samples(frames_ms),
         "kernel_ms": kernel,
         "rays_per_s": width * height / (frame["median"] / 1e3),
         "tests_per_s": None,

@@ -236,6 +236,24 @@ def test_quick_run_end_to_end(tmp_path, capsys):
     assert "report:" in out
     report = next(tmp_path.glob("report-*/report.md"))
     assert "Verdict" in report.read_text() or "verdict" in report.read_text()
+    # every measured point keeps its frames for compare's bootstrap (a ramp's are its series)
+    for rec in records:
+        if "skipped" in rec or rec["suite"] == "test7":
+            continue
+        if rec["suite"] != "multi-gpu":  # its samples are runs of several frames
+            assert len(rec["samples_ms"]) == min(rec["frames"], 1000)
+        assert np.isclose(np.median(rec["samples_ms"]), rec["frame_ms"]["median"], rtol=1e-4)
+    # the headline ends the run: the geometric mean of rays/s at its three points, worked out here
+    brute = [
+        r
+        for r in records
+        if r["suite"] == "thesis" and (r["width"], r["height"]) == (800, 600) and r["options"].get("kernel") == "fast"
+    ]
+    assert sorted(r["spheres"] for r in brute) == [100, 500, 1000]
+    expected = np.exp(np.mean(np.log([800 * 600 / r["frame_ms"]["median"] * 1e3 / 1e6 for r in brute])))
+    line = next(line for line in out.splitlines() if line.startswith("  this machine"))
+    assert line.split()[-1] == f"{expected:.3g}", (line, expected)
+    assert "reference machines (measured elsewhere" in out and "no GPU measured here" in out
 
 
 @pytest.mark.parametrize(
@@ -246,6 +264,10 @@ def test_quick_run_end_to_end(tmp_path, capsys):
         (["--duration", "0"], "--duration"),
         (["--duration", "99999"], "--duration"),
         (["--label", "a b"], "--label"),
+        # what the results' reader refuses is refused before the work, not after
+        (["--label", ".."], "--label: must be a name of letters, digits"),
+        (["--label", "x" * 65], "--label"),
+        (["--seed", "18446744073709551616"], "--seed: must be a whole number from 0 to 1e+15"),
     ],
 )
 def test_bench_bad_input(tmp_path, capsys, args, needle):

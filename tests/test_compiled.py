@@ -212,3 +212,45 @@ def test_ctrl_c_with_the_builders_compile_under_way_ends_the_process(tmp_path, w
         assert err.strip() == "raybench: interrupted" and proc.returncode == 130, (proc.returncode, out, err)
         assert not (tmp_path / "x.png").exists()
     assert not any(psutil.pid_exists(c.pid) and c.status() != psutil.STATUS_ZOMBIE for c in children)
+
+
+def _sum_of_squares(a):
+    s = 0.0
+    for x in a:
+        s += x * x
+    return s
+
+
+def test_a_cache_miss_is_announced_and_a_hit_is_not(tmp_path, monkeypatch):
+    """compiled.on_compile is called before Numba compiles (the function is not in
+    the cache) and not when a later dispatcher loads it from there."""
+    import io
+
+    import numpy as np
+    from rich.console import Console
+
+    from raybench import compiled
+    from raybench.cli import compiling
+
+    monkeypatch.setattr(compiled, "CACHE_DIR", tmp_path)
+    out = io.StringIO()
+    console = Console(file=out, force_terminal=True)
+    a = np.random.default_rng().uniform(size=7)
+    with compiling.announced(console):
+        assert compiled.njit()(_sum_of_squares)(a) == pytest.approx(float((a * a).sum()))
+    assert compiling.MESSAGE in out.getvalue() and compiled.on_compile is None
+    out.truncate(0)
+    calls = []
+    monkeypatch.setattr(compiled, "on_compile", lambda: calls.append(1))
+    assert compiled.njit()(_sum_of_squares)(a) == pytest.approx(float((a * a).sum()))  # from the cache
+    assert calls == []
+
+
+def test_piped_stderr_stays_clean(monkeypatch, capsys):
+    from raybench import compiled
+    from raybench.cli import compiling
+
+    monkeypatch.setattr("sys.stderr.isatty", lambda: False)
+    with compiling.announced():
+        assert compiled.on_compile is None  # nothing listens, nothing is shown
+    assert capsys.readouterr().err == ""

@@ -387,7 +387,16 @@ def _set(path, value):
         (_set(["run", "id"], ["a"]), "run.id: must be one line of text"),
         (_set(["width"], True), "width: must be a whole number from 1 to 65536, got True"),
         (_set(["spheres"], -5), "spheres: must be a whole number from 0"),
-        (_set(["frame_ms", "median"], 1e308), "frame_ms.median: must be a time above 0 and at most 1e+15"),
+        (_set(["frame_ms", "median"], 1e308), "frame_ms.median: must be a time from 1e-09 to 1e+15"),
+        # a denormal once printed table cells of 3,600 characters
+        (_set(["frame_ms", "median"], 5e-324), "frame_ms.median: must be a time from 1e-09 to 1e+15, got 5e-324"),
+        # options the report reads: as strict as its reader (each was a traceback, or a changed report)
+        (_set(["options", "workers"], "two"), "options.workers: must be a whole number from 1 to 100000"),
+        (_set(["options", "workers"], 0), "options.workers: must be a whole number from 1 to 100000, got 0"),
+        (_set(["options", "job"], ["frame"]), "options.job: must be one of frame, sequence"),
+        (_set(["options", "build"], 3), "options.build: must be one of host, gpu, got 3"),
+        (_set(["options", "label"], ["x"]), "options.label: must be a short text"),
+        (_set(["options", "threads"], "many"), "options.threads: must be a whole number from 1"),
         (_set(["run", "label"], "a <img src=x>"), "run.label: must be a name"),
         (_set(["device"], "tpu"), "device: must be one of cpu, cuda, wgpu"),
     ],
@@ -401,6 +410,88 @@ def test_hand_edited_results_are_one_line_and_leave_no_folder(capsys, tmp_path, 
         warnings.simplefilter("error")  # 1e308 used to print 28 overflow warnings
         one_line(capsys, ["report", path, "-o", tmp_path / "rep"], "r.jsonl: line 2: " + needle)
     assert not (tmp_path / "rep").exists()
+
+
+def test_a_results_file_with_a_bom_is_refused_naming_the_bom(capsys, tmp_path):
+    path = write(tmp_path / "r.jsonl", [rec("thesis", "cpu", 100, 5.0)])
+    path.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
+    one_line(capsys, ["report", path, "-o", tmp_path / "rep"], "r.jsonl", "byte-order mark (BOM)")
+    assert not (tmp_path / "rep").exists()
+
+
+def test_a_folder_of_results_skips_foreign_files_one_line_each(capsys, tmp_path):
+    folder = tmp_path / "runs"
+    write(folder / "a.jsonl", [rec("thesis", "cpu", 100, 5.0)])
+    write(folder / "deeper" / "b.jsonl", [rec("thesis", "cuda", 100, 1.0)])
+    (folder / "foreign.jsonl").write_text('{"name": "another tool"}\n')
+    (folder / "deeper" / "empty.jsonl").write_text("")
+    (folder / "notes.txt").write_text("not looked at")
+    assert run(["report", str(folder), "-o", str(tmp_path / "rep")]) == 0
+    out, err = capsys.readouterr()
+    assert err.splitlines() == [
+        f"raybench: warning: skipped {folder / 'deeper' / 'empty.jsonl'}: holds no results",
+        f"raybench: warning: skipped {folder / 'foreign.jsonl'}: line 1 is not a raybench result "
+        "(format 'raybench-results' expected)",
+    ]
+    text = (tmp_path / "rep" / "report.md").read_text()
+    assert "a.jsonl" in text and "b.jsonl" in text and "Synthetic GPU" in text
+    # a file named is still read or refused, never skipped
+    one_line(capsys, ["report", folder / "foreign.jsonl", "-o", tmp_path / "rep2"], "not a raybench result")
+    (folder / "a.jsonl").unlink()
+    (folder / "deeper" / "b.jsonl").unlink()
+    assert run(["report", str(folder), "-o", str(tmp_path / "rep3")]) == 2
+    assert capsys.readouterr().err.endswith("no raybench results among the files found\n")
+
+
+def test_the_report_is_built_aside_and_renamed_into_place(capsys, tmp_path, monkeypatch):
+    """Stopped half-way (Ctrl-C, a crash, a full disk) it leaves no report folder, and no
+    earlier report is touched; a folder holding anything but a report is not replaced."""
+    records = [rec("thesis", d, n, 5.0 + n / 100) for d in ("cpu", "cuda") for n in (100, 200, 300)]
+    path = write(tmp_path / "r.jsonl", records)
+    from raybench.bench.report import markdown
+
+    drawn = []
+
+    def stopped(*args, **kwargs):
+        drawn.append(1)
+        if len(drawn) == 2:  # after the first chart is on disk
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    real = markdown.charts.plot_thesis
+    monkeypatch.setattr(markdown.charts, "plot_thesis", stopped)
+    assert run(["report", str(path), "-o", str(tmp_path / "rep")]) == 130
+    assert not (tmp_path / "rep").exists()
+    assert tree(tmp_path) == {"r.jsonl"}  # nor its staging folder
+    monkeypatch.setattr(markdown.charts, "plot_thesis", real)
+    assert run(["report", str(path), "-o", str(tmp_path / "rep")]) == 0
+    before = {p.name: p.read_bytes() for p in (tmp_path / "rep").iterdir()}
+    drawn.clear()
+    monkeypatch.setattr(markdown.charts, "plot_thesis", stopped)
+
+    def full_disk(path, data):
+        raise RaybenchError(f"{path}: cannot write (No space left on device); nothing was changed")
+
+    monkeypatch.setattr(markdown, "write_atomic", full_disk)
+    capsys.readouterr()
+    line = one_line(capsys, ["report", path, "-o", tmp_path / "rep"], "No space left on device")
+    assert f"{tmp_path / 'rep'}/" in line and ".partial" not in line
+    assert {p.name: p.read_bytes() for p in (tmp_path / "rep").iterdir()} == before
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+    capsys.readouterr()
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "thesis.tex").write_text("mine")
+    one_line(capsys, ["report", path, "-o", tmp_path / "mine"], "holds 'thesis.tex'", "choose a new or empty")
+    assert tree(tmp_path / "mine") == {"thesis.tex"}
+
+
+def test_the_results_file_name_is_escaped_in_the_report(tmp_path):
+    name = "a`b <img src=x onerror=alert(1)> [x](y).jsonl"
+    path = write(tmp_path / name, [rec("thesis", "cpu", 100, 5.0)])
+    text = report.write_report([path], tmp_path / "rep").read_text()
+    sources = text.split("## Sources", 1)[1]
+    assert "<img" not in sources and "`" not in sources and "[x](y)" not in sources
+    assert "onerror=alert(1)" in sources  # shown, inert
 
 
 def test_duplicate_keys_are_refused(capsys, tmp_path):

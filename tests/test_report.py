@@ -486,7 +486,7 @@ def test_write_report_end_to_end(tmp_path, rng):
         with Image.open(out / name) as im:
             assert im.format == "PNG" and im.width > 100
             im.verify()
-    assert sorted(p.name for p in out.iterdir()) == sorted(pngs + ["report.md"])
+    assert sorted(p.name for p in out.iterdir()) == sorted(pngs + ["report.html", "report.md"])
 
 
 def test_zero_time_is_an_error_line_or_a_verdict_not_a_traceback(tmp_path, rng):

@@ -7,8 +7,8 @@ compiled, not the files of the functions it calls (kernels/*.py) nor the
 constants it read (layout.py): after a change to one of those it would load
 stale code. So raybench's cache lives in a folder named after a hash of
 every source file of the package and the compiler's version: any change to
-raybench starts a new folder. RAYBENCH_CACHE_DIR moves it (default
-~/.cache/raybench, or $XDG_CACHE_HOME/raybench).
+raybench starts a new folder. RAYBENCH_CACHE_DIR moves it (default: the
+platform's cache folder, cache_dir()).
 """
 
 from __future__ import annotations
@@ -20,7 +20,9 @@ import threading
 import types
 from pathlib import Path
 
+import filelock
 import numba
+import platformdirs
 
 ROOT = Path(__file__).parent
 
@@ -35,9 +37,10 @@ def source_hash() -> str:
 
 
 def cache_dir() -> Path:
-    base = os.environ.get("RAYBENCH_CACHE_DIR")
-    if not base:
-        base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "raybench"
+    """The platform's cache folder for raybench (platformdirs: ~/.cache/raybench or
+    $XDG_CACHE_HOME/raybench on Linux, ~/Library/Caches/raybench on macOS,
+    %LOCALAPPDATA%\\raybench\\Cache on Windows), one subfolder a source tree."""
+    base = os.environ.get("RAYBENCH_CACHE_DIR") or platformdirs.user_cache_dir("raybench", appauthor=False)
     return Path(base) / f"numba-{numba.__version__}-{source_hash()}"
 
 
@@ -90,12 +93,20 @@ def _tolerant(dispatcher):
 
     def load_overload(*args, **kwargs):
         with _locked():
-            return load(*args, **kwargs)
+            found = load(*args, **kwargs)
+        hook = on_compile
+        if found is None and hook is not None:  # not in the cache: Numba compiles it now
+            hook()
+        return found
 
     cache.save_overload = save_overload
     cache.load_overload = load_overload
     return dispatcher
 
+
+# Called, with no arguments, each time a function of raybench is not in the
+# cache and is about to be compiled (cli.compiling says so on a terminal).
+on_compile = None
 
 _held = threading.local()  # how deep this thread is in _locked(): a load within a save, say
 
@@ -103,9 +114,9 @@ _held = threading.local()  # how deep this thread is in _locked(): a load within
 @contextlib.contextmanager
 def _locked():
     """An exclusive lock on CACHE_DIR/.lock, between processes and threads,
-    taken again freely by the thread that holds it (fcntl; where there is
-    none, as on Windows, or the folder cannot be written, no lock: then
-    Numba writes nothing there either)."""
+    taken again freely by the thread that holds it (filelock: flock on Unix,
+    msvcrt's lock on Windows; where the folder cannot be written, no lock:
+    then Numba writes nothing there either)."""
     depth = getattr(_held, "depth", 0)
     if depth:
         _held.depth = depth + 1
@@ -115,20 +126,19 @@ def _locked():
             _held.depth = depth
         return
     try:
-        import fcntl
-
         CACHE_DIR.mkdir(parents=True, exist_ok=True)
-        fd = os.open(CACHE_DIR / ".lock", os.O_RDWR | os.O_CREAT, 0o644)
-    except (ImportError, OSError):
+        # a lock object per taking: two threads' objects exclude each other as two processes' do
+        lock = filelock.FileLock(CACHE_DIR / ".lock", thread_local=False)
+        lock.acquire()
+    except OSError:
         yield
         return
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX)
         _held.depth = 1
         yield
     finally:
         _held.depth = 0
-        os.close(fd)  # closing it releases the lock
+        lock.release()
 
 
 def njit(**options):

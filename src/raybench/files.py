@@ -13,6 +13,7 @@ import contextlib
 import json
 import os
 import re
+import shutil
 import signal
 import stat
 import tempfile
@@ -31,6 +32,15 @@ MAX_FILE_BYTES = 512 * 2**20
 MAX_JSON_DEPTH = 32
 
 
+def unix_flags(*names: str) -> int:
+    """os.open's flags of these names, those this platform has (Windows has
+    no O_NOFOLLOW, O_NONBLOCK or O_CLOEXEC: its files are opened without them)."""
+    flags = 0
+    for name in names:
+        flags |= getattr(os, name, 0)
+    return flags
+
+
 def read_text(path, what: str, max_bytes: int | None = None) -> str:
     """The UTF-8 text of path; a missing or unreadable file, one that is not a
     regular file (a FIFO, a device, a folder), or one over max_bytes is a
@@ -39,8 +49,8 @@ def read_text(path, what: str, max_bytes: int | None = None) -> str:
     max_bytes = MAX_FILE_BYTES if max_bytes is None else max_bytes
     try:
         # O_NONBLOCK: opening a FIFO with no writer returns at once instead of
-        # waiting; the fstat below then refuses it.
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+        # waiting; the fstat below then refuses it. (Windows has neither.)
+        fd = os.open(path, os.O_RDONLY | unix_flags("O_NONBLOCK") | getattr(os, "O_BINARY", 0))
     except FileNotFoundError:
         raise RaybenchError(f"{path}: no such {what}") from None
     except OSError as exc:
@@ -61,6 +71,10 @@ def read_text(path, what: str, max_bytes: int | None = None) -> str:
         raise RaybenchError(f"{path}: cannot read the {what} ({exc.strerror or exc})") from None
     if len(data) > max_bytes:
         raise RaybenchError(f"{path}: the {what} is over the limit of {max_bytes / 2**20:,.0f} MiB")
+    if data.startswith(b"\xef\xbb\xbf"):  # JSON forbids it; the parser's own message would not name it
+        raise RaybenchError(
+            f"{path}: the {what} starts with a UTF-8 byte-order mark (BOM); save it as UTF-8 without a BOM"
+        )
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as exc:
@@ -270,8 +284,11 @@ def write_atomic(path, data: bytes, what: str = "") -> None:
             with os.fdopen(fd, "wb") as f:
                 f.write(data)
                 f.flush()
-                os.fchmod(f.fileno(), mode)
+                if hasattr(os, "fchmod"):  # not on Windows before Python 3.13: chmod by name below
+                    os.fchmod(f.fileno(), mode)
                 os.fsync(f.fileno())
+            if not hasattr(os, "fchmod"):
+                os.chmod(tmp, mode)
             output_mode(path, what)  # again, just before the rename: what was planted meanwhile is not replaced
             os.replace(tmp, path)
         except BaseException as exc:
@@ -315,7 +332,7 @@ class Appended:
             raise
 
     def _open(self) -> int:
-        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
+        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | unix_flags("O_NOFOLLOW", "O_NONBLOCK", "O_CLOEXEC"))
         info = os.fstat(fd)
         if not stat.S_ISREG(info.st_mode):
             os.close(fd)
@@ -328,6 +345,54 @@ class Appended:
             with contextlib.suppress(OSError):
                 os.close(self._fd)
             self._fd = None
+
+
+@contextlib.contextmanager
+def folder_atomic(path, replaceable=lambda entry: False):
+    """A folder made whole or not at all: yields a new hidden folder beside
+    path to fill, which then takes path's place by a rename, so a crash, a
+    Ctrl-C or a full disk never leaves a half-made folder under path's name.
+    An existing path is replaced only if replaceable(entry) holds for each
+    of its entries (what an earlier run of the same writer left); else it is
+    refused before anything is made. On any failure the new folder is removed."""
+    path = Path(path)
+    if path.exists() or path.is_symlink():
+        if path.is_symlink() or not path.is_dir():
+            raise RaybenchError(f"{path}: is not a folder; choose another output folder")
+        foreign = [e.name for e in path.iterdir() if not replaceable(e)]
+        if foreign:
+            raise RaybenchError(
+                f"{path}: holds {shown_name(foreign[0])}{f' and {len(foreign) - 1} more' if len(foreign) > 1 else ''}, "
+                "which this would replace; choose a new or empty output folder"
+            )
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        staged = Path(tempfile.mkdtemp(prefix=f".{path.name[:100]}.", suffix=".partial", dir=path.parent))
+    except OSError as exc:
+        raise RaybenchError(f"{path}: cannot create the folder ({exc.strerror or exc})") from None
+    try:
+        yield staged
+        with _ctrl_c_held():
+            os.chmod(staged, 0o777 & ~_umask())  # mkdtemp's is 0700
+            old = None
+            if path.exists():
+                old = path.with_name(f".{path.name[:100]}.{os.urandom(6).hex()}.old")
+                os.rename(path, old)
+            os.rename(staged, path)
+            if old is not None:
+                shutil.rmtree(old, ignore_errors=True)
+    except BaseException as exc:
+        shutil.rmtree(staged, ignore_errors=True)
+        if isinstance(exc, OSError):
+            raise RaybenchError(f"{path}: cannot write ({exc.strerror or exc}); nothing was changed") from None
+        if isinstance(exc, RaybenchError) and str(staged) in str(exc):  # the name the user gave, not ours
+            raise RaybenchError(str(exc).replace(str(staged), str(path))) from None
+        raise
+
+
+def shown_name(name: str) -> str:
+    """A file name in a message: quoted as Python writes it, cut to 60 characters."""
+    return repr(name[:60])
 
 
 @contextlib.contextmanager

@@ -5,9 +5,13 @@ imports nothing of raybench; machine.py describes the machine for records."""
 from __future__ import annotations
 
 import os
-import resource
 
 import psutil
+
+try:
+    import resource  # Unix only: the ulimits below
+except ImportError:
+    resource = None
 
 
 def usable_cores() -> int:
@@ -32,6 +36,8 @@ def thread_stack_bytes() -> int:
     chosen = threading.stack_size()
     if chosen:
         return chosen
+    if resource is None:  # Windows: no such limit, and a thread's stack is reserved as its own
+        return DEFAULT_STACK_BYTES
     soft = resource.getrlimit(resource.RLIMIT_STACK)[0]
     return DEFAULT_STACK_BYTES if soft == resource.RLIM_INFINITY else soft
 
@@ -47,7 +53,12 @@ def host_available_bytes(threads: int = 0) -> int:
     available = psutil.virtual_memory().available
     memory = psutil.Process().memory_info()
     stacks = threads * thread_stack_bytes()
-    for which, used in ((resource.RLIMIT_AS, memory.vms + stacks), (resource.RLIMIT_DATA, getattr(memory, "data", 0))):
+    limits = (
+        ()
+        if resource is None
+        else ((resource.RLIMIT_AS, memory.vms + stacks), (resource.RLIMIT_DATA, getattr(memory, "data", 0)))
+    )
+    for which, used in limits:
         soft = resource.getrlimit(which)[0]
         if soft != resource.RLIM_INFINITY:
             available = min(available, max(soft - used, 0))

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import RaybenchError
-from .files import file_kind, output_mode, read_json, write_atomic
+from .files import file_kind, output_mode, read_json, unix_flags, write_atomic
 
 MARKER = ".raybench-sequence.json"
 FORMAT = "raybench-sequence"
@@ -138,7 +138,7 @@ def png_size(path) -> tuple[int, int] | None:
     """(width, height) from a PNG file's header, read without decoding (nor
     Pillow's guard against large images); None where the file is not a PNG."""
     try:
-        with open(path, "rb", opener=lambda p, flags: os.open(p, flags | os.O_NOFOLLOW | os.O_NONBLOCK)) as f:
+        with open(path, "rb", opener=lambda p, flags: os.open(p, flags | unix_flags("O_NOFOLLOW", "O_NONBLOCK"))) as f:
             head = f.read(PNG_HEADER)
     except OSError:
         return None

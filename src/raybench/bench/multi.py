@@ -16,7 +16,7 @@ import time
 
 from .. import camera_path, cluster
 from ..camera import Camera
-from .stats import summarize
+from .stats import kept_samples, summarize
 from .suites import Point
 
 MIN_RUNS = 3
@@ -86,6 +86,7 @@ def measure(point: Point, scenes, duration: float, clusters: Clusters) -> dict:
         "options": point.options,
         "frames": frames * len(samples),
         "frame_ms": frame_ms,
+        "samples_ms": kept_samples(samples),
         "kernel_ms": None,
         "first_frame_s": first_s,
         "compile_s": None,

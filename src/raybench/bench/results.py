@@ -32,6 +32,8 @@ A record (format "raybench-results", version 1):
     frames       how many timed frames
     frame_ms     {mean, median, p5, p95, min, max}: whole frame (kernel, and on the GPU the copy to the host);
                  multi-gpu's: a run of the job's wall time over its frames, on all its workers
+    samples_ms   the frames' own times in ms (multi-gpu: its runs'), at most 1000 evenly strided
+                 (bench.stats.kept_samples): raybench compare's bootstrap; absent in older records
     frames_per_s multi-gpu and dynamic: frames a second from the median (multi-gpu: the workers' throughput)
     kernel_ms    the same for the kernel alone (CUDA events), or null on the CPU
     rays_per_s, tests_per_s   from the median frame (tests = rays x spheres; null for the BVH);
@@ -55,11 +57,14 @@ A record (format "raybench-results", version 1):
         spheres, width, height   the scene's and the image's, where there are ones
         samples      how many timings time_ms summarises
         time_ms      {median, p5, p95, mean?, min?, max?}: one timing of the quantity
+        samples_ms   the timings themselves, as a point's
         values       other figures measured with it, by name (an SAH cost, a depth, bytes),
                      numbers or null
     skipped      instead of frames, frame_ms, ...: why the point was not measured (the
                  scaling and secondary suites' brute force), e.g.
                  "predicted 4.2 s a frame, over the 1 s cap", with predicted_ms
+    Every field's rule is in the schema below, also published as JSON Schema
+    (schema(): `raybench schema`, docs/results-schema.json).
     run          {"id", "date", "git_commit", "label", "argv", "settings", "machine": raybench.machine.describe()}
 """
 
@@ -81,9 +86,13 @@ VERSION = 1
 # Every number a record holds is a count, a time or a rate far below this:
 # larger ones are hand-edited, and would overflow the report's sums and fits.
 MAX_NUMBER = 1e15
+# ... and every non-zero one far above this (1e-9 ms is a picosecond): smaller
+# ones are hand-edited too, and would print as hundreds of digits.
+MIN_NUMBER = 1e-9
 MAX_TEXT = 300
 # Names the report prints as they are and uses in file names: what bench --label allows.
-NAME = re.compile(r"[A-Za-z0-9._-]{1,64}")
+# A leading letter or digit: "." and ".." would be folders that are not new.
+NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
 # Option values: "one per row", "2x cores", "constant", an adapter's name.
 OPTION_TEXT = re.compile(r"[A-Za-z0-9 ._:,/()+-]{0,120}")
 
@@ -157,7 +166,11 @@ def read(path) -> list[dict]:
     below. A half-written last line is skipped with a warning; a file that is
     not ours, or damaged before its end, is an error naming the line."""
     path = Path(path)
-    text = read_text(path, "results file")
+    return parse_records(read_text(path, "results file"), path)
+
+
+def parse_records(text: str, path) -> list[dict]:
+    """The records of a results file's text (read()), path naming it in messages."""
     check_nesting(text, str(path), lines=True)
     lines = text.split("\n")
     # The last line holding anything: only it may be cut short. Found once, so reading is linear.
@@ -191,7 +204,9 @@ def read(path) -> list[dict]:
 # --- the schema ----------------------------------------------------------------
 # A checker takes a value and returns None, or raises _Bad; an object's checker
 # puts the field's name in front of the path as _Bad passes it, so the path is
-# only ever built for the one field that fails (reading stays fast).
+# only ever built for the one field that fails (reading stays fast). Each
+# checker also carries its rule as JSON Schema (.json), from which schema()
+# builds the published schema: one statement of the rules, two readings.
 
 
 class _Bad(Exception):
@@ -203,41 +218,65 @@ class _Bad(Exception):
         return self
 
 
+def _rule(json_schema: dict):
+    """Attach a checker's rule as JSON Schema."""
+
+    def attach(check):
+        check.json = json_schema
+        return check
+
+    return attach
+
+
+@_rule({"type": "string", "maxLength": MAX_TEXT, "pattern": "^[^\\n]*$"})
 def _text(value):
     if not isinstance(value, str) or len(value) > MAX_TEXT or "\n" in value:
         raise _Bad(f"one line of text, at most {MAX_TEXT} characters", value)
 
 
+@_rule({"type": "string", "pattern": "^" + NAME.pattern + "$"})
 def _name(value):
     if not isinstance(value, str) or not NAME.fullmatch(value):
-        raise _Bad("a name of letters, digits, '.', '_' and '-' (as bench --label takes)", value)
+        raise _Bad("a name of letters, digits, '.', '_' and '-', starting with a letter or digit", value)
 
 
-def _count(value):
-    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= MAX_NUMBER:
-        raise _Bad(f"a whole number from 0 to {MAX_NUMBER:g}", value)
+def _whole(low: int, high: float):
+    """A whole number from low to high (no true for 1, no 2.0)."""
+
+    @_rule({"type": "integer", "minimum": low, "maximum": high})
+    def check(value):
+        if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+            raise _Bad(f"a whole number from {low:g} to {high:g}", value)
+
+    return check
 
 
-def _size(value):
-    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_SIDE:
-        raise _Bad(f"a whole number from 1 to {MAX_SIDE}", value)
+_count = _whole(0, MAX_NUMBER)
+_size = _whole(1, MAX_SIDE)
 
 
+@_rule({"type": "number", "anyOf": [{"const": 0}, {"minimum": MIN_NUMBER, "maximum": MAX_NUMBER}]})
 def _number(value):
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0 <= value <= MAX_NUMBER):
-        raise _Bad(f"a number from 0 to {MAX_NUMBER:g}", value)
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float))
+        or not (value == 0 or MIN_NUMBER <= value <= MAX_NUMBER)
+    ):
+        raise _Bad(f"0, or a number from {MIN_NUMBER:g} to {MAX_NUMBER:g}", value)
 
 
+@_rule({"type": "number", "minimum": MIN_NUMBER, "maximum": MAX_NUMBER})
 def _time(value):
     """A measured time: every ratio in the report divides by one, and no real frame takes 0 ms."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0 < value <= MAX_NUMBER):
-        raise _Bad(f"a time above 0 and at most {MAX_NUMBER:g}", value)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (MIN_NUMBER <= value <= MAX_NUMBER):
+        raise _Bad(f"a time from {MIN_NUMBER:g} to {MAX_NUMBER:g}", value)
 
 
 def _one_of(*choices):
+    @_rule({"enum": list(choices)})
     def check(value):
-        if isinstance(value, bool) or value not in choices:
-            raise _Bad("one of " + ", ".join(choices), value)
+        if isinstance(value, bool) or isinstance(value, (list, dict)) or value not in choices:
+            raise _Bad("one of " + ", ".join(map(str, choices)), value)
 
     return check
 
@@ -245,6 +284,7 @@ def _one_of(*choices):
 def _or_null(spec):
     spec = _compile(spec)
 
+    @_rule({"anyOf": [spec.json, {"type": "null"}]})
     def check(value):
         if value is not None:
             spec(value)
@@ -252,12 +292,13 @@ def _or_null(spec):
     return check
 
 
-def _list(spec, most: int = 10_000_000):
+def _list(spec, most: int = 10_000_000, least: int = 0):
     spec = _compile(spec)
 
+    @_rule({"type": "array", "items": spec.json, "minItems": least, "maxItems": most})
     def check(value):
-        if not isinstance(value, list) or len(value) > most:
-            raise _Bad(f"a list of at most {most:,}", value)
+        if not isinstance(value, list) or not least <= len(value) <= most:
+            raise _Bad(f"a list of {least:,} to {most:,}" if least else f"a list of at most {most:,}", value)
         for i, item in enumerate(value):
             try:
                 spec(item)
@@ -271,6 +312,7 @@ def _object_of(spec):
     """An object whose every value matches spec (settings, versions)."""
     spec = _compile(spec)
 
+    @_rule({"type": "object", "additionalProperties": spec.json})
     def check(value):
         if not isinstance(value, dict):
             raise _Bad("an object", value)
@@ -283,13 +325,22 @@ def _object_of(spec):
     return check
 
 
-def _compile(spec):
+def _compile(spec, named: dict | None = None, rest=None):
     """A dict of field -> spec (a key ending in "?" may be missing; fields not
-    named pass, for newer writers) becomes the checker of such an object."""
+    named pass, for newer writers, or must match rest where given) becomes the
+    checker of such an object."""
     if callable(spec):
         return spec
     fields = [(key.rstrip("?"), key.endswith("?"), _compile(field)) for key, field in spec.items()]
+    json_schema = {
+        "type": "object",
+        "properties": {key: field.json for key, _, field in fields},
+        "required": [key for key, optional, _ in fields if not optional],
+    }
+    if rest is not None:
+        json_schema["additionalProperties"] = rest.json
 
+    @_rule(json_schema)
     def check(value):
         if not isinstance(value, dict):
             raise _Bad("an object", value)
@@ -301,18 +352,79 @@ def _compile(spec):
                     raise bad.at(key) from None
             elif not optional:
                 raise _Bad("present", "nothing").at(key)
+        if rest is not None and len(value) > len(fields):
+            for key, item in value.items():
+                if key not in spec and key + "?" not in spec:
+                    try:
+                        rest(item)
+                    except _Bad as bad:
+                        raise bad.at(key) from None
 
     return check
 
 
+@_rule({"type": "string", "pattern": "^" + OPTION_TEXT.pattern + "$"})
+def _option_text(value):
+    if not isinstance(value, str) or not OPTION_TEXT.fullmatch(value):
+        raise _Bad("a short text of letters, digits and spaces", value)
+
+
+_pair = _list(_size, 2, 2)
+
+
+@_rule({"anyOf": [_option_text.json, _list(_count, 16).json, _number.json, {"type": ["boolean", "null"]}]})
 def _option(value):
+    """An option no reader knows yet (a newer writer's): any plain value."""
     if isinstance(value, str):
-        if not OPTION_TEXT.fullmatch(value):
-            raise _Bad("a short text of letters, digits and spaces", value)
+        _option_text(value)
     elif isinstance(value, list):
         _list(_count, 16)(value)
     elif value is not None and not isinstance(value, bool):
         _number(value)
+
+
+@_rule({"type": "boolean"})
+def _flag(value):
+    if not isinstance(value, bool):
+        raise _Bad("true or false", value)
+
+
+# Every option a reader (the report, compare, the suites) interprets, with the
+# values it can take; any other name is _option's, kept for newer writers.
+OPTIONS = _compile(
+    {
+        "threads?": _whole(1, 1_000_000),
+        "block?": _pair,
+        "workgroup?": _pair,
+        "adapter?": _option_text,
+        "accel?": _one_of("bvh", "none"),
+        "kernel?": _one_of("fast", "simple"),
+        "count?": _one_of("constant", "runtime"),
+        "build?": _one_of("host", "gpu"),
+        "label?": _option_text,
+        "cap_s?": _time,
+        "layout?": _one_of("even", "dense", "clusters", "deep"),
+        "tree_width?": _one_of(2, 4),
+        "shading?": _one_of("thesis", "whitted"),
+        "depth?": _whole(0, 64),
+        "shadow_samples?": _whole(1, 64),
+        "schedule?": _one_of("wavefront", "pixel"),
+        "workers?": _whole(1, 100_000),
+        "job?": _one_of("frame", "sequence"),
+        "frames?": _whole(1, 100_000_000),
+        "rows?": _size,
+        "tasks?": _whole(1, 100_000_000),
+        "shared?": _flag,
+        "threads_per_worker?": _whole(1, 1_000_000),
+        "motion?": _option_text,
+        "policy?": _option_text,
+        "quality?": _option_text,
+        "walk?": _option_text,
+        "delivery?": _option_text,
+        "version?": _option_text,
+    },
+    rest=_option,
+)
 
 
 def _plain(value):
@@ -324,6 +436,16 @@ def _plain(value):
     elif value is not None and not isinstance(value, bool):
         _number(value)
 
+
+_plain.json = {"$ref": "#/$defs/plain"}
+PLAIN = {
+    "anyOf": [
+        _text.json,
+        _number.json,
+        {"type": ["boolean", "null"]},
+        {"type": "array", "maxItems": 64, "items": {"$ref": "#/$defs/plain"}},
+    ]
+}
 
 TIMES = {"median": _time, "p5": _time, "p95": _time, "mean?": _time, "min?": _time, "max?": _time}
 MACHINE = {
@@ -369,17 +491,17 @@ RUN = _compile(
         "machine": MACHINE,
     }
 )
+SUITES = ("thesis", "test7", "constant-vs-runtime", "tuning", "scaling", "secondary", "multi-gpu", "dynamic")
+DEVICES = ("cpu", "cuda", "wgpu")
 POINT = _compile(
     {
-        "suite": _one_of(
-            "thesis", "test7", "constant-vs-runtime", "tuning", "scaling", "secondary", "multi-gpu", "dynamic"
-        ),
-        "test?": _or_null(_count),
-        "device": _one_of("cpu", "cuda", "wgpu"),
+        "suite": _one_of(*SUITES),
+        "test?": _or_null(_whole(1, 7)),
+        "device": _one_of(*DEVICES),
         "width": _size,
         "height": _size,
         "spheres": _count,
-        "options?": _object_of(_option),
+        "options?": OPTIONS,
         "adapter?": _object_of(_or_null(_plain)),
         "walk?": _or_null(_text),
     }
@@ -388,6 +510,8 @@ MEASURED = _compile(
     {
         "frames?": _count,
         "frame_ms": TIMES,
+        # the frames' own times (at most stats.MAX_SAMPLES, evenly strided): compare's bootstrap
+        "samples_ms?": _list(_time, 100_000),
         "kernel_ms?": _or_null(TIMES),
         "first_frame_s?": _or_null(_number),
         "compile_s?": _or_null(_number),
@@ -410,13 +534,14 @@ MEASURED = _compile(
 PART = _compile(
     {
         "quantity": _name,
-        "device": _one_of("cpu", "cuda", "wgpu"),
+        "device": _one_of(*DEVICES),
         "spheres?": _count,
         "width?": _size,
         "height?": _size,
-        "options?": _object_of(_option),
+        "options?": OPTIONS,
         "samples?": _count,
         "time_ms": TIMES,
+        "samples_ms?": _list(_time, 100_000),
         "values?": _object_of(_or_null(_number)),
     }
 )
@@ -463,3 +588,45 @@ def check_record(record: dict, where: str, runs: list | None = None) -> None:
         got = "nothing" if bad.what == "present" else shown(bad.value)
         what = "missing" if bad.what == "present" else f"must be {bad.what}, got {got}"
         raise RaybenchError(f"{where}: {bad.path}: {what}") from None
+
+
+def check_label(label: str, option: str = "--label") -> None:
+    """A run's label as the schema takes it, checked before any work (bench, the scripts)."""
+    try:
+        _name(label)
+    except _Bad as bad:
+        raise RaybenchError(f"{option}: must be {bad.what}, at most 64 characters, got {shown(label)}") from None
+
+
+def check_settings(settings: dict) -> None:
+    """A run's settings as the schema takes them, checked before any work: a
+    run must never write records that its own report then refuses."""
+    try:
+        _object_of(_plain)(settings)
+    except _Bad as bad:
+        raise RaybenchError(
+            f"--{bad.path.split('.')[0].replace('_', '-')}: must be {bad.what}, got {shown(bad.value)}"
+        ) from None
+
+
+def schema() -> dict:
+    """The results record as JSON Schema (draft 2020-12): the rules check_record
+    applies, from the same checkers; one line of a results file is one record.
+    The two rules JSON Schema cannot state: a test-7 series' lists are equally
+    long, and a record's version is the one this raybench reads."""
+    measured = {"allOf": [MEASURED.json, {"if": {"properties": {"suite": {"const": "test7"}}}, "then": SERIES.json}]}
+    skipped = {"allOf": [SKIPPED.json, {"properties": {"suite": {"enum": ["scaling", "secondary"]}}}]}
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "$id": f"https://raybench.invalid/schema/results-v{VERSION}.json",
+        "title": f"raybench results record, version {VERSION}",
+        "description": "One line of a raybench results file (JSON Lines): one measured point, a point "
+        "skipped, or a part timed apart (suite 'parts'). Fields not named are allowed, for newer writers.",
+        "type": "object",
+        "required": ["format", "version", "suite", "run"],
+        "properties": {"format": {"const": FORMAT}, "version": {"const": VERSION}, "run": RUN.json},
+        "if": {"properties": {"suite": {"const": "parts"}}},
+        "then": PART.json,
+        "else": {"allOf": [POINT.json, {"if": {"required": ["skipped"]}, "then": skipped, "else": measured}]},
+        "$defs": {"plain": PLAIN},
+    }

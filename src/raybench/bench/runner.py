@@ -18,7 +18,7 @@ from ..render import Renderer
 from ..scene import random_spheres
 from . import multi, suites
 from .results import ResultsWriter
-from .stats import summarize
+from .stats import kept_samples, summarize
 from .suites import DYNAMIC_DT, Point
 
 MIN_FRAMES = 3
@@ -121,6 +121,7 @@ def measure_dynamic(point: Point, scenes: Scenes, duration: float) -> dict:
         "frames": len(frames),
         "frame_ms": summarize(frame_ms),
         "kernel_ms": summarize(kernel_ms) if kernel_ms else None,
+        "samples_ms": kept_samples(frame_ms),
         "update_ms": summarize(update_ms),
         "updates": {kind: kinds.count(kind) for kind in ("refit", "build") if kind in kinds},
         "update_share": sum(update_ms) / sum(frame_ms),
@@ -193,6 +194,8 @@ def measure(point: Point, scenes: Scenes, duration: float) -> dict:
         record["adapter"] = described
     if walk is not None:
         record["walk"] = walk
+    if not point.ramp:  # a ramp's frames are its series, one per count
+        record["samples_ms"] = kept_samples(frame_ms)
     if point.ramp:
         record["series"] = {"spheres": list(point.ramp[1:]), "frame_ms": frame_ms, "kernel_ms": kernel_ms or None}
         rays = point.width * point.height

@@ -23,6 +23,20 @@ def summarize(samples_ms) -> dict:
     }
 
 
+# Frames a record keeps for raybench compare's bootstrap: a GPU point can time
+# tens of thousands in its seconds; an even stride over them keeps any drift.
+MAX_SAMPLES = 1000
+
+
+def kept_samples(samples_ms) -> list[float]:
+    """The frame times a record keeps (samples_ms): at most MAX_SAMPLES, evenly
+    strided, each to 5 significant digits (far finer than any run's noise)."""
+    a = np.asarray(samples_ms, dtype=np.float64)
+    if a.size > MAX_SAMPLES:
+        a = a[np.linspace(0, a.size - 1, MAX_SAMPLES).round().astype(np.int64)]
+    return [float(f"{x:.5g}") for x in a]
+
+
 def linear_fit(x, y) -> dict:
     """Least-squares y = slope * x + intercept, with R^2 (1 for a perfect line;
     nan where y does not vary)."""

@@ -1,4 +1,4 @@
-"""The command line: raybench render | view | info | bench | warmup | report.
+"""The command line: raybench render | view | info | bench | warmup | report | compare | schema.
 
 One module a command (render.py, view.py, ...), the options they share
 written once (options.py); this module gathers them under one group, and
@@ -14,7 +14,7 @@ import click
 
 from .. import __version__
 from ..errors import RaybenchError, device_failure, one_line
-from . import bench, info, render, report, view, warmup
+from . import bench, compare, info, render, report, schema, view, warmup
 from .options import device_options, parse_pair, parse_size
 
 __all__ = ["device_options", "entry", "main", "parse_pair", "parse_size", "run"]
@@ -26,7 +26,16 @@ def main():
     """raybench: the thesis's ray tracer on CPU and GPU, and what the GPU buys."""
 
 
-for _command in (render.render, view.view, info.info, bench.bench, warmup.warmup, report.report_cmd):
+for _command in (
+    render.render,
+    view.view,
+    info.info,
+    bench.bench,
+    warmup.warmup,
+    report.report_cmd,
+    compare.compare_cmd,
+    schema.schema_cmd,
+):
     main.add_command(_command)
 
 
@@ -55,7 +64,8 @@ def _no_thread(exc: BaseException) -> bool:
 def run(argv=None) -> int:
     """Entry point: turn every user error into one line and exit code 2."""
     try:
-        main.main(args=argv, prog_name="raybench", standalone_mode=False)
+        # a command's ctx.exit(code) comes back as its return value (compare --fail-slower's 1)
+        code = main.main(args=argv, prog_name="raybench", standalone_mode=False)
     except RaybenchError as exc:
         click.echo(f"raybench: error: {one_line(exc)}", err=True)
         return 2
@@ -91,7 +101,7 @@ def run(argv=None) -> int:
             raise
         click.echo(f"raybench: error: {one_line(failure)}; the run was stopped", err=True)
         return 2
-    return 0
+    return code if isinstance(code, int) else 0
 
 
 def entry() -> None:

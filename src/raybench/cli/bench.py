@@ -4,7 +4,6 @@ of a Dask cluster, then a report."""
 from __future__ import annotations
 
 import os
-import re
 import sys
 from pathlib import Path
 
@@ -110,7 +109,7 @@ def bench(
 
     from ..bench import runner
     from ..bench import suites as suites_mod
-    from ..bench.results import ResultsWriter
+    from ..bench.results import MAX_NUMBER, ResultsWriter, check_label, check_settings
 
     chosen = suites_mod.SUITES if "all" in suites else tuple(dict.fromkeys(suites))
     for s in chosen:
@@ -124,10 +123,12 @@ def bench(
         duration = 0.5 if quick else 10.0
     if not 0.05 <= duration <= 3600:
         raise RaybenchError(f"--duration: must be from 0.05 to 3600 seconds, got {duration:g}")
-    if seed < 0:
-        raise RaybenchError(f"--seed: must be >= 0, got {seed}")
-    if label is not None and not re.fullmatch(r"[A-Za-z0-9._-]+", label):
-        raise RaybenchError(f"--label: use letters, digits, '.', '_' and '-' only, got {label!r}")
+    # the rules the results' reader applies, checked before the work: a run never
+    # writes records that its own report refuses (a seed past 1e15, a label "..")
+    if not 0 <= seed <= MAX_NUMBER:
+        raise RaybenchError(f"--seed: must be a whole number from 0 to {MAX_NUMBER:g}, got {seed}")
+    if label is not None:
+        check_label(label)
     if out_dir is not None and out_dir.exists() and not out_dir.is_dir():
         raise RaybenchError(f"--out {out_dir}: is a file, not a folder")
     settings = {
@@ -141,6 +142,7 @@ def bench(
         "seed": seed,
         "adapter": adapter,
     }
+    check_settings(settings)
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
     if scheduler is not None:
         from ..bench import machines as on_machines
@@ -181,7 +183,14 @@ def bench(
         from ..bench import report
 
         path = report.write_report([results_path], out_dir / f"report-{stamp}")
-        click.echo(f"report: {path}")
+        click.echo(f"report: {path} (and {path.with_suffix('.html')}, one page that works offline)")
+    if writer.count:
+        from .. import references
+        from ..bench import headline
+        from ..bench.results import read
+
+        for line in headline.summary(read(results_path), references.load()):
+            click.echo(line)
 
 
 def _bench_into(writer, results_path, measure) -> None:

@@ -104,6 +104,7 @@ def render(
     from ..backends import resolve
     from ..render import PNG_LEVEL, check_png_level
     from ..render import render as render_frame
+    from .compiling import announced
 
     scene = load_scene(scene_file, spheres, seed, materials, layout)
     width, height = parse_size(size)
@@ -139,7 +140,8 @@ def render(
         raise RaybenchError("--tile applies across a cluster: give --workers N or --scheduler ADDR")
     device = resolve(device, adapter)
     start = time.perf_counter()
-    frame = render_frame(scene, width=width, height=height, device=device, **shaded, **options)
+    with announced():
+        frame = render_frame(scene, width=width, height=height, device=device, **shaded, **options)
     elapsed = time.perf_counter() - start
     frame.save(output, level)
     built = f", BVH built in {frame.build_s * 1e3:.1f} ms" if frame.build_s is not None else ""

@@ -20,17 +20,25 @@ from ..errors import one_line
     show_default=True,
     help="folder for report.md and its plots",
 )
-def report_cmd(results, out_dir):
+@click.option(
+    "--references/--no-references",
+    default=True,
+    show_default=True,
+    help="place the machines beside raybench's reference machines (measured elsewhere, and named so)",
+)
+def report_cmd(results, out_dir, references):
     """Turn result files (JSON Lines from `raybench bench`) into a Markdown report
     with plots and a verdict on each of the thesis's claims. Several files (two
-    machines, say) go side by side in one report."""
+    machines, say) go side by side in one report. A folder stands for every
+    .jsonl file under it; those that are not raybench results are skipped,
+    with a warning each. The report folder is made whole, then put in place."""
     import warnings
 
     from ..bench import report
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        path = report.write_report(list(results), out_dir)
+        path = report.write_report(list(results), out_dir, references)
     for w in caught:
         click.echo(f"raybench: warning: {one_line(w.message)}", err=True)
-    click.echo(f"report: {path}")
+    click.echo(f"report: {path} (and {path.with_suffix('.html')}, one page that works offline)")

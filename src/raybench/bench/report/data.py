@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import math
 import warnings
+from pathlib import Path
 
 from ...errors import RaybenchError
 from .. import results
@@ -86,24 +87,53 @@ def _point_key(r: dict) -> tuple:
     )
 
 
-def load(paths) -> tuple[dict[str, list[dict]], list[str]]:
-    """Read every results file; return ({column: records}, notes), a column
-    being a machine label and a kernel (column()). Columns keep
-    the order they are first seen in. A point measured twice under one label
-    keeps the later run's record (by run date, then file order). A half-written
-    last line is skipped with a warning (results.read), also listed in notes."""
+def _read_all(paths, notes: list[str], sources: list) -> list[tuple]:
+    """(path, records) of every results file named, or found under a folder
+    named (its *.jsonl files, in sorted order, at any depth). A file named is
+    read or refused; a file found in a folder that is not a raybench results
+    file (another tool's, a damaged one) is skipped with a warning each."""
+    out = []
+    for given in paths:
+        given = Path(given)
+        found = given.is_dir()
+        files = sorted(p for p in given.rglob("*.jsonl") if p.is_file()) if found else [given]
+        for path in files:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                try:
+                    records = results.read(path)
+                except RaybenchError as exc:
+                    if not found:
+                        raise
+                    caught.append(warnings.WarningMessage(f"skipped {exc}", UserWarning, __file__, 0))
+                    records = None
+            for w in caught:
+                notes.append(str(w.message))
+                warnings.warn(w.message, stacklevel=3)
+            if records is not None:
+                out.append((path, records))
+                sources.append(path)
+        if found and not files:
+            raise RaybenchError(f"{given}: a folder holding no .jsonl results files")
+    if not out:
+        raise RaybenchError(f"{', '.join(map(str, paths))}: no raybench results among the files found")
+    return out
+
+
+def load(paths, sources: list | None = None) -> tuple[dict[str, list[dict]], list[str]]:
+    """Read every results file (or every one under a folder: _read_all); return
+    ({column: records}, notes), a column being a machine label and a kernel
+    (column()). Columns keep the order they are first seen in. A point measured
+    twice under one label keeps the later run's record (by run date, then file
+    order). A half-written last line is skipped with a warning (results.read),
+    also listed in notes; so is a foreign file in a folder. sources, if given,
+    receives the path of every file read."""
     paths = list(paths)
     if not paths:
         raise RaybenchError("report: no results files given")
     notes: list[str] = []
     machines: dict[str, dict[tuple, dict]] = {}
-    for path in paths:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            records = results.read(path)
-        for w in caught:
-            notes.append(str(w.message))
-            warnings.warn(w.message, stacklevel=2)
+    for path, records in _read_all(paths, notes, [] if sources is None else sources):
         for number, record in enumerate(records, 1):
             _check(record, path, number)
             points = machines.setdefault(column(record), {})

@@ -10,17 +10,21 @@ import json
 import re
 from pathlib import Path
 
+from ... import references as raybench_references
 from ...errors import RaybenchError
-from ...files import write_atomic
+from ...files import folder_atomic, write_atomic
 from ...kernels.whitted import KINDS
-from . import charts
+from .. import headline
+from . import charts, html
 from .data import (
     DEVICE_NAMES,
+    accel_of,
     constant_vs_runtime,
     cpu_tuning,
     dynamic_points,
     fmt_opt,
     gpu_tuning,
+    kernel_of,
     largest_group,
     load,
     machine_of,
@@ -694,13 +698,71 @@ def _claims_table(machines: dict[str, list[dict]]) -> tuple[str, dict[str, list[
     return _table(header, rows), judged
 
 
-def write_report(paths: list, out_dir) -> Path:
-    """Read the results files, write out_dir/report.md and its PNG plots
-    (out_dir is created if needed), and return the path of report.md."""
+def _section_references(w: _Writer, machines: dict[str, list[dict]], references: list[dict]) -> None:
+    """The headline beside the reference machines, and the claims that need a GPU judged,
+    where a machine here has none, with each reference GPU: always named as another machine."""
+    mine = [r for records in machines.values() for r in records]
+    w("## Beside the reference machines", "")
+    w(
+        "raybench ships results measured on other machines (benchmarks/make_references.py makes them from the "
+        "records under benchmarks/results/). They are **not** this run's machines: each is named, with the "
+        "commit it was measured at. `raybench report --no-references` leaves this section out.",
+        "",
+    )
+    table = headline.rows(mine, references)
+    if table:
+        w(f"The {escape(headline.DEFINITION)} (raybench.bench.headline):", "")
+        rows = [
+            [
+                escape(r["label"]) + (" (reference: another machine)" if r["reference"] else ""),
+                escape(r["name"]),
+                fmt_num(r["value"]),
+                fmt_x(r["cpu_ratio"]) if r["cpu_ratio"] else "–",
+                escape(r["commit"] or "not recorded"),
+            ]
+            for r in table
+        ]
+        w(_table(["machine", "device", "million rays/s", "x this run's CPU", "commit"], rows), "")
+    by_ref: dict[str, list[dict]] = {}
+    for r in references:
+        by_ref.setdefault(r["run"]["label"], []).append(r)
+    for label, records in machines.items():
+        cpu = [r for r in records if r["device"] == "cpu" and r["suite"] == "thesis"]
+        if not cpu or any(r["device"] == "cuda" for r in records):
+            continue
+        way = (accel_of(cpu[0]), kernel_of(cpu[0]))
+        for ref, ref_records in by_ref.items():
+            gpu = [r for r in ref_records if r["device"] == "cuda" and (accel_of(r), kernel_of(r)) == way]
+            if not any(r["suite"] == "thesis" for r in gpu):
+                continue
+            machine = {**cpu[0]["run"]["machine"], "gpus": gpu[0]["run"]["machine"].get("gpus") or []}
+            paired = [{**r, "run": {**r["run"], "machine": machine}} for r in records + gpu]
+            judged = [v for v in verdicts(paired) if v["number"] in (1, 3, 4, 6)]
+            gpu_name = headline.device_name(gpu[0]["run"]["machine"], "cuda")
+            w(
+                f"### {escape(label)}: the claims that need a GPU, with the {escape(gpu_name)} of {escape(ref)} "
+                "(another machine)",
+                "",
+                f"This machine has no GPU in these results; below, its CPU is set against {escape(ref)}'s GPU, "
+                f"measured elsewhere (commit {escape(gpu[0]['run'].get('git_commit') or 'not recorded')}, "
+                f"{escape(gpu[0]['run'].get('date') or 'date not recorded')}). Claims 4 and 6 are that GPU's alone.",
+                "",
+            )
+            rows = [[v["number"], v["claim"], f"**{v['verdict']}**: {escape(v['measured'])}"] for v in judged]
+            w(_table(["#", "the thesis's claim", f"this CPU with {escape(ref)}'s GPU"], rows), "")
+
+
+def write_report(paths: list, out_dir, references: bool = True) -> Path:
+    """Read the results files, write out_dir/report.md and its PNG plots, and
+    report.html beside them (out_dir is created if needed), and return the
+    path of report.md.
+    references: place the machines against raybench's reference machines
+    (raybench.references), and judge the claims a missing GPU leaves open with theirs."""
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise RaybenchError(f"{out_dir}: is a file, not a folder for the report")
-    machines, notes = load(paths)
+    sources: list = []
+    machines, notes = load(paths, sources)
     # the scaling, secondary, multi-gpu and dynamic suites are no part of the thesis's claims: each its own section
     beyond: dict[str, dict[str, list[dict]]] = {
         "scaling": {}, "secondary": {}, "multi-gpu": {}, "dynamic": {}, "parts": {},
@@ -709,15 +771,25 @@ def write_report(paths: list, out_dir) -> Path:
         for r in records:
             if r["suite"] in beyond:
                 beyond[r["suite"]].setdefault(r["run"]["label"], []).append(r)
+    machines = {k: v for k, v in ((k, [r for r in v if r["suite"] not in beyond]) for k, v in machines.items()) if v}
+    # built aside and renamed into place: never a half-made report under out_dir's name
+    with folder_atomic(out_dir, _ours) as staged:
+        _write(sources, machines, notes, beyond, _Writer(staged), raybench_references.load() if references else None)
+    return out_dir / "report.md"
+
+
+def _ours(entry: Path) -> bool:
+    """What an earlier report left in its folder, which a new one may replace."""
+    return (
+        entry.is_file()
+        and not entry.is_symlink()
+        and (entry.name in ("report.md", "report.html") or entry.suffix == ".png")
+    )
+
+
+def _write(sources, machines, notes, beyond, w: _Writer, references: list[dict] | None) -> None:
     scaling, secondary = beyond["scaling"], beyond["secondary"]
     multi_gpu, dynamic, parts = beyond["multi-gpu"], beyond["dynamic"], beyond["parts"]
-    machines = {k: v for k, v in ((k, [r for r in v if r["suite"] not in beyond]) for k, v in machines.items()) if v}
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise RaybenchError(f"{out_dir}: cannot create the report folder ({exc.strerror or exc})") from None
-
-    w = _Writer(out_dir)
     names = ", ".join(
         dict.fromkeys(
             [records[0]["run"]["label"] for records in machines.values() if records]
@@ -744,6 +816,8 @@ def write_report(paths: list, out_dir) -> Path:
     table, judged = _claims_table(machines)
     w(table, "", "How the verdicts are decided:", "")
     w(*[f"- {rule}" for rule in RULES], "")
+    if references:
+        _section_references(w, machines, references)
     taken: set = set()
     for label, records in machines.items():
         slug = _slug(label, taken)
@@ -773,10 +847,10 @@ def write_report(paths: list, out_dir) -> Path:
         for label, records in parts.items():
             _section_parts(w, label, records)
     w("## Sources", "")
-    w(*[f"- `{Path(p)}`" for p in paths], "")
+    # a file's name is the user's text like any other: escaped, never a code span it could end
+    w(*[f"- {escape(p)}" for p in sources], "")
     if notes:
         w("## Notes", "")
         w(*[f"- {escape(n)}" for n in notes], "")
-    report = out_dir / "report.md"
-    write_atomic(report, "\n".join(w.lines).encode("utf-8"))
-    return report
+    write_atomic(w.out_dir / "report.md", "\n".join(w.lines).encode("utf-8"))
+    write_atomic(w.out_dir / "report.html", html.render(sources, machines, notes, references).encode("utf-8"))

@@ -1,0 +1,174 @@
+"""report.html: the report as one self-contained page that works offline:
+Jinja2 templates (templates/), the charts drawn by plotly.js, inlined, with
+values on hover and machines toggled on and off from the legend; the claims
+table; the headline beside the reference machines, which a checkbox hides.
+
+Text from a results file reaches the page only through Jinja2's autoescaping
+(in the HTML) or as JSON inside a <script type="application/json"> element
+with <, > and & written as \\u escapes (the charts' data), and plotly draws
+it as text: it is shown as written and runs nothing.
+"""
+
+from __future__ import annotations
+
+import html as html_text
+import json
+
+import jinja2
+
+from .. import headline
+from .data import machine_of, speedups, thesis_series
+from .verdicts import CLAIMS, RULES, verdicts
+
+_ENV = jinja2.Environment(
+    loader=jinja2.PackageLoader("raybench.bench.report", "templates"),
+    autoescape=True,
+    undefined=jinja2.StrictUndefined,
+    trim_blocks=True,
+    lstrip_blocks=True,
+)
+
+
+def _script_json(value) -> str:
+    """value as JSON that no text in it can end the <script> element holding it."""
+    text = json.dumps(value, separators=(",", ":"), allow_nan=False)
+    return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
+
+
+def _plain(text) -> str:
+    """Text for plotly, which reads a few HTML tags in it: entities instead, shown as written."""
+    return html_text.escape(str(text), quote=False)
+
+
+def _figure(traces: list[dict], title: str, x: str, y: str, log: bool = False) -> dict:
+    axis = {"type": "log"} if log else {}
+    return {
+        "data": traces,
+        "layout": {
+            "title": {"text": _plain(title)},
+            "xaxis": {"title": {"text": x}},
+            "yaxis": {"title": {"text": y}, **axis},
+            "hovermode": "closest",
+            "legend": {"title": {"text": "click to toggle"}},
+            "margin": {"t": 50, "r": 20, "b": 150},
+        },
+    }
+
+
+def _charts(machines: dict[str, list[dict]], table: list[dict]) -> list[dict]:
+    charts = []
+    traces = []
+    for column, records in machines.items():
+        for s in thesis_series(records):
+            traces.append(
+                {
+                    "type": "scatter",
+                    "mode": "lines+markers",
+                    "name": _plain(f"{column}: {s['device']} {s['width']}x{s['height']}"),
+                    "x": s["spheres"],
+                    "y": s["median"],
+                    "hovertemplate": "%{x} spheres: %{y:.4g} ms<extra>%{fullData.name}</extra>",
+                }
+            )
+    if traces:
+        charts.append(
+            {"id": "chart-thesis", "figure": _figure(traces, "Tests 1-6: median frame time", "spheres", "ms", True)}
+        )
+    traces = []
+    for column, records in machines.items():
+        sp = speedups(records)
+        for size in dict.fromkeys((p["width"], p["height"]) for p in sp):
+            pts = [p for p in sp if (p["width"], p["height"]) == size]
+            traces.append(
+                {
+                    "type": "scatter",
+                    "mode": "lines+markers",
+                    "name": _plain(f"{column}: {size[0]}x{size[1]}"),
+                    "x": [p["spheres"] for p in pts],
+                    "y": [p["speedup"] for p in pts],
+                    "hovertemplate": "%{x} spheres: %{y:.3g}x<extra>%{fullData.name}</extra>",
+                }
+            )
+    if traces:
+        charts.append(
+            {"id": "chart-speedup", "figure": _figure(traces, "GPU speedup over the CPU", "spheres", "CPU / GPU")}
+        )
+    if table:
+        traces = []
+        for reference in (False, True):
+            rows = [r for r in table if r["reference"] == reference]
+            for label in dict.fromkeys(r["label"] for r in rows):
+                mine = [r for r in rows if r["label"] == label]
+                name = f"{label} (reference: another machine)" if reference else label
+                traces.append(
+                    {
+                        "type": "bar",
+                        "name": _plain(name),
+                        "x": [_plain(r["name"]) for r in mine],
+                        "y": [r["value"] for r in mine],
+                        "meta": "reference" if reference else "this run",
+                        "hovertemplate": "%{x}: %{y:.4g} million rays/s<extra>%{fullData.name}</extra>",
+                    }
+                )
+        charts.append(
+            {
+                "id": "chart-headline",
+                "figure": _figure(
+                    traces,
+                    f"headline v{headline.VERSION}: brute force, thesis scenes at 800x600",
+                    "device",
+                    "million rays/s",
+                    True,
+                ),  # fmt: skip
+            }
+        )
+    return charts
+
+
+def render(sources, machines: dict[str, list[dict]], notes: list[str], references: list[dict] | None) -> str:
+    """The page's text, for the machines (report columns) of the thesis's suites."""
+    from plotly.offline import get_plotlyjs
+
+    mine = [r for records in machines.values() for r in records]
+    table = headline.rows(mine, references or [])
+    judged = {column: verdicts(records) for column, records in machines.items()}
+    described = []
+    for column, records in machines.items():
+        m = machine_of(records)
+        run = records[0]["run"]
+        described.append(
+            {
+                "column": column,
+                "cpu": (m.get("cpu") or {}).get("model") or "?",
+                "cores": (m.get("cpu") or {}).get("physical_cores") or "?",
+                "gpu": ", ".join(str(g.get("name")) for g in m.get("gpus") or []) or "no CUDA GPU",
+                "commit": run.get("git_commit") or "not recorded",
+                "date": run.get("date") or "?",
+            }
+        )
+    points = [
+        {
+            "column": column,
+            "device": r["device"],
+            "size": f"{r['width']}x{r['height']}",
+            "spheres": r["spheres"],
+            "median_ms": f"{r['frame_ms']['median']:.4g}",
+        }
+        for column, records in machines.items()
+        for r in records
+        if r["suite"] == "thesis"
+    ]
+    return _ENV.get_template("report.html.j2").render(
+        claims=CLAIMS,
+        rules=RULES,
+        judged=judged,
+        machines=described,
+        headline=headline,
+        table=table,
+        references=references is not None,
+        charts=[{"id": c["id"], "json": _script_json(c["figure"])} for c in _charts(machines, table)],
+        points=points,
+        sources=[str(s) for s in sources],
+        notes=notes,
+        plotly_js=get_plotlyjs(),
+    )

@@ -1,0 +1,45 @@
+"""On a terminal, say so while this process compiles kernels: the first run on
+a machine spends 15-30 s in Numba's compiler (docs/startup.md), which would
+otherwise look like a hang. Piped, stderr stays clean."""
+
+from __future__ import annotations
+
+import contextlib
+import sys
+import threading
+
+from .. import compiled
+
+MESSAGE = "compiling kernels for this machine, first run only"
+
+
+@contextlib.contextmanager
+def announced(console=None):
+    """While the block runs, a spinner with MESSAGE on stderr from the first
+    cache miss (compiled.on_compile) until the block ends; nothing when stderr
+    is no terminal (console: rich's, for the tests)."""
+    if console is None:
+        if not sys.stderr.isatty():
+            yield
+            return
+        from rich.console import Console
+
+        console = Console(stderr=True)
+    status = None
+    lock = threading.Lock()
+
+    def start():
+        nonlocal status
+        with lock:
+            if status is None:
+                status = console.status(MESSAGE)
+                status.start()
+
+    compiled.on_compile = start
+    try:
+        yield
+    finally:
+        compiled.on_compile = None
+        with lock:
+            if status is not None:
+                status.stop()

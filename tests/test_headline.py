@@ -1,0 +1,118 @@
+"""The headline number and the reference results shipped in the package: the
+shipped file is exactly what benchmarks/make_references.py makes from the
+committed records, small, and whole (machines, commits); the headline is the
+geometric mean it is defined as (worked out here from the records), and only
+the points of its definition count; a run without a GPU is placed against
+the references' GPUs, always named as other machines, in the terminal and
+the report."""
+
+import gzip
+import importlib.util
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_report import machine, rec, write
+
+from raybench import references
+from raybench.bench import headline, report
+from raybench.cli import run
+
+ROOT = Path(__file__).resolve().parent.parent
+SHIPPED = ROOT / "src" / "raybench" / "references" / "references.jsonl.gz"
+
+
+def make_references():
+    spec = importlib.util.spec_from_file_location("make_references", ROOT / "benchmarks" / "make_references.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_shipped_references_are_what_the_script_makes_from_the_committed_records():
+    script = make_references()
+    assert script.OUT == SHIPPED
+    assert SHIPPED.read_bytes() == script.make(), "run benchmarks/make_references.py"
+    assert SHIPPED.stat().st_size < 300 * 1024
+    for name, _ in (f for files in script.SOURCES.values() for f in files):
+        assert (ROOT / "benchmarks" / "results" / name).is_file(), name
+
+
+def test_each_reference_machine_is_described_with_its_commit():
+    by = references.machines()
+    assert set(by) == {"h200", "h100", "epyc-2c-cpu-only"}
+    assert len(gzip.decompress(SHIPPED.read_bytes()).splitlines()) == sum(map(len, by.values()))
+    for label, records in by.items():
+        thesis = [r for r in records if r["suite"] == "thesis"]
+        assert thesis, label
+        assert all(r["run"]["git_commit"] for r in thesis), label
+        assert all(r["run"]["machine"]["cpu"]["model"] for r in records)
+    assert by["h200"][0]["run"]["machine"]["gpus"][0]["name"] == "NVIDIA H200"
+    assert not by["epyc-2c-cpu-only"][0]["run"]["machine"]["gpus"]
+    # the references' headlines, from the definition: H200 and H100 measured the fast kernel
+    scores = headline.scores(references.load())
+    assert set(scores) == {"h200", "h100"} and all(s["cuda"] > 10 * s["cpu"] for s in scores.values())
+
+
+def points(rng, device="cpu", kernel="fast", spheres=headline.SPHERES, size=headline.SIZE, **kw):
+    out = []
+    for n in spheres:
+        r = rec("thesis", device, n, float(rng.uniform(1, 100)), size=size, options={"accel": "none", "kernel": kernel})
+        r["run"].update(kw)
+        out.append(r)
+    return out
+
+
+def test_the_headline_is_the_geometric_mean_of_its_points_only(rng):
+    mine = points(rng)
+    rates = [800 * 600 / (r["frame_ms"]["median"] / 1e3) / 1e6 for r in mine]
+    expected = float(np.prod(rates) ** (1 / 3))
+    # other points measured beside them change nothing
+    others = points(rng, spheres=(200, 300)) + points(rng, kernel="simple") + points(rng, size=(1280, 800))
+    bvh = [{**r, "options": {"accel": "bvh"}} for r in points(rng)]
+    assert math.isclose(headline.score(mine + others + bvh, "cpu"), expected, rel_tol=1e-12)
+    assert headline.score(mine[:2], "cpu") is None  # a point missing: no headline
+    assert headline.score(points(rng, kernel="simple"), "cpu") is None  # not the definition's kernel
+    assert headline.score(points(rng, settings={"seed": 3}), "cpu") is None  # other scenes
+    assert headline.score(points(rng, device="wgpu", kernel="simple"), "wgpu") is not None  # wgpu's only kernel
+
+
+def test_a_cpu_only_run_is_placed_against_the_reference_gpus(rng):
+    mine = points(rng)
+    lines = headline.summary(mine, references.load())
+    assert lines[0].startswith("headline v1: ")
+    assert lines[1].startswith("  this machine ") and "Synthetic CPU" in lines[1]
+    assert "reference machines (measured elsewhere" in lines[2]
+    h200 = next(line for line in lines if "NVIDIA H200" in line and line.startswith("  h200"))
+    ratio = headline.scores(references.load())["h200"]["cuda"] / headline.score(mine, "cpu")
+    assert f"({ratio:.3g}x this CPU)" in h200
+    assert lines[-1].startswith("  no GPU measured here:") and "other machines' GPUs" in lines[-1]
+    with_gpu = headline.summary(mine + points(rng, device="cuda"), references.load())
+    assert "x this machine's CPU" in with_gpu[2] and not any("no GPU measured here" in x for x in with_gpu)
+    (alone,) = headline.summary(points(rng, spheres=(100,)), [])
+    assert alone.endswith("not measured in this run (it needs the thesis suite)")
+
+
+@pytest.mark.parametrize("flag", [[], ["--no-references"]])
+def test_the_report_judges_the_gpu_claims_with_the_references_and_says_so(tmp_path, rng, flag):
+    mine = points(rng, size=(800, 600)) + points(rng, size=(1280, 800))
+    for r in mine:
+        r["run"]["machine"] = {**machine(), "gpus": []}
+    path = write(tmp_path / "cpu-only.jsonl", mine)
+    assert run(["report", str(path), "-o", str(tmp_path / "rep"), *flag]) == 0
+    text = (tmp_path / "rep" / "report.md").read_text()
+    if flag:
+        assert "reference" not in text.lower().replace("references.md", "")
+        return
+    assert "## Beside the reference machines" in text
+    assert "| h200 (reference: another machine) | NVIDIA H200 |" in text
+    heading = "### alpha, fast kernel: the claims that need a GPU, with the NVIDIA H200 of h200 (another machine)"
+    assert heading in text
+    section = text.split(heading, 1)[1].split("###", 1)[0]
+    assert "| 1 | The GPU is faster than the CPU" in section and "**holds**" in section
+    # the claims table of this machine alone still says what it measured: no GPU here
+    claims = text.split("## The thesis's claims", 1)[1].split("## Beside", 1)[0]
+    assert "not measured" in claims and "H200" not in claims
+    report.write_report([path], tmp_path / "rep2", references=False)
+    assert "Beside the reference machines" not in (tmp_path / "rep2" / "report.md").read_text()
