@@ -511,7 +511,7 @@ def test_bvh_too_large_for_memory_is_one_line(monkeypatch):
     # colour bytes and a 4-byte hit index, held twice on the host; a sphere 7 float32
     frame = 64 * 48 * 2 * (3 + 4)
     available = frame + 10000 * 7 * 4 + 1000
-    monkeypatch.setattr(cpu, "host_available_bytes", lambda: available)
+    monkeypatch.setattr(cpu, "host_available_bytes", lambda threads=0: available)
     need = 10000 * bvh.BUILD_SPHERE_BYTES + frame
     with pytest.raises(raybench.RaybenchError) as info:
         raybench.render(scene, width=64, height=48, device="cpu")

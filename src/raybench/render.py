@@ -183,7 +183,9 @@ class Renderer:
         """Move the spheres (a (7, N) float32 array of the scene's N spheres,
         as Scene.spheres) for the next frames: "refit" where the tree's boxes
         were refitted on the GPU (cuda, build="gpu"), "build" where the tree
-        was rebuilt, None for brute force."""
+        was rebuilt, None for brute force. They are checked as a scene file's
+        spheres are (one line naming the first that is not a sphere), and
+        copied: the caller may change its array afterwards."""
         return self._open().update(spheres)
 
     def render(

@@ -71,6 +71,7 @@ A record (format "raybench-results", version 1):
 from __future__ import annotations
 
 import json
+import os
 import re
 import warnings
 from pathlib import Path
@@ -104,13 +105,13 @@ class ResultsWriter:
 
     def __init__(self, path):
         self.path = Path(path)
-        if self.path.is_dir():
+        if os.path.isdir(self.path):
             raise RaybenchError(f"{self.path}: cannot write results: it is a folder")
         # Refuse an unwritable place now, not after the first point's minutes.
         existing = self.path.parent
-        while not existing.exists() and existing != existing.parent:
+        while not os.path.lexists(existing) and existing != existing.parent:
             existing = existing.parent
-        if not existing.is_dir():
+        if not os.path.isdir(existing):
             raise RaybenchError(f"{self.path}: cannot write results: {existing} is not a folder")
         check_writable(existing / self.path.name, "results")
         self._existing = existing  # the folders below it are made with the first record

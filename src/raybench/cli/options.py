@@ -12,7 +12,7 @@ import click
 from ..backends.limits import WORKERS_PER_CORE, check_connect_timeout, check_worker_count
 from ..backends.options import ACCELS, BUILDS, KERNELS
 from ..errors import RaybenchError
-from ..files import check_writable, output_mode
+from ..files import check_writable
 from ..lighting import SHADINGS
 
 SIZE_HELP = "image size as WIDTHxHEIGHT, e.g. 1680x1050"
@@ -79,12 +79,12 @@ def check_output(path: Path, option: str = "-o", suffix: str = ".png") -> None:
         raise RaybenchError(f"{option} {path}: folder {folder} does not exist")
     if os.path.isdir(path):
         raise RaybenchError(f"{option} {path}: is a folder; give a file name")
-    # what is there: a FIFO or a device is refused (never replaced), a name too long for the file system too
-    output_mode(path, option)
     if not os.access(folder, os.W_OK) or (os.path.exists(path) and not os.access(path, os.W_OK)):
         raise RaybenchError(f"{option} {path}: not writable; choose another path")
     # os.access answers for the permissions only (and yes to root): creating a
-    # file there answers for read-only file systems and the rest too.
+    # file there answers for read-only file systems and the rest too; and what
+    # is at the path (files.output_mode: a FIFO or a device is refused, never
+    # replaced; a name too long for the file system too).
     check_writable(path, option)
 
 
