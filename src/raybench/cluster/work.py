@@ -416,10 +416,13 @@ def _spec(width, height, device, shading, depth, shadow_samples, options) -> tup
 _scattered: OrderedDict = OrderedDict()
 
 
-def _scatter(client, scene: Scene):
+def _scatter(client, scene: Scene, fresh: bool = False):
     """The scene on every worker, once: the tasks find it there and carry
     only its key. The key is a hash of the scene, so a later job of the same
-    scene reuses it, and finds the workers' renderers warm."""
+    scene reuses it, and finds the workers' renderers warm. fresh: a copy
+    sent again because the last was lost goes under a key of its own: the
+    lost key's release can still be on its way to the scheduler, and would
+    take a copy under the same key with it."""
     from dask.base import tokenize
 
     if not isinstance(scene, Scene):
@@ -428,7 +431,7 @@ def _scatter(client, scene: Scene):
     future = _scattered.get(held)
     if future is None or future.client is not client or future.status != "finished":
         try:
-            future = client.scatter(scene, broadcast=True, hash=True)
+            future = client.scatter(scene, broadcast=True, hash=not fresh)
         except (OSError, TimeoutError) as exc:
             raise RaybenchError(f"cluster: the scene could not be sent to its workers ({one_line(exc)})") from None
         _scattered[held] = future
@@ -455,7 +458,7 @@ def _send_again(client, scene: Scene, tried: int, what: str):
         raise RaybenchError(
             f"cluster: its workers were lost, with {what}, and none was back within {RESTART_WAIT_S:g} s"
         ) from None
-    return _scatter(client, scene)
+    return _scatter(client, scene, fresh=True)
 
 
 def _killed(exc) -> RaybenchError:
