@@ -72,16 +72,19 @@ def check_display() -> None:
 # exits 2 instead. It must not return: Xlib exits when it does. Nothing is
 # left half-written: every output is written atomically (raybench.files).
 _io_handler = None
+_x11 = None  # Xlib, where the handler is set
 
 
 def _one_line_on_lost_display() -> None:
-    global _io_handler
+    global _io_handler, _x11
     if _io_handler is not None or not os.environ.get("DISPLAY"):
         return
     try:
         x11 = ctypes.CDLL(ctypes.util.find_library("X11") or "libX11.so.6")
     except OSError:  # no Xlib (Wayland alone): nothing to answer for
         return
+    x11.XSync.argtypes = [ctypes.c_void_p, ctypes.c_int]
+    _x11 = x11
     display = os.environ["DISPLAY"]
 
     def lost(_connection) -> int:
@@ -91,6 +94,20 @@ def _one_line_on_lost_display() -> None:
 
     _io_handler = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p)(lost)
     x11.XSetIOErrorHandler(_io_handler)
+
+
+def check_display_alive() -> None:
+    """A round trip to the window's X server, before a draw asks the surface
+    for a texture: a server gone is then met here, by Xlib, whose handler
+    says it in one line. Met first by the Vulkan driver (the surface found
+    unsupported), wgpu-native's fatal error handler aborted the process."""
+    if _x11 is None:
+        return
+    import glfw
+
+    display = glfw.get_x11_display()
+    if display:
+        _x11.XSync(display, 0)
 
 
 def _glfw_message(warning) -> str:
@@ -158,6 +175,7 @@ class ViewerWindow:
             # from an offscreen texture drawn the same way (TextureQuad.draw_offscreen).
             self.surface_readable = bool(caps["usages"] & wgpu.TextureUsage.COPY_SRC)
             usage = wgpu.TextureUsage.RENDER_ATTACHMENT | (wgpu.TextureUsage.COPY_SRC if self.surface_readable else 0)
+            check_display_alive()
             self.context.configure(
                 device=self.device, format=self.format.configure, usage=usage, view_formats=self.format.view_formats
             )
@@ -242,6 +260,7 @@ class ViewerWindow:
     def _draw(self) -> None:
         # First the surface texture: if the window cannot be drawn now (hidden,
         # resizing) this raises and the finished frame stays for the next draw.
+        check_display_alive()
         texture = self.context.get_current_texture()
         result = self.worker.handoff.take()
         traced = None
