@@ -407,7 +407,7 @@ def test_secondary_points():
 # its records must stay exactly as they were (older results files still report).
 THESIS_RECORD_KEYS = {
     "suite", "test", "device", "width", "height", "spheres", "options", "frames", "frame_ms", "kernel_ms",
-    "first_frame_s", "compile_s", "build_s", "rays_per_s", "tests_per_s",
+    "first_frame_s", "compile_s", "build_s", "rays_per_s", "tests_per_s", "samples_ms",
 }  # fmt: skip
 
 
@@ -459,7 +459,7 @@ def test_secondary_quick_run_counts_the_rays_a_render_casts(tmp_path, capsys, mo
 
 def test_thesis_records_keep_their_fields():
     """A thesis-shading point's record has exactly the fields it had before
-    Whitted points existed."""
+    Whitted points existed, and the frames' times that compare bootstraps."""
     point = suites.Point("thesis", "cpu", 8, 6, 5, {"kernel": "simple", "accel": "none"}, test=4)
     record = runner.measure(point, runner.Scenes(0), 0.01)
     assert set(record) == THESIS_RECORD_KEYS

@@ -190,4 +190,5 @@ def test_kept_samples_are_bounded_and_strided(rng):
     assert len(kept) == 1000 and kept[0] == float(f"{many[0]:.5g}") and kept[-1] == float(f"{many[-1]:.5g}")
     record = point(many, 10)
     results.check_record({"format": results.FORMAT, "version": results.VERSION, **record}, "record")
-    assert np.isclose(np.median(kept), np.median(many), rtol=0.01)
+    # an even stride of a shuffled run: its median within a few standard errors (about 1%) of the whole's
+    assert np.isclose(np.median(kept), np.median(many), rtol=0.05)

@@ -129,7 +129,12 @@ def _locked():
         CACHE_DIR.mkdir(parents=True, exist_ok=True)
         # a lock object per taking: two threads' objects exclude each other as two processes' do
         lock = filelock.FileLock(CACHE_DIR / ".lock", thread_local=False)
-        lock.acquire()
+        try:
+            lock.acquire()
+        except BaseException:  # Ctrl-C mid-way: leave nothing taken
+            with contextlib.suppress(Exception):
+                lock.release(force=True)
+            raise
     except OSError:
         yield
         return
