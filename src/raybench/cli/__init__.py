@@ -107,6 +107,8 @@ def run(argv=None) -> int:
 def entry() -> None:
     try:
         code = run()
+        if code == 130:
+            _ignore_ctrl_c()
         # A one-shot picture may have started a child that compiles the builder
         # for later runs (bvh.one_shot): it is awaited here, where Ctrl-C is caught,
         # rather than during the interpreter's shutdown, where it would print a traceback.
@@ -115,4 +117,14 @@ def entry() -> None:
             oneshot.wait_for_compiling_elsewhere()  # Ctrl-C meanwhile stops the child, quietly
     except KeyboardInterrupt:  # Ctrl-C between run's own handlers and the wait
         code = _interrupted()
+        _ignore_ctrl_c()
     sys.exit(code)
+
+
+def _ignore_ctrl_c() -> None:
+    """Ctrl-C was handled and said so: the process only ends now. Pressed
+    again meanwhile, it would print a second line or a traceback, or, during
+    Python's own shutdown, kill the process by the signal (no exit code 130)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
