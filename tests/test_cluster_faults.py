@@ -130,3 +130,19 @@ def test_workers_that_do_not_come_back_are_one_line(monkeypatch):
     message = str(info.value)
     assert message.startswith("cluster: its workers were lost, with rows ") and "none was back within 2 s" in message
     assert "\n" not in message
+
+
+def test_the_only_worker_killed_mid_measurement_is_one_line(lone, rng):
+    """trace_frames (the multi-gpu suite's throughput) does not send lost
+    frames again, which would time the restart too: one line says so."""
+    scene = raybench.random_spheres(200, seed=int(rng.integers(2**31)))
+    cameras = camera_path.orbit(Camera(), 12)
+    lone.client.wait_for_workers(1, timeout=60)
+    pid = worker_pid(lone.client)
+    job = in_background(
+        lambda: cluster.trace_frames(lone.client, scene, cameras, 96, 72, "cpu", frames_per_task=1, **OPTIONS)
+    )
+    kill_when_busy(lone.client, pid, "_hit_counts", job)
+    with pytest.raises(RaybenchError, match="^cluster: frames were lost with their workers mid-measurement"):
+        finished(job)
+    lone.client.wait_for_workers(1, timeout=60)

@@ -688,8 +688,15 @@ def trace_frames(
     future, key = _scatter(client, scene)
     tasks = [client.submit(_hit_counts, future, key, spec, run, pure=False)
              for run in _runs(cameras, len(found), frames_per_task)]  # fmt: skip
+    from distributed.client import FutureCancelledError
+    from distributed.scheduler import KilledWorker
+
     try:
         return [n for counts in client.gather(tasks) for n in counts]
+    except FutureCancelledError:  # a measurement: not sent again, which would time the restart too
+        raise RaybenchError("cluster: frames were lost with their workers mid-measurement; run it again") from None
+    except KilledWorker as exc:
+        raise _killed(exc) from None
     finally:
         client.cancel(tasks)
 
