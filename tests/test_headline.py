@@ -1,5 +1,5 @@
 """The headline number and the reference results shipped in the package: the
-shipped file is exactly what benchmarks/make_references.py makes from the
+shipped records are exactly what benchmarks/make_references.py makes from the
 committed records, small, and whole (machines, commits); the headline is the
 geometric mean it is defined as (worked out here from the records), and only
 the points of its definition count; a run without a GPU is placed against
@@ -33,7 +33,8 @@ def make_references():
 def test_the_shipped_references_are_what_the_script_makes_from_the_committed_records():
     script = make_references()
     assert script.OUT == SHIPPED
-    assert SHIPPED.read_bytes() == script.make(), "run benchmarks/make_references.py"
+    # the records byte for byte (the gzip around them differs by Python and zlib version)
+    assert gzip.decompress(SHIPPED.read_bytes()) == gzip.decompress(script.make()), "run benchmarks/make_references.py"
     assert SHIPPED.stat().st_size < 300 * 1024
     for name, _ in (f for files in script.SOURCES.values() for f in files):
         assert (ROOT / "benchmarks" / "results" / name).is_file(), name
