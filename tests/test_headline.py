@@ -115,5 +115,10 @@ def test_the_report_judges_the_gpu_claims_with_the_references_and_says_so(tmp_pa
     # the claims table of this machine alone still says what it measured: no GPU here
     claims = text.split("## The thesis's claims", 1)[1].split("## Beside", 1)[0]
     assert "not measured" in claims and "H200" not in claims
+    # the page says the same, section for section
+    page = (tmp_path / "rep" / "report.html").read_text()
+    assert heading.removeprefix("### ") in page
+    part = page.split(heading.removeprefix("### "), 1)[1].split("</table>", 1)[0]
+    assert "<td>1</td><td>The GPU is faster than the CPU" in part and '<span class="holds">holds</span>' in part
     report.write_report([path], tmp_path / "rep2", references=False)
     assert "Beside the reference machines" not in (tmp_path / "rep2" / "report.md").read_text()

@@ -1,7 +1,8 @@
 """report.html: the report as one self-contained page that works offline:
 Jinja2 templates (templates/), the charts drawn by plotly.js, inlined, with
 values on hover and machines toggled on and off from the legend; the claims
-table; the headline beside the reference machines, which a checkbox hides.
+table; the headline beside the reference machines, and the claims a missing
+GPU leaves open judged with theirs, which a checkbox hides.
 
 Text from a results file reaches the page only through Jinja2's autoescaping
 (in the HTML) or as JSON inside a <script type="application/json"> element
@@ -18,7 +19,7 @@ import jinja2
 
 from .. import headline
 from .data import machine_of, speedups, thesis_series
-from .verdicts import CLAIMS, RULES, verdicts
+from .verdicts import CLAIMS, RULES, verdicts, with_reference_gpus
 
 _ENV = jinja2.Environment(
     loader=jinja2.PackageLoader("raybench.bench.report", "templates"),
@@ -166,6 +167,7 @@ def render(sources, machines: dict[str, list[dict]], notes: list[str], reference
         headline=headline,
         table=table,
         references=references is not None,
+        with_references=with_reference_gpus(machines, references) if references else [],
         charts=[{"id": c["id"], "json": _script_json(c["figure"])} for c in _charts(machines, table)],
         points=points,
         sources=[str(s) for s in sources],

@@ -18,13 +18,11 @@ from .. import headline
 from . import charts, html
 from .data import (
     DEVICE_NAMES,
-    accel_of,
     constant_vs_runtime,
     cpu_tuning,
     dynamic_points,
     fmt_opt,
     gpu_tuning,
-    kernel_of,
     largest_group,
     load,
     machine_of,
@@ -48,6 +46,7 @@ from .verdicts import (
     THESIS_RATIO,
     secondary_verdict,
     verdicts,
+    with_reference_gpus,
 )
 
 # Character references, not backslashes: a reference is never Markdown syntax,
@@ -723,33 +722,19 @@ def _section_references(w: _Writer, machines: dict[str, list[dict]], references:
             for r in table
         ]
         w(_table(["machine", "device", "million rays/s", "x this run's CPU", "commit"], rows), "")
-    by_ref: dict[str, list[dict]] = {}
-    for r in references:
-        by_ref.setdefault(r["run"]["label"], []).append(r)
-    for label, records in machines.items():
-        cpu = [r for r in records if r["device"] == "cpu" and r["suite"] == "thesis"]
-        if not cpu or any(r["device"] == "cuda" for r in records):
-            continue
-        way = (accel_of(cpu[0]), kernel_of(cpu[0]))
-        for ref, ref_records in by_ref.items():
-            gpu = [r for r in ref_records if r["device"] == "cuda" and (accel_of(r), kernel_of(r)) == way]
-            if not any(r["suite"] == "thesis" for r in gpu):
-                continue
-            machine = {**cpu[0]["run"]["machine"], "gpus": gpu[0]["run"]["machine"].get("gpus") or []}
-            paired = [{**r, "run": {**r["run"], "machine": machine}} for r in records + gpu]
-            judged = [v for v in verdicts(paired) if v["number"] in (1, 3, 4, 6)]
-            gpu_name = headline.device_name(gpu[0]["run"]["machine"], "cuda")
-            w(
-                f"### {escape(label)}: the claims that need a GPU, with the {escape(gpu_name)} of {escape(ref)} "
-                "(another machine)",
-                "",
-                f"This machine has no GPU in these results; below, its CPU is set against {escape(ref)}'s GPU, "
-                f"measured elsewhere (commit {escape(gpu[0]['run'].get('git_commit') or 'not recorded')}, "
-                f"{escape(gpu[0]['run'].get('date') or 'date not recorded')}). Claims 4 and 6 are that GPU's alone.",
-                "",
-            )
-            rows = [[v["number"], v["claim"], f"**{v['verdict']}**: {escape(v['measured'])}"] for v in judged]
-            w(_table(["#", "the thesis's claim", f"this CPU with {escape(ref)}'s GPU"], rows), "")
+    for pair in with_reference_gpus(machines, references):
+        label, ref, gpu_name, judged = pair["label"], pair["ref"], pair["gpu"], pair["judged"]
+        w(
+            f"### {escape(label)}: the claims that need a GPU, with the {escape(gpu_name)} of {escape(ref)} "
+            "(another machine)",
+            "",
+            f"This machine has no GPU in these results; below, its CPU is set against {escape(ref)}'s GPU, "
+            f"measured elsewhere (commit {escape(pair['commit'])}, {escape(pair['date'])}). Claims 4 and 6 are "
+            "that GPU's alone.",
+            "",
+        )
+        rows = [[v["number"], v["claim"], f"**{v['verdict']}**: {escape(v['measured'])}"] for v in judged]
+        w(_table(["#", "the thesis's claim", f"this CPU with {escape(ref)}'s GPU"], rows), "")
 
 
 def write_report(paths: list, out_dir, references: bool = True) -> Path:

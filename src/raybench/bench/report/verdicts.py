@@ -292,3 +292,40 @@ def secondary_verdict(records: list[dict], gpu: str = "cuda") -> dict:
         )
     verdict = HOLDS if all(w["verdict"] == HOLDS for w in ways.values()) else FAILS
     return {"verdict": verdict, "measured": "; ".join(parts), "ways": ways, "points": leads}
+
+
+def with_reference_gpus(machines: dict[str, list[dict]], references: list[dict]) -> list[dict]:
+    """The claims that need a GPU (1, 3, 4 and 6), for each machine here that
+    has none, judged with each reference machine's GPU measured the same way
+    (accel and kernel): its CPU's records beside that GPU's, as if on one
+    machine, the GPU always named as another's. One dict a pair: label, ref
+    (the reference's label), gpu (its name), commit, date, judged (verdicts())."""
+    from .. import headline
+    from .data import accel_of, kernel_of
+
+    by_ref: dict[str, list[dict]] = {}
+    for r in references:
+        by_ref.setdefault(r["run"]["label"], []).append(r)
+    out = []
+    for label, records in machines.items():
+        cpu = [r for r in records if r["device"] == "cpu" and r["suite"] == "thesis"]
+        if not cpu or any(r["device"] == "cuda" for r in records):
+            continue
+        way = (accel_of(cpu[0]), kernel_of(cpu[0]))
+        for ref, ref_records in by_ref.items():
+            gpu = [r for r in ref_records if r["device"] == "cuda" and (accel_of(r), kernel_of(r)) == way]
+            if not any(r["suite"] == "thesis" for r in gpu):
+                continue
+            machine = {**cpu[0]["run"]["machine"], "gpus": gpu[0]["run"]["machine"].get("gpus") or []}
+            paired = [{**r, "run": {**r["run"], "machine": machine}} for r in records + gpu]
+            out.append(
+                {
+                    "label": label,
+                    "ref": ref,
+                    "gpu": headline.device_name(gpu[0]["run"]["machine"], "cuda"),
+                    "commit": gpu[0]["run"].get("git_commit") or "not recorded",
+                    "date": gpu[0]["run"].get("date") or "date not recorded",
+                    "judged": [v for v in verdicts(paired) if v["number"] in (1, 3, 4, 6)],
+                }
+            )
+    return out
