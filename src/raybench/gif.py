@@ -27,8 +27,7 @@ MAX_SIDE = 65535
 # Memory while a GIF is made, in bytes a pixel of a frame: each frame
 # Pillow holds palettised, with its part of the file made in memory
 # (BYTES_PER_PIXEL), and once the frame being read and quantised (RGB,
-# copies; WORKING_BYTES_PER_PIXEL). Measured with frames of 6000x5000 of
-# busy pixels: 460 MiB over the start for 1 frame, 757 MiB for 4.
+# copies; WORKING_BYTES_PER_PIXEL), as measured (the README's sequences).
 BYTES_PER_PIXEL = 4
 WORKING_BYTES_PER_PIXEL = 16
 
