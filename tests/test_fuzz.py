@@ -27,7 +27,7 @@ from PIL import Image
 from test_report import machine, rec
 
 import raybench
-from raybench import Camera, RaybenchError, Scene
+from raybench import Camera, Light, Material, RaybenchError, Scene
 from raybench.cli import run
 
 SCALE = float(os.environ.get("RAYBENCH_FUZZ_EXAMPLES", "1"))
@@ -228,6 +228,75 @@ def test_fuzz_scene_files(capsys, folder):
     assert seen["rendered"] >= 0.2 * seen["tried"] and seen["refused"] >= 0.2 * seen["tried"], seen
 
 
+MATERIAL = st.fixed_dictionaries(
+    {},
+    optional={
+        "specular": UNIT,
+        "shininess": st.floats(0, 500),
+        "reflect": st.floats(0, 0.5),
+        "transmit": st.floats(0, 0.5),
+        "ior": st.floats(0.5, 3),
+    },
+)
+LIGHT = st.fixed_dictionaries(
+    {"position": st.lists(COORD, min_size=3, max_size=3)},
+    optional={"color": st.lists(UNIT, min_size=3, max_size=3), "intensity": st.floats(0, 4), "radius": st.floats(0, 2)},
+)
+
+
+@st.composite
+def scene_docs_v2(draw):
+    """Version 2: materials, lights and ambient light, mutated as version 1 is."""
+    spheres = [
+        {**sphere, "material": draw(MATERIAL)} if draw(st.booleans()) else sphere
+        for sphere in draw(st.lists(SPHERE, max_size=5))
+    ]
+    doc = {"format": "raybench-scene", "version": 2, "spheres": spheres, "lights": draw(st.lists(LIGHT, max_size=2))}
+    if draw(st.booleans()):
+        doc["ambient"] = draw(st.lists(UNIT, min_size=3, max_size=3))
+    return draw(mutated(doc))
+
+
+def test_fuzz_version_2_scene_files(capsys, folder):
+    """Version 2's materials and lights, whole or damaged, through `render
+    --shading whitted`: one line and nothing written, or the picture the API
+    draws of the same numbers."""
+    seen = Counter()
+
+    @budget(60)
+    @given(data=st.data())
+    def one(data):
+        raw = data.draw(as_text(data.draw(scene_docs_v2())))
+        clear(folder)
+        (folder / "s.json").write_bytes(raw)
+        argv = ["render", "--scene", "s.json", "--size", "9x7", "--device", "cpu", "--shading", "whitted"]
+        code, out, err = cli(capsys, [*argv, "--depth", "2", "--shadow-samples", "1", "-o", "x.png"])
+        seen["tried"] += 1
+        if code != 0:
+            refused_in_one_line(code, err)
+            assert files_in(folder) == {"s.json"}
+            seen["refused"] += 1
+            return
+        assert err == "" and files_in(folder) == {"s.json", "x.png"}
+        loaded = json.loads(raw)
+        spheres = loaded["spheres"]
+        scene = Scene(
+            [s["center"] for s in spheres],
+            [s["radius"] for s in spheres],
+            [s["color"] for s in spheres],
+            materials=[Material(**s.get("material", {})) for s in spheres],
+            lights=[Light(**light) for light in loaded["lights"]],
+            **({"ambient": loaded["ambient"]} if "ambient" in loaded else {}),
+        )
+        frame = raybench.render(scene, width=9, height=7, device="cpu", shading="whitted", depth=2, shadow_samples=1)
+        assert np.array_equal(np.asarray(Image.open(folder / "x.png")), frame.image)
+        seen["rendered"] += 1
+
+    one()
+    print(f"version 2 scene files: {dict(seen)}")
+    assert seen["rendered"] >= 0.2 * seen["tried"] and seen["refused"] >= 0.1 * seen["tried"], seen
+
+
 # --- results files ------------------------------------------------------------------------
 
 
@@ -245,6 +314,17 @@ def results_docs(draw):
         )
         for _ in range(n)
     ]
+    for r in records:  # the fields added since: frames kept, and the secondary suite's rays
+        if draw(st.booleans()):
+            r["samples_ms"] = draw(st.lists(st.floats(0.001, 1e6), min_size=1, max_size=5))
+        if draw(st.integers(0, 3)) == 0:
+            r["suite"] = "secondary"
+            r["options"] = {"accel": "bvh", "shading": draw(st.sampled_from(["whitted", "thesis"]))}
+            if r["options"]["shading"] == "whitted":
+                r["options"].update(depth=5, shadow_samples=4)
+                kinds = ("primary", "shadow", "reflection", "refraction")
+                r["rays"] = {k: draw(st.integers(0, 10**9)) for k in kinds}
+            r["rays_per_s"] = draw(st.floats(1, 1e12))
     i = draw(st.integers(0, n - 1))
     records[i] = draw(mutated(records[i]))
     return records
