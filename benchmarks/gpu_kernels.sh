@@ -16,10 +16,10 @@ OUT=${OUT:-/tmp/out}; mkdir -p "$OUT"
 python3 benchmarks/kernels.py --out "$OUT/kernels.jsonl" ${SWEEP:+--sweep} 2>&1 | grep -v '"fast-kernel-shape"' | tee "$OUT/kernels.log"
 python3 - "$OUT" <<'PY' | tee -a "$OUT/kernels.log"
 import re, sys
-from raybench.backends import cuda as cb
 import raybench
-# compile the default fast kernel through a real frame, then read its PTX
-t = cb.Tracer(raybench.random_spheres(300).spheres, 64, 64)
+# compile the fast kernel (brute force's default) through a real frame, then read its PTX; the
+# Tracer's own default is the BVH walk
+t = raybench.backends.tracer("cuda", raybench.random_spheres(300).spheres, 64, 64, kernel="fast")
 t.trace(raybench.Camera().basis(64, 64))
 ptx = next(iter(t.kernels()["frame"].inspect_asm().values()))
 open(f"{sys.argv[1]}/fast.ptx", "w").write(ptx)
