@@ -192,36 +192,41 @@ def scene_docs(draw):
     return draw(mutated(doc))
 
 
+def render_scene_file(capsys, folder, seen: Counter, raw: bytes, options: list, api) -> None:
+    """raw as a scene file through `raybench render --scene` (options): refused
+    in one line with nothing written, or it loaded, and the picture is the one
+    api(the document's numbers) draws."""
+    clear(folder)
+    (folder / "s.json").write_bytes(raw)
+    argv = ["render", "--scene", "s.json", "--size", "9x7", "--device", "cpu", *options, "-o", "x.png"]
+    code, out, err = cli(capsys, argv)
+    seen["tried"] += 1
+    if code != 0:
+        refused_in_one_line(code, err)
+        assert files_in(folder) == {"s.json"}
+        seen["refused"] += 1
+        return
+    assert err == "" and files_in(folder) == {"s.json", "x.png"}
+    assert np.array_equal(np.asarray(Image.open(folder / "x.png")), api(json.loads(raw)).image)
+    seen["rendered"] += 1
+
+
+def spheres_of(loaded: dict) -> tuple[list, list, list]:
+    spheres = loaded["spheres"]
+    return [s["center"] for s in spheres], [s["radius"] for s in spheres], [s["color"] for s in spheres]
+
+
 def test_fuzz_scene_files(capsys, folder):
     seen = Counter()
+
+    def api(loaded):
+        camera = Camera(**loaded["camera"]) if "camera" in loaded else None
+        return raybench.render(Scene(*spheres_of(loaded), camera), width=9, height=7, device="cpu")
 
     @budget(200)
     @given(data=st.data())
     def one(data):
-        doc = data.draw(scene_docs())
-        raw = data.draw(as_text(doc))
-        clear(folder)
-        (folder / "s.json").write_bytes(raw)
-        code, out, err = cli(capsys, ["render", "--scene", "s.json", "--size", "9x7", "--device", "cpu", "-o", "x.png"])
-        seen["tried"] += 1
-        if code != 0:
-            refused_in_one_line(code, err)
-            assert files_in(folder) == {"s.json"}
-            seen["refused"] += 1
-            return
-        assert err == "" and files_in(folder) == {"s.json", "x.png"}
-        # It loaded: the same picture as the API gives for the same numbers.
-        loaded = json.loads(raw)
-        spheres = loaded["spheres"]
-        scene = Scene(
-            [s["center"] for s in spheres],
-            [s["radius"] for s in spheres],
-            [s["color"] for s in spheres],
-            Camera(**loaded["camera"]) if "camera" in loaded else None,
-        )
-        frame = raybench.render(scene, width=9, height=7, device="cpu")
-        assert np.array_equal(np.asarray(Image.open(folder / "x.png")), frame.image)
-        seen["rendered"] += 1
+        render_scene_file(capsys, folder, seen, data.draw(as_text(data.draw(scene_docs()))), [], api)
 
     one()
     print(f"scene files: {dict(seen)}")
@@ -262,35 +267,21 @@ def test_fuzz_version_2_scene_files(capsys, folder):
     --shading whitted`: one line and nothing written, or the picture the API
     draws of the same numbers."""
     seen = Counter()
+    options = ["--shading", "whitted", "--depth", "2", "--shadow-samples", "1"]
+
+    def api(loaded):
+        scene = Scene(
+            *spheres_of(loaded),
+            materials=[Material(**s.get("material", {})) for s in loaded["spheres"]],
+            lights=[Light(**light) for light in loaded["lights"]],
+            **({"ambient": loaded["ambient"]} if "ambient" in loaded else {}),
+        )
+        return raybench.render(scene, width=9, height=7, device="cpu", shading="whitted", depth=2, shadow_samples=1)
 
     @budget(60)
     @given(data=st.data())
     def one(data):
-        raw = data.draw(as_text(data.draw(scene_docs_v2())))
-        clear(folder)
-        (folder / "s.json").write_bytes(raw)
-        argv = ["render", "--scene", "s.json", "--size", "9x7", "--device", "cpu", "--shading", "whitted"]
-        code, out, err = cli(capsys, [*argv, "--depth", "2", "--shadow-samples", "1", "-o", "x.png"])
-        seen["tried"] += 1
-        if code != 0:
-            refused_in_one_line(code, err)
-            assert files_in(folder) == {"s.json"}
-            seen["refused"] += 1
-            return
-        assert err == "" and files_in(folder) == {"s.json", "x.png"}
-        loaded = json.loads(raw)
-        spheres = loaded["spheres"]
-        scene = Scene(
-            [s["center"] for s in spheres],
-            [s["radius"] for s in spheres],
-            [s["color"] for s in spheres],
-            materials=[Material(**s.get("material", {})) for s in spheres],
-            lights=[Light(**light) for light in loaded["lights"]],
-            **({"ambient": loaded["ambient"]} if "ambient" in loaded else {}),
-        )
-        frame = raybench.render(scene, width=9, height=7, device="cpu", shading="whitted", depth=2, shadow_samples=1)
-        assert np.array_equal(np.asarray(Image.open(folder / "x.png")), frame.image)
-        seen["rendered"] += 1
+        render_scene_file(capsys, folder, seen, data.draw(as_text(data.draw(scene_docs_v2()))), options, api)
 
     one()
     print(f"version 2 scene files: {dict(seen)}")
