@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_report import machine, rec, write
+from test_report import machine, rec, set_at, write
 
 import raybench
 from raybench import Camera, RaybenchError, Scene, files
@@ -366,39 +366,28 @@ def test_memory_error_anywhere_is_one_line(capsys, monkeypatch):
 # --- 5. hand-edited results files -------------------------------------------------------------
 
 
-def _set(path, value):
-    def change(r):
-        *head, last = path
-        target = r
-        for key in head:
-            target = target[key]
-        target[last] = value
-
-    return change
-
-
 @pytest.mark.parametrize(
     "change,needle",
     [
-        (_set(["run", "machine", "cpu"], "fast"), "run.machine.cpu: must be an object, got 'fast'"),
-        (_set(["run", "machine", "gpus", 0], "H100"), "run.machine.gpus[0]: must be an object"),
-        (_set(["run", "settings"], "quick"), "run.settings: must be an object"),
-        (_set(["test"], [1]), "test: must be a whole number"),
-        (_set(["run", "id"], ["a"]), "run.id: must be one line of text"),
-        (_set(["width"], True), "width: must be a whole number from 1 to 65536, got True"),
-        (_set(["spheres"], -5), "spheres: must be a whole number from 0"),
-        (_set(["frame_ms", "median"], 1e308), "frame_ms.median: must be a time from 1e-09 to 1e+15"),
+        (set_at(["run", "machine", "cpu"], "fast"), "run.machine.cpu: must be an object, got 'fast'"),
+        (set_at(["run", "machine", "gpus", 0], "H100"), "run.machine.gpus[0]: must be an object"),
+        (set_at(["run", "settings"], "quick"), "run.settings: must be an object"),
+        (set_at(["test"], [1]), "test: must be a whole number"),
+        (set_at(["run", "id"], ["a"]), "run.id: must be one line of text"),
+        (set_at(["width"], True), "width: must be a whole number from 1 to 65536, got True"),
+        (set_at(["spheres"], -5), "spheres: must be a whole number from 0"),
+        (set_at(["frame_ms", "median"], 1e308), "frame_ms.median: must be a time from 1e-09 to 1e+15"),
         # a denormal once printed table cells of 3,600 characters
-        (_set(["frame_ms", "median"], 5e-324), "frame_ms.median: must be a time from 1e-09 to 1e+15, got 5e-324"),
+        (set_at(["frame_ms", "median"], 5e-324), "frame_ms.median: must be a time from 1e-09 to 1e+15, got 5e-324"),
         # options the report reads: as strict as its reader (each was a traceback, or a changed report)
-        (_set(["options", "workers"], "two"), "options.workers: must be a whole number from 1 to 100000"),
-        (_set(["options", "workers"], 0), "options.workers: must be a whole number from 1 to 100000, got 0"),
-        (_set(["options", "job"], ["frame"]), "options.job: must be one of frame, sequence"),
-        (_set(["options", "build"], 3), "options.build: must be one of host, gpu, got 3"),
-        (_set(["options", "label"], ["x"]), "options.label: must be a short text"),
-        (_set(["options", "threads"], "many"), "options.threads: must be a whole number from 1"),
-        (_set(["run", "label"], "a <img src=x>"), "run.label: must be a name"),
-        (_set(["device"], "tpu"), "device: must be one of cpu, cuda, wgpu"),
+        (set_at(["options", "workers"], "two"), "options.workers: must be a whole number from 1 to 100000"),
+        (set_at(["options", "workers"], 0), "options.workers: must be a whole number from 1 to 100000, got 0"),
+        (set_at(["options", "job"], ["frame"]), "options.job: must be one of frame, sequence"),
+        (set_at(["options", "build"], 3), "options.build: must be one of host, gpu, got 3"),
+        (set_at(["options", "label"], ["x"]), "options.label: must be a short text"),
+        (set_at(["options", "threads"], "many"), "options.threads: must be a whole number from 1"),
+        (set_at(["run", "label"], "a <img src=x>"), "run.label: must be a name"),
+        (set_at(["device"], "tpu"), "device: must be one of cpu, cuda, wgpu"),
     ],
 )
 def test_hand_edited_results_are_one_line_and_leave_no_folder(capsys, tmp_path, change, needle):

@@ -40,6 +40,19 @@ def ms(median):
     return {"median": float(median), "p5": 0.9 * float(median), "p95": 1.1 * float(median)}
 
 
+def set_at(path, value):
+    """A change to a record: the value at path (keys and indices) set to value."""
+
+    def change(r):
+        *head, last = path
+        target = r
+        for key in head:
+            target = target[key]
+        target[last] = value
+
+    return change
+
+
 def rec(
     suite,
     device,

@@ -10,6 +10,7 @@ from pathlib import Path
 import jsonschema
 import pytest
 from test_compare import frames, point
+from test_report import set_at
 
 from raybench.bench import results
 from raybench.cli import run
@@ -46,35 +47,24 @@ def test_committed_records_pass_the_schema():
     assert checked > 200
 
 
-def _with(path, value):
-    def change(r):
-        *head, last = path
-        target = r
-        for key in head:
-            target = target[key]
-        target[last] = value
-
-    return change
-
-
 HOSTILE = {
-    "workers as text": _with(["options", "workers"], "two"),
-    "workers 0": _with(["options", "workers"], 0),
-    "job as a list": _with(["options", "job"], ["frame"]),
-    "job as a number": _with(["options", "job"], 1),
-    "build as a number": _with(["options", "build"], 3),
-    "label as a list": _with(["options", "label"], ["a"]),
-    "threads as text": _with(["options", "threads"], "many"),
-    "tree width 3": _with(["options", "tree_width"], 3),
-    "block of one side": _with(["options", "block"], [16]),
-    "a denormal time": _with(["frame_ms", "median"], 5e-324),
-    "a denormal rate": _with(["rays_per_s"], 5e-324),
-    "a sample of 0 ms": _with(["samples_ms", 0], 0),
-    "label ..": _with(["run", "label"], ".."),
-    "label with a space": _with(["run", "label"], "a b"),
-    "test 9": _with(["test"], 9),
-    "a count as text": _with(["frames"], "many"),
-    "a huge seed in settings": _with(["run", "settings"], {"seed": 18446744073709551616}),
+    "workers as text": set_at(["options", "workers"], "two"),
+    "workers 0": set_at(["options", "workers"], 0),
+    "job as a list": set_at(["options", "job"], ["frame"]),
+    "job as a number": set_at(["options", "job"], 1),
+    "build as a number": set_at(["options", "build"], 3),
+    "label as a list": set_at(["options", "label"], ["a"]),
+    "threads as text": set_at(["options", "threads"], "many"),
+    "tree width 3": set_at(["options", "tree_width"], 3),
+    "block of one side": set_at(["options", "block"], [16]),
+    "a denormal time": set_at(["frame_ms", "median"], 5e-324),
+    "a denormal rate": set_at(["rays_per_s"], 5e-324),
+    "a sample of 0 ms": set_at(["samples_ms", 0], 0),
+    "label ..": set_at(["run", "label"], ".."),
+    "label with a space": set_at(["run", "label"], "a b"),
+    "test 9": set_at(["test"], 9),
+    "a count as text": set_at(["frames"], "many"),
+    "a huge seed in settings": set_at(["run", "settings"], {"seed": 18446744073709551616}),
 }
 
 
