@@ -19,7 +19,9 @@
 #            BASELINE="dir ..." (other versions' src/, carried), those versions
 #            and this one in turn, twice, side by side in one lease
 #   builds   benchmarks/bvh_build.py (BUILDS_ARGS to change), with BASELINE as walks
-#   whitted  benchmarks/whitted_rays.py: Whitted shading's rays a second (WHITTED_ARGS to change)
+#   whitted  benchmarks/whitted_rays.py: Whitted shading's rays a second (WHITTED_ARGS to change); with
+#            BASELINE (and BASELINE_COMMITS, as startup), those versions and this one in turn,
+#            WHITTED_ROUNDS times (2)
 #   readback benchmarks/wgpu_readback.py: a wgpu frame's readback, step by step (READBACK_ARGS to change)
 #   warmup   raybench warmup on cuda (its BVH builder included): the kernels into the disk cache, which
 #            every later process (a cluster's workers among them) loads
@@ -127,9 +129,25 @@ for s in $STEPS; do
                 ${BUILDS_ARGS:---threads 1 --threads 4 --threads 16}
         done ;;
     whitted)
-        # shellcheck disable=SC2086
-        step whitted "${WHITTED_S:-200}" python3 benchmarks/whitted_rays.py \
-            ${WHITTED_ARGS:---device cuda --device wgpu --device cpu} ;;
+        if [ -z "${BASELINE:-}" ]; then
+            # shellcheck disable=SC2086
+            step whitted "${WHITTED_S:-200}" python3 benchmarks/whitted_rays.py \
+                ${WHITTED_ARGS:---device cuda --device wgpu --device cpu}
+        else  # side by side: each version of BASELINE (its commit in BASELINE_COMMITS) then this one, in turn
+            for round in $(seq "${WHITTED_ROUNDS:-2}"); do
+                commits=(${BASELINE_COMMITS:-}); i=0
+                for base in $BASELINE; do
+                    # shellcheck disable=SC2086
+                    step "whitted-$(basename "$base")-$round" "${WHITTED_S:-200}" env PYTHONPATH="/tmp/site:$PWD/$base" \
+                        RAYBENCH_GIT_COMMIT="${commits[$i]:-unknown}" python3 benchmarks/whitted_rays.py \
+                        --label "whitted-$(basename "$base")" ${WHITTED_ARGS:---device cuda --device wgpu}
+                    i=$((i + 1))
+                done
+                # shellcheck disable=SC2086
+                step "whitted-$round" "${WHITTED_S:-200}" python3 benchmarks/whitted_rays.py --label whitted \
+                    ${WHITTED_ARGS:---device cuda --device wgpu}
+            done
+        fi ;;
     readback)
         # shellcheck disable=SC2086
         step readback "${READBACK_S:-120}" python3 benchmarks/wgpu_readback.py ${READBACK_ARGS:-} ;;

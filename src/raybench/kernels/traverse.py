@@ -42,8 +42,14 @@ def build(jit, intersect_sphere, intersect_ahead):
     def axis_setup(o, d, margin):
         """One axis of the ray for the slab test: 1/d, and the origin shifted
         by the margin for the box's low plane and for its high one, so the
-        slabs are those of the box grown by `margin` on every side."""
-        return inverse(d), o + margin, o - margin
+        slabs are those of the box grown by `margin` on every side; the two
+        origins come times 1/d, so that a plane's distance is one
+        multiply-add (plane * 1/d - origin * 1/d) where the GPU fuses them,
+        a step of the walk's fewer instructions (docs/whitted.md). Its
+        rounding differs from (plane - origin) * 1/d by an ulp or two of
+        the terms, far inside the builder's padding and the margin."""
+        inv = inverse(d)
+        return inv, (o + margin) * inv, (o - margin) * inv
 
     @jit
     def slab(nodes, row, col, ix, iy, iz, lx, ly, lz, hx, hy, hz):
@@ -57,12 +63,12 @@ def build(jit, intersect_sphere, intersect_ahead):
         planes' order.
         An empty child's inverted box (lo layout.EMPTY, hi -EMPTY) comes out as
         a slab around every ray: visited as the leaf of no spheres that it is."""
-        a0 = (nodes[row, col] - lx) * ix
-        a1 = (nodes[row, col + _U(1)] - ly) * iy
-        a2 = (nodes[row, col + _U(2)] - lz) * iz
-        b0 = (nodes[row, col + _U(3)] - hx) * ix
-        b1 = (nodes[row, col + _U(4)] - hy) * iy
-        b2 = (nodes[row, col + _U(5)] - hz) * iz
+        a0 = nodes[row, col] * ix - lx
+        a1 = nodes[row, col + _U(1)] * iy - ly
+        a2 = nodes[row, col + _U(2)] * iz - lz
+        b0 = nodes[row, col + _U(3)] * ix - hx
+        b1 = nodes[row, col + _U(4)] * iy - hy
+        b2 = nodes[row, col + _U(5)] * iz - hz
         near = max(min(a0, b0), max(min(a1, b1), min(a2, b2)))
         far = min(max(a0, b0), min(max(a1, b1), max(a2, b2)))
         return near, far
@@ -70,8 +76,8 @@ def build(jit, intersect_sphere, intersect_ahead):
     @jit
     def ray_axes(ox, oy, oz, dx, dy, dz):
         """The ray's three axes for the slab tests (axis_setup), every box grown
-        by the camera's margin: (1/dx, 1/dy, 1/dz, the low planes' origins, the
-        high planes' origins)."""
+        by the camera's margin: (1/dx, 1/dy, 1/dz, the low planes' origins
+        times 1/d, the high planes' origins times 1/d)."""
         margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
         ix, lx, hx = axis_setup(ox, dx, margin)
         iy, ly, hy = axis_setup(oy, dy, margin)
@@ -118,16 +124,23 @@ def build(jit, intersect_sphere, intersect_ahead):
         outwards cannot meet it again (it is convex), so no rounding of the
         ray's origin can make the sphere shadow or reflect itself. Else the
         thesis's test (intersect_sphere)."""
-        for j in range(_U(first), _U(first + count)):
-            original = order[j]
+        # A while loop on 32-bit indices: range() over 64-bit ones made the
+        # GPU work out a trip count and an unrolled remainder in 64-bit
+        # integer steps at every leaf (docs/whitted.md)
+        j = np.uint32(first)
+        end = np.uint32(first + count)
+        while j < end:
+            k = j
+            j = np.uint32(j + np.uint32(1))
+            original = order[k]
             if ahead:
                 if original == own and not own_inside:
                     continue
                 t, d = intersect_ahead(
-                    ordered[0, j] - ox,
-                    ordered[1, j] - oy,
-                    ordered[2, j] - oz,
-                    ordered[3, j],
+                    ordered[0, k] - ox,
+                    ordered[1, k] - oy,
+                    ordered[2, k] - oz,
+                    ordered[3, k],
                     dx,
                     dy,
                     dz,
@@ -135,7 +148,7 @@ def build(jit, intersect_sphere, intersect_ahead):
                 )
             else:
                 t, d = intersect_sphere(
-                    ox, oy, oz, dx, dy, dz, ordered[0, j], ordered[1, j], ordered[2, j], ordered[3, j]
+                    ox, oy, oz, dx, dy, dz, ordered[0, k], ordered[1, k], ordered[2, k], ordered[3, k]
                 )
             if t > ZERO and (t < closest or (t == closest and original < hit)):
                 closest = t
@@ -168,8 +181,10 @@ def build(jit, intersect_sphere, intersect_ahead):
             a_near, a_far, b_near, b_far, a_ref, b_ref, a_count, b_count = children(
                 nodes, links, _U(row), ix, iy, iz, lx, ly, lz, hx, hy, hz
             )
-            # near child first: its hits can rule the far one out
-            if b_near < a_near:
+            # near child first: its hits can rule the far one out. A shadow
+            # ray wants any hit, so the order buys it nothing: the tree's
+            # order saves the swap's moves in every step
+            if not any_hit and b_near < a_near:
                 a_near, a_far, a_ref, a_count, b_near, b_far, b_ref, b_count = (
                     b_near,
                     b_far,

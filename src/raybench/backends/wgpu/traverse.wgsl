@@ -26,8 +26,8 @@ const TINY: f32 = BVH_TINY;
 // One axis of the ray for the slab test (axis_setup's three results).
 struct Axis {
     inv: f32,
-    lo: f32,   // the origin shifted for the box's low plane
-    hi: f32,   // and for its high one
+    lo: f32,   // the origin shifted for the box's low plane, times inv
+    hi: f32,   // and for its high one, times inv
 }
 
 // The ray's three axes (ray_axes' results).
@@ -65,19 +65,22 @@ fn inverse(d: f32) -> f32 {
     return 1.0 / min(d, -TINY);
 }
 
+// lo and hi come times 1/d: a plane's distance is then one multiply-add
+// (traverse.py's axis_setup says why).
 fn axis_setup(o: f32, d: f32, margin: f32) -> Axis {
-    return Axis(inverse(d), o + margin, o - margin);
+    let inv = inverse(d);
+    return Axis(inv, (o + margin) * inv, (o - margin) * inv);
 }
 
 // (near, far) of the ray through the child box at column col; near > far
 // where it misses. Both planes of each axis, put in order by min and max.
 fn slab(row: i32, col: u32, x: Axis, y: Axis, z: Axis) -> vec2<f32> {
-    let a0 = (nodes[row].box[col] - x.lo) * x.inv;
-    let a1 = (nodes[row].box[col + 1u] - y.lo) * y.inv;
-    let a2 = (nodes[row].box[col + 2u] - z.lo) * z.inv;
-    let b0 = (nodes[row].box[col + 3u] - x.hi) * x.inv;
-    let b1 = (nodes[row].box[col + 4u] - y.hi) * y.inv;
-    let b2 = (nodes[row].box[col + 5u] - z.hi) * z.inv;
+    let a0 = nodes[row].box[col] * x.inv - x.lo;
+    let a1 = nodes[row].box[col + 1u] * y.inv - y.lo;
+    let a2 = nodes[row].box[col + 2u] * z.inv - z.lo;
+    let b0 = nodes[row].box[col + 3u] * x.inv - x.hi;
+    let b1 = nodes[row].box[col + 4u] * y.inv - y.hi;
+    let b2 = nodes[row].box[col + 5u] * z.inv - z.hi;
     let near = max(min(a0, b0), max(min(a1, b1), min(a2, b2)));
     let far = min(max(a0, b0), min(max(a1, b1), max(a2, b2)));
     return vec2<f32>(near, far);
@@ -135,8 +138,9 @@ fn walk(o: vec3<f32>, dir: vec3<f32>, t_max: f32, any_hit: bool, ahead: bool, ow
         let pair = children(row, axes);
         var a = pair.a;
         var b = pair.b;
-        // near child first: its hits can rule the far one out
-        if (b.near < a.near) {
+        // near child first: its hits can rule the far one out (a shadow
+        // ray's any hit is not helped by the order)
+        if (!any_hit && b.near < a.near) {
             let swap = a;
             a = b;
             b = swap;
