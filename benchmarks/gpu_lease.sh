@@ -109,9 +109,10 @@ for s in $STEPS; do
     walks)
         for round in 1 2; do
             for base in ${BASELINE:-}; do
+                name=${base%/}; name=${name%/src}; name=${name##*/}
                 # shellcheck disable=SC2086
-                step "walks-$base-$round" "${WALKS_S:-60}" env PYTHONPATH="/tmp/site:$PWD/$base" \
-                    python3 benchmarks/bvh_walks.py --label "walks-$base" ${WALKS_ARGS:---device cuda --device wgpu}
+                step "walks-$name-$round" "${WALKS_S:-60}" env PYTHONPATH="/tmp/site:$PWD/$base" \
+                    python3 benchmarks/bvh_walks.py --label "walks-$name" ${WALKS_ARGS:---device cuda --device wgpu}
             done
             # shellcheck disable=SC2086
             step "walks-$round" "${WALKS_S:-60}" python3 benchmarks/bvh_walks.py --label walks \
@@ -136,11 +137,12 @@ for s in $STEPS; do
         else  # side by side: each version of BASELINE (its commit in BASELINE_COMMITS) then this one, in turn
             for round in $(seq "${WHITTED_ROUNDS:-2}"); do
                 commits=(${BASELINE_COMMITS:-}); i=0
-                for base in $BASELINE; do
+                for base in $BASELINE; do  # a version's src/ folder, named by the folder above it
+                    name=${base%/}; name=${name%/src}; name=${name##*/}
                     # shellcheck disable=SC2086
-                    step "whitted-$(basename "$base")-$round" "${WHITTED_S:-200}" env PYTHONPATH="/tmp/site:$PWD/$base" \
+                    step "whitted-$name-$round" "${WHITTED_S:-200}" env PYTHONPATH="/tmp/site:$PWD/$base" \
                         RAYBENCH_GIT_COMMIT="${commits[$i]:-unknown}" python3 benchmarks/whitted_rays.py \
-                        --label "whitted-$(basename "$base")" ${WHITTED_ARGS:---device cuda --device wgpu}
+                        --label "whitted-$name" ${WHITTED_ARGS:---device cuda --device wgpu}
                     i=$((i + 1))
                 done
                 # shellcheck disable=SC2086

@@ -138,9 +138,8 @@ fn walk(o: vec3<f32>, dir: vec3<f32>, t_max: f32, any_hit: bool, ahead: bool, ow
         let pair = children(row, axes);
         var a = pair.a;
         var b = pair.b;
-        // near child first: its hits can rule the far one out (a shadow
-        // ray's any hit is not helped by the order)
-        if (!any_hit && b.near < a.near) {
+        // near child first: its hits can rule the far one out
+        if (b.near < a.near) {
             let swap = a;
             a = b;
             b = swap;
