@@ -16,8 +16,9 @@
 #   wgpu     the thesis suite on wgpu, BVH and brute force (WGPU_ARGS to change)
 #   tuning   the BVH walk's block shapes on cuda
 #   walks    benchmarks/bvh_walks.py on cuda and wgpu (WALKS_ARGS to change); with
-#            BASELINE="dir ..." (other versions' src/, carried), those versions
-#            and this one in turn, twice, side by side in one lease
+#            BASELINE="dir ..." (other versions' src/, carried; their commits in
+#            BASELINE_COMMITS, in the same order), those versions and this one in
+#            turn, twice, side by side in one lease
 #   builds   benchmarks/bvh_build.py (BUILDS_ARGS to change), with BASELINE as walks
 #   whitted  benchmarks/whitted_rays.py: Whitted shading's rays a second (WHITTED_ARGS to change); with
 #            BASELINE (and BASELINE_COMMITS, as startup), those versions and this one in turn,
@@ -108,11 +109,13 @@ for s in $STEPS; do
     tuning) bench tuning "${TUNING_S:-50}" --suite tuning --accel bvh --device cuda ;;
     walks)
         for round in 1 2; do
+            commits=(${BASELINE_COMMITS:-}); i=0
             for base in ${BASELINE:-}; do
                 name=${base%/}; name=${name%/src}; name=${name##*/}
                 # shellcheck disable=SC2086
                 step "walks-$name-$round" "${WALKS_S:-60}" env PYTHONPATH="/tmp/site:$PWD/$base" \
-                    python3 benchmarks/bvh_walks.py --label "walks-$name" ${WALKS_ARGS:---device cuda --device wgpu}
+                    RAYBENCH_GIT_COMMIT="${commits[$i]:-unknown}" python3 benchmarks/bvh_walks.py --label "walks-$name" ${WALKS_ARGS:---device cuda --device wgpu}
+                i=$((i + 1))
             done
             # shellcheck disable=SC2086
             step "walks-$round" "${WALKS_S:-60}" python3 benchmarks/bvh_walks.py --label walks \
