@@ -173,7 +173,7 @@ def build(jit, intersect_sphere, intersect_ahead):
         the backend (a CUDA thread's local array, a CPU thread's own)."""
         ix, iy, iz, lx, ly, lz, hx, hy, hz = ray_axes(ox, oy, oz, dx, dy, dz)
         closest = t_max
-        hit = -1
+        hit = np.int32(-1)  # the spheres' original indices are int32: compared in one step, not two
         hit_d = ZERO
         row = 0
         top = _U(0)
@@ -242,13 +242,14 @@ def build(jit, intersect_sphere, intersect_ahead):
                     row = b_ref
                 else:
                     stack_row[top] = b_ref
-                    stack_t[top] = b_near
+                    if not any_hit:  # a shadow ray's t_max never shrinks: nothing pushed can fall behind it
+                        stack_t[top] = b_near
                     top += _U(1)
             if any_hit and hit >= 0:
                 return hit, closest, hit_d
             while row < 0 and top > _U(0):
                 top -= _U(1)
-                if stack_t[top] <= closest:
+                if any_hit or stack_t[top] <= closest:
                     row = stack_row[top]
         return hit, closest, hit_d
 
