@@ -159,7 +159,9 @@ fn walk(o: vec3<f32>, dir: vec3<f32>, t_max: f32, any_hit: bool, ahead: bool, ow
                 row = b.link;
             } else {
                 stack_row[top] = b.link;
-                stack_t[top] = b.near;
+                if (!any_hit) {  // a shadow ray's t_max never shrinks: nothing pushed falls behind it
+                    stack_t[top] = b.near;
+                }
                 top = top + 1u;
             }
         }
@@ -168,7 +170,7 @@ fn walk(o: vec3<f32>, dir: vec3<f32>, t_max: f32, any_hit: bool, ahead: bool, ow
         }
         while (row < 0 && top > 0u) {
             top = top - 1u;
-            if (stack_t[top] <= best.closest) {
+            if (any_hit || stack_t[top] <= best.closest) {
                 row = stack_row[top];
             }
         }
