@@ -80,7 +80,6 @@ class Gpu:
             size=(width, height, 1), format=self.format.configure, usage=usage, view_formats=self.format.view_formats
         )
 
-
     def finish(self, target) -> None:
         """Wait until the GPU has done all the work submitted: one texel of target read back.
         (wgpu 0.32's queue.on_submitted_work_done_sync fails in wgpu-native's bindings.)"""
