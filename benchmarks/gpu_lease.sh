@@ -23,6 +23,9 @@
 #   whitted  benchmarks/whitted_rays.py: Whitted shading's rays a second (WHITTED_ARGS to change); with
 #            BASELINE (and BASELINE_COMMITS, as startup), those versions and this one in turn,
 #            WHITTED_ROUNDS times (2)
+#   viewer   benchmarks/viewer_frames.py: the viewer's Whitted frames a second with no window (its own
+#            draws into an offscreen texture; no present), at 1,000 and 10,000 spheres, its records in
+#            viewer.jsonl (VIEWER_ARGS to change)
 #   readback benchmarks/wgpu_readback.py: a wgpu frame's readback, step by step (READBACK_ARGS to change)
 #   warmup   raybench warmup on cuda (its BVH builder included): the kernels into the disk cache, which
 #            every later process (a cluster's workers among them) loads
@@ -153,6 +156,10 @@ for s in $STEPS; do
                     ${WHITTED_ARGS:---device cuda --device wgpu}
             done
         fi ;;
+    viewer)
+        # shellcheck disable=SC2086
+        step viewer "${VIEWER_S:-300}" python3 benchmarks/viewer_frames.py --out "$W/viewer.jsonl" \
+            ${VIEWER_ARGS:---device cuda --device wgpu --spheres 1000 --spheres 10000 --size 1680x1050} ;;
     readback)
         # shellcheck disable=SC2086
         step readback "${READBACK_S:-120}" python3 benchmarks/wgpu_readback.py ${READBACK_ARGS:-} ;;

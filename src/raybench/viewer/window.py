@@ -3,7 +3,9 @@
 It glues the parts together and decides nothing itself: events go to
 ViewerState.handle_event, frames are traced by the TraceWorker's thread, each
 finished frame is uploaded to the texture and drawn by TextureQuad, and the
-title bar shows ViewerState.title().
+title bar shows ViewerState.title(). What a draw does to a frame is
+drawing.FrameDrawer's, given the surface's texture: this module adds the
+canvas (its surface, events, title and the loop that schedules draws).
 
 wgpu frames take another road, the thesis's: no copy. The draw records the
 compute pass, which writes the frame texture, and the quad's render pass,
@@ -38,10 +40,9 @@ from ..errors import RaybenchError, one_line
 from ..files import write_atomic
 from ..render import png_bytes
 from .bindings import help_lines
+from .drawing import FrameDrawer, wgpu_tracer_here
 from .gpu import SUGGEST, TextureQuad, choose_target_format, request_device
-from .moving import MovingSpheres
 from .state import ViewerState
-from .worker import TracedFrame, TraceFailed, TraceWorker
 
 MIN_FPS = 2  # redraws per second at least: the title's frame time, fps and messages stay current
 MAX_FPS = 240  # draws per second at most; frame times are measured by the tracer, not by this cap
@@ -158,7 +159,6 @@ class ViewerWindow:
         self.loop = loop
         self._listeners = []
         self._texture = None  # the surface texture, during a draw only
-        self._closing = False
         try:
             self.canvas = RenderCanvas(
                 size=size, title="raybench", update_mode="ondemand", min_fps=MIN_FPS, max_fps=MAX_FPS, vsync=False
@@ -179,38 +179,30 @@ class ViewerWindow:
             self.context.configure(
                 device=self.device, format=self.format.configure, usage=usage, view_formats=self.format.view_formats
             )
-            self.quad = TextureQuad(self.device, self.format.view)
-            self.gpu_tracer = self._wgpu_here(state, named)
+            quad = TextureQuad(self.device, self.format.view)
+            gpu_tracer = wgpu_tracer_here(state, self.device, self.adapter, named)
         except BaseException:
             self.canvas.close()
             self.context = None  # the surface, now: see run()
             raise
-        self._gpu_idle = False  # the last draw found no wgpu frame to trace (stalled, failed)
-        self.moving = MovingSpheres()  # --animate, for the frames wgpu traces here
-        self.worker = TraceWorker(on_done=self._frame_ready)
+        self.drawer = FrameDrawer(state, self.device, quad, gpu_tracer, on_done=self._frame_ready)
         self.canvas.add_event_handler(
             self.handle_event, "key_down", "key_up", "pointer_down", "pointer_move", "pointer_up"
         )
         self.canvas.request_draw(self._draw)
 
-    def _wgpu_here(self, state: ViewerState, named: str | None):
-        """The wgpu tracer on the window's device, where it may trace: on a GPU,
-        or on a CPU driver (lavapipe) that was named. Tells the state either way."""
-        from ..backends.wgpu.adapters import describe_raw
-        from .zero_copy import InWindowTracer
+    @property
+    def quad(self) -> TextureQuad:
+        return self.drawer.quad
 
-        adapter = describe_raw(self.adapter)
-        if named is None and not adapter.is_gpu:
-            reason = (
-                f"device wgpu: the window's adapter, {adapter.label()}, is not a GPU; name it to trace on "
-                f"it (--adapter {adapter.name.split(' ')[0]})"
-            )
-            if state.device == "wgpu":
-                raise RaybenchError(reason)
-            state.unavailable["wgpu"] = reason
-            return None
-        state.add_device("wgpu")
-        return InWindowTracer(self.device, adapter)
+    @property
+    def gpu_tracer(self):
+        """The wgpu tracer on the window's device (zero_copy.InWindowTracer), or None."""
+        return self.drawer.gpu_tracer
+
+    @property
+    def worker(self):
+        return self.drawer.worker
 
     # ------------------------------------------------------------------ running
 
@@ -219,10 +211,10 @@ class ViewerWindow:
         try:
             self.loop.run()
         finally:
-            self._closing = True
+            self.drawer.closing = True
             if not self.canvas.get_closed():
                 self.canvas.close()
-            self.worker.close()
+            self.drawer.close()
             # Release the surface now, while glfw and the X connection are up.
             # Left to the garbage collector (the window is in reference cycles)
             # it could go after glfw.terminate(), at exit say, and releasing a
@@ -233,7 +225,7 @@ class ViewerWindow:
 
     def close(self) -> None:
         """Close the window after the current draw (never inside one: the frame is still being presented)."""
-        self._closing = True
+        self.drawer.closing = True
         self.loop.call_soon(self.canvas.close)
 
     def add_frame_listener(self, listener) -> None:
@@ -262,22 +254,7 @@ class ViewerWindow:
         # resizing) this raises and the finished frame stays for the next draw.
         check_display_alive()
         texture = self.context.get_current_texture()
-        result = self.worker.handoff.take()
-        traced = None
-        if result is not None:
-            self.state.on_traced(result)
-            if isinstance(result, TracedFrame):
-                if result.rgba is not None:  # None: a wgpu frame, already in the texture the quad draws
-                    self.quad.upload(result.rgba)
-                traced = result
-        # One command buffer: a wgpu frame's compute pass, then the quad that draws its texture.
-        encoder = self.device.create_command_encoder()
-        gpu = self._encode_gpu_frame(encoder) if result is None else None
-        self.quad.encode(encoder, texture.create_view(format=self.format.view))
-        self.device.queue.submit([encoder.finish()])
-        if gpu is not None:
-            # Shown once the GPU is done: the worker thread waits for it, the loop goes on.
-            self.worker.submit(gpu[0], wait=self._gpu_waiter(*gpu))
+        traced = self.drawer.draw(texture.create_view(format=self.format.view), *self.canvas.get_physical_size())
         self._texture = texture
         try:
             if traced is not None:
@@ -294,55 +271,6 @@ class ViewerWindow:
             self._texture = None
         self.canvas.set_title(self.state.title())
         self._trace_next()
-
-    def _gpu_waiter(self, request, compile_s, update_ms=None, update=None):
-        """What the worker thread runs for a submitted wgpu frame: wait for it,
-        and its TracedFrame (the pass's time) or TraceFailed."""
-        tracer = self.gpu_tracer
-
-        def wait():
-            try:
-                return TracedFrame(
-                    request, tracer.frame(request), None, tracer.elapsed_ms(), compile_s, update_ms, update
-                )
-            except Exception as exc:  # noqa: BLE001 - shown in the title; the window must live on
-                return TraceFailed(request, f"wgpu failed: {type(exc).__name__}: {exc}")
-
-        return wait
-
-    def _encode_gpu_frame(self, encoder):
-        """Where frames come from wgpu and the worker is idle: record the next
-        frame's compute pass and have the quad draw its texture. (request,
-        compile seconds), or None when there is nothing to trace or it failed."""
-        if (
-            self._closing
-            or self.state.device != "wgpu"
-            or self.gpu_tracer is None
-            or not self.worker.handoff.may_trace()
-        ):
-            return None  # not wgpu's turn: a frame in flight or waiting decides what follows
-        # From here, no frame means no next draw on our own: the MIN_FPS redraws
-        # and any input (which asks for a draw) try again.
-        self._gpu_idle = True
-        width, height = self.canvas.get_physical_size()
-        if width < 1 or height < 1:
-            return None
-        request = self.state.next_request(width, height)
-        if request is None:
-            return None
-        try:
-            compile_s = self.gpu_tracer.prepare(request)
-            update_ms, update = self.moving.update(self.gpu_tracer.compute, request)
-            self.gpu_tracer.encode(encoder, request)
-        except RaybenchError as exc:
-            self.state.on_traced(TraceFailed(request, str(exc)))
-            return None
-        except Exception as exc:  # noqa: BLE001 - shown in the title; the window must live on
-            self.state.on_traced(TraceFailed(request, f"wgpu failed: {type(exc).__name__}: {exc}"))
-            return None
-        self.quad.show(self.gpu_tracer.compute.texture)
-        self._gpu_idle = False
-        return request, compile_s, update_ms, update
 
     def read_drawn(self) -> np.ndarray:
         """The picture drawn in the current draw, as (H, W, 3) RGB bytes: read
@@ -367,15 +295,5 @@ class ViewerWindow:
         return None
 
     def _trace_next(self) -> None:
-        if self._closing or not self.worker.handoff.may_trace():
-            return
-        if self.state.device == "wgpu":
-            if not self._gpu_idle:
-                self.canvas.request_draw()  # the next draw traces the next frame
-            return
-        width, height = self.canvas.get_physical_size()
-        if width < 1 or height < 1:
-            return  # minimised: nothing to trace for
-        request = self.state.next_request(width, height)
-        if request is not None:
-            self.worker.submit(request)
+        if self.drawer.trace_next(*self.canvas.get_physical_size()):
+            self.canvas.request_draw()  # the next draw traces the next frame (wgpu)
