@@ -14,6 +14,8 @@
 #   scaling  the scaling suite, 10 to 1,000,000 spheres (SCALING_DEVICES)
 #   thesis   the thesis suite, fast kernels and the BVH, cuda and cpu
 #   wgpu     the thesis suite on wgpu, BVH and brute force (WGPU_ARGS to change)
+#   secondary the secondary suite (Whitted's rays and the thesis's beside them), cuda and cpu through
+#            the BVH (SECONDARY_ARGS to change)
 #   tuning   the BVH walk's block shapes on cuda
 #   walks    benchmarks/bvh_walks.py on cuda and wgpu (WALKS_ARGS to change); with
 #            BASELINE="dir ..." (other versions' src/, carried; their commits in
@@ -109,6 +111,8 @@ for s in $STEPS; do
     thesis) bench thesis "${THESIS_S:-200}" --suite thesis --device cuda --device cpu ${THESIS_ARGS:-} ;;
     # shellcheck disable=SC2086
     wgpu) bench wgpu "${WGPU_S:-150}" ${WGPU_ARGS:---suite thesis --device wgpu} ;;
+    # shellcheck disable=SC2086
+    secondary) bench secondary "${SECONDARY_S:-300}" ${SECONDARY_ARGS:---suite secondary --device cuda --device cpu --accel bvh} ;;
     tuning) bench tuning "${TUNING_S:-50}" --suite tuning --accel bvh --device cuda ;;
     walks)
         for round in 1 2; do
