@@ -38,11 +38,11 @@ import numpy as np
 from numba import cuda
 
 from ... import compiled, kernels
-from .. import bands
 from ...errors import RaybenchError
 from ...kernels.wavefront import R_KIND, R_PIXEL, RAY_IDS, RAY_ROWS, SHADOW_IDS, SHADOW_ROWS
 from ...kernels.whitted import KINDS, PRIMARY
 from ...layout import STACK
+from .. import bands
 from .device import simulated
 from .launch import Launches
 
@@ -383,4 +383,3 @@ def _default_grid() -> int:
 
 def _unmarked(_stage: str) -> None:
     pass
-
