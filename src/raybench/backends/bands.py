@@ -14,7 +14,6 @@ band) and how much its device holds.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from ..errors import RaybenchError
@@ -73,7 +72,7 @@ def plan(
     even one row fits ("this device's largest buffer (128 MiB)")."""
 
     def slots(band: int) -> tuple[int, int]:
-        return max(least, math.ceil(rays * band / rows)), max(least, math.ceil(shadows * band / rows))
+        return max(least, -(-rays * band // rows)), max(least, -(-shadows * band // rows))
 
     def fits(band: int) -> bool:
         r, s = slots(band)
@@ -81,11 +80,11 @@ def plan(
 
     if fits(rows):
         return Plan(rows, *slots(rows))
-    # the bytes are linear in the band's rows: the largest band by division, then down past rounding
-    per_row = max((b.ray * rays + b.shadow * shadows) / rows + b.pixel * width for b in buffers)
-    band = min(rows - 1, int(max(0, limit - max(b.fixed for b in buffers)) // per_row))
-    while band >= 1 and not fits(band):
-        band -= 1
+    # the bytes grow with the band's rows: the most rows that fit, by bisection
+    band, over = 0, rows
+    while over - band > 1:
+        middle = (band + over) // 2
+        band, over = (middle, over) if fits(middle) else (band, middle)
     if band < 1:
         r, s = slots(1)
         need = max(b.bytes(r, s, width) for b in buffers)
