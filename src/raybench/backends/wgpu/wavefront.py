@@ -192,7 +192,7 @@ class Wavefront:
             if timestamp_writes is not None:
                 ends = {"beginning_of_pass_write_index": 0} if band == 0 else {}
                 ends |= {"end_of_pass_write_index": 1} if band == last else {}
-                writes = {"query_set": timestamp_writes["query_set"], **ends}
+                writes = {"query_set": timestamp_writes["query_set"], **ends} if ends else None
             compute_pass = encoder.begin_compute_pass(timestamp_writes=writes)
             self._encode_band(compute_pass, _groups((end - first) * self.compute.width))
             compute_pass.end()
