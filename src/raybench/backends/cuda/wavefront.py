@@ -311,7 +311,7 @@ class Wavefront:
         """Every launch of one frame of rows first..end, on tracer's buffers
         (spheres, tree, shading, image, hits, ray tally): a band's after
         another's where the queues hold fewer rows (self.plan)."""
-        rows = self.plan.bands(first, end)
+        rows = self.plan.bands(first, end) or [(first, end)]  # no rows (Tracer.compile): every kernel once
         self._bands = len(rows)
         for band, (top, bottom) in enumerate(rows):
             self._launch_band(tracer, count, top, bottom, self._counts[band], band == 0)
