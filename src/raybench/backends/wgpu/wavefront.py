@@ -73,7 +73,6 @@ class Wavefront:
         self.pipelines = None
         self.bind_group = None
         self.retraced = 0
-        self.rows = None  # the rows (first, end) of the bands of the last frame
         self._allocate(self._plan(compute.height, pixels * RAYS_A_PIXEL, pixels * SHADOWS_A_PIXEL))
 
     def _plan(self, rows: int, rays: int, shadows: int) -> bands.Plan:
@@ -189,9 +188,10 @@ class Wavefront:
         for band, (first, end) in enumerate(self.bands):
             encoder.copy_buffer_to_buffer(self.sizes, band * WAVES_BYTES, self.waves, 0, WAVES_BYTES)
             writes = None
-            if timestamp_writes is not None:
-                ends = {"beginning_of_pass_write_index": 0} if band == 0 else {}
-                ends |= {"end_of_pass_write_index": 1} if band == last else {}
+            if timestamp_writes is not None:  # the first pass's beginning, the last one's end
+                begin, finish = "beginning_of_pass_write_index", "end_of_pass_write_index"
+                ends = {begin: timestamp_writes[begin]} if band == 0 else {}
+                ends |= {finish: timestamp_writes[finish]} if band == last else {}
                 writes = {"query_set": timestamp_writes["query_set"], **ends} if ends else None
             compute_pass = encoder.begin_compute_pass(timestamp_writes=writes)
             self._encode_band(compute_pass, _groups((end - first) * self.compute.width))
