@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import raybench
+from raybench.backends import bands
 from raybench.bench import results
 
 BENCHMARKS = Path(__file__).resolve().parent.parent / "benchmarks"
@@ -26,10 +27,20 @@ def viewer_frames(monkeypatch):
 
 @pytest.mark.slow
 @pytest.mark.gpu
-@pytest.mark.parametrize("device", ["cpu", "wgpu"])
-def test_the_loop_draws_what_the_viewer_shows_and_records_it(viewer_frames, adapter, device, tmp_path, capsys):
+@pytest.mark.parametrize("device, banded", [("cpu", False), ("wgpu", False), ("wgpu", True)])
+def test_the_loop_draws_what_the_viewer_shows_and_records_it(
+    viewer_frames, adapter, device, banded, tmp_path, capsys, monkeypatch
+):
     """The quad draws through wgpu (lavapipe here); the frames are traced on the cpu through
-    the viewer's worker thread, or on wgpu into the quad's own texture (two draws a frame)."""
+    the viewer's worker thread, or on wgpu into the quad's own texture (two draws a frame).
+    banded: the wavefront's queues capped at 64 KiB (backends/bands.py), so that the
+    viewer's wgpu frames are traced into its texture in bands of a few rows; they are
+    still raybench.render's frame in one piece, and its ray counts."""
+    plans = []
+    if banded:
+        monkeypatch.setattr(bands, "QUEUE_BYTES", 64 * 2**10)
+        plan = bands.plan
+        monkeypatch.setattr(bands, "plan", lambda *args: plans.append(plan(*args)) or plans[-1])
     out = tmp_path / "viewer.jsonl"
     argv = ["--device", device, "--spheres", "200", "--size", "40x24", "--frames", "3", "--warmup", "1"]
     seen = []
@@ -58,6 +69,8 @@ def test_the_loop_draws_what_the_viewer_shows_and_records_it(viewer_frames, adap
     assert request.number == 4 and request.count == 200 and (request.width, request.height) == (40, 24)
     # the camera orbits: the last frame's is a quarter turn short of a full one, not the viewer's home
     assert not np.allclose(request.camera.position, raybench.Camera().position)
+    assert not banded or 1 <= plans[-1].rows <= 24 // 3  # the frames drawn were banded
+    monkeypatch.setattr(bands, "QUEUE_BYTES", None)
     expected = raybench.render(
         request.scene.head(request.count),
         request.camera,

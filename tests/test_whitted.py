@@ -1,6 +1,7 @@
 """Whitted shading: the kernels against the float64 reference (whitted_reference)
 on fresh random scenes, its invariants, and every device against the CPU."""
 
+import importlib
 import math
 
 import numpy as np
@@ -11,6 +12,7 @@ from scenes import KINDS
 
 import raybench
 from raybench import Camera, Light, Material, Scene, backends, lighting
+from raybench.backends import bands
 from raybench.kernels import whitted
 
 
@@ -588,3 +590,105 @@ def test_bad_schedules_are_refused(request, device, options, message):
 def test_a_wave_grid_is_checked():
     with pytest.raises(raybench.RaybenchError, match=r"wave_grid: must be an integer from 1"):
         raybench.render(raybench.random_spheres(3), width=8, height=8, device="cuda", shading="whitted", wave_grid=0)
+
+
+# A frame whose queues would not fit the device is traced in bands of rows
+# (backends/bands.py); QUEUE_BYTES, lowered here, stands for a device of small
+# buffers (or little free memory), so that small frames are banded.
+
+
+def queue_bytes(device, tracer) -> int:
+    """The bytes of the largest of the tracer's wavefront's queue buffers, as planned now."""
+    module = importlib.import_module(f"raybench.backends.{device}.wavefront")
+    plan, width = tracer.wavefront.plan, tracer.width
+    return max(b.bytes(plan.rays, plan.shadows, plan.rows * width) for b in module.QUEUES)
+
+
+def whitted_tracer(device, scene, width, height, request, depth, samples):
+    shading = lighting.Shading.of(scene, depth, samples)
+    return backends.tracer(device, scene.spheres, width, height, whitted=shading, **device_options(device, request))
+
+
+def assert_traced_alike(one, banded, basis):
+    """The banded tracer's frame, hits and ray counts are the one-piece one's, bit for bit."""
+    image, hits = (a.copy() for a in one.trace(basis))
+    got_image, got_hits = banded.trace(basis)
+    assert np.array_equal(image, got_image) and np.array_equal(hits, got_hits)
+    assert np.array_equal(one.ray_counts, banded.ray_counts)
+
+
+@pytest.mark.gpu
+def test_a_frame_whose_queues_do_not_fit_is_traced_in_bands(rng, request, monkeypatch):
+    """Queues that hold half the frame's rows: the frame in bands is the frame
+    in one piece (each pixel's rays stay in its band), twice over (the sums
+    each band zeroes for the next frame). On wgpu (lavapipe): the simulator
+    takes a minute and a half for it; cuda's bands are tested below."""
+    device, scene = "wgpu", lit_scene(rng, 10)
+    width, height = 24, 16
+    one = whitted_tracer(device, scene, width, height, request, 3, 2)
+    monkeypatch.setattr(bands, "QUEUE_BYTES", queue_bytes(device, one) // 2)
+    banded = whitted_tracer(device, scene, width, height, request, 3, 2)
+    assert 1 <= banded.wavefront.plan.rows <= height // 2
+    for camera in (Camera(), Camera(position=tuple(rng.uniform([-1, -1, -2], [1, 1, 0])))):
+        assert_traced_alike(one, banded, camera.basis(width, height))
+    assert banded.ray_counts[2] > 0 and banded.ray_counts[3] > 0
+
+
+@pytest.mark.parametrize("device", GPUS)
+def test_queues_that_cannot_grow_are_split_into_bands(request, monkeypatch, device):
+    """Glass that fills the view (test_the_wavefronts_queues_grow_to_hold_a_frame)
+    overflows queues of a ray a pixel that just fit the device: they cannot
+    grow, so the frame is traced again in bands, each with longer queues."""
+    glass = Material(specular=0.5, reflect=0.1, transmit=0.8, ior=1.5)
+    lamps = [Light(position=(-3.0, 4.0, -4.0), radius=0.5), Light(position=(3.0, 4.0, -4.0), radius=0.5)]
+    scene = Scene(np.zeros((1, 3)), np.array([3.0]), np.ones((1, 3)), Camera(position=(0, 0, -5)),
+                  materials=[glass], lights=lamps, background=(0.3, 0.4, 0.5))  # fmt: skip
+    # the simulator: a frame of one block of rays, depth 1, a shadow ray a light
+    width, height, depth, samples = (16, 8, 1, 1) if device == "cuda" else (24, 16, 2, 2)
+    one = whitted_tracer(device, scene, width, height, request, depth, samples)
+    monkeypatch.setattr(bands, "QUEUE_BYTES", queue_bytes(device, one))
+    banded = whitted_tracer(device, scene, width, height, request, depth, samples)
+    assert banded.wavefront.plan.rows == height
+    assert_traced_alike(one, banded, scene.camera.basis(width, height))
+    assert banded.wavefront.retraced >= 1 and banded.wavefront.plan.rows < height
+
+
+@pytest.mark.parametrize("device", GPUS)
+def test_queues_that_cannot_hold_one_row_are_refused(request, monkeypatch, device):
+    monkeypatch.setattr(bands, "QUEUE_BYTES", 4096)
+    with pytest.raises(raybench.RaybenchError, match=r"^schedule 'wavefront': one row of this frame needs queues of "
+                       r"[0-9.]+ MiB, more than the queues' limit \(0\.0 MiB\); use a narrower frame"):  # fmt: skip
+        raybench.render(raybench.random_spheres(3), width=64, height=8, device=device, shading="whitted",
+                        **device_options(device, request))  # fmt: skip
+
+
+def test_bands_plan_the_most_rows_that_fit(rng):
+    """bands.plan on random sizes: every buffer within the limit, one row more
+    over it, the bands covering the rows once."""
+    for _ in range(200):
+        check_plan(rng)
+
+
+def check_plan(rng):
+    width, rows = int(rng.integers(1, 300)), int(rng.integers(1, 300))
+    rays, shadows = int(rng.integers(1, 8)) * width * rows, int(rng.integers(0, 20)) * width * rows
+    buffers = [bands.Buffer(*(int(v) for v in rng.integers(0, 100, 4))) for _ in range(int(rng.integers(1, 4)))]
+    limit = int(rng.integers(1, 2 * max(b.bytes(rays, shadows, width * rows) for b in buffers) + 2))
+    least = int(rng.integers(1, 200))
+
+    def slots(band):
+        return max(least, -(-rays * band // rows)), max(least, -(-shadows * band // rows))
+
+    def fits(band):
+        return all(b.bytes(*slots(band), band * width) <= limit for b in buffers)
+
+    try:
+        plan = bands.plan(width, rows, rays, shadows, buffers, limit, least, "the limit")
+    except raybench.RaybenchError as error:
+        assert not fits(1) and "one row of this frame" in str(error)
+        return
+    assert fits(plan.rows) and (plan.rows == rows or not fits(plan.rows + 1))
+    assert (plan.rays, plan.shadows) == slots(plan.rows)
+    first = int(rng.integers(0, rows))
+    covered = [row for top, bottom in plan.bands(first, rows) for row in range(top, bottom)]
+    assert covered == list(range(first, rows))

@@ -13,8 +13,13 @@ Slots in a queue are claimed a block at a time: each thread adds its
 rays' number to a counter in shared memory, then one thread claims the
 block's total from the queue's count with one global atomic. A queue that
 would overflow keeps the count of the rays it was asked to hold; the frame
-is then traced again with queues that fit (Wavefront.trace), so no ray is
-ever lost.
+is then traced again with queues that fit (Wavefront.overflowed), so no
+ray is ever lost.
+
+A frame whose queues would not fit in the GPU's free memory is traced in
+bands of rows (backends/bands.py), their launches one after another on the
+stream, each band's counts its own: the same picture, still with no wait
+between launches.
 
 A stage's kernel is launched on `grid` blocks of BLOCK threads, each thread
 taking the rays i, i + the grid's threads, ... of the queue: by default
@@ -37,6 +42,7 @@ from ...errors import RaybenchError
 from ...kernels.wavefront import R_KIND, R_PIXEL, RAY_IDS, RAY_ROWS, SHADOW_IDS, SHADOW_ROWS
 from ...kernels.whitted import KINDS, PRIMARY
 from ...layout import STACK
+from .. import bands
 from .device import simulated
 from .launch import Launches
 
@@ -66,6 +72,10 @@ COUNTS = OVERFLOW + 1
 # Device bytes a slot: a ray in both queues (floats, ints) and its hit; a shadow ray.
 RAY_BYTES = 2 * (RAY_ROWS + RAY_IDS) * 4 + 12
 SHADOW_BYTES = (SHADOW_ROWS + SHADOW_IDS) * 4
+QUEUES = [bands.Buffer(ray=RAY_BYTES, shadow=SHADOW_BYTES)]
+# The share of the GPU's free memory the queues may take: the rest for the
+# driver and whatever else runs there.
+FREE_SHARE = 0.9
 
 
 @cuda.jit(device=True)
@@ -104,13 +114,13 @@ def _add(accum, pixel, red, green, blue):
 
 
 @compiled.cuda_jit()
-def _start(counts, rays):
-    """A frame's counts and ray tally zeroed (its pixels' sums were, by the
-    last frame's _finish)."""
+def _start(counts, rays, tally):
+    """A band's counts zeroed, and the ray tally where `tally` (the frame's
+    first band; its pixels' sums were zeroed by the last frame's _finish)."""
     i = cuda.grid(1)
     if i < COUNTS:
         counts[i] = 0
-    if i < len(KINDS):
+    if tally and i < len(KINDS):
         rays[i] = 0
 
 
@@ -248,24 +258,40 @@ class Wavefront:
     def __init__(self, width: int, height: int, depth: int, grid: int | None = None):
         self.width, self.height, self.depth = width, height, depth
         self.grid = _default_grid() if grid is None else grid
-        self._launches = Launches(16 * (MAX_WAVES + 2))
         pixels = width * height
-        self.d_counts = cuda.device_array(COUNTS, np.int32)
         self.d_accum = cuda.to_device(np.zeros((3, max(pixels, 1)), np.int64))
-        self._allocate(max(pixels * RAYS_A_PIXEL, BLOCK), max(pixels * SHADOWS_A_PIXEL, BLOCK))
+        self.queues = None
+        self.ray_capacity = self.shadow_capacity = 0
+        self._allocate(self._plan(height, pixels * RAYS_A_PIXEL, pixels * SHADOWS_A_PIXEL))
         self.retraced = 0  # frames traced again with longer queues
+        self._bands = 1  # the bands of the last frame, whose counts overflowed() reads
         self.mark = None
 
-    def _allocate(self, rays: int, shadows: int) -> None:
-        needed = rays * RAY_BYTES + shadows * SHADOW_BYTES
-        if not simulated():
+    def _plan(self, rows: int, rays: int, shadows: int) -> bands.Plan:
+        """Queues for rays and shadows slots that `rows` rows need (bands.plan),
+        in the GPU's free memory (less a margin) and the memory the queues
+        now hold."""
+        if simulated():
+            limit, holds = bands.capped(2**62), "the queues' limit"
+        else:
             free, _total = cuda.current_context().get_memory_info()
-            if needed > free:
-                raise RaybenchError(
-                    f"schedule 'wavefront': its queues need {needed / 2**30:.1f} GiB and the GPU has "
-                    f"{free / 2**30:.1f} GiB free; use a smaller frame or schedule='pixel'"
-                )
+            held = QUEUES[0].bytes(self.ray_capacity, self.shadow_capacity, 0)
+            limit = bands.capped(int((free + held) * FREE_SHARE))
+            holds = f"the GPU's free memory ({limit / 2**30:.1f} GiB for the queues)"
+        if bands.QUEUE_BYTES is not None and limit == bands.QUEUE_BYTES:
+            holds = f"the queues' limit ({limit / 2**20:.1f} MiB)"
+        return bands.plan(self.width, rows, rays, shadows, QUEUES, limit, BLOCK, holds)
+
+    def _allocate(self, plan: bands.Plan) -> None:
+        self.plan = plan
+        rays, shadows = plan.rays, plan.shadows
+        count = math.ceil(self.height / plan.rows)
+        # a band's launches are kept apart from another's: their counts differ
+        self._launches = Launches(16 * (MAX_WAVES + 2) * count)
+        self.d_counts = cuda.device_array((count, COUNTS), np.int32)
+        self._counts = [self.d_counts[k] for k in range(count)]
         self.queues = None  # the old ones go first
+        self.d_hit_i = self.d_hit_t = self.d_hit_d = self.d_shadows_f = self.d_shadows_i = None
         self.ray_capacity, self.shadow_capacity = rays, shadows
         self.queues = [
             (cuda.device_array((RAY_ROWS, rays), np.float32), cuda.device_array((RAY_IDS, rays), np.int32))
@@ -283,13 +309,22 @@ class Wavefront:
 
     def launch(self, tracer, count: int, first: int, end: int) -> None:
         """Every launch of one frame of rows first..end, on tracer's buffers
-        (spheres, tree, shading, image, hits, ray tally)."""
+        (spheres, tree, shading, image, hits, ray tally): a band's after
+        another's where the queues hold fewer rows (self.plan)."""
+        rows = self.plan.bands(first, end) or [(first, end)]  # no rows (Tracer.compile): every kernel once
+        self._bands = len(rows)
+        for band, (top, bottom) in enumerate(rows):
+            self._launch_band(tracer, count, top, bottom, self._counts[band], band == 0)
+
+    def _launch_band(self, tracer, count: int, first: int, end: int, counts, tally: bool) -> None:
+        """Every launch of rows first..end, its queues' counts in `counts`;
+        the frame's ray tally zeroed first where `tally`."""
         launch = self._launches
         width = self.width
         first_pixel, pixels = first * width, (end - first) * width
-        launch(_start, 1, COUNTS, self.d_counts, tracer.d_rays)
+        launch(_start, 1, COUNTS, counts, tracer.d_rays, tally)
         rays_f, rays_i = self.queues[0]
-        launch(_primary, max(1, math.ceil(pixels / BLOCK)), BLOCK, rays_f, rays_i, self.d_counts, first_pixel, pixels,
+        launch(_primary, max(1, math.ceil(pixels / BLOCK)), BLOCK, rays_f, rays_i, counts, first_pixel, pixels,
                width, self.height, tracer.d_basis)  # fmt: skip
         mark = self.mark or _unmarked
         mark("start")
@@ -299,16 +334,16 @@ class Wavefront:
         for wave in range(self.depth + 1):
             rays_f, rays_i = self.queues[wave % 2]
             next_f, next_i = self.queues[(wave + 1) % 2]
-            launch(_extend, ray_blocks, BLOCK, rays_f, rays_i, self.d_counts, wave, self.ray_capacity,
+            launch(_extend, ray_blocks, BLOCK, rays_f, rays_i, counts, wave, self.ray_capacity,
                    tracer.d_spheres, count, *tree, self.d_hit_i, self.d_hit_t, self.d_hit_d, tracer.d_hits, width,
                    tracer.d_rays)  # fmt: skip
             mark("extend")
-            launch(_shade, ray_blocks, BLOCK, rays_f, rays_i, self.d_counts, wave, self.ray_capacity, self.d_hit_i,
+            launch(_shade, ray_blocks, BLOCK, rays_f, rays_i, counts, wave, self.ray_capacity, self.d_hit_i,
                    self.d_hit_t, self.d_hit_d, next_f, next_i, self.ray_capacity, self.d_shadows_f,
                    self.d_shadows_i, self.shadow_capacity, tracer.d_spheres, tracer.d_materials, tracer.d_lights,
                    tracer.d_pattern, tracer.d_params, width, self.depth, self.d_accum)  # fmt: skip
             mark("shade")
-            launch(_shadow, shadow_blocks, BLOCK, self.d_shadows_f, self.d_shadows_i, self.d_counts, wave,
+            launch(_shadow, shadow_blocks, BLOCK, self.d_shadows_f, self.d_shadows_i, counts, wave,
                    self.shadow_capacity, tracer.d_spheres, count, *tree, self.d_accum, tracer.d_rays)  # fmt: skip
             mark("shadow")
         launch(_finish, max(1, math.ceil(pixels / BLOCK)), BLOCK, self.d_accum, first_pixel, pixels, width,
@@ -322,13 +357,20 @@ class Wavefront:
 
     def overflowed(self) -> bool:
         """Whether the last frame's queues were too short (waits for it);
-        if so they are made long enough for it, to trace it again."""
-        counts = self.d_counts.copy_to_host()
-        if not counts[OVERFLOW]:
+        if so they are made long enough for it (longer, or as long for
+        fewer rows a band), to trace it again."""
+        counts = self.d_counts.copy_to_host()[: self._bands]
+        if not counts[:, OVERFLOW].any():
             return False
-        rays = max(self.ray_capacity, int(counts[: self.depth + 2].max()))
-        shadows = max(self.shadow_capacity, int(counts[SHADOW_BASE : SHADOW_BASE + self.depth + 1].max()))
-        self._allocate(_grown(rays, self.ray_capacity), _grown(shadows, self.shadow_capacity))
+        rays = max(self.ray_capacity, int(counts[:, : self.depth + 2].max()))
+        shadows = max(self.shadow_capacity, int(counts[:, SHADOW_BASE : SHADOW_BASE + self.depth + 1].max()))
+        try:
+            plan = self._plan(
+                self.plan.rows, bands.grown(rays, self.ray_capacity), bands.grown(shadows, self.shadow_capacity)
+            )
+        except RaybenchError:  # doubled, not even a row fits: the slots asked for, no more
+            plan = self._plan(self.plan.rows, rays, shadows)
+        self._allocate(plan)
         self.retraced += 1
         return True
 
@@ -341,10 +383,3 @@ def _default_grid() -> int:
 
 def _unmarked(_stage: str) -> None:
     pass
-
-
-def _grown(needed: int, capacity: int) -> int:
-    """A capacity for `needed` slots: doubled until it holds them."""
-    while capacity < needed:
-        capacity *= 2
-    return capacity

@@ -308,10 +308,7 @@ class Compute:
             else None
         )
         if self.wavefront is not None:
-            compute_pass = encoder.begin_compute_pass(timestamp_writes=writes)
-            self.wavefront.encode(compute_pass)
-            compute_pass.end()
-            self.wavefront.encode_state_read(encoder)
+            self.wavefront.encode(encoder, writes)
             if timed:
                 encoder.resolve_query_set(self.queries, 0, 2, self.resolved, 0)
                 encoder.copy_buffer_to_buffer(self.resolved, 0, self.times, 0, 16)

@@ -11,6 +11,13 @@ that would overflow keeps the count of the rays it was asked to hold; the
 frame is then traced again with queues that fit (the Tracer asks
 overflowed()), so no ray is lost.
 
+A frame whose queues would not fit in the device's largest storage buffer
+is traced in bands of rows (backends/bands.py): a compute pass a band, in
+the same command buffer, each band's sizes copied into the uniform before
+its pass and its state words copied out after it, so a banded frame is
+still one submission and one read of the state. The pixels' sums are the
+band's, indexed from its first pixel.
+
 Its pipelines share one explicit bind-group layout: every binding of the
 pixel program's Whitted shader, and the wavefront's four (queues' floats,
 their ints, the state and the pixels' sums as atomic words, the sizes).
@@ -22,6 +29,7 @@ import numpy as np
 
 from ...errors import RaybenchError
 from ...kernels import wavefront as stages
+from .. import bands
 from . import shader
 
 GROUP = 64  # wavefront.wgsl's WF_GROUP
@@ -36,14 +44,17 @@ SHADOW_BASE = MAX_WAVES
 OVERFLOW = 2 * MAX_WAVES
 STATE = 2 * MAX_WAVES + 2  # words before the pixels' sums: ray counts, shadow counts, overflow, wave
 WAVES_BYTES = 32
+PIXEL_WORDS = 6  # a pixel's sums: three channels of two words
+# The three storage buffers of a band's queues (bands.Buffer): the floats (both
+# ray queues, the hits' t and half-chord, the shadow queue), the ints (both ray
+# queues, the hits' spheres, the shadow queue), the state and the band's sums.
+QUEUES = [
+    bands.Buffer(ray=4 * (2 * stages.RAY_ROWS + 2), shadow=4 * stages.SHADOW_ROWS),
+    bands.Buffer(ray=4 * (2 * stages.RAY_IDS + 1), shadow=4 * stages.SHADOW_IDS),
+    bands.Buffer(fixed=4 * STATE, pixel=4 * PIXEL_WORDS),
+]
 ENTRIES = ("main_wf_start", "main_wf_primary", "main_wf_extend", "main_wf_shade", "main_wf_shadow",
            "main_wf_advance", "main_wf_finish")  # fmt: skip
-
-
-def _grown(needed: int, capacity: int) -> int:
-    while capacity < needed:
-        capacity *= 2
-    return capacity
 
 
 class Wavefront:
@@ -58,34 +69,51 @@ class Wavefront:
         self.device = device
         pixels = compute.width * compute.height
         self.pixels = pixels
-        self.groups = min(GROUPS, max(1, -(-pixels // GROUP)))
-        storage = wgpu.BufferUsage.STORAGE
-        self.sums = device.create_buffer(
-            size=(STATE + 6 * max(pixels, 1)) * 4, usage=storage | wgpu.BufferUsage.COPY_SRC
-        )  # zeroed at creation; each frame's last dispatch zeroes what it read
         self.waves = device.create_buffer(size=WAVES_BYTES, usage=wgpu.BufferUsage.UNIFORM | wgpu.BufferUsage.COPY_DST)
-        self.state_read = device.create_buffer(
-            size=STATE * 4, usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ
-        )
         self.pipelines = None
         self.bind_group = None
         self.retraced = 0
-        self._allocate(max(pixels * RAYS_A_PIXEL, GROUP), max(pixels * SHADOWS_A_PIXEL, GROUP))
+        self._allocate(self._plan(compute.height, pixels * RAYS_A_PIXEL, pixels * SHADOWS_A_PIXEL))
 
-    def _allocate(self, rays: int, shadows: int) -> None:
+    def _plan(self, rows: int, rays: int, shadows: int) -> bands.Plan:
+        """Queues for rays and shadows slots that `rows` rows need (bands.plan),
+        each buffer within the device's largest storage buffer."""
+        limits = self.device.limits
+        device = min(limits["max-storage-buffer-binding-size"], limits["max-buffer-size"])
+        limit = bands.capped(device)
+        holds = (
+            f"this device's largest buffer ({device / 2**20:.0f} MiB)"
+            if limit == device
+            else f"the queues' limit ({limit / 2**20:.1f} MiB)"
+        )
+        return bands.plan(self.compute.width, rows, rays, shadows, QUEUES, limit, GROUP, holds)
+
+    def _allocate(self, plan: bands.Plan) -> None:
+        """The queues and sums of `plan`, and each band's sizes (a Waves a band)."""
         import wgpu
 
+        self.plan = plan
+        rays, shadows = plan.rays, plan.shadows
         self.ray_capacity, self.shadow_capacity = rays, shadows
-        floats = (2 * stages.RAY_ROWS + 2) * rays + stages.SHADOW_ROWS * shadows
-        ints = (2 * stages.RAY_IDS + 1) * rays + stages.SHADOW_IDS * shadows
-        limit = min(self.device.limits["max-storage-buffer-binding-size"], self.device.limits["max-buffer-size"])
-        if max(floats, ints) * 4 > limit:
-            raise RaybenchError(
-                f"schedule 'wavefront': its queues ({max(floats, ints) * 4 / 2**20:.0f} MiB) exceed this device's "
-                f"largest buffer ({limit / 2**20:.0f} MiB); use a smaller frame or schedule='pixel'"
-            )
-        self.floats = self.device.create_buffer(size=floats * 4, usage=wgpu.BufferUsage.STORAGE)
-        self.ints = self.device.create_buffer(size=ints * 4, usage=wgpu.BufferUsage.STORAGE)
+        band_pixels = plan.rows * self.compute.width
+        floats, ints, sums = (b.bytes(rays, shadows, band_pixels) for b in QUEUES)
+        storage = wgpu.BufferUsage.STORAGE
+        self.floats = self.ints = self.sums = None  # the old ones go first
+        self.floats = self.device.create_buffer(size=floats, usage=storage)
+        self.ints = self.device.create_buffer(size=ints, usage=storage)
+        # zeroed at creation; each band's last dispatch zeroes what it read
+        self.sums = self.device.create_buffer(size=sums, usage=storage | wgpu.BufferUsage.COPY_SRC)
+        rows = plan.bands(0, self.compute.height)
+        sizes = np.zeros((len(rows), WAVES_BYTES // 4), np.uint32)
+        for band, (first, end) in enumerate(rows):
+            pixels = (end - first) * self.compute.width
+            sizes[band, :5] = rays, shadows, pixels, first * self.compute.width, _groups(pixels)
+            sizes[band, 5] = band
+        self.sizes = self.device.create_buffer_with_data(data=sizes.tobytes(), usage=wgpu.BufferUsage.COPY_SRC)
+        self.state_read = self.device.create_buffer(
+            size=len(rows) * STATE * 4, usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ
+        )
+        self.bands = rows
         self.bind_group = None
 
     def _layout(self):
@@ -148,46 +176,71 @@ class Wavefront:
         self.bind_group = self.device.create_bind_group(layout=self.layout, entries=entries)
         self._bound_tree = compute.tree
 
-    def encode(self, compute_pass) -> None:
-        """A frame's dispatches into compute_pass (the frame uniform already written)."""
+    def encode(self, encoder, timestamp_writes=None) -> None:
+        """A frame's compute passes into encoder (the frame uniform already
+        written), a pass a band, each followed by the copy of its state words
+        for overflowed(). timestamp_writes: the Compute's, written at the
+        first pass's beginning and the last one's end."""
         self.compile()
         if self.bind_group is None or self._bound_tree is not self.compute.tree:
             self._bind()
-        sizes = np.array([self.ray_capacity, self.shadow_capacity, self.pixels, 0, self.groups, 0, 0, 0], np.uint32)
-        self.device.queue.write_buffer(self.waves, 0, sizes.tobytes())
+        last = len(self.bands) - 1
+        for band, (first, end) in enumerate(self.bands):
+            encoder.copy_buffer_to_buffer(self.sizes, band * WAVES_BYTES, self.waves, 0, WAVES_BYTES)
+            writes = None
+            if timestamp_writes is not None:  # the first pass's beginning, the last one's end
+                begin, finish = "beginning_of_pass_write_index", "end_of_pass_write_index"
+                ends = {begin: timestamp_writes[begin]} if band == 0 else {}
+                ends |= {finish: timestamp_writes[finish]} if band == last else {}
+                writes = {"query_set": timestamp_writes["query_set"], **ends} if ends else None
+            compute_pass = encoder.begin_compute_pass(timestamp_writes=writes)
+            self._encode_band(compute_pass, _groups((end - first) * self.compute.width))
+            compute_pass.end()
+            encoder.copy_buffer_to_buffer(self.sums, 0, self.state_read, band * STATE * 4, STATE * 4)
+
+    def _encode_band(self, compute_pass, groups: int) -> None:
+        """A band's dispatches (its sizes in the uniform)."""
         compute_pass.set_bind_group(0, self.bind_group)
 
-        def run(entry: str, groups: int) -> None:
+        def run(entry: str, count: int) -> None:
             compute_pass.set_pipeline(self.pipelines[entry])
-            compute_pass.dispatch_workgroups(groups, 1, 1)
+            compute_pass.dispatch_workgroups(count, 1, 1)
 
         run("main_wf_start", 1)
-        run("main_wf_primary", self.groups)
+        run("main_wf_primary", groups)
         for _ in range(self.depth + 1):
-            run("main_wf_extend", self.groups)
-            run("main_wf_shade", self.groups)
-            run("main_wf_shadow", self.groups)
+            run("main_wf_extend", groups)
+            run("main_wf_shade", groups)
+            run("main_wf_shadow", groups)
             run("main_wf_advance", 1)
-        run("main_wf_finish", self.groups)
-
-    def encode_state_read(self, encoder) -> None:
-        """Copy the frame's state words for overflowed() (after the pass)."""
-        encoder.copy_buffer_to_buffer(self.sums, 0, self.state_read, 0, STATE * 4)
+        run("main_wf_finish", groups)
 
     def overflowed(self) -> bool:
         """Whether the last frame's queues were too short (waits for it); if
-        so they are made long enough for it, to trace it again."""
+        so they are made long enough for it (longer, or as long for fewer
+        rows a band), to trace it again."""
         import wgpu
 
         self.state_read.map_sync(wgpu.MapMode.READ)
         try:
-            state = np.frombuffer(self.state_read.read_mapped(), np.uint32).copy()
+            state = np.frombuffer(self.state_read.read_mapped(), np.uint32).reshape(-1, STATE).copy()
         finally:
             self.state_read.unmap()
-        if not state[OVERFLOW]:
+        if not state[:, OVERFLOW].any():
             return False
-        rays = max(self.ray_capacity, int(state[: self.depth + 2].max()))
-        shadows = max(self.shadow_capacity, int(state[SHADOW_BASE : SHADOW_BASE + self.depth + 1].max()))
-        self._allocate(_grown(rays, self.ray_capacity), _grown(shadows, self.shadow_capacity))
+        rays = max(self.ray_capacity, int(state[:, : self.depth + 2].max()))
+        shadows = max(self.shadow_capacity, int(state[:, SHADOW_BASE : SHADOW_BASE + self.depth + 1].max()))
+        try:
+            plan = self._plan(
+                self.plan.rows, bands.grown(rays, self.ray_capacity), bands.grown(shadows, self.shadow_capacity)
+            )
+        except RaybenchError:  # doubled, not even a row fits: the slots asked for, no more
+            plan = self._plan(self.plan.rows, rays, shadows)
+        self._allocate(plan)
         self.retraced += 1
         return True
+
+
+def _groups(pixels: int) -> int:
+    """Workgroups a band's stages are dispatched on."""
+    return min(GROUPS, max(1, -(-pixels // GROUP)))

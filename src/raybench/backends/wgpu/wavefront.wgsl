@@ -16,7 +16,7 @@ struct Waves {
     pixels: u32,
     first_pixel: u32,
     groups: u32,
-    _pad0: u32,
+    band: u32,  // the band of rows (backends/bands.py): 0, the frame's first
     _pad1: u32,
     _pad2: u32,
 }
@@ -24,7 +24,8 @@ struct Waves {
 // wf_f: the two ray queues' float rows, the hits' t and half-chord, the
 // shadow queue's float rows. wf_i: the ray queues' int rows, the hits'
 // spheres, the shadow queue's int rows. wf_a: the state words, then each
-// pixel's light as three 64-bit integers (low and high words).
+// pixel's light as three 64-bit integers (low and high words), the pixels
+// of the band from its first.
 @group(0) @binding(10) var<storage, read_write> wf_f: array<f32>;
 @group(0) @binding(11) var<storage, read_write> wf_i: array<i32>;
 @group(0) @binding(12) var<storage, read_write> wf_a: array<atomic<u32>>;
@@ -141,7 +142,7 @@ fn add_channel(word: u32, c: f32) {
 }
 
 fn add_light(pixel: i32, c: vec3<f32>) {
-    let word = STATE + 6u * u32(pixel);
+    let word = STATE + 6u * (u32(pixel) - waves.first_pixel);
     add_channel(word, c.x);
     add_channel(word + 2u, c.y);
     add_channel(word + 4u, c.z);
@@ -208,7 +209,7 @@ fn main_wf_start(@builtin(local_invocation_index) me: u32) {
     for (var i = me; i < STATE; i = i + WF_GROUP) {
         atomicStore(&wf_a[i], 0u);
     }
-    if (me < 4u) {
+    if (me < 4u && waves.band == 0u) {  // the frame's ray tally, summed over its bands
         atomicStore(&rays[me], 0u);
     }
 }
@@ -398,7 +399,7 @@ fn main_wf_advance() {
 fn main_wf_finish(@builtin(global_invocation_id) id: vec3<u32>) {
     for (var i = id.x; i < waves.pixels; i = i + waves.groups * WF_GROUP) {
         let pixel = waves.first_pixel + i;
-        let word = STATE + 6u * pixel;
+        let word = STATE + 6u * i;
         let c = vec3<f32>(take_channel(word), take_channel(word + 2u), take_channel(word + 4u));
         let bytes = vec3<f32>(to_byte(c.x), to_byte(c.y), to_byte(c.z));
         textureStore(image, vec2<i32>(i32(pixel % frame.width), i32(pixel / frame.width)), vec4<f32>(bytes / 255.0, 1.0));
