@@ -245,9 +245,10 @@ def _search_wide(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, sphere
                       tree[2], tree[3], tree[_T_S_REF], tree[_T_S_COUNT], tree[_T_S_T])  # fmt: skip
 
 
-# find, the Whitted programs' one call, is compiled without the runtime's
-# reference counting (_nrt=False; _whitted_tiles says why): it allocates
-# nothing and keeps no array.
+# find, the one call of the Whitted programs through the binary tree and by
+# brute force, is compiled without the runtime's reference counting
+# (_nrt=False; _whitted_tiles says why): it allocates nothing and keeps no
+# array. The packets program inlines its find (trace.build).
 _k = kernels.build(
     numba.njit(inline="always"),
     call=numba.njit(nogil=True, _nrt=False),
@@ -1046,11 +1047,9 @@ def _shadow_packet(ox, oy, oz, rays, spread, stack, wide, wide_links, ordered, o
 def _whitted_rows(render_pixel, first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern,
                   params, tree, image, hits, counts, stop):  # fmt: skip
     """Whitted shading of the rows first_row..end_row with render_pixel (the
-    program through the tree, with or without shadow packets, or by brute
-    force), a pixel at a time: its primary, reflected and refracted rays one
-    by one (they scatter: no packet keeps them together), its shadow rays
-    to a light one by one or as a packet (_packet_shadows); counts[y]: the
-    rays row y cast, by kind."""
+    program through the binary tree, or by brute force), a pixel at a time,
+    every ray alone; counts[y]: the rays row y cast, by kind. The packets
+    program has its own loop (_whitted_tiles)."""
     stack_row = np.empty(STACK, np.int32)
     stack_t = np.empty(STACK, np.float32)
     rays_f = np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_FLOATS), np.float32)
@@ -1124,7 +1123,7 @@ def _whitted_rows_packets(first_row, end_row, width, height, basis, spheres, cou
 # references to every array each time one is passed to a function, inlined
 # or not, or taken from a tuple, with an atomic add and subtract on the
 # array's shared count (NRT_incref, NRT_decref): in the pixel program, whose
-# functions pass the frame's arrays down, those took about 40% of a frame's
+# functions pass the frame's arrays down, those took 27-38% of a frame's
 # CPU time (perf, docs/whitted.md), and as the threads share the arrays,
 # each such add moves a cache line between the cores. These functions
 # allocate nothing and keep no array: _whitted_rows_packets, which holds the
@@ -1266,8 +1265,9 @@ class Tracer(TracerBase):
             self.bands = chunks(height, self.threads)
             workers = min(self.threads, len(self.bands))
             if self.accel == "bvh":
-                # 4: the shadow rays as packets through the 4-wide tree; 2: every
-                # ray alone through the binary tree
+                # 4: the primary and shadow rays as packets through the 4-wide
+                # tree, the bounces through it alone (_whitted_rows_packets); 2:
+                # every ray alone through the binary tree
                 self.tree_width = options.tree_width
             self._kernel = WHITTED_ROWS["packets" if self.tree_width == 4 else self.accel]
             self._row_rays = np.zeros((height, len(whitted_mod.KINDS)), np.int64)

@@ -23,7 +23,8 @@ def build(jit, call=None, shadows=None, packets_search=None):
     (whitted.build's `shadows`, the CPU's packets): then a third Whitted
     program, render_pixel_whitted["packets"], through the tree with them.
     packets_search: that program's search for the other rays (the CPU's
-    walk of its 4-wide tree, search_tree's signature); default search_tree."""
+    walk of its 4-wide tree, search_tree's signature); default search_tree.
+    That program's find is inlined (jit, not call)."""
     call = call or jit
     intersect_relative, intersect_sphere, prepare_sphere, may_hit, along, intersect_ahead = intersect.build(jit)
     shade_hit, shade_miss, to_byte = shade.build(jit)
@@ -141,7 +142,11 @@ def build(jit, call=None, shadows=None, packets_search=None):
             stages = whitted.build(jit, call, search, shade_hit, shade_miss)
             wavefronts[search.__name__] = wavefront.build(jit, stages, primary_ray, shade_hit)
         else:
-            stages = whitted.build(jit, call, search, shade_hit, shade_miss, shadows, name="_packets")
+            # find inlined: this program's shadow rays call no find (its shadows trace
+            # them), so the walk has one call site and is compiled once, and the call's
+            # cost goes: 6-7% of a frame (docs/whitted.md, "CPU: the primary rays as
+            # packets")
+            stages = whitted.build(jit, jit, search, shade_hit, shade_miss, shadows, name="_packets")
         whitted_pixel = stages.whitted_pixel
 
         @jit
