@@ -88,15 +88,15 @@ _DEAD = np.float32(-np.inf)  # a lane's length once blocked or where no ray is c
 
 def _packet_shadows(jit, find, toward):
     """whitted.build's `shadows` for the CPU's packets: (cast, blocked).
-    tree: (nodes, links, ordered, order, wide, wide_links, rays, spread,
-    stack), the last three the thread's own (_whitted_rows_packets)."""
+    tree: the packets program's tuple (the _T_ indices below: the trees,
+    then the thread's own scratch, _whitted_rows_packets)."""
 
     @jit
     def cast(px, py, pz, nx, ny, nz, light, samples, share, own, own_inside, spheres, count, lights, pattern, tree,
              stack_row, stack_t):  # fmt: skip
         """Bit s set where sample s's ray is blocked; 0 for samples whose
         ray is not cast (toward's facing 0)."""
-        rays = tree[6]
+        rays = tree[_T_RAYS]
         batch = np.int64(0)
         for first in range(0, samples, LANES):
             live = np.int64(0)
@@ -122,8 +122,9 @@ def _packet_shadows(jit, find, toward):
                     rays[_DX, k] = rays[_DX, lead]
                     rays[_DY, k] = rays[_DY, lead]
                     rays[_DZ, k] = rays[_DZ, lead]
-            batch |= _shadow_packet(px, py, pz, rays, tree[7], tree[8], tree[4], tree[5], tree[2], tree[3], own,
-                                    own_inside, live) << np.int64(first)  # fmt: skip
+            batch |= _shadow_packet(px, py, pz, rays, tree[_T_SPREAD], tree[_T_STACK], tree[_T_WIDE],
+                                    tree[_T_WIDE_LINKS], tree[2], tree[3], own, own_inside,
+                                    live) << np.int64(first)  # fmt: skip
         return batch
 
     @jit
@@ -168,7 +169,7 @@ def _walk_wide(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, wide, wi
                s_count, s_t):  # fmt: skip
     """traverse.walk's answer for one Whitted ray (its `ahead` test, the
     sphere `own` skipped or met at its far root) through the 4-wide tree: a
-    node's four boxes tested at once (_ray_mask), the children it enters
+    node's four boxes tested at once (_ray_boxes), the children it enters
     pushed farthest first with where the ray enters each, popped nearest
     first and skipped once a hit is nearer. The nearest sphere with 0 < t <
     t_max, ties to the smaller original index, or with any_hit the first
