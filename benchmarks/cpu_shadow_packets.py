@@ -1,7 +1,8 @@
-"""The CPU's Whitted frame with each hit's shadow rays ray by ray (tree_width 2, the binary
-tree) against as packets through the 4-wide tree (tree_width 4, the default; issue 27 item
-2), side by side in one process: two Tracers of the same scene, their frames taken in turn,
-so that both meet the same load on a shared machine. The issue's scene
+"""The CPU's Whitted frame with every ray alone through the binary tree (tree_width 2) against
+the packets program (tree_width 4, the default; issue 27 item 2: each tile's primary rays and
+each hit's shadow rays as packets through the 4-wide tree, the reflected and refracted rays
+through it a ray at a time), side by side in one process: two Tracers of the same scene, their
+frames taken in turn, so that both meet the same load on a shared machine. The issue's scene
 (random_spheres(n, seed=0, materials=True)), depth 5, 4 shadow samples.
 
 Each frame is timed by the wall clock and by the process's CPU time (time.process_time, all

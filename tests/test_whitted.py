@@ -201,18 +201,43 @@ def test_brute_force_is_the_bvh_bit_for_bit(rng):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("samples", [1, 5, 17, 64])
-def test_cpu_shadow_packets_are_its_rays_one_at_a_time(rng, samples):
-    """The CPU traces a hit's shadow rays to a light as packets through the
-    4-wide tree (tree_width 4, the default): the frame, hits and rays of each
-    ray walked alone through the binary tree (tree_width 2), bit for bit,
-    for a point light (one ray), and area lights of packets under, over and
-    many times what one holds (cpu.LANES), through glass and mirrors."""
+def test_cpu_packets_are_its_rays_one_at_a_time(rng, samples):
+    """The CPU's Whitted program on the 4-wide tree (tree_width 4, the
+    default): each tile's primary rays as one packet, the reflected and
+    refracted rays through the wide tree, a hit's shadow rays to a light as
+    packets; the frame, hits and rays of each ray walked alone through the
+    binary tree (tree_width 2), bit for bit: for a point light (one ray),
+    and area lights of packets under, over and many times what one holds
+    (cpu.LANES), through glass and mirrors, on a frame of part tiles
+    (cpu.PACKET_W x PACKET_H) cut into chunks for two threads; and once
+    from a camera inside the glass sphere, whose primary rays meet it at
+    its far root."""
     scene = lit_scene(rng, 30)
-    alone = frame(scene, "cpu", 32, 20, samples=samples, tree_width=2)
-    packets = frame(scene, "cpu", 32, 20, samples=samples)
+    camera = None
+    if samples == 5:
+        centre = scene.spheres[:3, 0]
+        camera = Camera(position=tuple(centre), look_at=tuple(centre + [0.2, -0.1, 1.0]))
+    alone = frame(scene, "cpu", 37, 20, camera, samples=samples, tree_width=2)
+    packets = frame(scene, "cpu", 37, 20, camera, samples=samples, threads=2)
     assert packets.rays["shadow"] > 0 and packets.rays["refraction"] > 0  # not vacuous
     assert np.array_equal(alone.hits, packets.hits) and alone.rays == packets.rays
     assert np.array_equal(alone.image, packets.image), np.count_nonzero(alone.image != packets.image)
+    if camera is not None:  # inside the glass, every ray meets it, or a sphere within it, from inside
+        assert (packets.hits >= 0).all() and (packets.hits == 0).any()
+
+
+def test_cpu_packets_stop_at_the_flag(rng):
+    """The packets program reads the stop flag (Ctrl-C's, cpu.Tracer._finish)
+    before each row of tiles: set, it returns and writes no pixel; cleared,
+    the same call traces the frame."""
+    scene = lit_scene(rng, 10)
+    with backends.tracer("cpu", scene.spheres, 37, 20, whitted=lighting.Shading.of(scene, 5, 1)) as tracer:
+        args = tracer._kernel_args(Camera().basis(37, 20), tracer.count)
+        tracer.image[:] = 7
+        tracer._kernel(0, 20, *args, np.ones(1, np.uint8))
+        assert (tracer.image == 7).all()
+        tracer._kernel(0, 20, *args, np.zeros(1, np.uint8))
+        assert (tracer.image != 7).any()
 
 
 @pytest.mark.parametrize("accel", ["bvh", "none"])

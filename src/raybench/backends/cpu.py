@@ -88,15 +88,15 @@ _DEAD = np.float32(-np.inf)  # a lane's length once blocked or where no ray is c
 
 def _packet_shadows(jit, find, toward):
     """whitted.build's `shadows` for the CPU's packets: (cast, blocked).
-    tree: (nodes, links, ordered, order, wide, wide_links, rays, spread,
-    stack), the last three the thread's own (_whitted_rows_packets)."""
+    tree: the packets program's tuple (the _T_ indices below: the trees,
+    then the thread's own scratch, _whitted_rows_packets)."""
 
     @jit
     def cast(px, py, pz, nx, ny, nz, light, samples, share, own, own_inside, spheres, count, lights, pattern, tree,
              stack_row, stack_t):  # fmt: skip
         """Bit s set where sample s's ray is blocked; 0 for samples whose
         ray is not cast (toward's facing 0)."""
-        rays = tree[6]
+        rays = tree[_T_RAYS]
         batch = np.int64(0)
         for first in range(0, samples, LANES):
             live = np.int64(0)
@@ -122,8 +122,9 @@ def _packet_shadows(jit, find, toward):
                     rays[_DX, k] = rays[_DX, lead]
                     rays[_DY, k] = rays[_DY, lead]
                     rays[_DZ, k] = rays[_DZ, lead]
-            batch |= _shadow_packet(px, py, pz, rays, tree[7], tree[8], tree[4], tree[5], tree[2], tree[3], own,
-                                    own_inside, live) << np.int64(first)  # fmt: skip
+            batch |= _shadow_packet(px, py, pz, rays, tree[_T_SPREAD], tree[_T_STACK], tree[_T_WIDE],
+                                    tree[_T_WIDE_LINKS], tree[2], tree[3], own, own_inside,
+                                    live) << np.int64(first)  # fmt: skip
         return batch
 
     @jit
@@ -133,7 +134,128 @@ def _packet_shadows(jit, find, toward):
     return cast, blocked
 
 
-_k = kernels.build(numba.njit(inline="always"), call=numba.njit(nogil=True), shadows=_packet_shadows)
+@numba.njit(inline="always", error_model="numpy")
+def _ray_box(w, c, lx, ly, lz, hx, hy, hz, ix, iy, iz, closest):
+    """traverse.slab's test of one ray on child box c of wide row w (lx =
+    origin + margin, hx = origin - margin, as traverse.axis_setup gives
+    them): (whether it enters no farther than closest, where it enters)."""
+    a0 = (w[_U(LO_X) + c] - lx) * ix
+    a1 = (w[_U(LO_Y) + c] - ly) * iy
+    a2 = (w[_U(LO_Z) + c] - lz) * iz
+    b0 = (w[_U(HI_X) + c] - hx) * ix
+    b1 = (w[_U(HI_Y) + c] - hy) * iy
+    b2 = (w[_U(HI_Z) + c] - hz) * iz
+    near = max(min(a0, b0), max(min(a1, b1), min(a2, b2)))
+    far = min(max(a0, b0), min(max(a1, b1), max(a2, b2)))
+    return (near <= far) & (far > ZERO) & (near <= closest), near
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _ray_boxes(wide, row, lx, ly, lz, hx, hy, hz, ix, iy, iz, closest):
+    """_ray_box on a wide node's four boxes, written out as four like
+    computations that LLVM's SLP vectoriser can put in one register: (a bit
+    set for each box entered, the four entry distances)."""
+    w = wide[row]
+    k0, n0 = _ray_box(w, _U(0), lx, ly, lz, hx, hy, hz, ix, iy, iz, closest)
+    k1, n1 = _ray_box(w, _U(1), lx, ly, lz, hx, hy, hz, ix, iy, iz, closest)
+    k2, n2 = _ray_box(w, _U(2), lx, ly, lz, hx, hy, hz, ix, iy, iz, closest)
+    k3, n3 = _ray_box(w, _U(3), lx, ly, lz, hx, hy, hz, ix, iy, iz, closest)
+    mask = np.int64(k0) | (np.int64(k1) << 1) | (np.int64(k2) << 2) | (np.int64(k3) << 3)
+    return mask, (n0, n1, n2, n3)
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _walk_wide(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, wide, wide_links, ordered, order, s_ref,
+               s_count, s_t):  # fmt: skip
+    """traverse.walk's answer for one Whitted ray (its `ahead` test, the
+    sphere `own` skipped or met at its far root) through the 4-wide tree: a
+    node's four boxes tested at once (_ray_boxes), the children it enters
+    pushed farthest first with where the ray enters each, popped nearest
+    first and skipped once a hit is nearer. The nearest sphere with 0 < t <
+    t_max, ties to the smaller original index, or with any_hit the first
+    found: the same (index, t, d) as the binary tree's walk, whose boxes
+    are the same padded ones, as no order of visiting changes which sphere
+    is nearest. s_ref, s_count, s_t: the stack (layout.WIDE_STACK)."""
+    ix, iy, iz = _inverse(dx), _inverse(dy), _inverse(dz)
+    margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
+    lx, ly, lz = ox + margin, oy + margin, oz + margin
+    hx, hy, hz = ox - margin, oy - margin, oz - margin
+    closest = t_max
+    hit = np.int64(-1)
+    hit_d = ZERO
+    s_ref[0] = 0
+    s_count[0] = INNER
+    s_t[0] = ZERO
+    top = 1
+    while top > 0:
+        top -= 1
+        if s_t[top] > closest:
+            continue
+        node = s_ref[top]
+        if s_count[top] != INNER:
+            for j in range(_U(node), _U(node + s_count[top])):
+                original = order[j]
+                if original == own and not own_inside:
+                    continue
+                t, d = _intersect_ahead_v(ordered[0, j] - ox, ordered[1, j] - oy, ordered[2, j] - oz, ordered[3, j],
+                                          dx, dy, dz, original == own)  # fmt: skip
+                if t > ZERO and (t < closest or (t == closest and original < hit)):
+                    closest = t
+                    hit = np.int64(original)
+                    hit_d = d
+            if any_hit and hit >= 0:
+                return hit, closest, hit_d
+            continue
+        mask, nears = _ray_boxes(wide, node, lx, ly, lz, hx, hy, hz, ix, iy, iz, closest)
+        base = top
+        for c in range(WIDTH):
+            if not (mask >> c) & 1:
+                continue
+            near = nears[c]
+            j = top  # insertion among this node's children, the nearest on top
+            while j > base and s_t[j - 1] < near:
+                s_ref[j] = s_ref[j - 1]
+                s_count[j] = s_count[j - 1]
+                s_t[j] = s_t[j - 1]
+                j -= 1
+            s_ref[j] = wide_links[node, W_REF + c]
+            s_count[j] = wide_links[node, W_COUNT + c]
+            s_t[j] = near
+            top += 1
+    return hit, closest, hit_d
+
+
+# The packets program's tree tuple (_whitted_rows_packets): the binary
+# tree's four arrays, the wide tree's two, the shadow packets' scratch
+# (_packet_shadows), the tile's primary hits (_tile_primaries), the lane of
+# the pixel being shaded, and the single-ray walk's stack.
+_T_WIDE, _T_WIDE_LINKS, _T_RAYS, _T_SPREAD, _T_STACK = 4, 5, 6, 7, 8
+_T_HIT, _T_CLOSEST, _T_HIT_D, _T_LANE, _T_S_REF, _T_S_COUNT, _T_S_T = 9, 10, 11, 12, 13, 14, 15
+
+
+@numba.njit(inline="always")
+def _search_wide(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, spheres, count, tree, stack_row, stack_t):
+    """The packets program's search (trace.search_tree's signature): a
+    primary ray (the one ray that leaves no sphere, own < 0) reads its hit
+    from its tile's packet, walked before the tile's pixels are shaded; the
+    reflected and refracted rays walk the 4-wide tree alone (_walk_wide)."""
+    if own < 0:
+        k = tree[_T_LANE][0]
+        return np.int64(tree[_T_HIT][k]), tree[_T_CLOSEST][k], tree[_T_HIT_D][k]
+    return _walk_wide(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, tree[_T_WIDE], tree[_T_WIDE_LINKS],
+                      tree[2], tree[3], tree[_T_S_REF], tree[_T_S_COUNT], tree[_T_S_T])  # fmt: skip
+
+
+# find, the one call of the Whitted programs through the binary tree and by
+# brute force, is compiled without the runtime's reference counting
+# (_nrt=False; _whitted_tiles says why): it allocates nothing and keeps no
+# array. The packets program inlines its find (trace.build).
+_k = kernels.build(
+    numba.njit(inline="always"),
+    call=numba.njit(nogil=True, _nrt=False),
+    shadows=_packet_shadows,
+    packets_search=_search_wide,
+)
 # module globals, which is how jitted code can see them
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
 _prepare_one, _may_hit, _intersect_relative = _k.prepare, _k.may_hit, _k.intersect_relative
@@ -402,10 +524,14 @@ def _rows_enter(lx, ly, lz, hx, hy, hz, ix, iy, iz, closest):
 
 @numba.njit(inline="always", error_model="numpy")
 def _packet_leaf(
-    ox, oy, oz, margin, dx, dy, dz, ordered, order, first, count, spread, closest, hit, hit_d, closest_bits, spread_bits
-):
+    ox, oy, oz, margin, dx, dy, dz, ordered, order, first, count, spread, closest, hit, hit_d, closest_bits,
+    spread_bits, ahead=False,
+):  # fmt: skip
     """The exact test of a leaf's spheres on every ray of the packet: EO as
-    intersect_sphere computes it, the walk's tie rule. A sphere whose own
+    intersect_sphere computes it, the walk's tie rule; ahead: Whitted's
+    primary rays' test (intersect_ahead for a ray that leaves no sphere, as
+    traverse.leaf_test makes it: the far root where the near one is behind,
+    a camera inside a sphere). A sphere whose own
     box (as the builder pads it, grown by margin as the walk grows boxes) no
     ray enters is skipped after one test for the packet (_missed_by_all):
     in the benchmark's scenes, 56-74% of the spheres of the leaves the
@@ -425,7 +551,10 @@ def _packet_leaf(
             continue
         ex, ey, ez = cx - ox, cy - oy, cz - oz
         for k in range(PACKET):
-            t, d = _intersect_relative_v(ex, ey, ez, r, dx[k], dy[k], dz[k])
+            if ahead:
+                t, d = _intersect_ahead_v(ex, ey, ez, r, dx[k], dy[k], dz[k], False)
+            else:
+                t, d = _intersect_relative_v(ex, ey, ez, r, dx[k], dy[k], dz[k])
             c = closest[k]
             better = (t > ZERO) & ((t < c) | ((t == c) & (original < hit[k])))
             closest[k] = t if better else c
@@ -661,6 +790,71 @@ def _wide_mask(wide, row, ox, oy, oz, margin, spread):
     return mask
 
 
+@numba.njit(inline="always", error_model="numpy")
+def _packet_walk_wide(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest, hit,
+                      hit_d, spread, closest_bits, spread_bits, stack_row, stack_count, along, chosen,
+                      ahead):  # fmt: skip
+    """The walk of _bvh_packets_wide's packet (started by _start_packet):
+    closest, hit and hit_d of every ray; ahead: _packet_leaf's, for
+    Whitted's primary rays. A wide node's four boxes go through the
+    packet's interval test together (_wide_mask), then each box it leaves
+    through the rays' own test (_rows_enter); the entered children are
+    visited nearest first along the packet's middle ray, leaves at once,
+    the nearest inner child next and the others pushed."""
+    cdx, cdy, cdz = dx[_MIDDLE], dy[_MIDDLE], dz[_MIDDLE]
+    row = 0
+    top = 0
+    while row >= 0:
+        mask = _wide_mask(wide, row, ox, oy, oz, margin, spread)
+        entered = 0
+        for c in range(WIDTH):
+            if not (mask >> c) & 1:
+                continue
+            lx = wide[row, LO_X + c] - margin - ox
+            ly = wide[row, LO_Y + c] - margin - oy
+            lz = wide[row, LO_Z + c] - margin - oz
+            hx = wide[row, HI_X + c] + margin - ox
+            hy = wide[row, HI_Y + c] + margin - oy
+            hz = wide[row, HI_Z + c] + margin - oz
+            if not _rows_enter(lx, ly, lz, hx, hy, hz, ix, iy, iz, closest):
+                continue
+            # where the box's centre lies along the middle ray: insertion
+            # into chosen[:entered], nearest first
+            along[c] = (lx + hx) * cdx + (ly + hy) * cdy + (lz + hz) * cdz
+            j = entered
+            while j > 0 and along[chosen[j - 1]] > along[c]:
+                chosen[j] = chosen[j - 1]
+                j -= 1
+            chosen[j] = c
+            entered += 1
+        # nearest first: leaves up to the nearest inner child tested
+        # now, that child walked next, everything farther pushed (the
+        # farthest first), leaves too, so that a near inner child's
+        # hits can rule out a farther leaf's spheres
+        node = row
+        row = -1
+        for j in range(entered):
+            c = chosen[j]
+            ref, count = wide_links[node, W_REF + c], wide_links[node, W_COUNT + c]
+            if row < 0 and count != INNER:
+                _packet_leaf(ox, oy, oz, margin, dx, dy, dz, ordered, order, ref, count, spread, closest,
+                             hit, hit_d, closest_bits, spread_bits, ahead)  # fmt: skip
+            elif row < 0:
+                row = ref
+                for i in range(entered - 1, j, -1):
+                    stack_row[top] = wide_links[node, W_REF + chosen[i]]
+                    stack_count[top] = wide_links[node, W_COUNT + chosen[i]]
+                    top += 1
+                break
+        while row < 0 and top > 0:
+            top -= 1
+            if stack_count[top] == INNER:
+                row = stack_row[top]
+            else:
+                _packet_leaf(ox, oy, oz, margin, dx, dy, dz, ordered, order, stack_row[top], stack_count[top],
+                             spread, closest, hit, hit_d, closest_bits, spread_bits, ahead)  # fmt: skip
+
+
 @compiled.njit(nogil=True, error_model="numpy")
 def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links, ordered, order, spheres, image,
                       hits, stop):  # fmt: skip
@@ -695,58 +889,9 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
             return
         for x0 in range(0, width, PACKET_W):
             _start_packet(x0, y0, end_row, width, height, basis, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, spread)
-            cdx, cdy, cdz = dx[_MIDDLE], dy[_MIDDLE], dz[_MIDDLE]
-            row = 0
-            top = 0
-            while row >= 0:
-                mask = _wide_mask(wide, row, ox, oy, oz, margin, spread)
-                entered = 0
-                for c in range(WIDTH):
-                    if not (mask >> c) & 1:
-                        continue
-                    lx = wide[row, LO_X + c] - margin - ox
-                    ly = wide[row, LO_Y + c] - margin - oy
-                    lz = wide[row, LO_Z + c] - margin - oz
-                    hx = wide[row, HI_X + c] + margin - ox
-                    hy = wide[row, HI_Y + c] + margin - oy
-                    hz = wide[row, HI_Z + c] + margin - oz
-                    if not _rows_enter(lx, ly, lz, hx, hy, hz, ix, iy, iz, closest):
-                        continue
-                    # where the box's centre lies along the middle ray: insertion
-                    # into chosen[:entered], nearest first
-                    along[c] = (lx + hx) * cdx + (ly + hy) * cdy + (lz + hz) * cdz
-                    j = entered
-                    while j > 0 and along[chosen[j - 1]] > along[c]:
-                        chosen[j] = chosen[j - 1]
-                        j -= 1
-                    chosen[j] = c
-                    entered += 1
-                # nearest first: leaves up to the nearest inner child tested
-                # now, that child walked next, everything farther pushed (the
-                # farthest first), leaves too, so that a near inner child's
-                # hits can rule out a farther leaf's spheres
-                node = row
-                row = -1
-                for j in range(entered):
-                    c = chosen[j]
-                    ref, count = wide_links[node, W_REF + c], wide_links[node, W_COUNT + c]
-                    if row < 0 and count != INNER:
-                        _packet_leaf(ox, oy, oz, margin, dx, dy, dz, ordered, order, ref, count, spread, closest,
-                                     hit, hit_d, closest_bits, spread_bits)  # fmt: skip
-                    elif row < 0:
-                        row = ref
-                        for i in range(entered - 1, j, -1):
-                            stack_row[top] = wide_links[node, W_REF + chosen[i]]
-                            stack_count[top] = wide_links[node, W_COUNT + chosen[i]]
-                            top += 1
-                        break
-                while row < 0 and top > 0:
-                    top -= 1
-                    if stack_count[top] == INNER:
-                        row = stack_row[top]
-                    else:
-                        _packet_leaf(ox, oy, oz, margin, dx, dy, dz, ordered, order, stack_row[top], stack_count[top],
-                                     spread, closest, hit, hit_d, closest_bits, spread_bits)  # fmt: skip
+            _packet_walk_wide(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest,
+                              hit, hit_d, spread, closest_bits, spread_bits, stack_row, stack_count, along, chosen,
+                              False)  # fmt: skip
             _store_packet(x0, y0, end_row, width, spheres, hit, hit_d, rgb, paint, image, hits)
 
 
@@ -903,11 +1048,9 @@ def _shadow_packet(ox, oy, oz, rays, spread, stack, wide, wide_links, ordered, o
 def _whitted_rows(render_pixel, first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern,
                   params, tree, image, hits, counts, stop):  # fmt: skip
     """Whitted shading of the rows first_row..end_row with render_pixel (the
-    program through the tree, with or without shadow packets, or by brute
-    force), a pixel at a time: its primary, reflected and refracted rays one
-    by one (they scatter: no packet keeps them together), its shadow rays
-    to a light one by one or as a packet (_packet_shadows); counts[y]: the
-    rays row y cast, by kind."""
+    program through the binary tree, or by brute force), a pixel at a time,
+    every ray alone; counts[y]: the rays row y cast, by kind. The packets
+    program has its own loop (_whitted_tiles)."""
     stack_row = np.empty(STACK, np.int32)
     stack_t = np.empty(STACK, np.float32)
     rays_f = np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_FLOATS), np.float32)
@@ -957,16 +1100,87 @@ _whitted_packets_pixel = _k.render_pixel_whitted["packets"]
 @compiled.njit(nogil=True)
 def _whitted_rows_packets(first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern,
                           params, tree, image, hits, counts, stop):  # fmt: skip
-    """_whitted_rows_bvh with each hit's shadow rays to a light as packets
-    (_packet_shadows) through the 4-wide tree; tree: (nodes, links, ordered,
-    order, wide, wide_links), given the thread's scratch for the packets."""
+    """Whitted shading of the rows first_row..end_row (a multiple of
+    PACKET_H from the frame's top) through the 4-wide tree (_whitted_tiles),
+    given the thread's scratch; tree: (nodes, links, ordered, order, wide,
+    wide_links)."""
     nodes, links, ordered, order, wide, wide_links = tree
-    rays = np.empty((7, LANES), np.float32)
-    spread = np.empty(7 + WIDTH, np.float32)
-    stack = np.empty(WIDE_STACK, np.int32)
-    own = (nodes, links, ordered, order, wide, wide_links, rays, spread, stack)
-    _whitted_rows(_whitted_packets_pixel, first_row, end_row, width, height, basis, spheres, count, materials, lights,
-                  pattern, params, own, image, hits, counts, stop)  # fmt: skip
+    lanes = np.empty((7, PACKET), np.float32)
+    hit = np.empty(PACKET, np.int32)
+    own = (nodes, links, ordered, order, wide, wide_links, np.empty((7, LANES), np.float32),
+           np.empty(7 + WIDTH, np.float32), np.empty(WIDE_STACK, np.int32), hit, lanes[6],
+           np.empty(PACKET, np.float32), np.zeros(1, np.int64), np.empty(WIDE_STACK, np.int32),
+           np.empty(WIDE_STACK, np.int32), np.empty(WIDE_STACK, np.float32))  # fmt: skip
+    _whitted_tiles(
+        first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern, params, own, lanes,
+        np.empty(7, np.float32), np.empty(WIDE_STACK, np.int32), np.empty(WIDE_STACK, np.int32),
+        np.empty(WIDTH, np.float32), np.empty(WIDTH, np.int64), np.empty(STACK, np.int32),
+        np.empty(STACK, np.float32), np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_FLOATS), np.float32),
+        np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_INTS), np.int32), image, hits, counts, stop,
+    )  # fmt: skip
+
+
+# Without the runtime's reference counting (_nrt=False): Numba counts the
+# references to every array each time one is passed to a function, inlined
+# or not, or taken from a tuple, with an atomic add and subtract on the
+# array's shared count (NRT_incref, NRT_decref): in the pixel program, whose
+# functions pass the frame's arrays down, those took 27-38% of a frame's
+# CPU time (perf, docs/whitted.md), and as the threads share the arrays,
+# each such add moves a cache line between the cores. These functions
+# allocate nothing and keep no array: _whitted_rows_packets, which holds the
+# scratch, calls them.
+@compiled.njit(nogil=True, error_model="numpy", _nrt=False)
+def _tile_primaries(x0, y0, end_row, width, height, basis, wide, wide_links, ordered, order, lanes, hit, hit_d, spread,
+                    stack_row, stack_count, along, chosen):  # fmt: skip
+    """The primary rays of the Whitted frame's PACKET_W x PACKET_H tile at
+    (x0, y0) as one packet through the 4-wide tree (_bvh_packets_wide's
+    walk, with the Whitted rays' test): lanes[6] (their t, FAR where none),
+    hit and hit_d, the answer of traverse.walk for each ray alone. lanes[:6]:
+    directions and inverses. A call of its own, with NumPy's error model,
+    which leaves the packet's loops SIMD (_kb's note)."""
+    closest = lanes[6]
+    dx, dy, dz, ix, iy, iz = lanes[0], lanes[1], lanes[2], lanes[3], lanes[4], lanes[5]
+    _start_packet(x0, y0, end_row, width, height, basis, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, spread)
+    ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
+    margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
+    _packet_walk_wide(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest, hit,
+                      hit_d, spread, closest.view(np.int32), spread.view(np.int32), stack_row, stack_count, along,
+                      chosen, True)  # fmt: skip
+
+
+@compiled.njit(nogil=True, _nrt=False)
+def _whitted_tiles(first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern, params, tree,
+                   lanes, spread, packet_row, packet_count, along, chosen, stack_row, stack_t, rays_f, rays_i, image,
+                   hits, counts, stop):  # fmt: skip
+    """_whitted_rows_packets' work, a tile of PACKET_W x PACKET_H pixels at
+    a time: the tile's primary rays as one packet (_tile_primaries), then
+    each pixel's program, whose reflected and refracted rays walk the wide
+    tree alone (_search_wide) and whose shadow rays to a light go as packets
+    (_packet_shadows); counts[y]: the rays row y cast, by kind."""
+    wide, wide_links, ordered, order = tree[_T_WIDE], tree[_T_WIDE_LINKS], tree[2], tree[3]
+    hit, hit_d, lane = tree[_T_HIT], tree[_T_HIT_D], tree[_T_LANE]
+    for y0 in range(first_row, end_row, PACKET_H):
+        if stop[0]:
+            return
+        lines = min(PACKET_H, end_row - y0)
+        for y in range(y0, y0 + lines):
+            for kind in range(len(whitted_mod.KINDS)):
+                counts[y, kind] = 0
+        for x0 in range(0, width, PACKET_W):
+            _tile_primaries(x0, y0, end_row, width, height, basis, wide, wide_links, ordered, order, lanes, hit, hit_d,
+                            spread, packet_row, packet_count, along, chosen)  # fmt: skip
+            for line in range(lines):
+                y = y0 + line
+                for i in range(min(PACKET_W, width - x0)):
+                    lane[0] = line * PACKET_W + i
+                    a, b, c, d = _whitted_packets_pixel(
+                        x0 + i, y, width, height, basis, spheres, count, materials, lights, pattern, params, tree,
+                        stack_row, stack_t, rays_f, rays_i, image, hits,
+                    )  # fmt: skip
+                    counts[y, whitted_mod.PRIMARY] += a
+                    counts[y, whitted_mod.SHADOW] += b
+                    counts[y, whitted_mod.REFLECTION] += c
+                    counts[y, whitted_mod.REFRACTION] += d
 
 
 WHITTED_ROWS = {"bvh": _whitted_rows_bvh, "none": _whitted_rows_all, "packets": _whitted_rows_packets}
@@ -1052,8 +1266,9 @@ class Tracer(TracerBase):
             self.bands = chunks(height, self.threads)
             workers = min(self.threads, len(self.bands))
             if self.accel == "bvh":
-                # 4: the shadow rays as packets through the 4-wide tree; 2: every
-                # ray alone through the binary tree
+                # 4: the primary and shadow rays as packets through the 4-wide
+                # tree, the bounces through it alone (_whitted_rows_packets); 2:
+                # every ray alone through the binary tree
                 self.tree_width = options.tree_width
             self._kernel = WHITTED_ROWS["packets" if self.tree_width == 4 else self.accel]
             self._row_rays = np.zeros((height, len(whitted_mod.KINDS)), np.int64)

@@ -14,14 +14,17 @@ from . import intersect, shade, traverse, wavefront, whitted
 from .constants import FAR, HALF, ONE, ZERO
 
 
-def build(jit, call=None, shadows=None):
+def build(jit, call=None, shadows=None, packets_search=None):
     """The algorithm compiled with `jit`; a namespace of its functions.
     call: the decorator of Whitted shading's search for a ray's hit (default
     jit), which the CPU compiles as one function called from both of its call
     sites rather than as two inlined copies of the walk (whitted.build).
     shadows: a backend's own way to trace a hit's shadow rays to a light
     (whitted.build's `shadows`, the CPU's packets): then a third Whitted
-    program, render_pixel_whitted["packets"], through the tree with them."""
+    program, render_pixel_whitted["packets"], through the tree with them.
+    packets_search: that program's search for the other rays (the CPU's
+    walk of its 4-wide tree, search_tree's signature); default search_tree.
+    That program's find is inlined (jit, not call)."""
     call = call or jit
     intersect_relative, intersect_sphere, prepare_sphere, may_hit, along, intersect_ahead = intersect.build(jit)
     shade_hit, shade_miss, to_byte = shade.build(jit)
@@ -139,7 +142,11 @@ def build(jit, call=None, shadows=None):
             stages = whitted.build(jit, call, search, shade_hit, shade_miss)
             wavefronts[search.__name__] = wavefront.build(jit, stages, primary_ray, shade_hit)
         else:
-            stages = whitted.build(jit, call, search, shade_hit, shade_miss, shadows, name="_packets")
+            # find inlined: this program's shadow rays call no find (its shadows trace
+            # them), so the walk has one call site and is compiled once, and the call's
+            # cost goes: 6-7% of a frame (docs/whitted.md, "CPU: the primary rays as
+            # packets")
+            stages = whitted.build(jit, jit, search, shade_hit, shade_miss, shadows, name="_packets")
         whitted_pixel = stages.whitted_pixel
 
         @jit
@@ -168,7 +175,7 @@ def build(jit, call=None, shadows=None):
     render_pixel_whitted = {"bvh": whitted_program(search_tree), "none": whitted_program(search_all)}
     whitted_wavefront = {"bvh": wavefronts["search_tree"], "none": wavefronts["search_all"]}
     if shadows is not None:
-        render_pixel_whitted["packets"] = whitted_program(search_tree, shadows)
+        render_pixel_whitted["packets"] = whitted_program(packets_search or search_tree, shadows)
 
     @jit
     def prepare(i, basis, spheres, relative):
