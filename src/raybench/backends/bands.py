@@ -62,6 +62,24 @@ def grown(needed: int, capacity: int) -> int:
     return capacity
 
 
+def regrown(counts, depth: int, shadow_base: int, overflow: int, rays: int, shadows: int, replan):
+    """The plan to trace a frame again with, after its bands' queue counts
+    (one row a band: the rays of each wave from column 0, the shadow rays of
+    each from shadow_base, the overflow flag at overflow), or None where no
+    queue overflowed. The queues double past what was asked of them (rays,
+    shadows: the capacities now); where doubled they no longer fit even a
+    row, they take only what was asked. replan(rays, shadows): a backend's
+    plan for those slots, raising RaybenchError where none fits."""
+    if not counts[:, overflow].any():
+        return None
+    need_rays = max(rays, int(counts[:, : depth + 2].max()))
+    need_shadows = max(shadows, int(counts[:, shadow_base : shadow_base + depth + 1].max()))
+    try:
+        return replan(grown(need_rays, rays), grown(need_shadows, shadows))
+    except RaybenchError:
+        return replan(need_rays, need_shadows)
+
+
 def plan(
     width: int, rows: int, rays: int, shadows: int, buffers: list[Buffer], limit: int, least: int, holds: str
 ) -> Plan:

@@ -38,7 +38,6 @@ import numpy as np
 from numba import cuda
 
 from ... import compiled, kernels
-from ...errors import RaybenchError
 from ...kernels.wavefront import R_KIND, R_PIXEL, RAY_IDS, RAY_ROWS, SHADOW_IDS, SHADOW_ROWS
 from ...kernels.whitted import KINDS, PRIMARY
 from ...layout import STACK
@@ -360,16 +359,10 @@ class Wavefront:
         if so they are made long enough for it (longer, or as long for
         fewer rows a band), to trace it again."""
         counts = self.d_counts.copy_to_host()[: self._bands]
-        if not counts[:, OVERFLOW].any():
+        plan = bands.regrown(counts, self.depth, SHADOW_BASE, OVERFLOW, self.ray_capacity, self.shadow_capacity,
+                             lambda rays, shadows: self._plan(self.plan.rows, rays, shadows))  # fmt: skip
+        if plan is None:
             return False
-        rays = max(self.ray_capacity, int(counts[:, : self.depth + 2].max()))
-        shadows = max(self.shadow_capacity, int(counts[:, SHADOW_BASE : SHADOW_BASE + self.depth + 1].max()))
-        try:
-            plan = self._plan(
-                self.plan.rows, bands.grown(rays, self.ray_capacity), bands.grown(shadows, self.shadow_capacity)
-            )
-        except RaybenchError:  # doubled, not even a row fits: the slots asked for, no more
-            plan = self._plan(self.plan.rows, rays, shadows)
         self._allocate(plan)
         self.retraced += 1
         return True

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...errors import RaybenchError
 from ...kernels import wavefront as stages
 from .. import bands
 from . import shader
@@ -226,16 +225,10 @@ class Wavefront:
             state = np.frombuffer(self.state_read.read_mapped(), np.uint32).reshape(-1, STATE).copy()
         finally:
             self.state_read.unmap()
-        if not state[:, OVERFLOW].any():
+        plan = bands.regrown(state, self.depth, SHADOW_BASE, OVERFLOW, self.ray_capacity, self.shadow_capacity,
+                             lambda rays, shadows: self._plan(self.plan.rows, rays, shadows))  # fmt: skip
+        if plan is None:
             return False
-        rays = max(self.ray_capacity, int(state[:, : self.depth + 2].max()))
-        shadows = max(self.shadow_capacity, int(state[:, SHADOW_BASE : SHADOW_BASE + self.depth + 1].max()))
-        try:
-            plan = self._plan(
-                self.plan.rows, bands.grown(rays, self.ray_capacity), bands.grown(shadows, self.shadow_capacity)
-            )
-        except RaybenchError:  # doubled, not even a row fits: the slots asked for, no more
-            plan = self._plan(self.plan.rows, rays, shadows)
         self._allocate(plan)
         self.retraced += 1
         return True
