@@ -793,6 +793,22 @@ def _wide_mask(wide, row, ox, oy, oz, margin, spread):
 
 
 @numba.njit(inline="always", error_model="numpy")
+def _wide_planes(wide, row, c, ox, oy, oz, margin):
+    """The planes of child c of wide row `row`, its box grown by margin (as
+    in kernels.traverse), relative to the packet's shared origin: (lx, ly,
+    lz, hx, hy, hz), the packets' box tests' arguments (_rows_enter,
+    _lanes_enter)."""
+    return (
+        wide[row, LO_X + c] - margin - ox,
+        wide[row, LO_Y + c] - margin - oy,
+        wide[row, LO_Z + c] - margin - oz,
+        wide[row, HI_X + c] + margin - ox,
+        wide[row, HI_Y + c] + margin - oy,
+        wide[row, HI_Z + c] + margin - oz,
+    )
+
+
+@numba.njit(inline="always", error_model="numpy")
 def _packet_walk_wide(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest, hit,
                       hit_d, spread, closest_bits, spread_bits, stack_row, stack_count, along, chosen,
                       ahead):  # fmt: skip
@@ -812,12 +828,7 @@ def _packet_walk_wide(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, 
         for c in range(WIDTH):
             if not (mask >> c) & 1:
                 continue
-            lx = wide[row, LO_X + c] - margin - ox
-            ly = wide[row, LO_Y + c] - margin - oy
-            lz = wide[row, LO_Z + c] - margin - oz
-            hx = wide[row, HI_X + c] + margin - ox
-            hy = wide[row, HI_Y + c] + margin - oy
-            hz = wide[row, HI_Z + c] + margin - oz
+            lx, ly, lz, hx, hy, hz = _wide_planes(wide, row, c, ox, oy, oz, margin)
             if not _rows_enter(lx, ly, lz, hx, hy, hz, ix, iy, iz, closest):
                 continue
             # where the box's centre lies along the middle ray: insertion
@@ -1008,12 +1019,7 @@ def _shadow_packet(ox, oy, oz, rays, spread, stack, wide, wide_links, ordered, o
         for c in range(WIDTH):
             if not (mask >> c) & 1:
                 continue
-            lx = wide[node, LO_X + c] - margin - ox
-            ly = wide[node, LO_Y + c] - margin - oy
-            lz = wide[node, LO_Z + c] - margin - oz
-            hx = wide[node, HI_X + c] + margin - ox
-            hy = wide[node, HI_Y + c] + margin - oy
-            hz = wide[node, HI_Z + c] + margin - oz
+            lx, ly, lz, hx, hy, hz = _wide_planes(wide, node, c, ox, oy, oz, margin)
             if not _lanes_enter(lx, ly, lz, hx, hy, hz, rays):
                 continue
             ref, count = wide_links[node, W_REF + c], wide_links[node, W_COUNT + c]
