@@ -1,4 +1,4 @@
-"""The Python API checks what a scene file checks, by the same code (issue 29):
+"""The Python API checks what a scene file checks, by the same code:
 Renderer.update's spheres (scene.check_values), a Scene's camera, a
 Shading made for another scene, a cluster's connect timeout and worker count
 (backends.limits, which the command line applies too)."""

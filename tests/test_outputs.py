@@ -4,7 +4,7 @@ file is written or replaced; a FIFO, a device, a socket or a folder at the
 path is refused in one line and left as it was; a symlink is replaced, never
 followed, and the new file's mode is the umask's, never the link target's;
 a name the file system cannot hold and a place where nothing can be made
-are one line and exit 2, before any work (issue 29)."""
+are one line and exit 2, before any work."""
 
 from __future__ import annotations
 

@@ -144,8 +144,7 @@ def build(jit, call=None, shadows=None, packets_search=None):
         else:
             # find inlined: this program's shadow rays call no find (its shadows trace
             # them), so the walk has one call site and is compiled once, and the call's
-            # cost goes: 6-7% of a frame (docs/whitted.md, "CPU: the primary rays as
-            # packets")
+            # cost goes (measured: docs/whitted.md, "CPU: the primary rays as packets")
             stages = whitted.build(jit, jit, search, shade_hit, shade_miss, shadows, name="_packets")
         whitted_pixel = stages.whitted_pixel
 
