@@ -21,7 +21,7 @@
 #            BASELINE="dir ..." (other versions' src/, carried; their commits in
 #            BASELINE_COMMITS, in the same order), those versions and this one in
 #            turn, twice, side by side in one lease
-#   builds   benchmarks/bvh_build.py (BUILDS_ARGS to change), with BASELINE as walks
+#   builds   benchmarks/bvh_build.py (BUILDS_ARGS to change), with BASELINE (and BASELINE_COMMITS) as walks
 #   whitted  benchmarks/whitted_rays.py: Whitted shading's rays a second (WHITTED_ARGS to change); with
 #            BASELINE (and BASELINE_COMMITS, as startup), those versions and this one in turn,
 #            WHITTED_ROUNDS times (2)
@@ -91,6 +91,20 @@ bench() {  # bench NAME SECONDS ARGS...: raybench bench, its results in $W/NAME/
     local name=$1 limit=$2; shift 2
     step "$name" "$limit" python3 -m raybench bench --no-report --label "$LABEL" --out "$W/$name" --duration "$DURATION" "$@"
 }
+baselines() {  # baselines STEP SECONDS LABEL COMMAND...: COMMAND under each version of BASELINE in turn
+    # (a version's src/ folder, named by the folder above it; its commit the same place in
+    # BASELINE_COMMITS), as step STEP (a printf pattern, %s the version's name), with
+    # --label LABEL-name added where LABEL is not empty
+    local pattern=$1 limit=$2 label=$3; shift 3
+    local commits=(${BASELINE_COMMITS:-}) i=0 base name
+    for base in ${BASELINE:-}; do
+        name=${base%/}; name=${name%/src}; name=${name##*/}
+        # shellcheck disable=SC2059
+        step "$(printf "$pattern" "$name")" "$limit" env PYTHONPATH="/tmp/site:$PWD/$base" \
+            RAYBENCH_GIT_COMMIT="${commits[$i]:-unknown}" "$@" ${label:+--label "$label-$name"}
+        i=$((i + 1))
+    done
+}
 for s in $STEPS; do
     case $s in
     info)
@@ -116,25 +130,18 @@ for s in $STEPS; do
     tuning) bench tuning "${TUNING_S:-50}" --suite tuning --accel bvh --device cuda ;;
     walks)
         for round in 1 2; do
-            commits=(${BASELINE_COMMITS:-}); i=0
-            for base in ${BASELINE:-}; do
-                name=${base%/}; name=${name%/src}; name=${name##*/}
-                # shellcheck disable=SC2086
-                step "walks-$name-$round" "${WALKS_S:-60}" env PYTHONPATH="/tmp/site:$PWD/$base" \
-                    RAYBENCH_GIT_COMMIT="${commits[$i]:-unknown}" python3 benchmarks/bvh_walks.py --label "walks-$name" ${WALKS_ARGS:---device cuda --device wgpu}
-                i=$((i + 1))
-            done
+            # shellcheck disable=SC2086
+            baselines "walks-%s-$round" "${WALKS_S:-60}" walks python3 benchmarks/bvh_walks.py \
+                ${WALKS_ARGS:---device cuda --device wgpu}
             # shellcheck disable=SC2086
             step "walks-$round" "${WALKS_S:-60}" python3 benchmarks/bvh_walks.py --label walks \
                 ${WALKS_ARGS:---device cuda --device wgpu}
         done ;;
     builds)
         for round in 1 2; do
-            for base in ${BASELINE:-}; do
-                # shellcheck disable=SC2086
-                step "builds-$base-$round" "${BUILDS_S:-90}" env PYTHONPATH="/tmp/site:$PWD/$base" \
-                    python3 benchmarks/bvh_build.py ${BUILDS_ARGS:---threads 1 --threads 4 --threads 16}
-            done
+            # shellcheck disable=SC2086
+            baselines "builds-%s-$round" "${BUILDS_S:-90}" "" python3 benchmarks/bvh_build.py \
+                ${BUILDS_ARGS:---threads 1 --threads 4 --threads 16}
             # shellcheck disable=SC2086
             step "builds-$round" "${BUILDS_S:-90}" python3 benchmarks/bvh_build.py \
                 ${BUILDS_ARGS:---threads 1 --threads 4 --threads 16}
@@ -146,15 +153,9 @@ for s in $STEPS; do
                 ${WHITTED_ARGS:---device cuda --device wgpu --device cpu}
         else  # side by side: each version of BASELINE (its commit in BASELINE_COMMITS) then this one, in turn
             for round in $(seq "${WHITTED_ROUNDS:-2}"); do
-                commits=(${BASELINE_COMMITS:-}); i=0
-                for base in $BASELINE; do  # a version's src/ folder, named by the folder above it
-                    name=${base%/}; name=${name%/src}; name=${name##*/}
-                    # shellcheck disable=SC2086
-                    step "whitted-$name-$round" "${WHITTED_S:-200}" env PYTHONPATH="/tmp/site:$PWD/$base" \
-                        RAYBENCH_GIT_COMMIT="${commits[$i]:-unknown}" python3 benchmarks/whitted_rays.py \
-                        --label "whitted-$name" ${WHITTED_ARGS:---device cuda --device wgpu}
-                    i=$((i + 1))
-                done
+                # shellcheck disable=SC2086
+                baselines "whitted-%s-$round" "${WHITTED_S:-200}" whitted python3 benchmarks/whitted_rays.py \
+                    ${WHITTED_ARGS:---device cuda --device wgpu}
                 # shellcheck disable=SC2086
                 step "whitted-$round" "${WHITTED_S:-200}" python3 benchmarks/whitted_rays.py --label whitted \
                     ${WHITTED_ARGS:---device cuda --device wgpu}
@@ -187,14 +188,9 @@ for s in $STEPS; do
     # shellcheck disable=SC2086
     dynamic) bench dynamic "${DYNAMIC_S:-300}" ${DYNAMIC_ARGS:---suite dynamic --device cuda --device cpu --device wgpu} ;;
     startup)
-        commits=(${BASELINE_COMMITS:-}); i=0
-        for base in ${BASELINE:-}; do
-            # shellcheck disable=SC2086
-            step "startup-$base" "${STARTUP_S:-240}" env PYTHONPATH="/tmp/site:$PWD/$base" \
-                RAYBENCH_GIT_COMMIT="${commits[$i]:-unknown}" ${STARTUP_CPUS:+taskset -c $STARTUP_CPUS} \
-                python3 benchmarks/startup.py ${STARTUP_ARGS:---device cpu --frames 2}
-            i=$((i + 1))
-        done
+        # shellcheck disable=SC2086
+        baselines "startup-%s" "${STARTUP_S:-240}" "" ${STARTUP_CPUS:+taskset -c $STARTUP_CPUS} \
+            python3 benchmarks/startup.py ${STARTUP_ARGS:---device cpu --frames 2}
         # shellcheck disable=SC2086
         step startup "${STARTUP_S:-240}" ${STARTUP_CPUS:+taskset -c $STARTUP_CPUS} \
             python3 benchmarks/startup.py ${STARTUP_ARGS:---device cpu --frames 2} ;;
