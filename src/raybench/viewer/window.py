@@ -131,6 +131,27 @@ def surface_capabilities(context, adapter) -> dict:
         return {"formats": [context.get_preferred_format(adapter)], "usages": int(wgpu.TextureUsage.RENDER_ATTACHMENT)}
 
 
+def reconfigure_checks_display(context) -> None:
+    """Make the surface's own reconfigure meet a lost display first. wgpu
+    configures the surface again by itself when getting a texture finds it
+    lost or outdated, which is what a dead X server makes it: that configure
+    then asks the Vulkan driver, which finds the surface unsupported, and
+    wgpu-native's fatal error handler aborts the process. A round trip to
+    the server just before it (check_display_alive) lets Xlib's handler say
+    it in one line instead. rendercanvas does not expose the wgpu context it
+    wraps; where that ever moves, the round trip before each draw remains."""
+    inner = getattr(context, "_wgpu_context", None)
+    configure = getattr(inner, "_configure_screen_real", None)
+    if configure is None:
+        return
+
+    def configure_if_alive(*args, **kwargs):
+        check_display_alive()
+        return configure(*args, **kwargs)
+
+    inner._configure_screen_real = configure_if_alive
+
+
 def screenshot_path(folder: Path) -> Path:
     """raybench-view-<date>-<time>.png in folder, never overwriting one."""
     stem = f"raybench-view-{datetime.datetime.now():%Y%m%d-%H%M%S}"
@@ -179,6 +200,7 @@ class ViewerWindow:
             self.context.configure(
                 device=self.device, format=self.format.configure, usage=usage, view_formats=self.format.view_formats
             )
+            reconfigure_checks_display(self.context)
             quad = TextureQuad(self.device, self.format.view)
             gpu_tracer = wgpu_tracer_here(state, self.device, self.adapter, named)
         except BaseException:
