@@ -18,7 +18,8 @@ import raybench
 from raybench import Camera, RaybenchError, backends, lighting
 
 
-def one(device, spheres, width, height, frames, accel, depth, samples, block=None, schedule=None, wave_grid=None):
+def one(device, spheres, width, height, frames, accel, depth, samples, block=None, schedule=None, wave_grid=None,
+        tree_width=None):  # fmt: skip
     scene = raybench.random_spheres(spheres, seed=0, materials=True)
     shading = lighting.Shading.of(scene, depth, samples)
     basis = Camera().basis(width, height)
@@ -27,6 +28,8 @@ def one(device, spheres, width, height, frames, accel, depth, samples, block=Non
         options["schedule"] = schedule
     if wave_grid is not None and schedule == "wavefront" and device == "cuda":
         options["wave_grid"] = wave_grid
+    if tree_width is not None:
+        options["tree_width"] = tree_width
     with backends.tracer(device, scene.spheres, width, height, accel=accel, whitted=shading, **options) as tracer:
         start = time.perf_counter()
         tracer.trace(basis)  # compiled, uploaded
@@ -45,6 +48,8 @@ def one(device, spheres, width, height, frames, accel, depth, samples, block=Non
             used["schedule"] = schedule
         if "wave_grid" in options:
             used["wave_grid"] = wave_grid
+        if getattr(tracer.options, "tree_width", None) is not None:
+            used["tree_width"] = tracer.options.tree_width
         shape = getattr(tracer, "block", None) or getattr(tracer, "workgroup", None)
         if shape is not None:
             used["block"] = list(shape)
@@ -92,6 +97,13 @@ def main() -> int:
         "--schedule", action="append", choices=["wavefront", "pixel"], help="cuda, wgpu: how Whitted's rays go"
     )
     parser.add_argument("--wave-grid", type=int, help="cuda's wavefront: blocks a stage (default: 32 a multiprocessor)")
+    parser.add_argument(
+        "--tree-width",
+        action="append",
+        type=int,
+        choices=[2, 4],
+        help="the tree the BVH's walks take (cpu: its packets; cuda, wgpu: the wavefront's); each in turn",
+    )
     _harness.add_common(parser, frames=7)
     args = parser.parse_args()
     _harness.check_common(parser, args)
@@ -101,7 +113,10 @@ def main() -> int:
         for _ in range(args.rounds):
             for device in args.device or ["cuda"]:
                 schedules = (args.schedule or [None]) if device in ("cuda", "wgpu") else [None]
-                for accel, schedule in ((a, s) for a in args.accel or ["bvh"] for s in schedules):
+                widths = args.tree_width or [None]
+                for accel, schedule, tree_width in (
+                    (a, s, w) for a in args.accel or ["bvh"] for s in schedules for w in widths
+                ):
                     for n in args.spheres or [1000, 10_000, 100_000]:
                         try:
                             out.write(
@@ -117,6 +132,7 @@ def main() -> int:
                                     args.block,
                                     schedule,
                                     args.wave_grid,
+                                    tree_width,
                                 )
                             )
                         except RaybenchError as exc:  # the point is not measured: said on stderr, the run goes on

@@ -19,7 +19,7 @@ so 1/d stays finite and (plane - origin) * (1/d) cannot be inf * 0.
 
 import numpy as np
 
-from ..layout import CHILD_BOX, COUNT, INNER, PAD, REF
+from ..layout import CHILD_BOX, COUNT, INNER, PAD, REF, W_COUNT, W_HI, W_LO, W_REF
 from .constants import FAR, ONE, ZERO
 
 # Small enough that replacing a zero component moves the ray by under 1e-20
@@ -262,4 +262,108 @@ def build(jit, intersect_sphere, intersect_ahead):
         )
         return hit, hit_d
 
-    return nearest_hit_bvh, inverse, ray_axes, children, leaf_hits, centre_along, walk
+    @jit
+    def wide_slab(wide, row, c, ix, iy, iz, lx, ly, lz, hx, hy, hz):
+        """slab() for child c of a 4-wide row (layout.W_*): the same planes,
+        at the wide row's columns."""
+        a0 = wide[row, _U(W_LO[0]) + c] * ix - lx
+        a1 = wide[row, _U(W_LO[1]) + c] * iy - ly
+        a2 = wide[row, _U(W_LO[2]) + c] * iz - lz
+        b0 = wide[row, _U(W_HI[0]) + c] * ix - hx
+        b1 = wide[row, _U(W_HI[1]) + c] * iy - hy
+        b2 = wide[row, _U(W_HI[2]) + c] * iz - hz
+        near = max(min(a0, b0), max(min(a1, b1), min(a2, b2)))
+        far = min(max(a0, b0), min(max(a1, b1), max(a2, b2)))
+        return near, far
+
+    @jit
+    def enters(near, far, closest):
+        """Where the ray enters a child box that reaches [0, closest]; FAR
+        where it does not (a key that sorts last and is never taken)."""
+        return near if near <= far and far > ZERO and near <= closest else FAR
+
+    @jit
+    def in_order(ka, sa, kb, sb):
+        """Two (key, slot) pairs, the nearer first."""
+        if kb < ka:
+            return kb, sb, ka, sa
+        return ka, sa, kb, sb
+
+    @jit
+    def entry_of(wide_links, node, slot):
+        """What a stack entry holds for child `slot` of wide row `node`: an
+        inner child's row (>= 0), or -(4 node + slot) - 1 for a leaf, whose
+        first sphere and count are read from the row when it is tested."""
+        if wide_links[node, _U(W_COUNT) + slot] == INNER:
+            return np.int32(wide_links[node, _U(W_REF) + slot])
+        return np.int32(-(np.int32(node) * np.int32(4) + np.int32(slot)) - np.int32(1))
+
+    @jit
+    def walk_wide(
+        ox, oy, oz, dx, dy, dz, t_max, any_hit, ahead, own, own_inside, wide, wide_links, ordered, order, stack_row,
+        stack_t,
+    ):  # fmt: skip
+        """walk()'s answer through the 4-wide tree (bvh.wide; the GPU's
+        Whitted stages): a node's four boxes tested, the children entered
+        put in order by where the ray enters them (a sorting network of
+        five exchanges, in registers), the nearest taken next and the others
+        pushed farthest first; a leaf is tested when it is taken. The boxes
+        are the binary tree's (the same padded planes), so the same spheres
+        are tested against the same reach and the answer is the same, bit
+        for bit: no order of visiting changes which sphere is nearest, ties
+        going to the smaller original index (leaf_test). stack_row /
+        stack_t: layout.WIDE_STACK entries."""
+        ix, iy, iz, lx, ly, lz, hx, hy, hz = ray_axes(ox, oy, oz, dx, dy, dz)
+        closest = t_max
+        hit = np.int32(-1)
+        hit_d = ZERO
+        none = np.int32(-(2**31))
+        entry = np.int32(0)
+        top = _U(0)
+        while entry != none:
+            if entry >= 0:
+                node = _U(entry)
+                n0, f0 = wide_slab(wide, node, _U(0), ix, iy, iz, lx, ly, lz, hx, hy, hz)
+                n1, f1 = wide_slab(wide, node, _U(1), ix, iy, iz, lx, ly, lz, hx, hy, hz)
+                n2, f2 = wide_slab(wide, node, _U(2), ix, iy, iz, lx, ly, lz, hx, hy, hz)
+                n3, f3 = wide_slab(wide, node, _U(3), ix, iy, iz, lx, ly, lz, hx, hy, hz)
+                k0, s0 = enters(n0, f0, closest), _U(0)
+                k1, s1 = enters(n1, f1, closest), _U(1)
+                k2, s2 = enters(n2, f2, closest), _U(2)
+                k3, s3 = enters(n3, f3, closest), _U(3)
+                k0, s0, k1, s1 = in_order(k0, s0, k1, s1)
+                k2, s2, k3, s3 = in_order(k2, s2, k3, s3)
+                k0, s0, k2, s2 = in_order(k0, s0, k2, s2)
+                k1, s1, k3, s3 = in_order(k1, s1, k3, s3)
+                k1, s1, k2, s2 = in_order(k1, s1, k2, s2)
+                if k3 < FAR:
+                    stack_row[top] = entry_of(wide_links, node, s3)
+                    stack_t[top] = k3
+                    top += _U(1)
+                if k2 < FAR:
+                    stack_row[top] = entry_of(wide_links, node, s2)
+                    stack_t[top] = k2
+                    top += _U(1)
+                if k1 < FAR:
+                    stack_row[top] = entry_of(wide_links, node, s1)
+                    stack_t[top] = k1
+                    top += _U(1)
+                entry = entry_of(wide_links, node, s0) if k0 < FAR else none
+            else:
+                code = np.uint32(-(entry + np.int32(1)))
+                node = _U(code >> np.uint32(2))
+                slot = _U(code & np.uint32(3))
+                closest, hit, hit_d = leaf_test(
+                    ox, oy, oz, dx, dy, dz, ordered, order, wide_links[node, _U(W_REF) + slot],
+                    wide_links[node, _U(W_COUNT) + slot], closest, hit, hit_d, ahead, own, own_inside,
+                )  # fmt: skip
+                if any_hit and hit >= 0:
+                    return hit, closest, hit_d
+                entry = none
+            while entry == none and top > _U(0):
+                top -= _U(1)
+                if any_hit or stack_t[top] <= closest:
+                    entry = stack_row[top]
+        return hit, closest, hit_d
+
+    return nearest_hit_bvh, inverse, ray_axes, children, leaf_hits, centre_along, walk, walk_wide
