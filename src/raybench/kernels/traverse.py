@@ -290,80 +290,102 @@ def build(jit, intersect_sphere, intersect_ahead):
         return ka, sa, kb, sb
 
     @jit
-    def entry_of(wide_links, node, slot):
-        """What a stack entry holds for child `slot` of wide row `node`: an
-        inner child's row (>= 0), or -(4 node + slot) - 1 for a leaf, whose
-        first sphere and count are read from the row when it is tested."""
-        if wide_links[node, _U(W_COUNT) + slot] == INNER:
-            return np.int32(wide_links[node, _U(W_REF) + slot])
-        return np.int32(-(np.int32(node) * np.int32(4) + np.int32(slot)) - np.int32(1))
+    def first_slot(mask):
+        """The lowest slot whose bit is set in a nonzero 4-bit mask."""
+        if mask & 1:
+            return _U(0)
+        if mask & 2:
+            return _U(1)
+        return _U(2) if mask & 4 else _U(3)
 
     @jit
     def walk_wide(
         ox, oy, oz, dx, dy, dz, t_max, any_hit, ahead, own, own_inside, wide, wide_links, ordered, order, stack_row,
         stack_t,
     ):  # fmt: skip
-        """walk()'s answer through the 4-wide tree (bvh.wide; the GPU's
-        Whitted stages): a node's four boxes tested, the children entered
-        put in order by where the ray enters them (a sorting network of
-        five exchanges, in registers), the nearest taken next and the others
-        pushed farthest first; a leaf is tested when it is taken. The boxes
-        are the binary tree's (the same padded planes), so the same spheres
-        are tested against the same reach and the answer is the same, bit
-        for bit: no order of visiting changes which sphere is nearest, ties
-        going to the smaller original index (leaf_test). stack_row /
-        stack_t: layout.WIDE_STACK entries."""
+        """walk()'s answer through the 4-wide tree (bvh.wide; the GPUs' Whitted
+        stages): a node's four boxes tested, the leaves among the children
+        entered tested at once, then its inner children entered put in order
+        by where the ray enters them (a sorting network of five exchanges,
+        in registers), the nearest taken next and the others pushed farthest
+        first. The boxes are the binary tree's (the same padded planes), so
+        the same spheres are tested against the same reach and the answer
+        is the same, bit for bit: no order of visiting changes which sphere
+        is nearest, ties going to the smaller original index (leaf_test).
+        stack_row / stack_t: layout.WIDE_STACK entries."""
         ix, iy, iz, lx, ly, lz, hx, hy, hz = ray_axes(ox, oy, oz, dx, dy, dz)
         closest = t_max
         hit = np.int32(-1)
         hit_d = ZERO
-        none = np.int32(-(2**31))
-        entry = np.int32(0)
+        node = _U(0)
         top = _U(0)
-        while entry != none:
-            if entry >= 0:
-                node = _U(entry)
-                n0, f0 = wide_slab(wide, node, _U(0), ix, iy, iz, lx, ly, lz, hx, hy, hz)
-                n1, f1 = wide_slab(wide, node, _U(1), ix, iy, iz, lx, ly, lz, hx, hy, hz)
-                n2, f2 = wide_slab(wide, node, _U(2), ix, iy, iz, lx, ly, lz, hx, hy, hz)
-                n3, f3 = wide_slab(wide, node, _U(3), ix, iy, iz, lx, ly, lz, hx, hy, hz)
-                k0, s0 = enters(n0, f0, closest), _U(0)
-                k1, s1 = enters(n1, f1, closest), _U(1)
-                k2, s2 = enters(n2, f2, closest), _U(2)
-                k3, s3 = enters(n3, f3, closest), _U(3)
-                k0, s0, k1, s1 = in_order(k0, s0, k1, s1)
-                k2, s2, k3, s3 = in_order(k2, s2, k3, s3)
-                k0, s0, k2, s2 = in_order(k0, s0, k2, s2)
-                k1, s1, k3, s3 = in_order(k1, s1, k3, s3)
-                k1, s1, k2, s2 = in_order(k1, s1, k2, s2)
-                if k3 < FAR:
-                    stack_row[top] = entry_of(wide_links, node, s3)
-                    stack_t[top] = k3
-                    top += _U(1)
-                if k2 < FAR:
-                    stack_row[top] = entry_of(wide_links, node, s2)
-                    stack_t[top] = k2
-                    top += _U(1)
-                if k1 < FAR:
-                    stack_row[top] = entry_of(wide_links, node, s1)
-                    stack_t[top] = k1
-                    top += _U(1)
-                entry = entry_of(wide_links, node, s0) if k0 < FAR else none
-            else:
-                code = np.uint32(-(entry + np.int32(1)))
-                node = _U(code >> np.uint32(2))
-                slot = _U(code & np.uint32(3))
+        while True:
+            n0, f0 = wide_slab(wide, node, _U(0), ix, iy, iz, lx, ly, lz, hx, hy, hz)
+            n1, f1 = wide_slab(wide, node, _U(1), ix, iy, iz, lx, ly, lz, hx, hy, hz)
+            n2, f2 = wide_slab(wide, node, _U(2), ix, iy, iz, lx, ly, lz, hx, hy, hz)
+            n3, f3 = wide_slab(wide, node, _U(3), ix, iy, iz, lx, ly, lz, hx, hy, hz)
+            k0, k1, k2, k3 = (
+                enters(n0, f0, closest),
+                enters(n1, f1, closest),
+                enters(n2, f2, closest),
+                enters(n3, f3, closest),
+            )
+            i0 = wide_links[node, _U(W_COUNT)] == INNER
+            i1 = wide_links[node, _U(W_COUNT + 1)] == INNER
+            i2 = wide_links[node, _U(W_COUNT + 2)] == INNER
+            i3 = wide_links[node, _U(W_COUNT + 3)] == INNER
+            leaves = (
+                (1 if k0 < FAR and not i0 else 0)
+                | (2 if k1 < FAR and not i1 else 0)
+                | (4 if k2 < FAR and not i2 else 0)
+                | (8 if k3 < FAR and not i3 else 0)
+            )
+            while leaves != 0:  # one call site of the leaf test for the four slots
+                slot = first_slot(leaves)
+                leaves &= leaves - 1
                 closest, hit, hit_d = leaf_test(
                     ox, oy, oz, dx, dy, dz, ordered, order, wide_links[node, _U(W_REF) + slot],
                     wide_links[node, _U(W_COUNT) + slot], closest, hit, hit_d, ahead, own, own_inside,
                 )  # fmt: skip
                 if any_hit and hit >= 0:
                     return hit, closest, hit_d
-                entry = none
-            while entry == none and top > _U(0):
+            # the inner children still within reach, nearest first
+            k0, s0 = (k0 if i0 and k0 <= closest else FAR), _U(0)
+            k1, s1 = (k1 if i1 and k1 <= closest else FAR), _U(1)
+            k2, s2 = (k2 if i2 and k2 <= closest else FAR), _U(2)
+            k3, s3 = (k3 if i3 and k3 <= closest else FAR), _U(3)
+            k0, s0, k1, s1 = in_order(k0, s0, k1, s1)
+            k2, s2, k3, s3 = in_order(k2, s2, k3, s3)
+            k0, s0, k2, s2 = in_order(k0, s0, k2, s2)
+            k1, s1, k3, s3 = in_order(k1, s1, k3, s3)
+            k1, s1, k2, s2 = in_order(k1, s1, k2, s2)
+            if k3 < FAR:
+                stack_row[top] = wide_links[node, _U(W_REF) + s3]
+                if not any_hit:  # a shadow ray's reach never shrinks: nothing pushed falls behind it
+                    stack_t[top] = k3
+                top += _U(1)
+            if k2 < FAR:
+                stack_row[top] = wide_links[node, _U(W_REF) + s2]
+                if not any_hit:
+                    stack_t[top] = k2
+                top += _U(1)
+            if k1 < FAR:
+                stack_row[top] = wide_links[node, _U(W_REF) + s1]
+                if not any_hit:
+                    stack_t[top] = k1
+                top += _U(1)
+            if k0 < FAR:
+                node = _U(wide_links[node, _U(W_REF) + s0])
+                continue
+            found = False
+            while top > _U(0):
                 top -= _U(1)
                 if any_hit or stack_t[top] <= closest:
-                    entry = stack_row[top]
+                    node = _U(stack_row[top])
+                    found = True
+                    break
+            if not found:
+                break
         return hit, closest, hit_d
 
     return nearest_hit_bvh, inverse, ray_axes, children, leaf_hits, centre_along, walk, walk_wide
