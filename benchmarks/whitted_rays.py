@@ -102,7 +102,7 @@ def main() -> int:
         action="append",
         type=int,
         choices=[2, 4],
-        help="the tree the BVH's walks take (cpu: its packets; cuda, wgpu: the wavefront's); each in turn",
+        help="cpu: the tree its BVH packets and bounces walk (2 or 4); each in turn",
     )
     _harness.add_common(parser, frames=7)
     args = parser.parse_args()

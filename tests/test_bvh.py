@@ -324,51 +324,6 @@ def test_collapse_to_4_wide(rng, kind):
     assert len(wide) <= b.node_count
 
 
-# chain's smallest spheres (radius 1e-30) make the exact test's products
-# underflow float32: a ray leaving one of them meets "hits" outside every
-# padded box, which no walk, binary or wide, is held to.
-@pytest.mark.parametrize("kind", sorted(set(SCENES) - {"chain"}))
-def test_the_wide_walk_is_the_binary_walk(rng, kind):
-    """traverse.walk_wide (the GPUs' wavefront through the 4-wide tree):
-    Whitted's rays, leaving a sphere outwards or into it or leaving none,
-    nearest hit or any hit within a reach, give the binary walk's answer bit
-    for bit: the same sphere, t and half-chord, and the same verdict of a
-    shadow ray."""
-    scene, _ = SCENES[kind](rng, int(rng.integers(1, 1500)))
-    b = bvh.build(scene.spheres)
-    wide = bvh.collapse(b)
-    s = scene.spheres
-    n = s.shape[1]
-    stacks = [np.empty(layout.STACK, np.int32), np.empty(layout.STACK, np.float32)]
-    wide_stacks = [np.empty(layout.WIDE_STACK, np.int32), np.empty(layout.WIDE_STACK, np.float32)]
-    hits = 0
-    for _ in range(150):
-        d = rng.normal(size=3)
-        d = (d / np.linalg.norm(d)).astype(np.float32)
-        own = int(rng.integers(-1, n)) if n else -1
-        if own >= 0:  # from the sphere's surface, a rounding off it
-            u = rng.normal(size=3)
-            o = (s[:3, own] + u / np.linalg.norm(u) * s[3, own] * (1 + rng.uniform(-1e-6, 1e-6))).astype(np.float32)
-        else:
-            o = (
-                (s[:3, int(rng.integers(n))] + rng.normal(size=3) * 3).astype(np.float32)
-                if n
-                else np.zeros(3, np.float32)
-            )
-        inside = bool(rng.random() < 0.3)
-        any_hit = bool(rng.random() < 0.5)
-        reach = np.float32(rng.uniform(0.1, 20) if rng.random() < 0.5 else 3e38)
-        args = (o[0], o[1], o[2], d[0], d[1], d[2], reach, any_hit, True, np.int32(own), inside)
-        want = K.walk(*args, b.nodes, b.links, b.ordered, b.order, *stacks)
-        got = K.walk_wide(*args, wide, wide.view(np.int32), b.ordered, b.order, *wide_stacks)
-        if any_hit:
-            assert (got[0] >= 0) == (want[0] >= 0), (args, got, want)
-        else:
-            assert (int(got[0]), got[1], got[2]) == (int(want[0]), want[1], want[2]), (args, got, want)
-        hits += want[0] >= 0
-    assert n == 0 or hits > 0
-
-
 def test_collapse_of_a_tree_built_in_python_is_the_same(rng):
     """A one-shot picture's tree (built by the builder's Python) is collapsed
     by the same code run as Python: the same rows as compiled."""

@@ -574,20 +574,6 @@ def test_the_wavefront_is_the_pixel_program(rng, request, device, accel):
     assert_same_frame(pixel, wave, rounds_as_the_cpu(device, request))
 
 
-@pytest.mark.parametrize("device", [pytest.param("cuda", marks=[pytest.mark.gpu, pytest.mark.slow])])
-def test_the_wavefronts_trees_give_one_frame(rng, request, device):
-    """The wavefront through the 4-wide tree (tree_width 4, the default)
-    and through the binary one: the same frame bit for bit on any device,
-    as both walks test the same spheres' exact hits against the same
-    padded boxes (traverse.walk_wide)."""
-    scene = lit_scene(rng, 12)
-    options = device_options(device, request)
-    binary, wide = (frame(scene, device, 24, 16, samples=2, tree_width=w, **options) for w in (2, 4))
-    assert wide.rays["reflection"] > 0 and wide.rays["refraction"] > 0 and wide.rays["shadow"] > 0
-    assert np.array_equal(binary.image, wide.image) and np.array_equal(binary.hits, wide.hits)
-    assert binary.rays == wide.rays
-
-
 @pytest.mark.parametrize("device", GPUS)
 def test_the_wavefronts_queues_grow_to_hold_a_frame(request, device):
     """A frame whose waves outgrow the queues a wavefront starts with (a ray

@@ -56,11 +56,6 @@ TREE_WIDTHS = (2, 4)
 
 # --- cuda --------------------------------------------------------------------------
 
-# The tree the wavefront's stages walk by default: 4, the binary tree
-# collapsed into 4-wide nodes (traverse.walk_wide), measured faster than the
-# binary walk on the H200 (docs/whitted.md).
-WAVE_TREE_WIDTH = 4
-
 # The fastest measured: simple in 16x16 blocks; fast (with TRIP) in 8x8
 # (docs/floors.md#each-version-against-the-floor); the BVH walked a ray at a
 # time in 8x8, which also makes a warp a compact 8x4 patch of pixels whose rays
@@ -195,20 +190,6 @@ def _schedule(schedule, whitted) -> str | None:
     return "wavefront" if schedule is None else _one_of("schedule", schedule, SCHEDULES)
 
 
-def _wave_tree_width(tree_width, accel, schedule) -> int | None:
-    """The tree a GPU's wavefront walks (WAVE_TREE_WIDTH by default); None
-    where no wavefront walks a tree."""
-    if accel != "bvh" or schedule != "wavefront":
-        if tree_width is not None:
-            raise RaybenchError("tree_width: applies to the BVH's wavefront only (accel='bvh', Whitted shading)")
-        return None
-    if tree_width is None:
-        return WAVE_TREE_WIDTH
-    if tree_width not in TREE_WIDTHS:
-        raise RaybenchError(f"tree_width: must be one of 2, 4, got {shown(tree_width)}")
-    return int(tree_width)
-
-
 def _gpu_build(build: str | None, device: str, quality, treelet_passes, refit_limit) -> tuple[str, int, float]:
     """The GPU build's variants (build "gpu" only): quality, where its
     leaves are cut ("sah", as the SAH says; "treelet", also rebuilding
@@ -277,9 +258,7 @@ class CudaOptions:
     the GPU build's leaf cuts, its treelet passes, and how far a refit may
     let the tree's cost grow before update() builds anew; schedule: Whitted's,
     "wavefront" or "pixel"; wave_grid: the wavefront's blocks (None: as many
-    as keep every multiprocessor full); tree_width: the tree the
-    wavefront's stages walk through the BVH (2, the binary tree; 4, it
-    collapsed into 4-wide nodes; None where no wavefront walks one)."""
+    as keep every multiprocessor full)."""
 
     accel: str
     kernel: str | None
@@ -295,13 +274,12 @@ class CudaOptions:
     refit_limit: float
     schedule: str | None
     wave_grid: int | None
-    tree_width: int | None
 
     @classmethod
     def check(
         cls, whitted=None, *, accel=None, kernel=None, constant_count=False, block=None, rays=None, staged=None,
         trip=None, walk=None, build=None, quality=None, treelet_passes=None, refit_limit=None, schedule=None,
-        wave_grid=None, tree_width=None,
+        wave_grid=None,
     ):  # fmt: skip
         fast_only = {"rays": rays is not None, "staged": staged is not None, "trip": trip is not None}
         accel, kernel = _method("cuda", accel, kernel, {"constant_count": constant_count, **fast_only}, whitted)
@@ -313,7 +291,6 @@ class CudaOptions:
             if schedule != "wavefront":
                 raise RaybenchError("wave_grid: applies to the wavefront schedule only (Whitted shading)")
             wave_grid = _integer("wave_grid", wave_grid, 1, MAX_WAVE_GRID)
-        tree_width = _wave_tree_width(tree_width, accel, schedule)
         if block is not None:
             block = _pair("block", block)
             shape = kernel or walk or "ray"
@@ -332,7 +309,7 @@ class CudaOptions:
             accel, kernel, bool(constant_count), block, rays if kernel == "fast" else 1,
             _integer("staged", STAGED if staged is None else staged, 1, MAX_STAGED),
             _integer("trip", TRIP if trip is None else trip, 1, MAX_TRIP),
-            walk, build, quality, treelet_passes, refit_limit, schedule, wave_grid, tree_width,
+            walk, build, quality, treelet_passes, refit_limit, schedule, wave_grid,
         )  # fmt: skip
 
 

@@ -1,7 +1,7 @@
 """The bounding volume hierarchy over the spheres, one layout for every backend.
 
   sah      the host's builder (binned SAH, compiled with Numba)
-  wide     its 4-wide collapse, which the CPU and the GPUs' wavefronts walk
+  wide     its 4-wide collapse, which the CPU walks
   oneshot  when a one-picture process runs the builder as plain Python
   lbvh     the parameters of the GPU builders' LBVH
   cost     a tree's SAH cost, whoever built it
@@ -44,7 +44,7 @@ from .sah import (
     compile_builder,
     sphere_pad,
 )
-from .wide import collapse, collapse_in_python, collapse_rows, compile_collapse
+from .wide import collapse, collapse_in_python, compile_collapse
 
 __all__ = [
     "BUILD_SPHERE_BYTES",
@@ -58,7 +58,6 @@ __all__ = [
     "build",
     "collapse",
     "collapse_in_python",
-    "collapse_rows",
     "compile_builder",
     "compile_collapse",
     "compiling_elsewhere",

@@ -118,14 +118,7 @@ def collapse(tree: Bvh) -> np.ndarray:
     """The 4-wide rows (layout.WIDE_FLOATS float32 columns; the int32 view holds
     the links) of a binary tree, over the same ordered spheres (see
     collapse_in_python for the way it runs)."""
-    return collapse_rows(tree.nodes, tree.links, collapse_in_python(tree))
-
-
-def collapse_rows(nodes: np.ndarray, links: np.ndarray, interpreted: bool = False) -> np.ndarray:
-    """collapse() of a binary tree given as its rows (nodes, and links, their
-    int32 view): a tree built on the GPU, copied to the host. interpreted:
-    run _collapse as Python (collapse_in_python)."""
-    wide = np.empty((max(len(nodes), 1), WIDE_FLOATS), np.float32)
-    code = compiled.as_python(sys.modules[__name__]) if interpreted else sys.modules[__name__]
-    used = code._collapse(nodes, links, wide, wide.view(np.int32))
+    wide = np.empty((max(len(tree.nodes), 1), WIDE_FLOATS), np.float32)
+    code = compiled.as_python(sys.modules[__name__]) if collapse_in_python(tree) else sys.modules[__name__]
+    used = code._collapse(tree.nodes, tree.links, wide, wide.view(np.int32))
     return wide[: int(used)].copy()

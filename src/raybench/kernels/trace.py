@@ -28,7 +28,7 @@ def build(jit, call=None, shadows=None, packets_search=None):
     call = call or jit
     intersect_relative, intersect_sphere, prepare_sphere, may_hit, along, intersect_ahead = intersect.build(jit)
     shade_hit, shade_miss, to_byte = shade.build(jit)
-    nearest_hit_bvh, inverse, ray_axes, children, leaf_hits, centre_along, walk, walk_wide = traverse.build(
+    nearest_hit_bvh, inverse, ray_axes, children, leaf_hits, centre_along, walk = traverse.build(
         jit, intersect_sphere, intersect_ahead
     )
 
@@ -132,16 +132,6 @@ def build(jit, call=None, shadows=None, packets_search=None):
         )  # fmt: skip
 
     @jit
-    def search_wide(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, spheres, count, tree, stack_row,
-                    stack_t):  # fmt: skip
-        """Whitted's rays through the 4-wide tree, tree = (wide, wide_links,
-        ordered, order) (bvh.wide); stack_row / stack_t of layout.WIDE_STACK."""
-        return walk_wide(
-            ox, oy, oz, dx, dy, dz, t_max, any_hit, True, own, own_inside, tree[0], tree[1], tree[2], tree[3],
-            stack_row, stack_t,
-        )  # fmt: skip
-
-    @jit
     def search_all(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, spheres, count, tree, stack_row,
                    stack_t):  # fmt: skip
         """Whitted's rays by brute force, every sphere tested (the tree unused)."""
@@ -182,12 +172,7 @@ def build(jit, call=None, shadows=None, packets_search=None):
     # stages for each (kernels/wavefront.py)
     wavefronts = {}
     render_pixel_whitted = {"bvh": whitted_program(search_tree), "none": whitted_program(search_all)}
-    whitted_program(search_wide)
-    whitted_wavefront = {
-        "bvh": wavefronts["search_tree"],
-        "wide": wavefronts["search_wide"],
-        "none": wavefronts["search_all"],
-    }
+    whitted_wavefront = {"bvh": wavefronts["search_tree"], "none": wavefronts["search_all"]}
     if shadows is not None:
         render_pixel_whitted["packets"] = whitted_program(packets_search or search_tree, shadows)
 
@@ -226,6 +211,5 @@ def build(jit, call=None, shadows=None, packets_search=None):
         render_pixel_whitted=render_pixel_whitted,
         whitted_wavefront=whitted_wavefront,
         walk=walk,
-        walk_wide=walk_wide,
         intersect_ahead=intersect_ahead,
     )

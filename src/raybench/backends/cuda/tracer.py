@@ -446,8 +446,6 @@ class Tracer(TracerBase):
         self.whitted = whitted
         self.schedule = options.schedule
         self._wavefront = None  # the wavefront's queues and launches (schedule "wavefront")
-        # the 4-wide tree the wavefront walks (tree_width 4), over the binary tree's ordered spheres
-        self.d_wide = self.d_wide_links = None
         self.ray_counts = None
         if whitted is not None:
             self._kernel = _whitted_kernel
@@ -497,29 +495,12 @@ class Tracer(TracerBase):
             self.bvh = cuda_build.build(self.spheres[:, :count], self.d_spheres, self._builder)
             # the fresh tree's SAH cost: what update()'s refits are held to
             self._fresh_cost = self._builder.read_cost() if self.bvh.built_on == "gpu" else None
-            wide = self._collapsed(None)
         else:
-            host_tree = bvh_mod.build(self.spheres[:, :count], device="cuda")
-            self.bvh = cuda_build.upload(host_tree)
-            wide = self._collapsed(host_tree)
+            self.bvh = cuda_build.upload(bvh_mod.build(self.spheres[:, :count], device="cuda"))
         self._launches.clear()  # they hold the old tree's arrays
         self.build_s = self.bvh.build_s
         self.d_nodes, self.d_links = self.bvh.nodes, self.bvh.links  # the same bytes: one row holds both
         self.d_ordered, self.d_order = self.bvh.ordered, self.bvh.order
-        if wide is not None:
-            self.d_wide = cuda.to_device(wide)
-            self.d_wide_links = self.d_wide.view(np.int32)
-
-    def _collapsed(self, host_tree):
-        """The 4-wide rows of the tree just built where the wavefront walks
-        them (tree_width 4), else None: collapsed on the host from
-        host_tree, or from the GPU's tree copied back (host_tree None)."""
-        if self.options.tree_width != 4:
-            return None
-        if host_tree is not None:
-            return bvh_mod.collapse(host_tree)
-        nodes = self.bvh.nodes.copy_to_host()
-        return bvh_mod.collapse_rows(nodes, nodes.view(np.int32))
 
     def _rows_walked(self) -> int:
         """The rows of the tree a walk can reach: all of a host-built tree's;
@@ -696,9 +677,7 @@ class Tracer(TracerBase):
         """The compiled kernels a frame launches, by name: {"frame": ...}, or
         the wavefront's stages; for benchmarks that read their registers or
         their assembly."""
-        if self._wavefront is not None:
-            return self._wavefront.kernels(self.d_wide is not None)
-        return {"frame": self._kernel}
+        return self._wavefront.kernels() if self._wavefront is not None else {"frame": self._kernel}
 
     @property
     def wavefront(self):

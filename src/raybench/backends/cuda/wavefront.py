@@ -40,18 +40,17 @@ from numba import cuda
 from ... import compiled, kernels
 from ...kernels.wavefront import R_KIND, R_PIXEL, RAY_IDS, RAY_ROWS, SHADOW_IDS, SHADOW_ROWS
 from ...kernels.whitted import KINDS, PRIMARY
-from ...layout import STACK, WIDE_STACK
+from ...layout import STACK
 from .. import bands
 from .device import simulated
 from .launch import Launches
 
 _k = kernels.build(cuda.jit(device=True))
 # module globals, which is how kernels can see them: the stages through the
-# binary tree, the 4-wide tree and by brute force (only extend and the
-# shadow test search)
-_tree, _wide, _every = _k.whitted_wavefront["bvh"], _k.whitted_wavefront["wide"], _k.whitted_wavefront["none"]
-_extend_tree, _extend_wide_tree, _extend_every = _tree.extend, _wide.extend, _every.extend
-_unblocked_tree, _unblocked_wide_tree, _unblocked_every = _tree.unblocked, _wide.unblocked, _every.unblocked
+# tree and by brute force (only extend and the shadow test search)
+_tree, _every = _k.whitted_wavefront["bvh"], _k.whitted_wavefront["none"]
+_extend_tree, _extend_every = _tree.extend, _every.extend
+_unblocked_tree, _unblocked_every = _tree.unblocked, _every.unblocked
 _emit_primary, _missed, _shade_ray = _tree.emit_primary, _tree.missed, _tree.shade
 _put_shadows, _put_children = _tree.put_shadows, _tree.put_children
 _fixed, _resolve, _to_byte = _tree.fixed, _tree.resolve, _k.to_byte
@@ -133,46 +132,18 @@ def _primary(rays_f, rays_i, counts, first_pixel, pixels, width, height, basis):
         _emit_primary(rays_f, rays_i, i, first_pixel + i, width, height, basis)
 
 
-@cuda.jit(device=True)
-def _tally_start(tally):
-    """A block's tally of the rays it traces by kind (shared memory), zeroed."""
-    if cuda.threadIdx.x < 4:
-        tally[cuda.threadIdx.x] = 0
-    cuda.syncthreads()
-
-
-@cuda.jit(device=True)
-def _hit_found(i, h, t, d, rays_i, hit_i, hit_t, hit_d, hits, width, tally):
-    """The nearest hit of ray i kept for shading; a primary ray's into `hits`."""
-    hit_i[i] = h
-    hit_t[i] = t
-    hit_d[i] = d
-    kind = rays_i[R_KIND, i]
-    if kind == PRIMARY:
-        pixel = rays_i[R_PIXEL, i]
-        hits[pixel // width, pixel % width] = h
-    cuda.atomic.add(tally, kind, 1)
-
-
-@cuda.jit(device=True)
-def _tally_end(tally, rays):
-    """The block's tally into the frame's (one atomic a kind; shadow rays are the shadow stage's)."""
-    cuda.syncthreads()
-    me = cuda.threadIdx.x
-    if me < 4 and me != 1 and tally[me] > 0:
-        cuda.atomic.add(rays, me, np.int64(tally[me]))
-
-
 # Registers capped: more blocks resident on a multiprocessor hide more of the
 # walk's latency, which bounds it (docs/whitted.md#the-wavefront-issue-27)
 @compiled.cuda_jit(max_registers=56)
 def _extend(rays_f, rays_i, counts, wave, capacity, spheres, count, nodes, links, ordered, order, hit_i, hit_t,
             hit_d, hits, width, rays):  # fmt: skip
-    """Each ray's nearest hit through the binary tree (or by brute force
-    where it has no node); the primary rays' into `hits`; the rays by kind
-    into `rays`."""
+    """Each ray's nearest hit; the primary rays' into `hits`; the rays by
+    kind into `rays` (a block's tally, then one atomic a kind)."""
     tally = cuda.shared.array(4, np.int32)
-    _tally_start(tally)
+    me = cuda.threadIdx.x
+    if me < 4:
+        tally[me] = 0
+    cuda.syncthreads()
     n = min(counts[wave], capacity)
     stack_row = cuda.local.array(STACK, np.int32)
     stack_t = cuda.local.array(STACK, np.float32)
@@ -183,27 +154,18 @@ def _extend(rays_f, rays_i, counts, wave, capacity, spheres, count, nodes, links
             h, t, d = _extend_tree(rays_f, rays_i, i, spheres, count, tree, stack_row, stack_t)
         else:
             h, t, d = _extend_every(rays_f, rays_i, i, spheres, count, tree, stack_row, stack_t)
-        _hit_found(i, h, t, d, rays_i, hit_i, hit_t, hit_d, hits, width, tally)
+        hit_i[i] = h
+        hit_t[i] = t
+        hit_d[i] = d
+        kind = rays_i[R_KIND, i]
+        if kind == PRIMARY:
+            pixel = rays_i[R_PIXEL, i]
+            hits[pixel // width, pixel % width] = h
+        cuda.atomic.add(tally, kind, 1)
         i += cuda.gridsize(1)
-    _tally_end(tally, rays)
-
-
-@compiled.cuda_jit(max_registers=56)
-def _extend_wide(rays_f, rays_i, counts, wave, capacity, spheres, count, wide, wide_links, ordered, order, hit_i,
-                 hit_t, hit_d, hits, width, rays):  # fmt: skip
-    """_extend through the 4-wide tree (tree_width 4)."""
-    tally = cuda.shared.array(4, np.int32)
-    _tally_start(tally)
-    n = min(counts[wave], capacity)
-    stack_row = cuda.local.array(WIDE_STACK, np.int32)
-    stack_t = cuda.local.array(WIDE_STACK, np.float32)
-    tree = (wide, wide_links, ordered, order)
-    i = cuda.grid(1)
-    while i < n:
-        h, t, d = _extend_wide_tree(rays_f, rays_i, i, spheres, count, tree, stack_row, stack_t)
-        _hit_found(i, h, t, d, rays_i, hit_i, hit_t, hit_d, hits, width, tally)
-        i += cuda.gridsize(1)
-    _tally_end(tally, rays)
+    cuda.syncthreads()
+    if me < 4 and me != 1 and tally[me] > 0:
+        cuda.atomic.add(rays, me, np.int64(tally[me]))
 
 
 @compiled.cuda_jit()
@@ -266,23 +228,6 @@ def _shadow(shadows_f, shadows_i, counts, wave, capacity, spheres, count, nodes,
         else:
             free = _unblocked_every(shadows_f, shadows_i, i, spheres, count, tree, stack_row, stack_t)
         if free:
-            _add(accum, shadows_i[0, i], shadows_f[7, i], shadows_f[8, i], shadows_f[9, i])
-        i += cuda.gridsize(1)
-
-
-@compiled.cuda_jit()
-def _shadow_wide(shadows_f, shadows_i, counts, wave, capacity, spheres, count, wide, wide_links, ordered, order,
-                 accum, rays):  # fmt: skip
-    """_shadow through the 4-wide tree (tree_width 4)."""
-    n = min(counts[SHADOW_BASE + wave], capacity)
-    if cuda.grid(1) == 0 and n > 0:
-        cuda.atomic.add(rays, 1, np.int64(n))
-    stack_row = cuda.local.array(WIDE_STACK, np.int32)
-    stack_t = cuda.local.array(WIDE_STACK, np.float32)
-    tree = (wide, wide_links, ordered, order)
-    i = cuda.grid(1)
-    while i < n:
-        if _unblocked_wide_tree(shadows_f, shadows_i, i, spheres, count, tree, stack_row, stack_t):
             _add(accum, shadows_i[0, i], shadows_f[7, i], shadows_f[8, i], shadows_f[9, i])
         i += cuda.gridsize(1)
 
@@ -382,18 +327,13 @@ class Wavefront:
                width, self.height, tracer.d_basis)  # fmt: skip
         mark = self.mark or _unmarked
         mark("start")
-        if tracer.d_wide is not None:  # tree_width 4
-            tree = (tracer.d_wide, tracer.d_wide_links, tracer.d_ordered, tracer.d_order)
-            extend, shadow = _extend_wide, _shadow_wide
-        else:
-            tree = (tracer.d_nodes, tracer.d_links, tracer.d_ordered, tracer.d_order)
-            extend, shadow = _extend, _shadow
+        tree = (tracer.d_nodes, tracer.d_links, tracer.d_ordered, tracer.d_order)
         ray_blocks = self._blocks(self.ray_capacity)
         shadow_blocks = self._blocks(self.shadow_capacity)
         for wave in range(self.depth + 1):
             rays_f, rays_i = self.queues[wave % 2]
             next_f, next_i = self.queues[(wave + 1) % 2]
-            launch(extend, ray_blocks, BLOCK, rays_f, rays_i, counts, wave, self.ray_capacity,
+            launch(_extend, ray_blocks, BLOCK, rays_f, rays_i, counts, wave, self.ray_capacity,
                    tracer.d_spheres, count, *tree, self.d_hit_i, self.d_hit_t, self.d_hit_d, tracer.d_hits, width,
                    tracer.d_rays)  # fmt: skip
             mark("extend")
@@ -402,7 +342,7 @@ class Wavefront:
                    self.d_shadows_i, self.shadow_capacity, tracer.d_spheres, tracer.d_materials, tracer.d_lights,
                    tracer.d_pattern, tracer.d_params, width, self.depth, self.d_accum)  # fmt: skip
             mark("shade")
-            launch(shadow, shadow_blocks, BLOCK, self.d_shadows_f, self.d_shadows_i, counts, wave,
+            launch(_shadow, shadow_blocks, BLOCK, self.d_shadows_f, self.d_shadows_i, counts, wave,
                    self.shadow_capacity, tracer.d_spheres, count, *tree, self.d_accum, tracer.d_rays)  # fmt: skip
             mark("shadow")
         launch(_finish, max(1, math.ceil(pixels / BLOCK)), BLOCK, self.d_accum, first_pixel, pixels, width,
@@ -410,11 +350,9 @@ class Wavefront:
         mark("finish")
 
     @staticmethod
-    def kernels(wide: bool) -> dict:
-        """The stages' kernels by name (Tracer.kernels), those through the
-        4-wide tree where `wide`."""
-        extend, shadow = (_extend_wide, _shadow_wide) if wide else (_extend, _shadow)
-        return {"extend": extend, "shade": _shade, "shadow": shadow}
+    def kernels() -> dict:
+        """The stages' kernels by name (Tracer.kernels)."""
+        return {"extend": _extend, "shade": _shade, "shadow": _shadow}
 
     def overflowed(self) -> bool:
         """Whether the last frame's queues were too short (waits for it);
