@@ -28,7 +28,7 @@ def build(jit, call=None, shadows=None, packets_search=None):
     call = call or jit
     intersect_relative, intersect_sphere, prepare_sphere, may_hit, along, intersect_ahead = intersect.build(jit)
     shade_hit, shade_miss, to_byte = shade.build(jit)
-    nearest_hit_bvh, inverse, ray_axes, children, leaf_hits, centre_along, walk, walk_step = traverse.build(
+    nearest_hit_bvh, inverse, ray_axes, children, leaf_hits, centre_along, walk = traverse.build(
         jit, intersect_sphere, intersect_ahead
     )
 
@@ -211,6 +211,5 @@ def build(jit, call=None, shadows=None, packets_search=None):
         render_pixel_whitted=render_pixel_whitted,
         whitted_wavefront=whitted_wavefront,
         walk=walk,
-        walk_step=walk_step,
         intersect_ahead=intersect_ahead,
     )

@@ -162,66 +162,6 @@ def build(jit, intersect_sphere, intersect_ahead):
         return leaf_test(ox, oy, oz, dx, dy, dz, ordered, order, first, count, closest, hit, hit_d, False, -1, False)
 
     @jit
-    def walk_step(
-        ox, oy, oz, dx, dy, dz, ix, iy, iz, lx, ly, lz, hx, hy, hz, any_hit, ahead, own, own_inside, nodes, links,
-        ordered, order, stack_row, stack_t, row, top, closest, hit, hit_d,
-    ):  # fmt: skip
-        """One step of walk(): node `row`'s two children tested (a leaf's
-        spheres at once, an inner child entered or pushed), then the next
-        row to take, popped where neither child is. Returns the walk's state
-        after it, (row, top, closest, hit, hit_d): row -1 when the walk is
-        over. A GPU's stage can take the steps of a thread's rays one after
-        another, a new ray as soon as one is over, so that a warp's threads
-        step together instead of waiting for its longest walk
-        (docs/whitted.md)."""
-        a_near, a_far, b_near, b_far, a_ref, b_ref, a_count, b_count = children(
-            nodes, links, _U(row), ix, iy, iz, lx, ly, lz, hx, hy, hz
-        )
-        # near child first: its hits can rule the far one out (and a
-        # shadow ray meets a blocker sooner: the tree's order measured
-        # slower on the GPU, docs/whitted.md)
-        if b_near < a_near:
-            a_near, a_far, a_ref, a_count, b_near, b_far, b_ref, b_count = (
-                b_near,
-                b_far,
-                b_ref,
-                b_count,
-                a_near,
-                a_far,
-                a_ref,
-                a_count,
-            )
-        row = -1
-        if a_near <= a_far and a_far > ZERO and a_near <= closest:
-            if a_count == INNER:
-                row = a_ref
-            else:
-                closest, hit, hit_d = leaf_test(
-                    ox, oy, oz, dx, dy, dz, ordered, order, a_ref, a_count, closest, hit, hit_d, ahead, own,
-                    own_inside,
-                )  # fmt: skip
-        if b_near <= b_far and b_far > ZERO and b_near <= closest:
-            if b_count != INNER:
-                closest, hit, hit_d = leaf_test(
-                    ox, oy, oz, dx, dy, dz, ordered, order, b_ref, b_count, closest, hit, hit_d, ahead, own,
-                    own_inside,
-                )  # fmt: skip
-            elif row < 0:
-                row = b_ref
-            else:
-                stack_row[top] = b_ref
-                if not any_hit:  # a shadow ray's t_max never shrinks: nothing pushed can fall behind it
-                    stack_t[top] = b_near
-                top += _U(1)
-        if any_hit and hit >= 0:
-            return -1, top, closest, hit, hit_d
-        while row < 0 and top > _U(0):
-            top -= _U(1)
-            if any_hit or stack_t[top] <= closest:
-                row = stack_row[top]
-        return row, top, closest, hit, hit_d
-
-    @jit
     def walk(
         ox, oy, oz, dx, dy, dz, t_max, any_hit, ahead, own, own_inside, nodes, links, ordered, order, stack_row, stack_t
     ):
@@ -230,8 +170,7 @@ def build(jit, intersect_sphere, intersect_ahead):
         the first such sphere (a shadow ray's blocker), whichever it is.
         ahead, own, own_inside: the secondary rays' test (leaf_test).
         stack_row / stack_t: the walk's stack, layout.STACK entries, given by
-        the backend (a CUDA thread's local array, a CPU thread's own). Its
-        steps are walk_step's, from the root."""
+        the backend (a CUDA thread's local array, a CPU thread's own)."""
         ix, iy, iz, lx, ly, lz, hx, hy, hz = ray_axes(ox, oy, oz, dx, dy, dz)
         closest = t_max
         hit = np.int32(-1)  # the spheres' original indices are int32: compared in one step, not two
@@ -239,10 +178,79 @@ def build(jit, intersect_sphere, intersect_ahead):
         row = 0
         top = _U(0)
         while row >= 0:
-            row, top, closest, hit, hit_d = walk_step(
-                ox, oy, oz, dx, dy, dz, ix, iy, iz, lx, ly, lz, hx, hy, hz, any_hit, ahead, own, own_inside, nodes,
-                links, ordered, order, stack_row, stack_t, row, top, closest, hit, hit_d,
-            )  # fmt: skip
+            a_near, a_far, b_near, b_far, a_ref, b_ref, a_count, b_count = children(
+                nodes, links, _U(row), ix, iy, iz, lx, ly, lz, hx, hy, hz
+            )
+            # near child first: its hits can rule the far one out (and a
+            # shadow ray meets a blocker sooner: the tree's order measured
+            # slower on the GPU, docs/whitted.md)
+            if b_near < a_near:
+                a_near, a_far, a_ref, a_count, b_near, b_far, b_ref, b_count = (
+                    b_near,
+                    b_far,
+                    b_ref,
+                    b_count,
+                    a_near,
+                    a_far,
+                    a_ref,
+                    a_count,
+                )
+            row = -1
+            if a_near <= a_far and a_far > ZERO and a_near <= closest:
+                if a_count == INNER:
+                    row = a_ref
+                else:
+                    closest, hit, hit_d = leaf_test(
+                        ox,
+                        oy,
+                        oz,
+                        dx,
+                        dy,
+                        dz,
+                        ordered,
+                        order,
+                        a_ref,
+                        a_count,
+                        closest,
+                        hit,
+                        hit_d,
+                        ahead,
+                        own,
+                        own_inside,
+                    )
+            if b_near <= b_far and b_far > ZERO and b_near <= closest:
+                if b_count != INNER:
+                    closest, hit, hit_d = leaf_test(
+                        ox,
+                        oy,
+                        oz,
+                        dx,
+                        dy,
+                        dz,
+                        ordered,
+                        order,
+                        b_ref,
+                        b_count,
+                        closest,
+                        hit,
+                        hit_d,
+                        ahead,
+                        own,
+                        own_inside,
+                    )
+                elif row < 0:
+                    row = b_ref
+                else:
+                    stack_row[top] = b_ref
+                    if not any_hit:  # a shadow ray's t_max never shrinks: nothing pushed can fall behind it
+                        stack_t[top] = b_near
+                    top += _U(1)
+            if any_hit and hit >= 0:
+                return hit, closest, hit_d
+            while row < 0 and top > _U(0):
+                top -= _U(1)
+                if any_hit or stack_t[top] <= closest:
+                    row = stack_row[top]
         return hit, closest, hit_d
 
     @jit
@@ -254,4 +262,4 @@ def build(jit, intersect_sphere, intersect_ahead):
         )
         return hit, hit_d
 
-    return nearest_hit_bvh, inverse, ray_axes, children, leaf_hits, centre_along, walk, walk_step
+    return nearest_hit_bvh, inverse, ray_axes, children, leaf_hits, centre_along, walk

@@ -105,36 +105,21 @@ def build(jit, whitted, primary_ray, shade_hit):
                 pixel, 0, PRIMARY, -1, 0)  # fmt: skip
 
     @jit
-    def ray_at(rays_f, rays_i, slot):
-        """The ray at slot as a walk takes it: origin, direction, the sphere
-        it leaves, whether it goes into it."""
-        return (
-            rays_f[0, slot], rays_f[1, slot], rays_f[2, slot], rays_f[3, slot], rays_f[4, slot], rays_f[5, slot],
-            rays_i[R_OWN, slot], rays_i[R_INSIDE, slot] != 0,
-        )  # fmt: skip
-
-    @jit
-    def shadow_at(shadows_f, shadows_i, slot):
-        """The shadow ray at slot as a walk takes it: origin, direction, its
-        length (to the light's sample), the sphere it leaves, whether it
-        leaves it inwards."""
-        return (
-            shadows_f[0, slot], shadows_f[1, slot], shadows_f[2, slot], shadows_f[3, slot], shadows_f[4, slot],
-            shadows_f[5, slot], shadows_f[6, slot], shadows_i[1, slot], shadows_i[2, slot] != 0,
-        )  # fmt: skip
-
-    @jit
     def extend(rays_f, rays_i, slot, spheres, count, tree, stack_row, stack_t):
         """The nearest hit of the ray at slot: (sphere or -1, t, half-chord)."""
-        ox, oy, oz, dx, dy, dz, own, inside = ray_at(rays_f, rays_i, slot)
-        return find(ox, oy, oz, dx, dy, dz, FAR, False, own, inside, spheres, count, tree, stack_row, stack_t)
+        return find(
+            rays_f[0, slot], rays_f[1, slot], rays_f[2, slot], rays_f[3, slot], rays_f[4, slot], rays_f[5, slot],
+            FAR, False, rays_i[R_OWN, slot], rays_i[R_INSIDE, slot] != 0, spheres, count, tree, stack_row, stack_t,
+        )  # fmt: skip
 
     @jit
     def unblocked(shadows_f, shadows_i, slot, spheres, count, tree, stack_row, stack_t):
         """Whether the shadow ray at slot reaches its light."""
-        ox, oy, oz, dx, dy, dz, length, own, inside = shadow_at(shadows_f, shadows_i, slot)
-        blocker, _t, _d = find(ox, oy, oz, dx, dy, dz, length, True, own, inside, spheres, count, tree, stack_row,
-                               stack_t)  # fmt: skip
+        blocker, _t, _d = find(
+            shadows_f[0, slot], shadows_f[1, slot], shadows_f[2, slot], shadows_f[3, slot], shadows_f[4, slot],
+            shadows_f[5, slot], shadows_f[6, slot], True, shadows_i[1, slot], shadows_i[2, slot] != 0, spheres,
+            count, tree, stack_row, stack_t,
+        )  # fmt: skip
         return blocker < 0
 
     @jit
@@ -261,8 +246,6 @@ def build(jit, whitted, primary_ray, shade_hit):
         fixed=fixed,
         resolve=resolve,
         emit_primary=emit_primary,
-        ray_at=ray_at,
-        shadow_at=shadow_at,
         extend=extend,
         unblocked=unblocked,
         missed=missed,

@@ -38,7 +38,6 @@ import numpy as np
 from numba import cuda
 
 from ... import compiled, kernels
-from ...kernels.constants import FAR, ZERO
 from ...kernels.wavefront import R_KIND, R_PIXEL, RAY_IDS, RAY_ROWS, SHADOW_IDS, SHADOW_ROWS
 from ...kernels.whitted import KINDS, PRIMARY
 from ...layout import STACK
@@ -47,15 +46,14 @@ from .device import simulated
 from .launch import Launches
 
 _k = kernels.build(cuda.jit(device=True))
-# module globals, which is how kernels can see them: the stages (through the
-# tree, whose extend and shadow test the kernels take a walk's step at a
-# time, and by brute force, only extend and the shadow test search)
+# module globals, which is how kernels can see them: the stages through the
+# tree and by brute force (only extend and the shadow test search)
 _tree, _every = _k.whitted_wavefront["bvh"], _k.whitted_wavefront["none"]
-_extend_every, _unblocked_every = _every.extend, _every.unblocked
+_extend_tree, _extend_every = _tree.extend, _every.extend
+_unblocked_tree, _unblocked_every = _tree.unblocked, _every.unblocked
 _emit_primary, _missed, _shade_ray = _tree.emit_primary, _tree.missed, _tree.shade
 _put_shadows, _put_children = _tree.put_shadows, _tree.put_children
 _fixed, _resolve, _to_byte = _tree.fixed, _tree.resolve, _k.to_byte
-_walk_step, _ray_axes, _ray_at, _shadow_at = _k.walk_step, _k.ray_axes, _tree.ray_at, _tree.shadow_at
 
 BLOCK = 128
 GRID_PER_SM = 32
@@ -134,31 +132,13 @@ def _primary(rays_f, rays_i, counts, first_pixel, pixels, width, height, basis):
         _emit_primary(rays_f, rays_i, i, first_pixel + i, width, height, basis)
 
 
-@cuda.jit(device=True)
-def _hit_found(i, h, t, d, rays_i, hit_i, hit_t, hit_d, hits, width, tally):
-    """Ray i's nearest hit kept for shading; a primary ray's into `hits`; the
-    ray counted by kind in the block's tally."""
-    hit_i[i] = h
-    hit_t[i] = t
-    hit_d[i] = d
-    kind = rays_i[R_KIND, i]
-    if kind == PRIMARY:
-        pixel = rays_i[R_PIXEL, i]
-        hits[pixel // width, pixel % width] = h
-    cuda.atomic.add(tally, kind, 1)
-
-
 # Registers capped: more blocks resident on a multiprocessor hide more of the
 # walk's latency, which bounds it (docs/whitted.md#the-wavefront-issue-27)
 @compiled.cuda_jit(max_registers=56)
 def _extend(rays_f, rays_i, counts, wave, capacity, spheres, count, nodes, links, ordered, order, hit_i, hit_t,
             hit_d, hits, width, rays):  # fmt: skip
     """Each ray's nearest hit; the primary rays' into `hits`; the rays by
-    kind into `rays` (a block's tally, then one atomic a kind). Through
-    the tree a thread takes its rays step by step (traverse.walk_step),
-    the next ray as soon as one's walk is over: a warp's threads then step
-    together, not each waiting at the end of its ray for the warp's
-    longest walk; extend's walk (kernels/wavefront.py), the same answer."""
+    kind into `rays` (a block's tally, then one atomic a kind)."""
     tally = cuda.shared.array(4, np.int32)
     me = cuda.threadIdx.x
     if me < 4:
@@ -167,29 +147,22 @@ def _extend(rays_f, rays_i, counts, wave, capacity, spheres, count, nodes, links
     n = min(counts[wave], capacity)
     stack_row = cuda.local.array(STACK, np.int32)
     stack_t = cuda.local.array(STACK, np.float32)
+    tree = (nodes, links, ordered, order)
     i = cuda.grid(1)
-    if nodes.shape[0] == 0:
-        tree = (nodes, links, ordered, order)
-        while i < n:
+    while i < n:
+        if nodes.shape[0] > 0:
+            h, t, d = _extend_tree(rays_f, rays_i, i, spheres, count, tree, stack_row, stack_t)
+        else:
             h, t, d = _extend_every(rays_f, rays_i, i, spheres, count, tree, stack_row, stack_t)
-            _hit_found(i, h, t, d, rays_i, hit_i, hit_t, hit_d, hits, width, tally)
-            i += cuda.gridsize(1)
-    else:
-        ox, oy, oz, dx, dy, dz, own, inside = _ray_at(rays_f, rays_i, min(i, n - 1) if n > 0 else 0)
-        ix, iy, iz, lx, ly, lz, hx, hy, hz = _ray_axes(ox, oy, oz, dx, dy, dz)
-        row, top, closest, hit, h_d = 0, np.uint64(0), FAR, np.int32(-1), ZERO
-        while i < n:
-            row, top, closest, hit, h_d = _walk_step(
-                ox, oy, oz, dx, dy, dz, ix, iy, iz, lx, ly, lz, hx, hy, hz, False, True, own, inside, nodes,
-                links, ordered, order, stack_row, stack_t, row, top, closest, hit, h_d,
-            )  # fmt: skip
-            if row < 0:  # this ray's walk is over: the next
-                _hit_found(i, hit, closest, h_d, rays_i, hit_i, hit_t, hit_d, hits, width, tally)
-                i += cuda.gridsize(1)
-                if i < n:
-                    ox, oy, oz, dx, dy, dz, own, inside = _ray_at(rays_f, rays_i, i)
-                    ix, iy, iz, lx, ly, lz, hx, hy, hz = _ray_axes(ox, oy, oz, dx, dy, dz)
-                    row, top, closest, hit, h_d = 0, np.uint64(0), FAR, np.int32(-1), ZERO
+        hit_i[i] = h
+        hit_t[i] = t
+        hit_d[i] = d
+        kind = rays_i[R_KIND, i]
+        if kind == PRIMARY:
+            pixel = rays_i[R_PIXEL, i]
+            hits[pixel // width, pixel % width] = h
+        cuda.atomic.add(tally, kind, 1)
+        i += cuda.gridsize(1)
     cuda.syncthreads()
     if me < 4 and me != 1 and tally[me] > 0:
         cuda.atomic.add(rays, me, np.int64(tally[me]))
@@ -241,37 +214,22 @@ def _shade(rays_f, rays_i, counts, wave, capacity, hit_i, hit_t, hit_d, next_f, 
 def _shadow(shadows_f, shadows_i, counts, wave, capacity, spheres, count, nodes, links, ordered, order, accum,
             rays):  # fmt: skip
     """Each shadow ray of the wave: its light into its pixel where no
-    sphere blocks it. Through the tree step by step, as _extend, the next
-    ray as soon as one is over: unblocked's walk, the same answer."""
+    sphere blocks it."""
     n = min(counts[SHADOW_BASE + wave], capacity)
     if cuda.grid(1) == 0 and n > 0:
         cuda.atomic.add(rays, 1, np.int64(n))
     stack_row = cuda.local.array(STACK, np.int32)
     stack_t = cuda.local.array(STACK, np.float32)
+    tree = (nodes, links, ordered, order)
     i = cuda.grid(1)
-    if nodes.shape[0] == 0:
-        tree = (nodes, links, ordered, order)
-        while i < n:
-            if _unblocked_every(shadows_f, shadows_i, i, spheres, count, tree, stack_row, stack_t):
-                _add(accum, shadows_i[0, i], shadows_f[7, i], shadows_f[8, i], shadows_f[9, i])
-            i += cuda.gridsize(1)
-    else:
-        ox, oy, oz, dx, dy, dz, length, own, inside = _shadow_at(shadows_f, shadows_i, min(i, n - 1) if n > 0 else 0)
-        ix, iy, iz, lx, ly, lz, hx, hy, hz = _ray_axes(ox, oy, oz, dx, dy, dz)
-        row, top, closest, hit, h_d = 0, np.uint64(0), length, np.int32(-1), ZERO
-        while i < n:
-            row, top, closest, hit, h_d = _walk_step(
-                ox, oy, oz, dx, dy, dz, ix, iy, iz, lx, ly, lz, hx, hy, hz, True, True, own, inside, nodes, links,
-                ordered, order, stack_row, stack_t, row, top, closest, hit, h_d,
-            )  # fmt: skip
-            if row < 0:  # this ray's walk is over: its light, then the next
-                if hit < 0:
-                    _add(accum, shadows_i[0, i], shadows_f[7, i], shadows_f[8, i], shadows_f[9, i])
-                i += cuda.gridsize(1)
-                if i < n:
-                    ox, oy, oz, dx, dy, dz, length, own, inside = _shadow_at(shadows_f, shadows_i, i)
-                    ix, iy, iz, lx, ly, lz, hx, hy, hz = _ray_axes(ox, oy, oz, dx, dy, dz)
-                    row, top, closest, hit, h_d = 0, np.uint64(0), length, np.int32(-1), ZERO
+    while i < n:
+        if nodes.shape[0] > 0:
+            free = _unblocked_tree(shadows_f, shadows_i, i, spheres, count, tree, stack_row, stack_t)
+        else:
+            free = _unblocked_every(shadows_f, shadows_i, i, spheres, count, tree, stack_row, stack_t)
+        if free:
+            _add(accum, shadows_i[0, i], shadows_f[7, i], shadows_f[8, i], shadows_f[9, i])
+        i += cuda.gridsize(1)
 
 
 @compiled.cuda_jit()
