@@ -32,7 +32,24 @@ TINY = np.float32(1e-20)
 _U = np.uint64
 
 
-def build(jit, intersect_sphere, intersect_ahead):
+def build(jit, intersect_sphere, intersect_ahead, read_row=None):
+    """The walks over `jit`; read_row(nodes, links, row): a node's row as
+    its 16 values (default: the arrays read a column at a time; a backend's
+    own may read the row in fewer, wider loads, see children)."""
+    if read_row is None:
+
+        @jit
+        def read_row(nodes, links, row):
+            """A node's row: both children's boxes (lo x, y, z, hi x, y, z),
+            then their refs and counts (layout's columns)."""
+            a, b = _U(CHILD_BOX[0]), _U(CHILD_BOX[1])
+            return (
+                nodes[row, a], nodes[row, a + _U(1)], nodes[row, a + _U(2)], nodes[row, a + _U(3)],
+                nodes[row, a + _U(4)], nodes[row, a + _U(5)], nodes[row, b], nodes[row, b + _U(1)],
+                nodes[row, b + _U(2)], nodes[row, b + _U(3)], nodes[row, b + _U(4)], nodes[row, b + _U(5)],
+                links[row, _U(REF)], links[row, _U(REF + 1)], links[row, _U(COUNT)], links[row, _U(COUNT + 1)],
+            )  # fmt: skip
+
     @jit
     def inverse(d):
         """1/d for the slab test, finite: |d| raised to at least TINY, its sign kept."""
@@ -52,10 +69,10 @@ def build(jit, intersect_sphere, intersect_ahead):
         return inv, (o + margin) * inv, (o - margin) * inv
 
     @jit
-    def slab(nodes, row, col, ix, iy, iz, lx, ly, lz, hx, hy, hz):
+    def slab(lo_x, lo_y, lo_z, hi_x, hi_y, hi_z, ix, iy, iz, lx, ly, lz, hx, hy, hz):
         """The (near, far) distances of the ray through one child box; near >
-        far where it misses. Both planes of each axis are read at fixed
-        columns and put in order by min and max (the sign of 1/d decides
+        far where it misses. Both planes of each axis are taken as they are
+        stored and put in order by min and max (the sign of 1/d decides
         which is near), so every read of the row is at a constant offset:
         choosing the column by the ray's direction cost an address
         computation per read (docs/bvh-walk.md#gpu-measured-on-the-h200). The
@@ -63,12 +80,12 @@ def build(jit, intersect_sphere, intersect_ahead):
         planes' order.
         An empty child's inverted box (lo layout.EMPTY, hi -EMPTY) comes out as
         a slab around every ray: visited as the leaf of no spheres that it is."""
-        a0 = nodes[row, col] * ix - lx
-        a1 = nodes[row, col + _U(1)] * iy - ly
-        a2 = nodes[row, col + _U(2)] * iz - lz
-        b0 = nodes[row, col + _U(3)] * ix - hx
-        b1 = nodes[row, col + _U(4)] * iy - hy
-        b2 = nodes[row, col + _U(5)] * iz - hz
+        a0 = lo_x * ix - lx
+        a1 = lo_y * iy - ly
+        a2 = lo_z * iz - lz
+        b0 = hi_x * ix - hx
+        b1 = hi_y * iy - hy
+        b2 = hi_z * iz - hz
         near = max(min(a0, b0), max(min(a1, b1), min(a2, b2)))
         far = min(max(a0, b0), min(max(a1, b1), max(a2, b2)))
         return near, far
@@ -88,18 +105,11 @@ def build(jit, intersect_sphere, intersect_ahead):
     def children(nodes, links, node, ix, iy, iz, lx, ly, lz, hx, hy, hz):
         """A node's two children: the ray's (near, far) through each one's box,
         then their refs and counts (bvh's layout)."""
-        a_near, a_far = slab(nodes, node, _U(CHILD_BOX[0]), ix, iy, iz, lx, ly, lz, hx, hy, hz)
-        b_near, b_far = slab(nodes, node, _U(CHILD_BOX[1]), ix, iy, iz, lx, ly, lz, hx, hy, hz)
-        return (
-            a_near,
-            a_far,
-            b_near,
-            b_far,
-            links[node, _U(REF)],
-            links[node, _U(REF + 1)],
-            links[node, _U(COUNT)],
-            links[node, _U(COUNT + 1)],
-        )
+        (a_lx, a_ly, a_lz, a_hx, a_hy, a_hz, b_lx, b_ly, b_lz, b_hx, b_hy, b_hz, a_ref, b_ref, a_count,
+         b_count) = read_row(nodes, links, node)  # fmt: skip
+        a_near, a_far = slab(a_lx, a_ly, a_lz, a_hx, a_hy, a_hz, ix, iy, iz, lx, ly, lz, hx, hy, hz)
+        b_near, b_far = slab(b_lx, b_ly, b_lz, b_hx, b_hy, b_hz, ix, iy, iz, lx, ly, lz, hx, hy, hz)
+        return a_near, a_far, b_near, b_far, a_ref, b_ref, a_count, b_count
 
     @jit
     def centre_along(nodes, row, col, ox, oy, oz, cx, cy, cz):

@@ -457,6 +457,7 @@ class Tracer(TracerBase):
             else:  # brute force: a tree of no node
                 self.d_nodes = cuda.device_array((0, NODE_FLOATS), np.float32)
                 self.d_links = cuda.device_array((0, NODE_FLOATS), np.int32)
+                self.d_nodes64 = self.d_nodes.view(np.float64)
                 self.d_ordered = cuda.device_array((4, 1), np.float32)
                 self.d_order = cuda.device_array(1, np.int32)
             self.d_materials = cuda.to_device(whitted.materials if self.count else np.ones((5, 1), np.float32))
@@ -500,6 +501,7 @@ class Tracer(TracerBase):
         self._launches.clear()  # they hold the old tree's arrays
         self.build_s = self.bvh.build_s
         self.d_nodes, self.d_links = self.bvh.nodes, self.bvh.links  # the same bytes: one row holds both
+        self.d_nodes64 = self.d_nodes.view(np.float64)  # the same again, as the wavefront reads a row
         self.d_ordered, self.d_order = self.bvh.ordered, self.bvh.order
 
     def _rows_walked(self) -> int:

@@ -36,16 +36,66 @@ import math
 
 import numpy as np
 from numba import cuda
+from numba.cuda import libdevice
 
 from ... import compiled, kernels
 from ...kernels.wavefront import R_KIND, R_PIXEL, RAY_IDS, RAY_ROWS, SHADOW_IDS, SHADOW_ROWS
 from ...kernels.whitted import KINDS, PRIMARY
-from ...layout import STACK
+from ...layout import CHILD_BOX, COUNT, NODE_FLOATS, REF, STACK
 from .. import bands
 from .device import simulated
 from .launch import Launches
 
-_k = kernels.build(cuda.jit(device=True))
+if simulated():  # numba's simulator runs these as Python, where libdevice's bit casts are stubs
+
+    @cuda.jit(device=True)
+    def _words(w):
+        """A float64 load's two float32 words (the low one the lower column)."""
+        words = np.array([w], np.float64).view(np.float32)
+        return words[0], words[1]
+
+    @cuda.jit(device=True)
+    def _ints(w):
+        """A float64 load's two int32 words (the low one the lower column)."""
+        words = np.array([w], np.float64).view(np.int32)
+        return words[0], words[1]
+
+else:
+
+    @cuda.jit(device=True)
+    def _words(w):
+        """A float64 load's two float32 words (the low one the lower column)."""
+        return libdevice.int_as_float(libdevice.double2loint(w)), libdevice.int_as_float(libdevice.double2hiint(w))
+
+    @cuda.jit(device=True)
+    def _ints(w):
+        """A float64 load's two int32 words (the low one the lower column)."""
+        return libdevice.double2loint(w), libdevice.double2hiint(w)
+
+
+@cuda.jit(device=True)
+def _read_row64(nodes64, _links, row):
+    """traverse.build's read_row for a node's row seen as 8 float64
+    (nodes64, layout's row as pairs of columns): 8 loads a row where
+    float32 columns take 16, each word taken out as it was stored (bit
+    casts, no arithmetic), the refs and counts as ints."""
+    a_lx, a_ly = _words(nodes64[row, np.uint64(0)])
+    a_lz, a_hx = _words(nodes64[row, np.uint64(1)])
+    a_hy, a_hz = _words(nodes64[row, np.uint64(2)])
+    b_lx, b_ly = _words(nodes64[row, np.uint64(3)])
+    b_lz, b_hx = _words(nodes64[row, np.uint64(4)])
+    b_hy, b_hz = _words(nodes64[row, np.uint64(5)])
+    a_ref, b_ref = _ints(nodes64[row, np.uint64(6)])
+    a_count, b_count = _ints(nodes64[row, np.uint64(7)])
+    return a_lx, a_ly, a_lz, a_hx, a_hy, a_hz, b_lx, b_ly, b_lz, b_hx, b_hy, b_hz, a_ref, b_ref, a_count, b_count
+
+
+# _read_row64's words are layout's columns in this order
+assert NODE_FLOATS == 16 and CHILD_BOX == (0, 6) and REF == 12 and COUNT == 14
+# the wavefront's walks read a row in 8 wide loads (_read_row64; the Tracer
+# passes its nodes as float64), not 16: the walk is bound by issue, and a
+# load is an instruction (docs/whitted.md)
+_k = kernels.build(cuda.jit(device=True), read_row=_read_row64)
 # module globals, which is how kernels can see them: the stages through the
 # tree and by brute force (only extend and the shadow test search)
 _tree, _every = _k.whitted_wavefront["bvh"], _k.whitted_wavefront["none"]
@@ -327,7 +377,7 @@ class Wavefront:
                width, self.height, tracer.d_basis)  # fmt: skip
         mark = self.mark or _unmarked
         mark("start")
-        tree = (tracer.d_nodes, tracer.d_links, tracer.d_ordered, tracer.d_order)
+        tree = (tracer.d_nodes64, tracer.d_links, tracer.d_ordered, tracer.d_order)
         ray_blocks = self._blocks(self.ray_capacity)
         shadow_blocks = self._blocks(self.shadow_capacity)
         for wave in range(self.depth + 1):
