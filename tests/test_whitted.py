@@ -574,6 +574,30 @@ def test_the_wavefront_is_the_pixel_program(rng, request, device, accel):
     assert_same_frame(pixel, wave, rounds_as_the_cpu(device, request))
 
 
+@pytest.mark.gpu
+@pytest.mark.slow
+def test_cuda_wavefront_sees_spheres_moved_by_a_refit(rng):
+    """cuda's wavefront reads the ordered spheres from a copy of its own (a
+    row a sphere, made after each build): after spheres move and the GPU's
+    tree is refitted, not rebuilt, the frame shows them where they are
+    now, as brute force does."""
+    scene = lit_scene(rng, 12)
+    shading = lighting.Shading.of(scene, 3, 2)
+    width, height = 24, 16
+    basis = Camera().basis(width, height)
+    moved = scene.spheres.copy()
+    moved[:3, :-1] += rng.normal(0, 0.2, (3, moved.shape[1] - 1)).astype(np.float32)  # the floor stays
+    with backends.tracer("cuda", scene.spheres, width, height, build="gpu", refit_limit=float("inf"),
+                         whitted=shading) as tracer:  # fmt: skip
+        tracer.trace(basis)
+        assert tracer.update(moved) == "refit"
+        got = tracer.trace(basis)[0].copy()
+    with backends.tracer("cuda", moved, width, height, accel="none", whitted=shading) as brute:
+        want = brute.trace(basis)[0]
+    exact = backends.module("cuda").simulated()
+    assert np.array_equal(got, want) if exact else (np.abs(got.astype(int) - want.astype(int)) > 1).mean() <= 0.01
+
+
 @pytest.mark.parametrize("device", GPUS)
 def test_the_wavefronts_queues_grow_to_hold_a_frame(request, device):
     """A frame whose waves outgrow the queues a wavefront starts with (a ray

@@ -32,10 +32,19 @@ TINY = np.float32(1e-20)
 _U = np.uint64
 
 
-def build(jit, intersect_sphere, intersect_ahead, read_row=None):
+def build(jit, intersect_sphere, intersect_ahead, read_row=None, read_sphere=None):
     """The walks over `jit`; read_row(nodes, links, row): a node's row as
-    its 16 values (default: the arrays read a column at a time; a backend's
-    own may read the row in fewer, wider loads, see children)."""
+    its 16 values; read_sphere(ordered, k): the k-th sphere in leaf order as
+    (cx, cy, cz, r). By default the arrays are read a value at a time (the
+    ordered spheres a row a field); a backend's own may read them in fewer,
+    wider loads from a layout of its own (cuda's wavefront)."""
+    if read_sphere is None:
+
+        @jit
+        def read_sphere(ordered, k):
+            """Sphere k of bvh.ordered (a row a field)."""
+            return ordered[0, k], ordered[1, k], ordered[2, k], ordered[3, k]
+
     if read_row is None:
 
         @jit
@@ -146,20 +155,11 @@ def build(jit, intersect_sphere, intersect_ahead, read_row=None):
             if ahead:
                 if original == own and not own_inside:
                     continue
-                t, d = intersect_ahead(
-                    ordered[0, k] - ox,
-                    ordered[1, k] - oy,
-                    ordered[2, k] - oz,
-                    ordered[3, k],
-                    dx,
-                    dy,
-                    dz,
-                    original == own,
-                )
+                cx, cy, cz, r = read_sphere(ordered, k)
+                t, d = intersect_ahead(cx - ox, cy - oy, cz - oz, r, dx, dy, dz, original == own)
             else:
-                t, d = intersect_sphere(
-                    ox, oy, oz, dx, dy, dz, ordered[0, k], ordered[1, k], ordered[2, k], ordered[3, k]
-                )
+                cx, cy, cz, r = read_sphere(ordered, k)
+                t, d = intersect_sphere(ox, oy, oz, dx, dy, dz, cx, cy, cz, r)
             if t > ZERO and (t < closest or (t == closest and original < hit)):
                 closest = t
                 hit = original

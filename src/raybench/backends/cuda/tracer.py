@@ -32,7 +32,7 @@ from ..options import DEFAULT_BLOCK, RAYS_PER_THREAD, STAGED, TRIP, CudaOptions,
 from . import build as cuda_build
 from .device import require, simulated
 from .launch import Launches
-from .wavefront import Wavefront
+from .wavefront import Wavefront, sphere_rows
 
 # The walk by default: packets once the tree outgrows the L1 cache (256 KiB
 # an SM on the GPUs measured): the packets cost more node visits than a ray
@@ -458,6 +458,7 @@ class Tracer(TracerBase):
                 self.d_nodes = cuda.device_array((0, NODE_FLOATS), np.float32)
                 self.d_links = cuda.device_array((0, NODE_FLOATS), np.int32)
                 self.d_nodes64 = self.d_nodes.view(np.float64)
+                self.d_sphere_rows = cuda.device_array((1, 2), np.float64)  # read by no walk: there is no tree
                 self.d_ordered = cuda.device_array((4, 1), np.float32)
                 self.d_order = cuda.device_array(1, np.int32)
             self.d_materials = cuda.to_device(whitted.materials if self.count else np.ones((5, 1), np.float32))
@@ -503,6 +504,13 @@ class Tracer(TracerBase):
         self.d_nodes, self.d_links = self.bvh.nodes, self.bvh.links  # the same bytes: one row holds both
         self.d_nodes64 = self.d_nodes.view(np.float64)  # the same again, as the wavefront reads a row
         self.d_ordered, self.d_order = self.bvh.ordered, self.bvh.order
+        self._sphere_rows()
+
+    def _sphere_rows(self) -> None:
+        """The ordered spheres a row each, as the wavefront's walks read them
+        (wavefront.sphere_rows), after each build or refit of the tree; None
+        where no wavefront walks it."""
+        self.d_sphere_rows = sphere_rows(self.d_ordered) if self._wavefront is not None else None
 
     def _rows_walked(self) -> int:
         """The rows of the tree a walk can reach: all of a host-built tree's;
@@ -533,6 +541,7 @@ class Tracer(TracerBase):
             cost = self._builder.read_cost()  # waits for the refit
             refit_s = time.perf_counter() - start
             if cost <= self.options.refit_limit * self._fresh_cost:
+                self._sphere_rows()  # the refit moved the ordered spheres
                 self.build_s = refit_s
                 return "refit"
         self._build(self.bvh.count)

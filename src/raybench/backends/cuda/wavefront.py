@@ -90,12 +90,41 @@ def _read_row64(nodes64, _links, row):
     return a_lx, a_ly, a_lz, a_hx, a_hy, a_hz, b_lx, b_ly, b_lz, b_hx, b_hy, b_hz, a_ref, b_ref, a_count, b_count
 
 
+@cuda.jit(device=True)
+def _read_sphere64(spheres64, k):
+    """traverse.build's read_sphere for the ordered spheres a row a sphere,
+    seen as 2 float64 (Tracer.d_sphere_rows): 2 loads a sphere, not 4."""
+    cx, cy = _words(spheres64[k, np.uint64(0)])
+    cz, r = _words(spheres64[k, np.uint64(1)])
+    return cx, cy, cz, r
+
+
+@compiled.cuda_jit()
+def _sphere_rows(ordered, rows):
+    """bvh.ordered (a row a field) as a row a sphere (cx, cy, cz, r), the
+    layout _read_sphere64 reads."""
+    k = cuda.grid(1)
+    if k < ordered.shape[1]:
+        for c in range(4):
+            rows[k, c] = ordered[c, k]
+
+
+def sphere_rows(d_ordered):
+    """The ordered spheres as the wavefront's walks read them (_sphere_rows),
+    seen as float64 pairs, made on the device after each build or refit."""
+    n = d_ordered.shape[1]
+    rows = cuda.device_array((n, 4), np.float32)
+    _sphere_rows[max(1, math.ceil(n / BLOCK)), BLOCK](d_ordered, rows)
+    return rows.view(np.float64)
+
+
 # _read_row64's words are layout's columns in this order
 assert NODE_FLOATS == 16 and CHILD_BOX == (0, 6) and REF == 12 and COUNT == 14
 # the wavefront's walks read a row in 8 wide loads (_read_row64; the Tracer
-# passes its nodes as float64), not 16: the walk is bound by issue, and a
-# load is an instruction (docs/whitted.md)
-_k = kernels.build(cuda.jit(device=True), read_row=_read_row64)
+# passes its nodes as float64), not 16, and a leaf's sphere in 2, not 4
+# (_read_sphere64, the spheres a row each): the walk is bound by issue, and
+# a load is an instruction (docs/whitted.md)
+_k = kernels.build(cuda.jit(device=True), read_row=_read_row64, read_sphere=_read_sphere64)
 # module globals, which is how kernels can see them: the stages through the
 # tree and by brute force (only extend and the shadow test search)
 _tree, _every = _k.whitted_wavefront["bvh"], _k.whitted_wavefront["none"]
@@ -377,7 +406,7 @@ class Wavefront:
                width, self.height, tracer.d_basis)  # fmt: skip
         mark = self.mark or _unmarked
         mark("start")
-        tree = (tracer.d_nodes64, tracer.d_links, tracer.d_ordered, tracer.d_order)
+        tree = (tracer.d_nodes64, tracer.d_links, tracer.d_sphere_rows, tracer.d_order)
         ray_blocks = self._blocks(self.ray_capacity)
         shadow_blocks = self._blocks(self.shadow_capacity)
         for wave in range(self.depth + 1):

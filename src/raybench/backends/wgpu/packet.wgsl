@@ -17,9 +17,9 @@ const MISS: f32 = 3.4e38;
 // lies: the order in which the packet takes a node's children, the same for
 // all its rays (kernels/traverse.py's centre_along).
 fn centre_along(row: i32, col: u32, o: vec3<f32>, c: vec3<f32>) -> f32 {
-    return (0.5 * (nodes[row].box[col] + nodes[row].box[col + 3u]) - o.x) * c.x
-        + (0.5 * (nodes[row].box[col + 1u] + nodes[row].box[col + 4u]) - o.y) * c.y
-        + (0.5 * (nodes[row].box[col + 2u] + nodes[row].box[col + 5u]) - o.z) * c.z;
+    return (0.5 * (plane(row, col) + plane(row, col + 3u)) - o.x) * c.x
+        + (0.5 * (plane(row, col + 1u) + plane(row, col + 4u)) - o.y) * c.y
+        + (0.5 * (plane(row, col + 2u) + plane(row, col + 5u)) - o.z) * c.z;
 }
 
 fn nearest_hit_packet(o: vec3<f32>, dir: vec3<f32>, centre: vec3<f32>) -> Hit {

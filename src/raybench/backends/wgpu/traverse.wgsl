@@ -6,10 +6,17 @@
 // One row of bvh.nodes, 64 bytes: both children's boxes (lo xyz, hi xyz of
 // child 0, then of child 1) and, over the same bytes the builder wrote as
 // its int32 `links` view, the children's refs and counts. A struct reads
-// each part as its own type, with no bitcast.
+// each part as its own type, with no bitcast; the boxes as three vec4s, so
+// that a row is four wide loads, not sixteen (the walk is bound by issue:
+// docs/whitted.md).
 struct Node {
-    box: array<f32, 12>,
+    box: array<vec4<f32>, 3>,
     links: vec4<i32>,   // ref 0, ref 1, count 0, count 1
+}
+
+// Plane i (0 to 11) of a row's boxes: layout's column i.
+fn plane(row: i32, i: u32) -> f32 {
+    return nodes[row].box[i >> 2u][i & 3u];
 }
 
 @group(0) @binding(4) var<storage, read> nodes: array<Node>;
@@ -72,15 +79,16 @@ fn axis_setup(o: f32, d: f32, margin: f32) -> Axis {
     return Axis(inv, (o + margin) * inv, (o - margin) * inv);
 }
 
-// (near, far) of the ray through the child box at column col; near > far
-// where it misses. Both planes of each axis, put in order by min and max.
-fn slab(row: i32, col: u32, x: Axis, y: Axis, z: Axis) -> vec2<f32> {
-    let a0 = nodes[row].box[col] * x.inv - x.lo;
-    let a1 = nodes[row].box[col + 1u] * y.inv - y.lo;
-    let a2 = nodes[row].box[col + 2u] * z.inv - z.lo;
-    let b0 = nodes[row].box[col + 3u] * x.inv - x.hi;
-    let b1 = nodes[row].box[col + 4u] * y.inv - y.hi;
-    let b2 = nodes[row].box[col + 5u] * z.inv - z.hi;
+// (near, far) of the ray through the box of low planes lo and high ones hi;
+// near > far where it misses. Both planes of each axis, put in order by min
+// and max.
+fn slab(lo: vec3<f32>, hi: vec3<f32>, x: Axis, y: Axis, z: Axis) -> vec2<f32> {
+    let a0 = lo.x * x.inv - x.lo;
+    let a1 = lo.y * y.inv - y.lo;
+    let a2 = lo.z * z.inv - z.lo;
+    let b0 = hi.x * x.inv - x.hi;
+    let b1 = hi.y * y.inv - y.hi;
+    let b2 = hi.z * z.inv - z.hi;
     let near = max(min(a0, b0), max(min(a1, b1), min(a2, b2)));
     let far = min(max(a0, b0), min(max(a1, b1), max(a2, b2)));
     return vec2<f32>(near, far);
@@ -94,9 +102,12 @@ fn ray_axes(o: vec3<f32>, dir: vec3<f32>) -> Axes {
 
 // A node's two children: the ray's slab through each one's box, and their links.
 fn children(row: i32, axes: Axes) -> Children {
+    let p0 = nodes[row].box[0];
+    let p1 = nodes[row].box[1];
+    let p2 = nodes[row].box[2];
     let links = nodes[row].links;
-    let sa = slab(row, 0u, axes.x, axes.y, axes.z);
-    let sb = slab(row, 6u, axes.x, axes.y, axes.z);
+    let sa = slab(p0.xyz, vec3<f32>(p0.w, p1.x, p1.y), axes.x, axes.y, axes.z);
+    let sb = slab(vec3<f32>(p1.z, p1.w, p2.x), p2.yzw, axes.x, axes.y, axes.z);
     return Children(Child(sa.x, sa.y, links.x, links.z), Child(sb.x, sb.y, links.y, links.w));
 }
 
