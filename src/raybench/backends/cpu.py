@@ -39,7 +39,7 @@ from .. import bvh as bvh_mod
 from .. import compiled, kernels
 from ..host import host_available_bytes, usable_cores
 from ..kernels import whitted as whitted_mod
-from ..kernels.constants import FAR, ZERO
+from ..kernels.constants import FAR, ONE, ZERO
 from ..layout import (
     BLUE,
     CHILD_BOX,
@@ -257,6 +257,7 @@ _k = kernels.build(
     call=numba.njit(nogil=True, _nrt=False),
     shadows=_packet_shadows,
     packets_search=_search_wide,
+    packets_step=numba.njit(nogil=True, _nrt=False),
 )
 # module globals, which is how jitted code can see them
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
@@ -1119,13 +1120,20 @@ def _whitted_rows_packets(first_row, end_row, width, height, basis, spheres, cou
            np.empty(7 + WIDTH, np.float32), np.empty(WIDE_STACK, np.int32), hit, lanes[6],
            np.empty(PACKET, np.float32), np.zeros(1, np.int64), np.empty(WIDE_STACK, np.int32),
            np.empty(WIDE_STACK, np.int32), np.empty(WIDE_STACK, np.float32))  # fmt: skip
-    _whitted_tiles(
-        first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern, params, own, lanes,
-        np.empty(7, np.float32), np.empty(WIDE_STACK, np.int32), np.empty(WIDE_STACK, np.int32),
-        np.empty(WIDTH, np.float32), np.empty(WIDTH, np.int64), np.empty(STACK, np.int32),
-        np.empty(STACK, np.float32), np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_FLOATS), np.float32),
-        np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_INTS), np.int32), image, hits, counts, stop,
-    )  # fmt: skip
+    scratch = (lanes, np.empty(7, np.float32), np.empty(WIDE_STACK, np.int32), np.empty(WIDE_STACK, np.int32),
+               np.empty(WIDTH, np.float32), np.empty(WIDTH, np.int64), np.empty(STACK, np.int32),
+               np.empty(STACK, np.float32), np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_FLOATS), np.float32),
+               np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_INTS), np.int32))  # fmt: skip
+    streams = (np.empty((3, _QF, STREAM_QUEUE), np.float32), np.empty((3, 6, STREAM_QUEUE), np.int32),
+               np.empty(STREAM_QUEUE, np.int32), np.empty(STREAM_QUEUE, np.float32),
+               np.empty(STREAM_QUEUE, np.float32), np.empty((3, STREAM_RECORDS), np.float32),
+               np.empty((3, STREAM_RECORDS), np.int32), np.empty((6, PACKET), np.int64),
+               np.empty((_S_FLOATS, LANES), np.float32), np.empty((3, LANES), np.int32),
+               np.empty(WIDE_STACK, np.int32), np.empty(WIDE_STACK, np.int32), np.empty(WIDE_STACK, np.float32),
+               np.empty(whitted_mod.RAY_STACK, np.int32), np.empty(STREAM_QUEUE, np.int64),
+               np.empty(STREAM_QUEUE, np.int32))  # fmt: skip
+    _whitted_streams(first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern, params,
+                     own, *scratch, streams, image, hits, counts, stop)  # fmt: skip
 
 
 # Without the runtime's reference counting (_nrt=False): Numba counts the
@@ -1189,6 +1197,345 @@ def _whitted_tiles(first_row, end_row, width, height, basis, spheres, count, mat
                     counts[y, whitted_mod.SHADOW] += b
                     counts[y, whitted_mod.REFLECTION] += c
                     counts[y, whitted_mod.REFRACTION] += d
+
+
+# The bounces as streams (_whitted_streams): a tile's rays are traced a
+# bounce (a wave) at a time, each wave's reflected and refracted rays LANES
+# at a time through the 4-wide tree as one packet of rays of many origins
+# (_stream_packet). A tile's waves hold at most STREAM_QUEUE rays and its
+# rays in all at most STREAM_RECORDS; a pixel whose tree of rays does not
+# fit is traced again alone by the pixel program (_pixel_alone).
+STREAM_QUEUE = 16 * PACKET
+STREAM_RECORDS = 64 * PACKET
+# A wave's rays: float rows origin, direction, weight (rgb), slack; int rows
+# the pixel's lane in the tile, depth, kind, the sphere it leaves, whether
+# it goes into it, its record.
+_QF = 10
+_Q_LANE, _Q_DEPTH, _Q_KIND, _Q_OWN, _Q_INSIDE, _Q_REC = range(6)
+# A ray's record: whether it brings light (the light itself in float rows
+# 0-2), its reflected and its refracted child's record (-1: none).
+_R_BRINGS, _R_REFLECTED, _R_REFRACTED = range(3)
+# A tile's pixels: rays cast by kind (whitted.KINDS' columns), the record
+# of the primary ray, whether its rays overflowed the tile's.
+_P_ROOT, _P_OVER = 4, 5
+# A stream packet's lanes (_stream_packet): floats ...
+_S_OX, _S_OY, _S_OZ, _S_DX, _S_DY, _S_DZ, _S_IX, _S_IY, _S_IZ = range(9)
+_S_LX, _S_LY, _S_LZ, _S_HX, _S_HY, _S_HZ, _S_CLOSEST, _S_D = range(9, 17)
+_S_FLOATS = 17
+# ... and ints
+_S_HIT, _S_OWN, _S_INSIDE = range(3)
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _stream_enter(w, c, lanes):
+    """_ray_box, on the same float32 values, for each of a stream packet's
+    rays on child box c of wide row w: whether one of them enters it no
+    farther than its closest hit. No branch, an OR the one reduction: LLVM
+    makes the loop SIMD."""
+    wlx, wly, wlz = w[_U(LO_X) + c], w[_U(LO_Y) + c], w[_U(LO_Z) + c]
+    whx, why, whz = w[_U(HI_X) + c], w[_U(HI_Y) + c], w[_U(HI_Z) + c]
+    entered = False
+    for k in range(LANES):
+        a0 = (wlx - lanes[_S_LX, k]) * lanes[_S_IX, k]
+        a1 = (wly - lanes[_S_LY, k]) * lanes[_S_IY, k]
+        a2 = (wlz - lanes[_S_LZ, k]) * lanes[_S_IZ, k]
+        b0 = (whx - lanes[_S_HX, k]) * lanes[_S_IX, k]
+        b1 = (why - lanes[_S_HY, k]) * lanes[_S_IY, k]
+        b2 = (whz - lanes[_S_HZ, k]) * lanes[_S_IZ, k]
+        near = max(min(a0, b0), max(min(a1, b1), min(a2, b2)))
+        far = min(max(a0, b0), min(max(a1, b1), max(a2, b2)))
+        entered |= (near <= far) & (far > ZERO) & (near <= lanes[_S_CLOSEST, k])
+    return entered
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _stream_leaf(lanes, ints, ordered, order, first, count):
+    """A leaf's spheres on every ray of a stream packet, _walk_wide's test
+    and tie rule on the same float32 values, each ray with its own origin
+    and its own sphere to leave; a ray that entered no box of the leaf only
+    tests spheres it could not have missed had it been nearer."""
+    for j in range(first, first + count):
+        original = order[j]
+        cx, cy, cz, r = ordered[0, j], ordered[1, j], ordered[2, j], ordered[3, j]
+        for k in range(LANES):
+            far_only = original == ints[_S_OWN, k]
+            skip = far_only & (ints[_S_INSIDE, k] == 0)
+            t, d = _intersect_ahead_v(cx - lanes[_S_OX, k], cy - lanes[_S_OY, k], cz - lanes[_S_OZ, k], r,
+                                      lanes[_S_DX, k], lanes[_S_DY, k], lanes[_S_DZ, k], far_only)  # fmt: skip
+            c = lanes[_S_CLOSEST, k]
+            h = ints[_S_HIT, k]
+            better = (not skip) & (t > ZERO) & ((t < c) | ((t == c) & (original < h)))
+            lanes[_S_CLOSEST, k] = t if better else c
+            ints[_S_HIT, k] = original if better else h
+            lanes[_S_D, k] = d if better else lanes[_S_D, k]
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _stream_packet(qf, qi, first, n, hit, hit_t, hit_d, lanes, ints, s_ref, s_count, s_t, wide, wide_links, ordered,
+                   order):  # fmt: skip
+    """The nearest hits of a wave's rays at slots first..first + n - 1 (n <=
+    LANES; qf, qi: the wave's rows) as one packet through the 4-wide tree,
+    each ray with its own origin: (hit, hit_t, hit_d)[slot], _walk_wide's
+    answer for each ray alone (its boxes the same padded ones, tested on the
+    same float32 values; the nearest sphere, ties to the smaller index,
+    whatever the order of the visits). A node's children are tested on all
+    the rays (_stream_enter), those entered by one pushed nearest on top
+    along the first ray; lanes past n hold a copy of the last ray, with no
+    length (_DEAD), and enter nothing."""
+    for k in range(LANES):
+        s = first + min(k, n - 1)
+        ox, oy, oz = qf[0, s], qf[1, s], qf[2, s]
+        dx, dy, dz = qf[3, s], qf[4, s], qf[5, s]
+        margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
+        lanes[_S_OX, k], lanes[_S_OY, k], lanes[_S_OZ, k] = ox, oy, oz
+        lanes[_S_DX, k], lanes[_S_DY, k], lanes[_S_DZ, k] = dx, dy, dz
+        lanes[_S_IX, k], lanes[_S_IY, k], lanes[_S_IZ, k] = _inverse(dx), _inverse(dy), _inverse(dz)
+        lanes[_S_LX, k], lanes[_S_LY, k], lanes[_S_LZ, k] = ox + margin, oy + margin, oz + margin
+        lanes[_S_HX, k], lanes[_S_HY, k], lanes[_S_HZ, k] = ox - margin, oy - margin, oz - margin
+        lanes[_S_CLOSEST, k] = FAR if k < n else _DEAD
+        lanes[_S_D, k] = ZERO
+        ints[_S_HIT, k] = -1
+        ints[_S_OWN, k] = qi[_Q_OWN, s]
+        ints[_S_INSIDE, k] = qi[_Q_INSIDE, s]
+    ox, oy, oz = lanes[_S_OX, 0], lanes[_S_OY, 0], lanes[_S_OZ, 0]
+    cdx, cdy, cdz = lanes[_S_DX, 0], lanes[_S_DY, 0], lanes[_S_DZ, 0]
+    s_ref[0] = 0
+    s_count[0] = INNER
+    top = 1
+    while top > 0:
+        top -= 1
+        node = s_ref[top]
+        if s_count[top] != INNER:
+            _stream_leaf(lanes, ints, ordered, order, node, s_count[top])
+            continue
+        w = wide[node]
+        base = top
+        for c in range(WIDTH):
+            ref, count = wide_links[node, W_REF + c], wide_links[node, W_COUNT + c]
+            if count == 0 or not _stream_enter(w, _U(c), lanes):
+                continue
+            # where the box's centre lies along the first ray: the nearest on top
+            ax = (w[LO_X + c] + w[HI_X + c]) - (ox + ox)
+            ay = (w[LO_Y + c] + w[HI_Y + c]) - (oy + oy)
+            az = (w[LO_Z + c] + w[HI_Z + c]) - (oz + oz)
+            along = ax * cdx + ay * cdy + az * cdz
+            j = top
+            while j > base and s_t[j - 1] < along:
+                s_ref[j] = s_ref[j - 1]
+                s_count[j] = s_count[j - 1]
+                s_t[j] = s_t[j - 1]
+                j -= 1
+            s_ref[j] = ref
+            s_count[j] = count
+            s_t[j] = along
+            top += 1
+    for k in range(n):
+        hit[first + k] = ints[_S_HIT, k]
+        hit_t[first + k] = lanes[_S_CLOSEST, k]
+        hit_d[first + k] = lanes[_S_D, k]
+
+
+_whitted_stages = _k.whitted_stages["packets"]
+_hit_ray, _background = _whitted_stages.hit_ray, _whitted_stages.background
+_whitted_primary_ray, _whitted_to_byte = _k.primary_ray, _k.to_byte
+
+
+@numba.njit(inline="always")
+def _put_ray(qf, qi, slot, ox, oy, oz, dx, dy, dz, wr, wg, wb, slack, lane, depth, kind, own, inside, rec):
+    qf[0, slot], qf[1, slot], qf[2, slot] = ox, oy, oz
+    qf[3, slot], qf[4, slot], qf[5, slot] = dx, dy, dz
+    qf[6, slot], qf[7, slot], qf[8, slot], qf[9, slot] = wr, wg, wb, slack
+    qi[_Q_LANE, slot], qi[_Q_DEPTH, slot], qi[_Q_KIND, slot] = lane, depth, kind
+    qi[_Q_OWN, slot], qi[_Q_INSIDE, slot], qi[_Q_REC, slot] = own, inside, rec
+
+
+@numba.njit(inline="always")
+def _put_child(child, kind, qf, qi, slot, rec, lane, depth, own, reci, parent):
+    """hit_ray's child (its tuple) into the next wave's slot and record rec,
+    named in its parent's record."""
+    _put_ray(qf, qi, slot, child[1], child[2], child[3], child[4], child[5], child[6], child[7], child[8], child[9],
+             child[10], lane, depth, kind, own, 1 if child[11] else 0, rec)  # fmt: skip
+    reci[_R_REFLECTED if kind == whitted_mod.REFLECTION else _R_REFRACTED, parent] = rec
+
+
+_STREAM_SORT = True
+_STREAM_ALONE = False
+
+
+@numba.njit(inline="always")
+def _sort_wave(qf, qi, to_f, to_i, n, keys, perm):
+    """A wave's n rays copied into (to_f, to_i) in the order of the sphere
+    they leave and their kind, pixel order kept among equals: rays of one
+    packet then leave one surface the same way, and go the same way."""
+    for s in range(n):
+        key = np.int64(qi[_Q_OWN, s]) * 2 + (1 if qi[_Q_KIND, s] == whitted_mod.REFLECTION else 0)
+        j = s
+        while j > 0 and keys[j - 1] > key:
+            keys[j] = keys[j - 1]
+            perm[j] = perm[j - 1]
+            j -= 1
+        keys[j] = key
+        perm[j] = s
+    for s in range(n):
+        p = perm[s]
+        for row in range(_QF):
+            to_f[row, s] = qf[row, p]
+        for row in range(6):
+            to_i[row, s] = qi[row, p]
+
+
+@compiled.njit(nogil=True, _nrt=False)
+def _pixel_alone(x, y, width, height, basis, spheres, count, materials, lights, pattern, params, tree, stack_row,
+                 stack_t, rays_f, rays_i, image, hits):  # fmt: skip
+    """The pixel program for one pixel of a tile whose rays overflowed the
+    streams' (_whitted_streams): a call of its own, so that the program is
+    compiled once."""
+    return _whitted_packets_pixel(x, y, width, height, basis, spheres, count, materials, lights, pattern, params, tree,
+                                  stack_row, stack_t, rays_f, rays_i, image, hits)  # fmt: skip
+
+
+@compiled.njit(nogil=True, _nrt=False)
+def _whitted_streams(first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern, params,
+                     tree, lanes, spread, packet_row, packet_count, along, chosen, stack_row, stack_t, rays_f, rays_i,
+                     streams, image, hits, counts, stop):  # fmt: skip
+    """_whitted_tiles' frame, the bounces as streams: a tile's primary rays
+    as one packet (_tile_primaries), then its rays a wave at a time, each
+    bounce's rays of the whole tile traced LANES at a time (_stream_packet)
+    and shaded by the pixel program's own step (whitted's hit_ray), which
+    casts the shadow rays as packets and spawns the next wave. Each ray's
+    light is kept in its record and a pixel's added up at the end in the
+    order the pixel program adds it (its rays depth first, the reflected
+    before the refracted), so each pixel is the program's, bit for bit.
+    streams: the thread's scratch (_whitted_rows_packets)."""
+    wide, wide_links, ordered, order = tree[_T_WIDE], tree[_T_WIDE_LINKS], tree[2], tree[3]
+    hit, closest, hit_d, lane = tree[_T_HIT], tree[_T_CLOSEST], tree[_T_HIT_D], tree[_T_LANE]
+    qf2, qi2, w_hit, w_t, w_d, recf, reci, pix, s_lanes, s_ints, s_ref, s_count, s_t, order_stack, keys, perm = streams
+    for y0 in range(first_row, end_row, PACKET_H):
+        if stop[0]:
+            return
+        lines = min(PACKET_H, end_row - y0)
+        for y in range(y0, y0 + lines):
+            for kind in range(len(whitted_mod.KINDS)):
+                counts[y, kind] = 0
+        for x0 in range(0, width, PACKET_W):
+            _tile_primaries(x0, y0, end_row, width, height, basis, wide, wide_links, ordered, order, lanes, hit, hit_d,
+                            spread, packet_row, packet_count, along, chosen)  # fmt: skip
+            cols = min(PACKET_W, width - x0)
+            # the first wave: the primary rays, their hits the packet's
+            qf, qi = qf2[0], qi2[0]
+            n = 0
+            for line in range(lines):
+                for i in range(cols):
+                    k = line * PACKET_W + i
+                    dx, dy, dz = _whitted_primary_ray(x0 + i, y0 + line, width, height, basis)
+                    _put_ray(qf, qi, n, basis[0, 0], basis[0, 1], basis[0, 2], dx, dy, dz, ONE, ONE, ONE,
+                             whitted_mod.CUTOFF, k, 0, whitted_mod.PRIMARY, -1, 0, n)  # fmt: skip
+                    w_hit[n], w_t[n], w_d[n] = hit[k], closest[k], hit_d[k]
+                    for kind in range(len(whitted_mod.KINDS)):
+                        pix[kind, k] = 0
+                    pix[_P_ROOT, k] = n
+                    pix[_P_OVER, k] = 0
+                    n += 1
+            nrec = n
+            cur = 0
+            while n > 0:
+                # shade the wave's rays: each one's light into its record, its children into the next wave
+                qf, qi = qf2[cur], qi2[cur]
+                nxt = (cur + 1) % 3
+                nf, ni = qf2[nxt], qi2[nxt]
+                m = 0
+                for s in range(n):
+                    k = qi[_Q_LANE, s]
+                    if pix[_P_OVER, k]:
+                        continue
+                    pix[qi[_Q_KIND, s], k] += 1
+                    rec = qi[_Q_REC, s]
+                    reci[_R_REFLECTED, rec] = -1
+                    reci[_R_REFRACTED, rec] = -1
+                    wr, wg, wb = qf[6, s], qf[7, s], qf[8, s]
+                    i = w_hit[s]
+                    if i < 0:
+                        br, bg, bb = _background(np.float32(x0 + k % PACKET_W), np.float32(y0 + k // PACKET_W), params)
+                        recf[0, rec], recf[1, rec], recf[2, rec] = wr * br, wg * bg, wb * bb
+                        reci[_R_BRINGS, rec] = 1
+                        continue
+                    depth = qi[_Q_DEPTH, s]
+                    lr, lg, lb, brings, shadows, refracted, reflected = _hit_ray(
+                        qf[0, s], qf[1, s], qf[2, s], qf[3, s], qf[4, s], qf[5, s], wr, wg, wb, qf[9, s], depth, i,
+                        w_t[s], w_d[s], spheres, count, materials, lights, pattern, params, tree, stack_row, stack_t,
+                    )  # fmt: skip
+                    pix[whitted_mod.SHADOW, k] += shadows
+                    recf[0, rec], recf[1, rec], recf[2, rec] = lr, lg, lb
+                    reci[_R_BRINGS, rec] = 1 if brings else 0
+                    need = (1 if refracted[0] else 0) + (1 if reflected[0] else 0)
+                    if m + need > nf.shape[1] or nrec + need > reci.shape[1]:
+                        pix[_P_OVER, k] = 1  # no room: the pixel is traced again alone, the others go on
+                        continue
+                    if refracted[0]:
+                        _put_child(refracted, whitted_mod.REFRACTION, nf, ni, m, nrec, k, depth + 1, i, reci, rec)
+                        m += 1
+                        nrec += 1
+                    if reflected[0]:
+                        _put_child(reflected, whitted_mod.REFLECTION, nf, ni, m, nrec, k, depth + 1, i, reci, rec)
+                        m += 1
+                        nrec += 1
+                n = m
+                cur = nxt
+                if _STREAM_SORT:
+                    cur = (nxt + 1) % 3
+                    _sort_wave(nf, ni, qf2[cur], qi2[cur], n, keys, perm)
+                nf, ni = qf2[cur], qi2[cur]
+                # the next wave traced, LANES rays at a time
+                if _STREAM_ALONE:
+                    for s in range(n):
+                        w_hit[s], w_t[s], w_d[s] = _walk_wide(
+                            nf[0, s], nf[1, s], nf[2, s], nf[3, s], nf[4, s], nf[5, s], FAR, False, ni[_Q_OWN, s],
+                            ni[_Q_INSIDE, s] != 0, wide, wide_links, ordered, order, tree[_T_S_REF],
+                            tree[_T_S_COUNT], tree[_T_S_T],
+                        )  # fmt: skip
+                else:
+                    for f in range(0, n, LANES):
+                        _stream_packet(nf, ni, f, min(LANES, n - f), w_hit, w_t, w_d, s_lanes, s_ints, s_ref,
+                                       s_count, s_t, wide, wide_links, ordered, order)  # fmt: skip
+            # each pixel's light added up in the pixel program's order
+            for line in range(lines):
+                y = y0 + line
+                for i in range(cols):
+                    k = line * PACKET_W + i
+                    if pix[_P_OVER, k]:
+                        lane[0] = k
+                        a, b, c, d = _pixel_alone(x0 + i, y, width, height, basis, spheres, count, materials, lights,
+                                                  pattern, params, tree, stack_row, stack_t, rays_f, rays_i, image,
+                                                  hits)  # fmt: skip
+                        counts[y, whitted_mod.PRIMARY] += a
+                        counts[y, whitted_mod.SHADOW] += b
+                        counts[y, whitted_mod.REFLECTION] += c
+                        counts[y, whitted_mod.REFRACTION] += d
+                        continue
+                    red = ZERO
+                    green = ZERO
+                    blue = ZERO
+                    order_stack[0] = pix[_P_ROOT, k]
+                    top = 1
+                    while top > 0:
+                        top -= 1
+                        rec = order_stack[top]
+                        if reci[_R_BRINGS, rec]:
+                            red += recf[0, rec]
+                            green += recf[1, rec]
+                            blue += recf[2, rec]
+                        if reci[_R_REFRACTED, rec] >= 0:
+                            order_stack[top] = reci[_R_REFRACTED, rec]
+                            top += 1
+                        if reci[_R_REFLECTED, rec] >= 0:
+                            order_stack[top] = reci[_R_REFLECTED, rec]
+                            top += 1
+                    image[y, x0 + i, 0] = _whitted_to_byte(red)
+                    image[y, x0 + i, 1] = _whitted_to_byte(green)
+                    image[y, x0 + i, 2] = _whitted_to_byte(blue)
+                    hits[y, x0 + i] = hit[k]
+                    for kind in range(len(whitted_mod.KINDS)):
+                        counts[y, kind] += pix[kind, k]
 
 
 WHITTED_ROWS = {"bvh": _whitted_rows_bvh, "none": _whitted_rows_all, "packets": _whitted_rows_packets}
