@@ -4,7 +4,6 @@ on fresh random scenes, its invariants, and every device against the CPU."""
 import importlib
 import math
 
-import numba
 import numpy as np
 import pytest
 import whitted_reference
@@ -13,9 +12,8 @@ from scenes import KINDS
 
 import raybench
 from raybench import Camera, Light, Material, Scene, backends, lighting
-from raybench.backends import bands, cpu
+from raybench.backends import bands
 from raybench.kernels import whitted
-from raybench.layout import RADIUS, WIDE_STACK
 
 
 def material(rng, kind=None) -> Material:
@@ -719,87 +717,3 @@ def check_plan(rng):
     first = int(rng.integers(0, rows))
     covered = [row for top, bottom in plan.bands(first, rows) for row in range(top, bottom)]
     assert covered == list(range(first, rows))
-
-
-@pytest.mark.slow  # the two walks' compile
-def test_cpu_stream_packets_are_the_single_ray_walk(rng):
-    """The streams' walk (cpu._stream_packet): rays of many origins, each
-    leaving a sphere outwards or into it (or none), through the 4-wide tree
-    in packets of 1 to cpu.LANES; each ray's hit, t and half-chord are the
-    single-ray walk's (cpu._walk_wide), bit for bit, on a fresh random scene
-    of mirrors and glass, from points on its spheres, just off them, and in
-    open space."""
-    scene = lit_scene(rng, 60)
-    with backends.tracer("cpu", scene.spheres, 8, 8, whitted=lighting.Shading.of(scene, 5, 1)) as tracer:
-        _nodes, _links, ordered, order, wide, wide_links = tracer._tree(tracer.count)
-    n = 700
-    own = rng.integers(-1, tracer.count, n).astype(np.int32)
-    inside = rng.integers(2, size=n).astype(np.int32)
-    normal = rng.normal(size=(n, 3))
-    normal /= np.linalg.norm(normal, axis=1)[:, None]
-    centre, radius = scene.spheres[:3, own].T, scene.spheres[RADIUS, own]
-    # on the sphere it leaves, a few float32 steps out or in, as hit_ray offsets them; own -1: anywhere
-    origin = centre + normal * (radius * (1 + rng.choice([-1, 1], n) * rng.uniform(0, 2e-6, n)))[:, None]
-    origin[own < 0] = rng.uniform([-5, -3, 0], [5, 3, 18], ((own < 0).sum(), 3))
-    direction = rng.normal(size=(n, 3))
-    direction[inside == 1] = -normal[inside == 1] + 0.8 * direction[inside == 1]  # into the sphere
-    direction /= np.linalg.norm(direction, axis=1)[:, None]
-    qf = np.zeros((cpu._QF, n), np.float32)
-    qf[:3], qf[3:6] = origin.T, direction.T
-    qi = np.zeros((6, n), np.int32)
-    qi[cpu._Q_OWN], qi[cpu._Q_INSIDE] = own, inside
-    sizes = rng.integers(1, cpu.LANES + 1, n)
-    packets = np.cumsum(np.concatenate([[0], sizes]))
-    packets = np.append(packets[packets < n], n).astype(np.int64)
-    got, want = _stream_and_alone(qf, qi, packets, wide, wide_links, ordered, order)
-    assert (want[0] >= 0).sum() > n // 4 and (want[0] < 0).sum() > n // 10  # hits and misses both
-    assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1]) and np.array_equal(got[2], want[2])
-
-
-def _stream_and_alone(qf, qi, packets, wide, wide_links, ordered, order):
-    n = qf.shape[1]
-    got = (np.empty(n, np.int32), np.empty(n, np.float32), np.empty(n, np.float32))
-    want = (np.empty(n, np.int32), np.empty(n, np.float32), np.empty(n, np.float32))
-    lanes, ints = np.empty((cpu._S_FLOATS, cpu.LANES), np.float32), np.empty((3, cpu.LANES), np.int32)
-    s_ref, s_count, s_t = (
-        np.empty(WIDE_STACK, np.int32),
-        np.empty(WIDE_STACK, np.int32),
-        np.empty(WIDE_STACK, np.float32),
-    )
-    _walks(qf, qi, packets, wide, wide_links, ordered, order, lanes, ints, s_ref, s_count, s_t, got, want)
-    return got, want
-
-
-@numba.njit
-def _walks(qf, qi, packets, wide, wide_links, ordered, order, lanes, ints, s_ref, s_count, s_t, got, want):
-    for p in range(len(packets) - 1):
-        first, end = packets[p], packets[p + 1]
-        cpu._stream_packet(qf, qi, first, end - first, got[0], got[1], got[2], lanes, ints, s_ref, s_count, s_t,
-                           wide, wide_links, ordered, order)  # fmt: skip
-    for s in range(qf.shape[1]):
-        hit, t, d = cpu._walk_wide(qf[0, s], qf[1, s], qf[2, s], qf[3, s], qf[4, s], qf[5, s], cpu.FAR, False,
-                                   qi[cpu._Q_OWN, s], qi[cpu._Q_INSIDE, s] != 0, wide, wide_links, ordered, order,
-                                   s_ref, s_count, s_t)  # fmt: skip
-        want[0][s], want[1][s], want[2][s] = hit, t, d
-
-
-def test_cpu_tiles_whose_rays_overflow_are_the_pixel_programs(rng):
-    """Glass in a mirror ball: no ray escapes, and each glass hit casts two,
-    so the trees of rays outgrow what a tile's streams hold
-    (cpu.STREAM_RECORDS); such pixels are traced again by the pixel
-    program, the others stay streams: the frame, hits and rays are still
-    tree_width 2's, bit for bit."""
-    glass = Material(reflect=0.4, transmit=0.4, ior=float(rng.uniform(1.2, 1.8)))
-    scene = Scene(
-        np.array([rng.uniform([-0.3, -0.3, -0.3], [0.3, 0.3, 0.3]), [0.0, 0.0, 0.0]]),
-        np.array([rng.uniform(0.8, 1.2), 4.0]),
-        rng.uniform(0, 1, (2, 3)),
-        Camera(position=(0, 0, -2.5), look_at=(0, 0, 0)),
-        materials=[glass, Material(reflect=0.9)],
-    )
-    alone = frame(scene, "cpu", 37, 20, depth=12, tree_width=2)
-    streams = frame(scene, "cpu", 37, 20, depth=12, threads=2)
-    tiles = math.ceil(37 / cpu.PACKET_W) * math.ceil(20 / cpu.PACKET_H)
-    assert alone.rays["reflection"] + alone.rays["refraction"] > tiles * cpu.STREAM_RECORDS  # some tile overflowed
-    assert np.array_equal(alone.hits, streams.hits) and alone.rays == streams.rays
-    assert np.array_equal(alone.image, streams.image), np.count_nonzero(alone.image != streams.image)

@@ -14,7 +14,7 @@ from . import intersect, shade, traverse, wavefront, whitted
 from .constants import FAR, HALF, ONE, ZERO
 
 
-def build(jit, call=None, shadows=None, packets_search=None, packets_step=None):
+def build(jit, call=None, shadows=None, packets_search=None):
     """The algorithm compiled with `jit`; a namespace of its functions.
     call: the decorator of Whitted shading's search for a ray's hit (default
     jit), which the CPU compiles as one function called from both of its call
@@ -24,9 +24,7 @@ def build(jit, call=None, shadows=None, packets_search=None, packets_step=None):
     program, render_pixel_whitted["packets"], through the tree with them.
     packets_search: that program's search for the other rays (the CPU's
     walk of its 4-wide tree, search_tree's signature); default search_tree.
-    That program's find is inlined (jit, not call); packets_step: the
-    decorator of its hit_ray (whitted.build's `step`), which the CPU's
-    streams call too (default jit: inlined)."""
+    That program's find is inlined (jit, not call)."""
     call = call or jit
     intersect_relative, intersect_sphere, prepare_sphere, may_hit, along, intersect_ahead = intersect.build(jit)
     shade_hit, shade_miss, to_byte = shade.build(jit)
@@ -147,8 +145,7 @@ def build(jit, call=None, shadows=None, packets_search=None, packets_step=None):
             # find inlined: this program's shadow rays call no find (its shadows trace
             # them), so the walk has one call site and is compiled once, and the call's
             # cost goes (measured: docs/whitted.md, "CPU: the primary rays as packets")
-            stages = whitted.build(jit, jit, search, shade_hit, shade_miss, shadows, name="_packets", step=packets_step)
-            whitted_stages["packets"] = stages
+            stages = whitted.build(jit, jit, search, shade_hit, shade_miss, shadows, name="_packets")
         whitted_pixel = stages.whitted_pixel
 
         @jit
@@ -174,7 +171,6 @@ def build(jit, call=None, shadows=None, packets_search=None, packets_step=None):
     # Whitted's pixel through the BVH and by brute force, and the wavefront's
     # stages for each (kernels/wavefront.py)
     wavefronts = {}
-    whitted_stages = {}  # the packets program's parts (whitted.build's namespace), for the CPU's streams
     render_pixel_whitted = {"bvh": whitted_program(search_tree), "none": whitted_program(search_all)}
     whitted_wavefront = {"bvh": wavefronts["search_tree"], "none": wavefronts["search_all"]}
     if shadows is not None:
@@ -214,7 +210,6 @@ def build(jit, call=None, shadows=None, packets_search=None, packets_step=None):
         scan=scan,
         render_pixel_whitted=render_pixel_whitted,
         whitted_wavefront=whitted_wavefront,
-        whitted_stages=whitted_stages,
         walk=walk,
         intersect_ahead=intersect_ahead,
     )

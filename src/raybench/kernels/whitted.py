@@ -120,7 +120,7 @@ def per_ray(jit, find, toward):
     return cast, blocked
 
 
-def build(jit, call, search, shade_hit, shade_miss, shadows=per_ray, name="", step=None):
+def build(jit, call, search, shade_hit, shade_miss, shadows=per_ray, name=""):
     """Whitted's pixel program over `search`, the nearest (or any) hit of
     any ray: through the tree or over every sphere (trace.search_tree and
     search_all), one program for each, so neither carries the other's code;
@@ -129,10 +129,7 @@ def build(jit, call, search, shade_hit, shade_miss, shadows=per_ray, name="", st
     traced, the pair (cast, blocked) of per_ray's shape: per_ray by default;
     the CPU's packets (backends/cpu.py) trace a light's samples together in
     cast, and blocked reads the answer. name: told to find's symbol, where
-    one process holds two programs over one search (the note on find).
-    step: the decorator of hit_ray, a ray's step of the pixel program, where
-    a backend calls it from a program of its own too (the CPU's streams):
-    then compiled once and called from both; default jit (inlined)."""
+    one process holds two programs over one search (the note on find)."""
 
     # `find` is the program's one call boundary on the CPU (call: a plain
     # numba.njit there; every other function is inlined into the kernel): the
@@ -353,67 +350,6 @@ def build(jit, call, search, shade_hit, shade_miss, shadows=per_ray, name="", st
                 sb += cb * g
         return dr, dg, db, sr, sg, sb, shadows
 
-    def hit_ray(ox, oy, oz, dx, dy, dz, wr, wg, wb, slack, depth, i, t, d, spheres, count, materials, lights, pattern,
-                params, tree, stack_row, stack_t):  # fmt: skip
-        """What a ray (origin, direction, weight, slack, depth) that met
-        sphere i at t (half-chord d) brings and casts, whitted_pixel's step
-        for one ray: (the light it brings, rgb, and whether it brings any;
-        the shadow rays it cast; its refracted child: whether cast, origin,
-        direction, weight, slack, whether it goes into the sphere; its
-        reflected child: the same). A program that sums a pixel's light
-        adds each ray's in whitted_pixel's order, so its pixel is this one's."""
-        px, py, pz, nx, ny, nz, cos_i, inside = surface(ox, oy, oz, dx, dy, dz, t, i, spheres)
-        kr = materials[REFLECT, i]
-        kt = materials[TRANSMIT, i]
-        keep = ONE - kr - kt
-        red = ZERO
-        green = ZERO
-        blue = ZERO
-        brings = False
-        shadows = 0
-        if params[P_LIGHTS] > ZERO:
-            if shows(i, keep, spheres, materials):
-                lr, lg, lb, sr, sg, sb, shadows = local_light(
-                    px, py, pz, nx, ny, nz, -dx, -dy, -dz, i, inside, spheres, count, materials, lights, pattern,
-                    params, tree, stack_row, stack_t,
-                )  # fmt: skip
-                red = wr * (keep * lr + sr)
-                green = wg * (keep * lg + sg)
-                blue = wb * (keep * lb + sb)
-                brings = True
-        else:
-            lr, lg, lb = shade_hit(spheres[RED, i], spheres[GREEN, i], spheres[BLUE, i], spheres[RADIUS, i], d)
-            red = wr * (keep * lr)
-            green = wg * (keep * lg)
-            blue = wb * (keep * lb)
-            brings = True
-        cast_r = False
-        cast_t = False
-        slack_r = ZERO
-        slack_t = ZERO
-        tx = ZERO
-        ty = ZERO
-        tz = ZERO
-        if depth < np.int32(params[P_DEPTH]) and (kr > ZERO or kt > ZERO):
-            kr, kt, tx, ty, tz, cast_r, slack_r, cast_t, slack_t = branches(
-                dx, dy, dz, nx, ny, nz, cos_i, inside, kr, kt, materials[IOR, i], max(wr, max(wg, wb)), slack
-            )
-        offset = OFFSET * (abs(px) + abs(py) + abs(pz))
-        two_cos = TWO * cos_i
-        # the refracted ray goes through the surface: from outside into the sphere, or out of it
-        refracted = (cast_t, px - offset * nx, py - offset * ny, pz - offset * nz, tx, ty, tz, wr * kt, wg * kt,
-                     wb * kt, slack_t, not inside)  # fmt: skip
-        reflected = (cast_r, px + offset * nx, py + offset * ny, pz + offset * nz, dx + two_cos * nx,
-                     dy + two_cos * ny, dz + two_cos * nz, wr * kr, wg * kr, wb * kr, slack_r, inside)  # fmt: skip
-        return red, green, blue, brings, shadows, refracted, reflected
-
-    if step is None:
-        hit_ray = jit(hit_ray)
-    else:  # a symbol of its own, as find's
-        hit_ray.__name__ = f"hit_ray_{search.__name__}{name}"
-        hit_ray.__qualname__ = hit_ray.__qualname__.replace("hit_ray", hit_ray.__name__)
-        hit_ray = step(hit_ray)
-
     @jit
     def whitted_pixel(x, y, width, height, basis, primary_ray, spheres, count, materials, lights, pattern, params,
                       tree, stack_row, stack_t, rays_f, rays_i):  # fmt: skip
@@ -421,6 +357,8 @@ def build(jit, call, search, shade_hit, shade_miss, shadows=per_ray, name="", st
         pixel (x, y). primary_ray: trace.primary_ray's direction, given."""
         dx, dy, dz = primary_ray
         br, bg, bb = background(np.float32(x), np.float32(y), params)
+        max_depth = np.int32(params[P_DEPTH])
+        lit = params[P_LIGHTS] > ZERO
         red = ZERO
         green = ZERO
         blue = ZERO
@@ -452,28 +390,45 @@ def build(jit, call, search, shade_hit, shade_miss, shadows=per_ray, name="", st
                 green += wg * bg
                 blue += wb * bb
                 continue
-            lr, lg, lb, brings, shadows, refracted, reflected = hit_ray(
-                ox, oy, oz, dx, dy, dz, wr, wg, wb, slack, depth, i, t, d, spheres, count, materials, lights, pattern,
-                params, tree, stack_row, stack_t,
-            )  # fmt: skip
-            n_shadow += shadows
-            if brings:
-                red += lr
-                green += lg
-                blue += lb
-            if refracted[0]:
-                top = push(rays_f, rays_i, top, refracted[1], refracted[2], refracted[3], refracted[4], refracted[5],
-                           refracted[6], refracted[7], refracted[8], refracted[9], refracted[10], depth + 1,
-                           REFRACTION, i, 1 if refracted[11] else 0)  # fmt: skip
-            if reflected[0]:
-                top = push(rays_f, rays_i, top, reflected[1], reflected[2], reflected[3], reflected[4], reflected[5],
-                           reflected[6], reflected[7], reflected[8], reflected[9], reflected[10], depth + 1,
-                           REFLECTION, i, 1 if reflected[11] else 0)  # fmt: skip
+            px, py, pz, nx, ny, nz, cos_i, inside = surface(ox, oy, oz, dx, dy, dz, t, i, spheres)
+            kr = materials[REFLECT, i]
+            kt = materials[TRANSMIT, i]
+            keep = ONE - kr - kt
+            if lit:
+                if shows(i, keep, spheres, materials):
+                    lr, lg, lb, sr, sg, sb, shadows = local_light(
+                        px, py, pz, nx, ny, nz, -dx, -dy, -dz, i, inside, spheres, count, materials, lights, pattern,
+                        params, tree, stack_row, stack_t,
+                    )  # fmt: skip
+                    n_shadow += shadows
+                    red += wr * (keep * lr + sr)
+                    green += wg * (keep * lg + sg)
+                    blue += wb * (keep * lb + sb)
+            else:
+                lr, lg, lb = shade_hit(spheres[RED, i], spheres[GREEN, i], spheres[BLUE, i], spheres[RADIUS, i], d)
+                red += wr * (keep * lr)
+                green += wg * (keep * lg)
+                blue += wb * (keep * lb)
+            if depth >= max_depth or (kr <= ZERO and kt <= ZERO):
+                continue
+            kr, kt, tx, ty, tz, cast_r, slack_r, cast_t, slack_t = branches(
+                dx, dy, dz, nx, ny, nz, cos_i, inside, kr, kt, materials[IOR, i], max(wr, max(wg, wb)), slack
+            )
+            offset = OFFSET * (abs(px) + abs(py) + abs(pz))
+            if cast_t:
+                # it goes through the surface: from outside into the sphere, or out of it
+                top = push(rays_f, rays_i, top, px - offset * nx, py - offset * ny, pz - offset * nz, tx, ty, tz,
+                           wr * kt, wg * kt, wb * kt, slack_t, depth + 1, REFRACTION, i,
+                           0 if inside else 1)  # fmt: skip
+            if cast_r:
+                two_cos = TWO * cos_i
+                top = push(rays_f, rays_i, top, px + offset * nx, py + offset * ny, pz + offset * nz,
+                           dx + two_cos * nx, dy + two_cos * ny, dz + two_cos * nz, wr * kr, wg * kr, wb * kr,
+                           slack_r, depth + 1, REFLECTION, i, 1 if inside else 0)  # fmt: skip
         return red, green, blue, first_hit, n_primary, n_shadow, n_reflect, n_refract
 
     return SimpleNamespace(
         whitted_pixel=whitted_pixel,
-        hit_ray=hit_ray,
         find=find,
         background=background,
         surface=surface,
