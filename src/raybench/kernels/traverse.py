@@ -80,13 +80,13 @@ def build(jit, intersect_sphere, intersect_ahead, read_row=None, read_sphere=Non
     @jit
     def slab(lo_x, lo_y, lo_z, hi_x, hi_y, hi_z, ix, iy, iz, lx, ly, lz, hx, hy, hz):
         """The (near, far) distances of the ray through one child box; near >
-        far where it misses. Both planes of each axis are taken as they are
-        stored and put in order by min and max (the sign of 1/d decides
-        which is near), so every read of the row is at a constant offset:
-        choosing the column by the ray's direction cost an address
-        computation per read (docs/bvh-walk.md#gpu-measured-on-the-h200). The
-        values are the same: float subtraction and multiplication keep the
-        planes' order.
+        far where it misses. Both planes of each axis come as stored (read
+        at fixed columns by read_row) and are put in order by min and max
+        (the sign of 1/d decides which is near), so every read of the row is
+        at a constant offset: choosing the column by the ray's direction cost
+        an address computation per read
+        (docs/bvh-walk.md#gpu-measured-on-the-h200). The values are the same:
+        float subtraction and multiplication keep the planes' order.
         An empty child's inverted box (lo layout.EMPTY, hi -EMPTY) comes out as
         a slab around every ray: visited as the leaf of no spheres that it is."""
         a0 = lo_x * ix - lx

@@ -32,7 +32,7 @@ from ..options import DEFAULT_BLOCK, RAYS_PER_THREAD, STAGED, TRIP, CudaOptions,
 from . import build as cuda_build
 from .device import require, simulated
 from .launch import Launches
-from .wavefront import Wavefront, sphere_rows
+from .wavefront import SPHERE_ROW_BYTES, Wavefront, sphere_rows
 
 # The walk by default: packets once the tree outgrows the L1 cache (256 KiB
 # an SM on the GPUs measured): the packets cost more node visits than a ray
@@ -413,7 +413,8 @@ class Tracer(TracerBase):
                 "cuda GPU",
                 spheres.shape[1],
                 free - spheres.shape[1] * 7 * 4,
-                cuda_build.DEVICE_SPHERE_BYTES if self.build == "gpu" else bvh_mod.DEVICE_SPHERE_BYTES,
+                (cuda_build.DEVICE_SPHERE_BYTES if self.build == "gpu" else bvh_mod.DEVICE_SPHERE_BYTES)
+                + (SPHERE_ROW_BYTES if options.schedule == "wavefront" else 0),  # the wavefront's copy of the spheres
                 width * height * PIXEL_BYTES,
             )
             check_bvh_fits(

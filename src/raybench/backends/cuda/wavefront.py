@@ -109,6 +109,10 @@ def _sphere_rows(ordered, rows):
             rows[k, c] = ordered[c, k]
 
 
+# Device bytes a sphere of sphere_rows' copy.
+SPHERE_ROW_BYTES = 16
+
+
 def sphere_rows(d_ordered):
     """The ordered spheres as the wavefront's walks read them (_sphere_rows),
     seen as float64 pairs, made on the device after each build or refit."""
