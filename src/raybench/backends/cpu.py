@@ -83,7 +83,9 @@ from .options import CpuOptions, checked
 # iterations scalar: tried 4 and 8, also with the rays' bits ORed as
 # _wide_mask does), so a light of 4 samples fills a quarter of the lanes;
 # they cost little next to four rays' scalar walks
-# (docs/whitted.md#cpu-shadow-rays-as-packets-issue-27).
+# (docs/whitted.md#cpu-shadow-rays-as-packets-issue-27). A tile's primary
+# hits fill them: their rays go as packets of neighbouring hits' rays
+# before the pixels are shaded (_tile_shadows), which cast hands back.
 LANES = 16
 _DEAD = np.float32(-np.inf)  # a lane's length once blocked or where no ray is cast: no box is entered
 
@@ -1074,7 +1076,7 @@ _FILL_ROWS = 11
 
 def _morton(k):
     """Pixel k of a tile (k = line * PACKET_W + column) on the Z-order curve:
-    any run of 4 ** n pixels along it is a square or a 2:1 block."""
+    each aligned run of 4 ** n pixels along it is a square of them."""
     x, y, code = k % PACKET_W, k // PACKET_W, 0
     for b in range(8):
         code |= ((x >> b) & 1) << (2 * b) | ((y >> b) & 1) << (2 * b + 1)
@@ -1086,7 +1088,7 @@ def _morton(k):
 _ZORDER = np.array(sorted(range(PACKET), key=_morton), np.int64)
 
 
-@numba.njit(inline="always", error_model="numpy")
+@numba.njit(error_model="numpy")
 def _fill_axis(lo, hi, m0, m1, o0, o1, i0, i1):
     """One axis of _fill_kept: bounds on the entry and exit times of every
     ray of a filled packet at the slab (lo, hi), each ray's planes (lo -
@@ -1104,7 +1106,7 @@ def _fill_axis(lo, hi, m0, m1, o0, o1, i0, i1):
     return low, high
 
 
-@numba.njit(inline="always", error_model="numpy")
+@numba.njit(error_model="numpy", _nrt=False)
 def _fill_kept(lox, loy, loz, hix, hiy, hiz, bounds):
     """_missed_by_all's test, negated, for a filled packet, whose rays have
     origins and margins of their own (bounds: _fill_bounds): False only
@@ -1134,7 +1136,7 @@ def _fill_bounds(rays, bounds):
     bounds[14] = _reach(rays)
 
 
-@numba.njit(inline="always", error_model="numpy")
+@numba.njit(error_model="numpy", _nrt=False)
 def _fill_mask(wide, row, bounds):
     """_wide_mask for a filled packet (_fill_kept on each of the node's
     WIDTH boxes, side by side, without branches)."""
@@ -1147,7 +1149,7 @@ def _fill_mask(wide, row, bounds):
     return mask
 
 
-@numba.njit(inline="always", error_model="numpy")
+@numba.njit(error_model="numpy", _nrt=False)
 def _fill_enter(wide, row, c, rays):
     """_lanes_enter for a filled packet, each ray from its own origin, with
     its own margin: whether any ray enters child c of wide row `row` nearer
@@ -1165,7 +1167,7 @@ def _fill_enter(wide, row, c, rays):
     return entered
 
 
-@numba.njit(inline="always", error_model="numpy")
+@numba.njit(error_model="numpy", _nrt=False)
 def _fill_leaf(rays, owners, ordered, order, first, count, bounds):
     """_lanes_leaf for a filled packet: a leaf's spheres against rays from
     their own origins, each leaving its own sphere (owners[0], skipped or
@@ -1189,7 +1191,7 @@ def _fill_leaf(rays, owners, ordered, order, first, count, bounds):
     return hits
 
 
-@numba.njit(inline="always", error_model="numpy")
+@numba.njit(error_model="numpy", _nrt=False)
 def _fill_walk(rays, owners, spread, bounds, stack, wide, wide_links, ordered, order, live, lead):
     """Any hit of each ray of a filled packet (rays[:_FILL_ROWS], owners)
     through the 4-wide tree: the bits of the rays blocked, of those in
@@ -1362,18 +1364,21 @@ _surface, _shows, _light_samples, _toward = (
 @numba.njit(inline="always", error_model="numpy")
 def _fill_flush(tree, light, samples, slots, live, lead):
     """Trace the filled packet of `slots` pixels' shadow rays to `light`
-    (samples lanes each, in _T_OWNERS[2]'s order) and give each pixel its
-    bits (_T_BITS), as cast would have found them."""
+    (samples lanes each, in _T_OWNERS[2]'s order; live: the lanes with a
+    ray, lead: the first or -1) and give each pixel its bits (_T_BITS), as
+    cast would have found them."""
     rays, owners, bits = tree[_T_RAYS], tree[_T_OWNERS], tree[_T_BITS]
-    for k in range(LANES):
-        if not (live >> np.int64(k)) & np.int64(1):  # dead lanes follow the lead: the spread stays tight
-            rays[_LEN, k] = _DEAD
-            for a in (_DX, _DY, _DZ, _OX, _OY, _OZ, _MG):
-                rays[a, k] = rays[a, lead]
-            owners[0, k] = owners[0, lead]
-            owners[1, k] = owners[1, lead]
-    blocked = _fill_walk(rays, owners, tree[_T_SPREAD], tree[_T_BOUNDS], tree[_T_STACK], tree[_T_WIDE],
-                         tree[_T_WIDE_LINKS], tree[2], tree[3], live, lead)  # fmt: skip
+    blocked = np.int64(0)
+    if lead >= 0:
+        for k in range(LANES):
+            if not (live >> np.int64(k)) & np.int64(1):  # dead lanes follow the lead: the ranges stay tight
+                for a in range(_FILL_ROWS):
+                    rays[a, k] = rays[a, lead]
+                rays[_LEN, k] = _DEAD
+                owners[0, k] = owners[0, lead]
+                owners[1, k] = owners[1, lead]
+        blocked = _fill_walk(rays, owners, tree[_T_SPREAD], tree[_T_BOUNDS], tree[_T_STACK], tree[_T_WIDE],
+                             tree[_T_WIDE_LINKS], tree[2], tree[3], live, lead)  # fmt: skip
     mask = (np.int64(1) << np.int64(samples)) - np.int64(1)
     for q in range(slots):
         bits[owners[2, q], light] = (blocked >> np.int64(q * samples)) & mask
@@ -1416,6 +1421,10 @@ def _tile_shadows(x0, y0, lines, width, height, basis, spheres, materials, light
             points[3, k], points[4, k], points[5, k] = nx, ny, nz
             points[6, k] = (abs(px) + abs(py) + abs(pz)) * PAD
             points[7, k] = ONE if inside else ZERO
+    last = -1  # the last pixel in _ZORDER whose hit casts shadow rays
+    for n in range(PACKET):
+        if points[7, _ZORDER[n]] >= ZERO:
+            last = n
     for light in range(n_lights):
         samples, share = _light_samples(light, lights, params)
         per = LANES // samples
@@ -1446,21 +1455,11 @@ def _tile_shadows(x0, y0, lines, width, height, basis, spheres, materials, light
                         lead = lane
             owners[2, slots] = k
             slots += 1
-            if slots == per:
-                if lead >= 0:
-                    _fill_flush(tree, light, samples, slots, live, lead)
-                else:
-                    for q in range(slots):
-                        tree[_T_BITS][owners[2, q], light] = 0
+            if slots == per or n == last:  # one call site: the walk is compiled once
+                _fill_flush(tree, light, samples, slots, live, lead)
                 slots = 0
                 live = np.int64(0)
                 lead = -1
-        if slots > 0:
-            if lead >= 0:
-                _fill_flush(tree, light, samples, slots, live, lead)
-            else:
-                for q in range(slots):
-                    tree[_T_BITS][owners[2, q], light] = 0
     shade[1] = 1
 
 
