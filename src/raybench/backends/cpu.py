@@ -1088,7 +1088,7 @@ def _morton(k):
 _ZORDER = np.array(sorted(range(PACKET), key=_morton), np.int64)
 
 
-@numba.njit(error_model="numpy")
+@numba.njit(inline="always", error_model="numpy")
 def _fill_axis(lo, hi, m0, m1, o0, o1, i0, i1):
     """One axis of _fill_kept: bounds on the entry and exit times of every
     ray of a filled packet at the slab (lo, hi), each ray's planes (lo -
@@ -1106,7 +1106,7 @@ def _fill_axis(lo, hi, m0, m1, o0, o1, i0, i1):
     return low, high
 
 
-@numba.njit(error_model="numpy", _nrt=False)
+@numba.njit(inline="always", error_model="numpy")
 def _fill_kept(lox, loy, loz, hix, hiy, hiz, bounds):
     """_missed_by_all's test, negated, for a filled packet, whose rays have
     origins and margins of their own (bounds: _fill_bounds): False only
@@ -1149,7 +1149,7 @@ def _fill_mask(wide, row, bounds):
     return mask
 
 
-@numba.njit(error_model="numpy", _nrt=False)
+@numba.njit(inline="always", error_model="numpy")
 def _fill_enter(wide, row, c, rays):
     """_lanes_enter for a filled packet, each ray from its own origin, with
     its own margin: whether any ray enters child c of wide row `row` nearer
