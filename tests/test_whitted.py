@@ -226,21 +226,6 @@ def test_cpu_packets_are_its_rays_one_at_a_time(rng, samples):
         assert (packets.hits >= 0).all() and (packets.hits == 0).any()
 
 
-def test_cpu_filled_shadow_packets_are_the_hits_own(rng):
-    """The tile's primary hits' shadow rays, traced before its pixels are
-    shaded as packets of neighbouring hits' rays, each from its own hit
-    point (cpu._tile_shadows: 4 hits of 4 samples to the area light, 16 hits
-    to the point light), answer as each hit's rays alone: the frame, hits
-    and rays of tree_width 2, bit for bit, on a fresh scene of mirrors and
-    glass lit by an area light, whose bounced hits keep their own packets."""
-    scene = lit_scene(rng, 25)
-    alone = frame(scene, "cpu", 35, 19, samples=4, tree_width=2)
-    filled = frame(scene, "cpu", 35, 19, samples=4)
-    assert filled.rays["shadow"] > 1000 and filled.rays["reflection"] > 0  # not vacuous
-    assert np.array_equal(alone.hits, filled.hits) and alone.rays == filled.rays
-    assert np.array_equal(alone.image, filled.image), np.count_nonzero(alone.image != filled.image)
-
-
 def test_cpu_packets_stop_at_the_flag(rng):
     """The packets program reads the stop flag (Ctrl-C's, cpu.Tracer._finish)
     before each row of tiles: set, it returns and writes no pixel; cleared,

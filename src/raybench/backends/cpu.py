@@ -39,7 +39,7 @@ from .. import bvh as bvh_mod
 from .. import compiled, kernels
 from ..host import host_available_bytes, usable_cores
 from ..kernels import whitted as whitted_mod
-from ..kernels.constants import FAR, ONE, ZERO
+from ..kernels.constants import FAR, ZERO
 from ..layout import (
     BLUE,
     CHILD_BOX,
@@ -51,9 +51,7 @@ from ..layout import (
     RADIUS,
     RED,
     REF,
-    REFLECT,
     STACK,
-    TRANSMIT,
     W_COUNT,
     W_HI,
     W_LO,
@@ -83,9 +81,7 @@ from .options import CpuOptions, checked
 # iterations scalar: tried 4 and 8, also with the rays' bits ORed as
 # _wide_mask does), so a light of 4 samples fills a quarter of the lanes;
 # they cost little next to four rays' scalar walks
-# (docs/whitted.md#cpu-shadow-rays-as-packets-issue-27). A tile's primary
-# hits fill them: their rays go as packets of neighbouring hits' rays
-# before the pixels are shaded (_tile_shadows), which cast hands back.
+# (docs/whitted.md#cpu-shadow-rays-as-packets-issue-27).
 LANES = 16
 _DEAD = np.float32(-np.inf)  # a lane's length once blocked or where no ray is cast: no box is entered
 
@@ -99,10 +95,7 @@ def _packet_shadows(jit, find, toward):
     def cast(px, py, pz, nx, ny, nz, light, samples, share, own, own_inside, spheres, count, lights, pattern, tree,
              stack_row, stack_t):  # fmt: skip
         """Bit s set where sample s's ray is blocked; 0 for samples whose
-        ray is not cast (toward's facing 0). The primary hit's bits were
-        traced with its neighbours' (_tile_shadows) where its tile did so."""
-        if tree[_T_SHADE][0]:
-            return tree[_T_BITS][tree[_T_LANE][0], light]
+        ray is not cast (toward's facing 0)."""
         rays = tree[_T_RAYS]
         batch = np.int64(0)
         for first in range(0, samples, LANES):
@@ -237,13 +230,9 @@ def _walk_wide(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, wide, wi
 # The packets program's tree tuple (_whitted_rows_packets): the binary
 # tree's four arrays, the wide tree's two, the shadow packets' scratch
 # (_packet_shadows), the tile's primary hits (_tile_primaries), the lane of
-# the pixel being shaded, the single-ray walk's stack, and the tile's
-# primary hits' shadow rays (_tile_shadows): their answers by pixel and
-# light, whether the hit being shaded is a primary one with its answers
-# there, the hits' points and the filled packets' owners.
+# the pixel being shaded, and the single-ray walk's stack.
 _T_WIDE, _T_WIDE_LINKS, _T_RAYS, _T_SPREAD, _T_STACK = 4, 5, 6, 7, 8
 _T_HIT, _T_CLOSEST, _T_HIT_D, _T_LANE, _T_S_REF, _T_S_COUNT, _T_S_T = 9, 10, 11, 12, 13, 14, 15
-_T_BITS, _T_SHADE, _T_POINTS, _T_OWNERS, _T_BOUNDS = 16, 17, 18, 19, 20
 
 
 @numba.njit(inline="always")
@@ -251,15 +240,10 @@ def _search_wide(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, sphere
     """The packets program's search (trace.search_tree's signature): a
     primary ray (the one ray that leaves no sphere, own < 0) reads its hit
     from its tile's packet, walked before the tile's pixels are shaded; the
-    reflected and refracted rays walk the 4-wide tree alone (_walk_wide).
-    It tells cast whose hit is shaded next: the primary ray's, whose shadow
-    rays the tile traced (_T_SHADE[1]), or a bounce's, which trace their own."""
-    shade = tree[_T_SHADE]
+    reflected and refracted rays walk the 4-wide tree alone (_walk_wide)."""
     if own < 0:
-        shade[0] = shade[1]
         k = tree[_T_LANE][0]
         return np.int64(tree[_T_HIT][k]), tree[_T_CLOSEST][k], tree[_T_HIT_D][k]
-    shade[0] = 0
     return _walk_wide(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, tree[_T_WIDE], tree[_T_WIDE_LINKS],
                       tree[2], tree[3], tree[_T_S_REF], tree[_T_S_COUNT], tree[_T_S_T])  # fmt: skip
 
@@ -1068,184 +1052,6 @@ def _shadow_packet(ox, oy, oz, rays, spread, stack, wide, wide_links, ordered, o
     return bits & live
 
 
-# A filled packet's rows past a shadow packet's (_DX.._LEN): each ray's own
-# origin and margin, its hit point's (_fill_walk).
-_OX, _OY, _OZ, _MG = 7, 8, 9, 10
-_FILL_ROWS = 11
-
-
-def _morton(k):
-    """Pixel k of a tile (k = line * PACKET_W + column) on the Z-order curve:
-    each aligned run of 4 ** n pixels along it is a square of them."""
-    x, y, code = k % PACKET_W, k // PACKET_W, 0
-    for b in range(8):
-        code |= ((x >> b) & 1) << (2 * b) | ((y >> b) & 1) << (2 * b + 1)
-    return code
-
-
-# The tile's pixels in the order their shadow rays fill packets: neighbours
-# together, so that a packet's rays start near one another.
-_ZORDER = np.array(sorted(range(PACKET), key=_morton), np.int64)
-
-
-@numba.njit(inline="always", error_model="numpy")
-def _fill_axis(lo, hi, m0, m1, o0, o1, i0, i1):
-    """One axis of _fill_kept: bounds on the entry and exit times of every
-    ray of a filled packet at the slab (lo, hi), each ray's planes (lo -
-    its margin - its origin, hi + its margin - its origin) and inverse
-    direction within the packet's ranges (margins m0..m1, origins o0..o1,
-    inverses i0..i1). Rounding is monotonic, so each ray's float32 planes
-    lie within the planes computed at the ranges' ends, and its products
-    within the products of those at the corners."""
-    l0, l1 = lo - m1 - o1, lo - m0 - o0
-    h0, h1 = hi + m0 - o1, hi + m1 - o0
-    a, b, c, d = l0 * i0, l0 * i1, l1 * i0, l1 * i1
-    e, f, g, h = h0 * i0, h0 * i1, h1 * i0, h1 * i1
-    low = min(min(min(a, b), min(c, d)), min(min(e, f), min(g, h)))
-    high = max(max(max(a, b), max(c, d)), max(max(e, f), max(g, h)))
-    return low, high
-
-
-@numba.njit(inline="always", error_model="numpy")
-def _fill_kept(lox, loy, loz, hix, hiy, hiz, bounds):
-    """_missed_by_all's test, negated, for a filled packet, whose rays have
-    origins and margins of their own (bounds: _fill_bounds): False only
-    where no ray of the packet enters the box (lox..hiz, its planes, not
-    yet grown by the margins) nearer than its length."""
-    m0, m1 = bounds[0], bounds[1]
-    nx, fx = _fill_axis(lox, hix, m0, m1, bounds[2], bounds[3], bounds[8], bounds[9])
-    ny, fy = _fill_axis(loy, hiy, m0, m1, bounds[4], bounds[5], bounds[10], bounds[11])
-    nz, fz = _fill_axis(loz, hiz, m0, m1, bounds[6], bounds[7], bounds[12], bounds[13])
-    near = max(nx, max(ny, nz))
-    far = min(fx, min(fy, fz))
-    return (near <= far) & (far > ZERO) & (near <= bounds[14])
-
-
-@numba.njit(inline="always")
-def _fill_bounds(rays, bounds):
-    """A filled packet's ranges for _fill_kept: margins, origins on each
-    axis, inverse directions on each axis (low, high each), and its
-    longest ray (bounds[14], _reach)."""
-    for a, row in enumerate((_MG, _OX, _OY, _OZ, _IX, _IY, _IZ)):
-        lo = hi = rays[row, 0]
-        for k in range(1, LANES):
-            lo = min(lo, rays[row, k])
-            hi = max(hi, rays[row, k])
-        bounds[2 * a] = lo
-        bounds[2 * a + 1] = hi
-    bounds[14] = _reach(rays)
-
-
-@numba.njit(error_model="numpy", _nrt=False)
-def _fill_mask(wide, row, bounds):
-    """_wide_mask for a filled packet (_fill_kept on each of the node's
-    WIDTH boxes, side by side, without branches)."""
-    w = wide[row]
-    mask = 0
-    for c in range(_U(WIDTH)):
-        kept = _fill_kept(w[_U(LO_X) + c], w[_U(LO_Y) + c], w[_U(LO_Z) + c], w[_U(HI_X) + c], w[_U(HI_Y) + c],
-                          w[_U(HI_Z) + c], bounds)  # fmt: skip
-        mask |= np.int64(kept) << np.int64(c)
-    return mask
-
-
-@numba.njit(inline="always", error_model="numpy")
-def _fill_enter(wide, row, c, rays):
-    """_lanes_enter for a filled packet, each ray from its own origin, with
-    its own margin: whether any ray enters child c of wide row `row` nearer
-    than its length. No branch: LLVM makes the loop SIMD."""
-    entered = False
-    for k in range(LANES):
-        m, ox, oy, oz = rays[_MG, k], rays[_OX, k], rays[_OY, k], rays[_OZ, k]
-        ix, iy, iz = rays[_IX, k], rays[_IY, k], rays[_IZ, k]
-        t1, t2 = (wide[row, LO_X + c] - m - ox) * ix, (wide[row, HI_X + c] + m - ox) * ix
-        t3, t4 = (wide[row, LO_Y + c] - m - oy) * iy, (wide[row, HI_Y + c] + m - oy) * iy
-        t5, t6 = (wide[row, LO_Z + c] - m - oz) * iz, (wide[row, HI_Z + c] + m - oz) * iz
-        near = max(min(t1, t2), max(min(t3, t4), min(t5, t6)))
-        far = min(max(t1, t2), min(max(t3, t4), max(t5, t6)))
-        entered |= (near <= far) & (far > ZERO) & (near <= rays[_LEN, k])
-    return entered
-
-
-@numba.njit(error_model="numpy", _nrt=False)
-def _fill_leaf(rays, owners, ordered, order, first, count, bounds):
-    """_lanes_leaf for a filled packet: a leaf's spheres against rays from
-    their own origins, each leaving its own sphere (owners[0], skipped or
-    with owners[1] met at its far root): whether one blocks a ray, each
-    such ray's length made _DEAD. The same float32 test as _lanes_leaf's."""
-    hits = False
-    for j in range(first, first + count):
-        original = order[j]
-        cx, cy, cz, r = ordered[0, j], ordered[1, j], ordered[2, j], ordered[3, j]
-        pr = r + bvh_mod.sphere_pad(cx, cy, cz, r)
-        if not _fill_kept(cx - pr, cy - pr, cz - pr, cx + pr, cy + pr, cz + pr, bounds):
-            continue
-        for k in range(LANES):
-            far_only = original == owners[0, k]
-            t, _d = _intersect_ahead_v(cx - rays[_OX, k], cy - rays[_OY, k], cz - rays[_OZ, k], r, rays[_DX, k],
-                                       rays[_DY, k], rays[_DZ, k], far_only)  # fmt: skip
-            c = rays[_LEN, k]
-            hit = (t > ZERO) & (t < c) & ~(far_only & (owners[1, k] == 0))
-            rays[_LEN, k] = _DEAD if hit else c
-            hits |= hit
-    return hits
-
-
-@numba.njit(error_model="numpy", _nrt=False)
-def _fill_walk(rays, owners, spread, bounds, stack, wide, wide_links, ordered, order, live, lead):
-    """Any hit of each ray of a filled packet (rays[:_FILL_ROWS], owners)
-    through the 4-wide tree: the bits of the rays blocked, of those in
-    `live`; lead: a live ray, along which the inner children are pushed
-    nearest on top. A ray is blocked where some sphere has 0 < t < its
-    length (the answer of _shadow_packet and of traverse.walk, ray by ray);
-    a blocked ray enters nothing more, and the walk ends once all are."""
-    for k in range(LANES):
-        rays[_IX, k] = _inverse(rays[_DX, k])
-        rays[_IY, k] = _inverse(rays[_DY, k])
-        rays[_IZ, k] = _inverse(rays[_DZ, k])
-    _fill_bounds(rays, bounds)
-    ox, oy, oz = rays[_OX, lead], rays[_OY, lead], rays[_OZ, lead]
-    cdx, cdy, cdz = rays[_DX, lead], rays[_DY, lead], rays[_DZ, lead]
-    row = 0
-    top = 0
-    while row >= 0:
-        node = row
-        row = -1
-        base = top
-        mask = _fill_mask(wide, node, bounds)
-        for c in range(WIDTH):
-            if not (mask >> c) & 1:
-                continue
-            ref, count = wide_links[node, W_REF + c], wide_links[node, W_COUNT + c]
-            if count == 0 or not _fill_enter(wide, node, c, rays):
-                continue
-            if count == INNER:
-                along = ((wide[node, LO_X + c] + wide[node, HI_X + c] - ox - ox) * cdx
-                         + (wide[node, LO_Y + c] + wide[node, HI_Y + c] - oy - oy) * cdy
-                         + (wide[node, LO_Z + c] + wide[node, HI_Z + c] - oz - oz) * cdz)  # fmt: skip
-                j = top
-                while j > base and spread[7 + j - base - 1] < along:
-                    stack[j] = stack[j - 1]
-                    spread[7 + j - base] = spread[7 + j - base - 1]
-                    j -= 1
-                stack[j] = ref
-                spread[7 + j - base] = along
-                top += 1
-            elif _fill_leaf(rays, owners, ordered, order, ref, count, bounds):
-                reach = _reach(rays)
-                if reach == _DEAD:  # every ray blocked
-                    return live
-                bounds[14] = reach
-        if top > 0:
-            top -= 1
-            row = stack[top]
-    bits = np.int64(0)
-    for k in range(LANES):
-        if rays[_LEN, k] == _DEAD:
-            bits |= np.int64(1) << np.int64(k)
-    return bits & live
-
-
 @numba.njit(inline="always")
 def _whitted_rows(render_pixel, first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern,
                   params, tree, image, hits, counts, stop):  # fmt: skip
@@ -1309,12 +1115,10 @@ def _whitted_rows_packets(first_row, end_row, width, height, basis, spheres, cou
     nodes, links, ordered, order, wide, wide_links = tree
     lanes = np.empty((7, PACKET), np.float32)
     hit = np.empty(PACKET, np.int32)
-    own = (nodes, links, ordered, order, wide, wide_links, np.empty((_FILL_ROWS, LANES), np.float32),
+    own = (nodes, links, ordered, order, wide, wide_links, np.empty((7, LANES), np.float32),
            np.empty(7 + WIDTH, np.float32), np.empty(WIDE_STACK, np.int32), hit, lanes[6],
            np.empty(PACKET, np.float32), np.zeros(1, np.int64), np.empty(WIDE_STACK, np.int32),
-           np.empty(WIDE_STACK, np.int32), np.empty(WIDE_STACK, np.float32),
-           np.zeros((PACKET, max(1, lights.shape[1])), np.int64), np.zeros(2, np.int64),
-           np.empty((8, PACKET), np.float32), np.empty((3, LANES), np.int64), np.empty(15, np.float32))  # fmt: skip
+           np.empty(WIDE_STACK, np.int32), np.empty(WIDE_STACK, np.float32))  # fmt: skip
     _whitted_tiles(
         first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern, params, own, lanes,
         np.empty(7, np.float32), np.empty(WIDE_STACK, np.int32), np.empty(WIDE_STACK, np.int32),
@@ -1352,117 +1156,6 @@ def _tile_primaries(x0, y0, end_row, width, height, basis, wide, wide_links, ord
                       chosen, True)  # fmt: skip
 
 
-_packets_stages = _k.whitted_stages["packets"]
-_surface, _shows, _light_samples, _toward = (
-    _packets_stages.surface,
-    _packets_stages.shows,
-    _packets_stages.light_samples,
-    _packets_stages.toward,
-)
-
-
-@numba.njit(inline="always", error_model="numpy")
-def _fill_flush(tree, light, samples, slots, live, lead):
-    """Trace the filled packet of `slots` pixels' shadow rays to `light`
-    (samples lanes each, in _T_OWNERS[2]'s order; live: the lanes with a
-    ray, lead: the first or -1) and give each pixel its bits (_T_BITS), as
-    cast would have found them."""
-    rays, owners, bits = tree[_T_RAYS], tree[_T_OWNERS], tree[_T_BITS]
-    blocked = np.int64(0)
-    if lead >= 0:
-        for k in range(LANES):
-            if not (live >> np.int64(k)) & np.int64(1):  # dead lanes follow the lead: the ranges stay tight
-                for a in range(_FILL_ROWS):
-                    rays[a, k] = rays[a, lead]
-                rays[_LEN, k] = _DEAD
-                owners[0, k] = owners[0, lead]
-                owners[1, k] = owners[1, lead]
-        blocked = _fill_walk(rays, owners, tree[_T_SPREAD], tree[_T_BOUNDS], tree[_T_STACK], tree[_T_WIDE],
-                             tree[_T_WIDE_LINKS], tree[2], tree[3], live, lead)  # fmt: skip
-    mask = (np.int64(1) << np.int64(samples)) - np.int64(1)
-    for q in range(slots):
-        bits[owners[2, q], light] = (blocked >> np.int64(q * samples)) & mask
-
-
-@compiled.njit(nogil=True, error_model="numpy", _nrt=False)
-def _tile_shadows(x0, y0, lines, width, height, basis, spheres, materials, lights, pattern, params, tree):
-    """The shadow rays of the tile's primary hits (_tile_primaries' hit and
-    t), light by light, as full packets: the samples of LANES // samples
-    neighbouring hits at a time (_ZORDER), each ray from its own hit point
-    (_fill_walk), where a hit's own packet would have filled `samples`
-    lanes of LANES. Each pixel's answers go to _T_BITS, which cast returns
-    while its primary hit is shaded (_T_SHADE[1] set). The hit point,
-    normal and rays are those the pixel program computes (whitted.surface,
-    toward, on the same float32 values), for the hits whose light it shades
-    (whitted.shows). A light of more than LANES samples fills its own
-    packets: the tile leaves its hits to cast."""
-    shade = tree[_T_SHADE]
-    shade[1] = 0
-    n_lights = np.int32(params[whitted_mod.P_LIGHTS])
-    if n_lights <= 0:
-        return
-    for light in range(n_lights):
-        samples, _share = _light_samples(light, lights, params)
-        if samples > LANES:
-            return
-    hit, closest, points, rays, owners = tree[_T_HIT], tree[_T_CLOSEST], tree[_T_POINTS], tree[_T_RAYS], tree[_T_OWNERS]
-    ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
-    for k in range(PACKET):
-        points[7, k] = -ONE  # no shadow rays
-    for line in range(lines):
-        for i in range(min(PACKET_W, width - x0)):
-            k = line * PACKET_W + i
-            s = hit[k]
-            if s < 0 or not _shows(s, ONE - materials[REFLECT, s] - materials[TRANSMIT, s], spheres, materials):
-                continue
-            dx, dy, dz = _primary_ray(x0 + i, y0 + line, width, height, basis)
-            px, py, pz, nx, ny, nz, _cos, inside = _surface(ox, oy, oz, dx, dy, dz, closest[k], s, spheres)
-            points[0, k], points[1, k], points[2, k] = px, py, pz
-            points[3, k], points[4, k], points[5, k] = nx, ny, nz
-            points[6, k] = (abs(px) + abs(py) + abs(pz)) * PAD
-            points[7, k] = ONE if inside else ZERO
-    last = -1  # the last pixel in _ZORDER whose hit casts shadow rays
-    for n in range(PACKET):
-        if points[7, _ZORDER[n]] >= ZERO:
-            last = n
-    for light in range(n_lights):
-        samples, share = _light_samples(light, lights, params)
-        per = LANES // samples
-        slots = 0
-        live = np.int64(0)
-        lead = -1
-        for n in range(PACKET):
-            k = _ZORDER[n]
-            if points[7, k] < ZERO:
-                continue
-            px, py, pz, nx, ny, nz = points[0, k], points[1, k], points[2, k], points[3, k], points[4, k], points[5, k]
-            for s in range(samples):
-                lane = slots * samples + s
-                lx, ly, lz, dist, facing, _r, _g, _b = _toward(px, py, pz, nx, ny, nz, light, s, share, lights, pattern)
-                if facing > ZERO:
-                    rays[_DX, lane] = lx
-                    rays[_DY, lane] = ly
-                    rays[_DZ, lane] = lz
-                    rays[_LEN, lane] = dist
-                    rays[_OX, lane] = px
-                    rays[_OY, lane] = py
-                    rays[_OZ, lane] = pz
-                    rays[_MG, lane] = points[6, k]
-                    owners[0, lane] = hit[k]
-                    owners[1, lane] = np.int64(points[7, k] > ZERO)
-                    live |= np.int64(1) << np.int64(lane)
-                    if lead < 0:
-                        lead = lane
-            owners[2, slots] = k
-            slots += 1
-            if slots == per or n == last:  # one call site: the walk is compiled once
-                _fill_flush(tree, light, samples, slots, live, lead)
-                slots = 0
-                live = np.int64(0)
-                lead = -1
-    shade[1] = 1
-
-
 @compiled.njit(nogil=True, _nrt=False)
 def _whitted_tiles(first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern, params, tree,
                    lanes, spread, packet_row, packet_count, along, chosen, stack_row, stack_t, rays_f, rays_i, image,
@@ -1484,7 +1177,6 @@ def _whitted_tiles(first_row, end_row, width, height, basis, spheres, count, mat
         for x0 in range(0, width, PACKET_W):
             _tile_primaries(x0, y0, end_row, width, height, basis, wide, wide_links, ordered, order, lanes, hit, hit_d,
                             spread, packet_row, packet_count, along, chosen)  # fmt: skip
-            _tile_shadows(x0, y0, lines, width, height, basis, spheres, materials, lights, pattern, params, tree)
             for line in range(lines):
                 y = y0 + line
                 for i in range(min(PACKET_W, width - x0)):

@@ -148,7 +148,6 @@ def build(jit, call=None, shadows=None, packets_search=None, read_row=None, read
             # them), so the walk has one call site and is compiled once, and the call's
             # cost goes (measured: docs/whitted.md, "CPU: the primary rays as packets")
             stages = whitted.build(jit, jit, search, shade_hit, shade_miss, shadows, name="_packets")
-            whitted_stages["packets"] = stages
         whitted_pixel = stages.whitted_pixel
 
         @jit
@@ -174,7 +173,6 @@ def build(jit, call=None, shadows=None, packets_search=None, read_row=None, read
     # Whitted's pixel through the BVH and by brute force, and the wavefront's
     # stages for each (kernels/wavefront.py)
     wavefronts = {}
-    whitted_stages = {}  # the packets program's stages (whitted.build's namespace), for the CPU's tile loop
     render_pixel_whitted = {"bvh": whitted_program(search_tree), "none": whitted_program(search_all)}
     whitted_wavefront = {"bvh": wavefronts["search_tree"], "none": wavefronts["search_all"]}
     if shadows is not None:
@@ -214,7 +212,6 @@ def build(jit, call=None, shadows=None, packets_search=None, read_row=None, read
         scan=scan,
         render_pixel_whitted=render_pixel_whitted,
         whitted_wavefront=whitted_wavefront,
-        whitted_stages=whitted_stages,
         walk=walk,
         intersect_ahead=intersect_ahead,
     )
