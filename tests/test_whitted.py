@@ -362,16 +362,21 @@ def test_the_example_scenes_load_and_render():
 @pytest.mark.gpu
 @pytest.mark.parametrize("accel", ["bvh", "none"])
 def test_wgpu_gives_the_cpu_frame(rng, accel, adapter):
-    """lavapipe rounds as the CPU does: bit for bit there; a GPU's compiler
-    may fuse multiply-adds: then the CPU's hits and colours within one step
-    but at a few pixels where a shadow or glass path turns."""
+    """lavapipe rounds the arithmetic as the CPU does: the same hits and
+    rays, bit for bit, and the same bytes but at a rare pixel one step off
+    (its math library need not round a function's last bit as the CPU's
+    does: RAYBENCH_TEST_SEED=2655395474860362672 gives one pixel of 960
+    one step off, with every hit and ray the CPU's); a GPU's compiler may
+    fuse multiply-adds: then the CPU's hits and colours within one step but
+    at a few pixels where a shadow or glass path turns."""
     scene = lit_scene(rng, 10)
     cpu = frame(scene, "cpu", 40, 24, accel=accel, samples=2)
     gpu = frame(scene, "wgpu", 40, 24, accel=accel, samples=2, adapter=adapter)
     assert cpu.rays["primary"] == gpu.rays["primary"] == 40 * 24
     if backends.module("wgpu").choose(adapter).type == "CPU":
-        assert np.array_equal(cpu.image, gpu.image) and np.array_equal(cpu.hits, gpu.hits)
-        assert cpu.rays == gpu.rays
+        assert np.array_equal(cpu.hits, gpu.hits) and cpu.rays == gpu.rays
+        steps = np.abs(cpu.image.astype(int) - gpu.image.astype(int)).max(axis=2)
+        assert steps.max() <= 1 and (steps > 0).mean() <= 0.005, (steps.max(), (steps > 0).sum())
     else:
         steps = np.abs(cpu.image.astype(int) - gpu.image.astype(int)).max(axis=2)
         assert (steps > 1).mean() <= 0.01 and (cpu.hits != gpu.hits).mean() <= 0.005
