@@ -79,15 +79,18 @@ def test_a_planted_slowdown_is_slower_and_a_rerun_within_noise(rng):
 
 def test_the_bootstrap_interval_covers_the_true_ratio(rng):
     """Over many draws, the 95% interval of the ratio of medians holds the true one
-    about 95% of the time (not 50%, not always): it is an interval, not decoration."""
+    about 95% of the time (not 50%, not always): it is an interval, not decoration.
+    It covers about 96% here (2,000 draws); over 1,000 draws the bounds below lie
+    more than 4.8 standard deviations from that, so a fair interval cannot fail them
+    by chance (200 draws and at least 2 misses failed a CI run: 1 miss, 0.3% likely)."""
     covered = 0
-    trials = 200
+    trials = 1000
     for _ in range(trials):
         old = rng.lognormal(0.0, 0.05, 40)
         new = rng.lognormal(math.log(1.07), 0.05, 40)
         _, low, high = compare.bootstrap_ratio(old, new, rng, rounds=400)
         covered += low <= 1.07 <= high
-    assert 0.85 * trials <= covered <= trials - 2
+    assert 0.90 * trials <= covered <= 0.99 * trials, covered
 
 
 def test_summaries_alone_are_compared_by_the_normal_approximation(rng):
