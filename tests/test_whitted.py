@@ -365,8 +365,7 @@ def test_wgpu_gives_the_cpu_frame(rng, accel, adapter):
     """lavapipe rounds the arithmetic as the CPU does: the same hits and
     rays, bit for bit, and the same bytes but at a rare pixel one step off
     (its math library need not round a function's last bit as the CPU's
-    does: RAYBENCH_TEST_SEED=2655395474860362672 gives one pixel of 960
-    one step off, with every hit and ray the CPU's); a GPU's compiler may
+    does, which can move a colour across a byte's boundary); a GPU's compiler may
     fuse multiply-adds: then the CPU's hits and colours within one step but
     at a few pixels where a shadow or glass path turns."""
     scene = lit_scene(rng, 10)
