@@ -73,6 +73,27 @@ else:
         return libdevice.double2loint(w), libdevice.double2hiint(w)
 
 
+if simulated():  # its threads run one at a time: each walks on to no other's leaf
+
+    @cuda.jit(device=True)
+    def _walking_without_leaf(held):
+        """traverse.build's vote: this thread alone."""
+        return not held
+
+else:
+
+    @cuda.jit(device=True)
+    def _walking_without_leaf(held):
+        """traverse.build's vote: whether a thread of the warp that walks
+        with this one still holds no leaf."""
+        return cuda.any_sync(cuda.activemask(), not held)
+
+
+@cuda.jit(device=True)
+def _walking_alone(held):
+    return not held
+
+
 @cuda.jit(device=True)
 def _read_row64(nodes64, _links, row):
     """traverse.build's read_row for a node's row seen as 8 float64
@@ -128,7 +149,9 @@ assert NODE_FLOATS == 16 and CHILD_BOX == (0, 6) and REF == 12 and COUNT == 14
 # passes its nodes as float64), not 16, and a leaf's sphere in 2, not 4
 # (_read_sphere64, the spheres a row each): the walk is bound by issue, and
 # a load is an instruction (docs/whitted.md)
-_k = kernels.build(cuda.jit(device=True), read_row=_read_row64, read_sphere=_read_sphere64)
+import os
+_VOTE = {"warp": _walking_without_leaf, "alone": _walking_alone, "off": None}[os.environ.get("RAYBENCH_WALK", "warp")]
+_k = kernels.build(cuda.jit(device=True), read_row=_read_row64, read_sphere=_read_sphere64, vote=_VOTE)
 # module globals, which is how kernels can see them: the stages through the
 # tree and by brute force (only extend and the shadow test search)
 _tree, _every = _k.whitted_wavefront["bvh"], _k.whitted_wavefront["none"]
