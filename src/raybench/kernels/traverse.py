@@ -32,7 +32,7 @@ TINY = np.float32(1e-20)
 _U = np.uint64
 
 
-def build(jit, intersect_sphere, intersect_ahead, read_row=None, read_sphere=None, vote=None):
+def build(jit, intersect_sphere, intersect_ahead, read_row=None, read_sphere=None, vote=None, postpone=(True, True)):
     """The walks over `jit`; read_row(nodes, links, row): a node's row as
     its 16 values; read_sphere(ordered, k): the k-th sphere in leaf order as
     (cx, cy, cz, r). By default the arrays are read a value at a time (the
@@ -355,7 +355,14 @@ def build(jit, intersect_sphere, intersect_ahead, read_row=None, read_sphere=Non
                         going, ref, count, entry, top = pop(links, stack_row, stack_t, top, any_hit, closest)
             return hit, closest, hit_d
 
-        walk = walk_postponed  # noqa: F811
+        walk_plain = walk
+        near_p, any_p = postpone
+
+        @jit
+        def walk(ox, oy, oz, dx, dy, dz, t_max, any_hit, ahead, own, own_inside, nodes, links, ordered, order, stack_row, stack_t):  # noqa: F811
+            if (any_hit and any_p) or (not any_hit and near_p):
+                return walk_postponed(ox, oy, oz, dx, dy, dz, t_max, any_hit, ahead, own, own_inside, nodes, links, ordered, order, stack_row, stack_t)
+            return walk_plain(ox, oy, oz, dx, dy, dz, t_max, any_hit, ahead, own, own_inside, nodes, links, ordered, order, stack_row, stack_t)
 
     @jit
     def nearest_hit_bvh(ox, oy, oz, dx, dy, dz, nodes, links, ordered, order, stack_row, stack_t):
