@@ -164,55 +164,6 @@ def test_box_test_keeps_every_grazing_hit(rng):
     assert hits > 300 and misses > 300, (hits, misses)  # both sides of the edge were tried
 
 
-# The postponed walk (traverse.build's vote) with a warp's vote stood in for:
-# every other thread still walking with no leaf (the longest a thread may
-# hold its leaf), or none (a leaf tested as soon as it is met).
-K_HOLDS = kernels.build(lambda f: f, vote=lambda held: True)
-K_TESTS = kernels.build(lambda f: f, vote=lambda held: not held)
-
-
-@pytest.mark.parametrize("postponed", [K_HOLDS, K_TESTS], ids=["holds", "tests"])
-def test_the_postponed_walk_finds_what_brute_force_finds(rng, postponed):
-    """walk_postponed, through the tree, against every sphere tested in turn
-    (trace.scan): the nearest hit's sphere, t and half-chord bit for bit (the
-    same float32 tests), and for a shadow ray (any hit, t_max its length)
-    whether anything blocks it; Whitted's secondary rays, each leaving a
-    sphere from its surface, outward or inward, and rays from anywhere."""
-    n = int(rng.integers(60, 400))
-    spheres = raybench.random_spheres(n, seed=int(rng.integers(2**31))).spheres
-    b = bvh.build(spheres, threads=1)
-    stack_row = np.empty(layout.STACK, np.int32)
-    stack_t = np.empty(layout.STACK, np.float32)
-    blocked = hits = 0
-    for _ in range(400):
-        d = rng.normal(size=3)
-        d /= np.linalg.norm(d)
-        own = int(rng.integers(-1, n))
-        inside = False
-        if own >= 0:  # from its surface, into it or out of it
-            c, r = spheres[:3, own].astype(np.float64), float(spheres[layout.RADIUS, own])
-            normal = rng.normal(size=3)
-            normal /= np.linalg.norm(normal)
-            o = c + normal * r
-            inside = bool(rng.random() < 0.3)
-            d = -d if (np.dot(d, normal) > 0) == inside else d
-        else:
-            o = rng.uniform(-6, 6, 3) + [0, 0, 10]
-        o, d = o.astype(np.float32), d.astype(np.float32)
-        any_hit = bool(rng.random() < 0.5)
-        t_max = np.float32(rng.uniform(1, 30)) if any_hit else raybench.kernels.trace.FAR
-        ray = (o[0], o[1], o[2], d[0], d[1], d[2], t_max, any_hit, True, own, inside)
-        got = postponed.walk(*ray, b.nodes, b.links, b.ordered, b.order, stack_row, stack_t)
-        want = K.scan(*ray, spheres, n)
-        if any_hit:
-            assert (got[0] >= 0) == (want[0] >= 0), ray
-            blocked += want[0] >= 0
-        else:
-            assert got == want, ray
-            hits += want[0] >= 0
-    assert blocked > 5 and hits > 5, (blocked, hits)  # both kinds met spheres
-
-
 def packet_of_rays(rng):
     """An origin and 128 unit directions (cpu.PACKET): all one direction (the
     interval test is then exact), a narrow cone (a packet of pixels), or a

@@ -14,7 +14,7 @@ from . import intersect, shade, traverse, wavefront, whitted
 from .constants import FAR, HALF, ONE, ZERO
 
 
-def build(jit, call=None, shadows=None, packets_search=None, read_row=None, read_sphere=None, vote=None, postpone=(True, True)):
+def build(jit, call=None, shadows=None, packets_search=None, read_row=None, read_sphere=None):
     """The algorithm compiled with `jit`; a namespace of its functions.
     call: the decorator of Whitted shading's search for a ray's hit (default
     jit), which the CPU compiles as one function called from both of its call
@@ -25,13 +25,13 @@ def build(jit, call=None, shadows=None, packets_search=None, read_row=None, read
     packets_search: that program's search for the other rays (the CPU's
     walk of its 4-wide tree, search_tree's signature); default search_tree.
     That program's find is inlined (jit, not call). read_row,
-    read_sphere: how the walks read a node's row and a leaf's sphere;
-    vote: whether the walk postpones its leaves (traverse.build)."""
+    read_sphere: how the walks read a node's row and a leaf's sphere
+    (traverse.build)."""
     call = call or jit
     intersect_relative, intersect_sphere, prepare_sphere, may_hit, along, intersect_ahead = intersect.build(jit)
     shade_hit, shade_miss, to_byte = shade.build(jit)
     nearest_hit_bvh, inverse, ray_axes, children, leaf_hits, centre_along, walk = traverse.build(
-        jit, intersect_sphere, intersect_ahead, read_row, read_sphere, vote, postpone
+        jit, intersect_sphere, intersect_ahead, read_row, read_sphere
     )
 
     @jit

@@ -32,15 +32,12 @@ TINY = np.float32(1e-20)
 _U = np.uint64
 
 
-def build(jit, intersect_sphere, intersect_ahead, read_row=None, read_sphere=None, vote=None, postpone=(True, True)):
+def build(jit, intersect_sphere, intersect_ahead, read_row=None, read_sphere=None):
     """The walks over `jit`; read_row(nodes, links, row): a node's row as
     its 16 values; read_sphere(ordered, k): the k-th sphere in leaf order as
     (cx, cy, cz, r). By default the arrays are read a value at a time (the
     ordered spheres a row a field); a backend's own may read them in fewer,
-    wider loads from a layout of its own (cuda's wavefront).
-    vote(held): whether some thread that walks beside this one in lockstep
-    (a GPU's warp) still walks with no leaf held; given, walk() postpones
-    the leaves it meets until no such thread is left (walk_postponed)."""
+    wider loads from a layout of its own (cuda's wavefront)."""
     if read_sphere is None:
 
         @jit
@@ -265,104 +262,6 @@ def build(jit, intersect_sphere, intersect_ahead, read_row=None, read_sphere=Non
                 if any_hit or stack_t[top] <= closest:
                     row = stack_row[top]
         return hit, closest, hit_d
-
-    if vote is not None:
-        @jit
-        def pop(links, stack_row, stack_t, top, any_hit, closest):
-            """walk_postponed's next node or leaf off the stack, skipping those
-            entered beyond the closest hit: (found, ref, count, entry t, top).
-            A leaf is kept as its parent's row and side (-2 - (2 row + side)),
-            its ref and count read back from the parent's links."""
-            while top > _U(0):
-                top -= _U(1)
-                if any_hit or stack_t[top] <= closest:
-                    e = stack_row[top]
-                    t = ZERO if any_hit else stack_t[top]
-                    if e >= 0:
-                        return True, e, np.int32(INNER), t, top
-                    code = -2 - e
-                    parent = _U(code >> 1)
-                    side = _U(code & 1)
-                    return True, links[parent, _U(REF) + side], links[parent, _U(COUNT) + side], t, top
-            return False, np.int32(0), np.int32(INNER), ZERO, top
-
-        @jit
-        def walk_postponed(
-            ox, oy, oz, dx, dy, dz, t_max, any_hit, ahead, own, own_inside, nodes, links, ordered, order, stack_row, stack_t
-        ):
-            """walk() with each leaf it meets held back and the walk gone on
-            to the next node, until every thread that walks beside it holds one
-            too (vote); then all test theirs together. Aila and Laine's
-            speculative while-while walk (2009): a warp's threads otherwise
-            take turns, those at a leaf testing spheres while the rest wait to
-            step on, and the other way round. The answer is walk()'s: the
-            nearest sphere, ties to the smaller original index, whatever the
-            order the leaves are tested in, and every box walk() enters is
-            entered here (or, taken off the stack, one entered nearer than the
-            closest hit so far)."""
-            ix, iy, iz, lx, ly, lz, hx, hy, hz = ray_axes(ox, oy, oz, dx, dy, dz)
-            closest = t_max
-            hit = np.int32(-1)
-            hit_d = ZERO
-            going = True  # ref, count: where the walk goes next, a node (count INNER) or a leaf
-            ref = np.int32(0)
-            count = np.int32(INNER)
-            entry = ZERO
-            held = False  # a leaf met and not yet tested: its first sphere, count and entry t
-            held_ref = np.int32(0)
-            held_count = np.int32(0)
-            held_t = ZERO
-            top = _U(0)
-            while going or held:
-                while going and count == INNER:
-                    parent = ref
-                    a_near, a_far, b_near, b_far, a_ref, b_ref, a_count, b_count = children(
-                        nodes, links, _U(parent), ix, iy, iz, lx, ly, lz, hx, hy, hz
-                    )
-                    b_side = np.int32(1)
-                    if b_near < a_near:  # near child first, as walk()
-                        a_near, a_far, a_ref, a_count, b_near, b_far, b_ref, b_count = (
-                            b_near, b_far, b_ref, b_count, a_near, a_far, a_ref, a_count
-                        )  # fmt: skip
-                        b_side = np.int32(0)
-                    a_in = a_near <= a_far and a_far > ZERO and a_near <= closest
-                    b_in = b_near <= b_far and b_far > ZERO and b_near <= closest
-                    if a_in:
-                        ref, count, entry = a_ref, a_count, a_near
-                        if b_in:
-                            stack_row[top] = b_ref if b_count == INNER else np.int32(-2) - (np.int32(2) * parent + b_side)
-                            if not any_hit:
-                                stack_t[top] = b_near
-                            top += _U(1)
-                    elif b_in:
-                        ref, count, entry = b_ref, b_count, b_near
-                    else:
-                        going, ref, count, entry, top = pop(links, stack_row, stack_t, top, any_hit, closest)
-                    if going and count != INNER and not held:
-                        held, held_ref, held_count, held_t = True, ref, count, entry
-                        going, ref, count, entry, top = pop(links, stack_row, stack_t, top, any_hit, closest)
-                    if not vote(held):
-                        break
-                while held:
-                    if any_hit or held_t <= closest:
-                        closest, hit, hit_d = leaf_test(ox, oy, oz, dx, dy, dz, ordered, order, held_ref, held_count,
-                                                        closest, hit, hit_d, ahead, own, own_inside)  # fmt: skip
-                        if any_hit and hit >= 0:
-                            return hit, closest, hit_d
-                    held = False
-                    if going and count != INNER:
-                        held, held_ref, held_count, held_t = True, ref, count, entry
-                        going, ref, count, entry, top = pop(links, stack_row, stack_t, top, any_hit, closest)
-            return hit, closest, hit_d
-
-        walk_plain = walk
-        near_p, any_p = postpone
-
-        @jit
-        def walk(ox, oy, oz, dx, dy, dz, t_max, any_hit, ahead, own, own_inside, nodes, links, ordered, order, stack_row, stack_t):  # noqa: F811
-            if (any_hit and any_p) or (not any_hit and near_p):
-                return walk_postponed(ox, oy, oz, dx, dy, dz, t_max, any_hit, ahead, own, own_inside, nodes, links, ordered, order, stack_row, stack_t)
-            return walk_plain(ox, oy, oz, dx, dy, dz, t_max, any_hit, ahead, own, own_inside, nodes, links, ordered, order, stack_row, stack_t)
 
     @jit
     def nearest_hit_bvh(ox, oy, oz, dx, dy, dz, nodes, links, ordered, order, stack_row, stack_t):

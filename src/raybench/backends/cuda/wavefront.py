@@ -33,7 +33,6 @@ them and exit, a launch's worth of blocks for nothing, at every stage
 from __future__ import annotations
 
 import math
-import os
 
 import numpy as np
 from numba import cuda
@@ -72,27 +71,6 @@ else:
     def _ints(w):
         """A float64 load's two int32 words (the low one the lower column)."""
         return libdevice.double2loint(w), libdevice.double2hiint(w)
-
-
-if simulated():  # its threads run one at a time: each walks on to no other's leaf
-
-    @cuda.jit(device=True)
-    def _walking_without_leaf(held):
-        """traverse.build's vote: this thread alone."""
-        return not held
-
-else:
-
-    @cuda.jit(device=True)
-    def _walking_without_leaf(held):
-        """traverse.build's vote: whether a thread of the warp that walks
-        with this one still holds no leaf."""
-        return cuda.any_sync(cuda.activemask(), not held)
-
-
-@cuda.jit(device=True)
-def _walking_alone(held):
-    return not held
 
 
 @cuda.jit(device=True)
@@ -150,10 +128,7 @@ assert NODE_FLOATS == 16 and CHILD_BOX == (0, 6) and REF == 12 and COUNT == 14
 # passes its nodes as float64), not 16, and a leaf's sphere in 2, not 4
 # (_read_sphere64, the spheres a row each): the walk is bound by issue, and
 # a load is an instruction (docs/whitted.md)
-_W = os.environ.get("RAYBENCH_WALK", "warp")
-_VOTE = {"warp": _walking_without_leaf, "warp-any": _walking_without_leaf, "warp-nearest": _walking_without_leaf, "alone": _walking_alone, "off": None}[_W]
-_POSTPONE = {"warp-any": (False, True), "warp-nearest": (True, False)}.get(_W, (True, True))
-_k = kernels.build(cuda.jit(device=True), read_row=_read_row64, read_sphere=_read_sphere64, vote=_VOTE, postpone=_POSTPONE)
+_k = kernels.build(cuda.jit(device=True), read_row=_read_row64, read_sphere=_read_sphere64)
 # module globals, which is how kernels can see them: the stages through the
 # tree and by brute force (only extend and the shadow test search)
 _tree, _every = _k.whitted_wavefront["bvh"], _k.whitted_wavefront["none"]
@@ -318,7 +293,7 @@ def _shade(rays_f, rays_i, counts, wave, capacity, hit_i, hit_t, hit_d, next_f, 
         base += cuda.gridsize(1)
 
 
-@compiled.cuda_jit(**({"max_registers": int(os.environ["RAYBENCH_SHADOW_REGS"])} if os.environ.get("RAYBENCH_SHADOW_REGS") else {}))
+@compiled.cuda_jit()
 def _shadow(shadows_f, shadows_i, counts, wave, capacity, spheres, count, nodes, links, ordered, order, accum,
             rays):  # fmt: skip
     """Each shadow ray of the wave: its light into its pixel where no
