@@ -33,9 +33,12 @@ from . import shader
 
 GROUP = 64  # wavefront.wgsl's WF_GROUP
 # Workgroups a stage is dispatched on: each invocation loops over its share
-# of the queue (cuda's wavefront measured 32 blocks a multiprocessor best;
-# wgpu does not say how many a GPU has, so a number that fills large ones).
-GROUPS = 4096
+# of the queue. wgpu does not say how many multiprocessors a GPU has, so a
+# number that fills large ones several times over: the more invocations a
+# stage has in flight, the less the GPU waits on the slowest at its end; on
+# the H200 a quarter as many took 1.10-1.18x the frame's time
+# (docs/whitted.md#the-wavefronts-grid-issue-27-leases-e6-and-e7).
+GROUPS = 16384
 RAYS_A_PIXEL = 1
 SHADOWS_A_PIXEL = 2
 MAX_WAVES = shader.MAX_WAVES
