@@ -166,21 +166,6 @@ def _ray_boxes(wide, row, lx, ly, lz, hx, hy, hz, ix, iy, iz, closest):
     return mask, (n0, n1, n2, n3)
 
 
-# The lowest bit set in a 4-bit mask of children entered.
-_LOWEST = (0, 0, 1, 0, 2, 0, 1, 0, 3, 0, 1, 0, 2, 0, 1, 0)
-
-
-@numba.njit(inline="always")
-def _pop(s_ref, s_count, s_t, top, closest):
-    """_walk_wide's next child off the stack, those entered beyond the
-    closest hit skipped: (found, ref, count, top)."""
-    while top > 0:
-        top -= 1
-        if s_t[top] <= closest:
-            return True, s_ref[top], s_count[top], top
-    return False, np.int32(0), np.int32(INNER), top
-
-
 @numba.njit(inline="always", error_model="numpy")
 def _walk_wide(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, wide, wide_links, ordered, order, s_ref,
                s_count, s_t):  # fmt: skip
@@ -200,16 +185,17 @@ def _walk_wide(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, wide, wi
     closest = t_max
     hit = np.int64(-1)
     hit_d = ZERO
-    # where the walk goes next, a row (count INNER) or a leaf: taken straight
-    # from the node when the ray enters one or two of its children, so that
-    # those cases make no trip through the stack and no sort
-    ref = np.int32(0)
-    count = np.int32(INNER)
-    going = True
-    top = 0
-    while going:
-        if count != INNER:
-            for j in range(_U(ref), _U(ref + count)):
+    s_ref[0] = 0
+    s_count[0] = INNER
+    s_t[0] = ZERO
+    top = 1
+    while top > 0:
+        top -= 1
+        if s_t[top] > closest:
+            continue
+        node = s_ref[top]
+        if s_count[top] != INNER:
+            for j in range(_U(node), _U(node + s_count[top])):
                 original = order[j]
                 if original == own and not own_inside:
                     continue
@@ -221,28 +207,8 @@ def _walk_wide(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, wide, wi
                     hit_d = d
             if any_hit and hit >= 0:
                 return hit, closest, hit_d
-            going, ref, count, top = _pop(s_ref, s_count, s_t, top, closest)
             continue
-        node = ref
         mask, nears = _ray_boxes(wide, node, lx, ly, lz, hx, hy, hz, ix, iy, iz, closest)
-        if mask == 0:
-            going, ref, count, top = _pop(s_ref, s_count, s_t, top, closest)
-            continue
-        c0 = _LOWEST[mask]
-        rest = mask & (mask - 1)
-        if rest == 0:  # one child entered: it is next
-            ref, count = wide_links[node, W_REF + c0], wide_links[node, W_COUNT + c0]
-            continue
-        c1 = _LOWEST[rest]
-        if rest & (rest - 1) == 0:  # two: the nearer next, the other pushed
-            if nears[c1] < nears[c0]:
-                c0, c1 = c1, c0
-            s_ref[top] = wide_links[node, W_REF + c1]
-            s_count[top] = wide_links[node, W_COUNT + c1]
-            s_t[top] = nears[c1]
-            top += 1
-            ref, count = wide_links[node, W_REF + c0], wide_links[node, W_COUNT + c0]
-            continue
         base = top
         for c in range(WIDTH):
             if not (mask >> c) & 1:
@@ -258,7 +224,6 @@ def _walk_wide(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, wide, wi
             s_count[j] = wide_links[node, W_COUNT + c]
             s_t[j] = near
             top += 1
-        going, ref, count, top = _pop(s_ref, s_count, s_t, top, closest)
     return hit, closest, hit_d
 
 
