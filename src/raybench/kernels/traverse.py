@@ -152,13 +152,12 @@ def build(jit, intersect_sphere, intersect_ahead, read_row=None, read_sphere=Non
             k = j
             j = np.uint32(j + np.uint32(1))
             original = order[k]
+            if ahead and original == own and not own_inside:
+                continue
+            cx, cy, cz, r = read_sphere(ordered, k)
             if ahead:
-                if original == own and not own_inside:
-                    continue
-                cx, cy, cz, r = read_sphere(ordered, k)
                 t, d = intersect_ahead(cx - ox, cy - oy, cz - oz, r, dx, dy, dz, original == own)
             else:
-                cx, cy, cz, r = read_sphere(ordered, k)
                 t, d = intersect_sphere(ox, oy, oz, dx, dy, dz, cx, cy, cz, r)
             if t > ZERO and (t < closest or (t == closest and original < hit)):
                 closest = t
