@@ -272,7 +272,10 @@ class Builder:
         finally:
             self.stats_read.unmap()
         c, a = words[2:4].view(np.float32)
-        return Stats(int(words[0]), int(words[1]), float(c / a) if a > 0 else 0.0)
+        # a scene whose areas overflow float32 has cost inf / inf: NaN, as the
+        # model's (bvh.lbvh_steps), without NumPy's warning for it
+        with np.errstate(invalid="ignore"):
+            return Stats(int(words[0]), int(words[1]), float(c / a) if a > 0 else 0.0)
 
     def read(self, buffer, dtype, shape=None) -> np.ndarray:
         """A buffer's contents (for tests and checks)."""
