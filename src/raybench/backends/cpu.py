@@ -59,7 +59,7 @@ from ..layout import (
     WIDE_STACK,
     WIDTH,
 )
-from ..lighting import Shading
+from ..lighting import MAX_LIGHTS, Shading
 from .contract import TracerBase, check_moved
 from .limits import (
     HOST_PIXEL_BYTES,
@@ -84,6 +84,10 @@ from .options import CpuOptions, checked
 # (docs/whitted.md#cpu-shadow-rays-as-packets-issue-27).
 LANES = 16
 _DEAD = np.float32(-np.inf)  # a lane's length once blocked or where no ray is cast: no box is entered
+# The last blockers' slots (_last_blocker), a pair of the sphere the rays
+# leave and the light to one slot: prime, so that neighbouring spheres'
+# pairs spread over all of them.
+BLOCKER_SLOTS = 251
 
 
 def _packet_shadows(jit, find, toward):
@@ -117,14 +121,19 @@ def _packet_shadows(jit, find, toward):
                             lead = k
             if lead < 0:
                 continue
+            blockers = tree[_T_BLOCKERS]
+            slot = (own * MAX_LIGHTS + light) % BLOCKER_SLOTS
+            if _last_blocker(px, py, pz, rays, tree[2], tree[3], blockers[slot], own, own_inside) == _DEAD:
+                batch |= live << np.int64(first)  # every ray blocked by the sphere that blocked the last
+                continue
             for k in range(LANES):  # lanes without a ray follow the first live one: the spread stays tight
                 if not (live >> np.int64(k)) & np.int64(1):
                     rays[_DX, k] = rays[_DX, lead]
                     rays[_DY, k] = rays[_DY, lead]
                     rays[_DZ, k] = rays[_DZ, lead]
             batch |= _shadow_packet(px, py, pz, rays, tree[_T_SPREAD], tree[_T_STACK], tree[_T_WIDE],
-                                    tree[_T_WIDE_LINKS], tree[2], tree[3], own, own_inside,
-                                    live) << np.int64(first)  # fmt: skip
+                                    tree[_T_WIDE_LINKS], tree[2], tree[3], own, own_inside, live, blockers,
+                                    slot) << np.int64(first)  # fmt: skip
         return batch
 
     @jit
@@ -230,9 +239,11 @@ def _walk_wide(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, wide, wi
 # The packets program's tree tuple (_whitted_rows_packets): the binary
 # tree's four arrays, the wide tree's two, the shadow packets' scratch
 # (_packet_shadows), the tile's primary hits (_tile_primaries), the lane of
-# the pixel being shaded, and the single-ray walk's stack.
+# the pixel being shaded, the single-ray walk's stack, and the shadow rays'
+# last blockers.
 _T_WIDE, _T_WIDE_LINKS, _T_RAYS, _T_SPREAD, _T_STACK = 4, 5, 6, 7, 8
 _T_HIT, _T_CLOSEST, _T_HIT_D, _T_LANE, _T_S_REF, _T_S_COUNT, _T_S_T = 9, 10, 11, 12, 13, 14, 15
+_T_BLOCKERS = 16  # the last blockers (rows of `ordered`, -1 for none) by sphere and light: _last_blocker
 
 
 @numba.njit(inline="always")
@@ -931,7 +942,7 @@ def _lanes_enter(lx, ly, lz, hx, hy, hz, rays):
 
 
 @numba.njit(inline="always", error_model="numpy")
-def _lanes_leaf(ox, oy, oz, margin, rays, spread, ordered, order, first, count, own, own_inside):
+def _lanes_leaf(ox, oy, oz, margin, rays, spread, ordered, order, first, count, own, own_inside, blockers, slot):
     """A leaf's spheres against a shadow packet's rays: whether one of them
     blocks a ray (0 < t < the ray's length), each such ray's length made
     _DEAD. The test of traverse.leaf_test, on the same float32 values: the
@@ -939,7 +950,8 @@ def _lanes_leaf(ox, oy, oz, margin, rays, spread, ordered, order, first, count, 
     root (intersect_ahead). A sphere whose padded box no ray enters is
     skipped after one test for the packet (_missed_by_all, as _packet_leaf
     does). The loop over the rays has no branch and no reduction but an OR:
-    LLVM makes it SIMD."""
+    LLVM makes it SIMD. blockers[slot]: the last sphere found blocking a
+    ray, tested first by the next packet of the slot (_last_blocker)."""
     hits = False
     for j in range(first, first + count):
         original = order[j]
@@ -957,15 +969,45 @@ def _lanes_leaf(ox, oy, oz, margin, rays, spread, ordered, order, first, count, 
             spread,
         ):
             continue
-        ex, ey, ez = cx - ox, cy - oy, cz - oz
-        far_only = original == own
-        for k in range(LANES):
-            t, _d = _intersect_ahead_v(ex, ey, ez, r, rays[_DX, k], rays[_DY, k], rays[_DZ, k], far_only)
-            c = rays[_LEN, k]
-            hit = (t > ZERO) & (t < c)
-            rays[_LEN, k] = _DEAD if hit else c
-            hits |= hit
+        if _lanes_sphere(cx - ox, cy - oy, cz - oz, r, rays, original == own):
+            blockers[slot] = j
+            hits = True
     return hits
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _lanes_sphere(ex, ey, ez, r, rays, far_only):
+    """One sphere (centre at (ex, ey, ez) from the rays' origin) against a
+    shadow packet's rays: each ray it blocks (0 < t < the ray's length) made
+    _DEAD; whether it blocked one."""
+    hits = False
+    for k in range(LANES):
+        t, _d = _intersect_ahead_v(ex, ey, ez, r, rays[_DX, k], rays[_DY, k], rays[_DZ, k], far_only)
+        c = rays[_LEN, k]
+        hit = (t > ZERO) & (t < c)
+        rays[_LEN, k] = _DEAD if hit else c
+        hits |= hit
+    return hits
+
+
+# A light's shadow rays from neighbouring points, the tile's pixels one
+# after another, are mostly blocked by one sphere: tested first, it answers
+# them without a walk. The answer is the walk's (any hit: which sphere
+# blocks does not matter), on the same float32 values as _lanes_leaf's. A
+# call, not inlined: as fast a frame, for less of the first frame's compile
+# (docs/whitted.md#cpu-the-last-blocker-first-issue-27).
+@compiled.njit(nogil=True, error_model="numpy", _nrt=False)
+def _last_blocker(ox, oy, oz, rays, ordered, order, j, own, own_inside):
+    """A shadow packet's rays from (ox, oy, oz) against row j of `ordered`
+    (none where j < 0 or it is the sphere the rays leave from outside), each
+    ray it blocks made _DEAD: the packet's reach after it (_DEAD once every
+    ray is blocked)."""
+    if j >= 0:
+        original = order[j]
+        if original != own or own_inside:
+            _lanes_sphere(ordered[0, j] - ox, ordered[1, j] - oy, ordered[2, j] - oz, ordered[3, j], rays,
+                          original == own)  # fmt: skip
+    return _reach(rays)
 
 
 @numba.njit(inline="always")
@@ -982,19 +1024,22 @@ def _reach(rays):
 # program's error model, which leaves its loops over the rays SIMD (they
 # divide by nothing).
 @numba.njit(inline="always", error_model="numpy")
-def _shadow_packet(ox, oy, oz, rays, spread, stack, wide, wide_links, ordered, order, own, own_inside, live):
+def _shadow_packet(
+    ox, oy, oz, rays, spread, stack, wide, wide_links, ordered, order, own, own_inside, live, blockers, slot
+):
     """Any hit of each of a shadow packet's rays from (ox, oy, oz) through
     the 4-wide tree: the bits of the rays blocked, of those in `live`.
     rays[_DX:_DZ + 1]: the unit directions; rays[_LEN]: each ray's length,
-    _DEAD where no ray is cast (rays[_IX:_IZ + 1]: their inverses, written
-    here); spread (7 + WIDTH) and stack (layout.WIDE_STACK): scratch. A
+    _DEAD where no ray is cast or it is blocked already (_last_blocker)
+    (rays[_IX:_IZ + 1]: their inverses, written here); spread (7 + WIDTH) and stack (layout.WIDE_STACK): scratch. A
     ray is blocked where some sphere has 0 < t < its length, which no order
     of the walk changes: the answer of traverse.walk's any hit, ray by ray.
     A node's children are tested as _bvh_packets_wide tests them
     (_wide_mask, then the rays' own test), the leaves at once, the inner
     children pushed nearest on top along the first ray (spread[7:] holds
     where each lies); a blocked ray enters nothing more, and the walk ends
-    once every ray is blocked."""
+    once every ray is blocked. blockers[slot]: set to the last sphere
+    that blocked a ray (_lanes_leaf)."""
     for k in range(LANES):
         rays[_IX, k] = _inverse(rays[_DX, k])
         rays[_IY, k] = _inverse(rays[_DY, k])
@@ -1037,7 +1082,7 @@ def _shadow_packet(ox, oy, oz, rays, spread, stack, wide, wide_links, ordered, o
                 spread[7 + j - base] = along
                 top += 1
             elif count > 0 and _lanes_leaf(ox, oy, oz, margin, rays, spread, ordered, order, ref, count, own,
-                                           own_inside):  # fmt: skip
+                                           own_inside, blockers, slot):  # fmt: skip
                 reach = _reach(rays)
                 if reach == _DEAD:  # every ray blocked
                     return live
@@ -1118,7 +1163,8 @@ def _whitted_rows_packets(first_row, end_row, width, height, basis, spheres, cou
     own = (nodes, links, ordered, order, wide, wide_links, np.empty((7, LANES), np.float32),
            np.empty(7 + WIDTH, np.float32), np.empty(WIDE_STACK, np.int32), hit, lanes[6],
            np.empty(PACKET, np.float32), np.zeros(1, np.int64), np.empty(WIDE_STACK, np.int32),
-           np.empty(WIDE_STACK, np.int32), np.empty(WIDE_STACK, np.float32))  # fmt: skip
+           np.empty(WIDE_STACK, np.int32), np.empty(WIDE_STACK, np.float32),
+           np.full(BLOCKER_SLOTS, -1, np.int32))  # fmt: skip
     _whitted_tiles(
         first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern, params, own, lanes,
         np.empty(7, np.float32), np.empty(WIDE_STACK, np.int32), np.empty(WIDE_STACK, np.int32),
