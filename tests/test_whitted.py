@@ -39,6 +39,18 @@ def lit_scene(rng, n, lights=True, camera=None):
     centers = np.stack([rng.uniform(-4, 4, n), rng.uniform(-2.5, 2.5, n), rng.uniform(6, 18, n)], axis=1)
     centers[0] = rng.uniform([-1, -1, 6], [1, 1, 9])
     radii = rng.uniform(0.3, 1.6, n)
+    # a sphere that holds the glass, overlaps it or crosses the view's ray to its centre goes
+    # back along z until it does none of these (one held it on a seed of CI's: no refraction)
+    glass, toward = centers[0], centers[0] / np.linalg.norm(centers[0])
+    for j in range(1, n):
+        while True:
+            along = float(np.clip(centers[j] @ toward, 0.0, glass @ toward))
+            if (
+                min(np.linalg.norm(centers[j] - glass), np.linalg.norm(centers[j] - along * toward))
+                > radii[j] + radii[0] + 0.05
+            ):
+                break
+            centers[j, 2] += radii[j] + radii[0]
     centers = np.concatenate([centers, [[0.0, -1003.0, 12.0]]])
     radii = np.concatenate([radii, [1000.0]])
     lamps = []
@@ -690,9 +702,13 @@ def test_a_frame_whose_queues_do_not_fit_is_traced_in_bands(rng, request, monkey
     monkeypatch.setattr(bands, "QUEUE_BYTES", queue_bytes(device, one) // 2)
     banded = whitted_tracer(device, scene, width, height, request, 3, 2)
     assert 1 <= banded.wavefront.plan.rows <= height // 2
+    cast = 0
     for camera in (Camera(), Camera(position=tuple(rng.uniform([-1, -1, -2], [1, 1, 0])))):
         assert_traced_alike(one, banded, camera.basis(width, height))
-    assert banded.ray_counts[2] > 0 and banded.ray_counts[3] > 0
+        cast = cast + banded.ray_counts
+    # not vacuous: the glass near the middle of the default view (lit_scene) can be hidden
+    # from the second camera, which one seed of CI's met, so the two frames' rays together
+    assert cast[2] > 0 and cast[3] > 0
 
 
 @pytest.mark.parametrize("device", GPUS)
