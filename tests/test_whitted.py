@@ -706,8 +706,7 @@ def test_a_frame_whose_queues_do_not_fit_is_traced_in_bands(rng, request, monkey
     for camera in (Camera(), Camera(position=tuple(rng.uniform([-1, -1, -2], [1, 1, 0])))):
         assert_traced_alike(one, banded, camera.basis(width, height))
         cast = cast + banded.ray_counts
-    # not vacuous: the glass near the middle of the default view (lit_scene) can be hidden
-    # from the second camera, which one seed of CI's met, so the two frames' rays together
+    # not vacuous over the two frames: the second camera, placed at random, may not see the glass
     assert cast[2] > 0 and cast[3] > 0
 
 
