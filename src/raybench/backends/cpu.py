@@ -101,6 +101,8 @@ def _packet_shadows(jit, find, toward):
         """Bit s set where sample s's ray is blocked; 0 for samples whose
         ray is not cast (toward's facing 0)."""
         rays = tree[_T_RAYS]
+        blockers = tree[_T_BLOCKERS]
+        slot = (own * MAX_LIGHTS + light) % BLOCKER_SLOTS
         batch = np.int64(0)
         for first in range(0, samples, LANES):
             live = np.int64(0)
@@ -121,8 +123,6 @@ def _packet_shadows(jit, find, toward):
                             lead = k
             if lead < 0:
                 continue
-            blockers = tree[_T_BLOCKERS]
-            slot = (own * MAX_LIGHTS + light) % BLOCKER_SLOTS
             if _last_blocker(px, py, pz, rays, tree[2], tree[3], blockers[slot], own, own_inside) == _DEAD:
                 batch |= live << np.int64(first)  # every ray blocked by the sphere that blocked the last
                 continue
@@ -1031,8 +1031,8 @@ def _shadow_packet(
     the 4-wide tree: the bits of the rays blocked, of those in `live`.
     rays[_DX:_DZ + 1]: the unit directions; rays[_LEN]: each ray's length,
     _DEAD where no ray is cast or it is blocked already (_last_blocker)
-    (rays[_IX:_IZ + 1]: their inverses, written here); spread (7 + WIDTH) and stack (layout.WIDE_STACK): scratch. A
-    ray is blocked where some sphere has 0 < t < its length, which no order
+    (rays[_IX:_IZ + 1]: their inverses, written here); spread (7 + WIDTH)
+    and stack (layout.WIDE_STACK): scratch. A ray is blocked where some sphere has 0 < t < its length, which no order
     of the walk changes: the answer of traverse.walk's any hit, ray by ray.
     A node's children are tested as _bvh_packets_wide tests them
     (_wide_mask, then the rays' own test), the leaves at once, the inner
