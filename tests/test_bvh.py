@@ -10,10 +10,10 @@ from scenes import IN_VIEW, KINDS, SCENES, chain, one_point
 
 import raybench
 from raybench import Scene, bvh, compiled, kernels, layout
-from raybench.backends import cpu as cpu_backend
 from raybench.backends import cuda as cuda_backend
 from raybench.backends import options as device_options
 from raybench.bvh import oneshot, sah
+from raybench.kernels import packets
 
 # The algorithm as plain Python on NumPy float32 scalars, run without a compiler.
 K = kernels.build(lambda f: f)
@@ -165,14 +165,14 @@ def test_box_test_keeps_every_grazing_hit(rng):
 
 
 def packet_of_rays(rng):
-    """An origin and 128 unit directions (cpu.PACKET): all one direction (the
+    """An origin and 128 unit directions (packets.PACKET): all one direction (the
     interval test is then exact), a narrow cone (a packet of pixels), or a
     wide one; some rays with a component tiny or zero."""
     o = (rng.uniform(-1, 1, 3) * 10.0 ** rng.uniform(-1, 3)).astype(np.float32)
     axis = rng.normal(size=3)
     axis /= np.linalg.norm(axis)
     spread = rng.choice([0.0, 1e-3, 0.3])
-    d = axis + rng.normal(size=(cpu_backend.PACKET, 3)) * spread
+    d = axis + rng.normal(size=(packets.PACKET, 3)) * spread
     if rng.random() < 0.3:
         d[:, int(rng.integers(3))] *= rng.choice([0.0, 1e-9])
     d /= np.linalg.norm(d, axis=1, keepdims=True)
@@ -180,16 +180,16 @@ def packet_of_rays(rng):
 
 
 def test_one_test_for_a_packet_never_drops_a_ray_that_enters(rng):
-    """cpu._missed_by_all, the CPU packets' interval test for all their rays at
+    """packets._missed_by_all, the CPU packets' interval test for all their rays at
     once, against each ray's own float32 box test (the row loop of
-    cpu._packet_box, in NumPy): on boxes placed to be barely entered or barely
+    packets._packet_box, in NumPy): on boxes placed to be barely entered or barely
     missed by one of the rays, it may only say "missed" where no ray enters."""
     rejected = entered = 0
     for _ in range(400):
         o, d = packet_of_rays(rng)
         inv = np.array([[K.inverse(c) for c in ray] for ray in d], np.float32)
         spread = np.empty(7, np.float32)
-        cpu_backend._spread(inv[:, 0].copy(), inv[:, 1].copy(), inv[:, 2].copy(), spread)
+        packets._spread(inv[:, 0].copy(), inv[:, 1].copy(), inv[:, 2].copy(), spread)
         for _ in range(10):
             k = int(rng.integers(len(d)))
             t = 10.0 ** rng.uniform(-1, 2)
@@ -210,7 +210,7 @@ def test_one_test_for_a_packet_never_drops_a_ray_that_enters(rng):
             near = np.minimum(t_lo, t_hi).max(axis=1)
             far = np.maximum(t_lo, t_hi).min(axis=1)
             any_enters = bool(((near <= far) & (far > 0) & (near <= closest)).any())
-            missed = cpu_backend._missed_by_all(*lo, *hi, spread)
+            missed = packets._missed_by_all(*lo, *hi, spread)
             assert not (missed and any_enters), (o, d[k], lo, hi)
             rejected += missed
             entered += any_enters
@@ -504,7 +504,7 @@ def test_default_is_bvh_and_reports_build_time():
 
 
 def test_bvh_too_large_for_memory_is_one_line(monkeypatch):
-    from raybench.backends import cpu
+    from raybench.backends.cpu import tracer as cpu
 
     scene = raybench.random_spheres(10000)
     # room for the frame and the spheres, not for the tree: a pixel is 3

@@ -88,13 +88,13 @@ def test_cpu_fast_equals_simple(rng, kind, size):
 def test_both_cpu_fast_loops_equal_simple(rng, band):
     """The CPU picks one fast loop by its register width; both are checked
     here, whichever this machine would pick."""
-    from raybench.backends import cpu
+    from raybench.backends.cpu import brute
 
     scene, camera = KINDS["overlapping"](rng, int(rng.integers(1, 120)))
     width, height = int(rng.integers(1, 50)), int(rng.integers(1, 20))
     simple = raybench.render(scene, camera, width, height, device="cpu", kernel="simple")
     tracer = raybench.backends.tracer("cpu", scene.spheres, width, height, kernel="fast", threads=2)
-    tracer._kernel = getattr(cpu, band)
+    tracer._kernel = getattr(brute, band)
     tracer.trace(camera.basis(width, height))
     assert np.array_equal(simple.hits, tracer.hits) and np.array_equal(simple.image, tracer.image)
 

@@ -7,7 +7,7 @@ first in the scene (the thesis's loop keeps the first of equal t; the BVH
 walks compare indices). That rule is what makes the devices agree bit for bit.
 
 The cull threshold. The fast kernels skip a sphere when the ray's v = EO.dir
-is at most the threshold s (intersect.prepare_sphere). A compiler may compute
+is at most the threshold s (the sphere primitive's prepare). A compiler may compute
 v with fused multiply-adds in one place and without in another; the exact
 test must never accept a hit the cull test, with the other v, rejected.
 """
@@ -22,7 +22,7 @@ from test_fast import grazing_pairs
 import raybench
 from raybench import Scene
 from raybench.backends import cuda as cuda_backend
-from raybench.kernels import intersect
+from raybench.kernels.primitives import sphere
 
 f32 = np.float32
 
@@ -58,10 +58,10 @@ def _frame(scene, camera, device, options, size):
     if band is None:
         return raybench.render(scene, camera, width, height, device=device, **options)
     from raybench import backends
-    from raybench.backends import cpu
+    from raybench.backends.cpu import brute
 
     tracer = backends.tracer("cpu", scene.spheres, width, height, threads=2, **options)
-    tracer._kernel = getattr(cpu, band)
+    tracer._kernel = getattr(brute, band)
     tracer.trace(camera.basis(width, height))
     return raybench.Frame(tracer.image.copy(), tracer.hits.copy(), "cpu")
 
@@ -114,11 +114,11 @@ def _chain(ex, ey, ez, dx, dy, dz):
 
 
 def _with_along(along):
-    """intersect's functions, in plain Python, with v computed by along."""
-    return intersect.build(lambda f: along if f.__name__ == "along" else f)
+    """The sphere's functions, in plain Python, with v computed by along."""
+    return sphere.build(lambda f: along if f.__name__ == "along" else f)
 
 
-ROUNDINGS = {"plain": intersect.build(lambda f: f), "fused": _with_along(_fused), "chain": _with_along(_chain)}
+ROUNDINGS = {"plain": sphere.build(lambda f: f), "fused": _with_along(_fused), "chain": _with_along(_chain)}
 
 
 def _tangent_from_the_surface(rng, n):
@@ -153,16 +153,18 @@ def test_cull_holds_for_any_rounding_of_v(rng, cases):
     sphere the camera sits on (measured: up to 0.73 x 2^-24 |EO| is needed;
     64 x 2^-24 is kept); for grazing rays from afar, CULL_SLACK's margin
     (at least 32 x 2^-24 |EO| in v) already covers it."""
-    prepare = ROUNDINGS["plain"][2]
+    prepare = ROUNDINGS["plain"].prepare
     hits = 0
     for (cx, cy, cz), r, (dx, dy, dz) in cases(rng, 4000):
         ex, ey, ez, s = prepare(f32(0), f32(0), f32(0), cx, cy, cz, r)
-        accepted = [name for name, k in ROUNDINGS.items() if k[0](ex, ey, ez, r, dx, dy, dz)[0] > f32(0)]
+        accepted = [
+            name for name, k in ROUNDINGS.items() if k.intersect_relative(ex, ey, ez, r, dx, dy, dz)[0] > f32(0)
+        ]
         if not accepted:
             continue
         hits += 1
         for name, k in ROUNDINGS.items():
-            assert k[3](ex, ey, ez, s, dx, dy, dz), (
+            assert k.may_hit(ex, ey, ez, s, dx, dy, dz), (
                 f"v rounded {name!r} culls a hit that {accepted} accepts: EO {ex, ey, ez}, r {r}, dir {dx, dy, dz}"
             )
     assert hits > 300, hits  # not vacuous: many hits right at the threshold
@@ -173,6 +175,6 @@ def test_roundings_of_v_differ_at_the_threshold(rng):
     test above would test nothing): they disagree on many tangent rays."""
     differ = 0
     for c, _, d in _tangent_from_the_surface(rng, 2000):
-        vs = {k[4](c[0], c[1], c[2], d[0], d[1], d[2]) for k in ROUNDINGS.values()}
+        vs = {k.along(c[0], c[1], c[2], d[0], d[1], d[2]) for k in ROUNDINGS.values()}
         differ += len(vs) > 1
     assert differ > 200, differ

@@ -188,5 +188,8 @@ def as_python(module) -> types.SimpleNamespace:
     for name, value in vars(module).items():
         if isinstance(value, numba.core.dispatcher.Dispatcher):
             f = value.py_func
+            if f.__module__ != module.__name__:  # written elsewhere (a primitive's rule): its own globals
+                space[name] = f
+                continue
             space[name] = types.FunctionType(f.__code__, space, f.__name__, f.__defaults__, f.__closure__)
     return types.SimpleNamespace(**space)

@@ -29,6 +29,7 @@ import numpy as np
 from .. import compiled
 from ..errors import RaybenchError
 from ..host import usable_cores
+from ..kernels.primitives import sphere
 from ..layout import (
     BOX_FLOATS,
     CHILD_BOX,
@@ -38,7 +39,6 @@ from ..layout import (
     MAX_DEPTH,
     NODE_BYTES,
     NODE_FLOATS,
-    PAD,
     REF,
 )
 from . import oneshot
@@ -92,10 +92,8 @@ class Bvh:
         return self.nodes.shape[0]
 
 
-@compiled.njit(nogil=True)
-def sphere_pad(cx, cy, cz, r):
-    """The padding of a sphere's box, as the builder computes it."""
-    return (r + (np.abs(cx) + np.abs(cy) + np.abs(cz))) * PAD
+# The padding of a sphere's box, as every builder computes it (the primitive's own rule).
+sphere_pad = compiled.njit(nogil=True)(sphere.pad)
 
 
 @compiled.njit(nogil=True)

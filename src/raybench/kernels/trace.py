@@ -1,4 +1,4 @@
-"""The per-pixel program: make the primary ray, find the nearest sphere, shade.
+"""The per-pixel program: make the primary ray, find the nearest primitive, shade.
 
 Every backend runs render_pixel for each pixel; they differ only in how pixels
 are spread over threads.
@@ -9,12 +9,13 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ..layout import BLUE, CX, CY, CZ, GREEN, RADIUS, RED
-from . import intersect, shade, traverse, wavefront, whitted
+from ..layout import BLUE, GREEN, RED
+from . import shade, traverse, wavefront, whitted
 from .constants import FAR, HALF, ONE, ZERO
+from .primitives import sphere
 
 
-def build(jit, call=None, shadows=None, packets_search=None, read_row=None, read_sphere=None):
+def build(jit, call=None, shadows=None, packets_search=None, read_row=None, words=None):
     """The algorithm compiled with `jit`; a namespace of its functions.
     call: the decorator of Whitted shading's search for a ray's hit (default
     jit), which the CPU compiles as one function called from both of its call
@@ -24,14 +25,19 @@ def build(jit, call=None, shadows=None, packets_search=None, read_row=None, read
     program, render_pixel_whitted["packets"], through the tree with them.
     packets_search: that program's search for the other rays (the CPU's
     walk of its 4-wide tree, search_tree's signature); default search_tree.
-    That program's find is inlined (jit, not call). read_row,
-    read_sphere: how the walks read a node's row and a leaf's sphere
-    (traverse.build)."""
+    That program's find is inlined (jit, not call). read_row: how the
+    walks read a node's row (traverse.build); words: how they read a leaf's
+    primitives from a backend's packed copy (the primitive's build)."""
     call = call or jit
-    intersect_relative, intersect_sphere, prepare_sphere, may_hit, along, intersect_ahead = intersect.build(jit)
+    prim = sphere.build(jit, words)
     shade_hit, shade_miss, to_byte = shade.build(jit)
-    nearest_hit_bvh, inverse, ray_axes, children, leaf_hits, centre_along, walk = traverse.build(
-        jit, intersect_sphere, intersect_ahead, read_row, read_sphere
+    nearest_hit_bvh, inverse, ray_axes, children, leaf_hits, centre_along, walk = traverse.build(jit, prim, read_row)
+    hit_closest, hit_ahead, meets_own, rim, prepare_at = (
+        prim.hit,
+        prim.hit_ahead,
+        prim.meets_own,
+        prim.rim,
+        prim.prepare_at,
     )
 
     @jit
@@ -51,8 +57,8 @@ def build(jit, call=None, shadows=None, packets_search=None, read_row=None, read
     @jit
     def scan(ox, oy, oz, dx, dy, dz, t_max, any_hit, ahead, own, own_inside, spheres, count):
         """Brute force for any ray, as traverse's walk() takes it through the
-        tree: (index of the nearest sphere with 0 < t < t_max, the first on a
-        tie, or -1; its t; its half-chord d), over every sphere in order;
+        tree: (index of the nearest primitive with 0 < t < t_max, the first
+        on a tie, or -1; its t; its hit's datum), over every one in order;
         any_hit stops at the first; ahead, own, own_inside: the secondary
         rays' test (traverse.leaf_test)."""
         closest = t_max
@@ -60,22 +66,11 @@ def build(jit, call=None, shadows=None, packets_search=None, read_row=None, read
         hit_d = ZERO
         for i in range(count):
             if ahead:
-                if i == own and not own_inside:
+                if i == own and not meets_own(own_inside):
                     continue
-                t, d = intersect_ahead(
-                    spheres[CX, i] - ox,
-                    spheres[CY, i] - oy,
-                    spheres[CZ, i] - oz,
-                    spheres[RADIUS, i],
-                    dx,
-                    dy,
-                    dz,
-                    i == own,
-                )
+                t, d = hit_ahead(spheres, i, ox, oy, oz, dx, dy, dz, i == own)
             else:
-                t, d = intersect_sphere(
-                    ox, oy, oz, dx, dy, dz, spheres[CX, i], spheres[CY, i], spheres[CZ, i], spheres[RADIUS, i]
-                )
+                t, d = hit_closest(spheres, i, ox, oy, oz, dx, dy, dz)
             if t < closest and t > ZERO:
                 closest = t
                 hit = i
@@ -86,8 +81,8 @@ def build(jit, call=None, shadows=None, packets_search=None, read_row=None, read
 
     @jit
     def nearest_hit(ox, oy, oz, dx, dy, dz, spheres, count):
-        """Index of the sphere with the smallest t > 0 (the first on a tie, -1
-        if none) and its half-chord d: scan() for the thesis's primary rays."""
+        """Index of the primitive with the smallest t > 0 (the first on a tie,
+        -1 if none) and its hit's datum: scan() for the thesis's primary rays."""
         hit, _t, hit_d = scan(ox, oy, oz, dx, dy, dz, FAR, False, False, -1, False, spheres, count)
         return hit, hit_d
 
@@ -96,7 +91,7 @@ def build(jit, call=None, shadows=None, packets_search=None, read_row=None, read
         """Shade pixel (x, y) from its nearest hit (-1: none) and store it."""
         if hit >= 0:
             red, green, blue = shade_hit(
-                spheres[RED, hit], spheres[GREEN, hit], spheres[BLUE, hit], spheres[RADIUS, hit], d
+                spheres[RED, hit], spheres[GREEN, hit], spheres[BLUE, hit], rim(spheres, hit), d
             )
         else:
             red, green, blue = shade_miss(np.float32(x), np.float32(y))
@@ -141,13 +136,13 @@ def build(jit, call=None, shadows=None, packets_search=None, read_row=None, read
 
     def whitted_program(search, shadows=None):
         if shadows is None:
-            stages = whitted.build(jit, call, search, shade_hit, shade_miss)
+            stages = whitted.build(jit, call, search, prim, shade_hit, shade_miss)
             wavefronts[search.__name__] = wavefront.build(jit, stages, primary_ray, shade_hit)
         else:
             # find inlined: this program's shadow rays call no find (its shadows trace
             # them), so the walk has one call site and is compiled once, and the call's
             # cost goes (measured: docs/whitted.md, "CPU: the primary rays as packets")
-            stages = whitted.build(jit, jit, search, shade_hit, shade_miss, shadows, name="_packets")
+            stages = whitted.build(jit, jit, search, prim, shade_hit, shade_miss, shadows, name="_packets")
         whitted_pixel = stages.whitted_pixel
 
         @jit
@@ -181,10 +176,8 @@ def build(jit, call=None, shadows=None, packets_search=None, read_row=None, read
     @jit
     def prepare(i, basis, spheres, relative):
         """Fast kernels, once per frame and sphere i: relative[:, i] = EO and the
-        cull threshold (prepare_sphere)."""
-        ex, ey, ez, s = prepare_sphere(
-            basis[0, 0], basis[0, 1], basis[0, 2], spheres[CX, i], spheres[CY, i], spheres[CZ, i], spheres[RADIUS, i]
-        )
+        cull threshold (the primitive's prepare)."""
+        ex, ey, ez, s = prepare_at(spheres, i, basis[0, 0], basis[0, 1], basis[0, 2])
         relative[0, i] = ex
         relative[1, i] = ey
         relative[2, i] = ez
@@ -194,10 +187,11 @@ def build(jit, call=None, shadows=None, packets_search=None, read_row=None, read
         render_pixel=render_pixel,
         primary_ray=primary_ray,
         store_pixel=store_pixel,
+        prim=prim,
         prepare=prepare,
-        may_hit=may_hit,
-        along=along,
-        intersect_relative=intersect_relative,
+        may_hit=prim.may_hit,
+        along=prim.along,
+        intersect_relative=prim.intersect_relative,
         render_pixel_bvh=render_pixel_bvh,
         nearest_hit_bvh=nearest_hit_bvh,
         inverse=inverse,
@@ -213,5 +207,5 @@ def build(jit, call=None, shadows=None, packets_search=None, read_row=None, read
         render_pixel_whitted=render_pixel_whitted,
         whitted_wavefront=whitted_wavefront,
         walk=walk,
-        intersect_ahead=intersect_ahead,
+        intersect_ahead=prim.intersect_ahead,
     )

@@ -1,17 +1,20 @@
 """Nearest hit through the BVH (raybench.bvh's layout): the same answer as
-trace.nearest_hit's loop over every sphere, bit for bit.
+trace.nearest_hit's loop over every primitive, bit for bit. The walk knows
+nothing of the primitive but its leaf test (kernels/primitives).
 
 Same answer because:
-- every sphere a walk reaches is tested with intersect_sphere on the very
-  float32 values the brute-force loop uses, so each t and d is the same;
-- the brute-force loop keeps the first sphere of smallest t (strict <); the
-  walk meets spheres in another order, so on equal t it keeps the smaller
-  ORIGINAL index, which picks the same sphere;
-- no sphere the exact test would accept is ever skipped: a box is entered if
-  its slab interval (computed on the box grown by the builder's padding and a
-  margin for the camera, see axis_setup) reaches [0, closest] inclusive, and
-  the float32 hit point of an accepted sphere lies within a few epsilons of
-  (|EO| + r) of the sphere, far inside that padding.
+- every primitive a walk reaches is tested with the primitive's own hit on
+  the very float32 values the brute-force loop uses, so each t and datum is
+  the same;
+- the brute-force loop keeps the first primitive of smallest t (strict <);
+  the walk meets them in another order, so on equal t it keeps the smaller
+  ORIGINAL index, which picks the same one;
+- no primitive the exact test would accept is ever skipped: a box is
+  entered if its slab interval (computed on the box grown by the builder's
+  padding and a margin for the camera, see axis_setup) reaches [0, closest]
+  inclusive, and the float32 hit point of an accepted primitive lies within
+  a few epsilons of its size and distance from it, far inside that padding
+  (the primitive's pad).
 The box test may be loose (it only decides what to visit); it never
 overflows to NaN: direction components under TINY are replaced by +-TINY,
 so 1/d stays finite and (plane - origin) * (1/d) cannot be inf * 0.
@@ -32,19 +35,13 @@ TINY = np.float32(1e-20)
 _U = np.uint64
 
 
-def build(jit, intersect_sphere, intersect_ahead, read_row=None, read_sphere=None):
-    """The walks over `jit`; read_row(nodes, links, row): a node's row as
-    its 16 values; read_sphere(ordered, k): the k-th sphere in leaf order as
-    (cx, cy, cz, r). By default the arrays are read a value at a time (the
-    ordered spheres a row a field); a backend's own may read them in fewer,
-    wider loads from a layout of its own (cuda's wavefront)."""
-    if read_sphere is None:
-
-        @jit
-        def read_sphere(ordered, k):
-            """Sphere k of bvh.ordered (a row a field)."""
-            return ordered[0, k], ordered[1, k], ordered[2, k], ordered[3, k]
-
+def build(jit, prim, read_row=None):
+    """The walks over `jit`, for the primitive whose compiled functions are
+    `prim` (a primitive module's build: kernels/primitives); the leaf test
+    is the only part that asks it anything. read_row(nodes, links, row): a
+    node's row as its 16 values; by default the arrays are read a value at
+    a time, and a backend's own may read them in fewer, wider loads from a
+    layout of its own (cuda's wavefront)."""
     if read_row is None:
 
         @jit
@@ -58,6 +55,8 @@ def build(jit, intersect_sphere, intersect_ahead, read_row=None, read_sphere=Non
                 nodes[row, b + _U(2)], nodes[row, b + _U(3)], nodes[row, b + _U(4)], nodes[row, b + _U(5)],
                 links[row, _U(REF)], links[row, _U(REF + 1)], links[row, _U(COUNT)], links[row, _U(COUNT + 1)],
             )  # fmt: skip
+
+    hit_closest, hit_ahead, meets_own = prim.leaf_hit, prim.leaf_hit_ahead, prim.meets_own
 
     @jit
     def inverse(d):
@@ -136,13 +135,12 @@ def build(jit, intersect_sphere, intersect_ahead, read_row=None, read_sphere=Non
 
     @jit
     def leaf_test(ox, oy, oz, dx, dy, dz, ordered, order, first, count, closest, hit, hit_d, ahead, own, own_inside):
-        """The exact test on a leaf's spheres; the nearest so far, ties to the
-        smaller original index. ahead: a Whitted ray's test (intersect_ahead),
-        where the sphere `own` the ray leaves is skipped, or with own_inside
-        (the ray goes into it) met at its far root: a ray leaving a sphere
-        outwards cannot meet it again (it is convex), so no rounding of the
-        ray's origin can make the sphere shadow or reflect itself. Else the
-        thesis's test (intersect_sphere)."""
+        """The exact test on a leaf's primitives; the nearest so far, ties to
+        the smaller original index. ahead: a Whitted ray's test (the
+        primitive's hit_ahead), where the primitive `own` the ray leaves is
+        skipped unless the primitive says a ray can meet it again (meets_own:
+        a sphere, going into it, at its far root). Else the thesis's test
+        (the primitive's hit)."""
         # A while loop on 32-bit indices: range() over 64-bit ones made the
         # GPU work out a trip count and an unrolled remainder in 64-bit
         # integer steps at every leaf (docs/whitted.md)
@@ -152,13 +150,12 @@ def build(jit, intersect_sphere, intersect_ahead, read_row=None, read_sphere=Non
             k = j
             j = np.uint32(j + np.uint32(1))
             original = order[k]
-            if ahead and original == own and not own_inside:
+            if ahead and original == own and not meets_own(own_inside):
                 continue
-            cx, cy, cz, r = read_sphere(ordered, k)
             if ahead:
-                t, d = intersect_ahead(cx - ox, cy - oy, cz - oz, r, dx, dy, dz, original == own)
+                t, d = hit_ahead(ordered, k, ox, oy, oz, dx, dy, dz, original == own)
             else:
-                t, d = intersect_sphere(ox, oy, oz, dx, dy, dz, cx, cy, cz, r)
+                t, d = hit_closest(ordered, k, ox, oy, oz, dx, dy, dz)
             if t > ZERO and (t < closest or (t == closest and original < hit)):
                 closest = t
                 hit = original
@@ -174,15 +171,15 @@ def build(jit, intersect_sphere, intersect_ahead, read_row=None, read_sphere=Non
     def walk(
         ox, oy, oz, dx, dy, dz, t_max, any_hit, ahead, own, own_inside, nodes, links, ordered, order, stack_row, stack_t
     ):
-        """The one BVH walk for any ray: (original index of the nearest sphere
+        """The one BVH walk for any ray: (original index of the nearest primitive
         with 0 < t < t_max, or -1; its t; its half-chord d). any_hit: stop at
-        the first such sphere (a shadow ray's blocker), whichever it is.
+        the first such primitive (a shadow ray's blocker), whichever it is.
         ahead, own, own_inside: the secondary rays' test (leaf_test).
         stack_row / stack_t: the walk's stack, layout.STACK entries, given by
         the backend (a CUDA thread's local array, a CPU thread's own)."""
         ix, iy, iz, lx, ly, lz, hx, hy, hz = ray_axes(ox, oy, oz, dx, dy, dz)
         closest = t_max
-        hit = np.int32(-1)  # the spheres' original indices are int32: compared in one step, not two
+        hit = np.int32(-1)  # the primitives' original indices are int32: compared in one step, not two
         hit_d = ZERO
         row = 0
         top = _U(0)
@@ -264,8 +261,8 @@ def build(jit, intersect_sphere, intersect_ahead, read_row=None, read_sphere=Non
 
     @jit
     def nearest_hit_bvh(ox, oy, oz, dx, dy, dz, nodes, links, ordered, order, stack_row, stack_t):
-        """(original index of the nearest sphere with t > 0 or -1, its
-        half-chord d): walk() for the thesis's primary rays."""
+        """(original index of the nearest primitive with t > 0 or -1, its
+        hit's datum): walk() for the thesis's primary rays."""
         hit, _t, hit_d = walk(
             ox, oy, oz, dx, dy, dz, FAR, False, False, -1, False, nodes, links, ordered, order, stack_row, stack_t
         )

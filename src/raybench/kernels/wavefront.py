@@ -36,7 +36,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ..layout import BLUE, GREEN, IOR, RADIUS, RED, REFLECT, SHININESS, SPECULAR, TRANSMIT
+from ..layout import BLUE, GREEN, IOR, RED, REFLECT, SHININESS, SPECULAR, TRANSMIT
 from .constants import FAR, ONE, TWO, ZERO
 from .whitted import CUTOFF, OFFSET, P_AMBIENT, P_LIGHTS, PRIMARY, REFLECTION, REFRACTION
 
@@ -60,6 +60,7 @@ def build(jit, whitted, primary_ray, shade_hit):
     or brute force's); primary_ray and shade_hit: trace.py's."""
     find = whitted.find
     surface = whitted.surface
+    rim = whitted.rim
     shows = whitted.shows
     toward = whitted.toward
     glint = whitted.glint
@@ -162,7 +163,7 @@ def build(jit, whitted, primary_ray, shade_hit):
                         if facing > ZERO:
                             n_shadows += 1
         else:
-            lr, lg, lb = shade_hit(spheres[RED, i], spheres[GREEN, i], spheres[BLUE, i], spheres[RADIUS, i], d)
+            lr, lg, lb = shade_hit(spheres[RED, i], spheres[GREEN, i], spheres[BLUE, i], rim(spheres, i), d)
             red = wr * (keep * lr)
             green = wg * (keep * lg)
             blue = wb * (keep * lb)

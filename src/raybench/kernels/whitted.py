@@ -49,9 +49,6 @@ import numpy as np
 
 from ..layout import (
     BLUE,
-    CX,
-    CY,
-    CZ,
     GREEN,
     IOR,
     LBLUE,
@@ -61,7 +58,6 @@ from ..layout import (
     LX,
     LY,
     LZ,
-    RADIUS,
     RED,
     REFLECT,
     SHININESS,
@@ -120,14 +116,16 @@ def per_ray(jit, find, toward):
     return cast, blocked
 
 
-def build(jit, call, search, shade_hit, shade_miss, shadows=per_ray, name=""):
+def build(jit, call, search, prim, shade_hit, shade_miss, shadows=per_ray, name=""):
     """Whitted's pixel program over `search`, the nearest (or any) hit of
     any ray: through the tree or over every sphere (trace.search_tree and
     search_all), one program for each, so neither carries the other's code;
     and the parts of it that the wavefront's stages share (a namespace).
+    prim: the primitive's compiled functions (kernels/primitives): the
+    surface at a hit, and what the thesis's shading divides by.
     shadows(jit, find, toward): how a hit's shadow rays to one light are
     traced, the pair (cast, blocked) of per_ray's shape: per_ray by default;
-    the CPU's packets (backends/cpu.py) trace a light's samples together in
+    the CPU's packets (kernels/shadow_packets.py) trace a light's samples together in
     cast, and blocked reads the answer. name: told to find's symbol, where
     one process holds two programs over one search (the note on find)."""
 
@@ -249,27 +247,7 @@ def build(jit, call, search, shade_hit, shade_miss, shadows=per_ray, name=""):
             return shade_miss(fx, fy)
         return params[P_BACKGROUND], params[P_BACKGROUND + 1], params[P_BACKGROUND + 2]
 
-    @jit
-    def surface(ox, oy, oz, dx, dy, dz, t, i, spheres):
-        """The hit of a ray on sphere i at t: (point, unit normal on the ray's
-        side, cos_i on that side, whether the ray meets the sphere from
-        within)."""
-        px = ox + t * dx
-        py = oy + t * dy
-        pz = oz + t * dz
-        inv_r = ONE / spheres[RADIUS, i]
-        nx = (px - spheres[CX, i]) * inv_r
-        ny = (py - spheres[CY, i]) * inv_r
-        nz = (pz - spheres[CZ, i]) * inv_r
-        inv_n = ONE / np.float32(math.sqrt(nx * nx + ny * ny + nz * nz))
-        nx *= inv_n
-        ny *= inv_n
-        nz *= inv_n
-        cos_i = -(nx * dx + ny * dy + nz * dz)
-        inside = cos_i < ZERO  # the ray meets the sphere from within
-        if inside:
-            nx, ny, nz, cos_i = -nx, -ny, -nz, -cos_i
-        return px, py, pz, nx, ny, nz, cos_i, inside
+    surface, rim = prim.surface, prim.rim
 
     @jit
     def light_samples(light, lights, params):
@@ -405,7 +383,7 @@ def build(jit, call, search, shade_hit, shade_miss, shadows=per_ray, name=""):
                     green += wg * (keep * lg + sg)
                     blue += wb * (keep * lb + sb)
             else:
-                lr, lg, lb = shade_hit(spheres[RED, i], spheres[GREEN, i], spheres[BLUE, i], spheres[RADIUS, i], d)
+                lr, lg, lb = shade_hit(spheres[RED, i], spheres[GREEN, i], spheres[BLUE, i], rim(spheres, i), d)
                 red += wr * (keep * lr)
                 green += wg * (keep * lg)
                 blue += wb * (keep * lb)
@@ -432,6 +410,7 @@ def build(jit, call, search, shade_hit, shade_miss, shadows=per_ray, name=""):
         find=find,
         background=background,
         surface=surface,
+        rim=rim,
         shows=shows,
         light_samples=light_samples,
         toward=toward,

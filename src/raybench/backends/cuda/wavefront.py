@@ -39,6 +39,7 @@ from numba import cuda
 from numba.cuda import libdevice
 
 from ... import compiled, kernels
+from ...kernels.primitives.sphere import LEAF_ROWS
 from ...kernels.wavefront import R_KIND, R_PIXEL, RAY_IDS, RAY_ROWS, SHADOW_IDS, SHADOW_ROWS
 from ...kernels.whitted import KINDS, PRIMARY
 from ...layout import CHILD_BOX, COUNT, NODE_FLOATS, REF, STACK
@@ -90,34 +91,25 @@ def _read_row64(nodes64, _links, row):
     return a_lx, a_ly, a_lz, a_hx, a_hy, a_hz, b_lx, b_ly, b_lz, b_hx, b_hy, b_hz, a_ref, b_ref, a_count, b_count
 
 
-@cuda.jit(device=True)
-def _read_sphere64(spheres64, k):
-    """traverse.build's read_sphere for the ordered spheres a row a sphere,
-    seen as 2 float64 (Tracer.d_sphere_rows): 2 loads a sphere, not 4."""
-    cx, cy = _words(spheres64[k, np.uint64(0)])
-    cz, r = _words(spheres64[k, np.uint64(1)])
-    return cx, cy, cz, r
-
-
 @compiled.cuda_jit()
 def _sphere_rows(ordered, rows):
-    """bvh.ordered (a row a field) as a row a sphere (cx, cy, cz, r), the
-    layout _read_sphere64 reads."""
+    """bvh.ordered (a row a field) as a row a primitive, the layout that the
+    primitive's leaf tests read through _words (kernels/primitives)."""
     k = cuda.grid(1)
     if k < ordered.shape[1]:
-        for c in range(4):
+        for c in range(LEAF_ROWS):
             rows[k, c] = ordered[c, k]
 
 
-# Device bytes a sphere of sphere_rows' copy.
-SPHERE_ROW_BYTES = 16
+# Device bytes a primitive of sphere_rows' copy.
+SPHERE_ROW_BYTES = 4 * LEAF_ROWS
 
 
 def sphere_rows(d_ordered):
     """The ordered spheres as the wavefront's walks read them (_sphere_rows),
     seen as float64 pairs, made on the device after each build or refit."""
     n = d_ordered.shape[1]
-    rows = cuda.device_array((n, 4), np.float32)
+    rows = cuda.device_array((n, LEAF_ROWS), np.float32)
     _sphere_rows[max(1, math.ceil(n / BLOCK)), BLOCK](d_ordered, rows)
     return rows.view(np.float64)
 
@@ -126,9 +118,10 @@ def sphere_rows(d_ordered):
 assert NODE_FLOATS == 16 and CHILD_BOX == (0, 6) and REF == 12 and COUNT == 14
 # the wavefront's walks read a row in 8 wide loads (_read_row64; the Tracer
 # passes its nodes as float64), not 16, and a leaf's sphere in 2, not 4
-# (_read_sphere64, the spheres a row each): the walk is bound by issue, and
+# (the primitive's read_leaf through _words, the spheres a row each, from
+# sphere_rows): the walk is bound by issue, and
 # a load is an instruction (docs/whitted.md)
-_k = kernels.build(cuda.jit(device=True), read_row=_read_row64, read_sphere=_read_sphere64)
+_k = kernels.build(cuda.jit(device=True), read_row=_read_row64, words=_words)
 # module globals, which is how kernels can see them: the stages through the
 # tree and by brute force (only extend and the shadow test search)
 _tree, _every = _k.whitted_wavefront["bvh"], _k.whitted_wavefront["none"]

@@ -1,0 +1,536 @@
+"""The CPU's packets of primary rays: a 16x8 tile of pixels walks the tree
+together, each node's boxes tested against all its rays at once (loops that
+LLVM turns into SIMD), each ray still getting the nearest primitive of all it
+could hit, ties to the smaller index: the pixels of kernels.traverse's walk,
+one ray at a time. The binary tree's walk (_bvh_packets) and the 4-wide
+tree's (_packet_walk_wide, _bvh_packets_wide); a leaf's primitives are
+tested through the primitive's functions (kernels/primitives), seen from the
+packet's shared origin.
+
+fastmath stays off (backends/cpu): the float32 arithmetic is exactly IEEE.
+"""
+
+import numba
+import numpy as np
+
+from .. import compiled
+from ..layout import (
+    BLUE,
+    CHILD_BOX,
+    COUNT,
+    GREEN,
+    INNER,
+    PAD,
+    RED,
+    REF,
+    STACK,
+    W_COUNT,
+    W_HI,
+    W_LO,
+    W_REF,
+    WIDE_STACK,
+    WIDTH,
+)
+from .constants import FAR, ZERO
+from .trace import build
+
+# The BVH walk's own build of the same functions, with NumPy's error model:
+# float division then has no check for a zero divisor (none can occur: the
+# divisors are the image size, a ray's length, a radius, a direction
+# component raised to at least TINY), so the result is the same IEEE
+# quotient, and LLVM can make the loops over a packet's rays SIMD, which the
+# check's branch prevents (vdivps, vsqrtps in the assembly).
+_kb = build(numba.njit(inline="always", error_model="numpy"))
+_primary_ray_v, _inverse, _centre = _kb.primary_ray, _kb.inverse, _kb.centre_along
+_shade_hit_v, _shade_miss_v, _to_byte_v = _kb.shade_hit, _kb.shade_miss, _kb.to_byte
+# The primitive's functions (kernels/primitives): a leaf's bounds, its test
+# from an origin the packet's rays share, and what the thesis's shading
+# divides by.
+_prim = _kb.prim
+_bounds, _from_origin, _hit_from, _hit_ahead_from = (
+    _prim.bounds,
+    _prim.from_origin,
+    _prim.hit_from,
+    _prim.hit_ahead_from,
+)
+_leaf_hit_ahead, _meets_own, _rim = _prim.leaf_hit_ahead, _prim.meets_own, _prim.rim
+
+# Pixels and arrays are indexed with unsigned integers: a signed index
+# carries Python's negative-index wraparound, a select per lane that LLVM
+# turns into gathers (docs/floors.md#each-version-against-the-floor).
+_U = np.uint64
+
+# Rays walked through the BVH together by _bvh_packets: a 16x8 tile of
+# pixels, eight AVX-512 or sixteen AVX2 registers of float32 per ray
+# component. Once the walk stopped reducing the packet's entry distances
+# (the children ordered along the middle ray instead), larger packets paid:
+# of 4x4 to 32x8, 16x8 was the fastest, ahead of 8x4, the shape before; 16x16
+# is as fast on one core and slower at 1,000 spheres on two threads
+# (docs/bvh-walk.md#measured-cpu-only-machine-amd-epyc-2-vcpus-shared).
+PACKET_W, PACKET_H = 16, 8
+PACKET = PACKET_W * PACKET_H
+# The wide rows' plane columns by axis (layout.W_LO, W_HI), as plain ints: read
+# as compile-time constants, as literal offsets were.
+LO_X, LO_Y, LO_Z = W_LO
+HI_X, HI_Y, HI_Z = W_HI
+_MIDDLE = (PACKET_H // 2) * PACKET_W + PACKET_W // 2
+
+
+@numba.njit(inline="always")
+def _spread(ix, iy, iz, spread):
+    """spread[:6]: the packet's range of inverse directions on each axis (x
+    low, x high, y low, ...); spread[6]: its farthest closest hit, FAR."""
+    for a, inv in enumerate((ix, iy, iz)):
+        lo = hi = inv[0]
+        for k in range(1, PACKET):
+            lo = min(lo, inv[k])
+            hi = max(hi, inv[k])
+        spread[2 * a] = lo
+        spread[2 * a + 1] = hi
+    spread[6] = FAR
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _missed_by_all(lx, ly, lz, hx, hy, hz, spread):
+    """Whether no ray of the packet enters the box (planes relative to the
+    rays' origin) nearer than its closest hit, by one test for them all
+    (interval arithmetic, as in Wald, Boulos and Shirley 2007): each ray's
+    inverse direction lies within spread's ranges, so its entry is no nearer,
+    and its exit no farther, than bounds taken at the ranges' ends
+    (min(l * i, h * i) is concave in i, max(l * i, h * i) convex). Rounding
+    is monotonic, so the bounds hold for the float32 products a ray's own
+    box test computes: True only where that test fails for every ray."""
+    x0, x1, y0, y1, z0, z1 = spread[0], spread[1], spread[2], spread[3], spread[4], spread[5]
+    near = max(
+        min(min(lx * x0, hx * x0), min(lx * x1, hx * x1)),
+        max(min(min(ly * y0, hy * y0), min(ly * y1, hy * y1)), min(min(lz * z0, hz * z0), min(lz * z1, hz * z1))),
+    )
+    far = min(
+        max(max(lx * x0, hx * x0), max(lx * x1, hx * x1)),
+        min(max(max(ly * y0, hy * y0), max(ly * y1, hy * y1)), max(max(lz * z0, hz * z0), max(lz * z1, hz * z1))),
+    )
+    # one branch where it is used, not three (`or` would branch on each, and
+    # mispredicted they cost 10-13% of the frame)
+    return (near > far) | (far <= ZERO) | (near > spread[6])
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _packet_box(nodes, row, col, ox, oy, oz, margin, ix, iy, iz, spread, closest):
+    """Whether any ray of the packet enters the child box (grown by margin,
+    as in kernels.traverse) nearer than its closest hit so far. The rays
+    share their origin, so the planes' offsets from it are computed once for
+    all. First one test for the whole packet (_missed_by_all): of the boxes
+    no ray enters, 42-44% of those tested in the benchmark's scenes, it finds
+    90-98%. Then the rays, a row of the packet at a time; the test stops at
+    the first row with a ray that enters: most boxes that get this far are
+    entered, and by rays of every row. Each row's loop has no branch and no
+    float reduction, so LLVM makes it SIMD (without fastmath it vectorises
+    neither)."""
+    lx = nodes[row, col] - margin - ox
+    ly = nodes[row, col + 1] - margin - oy
+    lz = nodes[row, col + 2] - margin - oz
+    hx = nodes[row, col + 3] + margin - ox
+    hy = nodes[row, col + 4] + margin - oy
+    hz = nodes[row, col + 5] + margin - oz
+    if _missed_by_all(lx, ly, lz, hx, hy, hz, spread):
+        return False
+    return _rows_enter(lx, ly, lz, hx, hy, hz, ix, iy, iz, closest)
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _rows_enter(lx, ly, lz, hx, hy, hz, ix, iy, iz, closest):
+    """Whether any ray of the packet enters the box of planes (lx, ..., hz)
+    relative to the rays' origin nearer than its closest hit: the rays a row
+    of the packet at a time (SIMD), stopping at the first row with a ray
+    that enters (_packet_box)."""
+    for first in range(0, PACKET, PACKET_W):
+        entered = False
+        for k in range(first, first + PACKET_W):
+            t1, t2 = lx * ix[k], hx * ix[k]
+            t3, t4 = ly * iy[k], hy * iy[k]
+            t5, t6 = lz * iz[k], hz * iz[k]
+            near = max(min(t1, t2), max(min(t3, t4), min(t5, t6)))
+            far = min(max(t1, t2), min(max(t3, t4), max(t5, t6)))
+            entered |= (near <= far) & (far > ZERO) & (near <= closest[k])
+        if entered:
+            return True
+    return False
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _packet_leaf(
+    ox, oy, oz, margin, dx, dy, dz, ordered, order, first, count, spread, closest, hit, hit_d, closest_bits,
+    spread_bits, ahead=False,
+):  # fmt: skip
+    """The exact test of a leaf's primitives on every ray of the packet, seen
+    from the packet's origin as the primitive's own test sees it
+    (from_origin), the walk's tie rule; ahead: Whitted's primary rays' test
+    (hit_ahead for a ray that leaves no primitive, as traverse.leaf_test
+    makes it: for a sphere, the far root where the near one is behind, a
+    camera inside it). A primitive whose own box (as the builder pads it,
+    grown by margin as the walk grows boxes) no ray enters is skipped after
+    one test for the packet (_missed_by_all)
+    (docs/bvh-walk.md#measured-cpu-only-machine-amd-epyc-2-vcpus-shared)."""
+    for j in range(first, first + count):
+        original = order[j]
+        lx, ly, lz, hx, hy, hz = _bounds(ordered, j)
+        if _missed_by_all(
+            lx - margin - ox, ly - margin - oy, lz - margin - oz, hx + margin - ox, hy + margin - oy, hz + margin - oz,
+            spread,
+        ):  # fmt: skip
+            continue
+        seen = _from_origin(ordered, j, ox, oy, oz)
+        for k in range(PACKET):
+            if ahead:
+                t, d = _hit_ahead_from(seen, dx[k], dy[k], dz[k], False)
+            else:
+                t, d = _hit_from(seen, dx[k], dy[k], dz[k])
+            c = closest[k]
+            better = (t > ZERO) & ((t < c) | ((t == c) & (original < hit[k])))
+            closest[k] = t if better else c
+            hit[k] = original if better else hit[k]
+            hit_d[k] = d if better else hit_d[k]
+    # spread[6] = the farthest closest hit: closest holds positive float32
+    # only, whose bit patterns order as the floats do, so an integer maximum,
+    # which LLVM makes SIMD (a float one it would not)
+    m = closest_bits[0]
+    for k in range(1, PACKET):
+        m = max(m, closest_bits[k])
+    spread_bits[6] = m
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _colour_packet(x0, y0, spheres, hit, hit_d, rgb, paint):
+    """rgb[c, k]: the bytes store_pixel writes for ray k of the packet, for
+    every ray at once: first the hit spheres' colours and radii gathered
+    (a miss reads sphere 0's and drops them), then shaded in a loop without
+    branches (each ray's hit and miss colours both computed, one kept),
+    which LLVM makes SIMD. spheres must hold a sphere (Tracer.shaded)."""
+    for k in range(PACKET):
+        j = max(hit[k], 0)
+        paint[0, k] = spheres[RED, j]
+        paint[1, k] = spheres[GREEN, j]
+        paint[2, k] = spheres[BLUE, j]
+        paint[3, k] = _rim(spheres, j)
+    for k in range(PACKET):
+        hr, hg, hb = _shade_hit_v(paint[0, k], paint[1, k], paint[2, k], paint[3, k], hit_d[k])
+        mr, mg, mb = _shade_miss_v(np.float32(np.int32(x0 + k % PACKET_W)), np.float32(np.int32(y0 + k // PACKET_W)))
+        got = hit[k] >= 0
+        rgb[0, k] = _to_byte_v(hr if got else mr)
+        rgb[1, k] = _to_byte_v(hg if got else mg)
+        rgb[2, k] = _to_byte_v(hb if got else mb)
+
+
+@numba.njit(inline="always")
+def _put_pixel(y, x, k, rgb, hit, image, hits):
+    """Store ray k's bytes and hit index at pixel (x, y), each at least 0.
+    Unsigned indices (_U), as in the cull loops: a signed one carries
+    Python's negative-index wraparound, a shift, a mask and an add for each
+    of a pixel's four stores (what they cost:
+    docs/embree.md#against-mitsuba-3-on-embree-side-by-side-2-vcpu-machine)."""
+    y, x, k = _U(y), _U(x), _U(k)
+    image[y, x, _U(0)] = rgb[_U(0), k]
+    image[y, x, _U(1)] = rgb[_U(1), k]
+    image[y, x, _U(2)] = rgb[_U(2), k]
+    hits[y, x] = hit[k]
+
+
+@numba.njit(inline="always")
+def _start_packet(x0, y0, end_row, width, height, basis, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, spread):
+    """The packet of rays from pixel (x0, y0): their directions and inverses,
+    nothing hit yet, and their spread (_spread). Inlined into each packet
+    walk; separate loops, each simple enough for LLVM to make SIMD."""
+    for k in range(PACKET):
+        # rays off the chunk trace a copy of its last row or column, unstored;
+        # a pixel's coordinates as int32 (exact: a side is at most
+        # limits.MAX_SIDE), which AVX2 turns into float32 eight at a time,
+        # where an int64 takes a scalar conversion each
+        # (docs/embree.md#against-mitsuba-3-on-embree-side-by-side-2-vcpu-machine)
+        x = np.int32(min(x0 + k % PACKET_W, width - 1))
+        y = np.int32(min(y0 + k // PACKET_W, end_row - 1))
+        dx[k], dy[k], dz[k] = _primary_ray_v(x, y, width, height, basis)
+    for k in range(PACKET):
+        ix[k] = _inverse(dx[k])
+        iy[k] = _inverse(dy[k])
+        iz[k] = _inverse(dz[k])
+    for k in range(PACKET):
+        closest[k] = FAR
+        hit[k] = -1
+        hit_d[k] = ZERO
+    _spread(ix, iy, iz, spread)
+
+
+@numba.njit(inline="always")
+def _store_packet(x0, y0, end_row, width, spheres, hit, hit_d, rgb, paint, image, hits):
+    """The packet's pixels shaded and stored, those inside the frame's rows."""
+    _colour_packet(x0, y0, spheres, hit, hit_d, rgb, paint)
+    if x0 + PACKET_W <= width and y0 + PACKET_H <= end_row:
+        # a whole packet: rows of pixels stored without a test each
+        for line in range(PACKET_H):
+            for i in range(PACKET_W):
+                _put_pixel(y0 + line, x0 + i, line * PACKET_W + i, rgb, hit, image, hits)
+    else:
+        for k in range(PACKET):
+            x = x0 + k % PACKET_W
+            y = y0 + k // PACKET_W
+            if x < width and y < end_row:
+                _put_pixel(y, x, k, rgb, hit, image, hits)
+
+
+@compiled.njit(nogil=True, error_model="numpy")
+def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered, order, spheres, image, hits, stop):
+    """The rows first_row..end_row, a PACKET_W x PACKET_H packet of rays at a time: the
+    packet walks the tree together, a node entered if any of its rays
+    enters it, each box and leaf test run across the packet's rays (loops
+    LLVM turns into SIMD). Each ray still gets the nearest sphere of all it
+    could hit, ties to the smaller index: the pixels of kernels.traverse's walk, one ray at a time."""
+    stack_row = np.empty(STACK, np.int32)
+    dx = np.empty(PACKET, np.float32)
+    dy = np.empty(PACKET, np.float32)
+    dz = np.empty(PACKET, np.float32)
+    ix = np.empty(PACKET, np.float32)
+    iy = np.empty(PACKET, np.float32)
+    iz = np.empty(PACKET, np.float32)
+    closest = np.empty(PACKET, np.float32)
+    spread = np.empty(7, np.float32)
+    closest_bits, spread_bits = closest.view(np.int32), spread.view(np.int32)
+    hit = np.empty(PACKET, np.int32)
+    hit_d = np.empty(PACKET, np.float32)
+    rgb = np.empty((3, PACKET), np.uint8)
+    paint = np.empty((4, PACKET), np.float32)
+    ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
+    margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
+    for y0 in range(first_row, end_row, PACKET_H):
+        if stop[0]:
+            return
+        for x0 in range(0, width, PACKET_W):
+            _start_packet(x0, y0, end_row, width, height, basis, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, spread)
+            cdx, cdy, cdz = dx[_MIDDLE], dy[_MIDDLE], dz[_MIDDLE]
+            row = 0
+            top = 0
+            while row >= 0:
+                a_in = _packet_box(nodes, row, CHILD_BOX[0], ox, oy, oz, margin, ix, iy, iz, spread, closest)
+                b_in = _packet_box(nodes, row, CHILD_BOX[1], ox, oy, oz, margin, ix, iy, iz, spread, closest)
+                a_ref, b_ref, a_count, b_count = (
+                    links[row, REF],
+                    links[row, REF + 1],
+                    links[row, COUNT],
+                    links[row, COUNT + 1],
+                )
+                # near child first: the one whose box centre lies nearer along
+                # the packet's middle ray
+                if b_in and (
+                    not a_in
+                    or _centre(nodes, row, _U(CHILD_BOX[1]), ox, oy, oz, cdx, cdy, cdz)
+                    < _centre(nodes, row, _U(CHILD_BOX[0]), ox, oy, oz, cdx, cdy, cdz)
+                ):
+                    a_in, a_ref, a_count, b_in, b_ref, b_count = b_in, b_ref, b_count, a_in, a_ref, a_count
+                row = -1
+                if a_in:
+                    if a_count == INNER:
+                        row = a_ref
+                    else:
+                        _packet_leaf(
+                            ox,
+                            oy,
+                            oz,
+                            margin,
+                            dx,
+                            dy,
+                            dz,
+                            ordered,
+                            order,
+                            a_ref,
+                            a_count,
+                            spread,
+                            closest,
+                            hit,
+                            hit_d,
+                            closest_bits,
+                            spread_bits,
+                        )
+                if b_in:
+                    if b_count != INNER:
+                        _packet_leaf(
+                            ox,
+                            oy,
+                            oz,
+                            margin,
+                            dx,
+                            dy,
+                            dz,
+                            ordered,
+                            order,
+                            b_ref,
+                            b_count,
+                            spread,
+                            closest,
+                            hit,
+                            hit_d,
+                            closest_bits,
+                            spread_bits,
+                        )
+                    elif row < 0:
+                        row = b_ref
+                    else:
+                        stack_row[top] = b_ref
+                        top += 1
+                if row < 0 and top > 0:
+                    top -= 1
+                    row = stack_row[top]
+            _store_packet(x0, y0, end_row, width, spheres, hit, hit_d, rgb, paint, image, hits)
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _wide_mask(wide, row, ox, oy, oz, margin, spread):
+    """The first step of _packet_box for all WIDTH boxes of a wide node at
+    once: a bit set for each box that the interval test for the whole
+    packet (_missed_by_all's arithmetic) does not rule out. One loop over
+    the boxes, without branches, on planes stored side by side (layout.W_LO,
+    W_HI), that only reads memory and ORs the bits together: LLVM makes it
+    SIMD, the four boxes in one register (vminps, vmaxps on xmm). Storing
+    the planes or the outcomes to arrays in the loop kept it scalar (LLVM
+    will not check a loop of 4 for overlapping arrays at run time)."""
+    x0, x1, y0, y1, z0, z1, reach = spread[0], spread[1], spread[2], spread[3], spread[4], spread[5], spread[6]
+    w = wide[row]
+    mask = 0
+    for c in range(_U(WIDTH)):
+        lx = w[_U(LO_X) + c] - margin - ox
+        ly = w[_U(LO_Y) + c] - margin - oy
+        lz = w[_U(LO_Z) + c] - margin - oz
+        hx = w[_U(HI_X) + c] + margin - ox
+        hy = w[_U(HI_Y) + c] + margin - oy
+        hz = w[_U(HI_Z) + c] + margin - oz
+        near = max(
+            min(min(lx * x0, hx * x0), min(lx * x1, hx * x1)),
+            max(
+                min(min(ly * y0, hy * y0), min(ly * y1, hy * y1)),
+                min(min(lz * z0, hz * z0), min(lz * z1, hz * z1)),
+            ),
+        )
+        far = min(
+            max(max(lx * x0, hx * x0), max(lx * x1, hx * x1)),
+            min(
+                max(max(ly * y0, hy * y0), max(ly * y1, hy * y1)),
+                max(max(lz * z0, hz * z0), max(lz * z1, hz * z1)),
+            ),
+        )
+        kept = (near <= far) & (far > ZERO) & (near <= reach)
+        mask |= np.int64(kept) << np.int64(c)
+    return mask
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _wide_planes(wide, row, c, ox, oy, oz, margin):
+    """The planes of child c of wide row `row`, its box grown by margin (as
+    in kernels.traverse), relative to the packet's shared origin: (lx, ly,
+    lz, hx, hy, hz), the packets' box tests' arguments (_rows_enter,
+    _lanes_enter)."""
+    return (
+        wide[row, LO_X + c] - margin - ox,
+        wide[row, LO_Y + c] - margin - oy,
+        wide[row, LO_Z + c] - margin - oz,
+        wide[row, HI_X + c] + margin - ox,
+        wide[row, HI_Y + c] + margin - oy,
+        wide[row, HI_Z + c] + margin - oz,
+    )
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _packet_walk_wide(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest, hit,
+                      hit_d, spread, closest_bits, spread_bits, stack_row, stack_count, along, chosen,
+                      ahead):  # fmt: skip
+    """The walk of _bvh_packets_wide's packet (started by _start_packet):
+    closest, hit and hit_d of every ray; ahead: _packet_leaf's, for
+    Whitted's primary rays. A wide node's four boxes go through the
+    packet's interval test together (_wide_mask), then each box it leaves
+    through the rays' own test (_rows_enter); the entered children are
+    visited nearest first along the packet's middle ray, leaves at once,
+    the nearest inner child next and the others pushed."""
+    cdx, cdy, cdz = dx[_MIDDLE], dy[_MIDDLE], dz[_MIDDLE]
+    row = 0
+    top = 0
+    while row >= 0:
+        mask = _wide_mask(wide, row, ox, oy, oz, margin, spread)
+        entered = 0
+        for c in range(WIDTH):
+            if not (mask >> c) & 1:
+                continue
+            lx, ly, lz, hx, hy, hz = _wide_planes(wide, row, c, ox, oy, oz, margin)
+            if not _rows_enter(lx, ly, lz, hx, hy, hz, ix, iy, iz, closest):
+                continue
+            # where the box's centre lies along the middle ray: insertion
+            # into chosen[:entered], nearest first
+            along[c] = (lx + hx) * cdx + (ly + hy) * cdy + (lz + hz) * cdz
+            j = entered
+            while j > 0 and along[chosen[j - 1]] > along[c]:
+                chosen[j] = chosen[j - 1]
+                j -= 1
+            chosen[j] = c
+            entered += 1
+        # nearest first: leaves up to the nearest inner child tested
+        # now, that child walked next, everything farther pushed (the
+        # farthest first), leaves too, so that a near inner child's
+        # hits can rule out a farther leaf's spheres
+        node = row
+        row = -1
+        for j in range(entered):
+            c = chosen[j]
+            ref, count = wide_links[node, W_REF + c], wide_links[node, W_COUNT + c]
+            if row < 0 and count != INNER:
+                _packet_leaf(ox, oy, oz, margin, dx, dy, dz, ordered, order, ref, count, spread, closest,
+                             hit, hit_d, closest_bits, spread_bits, ahead)  # fmt: skip
+            elif row < 0:
+                row = ref
+                for i in range(entered - 1, j, -1):
+                    stack_row[top] = wide_links[node, W_REF + chosen[i]]
+                    stack_count[top] = wide_links[node, W_COUNT + chosen[i]]
+                    top += 1
+                break
+        while row < 0 and top > 0:
+            top -= 1
+            if stack_count[top] == INNER:
+                row = stack_row[top]
+            else:
+                _packet_leaf(ox, oy, oz, margin, dx, dy, dz, ordered, order, stack_row[top], stack_count[top],
+                             spread, closest, hit, hit_d, closest_bits, spread_bits, ahead)  # fmt: skip
+
+
+@compiled.njit(nogil=True, error_model="numpy")
+def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links, ordered, order, spheres, image,
+                      hits, stop):  # fmt: skip
+    """_bvh_packets on the 4-wide tree (bvh.collapse): the same packets,
+    the same box, leaf and shading steps, a wide node's four boxes put
+    through the packet's interval test together (_wide_mask), then each
+    box it leaves through the rays' own test (_rows_enter); the entered
+    children visited nearest first along the packet's middle ray, leaves at
+    once, the nearest inner child next and the others pushed. Each ray gets
+    the nearest sphere of all it could hit, ties to the smaller index."""
+    stack_row = np.empty(WIDE_STACK, np.int32)
+    stack_count = np.empty(WIDE_STACK, np.int32)
+    dx = np.empty(PACKET, np.float32)
+    dy = np.empty(PACKET, np.float32)
+    dz = np.empty(PACKET, np.float32)
+    ix = np.empty(PACKET, np.float32)
+    iy = np.empty(PACKET, np.float32)
+    iz = np.empty(PACKET, np.float32)
+    closest = np.empty(PACKET, np.float32)
+    spread = np.empty(7, np.float32)
+    closest_bits, spread_bits = closest.view(np.int32), spread.view(np.int32)
+    hit = np.empty(PACKET, np.int32)
+    hit_d = np.empty(PACKET, np.float32)
+    rgb = np.empty((3, PACKET), np.uint8)
+    paint = np.empty((4, PACKET), np.float32)
+    along = np.empty(WIDTH, np.float32)
+    chosen = np.empty(WIDTH, np.int64)
+    ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
+    margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
+    for y0 in range(first_row, end_row, PACKET_H):
+        if stop[0]:
+            return
+        for x0 in range(0, width, PACKET_W):
+            _start_packet(x0, y0, end_row, width, height, basis, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, spread)
+            _packet_walk_wide(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest,
+                              hit, hit_d, spread, closest_bits, spread_bits, stack_row, stack_count, along, chosen,
+                              False)  # fmt: skip
+            _store_packet(x0, y0, end_row, width, spheres, hit, hit_d, rgb, paint, image, hits)

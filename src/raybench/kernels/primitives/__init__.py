@@ -1,0 +1,23 @@
+"""The kinds of primitive, one module each, and the one registration of each.
+
+Every primitive module gives the same answers (kernels/primitives/sphere.py
+is the model): LEAF_ROWS, the rows of its leaf buffer; pad(...), the
+builders' padding; and build(jit), its functions compiled for one target:
+read, hit (closest hit), hit_ahead and meets_own (the secondary rays' test
+and the rule for the primitive a ray leaves), the same tests on the tree's
+leaf buffer (leaf_hit, leaf_hit_ahead, read_leaf), and seen from an origin
+that a packet of rays shares (from_origin, hit_from, hit_ahead_from), bounds, surface (point and
+normal at a hit), rim (what the thesis's shading divides by), and for the
+brute-force fast kernels prepare_at and may_hit. The walks, the pixel programs
+and the CPU's packets take that namespace; none of them names a sphere.
+
+Adding a kind: a module beside sphere.py with the same answers, its WGSL
+twin in backends/wgpu/, and a line in KINDS.
+"""
+
+from . import sphere
+
+# name: module. A scene's primitives are of these kinds.
+KINDS = {"sphere": sphere}
+
+__all__ = ["KINDS", "sphere"]

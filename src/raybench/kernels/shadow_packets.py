@@ -1,0 +1,282 @@
+"""The CPU's shadow rays as packets: a hit's shadow rays to one light, its
+samples LANES at a time, walk the 4-wide tree together, any hit, each with
+its own length; and the last blocker first (Haines and Greenberg's shadow
+cache). The answer is traverse.walk's any hit, ray by ray.
+"""
+
+import numba
+import numpy as np
+
+from .. import compiled
+from ..layout import (
+    INNER,
+    PAD,
+    W_COUNT,
+    W_REF,
+    WIDTH,
+)
+from ..lighting import MAX_LIGHTS
+from .constants import ZERO
+from .packets import (
+    _bounds,
+    _from_origin,
+    _hit_ahead_from,
+    _inverse,
+    _meets_own,
+    _missed_by_all,
+    _wide_mask,
+    _wide_planes,
+)
+
+# A hit's shadow rays to one light, traced together: its samples,
+# LANES at a time, walk the 4-wide tree as one packet of rays from one origin
+# (the hit point), any hit, each ray with its own length (the distance to
+# its sample) and done once blocked, the packet once all are
+# (_shadow_packet). The pixel program, written once, calls them through
+# whitted.build's `shadows` pair: cast traces a light's samples before its
+# loop over them, blocked reads the answer. LANES: the loops over a packet's
+# rays become SIMD only from 16 (LLVM's loop vectoriser leaves loops of fewer
+# iterations scalar: tried 4 and 8, also with the rays' bits ORed as
+# _wide_mask does), so a light of 4 samples fills a quarter of the lanes;
+# they cost little next to four rays' scalar walks
+# (docs/whitted.md#cpu-shadow-rays-as-packets-issue-27).
+LANES = 16
+_DEAD = np.float32(-np.inf)  # a lane's length once blocked or where no ray is cast: no box is entered
+# The last blockers' slots (_last_blocker), a pair of the sphere the rays
+# leave and the light to one slot: prime, so that neighbouring spheres'
+# pairs spread over all of them.
+BLOCKER_SLOTS = 251
+
+
+def _packet_shadows(jit, find, toward):
+    """whitted.build's `shadows` for the CPU's packets: (cast, blocked).
+    tree: the packets program's tuple (the _T_ indices below: the trees,
+    then the thread's own scratch, _whitted_rows_packets)."""
+
+    @jit
+    def cast(px, py, pz, nx, ny, nz, light, samples, share, own, own_inside, spheres, count, lights, pattern, tree,
+             stack_row, stack_t):  # fmt: skip
+        """Bit s set where sample s's ray is blocked; 0 for samples whose
+        ray is not cast (toward's facing 0)."""
+        rays = tree[_T_RAYS]
+        blockers = tree[_T_BLOCKERS]
+        slot = (own * MAX_LIGHTS + light) % BLOCKER_SLOTS
+        batch = np.int64(0)
+        for first in range(0, samples, LANES):
+            live = np.int64(0)
+            lead = -1
+            for k in range(LANES):
+                s = first + k
+                rays[_LEN, k] = _DEAD
+                if s < samples:
+                    lx, ly, lz, dist, facing, _r, _g, _b = toward(px, py, pz, nx, ny, nz, light, s, share, lights,
+                                                                  pattern)  # fmt: skip
+                    if facing > ZERO:
+                        rays[_DX, k] = lx
+                        rays[_DY, k] = ly
+                        rays[_DZ, k] = lz
+                        rays[_LEN, k] = dist
+                        live |= np.int64(1) << np.int64(k)
+                        if lead < 0:
+                            lead = k
+            if lead < 0:
+                continue
+            if _last_blocker(px, py, pz, rays, tree[2], tree[3], blockers[slot], own, own_inside) == _DEAD:
+                batch |= live << np.int64(first)  # every ray blocked by the sphere that blocked the last
+                continue
+            for k in range(LANES):  # lanes without a ray follow the first live one: the spread stays tight
+                if not (live >> np.int64(k)) & np.int64(1):
+                    rays[_DX, k] = rays[_DX, lead]
+                    rays[_DY, k] = rays[_DY, lead]
+                    rays[_DZ, k] = rays[_DZ, lead]
+            batch |= _shadow_packet(px, py, pz, rays, tree[_T_SPREAD], tree[_T_STACK], tree[_T_WIDE],
+                                    tree[_T_WIDE_LINKS], tree[2], tree[3], own, own_inside, live, blockers,
+                                    slot) << np.int64(first)  # fmt: skip
+        return batch
+
+    @jit
+    def blocked(batch, s, px, py, pz, lx, ly, lz, dist, own, own_inside, spheres, count, tree, stack_row, stack_t):
+        return (batch >> np.int64(s)) & np.int64(1) != 0
+
+    return cast, blocked
+
+
+# The packets program's tree tuple (_whitted_rows_packets): the binary
+# tree's four arrays, the wide tree's two, the shadow packets' scratch
+# (_packet_shadows), the tile's primary hits (_tile_primaries), the lane of
+# the pixel being shaded, the single-ray walk's stack, and the shadow rays'
+# last blockers.
+_T_WIDE, _T_WIDE_LINKS, _T_RAYS, _T_SPREAD, _T_STACK = 4, 5, 6, 7, 8
+_T_HIT, _T_CLOSEST, _T_HIT_D, _T_LANE, _T_S_REF, _T_S_COUNT, _T_S_T = 9, 10, 11, 12, 13, 14, 15
+_T_BLOCKERS = 16  # the last blockers (rows of `ordered`, -1 for none) by sphere and light: _last_blocker
+
+
+# A shadow packet's rows (_packet_shadows' rays): directions, their
+# inverses, lengths. The loops index the one array by row, not through a row
+# per name: each slice taken costs the runtime's reference counting, calls
+# that were a large part of a packet's fixed cost.
+_DX, _DY, _DZ, _IX, _IY, _IZ, _LEN = range(7)
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _lanes_enter(lx, ly, lz, hx, hy, hz, rays):
+    """_rows_enter for a shadow packet: whether any of its LANES rays enters
+    the box (planes relative to their origin) nearer than its length."""
+    entered = False
+    for k in range(LANES):
+        t1, t2 = lx * rays[_IX, k], hx * rays[_IX, k]
+        t3, t4 = ly * rays[_IY, k], hy * rays[_IY, k]
+        t5, t6 = lz * rays[_IZ, k], hz * rays[_IZ, k]
+        near = max(min(t1, t2), max(min(t3, t4), min(t5, t6)))
+        far = min(max(t1, t2), min(max(t3, t4), max(t5, t6)))
+        entered |= (near <= far) & (far > ZERO) & (near <= rays[_LEN, k])
+    return entered
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _lanes_leaf(ox, oy, oz, margin, rays, spread, ordered, order, first, count, own, own_inside, blockers, slot):
+    """A leaf's primitives against a shadow packet's rays: whether one of them
+    blocks a ray (0 < t < the ray's length), each such ray's length made
+    _DEAD. The test of traverse.leaf_test, on the same float32 values: the
+    primitive `own` the rays leave skipped unless the primitive says a ray
+    can meet it again (meets_own). A primitive whose padded box no ray enters is
+    skipped after one test for the packet (_missed_by_all, as _packet_leaf
+    does). The loop over the rays has no branch and no reduction but an OR:
+    LLVM makes it SIMD. blockers[slot]: the last primitive found blocking a
+    ray, tested first by the next packet of the slot (_last_blocker)."""
+    hits = False
+    for j in range(first, first + count):
+        original = order[j]
+        if original == own and not _meets_own(own_inside):
+            continue
+        lx, ly, lz, hx, hy, hz = _bounds(ordered, j)
+        if _missed_by_all(
+            lx - margin - ox, ly - margin - oy, lz - margin - oz, hx + margin - ox, hy + margin - oy, hz + margin - oz,
+            spread,
+        ):  # fmt: skip
+            continue
+        if _lanes_hit(_from_origin(ordered, j, ox, oy, oz), rays, original == own):
+            blockers[slot] = j
+            hits = True
+    return hits
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _lanes_hit(seen, rays, is_own):
+    """One primitive, as seen from the rays' origin (the primitive's
+    from_origin), against a shadow packet's rays: each ray it blocks (0 < t <
+    the ray's length) made _DEAD; whether it blocked one."""
+    hits = False
+    for k in range(LANES):
+        t, _d = _hit_ahead_from(seen, rays[_DX, k], rays[_DY, k], rays[_DZ, k], is_own)
+        c = rays[_LEN, k]
+        hit = (t > ZERO) & (t < c)
+        rays[_LEN, k] = _DEAD if hit else c
+        hits |= hit
+    return hits
+
+
+# A light's shadow rays from neighbouring points, the tile's pixels one
+# after another, are mostly blocked by one sphere: tested first, it answers
+# them without a walk. The answer is the walk's (any hit: which sphere
+# blocks does not matter), on the same float32 values as _lanes_leaf's. A
+# call, not inlined: as fast a frame, for less of the first frame's compile
+# (docs/whitted.md#cpu-the-last-blocker-first-issue-27).
+@compiled.njit(nogil=True, error_model="numpy", _nrt=False)
+def _last_blocker(ox, oy, oz, rays, ordered, order, j, own, own_inside):
+    """A shadow packet's rays from (ox, oy, oz) against row j of `ordered`
+    (none where j < 0 or it is the sphere the rays leave from outside), each
+    ray it blocks made _DEAD: the packet's reach after it (_DEAD once every
+    ray is blocked)."""
+    if j >= 0:
+        original = order[j]
+        if original != own or _meets_own(own_inside):
+            _lanes_hit(_from_origin(ordered, j, ox, oy, oz), rays, original == own)
+    return _reach(rays)
+
+
+@numba.njit(inline="always")
+def _reach(rays):
+    """The packet's longest ray: _DEAD once every ray is blocked."""
+    reach = rays[_LEN, 0]
+    for k in range(1, LANES):
+        reach = max(reach, rays[_LEN, k])
+    return reach
+
+
+# Inlined into the pixel program (a call of its own measured slower,
+# docs/whitted.md#cpu-shadow-rays-as-packets-issue-27): compiled there with the
+# program's error model, which leaves its loops over the rays SIMD (they
+# divide by nothing).
+@numba.njit(inline="always", error_model="numpy")
+def _shadow_packet(
+    ox, oy, oz, rays, spread, stack, wide, wide_links, ordered, order, own, own_inside, live, blockers, slot
+):
+    """Any hit of each of a shadow packet's rays from (ox, oy, oz) through
+    the 4-wide tree: the bits of the rays blocked, of those in `live`.
+    rays[_DX:_DZ + 1]: the unit directions; rays[_LEN]: each ray's length,
+    _DEAD where no ray is cast or it is blocked already (_last_blocker)
+    (rays[_IX:_IZ + 1]: their inverses, written here); spread (7 + WIDTH)
+    and stack (layout.WIDE_STACK): scratch. A ray is blocked where some sphere has 0 < t < its length, which no order
+    of the walk changes: the answer of traverse.walk's any hit, ray by ray.
+    A node's children are tested as _bvh_packets_wide tests them
+    (_wide_mask, then the rays' own test), the leaves at once, the inner
+    children pushed nearest on top along the first ray (spread[7:] holds
+    where each lies); a blocked ray enters nothing more, and the walk ends
+    once every ray is blocked. blockers[slot]: set to the last sphere
+    that blocked a ray (_lanes_leaf)."""
+    for k in range(LANES):
+        rays[_IX, k] = _inverse(rays[_DX, k])
+        rays[_IY, k] = _inverse(rays[_DY, k])
+        rays[_IZ, k] = _inverse(rays[_DZ, k])
+    for a in range(3):
+        lo = hi = rays[_IX + a, 0]
+        for k in range(1, LANES):
+            lo = min(lo, rays[_IX + a, k])
+            hi = max(hi, rays[_IX + a, k])
+        spread[2 * a] = lo
+        spread[2 * a + 1] = hi
+    spread[6] = _reach(rays)
+    margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
+    row = 0
+    top = 0
+    cdx, cdy, cdz = rays[_DX, 0], rays[_DY, 0], rays[_DZ, 0]
+    while row >= 0:
+        mask = _wide_mask(wide, row, ox, oy, oz, margin, spread)
+        node = row
+        row = -1
+        base = top
+        for c in range(WIDTH):
+            if not (mask >> c) & 1:
+                continue
+            lx, ly, lz, hx, hy, hz = _wide_planes(wide, node, c, ox, oy, oz, margin)
+            if not _lanes_enter(lx, ly, lz, hx, hy, hz, rays):
+                continue
+            ref, count = wide_links[node, W_REF + c], wide_links[node, W_COUNT + c]
+            if count == INNER:
+                # pushed in order of where the box's centre lies along the
+                # first ray, the nearest on top: a blocker near the origin
+                # (the commonest: a neighbour) ends the walk soonest
+                along = (lx + hx) * cdx + (ly + hy) * cdy + (lz + hz) * cdz
+                j = top
+                while j > base and spread[7 + j - base - 1] < along:
+                    stack[j] = stack[j - 1]
+                    spread[7 + j - base] = spread[7 + j - base - 1]
+                    j -= 1
+                stack[j] = ref
+                spread[7 + j - base] = along
+                top += 1
+            elif count > 0 and _lanes_leaf(ox, oy, oz, margin, rays, spread, ordered, order, ref, count, own,
+                                           own_inside, blockers, slot):  # fmt: skip
+                reach = _reach(rays)
+                if reach == _DEAD:  # every ray blocked
+                    return live
+                spread[6] = reach
+        if top > 0:
+            top -= 1
+            row = stack[top]
+    bits = np.int64(0)  # the rays blocked: those whose length was made _DEAD (a live ray's is positive)
+    for k in range(LANES):
+        if rays[_LEN, k] == _DEAD:
+            bits |= np.int64(1) << np.int64(k)
+    return bits & live
