@@ -2,8 +2,8 @@
 together, each node's boxes tested against all its rays at once (loops that
 LLVM turns into SIMD), each ray still getting the nearest primitive of all it
 could hit, ties to the smaller index: the pixels of kernels.traverse's walk,
-one ray at a time. The binary tree's walk (_bvh_packets) and the 4-wide
-tree's (_packet_walk_wide, _bvh_packets_wide); a leaf's primitives are
+one ray at a time. The walk is the 4-wide tree's (bvh.collapse:
+_packet_walk_wide, and _bvh_packets_wide's rows); a leaf's primitives are
 tested through the primitive's functions (kernels/primitives), seen from the
 packet's shared origin.
 
@@ -16,14 +16,10 @@ import numpy as np
 from .. import compiled
 from ..layout import (
     BLUE,
-    CHILD_BOX,
-    COUNT,
     GREEN,
     INNER,
     PAD,
     RED,
-    REF,
-    STACK,
     W_COUNT,
     W_HI,
     W_LO,
@@ -41,7 +37,7 @@ from .trace import build
 # quotient, and LLVM can make the loops over a packet's rays SIMD, which the
 # check's branch prevents (vdivps, vsqrtps in the assembly).
 _kb = build(numba.njit(inline="always", error_model="numpy"))
-_primary_ray_v, _inverse, _centre = _kb.primary_ray, _kb.inverse, _kb.centre_along
+_primary_ray_v, _inverse = _kb.primary_ray, _kb.inverse
 _shade_hit_v, _shade_miss_v, _to_byte_v = _kb.shade_hit, _kb.shade_miss, _kb.to_byte
 # The primitive's functions (kernels/primitives): a leaf's bounds, its test
 # from an origin the packet's rays share, and what the thesis's shading
@@ -60,7 +56,7 @@ _leaf_hit_ahead, _meets_own, _rim = _prim.leaf_hit_ahead, _prim.meets_own, _prim
 # turns into gathers (docs/floors.md#each-version-against-the-floor).
 _U = np.uint64
 
-# Rays walked through the BVH together by _bvh_packets: a 16x8 tile of
+# Rays walked through the BVH together: a 16x8 tile of
 # pixels, eight AVX-512 or sixteen AVX2 registers of float32 per ray
 # component. Once the walk stopped reducing the packet's entry distances
 # (the children ordered along the middle ray instead), larger packets paid:
@@ -115,34 +111,11 @@ def _missed_by_all(lx, ly, lz, hx, hy, hz, spread):
 
 
 @numba.njit(inline="always", error_model="numpy")
-def _packet_box(nodes, row, col, ox, oy, oz, margin, ix, iy, iz, spread, closest):
-    """Whether any ray of the packet enters the child box (grown by margin,
-    as in kernels.traverse) nearer than its closest hit so far. The rays
-    share their origin, so the planes' offsets from it are computed once for
-    all. First one test for the whole packet (_missed_by_all): of the boxes
-    no ray enters, 42-44% of those tested in the benchmark's scenes, it finds
-    90-98%. Then the rays, a row of the packet at a time; the test stops at
-    the first row with a ray that enters: most boxes that get this far are
-    entered, and by rays of every row. Each row's loop has no branch and no
-    float reduction, so LLVM makes it SIMD (without fastmath it vectorises
-    neither)."""
-    lx = nodes[row, col] - margin - ox
-    ly = nodes[row, col + 1] - margin - oy
-    lz = nodes[row, col + 2] - margin - oz
-    hx = nodes[row, col + 3] + margin - ox
-    hy = nodes[row, col + 4] + margin - oy
-    hz = nodes[row, col + 5] + margin - oz
-    if _missed_by_all(lx, ly, lz, hx, hy, hz, spread):
-        return False
-    return _rows_enter(lx, ly, lz, hx, hy, hz, ix, iy, iz, closest)
-
-
-@numba.njit(inline="always", error_model="numpy")
 def _rows_enter(lx, ly, lz, hx, hy, hz, ix, iy, iz, closest):
     """Whether any ray of the packet enters the box of planes (lx, ..., hz)
     relative to the rays' origin nearer than its closest hit: the rays a row
     of the packet at a time (SIMD), stopping at the first row with a ray
-    that enters (_packet_box)."""
+    that enters (_packet_walk_wide)."""
     for first in range(0, PACKET, PACKET_W):
         entered = False
         for k in range(first, first + PACKET_W):
@@ -277,113 +250,9 @@ def _store_packet(x0, y0, end_row, width, spheres, hit, hit_d, rgb, paint, image
                 _put_pixel(y, x, k, rgb, hit, image, hits)
 
 
-@compiled.njit(nogil=True, error_model="numpy")
-def _bvh_packets(first_row, end_row, width, height, basis, nodes, links, ordered, order, spheres, image, hits, stop):
-    """The rows first_row..end_row, a PACKET_W x PACKET_H packet of rays at a time: the
-    packet walks the tree together, a node entered if any of its rays
-    enters it, each box and leaf test run across the packet's rays (loops
-    LLVM turns into SIMD). Each ray still gets the nearest sphere of all it
-    could hit, ties to the smaller index: the pixels of kernels.traverse's walk, one ray at a time."""
-    stack_row = np.empty(STACK, np.int32)
-    dx = np.empty(PACKET, np.float32)
-    dy = np.empty(PACKET, np.float32)
-    dz = np.empty(PACKET, np.float32)
-    ix = np.empty(PACKET, np.float32)
-    iy = np.empty(PACKET, np.float32)
-    iz = np.empty(PACKET, np.float32)
-    closest = np.empty(PACKET, np.float32)
-    spread = np.empty(7, np.float32)
-    closest_bits, spread_bits = closest.view(np.int32), spread.view(np.int32)
-    hit = np.empty(PACKET, np.int32)
-    hit_d = np.empty(PACKET, np.float32)
-    rgb = np.empty((3, PACKET), np.uint8)
-    paint = np.empty((4, PACKET), np.float32)
-    ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
-    margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
-    for y0 in range(first_row, end_row, PACKET_H):
-        if stop[0]:
-            return
-        for x0 in range(0, width, PACKET_W):
-            _start_packet(x0, y0, end_row, width, height, basis, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, spread)
-            cdx, cdy, cdz = dx[_MIDDLE], dy[_MIDDLE], dz[_MIDDLE]
-            row = 0
-            top = 0
-            while row >= 0:
-                a_in = _packet_box(nodes, row, CHILD_BOX[0], ox, oy, oz, margin, ix, iy, iz, spread, closest)
-                b_in = _packet_box(nodes, row, CHILD_BOX[1], ox, oy, oz, margin, ix, iy, iz, spread, closest)
-                a_ref, b_ref, a_count, b_count = (
-                    links[row, REF],
-                    links[row, REF + 1],
-                    links[row, COUNT],
-                    links[row, COUNT + 1],
-                )
-                # near child first: the one whose box centre lies nearer along
-                # the packet's middle ray
-                if b_in and (
-                    not a_in
-                    or _centre(nodes, row, _U(CHILD_BOX[1]), ox, oy, oz, cdx, cdy, cdz)
-                    < _centre(nodes, row, _U(CHILD_BOX[0]), ox, oy, oz, cdx, cdy, cdz)
-                ):
-                    a_in, a_ref, a_count, b_in, b_ref, b_count = b_in, b_ref, b_count, a_in, a_ref, a_count
-                row = -1
-                if a_in:
-                    if a_count == INNER:
-                        row = a_ref
-                    else:
-                        _packet_leaf(
-                            ox,
-                            oy,
-                            oz,
-                            margin,
-                            dx,
-                            dy,
-                            dz,
-                            ordered,
-                            order,
-                            a_ref,
-                            a_count,
-                            spread,
-                            closest,
-                            hit,
-                            hit_d,
-                            closest_bits,
-                            spread_bits,
-                        )
-                if b_in:
-                    if b_count != INNER:
-                        _packet_leaf(
-                            ox,
-                            oy,
-                            oz,
-                            margin,
-                            dx,
-                            dy,
-                            dz,
-                            ordered,
-                            order,
-                            b_ref,
-                            b_count,
-                            spread,
-                            closest,
-                            hit,
-                            hit_d,
-                            closest_bits,
-                            spread_bits,
-                        )
-                    elif row < 0:
-                        row = b_ref
-                    else:
-                        stack_row[top] = b_ref
-                        top += 1
-                if row < 0 and top > 0:
-                    top -= 1
-                    row = stack_row[top]
-            _store_packet(x0, y0, end_row, width, spheres, hit, hit_d, rgb, paint, image, hits)
-
-
 @numba.njit(inline="always", error_model="numpy")
 def _wide_mask(wide, row, ox, oy, oz, margin, spread):
-    """The first step of _packet_box for all WIDTH boxes of a wide node at
+    """The interval test for the whole packet (_missed_by_all) on all WIDTH boxes of a wide node at
     once: a bit set for each box that the interval test for the whole
     packet (_missed_by_all's arithmetic) does not rule out. One loop over
     the boxes, without branches, on planes stored side by side (layout.W_LO,
@@ -499,8 +368,9 @@ def _packet_walk_wide(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, 
 @compiled.njit(nogil=True, error_model="numpy")
 def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links, ordered, order, spheres, image,
                       hits, stop):  # fmt: skip
-    """_bvh_packets on the 4-wide tree (bvh.collapse): the same packets,
-    the same box, leaf and shading steps, a wide node's four boxes put
+    """The rows first_row..end_row, a PACKET_W x PACKET_H packet of rays at
+    a time through the 4-wide tree (bvh.collapse), each packet started
+    (_start_packet), walked (_packet_walk_wide) and shaded (_store_packet): a wide node's four boxes put
     through the packet's interval test together (_wide_mask), then each
     box it leaves through the rays' own test (_rows_enter); the entered
     children visited nearest first along the packet's middle ray, leaves at

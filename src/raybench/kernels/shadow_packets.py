@@ -4,6 +4,8 @@ its own length; and the last blocker first (Haines and Greenberg's shadow
 cache). The answer is traverse.walk's any hit, ray by ray.
 """
 
+from collections import namedtuple
+
 import numba
 import numpy as np
 
@@ -50,16 +52,16 @@ BLOCKER_SLOTS = 251
 
 def _packet_shadows(jit, find, toward):
     """whitted.build's `shadows` for the CPU's packets: (cast, blocked).
-    tree: the packets program's tuple (the _T_ indices below: the trees,
-    then the thread's own scratch, _whitted_rows_packets)."""
+    tree: the packets program's PacketsTree (below: the trees, then the
+    thread's own scratch, _whitted_rows_packets)."""
 
     @jit
     def cast(px, py, pz, nx, ny, nz, light, samples, share, own, own_inside, spheres, count, lights, pattern, tree,
              stack_row, stack_t):  # fmt: skip
         """Bit s set where sample s's ray is blocked; 0 for samples whose
         ray is not cast (toward's facing 0)."""
-        rays = tree[_T_RAYS]
-        blockers = tree[_T_BLOCKERS]
+        rays = tree.rays
+        blockers = tree.blockers
         slot = (own * MAX_LIGHTS + light) % BLOCKER_SLOTS
         batch = np.int64(0)
         for first in range(0, samples, LANES):
@@ -81,7 +83,7 @@ def _packet_shadows(jit, find, toward):
                             lead = k
             if lead < 0:
                 continue
-            if _last_blocker(px, py, pz, rays, tree[2], tree[3], blockers[slot], own, own_inside) == _DEAD:
+            if _last_blocker(px, py, pz, rays, tree.ordered, tree.order, blockers[slot], own, own_inside) == _DEAD:
                 batch |= live << np.int64(first)  # every ray blocked by the sphere that blocked the last
                 continue
             for k in range(LANES):  # lanes without a ray follow the first live one: the spread stays tight
@@ -89,8 +91,8 @@ def _packet_shadows(jit, find, toward):
                     rays[_DX, k] = rays[_DX, lead]
                     rays[_DY, k] = rays[_DY, lead]
                     rays[_DZ, k] = rays[_DZ, lead]
-            batch |= _shadow_packet(px, py, pz, rays, tree[_T_SPREAD], tree[_T_STACK], tree[_T_WIDE],
-                                    tree[_T_WIDE_LINKS], tree[2], tree[3], own, own_inside, live, blockers,
+            batch |= _shadow_packet(px, py, pz, rays, tree.spread, tree.stack, tree.wide,
+                                    tree.wide_links, tree.ordered, tree.order, own, own_inside, live, blockers,
                                     slot) << np.int64(first)  # fmt: skip
         return batch
 
@@ -101,14 +103,18 @@ def _packet_shadows(jit, find, toward):
     return cast, blocked
 
 
-# The packets program's tree tuple (_whitted_rows_packets): the binary
-# tree's four arrays, the wide tree's two, the shadow packets' scratch
-# (_packet_shadows), the tile's primary hits (_tile_primaries), the lane of
-# the pixel being shaded, the single-ray walk's stack, and the shadow rays'
-# last blockers.
-_T_WIDE, _T_WIDE_LINKS, _T_RAYS, _T_SPREAD, _T_STACK = 4, 5, 6, 7, 8
-_T_HIT, _T_CLOSEST, _T_HIT_D, _T_LANE, _T_S_REF, _T_S_COUNT, _T_S_T = 9, 10, 11, 12, 13, 14, 15
-_T_BLOCKERS = 16  # the last blockers (rows of `ordered`, -1 for none) by sphere and light: _last_blocker
+# The packets program's tree and a thread's scratch, the `tree` that its
+# pixel program passes down (backends/cpu/whitted_rows.py makes one a
+# thread): the binary tree's four arrays first (trace.search_tree reads them
+# by position), the wide tree's two, the shadow packets' rays, spread and
+# stack (_packet_shadows), the tile's primary hits, t and data
+# (_tile_primaries), the lane of the pixel being shaded, the single-ray
+# walk's stack (refs, counts, entry distances), and the last blockers (rows
+# of `ordered`, -1 for none) by primitive and light (_last_blocker).
+PacketsTree = namedtuple(
+    "PacketsTree",
+    "nodes links ordered order wide wide_links rays spread stack hit closest hit_d lane s_ref s_count s_t blockers",
+)
 
 
 # A shadow packet's rows (_packet_shadows' rays): directions, their

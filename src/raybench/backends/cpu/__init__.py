@@ -7,8 +7,10 @@ process an equal amount of pixels"), any thread count from 1 to one per row.
 Its two kernels: "simple", the thesis's loop a pixel at a time, and "fast",
 which runs a SIMD cull test over groups of spheres before the exact test
 (same pixels). With the BVH (accel "bvh", the default) the rays of a 16x8
-tile of pixels walk the tree together (_bvh_packets), so each node's boxes
-are tested against all of them with SIMD; a pixel's cost follows how many nodes
+tile of pixels walk the 4-wide tree together (kernels/packets.py), so each
+node's boxes are tested against all of them with SIMD; with tree_width 2,
+each ray walks the binary tree alone, by the GPUs' own walk
+(kernels/traverse.py). A pixel's cost follows how many nodes
 its ray crosses, which varies across the picture, so equal bands would
 leave threads idle: the threads instead pull small chunks of rows from a
 shared iterator until none are left.
@@ -23,6 +25,11 @@ stops within a row's time, at no measured cost to a frame
 fastmath stays off: the float32 arithmetic is then exactly IEEE, so the CPU image
 is bit-identical to the CUDA kernel run under numba's simulator, and the tests
 can hold the two to equality rather than to a tolerance.
+
+The modules, by job: tracer (the Tracer: the pool of threads and the rows
+they pull), program (kernels.build compiled for this backend: the pixel
+programs and the binary tree's rows), brute (brute force's bands) and
+whitted_rows (Whitted's rows). The walks themselves are in kernels/.
 """
 
 from ...kernels.packets import PACKET, PACKET_H, PACKET_W

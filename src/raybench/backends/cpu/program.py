@@ -4,20 +4,10 @@ the CPU's packets of shadow rays and its search of the 4-wide tree."""
 import numba
 import numpy as np
 
-from ... import kernels
-from ...kernels.shadow_packets import (
-    _T_CLOSEST,
-    _T_HIT,
-    _T_HIT_D,
-    _T_LANE,
-    _T_S_COUNT,
-    _T_S_REF,
-    _T_S_T,
-    _T_WIDE,
-    _T_WIDE_LINKS,
-    _packet_shadows,
-)
+from ... import compiled, kernels
+from ...kernels.shadow_packets import _packet_shadows
 from ...kernels.wide_walk import _walk_wide
+from ...layout import STACK
 
 
 @numba.njit(inline="always")
@@ -27,10 +17,10 @@ def _search_wide(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, sphere
     from its tile's packet, walked before the tile's pixels are shaded; the
     reflected and refracted rays walk the 4-wide tree alone (_walk_wide)."""
     if own < 0:
-        k = tree[_T_LANE][0]
-        return np.int64(tree[_T_HIT][k]), tree[_T_CLOSEST][k], tree[_T_HIT_D][k]
-    return _walk_wide(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, tree[_T_WIDE], tree[_T_WIDE_LINKS],
-                      tree[2], tree[3], tree[_T_S_REF], tree[_T_S_COUNT], tree[_T_S_T])  # fmt: skip
+        k = tree.lane[0]
+        return np.int64(tree.hit[k]), tree.closest[k], tree.hit_d[k]
+    return _walk_wide(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, tree.wide, tree.wide_links,
+                      tree.ordered, tree.order, tree.s_ref, tree.s_count, tree.s_t)  # fmt: skip
 
 
 # find, the one call of the Whitted programs through the binary tree and by
@@ -46,3 +36,19 @@ _k = kernels.build(
 # module globals, which is how jitted code can see them
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
 _prepare_one, _may_hit, _intersect_relative = _k.prepare, _k.may_hit, _k.intersect_relative
+_render_pixel_bvh = _k.render_pixel_bvh
+
+
+@compiled.njit(nogil=True)
+def _bvh_rows(first_row, end_row, width, height, basis, nodes, links, ordered, order, spheres, image, hits, stop):
+    """The thesis's rows first_row..end_row through the binary tree, a pixel
+    at a time, every ray alone by kernels.traverse's walk: the GPUs' own
+    walk, on the CPU (tree_width 2). The arguments of _bvh_packets_wide."""
+    stack_row = np.empty(STACK, np.int32)
+    stack_t = np.empty(STACK, np.float32)
+    for y in range(first_row, end_row):
+        if stop[0]:
+            return
+        for x in range(width):
+            _render_pixel_bvh(x, y, width, height, basis, nodes, links, ordered, order, spheres, image, hits,
+                              stack_row, stack_t)  # fmt: skip

@@ -13,7 +13,7 @@ import numpy as np
 from ... import bvh as bvh_mod
 from ...host import host_available_bytes, usable_cores
 from ...kernels import whitted as whitted_mod
-from ...kernels.packets import PACKET_H, _bvh_packets, _bvh_packets_wide
+from ...kernels.packets import PACKET_H, _bvh_packets_wide
 from ...layout import (
     NODE_FLOATS,
 )
@@ -22,6 +22,7 @@ from ..contract import TracerBase, check_moved
 from ..limits import HOST_PIXEL_BYTES, check_bvh_fits, check_count, check_fits, check_rows
 from ..options import CpuOptions, checked
 from .brute import _constant_band, _fast_band, _prepare, _render_band
+from .program import _bvh_rows
 from .whitted_rows import WHITTED_ROWS
 
 # Chunks of rows per thread for the BVH: enough that the last chunk to finish
@@ -122,7 +123,7 @@ class Tracer(TracerBase):
             self.bands = chunks(height, self.threads)
             workers = min(self.threads, len(self.bands))
             self.tree_width = options.tree_width
-            self._kernel = _bvh_packets_wide if self.tree_width == 4 else _bvh_packets
+            self._kernel = _bvh_packets_wide if self.tree_width == 4 else _bvh_rows
             self._build(self.count)
         else:
             self.bands = bands(height, self.threads)

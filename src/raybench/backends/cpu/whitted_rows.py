@@ -8,7 +8,7 @@ import numpy as np
 from ... import compiled
 from ...kernels import whitted as whitted_mod
 from ...kernels.packets import PACKET, PACKET_H, PACKET_W, _packet_walk_wide, _start_packet
-from ...kernels.shadow_packets import _T_HIT, _T_HIT_D, _T_LANE, _T_WIDE, _T_WIDE_LINKS, BLOCKER_SLOTS, LANES
+from ...kernels.shadow_packets import BLOCKER_SLOTS, LANES, PacketsTree
 from ...layout import (
     PAD,
     STACK,
@@ -81,11 +81,11 @@ def _whitted_rows_packets(first_row, end_row, width, height, basis, spheres, cou
     nodes, links, ordered, order, wide, wide_links = tree
     lanes = np.empty((7, PACKET), np.float32)
     hit = np.empty(PACKET, np.int32)
-    own = (nodes, links, ordered, order, wide, wide_links, np.empty((7, LANES), np.float32),
-           np.empty(7 + WIDTH, np.float32), np.empty(WIDE_STACK, np.int32), hit, lanes[6],
-           np.empty(PACKET, np.float32), np.zeros(1, np.int64), np.empty(WIDE_STACK, np.int32),
-           np.empty(WIDE_STACK, np.int32), np.empty(WIDE_STACK, np.float32),
-           np.full(BLOCKER_SLOTS, -1, np.int32))  # fmt: skip
+    own = PacketsTree(nodes, links, ordered, order, wide, wide_links, np.empty((7, LANES), np.float32),
+                      np.empty(7 + WIDTH, np.float32), np.empty(WIDE_STACK, np.int32), hit, lanes[6],
+                      np.empty(PACKET, np.float32), np.zeros(1, np.int64), np.empty(WIDE_STACK, np.int32),
+                      np.empty(WIDE_STACK, np.int32), np.empty(WIDE_STACK, np.float32),
+                      np.full(BLOCKER_SLOTS, -1, np.int32))  # fmt: skip
     _whitted_tiles(
         first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern, params, own, lanes,
         np.empty(7, np.float32), np.empty(WIDE_STACK, np.int32), np.empty(WIDE_STACK, np.int32),
@@ -132,8 +132,8 @@ def _whitted_tiles(first_row, end_row, width, height, basis, spheres, count, mat
     each pixel's program, whose reflected and refracted rays walk the wide
     tree alone (_search_wide) and whose shadow rays to a light go as packets
     (_packet_shadows); counts[y]: the rays row y cast, by kind."""
-    wide, wide_links, ordered, order = tree[_T_WIDE], tree[_T_WIDE_LINKS], tree[2], tree[3]
-    hit, hit_d, lane = tree[_T_HIT], tree[_T_HIT_D], tree[_T_LANE]
+    wide, wide_links, ordered, order = tree.wide, tree.wide_links, tree.ordered, tree.order
+    hit, hit_d, lane = tree.hit, tree.hit_d, tree.lane
     for y0 in range(first_row, end_row, PACKET_H):
         if stop[0]:
             return
