@@ -25,7 +25,7 @@ import raybench.gif
 from raybench import Camera, RaybenchError, camera_path, cluster, host, sequence
 from raybench.bench import machines
 from raybench.cli import run
-from raybench.cluster import sharedframe, work
+from raybench.cluster import sharedframe, tasks, work
 
 pytest.importorskip("distributed")
 
@@ -195,7 +195,7 @@ def test_a_tile_task_on_this_host_sends_no_rows(running, rng, no_block_left):
     pool = sharedframe.Pool()
     lease = pool.lease(40, 24)
     try:
-        task = running.client.submit(work._tile, scene, "test-scene", spec, camera, (8, 24), lease.address)
+        task = running.client.submit(tasks._tile, scene, "test-scene", spec, camera, (8, 24), lease.address)
         first, image, hits, _, _ = task.result(timeout=120)
         assert (first, image, hits) == (8, None, None)
         np.testing.assert_array_equal(lease.image[8:], whole.image[8:])
