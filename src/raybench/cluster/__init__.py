@@ -17,11 +17,22 @@ from __future__ import annotations
 
 from .client import HOST, SCHEDULER_ENV, Cluster, connect, default_workers, gpu_count, worker_specs
 from .tasks import check_workers
-from .work import frame_path, release, render, render_sequence, tile_rows, trace_frames
+from .work import (
+    SequenceOptions,
+    ShadingOptions,
+    frame_path,
+    release,
+    render,
+    render_sequence,
+    tile_rows,
+    trace_frames,
+)
 
 __all__ = [
     "HOST",
     "SCHEDULER_ENV",
+    "SequenceOptions",
+    "ShadingOptions",
     "Cluster",
     "check_workers",
     "connect",

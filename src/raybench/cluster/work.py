@@ -25,6 +25,7 @@ import time
 import weakref
 from collections import OrderedDict
 from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -57,6 +58,44 @@ RESTART_WAIT_S = 60.0
 # what device each has (about the interval at which a Dask client refreshes
 # its own view of the scheduler).
 WORKERS_FRESH_S = 2.0
+
+
+@dataclass(frozen=True)
+class ShadingOptions:
+    """How a job's frames are shaded, as raybench.render() takes it:
+    shading "thesis" or "whitted", and Whitted's depth and shadow_samples
+    (None: render()'s defaults). One record, so that a job's functions keep
+    to a short argument list."""
+
+    shading: str = "thesis"
+    depth: int | None = None
+    shadow_samples: int | None = None
+
+
+@dataclass(frozen=True)
+class SequenceOptions:
+    """How render_sequence deals out, encodes and reports its frames:
+    frames_per_task frames a task (None: about TASKS_PER_WORKER tasks a
+    worker, at most MAX_FRAMES_PER_TASK frames each), each PNG deflated at
+    zlib's png_level, and on_frame(number, path) called for every frame."""
+
+    frames_per_task: int | None = None
+    on_frame: Callable[[int, Path], None] | None = None
+    png_level: int = PNG_LEVEL
+
+
+def _shading(shading, options: dict) -> ShadingOptions:
+    """shading as a record (a name alone: that shading with its defaults);
+    depth or shadow_samples among the device's options is refused, in one
+    line, rather than failing on a worker."""
+    misplaced = sorted({"depth", "shadow_samples"} & options.keys())
+    if misplaced:
+        raise RaybenchError(f"{', '.join(misplaced)}: give them in shading=cluster.ShadingOptions(...)")
+    if isinstance(shading, str):
+        return ShadingOptions(shading)
+    if not isinstance(shading, ShadingOptions):
+        raise RaybenchError(f"shading: must be a name or a cluster.ShadingOptions, got {type(shading).__name__}")
+    return shading
 
 
 def _spec(width, height, device, shading, depth, shadow_samples, options) -> tuple:
@@ -205,9 +244,7 @@ def render(
     width: int = 800,
     height: int = 600,
     device: str = "cpu",
-    shading: str = "thesis",
-    depth: int | None = None,
-    shadow_samples: int | None = None,
+    shading: str | ShadingOptions = "thesis",
     rows: int | None = None,
     shared: bool = True,
     **options,
@@ -216,7 +253,8 @@ def render(
     bands of `rows` rows (default: tile_rows()), dealt to the workers in
     turn (Dask may move a band to an idle worker) and assembled here, bit
     for bit the frame one process traces on the same device: "cpu" or
-    "cuda" (the devices that trace rows).
+    "cuda" (the devices that trace rows). shading: a ShadingOptions, or
+    a shading's name alone.
 
     shared (default): the frame is made in shared memory (raybench.cluster.sharedframe),
     and a worker on this host writes its rows into it, so that they do not
@@ -234,7 +272,8 @@ def render(
 
     if camera is not None and not isinstance(camera, Camera):
         raise RaybenchError(f"camera: must be a raybench.Camera or None, got {type(camera).__name__}")
-    spec = _spec(width, height, device, shading, depth, shadow_samples, options)
+    shading = _shading(shading, options)
+    spec = _spec(width, height, device, shading.shading, shading.depth, shading.shadow_samples, options)
     width, height = spec[0], spec[1]
     session = _session(client)
     found = session.workers(client, device, options)
@@ -367,18 +406,16 @@ def render_sequence(
     width: int = 800,
     height: int = 600,
     device: str = "auto",
-    shading: str = "thesis",
-    depth: int | None = None,
-    shadow_samples: int | None = None,
-    frames_per_task: int | None = None,
-    on_frame: Callable[[int, Path], None] | None = None,
-    png_level: int = PNG_LEVEL,
+    shading: str | ShadingOptions = "thesis",
+    sequence_options: SequenceOptions | None = None,
     **options,
 ) -> list[Path]:
     """One PNG a camera, out_dir/frame_00000.png on, traced across the
     cluster's workers in tasks of frames_per_task frames, encoded there at
     zlib's png_level (default render.PNG_LEVEL) and each written here,
-    atomically, as it arrives. A frame already on disk is not traced
+    atomically, as it arrives (frames_per_task, png_level and on_frame: the
+    SequenceOptions given, else its defaults; shading: a ShadingOptions, or
+    a shading's name alone). A frame already on disk is not traced
     again (an interrupted sequence resumes), once raybench.sequence.prepare
     has found the folder to hold nothing but frames of this sequence (one
     line, before any work, otherwise); on_frame(number, path) is called for
@@ -390,6 +427,14 @@ def render_sequence(
     from ..files import write_atomic
     from ..render import check_png_level
 
+    shading = _shading(shading, options)
+    for misplaced in ("frames_per_task", "on_frame", "png_level"):
+        if misplaced in options:
+            raise RaybenchError(f"{misplaced}: give it in sequence_options=cluster.SequenceOptions(...)")
+    if sequence_options is None:
+        sequence_options = SequenceOptions()
+    frames_per_task, on_frame = sequence_options.frames_per_task, sequence_options.on_frame
+    png_level = sequence_options.png_level
     check_png_level(png_level)
     cameras = list(cameras)
     for i, camera in enumerate(cameras):
@@ -398,8 +443,8 @@ def render_sequence(
     out_dir = Path(out_dir)
     if not out_dir.is_dir():
         raise RaybenchError(f"{out_dir}: not a folder; make it first")
-    spec = _spec(width, height, device, shading, depth, shadow_samples, options)
-    marker = sequence.identity(scene, cameras, spec[0], spec[1], shading, depth, shadow_samples)
+    spec = _spec(width, height, device, shading.shading, shading.depth, shading.shadow_samples, options)
+    marker = sequence.identity(scene, cameras, spec[0], spec[1], shading.shading, shading.depth, shading.shadow_samples)
     missing = set(sequence.prepare(out_dir, marker))
     found = check_workers(client, device, **options)
     spec = (spec[0], spec[1], next(iter(found.values())), *spec[3:])
