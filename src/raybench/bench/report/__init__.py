@@ -2,7 +2,7 @@
 verdict on each of the thesis's claims for every machine measured.
 
 One module a job, each reading only those before it:
-  numbers   numbers as text, for all three below
+  numbers   numbers as text, for the modules below
   data      results files read and checked; records grouped by machine and
             kernel (column()), files with the same label merged; the series
             (speedups, thesis_series, test7_series, cpu_tuning, gpu_tuning,
@@ -13,7 +13,11 @@ One module a job, each reading only those before it:
             states them in words, and the report prints it; beyond them,
             SECONDARY_QUESTION judged under SECONDARY_RULE
   charts    the PNG charts (matplotlib, Agg canvas, no pyplot)
-  markdown  report.md; text from a results file enters it only through escape()
+  markdown_blocks  what report.md is written with; text from a results file
+            enters it only through escape()
+  thesis_sections, beyond_sections  report.md's sections: a machine's
+            thesis tests, and the suites beyond the thesis
+  markdown  report.md laid out, from those sections
 """
 
 from .data import (
@@ -38,7 +42,8 @@ from .data import (
     thesis_series,
 )
 from .data import _check as _check  # one record at a time, for the tests
-from .markdown import escape, write_report
+from .markdown import write_report
+from .markdown_blocks import escape
 from .verdicts import (
     CLAIMS,
     FAILS,
