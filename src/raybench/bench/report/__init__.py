@@ -3,10 +3,10 @@ verdict on each of the thesis's claims for every machine measured.
 
 One module a job, each reading only those before it:
   numbers   numbers as text, for the modules below
-  data      results files read and checked; records grouped by machine and
-            kernel (column()), files with the same label merged; the series
-            (speedups, thesis_series, test7_series, cpu_tuning, gpu_tuning,
-            constant_vs_runtime, scaling_series, secondary_points,
+  records   results files read and checked; records grouped by machine and
+            kernel (column()), files with the same label merged
+  series    the series (speedups, thesis_series, test7_series, cpu_tuning,
+            gpu_tuning, constant_vs_runtime, scaling_series, secondary_points,
             secondary_leads, multi_gpu_series, dynamic_points): pure functions of plain
             lists of records, so the rules can be tested on synthetic data
   verdicts  the six claims judged; the thresholds are its constants, RULES
@@ -20,17 +20,16 @@ One module a job, each reading only those before it:
   markdown  report.md laid out, from those sections
 """
 
-from .data import (
+from .markdown import write_report
+from .markdown_blocks import escape
+from .records import _check as _check  # one record at a time, for the tests
+from .records import accel_of, column, group, kernel_of, load
+from .series import (
     DEVICE_NAMES,
-    accel_of,
-    column,
     constant_vs_runtime,
     cpu_tuning,
     dynamic_points,
     gpu_tuning,
-    group,
-    kernel_of,
-    load,
     multi_gpu_series,
     scaling_series,
     secondary_leads,
@@ -41,9 +40,6 @@ from .data import (
     theoretical_ratio,
     thesis_series,
 )
-from .data import _check as _check  # one record at a time, for the tests
-from .markdown import write_report
-from .markdown_blocks import escape
 from .verdicts import (
     CLAIMS,
     FAILS,

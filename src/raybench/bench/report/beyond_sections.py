@@ -6,9 +6,10 @@ from __future__ import annotations
 
 from ...kernels.whitted import KINDS
 from . import charts
-from .data import DEVICE_NAMES, dynamic_points, fmt_opt, multi_gpu_series, parts_rows, scaling_series, secondary_points
 from .markdown_blocks import _adapter_name, _machine_lines, _table, _Writer, escape
 from .numbers import fmt_ms, fmt_num, fmt_x
+from .records import fmt_opt
+from .series import DEVICE_NAMES, dynamic_points, multi_gpu_series, parts_rows, scaling_series, secondary_points
 from .verdicts import SECONDARY_QUESTION, SECONDARY_RULE, secondary_verdict
 
 

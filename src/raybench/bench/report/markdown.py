@@ -18,9 +18,9 @@ from ...files import folder_atomic, write_atomic
 from .. import headline
 from . import html
 from .beyond_sections import _section_dynamic, _section_multi_gpu, _section_parts, _section_scaling, _section_secondary
-from .data import load
 from .markdown_blocks import _machine_lines, _table, _Writer, escape
 from .numbers import fmt_num, fmt_x
+from .records import load
 from .thesis_sections import _section_constant, _section_speedup, _section_test7, _section_thesis, _section_tuning
 from .verdicts import CLAIMS, RULES, THESIS_CPU, THESIS_GPU, verdicts, with_reference_gpus
 

@@ -9,7 +9,8 @@ import json
 from pathlib import Path
 
 from ...files import write_atomic
-from .data import fmt_opt, machine_of
+from .records import fmt_opt
+from .series import machine_of
 
 # Character references, not backslashes: a reference is never Markdown syntax,
 # whatever stands before it, and _cell's escaping of "|" cannot undo it.

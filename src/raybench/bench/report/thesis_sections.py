@@ -5,7 +5,9 @@ blocks, and the sphere count as a constant or a variable."""
 from __future__ import annotations
 
 from . import charts
-from .data import (
+from .markdown_blocks import _adapter_name, _table, _Writer, escape
+from .numbers import fmt_ms, fmt_num, fmt_r2, fmt_x
+from .series import (
     DEVICE_NAMES,
     constant_vs_runtime,
     cpu_tuning,
@@ -17,8 +19,6 @@ from .data import (
     theoretical_ratio,
     thesis_series,
 )
-from .markdown_blocks import _adapter_name, _table, _Writer, escape
-from .numbers import fmt_ms, fmt_num, fmt_r2, fmt_x
 from .verdicts import THESIS_CPU, THESIS_GPU, THESIS_RATIO
 
 
