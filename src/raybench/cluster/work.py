@@ -90,7 +90,8 @@ def _shading(shading, options: dict) -> ShadingOptions:
     line, rather than failing on a worker."""
     misplaced = sorted({"depth", "shadow_samples"} & options.keys())
     if misplaced:
-        raise RaybenchError(f"{', '.join(misplaced)}: give them in shading=cluster.ShadingOptions(...)")
+        them = "them" if len(misplaced) > 1 else "it"
+        raise RaybenchError(f"{', '.join(misplaced)}: give {them} in shading=cluster.ShadingOptions(...)")
     if isinstance(shading, str):
         return ShadingOptions(shading)
     if not isinstance(shading, ShadingOptions):
