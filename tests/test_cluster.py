@@ -25,7 +25,7 @@ import raybench.gif
 from raybench import Camera, RaybenchError, camera_path, cluster, host, sequence
 from raybench.bench import machines
 from raybench.cli import run
-from raybench.cluster import sharedframe, work
+from raybench.cluster import sharedframe, tasks, work
 
 pytest.importorskip("distributed")
 
@@ -195,7 +195,7 @@ def test_a_tile_task_on_this_host_sends_no_rows(running, rng, no_block_left):
     pool = sharedframe.Pool()
     lease = pool.lease(40, 24)
     try:
-        task = running.client.submit(work._tile, scene, "test-scene", spec, camera, (8, 24), lease.address)
+        task = running.client.submit(tasks._tile, scene, "test-scene", spec, camera, (8, 24), lease.address)
         first, image, hits, _, _ = task.result(timeout=120)
         assert (first, image, hits) == (8, None, None)
         np.testing.assert_array_equal(lease.image[8:], whole.image[8:])
@@ -454,8 +454,9 @@ def test_sequence_is_the_single_process_frames_and_resumes(running, rng, tmp_pat
     cameras = camera_path.orbit(camera, 6)
     seen = []
     paths = cluster.render_sequence(
-        running.client, scene, cameras, tmp_path, 48, 32, device="cpu", on_frame=lambda n, p: seen.append(n)
-    )
+        running.client, scene, cameras, tmp_path, 48, 32, device="cpu",
+        sequence_options=cluster.SequenceOptions(on_frame=lambda n, p: seen.append(n)),
+    )  # fmt: skip
     assert sorted(seen) == list(range(6)) and [p.name for p in paths] == [f"frame_{n:05d}.png" for n in range(6)]
     with raybench.Renderer(scene, 48, 32, device="cpu") as renderer:
         for path, cam in zip(paths, cameras, strict=True):
@@ -466,8 +467,9 @@ def test_sequence_is_the_single_process_frames_and_resumes(running, rng, tmp_pat
         paths[n].unlink()
     seen.clear()
     cluster.render_sequence(
-        running.client, scene, cameras, tmp_path, 48, 32, device="cpu", on_frame=lambda n, p: seen.append(n)
-    )
+        running.client, scene, cameras, tmp_path, 48, 32, device="cpu",
+        sequence_options=cluster.SequenceOptions(on_frame=lambda n, p: seen.append(n)),
+    )  # fmt: skip
     assert seen[:4] == [0, 2, 3, 5] and sorted(seen[4:]) == [1, 4]
     for n, path in enumerate(paths):
         if n not in (1, 4):
@@ -486,14 +488,15 @@ def test_sequence_png_level(running, rng, tmp_path):
     (tmp_path / "stored").mkdir()
     default = cluster.render_sequence(running.client, scene, cameras, tmp_path / "default", 48, 32, device="cpu")
     stored = cluster.render_sequence(running.client, scene, cameras, tmp_path / "stored", 48, 32, device="cpu",
-                                     png_level=0)  # fmt: skip
+                                     sequence_options=cluster.SequenceOptions(png_level=0))  # fmt: skip
     raw = 48 * 32 * 3 + 32  # the pixels and a filter byte a row
     for a, b in zip(default, stored, strict=True):
         np.testing.assert_array_equal(png(a), png(b))
         assert b.stat().st_size > raw > a.stat().st_size
     (tmp_path / "bad").mkdir()
     with pytest.raises(RaybenchError, match="PNG level: must be a whole number 0"):
-        cluster.render_sequence(running.client, scene, cameras, tmp_path / "bad", 48, 32, device="cpu", png_level=10)
+        cluster.render_sequence(running.client, scene, cameras, tmp_path / "bad", 48, 32, device="cpu",
+                                sequence_options=cluster.SequenceOptions(png_level=10))  # fmt: skip
     assert not any((tmp_path / "bad").iterdir())
 
 
@@ -513,8 +516,8 @@ def test_a_worker_killed_mid_sequence_loses_nothing(running, rng, tmp_path):
 
     options = {"accel": "none", "kernel": "simple"}  # slow enough frames that the kill lands mid-sequence
     paths = cluster.render_sequence(
-        running.client, scene, cameras, tmp_path, 160, 120, device="cpu", frames_per_task=1, on_frame=on_frame,
-        **options,
+        running.client, scene, cameras, tmp_path, 160, 120, device="cpu",
+        sequence_options=cluster.SequenceOptions(frames_per_task=1, on_frame=on_frame), **options,
     )  # fmt: skip
     assert killed and killed[0] < len(cameras)  # killed with frames still to come
     assert sorted(p.name for p in tmp_path.iterdir()) == [sequence.MARKER, *(p.name for p in paths)]
@@ -541,8 +544,9 @@ def test_a_sequence_whose_scene_is_lost_sends_its_frames_again(running, rng, tmp
             lost.append(len(futures))
 
     paths = cluster.render_sequence(
-        running.client, scene, cameras, tmp_path, 48, 32, device="cpu", frames_per_task=1, on_frame=on_frame
-    )
+        running.client, scene, cameras, tmp_path, 48, 32, device="cpu",
+        sequence_options=cluster.SequenceOptions(frames_per_task=1, on_frame=on_frame),
+    )  # fmt: skip
     assert lost and lost[0] >= 1
     assert sorted(p.name for p in tmp_path.iterdir()) == [sequence.MARKER, *(p.name for p in paths)]
     with raybench.Renderer(scene, 48, 32, device="cpu") as renderer:

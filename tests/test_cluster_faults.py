@@ -95,7 +95,15 @@ def test_the_only_worker_killed_mid_sequence_loses_no_frame(lone, rng, tmp_path)
     pid = worker_pid(lone.client)
     job = in_background(
         lambda: cluster.render_sequence(
-            lone.client, scene, cameras, tmp_path, 96, 72, device="cpu", frames_per_task=1, **OPTIONS
+            lone.client,
+            scene,
+            cameras,
+            tmp_path,
+            96,
+            72,
+            device="cpu",
+            sequence_options=cluster.SequenceOptions(frames_per_task=1),
+            **OPTIONS,
         )  # fmt: skip
     )
     kill_when_busy(lone.client, pid, "_frames", job)

@@ -437,7 +437,7 @@ def test_the_report_is_built_aside_and_renamed_into_place(capsys, tmp_path, monk
     earlier report is touched; a folder holding anything but a report is not replaced."""
     records = [rec("thesis", d, n, 5.0 + n / 100) for d in ("cpu", "cuda") for n in (100, 200, 300)]
     path = write(tmp_path / "r.jsonl", records)
-    from raybench.bench.report import markdown
+    from raybench.bench.report import charts, markdown, markdown_blocks
 
     drawn = []
 
@@ -447,21 +447,22 @@ def test_the_report_is_built_aside_and_renamed_into_place(capsys, tmp_path, monk
             raise KeyboardInterrupt
         return real(*args, **kwargs)
 
-    real = markdown.charts.plot_thesis
-    monkeypatch.setattr(markdown.charts, "plot_thesis", stopped)
+    real = charts.plot_thesis
+    monkeypatch.setattr(charts, "plot_thesis", stopped)
     assert run(["report", str(path), "-o", str(tmp_path / "rep")]) == 130
     assert not (tmp_path / "rep").exists()
     assert tree(tmp_path) == {"r.jsonl"}  # nor its staging folder
-    monkeypatch.setattr(markdown.charts, "plot_thesis", real)
+    monkeypatch.setattr(charts, "plot_thesis", real)
     assert run(["report", str(path), "-o", str(tmp_path / "rep")]) == 0
     before = {p.name: p.read_bytes() for p in (tmp_path / "rep").iterdir()}
     drawn.clear()
-    monkeypatch.setattr(markdown.charts, "plot_thesis", stopped)
+    monkeypatch.setattr(charts, "plot_thesis", stopped)
 
     def full_disk(path, data):
         raise RaybenchError(f"{path}: cannot write (No space left on device); nothing was changed")
 
     monkeypatch.setattr(markdown, "write_atomic", full_disk)
+    monkeypatch.setattr(markdown_blocks, "write_atomic", full_disk)  # the charts' writes
     capsys.readouterr()
     line = one_line(capsys, ["report", path, "-o", tmp_path / "rep"], "No space left on device")
     assert f"{tmp_path / 'rep'}/" in line and ".partial" not in line

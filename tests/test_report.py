@@ -929,7 +929,7 @@ def test_report_with_parts_section(tmp_path, rng):
 
 
 def test_scaling_ways_name_a_chosen_tree_width_and_a_tree_built_on_the_gpu():
-    from raybench.bench.report.data import way_of
+    from raybench.bench.report.series import way_of
 
     bvh = {"accel": "bvh"}
     assert way_of({"options": bvh}) == "BVH" and way_of({"options": {**bvh, "build": "host"}}) == "BVH"
@@ -941,7 +941,7 @@ def test_scaling_ways_name_a_chosen_tree_width_and_a_tree_built_on_the_gpu():
 
 
 def test_multi_gpu_deliveries_are_series_of_their_own():
-    from raybench.bench.report.data import multi_gpu_series
+    from raybench.bench.report.series import multi_gpu_series
 
     records = []
     for delivery, fps in (("shared", 40.0), ("sent", 20.0)):

@@ -9,7 +9,7 @@ import os
 import re
 from collections.abc import Callable
 
-from ..cluster import work
+from ..cluster.tasks import task_lock
 from ..errors import RaybenchError, one_line
 
 
@@ -75,7 +75,7 @@ def _bench_run(settings: dict, label: str, argv: list[str]) -> list[dict]:
     settings = {**settings, "host": socket.gethostname(), "pid": os.getpid()}
     points, info = runner.plan(settings, label, argv)
     records = runner.Records()
-    with work.task_lock:  # no tile or frame task of this worker at the same time
+    with task_lock:  # no tile or frame task of this worker at the same time
         runner.run(points, records, info, settings["duration_s"], settings["seed"], progress=False)
     return records.records
 

@@ -168,7 +168,8 @@ def _render_tiles(scene, output, width, height, device, shaded, options, workers
 
     start = time.perf_counter()
     with open_cluster(workers, device, scheduler, timeout, security) as running:
-        frame = cluster.render(running.client, scene, None, width, height, device, rows=tile, **shaded, **options)
+        frame = cluster.render(running.client, scene, None, width, height, device, cluster.ShadingOptions(**shaded),
+                               rows=tile, **options)  # fmt: skip
         count = running.workers
     frame.save(output, level)
     click.echo(
@@ -204,9 +205,9 @@ def _render_sequence(scene, spec, frames, output, width, height, device, shaded,
         columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
         with Progress(*columns, transient=True) as progress:
             bar = progress.add_task(f"frames on {running.workers} workers", total=len(cameras))
-            cluster.render_sequence(running.client, scene, cameras, output, width, height, device, **shaded,
-                                    on_frame=lambda n, path: progress.advance(bar), png_level=level,
-                                    **options)  # fmt: skip
+            delivery = cluster.SequenceOptions(on_frame=lambda n, path: progress.advance(bar), png_level=level)
+            cluster.render_sequence(running.client, scene, cameras, output, width, height, device,
+                                    cluster.ShadingOptions(**shaded), delivery, **options)  # fmt: skip
     click.echo(
         f"wrote {len(todo)} frames to {output}/"
         + (f" (the other {len(cameras) - len(todo)} were there already)" if len(todo) < len(cameras) else "")

@@ -1,7 +1,12 @@
 """raybench's work on Dask workers: one large frame in tiles, or a sequence of
 frames, traced across the workers of a Dask cluster and gathered here.
 
-  work         the cluster, what a worker keeps, and the jobs (work.py says how)
+  client       the Dask client, and the embedded cluster it starts or the one
+               it joins by address
+  tasks        what runs on a worker: its device, its warm renderers, and
+               the tasks that trace with them
+  work         the jobs: a frame in tiles, a sequence of frames, dealt out
+               as tasks and gathered here (work.py says how)
   sharedframe  a frame's image and hits in shared memory, which workers on
                the client's host write their rows into
 
@@ -10,26 +15,24 @@ The benchmark on every machine of a cluster is raybench.bench.machines.
 
 from __future__ import annotations
 
+from .client import HOST, SCHEDULER_ENV, Cluster, connect, default_workers, gpu_count, worker_specs
+from .tasks import check_workers
 from .work import (
-    HOST,
-    SCHEDULER_ENV,
-    Cluster,
-    check_workers,
-    connect,
-    default_workers,
+    SequenceOptions,
+    ShadingOptions,
     frame_path,
-    gpu_count,
     release,
     render,
     render_sequence,
     tile_rows,
     trace_frames,
-    worker_specs,
 )
 
 __all__ = [
     "HOST",
     "SCHEDULER_ENV",
+    "SequenceOptions",
+    "ShadingOptions",
     "Cluster",
     "check_workers",
     "connect",

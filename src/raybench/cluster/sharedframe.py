@@ -338,7 +338,7 @@ def fill_rows(address: tuple[str, int, int], first: int, rows: int, fill, pin=No
     each mapping, with where it lies in this process's memory, and what it
     returns is kept as long as the mapping is and dropped before it closes: a
     cuda worker page-locks the mapping there, so that the GPU copies its rows
-    straight into the frame (cluster.work._tile)."""
+    straight into the frame (cluster.tasks._tile)."""
     name, width, height = address
     offset, size = _layout(width, height)
     if not (0 <= first and 0 <= rows and first + rows <= height):

@@ -2,22 +2,10 @@
 frames, traced across the workers of a Dask cluster and gathered here.
 
 Dask does the distribution (scatter, scheduling, retries when a worker dies);
-this module decides only what a worker owns and what a task is:
+this module decides what a job's tasks are, deals them out and gathers what
+they make (raybench.cluster.client starts or joins the cluster, and
+raybench.cluster.tasks is what a worker runs):
 
-- A worker owns one device: an embedded cluster starts one worker process
-  per GPU, each pinned to its GPU by CUDA_VISIBLE_DEVICES, or with no GPU N
-  processes that share the cores (each traces on cores // N threads). Every
-  embedded process listens on 127.0.0.1 only, and only over TLS with a key
-  made for this cluster and held in memory (Dask's Security.temporary()):
-  whoever can reach a Dask port can run code there, so no other process,
-  another user's least of all, gets in. A scheduler's address (scheduler=,
-  or RAYBENCH_SCHEDULER) joins a cluster started elsewhere, trusted with
-  code execution in this process (Dask sends pickles both ways); tls://
-  addresses take the CA, certificate and key given, or Dask's config.
-- A worker keeps a warm Renderer per (scene, size, device, options): the
-  scene is scattered once to every worker (broadcast), tasks name it by its
-  key, and the kernels, the tree and the device's buffers are made on the
-  first task and reused by the next.
 - A task is a band of rows of one frame (a tile: bit for bit the rows of the
   whole frame's render, on cpu and cuda) or a run of whole frames of a sequence (their PNGs,
   encoded on the worker).
@@ -27,45 +15,32 @@ this module decides only what a worker owns and what a task is:
   keeps that memory from frame to frame of one size (a sharedframe.Pool per
   client, let go by release(client) or Cluster.close()), with its pages
   resident, and the workers keep their mappings of it.
-
-Why the embedded workers differ from Dask's defaults (docs/scaling.md has
-the measurements): a Nanny's worker gets MALLOC_TRIM_THRESHOLD_=65536 in its
-environment, which makes glibc map and fault in afresh every frame-sized
-allocation (several times slower copies of a frame); and a Nanny's default
-thread count is every core, which runs several tasks at once on one device.
-raybench's workers take one task at a time, without that variable.
 """
 
 from __future__ import annotations
 
 import contextlib
-import logging
 import math
-import os
-import threading
 import time
 import weakref
 from collections import OrderedDict
 from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from .. import sequence
-from ..backends.limits import PIXEL_BYTES, check_connect_timeout, check_fits, check_worker_count
+from ..backends.limits import PIXEL_BYTES, check_fits
 from ..camera import Camera
 from ..errors import RaybenchError, one_line
-from ..host import host_available_bytes, usable_cores
-from ..kernels.whitted import KINDS
-from ..render import PNG_LEVEL, Frame, Renderer
+from ..host import host_available_bytes
+from ..render import PNG_LEVEL, Frame
 from ..scene import Scene
 from ..sequence import frame_path
 from . import sharedframe
+from .tasks import KEEP_RENDERERS, _frames, _hit_counts, _tile, check_workers
 
-HOST = "127.0.0.1"  # every process of an embedded cluster listens here only
-SCHEDULER_ENV = "RAYBENCH_SCHEDULER"
-# How long to try a scheduler's address before saying it is unreachable.
-CONNECT_TIMEOUT_S = 10.0
 # The BVH's packets are 8 rows high (backends.cpu.PACKET_H): a tile starts on one.
 TILE_ALIGN = 8
 # Tasks a worker gets of one job, by default: enough that a slow or lost
@@ -74,331 +49,54 @@ TILE_ALIGN = 8
 TASKS_PER_WORKER = 4
 # The most frames a task of a sequence traces, so progress is seen often.
 MAX_FRAMES_PER_TASK = 60
-# Warm renderers a worker keeps; each holds a frame's buffers and a tree.
-KEEP_RENDERERS = 2
 # How often a task (a tile, a run of frames) is sent again when the workers it was on are lost
 # with it, and how long the client waits, each time, for a worker to trace it (a nanny restarts a
 # killed worker, in a few seconds on the machines measured).
 LOST_RETRIES = 3
 RESTART_WAIT_S = 60.0
-# What an embedded cluster's Dask logs to the terminal (the nannies set it in this process too):
-# critical failures only. What it logs as errors (a lost worker's scattered scene, the tasks
-# forgotten with it; a restarted worker's warnings) raybench handles, or says in one line.
-DASK_LOGS = logging.CRITICAL
 # How long render() trusts its last answer of which workers there are and
 # what device each has (about the interval at which a Dask client refreshes
 # its own view of the scheduler).
 WORKERS_FRESH_S = 2.0
 
 
-# --- the cluster -------------------------------------------------------------------
+@dataclass(frozen=True)
+class ShadingOptions:
+    """How a job's frames are shaded, as raybench.render() takes it:
+    shading "thesis" or "whitted", and Whitted's depth and shadow_samples
+    (None: render()'s defaults). One record, so that a job's functions keep
+    to a short argument list."""
+
+    shading: str = "thesis"
+    depth: int | None = None
+    shadow_samples: int | None = None
 
 
-def gpu_count() -> int:
-    """NVIDIA GPUs this process can use (0 under numba's simulator)."""
-    from .. import backends
+@dataclass(frozen=True)
+class SequenceOptions:
+    """How render_sequence deals out, encodes and reports its frames:
+    frames_per_task frames a task (None: about TASKS_PER_WORKER tasks a
+    worker, at most MAX_FRAMES_PER_TASK frames each), each PNG deflated at
+    zlib's png_level, and on_frame(number, path) called for every frame."""
 
-    if not backends.cuda_available():
-        return 0
-    from numba import cuda
-
-    return len(cuda.gpus)
-
-
-def worker_specs(device: str, workers: int, security=None) -> dict:
-    """The SpecCluster worker specs of an embedded cluster: `workers` Nanny
-    processes on 127.0.0.1, one task at a time each; on cuda each pinned to
-    one GPU, on the cpu each given its share of the cores. security (a
-    distributed Security): their connections' (tls:// where it holds keys)."""
-    from distributed import Nanny
-
-    try:
-        import psutil
-
-        memory = psutil.virtual_memory().total // workers
-    except ImportError:  # psutil is a dependency; without it Dask picks
-        memory = "auto"
-    specs = {}
-    # the GPUs this process may use, in its own numbering: a worker pins one of them
-    visible = [g.strip() for g in os.environ.get("CUDA_VISIBLE_DEVICES", "").split(",") if g.strip()]
-    for i in range(workers):
-        if device == "cuda":
-            env = {"CUDA_VISIBLE_DEVICES": visible[i] if i < len(visible) else str(i)}
-        else:
-            env = {"NUMBA_NUM_THREADS": str(max(1, usable_cores() // workers))}
-        for key in ("RAYBENCH_CACHE_DIR", "NUMBA_ENABLE_CUDASIM"):  # the compiled kernels' cache, and the simulator
-            if key in os.environ:
-                env[key] = os.environ[key]
-        specs[f"{device}-{i}"] = {
-            "cls": Nanny,
-            "options": {
-                "nthreads": 1,
-                "host": HOST,
-                "protocol": _protocol(security),
-                "security": security,
-                "dashboard_address": f"{HOST}:0",  # Dask's HTTP server (health, metrics) is always started
-                "env": env,
-                "preload": [__name__],  # dask_setup: Ctrl-C is the client's to handle
-                "memory_limit": memory,
-                "silence_logs": DASK_LOGS,
-            },
-        }
-    return specs
+    frames_per_task: int | None = None
+    on_frame: Callable[[int, Path], None] | None = None
+    png_level: int = PNG_LEVEL
 
 
-def _protocol(security) -> str:
-    return "tls" if security is not None and security.require_encryption else "tcp"
-
-
-def embedded_security():
-    """The credentials of a new embedded cluster: a self-signed key and
-    certificate made now, in memory, that every process of the cluster and
-    its client present to each other (mutual TLS): a process without them is
-    refused. Dask passes them to the workers it starts through their
-    nannies' pipes; they are on no disk but for the moment each process
-    loads them (distributed.security, a private temporary folder)."""
-    from distributed.security import Security
-
-    return Security.temporary()
-
-
-def dask_setup(worker) -> None:
-    """Dask's hook as each embedded worker starts (worker_specs preloads this
-    module there): Ctrl-C at a terminal reaches the whole process group, and
-    each worker printed its own KeyboardInterrupt's tracebacks; the client
-    handles it and ends the cluster, workers included, so they ignore it."""
-    import signal
-
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
-def default_workers(device: str) -> int:
-    return max(1, gpu_count()) if device == "cuda" else 1
-
-
-class Cluster:
-    """A Dask client and, unless it joined one by address, the embedded
-    cluster it talks to; a `with` block closes both (the embedded workers'
-    processes end with it).
-
-        with raybench.cluster.Cluster(workers=2, device="cpu") as cluster:
-            frame = raybench.cluster.render(cluster.client, scene, width=1680, height=1050, device="cpu")
-
-    device picks the embedded workers' kind ("auto": one per GPU where
-    there is one, else the CPU); scheduler (default: RAYBENCH_SCHEDULER)
-    joins an existing cluster, tried for timeout seconds. security (a
-    distributed.security.Security): an embedded cluster's connections, by
-    default TLS with credentials made for it alone (embedded_security();
-    Security() gives plain TCP, which any local process can join); a joined
-    one's, by default Dask's config (distributed.comm.tls)."""
-
-    def __init__(
-        self,
-        workers: int | None = None,
-        device: str = "auto",
-        scheduler: str | None = None,
-        timeout: float = CONNECT_TIMEOUT_S,
-        security=None,
-    ):
-        import dask
-        from distributed import Client, Scheduler, SpecCluster
-
-        from .. import backends
-
-        scheduler = scheduler or os.environ.get(SCHEDULER_ENV) or None
-        timeout = check_connect_timeout(timeout)
-        self.cluster = None
-        if scheduler is not None:
-            if workers is not None:
-                raise RaybenchError("workers: a joined cluster has its own; give workers or a scheduler, not both")
-            self.client = connect(scheduler, timeout, security)
-            return
-        device = backends.resolve(device)
-        if device == "wgpu":
-            raise RaybenchError("device wgpu: the cluster runs cpu or cuda workers")
-        if workers is None:
-            workers = default_workers(device)
-        workers = check_worker_count(workers)
-        if device == "cuda" and not backends.module("cuda").simulated() and workers > gpu_count():
-            raise RaybenchError(f"workers: {workers} cuda workers need {workers} GPUs; this machine has {gpu_count()}")
-        # Dask's default sets MALLOC_TRIM_THRESHOLD_ in a worker's environment;
-        # raybench's workers go without it (the module's docstring says why).
-        environ = dict(dask.config.get("distributed.nanny.pre-spawn-environ"))
-        environ.pop("MALLOC_TRIM_THRESHOLD_", None)
-        if security is None:
-            security = embedded_security()
-        scheduler_options = {"host": HOST, "port": 0, "dashboard_address": f"{HOST}:0",
-                             "protocol": _protocol(security), "security": security}  # fmt: skip
-        with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}):
-            self.cluster = SpecCluster(
-                scheduler={"cls": Scheduler, "options": scheduler_options},
-                workers=worker_specs(device, workers, security),
-                security=security,
-                silence_logs=DASK_LOGS,
-            )
-        try:
-            self.client = Client(self.cluster)
-        except BaseException:
-            self.cluster.close()
-            raise
-
-    @property
-    def workers(self) -> int:
-        return len(self.client.scheduler_info(n_workers=-1)["workers"])
-
-    def close(self) -> None:
-        # an embedded cluster's workers end with it, their mappings too: asked only when joined
-        release(self.client, workers=self.cluster is None)
-        self.client.close()
-        if self.cluster is not None:
-            self.cluster.close()
-            self.cluster = None
-
-    def __enter__(self) -> Cluster:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
-
-def connect(address: str, timeout: float = CONNECT_TIMEOUT_S, security=None):
-    """A Client of the scheduler at address, or one line saying it was not
-    reached within timeout seconds. security: a distributed Security (for
-    tls:// addresses), by default Dask's config."""
-    from distributed import Client
-    from distributed.security import Security
-
-    timeout = check_connect_timeout(timeout)
-    if security is None:
-        security = Security()  # Dask's config (distributed.comm.tls), as Client would read it
-    if address.startswith("tls://") and not (security.tls_ca_file and security.tls_client_cert):
-        raise RaybenchError(
-            f"scheduler {address}: a tls:// address needs this client's TLS credentials: give --tls-ca, "
-            "--tls-cert and --tls-key (Cluster(security=...)), or set Dask's distributed.comm.tls config"
-        )
-    try:
-        return Client(address, timeout=timeout, security=security)
-    except (OSError, TimeoutError, ValueError) as exc:
-        reason = " ".join(str(exc).split()) or type(exc).__name__
-        raise RaybenchError(f"scheduler {address}: unreachable within {timeout:g} s ({reason})") from None
-
-
-def check_workers(client, device: str, **options) -> dict[str, str]:
-    """Each worker's device for `device`, asked on the worker itself ("auto"
-    resolves there); a worker that lacks it is an error that names it."""
-    from distributed import TimeoutError as DaskTimeout
-
-    try:
-        answers = client.run(_worker_device, device, options.get("adapter"), on_error="return")
-    except (OSError, DaskTimeout) as exc:
-        raise RaybenchError(f"cluster: its workers did not answer ({one_line(exc)})") from None
-    if not answers:
-        raise RaybenchError("cluster: it has no workers")
-    for worker, answer in sorted(answers.items()):
-        if isinstance(answer, BaseException):
-            raise RaybenchError(f"worker {worker}: {one_line(answer)}")
-    kinds = set(answers.values())
-    if len(kinds) > 1:
-        raise RaybenchError(f"cluster: its workers resolve device {device!r} to different devices: {sorted(kinds)}")
-    return answers
-
-
-def _worker_device(device: str, adapter: str | None) -> str:
-    from .. import backends
-
-    return backends.resolve(device, adapter)
-
-
-# --- what a worker keeps -------------------------------------------------------------
-
-_renderers: OrderedDict = OrderedDict()
-# One task at a time touches a worker's renderers: a worker started with
-# several threads (a cluster joined by address) would otherwise trace two
-# tasks into one renderer's buffers at once.
-task_lock = threading.Lock()
-
-
-def _renderer(scene: Scene, scene_key: str, spec: tuple) -> Renderer:
-    """The worker's warm Renderer of this scene and spec, made on first use."""
-    key = (scene_key, spec)
-    renderer = _renderers.get(key)
-    if renderer is None:
-        width, height, device, shading, depth, shadow_samples, options = spec
-        options = dict(options)
-        if device == "cpu" and "threads" not in options:
-            import numba
-
-            options["threads"] = numba.config.NUMBA_NUM_THREADS  # the worker's share of the cores
-        renderer = Renderer(scene, width, height, device, shading, depth, shadow_samples, **options)
-        _renderers[key] = renderer
-        while len(_renderers) > KEEP_RENDERERS:
-            _renderers.popitem(last=False)[1].close()
-    _renderers.move_to_end(key)
-    return renderer
-
-
-def _tile(
-    scene: Scene, scene_key: str, spec: tuple, camera: Camera, rows: tuple[int, int], shared: tuple | None = None
-):
-    """A task: rows first..end of the frame; (first, image rows, hit rows,
-    rays by kind or None, BVH build seconds or None). With shared (the
-    address of the client's sharedframe.Lease) the rows are written into it,
-    on cuda straight from the GPU, elsewhere once from the tracer's own
-    buffers, and come back as None; where this worker cannot open it (another
-    host) they come back as before."""
-    with task_lock:
-        try:
-            renderer = _renderer(scene, scene_key, spec)
-        except RaybenchError as exc:  # a worker that joined after check_workers, say
-            from distributed import get_worker
-
-            raise RaybenchError(f"worker {get_worker().address}: {exc}") from None
-        if shared is not None:
-            tracer = renderer.tracer
-            basis = camera.basis(renderer.width, renderer.height)
-            first, end = rows
-            if tracer.fetches_into:
-                # cuda: the rows copied from the GPU straight into the frame, its
-                # mapping page-locked once, not through the tracer's buffers and a
-                # copy out of them (docs/scaling.md)
-                tracer.launch(basis, rows=rows)
-                if sharedframe.fill_rows(shared, first, end - first, tracer.fetch_into, pin=tracer.pin):
-                    return first, None, None, _ray_counts(tracer), tracer.build_s
-                image, hits = tracer.fetch()
-            else:
-                image, hits = tracer.trace(basis, rows=rows)
-                if sharedframe.write_rows(shared, first, image[first:end], hits[first:end]):
-                    return first, None, None, _ray_counts(tracer), tracer.build_s
-            # traced already: the rows travel from the tracer's buffers
-            return first, image[first:end].copy(), hits[first:end].copy(), _ray_counts(tracer), tracer.build_s
-        frame = renderer.render(camera, rows=rows)
-    return rows[0], frame.image, frame.hits, frame.rays, frame.build_s
-
-
-def _ray_counts(tracer) -> dict | None:
-    """The last trace's rays by kind, as Frame.rays has them."""
-    counts = tracer.ray_counts
-    return None if counts is None else dict(zip(KINDS, counts.tolist()))
-
-
-def _hit_counts(scene: Scene, scene_key: str, spec: tuple, cameras: list[Camera]) -> list[int]:
-    """A task: whole frames traced in the renderer's own buffers, each
-    reduced to the count of its pixels that hit a sphere."""
-    width, height = spec[0], spec[1]
-    with task_lock:
-        renderer = _renderer(scene, scene_key, spec)
-        return [int((renderer.tracer.trace(c.basis(width, height))[1] >= 0).sum()) for c in cameras]
-
-
-def _frames(scene: Scene, scene_key: str, spec: tuple, numbered: list[tuple[int, Camera]], level: int):
-    """A task: whole frames of a sequence; [(number, PNG bytes at zlib's level)]."""
-    with task_lock:
-        renderer = _renderer(scene, scene_key, spec)
-        return [(n, renderer.render(camera, hits=False).png_bytes(level)) for n, camera in numbered]
-
-
-# --- jobs -----------------------------------------------------------------------------
+def _shading(shading, options: dict) -> ShadingOptions:
+    """shading as a record (a name alone: that shading with its defaults);
+    depth or shadow_samples among the device's options is refused, in one
+    line, rather than failing on a worker."""
+    misplaced = sorted({"depth", "shadow_samples"} & options.keys())
+    if misplaced:
+        them = "them" if len(misplaced) > 1 else "it"
+        raise RaybenchError(f"{', '.join(misplaced)}: give {them} in shading=cluster.ShadingOptions(...)")
+    if isinstance(shading, str):
+        return ShadingOptions(shading)
+    if not isinstance(shading, ShadingOptions):
+        raise RaybenchError(f"shading: must be a name or a cluster.ShadingOptions, got {type(shading).__name__}")
+    return shading
 
 
 def _spec(width, height, device, shading, depth, shadow_samples, options) -> tuple:
@@ -547,9 +245,7 @@ def render(
     width: int = 800,
     height: int = 600,
     device: str = "cpu",
-    shading: str = "thesis",
-    depth: int | None = None,
-    shadow_samples: int | None = None,
+    shading: str | ShadingOptions = "thesis",
     rows: int | None = None,
     shared: bool = True,
     **options,
@@ -558,7 +254,8 @@ def render(
     bands of `rows` rows (default: tile_rows()), dealt to the workers in
     turn (Dask may move a band to an idle worker) and assembled here, bit
     for bit the frame one process traces on the same device: "cpu" or
-    "cuda" (the devices that trace rows).
+    "cuda" (the devices that trace rows). shading: a ShadingOptions, or
+    a shading's name alone.
 
     shared (default): the frame is made in shared memory (raybench.cluster.sharedframe),
     and a worker on this host writes its rows into it, so that they do not
@@ -576,7 +273,8 @@ def render(
 
     if camera is not None and not isinstance(camera, Camera):
         raise RaybenchError(f"camera: must be a raybench.Camera or None, got {type(camera).__name__}")
-    spec = _spec(width, height, device, shading, depth, shadow_samples, options)
+    shading = _shading(shading, options)
+    spec = _spec(width, height, device, shading.shading, shading.depth, shading.shadow_samples, options)
     width, height = spec[0], spec[1]
     session = _session(client)
     found = session.workers(client, device, options)
@@ -709,18 +407,16 @@ def render_sequence(
     width: int = 800,
     height: int = 600,
     device: str = "auto",
-    shading: str = "thesis",
-    depth: int | None = None,
-    shadow_samples: int | None = None,
-    frames_per_task: int | None = None,
-    on_frame: Callable[[int, Path], None] | None = None,
-    png_level: int = PNG_LEVEL,
+    shading: str | ShadingOptions = "thesis",
+    sequence_options: SequenceOptions | None = None,
     **options,
 ) -> list[Path]:
     """One PNG a camera, out_dir/frame_00000.png on, traced across the
     cluster's workers in tasks of frames_per_task frames, encoded there at
     zlib's png_level (default render.PNG_LEVEL) and each written here,
-    atomically, as it arrives. A frame already on disk is not traced
+    atomically, as it arrives (frames_per_task, png_level and on_frame: the
+    SequenceOptions given, else its defaults; shading: a ShadingOptions, or
+    a shading's name alone). A frame already on disk is not traced
     again (an interrupted sequence resumes), once raybench.sequence.prepare
     has found the folder to hold nothing but frames of this sequence (one
     line, before any work, otherwise); on_frame(number, path) is called for
@@ -732,6 +428,14 @@ def render_sequence(
     from ..files import write_atomic
     from ..render import check_png_level
 
+    shading = _shading(shading, options)
+    for misplaced in ("frames_per_task", "on_frame", "png_level"):
+        if misplaced in options:
+            raise RaybenchError(f"{misplaced}: give it in sequence_options=cluster.SequenceOptions(...)")
+    if sequence_options is None:
+        sequence_options = SequenceOptions()
+    frames_per_task, on_frame = sequence_options.frames_per_task, sequence_options.on_frame
+    png_level = sequence_options.png_level
     check_png_level(png_level)
     cameras = list(cameras)
     for i, camera in enumerate(cameras):
@@ -740,8 +444,8 @@ def render_sequence(
     out_dir = Path(out_dir)
     if not out_dir.is_dir():
         raise RaybenchError(f"{out_dir}: not a folder; make it first")
-    spec = _spec(width, height, device, shading, depth, shadow_samples, options)
-    marker = sequence.identity(scene, cameras, spec[0], spec[1], shading, depth, shadow_samples)
+    spec = _spec(width, height, device, shading.shading, shading.depth, shading.shadow_samples, options)
+    marker = sequence.identity(scene, cameras, spec[0], spec[1], shading.shading, shading.depth, shading.shadow_samples)
     missing = set(sequence.prepare(out_dir, marker))
     found = check_workers(client, device, **options)
     spec = (spec[0], spec[1], next(iter(found.values())), *spec[3:])

@@ -7,8 +7,8 @@ from __future__ import annotations
 import io
 import math
 
-from .data import DEVICE_NAMES
 from .numbers import fmt_ms, fmt_r2, fmt_x
+from .series import DEVICE_NAMES
 from .verdicts import THESIS_SPEEDUP
 
 

@@ -18,7 +18,7 @@ import json
 import jinja2
 
 from .. import headline
-from .data import machine_of, speedups, thesis_series
+from .series import machine_of, speedups, thesis_series
 from .verdicts import CLAIMS, RULES, verdicts, with_reference_gpus
 
 _ENV = jinja2.Environment(

@@ -6,7 +6,8 @@ from __future__ import annotations
 import math
 import statistics
 
-from .data import (
+from .numbers import fmt_ms, fmt_num, fmt_r2, fmt_x
+from .series import (
     DEVICE_NAMES,
     constant_vs_runtime,
     cpu_tuning,
@@ -18,7 +19,6 @@ from .data import (
     theoretical_ratio,
     thesis_series,
 )
-from .numbers import fmt_ms, fmt_num, fmt_r2, fmt_x
 
 HOLDS, FAILS, NOT_MEASURED = "holds", "does not hold", "not measured"
 
@@ -301,7 +301,7 @@ def with_reference_gpus(machines: dict[str, list[dict]], references: list[dict])
     machine, the GPU always named as another's. One dict a pair: label, ref
     (the reference's label), gpu (its name), commit, date, judged (verdicts())."""
     from .. import headline
-    from .data import accel_of, kernel_of
+    from .records import accel_of, kernel_of
 
     by_ref: dict[str, list[dict]] = {}
     for r in references:

@@ -1,0 +1,231 @@
+"""A Dask client and the cluster it talks to: an embedded one, started here,
+or one joined by its scheduler's address.
+
+- A worker owns one device: an embedded cluster starts one worker process
+  per GPU, each pinned to its GPU by CUDA_VISIBLE_DEVICES, or with no GPU N
+  processes that share the cores (each traces on cores // N threads). Every
+  embedded process listens on 127.0.0.1 only, and only over TLS with a key
+  made for this cluster and held in memory (Dask's Security.temporary()):
+  whoever can reach a Dask port can run code there, so no other process,
+  another user's least of all, gets in. A scheduler's address (scheduler=,
+  or RAYBENCH_SCHEDULER) joins a cluster started elsewhere, trusted with
+  code execution in this process (Dask sends pickles both ways); tls://
+  addresses take the CA, certificate and key given, or Dask's config.
+
+Why the embedded workers differ from Dask's defaults (docs/scaling.md has
+the measurements): a Nanny's worker gets MALLOC_TRIM_THRESHOLD_=65536 in its
+environment, which makes glibc map and fault in afresh every frame-sized
+allocation (several times slower copies of a frame); and a Nanny's default
+thread count is every core, which runs several tasks at once on one device.
+raybench's workers take one task at a time, without that variable.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import threading
+
+from ..backends.limits import check_connect_timeout, check_worker_count
+from ..errors import RaybenchError
+from ..host import usable_cores
+from .work import release
+
+HOST = "127.0.0.1"  # every process of an embedded cluster listens here only
+SCHEDULER_ENV = "RAYBENCH_SCHEDULER"
+# How long to try a scheduler's address before saying it is unreachable.
+CONNECT_TIMEOUT_S = 10.0
+# What an embedded cluster's Dask logs to the terminal (the nannies set it in this process too):
+# critical failures only. What it logs as errors (a lost worker's scattered scene, the tasks
+# forgotten with it; a restarted worker's warnings) raybench handles, or says in one line.
+DASK_LOGS = logging.CRITICAL
+
+
+def gpu_count() -> int:
+    """NVIDIA GPUs this process can use (0 under numba's simulator)."""
+    from .. import backends
+
+    if not backends.cuda_available():
+        return 0
+    from numba import cuda
+
+    return len(cuda.gpus)
+
+
+def worker_specs(device: str, workers: int, security=None) -> dict:
+    """The SpecCluster worker specs of an embedded cluster: `workers` Nanny
+    processes on 127.0.0.1, one task at a time each; on cuda each pinned to
+    one GPU, on the cpu each given its share of the cores. security (a
+    distributed Security): their connections' (tls:// where it holds keys)."""
+    from distributed import Nanny
+
+    try:
+        import psutil
+
+        memory = psutil.virtual_memory().total // workers
+    except ImportError:  # psutil is a dependency; without it Dask picks
+        memory = "auto"
+    specs = {}
+    # the GPUs this process may use, in its own numbering: a worker pins one of them
+    visible = [g.strip() for g in os.environ.get("CUDA_VISIBLE_DEVICES", "").split(",") if g.strip()]
+    for i in range(workers):
+        if device == "cuda":
+            env = {"CUDA_VISIBLE_DEVICES": visible[i] if i < len(visible) else str(i)}
+        else:
+            env = {"NUMBA_NUM_THREADS": str(max(1, usable_cores() // workers))}
+        for key in ("RAYBENCH_CACHE_DIR", "NUMBA_ENABLE_CUDASIM"):  # the compiled kernels' cache, and the simulator
+            if key in os.environ:
+                env[key] = os.environ[key]
+        specs[f"{device}-{i}"] = {
+            "cls": Nanny,
+            "options": {
+                "nthreads": 1,
+                "host": HOST,
+                "protocol": _protocol(security),
+                "security": security,
+                "dashboard_address": f"{HOST}:0",  # Dask's HTTP server (health, metrics) is always started
+                "env": env,
+                "preload": [__name__],  # dask_setup: Ctrl-C is the client's to handle
+                "memory_limit": memory,
+                "silence_logs": DASK_LOGS,
+            },
+        }
+    return specs
+
+
+def _protocol(security) -> str:
+    return "tls" if security is not None and security.require_encryption else "tcp"
+
+
+def embedded_security():
+    """The credentials of a new embedded cluster: a self-signed key and
+    certificate made now, in memory, that every process of the cluster and
+    its client present to each other (mutual TLS): a process without them is
+    refused. Dask passes them to the workers it starts through their
+    nannies' pipes; they are on no disk but for the moment each process
+    loads them (distributed.security, a private temporary folder)."""
+    from distributed.security import Security
+
+    return Security.temporary()
+
+
+def dask_setup(worker) -> None:
+    """Dask's hook as each embedded worker starts (worker_specs preloads this
+    module there): Ctrl-C at a terminal reaches the whole process group, and
+    each worker printed its own KeyboardInterrupt's tracebacks; the client
+    handles it and ends the cluster, workers included, so they ignore it."""
+    import signal
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def default_workers(device: str) -> int:
+    return max(1, gpu_count()) if device == "cuda" else 1
+
+
+class Cluster:
+    """A Dask client and, unless it joined one by address, the embedded
+    cluster it talks to; a `with` block closes both (the embedded workers'
+    processes end with it).
+
+        with raybench.cluster.Cluster(workers=2, device="cpu") as cluster:
+            frame = raybench.cluster.render(cluster.client, scene, width=1680, height=1050, device="cpu")
+
+    device picks the embedded workers' kind ("auto": one per GPU where
+    there is one, else the CPU); scheduler (default: RAYBENCH_SCHEDULER)
+    joins an existing cluster, tried for timeout seconds. security (a
+    distributed.security.Security): an embedded cluster's connections, by
+    default TLS with credentials made for it alone (embedded_security();
+    Security() gives plain TCP, which any local process can join); a joined
+    one's, by default Dask's config (distributed.comm.tls)."""
+
+    def __init__(
+        self,
+        workers: int | None = None,
+        device: str = "auto",
+        scheduler: str | None = None,
+        timeout: float = CONNECT_TIMEOUT_S,
+        security=None,
+    ):
+        import dask
+        from distributed import Client, Scheduler, SpecCluster
+
+        from .. import backends
+
+        scheduler = scheduler or os.environ.get(SCHEDULER_ENV) or None
+        timeout = check_connect_timeout(timeout)
+        self.cluster = None
+        if scheduler is not None:
+            if workers is not None:
+                raise RaybenchError("workers: a joined cluster has its own; give workers or a scheduler, not both")
+            self.client = connect(scheduler, timeout, security)
+            return
+        device = backends.resolve(device)
+        if device == "wgpu":
+            raise RaybenchError("device wgpu: the cluster runs cpu or cuda workers")
+        if workers is None:
+            workers = default_workers(device)
+        workers = check_worker_count(workers)
+        if device == "cuda" and not backends.module("cuda").simulated() and workers > gpu_count():
+            raise RaybenchError(f"workers: {workers} cuda workers need {workers} GPUs; this machine has {gpu_count()}")
+        # Dask's default sets MALLOC_TRIM_THRESHOLD_ in a worker's environment;
+        # raybench's workers go without it (the module's docstring says why).
+        environ = dict(dask.config.get("distributed.nanny.pre-spawn-environ"))
+        environ.pop("MALLOC_TRIM_THRESHOLD_", None)
+        if security is None:
+            security = embedded_security()
+        scheduler_options = {"host": HOST, "port": 0, "dashboard_address": f"{HOST}:0",
+                             "protocol": _protocol(security), "security": security}  # fmt: skip
+        with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}):
+            self.cluster = SpecCluster(
+                scheduler={"cls": Scheduler, "options": scheduler_options},
+                workers=worker_specs(device, workers, security),
+                security=security,
+                silence_logs=DASK_LOGS,
+            )
+        try:
+            self.client = Client(self.cluster)
+        except BaseException:
+            self.cluster.close()
+            raise
+
+    @property
+    def workers(self) -> int:
+        return len(self.client.scheduler_info(n_workers=-1)["workers"])
+
+    def close(self) -> None:
+        # an embedded cluster's workers end with it, their mappings too: asked only when joined
+        release(self.client, workers=self.cluster is None)
+        self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+            self.cluster = None
+
+    def __enter__(self) -> Cluster:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def connect(address: str, timeout: float = CONNECT_TIMEOUT_S, security=None):
+    """A Client of the scheduler at address, or one line saying it was not
+    reached within timeout seconds. security: a distributed Security (for
+    tls:// addresses), by default Dask's config."""
+    from distributed import Client
+    from distributed.security import Security
+
+    timeout = check_connect_timeout(timeout)
+    if security is None:
+        security = Security()  # Dask's config (distributed.comm.tls), as Client would read it
+    if address.startswith("tls://") and not (security.tls_ca_file and security.tls_client_cert):
+        raise RaybenchError(
+            f"scheduler {address}: a tls:// address needs this client's TLS credentials: give --tls-ca, "
+            "--tls-cert and --tls-key (Cluster(security=...)), or set Dask's distributed.comm.tls config"
+        )
+    try:
+        return Client(address, timeout=timeout, security=security)
+    except (OSError, TimeoutError, ValueError) as exc:
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        raise RaybenchError(f"scheduler {address}: unreachable within {timeout:g} s ({reason})") from None
