@@ -68,6 +68,7 @@ from dataclasses import dataclass, field
 from ..backends.options import BUILDS, FAST_MAX_THREADS
 from ..errors import RaybenchError
 from ..host import usable_cores
+from ..scene import RAMP
 
 SUITES = ("thesis", "constant-vs-runtime", "tuning", "scaling", "secondary", "multi-gpu", "dynamic")
 ACCELS = ("bvh", "none")
@@ -78,7 +79,6 @@ TUNING_SPHERES = 1000
 BLOCKS = ((2, 2), (4, 4), (8, 8), (16, 16), (32, 32), (32, 8), (8, 32), (64, 4), (128, 2), (256, 1))
 CONSTANT_COUNTS = (100, 250, 500, 1000)
 RAMP_SIZE = (800, 600)
-RAMP = (10, 1000, 10)  # first, last, step: the thesis's test 7
 # Half-decades from 10 to 1,000,000 spheres, at the largest thesis size, and
 # the 1,000,000 spheres at 1920x1080.
 SCALING_COUNTS = (10, 30, 100, 300, 1000, 3000, 10_000, 30_000, 100_000, 300_000, 1_000_000)
