@@ -79,6 +79,7 @@ from pathlib import Path
 from ..backends.limits import MAX_SIDE
 from ..errors import RaybenchError, shown
 from ..files import Appended, check_nesting, check_writable, parse, read_text
+from .suites import CAPPED, RECORDS
 
 FORMAT = "raybench-results"
 VERSION = 1
@@ -492,7 +493,7 @@ RUN = _compile(
         "machine": MACHINE,
     }
 )
-SUITES = ("thesis", "test7", "constant-vs-runtime", "tuning", "scaling", "secondary", "multi-gpu", "dynamic")
+SUITES = RECORDS  # every registered suite's record suites (suites.REGISTRY)
 DEVICES = ("cpu", "cuda", "wgpu")
 POINT = _compile(
     {
@@ -576,8 +577,8 @@ def check_record(record: dict, where: str, runs: list | None = None) -> None:
             return
         if "skipped" in record:
             SKIPPED(record)
-            if record["suite"] not in ("scaling", "secondary"):
-                raise _Bad("absent outside the scaling and secondary suites", record["skipped"]).at("skipped")
+            if record["suite"] not in CAPPED:
+                raise _Bad(f"absent outside the {' and '.join(CAPPED)} suites", record["skipped"]).at("skipped")
             return
         MEASURED(record)
         if record["suite"] == "test7":
@@ -616,7 +617,7 @@ def schema() -> dict:
     The two rules JSON Schema cannot state: a test-7 series' lists are equally
     long, and a record's version is the one this raybench reads."""
     measured = {"allOf": [MEASURED.json, {"if": {"properties": {"suite": {"const": "test7"}}}, "then": SERIES.json}]}
-    skipped = {"allOf": [SKIPPED.json, {"properties": {"suite": {"enum": ["scaling", "secondary"]}}}]}
+    skipped = {"allOf": [SKIPPED.json, {"properties": {"suite": {"enum": list(CAPPED)}}}]}
     return {
         "$schema": "https://json-schema.org/draft/2020-12/schema",
         "$id": f"https://raybench.invalid/schema/results-v{VERSION}.json",

@@ -15,6 +15,7 @@ from ...errors import RaybenchError
 from ...files import folder_atomic, write_atomic
 from ...kernels.whitted import KINDS
 from .. import headline
+from ..suites import REGISTRY
 from . import charts, html
 from .data import (
     DEVICE_NAMES,
@@ -748,10 +749,9 @@ def write_report(paths: list, out_dir, references: bool = True) -> Path:
         raise RaybenchError(f"{out_dir}: is a file, not a folder for the report")
     sources: list = []
     machines, notes = load(paths, sources)
-    # the scaling, secondary, multi-gpu and dynamic suites are no part of the thesis's claims: each its own section
-    beyond: dict[str, dict[str, list[dict]]] = {
-        "scaling": {}, "secondary": {}, "multi-gpu": {}, "dynamic": {}, "parts": {},
-    }  # fmt: skip
+    # the suites with a section of their own (suites.Suite.section) are no part of the thesis's claims, nor are parts
+    beyond: dict[str, dict[str, list[dict]]] = {r: {} for s in REGISTRY if s.section for r in s.writes}
+    beyond["parts"] = {}
     for records in machines.values():
         for r in records:
             if r["suite"] in beyond:
