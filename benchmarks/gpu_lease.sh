@@ -28,19 +28,12 @@
 #   viewer   benchmarks/viewer_frames.py: the viewer's Whitted frames a second with no window (its own
 #            draws into an offscreen texture; no present), at 1,000 and 10,000 spheres, its records in
 #            viewer.jsonl (VIEWER_ARGS to change)
-#   readback benchmarks/wgpu_readback.py: a wgpu frame's readback, step by step (READBACK_ARGS to change)
 #   warmup   raybench warmup on cuda (its BVH builder included): the kernels into the disk cache, which
 #            every later process (a cluster's workers among them) loads
-#   overhead benchmarks/dask_overhead.py: a frame's time in a Dask worker against a
-#            plain process (OVERHEAD_ARGS to change)
 #   multigpu benchmarks/multi_gpu.py: 1 and 2 cuda workers of raybench.cluster on a
 #            240-frame orbit at 1680x1050, an 8192x8192 frame in tiles, both at 100,000
 #            spheres, and the scaling model's terms (MULTIGPU_ARGS to change); needs the
 #            Dask wheels in .whl (benchmarks/dask_wheels.sh) and the machine kind nvidia-h200-x2
-#   shmpages benchmarks/shm_pages.py: an 8192x8192 frame's shared block made each way, and
-#            the copies once resident, on this host (no GPU used; SHMPAGES_ARGS to change)
-#   pnglevels benchmarks/png_levels.py: a 1680x1050 frame's PNG encode time and size at each zlib
-#            level (traced on cuda; PNGLEVELS_ARGS to change)
 #   multibench raybench bench --suite multi-gpu on cuda: the same throughput as results
 #            records, for raybench report's section across workers
 #   dynamic  the dynamic suite: moving spheres, the tree's update and the frame, cuda (both builds),
@@ -54,6 +47,12 @@
 #   wgpubuild benchmarks/wgpu_build.py: the same BVH built in WGSL through wgpu (build by step,
 #            refit, SAH cost, the walk on both trees), its records in wgpu-build.json
 #            (WGPUBUILD_ARGS to change)
+#
+# An archived script (benchmarks/archive/, its README) has no step: STEPS="" installs the wheels into
+# /tmp/site, then run it by hand with benchmarks/ on PYTHONPATH for _harness, e.g.
+#   RAYBENCH_GIT_COMMIT=<commit> STEPS="" bash benchmarks/gpu_lease.sh &&
+#       RAYBENCH_GIT_COMMIT=<commit> PYTHONPATH=/tmp/site:$PWD/src:$PWD/benchmarks \
+#       python3 benchmarks/archive/wgpu_readback.py
 #
 # Carries .whl (NumPy 2.4: the machine's 2.5 breaks numba 0.68.0; wgpu, cffi,
 # pycparser, rendercanvas, glfw) and .gl (the Vulkan and GL loaders as Debian
@@ -165,25 +164,11 @@ for s in $STEPS; do
         # shellcheck disable=SC2086
         step viewer "${VIEWER_S:-300}" python3 benchmarks/viewer_frames.py --out "$W/viewer.jsonl" \
             ${VIEWER_ARGS:---device cuda --device wgpu --spheres 1000 --spheres 10000 --size 1680x1050} ;;
-    readback)
-        # shellcheck disable=SC2086
-        step readback "${READBACK_S:-120}" python3 benchmarks/wgpu_readback.py ${READBACK_ARGS:-} ;;
     warmup) step warmup "${WARMUP_S:-300}" python3 -m raybench warmup --device cuda ;;
-    overhead)
-        # shellcheck disable=SC2086
-        step overhead "${OVERHEAD_S:-300}" python3 benchmarks/dask_overhead.py --out "$W/dask_overhead.jsonl" \
-            ${OVERHEAD_ARGS:---device cuda --size 1680x1050 --spheres 100000 --frames 60} ;;
     multigpu)
         # shellcheck disable=SC2086
         step multigpu "${MULTIGPU_S:-420}" python3 benchmarks/multi_gpu.py --out "$W/multi_gpu.jsonl" \
             ${MULTIGPU_ARGS:---device cuda --workers 1 --workers 2 --spheres 100000 --orbit 240 --orbit-size 1680x1050 --frame 8192x8192} ;;
-    shmpages)
-        # shellcheck disable=SC2086
-        step shmpages "${SHMPAGES_S:-180}" python3 benchmarks/shm_pages.py ${SHMPAGES_ARGS:---frame 8192x8192 --frames 3} ;;
-    pnglevels)
-        # shellcheck disable=SC2086
-        step pnglevels "${PNGLEVELS_S:-300}" python3 benchmarks/png_levels.py \
-            ${PNGLEVELS_ARGS:---device cuda --spheres 100000 --size 1680x1050 --rounds 7} ;;
     multibench) bench multibench "${MULTIBENCH_S:-400}" --suite multi-gpu --device cuda --accel bvh ;;
     # shellcheck disable=SC2086
     dynamic) bench dynamic "${DYNAMIC_S:-300}" ${DYNAMIC_ARGS:---suite dynamic --device cuda --device cpu --device wgpu} ;;

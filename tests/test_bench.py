@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from raybench import RaybenchError
-from raybench.bench import report, results, runner, stats, suites
+from raybench.bench import report, results, results_schema, runner, stats, suites
 from raybench.bench.results import ResultsWriter
 from raybench.cli import run
 
@@ -275,6 +275,39 @@ def test_bench_bad_input(tmp_path, capsys, args, needle):
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and needle in err and "Traceback" not in err, err
     assert not (tmp_path / "r").exists()
+
+
+def test_a_suite_is_declared_once_in_the_registry(tmp_path, capsys, monkeypatch):
+    """suites.REGISTRY is the one place a suite is named: bench --suite's choices and
+    help, --suite all, the runner's dispatch, the record suites the schema takes and the
+    report's sections are all read from it."""
+    names = [s.name for s in suites.REGISTRY]
+    assert list(suites.SUITES) == names and len(set(names)) == len(names)
+    writes = [r for s in suites.REGISTRY for r in s.writes]
+    assert list(results_schema.SUITES) == writes and len(set(writes)) == len(writes)
+    assert list(suites.CAPPED) == [r for s in suites.REGISTRY if s.capped for r in s.writes]
+    # each suite's points are its own records, timed in a way the runner knows
+    for s in suites.REGISTRY:
+        mine = suites.points([s.name], ["cpu", "cuda"], quick=True, cores=2, accels=suites.ACCELS, gpus=2)
+        assert mine and {p.suite for p in mine} <= set(s.writes), s.name
+        assert all(suites.owner(p.suite) is s for p in mine) and s.measure in ("frame", "dynamic", "workers")
+    # the CLI: its help names every suite, an unknown one is refused with the registry's
+    # names, and --suite all asks the runner for every one of them, in the registry's order
+    from raybench.cli.bench import bench as command
+
+    (option,) = [p for p in command.params if p.name == "suites"]
+    assert all(s.help.startswith(s.name) and s.help in option.help for s in suites.REGISTRY)
+    assert run(["bench", "--suite", "thesys", "--out", str(tmp_path / "r")]) == 2
+    assert f"choose from {', '.join(names)} or all" in capsys.readouterr().err
+    asked = []
+
+    def plan(settings, label):
+        asked.append(settings["suites"])
+        raise RaybenchError("planned")
+
+    monkeypatch.setattr(runner, "plan", plan)
+    assert run(["bench", "--suite", "all", "--device", "cpu", "--out", str(tmp_path / "r")]) == 2
+    assert asked == [names] and "planned" in capsys.readouterr().err
 
 
 def test_report_bad_input(tmp_path, capsys):

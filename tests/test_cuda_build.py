@@ -59,7 +59,7 @@ def test_gpu_tree_is_valid(rng, kind):
 
 @pytest.mark.parametrize("kind", ["generated", "overlapping", "one_point", "duplicates", "line"])
 def test_model_gives_the_kernels_tree(rng, kind):
-    """raybench.bvh.lbvh_model, with which benchmarks/gpu_tree_model.py
+    """raybench.bvh.lbvh_model, with which benchmarks/archive/gpu_tree_model.py
     measures the GPU trees' SAH cost at sizes the simulator cannot build,
     gives the kernels' tree: every row
     (collapsed ones too), the order, the depth, the rows reached and the

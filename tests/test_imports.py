@@ -108,3 +108,21 @@ def test_the_cycle_check_finds_a_cycle(tmp_path):
     assert cycles(imports(pkg)) == [["pkg.a", "pkg.b", "pkg.d", "pkg.sub.c"]]
     (pkg / "d.py").write_text("from . import f\n")  # d -> pkg (its __init__) -> a -> b -> c -> d
     assert cycles(imports(pkg)) == [["pkg", "pkg.a", "pkg.b", "pkg.d", "pkg.sub.c"]]
+
+
+def reached(graph: dict[str, set[str]], start: str) -> set[str]:
+    """Every module that the modules under start import, directly or through others."""
+    seen, todo = set(), [m for m in graph if m == start or m.startswith(start + ".")]
+    while todo:
+        for child in graph[todo.pop()] - seen:
+            seen.add(child)
+            todo.append(child)
+    return seen
+
+
+def test_the_viewer_imports_no_benchmark_code():
+    """The viewer is a sink beside the bench, not above it: what both need (the
+    ramp of test 7) lives in the public model below them."""
+    found = reached(imports(PACKAGE), "raybench.viewer")
+    assert "raybench.scene" in found  # the graph was read
+    assert sorted(m for m in found if m.split(".")[:2] in (["raybench", "bench"], ["raybench", "cli"])) == []

@@ -17,10 +17,10 @@ import pytest
 import raybench
 from raybench import Camera, Light, Scene, cli, random_spheres, viewer
 from raybench.backends import cuda as cuda_backend
-from raybench.bench.suites import RAMP
 from raybench.cli import run
 from raybench.kernels.whitted import KINDS, P_LIGHTS
 from raybench.lighting import Shading
+from raybench.scene import RAMP
 from raybench.viewer import bindings, controls, overlay
 from raybench.viewer.pacing import FrameStats, Handoff
 from raybench.viewer.shading import LIGHT_STEP_S, ShadingControl

@@ -34,6 +34,10 @@ ASPECT = 16 / 10
 # Peak bytes per sphere while random_spheres works (measured: 224 MB for 1,000,000).
 GENERATE_BYTES = 256
 COVERAGE = 2.0
+# The thesis's test 7, a scene that grows every frame: random_spheres(last,
+# seed) traced from `first` spheres, `step` more a frame (first, last, step).
+# The benchmark's ramp and the viewer's both take it from here.
+RAMP = (10, 1000, 10)
 
 _TOP_KEYS = {"format", "version", "spheres", "camera"}
 _SPHERE_KEYS = {"center", "radius", "color"}

@@ -11,6 +11,7 @@ from collections.abc import Callable
 
 from ..cluster.tasks import task_lock
 from ..errors import RaybenchError, one_line
+from . import suites
 
 
 def machine_key(worker: dict) -> str:
@@ -101,8 +102,11 @@ def bench(
     from distributed import TimeoutError as DaskTimeout
     from distributed import as_completed
 
-    if "multi-gpu" in settings["suites"]:
-        raise RaybenchError("--suite multi-gpu: starts its own workers; run it on one machine, without --scheduler")
+    for name in settings["suites"]:
+        if suites.suite(name).one_machine:
+            raise RaybenchError(
+                f"--suite {name}: {suites.suite(name).one_machine}; run it on one machine, without --scheduler"
+            )
     chosen = bench_workers(client)
     try:
         answers = client.run(

@@ -80,6 +80,7 @@ from ..files import Appended, check_nesting, check_writable, parse, read_text
 from .results_schema import MAX_NUMBER as MAX_NUMBER  # cli.bench imports it from here
 from .results_schema import MEASURED, PART, PLAIN, POINT, RUN, SERIES, SKIPPED, _Bad, _name, _object_of, _plain
 from .results_schema import NAME as NAME  # benchmarks/_harness.py reads it from here
+from .suites import CAPPED
 
 FORMAT = "raybench-results"
 VERSION = 1
@@ -213,8 +214,8 @@ def check_record(record: dict, where: str, runs: list | None = None) -> None:
             return
         if "skipped" in record:
             SKIPPED(record)
-            if record["suite"] not in ("scaling", "secondary"):
-                raise _Bad("absent outside the scaling and secondary suites", record["skipped"]).at("skipped")
+            if record["suite"] not in CAPPED:
+                raise _Bad(f"absent outside the {' and '.join(CAPPED)} suites", record["skipped"]).at("skipped")
             return
         MEASURED(record)
         if record["suite"] == "test7":
@@ -253,7 +254,7 @@ def schema() -> dict:
     The two rules JSON Schema cannot state: a test-7 series' lists are equally
     long, and a record's version is the one this raybench reads."""
     measured = {"allOf": [MEASURED.json, {"if": {"properties": {"suite": {"const": "test7"}}}, "then": SERIES.json}]}
-    skipped = {"allOf": [SKIPPED.json, {"properties": {"suite": {"enum": ["scaling", "secondary"]}}}]}
+    skipped = {"allOf": [SKIPPED.json, {"properties": {"suite": {"enum": list(CAPPED)}}}]}
     return {
         "$schema": "https://json-schema.org/draft/2020-12/schema",
         "$id": f"https://raybench.invalid/schema/results-v{VERSION}.json",

@@ -8,6 +8,7 @@ from __future__ import annotations
 import re
 
 from ..backends.limits import MAX_SIDE
+from .suites import RECORDS
 
 # Every number a record holds is a count, a time or a rate far below this:
 # larger ones are hand-edited, and would overflow the report's sums and fits.
@@ -312,7 +313,7 @@ RUN = _compile(
         "machine": MACHINE,
     }
 )
-SUITES = ("thesis", "test7", "constant-vs-runtime", "tuning", "scaling", "secondary", "multi-gpu", "dynamic")
+SUITES = RECORDS  # every registered suite's record suites (suites.REGISTRY)
 DEVICES = ("cpu", "cuda", "wgpu")
 POINT = _compile(
     {

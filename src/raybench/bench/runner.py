@@ -317,6 +317,17 @@ def plan(settings: dict, label: str | None = None, argv: list[str] | None = None
     return points, info
 
 
+def _timed(point: Point, scenes: Scenes, duration: float, clusters: multi.Clusters) -> dict:
+    """A point's record, timed the way its suite declares (suites.Suite.measure)."""
+    how = suites.owner(point.suite).measure
+    if how == "workers":  # the multi-gpu suite's: a cluster kept open from one point to the next
+        return multi.measure(point, scenes, duration, clusters)
+    clusters.close()
+    # looked up at each call, not bound once: a test may stand in for either
+    timed = {"frame": measure, "dynamic": measure_dynamic}[how]
+    return timed(point, scenes, duration)
+
+
 class Records:
     """A writer that keeps the records in a list: a cluster worker's run
     (raybench.bench.machines.bench), sent back whole when it ends."""
@@ -362,11 +373,7 @@ def run(
                 writer.write({**skipped(point, guess, cap_s), "run": run})
             else:
                 try:
-                    if point.suite == "multi-gpu":
-                        record = multi.measure(point, scenes, duration, clusters)
-                    else:
-                        clusters.close()
-                        record = (measure_dynamic if point.suite == "dynamic" else measure)(point, scenes, duration)
+                    record = _timed(point, scenes, duration, clusters)
                 except BaseException:
                     clusters.close()
                     raise

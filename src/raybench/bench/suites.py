@@ -59,17 +59,26 @@ wgpu once per build (both by default, or those --build names).
 `--suite all` includes the secondary suite: all means every suite, and the cap keeps the
 suite's brute force within minutes a point, as the scaling suite's keeps
 its own; what a 2-core machine spends on it is mostly its BVH frames.
+
+Each suite is declared once, as a Suite in REGISTRY (at the end): its name
+and help, the function that makes its points from a Plan, and what the
+runner, the results' schema and the report read of it. `bench --suite`'s
+choices, `--suite all`, the runner's dispatch, the record suites that
+results.check_record takes and the report's sections all come from there,
+so a new suite is one Suite and its entry in REGISTRY (and, if its frames
+are timed in a new way, that way in runner._timed).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from ..backends.options import BUILDS, FAST_MAX_THREADS
 from ..errors import RaybenchError
 from ..host import usable_cores
+from ..scene import RAMP
 
-SUITES = ("thesis", "constant-vs-runtime", "tuning", "scaling", "secondary", "multi-gpu", "dynamic")
 ACCELS = ("bvh", "none")
 THESIS_SIZES = ((800, 600), (1280, 800), (1680, 1050))
 THESIS_COUNTS = tuple(range(100, 1001, 100))
@@ -78,7 +87,6 @@ TUNING_SPHERES = 1000
 BLOCKS = ((2, 2), (4, 4), (8, 8), (16, 16), (32, 32), (32, 8), (8, 32), (64, 4), (128, 2), (256, 1))
 CONSTANT_COUNTS = (100, 250, 500, 1000)
 RAMP_SIZE = (800, 600)
-RAMP = (10, 1000, 10)  # first, last, step: the thesis's test 7
 # Half-decades from 10 to 1,000,000 spheres, at the largest thesis size, and
 # the issue's 1,000,000 spheres at 1920x1080.
 SCALING_COUNTS = (10, 30, 100, 300, 1000, 3000, 10_000, 30_000, 100_000, 300_000, 1_000_000)
@@ -216,6 +224,218 @@ def secondary_shadings() -> list[dict]:
     return [{"shading": "thesis"}, whitted]
 
 
+@dataclass(frozen=True)
+class Plan:
+    """What a suite's points are made from: the devices and ways asked for,
+    and the machine's limits (points() makes it once for every suite)."""
+
+    devices: tuple
+    quick: bool
+    cores: int
+    kernels: tuple
+    accels: tuple
+    wgpu: dict
+    max_invocations: int
+    gpus: int
+    builds: tuple
+    # (options, device) of each way asked for, on each device (_runs)
+    runs: list
+
+
+@dataclass(frozen=True)
+class Suite:
+    """One suite, declared once: what `bench --suite` offers and says of it,
+    the points it measures, and what the runner, the results' schema and the
+    report need to know about its records. Adding a suite is one of these and
+    its name in REGISTRY."""
+
+    name: str
+    # its entry in `bench --suite`'s help
+    help: str
+    points: Callable[[Plan], list[Point]]
+    # the record suites its points write (Point.suite); empty: its own name
+    records: tuple[str, ...] = ()
+    # how the runner times a point: "frame" (runner.measure), "dynamic"
+    # (runner.measure_dynamic: the spheres move), "workers" (bench.multi.measure)
+    measure: str = "frame"
+    # its brute-force points carry cap_s, and one predicted past it is recorded as skipped
+    capped: bool = False
+    # why it runs on one machine only (not across a cluster with --scheduler); empty: it runs anywhere
+    one_machine: str = ""
+    # the report gives it a section of its own, apart from the thesis's claims
+    section: bool = False
+
+    @property
+    def writes(self) -> tuple[str, ...]:
+        return self.records or (self.name,)
+
+
+def _thesis(plan: Plan) -> list[Point]:
+    out = []
+    sizes = THESIS_SIZES[:1] if plan.quick else THESIS_SIZES
+    counts = (100, 500, 1000) if plan.quick else THESIS_COUNTS
+    for way, device in plan.runs:
+        for i, (w, h) in enumerate(sizes):
+            test = (1 if device in GPUS else 4) + i
+            out += [Point("thesis", device, w, h, n, dict(way), test=test) for n in counts]
+    first, last, step = (10, 200, 10) if plan.quick else RAMP
+    ramp = tuple(range(first, last + 1, step))
+    w, h = (320, 240) if plan.quick else RAMP_SIZE
+    # the ramp changes the sphere count every frame: brute force only (a BVH would be rebuilt each frame)
+    out += [
+        Point("test7", device, w, h, ramp[-1], dict(way), test=7, ramp=ramp)
+        for way, device in plan.runs
+        if way["accel"] == "none"
+    ]
+    return out
+
+
+def _constant_vs_runtime(plan: Plan) -> list[Point]:
+    out = []
+    counts = (100, 500) if plan.quick else CONSTANT_COUNTS
+    w, h = (640, 480) if plan.quick else THESIS_SIZES[-1]
+    for device in (d for d in plan.devices if d != "wgpu"):  # wgpu has no compile-time count (yet)
+        for n in counts:
+            for mode in ("constant", "runtime"):
+                # the simple kernel: the only one with a compile-time count
+                options = {"count": mode, "kernel": "simple", "accel": "none"}
+                out.append(Point("constant-vs-runtime", device, w, h, n, options))
+    return out
+
+
+def _tuning(plan: Plan) -> list[Point]:
+    out = []
+    w, h = (640, 480) if plan.quick else TUNING_SIZE
+    n = 300 if plan.quick else TUNING_SPHERES
+    for way, device in plan.runs:
+        if device == "cpu":
+            settings = thread_settings(plan.cores, h)
+            if plan.quick:
+                settings = [s for s in settings if s[0] in ("1 thread", "all cores", "2x cores")]
+            out += [Point("tuning", "cpu", w, h, n, {"threads": t, "label": label, **way}) for label, t in settings]
+            continue
+        blocks = ((8, 8), (16, 16), (32, 32), (32, 8)) if plan.quick else BLOCKS
+        if device == "wgpu":  # the adapter's limit; a driver spills what does not fit in registers
+            blocks = tuple(b for b in blocks if b[0] * b[1] <= plan.max_invocations)
+            out += [
+                Point("tuning", device, w, h, n, {"workgroup": list(b), "label": f"{b[0]}x{b[1]}", **way})
+                for b in blocks
+            ]
+            continue
+        if way.get("kernel", "bvh") in ("fast", "bvh"):  # larger blocks cannot launch (options.FAST_MAX_THREADS)
+            blocks = tuple(b for b in blocks if b[0] * b[1] <= FAST_MAX_THREADS)
+        out += [Point("tuning", device, w, h, n, {"block": list(b), "label": f"{b[0]}x{b[1]}", **way}) for b in blocks]
+    return out
+
+
+def _scaling(plan: Plan) -> list[Point]:
+    out = []
+    counts = QUICK_SCALING_COUNTS if plan.quick else SCALING_COUNTS
+    w, h = QUICK_SCALING_SIZE if plan.quick else SCALING_SIZE
+    cap = QUICK_SCALING_CAP_S if plan.quick else SCALING_CAP_S
+    for way, device in plan.runs:
+        opts = {**way, "cap_s": cap} if way["accel"] == "none" else dict(way)
+        out += [Point("scaling", device, w, h, n, dict(opts)) for n in counts]
+        if not plan.quick:
+            (ew, eh), en = SCALING_EXTRA
+            out.append(Point("scaling", device, ew, eh, en, dict(opts)))
+        if way["accel"] == "bvh":
+            layout_counts = QUICK_SCALING_LAYOUT_COUNTS if plan.quick else SCALING_LAYOUT_COUNTS
+            out += [
+                Point("scaling", device, w, h, n, {**opts, "layout": layout})
+                for layout in SCALING_LAYOUTS
+                for n in layout_counts
+            ]
+    return out
+
+
+def _secondary(plan: Plan) -> list[Point]:
+    # Whitted's brute force is the simple kernel's loop, whatever kernels were
+    # asked for; its thesis-shading twin uses the same loop, so that the two
+    # differ only in the rays they cast
+    ways = [{"accel": "bvh"}] if "bvh" in plan.accels else []
+    ways += [{"kernel": "simple", "accel": "none"}] if "none" in plan.accels else []
+    sizes = QUICK_SECONDARY_SIZES if plan.quick else SECONDARY_SIZES
+    counts = QUICK_SECONDARY_COUNTS if plan.quick else SECONDARY_COUNTS
+    cap = QUICK_SECONDARY_CAP_S if plan.quick else SECONDARY_CAP_S
+    out = []
+    for way, device in _runs(ways, plan.devices, plan.wgpu, plan.builds):
+        capped = {"cap_s": cap} if way["accel"] == "none" else {}
+        for n in counts:
+            for w, h in sizes:
+                out += [Point("secondary", device, w, h, n, {**way, **s, **capped}) for s in secondary_shadings()]
+    return out
+
+
+def _multi_gpu(plan: Plan) -> list[Point]:
+    out = []
+    for device in (d for d in plan.devices if d in MULTI_GPU):  # wgpu has no cluster workers
+        (fw, fh), ((sw, sh), frames), n = QUICK_MULTI_GPU if plan.quick else MULTI_GPU[device]
+        # the BVH: the suite asks how workers scale, not how brute force does
+        own = {"accel": "bvh", **({"threads": 1} if device == "cpu" else {})}
+        for workers in worker_counts(device, plan.cores, plan.gpus):
+            out.append(Point("multi-gpu", device, fw, fh, n, {"workers": workers, "job": "frame", **own}))
+            sequence = {"workers": workers, "job": "sequence", "frames": frames, **own}
+            out.append(Point("multi-gpu", device, sw, sh, n, sequence))
+    return out
+
+
+def _dynamic(plan: Plan) -> list[Point]:
+    counts = QUICK_DYNAMIC_COUNTS if plan.quick else DYNAMIC_COUNTS
+    w, h = QUICK_DYNAMIC_SIZE if plan.quick else DYNAMIC_SIZE
+    out = []
+    for way, device in _runs([{"accel": "bvh"}], plan.devices, plan.wgpu, plan.builds or BUILDS):
+        out += [Point("dynamic", device, w, h, n, {**way, "motion": "orbits"}) for n in counts]
+    return out
+
+
+THESIS = Suite("thesis", "thesis", _thesis, records=("thesis", "test7"))
+CONSTANT_VS_RUNTIME = Suite("constant-vs-runtime", "constant-vs-runtime", _constant_vs_runtime)
+TUNING = Suite("tuning", "tuning", _tuning)
+SCALING = Suite("scaling", "scaling", _scaling, capped=True, section=True)
+SECONDARY = Suite(
+    "secondary", "secondary (Whitted frames: shadows, mirrors, glass)", _secondary, capped=True, section=True
+)
+MULTI_GPU_SUITE = Suite(
+    "multi-gpu",
+    "multi-gpu (1 to N workers of raybench.cluster on this machine)",
+    _multi_gpu,
+    measure="workers",
+    one_machine="starts its own workers",
+    section=True,
+)
+DYNAMIC = Suite(
+    "dynamic",
+    "dynamic (spheres that move every frame: the tree's update and the frame)",
+    _dynamic,
+    measure="dynamic",
+    section=True,
+)
+
+# Every suite, in run order: `bench --suite`'s choices and `--suite all`, the
+# runner's dispatch, the record suites the schema takes and the report's sections.
+REGISTRY = (THESIS, CONSTANT_VS_RUNTIME, TUNING, SCALING, SECONDARY, MULTI_GPU_SUITE, DYNAMIC)
+_BY_NAME = {s.name: s for s in REGISTRY}
+_BY_RECORD = {r: s for s in REGISTRY for r in s.writes}
+SUITES = tuple(_BY_NAME)
+# What a results record's suite may be (results_schema.SUITES adds none): the points' suites.
+RECORDS = tuple(_BY_RECORD)
+# The record suites whose points may be recorded as skipped past a frame-time cap.
+CAPPED = tuple(r for s in REGISTRY if s.capped for r in s.writes)
+
+
+def suite(name: str) -> Suite:
+    """The suite of that name (bench --suite's), or an error naming the choices."""
+    if name not in _BY_NAME:
+        raise RaybenchError(f"suite: unknown suite {name!r}; choose from {', '.join(SUITES)}")
+    return _BY_NAME[name]
+
+
+def owner(record_suite: str) -> Suite:
+    """The suite whose points write records of that suite (test7's: the thesis)."""
+    return _BY_RECORD[record_suite]
+
+
 def points(
     suites,
     devices,
@@ -230,124 +450,26 @@ def points(
 ) -> list[Point]:
     """Every point of the chosen suites on the chosen devices (the thesis,
     tuning and scaling suites once per kernel of brute force, and once more
-    with the BVH if accels holds "bvh"), in run order. wgpu: that device's
-    options ({"adapter": name}); max_invocations: its adapter's workgroup
-    limit, which bounds the tuning suite's shapes; gpus: the machine's GPU
-    count, the multi-gpu suite's largest count of cuda workers. builds: where
-    cuda's BVH points build their trees (_runs)."""
-    for suite in suites:
-        if suite not in SUITES:
-            raise RaybenchError(f"suite: unknown suite {suite!r}; choose from {', '.join(SUITES)}")
+    with the BVH if accels holds "bvh"), in run order: REGISTRY's, whatever
+    the order asked for. wgpu: that device's options ({"adapter": name});
+    max_invocations: its adapter's workgroup limit, which bounds the tuning
+    suite's shapes; gpus: the machine's GPU count, the multi-gpu suite's
+    largest count of cuda workers. builds: where cuda's BVH points build
+    their trees (_runs)."""
+    chosen = {suite(name).name for name in suites}
     for accel in accels:
         if accel not in ACCELS:
             raise RaybenchError(f"accel: unknown accel {accel!r}; choose from {', '.join(ACCELS)}")
-    runs = _runs(variants(kernels, accels), devices, wgpu or {}, builds)
-    cores = cores or usable_cores()
-    out: list[Point] = []
-    if "thesis" in suites:
-        sizes = THESIS_SIZES[:1] if quick else THESIS_SIZES
-        counts = (100, 500, 1000) if quick else THESIS_COUNTS
-        for way, device in runs:
-            for i, (w, h) in enumerate(sizes):
-                test = (1 if device in GPUS else 4) + i
-                out += [Point("thesis", device, w, h, n, dict(way), test=test) for n in counts]
-        first, last, step = (10, 200, 10) if quick else RAMP
-        ramp = tuple(range(first, last + 1, step))
-        w, h = (320, 240) if quick else RAMP_SIZE
-        # the ramp changes the sphere count every frame: brute force only (a BVH would be rebuilt each frame)
-        out += [
-            Point("test7", device, w, h, ramp[-1], dict(way), test=7, ramp=ramp)
-            for way, device in runs
-            if way["accel"] == "none"
-        ]
-    if "constant-vs-runtime" in suites:
-        counts = (100, 500) if quick else CONSTANT_COUNTS
-        w, h = (640, 480) if quick else THESIS_SIZES[-1]
-        for device in (d for d in devices if d != "wgpu"):  # wgpu has no compile-time count (yet)
-            for n in counts:
-                for mode in ("constant", "runtime"):
-                    # the simple kernel: the only one with a compile-time count
-                    out.append(
-                        Point(
-                            "constant-vs-runtime", device, w, h, n, {"count": mode, "kernel": "simple", "accel": "none"}
-                        )
-                    )
-    if "tuning" in suites:
-        w, h = (640, 480) if quick else TUNING_SIZE
-        n = 300 if quick else TUNING_SPHERES
-        for way, device in runs:
-            if device == "cpu":
-                settings = thread_settings(cores, h)
-                if quick:
-                    settings = [s for s in settings if s[0] in ("1 thread", "all cores", "2x cores")]
-                out += [Point("tuning", "cpu", w, h, n, {"threads": t, "label": label, **way}) for label, t in settings]
-            else:
-                blocks = ((8, 8), (16, 16), (32, 32), (32, 8)) if quick else BLOCKS
-                if device == "wgpu":  # the adapter's limit; a driver spills what does not fit in registers
-                    blocks = tuple(b for b in blocks if b[0] * b[1] <= max_invocations)
-                    out += [
-                        Point("tuning", device, w, h, n, {"workgroup": list(b), "label": f"{b[0]}x{b[1]}", **way})
-                        for b in blocks
-                    ]
-                    continue
-                if way.get("kernel", "bvh") in (
-                    "fast",
-                    "bvh",
-                ):  # larger blocks cannot launch (options.FAST_MAX_THREADS)
-                    blocks = tuple(b for b in blocks if b[0] * b[1] <= FAST_MAX_THREADS)
-                out += [
-                    Point("tuning", device, w, h, n, {"block": list(b), "label": f"{b[0]}x{b[1]}", **way})
-                    for b in blocks
-                ]
-    if "scaling" in suites:
-        counts = QUICK_SCALING_COUNTS if quick else SCALING_COUNTS
-        w, h = QUICK_SCALING_SIZE if quick else SCALING_SIZE
-        cap = QUICK_SCALING_CAP_S if quick else SCALING_CAP_S
-        for way, device in runs:
-            opts = {**way, "cap_s": cap} if way["accel"] == "none" else dict(way)
-            out += [Point("scaling", device, w, h, n, dict(opts)) for n in counts]
-            if not quick:
-                (ew, eh), en = SCALING_EXTRA
-                out.append(Point("scaling", device, ew, eh, en, dict(opts)))
-            if way["accel"] == "bvh":
-                layout_counts = QUICK_SCALING_LAYOUT_COUNTS if quick else SCALING_LAYOUT_COUNTS
-                out += [
-                    Point("scaling", device, w, h, n, {**opts, "layout": layout})
-                    for layout in SCALING_LAYOUTS
-                    for n in layout_counts
-                ]
-    if "secondary" in suites:
-        # Whitted's brute force is the simple kernel's loop, whatever kernels were
-        # asked for; its thesis-shading twin uses the same loop, so that the two
-        # differ only in the rays they cast
-        ways = [{"accel": "bvh"}] if "bvh" in accels else []
-        ways += [{"kernel": "simple", "accel": "none"}] if "none" in accels else []
-        sizes = QUICK_SECONDARY_SIZES if quick else SECONDARY_SIZES
-        counts = QUICK_SECONDARY_COUNTS if quick else SECONDARY_COUNTS
-        cap = QUICK_SECONDARY_CAP_S if quick else SECONDARY_CAP_S
-        for way, device in _runs(ways, devices, wgpu or {}, builds):
-            capped = {"cap_s": cap} if way["accel"] == "none" else {}
-            for n in counts:
-                for w, h in sizes:
-                    out += [
-                        Point("secondary", device, w, h, n, {**way, **shading, **capped})
-                        for shading in secondary_shadings()
-                    ]
-    if "multi-gpu" in suites:
-        for device in (d for d in devices if d in MULTI_GPU):  # wgpu has no cluster workers
-            (fw, fh), ((sw, sh), frames), n = QUICK_MULTI_GPU if quick else MULTI_GPU[device]
-            # the BVH: the suite asks how workers scale, not how brute force does
-            own = {"accel": "bvh", **({"threads": 1} if device == "cpu" else {})}
-            for workers in worker_counts(device, cores, gpus):
-                out.append(Point("multi-gpu", device, fw, fh, n, {"workers": workers, "job": "frame", **own}))
-                out.append(
-                    Point(
-                        "multi-gpu", device, sw, sh, n, {"workers": workers, "job": "sequence", "frames": frames, **own}
-                    )
-                )
-    if "dynamic" in suites:
-        counts = QUICK_DYNAMIC_COUNTS if quick else DYNAMIC_COUNTS
-        w, h = QUICK_DYNAMIC_SIZE if quick else DYNAMIC_SIZE
-        for way, device in _runs([{"accel": "bvh"}], devices, wgpu or {}, builds or BUILDS):
-            out += [Point("dynamic", device, w, h, n, {**way, "motion": "orbits"}) for n in counts]
-    return out
+    plan = Plan(
+        devices=tuple(devices),
+        quick=quick,
+        cores=cores or usable_cores(),
+        kernels=tuple(kernels),
+        accels=tuple(accels),
+        wgpu=wgpu or {},
+        max_invocations=max_invocations,
+        gpus=gpus,
+        builds=tuple(builds),
+        runs=_runs(variants(kernels, accels), devices, wgpu or {}, builds),
+    )
+    return [p for s in REGISTRY if s.name in chosen for p in s.points(plan)]

@@ -8,7 +8,7 @@ or spheres where the GPU has a thread each (the leaves in order: each row is
 done once both its children are, and the last leaf reaches the root). Under numba's
 CUDA simulator it gives the kernels' tree bit for bit (tests/test_cuda_build.py
 checks it), as it gives the WGSL port's, backends/wgpu/build.py's, on
-lavapipe (tests/test_wgpu_build.py); benchmarks/gpu_tree_model.py uses it for
+lavapipe (tests/test_wgpu_build.py); benchmarks/archive/gpu_tree_model.py uses it for
 the SAH cost of the GPU's trees at sizes the simulator cannot build (100,000
 and 1,000,000 spheres) on a machine with no GPU. A GPU may fuse
 multiply-adds where the model does not, which can tip a leaf's choice where

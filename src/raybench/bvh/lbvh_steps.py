@@ -23,7 +23,7 @@ from .sah import NODE_COST
 
 # A treelet's pieces. Its programme weighs 3^K / 2 splits a row, in local
 # arrays of 2^K entries (25 bytes each). The model of this build
-# (bvh/lbvh_model.py, benchmarks/gpu_tree_model.py), at 100,000 spheres: SAH
+# (bvh/lbvh_model.py, benchmarks/archive/gpu_tree_model.py), at 100,000 spheres: SAH
 # cost over the host's 1.031 with 6 pieces, 1.026 with 8 (3.6 times the
 # splits); pieces kept in their Morton order instead (an interval programme,
 # no reorder) gave 1.070 whatever their number.

@@ -10,6 +10,7 @@ from pathlib import Path
 import click
 
 from ..backends.options import ACCELS, KERNELS
+from ..bench.suites import CAPPED, REGISTRY
 from ..errors import RaybenchError, device_failure, one_line
 from .options import (
     adapter_option,
@@ -29,9 +30,8 @@ from .options import (
     multiple=True,
     default=("thesis",),
     show_default=True,
-    help="thesis, constant-vs-runtime, tuning, scaling, secondary (Whitted frames: shadows, mirrors, "
-    "glass), dynamic (spheres that move every frame: the tree's update and the frame), or all (every "
-    "one; brute force past a frame-time cap is skipped in scaling and secondary); repeat for several",
+    help=f"{', '.join(s.help for s in REGISTRY)}, or all (every one; brute force past a frame-time cap is "
+    f"skipped in {' and '.join(CAPPED)}); repeat for several",
 )
 @click.option(
     "--device", "devices", multiple=True, help="cpu, cuda or wgpu; repeat for several (default: every device present)"
@@ -118,7 +118,8 @@ def bench(
     scheduler = scheduler or os.environ.get("RAYBENCH_SCHEDULER") or None
     security = scheduler_security(scheduler, tls_ca, tls_cert, tls_key)
     if scheduler is not None and "all" in suites:
-        chosen = tuple(s for s in chosen if s != "multi-gpu")  # it starts workers of its own: one machine's
+        # all, across a cluster: every suite that runs on each machine (a one_machine suite starts its own workers)
+        chosen = tuple(s for s in chosen if not suites_mod.suite(s).one_machine)
     if duration is None:
         duration = 0.5 if quick else 10.0
     if not 0.05 <= duration <= 3600:

@@ -19,8 +19,7 @@ ramp are random_spheres(..., materials=True) too, what `raybench render
 
 from __future__ import annotations
 
-from ..bench.suites import RAMP
-from ..scene import Scene, random_spheres
+from ..scene import RAMP, Scene, random_spheres
 
 STEP = RAMP[2]
 

@@ -3,7 +3,7 @@ with the same arguments.
 
 numba-cuda converts every argument of every launch in Python, some
 microseconds a device array, so a kernel of many arrays costs far more to
-launch than with its arguments converted beforehand (`benchmarks/launch_overhead.py`
+launch than with its arguments converted beforehand (`benchmarks/archive/launch_overhead.py`
 measures it; docs/startup.md#a-launchs-arguments-converted-once-leases-y3-and-y4).
 The GPU builder launches 20 kernels a build, each on the same arrays build
 after build, so below a few hundred thousand spheres the host's conversions
@@ -83,7 +83,7 @@ class Prepared:
 # numba-cuda's own conversion of a launch's arguments (`_Kernel._prepare_args`,
 # numba-cuda 0.30, whose version pyproject.toml pins), read here and nowhere
 # else: the three functions below are what Prepared and
-# benchmarks/launch_overhead.py take apart.
+# benchmarks/archive/launch_overhead.py take apart.
 
 
 def core_stream():

@@ -328,7 +328,7 @@ class Wavefront:
     as many as its queue's capacity needs, a thread a ray). mark: None, or
     a function called with a stage's name after each launch (each wave's
     extend, shade and shadow, and "start" and "finish"), for a benchmark to
-    record a CUDA event there (benchmarks/wavefront_stages.py)."""
+    record a CUDA event there (benchmarks/archive/wavefront_stages.py)."""
 
     def __init__(self, width: int, height: int, depth: int, grid: int | None = None):
         self.width, self.height, self.depth = width, height, depth

@@ -16,6 +16,7 @@ from ... import references as raybench_references
 from ...errors import RaybenchError
 from ...files import folder_atomic, write_atomic
 from .. import headline
+from ..suites import REGISTRY
 from . import html
 from .beyond_sections import _section_dynamic, _section_multi_gpu, _section_parts, _section_scaling, _section_secondary
 from .markdown_blocks import _machine_lines, _table, _Writer, escape
@@ -98,10 +99,9 @@ def write_report(paths: list, out_dir, references: bool = True) -> Path:
         raise RaybenchError(f"{out_dir}: is a file, not a folder for the report")
     sources: list = []
     machines, notes = load(paths, sources)
-    # the scaling, secondary, multi-gpu and dynamic suites are no part of the thesis's claims: each its own section
-    beyond: dict[str, dict[str, list[dict]]] = {
-        "scaling": {}, "secondary": {}, "multi-gpu": {}, "dynamic": {}, "parts": {},
-    }  # fmt: skip
+    # the suites with a section of their own (suites.Suite.section) are no part of the thesis's claims, nor are parts
+    beyond: dict[str, dict[str, list[dict]]] = {r: {} for s in REGISTRY if s.section for r in s.writes}
+    beyond["parts"] = {}
     for records in machines.values():
         for r in records:
             if r["suite"] in beyond:

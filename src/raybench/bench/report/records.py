@@ -11,6 +11,7 @@ from pathlib import Path
 
 from ...errors import RaybenchError
 from .. import results
+from ..suites import CAPPED
 
 
 def _bad(path, number, what):
@@ -34,9 +35,9 @@ def _check(record: dict, path, number: int) -> None:
     for key in ("width", "height", "spheres"):
         if not isinstance(record.get(key), int):
             _bad(path, number, f"field {key!r} missing or not a whole number")
-    if "skipped" in record:  # a point not measured (the scaling and secondary suites' cap): only why
-        if not isinstance(record["skipped"], str) or record["suite"] not in ("scaling", "secondary"):
-            _bad(path, number, "field 'skipped' is not a reason, or not in the scaling or secondary suite")
+    if "skipped" in record:  # a point not measured (a capped suite's, suites.CAPPED): only why
+        if not isinstance(record["skipped"], str) or record["suite"] not in CAPPED:
+            _bad(path, number, f"field 'skipped' is not a reason, or not in the {' or '.join(CAPPED)} suite")
         if not isinstance(record.get("run"), dict) or not isinstance(record["run"].get("label"), str):
             _bad(path, number, "field 'run' lacks label or machine")
         return

@@ -3,7 +3,7 @@ that `raybench report` reads them. Run once, on the files named; a file already 
 is left as it is. Only records whose samples the schema can hold are converted: the frame
 times' median, p5 and p95 come from the record's own list of runs or frames, never made up.
 
-    python benchmarks/convert_results.py FILE.jsonl... --machine h200
+    python benchmarks/archive/convert_results.py FILE.jsonl... --machine h200
 
 Each converted record keeps the original, whole, under "source" (fields the schema does not
 name pass its checks), and names its run after the file. What is converted:

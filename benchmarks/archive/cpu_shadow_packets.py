@@ -12,7 +12,7 @@ The two frames are checked to be the same, bit for bit, with the same rays. One 
 results schema's "parts" suite a side: its frames' CPU times, the wall time, rays and the check
 in its values.
 
-    PYTHONPATH=src python benchmarks/cpu_shadow_packets.py --spheres 1000 10000 --threads 1 2
+    PYTHONPATH=src:benchmarks python benchmarks/archive/cpu_shadow_packets.py --spheres 1000 10000 --threads 1 2
 """
 
 import argparse

@@ -10,7 +10,7 @@ channels picked out on the host a plane at a time (rgba_planes). Medians of
 suite per step and sphere count (quantity "readback-" and the step, e.g.
 "readback-copy-done"), options naming the adapter.
 
-    python benchmarks/wgpu_readback.py --spheres 1000 --spheres 1000000
+    PYTHONPATH=benchmarks python benchmarks/archive/wgpu_readback.py --spheres 1000 --spheres 1000000
 """
 
 import argparse

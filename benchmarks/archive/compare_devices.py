@@ -5,7 +5,7 @@ device, the frames taken in turn device by device; with cuda present, its record
 comparison with the CPU's frame (where the hits differ, whether float32 rounding alone decides
 there, by the float64 reference in tests/reference.py).
 
-    python benchmarks/compare_devices.py --spheres 1000 --size 1680x1050 --frames 20
+    PYTHONPATH=benchmarks python benchmarks/archive/compare_devices.py --spheres 1000 --size 1680x1050 --frames 20
 """
 
 import argparse
@@ -30,7 +30,7 @@ def comparison(scene, width, height, cpu, cuda) -> dict:
     }
     # Where the devices disagree on the sphere, ask the float64 reference
     # whether rounding alone can decide it there.
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent.parent / "tests"))
     from reference import trace
 
     differ = np.flatnonzero(ch != gh)

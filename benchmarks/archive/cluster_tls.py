@@ -11,7 +11,7 @@ the cluster's processes, client and workers, a sample a round (quantity "cluster
 TLS's work adds, which another job's load on the machine blurs less); and the empty task's
 latency (quantity "dask-empty-task-latency"), a message's cost paid twice.
 
-    PYTHONPATH=src python benchmarks/cluster_tls.py --size 64x48 --size 1680x1050 --spheres 1000 \\
+    PYTHONPATH=src:benchmarks python benchmarks/archive/cluster_tls.py --size 64x48 --size 1680x1050 --spheres 1000 \\
         --frames 10 --rounds 8 --out benchmarks/results/xeon-2c/cluster-tls/cluster-tls-20261201.jsonl
 """
 

@@ -14,7 +14,7 @@ The GPU builder (backends/cuda/build.py) launches 20 kernels a build, so these s
 small scene's build is the host's
 (docs/startup.md#a-launchs-arguments-converted-once-leases-y3-and-y4). Needs a CUDA GPU.
 
-    python benchmarks/launch_overhead.py --launches 2000 --rounds 5
+    PYTHONPATH=benchmarks python benchmarks/archive/launch_overhead.py --launches 2000 --rounds 5
 """
 
 import argparse

@@ -2,7 +2,7 @@
 # What the GPU machine (device tool) runs for the core issue: the test suite on
 # the real GPU, the CLI's cuda and cpu renders compared, and a quick timing.
 # Carries a NumPy 2.4 wheel in .whl (the machine's NumPy 2.5 breaks numba 0.68.0).
-#   RAYBENCH_GIT_COMMIT=<commit> bash benchmarks/gpu_check.sh
+#   RAYBENCH_GIT_COMMIT=<commit> bash benchmarks/archive/gpu_check.sh
 # RAYBENCH_GIT_COMMIT is required, as in gpu_lease.sh: the machine's git metadata is stale.
 set -uo pipefail
 if [ -z "${RAYBENCH_GIT_COMMIT:-}" ]; then
@@ -30,4 +30,4 @@ d = np.abs(a - b).max(axis=2)
 print(f"CLI PNGs cpu vs cuda: {a.shape[1]}x{a.shape[0]}, identical pixels {(d == 0).mean():.6%}, "
       f"{(d > 0).sum()} differ, max {d.max()} step(s)")
 PY
-python3 benchmarks/compare_devices.py --spheres 1000 --size 1680x1050 --frames 20 --out "$OUT/compare.jsonl"
+PYTHONPATH=$PYTHONPATH:$PWD/benchmarks python3 benchmarks/archive/compare_devices.py --spheres 1000 --size 1680x1050 --frames 20 --out "$OUT/compare.jsonl"

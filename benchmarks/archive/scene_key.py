@@ -6,7 +6,8 @@ can import: xxhash (a raybench dependency), else SHA-1. Here each hasher that Da
 falls on all of them alike. One record of the results schema's "parts" suite (quantity
 "scene-key") a sphere count and hasher.
 
-    PYTHONPATH=src python benchmarks/scene_key.py --spheres 1000 --spheres 100000 --spheres 1000000 --rounds 11
+    PYTHONPATH=src:benchmarks python benchmarks/archive/scene_key.py --spheres 1000 --spheres 100000 \\
+        --spheres 1000000 --rounds 11
 """
 
 from __future__ import annotations

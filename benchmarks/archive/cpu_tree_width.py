@@ -5,7 +5,7 @@ alternating which goes first each round (a shared machine's load falls on both).
 the results schema (suite "scaling", accel "bvh", option tree_width) per (layout, spheres, tree
 width), with whether both gave the same picture; `raybench report` reads them.
 
-    PYTHONPATH=src python benchmarks/cpu_tree_width.py --spheres 1000 10000 100000 1000000
+    PYTHONPATH=src:benchmarks python benchmarks/archive/cpu_tree_width.py --spheres 1000 10000 100000 1000000
 """
 
 import argparse

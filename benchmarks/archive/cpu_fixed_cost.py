@@ -6,7 +6,8 @@ size on this machine. Two records of the results schema's "parts" suite a layout
 count: quantity "cpu-frame" (the whole frame) and "cpu-frame-fixed" (the fixed part, with its
 share of the frame).
 
-    PYTHONPATH=src python benchmarks/cpu_fixed_cost.py --spheres 1000 --spheres 10000 --spheres 100000 --rounds 9
+    PYTHONPATH=src:benchmarks python benchmarks/archive/cpu_fixed_cost.py --spheres 1000 --spheres 10000 \\
+        --spheres 100000 --rounds 9
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ every variant alike. One record of the results schema's "parts" suite a
 version and variant for its cold run (quantity "startup-cold") and one for
 its warm runs ("startup-warm"), options naming the version and the variant.
 
-    python benchmarks/startup_paired.py --version base=base-a48cd5b --version new=src \\
+    PYTHONPATH=benchmarks python benchmarks/archive/startup_paired.py --version base=base-a48cd5b --version new=src \\
         --variant "host=--device cuda --build host" --variant "gpu=--device cuda --build gpu"
 
 A version is NAME=DIR, DIR holding that version's `raybench` package (put

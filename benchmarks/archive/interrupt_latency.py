@@ -6,7 +6,7 @@ written, one line are checked). One record of the results schema's "parts" suite
 "interrupt-latency") a case, a sample a try; a case whose frame ends before it is caught is said
 on stderr and left out.
 
-    PYTHONPATH=src python benchmarks/interrupt_latency.py --tries 3 --out out.jsonl
+    PYTHONPATH=src:benchmarks python benchmarks/archive/interrupt_latency.py --tries 3 --out out.jsonl
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@ raybench encodes a sequence's frames (render.png_bytes, Pillow) at each --level,
 in turn round after round so that a busy machine's noise falls on all of them alike. One record
 of the results schema's "parts" suite (quantity "png-encode") a level, with the file's size.
 
-    PYTHONPATH=src python benchmarks/png_levels.py --spheres 100000 --size 1680x1050 --rounds 7
+    PYTHONPATH=src:benchmarks python benchmarks/archive/png_levels.py --spheres 100000 --size 1680x1050 --rounds 7
 """
 
 from __future__ import annotations

@@ -8,8 +8,8 @@ pinned memory, so that the whole frame can be held to the kernel plus its copy. 
 results schema's "parts" suite, a way and size each (quantity "tracer-trace", "renderer-render",
 ..., "kernel", "copy-to-host"), each with its ratio to the Tracer's trace.
 
-    python benchmarks/renderer_overhead.py --device cpu --spheres 1000 --frames 31
-    python benchmarks/renderer_overhead.py --device cuda --spheres 1000 --spheres 100000
+    PYTHONPATH=benchmarks python benchmarks/archive/renderer_overhead.py --device cpu --spheres 1000 --frames 31
+    PYTHONPATH=benchmarks python benchmarks/archive/renderer_overhead.py --device cuda --spheres 1000 --spheres 100000
 """
 
 import argparse

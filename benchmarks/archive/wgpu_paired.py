@@ -4,7 +4,8 @@ the simple kernel (the thesis's loop). One record of the results schema (suite "
 "none", kernel "simple") per device and workgroup; each wgpu record carries whether its picture
 is the CPU's and the median of its rounds' kernel time over the CPU's frame.
 
-    python benchmarks/wgpu_paired.py --adapter llvmpipe --spheres 300 --size 640x480 --rounds 5 --out out.jsonl
+    PYTHONPATH=benchmarks python benchmarks/archive/wgpu_paired.py --adapter llvmpipe --spheres 300 --size 640x480 \\
+        --rounds 5 --out out.jsonl
 """
 
 import argparse

@@ -19,7 +19,7 @@ Once resident:
 One record of the results schema's "parts" suite a way (quantity "shm-" and the way's name,
 "shm-touch", "shm-copy-mapped", ...), with the block's bytes and the rate.
 
-    PYTHONPATH=src python benchmarks/shm_pages.py --frame 8192x8192 --frames 3
+    PYTHONPATH=src:benchmarks python benchmarks/archive/shm_pages.py --frame 8192x8192 --frames 3
 """
 
 from __future__ import annotations

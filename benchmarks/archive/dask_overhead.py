@@ -19,7 +19,8 @@ probe's loop):
                    one at a time (latency) and 400 at once (per task), on
                    each worker case's cluster
 
-    PYTHONPATH=src python benchmarks/dask_overhead.py --device cpu --size 1680x1050 --spheres 1000 --out out.jsonl
+    PYTHONPATH=src:benchmarks python benchmarks/archive/dask_overhead.py --device cpu --size 1680x1050 --spheres 1000 \\
+        --out out.jsonl
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """A few cuda wavefront frames of the issue's scene, for a profiler to attach to (Nsight Compute:
-`ncu --kernel-name regex:"_extend|_shadow" ... python3 benchmarks/wavefront_profile.py`). It
+`ncu --kernel-name regex:"_extend|_shadow" ... python3 benchmarks/archive/wavefront_profile.py`). It
 traces --frames frames of random_spheres(--spheres, materials=True) at 1680x1050, depth 5, 4 shadow
 samples, and prints their ray counts. Needs a CUDA GPU.
 """

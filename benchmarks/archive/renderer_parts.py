@@ -5,7 +5,7 @@ and without hits; Camera.basis; and the kernel's own time where the device has o
 record of the results schema's "parts" suite a part and size (quantity "renderer-" and the
 part's name).
 
-    python benchmarks/renderer_parts.py --device cuda
+    PYTHONPATH=benchmarks python benchmarks/archive/renderer_parts.py --device cuda
 """
 
 import argparse

@@ -4,7 +4,8 @@ tree (raybench.bvh) at sizes the simulator cannot build, on a machine with no GP
 the results schema's "parts" suite (quantity "gpu-tree-model": the model's build time, with the
 SAH costs, depths and rows of both trees) per sphere count and quality.
 
-    python benchmarks/gpu_tree_model.py [--spheres 1000 --spheres 100000] [--quality sah --quality treelet]
+    PYTHONPATH=benchmarks python benchmarks/archive/gpu_tree_model.py [--spheres 1000 --spheres 100000] \\
+        [--quality sah --quality treelet]
 """
 
 from __future__ import annotations
