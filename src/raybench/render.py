@@ -15,7 +15,7 @@ from .backends.limits import check_size
 from .camera import Camera
 from .errors import RaybenchError
 from .files import write_atomic
-from .kernels.whitted import KINDS
+from .layout import KINDS
 from .lighting import Shading, check_shading
 from .scene import Scene
 
