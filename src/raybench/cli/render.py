@@ -89,8 +89,8 @@ class ClusterSpec:
 @click.option(
     "--png-level",
     type=int,
-    help="zlib's level of the PNGs, 0 (none) to 9 (smallest); default 1, which encodes several times faster "
-    "than 6 in files a little larger",
+    help="zlib's level of the PNGs, 0 (none) to 9 (smallest); default 1, which encodes faster than 6 in files "
+    "a little larger",
 )
 @click.option(
     "--gif",
