@@ -122,7 +122,7 @@ def test_a_shading_of_another_scene_is_refused(rng):
         "materials' reflect + transmit": lambda s: s.materials[
             raybench.layout.REFLECT : raybench.layout.TRANSMIT + 1
         ].__setitem__(slice(None), 0.9),
-        "lights in params": lambda s: s.params.__setitem__(raybench.kernels.whitted.P_LIGHTS, 2),
+        "lights in params": lambda s: s.params.__setitem__(raybench.layout.P_LIGHTS, 2),
         "sample points": lambda s: setattr(s, "pattern", np.ascontiguousarray(s.pattern[:, :1])),
         "params must be": lambda s: setattr(s, "params", s.params[:5].copy()),
         "materials must be": lambda s: setattr(s, "materials", s.materials.astype(np.float64)),

@@ -110,19 +110,81 @@ def test_the_cycle_check_finds_a_cycle(tmp_path):
     assert cycles(imports(pkg)) == [["pkg", "pkg.a", "pkg.b", "pkg.d", "pkg.sub.c"]]
 
 
-def reached(graph: dict[str, set[str]], start: str) -> set[str]:
-    """Every module that the modules under start import, directly or through others."""
-    seen, todo = set(), [m for m in graph if m == start or m.startswith(start + ".")]
-    while todo:
-        for child in graph[todo.pop()] - seen:
-            seen.add(child)
-            todo.append(child)
-    return seen
+# The public model: what a scene is (spheres, camera, camera paths, lights,
+# materials, motion) and the layouts its arrays share with the kernels. It
+# imports no layer above it: no kernel, builder, backend, render(), bench,
+# CLI, cluster or viewer.
+MODEL = (
+    "raybench.scene",
+    "raybench.camera",
+    "raybench.camera_path",
+    "raybench.lighting",
+    "raybench.layout",
+    "raybench.animate",
+)
+ABOVE_MODEL = (
+    "raybench.kernels",
+    "raybench.bvh",
+    "raybench.backends",
+    "raybench.render",
+    "raybench.bench",
+    "raybench.cli",
+    "raybench.cluster",
+    "raybench.viewer",
+)
+
+
+def within(name: str, packages) -> bool:
+    return any(name == p or name.startswith(p + ".") for p in packages)
+
+
+def reaches(graph: dict[str, set[str]], starts, packages) -> list[str]:
+    """Each module of `packages` that any of `starts` imports, directly or
+    through other modules, as its chain of imports ("a -> b -> c"), sorted."""
+    parent = {start: None for start in starts}
+    queue = list(starts)
+    while queue:
+        node = queue.pop(0)
+        for child in sorted(graph[node]):
+            if child not in parent:
+                parent[child] = node
+                queue.append(child)
+    out = []
+    for name in parent:
+        if name not in starts and within(name, packages):
+            chain = [name]
+            while parent[chain[-1]] is not None:
+                chain.append(parent[chain[-1]])
+            out.append(" -> ".join(reversed(chain)))
+    return sorted(out)
+
+
+def test_the_public_model_imports_no_higher_layer():
+    graph = imports(PACKAGE)
+    assert all(name in graph for name in MODEL + ABOVE_MODEL)
+    assert "raybench.layout" in graph["raybench.lighting"]  # the graph was read
+    assert reaches(graph, MODEL, ABOVE_MODEL) == []
 
 
 def test_the_viewer_imports_no_benchmark_code():
-    """The viewer is a sink beside the bench, not above it: what both need (the
-    ramp of test 7) lives in the public model below them."""
-    found = reached(imports(PACKAGE), "raybench.viewer")
-    assert "raybench.scene" in found  # the graph was read
-    assert sorted(m for m in found if m.split(".")[:2] in (["raybench", "bench"], ["raybench", "cli"])) == []
+    graph = imports(PACKAGE)
+    viewer = sorted(name for name in graph if within(name, ["raybench.viewer"]))
+    assert len(viewer) > 5  # the graph was read
+    assert reaches(graph, viewer, ["raybench.bench", "raybench.cli"]) == []
+
+
+def test_the_layer_check_finds_an_import_up(tmp_path):
+    """The check fails where a low module imports a high one, directly or
+    through another module's import in a function."""
+    pkg = tmp_path / "pkg"
+    (pkg / "high").mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "high" / "__init__.py").write_text("")
+    (pkg / "high" / "h.py").write_text("from ..low import x\n")
+    (pkg / "low.py").write_text("from . import util\n\nx = 1\n")
+    (pkg / "util.py").write_text("y = 2\n")
+    graph = imports(pkg)
+    assert reaches(graph, ["pkg.low"], ["pkg.high"]) == []
+    assert reaches(graph, ["pkg.high.h"], ["pkg.high"]) == []  # a module is not its own reach
+    (pkg / "util.py").write_text("def f():\n    from .high import h\n    return h\n")
+    assert reaches(imports(pkg), ["pkg.low"], ["pkg.high"]) == ["pkg.low -> pkg.util -> pkg.high.h"]

@@ -18,7 +18,7 @@ import raybench
 from raybench import Camera, Light, Scene, cli, random_spheres, viewer
 from raybench.backends import cuda as cuda_backend
 from raybench.cli import run
-from raybench.kernels.whitted import KINDS, P_LIGHTS
+from raybench.layout import KINDS, P_LIGHTS
 from raybench.lighting import Shading
 from raybench.scene import RAMP
 from raybench.viewer import bindings, controls, overlay
@@ -472,11 +472,13 @@ def test_quit_screenshot_and_help_flags():
 
 def test_status_line_formats():
     line = overlay.status_line(
-        device="cuda", spheres=1000, width=1680, height=1050, frame_ms=1234.5, fps=0.81, ramp=False, message=None
+        overlay.Status(
+            device="cuda", spheres=1000, width=1680, height=1050, frame_ms=1234.5, fps=0.81, ramp=False, message=None
+        )
     )
     assert line == "raybench  |  cuda  |  1,000 spheres  |  1680x1050  |  frame 1.23 s  |  0.8 fps"
     line = overlay.status_line(
-        device="cpu", spheres=0, width=8, height=6, frame_ms=None, fps=None, ramp=True, message="hello"
+        overlay.Status(device="cpu", spheres=0, width=8, height=6, frame_ms=None, fps=None, ramp=True, message="hello")
     )
     assert line.endswith("frame - ms  |  - fps  |  ramp  |  hello")
 
@@ -620,13 +622,16 @@ def test_title_shows_the_shading_and_rays_per_second():
 
 def test_rays_per_second_formats():
     line = overlay.status_line(
-        device="cuda", spheres=10, width=8, height=6, frame_ms=1.0, fps=1.0, shading="thesis", rays_per_s=1.5e9
+        overlay.Status(
+            device="cuda", spheres=10, width=8, height=6, frame_ms=1.0, fps=1.0, shading="thesis", rays_per_s=1.5e9
+        )
     )
     assert line.endswith("1.0 ms  |  1.0 fps  |  thesis  |  1.5 G rays/s")
     for per_s, text in [(None, "- rays/s"), (12.0, "12 rays/s"), (12345.0, "12.3 k rays/s"), (2.5e8, "250 M rays/s")]:
-        assert overlay.status_line(
+        status = overlay.Status(
             device="cpu", spheres=1, width=1, height=1, frame_ms=1.0, fps=None, shading="whitted", rays_per_s=per_s
-        ).endswith("whitted  |  " + text)
+        )
+        assert overlay.status_line(status).endswith("whitted  |  " + text)
 
 
 # --------------------------------------------------------------------------- pacing
@@ -911,11 +916,11 @@ def test_view_takes_renders_device_options_each_device_its_own(monkeypatch):
     """view's device options are render's, parsed by the same code; the window
     gets each device's share (it switches device live), checked before it opens."""
     opened = []
-    monkeypatch.setattr(viewer, "view", lambda scene, **kw: opened.append(kw))
+    monkeypatch.setattr(viewer, "view", lambda state, size, **kw: opened.append(state))
     flags = ["--threads", "2", "--block", "8x8", "--accel", "none", "--kernel", "simple"]
     assert run(["view", "--spheres", "3", "--device", "cpu", *flags]) == 0
     common = {"accel": "none", "kernel": "simple"}
-    assert opened[0]["options"] == {
+    assert opened[0].options == {
         "cpu": {"threads": 2, **common},
         "cuda": {"block": (8, 8), **common},
         "wgpu": common,
@@ -929,23 +934,24 @@ def test_view_takes_renders_device_options_each_device_its_own(monkeypatch):
 
 def test_view_takes_renders_shading_options(monkeypatch):
     opened = []
-    monkeypatch.setattr(viewer, "view", lambda scene, **kw: opened.append((scene, kw)))
+    monkeypatch.setattr(viewer, "view", lambda state, size, **kw: opened.append(state))
     assert run(["view", "--scene", "whitted", "--shading", "whitted", "--depth", "3", "--shadow-samples", "2"]) == 0
     assert run(["view", "--spheres", "4", "--materials"]) == 0
-    (whitted_scene, whitted_kw), (random_scene, thesis_kw) = opened
-    assert {k: whitted_kw[k] for k in ("shading", "depth", "shadow_samples")} == {
+    whitted_state, thesis_state = opened
+    whitted_lit, thesis_lit = whitted_state.lighting, thesis_state.lighting
+    assert {k: getattr(whitted_lit, k) for k in ("shading", "depth", "shadow_samples")} == {
         "shading": "whitted",
         "depth": 3,
         "shadow_samples": 2,
     }
-    assert len(whitted_scene.lights) == 1 and whitted_kw["seed"] is None
-    assert (thesis_kw["shading"], thesis_kw["depth"], thesis_kw["shadow_samples"]) == ("thesis", None, None)
-    assert random_scene.materials == random_spheres(4, 0, materials=True).materials
+    assert len(whitted_state.supply.scene.lights) == 1 and whitted_state.supply.seed is None
+    assert (thesis_lit.shading, thesis_lit.depth, thesis_lit.shadow_samples) == ("thesis", None, None)
+    assert thesis_state.supply.scene.materials == random_spheres(4, 0, materials=True).materials
 
 
 def test_view_refuses_options_the_first_device_refuses_before_the_window(capsys, monkeypatch):
     opened = []
-    monkeypatch.setattr(viewer, "view", lambda scene, **kw: opened.append(kw))
+    monkeypatch.setattr(viewer, "view", lambda state, size, **kw: opened.append(kw))
     code = run(["view", "--spheres", "3", "--device", "cpu", "--kernel", "fast", "--accel", "bvh"])
     err = capsys.readouterr().err
     assert code == 2 and len(err.splitlines()) == 1

@@ -833,7 +833,8 @@ def test_animate_moves_the_spheres_in_the_window(display, vulkan_adapter, device
     from raybench.viewer import view
 
     options = {"wgpu": {"adapter": vulkan_adapter.info["device"]}} if device == "wgpu" else {}
-    window = view(random_spheres(20, 3), device=device, seed=3, size=(40, 30), options=options, frames=3, animate=True)
+    state = state_for(random_spheres(20, 3), 3, device=device, options=options, animate=True)
+    window = view(state, (40, 30), frames=3)
     shown = window.state.shown
     assert shown.update == "build" and shown.update_ms > 0 and shown.request.time > 0
     parts = window.state.title().split("  |  ")

@@ -11,9 +11,8 @@ from reference import to_bytes
 from scenes import KINDS
 
 import raybench
-from raybench import Camera, Light, Material, Scene, backends, lighting
+from raybench import Camera, Light, Material, Scene, backends, layout, lighting
 from raybench.backends import bands
-from raybench.kernels import whitted
 
 
 def material(rng, kind=None) -> Material:
@@ -94,7 +93,7 @@ def check_against_reference(got, ref, context, max_off=0.02):
     steps = np.abs(got.image.astype(int) - to_bytes(ref.color).astype(int)).max(axis=2)
     off = (steps > 2).mean()
     assert off <= max_off, f"{context}: {off:.1%} of pixels more than 2 steps from the reference (max {steps.max()})"
-    counts = np.array([got.rays[k] for k in whitted.KINDS])
+    counts = np.array([got.rays[k] for k in layout.KINDS])
     assert counts[0] == ref.rays[0] == n
     assert np.all(np.abs(counts - ref.rays) <= 0.03 * ref.rays + 2), f"{context}: rays {counts} vs {ref.rays}"
 

@@ -24,8 +24,9 @@ import numpy as np
 
 from .errors import RaybenchError
 
-# A saved scene of 1,000,000 spheres is about 225 MB; a results file of every
-# suite a few MB. Anything larger is not ours, or not a file at all (/dev/zero).
+# Far above a saved scene of 1,000,000 spheres or a results file of every suite
+# (their sizes: README.md's limits table). Anything larger is not ours, or not
+# a file at all (/dev/zero).
 MAX_FILE_BYTES = 512 * 2**20
 # A scene nests 3 deep, a results record 5. Far below Python's recursion limit,
 # so neither the parser nor anything that walks a document can overflow it.

@@ -1,6 +1,8 @@
 """The data layouts that the scene, the builder, every kernel and the WGSL
-share, by name: the rows of the sphere, material and light arrays and the
-columns of a BVH node.
+share, by name: the rows of the sphere, material and light arrays, the
+slots of Whitted shading's settings, the kinds of ray and the columns of a
+BVH node. The public model (scene.py, lighting.py) and the kernels both
+read them here, so the model imports no kernel.
 
 Plain module globals (ints and float32 scalars), which is how Numba's and
 numba-cuda's compiled code can read them: they are frozen into the code as
@@ -25,6 +27,25 @@ MATERIAL_ROWS = 5
 # intensity; a radius of 0 is a point light, more a spherical area light.
 LX, LY, LZ, LRED, LGREEN, LBLUE, LRADIUS = range(7)
 LIGHT_ROWS = 7
+
+# ---------------------------------------------------------------- Whitted's settings
+# Shading.params: (PARAMS,) float32, the frame's settings (lighting.Shading
+# fills it, kernels/whitted.py reads it).
+P_AMBIENT = 0  # 3 floats
+P_BACKGROUND = 3  # 3 floats, used where P_GRADIENT is 0
+P_GRADIENT = 6  # 1: the thesis's gradient behind everything
+P_DEPTH = 7
+P_SAMPLES = 8  # shadow rays to an area light
+P_LIGHTS = 9
+PARAMS = 10
+# The deepest a pixel's tree of rays may go (Shading's depth): the kernels
+# size their stacks of pending rays by it (kernels/whitted.py's MAX_DEPTH).
+MAX_RAY_DEPTH = 16
+
+# ---------------------------------------------------------------- ray kinds
+# The columns of a frame's ray counts (Frame.rays' keys).
+PRIMARY, SHADOW, REFLECTION, REFRACTION = range(4)
+KINDS = ("primary", "shadow", "reflection", "refraction")
 
 # ---------------------------------------------------------------- BVH nodes
 # nodes: (M, NODE_FLOATS) float32, one 64-byte row a node, one cache line:

@@ -1,6 +1,7 @@
 """Lights, materials and the settings of Whitted shading (scene format
 version 2), checked, and packed into the arrays the kernels read
-(raybench.layout names their rows; kernels/whitted.py shades with them).
+(raybench.layout names their rows and the settings' slots; kernels/whitted.py
+shades with them).
 """
 
 from __future__ import annotations
@@ -13,7 +14,6 @@ import numpy as np
 from . import layout
 from .camera import MAX_MAGNITUDE, _vector
 from .errors import RaybenchError
-from .kernels import whitted
 
 SHADINGS = ("thesis", "whitted")
 DEFAULT_DEPTH = 5
@@ -191,7 +191,7 @@ def sample_pattern(samples: int) -> np.ndarray:
 @dataclass
 class Shading:
     """What a Whitted frame needs besides the spheres: the arrays the kernel
-    reads (params: laid out by kernels/whitted.py's P_ indices)."""
+    reads (params: laid out by raybench.layout's P_ indices)."""
 
     materials: np.ndarray
     lights: np.ndarray
@@ -204,15 +204,15 @@ class Shading:
     def of(cls, scene, depth=None, shadow_samples=None) -> Shading:
         depth = DEFAULT_DEPTH if depth is None else check_depth(depth)
         samples = DEFAULT_SHADOW_SAMPLES if shadow_samples is None else check_shadow_samples(shadow_samples)
-        params = np.zeros(whitted.PARAMS, np.float32)
-        params[whitted.P_AMBIENT : whitted.P_AMBIENT + 3] = scene.ambient
+        params = np.zeros(layout.PARAMS, np.float32)
+        params[layout.P_AMBIENT : layout.P_AMBIENT + 3] = scene.ambient
         if scene.background is None:
-            params[whitted.P_GRADIENT] = 1.0
+            params[layout.P_GRADIENT] = 1.0
         else:
-            params[whitted.P_BACKGROUND : whitted.P_BACKGROUND + 3] = scene.background
-        params[whitted.P_DEPTH] = depth
-        params[whitted.P_SAMPLES] = samples
-        params[whitted.P_LIGHTS] = len(scene.lights)
+            params[layout.P_BACKGROUND : layout.P_BACKGROUND + 3] = scene.background
+        params[layout.P_DEPTH] = depth
+        params[layout.P_SAMPLES] = samples
+        params[layout.P_LIGHTS] = len(scene.lights)
         return cls(
             materials=materials_array(scene.materials, len(scene)),
             lights=lights_array(scene.lights),
@@ -245,14 +245,14 @@ class Shading:
                 raise RaybenchError(f"shading: {name} must be a C-contiguous {want} float32 array, got {got}; {fix}")
             return value
 
-        params = array("params", None, whitted.PARAMS)
+        params = array("params", None, layout.PARAMS)
         if spheres and getattr(self.materials, "shape", (0, 0))[-1] != spheres:
             got = getattr(self.materials, "shape", ("?", "?"))[-1]
             raise RaybenchError(f"shading: made for a scene of {got} spheres, this one has {spheres}; {fix}")
         materials = array("materials", layout.MATERIAL_ROWS, spheres) if spheres else None
         lights = array("lights", layout.LIGHT_ROWS, None)
         pattern = array("pattern", 3, None)
-        depth, samples, count = (float(params[k]) for k in (whitted.P_DEPTH, whitted.P_SAMPLES, whitted.P_LIGHTS))
+        depth, samples, count = (float(params[k]) for k in (layout.P_DEPTH, layout.P_SAMPLES, layout.P_LIGHTS))
         if depth != self.depth or samples != self.shadow_samples:
             raise RaybenchError(f"shading: depth and shadow_samples differ from its params; {fix}")
         check_depth(self.depth)
@@ -261,7 +261,7 @@ class Shading:
             raise RaybenchError(f"shading: {count:g} lights in params, {lights.shape[1]} in its lights array; {fix}")
         if pattern.shape[1] < self.shadow_samples:
             raise RaybenchError(f"shading: {pattern.shape[1]} sample points for {self.shadow_samples} samples; {fix}")
-        ranges = [("params", params[: whitted.P_GRADIENT], 0.0, 1.0), ("pattern", pattern, -1.0, 1.0),
+        ranges = [("params", params[: layout.P_GRADIENT], 0.0, 1.0), ("pattern", pattern, -1.0, 1.0),
                   ("lights", lights[layout.LX : layout.LZ + 1], -MAX_MAGNITUDE, MAX_MAGNITUDE),
                   ("lights", lights[layout.LRED : layout.LBLUE + 1], 0.0, MAX_INTENSITY),
                   ("lights", lights[layout.LRADIUS], 0.0, MAX_MAGNITUDE)]  # fmt: skip
@@ -284,7 +284,7 @@ def _integer(value, where: str, low: int, high: int) -> int:
 
 
 def check_depth(depth) -> int:
-    return _integer(depth, "depth", 0, whitted.MAX_DEPTH)
+    return _integer(depth, "depth", 0, layout.MAX_RAY_DEPTH)
 
 
 def check_shadow_samples(samples) -> int:

@@ -15,15 +15,15 @@ from .backends.limits import check_size
 from .camera import Camera
 from .errors import RaybenchError
 from .files import write_atomic
-from .kernels.whitted import KINDS
+from .layout import KINDS
 from .lighting import Shading, check_shading
 from .scene import Scene
 
 # zlib's level for every PNG raybench writes, a frame or a sequence's: level 1
-# encodes several times faster than Pillow's default 6, in files a little
-# larger for a smooth picture and smaller for a busy one. At 6 the encoding was
-# most of a warm `raybench render` and bounded a sequence
-# (docs/startup.md#the-builder-compiled-only-where-a-scene-needs-it-lease-y1,
+# encodes faster than Pillow's default 6, in files a little larger for a smooth
+# picture and smaller for a busy one. At 6 the encoding was most of a warm
+# `raybench render` and bounded a sequence (the figures:
+# docs/startup.md#figures-moved-from-the-sources-comments,
 # docs/scaling.md#the-png-sequence-is-bound-by-encoding).
 PNG_LEVEL = 1
 
@@ -73,8 +73,9 @@ def check_png_level(level) -> int:
 def png_bytes(image: np.ndarray, level: int = PNG_LEVEL) -> bytes:
     """An (H, W, 3) uint8 RGB image as PNG file contents: the one encoder every
     sink that writes pictures uses (Frame.save, the viewer's screenshots, a
-    sequence's frames). level: zlib's, 0 (stored) to 9; 1 encodes several
-    times faster than 6, in files a little larger (docs/scaling.md)."""
+    sequence's frames). level: zlib's, 0 (stored) to 9; 1 encodes faster
+    than 6, in files a little larger
+    (docs/scaling.md#the-png-sequence-is-bound-by-encoding)."""
     from PIL import Image
 
     buf = io.BytesIO()

@@ -31,7 +31,9 @@ VERSIONS = (1, 2)
 MAX_GENERATED = 100_000_000
 # random_spheres fills the view of a picture this wide, about this many times over.
 ASPECT = 16 / 10
-# Peak bytes per sphere while random_spheres works (measured: 224 MB for 1,000,000).
+# Peak bytes per sphere while random_spheres works without materials, as
+# measured; with materials it needs more than this
+# (docs/startup.md#figures-moved-from-the-sources-comments).
 GENERATE_BYTES = 256
 COVERAGE = 2.0
 # The thesis's test 7, a scene that grows every frame: random_spheres(last,

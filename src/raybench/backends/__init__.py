@@ -41,10 +41,10 @@ def _driver_candidates() -> list[str]:
 
 def _cuda_driver_loads() -> bool:
     """NVIDIA's driver library loads from where numba-cuda would load it.
-    Without it numba-cuda finds no GPU either; asking this way takes a
-    millisecond, importing numba-cuda to ask takes 0.6-2 s, which every
-    "auto" on a machine without an NVIDIA GPU paid
-    (docs/startup.md#the-builder-compiled-only-where-a-scene-needs-it-lease-y1)."""
+    Without it numba-cuda finds no GPU either; asking this way is all but
+    free, where importing numba-cuda to ask is not, which every "auto" on a
+    machine without an NVIDIA GPU paid (the figures:
+    docs/startup.md#the-builder-compiled-only-where-a-scene-needs-it-lease-y1)."""
     for candidate in _driver_candidates():
         try:
             ctypes.CDLL(candidate)

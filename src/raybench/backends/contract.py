@@ -29,7 +29,7 @@ class Tracer(Protocol):
     accel: str  # "bvh" or "none"
     walk: str | None  # the BVH walk ("ray" or "packet"), None where the device has one kind or for brute force
     build_s: float | None  # the last BVH build's seconds, apart from any frame; None for brute force
-    # The last frame's rays by kind (kernels.whitted.KINDS), as the kernel
+    # The last frame's rays by kind (layout.KINDS), as the kernel
     # counted them; None under the thesis's shading: one primary ray a pixel.
     ray_counts: np.ndarray | None
     # The host arrays the next trace() writes, (H, W, 3) uint8 and (H, W)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numbers
 from dataclasses import dataclass, fields
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -56,11 +57,12 @@ TREE_WIDTHS = (2, 4)
 
 # --- cuda --------------------------------------------------------------------------
 
-# The fastest measured: simple in 16x16 blocks; fast (with TRIP) in 8x8
-# (docs/floors.md#each-version-against-the-floor); the BVH walked a ray at a
-# time in 8x8, which also makes a warp a compact 8x4 patch of pixels whose rays
-# cross much the same nodes (the tuning suite, docs/bvh-walk.md#gpu-measured-on-the-h200);
-# the BVH's packets in 8x4 blocks, one warp, faster than 8x8 and 16x8
+# Each kernel's block, as its tuning runs chose it: simple in 16x16 blocks;
+# fast (with TRIP) in 8x8 (docs/floors.md#each-version-against-the-floor); the
+# BVH walked a ray at a time in 8x8, which also makes a warp a compact 8x4
+# patch of pixels whose rays cross much the same nodes (the tuning suite,
+# docs/bvh-walk.md#gpu-measured-on-the-h200); the BVH's packets in 8x4
+# blocks, one warp, one packet
 # (docs/bvh-walk.md#packets-of-rays-on-the-gpu-leases-g-to-i-kept).
 DEFAULT_BLOCK = {"simple": (16, 16), "fast": (8, 8), "ray": (8, 8), "packet": (8, 4)}
 # The fast kernel's defaults (its options rays and staged): each thread
@@ -72,8 +74,8 @@ MAX_RAYS_PER_THREAD = 16
 STAGED = 256
 MAX_STAGED = 3071  # 48 KiB of shared memory (with a pad slot), what every CUDA GPU gives a block
 # Spheres tested per trip of the cull loop, one branch for all of them: 3
-# measured fastest with 8x8 blocks; 4 no faster, with more registers (step 5 of
-# docs/floors.md#each-version-against-the-floor).
+# with 8x8 blocks, as step 5's sweep chose it (4 was no surer a gain, for
+# more registers: docs/floors.md#each-version-against-the-floor).
 TRIP = 3
 MAX_TRIP = 4
 MAX_WAVE_GRID = 1 << 24
@@ -81,10 +83,10 @@ MAX_TREELET_PASSES = 8
 
 # --- cuda and wgpu -----------------------------------------------------------------
 
-# The default stays the host's SAH tree for scenes that do not move: the
-# walk on any tree built on the GPU measured slower than on the host's, and
-# the build is paid once, the walk every frame (docs/gpu-build.md#where-it-stands;
-# in WGSL too: docs/gpu-build.md#the-same-build-in-wgsl-wgpu).
+# The default stays the host's SAH tree for scenes that do not move: no tree
+# built on the GPU is walked as fast as the host's, and the build is paid
+# once, the walk every frame (docs/gpu-build.md#where-it-stands; in WGSL too:
+# docs/gpu-build.md#the-same-build-in-wgsl-wgpu).
 DEFAULT_BUILD = "host"
 
 # --- wgpu --------------------------------------------------------------------------
@@ -92,8 +94,8 @@ DEFAULT_BUILD = "host"
 # The default workgroups: WebGPU's default limit (256 invocations), so they
 # run on every adapter (the thesis's 32x32 runs where the adapter allows
 # 1024); for the packet walk 8x8, two NVIDIA warps, each an 8x4 packet of
-# pixels (measured a little faster than 8x4, and 16x16 and 32x8 slower:
-# docs/bvh-walk.md#tried-packets-on-wgpu-leases-r-and-s-kept-as-an-option-not-the-default).
+# pixels, the best of the workgroups tried
+# (docs/bvh-walk.md#tried-packets-on-wgpu-leases-r-and-s-kept-as-an-option-not-the-default).
 DEFAULT_WORKGROUP = {"none": (16, 16), "ray": (16, 16), "packet": (8, 8)}
 
 
@@ -220,6 +222,12 @@ def _gpu_build(build: str | None, device: str, quality, treelet_passes, refit_li
     return quality, passes, float(refit_limit)
 
 
+def _given(kind, given: dict) -> SimpleNamespace:
+    """What a caller gave of kind's options (checked has refused any other
+    name), each it left out None: every option's "not given"."""
+    return SimpleNamespace(**{**dict.fromkeys(f.name for f in fields(kind)), **given})
+
+
 @dataclass(frozen=True)
 class CpuOptions:
     """The CPU's options. accel: "bvh" or "none"; kernel: brute force's
@@ -234,8 +242,11 @@ class CpuOptions:
     tree_width: int
 
     @classmethod
-    def check(cls, whitted=None, *, accel=None, kernel=None, constant_count=False, threads=None, tree_width=None):
-        accel, kernel = _method("cpu", accel, kernel, {"constant_count": constant_count}, whitted)
+    def check(cls, given: dict, whitted=None) -> CpuOptions:
+        """The options from render()'s keyword arguments for the cpu (checked's)."""
+        g = _given(cls, given)
+        accel, kernel = _method("cpu", g.accel, g.kernel, {"constant_count": g.constant_count}, whitted)
+        tree_width, threads = g.tree_width, g.threads
         if tree_width is None:
             tree_width = TREE_WIDTH
         elif accel != "bvh":
@@ -243,7 +254,7 @@ class CpuOptions:
         elif tree_width not in TREE_WIDTHS:
             raise RaybenchError(f"tree_width: must be one of 2, 4, got {shown(tree_width)}")
         threads = usable_cores() if threads is None else _integer("threads", threads, 1, MAX_THREADS)
-        return cls(accel, kernel, bool(constant_count), threads, int(tree_width))
+        return cls(accel, kernel, bool(g.constant_count), threads, int(tree_width))
 
 
 @dataclass(frozen=True)
@@ -276,17 +287,16 @@ class CudaOptions:
     wave_grid: int | None
 
     @classmethod
-    def check(
-        cls, whitted=None, *, accel=None, kernel=None, constant_count=False, block=None, rays=None, staged=None,
-        trip=None, walk=None, build=None, quality=None, treelet_passes=None, refit_limit=None, schedule=None,
-        wave_grid=None,
-    ):  # fmt: skip
-        fast_only = {"rays": rays is not None, "staged": staged is not None, "trip": trip is not None}
-        accel, kernel = _method("cuda", accel, kernel, {"constant_count": constant_count, **fast_only}, whitted)
-        walk = _walk(walk, accel, whitted)
-        build = _build(build, accel)
-        quality, treelet_passes, refit_limit = _gpu_build(build, "cuda", quality, treelet_passes, refit_limit)
-        schedule = _schedule(schedule, whitted)
+    def check(cls, given: dict, whitted=None) -> CudaOptions:
+        """The options from render()'s keyword arguments for cuda (checked's)."""
+        g = _given(cls, given)
+        fast_only = {"rays": g.rays is not None, "staged": g.staged is not None, "trip": g.trip is not None}
+        accel, kernel = _method("cuda", g.accel, g.kernel, {"constant_count": g.constant_count, **fast_only}, whitted)
+        walk = _walk(g.walk, accel, whitted)
+        build = _build(g.build, accel)
+        quality, treelet_passes, refit_limit = _gpu_build(build, "cuda", g.quality, g.treelet_passes, g.refit_limit)
+        schedule = _schedule(g.schedule, whitted)
+        block, wave_grid = g.block, g.wave_grid
         if wave_grid is not None:
             if schedule != "wavefront":
                 raise RaybenchError("wave_grid: applies to the wavefront schedule only (Whitted shading)")
@@ -304,11 +314,11 @@ class CudaOptions:
                     f"block: {what} takes at most {FAST_MAX_THREADS} threads per block ({need} the registers), "
                     f"got {block[0]}x{block[1]}{hint}"
                 )
-        rays = _integer("rays", RAYS_PER_THREAD if rays is None else rays, 1, MAX_RAYS_PER_THREAD)
+        rays = _integer("rays", RAYS_PER_THREAD if g.rays is None else g.rays, 1, MAX_RAYS_PER_THREAD)
         return cls(
-            accel, kernel, bool(constant_count), block, rays if kernel == "fast" else 1,
-            _integer("staged", STAGED if staged is None else staged, 1, MAX_STAGED),
-            _integer("trip", TRIP if trip is None else trip, 1, MAX_TRIP),
+            accel, kernel, bool(g.constant_count), block, rays if kernel == "fast" else 1,
+            _integer("staged", STAGED if g.staged is None else g.staged, 1, MAX_STAGED),
+            _integer("trip", TRIP if g.trip is None else g.trip, 1, MAX_TRIP),
             walk, build, quality, treelet_passes, refit_limit, schedule, wave_grid,
         )  # fmt: skip
 
@@ -333,18 +343,20 @@ class WgpuOptions:
     schedule: str | None
 
     @classmethod
-    def check(cls, whitted=None, *, accel=None, kernel=None, workgroup=None, adapter=None, walk=None, build=None,
-              quality=None, refit_limit=None, schedule=None):  # fmt: skip
-        accel, kernel = _method("wgpu", accel, kernel, {}, whitted)
-        walk = _walk(walk, accel, whitted)
+    def check(cls, given: dict, whitted=None) -> WgpuOptions:
+        """The options from render()'s keyword arguments for wgpu (checked's)."""
+        g = _given(cls, given)
+        accel, kernel = _method("wgpu", g.accel, g.kernel, {}, whitted)
+        walk = _walk(g.walk, accel, whitted)
         if accel == "bvh":
             walk = walk or "ray"
-        workgroup = DEFAULT_WORKGROUP[walk or accel] if workgroup is None else _pair("workgroup", workgroup)
+        workgroup = DEFAULT_WORKGROUP[walk or accel] if g.workgroup is None else _pair("workgroup", g.workgroup)
+        adapter = g.adapter
         if adapter is not None and not isinstance(adapter, str):
             raise RaybenchError(f"adapter: must be an adapter's name (text), got {shown(adapter)}")
-        build = _build(build, accel)
-        quality, _, refit_limit = _gpu_build(build, "wgpu", quality, None, refit_limit)
-        return cls(accel, kernel, workgroup, adapter, walk, build, quality, refit_limit, _schedule(schedule, whitted))
+        build = _build(g.build, accel)
+        quality, _, refit_limit = _gpu_build(build, "wgpu", g.quality, None, g.refit_limit)
+        return cls(accel, kernel, workgroup, adapter, walk, build, quality, refit_limit, _schedule(g.schedule, whitted))
 
 
 KINDS = {"cpu": CpuOptions, "cuda": CudaOptions, "wgpu": WgpuOptions}
@@ -361,4 +373,4 @@ def checked(device: str, given: dict, whitted=None):
             raise RaybenchError(
                 f"option {key!r} does not apply to device {device} (its options: {', '.join(NAMES[device])})"
             )
-    return KINDS[device].check(whitted, **given)
+    return KINDS[device].check(given, whitted)

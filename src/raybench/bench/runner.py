@@ -12,7 +12,7 @@ import uuid
 from .. import animate, backends
 from ..camera import Camera
 from ..errors import RaybenchError
-from ..kernels.whitted import KINDS
+from ..layout import KINDS
 from ..machine import describe, git_commit
 from ..render import Renderer
 from ..scene import random_spheres

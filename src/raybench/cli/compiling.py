@@ -1,6 +1,6 @@
 """On a terminal, say so while this process compiles kernels: the first run on
-a machine spends 15-30 s in Numba's compiler (docs/startup.md), which would
-otherwise look like a hang. Piped, stderr stays clean."""
+a machine spends seconds in Numba's compiler (docs/startup.md#where-it-stands),
+which would otherwise look like a hang. Piped, stderr stays clean."""
 
 from __future__ import annotations
 

@@ -5,13 +5,14 @@ from __future__ import annotations
 
 import os
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import click
 
 from ..errors import RaybenchError
 from ..files import check_writable, make_folder
-from ..scene import SPREADS
+from ..scene import SPREADS, Scene
 from .options import (
     check_output,
     cluster_options,
@@ -27,6 +28,37 @@ from .options import (
     size_option,
     tracer_options,
 )
+
+
+@dataclass(frozen=True)
+class RenderJob:
+    """What `raybench render` traces and where it writes it, checked: the
+    scene at width x height on device, with render()'s shading arguments
+    (shaded) and device options, written as PNGs at zlib's level."""
+
+    scene: Scene
+    width: int
+    height: int
+    device: str
+    shaded: dict
+    options: dict
+    output: Path | None
+    level: int
+
+
+@dataclass(frozen=True)
+class ClusterSpec:
+    """The cluster `raybench render` traces across: an embedded one of
+    `workers`, or the running one at `scheduler` (with its TLS security),
+    connected to within timeout seconds."""
+
+    workers: int | None
+    scheduler: str | None
+    security: object
+    timeout: float | None
+
+    def open(self, device: str):
+        return open_cluster(self.workers, device, self.scheduler, self.timeout, self.security)
 
 
 @click.command()
@@ -57,8 +89,8 @@ from .options import (
 @click.option(
     "--png-level",
     type=int,
-    help="zlib's level of the PNGs, 0 (none) to 9 (smallest); default 1, which encodes several times faster "
-    "than 6 in files a little larger",
+    help="zlib's level of the PNGs, 0 (none) to 9 (smallest); default 1, which encodes faster than 6 in files "
+    "a little larger",
 )
 @click.option(
     "--gif",
@@ -124,18 +156,17 @@ def render(
         if camera_path is None:
             raise RaybenchError("--gif applies to --path only")
         check_output(gif, "--gif", ".gif")
+    level = PNG_LEVEL if png_level is None else png_level
+    on = ClusterSpec(workers, scheduler, security, connect_timeout)
     if camera_path is not None:
         if tile is not None:
             raise RaybenchError("--tile applies to one frame; a sequence's tasks are whole frames")
-        level = PNG_LEVEL if png_level is None else png_level
-        return _render_sequence(scene, camera_path, frames, output, width, height, device, shaded, options,
-                                workers, scheduler, security, connect_timeout, level, gif)  # fmt: skip
-    level = PNG_LEVEL if png_level is None else png_level
+        job = RenderJob(scene, width, height, device, shaded, options, output, level)
+        return _render_sequence(job, on, camera_path, frames, gif)
     output = output or Path("render.png")
     check_output(output)
     if workers is not None or scheduler is not None:
-        return _render_tiles(scene, output, width, height, device, shaded, options, workers, scheduler, security,
-                             tile, connect_timeout, level)  # fmt: skip
+        return _render_tiles(RenderJob(scene, width, height, device, shaded, options, output, level), on, tile)
     if tile is not None:
         raise RaybenchError("--tile applies across a cluster: give --workers N or --scheduler ADDR")
     device = resolve(device, adapter)
@@ -161,31 +192,33 @@ def render(
     )
 
 
-def _render_tiles(scene, output, width, height, device, shaded, options, workers, scheduler, security, tile, timeout,
-                  level):  # fmt: skip
-    """render --workers/--scheduler: one frame in tiles across the cluster."""
+def _render_tiles(job: RenderJob, on: ClusterSpec, tile: int | None) -> None:
+    """render --workers/--scheduler: one frame in tiles (of `tile` rows)
+    across the cluster."""
     from .. import cluster
 
+    scene, width, height, output = job.scene, job.width, job.height, job.output
     start = time.perf_counter()
-    with open_cluster(workers, device, scheduler, timeout, security) as running:
-        frame = cluster.render(running.client, scene, None, width, height, device, cluster.ShadingOptions(**shaded),
-                               rows=tile, **options)  # fmt: skip
+    with on.open(job.device) as running:
+        frame = cluster.render(running.client, scene, None, width, height, job.device,
+                               cluster.ShadingOptions(**job.shaded), rows=tile, **job.options)  # fmt: skip
         count = running.workers
-    frame.save(output, level)
+    frame.save(output, job.level)
     click.echo(
         f"wrote {output}: {width}x{height}, {len(scene):,} spheres, {frame.device}, in tiles on {count} workers, "
         f"{time.perf_counter() - start:.2f} s including the cluster's start"
     )
 
 
-def _render_sequence(scene, spec, frames, output, width, height, device, shaded, options, workers, scheduler,
-                     security, timeout, level, gif):  # fmt: skip
-    """render --path: a sequence of frames across the cluster, written as they
-    arrive, with a progress bar; those on disk already are kept."""
+def _render_sequence(job: RenderJob, on: ClusterSpec, spec, frames: int | None, gif: Path | None) -> None:
+    """render --path: the sequence `spec` (of `frames` frames) across the
+    cluster, written as they arrive, with a progress bar; those on disk
+    already are kept; with gif, also one animated GIF of them all."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
     from .. import camera_path, cluster, sequence
 
+    scene, width, height, output, shaded = job.scene, job.width, job.height, job.output, job.shaded
     if output is None:
         raise RaybenchError("--path: give -o DIR, the folder to write the frames in")
     if output.suffix.lower() == ".png":
@@ -201,13 +234,13 @@ def _render_sequence(scene, spec, frames, output, width, height, device, shaded,
     todo = sequence.prepare(output, marker, "-o")
     check_writable(cluster.frame_path(output, todo[0] if todo else 0), "-o")
     start = time.perf_counter()
-    with open_cluster(workers, device, scheduler, timeout, security) as running:
+    with on.open(job.device) as running:
         columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
         with Progress(*columns, transient=True) as progress:
             bar = progress.add_task(f"frames on {running.workers} workers", total=len(cameras))
-            delivery = cluster.SequenceOptions(on_frame=lambda n, path: progress.advance(bar), png_level=level)
-            cluster.render_sequence(running.client, scene, cameras, output, width, height, device,
-                                    cluster.ShadingOptions(**shaded), delivery, **options)  # fmt: skip
+            delivery = cluster.SequenceOptions(on_frame=lambda n, path: progress.advance(bar), png_level=job.level)
+            cluster.render_sequence(running.client, scene, cameras, output, width, height, job.device,
+                                    cluster.ShadingOptions(**shaded), delivery, **job.options)  # fmt: skip
     click.echo(
         f"wrote {len(todo)} frames to {output}/"
         + (f" (the other {len(cameras) - len(todo)} were there already)" if len(todo) < len(cameras) else "")

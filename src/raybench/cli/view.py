@@ -79,6 +79,7 @@ def view(
     from ..lighting import Shading
     from ..scene import Scene
     from ..viewer import view as open_viewer
+    from ..viewer.state import ViewerState
 
     scene = load_scene(scene_file, spheres, seed, materials)
     width, height = parse_size(size)
@@ -112,17 +113,8 @@ def view(
                 continue
         _check_options(name, given, whitted)
     seed = None if scene_file is not None else (0 if seed is None else seed)
-    window = open_viewer(
-        scene,
-        device=device,
-        seed=seed,
-        size=(width, height),
-        options=options,
-        frames=frames,
-        screenshot=screenshot,
-        animate=animate,
-        **shaded,
-    )
+    state = ViewerState(scene, device=device, seed=seed, options=options, animate=animate, **shaded)
+    window = open_viewer(state, (width, height), frames=frames, screenshot=screenshot)
     if frames is not None and window.state.frames_shown < frames:
         raise RaybenchError(
             f"the window was closed after {window.state.frames_shown} of {frames} frames"

@@ -14,7 +14,7 @@ from collections import OrderedDict
 
 from ..camera import Camera
 from ..errors import RaybenchError, one_line
-from ..kernels.whitted import KINDS
+from ..layout import KINDS
 from ..render import Renderer
 from ..scene import Scene
 from . import sharedframe

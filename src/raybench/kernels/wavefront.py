@@ -36,9 +36,23 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ..layout import BLUE, GREEN, IOR, RED, REFLECT, SHININESS, SPECULAR, TRANSMIT
+from ..layout import (
+    BLUE,
+    GREEN,
+    IOR,
+    P_AMBIENT,
+    P_LIGHTS,
+    PRIMARY,
+    RED,
+    REFLECT,
+    REFLECTION,
+    REFRACTION,
+    SHININESS,
+    SPECULAR,
+    TRANSMIT,
+)
 from .constants import FAR, ONE, TWO, ZERO
-from .whitted import CUTOFF, OFFSET, P_AMBIENT, P_LIGHTS, PRIMARY, REFLECTION, REFRACTION
+from .whitted import CUTOFF, OFFSET
 
 RAY_ROWS = 10
 RAY_IDS = 5

@@ -58,8 +58,18 @@ from ..layout import (
     LX,
     LY,
     LZ,
+    MAX_RAY_DEPTH,
+    P_AMBIENT,
+    P_BACKGROUND,
+    P_DEPTH,
+    P_GRADIENT,
+    P_LIGHTS,
+    P_SAMPLES,
+    PRIMARY,
     RED,
     REFLECT,
+    REFLECTION,
+    REFRACTION,
     SHININESS,
     SPECULAR,
     TRANSMIT,
@@ -68,15 +78,12 @@ from .constants import FAR, ONE, TWO, ZERO
 
 # Pending rays a pixel may hold: a ray at depth k leaves at most one sibling
 # pending on each level above it and pushes two, so MAX_DEPTH + 1 suffice.
-MAX_DEPTH = 16
+MAX_DEPTH = MAX_RAY_DEPTH
 RAY_STACK = MAX_DEPTH + 2
 # A pending ray: origin, direction, weight (rgb) and slack as float32 ...
 RAY_FLOATS = 10
 # ... and its depth, kind, the sphere it leaves and whether it goes into it.
 RAY_INTS = 4
-# Ray kinds, the columns of the ray counts.
-PRIMARY, SHADOW, REFLECTION, REFRACTION = range(4)
-KINDS = ("primary", "shadow", "reflection", "refraction")
 # The weight a pixel may drop in all, half a byte's step: together the dropped
 # branches cannot change the pixel (the module's docstring).
 CUTOFF = np.float32(0.5 / 255.0)
@@ -85,14 +92,6 @@ CUTOFF = np.float32(0.5 / 255.0)
 FRESNEL_TINY = np.float32(1e-30)
 # The offset of a secondary ray's origin, of |P|_1: 16 float32 epsilons.
 OFFSET = np.float32(2.0**-19)
-# The frame's settings, one small float32 array (lighting.Shading.params).
-P_AMBIENT = 0  # 3 floats
-P_BACKGROUND = 3  # 3 floats, used where P_GRADIENT is 0
-P_GRADIENT = 6  # 1: the thesis's gradient behind everything
-P_DEPTH = 7
-P_SAMPLES = 8  # shadow rays to an area light
-P_LIGHTS = 9
-PARAMS = 10
 
 
 def per_ray(jit, find, toward):

@@ -23,37 +23,13 @@ from __future__ import annotations
 from pathlib import Path
 
 
-def view(
-    scene,
-    *,
-    device: str,
-    seed: int | None,
-    size: tuple[int, int],
-    options: dict | None = None,
-    frames: int | None = None,
-    screenshot: Path | None = None,
-    shading: str = "thesis",
-    depth: int | None = None,
-    shadow_samples: int | None = None,
-    animate: bool = False,
-):
-    """Open the window on scene and run until it closes; returns the window
-    (what it saved, and its state with the last frame shown). shading, depth
-    and shadow_samples: the first frame's, as render() takes them; animate:
-    the spheres move every frame (viewer.moving)."""
-    from .state import ViewerState
+def view(state, size: tuple[int, int], *, frames: int | None = None, screenshot: Path | None = None):
+    """Open the window on state (a viewer.state.ViewerState: the scene, its
+    device and options, the first frame's shading, whether the spheres move)
+    and run until it closes; returns the window (what it saved, and its state
+    with the last frame shown)."""
     from .window import ViewerWindow
 
-    state = ViewerState(
-        scene,
-        device=device,
-        seed=seed,
-        options=options,
-        shading=shading,
-        depth=depth,
-        shadow_samples=shadow_samples,
-        animate=animate,
-    )
     window = ViewerWindow(state, size, frames=frames, screenshot=screenshot)
     window.run()
     return window

@@ -7,6 +7,8 @@ screenshot is the picture alone.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 from .bindings import help_summary
 
 SEPARATOR = "  |  "
@@ -33,25 +35,31 @@ def _rays(per_s: float | None) -> str:
     return f"{per_s:.0f} rays/s"
 
 
-def status_line(
-    *,
-    device: str,
-    spheres: int,
-    width: int,
-    height: int,
-    frame_ms: float | None,
-    fps: float | None,
-    ramp: bool = False,
-    message: str | None = None,
-    shading: str | None = None,
-    rays_per_s: float | None = None,
-    update: tuple[str, float] | None = None,
-) -> str:
-    """device, sphere count, resolution, frame time and frames per second of
-    what is on screen; with --animate, the last frame's tree update (its kind,
-    "refit" or "build", and ms) before the trace; with a shading, it and the
-    rays cast per second (under Whitted's, every kind counted); then the ramp
-    flag and the latest message."""
+class Status(NamedTuple):
+    """What the status line says of what is on screen: device, sphere count,
+    resolution, frame time and frames per second; update: with --animate, the
+    last frame's tree update (its kind, "refit" or "build", and ms); shading
+    and rays_per_s: with a shading, it and the rays cast per second (under
+    Whitted's, every kind counted); ramp: the ramp flag; message: the latest."""
+
+    device: str
+    spheres: int
+    width: int
+    height: int
+    frame_ms: float | None
+    fps: float | None
+    ramp: bool = False
+    message: str | None = None
+    shading: str | None = None
+    rays_per_s: float | None = None
+    update: tuple[str, float] | None = None
+
+
+def status_line(status: Status) -> str:
+    """The status: its device, sphere count, resolution; the update before
+    the trace; the frame time and fps; the shading and its rays per second;
+    then the ramp flag and the latest message."""
+    device, spheres, width, height, frame_ms, fps, ramp, message, shading, rays_per_s, update = status
     parts = ["raybench", device, f"{spheres:,} spheres", f"{width}x{height}"]
     if update is not None:
         # a refit takes a fraction of a ms: two decimals there

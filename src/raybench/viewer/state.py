@@ -15,7 +15,7 @@ from ..camera import Camera
 from ..scene import Scene
 from .bindings import binding_for
 from .controls import Motion, travel_speed
-from .overlay import help_line, status_line, waiting_line
+from .overlay import Status, help_line, status_line, waiting_line
 from .pacing import FrameStats
 from .shading import LIGHT_MOVES, LIGHT_STEP_S, ShadingControl
 from .spheres import SphereSupply
@@ -32,7 +32,6 @@ class ViewerState:
         *,
         device: str,
         seed: int | None = None,
-        camera: Camera | None = None,
         options: dict | None = None,
         clock=time.perf_counter,
         devices=("cpu", "cuda"),
@@ -52,7 +51,7 @@ class ViewerState:
         self.unavailable: dict[str, str] = {}  # device -> why it cannot trace here (the window says)
         self.clock = clock
         self.supply = SphereSupply(scene, seed)
-        self.home = camera or scene.camera or Camera()
+        self.home = scene.camera or Camera()
         self.camera = self.home
         self.device = device  # where the next frame is traced
         self._working_device = device  # where frames last came from: the fallback for a failed switch
@@ -228,17 +227,19 @@ class ViewerState:
             )
         shown = self.shown
         return status_line(
-            device=device_label(shown),
-            spheres=shown.request.count,
-            width=shown.frame.width,
-            height=shown.frame.height,
-            frame_ms=self.stats.frame_ms(now),
-            fps=self.stats.fps(now),
-            ramp=self.supply.ramping,
-            message=message,
-            shading=shading_label(shown),
-            rays_per_s=self.stats.rays_per_s(now),
-            update=(shown.update, shown.update_ms) if shown.update is not None else None,
+            Status(
+                device=device_label(shown),
+                spheres=shown.request.count,
+                width=shown.frame.width,
+                height=shown.frame.height,
+                frame_ms=self.stats.frame_ms(now),
+                fps=self.stats.fps(now),
+                ramp=self.supply.ramping,
+                message=message,
+                shading=shading_label(shown),
+                rays_per_s=self.stats.rays_per_s(now),
+                update=(shown.update, shown.update_ms) if shown.update is not None else None,
+            )
         )
 
 

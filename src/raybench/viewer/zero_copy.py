@@ -20,7 +20,7 @@ from ..backends.limits import check_count
 from ..backends.options import checked
 from ..backends.wgpu.compute import RAY_KINDS, Compute
 from ..backends.wgpu.tracer import timestamp_period
-from ..kernels.whitted import KINDS
+from ..layout import KINDS
 
 
 @dataclass(frozen=True)

@@ -11,8 +11,8 @@ import numba
 import numpy as np
 
 from ... import bvh as bvh_mod
+from ... import layout
 from ...host import host_available_bytes, usable_cores
-from ...kernels import whitted as whitted_mod
 from ...kernels.packets import PACKET_H, _bvh_packets_wide
 from ...layout import (
     NODE_FLOATS,
@@ -110,8 +110,8 @@ class Tracer(TracerBase):
                 # every ray alone through the binary tree
                 self.tree_width = options.tree_width
             self._kernel = WHITTED_ROWS["packets" if self.tree_width == 4 else self.accel]
-            self._row_rays = np.zeros((height, len(whitted_mod.KINDS)), np.int64)
-            self.ray_counts = np.zeros(len(whitted_mod.KINDS), np.int64)
+            self._row_rays = np.zeros((height, len(layout.KINDS)), np.int64)
+            self.ray_counts = np.zeros(len(layout.KINDS), np.int64)
             self._none = np.zeros((0, NODE_FLOATS), np.float32)
             if self.accel == "bvh":
                 self._build(self.count)

@@ -5,7 +5,7 @@ tree with the primary and shadow rays as packets."""
 import numba
 import numpy as np
 
-from ... import compiled
+from ... import compiled, layout
 from ...kernels import whitted as whitted_mod
 from ...kernels.packets import PACKET, PACKET_H, PACKET_W, _packet_walk_wide, _start_packet
 from ...kernels.shadow_packets import BLOCKER_SLOTS, LANES, PacketsTree
@@ -42,10 +42,10 @@ def _whitted_rows(render_pixel, first_row, end_row, width, height, basis, sphere
             shadow += b
             reflection += c
             refraction += d
-        counts[y, whitted_mod.PRIMARY] = primary
-        counts[y, whitted_mod.SHADOW] = shadow
-        counts[y, whitted_mod.REFLECTION] = reflection
-        counts[y, whitted_mod.REFRACTION] = refraction
+        counts[y, layout.PRIMARY] = primary
+        counts[y, layout.SHADOW] = shadow
+        counts[y, layout.REFLECTION] = reflection
+        counts[y, layout.REFRACTION] = refraction
 
 
 _whitted_bvh_pixel, _whitted_all_pixel = _k.render_pixel_whitted["bvh"], _k.render_pixel_whitted["none"]
@@ -139,7 +139,7 @@ def _whitted_tiles(first_row, end_row, width, height, basis, spheres, count, mat
             return
         lines = min(PACKET_H, end_row - y0)
         for y in range(y0, y0 + lines):
-            for kind in range(len(whitted_mod.KINDS)):
+            for kind in range(len(layout.KINDS)):
                 counts[y, kind] = 0
         for x0 in range(0, width, PACKET_W):
             _tile_primaries(x0, y0, end_row, width, height, basis, wide, wide_links, ordered, order, lanes, hit, hit_d,
@@ -152,10 +152,10 @@ def _whitted_tiles(first_row, end_row, width, height, basis, spheres, count, mat
                         x0 + i, y, width, height, basis, spheres, count, materials, lights, pattern, params, tree,
                         stack_row, stack_t, rays_f, rays_i, image, hits,
                     )  # fmt: skip
-                    counts[y, whitted_mod.PRIMARY] += a
-                    counts[y, whitted_mod.SHADOW] += b
-                    counts[y, whitted_mod.REFLECTION] += c
-                    counts[y, whitted_mod.REFRACTION] += d
+                    counts[y, layout.PRIMARY] += a
+                    counts[y, layout.SHADOW] += b
+                    counts[y, layout.REFLECTION] += c
+                    counts[y, layout.REFRACTION] += d
 
 
 WHITTED_ROWS = {"bvh": _whitted_rows_bvh, "none": _whitted_rows_all, "packets": _whitted_rows_packets}

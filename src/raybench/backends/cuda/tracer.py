@@ -16,8 +16,8 @@ from ... import bvh as bvh_mod
 from ... import compiled, kernels
 from ...host import host_available_bytes
 from ...kernels.constants import FAR, ZERO
-from ...kernels.whitted import KINDS, RAY_FLOATS, RAY_INTS, RAY_STACK
-from ...layout import CHILD_BOX, INNER, NODE_BYTES, NODE_FLOATS, RADIUS, STACK
+from ...kernels.whitted import RAY_FLOATS, RAY_INTS, RAY_STACK
+from ...layout import CHILD_BOX, INNER, KINDS, NODE_BYTES, NODE_FLOATS, RADIUS, STACK
 from ...lighting import Shading
 from ..contract import TracerBase, check_moved
 from ..limits import (

@@ -41,8 +41,7 @@ from numba.cuda import libdevice
 from ... import compiled, kernels
 from ...kernels.primitives.sphere import LEAF_ROWS
 from ...kernels.wavefront import R_KIND, R_PIXEL, RAY_IDS, RAY_ROWS, SHADOW_IDS, SHADOW_ROWS
-from ...kernels.whitted import KINDS, PRIMARY
-from ...layout import CHILD_BOX, COUNT, NODE_FLOATS, REF, STACK
+from ...layout import CHILD_BOX, COUNT, KINDS, NODE_FLOATS, PRIMARY, REF, STACK
 from .. import bands
 from .device import simulated
 from .launch import Launches

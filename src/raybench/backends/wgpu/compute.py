@@ -19,7 +19,6 @@ from ... import bvh as bvh_mod
 from ... import layout, lighting
 from ...errors import RaybenchError
 from ...host import host_available_bytes
-from ...kernels import whitted
 from ...lighting import Shading
 from ..limits import HOST_PIXEL_BYTES, check_bvh_fits
 from ..options import WgpuOptions
@@ -36,7 +35,7 @@ UNIFORM_BYTES = 80  # shader's struct Frame: four vec4s, four u32s
 # (docs/bvh-walk.md#tried-packets-on-wgpu-leases-r-and-s-kept-as-an-option-not-the-default);
 # walk="packet" measures it on another GPU.
 PACKET_FEATURE = "subgroup"
-RAY_KINDS = len(whitted.KINDS)
+RAY_KINDS = len(layout.KINDS)
 
 
 def check_workgroup(workgroup: tuple[int, int], limits: dict) -> tuple[int, int]:
@@ -104,12 +103,12 @@ def lighting_uniform(shading: Shading) -> bytes:
     radius, colour times intensity), the sample pattern."""
     p = shading.params
     head = np.zeros((2, 4), np.float32)
-    head[0, :3] = p[whitted.P_AMBIENT : whitted.P_AMBIENT + 3]
-    head[1, :3] = p[whitted.P_BACKGROUND : whitted.P_BACKGROUND + 3]
-    head[1, 3] = p[whitted.P_GRADIENT]
-    sizes = np.array([p[whitted.P_LIGHTS], p[whitted.P_SAMPLES], p[whitted.P_DEPTH], 0], np.uint32)
+    head[0, :3] = p[layout.P_AMBIENT : layout.P_AMBIENT + 3]
+    head[1, :3] = p[layout.P_BACKGROUND : layout.P_BACKGROUND + 3]
+    head[1, 3] = p[layout.P_GRADIENT]
+    sizes = np.array([p[layout.P_LIGHTS], p[layout.P_SAMPLES], p[layout.P_DEPTH], 0], np.uint32)
     lights = np.zeros((lighting.MAX_LIGHTS, 2, 4), np.float32)
-    n = int(p[whitted.P_LIGHTS])
+    n = int(p[layout.P_LIGHTS])
     lights[:n, 0, :3] = shading.lights[layout.LX : layout.LZ + 1, :n].T
     lights[:n, 0, 3] = shading.lights[layout.LRADIUS, :n]
     lights[:n, 1, :3] = shading.lights[layout.LRED : layout.LBLUE + 1, :n].T

@@ -4,7 +4,7 @@ timed apart."""
 
 from __future__ import annotations
 
-from ...kernels.whitted import KINDS
+from ...layout import KINDS
 from . import charts
 from .markdown_blocks import _adapter_name, _machine_lines, _table, _Writer, escape
 from .numbers import fmt_ms, fmt_num, fmt_x
