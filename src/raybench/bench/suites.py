@@ -25,10 +25,9 @@ GPU's lead against, taken in the same run.
 
 Brute force with secondary rays is the costly part: a Whitted frame of the
 materials scene casts about 12 rays a pixel, each tested against every
-sphere. On 2 busy cores the simple loop manages about 230 k such rays/s at
-1,000 spheres, so a 1680x1050 frame takes about 1.5 minutes at 1,000
-spheres, and at 100,000 some 2.5 hours (tens of minutes on 16 cores); a GPU
-takes seconds. What a user would expect is brute force measured wherever
+sphere: on 2 busy cores a large frame takes minutes at 1,000 spheres and
+hours at 100,000 (docs/whitted.md#whitted-shading-issue-14-secondary-rays);
+a GPU takes seconds. What a user would expect is brute force measured wherever
 its frames are bearable and every point that is not said so, never silently
 dropped. So brute-force points carry a cap, as in the scaling suite: a
 point whose frame is predicted (linear in pixels and spheres from the last

@@ -6,8 +6,8 @@ spatial midpoints whatever the spheres do, and for the benchmark's scenes
 (spheres bunched in a view frustum, radii shrinking with the count) that gives
 trees a ray walks more nodes of. Binned SAH picks, at every node, the split of
 16 candidate planes per axis that minimises the expected cost of a random ray,
-in O(n) per level; 1,000,000 spheres build well under the issue's 1 s on two
-cores, and the trace, done every frame, is what the tree must serve.
+in O(n) per level, fast enough for a million spheres (docs/gpu-build.md), and
+the trace, done every frame, is what the tree must serve.
 Every thread takes part from the root down: a range of many spheres is split
 by all of them at once, and smaller ranges are subtrees built one per thread.
 
@@ -120,7 +120,7 @@ def _log2ceil(n):
 def _range_bounds(px, py, pz, pr, s, e, box, cbox):
     """box: union of the spheres' padded boxes over [s, e); cbox: bounds of their centres."""
     # in locals, not box[]: stores to an array that may alias px cannot stay in
-    # registers (measured alone: about a quarter less time a sphere)
+    # registers (docs/gpu-build.md#figures-moved-from-the-sources-comments)
     inf = np.float32(np.inf)
     lx = ly = lz = clx = cly = clz = inf
     hx = hy = hz = chx = chy = chz = -inf

@@ -6,7 +6,7 @@ pay for fresh pages every frame.
 Why kept (docs/scaling.md has the figures): on the machines measured, memory
 first touched costs far more than the copy itself. Allocating a tmpfs page,
 zeroing it and filling a page table entry for it in each process that maps it
-runs at 0.4-1 GB/s, against 4-7 GB/s for a copy into pages already mapped. So:
+runs several times slower than a copy into pages already mapped. So:
 
 - The client's Pool makes a Block once per frame size: a file in /dev/shm,
   named after the client's process id (raybench-PID-...),

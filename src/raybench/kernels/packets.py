@@ -106,7 +106,7 @@ def _missed_by_all(lx, ly, lz, hx, hy, hz, spread):
         min(max(max(ly * y0, hy * y0), max(ly * y1, hy * y1)), max(max(lz * z0, hz * z0), max(lz * z1, hz * z1))),
     )
     # one branch where it is used, not three (`or` would branch on each, and
-    # mispredicted they cost 10-13% of the frame)
+    # they mispredict: docs/bvh-walk.md)
     return (near > far) | (far <= ZERO) | (near > spread[6])
 
 

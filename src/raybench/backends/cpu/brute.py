@@ -15,7 +15,7 @@ from .program import _intersect_relative, _may_hit, _prepare_one, _primary_ray, 
 
 # The cull loops index the spheres with unsigned integers: a signed index
 # carries Python's negative-index wraparound, a select per lane that LLVM
-# turns into gathers, which halved the cull's speed (step 5 of
+# turns into gathers, which slowed the cull (step 5 of
 # docs/floors.md#each-version-against-the-floor). The CUDA fast kernel does the
 # same for the same reason.
 _U = np.uint64

@@ -198,8 +198,9 @@ def _bvh_packet_kernel(width, height, first, end, basis, nodes, links, ordered, 
         b_in = b_near <= b_far and b_far > ZERO and b_near <= closest
         # first the child whose box centre lies nearer along the block's
         # central ray: an order the same in every thread without a vote
-        # (guarding an empty child's case with a branch cost 17%, clamping
-        # its planes 8%: the builder stores them finite instead). The
+        # (guarding an empty child's case with a branch, or clamping its
+        # planes, cost more than the builder storing them finite:
+        # docs/bvh-walk.md). The
         # barriers take int32 predicates on a GPU.
         b_first = _centre(nodes, node, _U(CHILD_BOX[1]), ox, oy, oz, cdx, cdy, cdz) < _centre(
             nodes, node, _U(CHILD_BOX[0]), ox, oy, oz, cdx, cdy, cdz
