@@ -11,7 +11,8 @@ kernels/traverse.py with its own bindings and the one slab test, and for the
 packet walk packet.wgsl after it, with its own entry point. Whitted shading
 adds whitted.wgsl (kernels/whitted.py), and its wavefront wavefront.wgsl
 (kernels/wavefront.py). WGSL has no include: each piece uses the others'
-functions, and the host concatenates them (source).
+functions, and the host concatenates them (source). tests/test_wgsl_parity.py
+runs the twins on the same inputs.
 """
 
 from __future__ import annotations
