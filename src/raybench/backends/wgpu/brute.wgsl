@@ -7,20 +7,20 @@
 // kernels/trace.py's scan: every sphere in order, the thesis's loop, for any
 // ray: the smallest 0 < t < t_max wins; strict < keeps the first sphere on a
 // tie; any_hit stops at the first; ahead, own, own_inside: the secondary
-// rays' test (traverse.py's leaf_test). Returns (index or -1, t, d).
+// rays' test (traverse.py's leaf_test), sphere.wgsl's hit_ahead, else its
+// hit. Returns (index or -1, t, d).
 fn scan(o: vec3<f32>, dir: vec3<f32>, count: u32, t_max: f32, any_hit: bool, ahead: bool, own: i32,
         own_inside: bool) -> Found {
     var best = Found(-1, t_max, 0.0);
     for (var i = 0u; i < count; i = i + 1u) {
-        let s = spheres[i];
         var td: vec2<f32>;
         if (ahead) {
-            if (i32(i) == own && !own_inside) {
+            if (i32(i) == own && !meets_own(own_inside)) {
                 continue;
             }
-            td = intersect_ahead(s.cx - o.x, s.cy - o.y, s.cz - o.z, s.r, dir.x, dir.y, dir.z, i32(i) == own);
+            td = hit_ahead(i32(i), o, dir, i32(i) == own);
         } else {
-            td = intersect_sphere(o, dir, s);
+            td = hit(i32(i), o, dir);
         }
         if (td.x < best.t && td.x > 0.0) {
             best = Found(i32(i), td.x, td.y);
@@ -32,14 +32,14 @@ fn scan(o: vec3<f32>, dir: vec3<f32>, count: u32, t_max: f32, any_hit: bool, ahe
     return best;
 }
 
-// kernels/trace.py's nearest_hit: scan for the thesis's primary rays.
+// nearest_hit: kernels/trace.py's, scan for the thesis's primary rays.
 // An acceleration structure (traverse.wgsl) is another piece with this signature.
 fn nearest_hit(o: vec3<f32>, dir: vec3<f32>, count: u32) -> Hit {
     let found = scan(o, dir, count, FAR, false, false, -1, false);
     return Hit(found.index, found.d);
 }
 
-// whitted.wgsl's search for any ray, by brute force.
+// find: whitted.wgsl's search for any ray, by brute force (trace.py's search_all).
 fn find(o: vec3<f32>, dir: vec3<f32>, t_max: f32, any_hit: bool, own: i32, own_inside: bool) -> Found {
     return scan(o, dir, frame.count, t_max, any_hit, true, own, own_inside);
 }

@@ -14,14 +14,9 @@ struct Frame {
     _pad: u32,
 }
 
-// One sphere: the (7, N) float32 columns of Scene.spheres, padded to 32 bytes.
-// Scalars, not vec3s, so the arithmetic below is the kernels' own, term by term.
-struct Sphere {
-    cx: f32, cy: f32, cz: f32, r: f32,
-    red: f32, green: f32, blue: f32, _pad: f32,
-}
-
 @group(0) @binding(0) var<uniform> frame: Frame;
+// The scene's spheres, in the layout of sphere.wgsl's struct Sphere, which
+// alone reads their geometry.
 @group(0) @binding(1) var<storage, read> spheres: array<Sphere>;
 // rgba8unorm: the shader stores byte / 255, which the unorm conversion turns
 // back into exactly that byte; the viewer draws this texture as it is.

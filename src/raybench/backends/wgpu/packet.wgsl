@@ -1,4 +1,4 @@
-// backends/cuda.py's _bvh_packet_kernel: the BVH walk with a subgroup's rays
+// backends/cuda/tracer.py's _bvh_packet_kernel: the BVH walk with a subgroup's rays
 // as one packet, which visits a node if any of its rays enters it; each ray
 // tests only the leaves it enters itself, so the pixels are those of
 // nearest_hit_bvh. The votes are subgroup operations, the same in every
@@ -22,6 +22,9 @@ fn centre_along(row: i32, col: u32, o: vec3<f32>, c: vec3<f32>) -> f32 {
         + (0.5 * (plane(row, col + 2u) + plane(row, col + 5u)) - o.z) * c.z;
 }
 
+// nearest_hit_packet: the CUDA kernel's walk (no Python twin of one ray's
+// share of a subgroup's packet: the CPU's packets, kernels/packets.py, hold
+// all of a packet's rays in one thread).
 fn nearest_hit_packet(o: vec3<f32>, dir: vec3<f32>, centre: vec3<f32>) -> Hit {
     let axes = ray_axes(o, dir);
     var best = Nearest(FAR, -1, 0.0);

@@ -1,11 +1,18 @@
 """The WGSL compute shader, assembled from its pieces.
 
 The pieces port the single-source kernels (raybench.kernels) function by
-function: common.wgsl (bindings), intersect.wgsl, shade.wgsl, trace.wgsl (the
-primary ray, the pixel, the entry point), and one nearest_hit per
-acceleration structure: brute.wgsl, the thesis's loop over every sphere, and
-traverse.wgsl, the BVH walk of kernels/traverse.py with its own bindings,
-and for the packet walk packet.wgsl after it, with its own entry point.
+function, each WGSL function named after its Python twin: common.wgsl (the
+frame's bindings), sphere.wgsl (kernels/primitives/sphere.py: the only piece
+that reads a sphere's geometry), shade.wgsl (kernels/shade.py), trace.wgsl
+(kernels/trace.py's primary ray and pixel, the entry point), and one
+nearest_hit per acceleration structure: brute.wgsl, the thesis's loop over
+every sphere (trace.py's scan), and traverse.wgsl, the BVH walk of
+kernels/traverse.py with its own bindings and the one slab test, and for the
+packet walk packet.wgsl after it, with its own entry point. Whitted shading
+adds whitted.wgsl (kernels/whitted.py), and its wavefront wavefront.wgsl
+(kernels/wavefront.py). WGSL has no include: each piece uses the others'
+functions, and the host concatenates them (source). tests/test_wgsl_parity.py
+runs the twins on the same inputs.
 """
 
 from __future__ import annotations
@@ -17,7 +24,7 @@ from ... import layout, lighting
 from ...kernels import traverse, wavefront, whitted
 
 ACCELS = {"bvh": "traverse.wgsl", "none": "brute.wgsl"}
-PIECES = ("common.wgsl", "intersect.wgsl", "shade.wgsl", "trace.wgsl")
+PIECES = ("common.wgsl", "sphere.wgsl", "shade.wgsl", "trace.wgsl")
 # The walk's constants, taken from their Python definitions rather than
 # written again in WGSL: float32 values whose repr is exact, so the WGSL
 # literal converts to the very float32 the CPU uses.

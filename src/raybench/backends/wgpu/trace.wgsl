@@ -12,6 +12,7 @@ struct Found {
     d: f32,
 }
 
+// primary_ray: the unit direction of the ray through pixel (x, y)'s centre.
 fn primary_ray(x: u32, y: u32) -> vec3<f32> {
     let fx = f32(x);
     let fy = f32(y);
@@ -24,10 +25,12 @@ fn primary_ray(x: u32, y: u32) -> vec3<f32> {
     return vec3<f32>(dx * inv, dy * inv, dz * inv);
 }
 
+// store_pixel: shade pixel (x, y) from its nearest hit (-1: none) and store it.
 fn store_pixel(x: u32, y: u32, hit: Hit) {
     var c: vec3<f32>;
     if (hit.index >= 0) {
-        c = shade_hit(spheres[hit.index], hit.d);
+        let s = spheres[hit.index];
+        c = shade_hit(s.red, s.green, s.blue, rim(hit.index), hit.d);
     } else {
         c = shade_miss(f32(x), f32(y));
     }
@@ -36,7 +39,8 @@ fn store_pixel(x: u32, y: u32, hit: Hit) {
     hits[y * frame.width + x] = hit.index;
 }
 
-// One invocation per pixel; workgroups overhanging the image do nothing there.
+// main: render_pixel, one invocation per pixel; workgroups overhanging the
+// image do nothing there.
 @compute @workgroup_size(WORKGROUP_X, WORKGROUP_Y)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if (id.x >= frame.width || id.y >= frame.height) {

@@ -14,15 +14,14 @@ struct Node {
     links: vec4<i32>,   // ref 0, ref 1, count 0, count 1
 }
 
-// Plane i (0 to 11) of a row's boxes: layout's column i.
+// Plane i (0 to 11) of a row's boxes: layout's column i. WGSL-only: the
+// Python reads nodes[row, col] (centre_along); a struct's row reads it so.
 fn plane(row: i32, i: u32) -> f32 {
     return nodes[row].box[i >> 2u][i & 3u];
 }
 
 @group(0) @binding(4) var<storage, read> nodes: array<Node>;
-// bvh.ordered, one row per sphere (cx, cy, cz, r) in leaf order: the very
-// float32 values of the scene, so the exact test is the brute-force one.
-@group(0) @binding(5) var<storage, read> ordered: array<vec4<f32>>;
+// Binding 5, bvh.ordered, the leaves' spheres: sphere.wgsl's, which reads them.
 @group(0) @binding(6) var<storage, read> order: array<i32>;
 
 const STACK: u32 = BVH_STACK;
@@ -65,6 +64,7 @@ struct Nearest {
     d: f32,
 }
 
+// inverse: 1/d for the slab test, finite: |d| raised to at least TINY, its sign kept.
 fn inverse(d: f32) -> f32 {
     if (d >= 0.0) {
         return 1.0 / max(d, TINY);
@@ -72,16 +72,17 @@ fn inverse(d: f32) -> f32 {
     return 1.0 / min(d, -TINY);
 }
 
-// lo and hi come times 1/d: a plane's distance is then one multiply-add
-// (traverse.py's axis_setup says why).
+// axis_setup: one axis of the ray for the slab test; lo and hi come times
+// 1/d: a plane's distance is then one multiply-add (the Python says why).
 fn axis_setup(o: f32, d: f32, margin: f32) -> Axis {
     let inv = inverse(d);
     return Axis(inv, (o + margin) * inv, (o - margin) * inv);
 }
 
-// (near, far) of the ray through the box of low planes lo and high ones hi;
-// near > far where it misses. Both planes of each axis, put in order by min
-// and max.
+// slab: (near, far) of the ray through the box of low planes lo and high
+// ones hi; near > far where it misses. Both planes of each axis, put in order
+// by min and max. The one ray-box test of the WGSL: every walk (walk, the
+// packet's nearest_hit_packet) reaches it through children.
 fn slab(lo: vec3<f32>, hi: vec3<f32>, x: Axis, y: Axis, z: Axis) -> vec2<f32> {
     let a0 = lo.x * x.inv - x.lo;
     let a1 = lo.y * y.inv - y.lo;
@@ -94,13 +95,14 @@ fn slab(lo: vec3<f32>, hi: vec3<f32>, x: Axis, y: Axis, z: Axis) -> vec2<f32> {
     return vec2<f32>(near, far);
 }
 
-// The ray's axes for the slab tests, every box grown by the camera's margin.
+// ray_axes: the ray's axes for the slab tests, every box grown by the camera's margin.
 fn ray_axes(o: vec3<f32>, dir: vec3<f32>) -> Axes {
     let margin = (abs(o.x) + abs(o.y) + abs(o.z)) * PAD;
     return Axes(axis_setup(o.x, dir.x, margin), axis_setup(o.y, dir.y, margin), axis_setup(o.z, dir.z, margin));
 }
 
-// A node's two children: the ray's slab through each one's box, and their links.
+// children: a node's two children, the ray's slab through each one's box,
+// and their links (read_row's reads: a row as the struct Node's four loads).
 fn children(row: i32, axes: Axes) -> Children {
     let p0 = nodes[row].box[0];
     let p1 = nodes[row].box[1];
@@ -111,23 +113,24 @@ fn children(row: i32, axes: Axes) -> Children {
     return Children(Child(sa.x, sa.y, links.x, links.z), Child(sb.x, sb.y, links.y, links.w));
 }
 
-// The exact test on a leaf's spheres (leaf_test); ties go to the smaller
-// ORIGINAL index, which is the sphere brute force's first-of-smallest-t
-// picks. ahead, own, own_inside: the secondary rays' test.
+// leaf_test: the exact test on a leaf's primitives (sphere.wgsl's leaf_hit,
+// or leaf_hit_ahead for the secondary rays); ties go to the smaller ORIGINAL
+// index, which is the one brute force's first-of-smallest-t picks. ahead,
+// own, own_inside: the secondary rays' test, where the primitive the ray
+// leaves is skipped unless it can meet it again (meets_own).
 fn leaf_test(o: vec3<f32>, dir: vec3<f32>, first: i32, count: i32, so_far: Nearest, ahead: bool, own: i32,
              own_inside: bool) -> Nearest {
     var best = so_far;
     for (var j = first; j < first + count; j = j + 1) {
-        let c = ordered[j];
         let original = order[j];
         var td: vec2<f32>;
         if (ahead) {
-            if (original == own && !own_inside) {
+            if (original == own && !meets_own(own_inside)) {
                 continue;
             }
-            td = intersect_ahead(c.x - o.x, c.y - o.y, c.z - o.z, c.w, dir.x, dir.y, dir.z, original == own);
+            td = leaf_hit_ahead(j, o, dir, original == own);
         } else {
-            td = intersect_sphere(o, dir, Sphere(c.x, c.y, c.z, c.w, 0.0, 0.0, 0.0, 0.0));
+            td = leaf_hit(j, o, dir);
         }
         if (td.x > 0.0 && (td.x < best.closest || (td.x == best.closest && original < best.hit))) {
             best = Nearest(td.x, original, td.y);
@@ -136,7 +139,7 @@ fn leaf_test(o: vec3<f32>, dir: vec3<f32>, first: i32, count: i32, so_far: Neare
     return best;
 }
 
-// The one walk for any ray (walk): the nearest sphere with 0 < t < t_max,
+// walk: the one walk for any ray, the nearest sphere with 0 < t < t_max,
 // or with any_hit the first found.
 fn walk(o: vec3<f32>, dir: vec3<f32>, t_max: f32, any_hit: bool, ahead: bool, own: i32, own_inside: bool) -> Found {
     let axes = ray_axes(o, dir);
@@ -189,23 +192,25 @@ fn walk(o: vec3<f32>, dir: vec3<f32>, t_max: f32, any_hit: bool, ahead: bool, ow
     return Found(best.hit, best.closest, best.d);
 }
 
+// leaf_hits: leaf_test for the thesis's primary rays.
 fn leaf_hits(o: vec3<f32>, dir: vec3<f32>, first: i32, count: i32, so_far: Nearest) -> Nearest {
     return leaf_test(o, dir, first, count, so_far, false, -1, false);
 }
 
+// nearest_hit_bvh: walk for the thesis's primary rays.
 fn nearest_hit_bvh(o: vec3<f32>, dir: vec3<f32>) -> Hit {
     let found = walk(o, dir, FAR, false, false, -1, false);
     return Hit(found.index, found.d);
 }
 
-// brute.wgsl's signature, so trace.wgsl's main calls either. The tree holds
+// nearest_hit: brute.wgsl's signature, so trace.wgsl's main calls either. The tree holds
 // exactly the frame's spheres (compute.py builds it for the frame's count),
 // so count has nothing left to bound.
 fn nearest_hit(o: vec3<f32>, dir: vec3<f32>, count: u32) -> Hit {
     return nearest_hit_bvh(o, dir);
 }
 
-// whitted.wgsl's search for any ray, through the tree.
+// find: whitted.wgsl's search for any ray, through the tree (trace.py's search_tree).
 fn find(o: vec3<f32>, dir: vec3<f32>, t_max: f32, any_hit: bool, own: i32, own_inside: bool) -> Found {
     return walk(o, dir, t_max, any_hit, true, own, own_inside);
 }

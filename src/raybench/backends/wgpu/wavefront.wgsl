@@ -1,8 +1,8 @@
 // kernels/wavefront.py: Whitted shading by ray, a stage an entry point over
 // queues of rays (backends/wgpu/wavefront.py dispatches them); the same
 // formulas in the same order as whitted.wgsl's pixel program, whose
-// functions (find, surface, shows, samples_of, toward, glint, branches,
-// shade_hit, shade_miss) it calls.
+// functions (find, shows, samples_of, toward, glint, branches) it calls, with
+// sphere.wgsl's surface and rim and shade.wgsl's shade_hit and shade_miss.
 //
 // Every stage runs on `waves.groups` workgroups of WF_GROUP invocations,
 // each taking the slots base + its index, base + the grid's invocations, ...
@@ -283,7 +283,7 @@ fn main_wf_shade(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocat
                 add_light(ray.pixel, ray.w * background_of(ray.pixel));
             } else {
                 let s = spheres[h];
-                hit = surface(ray.o, ray.d, wf_f[hit_f(0u, i)], s);
+                hit = surface(ray.o, ray.d, wf_f[hit_f(0u, i)], h);
                 let m = materials[h];
                 keep = 1.0 - m.reflect - m.transmit;
                 if (lighting.sizes.x > 0u) {
@@ -300,7 +300,8 @@ fn main_wf_shade(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocat
                         }
                     }
                 } else {
-                    add_light(ray.pixel, ray.w * (keep * shade_hit(s, wf_f[hit_f(1u, i)])));
+                    let shaded = shade_hit(s.red, s.green, s.blue, rim(h), wf_f[hit_f(1u, i)]);
+                    add_light(ray.pixel, ray.w * (keep * shaded));
                 }
                 if (ray.depth < lighting.sizes.z && (m.reflect > 0.0 || m.transmit > 0.0)) {
                     b = branches(ray.d, hit, m.reflect, m.transmit, m.ior, ray.w, ray.slack);

@@ -1,6 +1,7 @@
 // kernels/whitted.py: Whitted shading, a pixel per invocation, from a bounded
 // stack of pending rays; the same formulas in the same order (the Python
-// docstrings say why each holds). find() is brute.wgsl's or traverse.wgsl's.
+// docstrings say why each holds). find() is brute.wgsl's or traverse.wgsl's;
+// a hit's surface and rim are sphere.wgsl's.
 
 // Each sphere's material: lighting.materials_array's columns as a row.
 struct Material {
@@ -196,38 +197,6 @@ fn prune(wmax: f32, kr: f32, kt: f32, slack_in: f32) -> Pruned {
     return Pruned(!drop_r, !drop_t, slack);
 }
 
-// whitted.surface: the hit of a ray on sphere s at t, the normal and cos_i
-// on the side the ray comes from.
-struct Surface {
-    p: vec3<f32>,
-    n: vec3<f32>,
-    cos_i: f32,
-    inside: bool,
-}
-
-fn surface(o: vec3<f32>, d: vec3<f32>, t: f32, s: Sphere) -> Surface {
-    let px = o.x + t * d.x;
-    let py = o.y + t * d.y;
-    let pz = o.z + t * d.z;
-    let inv_r = 1.0 / s.r;
-    var nx = (px - s.cx) * inv_r;
-    var ny = (py - s.cy) * inv_r;
-    var nz = (pz - s.cz) * inv_r;
-    let inv_n = 1.0 / sqrt(nx * nx + ny * ny + nz * nz);
-    nx = nx * inv_n;
-    ny = ny * inv_n;
-    nz = nz * inv_n;
-    var cos_i = -(nx * d.x + ny * d.y + nz * d.z);
-    let inside = cos_i < 0.0;  // the ray meets the sphere from within
-    if (inside) {
-        nx = -nx;
-        ny = -ny;
-        nz = -nz;
-        cos_i = -cos_i;
-    }
-    return Surface(vec3<f32>(px, py, pz), vec3<f32>(nx, ny, nz), cos_i, inside);
-}
-
 // whitted.shows: only then are the hit's shadow rays cast.
 fn shows(s: Sphere, m: Material, keep: f32) -> bool {
     return m.specular > 0.0 || keep * max(s.red, max(s.green, s.blue)) > 0.0;
@@ -295,7 +264,7 @@ fn whitted_pixel(x: u32, y: u32) -> Shaded {
             continue;
         }
         let s = spheres[i];
-        let hit = surface(ray.o, ray.d, found.t, s);
+        let hit = surface(ray.o, ray.d, found.t, i);
         let m = materials[i];
         let keep = 1.0 - m.reflect - m.transmit;
         if (lit) {
@@ -305,7 +274,7 @@ fn whitted_pixel(x: u32, y: u32) -> Shaded {
                 color = color + ray.w * (keep * l.diffuse + l.specular);
             }
         } else {
-            color = color + ray.w * (keep * shade_hit(s, found.d));
+            color = color + ray.w * (keep * shade_hit(s.red, s.green, s.blue, rim(i), found.d));
         }
         if (ray.depth >= lighting.sizes.z || (m.reflect <= 0.0 && m.transmit <= 0.0)) {
             continue;
