@@ -16,7 +16,7 @@ from raybench.bvh import oneshot, sah
 from raybench.kernels import packets
 
 # The algorithm as plain Python on NumPy float32 scalars, run without a compiler.
-K = kernels.build(lambda f: f)
+K = kernels.make(lambda f: f)
 
 
 def brute(scene, camera, width, height):

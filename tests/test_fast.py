@@ -11,7 +11,7 @@ from raybench.backends import cuda as cuda_backend
 
 # The algorithm as plain Python on NumPy float32 scalars: the same source the
 # backends compile, run without a compiler.
-K = kernels.build(lambda f: f)
+K = kernels.make(lambda f: f)
 f32 = np.float32
 
 

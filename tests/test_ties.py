@@ -115,10 +115,10 @@ def _chain(ex, ey, ez, dx, dy, dz):
 
 def _with_along(along):
     """The sphere's functions, in plain Python, with v computed by along."""
-    return sphere.build(lambda f: along if f.__name__ == "along" else f)
+    return sphere.make(lambda f: along if f.__name__ == "along" else f)
 
 
-ROUNDINGS = {"plain": sphere.build(lambda f: f), "fused": _with_along(_fused), "chain": _with_along(_chain)}
+ROUNDINGS = {"plain": sphere.make(lambda f: f), "fused": _with_along(_fused), "chain": _with_along(_chain)}
 
 
 def _tangent_from_the_surface(rng, n):

@@ -73,10 +73,10 @@ fn parity_NAME(@builtin(global_invocation_id) id: vec3<u32>) {
 
 def python_twins():
     """The Python functions, by their WGSL twin's name."""
-    prim = sphere.build(PLAIN)
-    walks = traverse.build(PLAIN, prim)
+    prim = sphere.make(PLAIN)
+    walks = traverse.make(PLAIN, prim)
     inverse, ray_axes, children = walks[1], walks[2], walks[3]
-    shade_hit = shade.build(PLAIN)[0]
+    shade_hit = shade.make(PLAIN)[0]
     return {
         "prim": prim,
         "inverse": inverse,

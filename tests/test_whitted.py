@@ -251,7 +251,7 @@ def test_cpu_packets_stop_at_the_flag(rng):
     before each row of tiles: set, it returns and writes no pixel; cleared,
     the same call traces the frame."""
     scene = lit_scene(rng, 10)
-    with backends.tracer("cpu", scene.spheres, 37, 20, whitted=lighting.Shading.of(scene, 5, 1)) as tracer:
+    with backends.tracer("cpu", scene.spheres, 37, 20, shading=lighting.Shading.of(scene, 5, 1)) as tracer:
         args = tracer._kernel_args(Camera().basis(37, 20), tracer.count)
         tracer.image[:] = 7
         tracer._kernel(0, 20, *args, np.ones(1, np.uint8))
@@ -611,11 +611,11 @@ def test_cuda_wavefront_sees_spheres_moved_by_a_refit(rng):
     moved = scene.spheres.copy()
     moved[:3, :-1] += rng.normal(0, 0.2, (3, moved.shape[1] - 1)).astype(np.float32)  # the floor stays
     with backends.tracer("cuda", scene.spheres, width, height, build="gpu", refit_limit=float("inf"),
-                         whitted=shading) as tracer:  # fmt: skip
+                         shading=shading) as tracer:  # fmt: skip
         tracer.trace(basis)
         assert tracer.update(moved) == "refit"
         got = tracer.trace(basis)[0].copy()
-    with backends.tracer("cuda", moved, width, height, accel="none", whitted=shading) as brute:
+    with backends.tracer("cuda", moved, width, height, accel="none", shading=shading) as brute:
         want = brute.trace(basis)[0]
     exact = backends.module("cuda").simulated()
     assert np.array_equal(got, want) if exact else (np.abs(got.astype(int) - want.astype(int)) > 1).mean() <= 0.01
@@ -633,7 +633,7 @@ def test_the_wavefronts_queues_grow_to_hold_a_frame(request, device):
     scene = Scene(np.zeros((1, 3)), np.array([3.0]), np.ones((1, 3)), Camera(position=(0, 0, -5)),
                   materials=[glass], lights=lamps, background=(0.3, 0.4, 0.5))  # fmt: skip
     options = device_options(device, request)
-    tracer = backends.tracer(device, scene.spheres, 12, 8, whitted=lighting.Shading.of(scene, 3, 4), **options)
+    tracer = backends.tracer(device, scene.spheres, 12, 8, shading=lighting.Shading.of(scene, 3, 4), **options)
     first = tracer.trace(Camera(position=(0, 0, -5)).basis(12, 8))[0].copy()
     assert tracer.wavefront.retraced >= 1
     assert tracer.ray_counts[1] >= 8 * 12 * 8 and tracer.ray_counts[2] + tracer.ray_counts[3] >= 2 * 12 * 8
@@ -678,7 +678,7 @@ def queue_bytes(device, tracer) -> int:
 
 def whitted_tracer(device, scene, width, height, request, depth, samples):
     shading = lighting.Shading.of(scene, depth, samples)
-    return backends.tracer(device, scene.spheres, width, height, whitted=shading, **device_options(device, request))
+    return backends.tracer(device, scene.spheres, width, height, shading=shading, **device_options(device, request))
 
 
 def assert_traced_alike(one, banded, basis):

@@ -161,9 +161,9 @@ class Renderer:
         if isinstance(shading, Shading):
             if depth is not None or shadow_samples is not None:
                 raise RaybenchError("depth and shadow_samples: a Shading holds its own; give one or the other")
-            options["whitted"], shading = shading, "whitted"
+            options["shading"], shading = shading, "whitted"
         elif check_shading(shading) == "whitted":
-            options["whitted"] = Shading.of(scene, depth, shadow_samples)
+            options["shading"] = Shading.of(scene, depth, shadow_samples)
         elif depth is not None or shadow_samples is not None:
             raise RaybenchError("depth and shadow_samples: apply to shading='whitted' only")
         self.scene, self.width, self.height, self.shading = scene, width, height, shading

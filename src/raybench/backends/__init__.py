@@ -100,21 +100,21 @@ def present() -> list[str]:
     return ["cpu"] + (["cuda"] if cuda_available() else []) + (["wgpu"] if wgpu_gpu_available() else [])
 
 
-def tracer(device: str, spheres, width: int, height: int, whitted=None, **options):
+def tracer(device: str, spheres, width: int, height: int, shading=None, **options):
     """A Tracer of the (resolved) device for this scene and size. options:
     the device's own (backends/options.py: cpu's threads and tree_width;
     cuda's block, rays, staged, trip, walk, build and the GPU build's
     variants; wgpu's workgroup, adapter, walk and build; on every device
     accel, "bvh" (the default) or "none", and brute force's kernel), checked
-    there in one place. whitted: the lighting.Shading of a Whitted frame,
+    there in one place. shading: the lighting.Shading of a Whitted frame,
     None for the thesis's shading."""
     name = resolve(device, options.get("adapter") if device == "wgpu" else None)
-    if whitted is not None:
+    if shading is not None:
         import numpy as np
 
         from ..lighting import Shading
 
-        if not isinstance(whitted, Shading):
-            raise RaybenchError(f"whitted: must be a raybench.lighting.Shading, got {type(whitted).__name__}")
-        whitted.check(np.shape(spheres)[-1])
-    return module(name).Tracer(spheres, width, height, checked(name, options, whitted), whitted)
+        if not isinstance(shading, Shading):
+            raise RaybenchError(f"shading: must be a raybench.lighting.Shading, got {type(shading).__name__}")
+        shading.check(np.shape(spheres)[-1])
+    return module(name).Tracer(spheres, width, height, checked(name, options, shading), shading)

@@ -1,7 +1,7 @@
 """Each device's options: what a caller may set, the defaults, and every
 check that needs no device, written once.
 
-checked(device, given, whitted) turns what a caller gave (render()'s keyword
+checked(device, given, shading) turns what a caller gave (render()'s keyword
 arguments, the CLI's flags, the viewer's and a cluster task's requests) into
 the device's options, a frozen dataclass with its defaults filled in, or
 refuses it in one line. A Tracer takes that object and checks only what
@@ -122,7 +122,7 @@ def _one_of(name: str, value, choices: tuple) -> str:
     return value
 
 
-def _method(device: str, accel, kernel, brute_only: dict, whitted) -> tuple[str, str | None]:
+def _method(device: str, accel, kernel, brute_only: dict, shading) -> tuple[str, str | None]:
     """(accel, kernel): the acceleration structure and, for brute force, its
     kernel (None with the BVH). accel "bvh" walks a bounding volume
     hierarchy; "none" tests every sphere. brute_only: which options that only
@@ -146,7 +146,7 @@ def _method(device: str, accel, kernel, brute_only: dict, whitted) -> tuple[str,
                 f"invocation per pixel), got {shown(kernel)}; use --kernel simple"
             )
         return accel, "simple"
-    if whitted is not None:
+    if shading is not None:
         refused = ["kernel 'fast'"] * (kernel == "fast") + [name for name, on in brute_only.items() if on]
         if refused:
             raise RaybenchError(
@@ -168,24 +168,24 @@ def _build(build, accel: str) -> str | None:
     return _one_of("build", build, BUILDS)
 
 
-def _walk(walk, accel: str, whitted) -> str | None:
+def _walk(walk, accel: str, shading) -> str | None:
     """The BVH walk asked for (None: the device chooses; brute force walks none)."""
     if walk is None:
         return None
     if accel != "bvh":
         raise RaybenchError("walk: applies to the BVH walk only (accel='bvh'), not to brute force")
     _one_of("walk", walk, WALKS)
-    if whitted is not None and walk == "packet":
+    if shading is not None and walk == "packet":
         raise RaybenchError("walk 'packet': applies to the thesis's shading only; Whitted's rays walk one by one")
     return walk
 
 
-def _schedule(schedule, whitted) -> str | None:
+def _schedule(schedule, shading) -> str | None:
     """How Whitted's rays are spread over a GPU's threads: "wavefront" (the
     default: a bounce's rays of every pixel at once, a stage a kernel;
     kernels/wavefront.py) or "pixel" (a thread traces its pixel's whole tree
     of rays). None for the thesis's shading, whose only rays are primary."""
-    if whitted is None:
+    if shading is None:
         if schedule is not None:
             raise RaybenchError(f"schedule {shown(schedule)}: applies to Whitted shading only")
         return None
@@ -242,10 +242,10 @@ class CpuOptions:
     tree_width: int
 
     @classmethod
-    def check(cls, given: dict, whitted=None) -> CpuOptions:
+    def check(cls, given: dict, shading=None) -> CpuOptions:
         """The options from render()'s keyword arguments for the cpu (checked's)."""
         g = _given(cls, given)
-        accel, kernel = _method("cpu", g.accel, g.kernel, {"constant_count": g.constant_count}, whitted)
+        accel, kernel = _method("cpu", g.accel, g.kernel, {"constant_count": g.constant_count}, shading)
         tree_width, threads = g.tree_width, g.threads
         if tree_width is None:
             tree_width = TREE_WIDTH
@@ -287,15 +287,15 @@ class CudaOptions:
     wave_grid: int | None
 
     @classmethod
-    def check(cls, given: dict, whitted=None) -> CudaOptions:
+    def check(cls, given: dict, shading=None) -> CudaOptions:
         """The options from render()'s keyword arguments for cuda (checked's)."""
         g = _given(cls, given)
         fast_only = {"rays": g.rays is not None, "staged": g.staged is not None, "trip": g.trip is not None}
-        accel, kernel = _method("cuda", g.accel, g.kernel, {"constant_count": g.constant_count, **fast_only}, whitted)
-        walk = _walk(g.walk, accel, whitted)
+        accel, kernel = _method("cuda", g.accel, g.kernel, {"constant_count": g.constant_count, **fast_only}, shading)
+        walk = _walk(g.walk, accel, shading)
         build = _build(g.build, accel)
         quality, treelet_passes, refit_limit = _gpu_build(build, "cuda", g.quality, g.treelet_passes, g.refit_limit)
-        schedule = _schedule(g.schedule, whitted)
+        schedule = _schedule(g.schedule, shading)
         block, wave_grid = g.block, g.wave_grid
         if wave_grid is not None:
             if schedule != "wavefront":
@@ -343,11 +343,11 @@ class WgpuOptions:
     schedule: str | None
 
     @classmethod
-    def check(cls, given: dict, whitted=None) -> WgpuOptions:
+    def check(cls, given: dict, shading=None) -> WgpuOptions:
         """The options from render()'s keyword arguments for wgpu (checked's)."""
         g = _given(cls, given)
-        accel, kernel = _method("wgpu", g.accel, g.kernel, {}, whitted)
-        walk = _walk(g.walk, accel, whitted)
+        accel, kernel = _method("wgpu", g.accel, g.kernel, {}, shading)
+        walk = _walk(g.walk, accel, shading)
         if accel == "bvh":
             walk = walk or "ray"
         workgroup = DEFAULT_WORKGROUP[walk or accel] if g.workgroup is None else _pair("workgroup", g.workgroup)
@@ -356,7 +356,7 @@ class WgpuOptions:
             raise RaybenchError(f"adapter: must be an adapter's name (text), got {shown(adapter)}")
         build = _build(g.build, accel)
         quality, _, refit_limit = _gpu_build(build, "wgpu", g.quality, None, g.refit_limit)
-        return cls(accel, kernel, workgroup, adapter, walk, build, quality, refit_limit, _schedule(g.schedule, whitted))
+        return cls(accel, kernel, workgroup, adapter, walk, build, quality, refit_limit, _schedule(g.schedule, shading))
 
 
 KINDS = {"cpu": CpuOptions, "cuda": CudaOptions, "wgpu": WgpuOptions}
@@ -364,13 +364,13 @@ KINDS = {"cpu": CpuOptions, "cuda": CudaOptions, "wgpu": WgpuOptions}
 NAMES = {device: tuple(f.name for f in fields(kind)) for device, kind in KINDS.items()}
 
 
-def checked(device: str, given: dict, whitted=None):
+def checked(device: str, given: dict, shading=None):
     """The (resolved) device's options from what a caller gave, or one line
-    that names the first thing wrong. whitted: the lighting.Shading of a
+    that names the first thing wrong. shading: the lighting.Shading of a
     Whitted frame (None: the thesis's shading), which some options need."""
     for key in given:
         if key not in NAMES[device]:
             raise RaybenchError(
                 f"option {key!r} does not apply to device {device} (its options: {', '.join(NAMES[device])})"
             )
-    return KINDS[device].check(given, whitted)
+    return KINDS[device].check(given, shading)

@@ -35,7 +35,7 @@ def _load(a, i):
 
 
 _jit = numba.njit(cache=False)
-_steps = lbvh_steps.build(_jit, lbvh_steps.cpu_target(_jit), _load, _load, _jit(lbvh_steps.cpu_arrive))
+_steps = lbvh_steps.make(_jit, lbvh_steps.cpu_target(_jit), _load, _load, _jit(lbvh_steps.cpu_arrive))
 _hierarchy_row = _steps.hierarchy_row
 _reorder_one = _steps.reorder_one
 _climb = _steps.climb

@@ -2,7 +2,7 @@
 leaf's climb of the bottom-up pass (boxes, SAH costs, the leaves cut), the
 treelet step it takes at each row (Karras and Aila 2013) and the reorder
 after it. build(...)
-compiles them for one target, as kernels.build does for the walks:
+compiles them for one target, as kernels.make does for the walks:
 numba.cuda.jit(device=True) for the GPU builder (backends/cuda/build.py),
 numba.njit or plain Python for the CPU model of its tree (bvh/lbvh_model.py,
 the test oracle of both GPU builders). The steps read what other threads
@@ -37,7 +37,7 @@ INF = np.float32(np.inf)
 
 
 def cpu_target(jit) -> types.ModuleType:
-    """What build's `target` is on the CPU (numba.cuda on the GPU): a module,
+    """What make's `target` is on the CPU (numba.cuda on the GPU): a module,
     as numba compiles attributes of modules: `local.array` is np.empty, and
     `clz` counts a uint32's leading zeros, compiled by jit."""
     target = types.ModuleType("lbvh_cpu_target")
@@ -65,7 +65,7 @@ def cpu_arrive(arrived, row):
     return before
 
 
-def build(jit, target, load_f, load_i, arrive) -> types.SimpleNamespace:
+def make(jit, target, load_f, load_i, arrive) -> types.SimpleNamespace:
     """The steps compiled by jit. target: numba.cuda on the GPU (its
     local.array and clz), cpu_target(jit) on the CPU; load_f and
     load_i read a[i] of a float32 and an int32 array that other threads

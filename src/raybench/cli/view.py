@@ -85,7 +85,7 @@ def view(
     width, height = parse_size(size)
     shaded = shading_options(shading, depth, shadow_samples)
     # checked here, before the window opens: a Whitted frame of no spheres
-    whitted = Shading.of(Scene([], [], []), depth, shadow_samples) if shading == "whitted" else None
+    lit = Shading.of(Scene([], [], []), depth, shadow_samples) if shading == "whitted" else None
     if screenshot is not None:
         if frames is None:
             raise RaybenchError(
@@ -111,7 +111,7 @@ def view(
                 backends.resolve("cuda")
             except RaybenchError:
                 continue
-        _check_options(name, given, whitted)
+        _check_options(name, given, lit)
     seed = None if scene_file is not None else (0 if seed is None else seed)
     state = ViewerState(scene, device=device, seed=seed, options=options, animate=animate, **shaded)
     window = open_viewer(state, (width, height), frames=frames, screenshot=screenshot)
@@ -132,14 +132,14 @@ def view(
         )
 
 
-def _check_options(device: str, options: dict, whitted=None) -> None:
+def _check_options(device: str, options: dict, shading=None) -> None:
     """Refuse bad device options (--threads, --block, --accel, ...) before a
     window opens: the backend itself checks them, on an empty 1x1 tracer
-    (with whitted, a lighting.Shading of no spheres: under Whitted shading)."""
+    (with shading, a lighting.Shading of no spheres: under Whitted shading)."""
     import numpy as np
 
     from .. import backends
 
-    if whitted is not None:
-        options = {**options, "whitted": whitted}
+    if shading is not None:
+        options = {**options, "shading": shading}
     backends.tracer(device, np.zeros((7, 0), np.float32), 1, 1, **options).close()

@@ -28,7 +28,7 @@ def warmup(devices):
             raise RaybenchError(f"--device: unknown device {d!r}; choose from {', '.join(backends.DEVICES)}")
         backends.resolve(d)
     scene = random_spheres(8, seed=0, materials=True)
-    whitted = lighting.Shading.of(scene)
+    lit = lighting.Shading.of(scene)
     jobs = [(d, accel, shading) for d in devices for accel in ("bvh", "none") for shading in ("thesis", "whitted")]
     with Progress(transient=True) as progress:
         task = progress.add_task("compiling", total=len(jobs) + 1)
@@ -37,7 +37,7 @@ def warmup(devices):
         progress.advance(task)
         for device, accel, shading in jobs:
             progress.update(task, description=f"{device}, {accel}, {shading}")
-            options = {"whitted": whitted} if shading == "whitted" else {}
+            options = {"shading": lit} if shading == "whitted" else {}
             with backends.tracer(device, scene.spheres, 4, 4, accel=accel, **options) as tracer:
                 tracer.compile()
                 tracer.trace(Camera().basis(4, 4))

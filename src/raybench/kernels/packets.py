@@ -28,7 +28,7 @@ from ..layout import (
     WIDTH,
 )
 from .constants import FAR, ZERO
-from .trace import build
+from .trace import make
 
 # The BVH walk's own build of the same functions, with NumPy's error model:
 # float division then has no check for a zero divisor (none can occur: the
@@ -36,7 +36,7 @@ from .trace import build
 # component raised to at least TINY), so the result is the same IEEE
 # quotient, and LLVM can make the loops over a packet's rays SIMD, which the
 # check's branch prevents (vdivps, vsqrtps in the assembly).
-_kb = build(numba.njit(inline="always", error_model="numpy"))
+_kb = make(numba.njit(inline="always", error_model="numpy"))
 _primary_ray_v, _inverse = _kb.primary_ray, _kb.inverse
 _shade_hit_v, _shade_miss_v, _to_byte_v = _kb.shade_hit, _kb.shade_miss, _kb.to_byte
 # The primitive's functions (kernels/primitives): a leaf's bounds, its test

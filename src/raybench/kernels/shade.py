@@ -9,7 +9,7 @@ MISS_XY = np.float32(1024.0)
 MISS_Z = np.float32(786.0)
 
 
-def build(jit):
+def make(jit):
     @jit
     def shade_hit(red, green, blue, r, d):
         """The thesis's colour: the sphere's colour darkened towards its rim,

@@ -35,7 +35,7 @@ from .packets import (
 # (the hit point), any hit, each ray with its own length (the distance to
 # its sample) and done once blocked, the packet once all are
 # (_shadow_packet). The pixel program, written once, calls them through
-# whitted.build's `shadows` pair: cast traces a light's samples before its
+# whitted.make's `shadows` pair: cast traces a light's samples before its
 # loop over them, blocked reads the answer. LANES: the loops over a packet's
 # rays become SIMD only from 16 (LLVM's loop vectoriser leaves loops of fewer
 # iterations scalar: tried 4 and 8, also with the rays' bits ORed as
@@ -51,7 +51,7 @@ BLOCKER_SLOTS = 251
 
 
 def _packet_shadows(jit, find, toward):
-    """whitted.build's `shadows` for the CPU's packets: (cast, blocked).
+    """whitted.make's `shadows` for the CPU's packets: (cast, blocked).
     tree: the packets program's PacketsTree (below: the trees, then the
     thread's own scratch, _whitted_rows_packets)."""
 

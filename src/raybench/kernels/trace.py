@@ -15,23 +15,23 @@ from .constants import FAR, HALF, ONE, ZERO
 from .primitives import sphere
 
 
-def build(jit, call=None, shadows=None, packets_search=None, read_row=None, words=None):
+def make(jit, call=None, shadows=None, packets_search=None, read_row=None, words=None):
     """The algorithm compiled with `jit`; a namespace of its functions.
     call: the decorator of Whitted shading's search for a ray's hit (default
     jit), which the CPU compiles as one function called from both of its call
-    sites rather than as two inlined copies of the walk (whitted.build).
+    sites rather than as two inlined copies of the walk (whitted.make).
     shadows: a backend's own way to trace a hit's shadow rays to a light
-    (whitted.build's `shadows`, the CPU's packets): then a third Whitted
+    (whitted.make's `shadows`, the CPU's packets): then a third Whitted
     program, render_pixel_whitted["packets"], through the tree with them.
     packets_search: that program's search for the other rays (the CPU's
     walk of its 4-wide tree, search_tree's signature); default search_tree.
     That program's find is inlined (jit, not call). read_row: how the
-    walks read a node's row (traverse.build); words: how they read a leaf's
-    primitives from a backend's packed copy (the primitive's build)."""
+    walks read a node's row (traverse.make); words: how they read a leaf's
+    primitives from a backend's packed copy (the primitive's make)."""
     call = call or jit
-    prim = sphere.build(jit, words)
-    shade_hit, shade_miss, to_byte = shade.build(jit)
-    nearest_hit_bvh, inverse, ray_axes, children, leaf_hits, centre_along, walk = traverse.build(jit, prim, read_row)
+    prim = sphere.make(jit, words)
+    shade_hit, shade_miss, to_byte = shade.make(jit)
+    nearest_hit_bvh, inverse, ray_axes, children, leaf_hits, centre_along, walk = traverse.make(jit, prim, read_row)
     hit_closest, hit_ahead, meets_own, rim, prepare_at = (
         prim.hit,
         prim.hit_ahead,
@@ -136,13 +136,13 @@ def build(jit, call=None, shadows=None, packets_search=None, read_row=None, word
 
     def whitted_program(search, shadows=None):
         if shadows is None:
-            stages = whitted.build(jit, call, search, prim, shade_hit, shade_miss)
-            wavefronts[search.__name__] = wavefront.build(jit, stages, primary_ray, shade_hit)
+            stages = whitted.make(jit, call, search, prim, shade_hit, shade_miss)
+            wavefronts[search.__name__] = wavefront.make(jit, stages, primary_ray, shade_hit)
         else:
             # find inlined: this program's shadow rays call no find (its shadows trace
             # them), so the walk has one call site and is compiled once, and the call's
             # cost goes (measured: docs/whitted.md, "CPU: the primary rays as packets")
-            stages = whitted.build(jit, jit, search, prim, shade_hit, shade_miss, shadows, name="_packets")
+            stages = whitted.make(jit, jit, search, prim, shade_hit, shade_miss, shadows, name="_packets")
         whitted_pixel = stages.whitted_pixel
 
         @jit

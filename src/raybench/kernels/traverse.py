@@ -35,7 +35,7 @@ TINY = np.float32(1e-20)
 _U = np.uint64
 
 
-def build(jit, prim, read_row=None):
+def make(jit, prim, read_row=None):
     """The walks over `jit`, for the primitive whose compiled functions are
     `prim` (a primitive module's build: kernels/primitives); the leaf test
     is the only part that asks it anything. read_row(nodes, links, row): a

@@ -69,8 +69,8 @@ FIXED = np.float32(2.0**30)
 CLAMP = np.float32(4.0)
 
 
-def build(jit, whitted, primary_ray, shade_hit):
-    """The stages over whitted.build's namespace for one search (the tree's
+def make(jit, whitted, primary_ray, shade_hit):
+    """The stages over whitted.make's namespace for one search (the tree's
     or brute force's); primary_ray and shade_hit: trace.py's."""
     find = whitted.find
     surface = whitted.surface

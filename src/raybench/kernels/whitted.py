@@ -96,7 +96,7 @@ OFFSET = np.float32(2.0**-19)
 
 def per_ray(jit, find, toward):
     """The shadow rays of a hit to one light a ray at a time, each through
-    `find` as it is cast (the GPUs'; the default of build's `shadows`):
+    `find` as it is cast (the GPUs'; the default of make's `shadows`):
     (cast, blocked), the pair that local_light calls. cast(...), before the
     light's samples, traces nothing (0); blocked(batch, s, ...) walks sample
     s's ray, stopping at its first blocker."""
@@ -115,7 +115,7 @@ def per_ray(jit, find, toward):
     return cast, blocked
 
 
-def build(jit, call, search, prim, shade_hit, shade_miss, shadows=per_ray, name=""):
+def make(jit, call, search, prim, shade_hit, shade_miss, shadows=per_ray, name=""):
     """Whitted's pixel program over `search`, the nearest (or any) hit of
     any ray: through the tree or over every sphere (trace.search_tree and
     search_all), one program for each, so neither carries the other's code;

@@ -83,7 +83,7 @@ class InWindowTracer:
         count = check_count(request.count, self.compute.count)
         self._traced = (request.camera.basis(request.width, request.height), count)
         self.compute.encode(encoder, *self._traced, timed=self.period_ns is not None)
-        if self.compute.whitted is not None:
+        if self.compute.shading is not None:
             encoder.copy_buffer_to_buffer(self.compute.rays, 0, self._rays_read, 0, RAY_KINDS * 4)
         if self.period_ns is None:
             self.compute.encode_fence(encoder)

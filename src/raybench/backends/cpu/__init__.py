@@ -27,7 +27,7 @@ is bit-identical to the CUDA kernel run under numba's simulator, and the tests
 can hold the two to equality rather than to a tolerance.
 
 The modules, by job: tracer (the Tracer: the pool of threads and the rows
-they pull), program (kernels.build compiled for this backend: the pixel
+they pull), program (kernels.make compiled for this backend: the pixel
 programs and the binary tree's rows), brute (brute force's bands) and
 whitted_rows (Whitted's rows). The walks themselves are in kernels/.
 """

@@ -1,4 +1,4 @@
-"""The CPU's pixel programs: kernels.build compiled for this backend, with
+"""The CPU's pixel programs: kernels.make compiled for this backend, with
 the CPU's packets of shadow rays and its search of the 4-wide tree."""
 
 import numba
@@ -26,8 +26,8 @@ def _search_wide(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, sphere
 # find, the one call of the Whitted programs through the binary tree and by
 # brute force, is compiled without the runtime's reference counting
 # (_nrt=False; _whitted_tiles says why): it allocates nothing and keeps no
-# array. The packets program inlines its find (trace.build).
-_k = kernels.build(
+# array. The packets program inlines its find (trace.make).
+_k = kernels.make(
     numba.njit(inline="always"),
     call=numba.njit(nogil=True, _nrt=False),
     shadows=_packet_shadows,

@@ -69,13 +69,13 @@ class Tracer(TracerBase):
         width: int,
         height: int,
         options: CpuOptions | None = None,
-        whitted: Shading | None = None,
+        shading: Shading | None = None,
     ):
         """options: the device's (backends.options.checked("cpu", ...); None
-        for the defaults); whitted: the Shading of a Whitted frame, None for
+        for the defaults); shading: the Shading of a Whitted frame, None for
         the thesis's shading."""
         if options is None:
-            options = checked("cpu", {}, whitted)
+            options = checked("cpu", {}, shading)
         self.options = options
         self.accel, self.kernel = options.accel, options.kernel
         # the threads' stacks counted: under ulimit -v they take address space the frame then lacks
@@ -97,10 +97,10 @@ class Tracer(TracerBase):
         self.constant_count = options.constant_count
         self.bvh = None
         self.build_s = None
-        self.whitted = whitted
+        self.shading = shading
         self.ray_counts = None
         self.tree_width = None  # the packets' tree: with the BVH
-        if whitted is not None:
+        if shading is not None:
             # rows take unequal time (mirrors and glass cost more): pulled in chunks, as the BVH's
             self.bands = chunks(height, self.threads)
             workers = min(self.threads, len(self.bands))
@@ -145,7 +145,7 @@ class Tracer(TracerBase):
         self.spheres = check_moved(spheres, self.spheres)
         if self.accel != "bvh":
             return None
-        if self.whitted is None:
+        if self.shading is None:
             self.shaded = self.spheres if self.count else np.zeros((7, 1), np.float32)
         self._build(self.bvh.count)
         return "build"
@@ -177,8 +177,8 @@ class Tracer(TracerBase):
         return (*self._kernel_args(basis, count), self._stop)
 
     def _kernel_args(self, basis, count):
-        if self.whitted is not None:
-            w = self.whitted
+        if self.shading is not None:
+            w = self.shading
             return (self.width, self.height, basis, self.spheres, count, w.materials, w.lights, w.pattern, w.params,
                     self._tree(count), self.image, self.hits, self._row_rays)  # fmt: skip
         if self.accel == "bvh":
@@ -223,11 +223,11 @@ class Tracer(TracerBase):
         first, end, bands = 0, self.height, self.bands
         if rows is not None:
             first, end = check_rows(rows, self.height, PACKET_H)
-            cut = chunks if self.accel == "bvh" or self.whitted is not None else _bands_of
+            cut = chunks if self.accel == "bvh" or self.shading is not None else _bands_of
             bands = [(first + a, first + b) for a, b in cut(end - first, self.threads)]
         if self._pool is None:  # closed, and used again
             self._pool = ThreadPoolExecutor(self._workers)
-        if self.accel == "bvh" or self.whitted is not None:
+        if self.accel == "bvh" or self.shading is not None:
             pending = iter(bands)  # next() on it is atomic under the GIL
 
             def pull():

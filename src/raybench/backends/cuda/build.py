@@ -339,7 +339,7 @@ def _arrive(arrived, row):
 # for the numba.cuda a function names in its globals only, the CPU's (the
 # same answers: np.empty and a count of leading zeros).
 _target = lbvh_steps.cpu_target(lambda f: f) if _SIM else cuda
-_steps = lbvh_steps.build(cuda.jit(device=True), _target, _load_f, _load_i, _arrive)
+_steps = lbvh_steps.make(cuda.jit(device=True), _target, _load_f, _load_i, _arrive)
 _hierarchy_row = _steps.hierarchy_row
 _reorder_one = _steps.reorder_one
 _climb = _steps.climb

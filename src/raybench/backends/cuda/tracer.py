@@ -47,7 +47,7 @@ def choose_walk(nodes: int) -> str:
     return "packet" if nodes * NODE_BYTES > PACKET_TREE_BYTES else "ray"
 
 
-_k = kernels.build(cuda.jit(device=True))
+_k = kernels.make(cuda.jit(device=True))
 # module globals, which is how kernels can see them
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
 _prepare_one, _may_hit, _along, _intersect_relative = _k.prepare, _k.may_hit, _k.along, _k.intersect_relative
@@ -392,14 +392,14 @@ class Tracer(TracerBase):
         width: int,
         height: int,
         options: CudaOptions | None = None,
-        whitted: Shading | None = None,
+        shading: Shading | None = None,
     ):
         """options: the device's (backends.options.checked("cuda", ...); None
-        for the defaults); whitted: the Shading of a Whitted frame, None for
+        for the defaults); shading: the Shading of a Whitted frame, None for
         the thesis's shading."""
         require()
         if options is None:
-            options = checked("cuda", {}, whitted)
+            options = checked("cuda", {}, shading)
         self.options = options
         self.accel, self.kernel, self.build = options.accel, options.kernel, options.build
         walk = options.walk
@@ -445,14 +445,14 @@ class Tracer(TracerBase):
         self._builder = None
         self._fresh_cost = None
         self.walk = None
-        self.whitted = whitted
+        self.shading = shading
         self.schedule = options.schedule
         self._wavefront = None  # the wavefront's queues and launches (schedule "wavefront")
         self.ray_counts = None
-        if whitted is not None:
+        if shading is not None:
             self._kernel = _whitted_kernel
             if self.schedule == "wavefront":
-                self._wavefront = Wavefront(width, height, whitted.depth, options.wave_grid)
+                self._wavefront = Wavefront(width, height, shading.depth, options.wave_grid)
             if self.accel == "bvh":
                 self._build(self.count)
                 self.walk = "ray"
@@ -463,10 +463,10 @@ class Tracer(TracerBase):
                 self.d_sphere_rows = cuda.device_array((1, 2), np.float64)  # read by no walk: there is no tree
                 self.d_ordered = cuda.device_array((4, 1), np.float32)
                 self.d_order = cuda.device_array(1, np.int32)
-            self.d_materials = cuda.to_device(whitted.materials if self.count else np.ones((5, 1), np.float32))
-            self.d_lights = cuda.to_device(whitted.lights)
-            self.d_pattern = cuda.to_device(whitted.pattern)
-            self.d_params = cuda.to_device(whitted.params)
+            self.d_materials = cuda.to_device(shading.materials if self.count else np.ones((5, 1), np.float32))
+            self.d_lights = cuda.to_device(shading.lights)
+            self.d_pattern = cuda.to_device(shading.pattern)
+            self.d_params = cuda.to_device(shading.params)
             self.d_rays = cuda.to_device(np.zeros(len(KINDS), np.int64))
             self.ray_counts = np.zeros(len(KINDS), np.int64)
         elif self.accel == "bvh":
@@ -565,7 +565,7 @@ class Tracer(TracerBase):
         with warnings.catch_warnings():
             # Small frames cannot fill the GPU; that is the user's choice, not news.
             warnings.simplefilter("ignore", NumbaPerformanceWarning)
-            if self.whitted is not None:
+            if self.shading is not None:
                 if self.accel == "bvh" and self.bvh.count != count:
                     self._build(count)
                 self._last = (grid, width, height, count, first, end)

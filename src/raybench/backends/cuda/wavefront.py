@@ -75,7 +75,7 @@ else:
 
 @cuda.jit(device=True)
 def _read_row64(nodes64, _links, row):
-    """traverse.build's read_row for a node's row seen as 8 float64
+    """traverse.make's read_row for a node's row seen as 8 float64
     (nodes64, layout's row as pairs of columns): 8 loads a row where
     float32 columns take 16, each word taken out as it was stored (bit
     casts, no arithmetic), the refs and counts as ints."""
@@ -120,7 +120,7 @@ assert NODE_FLOATS == 16 and CHILD_BOX == (0, 6) and REF == 12 and COUNT == 14
 # (the primitive's read_leaf through _words, the spheres a row each, from
 # sphere_rows): the walk is bound by issue, and
 # a load is an instruction (docs/whitted.md)
-_k = kernels.build(cuda.jit(device=True), read_row=_read_row64, words=_words)
+_k = kernels.make(cuda.jit(device=True), read_row=_read_row64, words=_words)
 # module globals, which is how kernels can see them: the stages through the
 # tree and by brute force (only extend and the shadow test search)
 _tree, _every = _k.whitted_wavefront["bvh"], _k.whitted_wavefront["none"]

@@ -131,7 +131,7 @@ class Compute:
         width: int,
         height: int,
         options: WgpuOptions,
-        whitted: Shading | None = None,
+        shading: Shading | None = None,
         extra_texture_usage: int = 0,
     ):
         import wgpu
@@ -141,8 +141,8 @@ class Compute:
         self.options = options
         self.accel, self.build, self.walk = options.accel, options.build, options.walk
         # the shader's entry point: the walk's, or Whitted shading's (either accel)
-        self.program = "whitted" if whitted is not None else (self.walk or "ray")
-        self.whitted = whitted
+        self.program = "whitted" if shading is not None else (self.walk or "ray")
+        self.shading = shading
         self.schedule = options.schedule
         self.wavefront = None  # the wavefront's pipelines and queues (schedule "wavefront")
         if self.walk == "packet" and PACKET_FEATURE not in device.features:
@@ -176,12 +176,12 @@ class Compute:
         self.hits = device.create_buffer(
             size=width * height * 4, usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC
         )
-        if whitted is not None:
+        if shading is not None:
             self.materials = device.create_buffer_with_data(
-                data=material_rows(whitted.materials).tobytes(), usage=wgpu.BufferUsage.STORAGE
+                data=material_rows(shading.materials).tobytes(), usage=wgpu.BufferUsage.STORAGE
             )
             self.lighting = device.create_buffer_with_data(
-                data=lighting_uniform(whitted), usage=wgpu.BufferUsage.UNIFORM
+                data=lighting_uniform(shading), usage=wgpu.BufferUsage.UNIFORM
             )
             self.rays = device.create_buffer(
                 size=RAY_KINDS * 4,
@@ -204,7 +204,7 @@ class Compute:
             )
             self.times = device.create_buffer(size=16, usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ)
         if self.schedule == "wavefront":
-            self.wavefront = Wavefront(self, whitted.depth)
+            self.wavefront = Wavefront(self, shading.depth)
         # Waiting for a submission: map a buffer it copies into. (wgpu-py 0.32's
         # queue.on_submitted_work_done_sync fails with a ctypes TypeError.)
         self.fence = device.create_buffer(size=4, usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ)
@@ -241,7 +241,7 @@ class Compute:
                 {"binding": 5, "resource": {"buffer": self.ordered}},
                 {"binding": 6, "resource": {"buffer": self.order}},
             ]
-        if self.whitted is not None:
+        if self.shading is not None:
             entries += [
                 {"binding": 7, "resource": {"buffer": self.materials}},
                 {"binding": 8, "resource": {"buffer": self.lighting}},
@@ -312,7 +312,7 @@ class Compute:
                 encoder.resolve_query_set(self.queries, 0, 2, self.resolved, 0)
                 encoder.copy_buffer_to_buffer(self.resolved, 0, self.times, 0, 16)
             return
-        if self.whitted is not None:
+        if self.shading is not None:
             encoder.clear_buffer(self.rays, 0, RAY_KINDS * 4)
         compute_pass = encoder.begin_compute_pass(timestamp_writes=writes)
         compute_pass.set_pipeline(self.pipeline)

@@ -45,21 +45,21 @@ class Tracer(TracerBase):
         width: int,
         height: int,
         options: WgpuOptions | None = None,
-        whitted: Shading | None = None,
+        shading: Shading | None = None,
     ):
         """options: the device's (backends.options.checked("wgpu", ...); None
-        for the defaults); whitted: the Shading of a Whitted frame, None for
+        for the defaults); shading: the Shading of a Whitted frame, None for
         the thesis's shading."""
         import wgpu
 
         if options is None:
-            options = checked("wgpu", {}, whitted)
+            options = checked("wgpu", {}, shading)
         check_size(width, height)
         self.adapter = adapters.choose(options.adapter)
         self.device = adapters.request_device(self.adapter)
         check_fits("host", width, height, 0, host_available_bytes(), HOST_PIXEL_BYTES)
         self.compute = Compute(
-            self.device, spheres, width, height, options, whitted, extra_texture_usage=wgpu.TextureUsage.TEXTURE_BINDING
+            self.device, spheres, width, height, options, shading, extra_texture_usage=wgpu.TextureUsage.TEXTURE_BINDING
         )
         self.packer = Packer(self.device, self.compute.texture, width, height)
         self.options = options
@@ -75,7 +75,7 @@ class Tracer(TracerBase):
         self.hits_read = self.device.create_buffer(
             size=width * height * 4, usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ
         )
-        if whitted is not None:
+        if shading is not None:
             self.rays_read = self.device.create_buffer(
                 size=RAY_KINDS * 4, usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ
             )

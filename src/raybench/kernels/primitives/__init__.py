@@ -2,7 +2,7 @@
 
 Every primitive module gives the same answers (kernels/primitives/sphere.py
 is the model): LEAF_ROWS, the rows of its leaf buffer; pad(...), the
-builders' padding; and build(jit), its functions compiled for one target:
+builders' padding; and make(jit), its functions compiled for one target:
 read, hit (closest hit), hit_ahead and meets_own (the secondary rays' test
 and the rule for the primitive a ray leaves), the same tests on the tree's
 leaf buffer (leaf_hit, leaf_hit_ahead, read_leaf), and seen from an origin

@@ -6,7 +6,7 @@ bounds, the closest-hit and any-hit tests, the surface at a hit, and what the
 thesis's shading divides by. Nothing outside this module (and its WGSL twin,
 backends/wgpu/sphere.wgsl) reads a sphere's rows or knows that it has a
 radius; the walks (kernels/traverse.py, kernels/packets.py) take these
-functions from build(jit) and never ask which kind of primitive a leaf holds.
+functions from make(jit) and never ask which kind of primitive a leaf holds.
 
 Its buffer: rows CX, CY, CZ, RADIUS of layout (Scene.spheres), a row a field;
 the tree's `ordered` copy holds the same four rows in leaf order, so one
@@ -45,7 +45,7 @@ def pad(cx, cy, cz, r):
     return (r + (np.abs(cx) + np.abs(cy) + np.abs(cz))) * PAD
 
 
-def build(jit, words=None):
+def make(jit, words=None):
     """The sphere's functions compiled with `jit`: a namespace. words: a
     backend's bit cast of one float64 load into its two float32 words; with
     it the leaf tests read the tree's spheres from a copy of a row a sphere
