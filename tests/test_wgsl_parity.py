@@ -163,6 +163,21 @@ CASES = {
         ("ordered",),
         lambda a, s, o, k: P.leaf_hit_ahead(o, k, *a[:6], bool(a[6])),
     ),
+    "from_origin": (
+        f"let c = from_origin(k, {vec3(0)}); {puts('c.x', 'c.y', 'c.z', 'c.w')}",
+        ("ordered",),
+        lambda a, s, o, k: P.from_origin(o, k, *a[:3]),
+    ),
+    "hit_from": (
+        f"let r = hit_from(vec4<f32>({args(0, 4)}), {vec3(4)}); {puts('r.x', 'r.y')}",
+        (),
+        lambda a, s, o, k: P.hit_from(tuple(a[:4]), *a[4:7]),
+    ),
+    "hit_ahead_from": (
+        f"let r = hit_ahead_from(vec4<f32>({args(0, 4)}), {vec3(4)}, arg(7u, i) != 0.0); {puts('r.x', 'r.y')}",
+        (),
+        lambda a, s, o, k: P.hit_ahead_from(tuple(a[:4]), *a[4:7], bool(a[7])),
+    ),
     "meets_own": (
         "put(0u, i, flag(meets_own(arg(0u, i) != 0.0)));",
         (),
@@ -351,14 +366,14 @@ def lanes_for(name, rng, n):
     spheres, o = scene_of(e, r, rng)
     ordered = spheres[:4][:, rng.permutation(n)].copy()
     far_only = rng.integers(0, 2, n).astype(F32)
-    if name in ("along", "chord", "intersect_relative", "intersect_ahead"):
+    if name in ("along", "chord", "intersect_relative", "intersect_ahead", "hit_from", "hit_ahead_from"):
         return np.vstack([e, r, d, far_only]), spheres, ordered
     if name == "intersect":
         return np.vstack([o, d, spheres[:4]]), spheres, ordered
     if name in ("hit", "hit_ahead", "read_sphere", "rim"):
         # the origin and EO as the Python takes them: rounded from the sphere's centre
         return np.vstack([o, d, far_only]), spheres, ordered
-    if name in ("leaf_hit", "leaf_hit_ahead", "read_leaf"):
+    if name in ("leaf_hit", "leaf_hit_ahead", "read_leaf", "from_origin"):
         origin = (ordered[:3] - e).astype(F32)
         return np.vstack([origin, d, far_only]), spheres, ordered
     if name == "meets_own":

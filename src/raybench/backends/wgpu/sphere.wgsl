@@ -106,6 +106,23 @@ fn leaf_hit_ahead(k: i32, o: vec3<f32>, dir: vec3<f32>, is_own: bool) -> vec2<f3
     return intersect_ahead(c.x - o.x, c.y - o.y, c.z - o.z, c.w, dir.x, dir.y, dir.z, is_own);
 }
 
+// from_origin: sphere k of the tree's leaf buffer as rays from o see it,
+// (EO, r): hit_from's and hit_ahead_from's first argument.
+fn from_origin(k: i32, o: vec3<f32>) -> vec4<f32> {
+    let c = read_leaf(k);
+    return vec4<f32>(c.x - o.x, c.y - o.y, c.z - o.z, c.w);
+}
+
+// hit_from: leaf_hit for a ray whose origin `seen` is from.
+fn hit_from(seen: vec4<f32>, dir: vec3<f32>) -> vec2<f32> {
+    return intersect_relative(seen.x, seen.y, seen.z, seen.w, dir.x, dir.y, dir.z);
+}
+
+// hit_ahead_from: leaf_hit_ahead for a ray whose origin `seen` is from.
+fn hit_ahead_from(seen: vec4<f32>, dir: vec3<f32>, is_own: bool) -> vec2<f32> {
+    return intersect_ahead(seen.x, seen.y, seen.z, seen.w, dir.x, dir.y, dir.z, is_own);
+}
+
 // meets_own: whether a ray that leaves a sphere can meet it again: only
 // going into it, at the far root (the Python docstring says why).
 fn meets_own(own_inside: bool) -> bool {

@@ -113,8 +113,12 @@ fn children(row: i32, axes: Axes) -> Children {
     return Children(Child(sa.x, sa.y, links.x, links.z), Child(sb.x, sb.y, links.y, links.w));
 }
 
-// leaf_test: the exact test on a leaf's primitives (sphere.wgsl's leaf_hit,
-// or leaf_hit_ahead for the secondary rays); ties go to the smaller ORIGINAL
+// leaf_test: the exact test on a leaf's primitives (sphere.wgsl's hit_from,
+// or hit_ahead_from for the secondary rays, on the primitive as the ray's
+// origin sees it: leaf_hit's arithmetic, with the leaf read before the
+// order's entry, so that both loads are in flight together, which the
+// driver's compiler did not do for a read inside each branch: the walk took
+// longer (docs/architecture.md#wgsl)); ties go to the smaller ORIGINAL
 // index, which is the one brute force's first-of-smallest-t picks. ahead,
 // own, own_inside: the secondary rays' test, where the primitive the ray
 // leaves is skipped unless it can meet it again (meets_own).
@@ -122,15 +126,16 @@ fn leaf_test(o: vec3<f32>, dir: vec3<f32>, first: i32, count: i32, so_far: Neare
              own_inside: bool) -> Nearest {
     var best = so_far;
     for (var j = first; j < first + count; j = j + 1) {
+        let seen = from_origin(j, o);
         let original = order[j];
         var td: vec2<f32>;
         if (ahead) {
             if (original == own && !meets_own(own_inside)) {
                 continue;
             }
-            td = leaf_hit_ahead(j, o, dir, original == own);
+            td = hit_ahead_from(seen, dir, original == own);
         } else {
-            td = leaf_hit(j, o, dir);
+            td = hit_from(seen, dir);
         }
         if (td.x > 0.0 && (td.x < best.closest || (td.x == best.closest && original < best.hit))) {
             best = Nearest(td.x, original, td.y);
