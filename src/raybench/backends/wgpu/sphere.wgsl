@@ -23,8 +23,11 @@ struct Sphere {
 // read_sphere: the Python's read, sphere k of the scene's buffer, (cx, cy,
 // cz, r). Not named read: that is WGSL's access mode, which every storage
 // binding names (var<storage, read>), and a function of that name shadows it.
+// The row is loaded whole, as the shading's own `spheres[i]` is: the same
+// wide loads, which the driver then shares between the two.
 fn read_sphere(k: i32) -> vec4<f32> {
-    return vec4<f32>(spheres[k].cx, spheres[k].cy, spheres[k].cz, spheres[k].r);
+    let s = spheres[k];
+    return vec4<f32>(s.cx, s.cy, s.cz, s.r);
 }
 
 // read_leaf: sphere k of the tree's leaf buffer, (cx, cy, cz, r).
@@ -165,5 +168,5 @@ fn surface(o: vec3<f32>, d: vec3<f32>, t: f32, i: i32) -> Surface {
 
 // rim: what the thesis's shading divides a hit's half-chord by (shade_hit).
 fn rim(i: i32) -> f32 {
-    return spheres[i].r;
+    return read_sphere(i).w;
 }
