@@ -12,7 +12,7 @@ import raybench
 from raybench import Scene, bvh, compiled, kernels, layout
 from raybench.backends import cuda as cuda_backend
 from raybench.backends import options as device_options
-from raybench.bvh import oneshot, sah
+from raybench.bvh import oneshot, sah, sah_steps
 from raybench.kernels import packets
 
 # The algorithm as plain Python on NumPy float32 scalars, run without a compiler.
@@ -416,7 +416,7 @@ def test_median_split_halves_by_count(rng, ties):
     e = int(rng.integers(s + 2, n + 1))
     cbox = np.array([*(c[s:e].min() for c in (px, py, pz)), *(c[s:e].max() for c in (px, py, pz))], np.float32)
     outside = [a.copy() for a in (px, py, pz, pr, idx)]
-    m = sah._median_split(px, py, pz, pr, idx, s, e, cbox)
+    m = sah_steps._median_split(px, py, pz, pr, idx, s, e, cbox)
     assert m == s + (e - s) // 2
     ext = cbox[3:] - cbox[:3]
     if ext.max() > 0:
@@ -460,14 +460,14 @@ def test_cuda_walk_is_chosen_by_the_tree_size():
     their own default block; a ray at a time below, in its own."""
     if not cuda_backend.available():
         pytest.skip("no CUDA GPU and the simulator is off")
-    small_rows = cuda_backend.tracer.PACKET_TREE_BYTES // layout.NODE_BYTES
-    assert cuda_backend.tracer.choose_walk(small_rows) == "ray"
-    assert cuda_backend.tracer.choose_walk(small_rows + 1) == "packet"
+    small_rows = cuda_backend.program.PACKET_TREE_BYTES // layout.NODE_BYTES
+    assert cuda_backend.program.choose_walk(small_rows) == "ray"
+    assert cuda_backend.program.choose_walk(small_rows + 1) == "packet"
     for n, walk in ((50, "ray"), (30000, "packet")):
         tracer = raybench.backends.tracer("cuda", raybench.random_spheres(n).spheres, 16, 8)
         try:
             assert (tracer.walk, tracer.block) == (walk, cuda_backend.DEFAULT_BLOCK[walk])
-            assert (tracer.bvh.node_count * layout.NODE_BYTES > cuda_backend.tracer.PACKET_TREE_BYTES) == (
+            assert (tracer.bvh.node_count * layout.NODE_BYTES > cuda_backend.program.PACKET_TREE_BYTES) == (
                 walk == "packet"
             )
         finally:

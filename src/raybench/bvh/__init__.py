@@ -1,6 +1,8 @@
 """The bounding volume hierarchy over the spheres, one layout for every backend.
 
-  sah      the host's builder (binned SAH, compiled with Numba)
+  sah      the host's builder (binned SAH, compiled with Numba): sah_steps
+           splits a range and grows a subtree on one thread, sah_wide
+           splits the top of a large tree with every thread
   wide     its 4-wide collapse, which the CPU walks
   oneshot  when a one-picture process runs the builder as plain Python
   lbvh     the parameters of the GPU builders' LBVH
@@ -32,18 +34,8 @@ from .oneshot import (
     stop_compiling_elsewhere,
     wait_for_compiling_elsewhere,
 )
-from .sah import (
-    BUILD_SPHERE_BYTES,
-    DEVICE_SPHERE_BYTES,
-    LEAF_MAX,
-    MAX_SPHERES,
-    NODE_COST,
-    WIDE,
-    Bvh,
-    build,
-    compile_builder,
-    sphere_pad,
-)
+from .sah import BUILD_SPHERE_BYTES, DEVICE_SPHERE_BYTES, MAX_SPHERES, Bvh, build, compile_builder
+from .sah_steps import LEAF_MAX, NODE_COST, WIDE, sphere_pad
 from .wide import collapse, collapse_in_python, compile_collapse
 
 __all__ = [

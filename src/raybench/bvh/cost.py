@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..layout import CHILD_BOX, COUNT, INNER, REF
-from .sah import NODE_COST
+from .sah_steps import NODE_COST
 
 
 def _half_area(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:

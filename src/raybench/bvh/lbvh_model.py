@@ -23,7 +23,7 @@ import numpy as np
 
 from .. import layout
 from . import lbvh, lbvh_steps
-from .sah import LEAF_MAX
+from .sah_steps import LEAF_MAX
 
 AXIS_CELLS = lbvh.AXIS_CELLS
 QUALITIES = lbvh.QUALITIES

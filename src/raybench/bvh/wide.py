@@ -27,7 +27,8 @@ from ..layout import (
     WIDTH,
 )
 from . import oneshot
-from .sah import WIDE, Bvh, _area
+from .sah import Bvh
+from .sah_steps import WIDE, _area
 
 
 @compiled.njit(nogil=True)

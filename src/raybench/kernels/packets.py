@@ -111,6 +111,23 @@ def _missed_by_all(lx, ly, lz, hx, hy, hz, spread):
 
 
 @numba.njit(inline="always", error_model="numpy")
+def _leaf_missed(ordered, j, ox, oy, oz, margin, spread):
+    """Whether no ray of the packet from (ox, oy, oz) enters leaf primitive
+    j's own box, as the builder pads it (its bounds), grown by margin as the
+    walk grows boxes: one test for the packet (_missed_by_all)."""
+    lx, ly, lz, hx, hy, hz = _bounds(ordered, j)
+    return _missed_by_all(
+        lx - margin - ox,
+        ly - margin - oy,
+        lz - margin - oz,
+        hx + margin - ox,
+        hy + margin - oy,
+        hz + margin - oz,
+        spread,
+    )
+
+
+@numba.njit(inline="always", error_model="numpy")
 def _rows_enter(lx, ly, lz, hx, hy, hz, ix, iy, iz, closest):
     """Whether any ray of the packet enters the box of planes (lx, ..., hz)
     relative to the rays' origin nearer than its closest hit: the rays a row
@@ -146,11 +163,7 @@ def _packet_leaf(
     (docs/bvh-walk.md#measured-cpu-only-machine-amd-epyc-2-vcpus-shared)."""
     for j in range(first, first + count):
         original = order[j]
-        lx, ly, lz, hx, hy, hz = _bounds(ordered, j)
-        if _missed_by_all(
-            lx - margin - ox, ly - margin - oy, lz - margin - oz, hx + margin - ox, hy + margin - oy, hz + margin - oz,
-            spread,
-        ):  # fmt: skip
+        if _leaf_missed(ordered, j, ox, oy, oz, margin, spread):
             continue
         seen = _from_origin(ordered, j, ox, oy, oz)
         for k in range(PACKET):

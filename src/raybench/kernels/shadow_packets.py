@@ -20,12 +20,11 @@ from ..layout import (
 from ..lighting import MAX_LIGHTS
 from .constants import ZERO
 from .packets import (
-    _bounds,
     _from_origin,
     _hit_ahead_from,
     _inverse,
+    _leaf_missed,
     _meets_own,
-    _missed_by_all,
     _wide_mask,
     _wide_planes,
 )
@@ -155,11 +154,7 @@ def _lanes_leaf(ox, oy, oz, margin, rays, spread, ordered, order, first, count, 
         original = order[j]
         if original == own and not _meets_own(own_inside):
             continue
-        lx, ly, lz, hx, hy, hz = _bounds(ordered, j)
-        if _missed_by_all(
-            lx - margin - ox, ly - margin - oy, lz - margin - oz, hx + margin - ox, hy + margin - oy, hz + margin - oz,
-            spread,
-        ):  # fmt: skip
+        if _leaf_missed(ordered, j, ox, oy, oz, margin, spread):
             continue
         if _lanes_hit(_from_origin(ordered, j, ox, oy, oz), rays, original == own):
             blockers[slot] = j

@@ -15,7 +15,7 @@ from .constants import FAR, HALF, ONE, ZERO
 from .primitives import sphere
 
 
-def make(jit, call=None, shadows=None, packets_search=None, read_row=None, words=None):
+def make(jit, call=None, shadows=None, packets_search=None, read_row=None, words=None, primitive=sphere):
     """The algorithm compiled with `jit`; a namespace of its functions.
     call: the decorator of Whitted shading's search for a ray's hit (default
     jit), which the CPU compiles as one function called from both of its call
@@ -27,9 +27,11 @@ def make(jit, call=None, shadows=None, packets_search=None, read_row=None, words
     walk of its 4-wide tree, search_tree's signature); default search_tree.
     That program's find is inlined (jit, not call). read_row: how the
     walks read a node's row (traverse.make); words: how they read a leaf's
-    primitives from a backend's packed copy (the primitive's make)."""
+    primitives from a backend's packed copy (the primitive's make).
+    primitive: the kind of primitive the program traces, a module of
+    kernels/primitives (its KINDS)."""
     call = call or jit
-    prim = sphere.make(jit, words)
+    prim = primitive.make(jit, words)
     shade_hit, shade_miss, to_byte = shade.make(jit)
     nearest_hit_bvh, inverse, ray_axes, children, leaf_hits, centre_along, walk = traverse.make(jit, prim, read_row)
     hit_closest, hit_ahead, meets_own, rim, prepare_at = (

@@ -1,9 +1,8 @@
-"""The CUDA Tracer: its kernels (the per-pixel functions of raybench.kernels,
-compiled as CUDA device functions), their launches and their buffers."""
+"""The CUDA Tracer: its kernels' launches (backends/cuda/program.py has the
+kernels) and their buffers."""
 
 from __future__ import annotations
 
-import functools
 import math
 import time
 import warnings
@@ -13,11 +12,8 @@ from numba import cuda
 from numba.cuda.core.errors import NumbaPerformanceWarning
 
 from ... import bvh as bvh_mod
-from ... import compiled, kernels
 from ...host import host_available_bytes
-from ...kernels.constants import FAR, ZERO
-from ...kernels.whitted import RAY_FLOATS, RAY_INTS, RAY_STACK
-from ...layout import CHILD_BOX, INNER, KINDS, NODE_BYTES, NODE_FLOATS, RADIUS, STACK
+from ...layout import KINDS, NODE_FLOATS
 from ...lighting import Shading
 from ..contract import TracerBase, check_moved
 from ..limits import (
@@ -28,354 +24,22 @@ from ..limits import (
     check_fits,
     check_rows,
 )
-from ..options import DEFAULT_BLOCK, RAYS_PER_THREAD, STAGED, TRIP, CudaOptions, checked
+from ..options import DEFAULT_BLOCK, CudaOptions, checked
 from . import build as cuda_build
 from .device import require, simulated
 from .launch import Launches
+from .program import (
+    _bvh_kernel,
+    _bvh_packet_kernel,
+    _constant_kernel,
+    _prepare_kernel,
+    _render_kernel,
+    _whitted_kernel,
+    _zero_rays,
+    choose_walk,
+    fast_kernel,
+)
 from .wavefront import SPHERE_ROW_BYTES, Wavefront, sphere_rows
-
-# The walk by default: packets once the tree outgrows the L1 cache (256 KiB
-# an SM on the GPUs measured): the packets cost more node visits than a ray
-# at a time and save fetches, so they pay once the tree is fetched from L2;
-# measured, the two crossed as the tree outgrew L1
-# (docs/bvh-walk.md#packets-of-rays-on-the-gpu-leases-g-to-i-kept).
-PACKET_TREE_BYTES = 256 * 1024
-
-
-def choose_walk(nodes: int) -> str:
-    """The walk for a tree of `nodes` rows, when the user did not choose."""
-    return "packet" if nodes * NODE_BYTES > PACKET_TREE_BYTES else "ray"
-
-
-_k = kernels.make(cuda.jit(device=True))
-# module globals, which is how kernels can see them
-_render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
-_prepare_one, _may_hit, _along, _intersect_relative = _k.prepare, _k.may_hit, _k.along, _k.intersect_relative
-_render_pixel_bvh = _k.render_pixel_bvh
-_ray_axes, _children, _leaf_hits, _centre = _k.ray_axes, _k.children, _k.leaf_hits, _k.centre_along
-
-_U = np.uint64
-
-
-@compiled.cuda_jit()
-def _render_kernel(width, height, first, end, basis, spheres, count, image, hits):
-    x, y = cuda.grid(2)
-    y += first
-    if x < width and y < end:
-        _render_pixel(x, y, width, height, basis, spheres, count, image, hits)
-
-
-# STACK is imported as a plain global, which numba-cuda takes as a
-# compile-time constant (a local array's size must be one); layout.STACK, a
-# module attribute, is typed as a run-time int64 and fails on a real GPU (the
-# simulator accepts either).
-
-
-@compiled.cuda_jit()
-def _bvh_kernel(width, height, first, end, basis, nodes, links, ordered, order, spheres, image, hits):
-    x, y = cuda.grid(2)
-    y += first
-    if x < width and y < end:
-        stack_row = cuda.local.array(STACK, np.int32)
-        stack_t = cuda.local.array(STACK, np.float32)
-        _render_pixel_bvh(
-            x, y, width, height, basis, nodes, links, ordered, order, spheres, image, hits, stack_row, stack_t
-        )
-
-
-@cuda.jit(device=True)
-def _tally(tally, primary, shadow, reflection, refraction):
-    """Add a pixel's rays by kind to the block's tally, in shared memory."""
-    cuda.atomic.add(tally, 0, primary)
-    if shadow:
-        cuda.atomic.add(tally, 1, shadow)
-    if reflection:
-        cuda.atomic.add(tally, 2, reflection)
-    if refraction:
-        cuda.atomic.add(tally, 3, refraction)
-
-
-@cuda.jit(device=True)
-def _flush(tally, me, rays):
-    """Once every thread of the block has added its rays: rays += the tally,
-    one global atomic per kind and block, not per pixel."""
-    cuda.syncthreads()
-    if me < 4:
-        cuda.atomic.add(rays, me, np.int64(tally[me]))
-
-
-_whitted_bvh_pixel, _whitted_all_pixel = _k.render_pixel_whitted["bvh"], _k.render_pixel_whitted["none"]
-
-
-# Whitted shading, a thread a pixel (kernels/whitted.py), through the tree or,
-# where it has no node, by brute force: one kernel holding both programs (a
-# kernel cannot take the program as an argument, and a factory's closure
-# would miss the cache, cpu.py says why); the choice is the same in every
-# thread. rays[kind] += the rays the block cast (_tally, _flush).
-@compiled.cuda_jit()
-def _whitted_kernel(width, height, first, end, basis, spheres, count, materials, lights, pattern, params, nodes,
-                    links, ordered, order, image, hits, rays):  # fmt: skip
-    x, y = cuda.grid(2)
-    y += first
-    me = cuda.threadIdx.y * cuda.blockDim.x + cuda.threadIdx.x
-    tally = cuda.shared.array(4, np.int32)
-    if me < 4:
-        tally[me] = 0
-    cuda.syncthreads()
-    if x < width and y < end:
-        stack_row = cuda.local.array(STACK, np.int32)
-        stack_t = cuda.local.array(STACK, np.float32)
-        rays_f = cuda.local.array((RAY_STACK, RAY_FLOATS), np.float32)
-        rays_i = cuda.local.array((RAY_STACK, RAY_INTS), np.int32)
-        tree = (nodes, links, ordered, order)
-        if nodes.shape[0] > 0:
-            primary, shadow, reflection, refraction = _whitted_bvh_pixel(
-                x, y, width, height, basis, spheres, count, materials, lights, pattern, params, tree, stack_row,
-                stack_t, rays_f, rays_i, image, hits,
-            )  # fmt: skip
-        else:
-            primary, shadow, reflection, refraction = _whitted_all_pixel(
-                x, y, width, height, basis, spheres, count, materials, lights, pattern, params, tree, stack_row,
-                stack_t, rays_f, rays_i, image, hits,
-            )  # fmt: skip
-        _tally(tally, primary, shadow, reflection, refraction)
-    _flush(tally, me, rays)
-
-
-@compiled.cuda_jit()
-def _zero_rays(rays):
-    rays[cuda.threadIdx.x] = 0
-
-
-# What a thread pushes as the entry distance of a child its ray does not
-# enter: beyond any closest hit, so it never votes to visit that child.
-_MISS = np.float32(np.inf)
-
-
-@compiled.cuda_jit()
-def _bvh_packet_kernel(width, height, first, end, basis, nodes, links, ordered, order, spheres, image, hits):
-    """The BVH walk with the block's rays as one packet, as the CPU walks its
-    packets: the packet visits a node if any of its rays enters it, and each
-    ray tests only the leaves it enters itself, so the node, the stack's rows
-    and every branch are the same in all the block's threads: one node fetch
-    serves them all, and they never diverge. The children are taken in the
-    order of their centres along the block's central ray (faster than voting
-    on the order: docs/bvh-walk.md#packets-of-rays-on-the-gpu-leases-g-to-i-kept).
-    The votes are the block's
-    barriers (syncthreads_or), which the CUDA simulator has too, so the
-    tests run this very code; in a one-warp block (8x4, the default) they
-    cost what warp votes do (measured). Every thread takes part in every
-    vote: those off the image trace a copy of its last row or column,
-    unstored. Same pixels as the ray-at-a-time walk:
-    a ray's hit is in a box it enters, and the packet enters every box one
-    of its rays does (or, off the stack, one it entered nearer than its
-    closest hit)."""
-    x, y = cuda.grid(2)
-    y += first
-    dx, dy, dz = _primary_ray(min(x, width - 1), min(y, end - 1), width, height, basis)
-    cdx, cdy, cdz = _primary_ray(
-        min(cuda.blockIdx.x * cuda.blockDim.x + cuda.blockDim.x // 2, width - 1),
-        min(first + cuda.blockIdx.y * cuda.blockDim.y + cuda.blockDim.y // 2, end - 1),
-        width,
-        height,
-        basis,
-    )
-    ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
-    ix, iy, iz, lx, ly, lz, hx, hy, hz = _ray_axes(ox, oy, oz, dx, dy, dz)
-    stack_row = cuda.local.array(STACK, np.int32)  # the same in every thread
-    stack_t = cuda.local.array(STACK, np.float32)  # where this thread's ray enters the node
-    closest = FAR
-    hit = -1
-    hit_d = ZERO
-    row = 0
-    top = _U(0)
-    while row >= 0:
-        node = _U(row)
-        a_near, a_far, b_near, b_far, a_ref, b_ref, a_count, b_count = _children(
-            nodes, links, node, ix, iy, iz, lx, ly, lz, hx, hy, hz
-        )
-        a_in = a_near <= a_far and a_far > ZERO and a_near <= closest
-        b_in = b_near <= b_far and b_far > ZERO and b_near <= closest
-        # first the child whose box centre lies nearer along the block's
-        # central ray: an order the same in every thread without a vote
-        # (guarding an empty child's case with a branch, or clamping its
-        # planes, cost more than the builder storing them finite:
-        # docs/bvh-walk.md). The
-        # barriers take int32 predicates on a GPU.
-        b_first = _centre(nodes, node, _U(CHILD_BOX[1]), ox, oy, oz, cdx, cdy, cdz) < _centre(
-            nodes, node, _U(CHILD_BOX[0]), ox, oy, oz, cdx, cdy, cdz
-        )
-        any_a = cuda.syncthreads_or(np.int32(a_in)) != 0
-        any_b = cuda.syncthreads_or(np.int32(b_in)) != 0
-        if b_first:
-            a_near, a_ref, a_count, a_in, any_a, b_near, b_ref, b_count, b_in, any_b = (
-                b_near,
-                b_ref,
-                b_count,
-                b_in,
-                any_b,
-                a_near,
-                a_ref,
-                a_count,
-                a_in,
-                any_a,
-            )
-        row = -1
-        if any_a:
-            if a_count == INNER:
-                row = a_ref
-            elif a_in:
-                closest, hit, hit_d = _leaf_hits(
-                    ox, oy, oz, dx, dy, dz, ordered, order, a_ref, a_count, closest, hit, hit_d
-                )
-        if any_b:
-            if b_count != INNER:
-                if b_in and b_near <= closest:
-                    closest, hit, hit_d = _leaf_hits(
-                        ox, oy, oz, dx, dy, dz, ordered, order, b_ref, b_count, closest, hit, hit_d
-                    )
-            elif row < 0:
-                row = b_ref
-            else:
-                stack_row[top] = b_ref
-                stack_t[top] = b_near if b_in else _MISS
-                top += _U(1)
-        while row < 0 and top > _U(0):
-            top -= _U(1)
-            if cuda.syncthreads_or(np.int32(stack_t[top] <= closest)) != 0:
-                row = stack_row[top]
-    if x < width and y < end:
-        _store_pixel(x, y, hit, hit_d, spheres, image, hits)
-
-
-@cuda.jit
-def _prepare_kernel(basis, spheres, count, relative):
-    i = cuda.grid(1)
-    if i < count:
-        _prepare_one(i, basis, spheres, relative)
-
-
-@functools.cache
-def fast_kernel(rays: int = RAYS_PER_THREAD, staged: int = STAGED, trip: int = TRIP):
-    """The fast kernel for `rays` pixels per thread, `staged` spheres staged
-    in shared memory at a time and `trip` spheres per trip of the cull loop
-    (compile-time constants: the per-thread arrays must have a fixed size to
-    live in registers); one compilation per combination."""
-    slots = staged + trip - 1  # room for the pads of a batch that is not a whole number of trips
-
-    @cuda.jit(device=True)
-    def farthest(ex, ey, ez, dx, dy, dz, v):
-        """The largest v = EO.dir over the thread's rays: a tree of maxima,
-        log2(rays) deep rather than a chain of rays - 1."""
-        for j in range(rays):
-            v[j] = _along(ex, ey, ez, dx[j], dy[j], dz[j])
-        step = 1
-        while step < rays:
-            for j in range(0, rays - step, 2 * step):
-                v[j] = max(v[j], v[j + step])
-            step *= 2
-        return v[0]
-
-    @cuda.jit(device=True)
-    def nearer(i, ex, ey, ez, s, r, dx, dy, dz, closest, hit, hit_d):
-        """Sphere i's cull and exact tests on each of the thread's rays."""
-        for j in range(rays):
-            if _may_hit(ex, ey, ez, s, dx[j], dy[j], dz[j]):
-                t, d = _intersect_relative(ex, ey, ez, r, dx[j], dy[j], dz[j])
-                if t < closest[j] and t > ZERO:
-                    closest[j] = t
-                    hit[j] = i
-                    hit_d[j] = d
-
-    @cuda.jit
-    def kernel(width, height, first, end, basis, spheres, relative, count, image, hits):
-        """`rays` pixels per thread; the block walks the spheres `staged` at a
-        time through shared memory, each thread scanning them two at a time with
-        the cull test on all its rays and stopping for the exact test only
-        where the cull cannot rule a hit out. Same arithmetic, same order of
-        spheres, same pixels as _render_kernel."""
-        if width <= 0 or end <= first:  # compile()'s empty launch; the same for every thread
-            return
-        sx = cuda.shared.array(slots, np.float32)
-        sy = cuda.shared.array(slots, np.float32)
-        sz = cuda.shared.array(slots, np.float32)
-        ss = cuda.shared.array(slots, np.float32)
-        dx = cuda.local.array(rays, np.float32)
-        dy = cuda.local.array(rays, np.float32)
-        dz = cuda.local.array(rays, np.float32)
-        closest = cuda.local.array(rays, np.float32)
-        hit = cuda.local.array(rays, np.int32)
-        hit_d = cuda.local.array(rays, np.float32)
-        v = cuda.local.array(rays, np.float32)
-        vmax = cuda.local.array(trip, np.float32)
-        bw, bh = cuda.blockDim.x, cuda.blockDim.y
-        x = cuda.blockIdx.x * bw + cuda.threadIdx.x
-        y0 = first + cuda.blockIdx.y * bh * rays + cuda.threadIdx.y
-        for j in range(rays):
-            y = min(y0 + j * bh, end - 1)  # rays past the rows asked for trace a copy of the last, unstored
-            dx[j], dy[j], dz[j] = _primary_ray(min(x, width - 1), y, width, height, basis)
-            closest[j] = FAR
-            hit[j] = -1
-            hit_d[j] = ZERO
-        # Unsigned indices: a signed one makes every shared-memory read check
-        # for Python's negative indexing (step 4 of docs/floors.md#each-version-against-the-floor).
-        me = _U(cuda.threadIdx.y * bw + cuda.threadIdx.x)
-        total = _U(count)
-        for base in range(_U(0), total, _U(staged)):
-            n = min(_U(staged), total - base)
-            cuda.syncthreads()  # every thread is done with the previous batch
-            for k in range(me, n, _U(bw * bh)):
-                sx[k] = relative[0, base + k]
-                sy[k] = relative[1, base + k]
-                sz[k] = relative[2, base + k]
-                ss[k] = relative[3, base + k]
-            if me == _U(0):
-                # pad to whole trips with spheres no ray can pass the cull test of
-                for k in range(n, (n + _U(trip - 1)) // _U(trip) * _U(trip)):
-                    sx[k], sy[k], sz[k], ss[k] = ZERO, ZERO, ZERO, FAR
-            cuda.syncthreads()
-            k = _U(0)
-            while k < n:
-                # `trip` spheres a trip, one branch for all on the farthest v
-                # of all the thread's rays: the loop is then mostly arithmetic
-                # (docs/floors.md#each-version-against-the-floor has what each
-                # step bought).
-                while k < n:
-                    for q in range(trip):
-                        vmax[q] = farthest(sx[k + _U(q)], sy[k + _U(q)], sz[k + _U(q)], dx, dy, dz, v)
-                    passed = False
-                    for q in range(trip):
-                        passed |= vmax[q] > ss[k + _U(q)]
-                    if passed:
-                        break
-                    k += _U(trip)
-                for i in range(k, min(k + _U(trip), n)):
-                    nearer(
-                        base + i, sx[i], sy[i], sz[i], ss[i], spheres[RADIUS, base + i], dx, dy, dz, closest, hit, hit_d
-                    )
-                k += _U(trip)
-        if x < width:
-            for j in range(rays):
-                y = y0 + j * bh
-                if y < end:
-                    _store_pixel(x, y, hit[j], hit_d[j], spheres, image, hits)
-
-    return kernel
-
-
-@functools.cache
-def _constant_kernel(count: int):
-    """_render_kernel with the sphere count frozen into the code (a compile-time
-    constant, as in the thesis's tests 1 to 6); one compilation per count."""
-
-    @cuda.jit
-    def render_kernel(width, height, first, end, basis, spheres, _count, image, hits):
-        x, y = cuda.grid(2)
-        y += first
-        if x < width and y < end:
-            _render_pixel(x, y, width, height, basis, spheres, count, image, hits)
-
-    return render_kernel
 
 
 class Tracer(TracerBase):

@@ -1,0 +1,401 @@
+"""The top of a large tree, each split shared by all the build's threads
+(bvh/sah.py's build, for more than WIDE spheres): its levels split in
+parallel regions, then the subtrees below grown one a thread and packed."""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from .. import compiled
+from ..layout import (
+    BOX_FLOATS,
+    CHILD_BOX,
+    COUNT,
+    INNER,
+    MAX_DEPTH,
+    NODE_FLOATS,
+    REF,
+)
+from .sah_steps import (
+    BINS,
+    SLICE,
+    _best_plane,
+    _clear_bins,
+    _empty_children,
+    _grow,
+    _log2ceil,
+    _median_split,
+    _open_row,
+    _prepare,
+    _push,
+    _range_bounds,
+    _stack,
+    _widest,
+)
+
+# --- the top of a large tree: each split shared by all threads -----------------------
+#
+# A level of wide ranges is split in four steps: plan (which axis, how it is
+# sliced), bin the slices (threads), choose each range's plane and where each
+# slice's spheres go, move them (threads), then attach the children. A slice
+# moves its spheres between the two buffers (the builder's arrays and a spare
+# set), keeping their order: `buf` says which buffer holds a range now.
+# The bins' minima, maxima and counts merge exactly, so a range gets the same
+# plane however many slices it was cut into.
+
+
+@compiled.njit(nogil=True)
+def _plan(level, bounds, p, q, piece, axis, lo, scale, mid, first_job):
+    """For each wide range of the level, row, s, e, depth, buf: the axis to
+    bin (its centres' widest), its bin arithmetic, and mid: -1 for a SAH
+    split, else the split point of a split by count (depth guard, or centres
+    that coincide). The ranges cut in slices of at most `piece` spheres:
+    jobs (J, 3) = range, s, e; first_job[k] is range k's first."""
+    jobs = 0
+    for k in range(level.shape[0]):
+        jobs += (level[k, 2] - level[k, 1] + piece - 1) // piece
+    out = np.empty((jobs, 3), np.int64)
+    j = 0
+    for k in range(level.shape[0]):
+        s, e, d, buf = level[k, 1], level[k, 2], level[k, 3], level[k, 4]
+        cbox = bounds[k, 6:]
+        a = _widest(cbox)
+        ext = cbox[3 + a] - cbox[a]
+        axis[k] = a
+        lo[k] = cbox[a]
+        scale[k] = np.float32(BINS * (1 - 1e-5)) / ext if ext > 0 else np.float32(0.0)
+        mid[k] = -1
+        if ext == 0:
+            mid[k] = s + (e - s) // 2
+        elif d + _log2ceil(e - s) >= MAX_DEPTH:  # as _grow's guard, for a row at depth d
+            x, y, z, r, i = p if buf == 0 else q
+            mid[k] = _median_split(x, y, z, r, i, s, e, cbox)
+        first_job[k] = j
+        for a0 in range(s, e, piece):
+            out[j, 0] = k
+            out[j, 1] = a0
+            out[j, 2] = min(a0 + piece, e)
+            j += 1
+    first_job[level.shape[0]] = j
+    return out
+
+
+@compiled.njit(nogil=True)
+def _bin_jobs(level, jobs, p, q, axis, lo, scale, mid, counts, bins, first, step):
+    """Bin the slices jobs[first::step] of SAH ranges along their range's
+    axis: counts[j]; bins[j]: each bin's box, then its centres' box."""
+    last = BINS - 1
+    # each thread bins in its own arrays: bins[j] beside another thread's
+    # bins[j + 1] share cache lines, which all the threads write, every sphere
+    # (what that cost: docs/gpu-build.md#the-build-on-every-thread-kept)
+    n = np.empty(BINS, np.int64)
+    b = np.empty((BINS, 12), np.float32)
+    for j in range(first, jobs.shape[0], step):
+        k = jobs[j, 0]
+        if mid[k] >= 0:
+            continue
+        x, y, z, r, _ = p if level[k, 4] == 0 else q
+        a = axis[k]
+        key = x if a == 0 else (y if a == 1 else z)
+        c, sa = lo[k], scale[k]
+        _clear_bins(n, b)
+        for i in range(jobs[j, 1], jobs[j, 2]):
+            xi, yi, zi, ri = x[i], y[i], z[i], r[i]
+            kb = min(int((key[i] - c) * sa), last)
+            n[kb] += 1
+            b[kb, 0] = min(b[kb, 0], xi - ri)
+            b[kb, 1] = min(b[kb, 1], yi - ri)
+            b[kb, 2] = min(b[kb, 2], zi - ri)
+            b[kb, 3] = max(b[kb, 3], xi + ri)
+            b[kb, 4] = max(b[kb, 4], yi + ri)
+            b[kb, 5] = max(b[kb, 5], zi + ri)
+            b[kb, 6] = min(b[kb, 6], xi)
+            b[kb, 7] = min(b[kb, 7], yi)
+            b[kb, 8] = min(b[kb, 8], zi)
+            b[kb, 9] = max(b[kb, 9], xi)
+            b[kb, 10] = max(b[kb, 10], yi)
+            b[kb, 11] = max(b[kb, 11], zi)
+        counts[j] = n
+        bins[j] = b
+
+
+@compiled.njit(nogil=True)
+def _merge(into, bins):
+    """into (12,) |= bins (m, 12): lows by min, highs by max."""
+    for b in range(bins.shape[0]):
+        for c in range(0, 12, 6):
+            for d in range(3):
+                into[c + d] = min(into[c + d], bins[b, c + d])
+                into[c + 3 + d] = max(into[c + 3 + d], bins[b, c + 3 + d])
+
+
+@compiled.njit(nogil=True)
+def _choose(level, jobs, first_job, axis, scale, mid, counts, bins, cut, left_at, right_at, children):
+    """Each SAH range's plane (cut: its last bin on the left) and its
+    children's bounds (children[k, slot]: box, then centres' box), and where
+    each slice's spheres go: left_at[j], right_at[j]. Returns the split points."""
+    inf = np.float32(np.inf)
+    counts3 = np.zeros((3, BINS), np.int64)
+    bins3 = np.empty((3, BINS, 12), np.float32)
+    scale3 = np.zeros(3, np.float32)
+    left_area = np.empty(BINS, np.float32)
+    left_count = np.empty(BINS, np.int64)
+    m = np.empty(level.shape[0], np.int64)
+    for k in range(level.shape[0]):
+        s, e = level[k, 1], level[k, 2]
+        j0, j1 = first_job[k], first_job[k + 1]
+        if mid[k] < 0:
+            a = axis[k]
+            _clear_bins(counts3[a], bins3[a])
+            for j in range(j0, j1):
+                counts3[a] += counts[j]
+                for b in range(BINS):
+                    _merge(bins3[a, b], bins[j, b : b + 1])
+            scale3[:] = 0
+            scale3[a] = scale[k]
+            _cost, best, cut[k] = _best_plane(counts3, bins3, scale3, BINS, left_area, left_count)
+            if best < 0:  # cannot happen (the extreme centres fall in the first and last bins); still valid
+                mid[k] = s + (e - s) // 2
+            else:
+                for slot in range(2):
+                    children[k, slot, 0:3] = inf
+                    children[k, slot, 3:6] = -inf
+                    children[k, slot, 6:9] = inf
+                    children[k, slot, 9:12] = -inf
+                _merge(children[k, 0], bins3[a, : cut[k] + 1])
+                _merge(children[k, 1], bins3[a, cut[k] + 1 :])
+        for j in range(j0, j1):  # each slice's spheres that go left, for now in right_at
+            n_left = 0
+            if mid[k] < 0:
+                for b in range(cut[k] + 1):
+                    n_left += counts[j, b]
+            else:
+                n_left = max(0, min(jobs[j, 2], mid[k]) - jobs[j, 1])
+            right_at[j] = n_left
+        left = s
+        for j in range(j0, j1):
+            left_at[j] = left
+            left += right_at[j]
+        m[k] = right = left
+        for j in range(j0, j1):
+            n_right = (jobs[j, 2] - jobs[j, 1]) - right_at[j]
+            right_at[j] = right
+            right += n_right
+    return m
+
+
+@compiled.njit(nogil=True)
+def _move_jobs(level, jobs, p, q, axis, lo, scale, mid, cut, left_at, right_at, first, step):
+    """Move the slices jobs[first::step] to the other buffer, in order: each
+    slice's left side from left_at[j] on, its right side from right_at[j] on."""
+    last = BINS - 1
+    for j in range(first, jobs.shape[0], step):
+        k = jobs[j, 0]
+        src, dst = (p, q) if level[k, 4] == 0 else (q, p)
+        sx, sy, sz, sr, si = src
+        dx, dy, dz, dr, di = dst
+        a = axis[k]
+        key = sx if a == 0 else (sy if a == 1 else sz)
+        c, sa, kb, split = lo[k], scale[k], cut[k], mid[k]
+        lt, rt = left_at[j], right_at[j]
+        for i in range(jobs[j, 1], jobs[j, 2]):
+            if (i < split) if split >= 0 else (min(int((key[i] - c) * sa), last) <= kb):
+                t = lt
+                lt += 1
+            else:
+                t = rt
+                rt += 1
+            dx[t], dy[t], dz[t], dr[t], di[t] = sx[i], sy[i], sz[i], sr[i], si[i]
+
+
+@compiled.njit(nogil=True)
+def _attach(level, m, mid, children, p, q, nodes, links, used, wide):
+    """Store each range's two children in its row: ranges of over `wide`
+    spheres get a row and go to the next level (returned with their bounds);
+    the others are subtree tasks (parent row, slot, s, e, depth, buf).
+    Returns (next level, its bounds, subtrees, rows used)."""
+    n = level.shape[0]
+    nxt = np.empty((2 * n, 5), np.int64)
+    nxt_bounds = np.empty((2 * n, 12), np.float32)
+    subtrees = np.empty((2 * n, 6), np.int64)
+    nn = 0
+    ns = 0
+    for k in range(n):
+        row, s, e, d, buf = level[k, 0], level[k, 1], level[k, 2], level[k, 3], level[k, 4]
+        for slot in range(2):
+            cs, ce = (s, m[k]) if slot == 0 else (m[k], e)
+            b = children[k, slot]
+            if mid[k] >= 0:  # split by count: no bins gave the bounds
+                x, y, z, r, _ = q if buf == 0 else p
+                _range_bounds(x, y, z, r, cs, ce, b[:6], b[6:])
+            nodes[row, CHILD_BOX[slot] : CHILD_BOX[slot] + BOX_FLOATS] = b[:6]
+            links[row, REF + slot] = cs
+            links[row, COUNT + slot] = ce - cs
+            if ce - cs > wide:
+                _open_row(nodes, links, row, slot, used)
+                nxt[nn, 0], nxt[nn, 1], nxt[nn, 2], nxt[nn, 3], nxt[nn, 4] = used, cs, ce, d + 1, 1 - buf
+                nxt_bounds[nn] = b
+                nn += 1
+                used += 1
+            else:
+                subtrees[ns, 0], subtrees[ns, 1], subtrees[ns, 2] = row, slot, cs
+                subtrees[ns, 3], subtrees[ns, 4], subtrees[ns, 5] = ce, d, 1 - buf
+                ns += 1
+    return nxt[:nn], nxt_bounds[:nn], subtrees[:ns], used
+
+
+@compiled.njit(nogil=True)
+def _grow_subtrees(p, q, r, nodes, links, tasks, base, ends, depths, ordered, first, step):
+    """Build the subtrees tasks[first::step], each into its block of rows
+    from base + its first sphere, after bringing its spheres back to the
+    builder's arrays where they lie in the spare ones; then their spheres'
+    columns of ordered (the scene's radii r, not the padded ones)."""
+    px, py, pz, pr, idx = p
+    stack = _stack()
+    for t in range(first, tasks.shape[0], step):
+        parent, slot, s, e, d, buf = tasks[t, 0], tasks[t, 1], tasks[t, 2], tasks[t, 3], tasks[t, 4], tasks[t, 5]
+        if buf == 1:
+            qx, qy, qz, qr, qi = q
+            for i in range(s, e):
+                px[i], py[i], pz[i], pr[i], idx[i] = qx[i], qy[i], qz[i], qr[i], qi[i]
+        _push(stack, 0, parent, slot, s, e, d)
+        ends[t], depths[t] = _grow(px, py, pz, pr, idx, nodes, links, stack, 1, base + s)
+        for i in range(s, e):
+            ordered[0, i], ordered[1, i], ordered[2, i], ordered[3, i] = px[i], py[i], pz[i], r[idx[i]]
+
+
+@compiled.njit(nogil=True)
+def _prepare_slices(cx, cy, cz, r, p, piece, bounds, first, step):
+    """_prepare the j-th slice of piece spheres into bounds[j], for j in first::step."""
+    n = cx.shape[0]
+    for j in range(first, bounds.shape[0], step):
+        a = j * piece
+        _prepare(cx, cy, cz, r, p, a, min(a + piece, n), bounds[j])
+
+
+@compiled.njit(nogil=True)
+def _pack(nodes, links, tasks, base, ends, starts, packed, packed_links, first, step):
+    """Copy the subtrees' blocks of rows, tasks[first::step], to packed from
+    starts[t] on, their inner links moved with them, and point each block's
+    parent at its new place (the top's rows are already copied)."""
+    for t in range(first, tasks.shape[0], step):
+        parent, slot, old = tasks[t, 0], tasks[t, 1], base + tasks[t, 2]
+        new = starts[t]
+        for row in range(old, ends[t]):
+            to = new + row - old
+            packed[to] = nodes[row]
+            for c in range(2):
+                if packed_links[to, COUNT + c] == INNER:
+                    packed_links[to, REF + c] += new - old
+        if packed_links[parent, COUNT + slot] == INNER:
+            packed_links[parent, REF + slot] = new
+
+
+# One parallel region per step, each thread taking every parts-th job. Numba's
+# threads, not a Python pool: with a pool, each thread's call unboxed its
+# twenty-odd arguments while holding the GIL, one thread after another
+# (docs/gpu-build.md#the-build-on-every-thread-kept).
+@compiled.njit(nogil=True, parallel=True)
+def _prepare_all(cx, cy, cz, r, p, piece, bounds, parts):
+    for w in numba.prange(parts):
+        _prepare_slices(cx, cy, cz, r, p, piece, bounds, w, parts)
+
+
+@compiled.njit(nogil=True, parallel=True)
+def _bin_all(level, jobs, p, q, axis, lo, scale, mid, counts, bins, parts):
+    for w in numba.prange(parts):
+        _bin_jobs(level, jobs, p, q, axis, lo, scale, mid, counts, bins, w, parts)
+
+
+@compiled.njit(nogil=True, parallel=True)
+def _move_all(level, jobs, p, q, axis, lo, scale, mid, cut, left_at, right_at, parts):
+    for w in numba.prange(parts):
+        _move_jobs(level, jobs, p, q, axis, lo, scale, mid, cut, left_at, right_at, w, parts)
+
+
+@compiled.njit(nogil=True, parallel=True)
+def _grow_all(p, q, r, nodes, links, tasks, base, ends, depths, ordered, parts):
+    for w in numba.prange(parts):
+        _grow_subtrees(p, q, r, nodes, links, tasks, base, ends, depths, ordered, w, parts)
+
+
+@compiled.njit(nogil=True, parallel=True)
+def _pack_all(nodes, links, tasks, base, ends, starts, packed, packed_links, parts):
+    for w in numba.prange(parts):
+        _pack(nodes, links, tasks, base, ends, starts, packed, packed_links, w, parts)
+
+
+def _piece(spheres: int, threads: int) -> int:
+    """Spheres per slice of a level of wide ranges: a few slices per thread."""
+    return min(SLICE, max(1024, spheres // (4 * threads)))
+
+
+def _build_wide(cx, cy, cz, r, threads: int, wide: int):
+    """The tree of n > wide spheres (centres cx, cy, cz, radii r): its top
+    level by level, each range of over `wide` spheres split by all threads,
+    then the subtrees below on one thread each, each into its own block of
+    rows, then the blocks packed after the top's rows. Returns (nodes,
+    ordered, order, deepest depth)."""
+    n = cx.shape[0]
+    p = (
+        np.empty(n, np.float32),
+        np.empty(n, np.float32),
+        np.empty(n, np.float32),
+        np.empty(n, np.float32),
+        np.empty(n, np.int32),
+    )
+    q = tuple(np.empty_like(a) for a in p)
+    # the top's rows, then one block per subtree at the top's row count plus
+    # its first sphere: a subtree of k spheres has fewer than k inner nodes
+    nodes = np.empty((2 * n, NODE_FLOATS), np.float32)
+    links = nodes.view(np.int32)
+    ordered = np.empty((4, n), np.float32)
+    piece = _piece(n, threads)
+    parts = np.empty(((n + piece - 1) // piece, 12), np.float32)
+    _prepare_all(cx, cy, cz, r, p, piece, parts, threads)
+    _empty_children(nodes, 0)
+    level = np.array([[0, 0, n, 1, 0]], np.int64)  # row, s, e, the row's depth, buf
+    bounds = parts[:1].copy()  # the slices' bounds merged: the root's
+    _merge(bounds[0], parts)
+    used, depth, subtrees = 1, 1, []
+    while len(level):
+        k = len(level)
+        axis, lo, scale = np.empty(k, np.int64), np.empty(k, np.float32), np.empty(k, np.float32)
+        mid, first_job, cut = np.empty(k, np.int64), np.empty(k + 1, np.int64), np.zeros(k, np.int64)
+        jobs = _plan(
+            level,
+            bounds,
+            p,
+            q,
+            _piece(int((level[:, 2] - level[:, 1]).sum()), threads),
+            axis,
+            lo,
+            scale,
+            mid,
+            first_job,
+        )
+        counts, bins = np.empty((len(jobs), BINS), np.int64), np.empty((len(jobs), BINS, 12), np.float32)
+        _bin_all(level, jobs, p, q, axis, lo, scale, mid, counts, bins, threads)
+        left_at, right_at = np.empty(len(jobs), np.int64), np.empty(len(jobs), np.int64)
+        children = np.empty((k, 2, 12), np.float32)
+        m = _choose(level, jobs, first_job, axis, scale, mid, counts, bins, cut, left_at, right_at, children)
+        _move_all(level, jobs, p, q, axis, lo, scale, mid, cut, left_at, right_at, threads)
+        depth = max(depth, int(level[:, 3].max()))
+        level, bounds, below, used = _attach(level, m, mid, children, p, q, nodes, links, used, wide)
+        subtrees.append(below)
+    tasks = np.concatenate(subtrees)
+    tasks = tasks[np.argsort(tasks[:, 2] - tasks[:, 3], kind="stable")]  # largest first
+    ends, depths = np.empty(len(tasks), np.int64), np.empty(len(tasks), np.int64)
+    # subtrees differ in cost: more parts than threads, handed out one at a time as threads come free
+    chunk = numba.set_parallel_chunksize(1)
+    try:
+        _grow_all(p, q, r, nodes, links, tasks, used, ends, depths, ordered, 4 * threads)
+    finally:
+        numba.set_parallel_chunksize(chunk)
+    sizes = ends - (used + tasks[:, 2])
+    starts = used + np.cumsum(sizes) - sizes
+    packed = np.empty((used + int(sizes.sum()), NODE_FLOATS), np.float32)
+    packed[:used] = nodes[:used]
+    _pack_all(nodes, links, tasks, used, ends, starts, packed, packed.view(np.int32), threads)
+    return packed, ordered, p[4], max(depth, int(depths.max()))
