@@ -43,9 +43,10 @@ _shade_hit_v, _shade_miss_v, _to_byte_v = _kb.shade_hit, _kb.shade_miss, _kb.to_
 # from an origin the packet's rays share, and what the thesis's shading
 # divides by.
 _prim = _kb.prim
-_bounds, _from_origin, _hit_from, _hit_ahead_from = (
-    _prim.bounds,
-    _prim.from_origin,
+_read_leaf, _box_of, _seen_from, _hit_from, _hit_ahead_from = (
+    _prim.read_leaf,
+    _prim.box_of,
+    _prim.seen_from,
     _prim.hit_from,
     _prim.hit_ahead_from,
 )
@@ -111,11 +112,12 @@ def _missed_by_all(lx, ly, lz, hx, hy, hz, spread):
 
 
 @numba.njit(inline="always", error_model="numpy")
-def _leaf_missed(ordered, j, ox, oy, oz, margin, spread):
-    """Whether no ray of the packet from (ox, oy, oz) enters leaf primitive
-    j's own box, as the builder pads it (its bounds), grown by margin as the
-    walk grows boxes: one test for the packet (_missed_by_all)."""
-    lx, ly, lz, hx, hy, hz = _bounds(ordered, j)
+def _leaf_missed(row, ox, oy, oz, margin, spread):
+    """Whether no ray of the packet from (ox, oy, oz) enters a leaf
+    primitive's own box (row: its read_leaf), as the builder pads it, grown
+    by margin as the walk grows boxes: one test for the packet
+    (_missed_by_all)."""
+    lx, ly, lz, hx, hy, hz = _box_of(row)
     return _missed_by_all(
         lx - margin - ox,
         ly - margin - oy,
@@ -163,9 +165,10 @@ def _packet_leaf(
     (docs/bvh-walk.md#measured-cpu-only-machine-amd-epyc-2-vcpus-shared)."""
     for j in range(first, first + count):
         original = order[j]
-        if _leaf_missed(ordered, j, ox, oy, oz, margin, spread):
+        row = _read_leaf(ordered, j)  # read once, for the box test and the rays' tests
+        if _leaf_missed(row, ox, oy, oz, margin, spread):
             continue
-        seen = _from_origin(ordered, j, ox, oy, oz)
+        seen = _seen_from(row, ox, oy, oz)
         for k in range(PACKET):
             if ahead:
                 t, d = _hit_ahead_from(seen, dx[k], dy[k], dz[k], False)

@@ -20,11 +20,12 @@ from ..layout import (
 from ..lighting import MAX_LIGHTS
 from .constants import ZERO
 from .packets import (
-    _from_origin,
     _hit_ahead_from,
     _inverse,
     _leaf_missed,
     _meets_own,
+    _read_leaf,
+    _seen_from,
     _wide_mask,
     _wide_planes,
 )
@@ -154,9 +155,10 @@ def _lanes_leaf(ox, oy, oz, margin, rays, spread, ordered, order, first, count, 
         original = order[j]
         if original == own and not _meets_own(own_inside):
             continue
-        if _leaf_missed(ordered, j, ox, oy, oz, margin, spread):
+        row = _read_leaf(ordered, j)  # read once, for the box test and the rays' tests
+        if _leaf_missed(row, ox, oy, oz, margin, spread):
             continue
-        if _lanes_hit(_from_origin(ordered, j, ox, oy, oz), rays, original == own):
+        if _lanes_hit(_seen_from(row, ox, oy, oz), rays, original == own):
             blockers[slot] = j
             hits = True
     return hits
@@ -192,7 +194,7 @@ def _last_blocker(ox, oy, oz, rays, ordered, order, j, own, own_inside):
     if j >= 0:
         original = order[j]
         if original != own or _meets_own(own_inside):
-            _lanes_hit(_from_origin(ordered, j, ox, oy, oz), rays, original == own)
+            _lanes_hit(_seen_from(_read_leaf(ordered, j), ox, oy, oz), rays, original == own)
     return _reach(rays)
 
 

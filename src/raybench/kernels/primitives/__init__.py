@@ -6,7 +6,8 @@ builders' padding; and make(jit), its functions compiled for one target:
 read, hit (closest hit), hit_ahead and meets_own (the secondary rays' test
 and the rule for the primitive a ray leaves), the same tests on the tree's
 leaf buffer (leaf_hit, leaf_hit_ahead, read_leaf), and seen from an origin
-that a packet of rays shares (from_origin, hit_from, hit_ahead_from), bounds, surface (point and
+that a packet of rays shares (from_origin, hit_from, hit_ahead_from; seen_from
+and box_of work from a row read once), bounds, surface (point and
 normal at a hit), rim (what the thesis's shading divides by), and for the
 brute-force fast kernels prepare_at and may_hit. The walks, the pixel programs
 and the CPU's packets take that namespace; none of them names a sphere.

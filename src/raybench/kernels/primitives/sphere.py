@@ -148,12 +148,17 @@ def make(jit, words=None):
     leaf_hit, leaf_hit_ahead = (hit, hit_ahead) if words is None else tests(read_leaf)
 
     @jit
-    def from_origin(buffer, k, ox, oy, oz):
-        """Sphere k of the tree's leaf buffer as rays from (ox, oy, oz) see
-        it, worked out once for a packet of rays that share that origin:
-        (EO, r), hit_from's and hit_ahead_from's first argument."""
-        cx, cy, cz, r = read_leaf(buffer, k)
+    def seen_from(row, ox, oy, oz):
+        """A leaf's row (read_leaf's) as rays from (ox, oy, oz) see it,
+        worked out once for a packet of rays that share that origin: (EO, r),
+        hit_from's and hit_ahead_from's first argument."""
+        cx, cy, cz, r = row
         return cx - ox, cy - oy, cz - oz, r
+
+    @jit
+    def from_origin(buffer, k, ox, oy, oz):
+        """seen_from for sphere k of the tree's leaf buffer."""
+        return seen_from(read_leaf(buffer, k), ox, oy, oz)
 
     @jit
     def hit_from(seen, dx, dy, dz):
@@ -176,11 +181,16 @@ def make(jit, words=None):
         return own_inside
 
     @jit
-    def bounds(buffer, k):
-        """Sphere k's padded box: (lo x, y, z, hi x, y, z)."""
-        cx, cy, cz, r = read_leaf(buffer, k)
+    def box_of(row):
+        """A leaf's row's (read_leaf's) padded box: (lo x, y, z, hi x, y, z)."""
+        cx, cy, cz, r = row
         pr = r + padding(cx, cy, cz, r)
         return cx - pr, cy - pr, cz - pr, cx + pr, cy + pr, cz + pr
+
+    @jit
+    def bounds(buffer, k):
+        """Sphere k's padded box: box_of its row of the tree's leaf buffer."""
+        return box_of(read_leaf(buffer, k))
 
     @jit
     def surface(ox, oy, oz, dx, dy, dz, t, i, spheres):
@@ -264,10 +274,12 @@ def make(jit, words=None):
         leaf_hit_ahead=leaf_hit_ahead,
         meets_own=meets_own,
         from_origin=from_origin,
+        seen_from=seen_from,
         hit_from=hit_from,
         hit_ahead_from=hit_ahead_from,
         pad=padding,
         bounds=bounds,
+        box_of=box_of,
         surface=surface,
         rim=rim,
         prepare=prepare,
