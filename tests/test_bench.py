@@ -10,7 +10,7 @@ import time
 import numpy as np
 import pytest
 
-from raybench import RaybenchError
+from raybench import RaybenchError, lighting
 from raybench.bench import report, results, results_schema, runner, stats, suites
 from raybench.bench.results import ResultsWriter
 from raybench.cli import run
@@ -570,8 +570,10 @@ def test_whitted_record_rates_from_frame_and_kernel_time(monkeypatch, rng):
     monkeypatch.setattr(runner, "WARMUP_S", 0.0)
     opts = {"accel": "bvh", "shading": "whitted", "depth": 3, "shadow_samples": 2}
     record = runner.measure(suites.Point("secondary", "cuda", 40, 30, 12, opts), runner.Scenes(0), 0.0)
-    assert seen["whitted"].depth == 3 and seen["whitted"].shadow_samples == 2 and seen["spheres"] == 12
-    assert seen["accel"] == "bvh" and "shading" not in seen and "depth" not in seen
+    # the Shading travels as shading=, the record's "whitted" and depth not as device options
+    assert isinstance(seen["shading"], lighting.Shading) and seen["spheres"] == 12
+    assert seen["shading"].depth == 3 and seen["shading"].shadow_samples == 2
+    assert seen["accel"] == "bvh" and "depth" not in seen and "shadow_samples" not in seen
     assert record["rays"] == dict(zip(("primary", "shadow", "reflection", "refraction"), counts.tolist()))
     assert record["rays_per_frame"] == counts.sum() and record["options"] == opts
     assert record["rays_per_s"] == pytest.approx(counts.sum() / (record["frame_ms"]["median"] / 1e3))

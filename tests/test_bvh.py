@@ -12,7 +12,7 @@ import raybench
 from raybench import Scene, bvh, compiled, kernels, layout
 from raybench.backends import cuda as cuda_backend
 from raybench.backends import options as device_options
-from raybench.bvh import oneshot, sah, sah_steps
+from raybench.bvh import oneshot, sah_steps, sah_wide
 from raybench.kernels import packets
 
 # The algorithm as plain Python on NumPy float32 scalars, run without a compiler.
@@ -346,7 +346,7 @@ def test_tree_split_by_all_threads(rng, kind, monkeypatch):
     same on any number of threads."""
     scene, _ = SCENES[kind](rng, int(rng.integers(1, 3000)))
     wide = int(rng.integers(2, 64))
-    monkeypatch.setattr(sah, "SLICE", int(rng.integers(1, 300)))
+    monkeypatch.setattr(sah_wide, "SLICE", int(rng.integers(1, 300)))
     one = bvh.build(scene.spheres, threads=1, _wide=wide)
     check_tree(one, scene.spheres)
     many = bvh.build(scene.spheres, threads=int(rng.integers(2, 6)), _wide=wide)

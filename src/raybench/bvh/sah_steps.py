@@ -37,7 +37,6 @@ NODE_COST = np.float32(2.0)
 # the build spends most of it, for trees the walk measures no slower on the
 # benchmark's scenes.
 WIDE = 4096
-SLICE = 1 << 14
 
 
 # The padding of a sphere's box, as every builder computes it (the primitive's own rule).

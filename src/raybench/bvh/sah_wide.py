@@ -19,7 +19,6 @@ from ..layout import (
 )
 from .sah_steps import (
     BINS,
-    SLICE,
     _best_plane,
     _clear_bins,
     _empty_children,
@@ -33,6 +32,10 @@ from .sah_steps import (
     _stack,
     _widest,
 )
+
+# A slice of a wide range (sah_steps.WIDE says why the top is sliced): at
+# most SLICE spheres, binned and moved by one thread.
+SLICE = 1 << 14
 
 # --- the top of a large tree: each split shared by all threads -----------------------
 #
