@@ -30,8 +30,9 @@ from ..layout import (
 from .constants import FAR, ZERO
 from .trace import make
 
-# The BVH walk's own build of the same functions, with NumPy's error model:
-# float division then has no check for a zero divisor (none can occur: the
+# The packets' own compile of the algorithm (kernels.make), with NumPy's
+# error model, where backends/cpu/program.py's has Python's: float division
+# then has no check for a zero divisor (none can occur: the
 # divisors are the image size, a ray's length, a radius, a direction
 # component raised to at least TINY), so the result is the same IEEE
 # quotient, and LLVM can make the loops over a packet's rays SIMD, which the
@@ -39,9 +40,9 @@ from .trace import make
 _kb = make(numba.njit(inline="always", error_model="numpy"))
 _primary_ray_v, _inverse = _kb.primary_ray, _kb.inverse
 _shade_hit_v, _shade_miss_v, _to_byte_v = _kb.shade_hit, _kb.shade_miss, _kb.to_byte
-# The primitive's functions (kernels/primitives): a leaf's bounds, its test
-# from an origin the packet's rays share, and what the thesis's shading
-# divides by.
+# The primitive's functions (kernels/primitives): a leaf's row, its box and
+# how the packet's shared origin sees it (the row read once for both), its
+# tests from there, and what the thesis's shading divides by.
 _prim = _kb.prim
 _read_leaf, _box_of, _seen_from, _hit_from, _hit_ahead_from = (
     _prim.read_leaf,
