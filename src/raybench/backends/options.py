@@ -49,9 +49,10 @@ SCHEDULES = ("wavefront", "pixel")
 # --- cpu ---------------------------------------------------------------------------
 
 MAX_THREADS = 4096
-# The tree the packets walk by default (tree_width): 2, the binary SAH tree
-# (bvh.build) as every device walks it; 4, the same tree collapsed into
-# 4-wide nodes (bvh.collapse, cpu._bvh_packets_wide).
+# The cpu's tree by default (tree_width): 2, the binary SAH tree (bvh.build),
+# every ray walking it alone by the GPUs' own walk (kernels/traverse.py); 4,
+# the same tree collapsed into 4-wide nodes (bvh.collapse), which the cpu's
+# packets walk (kernels/packets.py).
 TREE_WIDTH = 4
 TREE_WIDTHS = (2, 4)
 
@@ -233,7 +234,8 @@ class CpuOptions:
     """The CPU's options. accel: "bvh" or "none"; kernel: brute force's
     ("simple" or "fast"; None with the BVH); constant_count: the simple
     kernel compiled for one sphere count; threads: Numba's threads (default
-    every usable core); tree_width: the tree the BVH's packets walk (2 or 4)."""
+    every usable core); tree_width: the tree the BVH's rays walk (2: each
+    ray alone, as the GPUs do; 4: the cpu's packets)."""
 
     accel: str
     kernel: str | None
