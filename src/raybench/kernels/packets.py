@@ -157,7 +157,7 @@ def _packet_leaf(
 ):  # fmt: skip
     """The exact test of a leaf's primitives on every ray of the packet, seen
     from the packet's origin as the primitive's own test sees it
-    (from_origin), the walk's tie rule; ahead: Whitted's primary rays' test
+    (seen_from, on its row read once), the walk's tie rule; ahead: Whitted's primary rays' test
     (hit_ahead for a ray that leaves no primitive, as traverse.leaf_test
     makes it: for a sphere, the far root where the near one is behind, a
     camera inside it). A primitive whose own box (as the builder pads it,

@@ -167,7 +167,7 @@ def _lanes_leaf(ox, oy, oz, margin, rays, spread, ordered, order, first, count, 
 @numba.njit(inline="always", error_model="numpy")
 def _lanes_hit(seen, rays, is_own):
     """One primitive, as seen from the rays' origin (the primitive's
-    from_origin), against a shadow packet's rays: each ray it blocks (0 < t <
+    seen_from), against a shadow packet's rays: each ray it blocks (0 < t <
     the ray's length) made _DEAD; whether it blocked one."""
     hits = False
     for k in range(LANES):

@@ -37,7 +37,7 @@ _U = np.uint64
 
 def make(jit, prim, read_row=None):
     """The walks over `jit`, for the primitive whose compiled functions are
-    `prim` (a primitive module's build: kernels/primitives); the leaf test
+    `prim` (a primitive module's make: kernels/primitives); the leaf test
     is the only part that asks it anything. read_row(nodes, links, row): a
     node's row as its 16 values; by default the arrays are read a value at
     a time, and a backend's own may read them in fewer, wider loads from a

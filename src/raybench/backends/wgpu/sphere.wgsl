@@ -84,7 +84,7 @@ fn intersect(o: vec3<f32>, dir: vec3<f32>, c: vec4<f32>) -> vec2<f32> {
 
 // hit and hit_ahead on the scene's spheres, leaf_hit and leaf_hit_ahead on
 // the tree's leaves: the Python makes each pair from one source, given the
-// reader (build's `tests`); a WGSL function takes no function, so two pairs.
+// reader (make's `tests`); a WGSL function takes no function, so two pairs.
 
 // hit: the thesis's primary test of sphere k: (t, d).
 fn hit(k: i32, o: vec3<f32>, dir: vec3<f32>) -> vec2<f32> {
