@@ -14,6 +14,7 @@ from raybench.backends import cuda as cuda_backend
 from raybench.backends import options as device_options
 from raybench.bvh import oneshot, sah_steps, sah_wide
 from raybench.kernels import packets
+from raybench.kernels.primitives import sphere
 
 # The algorithm as plain Python on NumPy float32 scalars, run without a compiler.
 K = kernels.make(lambda f: f)
@@ -227,7 +228,7 @@ def check_tree(b: bvh.Bvh, spheres: np.ndarray):
     assert sorted(b.order.tolist()) == list(range(n))
     assert np.array_equal(b.ordered, spheres[:4, b.order])
     seen = np.zeros(n, int)
-    pad = bvh.sphere_pad(*(spheres[k].astype(np.float64) for k in range(4)))
+    pad = sphere.pad(*(spheres[k].astype(np.float64) for k in range(4)))
     deepest = 0
     todo = [(0, None, 1)]
     while todo:
@@ -406,24 +407,25 @@ def test_depth_is_bounded_for_a_chain(rng):
 def test_median_split_halves_by_count(rng, ties):
     """The fallback split by count: a selection in place, so the first half's
     centres are no greater than the second's along the widest axis, and every
-    sphere keeps its row (its radius and index move with it)."""
+    primitive keeps its row (its half sizes and index move with it)."""
     n = int(rng.integers(2, 300))
     centres = rng.integers(0, 4, (3, n)) if ties else rng.normal(size=(3, n))
     px, py, pz = (np.ascontiguousarray(c, np.float32) for c in centres)
-    pr, idx = rng.random(n).astype(np.float32), np.arange(n, dtype=np.int32)
-    before = {(float(px[i]), float(py[i]), float(pz[i]), float(pr[i]), int(idx[i])) for i in range(n)}
+    hx, hy, hz = (rng.random(n).astype(np.float32) for _ in range(3))
+    p = (px, py, pz, hx, hy, hz, np.arange(n, dtype=np.int32))
+    before = {tuple(float(a[i]) for a in p) for i in range(n)}
     s = int(rng.integers(0, n - 1))
     e = int(rng.integers(s + 2, n + 1))
     cbox = np.array([*(c[s:e].min() for c in (px, py, pz)), *(c[s:e].max() for c in (px, py, pz))], np.float32)
-    outside = [a.copy() for a in (px, py, pz, pr, idx)]
-    m = sah_steps._median_split(px, py, pz, pr, idx, s, e, cbox)
+    outside = [a.copy() for a in p]
+    m = sah_steps._median_split(p, s, e, cbox)
     assert m == s + (e - s) // 2
     ext = cbox[3:] - cbox[:3]
     if ext.max() > 0:
         key = (px, py, pz)[int(np.argmax(ext))]  # argmax: the first widest, as the builder picks
         assert key[s:m].max() <= key[m:e].min()
-    assert {(float(px[i]), float(py[i]), float(pz[i]), float(pr[i]), int(idx[i])) for i in range(n)} == before
-    for a, old in zip((px, py, pz, pr, idx), outside):
+    assert {tuple(float(a[i]) for a in p) for i in range(n)} == before
+    for a, old in zip(p, outside):
         assert np.array_equal(a[:s], old[:s]) and np.array_equal(a[e:], old[e:])
 
 

@@ -179,11 +179,13 @@ def mark_ready(name: str) -> None:
         pass
 
 
-def as_python(module) -> types.SimpleNamespace:
+def as_python(module, **plain) -> types.SimpleNamespace:
     """The module's compiled functions as the plain Python they were written
     in, calling one another as plain Python too (a function's globals are the
     namespace, in which each compiled function is replaced by its Python):
-    the same algorithm, run by the interpreter, compiling nothing."""
+    the same algorithm, run by the interpreter, compiling nothing. plain:
+    Python for names whose compiled functions call other compiled ones from
+    a closure (a primitive's answers, made again with jit = identity)."""
     space = dict(vars(module))
     for name, value in vars(module).items():
         if isinstance(value, numba.core.dispatcher.Dispatcher):
@@ -192,4 +194,5 @@ def as_python(module) -> types.SimpleNamespace:
                 space[name] = f
                 continue
             space[name] = types.FunctionType(f.__code__, space, f.__name__, f.__defaults__, f.__closure__)
+    space.update(plain)
     return types.SimpleNamespace(**space)

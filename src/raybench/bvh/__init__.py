@@ -17,12 +17,13 @@ names the columns):
            count == INNER: ref is the child node's row;
            count >= 0:     a leaf of `count` spheres from `ref` in `ordered`
                            (0: an empty child, whose box is inverted: lo EMPTY, hi -EMPTY).
-  ordered (4, N) float32: centre and radius of the spheres in leaf order,
-         the very float32 values of the scene, so the exact test's arithmetic
-         is the brute-force path's.
+  ordered (LEAF_ROWS, N) float32: the leaf buffer, each primitive's row
+         (a sphere's centre and radius) in leaf order, the very float32
+         values of the scene (the primitive's copy_leaf), so the exact
+         test's arithmetic is the brute-force path's.
   order  (N,) int32: the original index of each ordered sphere; hits report it.
 Node 0 is the root. Every box is the union of its spheres' boxes, each sphere's
-box padded by PAD (see sphere_pad) so a box never excludes a hit the exact
+box padded by PAD (the primitive's pad) so a box never excludes a hit the exact
 float32 test reports.
 """
 
@@ -35,7 +36,7 @@ from .oneshot import (
     wait_for_compiling_elsewhere,
 )
 from .sah import BUILD_SPHERE_BYTES, DEVICE_SPHERE_BYTES, MAX_SPHERES, Bvh, build, compile_builder
-from .sah_steps import LEAF_MAX, NODE_COST, WIDE, sphere_pad
+from .sah_steps import LEAF_MAX, NODE_COST, WIDE
 from .wide import collapse, collapse_in_python, compile_collapse
 
 __all__ = [
@@ -55,7 +56,6 @@ __all__ = [
     "compiling_elsewhere",
     "last_build_in_python",
     "one_shot",
-    "sphere_pad",
     "stop_compiling_elsewhere",
     "wait_for_compiling_elsewhere",
 ]

@@ -22,6 +22,7 @@ import numba
 import numpy as np
 
 from .. import layout
+from ..kernels.primitives import sphere
 from . import lbvh, lbvh_steps
 from .sah_steps import LEAF_MAX
 
@@ -35,7 +36,7 @@ def _load(a, i):
 
 
 _jit = numba.njit(cache=False)
-_steps = lbvh_steps.make(_jit, lbvh_steps.cpu_target(_jit), _load, _load, _jit(lbvh_steps.cpu_arrive))
+_steps = lbvh_steps.make(_jit, lbvh_steps.cpu_target(_jit), _load, _load, _jit(lbvh_steps.cpu_arrive), sphere)
 _hierarchy_row = _steps.hierarchy_row
 _reorder_one = _steps.reorder_one
 _climb = _steps.climb
@@ -43,10 +44,11 @@ _climb = _steps.climb
 
 def morton(spheres: np.ndarray) -> np.ndarray:
     """Each centre's 30-bit Morton code in the centres' box (backends/cuda/build.py's _morton arithmetic)."""
-    n = spheres.shape[1]
+    centres = sphere.centres(spheres)
+    n = centres.shape[1]
     code = np.zeros(n, np.int64)
     for a in range(3):
-        c = spheres[a]
+        c = centres[a]
         lo, hi = c.min(), c.max()
         cells = np.zeros(n, np.int64)
         if hi > lo:
@@ -108,7 +110,7 @@ def build(spheres: np.ndarray, quality: str = "sah", leaf_size: int | None = Non
     leaf_up = np.zeros(n, np.int64)
     span = np.zeros((m, 2), np.int32)
     hierarchy(keys, links, up, leaf_up, span)
-    ordered = np.empty((4, n), np.float32)
+    ordered = np.empty((sphere.LEAF_ROWS, n), np.float32)
     sah = int(quality != "lbvh")
     kid = np.zeros(2 * m, np.int32)
     args = (spheres, order, leaf_up, up, span, nodes, links, kid, ordered, leaf_max, sah, restructure)

@@ -18,7 +18,7 @@ import types
 
 import numpy as np
 
-from ..layout import BOX_FLOATS, COUNT, INNER, PAD, REF
+from ..layout import BOX_FLOATS, COUNT, INNER, REF
 from .sah_steps import NODE_COST
 
 # A treelet's pieces. Its programme weighs 3^K / 2 splits a row, in local
@@ -30,7 +30,7 @@ from .sah_steps import NODE_COST
 TREELET = 6
 SUBSETS = 1 << TREELET
 # A treelet is rebuilt where that lowers its cost below GAIN times what it
-# was: rounding alone never changes a tree (all spheres at one point stay a
+# was: rounding alone never changes a tree (all primitives at one point stay a
 # balanced tree).
 GAIN = np.float32(0.999)
 INF = np.float32(np.inf)
@@ -65,12 +65,17 @@ def cpu_arrive(arrived, row):
     return before
 
 
-def make(jit, target, load_f, load_i, arrive) -> types.SimpleNamespace:
+def make(jit, target, load_f, load_i, arrive, primitive) -> types.SimpleNamespace:
     """The steps compiled by jit. target: numba.cuda on the GPU (its
     local.array and clz), cpu_target(jit) on the CPU; load_f and
     load_i read a[i] of a float32 and an int32 array that other threads
     write; arrive(arrived, row) counts a child's arrival at row, its box and
-    the rest seen by the sibling first, and returns the arrivals before it."""
+    the rest seen by the sibling first, and returns the arrivals before it.
+    primitive: the kind's module (kernels/primitives): the steps see a
+    primitive only through its extent (its padded box) and copy_leaf (its
+    row of the tree's leaf buffer)."""
+    answers = primitive.make(jit)
+    extent, copy_leaf = answers.extent, answers.copy_leaf
 
     @jit
     def delta(keys, n, i, j):
@@ -88,10 +93,10 @@ def make(jit, target, load_f, load_i, arrive) -> types.SimpleNamespace:
     def hierarchy_row(keys, n, i, links, up, leaf_up, span):
         """Internal node i (row i): the range of sorted keys it covers, where it
         splits, and its two children (Karras 2012, figure 4): a child of one
-        sphere a leaf of it, a child of more the row it starts (collapsed into a
+        primitive a leaf of it, a child of more the row it starts (collapsed into a
         leaf, or not, by the bottom-up pass, once its box is known). up[row] and
         leaf_up[leaf]: the parent's row times 2 plus the child's slot (the
-        root's: -1). span[row]: the first sphere it covers and their count."""
+        root's: -1). span[row]: the first primitive it covers and their count."""
         # the direction of the range: towards the neighbour sharing more bits
         d = 1 if delta(keys, n, i, i + 1) > delta(keys, n, i, i - 1) else -1
         least = delta(keys, n, i, i - d)
@@ -158,7 +163,7 @@ def make(jit, target, load_f, load_i, arrive) -> types.SimpleNamespace:
     @jit
     def entry(nodes, links, span, kid, below, costs, row, slot, e, tb, tn, tc, th, tw, tref, tcnt, trow):
         """Piece e of a treelet: child slot of row (its box, link, row below,
-        cost, height, rows below, spheres), read through load_f and load_i:
+        cost, height, rows below, primitives), read through load_f and load_i:
         other threads wrote them, and on a GPU a plain load could find a
         stale line in this SM's L1."""
         link = 2 * row + slot
@@ -199,11 +204,11 @@ def make(jit, target, load_f, load_i, arrive) -> types.SimpleNamespace:
         a row (not a leaf) replaced by its two children. The cheapest binary
         tree over the pieces, in any order, by a programme over their subsets
         (bit sets, each after its own subsets in numeric order: its box's half
-        area, spheres, cost, best split into two, whether a leaf, and as a child
-        its height and the rows a walk reaches below it); a set of spheres is
+        area, primitives, cost, best split into two, whether a leaf, and as a child
+        its height and the rows a walk reaches below it); a set of primitives is
         cut into a leaf as the bottom-up pass cuts. The rows the treelet frees (x's and
         the replaced ones) hold the new tree: links, boxes, counts, costs and
-        links up written here. A leaf's spheres are now no range of the sort's
+        links up written here. A leaf's primitives are now no range of the sort's
         order: reorder_one puts them in tree order and sets the leaves' refs.
         x is changed only where the cost falls below GAIN times old (x's cost
         as it is), so that rounding never churns equal trees. Returns (cost,
@@ -338,14 +343,14 @@ def make(jit, target, load_f, load_i, arrive) -> types.SimpleNamespace:
         return cost[full], hh[full], ww[full]
 
     @jit
-    def reorder_one(spheres, k, order, leaf_up, up, links, kid, span, order_out, leaf_up_out, ordered):
-        """After treelets, sphere k of the sort's order put in the tree's order, so
-        that every leaf is again a range of them: leaf k's place is the spheres
+    def reorder_one(items, k, order, leaf_up, up, links, kid, span, order_out, leaf_up_out, ordered):
+        """After treelets, primitive k of the sort's order put in the tree's order, so
+        that every leaf is again a range of them: leaf k's place is the primitives
         left of it in the tree (on its way up, the left sibling's count wherever
-        it is a right child). Its sphere, its index and its link up go there; on
-        the way up while it is the leftmost sphere of the child it climbs from,
+        it is a right child). Its primitive, its index and its link up go there; on
+        the way up while it is the leftmost primitive of the child it climbs from,
         it sets that child's ref where the child is a leaf (every leaf has one
-        leftmost sphere)."""
+        leftmost primitive)."""
         rank = 0
         link = leaf_up[k]
         while link >= 0:
@@ -357,8 +362,7 @@ def make(jit, target, load_f, load_i, arrive) -> types.SimpleNamespace:
         s = order[k]
         order_out[rank] = s
         leaf_up_out[rank] = leaf_up[k]
-        for a in range(4):
-            ordered[a, rank] = spheres[a, s]
+        copy_leaf(items, s, ordered, rank)
         link = leaf_up[k]
         while link >= 0:
             row = link // 2
@@ -371,13 +375,13 @@ def make(jit, target, load_f, load_i, arrive) -> types.SimpleNamespace:
 
     @jit
     def climb(
-        spheres, k, order, leaf_up, up, span, nodes, links, below, costs, kid, arrived, ordered, stats, cost,
+        items, k, order, leaf_up, up, span, nodes, links, below, costs, kid, arrived, ordered, stats, cost,
         leaf_max, sah, restructure,
     ):  # fmt: skip
-        """Leaf k (its sphere order[k]) climbs to the root, each row's box
+        """Leaf k (its primitive order[k]) climbs to the root, each row's box
         written into its parent's slot; a row's second child to arrive (arrived
         counts them) unites the two boxes and climbs on, and sets the counter
-        back to 0 for the next pass. Also writes leaf k's sphere into ordered
+        back to 0 for the next pass. Also writes leaf k's primitive into ordered
         (the scene's values).
 
         On the way up, per child (index 2 * row + slot), what the walks see below
@@ -389,7 +393,7 @@ def make(jit, target, load_f, load_i, arrive) -> types.SimpleNamespace:
         written by the leaf that reaches the root.
 
         leaf_max > 0 (a build): the second arrival at a row of at most leaf_max
-        spheres makes it a leaf of them in its parent's slot (they are
+        primitives makes it a leaf of them in its parent's slot (they are
         consecutive: an LBVH row covers a range of the leaf order) where sah is
         0, or where sah is 1 and the SAH says a leaf is cheaper than the row
         with the best choice below it (a leaf's cost against the row's: the
@@ -397,19 +401,15 @@ def make(jit, target, load_f, load_i, arrive) -> types.SimpleNamespace:
         of its subtree's). Its rows stay, out of the walks' reach, so that
         refits still climb through them. Where restructure is 1, each row's
         subtree is first made the cheapest over its treelet (treelet; kid[index]
-        is the row below each child, -1 for a sphere). leaf_max == 0 (a refit):
+        is the row below each child, -1 for a primitive). leaf_max == 0 (a refit):
         the links are kept, and the costs are the tree's as it is."""
         s = order[k]
-        cx, cy, cz, r = spheres[0, s], spheres[1, s], spheres[2, s], spheres[3, s]
-        ordered[0, k] = cx
-        ordered[1, k] = cy
-        ordered[2, k] = cz
-        ordered[3, k] = r
-        pr = r + (r + (abs(cx) + abs(cy) + abs(cz))) * PAD
-        lx, ly, lz, hx, hy, hz = cx - pr, cy - pr, cz - pr, cx + pr, cy + pr, cz + pr
+        copy_leaf(items, s, ordered, k)
+        cx, cy, cz, ex, ey, ez = extent(items, s)
+        lx, ly, lz, hx, hy, hz = cx - ex, cy - ey, cz - ez, cx + ex, cy + ey, cz + ez
         h = 0
         w = 0
-        c = half_area(lx, ly, lz, hx, hy, hz)  # a leaf of one sphere
+        c = half_area(lx, ly, lz, hx, hy, hz)  # a leaf of one primitive
         a = c
         cur = -1
         link = leaf_up[k]
@@ -439,7 +439,7 @@ def make(jit, target, load_f, load_i, arrive) -> types.SimpleNamespace:
             c = NODE_COST * a + (c + load_f(costs, sib))
             arrived[row] = 0
             cur = row
-            if restructure != 0 and leaf_max > 0 and span[row, 1] > 2:  # two spheres have one tree
+            if restructure != 0 and leaf_max > 0 and span[row, 1] > 2:  # two primitives have one tree
                 tc, th, tw = treelet(row, c, nodes, links, span, up, leaf_up, kid, below, costs, leaf_max)
                 if th >= 0:
                     c, h, w = tc, th, tw

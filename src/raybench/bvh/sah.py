@@ -28,6 +28,7 @@ import numpy as np
 from .. import compiled
 from ..errors import RaybenchError
 from ..host import usable_cores
+from ..kernels.primitives import sphere
 from ..layout import (
     NODE_BYTES,
     NODE_FLOATS,
@@ -35,10 +36,10 @@ from ..layout import (
 from . import oneshot, sah_steps, sah_wide
 from .sah_steps import WIDE
 
-# Bytes the builder holds per sphere at its peak: work arrays (the last, the
-# order) and their spare set, ordered spheres, two rows of nodes and the
-# packed copy.
-BUILD_SPHERE_BYTES = 5 * 4 + 5 * 4 + 4 * 4 + 3 * NODE_BYTES
+# Bytes the builder holds per sphere at its peak: work arrays (sah_steps'
+# seven, the last the order) and their spare set, ordered spheres, two rows
+# of nodes and the packed copy.
+BUILD_SPHERE_BYTES = 7 * 4 + 7 * 4 + 4 * 4 + 3 * NODE_BYTES
 # Per sphere on the device after the build: nodes (at most one per sphere),
 # ordered spheres, order.
 DEVICE_SPHERE_BYTES = NODE_BYTES + 4 * 4 + 4
@@ -79,22 +80,30 @@ def compile_builder(wide: bool = True) -> None:
         build(spheres, threads=1, _timed=False, _wide=2)
 
 
-def _build_narrow(code, cx, cy, cz, r):
-    """The one-thread way's tree: (nodes, ordered, order, depth). code: this
-    module, or compiled.as_python(this module) to run it uncompiled."""
-    n = cx.shape[0]
-    p = tuple(np.empty(n, np.float32) for _ in range(4)) + (np.empty(n, np.int32),)
+def _build_narrow(code, items, leaf_rows):
+    """The one-thread way's tree: (nodes, ordered, order, depth). code:
+    sah_steps, or sah_steps as plain Python (_python_steps) to run it uncompiled."""
+    n = items.shape[1]
+    p = sah_steps.work_arrays(n)
+    order = p[6]
     # IEEE arithmetic, as compiled code's: no NumPy warnings on inf or nan when uncompiled
     with np.errstate(all="ignore"):
-        code._prepare(cx, cy, cz, r, p, 0, n, np.empty(12, np.float32))
-        px, py, pz, pr, order = p
+        code._prepare(items, p, 0, n, np.empty(12, np.float32))
         nodes = np.empty((2 * max(n, 1), NODE_FLOATS), np.float32)
         stack = code._stack()
         links = nodes.view(np.int32)
-        top = code._root(px, py, pz, pr, order, nodes, links, stack)
-        used, depth = code._grow(px, py, pz, pr, order, nodes, links, stack, top, 1)
-    # the centres are already in leaf order (the builder moved them), the very values of the scene
-    return nodes[:used].copy(), np.stack([px, py, pz, r[order]]), order, depth
+        top = code._root(p, nodes, links, stack)
+        used, depth = code._grow(p, nodes, links, stack, top, 1)
+        ordered = np.empty((leaf_rows, n), np.float32)
+        code._leaves(items, order, 0, n, ordered)
+    return nodes[:used].copy(), ordered, order, depth
+
+
+def _python_steps():
+    """sah_steps as the plain Python it was written in, the primitive's
+    answers too: the same tree, compiling nothing (oneshot.one_shot)."""
+    answers = sphere.make(lambda f: f)
+    return compiled.as_python(sah_steps, _extent=answers.extent, _copy_leaf=answers.copy_leaf)
 
 
 def build(
@@ -117,7 +126,7 @@ def build(
         oneshot.compile_elsewhere()
     elif _timed and not interpret:
         compile_builder(wide=n > _wide)
-    cx, cy, cz, r = (np.ascontiguousarray(spheres[k]) for k in range(4))
+    items = np.ascontiguousarray(spheres)
     start = time.perf_counter()
     if n > _wide:
         # Numba's threads are at most its pool's (the cores); the slicing into
@@ -127,12 +136,12 @@ def build(
             before = numba.get_num_threads()
             numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
             try:
-                nodes, ordered, order, depth = sah_wide._build_wide(cx, cy, cz, r, threads, _wide)
+                nodes, ordered, order, depth = sah_wide._build_wide(items, sphere.LEAF_ROWS, threads, _wide)
             finally:
                 numba.set_num_threads(before)
     else:
-        code = compiled.as_python(sah_steps) if interpret else sah_steps
-        nodes, ordered, order, depth = _build_narrow(code, cx, cy, cz, r)
+        code = _python_steps() if interpret else sah_steps
+        nodes, ordered, order, depth = _build_narrow(code, items, sphere.LEAF_ROWS)
     build_s = time.perf_counter() - start
     return Bvh(
         nodes=nodes,

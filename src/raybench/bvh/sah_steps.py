@@ -1,10 +1,17 @@
-"""The host builder's steps on one range of spheres, compiled with Numba: the
-binned SAH split of a range (or by count where SAH would go too deep), and
-the subtree grown below it on one thread (bvh/sah.py puts them together,
-bvh/sah_wide.py splits the top of a large tree with every thread)."""
+"""The host builder's steps on one range of primitives, compiled with Numba:
+the binned SAH split of a range (or by count where SAH would go too deep),
+and the subtree grown below it on one thread (bvh/sah.py puts them together,
+bvh/sah_wide.py splits the top of a large tree with every thread).
+
+The builder sees a primitive only through its extent (its padded box as a
+centre and half sizes) and copy_leaf (its row of the tree's leaf buffer),
+both the primitive module's own (kernels/primitives). Its work arrays p are
+(x, y, z, hx, hy, hz, idx): each primitive's box centre, its half sizes and
+its index in the scene, moved together as the ranges are split."""
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from .. import compiled
@@ -39,20 +46,34 @@ NODE_COST = np.float32(2.0)
 WIDE = 4096
 
 
-# The padding of a sphere's box, as every builder computes it (the primitive's own rule).
-sphere_pad = compiled.njit(nogil=True)(sphere.pad)
+# The primitive's answers to the builder, compiled into its steps (module
+# globals, which is how compiled code sees them).
+_primitive = sphere.make(numba.njit(inline="always"))
+_extent, _copy_leaf = _primitive.extent, _primitive.copy_leaf
+
+
+def work_arrays(n):
+    """The builder's arrays p for n primitives: (x, y, z, hx, hy, hz, idx)."""
+    return tuple(np.empty(n, np.float32) for _ in range(6)) + (np.empty(n, np.int32),)
 
 
 @compiled.njit(nogil=True)
-def _prepare(cx, cy, cz, r, p, s, e, bounds):
-    """The builder's arrays p for the spheres [s, e): centres, padded radii,
-    original indices; bounds (12,): their box, then their centres' box."""
-    px, py, pz, pr, idx = p
+def _prepare(items, p, s, e, bounds):
+    """The builder's arrays p for the primitives [s, e) of the scene's buffer
+    `items`: their extents and indices; bounds (12,): their box, then their
+    centres' box."""
+    px, py, pz, hx, hy, hz, idx = p
     for i in range(s, e):
-        px[i], py[i], pz[i] = cx[i], cy[i], cz[i]
-        pr[i] = r[i] + sphere_pad(cx[i], cy[i], cz[i], r[i])
+        px[i], py[i], pz[i], hx[i], hy[i], hz[i] = _extent(items, i)
         idx[i] = i
-    _range_bounds(px, py, pz, pr, s, e, bounds[:6], bounds[6:])
+    _range_bounds(p, s, e, bounds[:6], bounds[6:])
+
+
+@compiled.njit(nogil=True)
+def _leaves(items, idx, s, e, leaves):
+    """The tree's leaf buffer's columns [s, e): the primitives idx[s:e] of items, in that order."""
+    for i in range(s, e):
+        _copy_leaf(items, idx[i], leaves, i)
 
 
 @compiled.njit(nogil=True)
@@ -64,17 +85,18 @@ def _log2ceil(n):
 
 
 @compiled.njit(nogil=True)
-def _range_bounds(px, py, pz, pr, s, e, box, cbox):
-    """box: union of the spheres' padded boxes over [s, e); cbox: bounds of their centres."""
+def _range_bounds(p, s, e, box, cbox):
+    """box: union of the primitives' boxes over [s, e); cbox: bounds of their centres."""
+    px, py, pz, ex, ey, ez, _ = p
     # in locals, not box[]: stores to an array that may alias px cannot stay in
     # registers (docs/gpu-build.md#figures-moved-from-the-sources-comments)
     inf = np.float32(np.inf)
     lx = ly = lz = clx = cly = clz = inf
     hx = hy = hz = chx = chy = chz = -inf
     for i in range(s, e):
-        x, y, z, r = px[i], py[i], pz[i], pr[i]
-        lx, ly, lz = min(lx, x - r), min(ly, y - r), min(lz, z - r)
-        hx, hy, hz = max(hx, x + r), max(hy, y + r), max(hz, z + r)
+        x, y, z = px[i], py[i], pz[i]
+        lx, ly, lz = min(lx, x - ex[i]), min(ly, y - ey[i]), min(lz, z - ez[i])
+        hx, hy, hz = max(hx, x + ex[i]), max(hy, y + ey[i]), max(hz, z + ez[i])
         clx, cly, clz = min(clx, x), min(cly, y), min(clz, z)
         chx, chy, chz = max(chx, x), max(chy, y), max(chz, z)
     box[0], box[1], box[2], box[3], box[4], box[5] = lx, ly, lz, hx, hy, hz
@@ -88,16 +110,19 @@ def _area(lx, ly, lz, hx, hy, hz):
 
 
 @compiled.njit(nogil=True)
-def _swap(px, py, pz, pr, idx, i, j):
+def _swap(p, i, j):
+    px, py, pz, hx, hy, hz, idx = p
     px[i], px[j] = px[j], px[i]
     py[i], py[j] = py[j], py[i]
     pz[i], pz[j] = pz[j], pz[i]
-    pr[i], pr[j] = pr[j], pr[i]
+    hx[i], hx[j] = hx[j], hx[i]
+    hy[i], hy[j] = hy[j], hy[i]
+    hz[i], hz[j] = hz[j], hz[i]
     idx[i], idx[j] = idx[j], idx[i]
 
 
 @compiled.njit(nogil=True)
-def _median_split(px, py, pz, pr, idx, s, e, cbox):
+def _median_split(p, s, e, cbox):
     """Split [s, e) in two halves by count along the centres' widest axis:
     the first half's centres no greater than the second's. A selection in
     place (Hoare's), not a sort: it compiles in a fraction of the time, and
@@ -106,7 +131,7 @@ def _median_split(px, py, pz, pr, idx, s, e, cbox):
     axis = 0 if ext0 >= ext1 and ext0 >= ext2 else (1 if ext1 >= ext2 else 2)
     m = s + (e - s) // 2
     if max(ext0, max(ext1, ext2)) > 0:
-        key = px if axis == 0 else (py if axis == 1 else pz)
+        key = p[0] if axis == 0 else (p[1] if axis == 1 else p[2])
         lo, hi = s, e - 1
         while lo < hi:
             pivot = key[lo + (hi - lo) // 2]
@@ -117,7 +142,7 @@ def _median_split(px, py, pz, pr, idx, s, e, cbox):
                 while key[j] > pivot:
                     j -= 1
                 if i <= j:
-                    _swap(px, py, pz, pr, idx, i, j)
+                    _swap(p, i, j)
                     i += 1
                     j -= 1
             # now key[lo..j] <= pivot <= key[i..hi], and key[j+1..i-1] == pivot
@@ -189,7 +214,7 @@ def _widest(cbox):
 
 
 @compiled.njit(nogil=True)
-def _sah_split(px, py, pz, pr, idx, s, e, box, cbox, counts, bins, scale, left_area, left_count):
+def _sah_split(p, s, e, box, cbox, counts, bins, scale, left_area, left_count):
     """Binned SAH: the best of nb-1 planes on each axis (nb = BINS, fewer
     for a few spheres). Returns the split point m (s < m < e) and the
     split's cost relative to the node's area (inf if the centres coincide:
@@ -203,10 +228,11 @@ def _sah_split(px, py, pz, pr, idx, s, e, box, cbox, counts, bins, scale, left_a
     c0, c1, c2 = cbox[0], cbox[1], cbox[2]
     s0, s1, s2 = scale[0], scale[1], scale[2]
     last = np.uint32(nb - 1)  # unsigned bin indices: no negative-index wraparound to compute
+    px, py, pz, ex, ey, ez, _ = p
     # the three axes written out: the hot loop of the build
     for i in range(s, e):
-        x, y, z, r = px[i], py[i], pz[i], pr[i]
-        lx, ly, lz, hx, hy, hz = x - r, y - r, z - r, x + r, y + r, z + r
+        x, y, z = px[i], py[i], pz[i]
+        lx, ly, lz, hx, hy, hz = x - ex[i], y - ey[i], z - ez[i], x + ex[i], y + ey[i], z + ez[i]
         k = min(np.uint32((x - c0) * s0), last)
         counts[0, k] += 1
         bins[0, k, 0] = min(bins[0, k, 0], lx)
@@ -245,7 +271,7 @@ def _sah_split(px, py, pz, pr, idx, s, e, box, cbox, counts, bins, scale, left_a
         if min(int((c - lo) * sc), last) <= best_bin:
             i += 1
         else:
-            _swap(px, py, pz, pr, idx, i, j)
+            _swap(p, i, j)
             j -= 1
     return i, rel
 
@@ -269,11 +295,11 @@ def _empty_children(nodes, row):
 
 
 @compiled.njit(nogil=True)
-def _root(px, py, pz, pr, idx, nodes, links, stack):
-    """Row 0, the root, with its spheres split in two children whatever their
-    number; pushes their tasks (parent row, slot, start, end, parent's depth)
-    on stack and returns the stack's height."""
-    n = px.shape[0]
+def _root(p, nodes, links, stack):
+    """Row 0, the root, with its primitives split in two children whatever
+    their number; pushes their tasks (parent row, slot, start, end, parent's
+    depth) on stack and returns the stack's height."""
+    n = p[0].shape[0]
     box = np.empty(6, np.float32)
     cbox = np.empty(6, np.float32)
     _empty_children(nodes, 0)
@@ -282,18 +308,14 @@ def _root(px, py, pz, pr, idx, nodes, links, stack):
         links[0, COUNT + slot] = 0
     if n == 0:
         return 0
-    _range_bounds(px, py, pz, pr, 0, n, box, cbox)
+    _range_bounds(p, 0, n, box, cbox)
     if n == 1:
         m = 1
     elif 1 + _log2ceil(n) >= MAX_DEPTH:
-        m = _median_split(px, py, pz, pr, idx, 0, n, cbox)
+        m = _median_split(p, 0, n, cbox)
     else:
         m, _cost = _sah_split(
-            px,
-            py,
-            pz,
-            pr,
-            idx,
+            p,
             0,
             n,
             box,
@@ -305,7 +327,7 @@ def _root(px, py, pz, pr, idx, nodes, links, stack):
             np.empty(BINS, np.int64),
         )
         if m == 0 or m == n:
-            m = _median_split(px, py, pz, pr, idx, 0, n, cbox)
+            m = _median_split(p, 0, n, cbox)
     top = _push(stack, 0, 0, 1, m, n, 1)
     return _push(stack, top, 0, 0, 0, m, 1)
 
@@ -319,7 +341,7 @@ def _open_row(nodes, links, parent, slot, row):
 
 
 @compiled.njit(nogil=True)
-def _grow(px, py, pz, pr, idx, nodes, links, stack, top, used):
+def _grow(p, nodes, links, stack, top, used):
     """Build the subtrees of the tasks on stack, new rows from `used` on.
     Returns (rows used, deepest depth)."""
     box = np.empty(6, np.float32)
@@ -340,19 +362,19 @@ def _grow(px, py, pz, pr, idx, nodes, links, stack, top, used):
         depth = max(depth, d)
         if count == 0:
             continue  # an empty child: its box stays inverted
-        _range_bounds(px, py, pz, pr, s, e, box, cbox)
+        _range_bounds(p, s, e, box, cbox)
         for k in range(BOX_FLOATS):
             nodes[parent, col + k] = box[k]
         if count <= LEAF_ALWAYS:
             continue
         if d + 1 + _log2ceil(count) >= MAX_DEPTH:  # deeper SAH splits could overflow the stack
-            m = _median_split(px, py, pz, pr, idx, s, e, cbox)
+            m = _median_split(p, s, e, cbox)
         else:
-            m, rel = _sah_split(px, py, pz, pr, idx, s, e, box, cbox, counts, bins, scale, left_area, left_count)
+            m, rel = _sah_split(p, s, e, box, cbox, counts, bins, scale, left_area, left_count)
             if count <= LEAF_MAX and (m == s or np.float32(count) <= NODE_COST + rel):
                 continue  # a leaf: cheaper than the best split
             if m == s or m == e:  # the centres coincide: split by count
-                m = _median_split(px, py, pz, pr, idx, s, e, cbox)
+                m = _median_split(p, s, e, cbox)
         row = used
         used += 1
         depth = max(depth, d + 1)

@@ -1,5 +1,5 @@
 """The top of a large tree, each split shared by all the build's threads
-(bvh/sah.py's build, for more than WIDE spheres): its levels split in
+(bvh/sah.py's build, for more than WIDE primitives): its levels split in
 parallel regions, then the subtrees below grown one a thread and packed."""
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from .sah_steps import (
     BINS,
     _best_plane,
     _clear_bins,
+    _copy_leaf,
     _empty_children,
     _grow,
     _log2ceil,
@@ -31,18 +32,19 @@ from .sah_steps import (
     _range_bounds,
     _stack,
     _widest,
+    work_arrays,
 )
 
 # A slice of a wide range (sah_steps.WIDE says why the top is sliced): at
-# most SLICE spheres, binned and moved by one thread.
+# most SLICE primitives, binned and moved by one thread.
 SLICE = 1 << 14
 
 # --- the top of a large tree: each split shared by all threads -----------------------
 #
 # A level of wide ranges is split in four steps: plan (which axis, how it is
 # sliced), bin the slices (threads), choose each range's plane and where each
-# slice's spheres go, move them (threads), then attach the children. A slice
-# moves its spheres between the two buffers (the builder's arrays and a spare
+# slice's primitives go, move them (threads), then attach the children. A slice
+# moves its primitives between the two buffers (the builder's arrays and a spare
 # set), keeping their order: `buf` says which buffer holds a range now.
 # The bins' minima, maxima and counts merge exactly, so a range gets the same
 # plane however many slices it was cut into.
@@ -53,7 +55,7 @@ def _plan(level, bounds, p, q, piece, axis, lo, scale, mid, first_job):
     """For each wide range of the level, row, s, e, depth, buf: the axis to
     bin (its centres' widest), its bin arithmetic, and mid: -1 for a SAH
     split, else the split point of a split by count (depth guard, or centres
-    that coincide). The ranges cut in slices of at most `piece` spheres:
+    that coincide). The ranges cut in slices of at most `piece` primitives:
     jobs (J, 3) = range, s, e; first_job[k] is range k's first."""
     jobs = 0
     for k in range(level.shape[0]):
@@ -72,8 +74,7 @@ def _plan(level, bounds, p, q, piece, axis, lo, scale, mid, first_job):
         if ext == 0:
             mid[k] = s + (e - s) // 2
         elif d + _log2ceil(e - s) >= MAX_DEPTH:  # as _grow's guard, for a row at depth d
-            x, y, z, r, i = p if buf == 0 else q
-            mid[k] = _median_split(x, y, z, r, i, s, e, cbox)
+            mid[k] = _median_split(p if buf == 0 else q, s, e, cbox)
         first_job[k] = j
         for a0 in range(s, e, piece):
             out[j, 0] = k
@@ -90,7 +91,7 @@ def _bin_jobs(level, jobs, p, q, axis, lo, scale, mid, counts, bins, first, step
     axis: counts[j]; bins[j]: each bin's box, then its centres' box."""
     last = BINS - 1
     # each thread bins in its own arrays: bins[j] beside another thread's
-    # bins[j + 1] share cache lines, which all the threads write, every sphere
+    # bins[j + 1] share cache lines, which all the threads write, every primitive
     # (what that cost: docs/gpu-build.md#the-build-on-every-thread-kept)
     n = np.empty(BINS, np.int64)
     b = np.empty((BINS, 12), np.float32)
@@ -98,21 +99,21 @@ def _bin_jobs(level, jobs, p, q, axis, lo, scale, mid, counts, bins, first, step
         k = jobs[j, 0]
         if mid[k] >= 0:
             continue
-        x, y, z, r, _ = p if level[k, 4] == 0 else q
+        x, y, z, ex, ey, ez, _ = p if level[k, 4] == 0 else q
         a = axis[k]
         key = x if a == 0 else (y if a == 1 else z)
         c, sa = lo[k], scale[k]
         _clear_bins(n, b)
         for i in range(jobs[j, 1], jobs[j, 2]):
-            xi, yi, zi, ri = x[i], y[i], z[i], r[i]
+            xi, yi, zi, hx, hy, hz = x[i], y[i], z[i], ex[i], ey[i], ez[i]
             kb = min(int((key[i] - c) * sa), last)
             n[kb] += 1
-            b[kb, 0] = min(b[kb, 0], xi - ri)
-            b[kb, 1] = min(b[kb, 1], yi - ri)
-            b[kb, 2] = min(b[kb, 2], zi - ri)
-            b[kb, 3] = max(b[kb, 3], xi + ri)
-            b[kb, 4] = max(b[kb, 4], yi + ri)
-            b[kb, 5] = max(b[kb, 5], zi + ri)
+            b[kb, 0] = min(b[kb, 0], xi - hx)
+            b[kb, 1] = min(b[kb, 1], yi - hy)
+            b[kb, 2] = min(b[kb, 2], zi - hz)
+            b[kb, 3] = max(b[kb, 3], xi + hx)
+            b[kb, 4] = max(b[kb, 4], yi + hy)
+            b[kb, 5] = max(b[kb, 5], zi + hz)
             b[kb, 6] = min(b[kb, 6], xi)
             b[kb, 7] = min(b[kb, 7], yi)
             b[kb, 8] = min(b[kb, 8], zi)
@@ -137,7 +138,7 @@ def _merge(into, bins):
 def _choose(level, jobs, first_job, axis, scale, mid, counts, bins, cut, left_at, right_at, children):
     """Each SAH range's plane (cut: its last bin on the left) and its
     children's bounds (children[k, slot]: box, then centres' box), and where
-    each slice's spheres go: left_at[j], right_at[j]. Returns the split points."""
+    each slice's primitives go: left_at[j], right_at[j]. Returns the split points."""
     inf = np.float32(np.inf)
     counts3 = np.zeros((3, BINS), np.int64)
     bins3 = np.empty((3, BINS, 12), np.float32)
@@ -168,7 +169,7 @@ def _choose(level, jobs, first_job, axis, scale, mid, counts, bins, cut, left_at
                     children[k, slot, 9:12] = -inf
                 _merge(children[k, 0], bins3[a, : cut[k] + 1])
                 _merge(children[k, 1], bins3[a, cut[k] + 1 :])
-        for j in range(j0, j1):  # each slice's spheres that go left, for now in right_at
+        for j in range(j0, j1):  # each slice's primitives that go left, for now in right_at
             n_left = 0
             if mid[k] < 0:
                 for b in range(cut[k] + 1):
@@ -196,10 +197,8 @@ def _move_jobs(level, jobs, p, q, axis, lo, scale, mid, cut, left_at, right_at, 
     for j in range(first, jobs.shape[0], step):
         k = jobs[j, 0]
         src, dst = (p, q) if level[k, 4] == 0 else (q, p)
-        sx, sy, sz, sr, si = src
-        dx, dy, dz, dr, di = dst
         a = axis[k]
-        key = sx if a == 0 else (sy if a == 1 else sz)
+        key = src[0] if a == 0 else (src[1] if a == 1 else src[2])
         c, sa, kb, split = lo[k], scale[k], cut[k], mid[k]
         lt, rt = left_at[j], right_at[j]
         for i in range(jobs[j, 1], jobs[j, 2]):
@@ -209,13 +208,13 @@ def _move_jobs(level, jobs, p, q, axis, lo, scale, mid, cut, left_at, right_at, 
             else:
                 t = rt
                 rt += 1
-            dx[t], dy[t], dz[t], dr[t], di[t] = sx[i], sy[i], sz[i], sr[i], si[i]
+            _copy(src, i, dst, t)
 
 
 @compiled.njit(nogil=True)
 def _attach(level, m, mid, children, p, q, nodes, links, used, wide):
     """Store each range's two children in its row: ranges of over `wide`
-    spheres get a row and go to the next level (returned with their bounds);
+    primitives get a row and go to the next level (returned with their bounds);
     the others are subtree tasks (parent row, slot, s, e, depth, buf).
     Returns (next level, its bounds, subtrees, rows used)."""
     n = level.shape[0]
@@ -230,8 +229,7 @@ def _attach(level, m, mid, children, p, q, nodes, links, used, wide):
             cs, ce = (s, m[k]) if slot == 0 else (m[k], e)
             b = children[k, slot]
             if mid[k] >= 0:  # split by count: no bins gave the bounds
-                x, y, z, r, _ = q if buf == 0 else p
-                _range_bounds(x, y, z, r, cs, ce, b[:6], b[6:])
+                _range_bounds(q if buf == 0 else p, cs, ce, b[:6], b[6:])
             nodes[row, CHILD_BOX[slot] : CHILD_BOX[slot] + BOX_FLOATS] = b[:6]
             links[row, REF + slot] = cs
             links[row, COUNT + slot] = ce - cs
@@ -249,32 +247,39 @@ def _attach(level, m, mid, children, p, q, nodes, links, used, wide):
 
 
 @compiled.njit(nogil=True)
-def _grow_subtrees(p, q, r, nodes, links, tasks, base, ends, depths, ordered, first, step):
+def _grow_subtrees(items, p, q, nodes, links, tasks, base, ends, depths, ordered, first, step):
     """Build the subtrees tasks[first::step], each into its block of rows
-    from base + its first sphere, after bringing its spheres back to the
-    builder's arrays where they lie in the spare ones; then their spheres'
-    columns of ordered (the scene's radii r, not the padded ones)."""
-    px, py, pz, pr, idx = p
+    from base + its first primitive, after bringing its primitives back to
+    the builder's arrays where they lie in the spare ones; then their
+    columns of the leaf buffer ordered (the scene's values, copy_leaf)."""
+    idx = p[6]
     stack = _stack()
     for t in range(first, tasks.shape[0], step):
         parent, slot, s, e, d, buf = tasks[t, 0], tasks[t, 1], tasks[t, 2], tasks[t, 3], tasks[t, 4], tasks[t, 5]
         if buf == 1:
-            qx, qy, qz, qr, qi = q
             for i in range(s, e):
-                px[i], py[i], pz[i], pr[i], idx[i] = qx[i], qy[i], qz[i], qr[i], qi[i]
+                _copy(q, i, p, i)
         _push(stack, 0, parent, slot, s, e, d)
-        ends[t], depths[t] = _grow(px, py, pz, pr, idx, nodes, links, stack, 1, base + s)
+        ends[t], depths[t] = _grow(p, nodes, links, stack, 1, base + s)
         for i in range(s, e):
-            ordered[0, i], ordered[1, i], ordered[2, i], ordered[3, i] = px[i], py[i], pz[i], r[idx[i]]
+            _copy_leaf(items, idx[i], ordered, i)
+
+
+@compiled.njit(nogil=True, inline="always")
+def _copy(src, i, dst, t):
+    """Entry i of the builder's arrays src to entry t of dst."""
+    sx, sy, sz, shx, shy, shz, si = src
+    dx, dy, dz, dhx, dhy, dhz, di = dst
+    dx[t], dy[t], dz[t], dhx[t], dhy[t], dhz[t], di[t] = sx[i], sy[i], sz[i], shx[i], shy[i], shz[i], si[i]
 
 
 @compiled.njit(nogil=True)
-def _prepare_slices(cx, cy, cz, r, p, piece, bounds, first, step):
-    """_prepare the j-th slice of piece spheres into bounds[j], for j in first::step."""
-    n = cx.shape[0]
+def _prepare_slices(items, p, piece, bounds, first, step):
+    """_prepare the j-th slice of piece primitives into bounds[j], for j in first::step."""
+    n = p[0].shape[0]
     for j in range(first, bounds.shape[0], step):
         a = j * piece
-        _prepare(cx, cy, cz, r, p, a, min(a + piece, n), bounds[j])
+        _prepare(items, p, a, min(a + piece, n), bounds[j])
 
 
 @compiled.njit(nogil=True)
@@ -300,9 +305,9 @@ def _pack(nodes, links, tasks, base, ends, starts, packed, packed_links, first, 
 # twenty-odd arguments while holding the GIL, one thread after another
 # (docs/gpu-build.md#the-build-on-every-thread-kept).
 @compiled.njit(nogil=True, parallel=True)
-def _prepare_all(cx, cy, cz, r, p, piece, bounds, parts):
+def _prepare_all(items, p, piece, bounds, parts):
     for w in numba.prange(parts):
-        _prepare_slices(cx, cy, cz, r, p, piece, bounds, w, parts)
+        _prepare_slices(items, p, piece, bounds, w, parts)
 
 
 @compiled.njit(nogil=True, parallel=True)
@@ -318,9 +323,9 @@ def _move_all(level, jobs, p, q, axis, lo, scale, mid, cut, left_at, right_at, p
 
 
 @compiled.njit(nogil=True, parallel=True)
-def _grow_all(p, q, r, nodes, links, tasks, base, ends, depths, ordered, parts):
+def _grow_all(items, p, q, nodes, links, tasks, base, ends, depths, ordered, parts):
     for w in numba.prange(parts):
-        _grow_subtrees(p, q, r, nodes, links, tasks, base, ends, depths, ordered, w, parts)
+        _grow_subtrees(items, p, q, nodes, links, tasks, base, ends, depths, ordered, w, parts)
 
 
 @compiled.njit(nogil=True, parallel=True)
@@ -329,34 +334,28 @@ def _pack_all(nodes, links, tasks, base, ends, starts, packed, packed_links, par
         _pack(nodes, links, tasks, base, ends, starts, packed, packed_links, w, parts)
 
 
-def _piece(spheres: int, threads: int) -> int:
-    """Spheres per slice of a level of wide ranges: a few slices per thread."""
-    return min(SLICE, max(1024, spheres // (4 * threads)))
+def _piece(primitives: int, threads: int) -> int:
+    """Primitives per slice of a level of wide ranges: a few slices per thread."""
+    return min(SLICE, max(1024, primitives // (4 * threads)))
 
 
-def _build_wide(cx, cy, cz, r, threads: int, wide: int):
-    """The tree of n > wide spheres (centres cx, cy, cz, radii r): its top
-    level by level, each range of over `wide` spheres split by all threads,
-    then the subtrees below on one thread each, each into its own block of
-    rows, then the blocks packed after the top's rows. Returns (nodes,
-    ordered, order, deepest depth)."""
-    n = cx.shape[0]
-    p = (
-        np.empty(n, np.float32),
-        np.empty(n, np.float32),
-        np.empty(n, np.float32),
-        np.empty(n, np.float32),
-        np.empty(n, np.int32),
-    )
-    q = tuple(np.empty_like(a) for a in p)
+def _build_wide(items, leaf_rows: int, threads: int, wide: int):
+    """The tree of the n > wide primitives of the scene's buffer items: its
+    top level by level, each range of over `wide` primitives split by all
+    threads, then the subtrees below on one thread each, each into its own
+    block of rows, then the blocks packed after the top's rows. Returns
+    (nodes, ordered, order, deepest depth); ordered has leaf_rows rows."""
+    n = items.shape[1]
+    p = work_arrays(n)
+    q = work_arrays(n)
     # the top's rows, then one block per subtree at the top's row count plus
-    # its first sphere: a subtree of k spheres has fewer than k inner nodes
+    # its first primitive: a subtree of k primitives has fewer than k inner nodes
     nodes = np.empty((2 * n, NODE_FLOATS), np.float32)
     links = nodes.view(np.int32)
-    ordered = np.empty((4, n), np.float32)
+    ordered = np.empty((leaf_rows, n), np.float32)
     piece = _piece(n, threads)
     parts = np.empty(((n + piece - 1) // piece, 12), np.float32)
-    _prepare_all(cx, cy, cz, r, p, piece, parts, threads)
+    _prepare_all(items, p, piece, parts, threads)
     _empty_children(nodes, 0)
     level = np.array([[0, 0, n, 1, 0]], np.int64)  # row, s, e, the row's depth, buf
     bounds = parts[:1].copy()  # the slices' bounds merged: the root's
@@ -393,7 +392,7 @@ def _build_wide(cx, cy, cz, r, threads: int, wide: int):
     # subtrees differ in cost: more parts than threads, handed out one at a time as threads come free
     chunk = numba.set_parallel_chunksize(1)
     try:
-        _grow_all(p, q, r, nodes, links, tasks, used, ends, depths, ordered, 4 * threads)
+        _grow_all(items, p, q, nodes, links, tasks, used, ends, depths, ordered, 4 * threads)
     finally:
         numba.set_parallel_chunksize(chunk)
     sizes = ends - (used + tasks[:, 2])
@@ -401,4 +400,4 @@ def _build_wide(cx, cy, cz, r, threads: int, wide: int):
     packed = np.empty((used + int(sizes.sum()), NODE_FLOATS), np.float32)
     packed[:used] = nodes[:used]
     _pack_all(nodes, links, tasks, used, ends, starts, packed, packed.view(np.int32), threads)
-    return packed, ordered, p[4], max(depth, int(depths.max()))
+    return packed, ordered, p[6], max(depth, int(depths.max()))

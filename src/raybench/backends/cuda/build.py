@@ -52,6 +52,7 @@ from ... import bvh as bvh_mod
 from ... import compiled
 from ...bvh import lbvh, lbvh_steps
 from ...bvh.lbvh import AXIS_CELLS, CODE_BITS, LEAF_SIZE
+from ...kernels.primitives import sphere
 from ...layout import MAX_DEPTH, NODE_FLOATS
 from .launch import Launches
 
@@ -125,6 +126,11 @@ def _reduce_box(lo, hi, t, size):
     cuda.syncthreads()
 
 
+# The builder sees a primitive through its extent (its box's centre: the
+# Morton codes' point) and, in the climb and reorder, lbvh_steps' answers.
+_extent = sphere.make(cuda.jit(device=True)).extent
+
+
 @compiled.cuda_jit()
 def _bounds_parts(spheres, n, parts):
     """parts[b] (lo x, y, z, hi x, y, z): the box of the centres block b's
@@ -136,10 +142,9 @@ def _bounds_parts(spheres, n, parts):
         lo[a, t] = np.float32(np.inf)
         hi[a, t] = np.float32(-np.inf)
     for i in range(cuda.blockIdx.x * THREADS + t, n, cuda.gridDim.x * THREADS):
-        for a in range(3):
-            v = spheres[a, i]
-            lo[a, t] = min(lo[a, t], v)
-            hi[a, t] = max(hi[a, t], v)
+        cx, cy, cz, _, _, _ = _extent(spheres, i)
+        lo[0, t], lo[1, t], lo[2, t] = min(lo[0, t], cx), min(lo[1, t], cy), min(lo[2, t], cz)
+        hi[0, t], hi[1, t], hi[2, t] = max(hi[0, t], cx), max(hi[1, t], cy), max(hi[2, t], cz)
     _reduce_box(lo, hi, t, THREADS)
     if t < 3:
         parts[cuda.blockIdx.x, t] = lo[t, 0]
@@ -187,9 +192,10 @@ def _morton(spheres, n, bounds, keys, values):
     """keys[i]: the Morton code of centre i in the bounds; values[i] = i."""
     i = cuda.grid(1)
     if i < n:
-        x = _cell(spheres[0, i], bounds[0], bounds[3])
-        y = _cell(spheres[1, i], bounds[1], bounds[4])
-        z = _cell(spheres[2, i], bounds[2], bounds[5])
+        cx, cy, cz, _, _, _ = _extent(spheres, i)
+        x = _cell(cx, bounds[0], bounds[3])
+        y = _cell(cy, bounds[1], bounds[4])
+        z = _cell(cz, bounds[2], bounds[5])
         keys[i] = np.uint32((_spread(x) << 2) | (_spread(y) << 1) | _spread(z))
         values[i] = i
 
@@ -339,7 +345,7 @@ def _arrive(arrived, row):
 # for the numba.cuda a function names in its globals only, the CPU's (the
 # same answers: np.empty and a count of leading zeros).
 _target = lbvh_steps.cpu_target(lambda f: f) if _SIM else cuda
-_steps = lbvh_steps.make(cuda.jit(device=True), _target, _load_f, _load_i, _arrive)
+_steps = lbvh_steps.make(cuda.jit(device=True), _target, _load_f, _load_i, _arrive, sphere)
 _hierarchy_row = _steps.hierarchy_row
 _reorder_one = _steps.reorder_one
 _climb = _steps.climb
@@ -375,7 +381,7 @@ class GpuTree:
 
     nodes: object  # device (M, NODE_FLOATS) float32
     links: object  # its int32 view
-    ordered: object  # device (4, N) float32
+    ordered: object  # device (LEAF_ROWS, N) float32: the leaf buffer
     order: object  # device (N,) int32
     count: int
     depth: int
@@ -440,7 +446,7 @@ class Builder:
         self.costs = cuda.device_array(2 * m, np.float32)
         self.kid = cuda.device_array(2 * m, np.int32)
         self.arrived = cuda.to_device(np.zeros(m, np.int32))  # each pass leaves it zero
-        self.ordered = cuda.device_array((4, max(n, 1)), np.float32)
+        self.ordered = cuda.device_array((sphere.LEAF_ROWS, max(n, 1)), np.float32)
         self.stats = cuda.device_array(2, np.int32)  # the root's height and the rows a walk reaches
         self.cost = cuda.device_array(1, np.float32)
         # the sorted values end in the buffer of the last pass: the order
@@ -543,7 +549,7 @@ def upload(b: bvh_mod.Bvh) -> GpuTree:
     return GpuTree(
         nodes,
         nodes.view(np.int32),
-        cuda.to_device(b.ordered if b.count else np.zeros((4, 1), np.float32)),
+        cuda.to_device(b.ordered if b.count else np.zeros((sphere.LEAF_ROWS, 1), np.float32)),
         cuda.to_device(b.order if b.count else np.zeros(1, np.int32)),
         b.count,
         b.depth,

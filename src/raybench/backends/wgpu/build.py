@@ -97,10 +97,18 @@ def constants() -> str:
     return "".join(f"const {name} = {value};\n" for name, value in values.items())
 
 
+# The steps that read the primitives' buffer (binding 1, which the sort binds to its keys).
+READS_PRIMITIVES = ("build_codes.wgsl", "build_tree.wgsl")
+
+
 @functools.cache
 def source(step: str) -> str:
-    """The WGSL of one step's module: the constants, the common piece, the step's."""
-    pieces = [resources.files(__package__).joinpath(p).read_text(encoding="utf-8") for p in ("build_common.wgsl", step)]
+    """The WGSL of one step's module: the constants, the common piece, the
+    primitive's answers to the builders where the step reads primitives
+    (the sort reads only codes), the step's."""
+    primitive = ("sphere_build.wgsl",) if step in READS_PRIMITIVES else ()
+    names = ("build_common.wgsl", *primitive, step)
+    pieces = [resources.files(__package__).joinpath(p).read_text(encoding="utf-8") for p in names]
     return constants() + "\n".join(pieces)
 
 

@@ -2,12 +2,8 @@
 // _morton): the box of the spheres' centres, then each one's 30-bit Morton
 // code in it, beside its index.
 
-struct Sphere {
-    cx: f32, cy: f32, cz: f32, r: f32,
-    red: f32, green: f32, blue: f32, _pad: f32,
-}
-
-@group(0) @binding(1) var<storage, read> spheres: array<Sphere>;
+// The primitives' buffer, `items` at binding 1, and extent: the
+// primitive's piece (sphere_build.wgsl).
 // [0, 6): the centres' box (lo x, y, z, hi x, y, z); [6, 9): each axis's
 // cells per unit; from PARTS_AT, 6 floats a workgroup of bounds_parts.
 @group(0) @binding(2) var<storage, read_write> bounds: array<f32>;
@@ -36,7 +32,7 @@ fn bounds_parts(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_
     var lo = vec3<f32>(BIG);
     var hi = vec3<f32>(-BIG);
     for (var i = wg.x * THREADS + t; i < params.n; i = i + params.parts * THREADS) {
-        let c = vec3<f32>(spheres[i].cx, spheres[i].cy, spheres[i].cz);
+        let c = extent(i).centre;
         lo = min(lo, c);
         hi = max(hi, c);
     }
@@ -130,9 +126,10 @@ fn morton(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) groups:
     if (i >= params.n) {
         return;
     }
-    let x = cell(spheres[i].cx, 0u);
-    let y = cell(spheres[i].cy, 1u);
-    let z = cell(spheres[i].cz, 2u);
+    let c = extent(i).centre;
+    let x = cell(c.x, 0u);
+    let y = cell(c.y, 1u);
+    let z = cell(c.z, 2u);
     keys[i] = (spread(x) << 2u) | (spread(y) << 1u) | spread(z);
     values[i] = i;
 }

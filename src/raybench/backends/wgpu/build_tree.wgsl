@@ -17,7 +17,8 @@
 // first has written it before it counted. The values are floats too, so
 // they travel as their bits in u32 atomics (WGSL has no float atomics).
 
-@group(0) @binding(1) var<storage, read> spheres: array<vec4<f32>>;  // 2 a sphere: centre and radius, then colour
+// binding 1, the primitives' buffer `items`, with extent and leaf_row: the
+// primitive's piece (sphere_build.wgsl)
 @group(0) @binding(2) var<storage, read> keys: array<u32>;           // the sorted codes
 @group(0) @binding(3) var<storage, read> order: array<u32>;          // their spheres
 @group(0) @binding(4) var<storage, read_write> nodes: array<atomic<u32>>;
@@ -28,7 +29,7 @@
 // below[2 * link + 0/1] (from 0): the child's height and rows reached;
 // costs[link] (from 4m): its SAH cost; arrived[row] (from 6m).
 @group(0) @binding(6) var<storage, read_write> scratch: array<atomic<u32>>;
-@group(0) @binding(7) var<storage, read_write> ordered: array<vec4<f32>>;
+@group(0) @binding(7) var<storage, read_write> ordered: array<Leaf>;
 // the root's height and rows reached, the tree's cost unnormalised and its
 // root's half area (the host divides: WGSL's division is not exact)
 @group(0) @binding(8) var<storage, read_write> stats: array<u32, 4>;
@@ -185,12 +186,11 @@ fn bounds_up(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) grou
         return;
     }
     let m = rows();
-    let sphere = spheres[2u * order[k]];
-    ordered[k] = sphere;
-    let r = sphere.w;
-    let pr = r + (r + (abs(sphere.x) + abs(sphere.y) + abs(sphere.z))) * PAD;
-    var lo = sphere.xyz - vec3<f32>(pr);
-    var hi = sphere.xyz + vec3<f32>(pr);
+    let item = order[k];
+    ordered[k] = leaf_row(item);
+    let box = extent(item);
+    var lo = box.centre - box.half_size;
+    var hi = box.centre + box.half_size;
     var h = 0u;
     var w = 0u;
     var c = half_area(lo, hi);  // a leaf of one sphere

@@ -2,7 +2,10 @@
 
 Every primitive module gives the same answers (kernels/primitives/sphere.py
 is the model): LEAF_ROWS, the rows of its leaf buffer; pad(...), the
-builders' padding; and make(jit), its functions compiled for one target:
+builders' padding; centres(buffer), its boxes' centres on the host; and
+make(jit), its functions compiled for one target: for the builders (host
+SAH, cuda and the model's LBVH) extent (its padded box as a centre and half
+sizes) and copy_leaf (its row of the tree's leaf buffer); for the walks
 read, hit (closest hit), hit_ahead and meets_own (the secondary rays' test
 and the rule for the primitive a ray leaves), the same tests on the tree's
 leaf buffer (leaf_hit, leaf_hit_ahead, read_leaf), and seen from an origin
@@ -13,7 +16,8 @@ brute-force fast kernels prepare_at and may_hit. The walks, the pixel programs
 and the CPU's packets take that namespace; none of them names a sphere.
 
 Adding a kind: a module beside sphere.py with the same answers, its WGSL
-twin in backends/wgpu/, and a line in KINDS.
+twins in backends/wgpu/ (sphere.wgsl for the walks and the shading,
+sphere_build.wgsl for the GPU build), and a line in KINDS.
 """
 
 from . import sphere

@@ -45,6 +45,12 @@ def pad(cx, cy, cz, r):
     return (r + (np.abs(cx) + np.abs(cy) + np.abs(cz))) * PAD
 
 
+def centres(buffer):
+    """The centres of the boxes of a buffer's spheres, (3, N): extent's
+    centres, read on the host (the GPU builders' Morton codes)."""
+    return buffer[CX : CZ + 1]
+
+
 def make(jit, words=None):
     """The sphere's functions compiled with `jit`: a namespace. words: a
     backend's bit cast of one float64 load into its two float32 words; with
@@ -193,6 +199,26 @@ def make(jit, words=None):
         return box_of(read_leaf(buffer, k))
 
     @jit
+    def extent(buffer, k):
+        """Sphere k of the scene's buffer as the builders see it: its padded
+        box as a centre and half its size on each axis, (cx, cy, cz, hx, hy,
+        hz). The box's centre is the sphere's, so its lows and highs are
+        box_of's to the bit: centre -+ half."""
+        cx, cy, cz, r = read(buffer, k)
+        pr = r + padding(cx, cy, cz, r)
+        return cx, cy, cz, pr, pr, pr
+
+    @jit
+    def copy_leaf(buffer, k, leaves, at):
+        """Sphere k of the scene's buffer into the tree's leaf buffer (the
+        builders' `ordered`) at column `at`: the scene's very values."""
+        cx, cy, cz, r = read(buffer, k)
+        leaves[0, at] = cx
+        leaves[1, at] = cy
+        leaves[2, at] = cz
+        leaves[3, at] = r
+
+    @jit
     def surface(ox, oy, oz, dx, dy, dz, t, i, spheres):
         """The hit of a ray on sphere i at t: (point, unit normal on the ray's
         side, cos_i on that side, whether the ray meets the sphere from
@@ -279,6 +305,8 @@ def make(jit, words=None):
         hit_ahead_from=hit_ahead_from,
         pad=padding,
         bounds=bounds,
+        extent=extent,
+        copy_leaf=copy_leaf,
         box_of=box_of,
         surface=surface,
         rim=rim,
