@@ -154,7 +154,7 @@ def test_box_test_keeps_every_grazing_hit(rng):
     for o, d, c, r in tangent_pairs(rng, 3000):
         spheres = np.array([[c[0]], [c[1]], [c[2]], [r], [1], [1], [1]], np.float32)
         e = c - o  # float32, as the sphere's intersect computes EO
-        t, _ = K.intersect_relative(e[0], e[1], e[2], r, d[0], d[1], d[2])
+        t, _ = K.prim.intersect_relative(e[0], e[1], e[2], r, d[0], d[1], d[2])
         hit, _ = walk(bvh.build(spheres, threads=1), o, d)
         if t > 0:
             hits += 1

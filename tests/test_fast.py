@@ -37,7 +37,7 @@ def test_cull_never_rejects_a_hit(rng):
     exact_hits = culled = 0
     for (dx, dy, dz), (cx, cy, cz), r in zip(dirs, centers, radii):
         ex, ey, ez, q = _prepare(cx, cy, cz, r)
-        t, d = K.intersect_relative(ex, ey, ez, r, dx, dy, dz)
+        t, d = K.prim.intersect_relative(ex, ey, ez, r, dx, dy, dz)
         if t > f32(0.0):  # the exact test found the sphere in front of the ray: a hit the kernels keep
             exact_hits += 1
             assert K.may_hit(ex, ey, ez, q, dx, dy, dz), (dx, dy, dz, cx, cy, cz, r)

@@ -1,6 +1,9 @@
 """The CPU's brute-force kernels (accel "none"): the thesis's loop a pixel
 at a time ("simple"), and the fast kernels that cull groups of spheres with
 SIMD before the exact test ("fast"); the same pixels. A band of rows a call.
+Both tests are the primitive's: the cull its prepare and may_hit, the exact
+test hit_from on its row seen from the eye (seen_from: the very EO that
+prepare computed), so no kernel here reads a sphere's fields.
 """
 
 import functools
@@ -10,8 +13,7 @@ import numpy as np
 
 from ... import compiled
 from ...kernels.constants import FAR, ZERO
-from ...layout import RADIUS
-from .program import _intersect_relative, _may_hit, _prepare_one, _primary_ray, _render_pixel, _store_pixel
+from .program import _hit_from, _may_hit, _prepare_one, _primary_ray, _read, _render_pixel, _seen_from, _store_pixel
 
 # The cull loops index the spheres with unsigned integers: a signed index
 # carries Python's negative-index wraparound, a select per lane that LLVM
@@ -67,7 +69,7 @@ def _pairs_band(first_row, end_row, width, height, basis, spheres, relative, cou
     sphere by sphere, with the exact test. Same arithmetic, same order of
     spheres, same pixels as _render_band."""
     ex, ey, ez, es = relative[0], relative[1], relative[2], relative[3]
-    radius = spheres[RADIUS]
+    ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
     for y in range(first_row, end_row):
         if stop[0]:
             return
@@ -87,11 +89,11 @@ def _pairs_band(first_row, end_row, width, height, basis, spheres, relative, cou
                 if maybe:
                     for i in range(first, end):
                         if _may_hit(ex[i], ey[i], ez[i], es[i], ax, ay, az):
-                            t, d = _intersect_relative(ex[i], ey[i], ez[i], radius[i], ax, ay, az)
+                            t, d = _hit_from(_seen_from(_read(spheres, i), ox, oy, oz), ax, ay, az)
                             if t < a_closest and t > ZERO:
                                 a_closest, a_hit, a_d = t, i, d
                         if _may_hit(ex[i], ey[i], ez[i], es[i], bx, by, bz):
-                            t, d = _intersect_relative(ex[i], ey[i], ez[i], radius[i], bx, by, bz)
+                            t, d = _hit_from(_seen_from(_read(spheres, i), ox, oy, oz), bx, by, bz)
                             if t < b_closest and t > ZERO:
                                 b_closest, b_hit, b_d = t, i, d
             _store_pixel(x, y, a_hit, a_d, spheres, image, hits)
@@ -106,7 +108,7 @@ def _wide_band(first_row, end_row, width, height, basis, spheres, relative, coun
     GROUP spheres is walked again with the exact test only where some ray
     may hit one of them. Same arithmetic, same order, same pixels."""
     ex, ey, ez, es = relative[0], relative[1], relative[2], relative[3]
-    radius = spheres[RADIUS]
+    ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
     dx = np.empty(WIDE, np.float32)
     dy = np.empty(WIDE, np.float32)
     dz = np.empty(WIDE, np.float32)
@@ -137,9 +139,10 @@ def _wide_band(first_row, end_row, width, height, basis, spheres, relative, coun
                             some |= _may_hit(ex[i], ey[i], ez[i], es[i], dx[k], dy[k], dz[k])
                         if not some:
                             continue
+                        seen = _seen_from(_read(spheres, i), ox, oy, oz)
                         for k in range(WIDE):
                             if _may_hit(ex[i], ey[i], ez[i], es[i], dx[k], dy[k], dz[k]):
-                                t, d = _intersect_relative(ex[i], ey[i], ez[i], radius[i], dx[k], dy[k], dz[k])
+                                t, d = _hit_from(seen, dx[k], dy[k], dz[k])
                                 if t < closest[k] and t > ZERO:
                                     closest[k], hit[k], hit_d[k] = t, i, d
             for k in range(min(WIDE, width - x)):
