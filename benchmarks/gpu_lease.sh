@@ -9,7 +9,8 @@
 #            GPU test (marker gpu) and the CPU ones, the BVH build's on 16 threads
 #            among them; PYTEST_ARGS to change, e.g. PYTEST_ARGS="-m gpu" for the
 #            GPU tests alone
-#   kernels  benchmarks/kernels.py: measured peaks, simple against fast kernels
+#   kernels  benchmarks/kernels.py: measured peaks, simple against fast kernels (KERNELS_ARGS to
+#            change); with BASELINE (and BASELINE_COMMITS) as builds
 #   trip     the CUDA fast kernel's spheres per trip of its cull loop (kernels.py --sweep-trip)
 #   scaling  the scaling suite, 10 to 1,000,000 spheres (SCALING_DEVICES)
 #   thesis   the thesis suite, fast kernels and the BVH, cuda and cpu
@@ -114,7 +115,15 @@ for s in $STEPS; do
         # PYTEST_ARGS is read as shell words, so that a marker expression can be quoted in it
         eval "pytest_args=(${PYTEST_ARGS:--m \"not window\"})"
         step pytest "${PYTEST_S:-300}" python3 -m pytest -q -p no:cacheprovider "${pytest_args[@]}" ;;
-    kernels) step kernels "${KERNELS_S:-80}" python3 benchmarks/kernels.py --out "$W/kernels.jsonl" --frames 7 ;;
+    kernels)  # with BASELINE: each version of it then this one, two rounds, side by side
+        for round in $([ -n "${BASELINE:-}" ] && echo 1 2 || echo 1); do
+            # shellcheck disable=SC2086
+            baselines "kernels-%s-$round" "${KERNELS_S:-80}" kernels python3 benchmarks/kernels.py \
+                --out "$W/kernels.jsonl" --frames 7 ${KERNELS_ARGS:-}
+            # shellcheck disable=SC2086
+            step "kernels-$round" "${KERNELS_S:-80}" python3 benchmarks/kernels.py --label kernels \
+                --out "$W/kernels.jsonl" --frames 7 ${KERNELS_ARGS:-}
+        done ;;
     trip) step trip "${TRIP_S:-120}" python3 benchmarks/kernels.py --out "$W/trip.jsonl" --frames 7 --skip-peak \
             --sweep-trip ;;
     scaling)
@@ -179,14 +188,24 @@ for s in $STEPS; do
         # shellcheck disable=SC2086
         step startup "${STARTUP_S:-240}" ${STARTUP_CPUS:+taskset -c $STARTUP_CPUS} \
             python3 benchmarks/startup.py ${STARTUP_ARGS:---device cpu --frames 2} ;;
-    gpubuild)
-        # shellcheck disable=SC2086
-        step gpubuild "${GPUBUILD_S:-420}" python3 benchmarks/gpu_build.py --out "$W/gpu-build.jsonl" \
-            ${GPUBUILD_ARGS:-} ;;
-    wgpubuild)
-        # shellcheck disable=SC2086
-        step wgpubuild "${WGPUBUILD_S:-420}" python3 benchmarks/wgpu_build.py --out "$W/wgpu-build.jsonl" \
-            ${WGPUBUILD_ARGS:-} ;;
+    gpubuild)  # with BASELINE: each version of it then this one, two rounds, side by side
+        for round in $([ -n "${BASELINE:-}" ] && echo 1 2 || echo 1); do
+            # shellcheck disable=SC2086
+            baselines "gpubuild-%s-$round" "${GPUBUILD_S:-420}" gpubuild python3 benchmarks/gpu_build.py \
+                --out "$W/gpu-build.jsonl" ${GPUBUILD_ARGS:-}
+            # shellcheck disable=SC2086
+            step "gpubuild-$round" "${GPUBUILD_S:-420}" python3 benchmarks/gpu_build.py --label gpubuild \
+                --out "$W/gpu-build.jsonl" ${GPUBUILD_ARGS:-}
+        done ;;
+    wgpubuild)  # with BASELINE: each version of it then this one, two rounds, side by side
+        for round in $([ -n "${BASELINE:-}" ] && echo 1 2 || echo 1); do
+            # shellcheck disable=SC2086
+            baselines "wgpubuild-%s-$round" "${WGPUBUILD_S:-420}" wgpubuild python3 benchmarks/wgpu_build.py \
+                --out "$W/wgpu-build.jsonl" ${WGPUBUILD_ARGS:-}
+            # shellcheck disable=SC2086
+            step "wgpubuild-$round" "${WGPUBUILD_S:-420}" python3 benchmarks/wgpu_build.py --label wgpubuild \
+                --out "$W/wgpu-build.jsonl" ${WGPUBUILD_ARGS:-}
+        done ;;
     *) echo "unknown step $s" | tee -a "$W/steps.log" ;;
     esac
 done
