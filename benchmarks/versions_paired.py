@@ -23,9 +23,11 @@ import _harness
 CHILD = """
 import json, sys, time
 import raybench
-n, w, h, frames, device, shading, threads, clock = json.loads(sys.argv[1])
+n, w, h, frames, device, shading, threads, clock, accel = json.loads(sys.argv[1])
 clock = getattr(time, clock)
 options = {"threads": threads} if threads else {}
+if accel:
+    options["accel"] = accel
 scene = raybench.random_spheres(n, seed=0, materials=shading == "whitted")
 with raybench.Renderer(scene, w, h, device=device, shading=shading, **options) as renderer:
     camera = raybench.Camera()
@@ -47,6 +49,7 @@ def main() -> int:
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--shading", default="thesis", choices=["thesis", "whitted"])
     parser.add_argument("--threads", type=int)
+    parser.add_argument("--accel", choices=["bvh", "none"], help="default: the Renderer's (the BVH)")
     parser.add_argument(
         "--clock",
         default="perf_counter",
@@ -71,7 +74,8 @@ def main() -> int:
                 "RAYBENCH_CACHE_DIR": os.path.join(scratch, version),
                 "PYTHONPATH": os.pathsep.join(p for p in (os.path.abspath(versions[version]), path) if p),
             }
-            given = json.dumps([n, width, height, frames, args.device, args.shading, args.threads, args.clock])
+            given = [n, width, height, frames, args.device, args.shading, args.threads, args.clock, args.accel]
+            given = json.dumps(given)
             done = subprocess.run(
                 [sys.executable, "-c", CHILD, given], env=env, capture_output=True, text=True, check=True
             )
@@ -86,7 +90,7 @@ def main() -> int:
                 for version in order[round_ % len(order) :] + order[: round_ % len(order)]:
                     times[version] += run(version, n, args.frames)
             for version, samples in times.items():
-                options = {"version": version, "shading": args.shading, "threads": args.threads}
+                options = {"version": version, "shading": args.shading, "threads": args.threads, "accel": args.accel}
                 if args.clock != "perf_counter":
                     options["clock"] = args.clock
                 records.write(

@@ -407,12 +407,11 @@ def test_depth_is_bounded_for_a_chain(rng):
 def test_median_split_halves_by_count(rng, ties):
     """The fallback split by count: a selection in place, so the first half's
     centres are no greater than the second's along the widest axis, and every
-    primitive keeps its row (its half sizes and index move with it)."""
+    primitive keeps its row (its half size and index move with it)."""
     n = int(rng.integers(2, 300))
     centres = rng.integers(0, 4, (3, n)) if ties else rng.normal(size=(3, n))
     px, py, pz = (np.ascontiguousarray(c, np.float32) for c in centres)
-    hx, hy, hz = (rng.random(n).astype(np.float32) for _ in range(3))
-    p = (px, py, pz, hx, hy, hz, np.arange(n, dtype=np.int32))
+    p = (px, py, pz, rng.random(n).astype(np.float32), np.arange(n, dtype=np.int32))
     before = {tuple(float(a[i]) for a in p) for i in range(n)}
     s = int(rng.integers(0, n - 1))
     e = int(rng.integers(s + 2, n + 1))

@@ -36,10 +36,10 @@ from ..layout import (
 from . import oneshot, sah_steps, sah_wide
 from .sah_steps import WIDE
 
-# Bytes the builder holds per sphere at its peak: work arrays (sah_steps'
-# seven, the last the order) and their spare set, ordered spheres, two rows
-# of nodes and the packed copy.
-BUILD_SPHERE_BYTES = 7 * 4 + 7 * 4 + 4 * 4 + 3 * NODE_BYTES
+# Bytes the builder holds per sphere at its peak: work arrays (the last, the
+# order) and their spare set, ordered spheres, two rows of nodes and the
+# packed copy.
+BUILD_SPHERE_BYTES = 5 * 4 + 5 * 4 + 4 * 4 + 3 * NODE_BYTES
 # Per sphere on the device after the build: nodes (at most one per sphere),
 # ordered spheres, order.
 DEVICE_SPHERE_BYTES = NODE_BYTES + 4 * 4 + 4
@@ -85,7 +85,7 @@ def _build_narrow(code, items, leaf_rows):
     sah_steps, or sah_steps as plain Python (_python_steps) to run it uncompiled."""
     n = items.shape[1]
     p = sah_steps.work_arrays(n)
-    order = p[6]
+    order = p[4]
     # IEEE arithmetic, as compiled code's: no NumPy warnings on inf or nan when uncompiled
     with np.errstate(all="ignore"):
         code._prepare(items, p, 0, n, np.empty(12, np.float32))

@@ -6,8 +6,13 @@ bvh/sah_wide.py splits the top of a large tree with every thread).
 The builder sees a primitive only through its extent (its padded box as a
 centre and half sizes) and copy_leaf (its row of the tree's leaf buffer),
 both the primitive module's own (kernels/primitives). Its work arrays p are
-(x, y, z, hx, hy, hz, idx): each primitive's box centre, its half sizes and
-its index in the scene, moved together as the ranges are split."""
+(x, y, z, h, idx): each primitive's box centre, the largest of its half
+sizes and its index in the scene, moved together as the ranges are split.
+One half size, not three: a sphere's box is a cube, and two more arrays to
+move cost the build a fifth of its time
+(docs/gpu-build.md#the-host-builder-on-a-primitives-extent); a primitive
+whose box is not a cube is built over the cube around it, correct but
+looser."""
 
 from __future__ import annotations
 
@@ -53,8 +58,8 @@ _extent, _copy_leaf = _primitive.extent, _primitive.copy_leaf
 
 
 def work_arrays(n):
-    """The builder's arrays p for n primitives: (x, y, z, hx, hy, hz, idx)."""
-    return tuple(np.empty(n, np.float32) for _ in range(6)) + (np.empty(n, np.int32),)
+    """The builder's arrays p for n primitives: (x, y, z, h, idx)."""
+    return tuple(np.empty(n, np.float32) for _ in range(4)) + (np.empty(n, np.int32),)
 
 
 @compiled.njit(nogil=True)
@@ -62,9 +67,10 @@ def _prepare(items, p, s, e, bounds):
     """The builder's arrays p for the primitives [s, e) of the scene's buffer
     `items`: their extents and indices; bounds (12,): their box, then their
     centres' box."""
-    px, py, pz, hx, hy, hz, idx = p
+    px, py, pz, ph, idx = p
     for i in range(s, e):
-        px[i], py[i], pz[i], hx[i], hy[i], hz[i] = _extent(items, i)
+        px[i], py[i], pz[i], hx, hy, hz = _extent(items, i)
+        ph[i] = max(hx, max(hy, hz))
         idx[i] = i
     _range_bounds(p, s, e, bounds[:6], bounds[6:])
 
@@ -87,16 +93,16 @@ def _log2ceil(n):
 @compiled.njit(nogil=True)
 def _range_bounds(p, s, e, box, cbox):
     """box: union of the primitives' boxes over [s, e); cbox: bounds of their centres."""
-    px, py, pz, ex, ey, ez, _ = p
+    px, py, pz, ph, _ = p
     # in locals, not box[]: stores to an array that may alias px cannot stay in
     # registers (docs/gpu-build.md#figures-moved-from-the-sources-comments)
     inf = np.float32(np.inf)
     lx = ly = lz = clx = cly = clz = inf
     hx = hy = hz = chx = chy = chz = -inf
     for i in range(s, e):
-        x, y, z = px[i], py[i], pz[i]
-        lx, ly, lz = min(lx, x - ex[i]), min(ly, y - ey[i]), min(lz, z - ez[i])
-        hx, hy, hz = max(hx, x + ex[i]), max(hy, y + ey[i]), max(hz, z + ez[i])
+        x, y, z, h = px[i], py[i], pz[i], ph[i]
+        lx, ly, lz = min(lx, x - h), min(ly, y - h), min(lz, z - h)
+        hx, hy, hz = max(hx, x + h), max(hy, y + h), max(hz, z + h)
         clx, cly, clz = min(clx, x), min(cly, y), min(clz, z)
         chx, chy, chz = max(chx, x), max(chy, y), max(chz, z)
     box[0], box[1], box[2], box[3], box[4], box[5] = lx, ly, lz, hx, hy, hz
@@ -111,13 +117,11 @@ def _area(lx, ly, lz, hx, hy, hz):
 
 @compiled.njit(nogil=True)
 def _swap(p, i, j):
-    px, py, pz, hx, hy, hz, idx = p
+    px, py, pz, ph, idx = p
     px[i], px[j] = px[j], px[i]
     py[i], py[j] = py[j], py[i]
     pz[i], pz[j] = pz[j], pz[i]
-    hx[i], hx[j] = hx[j], hx[i]
-    hy[i], hy[j] = hy[j], hy[i]
-    hz[i], hz[j] = hz[j], hz[i]
+    ph[i], ph[j] = ph[j], ph[i]
     idx[i], idx[j] = idx[j], idx[i]
 
 
@@ -228,11 +232,11 @@ def _sah_split(p, s, e, box, cbox, counts, bins, scale, left_area, left_count):
     c0, c1, c2 = cbox[0], cbox[1], cbox[2]
     s0, s1, s2 = scale[0], scale[1], scale[2]
     last = np.uint32(nb - 1)  # unsigned bin indices: no negative-index wraparound to compute
-    px, py, pz, ex, ey, ez, _ = p
+    px, py, pz, ph, _ = p
     # the three axes written out: the hot loop of the build
     for i in range(s, e):
-        x, y, z = px[i], py[i], pz[i]
-        lx, ly, lz, hx, hy, hz = x - ex[i], y - ey[i], z - ez[i], x + ex[i], y + ey[i], z + ez[i]
+        x, y, z, h = px[i], py[i], pz[i], ph[i]
+        lx, ly, lz, hx, hy, hz = x - h, y - h, z - h, x + h, y + h, z + h
         k = min(np.uint32((x - c0) * s0), last)
         counts[0, k] += 1
         bins[0, k, 0] = min(bins[0, k, 0], lx)

@@ -99,21 +99,21 @@ def _bin_jobs(level, jobs, p, q, axis, lo, scale, mid, counts, bins, first, step
         k = jobs[j, 0]
         if mid[k] >= 0:
             continue
-        x, y, z, ex, ey, ez, _ = p if level[k, 4] == 0 else q
+        x, y, z, ph, _ = p if level[k, 4] == 0 else q
         a = axis[k]
         key = x if a == 0 else (y if a == 1 else z)
         c, sa = lo[k], scale[k]
         _clear_bins(n, b)
         for i in range(jobs[j, 1], jobs[j, 2]):
-            xi, yi, zi, hx, hy, hz = x[i], y[i], z[i], ex[i], ey[i], ez[i]
+            xi, yi, zi, hi = x[i], y[i], z[i], ph[i]
             kb = min(int((key[i] - c) * sa), last)
             n[kb] += 1
-            b[kb, 0] = min(b[kb, 0], xi - hx)
-            b[kb, 1] = min(b[kb, 1], yi - hy)
-            b[kb, 2] = min(b[kb, 2], zi - hz)
-            b[kb, 3] = max(b[kb, 3], xi + hx)
-            b[kb, 4] = max(b[kb, 4], yi + hy)
-            b[kb, 5] = max(b[kb, 5], zi + hz)
+            b[kb, 0] = min(b[kb, 0], xi - hi)
+            b[kb, 1] = min(b[kb, 1], yi - hi)
+            b[kb, 2] = min(b[kb, 2], zi - hi)
+            b[kb, 3] = max(b[kb, 3], xi + hi)
+            b[kb, 4] = max(b[kb, 4], yi + hi)
+            b[kb, 5] = max(b[kb, 5], zi + hi)
             b[kb, 6] = min(b[kb, 6], xi)
             b[kb, 7] = min(b[kb, 7], yi)
             b[kb, 8] = min(b[kb, 8], zi)
@@ -252,7 +252,7 @@ def _grow_subtrees(items, p, q, nodes, links, tasks, base, ends, depths, ordered
     from base + its first primitive, after bringing its primitives back to
     the builder's arrays where they lie in the spare ones; then their
     columns of the leaf buffer ordered (the scene's values, copy_leaf)."""
-    idx = p[6]
+    idx = p[4]
     stack = _stack()
     for t in range(first, tasks.shape[0], step):
         parent, slot, s, e, d, buf = tasks[t, 0], tasks[t, 1], tasks[t, 2], tasks[t, 3], tasks[t, 4], tasks[t, 5]
@@ -268,9 +268,9 @@ def _grow_subtrees(items, p, q, nodes, links, tasks, base, ends, depths, ordered
 @compiled.njit(nogil=True, inline="always")
 def _copy(src, i, dst, t):
     """Entry i of the builder's arrays src to entry t of dst."""
-    sx, sy, sz, shx, shy, shz, si = src
-    dx, dy, dz, dhx, dhy, dhz, di = dst
-    dx[t], dy[t], dz[t], dhx[t], dhy[t], dhz[t], di[t] = sx[i], sy[i], sz[i], shx[i], shy[i], shz[i], si[i]
+    sx, sy, sz, sh, si = src
+    dx, dy, dz, dh, di = dst
+    dx[t], dy[t], dz[t], dh[t], di[t] = sx[i], sy[i], sz[i], sh[i], si[i]
 
 
 @compiled.njit(nogil=True)
@@ -400,4 +400,4 @@ def _build_wide(items, leaf_rows: int, threads: int, wide: int):
     packed = np.empty((used + int(sizes.sum()), NODE_FLOATS), np.float32)
     packed[:used] = nodes[:used]
     _pack_all(nodes, links, tasks, used, ends, starts, packed, packed.view(np.int32), threads)
-    return packed, ordered, p[6], max(depth, int(depths.max()))
+    return packed, ordered, p[4], max(depth, int(depths.max()))
