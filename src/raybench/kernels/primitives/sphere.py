@@ -41,8 +41,9 @@ ALONG_SLACK = np.float32(64.0 * 2.0**-24)
 def pad(cx, cy, cz, r):
     """The padding of a sphere's box (layout.PAD's rule), as every builder
     and the CPU packets' leaf cull compute it: the box is the centre
-    +- (r + pad). NumPy's abs, so that it takes arrays too (the tests' references)."""
-    return (r + (np.abs(cx) + np.abs(cy) + np.abs(cz))) * PAD
+    +- (r + pad). Python's abs: numba and numba-cuda compile it (the GPU
+    target has no NumPy ufuncs), and it takes arrays too (the tests' references)."""
+    return (r + (abs(cx) + abs(cy) + abs(cz))) * PAD
 
 
 def centres(buffer):
