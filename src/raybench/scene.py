@@ -143,6 +143,20 @@ class Scene:
             background=self.background,
         )
 
+    def with_lights(self, lights) -> Scene:
+        """The scene with other lights: the spheres (the same float32 bits), camera,
+        materials, ambient light and background as they are."""
+        return Scene(
+            self.centers,
+            self.radii,
+            self.colors,
+            self.camera,
+            materials=self.materials,
+            lights=lights,
+            ambient=self.ambient,
+            background=self.background,
+        )
+
     def to_dict(self) -> dict:
         doc = {"format": FORMAT, "version": self.version}
         if self.camera is not None:

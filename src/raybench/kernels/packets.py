@@ -192,7 +192,7 @@ def _packet_leaf(
 @numba.njit(inline="always", error_model="numpy")
 def _colour_packet(x0, y0, spheres, hit, hit_d, rgb, paint):
     """rgb[c, k]: the bytes store_pixel writes for ray k of the packet, for
-    every ray at once: first the hit spheres' colours and radii gathered
+    every ray at once: first the hit spheres' colours and rims gathered
     (a miss reads sphere 0's and drops them), then shaded in a loop without
     branches (each ray's hit and miss colours both computed, one kept),
     which LLVM makes SIMD. spheres must hold a sphere (Tracer.shaded)."""

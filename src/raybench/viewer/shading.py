@@ -43,16 +43,7 @@ def with_first_light_at(scene: Scene, position) -> Scene:
     """The scene with its first light moved to position; the spheres (the
     same float32 bits), materials and the other lights as they were."""
     first = dataclasses.replace(scene.lights[0], position=tuple(float(v) for v in position))
-    return Scene(
-        scene.centers,
-        scene.radii,
-        scene.colors,
-        scene.camera,
-        materials=scene.materials,
-        lights=(first,) + scene.lights[1:],
-        ambient=scene.ambient,
-        background=scene.background,
-    )
+    return scene.with_lights((first,) + scene.lights[1:])
 
 
 class ShadingControl:
