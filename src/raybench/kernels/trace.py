@@ -196,6 +196,7 @@ def make(jit, call=None, shadows=None, packets_search=None, read_row=None, words
         read=prim.read,
         seen_from=prim.seen_from,
         hit_from=prim.hit_from,
+        intersect_relative=prim.intersect_relative,
         render_pixel_bvh=render_pixel_bvh,
         nearest_hit_bvh=nearest_hit_bvh,
         inverse=inverse,

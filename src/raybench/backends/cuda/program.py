@@ -14,7 +14,7 @@ from numba import cuda
 from ... import compiled, kernels
 from ...kernels.constants import FAR, ZERO
 from ...kernels.whitted import RAY_FLOATS, RAY_INTS, RAY_STACK
-from ...layout import CHILD_BOX, INNER, NODE_BYTES, STACK
+from ...layout import CHILD_BOX, INNER, NODE_BYTES, RADIUS, STACK
 from ..options import RAYS_PER_THREAD, STAGED, TRIP
 
 # The walk by default: packets once the tree outgrows the L1 cache (256 KiB
@@ -33,8 +33,7 @@ def choose_walk(nodes: int) -> str:
 _k = kernels.make(cuda.jit(device=True))
 # module globals, which is how kernels can see them
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
-_prepare_one, _may_hit, _along = _k.prepare, _k.may_hit, _k.along
-_read, _seen_from, _hit_from = _k.read, _k.seen_from, _k.hit_from
+_prepare_one, _may_hit, _along, _intersect_relative = _k.prepare, _k.may_hit, _k.along, _k.intersect_relative
 _render_pixel_bvh = _k.render_pixel_bvh
 _ray_axes, _children, _leaf_hits, _centre = _k.ray_axes, _k.children, _k.leaf_hits, _k.centre_along
 
@@ -261,13 +260,11 @@ def fast_kernel(rays: int = RAYS_PER_THREAD, staged: int = STAGED, trip: int = T
         return v[0]
 
     @cuda.jit(device=True)
-    def nearer(i, ex, ey, ez, s, seen, dx, dy, dz, closest, hit, hit_d):
-        """Sphere i's cull test (its prepared EO and s) and exact test (seen:
-        its row seen from the eye, the primitive's hit_from) on each of the
-        thread's rays."""
+    def nearer(i, ex, ey, ez, s, r, dx, dy, dz, closest, hit, hit_d):
+        """Sphere i's cull and exact tests on each of the thread's rays."""
         for j in range(rays):
             if _may_hit(ex, ey, ez, s, dx[j], dy[j], dz[j]):
-                t, d = _hit_from(seen, dx[j], dy[j], dz[j])
+                t, d = _intersect_relative(ex, ey, ez, r, dx[j], dy[j], dz[j])
                 if t < closest[j] and t > ZERO:
                     closest[j] = t
                     hit[j] = i
@@ -335,9 +332,15 @@ def fast_kernel(rays: int = RAYS_PER_THREAD, staged: int = STAGED, trip: int = T
                     if passed:
                         break
                     k += _U(trip)
+                # The exact test on the staged EO and the sphere's radius, not
+                # the primitive's hit_from on its row seen from the eye (as the
+                # cpu's fast kernels): that reads four words a sphere where this
+                # reads one, which slowed small scenes
+                # (docs/floors.md#the-fast-kernels-exact-test)
                 for i in range(k, min(k + _U(trip), n)):
-                    seen = _seen_from(_read(spheres, base + i), basis[0, 0], basis[0, 1], basis[0, 2])
-                    nearer(base + i, sx[i], sy[i], sz[i], ss[i], seen, dx, dy, dz, closest, hit, hit_d)
+                    nearer(
+                        base + i, sx[i], sy[i], sz[i], ss[i], spheres[RADIUS, base + i], dx, dy, dz, closest, hit, hit_d
+                    )
                 k += _U(trip)
         if x < width:
             for j in range(rays):
