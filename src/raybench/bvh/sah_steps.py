@@ -67,7 +67,7 @@ def _log2ceil(n):
 def _range_bounds(px, py, pz, pr, s, e, box, cbox):
     """box: union of the spheres' padded boxes over [s, e); cbox: bounds of their centres."""
     # in locals, not box[]: stores to an array that may alias px cannot stay in
-    # registers (docs/gpu-build.md#figures-moved-from-the-sources-comments)
+    # registers (docs/notes/gpu-build.md#figures-moved-from-the-sources-comments)
     inf = np.float32(np.inf)
     lx = ly = lz = clx = cly = clz = inf
     hx = hy = hz = chx = chy = chz = -inf

@@ -237,7 +237,7 @@ def _claim6(records):
     return (HOLDS if ok else FAILS), f"GPU: {listing(gpu)}{info}", values
 
 
-# --- beyond the thesis: secondary rays (docs/whitted.md) -----------------------------
+# --- beyond the thesis: secondary rays (docs/notes/whitted.md) -----------------------------
 
 SECONDARY_QUESTION = "Does the GPU's lead over the CPU hold for secondary rays?"
 # Fixed before any data was taken: the GPU keeps at least this share of its
