@@ -51,7 +51,8 @@ def on_page_markdown(markdown, page, config, files):
                 if target.is_relative_to(docs) or not target.is_relative_to(root):
                     return m.group(0)
                 if not target.exists():
-                    log.warning("%s:%d links to %s, which is not in the repository", page.file.src_uri, number, m.group(2))
+                    where = f"{page.file.src_uri}:{number}"
+                    log.warning("%s links to %s, which is not in the repository", where, m.group(2))
                     return m.group(0)
                 return f"{m.group(1)}{REPO}{target.relative_to(root).as_posix()}{m.group(3)}"
 
