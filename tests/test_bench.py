@@ -2,6 +2,7 @@
 and a --quick run end to end on the CPU."""
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -234,6 +235,14 @@ def test_quick_run_end_to_end(tmp_path, capsys):
     assert ramp["series"]["spheres"] == list(range(20, 201, 10))  # the first frame (10 spheres) excluded
     assert len(ramp["series"]["frame_ms"]) == len(ramp["series"]["spheres"])
     assert "report:" in out
+    # piped (capsys is no terminal): a line as each suite starts and one a point, with what is left
+    progress = [line for line in out.splitlines() if line.startswith("[")]
+    assert len(progress) == len(records) and progress[0].startswith(f"[1/{len(records)}] ")
+    assert all(line.endswith(" left)") for line in progress)
+    started = {line.split()[1].rstrip(":") for line in out.splitlines() if line.startswith("suite ")}
+    assert started == {p.suite for p in expected}
+    # the headline carries its interval over this run's frames
+    assert re.search(r"this machine .* \(95% interval [\d.,]+ to [\d.,]+\)", out), out
     report = next(tmp_path.glob("report-*/report.md"))
     assert "Verdict" in report.read_text() or "verdict" in report.read_text()
     # every measured point keeps its frames for compare's bootstrap (a ramp's are its series)

@@ -109,6 +109,7 @@ def bench(
 
     from ..bench import runner
     from ..bench import suites as suites_mod
+    from ..bench.load import Load, warning
     from ..bench.results import MAX_NUMBER, ResultsWriter, check_label, check_settings
 
     chosen = suites_mod.SUITES if "all" in suites else tuple(dict.fromkeys(suites))
@@ -145,6 +146,7 @@ def bench(
     }
     check_settings(settings)
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    load = Load()
     if scheduler is not None:
         from ..bench import machines as on_machines
 
@@ -173,11 +175,15 @@ def bench(
         results_path = out_dir / f"results-{stamp}.jsonl"
         devices = info["settings"]["devices"]
         click.echo(f"{len(points)} points on {', '.join(devices)}, {duration:g} s each; results: {results_path}")
+        # rich's bar on a terminal; piped (a file, a CI log), a plain line a point on stdout
+        bar = sys.stderr.isatty() and sys.stdout.isatty()
         with ResultsWriter(results_path) as writer:
             _bench_into(
                 writer,
                 results_path,
-                lambda: runner.run(points, writer, info, duration, seed, progress=sys.stderr.isatty()),
+                lambda: runner.run(
+                    points, writer, info, duration, seed, progress=bar, lines=None if bar else click.echo
+                ),
             )
     click.echo(f"wrote {writer.count} results to {results_path}")
     if not no_report:
@@ -192,6 +198,8 @@ def bench(
 
         for line in headline.summary(read(results_path), references.load()):
             click.echo(line)
+    if scheduler is None and (loaded := warning(load.others())):
+        click.echo(loaded)
 
 
 def _bench_into(writer, results_path, measure) -> None:
