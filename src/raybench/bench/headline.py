@@ -164,6 +164,8 @@ def summary(records: list[dict], references: list[dict]) -> list[str]:
             extra = f"  (95% interval {_fmt(span[0])} to {_fmt(span[1])}){extra}"
             if span[1] - span[0] > 2 * SPREAD_WARN * r["value"]:
                 loose.append(r["name"])
+        else:
+            extra = f"  (too few frames for an interval: a longer --duration gives one){extra}"
         out.append(f"  this machine   {r['name']:<40} {_fmt(r['value']):>9}{extra}")
     if loose:
         out.append(

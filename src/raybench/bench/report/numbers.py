@@ -26,3 +26,11 @@ def fmt_x(x) -> str:
 
 def fmt_r2(x) -> str:
     return "nan (flat)" if x is None or math.isnan(x) else f"{x:.4f}"
+
+
+def fmt_compile_s(x) -> str:
+    """A compile time in s. Under a millisecond the kernels came from the disk cache: the figure
+    is the cache's lookup, finer than anything a compile could mean, so it is said so."""
+    if x is None:
+        return "–"
+    return "< 0.001 (from the cache)" if x < 1e-3 else fmt_num(x)

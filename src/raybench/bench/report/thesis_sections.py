@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from . import charts
 from .markdown_blocks import _adapter_name, _table, _Writer, escape
-from .numbers import fmt_ms, fmt_num, fmt_r2, fmt_x
+from .numbers import fmt_compile_s, fmt_ms, fmt_num, fmt_r2, fmt_x
 from .series import (
     DEVICE_NAMES,
     constant_vs_runtime,
@@ -176,7 +176,7 @@ def _section_test7(w: _Writer, label: str, slug: str, records: list[dict]) -> No
                 fmt_num(f["intercept"]) if f else "–",
                 fmt_r2(f["r2"]) if f else "–",
                 fmt_ms(s["first_frame_s"] * 1e3) if s["first_frame_s"] is not None else "–",
-                fmt_num(s["compile_s"]) if s["compile_s"] is not None else "–",
+                fmt_compile_s(s["compile_s"]),
             ]
         )
     w(
