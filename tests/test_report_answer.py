@@ -5,6 +5,7 @@ and report.html holds report.md's sections (issue 40)."""
 import html
 import re
 
+import numpy as np
 from test_report import machine, ramp, rec, thesis, write
 
 from raybench.bench import report
@@ -102,3 +103,12 @@ def test_a_reference_made_from_these_records_is_listed_once(rng):
     ]
     other = [{**r, "run": {**r["run"], "label": "ref", "machine": machine()}} for r in records]
     assert len(answer.headline_rows(records, other)) == 4
+
+
+def test_a_reference_without_a_headline_says_why():
+    from raybench import references
+    from raybench.bench import headline
+
+    (line,) = headline.unscored(references.load())
+    assert line.startswith("epyc-2c-cpu-only: no headline v1: its thesis records are the simple kernel's")
+    assert any(line in x for x in headline.summary(_records(np.random.default_rng(0)), references.load()))

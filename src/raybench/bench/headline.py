@@ -145,6 +145,23 @@ def rows(records: list[dict], references: list[dict]) -> list[dict]:
     return out
 
 
+def unscored(references: list[dict]) -> list[str]:
+    """Reference machines with thesis records but no headline, each with why: a reader who
+    looks for a machine in the table is told why it is not there."""
+    scored = scores(references)
+    out = []
+    for label in dict.fromkeys(r["run"]["label"] for r in references if r["suite"] == "thesis"):
+        if label in scored:
+            continue
+        mine = [r for r in references if r["run"]["label"] == label and r["suite"] == "thesis"]
+        kernels = sorted({(r.get("options") or {}).get("kernel", "simple") for r in mine})
+        out.append(
+            f"{label}: no headline v{VERSION}: its thesis records are the {' and '.join(kernels)} kernel's, "
+            f"and the headline counts brute force by the fast kernel at {SIZE[0]}x{SIZE[1]}"
+        )
+    return out
+
+
 def summary(records: list[dict], references: list[dict]) -> list[str]:
     """What `raybench bench` prints at its end: this machine's headline per
     device, the GPU over the CPU here, and where each stands against the
@@ -178,6 +195,7 @@ def summary(records: list[dict], references: list[dict]) -> list[str]:
         for r in others:
             ratio = f"  ({r['cpu_ratio']:.3g}x this CPU)" if r["cpu_ratio"] else ""
             out.append(f"  {r['label']:<14} {r['name']:<40} {_fmt(r['value']):>9}{ratio}")
+        out += [f"  {line}" for line in unscored(references)]
     has_gpu = any(r["device"] != "cpu" for r in mine)
     base = next((r for r in mine if r["device"] == "cpu"), None)
     gpus = [r for r in others if r["device"] == "cuda"]

@@ -135,7 +135,8 @@ def _write(sources, machines, notes, beyond, w: _Writer, references: list[dict] 
     w("## The answer", "")
     if table:
         w(f"The {escape(headline.DEFINITION)} (raybench.bench.headline):", "")
-        w(answer.headline_table(table), "", answer.RATIO_NOTE, "")
+        w(answer.headline_table(table), "")
+        w(*[f"- {escape(line)}" for line in headline.unscored(references or [])], "", answer.RATIO_NOTE, "")
     w("### The thesis's claims", "")
     claims, judged = _claims_table(machines)
     w(claims, "")
