@@ -242,3 +242,19 @@ def test_render_says_what_whitted_lacked_and_draws_what_it_said(capsys, tmp_path
     # what the note says it drew: the thesis's picture, bit for bit
     thesis = raybench.render(raybench.random_spheres(20), width=24, height=16, device="cpu").image
     assert np.array_equal(np.asarray(Image.open(out_png)), thesis)
+
+
+@pytest.mark.parametrize(
+    "settings, kernels_given, said",
+    [
+        ({"accels": ["bvh"], "devices": [], "kernels": ["simple"], "builds": []}, True, ["--kernel has no effect"]),
+        ({"accels": ["none"], "devices": ["wgpu"], "kernels": ["fast"], "builds": []}, True, ["--kernel fast has no"]),
+        ({"accels": ["none"], "devices": ["cuda"], "kernels": ["fast"], "builds": ["gpu"]}, False, ["--build has no"]),
+        ({"accels": ["bvh", "none"], "devices": [], "kernels": ["fast"], "builds": ["gpu"]}, True, []),
+    ],
+)
+def test_bench_says_which_options_change_nothing(settings, kernels_given, said):
+    from raybench.cli.bench import idle_options
+
+    notes = idle_options(settings, kernels_given)
+    assert len(notes) == len(said) and all(n.startswith(f"note: {s}") for n, s in zip(notes, said))

@@ -145,6 +145,8 @@ def bench(
         "adapter": adapter,
     }
     check_settings(settings)
+    for note in idle_options(settings, bool(kernels)):
+        click.echo(note)
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
     load = Load()
     if scheduler is not None:
@@ -200,6 +202,18 @@ def bench(
             click.echo(line)
     if scheduler is None and (loaded := warning(load.others())):
         click.echo(loaded)
+
+
+def idle_options(settings: dict, kernels_given: bool) -> list[str]:
+    """The options asked for that will change nothing in this run, each said in one line."""
+    notes = []
+    if kernels_given and "none" not in settings["accels"]:
+        notes.append("note: --kernel has no effect: it picks a brute-force kernel, and --accel bvh times the BVH only")
+    if kernels_given and settings["devices"] == ["wgpu"] and settings["kernels"] != ["simple"]:
+        notes.append("note: --kernel fast has no effect on wgpu: its one brute-force kernel is the simple one")
+    if settings["builds"] and "bvh" not in settings["accels"]:
+        notes.append("note: --build has no effect: it says where the BVH is built, and --accel none measures no BVH")
+    return notes
 
 
 def _bench_into(writer, results_path, measure) -> None:
