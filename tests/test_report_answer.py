@@ -112,3 +112,18 @@ def test_a_reference_without_a_headline_says_why():
     (line,) = headline.unscored(references.load())
     assert line.startswith("epyc-2c-cpu-only: no headline v1: its thesis records are the simple kernel's")
     assert any(line in x for x in headline.summary(_records(np.random.default_rng(0)), references.load()))
+
+
+def test_the_raw_data_is_linked_from_the_report(tmp_path, rng):
+    from urllib.parse import unquote
+
+    folder = tmp_path / "my runs [1]"
+    folder.mkdir()
+    path = write(folder / "run #1.jsonl", _records(rng))
+    out = tmp_path / "rep"
+    md = report.write_report([path], out).read_text()
+    sources = md.split("## Sources\n", 1)[1].split("\n## ", 1)[0]
+    (link,) = re.findall(r"^- \[.*\]\(([^)\s]+)\)$", sources, re.M)
+    assert (out / unquote(link)).resolve() == path.resolve()
+    page = (out / "report.html").read_text()
+    assert f'href="{link}"' in page

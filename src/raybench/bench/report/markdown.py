@@ -9,8 +9,10 @@ thesis_sections and beyond_sections the sections of each suite."""
 
 from __future__ import annotations
 
+import os
 import re
 from pathlib import Path
+from urllib.parse import quote
 
 from ... import references as raybench_references
 from ...errors import RaybenchError
@@ -94,8 +96,17 @@ def write_report(paths: list, out_dir, references: bool = True) -> Path:
     machines = {k: v for k, v in ((k, [r for r in v if r["suite"] not in beyond]) for k, v in machines.items()) if v}
     # built aside and renamed into place: never a half-made report under out_dir's name
     with folder_atomic(out_dir, _ours) as staged:
-        _write(sources, machines, notes, beyond, _Writer(staged), raybench_references.load() if references else None)
+        w = _Writer(staged)
+        w.final_dir = out_dir
+        _write(sources, machines, notes, beyond, w, raybench_references.load() if references else None)
     return out_dir / "report.md"
+
+
+def _link(source, report_dir: Path) -> str:
+    """A results file as a link from the report's folder: its path relative to the report,
+    percent-encoded, so that no character of a file's name can end the link or add markup."""
+    relative = os.path.relpath(Path(source).resolve(), Path(report_dir).resolve())
+    return quote(Path(relative).as_posix(), safe="/")
 
 
 def _ours(entry: Path) -> bool:
@@ -178,7 +189,7 @@ def _write(sources, machines, notes, beyond, w: _Writer, references: list[dict] 
             _section_parts(w, label, records)
     w("## Sources", "")
     # a file's name is the user's text like any other: escaped, never a code span it could end
-    w(*[f"- {escape(p)}" for p in sources], "")
+    w(*[f"- [{escape(p)}]({_link(p, w.final_dir)})" for p in sources], "")
     if notes:
         w("## Notes", "")
         w(*[f"- {escape(n)}" for n in notes], "")
