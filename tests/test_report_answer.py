@@ -127,3 +127,11 @@ def test_the_raw_data_is_linked_from_the_report(tmp_path, rng):
     assert (out / unquote(link)).resolve() == path.resolve()
     page = (out / "report.html").read_text()
     assert f'href="{link}"' in page
+
+
+def test_a_slope_flat_within_a_microsecond_reads_as_flat():
+    from raybench.bench.report.numbers import fmt_slope
+
+    # -2.49e-7 ms a sphere over 100..1000 spheres: 0.22 µs in all (the h200 report's 1280x800 GPU)
+    assert fmt_slope(-0.000000249, [100, 1000]) == "flat (< 1 µs over the series)"
+    assert fmt_slope(0.0285, [100, 1000]) == "0.0285" and fmt_slope(None, [1, 2]) == "–"

@@ -34,3 +34,15 @@ def fmt_compile_s(x) -> str:
     if x is None:
         return "–"
     return "< 0.001 (from the cache)" if x < 1e-3 else fmt_num(x)
+
+
+def fmt_slope(slope, spheres) -> str:
+    """A fit's slope in ms a sphere. Where the whole series' range of spheres moves the frame by
+    less than a microsecond, the slope is flat within what a frame's timing can tell, and the
+    digits of its size would be noise: it reads as flat."""
+    if slope is None:
+        return "–"
+    span = max(spheres) - min(spheres) if len(spheres) else 0
+    if abs(slope) * span < 1e-3:
+        return "flat (< 1 µs over the series)"
+    return fmt_num(slope)
