@@ -17,10 +17,12 @@ for arg in "$@"; do
         *) args+=("$arg") ;;
     esac
 done
+quiet=(-q)
 if [ ! -x .venv/bin/python ]; then
     echo "setting up .venv: about 640 MiB from PyPI, a minute or two (first run only)"
     python3 -m venv .venv
+    quiet=(--progress-bar off)  # a line a package: a first install is never a silent minute in a log
 fi
-.venv/bin/python -m pip install -q --disable-pip-version-check -e .
+.venv/bin/python -m pip install "${quiet[@]}" --disable-pip-version-check -e .
 .venv/bin/raybench info
 exec .venv/bin/raybench bench "${duration[@]}" "${args[@]}"

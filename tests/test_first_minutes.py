@@ -3,6 +3,7 @@ a point, --full one flag away), progress as plain lines when the output is not a
 headline's interval and the loaded-machine warning, and Whitted shading that says what it lacks.
 The end-to-end run (lines in a real bench, the interval printed) is test_bench's quick run."""
 
+import os
 import subprocess
 import threading
 import time
@@ -258,3 +259,25 @@ def test_bench_says_which_options_change_nothing(settings, kernels_given, said):
 
     notes = idle_options(settings, kernels_given)
     assert len(notes) == len(said) and all(n.startswith(f"note: {s}") for n, s in zip(notes, said))
+
+
+def test_run_sh_first_install_prints_a_line_a_package(fake_checkout):
+    """No .venv yet: run.sh says it is setting one up, and pip lists its packages as it goes
+    rather than staying quiet for the minute or two a first install takes."""
+    import shutil
+
+    shutil.rmtree(fake_checkout / ".venv")
+    stub = fake_checkout / "bin"
+    stub.mkdir()
+    # python3 -m venv .venv: a .venv whose programs print their arguments
+    (stub / "python3").write_text(
+        "#!/bin/sh\nmkdir -p .venv/bin\nfor n in python raybench; do\n"
+        '  printf \'#!/bin/sh\\necho "%s $*"\\n\' "$n" > .venv/bin/$n; chmod +x .venv/bin/$n\ndone\n'
+    )
+    (stub / "python3").chmod(0o755)
+    env = {**os.environ, "PATH": f"{stub}:{os.environ['PATH']}"}
+    done = subprocess.run(["bash", "run.sh"], cwd=fake_checkout, capture_output=True, text=True, check=True, env=env)
+    lines = done.stdout.splitlines()
+    assert lines[0].startswith("setting up .venv: about 640 MiB")
+    assert lines[1] == "python -m pip install --progress-bar off --disable-pip-version-check -e ."
+    assert lines[-1] == "raybench bench --duration 2"
