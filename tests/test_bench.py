@@ -241,6 +241,7 @@ def test_quick_run_end_to_end(tmp_path, capsys):
     assert all(line.endswith(" left)") for line in progress)
     started = {line.split()[1].rstrip(":") for line in out.splitlines() if line.startswith("suite ")}
     assert started == {p.suite for p in expected}
+    assert "the thesis's claims (the report has the rules and the reasons):" in out
     # the headline carries its interval over this run's frames, or says why it cannot
     assert re.search(r"this machine .* \((95% interval [\d.,]+ to [\d.,]+|too few frames for an interval.*)\)", out)
     report = next(tmp_path.glob("report-*/report.md"))

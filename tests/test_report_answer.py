@@ -135,3 +135,22 @@ def test_a_slope_flat_within_a_microsecond_reads_as_flat():
     # -2.49e-7 ms a sphere over 100..1000 spheres: 0.22 µs in all (the h200 report's 1280x800 GPU)
     assert fmt_slope(-0.000000249, [100, 1000]) == "flat (< 1 µs over the series)"
     assert fmt_slope(0.0285, [100, 1000]) == "0.0285" and fmt_slope(None, [1, 2]) == "–"
+
+
+def test_bench_ends_with_the_verdicts(rng):
+    from raybench import references
+    from raybench.bench.report.verdicts import verdicts
+
+    records = _records(rng)
+    lines = answer.verdict_lines(records, [])
+    assert lines[0].startswith("the thesis's claims")
+    column = report.group(records)["alpha, simple kernel"]
+    judged = [v for v in verdicts(column) if v["verdict"] != "not measured"]
+    block = lines[lines.index("  alpha, simple kernel:") + 1 :]
+    for v in judged:
+        assert f"    {v['number']}. {v['claim']}: {v['verdict']}; {v['measured']}" in block
+    # a CPU-only machine: the claims that need a GPU, with each reference GPU, named as another machine's
+    cpu_only = [r for r in records if r["device"] == "cpu"]
+    lines = answer.verdict_lines(cpu_only, references.load())
+    assert any("with the NVIDIA H200 of h200 (another machine" in line for line in lines)
+    assert any(line.startswith("    not measured in this run: claims 1, 3") for line in lines)

@@ -196,9 +196,11 @@ def bench(
     if writer.count:
         from .. import references
         from ..bench import headline
+        from ..bench.report.answer import verdict_lines
         from ..bench.results import read
 
-        for line in headline.summary(read(results_path), references.load()):
+        records, shipped = read(results_path), references.load()
+        for line in verdict_lines(records, shipped) + headline.summary(records, shipped):
             click.echo(line)
     if scheduler is None and (loaded := warning(load.others())):
         click.echo(loaded)

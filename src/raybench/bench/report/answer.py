@@ -129,3 +129,40 @@ def machines_markdown(measured: list[tuple[str, list[dict]]]) -> list[str]:
             )
         lines.append("")
     return lines
+
+
+def _judged_lines(judged: list[dict]) -> list[str]:
+    """Each claim judged, one line; those not measured gathered in one line at the end."""
+    from .verdicts import NOT_MEASURED
+
+    out = [
+        f"    {v['number']}. {v['claim']}: {v['verdict']}; {v['measured']}"
+        for v in judged
+        if v["verdict"] != NOT_MEASURED
+    ]
+    missing = [str(v["number"]) for v in judged if v["verdict"] == NOT_MEASURED]
+    if missing:
+        out.append(f"    not measured in this run: claim{'s' if len(missing) > 1 else ''} {', '.join(missing)}")
+    return out
+
+
+def verdict_lines(records: list[dict], references: list[dict] | None) -> list[str]:
+    """The thesis's verdicts as `raybench bench` prints them at its end, one line a claim and
+    report column; on a machine without a GPU, the claims that need one also with each reference
+    GPU, named as another machine's. The report has the rules and the reasons."""
+    from .records import group
+    from .verdicts import verdicts, with_reference_gpus
+
+    columns = {c: rs for c, rs in group(records).items() if any(r["suite"] in ("thesis", "test7") for r in rs)}
+    if not columns:
+        return []
+    out = ["the thesis's claims (the report has the rules and the reasons):"]
+    for column, rs in columns.items():
+        out += [f"  {column}:", *_judged_lines(verdicts(rs))]
+    for pair in with_reference_gpus(columns, references or []):
+        gpu = f"the {pair['gpu']} of {pair['ref']}"
+        out += [
+            f"  {pair['label']} with {gpu} (another machine, commit {pair['commit']}):",
+            *_judged_lines(pair["judged"]),
+        ]
+    return out
