@@ -40,7 +40,7 @@ a shared machine falls on both; medians over every frame of a side. Each
 side's frames of a round begin after --settle seconds idle: a thread pool
 spins a while after its work before it sleeps, and without the pause
 raybench's frames right after Mitsuba's were slower than after its own
-(docs/embree.md#against-mitsuba-3-on-embree-side-by-side-2-vcpu-machine).
+(docs/notes/embree.md#against-mitsuba-3-on-embree-side-by-side-2-vcpu-machine).
 
 Records of the results schema per (layout, spheres, Mitsuba's shape): raybench's frames a point
 of its "scaling" suite (accel "bvh", option layout), Mitsuba's intersections a record of its
@@ -198,7 +198,7 @@ def main():
         type=float,
         default=0.3,
         help="seconds idle before each side's frames of a round (0: none, as before 2026-12-01): the side "
-        "that ran last keeps its threads spinning a while, slowing the other's next frames (docs/embree.md)",
+        "that ran last keeps its threads spinning a while, slowing the other's next frames (docs/notes/embree.md)",
     )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument(

@@ -8,7 +8,7 @@ sweep in the "parts" suite (quantity "fast-kernel-shape": the kernel's time, a s
 
     python benchmarks/kernels.py --out kernels.jsonl [--frames 7] [--sweep | --sweep-trip]
 
-The figures in docs/floors.md come from this script.
+The figures in docs/notes/floors.md come from this script.
 """
 
 import argparse

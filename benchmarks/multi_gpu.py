@@ -17,7 +17,7 @@ Jobs:
                warming frame that sends its tiles
   frame-sent   the same frame with every tile sent to the client and assembled
                here (cluster.render(shared=False): a cluster across machines)
-  terms        the scaling model's terms on this cluster (docs/scaling.md): the
+  terms        the scaling model's terms on this cluster (docs/notes/scaling.md): the
                scene's broadcast, an empty task's cost, a tile's transfer, the
                assembly of a sent frame, a frame's shared block made here, and a
                frame's rows written into shared memory by the workers, into a

@@ -2,6 +2,7 @@
 and a --quick run end to end on the CPU."""
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -234,6 +235,15 @@ def test_quick_run_end_to_end(tmp_path, capsys):
     assert ramp["series"]["spheres"] == list(range(20, 201, 10))  # the first frame (10 spheres) excluded
     assert len(ramp["series"]["frame_ms"]) == len(ramp["series"]["spheres"])
     assert "report:" in out
+    # piped (capsys is no terminal): a line as each suite starts and one a point, with what is left
+    progress = [line for line in out.splitlines() if line.startswith("[")]
+    assert len(progress) == len(records) and progress[0].startswith(f"[1/{len(records)}] ")
+    assert all(line.endswith(" left)") for line in progress)
+    started = {line.split()[1].rstrip(":") for line in out.splitlines() if line.startswith("suite ")}
+    assert started == {p.suite for p in expected}
+    assert "the thesis's claims (the report has the rules and the reasons):" in out
+    # the headline carries its interval over this run's frames, or says why it cannot
+    assert re.search(r"this machine .* \((95% interval [\d.,]+ to [\d.,]+|too few frames for an interval.*)\)", out)
     report = next(tmp_path.glob("report-*/report.md"))
     assert "Verdict" in report.read_text() or "verdict" in report.read_text()
     # every measured point keeps its frames for compare's bootstrap (a ramp's are its series)
@@ -252,7 +262,7 @@ def test_quick_run_end_to_end(tmp_path, capsys):
     assert sorted(r["spheres"] for r in brute) == [100, 500, 1000]
     expected = np.exp(np.mean(np.log([800 * 600 / r["frame_ms"]["median"] * 1e3 / 1e6 for r in brute])))
     line = next(line for line in out.splitlines() if line.startswith("  this machine"))
-    assert line.split()[-1] == f"{expected:.3g}", (line, expected)
+    assert line.split("  (")[0].split()[-1] == f"{expected:.3g}", (line, expected)  # then its interval, in brackets
     assert "reference machines (measured elsewhere" in out and "no GPU measured here" in out
 
 

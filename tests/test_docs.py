@@ -17,7 +17,7 @@ ROOT = Path(__file__).resolve().parent.parent
 # The pages whose links are checked: the docs, the READMEs a reader starts from, and the results'.
 PAGES = sorted(
     {
-        *ROOT.glob("docs/*.md"),
+        *ROOT.glob("docs/**/*.md"),
         ROOT / "README.md",
         *ROOT.glob("benchmarks/**/README.md"),
         ROOT / "experiments" / "README.md",
@@ -29,7 +29,7 @@ CODE_SPAN = re.compile(r"(`+)(?:(?!\1).)+?\1")
 FENCE = re.compile(r"^\s*(```|~~~)")
 HEADING = re.compile(r"^(#{1,6})\s+(.*?)\s*#*\s*$")
 # A page cited in source text: docs/name.md, optionally with its #anchor.
-CITED = re.compile(r"docs/([\w.-]+\.md)(#[\w-]+)?")
+CITED = re.compile(r"docs/([\w./-]+\.md)(#[\w-]+)?")
 SOURCE_SUFFIXES = {".py", ".sh", ".md", ".wgsl", ".toml"}
 
 
@@ -155,3 +155,15 @@ def test_readme_python_example_runs_as_written(tmp_path, monkeypatch):
     assert frame.image.shape == (1050, 1680, 3) and frame.hits.shape == (1050, 1680)
     assert (tmp_path / "spheres.png").is_file() and (frame.hits >= 0).any() and (frame.hits == -1).any()
     assert np.unique(frame.hits).size > 100  # a picture of many spheres, not a blank frame
+
+
+@pytest.mark.parametrize("page", sorted(ROOT.glob("docs/**/*.md")), ids=lambda p: str(p.relative_to(ROOT)))
+def test_a_page_is_short_and_its_headings_name_no_lease(page):
+    """A book's page is read in one sitting (800 lines at most); a heading names what was done,
+    never the machine lease it was done on (the notes' text may)."""
+    text = page.read_text()
+    assert len(text.splitlines()) <= 800
+    leases = [
+        line for _, line in prose_lines(text, spans=True) if HEADING.match(line) and re.search(r"\bleases?\b", line)
+    ]
+    assert leases == []

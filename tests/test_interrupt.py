@@ -6,7 +6,7 @@ one would.
 
 Each frame here would take minutes (hundreds of G ray-sphere tests by the
 thesis's simple kernel), so a stop within the bound is the interrupt's doing.
-The bound is generous: the time it takes is measured in docs/performance.md,
+The bound is generous: the time it takes is measured in docs/notes/performance.md,
 not held to here (a slow CI machine)."""
 
 import json

@@ -12,7 +12,7 @@ of the results schema's "parts" suite each (the time of one launch, a sample a r
 
 The GPU builder (backends/cuda/build.py) launches 20 kernels a build, so these say how much of a
 small scene's build is the host's
-(docs/startup.md#a-launchs-arguments-converted-once-leases-y3-and-y4). Needs a CUDA GPU.
+(docs/notes/startup.md#a-launchs-arguments-converted-once). Needs a CUDA GPU.
 
     PYTHONPATH=benchmarks python benchmarks/archive/launch_overhead.py --launches 2000 --rounds 5
 """

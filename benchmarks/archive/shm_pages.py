@@ -1,5 +1,5 @@
 """What a frame's shared memory costs before and after its pages are resident
-(issue 17, docs/scaling.md): a block the size of a --frame frame's image and
+(issue 17, docs/notes/scaling.md): a block the size of a --frame frame's image and
 hits (7 bytes a pixel) in /dev/shm, made each of the ways Python allows, and
 then the copies a frame costs once it is made.
 

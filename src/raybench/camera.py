@@ -44,7 +44,7 @@ def _vector(value, name: str) -> tuple[float, float, float]:
 
 
 # A basis is made every frame, and on three numbers NumPy's calls cost far more
-# than their arithmetic (docs/startup.md#what-a-renderer-costs-over-its-tracer-2-vcpu-machine,
+# than their arithmetic (docs/notes/startup.md#what-a-renderer-costs-over-its-tracer-2-vcpu-machine,
 # "The basis without NumPy's calls"). So these two are that arithmetic alone:
 # np.linalg.norm of a vector
 # is the square root of its dot with itself, and np.cross multiplies, then

@@ -23,8 +23,8 @@ from .scene import Scene
 # encodes faster than Pillow's default 6, in files a little larger for a smooth
 # picture and smaller for a busy one. At 6 the encoding was most of a warm
 # `raybench render` and bounded a sequence (the figures:
-# docs/startup.md#figures-moved-from-the-sources-comments,
-# docs/scaling.md#the-png-sequence-is-bound-by-encoding).
+# docs/notes/startup.md#figures-moved-from-the-sources-comments,
+# docs/notes/scaling.md#the-png-sequence-is-bound-by-encoding).
 PNG_LEVEL = 1
 
 
@@ -75,7 +75,7 @@ def png_bytes(image: np.ndarray, level: int = PNG_LEVEL) -> bytes:
     sink that writes pictures uses (Frame.save, the viewer's screenshots, a
     sequence's frames). level: zlib's, 0 (stored) to 9; 1 encodes faster
     than 6, in files a little larger
-    (docs/scaling.md#the-png-sequence-is-bound-by-encoding)."""
+    (docs/notes/scaling.md#the-png-sequence-is-bound-by-encoding)."""
     from PIL import Image
 
     buf = io.BytesIO()
@@ -88,7 +88,7 @@ def png_bytes(image: np.ndarray, level: int = PNG_LEVEL) -> bytes:
 # more in flight (the viewer's). A caller who drops its frames in turn traces
 # into these few; one who keeps more gets copies, as a fresh array faulted in
 # by the kernel's threads costs more than a copy into it
-# (docs/startup.md#what-a-renderer-costs-over-its-tracer-2-vcpu-machine).
+# (docs/notes/startup.md#what-a-renderer-costs-over-its-tracer-2-vcpu-machine).
 KEEP_LENT = 3
 
 

@@ -33,7 +33,7 @@ MAX_GENERATED = 100_000_000
 ASPECT = 16 / 10
 # Peak bytes per sphere while random_spheres works without materials, as
 # measured; with materials it needs more than this
-# (docs/startup.md#figures-moved-from-the-sources-comments).
+# (docs/notes/startup.md#figures-moved-from-the-sources-comments).
 GENERATE_BYTES = 256
 COVERAGE = 2.0
 # The thesis's test 7, a scene that grows every frame: random_spheres(last,
@@ -368,7 +368,7 @@ def random_spheres(n: int, seed: int = 0, materials: bool = False, layout: str =
 
     layout: how the spheres are spread (one of SPREADS). "even", the above, is the
     benchmark's scene; the others are denser scenes, so that a tree is not
-    tuned to the even spread alone (docs/bvh-walk.md#denser-scenes-issue-16-item-6):
+    tuned to the even spread alone (docs/notes/bvh-walk.md#denser-scenes-issue-16-item-6):
     - "dense": the same spread with spheres 3 times larger (about 18 layers
       over the picture), most overlapping many others;
     - "clusters": tight blobs of about 100 spheres each, the blobs spread as

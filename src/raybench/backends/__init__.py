@@ -44,7 +44,7 @@ def _cuda_driver_loads() -> bool:
     Without it numba-cuda finds no GPU either; asking this way is all but
     free, where importing numba-cuda to ask is not, which every "auto" on a
     machine without an NVIDIA GPU paid (the figures:
-    docs/startup.md#the-builder-compiled-only-where-a-scene-needs-it-lease-y1)."""
+    docs/notes/startup.md#the-builder-compiled-only-where-a-scene-needs-it)."""
     for candidate in _driver_candidates():
         try:
             ctypes.CDLL(candidate)

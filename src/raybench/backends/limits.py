@@ -109,7 +109,7 @@ def check_connect_timeout(timeout) -> float:
 
 # The embedded cluster's worker processes on this machine: beyond WORKERS_PER_CORE
 # a core they only take turns on the same cores, and each holds about
-# WORKER_BYTES, its Python, NumPy, Numba and Dask (docs/scaling.md#cpu-workers-2-vcpus).
+# WORKER_BYTES, its Python, NumPy, Numba and Dask (docs/notes/scaling.md#cpu-workers-2-vcpus).
 WORKERS_PER_CORE = 4
 WORKER_BYTES = 256 * 2**20
 

@@ -59,12 +59,12 @@ TREE_WIDTHS = (2, 4)
 # --- cuda --------------------------------------------------------------------------
 
 # Each kernel's block, as its tuning runs chose it: simple in 16x16 blocks;
-# fast (with TRIP) in 8x8 (docs/floors.md#each-version-against-the-floor); the
+# fast (with TRIP) in 8x8 (docs/notes/floors.md#each-version-against-the-floor); the
 # BVH walked a ray at a time in 8x8, which also makes a warp a compact 8x4
 # patch of pixels whose rays cross much the same nodes (the tuning suite,
-# docs/bvh-walk.md#gpu-measured-on-the-h200); the BVH's packets in 8x4
+# docs/notes/bvh-walk.md#gpu-measured-on-the-h200); the BVH's packets in 8x4
 # blocks, one warp, one packet
-# (docs/bvh-walk.md#packets-of-rays-on-the-gpu-leases-g-to-i-kept).
+# (docs/notes/bvh-walk.md#packets-of-rays-on-the-gpu-kept).
 DEFAULT_BLOCK = {"simple": (16, 16), "fast": (8, 8), "ray": (8, 8), "packet": (8, 4)}
 # The fast kernel's defaults (its options rays and staged): each thread
 # traces RAYS_PER_THREAD pixels, one above the other a block height apart, so
@@ -76,7 +76,7 @@ STAGED = 256
 MAX_STAGED = 3071  # 48 KiB of shared memory (with a pad slot), what every CUDA GPU gives a block
 # Spheres tested per trip of the cull loop, one branch for all of them: 3
 # with 8x8 blocks, as step 5's sweep chose it (4 was no surer a gain, for
-# more registers: docs/floors.md#each-version-against-the-floor).
+# more registers: docs/notes/floors.md#each-version-against-the-floor).
 TRIP = 3
 MAX_TRIP = 4
 MAX_WAVE_GRID = 1 << 24
@@ -86,8 +86,8 @@ MAX_TREELET_PASSES = 8
 
 # The default stays the host's SAH tree for scenes that do not move: no tree
 # built on the GPU is walked as fast as the host's, and the build is paid
-# once, the walk every frame (docs/gpu-build.md#where-it-stands; in WGSL too:
-# docs/gpu-build.md#the-same-build-in-wgsl-wgpu).
+# once, the walk every frame (docs/notes/gpu-build.md#where-it-stands; in WGSL too:
+# docs/notes/gpu-build.md#the-same-build-in-wgsl-wgpu).
 DEFAULT_BUILD = "host"
 
 # --- wgpu --------------------------------------------------------------------------
@@ -96,7 +96,7 @@ DEFAULT_BUILD = "host"
 # run on every adapter (the thesis's 32x32 runs where the adapter allows
 # 1024); for the packet walk 8x8, two NVIDIA warps, each an 8x4 packet of
 # pixels, the best of the workgroups tried
-# (docs/bvh-walk.md#tried-packets-on-wgpu-leases-r-and-s-kept-as-an-option-not-the-default).
+# (docs/notes/bvh-walk.md#tried-packets-on-wgpu-kept-as-an-option-not-the-default).
 DEFAULT_WORKGROUP = {"none": (16, 16), "ray": (16, 16), "packet": (8, 8)}
 
 

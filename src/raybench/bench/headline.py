@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 VERSION = 1
 SIZE = (800, 600)
 SPHERES = (100, 500, 1000)
@@ -49,6 +51,37 @@ def score(records: list[dict], device: str) -> float | None:
         return None
     rates = [SIZE[0] * SIZE[1] / (found[n] / 1e3) / 1e6 for n in SPHERES]
     return math.exp(sum(map(math.log, rates)) / len(rates))
+
+
+# The headline's interval: a moving-block bootstrap over each point's kept frames (in the order
+# they were timed), so that a stretch of slow frames, a neighbour's burst of work, moves the
+# resampled medians together as it moved the run. Blocks of a tenth of the frames; fixed seed.
+ROUNDS = 2000
+SPREAD_WARN = 0.10  # an interval wider than this either side of the headline is too loose to quote alone
+
+
+def _block_medians(samples: np.ndarray, rng: np.random.Generator, rounds: int) -> np.ndarray:
+    n = samples.size
+    block = max(1, n // 10)
+    starts = rng.integers(0, n - block + 1, size=(rounds, -(-n // block)))
+    picked = (starts[:, :, None] + np.arange(block)).reshape(rounds, -1)[:, :n]
+    return np.median(samples[picked], axis=1)
+
+
+def interval(records: list[dict], device: str, rounds: int = ROUNDS) -> tuple[float, float] | None:
+    """The 95% interval of device's headline from one machine's records: the frames of each of
+    its three points resampled in blocks, the geometric mean taken each round. None where a
+    point is missing or kept too few frames (records from before samples_ms)."""
+    found = {r["spheres"]: r.get("samples_ms") or [] for r in records if _counts(r, device)}
+    if set(found) != set(SPHERES) or any(len(s) < 5 for s in found.values()):
+        return None
+    rng = np.random.default_rng(0)
+    logs = sum(
+        np.log(SIZE[0] * SIZE[1] / (_block_medians(np.asarray(found[n], dtype=np.float64), rng, rounds) / 1e3) / 1e6)
+        for n in SPHERES
+    )
+    low, high = np.percentile(np.exp(logs / len(SPHERES)), [2.5, 97.5])
+    return float(low), float(high)
 
 
 def scores(records: list[dict]) -> dict[str, dict[str, float]]:
@@ -112,6 +145,23 @@ def rows(records: list[dict], references: list[dict]) -> list[dict]:
     return out
 
 
+def unscored(references: list[dict]) -> list[str]:
+    """Reference machines with thesis records but no headline, each with why: a reader who
+    looks for a machine in the table is told why it is not there."""
+    scored = scores(references)
+    out = []
+    for label in dict.fromkeys(r["run"]["label"] for r in references if r["suite"] == "thesis"):
+        if label in scored:
+            continue
+        mine = [r for r in references if r["run"]["label"] == label and r["suite"] == "thesis"]
+        kernels = sorted({(r.get("options") or {}).get("kernel", "simple") for r in mine})
+        out.append(
+            f"{label}: no headline v{VERSION}: its thesis records are the {' and '.join(kernels)} kernel's, "
+            f"and the headline counts brute force by the fast kernel at {SIZE[0]}x{SIZE[1]}"
+        )
+    return out
+
+
 def summary(records: list[dict], references: list[dict]) -> list[str]:
     """What `raybench bench` prints at its end: this machine's headline per
     device, the GPU over the CPU here, and where each stands against the
@@ -121,17 +171,31 @@ def summary(records: list[dict], references: list[dict]) -> list[str]:
     if not mine:
         return [f"{DEFINITION}: not measured in this run (it needs the thesis suite)"]
     out = [f"{DEFINITION}:"]
+    loose = []
     for r in mine:
         extra = ""
         if r["device"] != "cpu" and r["cpu_ratio"]:
             extra = f"  ({r['cpu_ratio']:.3g}x this machine's CPU)"
+        span = interval([x for x in records if x["run"]["label"] == r["label"]], r["device"])
+        if span is not None:
+            extra = f"  (95% interval {_fmt(span[0])} to {_fmt(span[1])}){extra}"
+            if span[1] - span[0] > 2 * SPREAD_WARN * r["value"]:
+                loose.append(r["name"])
+        else:
+            extra = f"  (too few frames for an interval: a longer --duration gives one){extra}"
         out.append(f"  this machine   {r['name']:<40} {_fmt(r['value']):>9}{extra}")
+    if loose:
+        out.append(
+            f"  warning: the interval of {', '.join(loose)} is wider than +-{SPREAD_WARN:.0%}: its frames varied "
+            "(another program's load, a clock that changed); run again on a quiet machine to quote it"
+        )
     others = [r for r in table if r["reference"]]
     if others:
         out.append("  reference machines (measured elsewhere, shipped with raybench; not this machine):")
         for r in others:
             ratio = f"  ({r['cpu_ratio']:.3g}x this CPU)" if r["cpu_ratio"] else ""
             out.append(f"  {r['label']:<14} {r['name']:<40} {_fmt(r['value']):>9}{ratio}")
+        out += [f"  {line}" for line in unscored(references)]
     has_gpu = any(r["device"] != "cpu" for r in mine)
     base = next((r for r in mine if r["device"] == "cpu"), None)
     gpus = [r for r in others if r["device"] == "cuda"]

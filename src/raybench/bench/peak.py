@@ -2,7 +2,7 @@
 multiply-adds, the best any kernel could do on this machine.
 
 The rates in machine.py are computed from the spec sheet (cores x clock x
-lanes x 2); these are measured, so the floor in docs/floors.md and the
+lanes x 2); these are measured, so the floor in docs/notes/floors.md and the
 "fraction of peak" of a ray tracer rest on what the chip really sustains
 (turbo clocks, AVX-512 down-clocking, a shared virtual machine).
 """

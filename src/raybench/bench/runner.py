@@ -344,12 +344,22 @@ class Records:
 
 
 def run(
-    points: list[Point], writer: ResultsWriter | Records, run: dict, duration: float, seed: int, progress: bool = True
+    points: list[Point],
+    writer: ResultsWriter | Records,
+    run: dict,
+    duration: float,
+    seed: int,
+    progress: bool = True,
+    lines=None,
 ) -> int:
     """Measure every point in order, writing each record as soon as it is done.
     Returns how many points were written; Ctrl-C stops between frames and
-    propagates, with every finished point already on disk."""
+    propagates, with every finished point already on disk. progress: rich's
+    bar (a terminal); lines: a function that prints a line, for plain
+    progress lines instead (a file, a pipe or a CI log: bench.progress)."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    from .progress import Lines
 
     scenes = Scenes(seed)
     last: dict[tuple, tuple] = {}
@@ -363,22 +373,36 @@ def run(
         TimeRemainingColumn(),
     ]
     clusters = multi.Clusters()  # the multi-gpu suite's, one open at a time
-    with Progress(*columns, disable=not progress, transient=False) as bar:
-        task = bar.add_task("", total=sum(weights), done=0, count=len(points))
-        for i, (point, weight) in enumerate(zip(points, weights)):
-            bar.update(task, description=point.describe())
-            cap_s = point.options.get("cap_s")
-            guess = predicted_ms(point, last.get(_series(point))) if cap_s else None
-            if guess is not None and guess > cap_s * 1e3:
-                writer.write({**skipped(point, guess, cap_s), "run": run})
-            else:
-                try:
-                    record = _timed(point, scenes, duration, clusters)
-                except BaseException:
-                    clusters.close()
-                    raise
-                last[_series(point)] = (point.width * point.height, point.spheres, record["frame_ms"]["median"])
-                writer.write({**record, "run": run})
-            bar.update(task, advance=weight, done=i + 1)
+    plain = Lines(lines, points, weights) if lines is not None else None
+    try:
+        with Progress(*columns, disable=not progress, transient=False) as bar:
+            _measure_all(points, weights, writer, run, duration, scenes, last, clusters, bar, plain)
+    finally:
+        if plain is not None:
+            plain.close()
     clusters.close()
     return writer.count
+
+
+def _measure_all(points, weights, writer, run, duration, scenes, last, clusters, bar, plain) -> None:
+    """run()'s loop: each point timed (or recorded as skipped past its cap) and written."""
+    task = bar.add_task("", total=sum(weights), done=0, count=len(points))
+    for i, (point, weight) in enumerate(zip(points, weights)):
+        bar.update(task, description=point.describe())
+        if plain is not None:
+            plain.point(i, point)
+        cap_s = point.options.get("cap_s")
+        guess = predicted_ms(point, last.get(_series(point))) if cap_s else None
+        if guess is not None and guess > cap_s * 1e3:
+            writer.write({**skipped(point, guess, cap_s), "run": run})
+        else:
+            try:
+                record = _timed(point, scenes, duration, clusters)
+            except BaseException:
+                clusters.close()
+                raise
+            last[_series(point)] = (point.width * point.height, point.spheres, record["frame_ms"]["median"])
+            writer.write({**record, "run": run})
+        bar.update(task, advance=weight, done=i + 1)
+        if plain is not None:
+            plain.done(i)

@@ -10,11 +10,11 @@ force and BVH, brute force stopping where its frames would pass a time cap.
 Beside the even spread of random_spheres it measures the BVH on the denser
 layouts (random_spheres(n, seed, layout=...): larger overlapping spheres,
 clusters, a wide depth range) at 10,000 to 1,000,000 spheres, so that a
-tree tuned to the even spread alone shows (docs/bvh-walk.md). Only the BVH: brute
+tree tuned to the even spread alone shows (docs/notes/bvh-walk.md). Only the BVH: brute
 force tests every sphere whatever the layout.
 
 The secondary suite asks whether the GPU's lead holds for secondary rays
-(docs/whitted.md): Whitted frames of the materials scene (random_spheres(n, seed,
+(docs/notes/whitted.md): Whitted frames of the materials scene (random_spheres(n, seed,
 materials=True): plastic, mirrors and glass, one area light) at depth 5 with
 4 shadow samples, at the thesis's three sizes and 1,000, 10,000 and 100,000
 spheres, through the BVH and by brute force (the simple kernel's loop, the
@@ -26,7 +26,7 @@ GPU's lead against, taken in the same run.
 Brute force with secondary rays is the costly part: a Whitted frame of the
 materials scene casts about 12 rays a pixel, each tested against every
 sphere: on 2 busy cores a large frame takes minutes at 1,000 spheres and
-hours at 100,000 (docs/whitted.md#whitted-shading-issue-14-secondary-rays);
+hours at 100,000 (docs/notes/whitted.md#whitted-shading-issue-14-secondary-rays);
 a GPU takes seconds. What a user would expect is brute force measured wherever
 its frames are bearable and every point that is not said so, never silently
 dropped. So brute-force points carry a cap, as in the scaling suite: a
@@ -36,7 +36,7 @@ skipped with that prediction. A GPU thus runs brute force to 100,000
 spheres; a CPU stops before 100,000 (a 2-core machine after 1,000 spheres
 at 800x600); the BVH runs every point everywhere.
 
-The multi-gpu suite (docs/scaling.md) measures the throughput of 1..N workers of
+The multi-gpu suite (docs/notes/scaling.md) measures the throughput of 1..N workers of
 an embedded raybench.cluster, each owning a device: on cuda every count of
 GPUs up to the machine's, on the cpu 1, 2, 4, ... workers up to the cores,
 each worker one thread (a worker is then a fixed share of the machine, as a
@@ -46,7 +46,7 @@ the issue's sizes: an 8192x8192 frame and 240 frames at 1680x1050, at
 cpu the frame is 3360x2100 and the orbit 240 frames at 640x400, at 10,000.
 The report sets each count's throughput against linear (N x one worker's).
 
-The dynamic suite (docs/gpu-build.md#spheres-that-move) moves the spheres every frame
+The dynamic suite (docs/notes/gpu-build.md#spheres-that-move) moves the spheres every frame
 (raybench.animate.Orbits, seeded like the scene, DYNAMIC_DT seconds of
 motion a frame) and times what a frame then costs: the tree's update (cuda
 and wgpu with build "gpu": refitted on the GPU, or rebuilt past the refit

@@ -8,7 +8,7 @@ CODE_BITS = 30
 AXIS_CELLS = 1 << (CODE_BITS // 3)
 # Leaves of quality "lbvh": every subtree of at most LEAF_SIZE spheres (the
 # leaf-size sweep found 2 and 4 alike, 8 worse:
-# docs/gpu-build.md#measured-on-the-h200-leases-x2-and-x4). "sah" cuts leaves of up
+# docs/notes/gpu-build.md#measured-on-the-h200). "sah" cuts leaves of up
 # to bvh.LEAF_MAX where the SAH says.
 LEAF_SIZE = 4
 # Where the leaves are cut: "sah" as the SAH says; "treelet" also rebuilds
@@ -25,7 +25,7 @@ TREELET_PASSES = 1
 # REFIT_LIMIT times the cost it had fresh from its build: moved spheres
 # stretch its boxes, and each ray then visits more of them. In the orbits
 # measured (benchmarks/gpu_build.py's refit series,
-# docs/gpu-build.md#measured-on-the-h200-leases-x2-and-x4) the cost levelled
+# docs/notes/gpu-build.md#measured-on-the-h200) the cost levelled
 # off below this and a refit plus the walk stayed cheaper than a rebuild plus
 # the walk throughout; the limit is for motion that keeps stretching the boxes.
 REFIT_LIMIT = 1.3

@@ -4,7 +4,7 @@ A process that makes one picture (raybench.render, `raybench render`) of a
 scene of at most sah.WIDE spheres may build its tree with the builder's own
 code run as plain Python (compiled.as_python): the same tree, bit for bit,
 in a fraction of a second, where compiling the builder takes many seconds
-(the figures: docs/startup.md#a-one-shot-pictures-tree-built-by-the-builders-python-leases-z1-and-z3).
+(the figures: docs/notes/startup.md#a-one-shot-pictures-tree-built-by-the-builders-python).
 It does so where that is quicker:
 - the builder is not yet in the compile cache. A child process compiles it
   into the cache meanwhile, beside the frame kernel's compile, and the

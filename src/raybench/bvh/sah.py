@@ -6,7 +6,7 @@ spatial midpoints whatever the spheres do, and for the benchmark's scenes
 (spheres bunched in a view frustum, radii shrinking with the count) that gives
 trees a ray walks more nodes of. Binned SAH picks, at every node, the split of
 16 candidate planes per axis that minimises the expected cost of a random ray,
-in O(n) per level, fast enough for a million spheres (docs/gpu-build.md), and
+in O(n) per level, fast enough for a million spheres (docs/notes/gpu-build.md), and
 the trace, done every frame, is what the tree must serve.
 Every thread takes part from the root down: a range of many spheres is split
 by all of them at once, and smaller ranges are subtrees built one per thread.
@@ -70,7 +70,7 @@ def compile_builder(wide: bool = True) -> None:
     """Compile (or load from Numba's cache) the builder's one-thread way and,
     if `wide`, its way for more than WIDE spheres, so build times leave it out.
     The wide way's parallel regions are most of the builder's compile (about
-    four fifths, docs/startup.md#the-builder-compiled-only-where-a-scene-needs-it-lease-y1):
+    four fifths, docs/notes/startup.md#the-builder-compiled-only-where-a-scene-needs-it):
     a small scene does not pay for them."""
     spheres = np.ones((7, 9), np.float32)
     spheres[:3] = np.arange(27, dtype=np.float32).reshape(3, 9) % 5

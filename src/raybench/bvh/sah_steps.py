@@ -10,7 +10,7 @@ both the primitive module's own (kernels/primitives). Its work arrays p are
 sizes and its index in the scene, moved together as the ranges are split.
 One half size, not three: a sphere's box is a cube, and two more arrays to
 move cost the build a fifth of its time
-(docs/gpu-build.md#the-host-builder-on-a-primitives-extent); a primitive
+(docs/notes/gpu-build.md#the-host-builder-on-a-primitives-extent); a primitive
 whose box is not a cube is built over the cube around it, correct but
 looser."""
 
@@ -95,7 +95,7 @@ def _range_bounds(p, s, e, box, cbox):
     """box: union of the primitives' boxes over [s, e); cbox: bounds of their centres."""
     px, py, pz, ph, _ = p
     # in locals, not box[]: stores to an array that may alias px cannot stay in
-    # registers (docs/gpu-build.md#figures-moved-from-the-sources-comments)
+    # registers (docs/notes/gpu-build.md#figures-moved-from-the-sources-comments)
     inf = np.float32(np.inf)
     lx = ly = lz = clx = cly = clz = inf
     hx = hy = hz = chx = chy = chz = -inf

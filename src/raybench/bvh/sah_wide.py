@@ -92,7 +92,7 @@ def _bin_jobs(level, jobs, p, q, axis, lo, scale, mid, counts, bins, first, step
     last = BINS - 1
     # each thread bins in its own arrays: bins[j] beside another thread's
     # bins[j + 1] share cache lines, which all the threads write, every primitive
-    # (what that cost: docs/gpu-build.md#the-build-on-every-thread-kept)
+    # (what that cost: docs/notes/gpu-build.md#the-build-on-every-thread-kept)
     n = np.empty(BINS, np.int64)
     b = np.empty((BINS, 12), np.float32)
     for j in range(first, jobs.shape[0], step):
@@ -303,7 +303,7 @@ def _pack(nodes, links, tasks, base, ends, starts, packed, packed_links, first, 
 # One parallel region per step, each thread taking every parts-th job. Numba's
 # threads, not a Python pool: with a pool, each thread's call unboxed its
 # twenty-odd arguments while holding the GIL, one thread after another
-# (docs/gpu-build.md#the-build-on-every-thread-kept).
+# (docs/notes/gpu-build.md#the-build-on-every-thread-kept).
 @compiled.njit(nogil=True, parallel=True)
 def _prepare_all(items, p, piece, bounds, parts):
     for w in numba.prange(parts):

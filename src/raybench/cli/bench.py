@@ -109,6 +109,7 @@ def bench(
 
     from ..bench import runner
     from ..bench import suites as suites_mod
+    from ..bench.load import Load, warning
     from ..bench.results import MAX_NUMBER, ResultsWriter, check_label, check_settings
 
     chosen = suites_mod.SUITES if "all" in suites else tuple(dict.fromkeys(suites))
@@ -144,7 +145,10 @@ def bench(
         "adapter": adapter,
     }
     check_settings(settings)
+    for note in idle_options(settings, bool(kernels)):
+        click.echo(note)
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    load = Load()
     if scheduler is not None:
         from ..bench import machines as on_machines
 
@@ -173,11 +177,15 @@ def bench(
         results_path = out_dir / f"results-{stamp}.jsonl"
         devices = info["settings"]["devices"]
         click.echo(f"{len(points)} points on {', '.join(devices)}, {duration:g} s each; results: {results_path}")
+        # rich's bar on a terminal; piped (a file, a CI log), a plain line a point on stdout
+        bar = sys.stderr.isatty() and sys.stdout.isatty()
         with ResultsWriter(results_path) as writer:
             _bench_into(
                 writer,
                 results_path,
-                lambda: runner.run(points, writer, info, duration, seed, progress=sys.stderr.isatty()),
+                lambda: runner.run(
+                    points, writer, info, duration, seed, progress=bar, lines=None if bar else click.echo
+                ),
             )
     click.echo(f"wrote {writer.count} results to {results_path}")
     if not no_report:
@@ -188,10 +196,26 @@ def bench(
     if writer.count:
         from .. import references
         from ..bench import headline
+        from ..bench.report.answer import verdict_lines
         from ..bench.results import read
 
-        for line in headline.summary(read(results_path), references.load()):
+        records, shipped = read(results_path), references.load()
+        for line in verdict_lines(records, shipped) + headline.summary(records, shipped):
             click.echo(line)
+    if scheduler is None and (loaded := warning(load.others())):
+        click.echo(loaded)
+
+
+def idle_options(settings: dict, kernels_given: bool) -> list[str]:
+    """The options asked for that will change nothing in this run, each said in one line."""
+    notes = []
+    if kernels_given and "none" not in settings["accels"]:
+        notes.append("note: --kernel has no effect: it picks a brute-force kernel, and --accel bvh times the BVH only")
+    if kernels_given and settings["devices"] == ["wgpu"] and settings["kernels"] != ["simple"]:
+        notes.append("note: --kernel fast has no effect on wgpu: its one brute-force kernel is the simple one")
+    if settings["builds"] and "bvh" not in settings["accels"]:
+        notes.append("note: --build has no effect: it says where the BVH is built, and --accel none measures no BVH")
+    return notes
 
 
 def _bench_into(writer, results_path, measure) -> None:

@@ -1,5 +1,5 @@
 """On a terminal, say so while this process compiles kernels: the first run on
-a machine spends seconds in Numba's compiler (docs/startup.md#where-it-stands),
+a machine spends seconds in Numba's compiler (docs/notes/startup.md#where-it-stands),
 which would otherwise look like a hang. Piped, stderr stays clean."""
 
 from __future__ import annotations

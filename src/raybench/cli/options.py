@@ -113,6 +113,38 @@ def shading_options(shading, depth, shadow_samples) -> dict:
     return {"shading": shading, "depth": depth, "shadow_samples": shadow_samples}
 
 
+def shading_notes(scene, shaded: dict) -> list[str]:
+    """What Whitted shading will not do for this scene, and the options it makes idle, each one
+    line (stdout: a note, not an error): a scene without lights is shaded by the thesis's rule,
+    which without mirrors or glass is the thesis's picture, and a user who asked for Whitted
+    should not have to compare pixels to find out."""
+    if shaded["shading"] != "whitted":
+        return []
+    materials = scene.materials or ()
+    bounces = any(m.reflect > 0 or m.transmit > 0 for m in materials)
+    notes = []
+    if not scene.lights:
+        did = (
+            "the thesis's picture, each sphere darkened towards its rim"
+            if not bounces
+            else "the thesis's shading at each surface, its mirrors and glass still reflecting and refracting it"
+        )
+        notes.append(
+            f"note: --shading whitted: the scene has no lights, so it is drawn by the thesis's rule: {did} "
+            '(add "lights" to the scene file, or use --spheres N --materials)'
+        )
+    elif not bounces:
+        notes.append(
+            "note: --shading whitted: no sphere has a mirror or glass material, so there are no bounces: "
+            "each light's diffuse light, highlights and shadows only"
+        )
+    if shaded.get("depth") is not None and not bounces:
+        notes.append("note: --depth has no effect: the scene has no mirrors or glass to bounce from")
+    if shaded.get("shadow_samples") is not None and not any(light.radius > 0 for light in scene.lights):
+        notes.append("note: --shadow-samples has no effect: the scene has no area light (a light with a radius)")
+    return notes
+
+
 # --- options that render and view share, each written once ------------------------
 
 

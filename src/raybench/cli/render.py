@@ -23,6 +23,7 @@ from .options import (
     parse_size,
     scene_options,
     scheduler_security,
+    shading_notes,
     shading_option_group,
     shading_options,
     size_option,
@@ -141,6 +142,8 @@ def render(
     scene = load_scene(scene_file, spheres, seed, materials, layout)
     width, height = parse_size(size)
     shaded = shading_options(shading, depth, shadow_samples)
+    for note in shading_notes(scene, shaded):
+        click.echo(note)
     options = device_options(
         threads=threads, block=block, workgroup=workgroup, adapter=adapter, kernel=kernel, accel=accel, build=build
     )

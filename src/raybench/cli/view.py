@@ -15,6 +15,7 @@ from .options import (
     options_by_device,
     parse_size,
     scene_options,
+    shading_notes,
     shading_option_group,
     shading_options,
     size_option,
@@ -84,6 +85,8 @@ def view(
     scene = load_scene(scene_file, spheres, seed, materials)
     width, height = parse_size(size)
     shaded = shading_options(shading, depth, shadow_samples)
+    for note in shading_notes(scene, shaded):
+        click.echo(note)
     # checked here, before the window opens: a Whitted frame of no spheres
     lit = Shading.of(Scene([], [], []), depth, shadow_samples) if shading == "whitted" else None
     if screenshot is not None:

@@ -12,7 +12,7 @@ or one joined by its scheduler's address.
   code execution in this process (Dask sends pickles both ways); tls://
   addresses take the CA, certificate and key given, or Dask's config.
 
-Why the embedded workers differ from Dask's defaults (docs/scaling.md has
+Why the embedded workers differ from Dask's defaults (docs/notes/scaling.md has
 the measurements): a Nanny's worker gets MALLOC_TRIM_THRESHOLD_=65536 in its
 environment, which makes glibc map and fault in afresh every frame-sized
 allocation (several times slower copies of a frame); and a Nanny's default

@@ -3,7 +3,7 @@ so that raybench.cluster's workers on the client's host write their tiles'
 rows straight into the frame instead of sending them through Dask, and do not
 pay for fresh pages every frame.
 
-Why kept (docs/scaling.md has the figures): on the machines measured, memory
+Why kept (docs/notes/scaling.md has the figures): on the machines measured, memory
 first touched costs far more than the copy itself. Allocating a tmpfs page,
 zeroing it and filling a page table entry for it in each process that maps it
 runs several times slower than a copy into pages already mapped. So:

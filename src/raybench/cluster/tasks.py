@@ -98,7 +98,7 @@ def _tile(
             if tracer.fetches_into:
                 # cuda: the rows copied from the GPU straight into the frame, its
                 # mapping page-locked once, not through the tracer's buffers and a
-                # copy out of them (docs/scaling.md)
+                # copy out of them (docs/notes/scaling.md)
                 tracer.launch(basis, rows=rows)
                 if sharedframe.fill_rows(shared, first, end - first, tracer.fetch_into, pin=tracer.pin):
                     return first, None, None, _ray_counts(tracer), tracer.build_s

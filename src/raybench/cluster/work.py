@@ -45,7 +45,7 @@ from .tasks import KEEP_RENDERERS, _frames, _hit_counts, _tile, check_workers
 TILE_ALIGN = 8
 # Tasks a worker gets of one job, by default: enough that a slow or lost
 # worker's share is made up by the others, few enough that the scheduler's
-# cost per task (docs/scaling.md) stays small beside the tracing.
+# cost per task (docs/notes/scaling.md) stays small beside the tracing.
 TASKS_PER_WORKER = 4
 # The most frames a task of a sequence traces, so progress is seen often.
 MAX_FRAMES_PER_TASK = 60
@@ -167,7 +167,7 @@ def _killed(exc) -> RaybenchError:
 
 class _Session:
     """What render() keeps for one client from frame to frame. A frame's fixed
-    cost is Dask's round of its tiles (docs/scaling.md), so nothing else asks
+    cost is Dask's round of its tiles (docs/notes/scaling.md), so nothing else asks
     the cluster what a recent frame asked:
 
     - pool: the frames' shared memory, a frame size's block kept resident;
@@ -300,7 +300,7 @@ def render(
         lease = session.pool.lease(width, height) if shared else None
         address = None if lease is None else lease.address
         # The tiles dealt to the workers in turn: left to Dask, a frame's few tiles, whose inputs
-        # every worker holds, could all go to one GPU (docs/scaling.md). Loosely: a worker that
+        # every worker holds, could all go to one GPU (docs/notes/scaling.md). Loosely: a worker that
         # dies or lags has its tiles run, or stolen, by the others.
         places = sorted(found)
         tasks = [

@@ -55,7 +55,7 @@ _leaf_hit_ahead, _meets_own, _rim = _prim.leaf_hit_ahead, _prim.meets_own, _prim
 
 # Pixels and arrays are indexed with unsigned integers: a signed index
 # carries Python's negative-index wraparound, a select per lane that LLVM
-# turns into gathers (docs/floors.md#each-version-against-the-floor).
+# turns into gathers (docs/notes/floors.md#each-version-against-the-floor).
 _U = np.uint64
 
 # Rays walked through the BVH together: a 16x8 tile of
@@ -64,7 +64,7 @@ _U = np.uint64
 # (the children ordered along the middle ray instead), larger packets paid:
 # of 4x4 to 32x8, 16x8 was the fastest, ahead of 8x4, the shape before; 16x16
 # is as fast on one core and slower at 1,000 spheres on two threads
-# (docs/bvh-walk.md#measured-cpu-only-machine-amd-epyc-2-vcpus-shared).
+# (docs/notes/bvh-walk.md#measured-cpu-only-machine-amd-epyc-2-vcpus-shared).
 PACKET_W, PACKET_H = 16, 8
 PACKET = PACKET_W * PACKET_H
 # The wide rows' plane columns by axis (layout.W_LO, W_HI), as plain ints: read
@@ -108,7 +108,7 @@ def _missed_by_all(lx, ly, lz, hx, hy, hz, spread):
         min(max(max(ly * y0, hy * y0), max(ly * y1, hy * y1)), max(max(lz * z0, hz * z0), max(lz * z1, hz * z1))),
     )
     # one branch where it is used, not three (`or` would branch on each, and
-    # they mispredict: docs/bvh-walk.md)
+    # they mispredict: docs/notes/bvh-walk.md)
     return (near > far) | (far <= ZERO) | (near > spread[6])
 
 
@@ -163,7 +163,7 @@ def _packet_leaf(
     camera inside it). A primitive whose own box (as the builder pads it,
     grown by margin as the walk grows boxes) no ray enters is skipped after
     one test for the packet (_missed_by_all)
-    (docs/bvh-walk.md#measured-cpu-only-machine-amd-epyc-2-vcpus-shared)."""
+    (docs/notes/bvh-walk.md#measured-cpu-only-machine-amd-epyc-2-vcpus-shared)."""
     for j in range(first, first + count):
         original = order[j]
         row = _read_leaf(ordered, j)  # read once, for the box test and the rays' tests
@@ -217,7 +217,7 @@ def _put_pixel(y, x, k, rgb, hit, image, hits):
     Unsigned indices (_U), as in the cull loops: a signed one carries
     Python's negative-index wraparound, a shift, a mask and an add for each
     of a pixel's four stores (what they cost:
-    docs/embree.md#against-mitsuba-3-on-embree-side-by-side-2-vcpu-machine)."""
+    docs/notes/embree.md#against-mitsuba-3-on-embree-side-by-side-2-vcpu-machine)."""
     y, x, k = _U(y), _U(x), _U(k)
     image[y, x, _U(0)] = rgb[_U(0), k]
     image[y, x, _U(1)] = rgb[_U(1), k]
@@ -235,7 +235,7 @@ def _start_packet(x0, y0, end_row, width, height, basis, dx, dy, dz, ix, iy, iz,
         # a pixel's coordinates as int32 (exact: a side is at most
         # limits.MAX_SIDE), which AVX2 turns into float32 eight at a time,
         # where an int64 takes a scalar conversion each
-        # (docs/embree.md#against-mitsuba-3-on-embree-side-by-side-2-vcpu-machine)
+        # (docs/notes/embree.md#against-mitsuba-3-on-embree-side-by-side-2-vcpu-machine)
         x = np.int32(min(x0 + k % PACKET_W, width - 1))
         y = np.int32(min(y0 + k // PACKET_W, end_row - 1))
         dx[k], dy[k], dz[k] = _primary_ray_v(x, y, width, height, basis)

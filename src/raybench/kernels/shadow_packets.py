@@ -41,7 +41,7 @@ from .packets import (
 # iterations scalar: tried 4 and 8, also with the rays' bits ORed as
 # _wide_mask does), so a light of 4 samples fills a quarter of the lanes;
 # they cost little next to four rays' scalar walks
-# (docs/whitted-cpu.md#cpu-shadow-rays-as-packets-issue-27).
+# (docs/notes/whitted-cpu.md#cpu-shadow-rays-as-packets-issue-27).
 LANES = 16
 _DEAD = np.float32(-np.inf)  # a lane's length once blocked or where no ray is cast: no box is entered
 # The last blockers' slots (_last_blocker), a pair of the sphere the rays
@@ -184,7 +184,7 @@ def _lanes_hit(seen, rays, is_own):
 # them without a walk. The answer is the walk's (any hit: which sphere
 # blocks does not matter), on the same float32 values as _lanes_leaf's. A
 # call, not inlined: as fast a frame, for less of the first frame's compile
-# (docs/whitted-cpu.md#cpu-the-last-blocker-first-issue-27).
+# (docs/notes/whitted-cpu.md#cpu-the-last-blocker-first-issue-27).
 @compiled.njit(nogil=True, error_model="numpy", _nrt=False)
 def _last_blocker(ox, oy, oz, rays, ordered, order, j, own, own_inside):
     """A shadow packet's rays from (ox, oy, oz) against row j of `ordered`
@@ -208,7 +208,7 @@ def _reach(rays):
 
 
 # Inlined into the pixel program (a call of its own measured slower,
-# docs/whitted-cpu.md#cpu-shadow-rays-as-packets-issue-27): compiled there with the
+# docs/notes/whitted-cpu.md#cpu-shadow-rays-as-packets-issue-27): compiled there with the
 # program's error model, which leaves its loops over the rays SIMD (they
 # divide by nothing).
 @numba.njit(inline="always", error_model="numpy")

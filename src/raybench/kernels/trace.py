@@ -143,7 +143,7 @@ def make(jit, call=None, shadows=None, packets_search=None, read_row=None, words
         else:
             # find inlined: this program's shadow rays call no find (its shadows trace
             # them), so the walk has one call site and is compiled once, and the call's
-            # cost goes (measured: docs/whitted.md, "CPU: the primary rays as packets")
+            # cost goes (measured: docs/notes/whitted.md, "CPU: the primary rays as packets")
             stages = whitted.make(jit, jit, search, prim, shade_hit, shade_miss, shadows, name="_packets")
         whitted_pixel = stages.whitted_pixel
 

@@ -70,7 +70,7 @@ def make(jit, prim, read_row=None):
         slabs are those of the box grown by `margin` on every side; the two
         origins come times 1/d, so that a plane's distance is one
         multiply-add (plane * 1/d - origin * 1/d) where the GPU fuses them,
-        a step of the walk's fewer instructions (docs/whitted.md). Its
+        a step of the walk's fewer instructions (docs/notes/whitted.md). Its
         rounding differs from (plane - origin) * 1/d by an ulp or two of
         the terms, far inside the builder's padding and the margin."""
         inv = inverse(d)
@@ -84,7 +84,7 @@ def make(jit, prim, read_row=None):
         (the sign of 1/d decides which is near), so every read of the row is
         at a constant offset: choosing the column by the ray's direction cost
         an address computation per read
-        (docs/bvh-walk.md#gpu-measured-on-the-h200). The values are the same:
+        (docs/notes/bvh-walk.md#gpu-measured-on-the-h200). The values are the same:
         float subtraction and multiplication keep the planes' order.
         An empty child's inverted box (lo layout.EMPTY, hi -EMPTY) comes out as
         a slab around every ray: visited as the leaf of no spheres that it is."""
@@ -143,7 +143,7 @@ def make(jit, prim, read_row=None):
         (the primitive's hit)."""
         # A while loop on 32-bit indices: range() over 64-bit ones made the
         # GPU work out a trip count and an unrolled remainder in 64-bit
-        # integer steps at every leaf (docs/whitted.md)
+        # integer steps at every leaf (docs/notes/whitted.md)
         j = np.uint32(first)
         end = np.uint32(first + count)
         while j < end:
@@ -189,7 +189,7 @@ def make(jit, prim, read_row=None):
             )
             # near child first: its hits can rule the far one out (and a
             # shadow ray meets a blocker sooner: the tree's order measured
-            # slower on the GPU, docs/whitted.md)
+            # slower on the GPU, docs/notes/whitted.md)
             if b_near < a_near:
                 a_near, a_far, a_ref, a_count, b_near, b_far, b_ref, b_count = (
                     b_near,

@@ -132,7 +132,7 @@ def make(jit, call, search, prim, shade_hit, shade_miss, shadows=per_ray, name="
     # numba.njit there; every other function is inlined into the kernel): the
     # walk inlined at both of find's call sites, the shadow rays' and the
     # others', made the kernel much longer to compile for the same
-    # frame time (docs/startup.md#time-to-the-first-picture-issue-15).
+    # frame time (docs/notes/startup.md#time-to-the-first-picture-issue-15).
     def find(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, spheres, count, tree, stack_row, stack_t):
         """The nearest sphere (or, any_hit, any) with 0 < t < t_max along a
         secondary ray: (index or -1, t, half-chord)."""

@@ -20,7 +20,7 @@ while the main thread only waits, and so takes the signal at once; it then
 sets the tracer's stop flag, which every kernel reads before each row (or
 row of packets), and waits for the kernels to return: a frame of minutes
 stops within a row's time, at no measured cost to a frame
-(docs/faults.md#ctrl-c-mid-frame).
+(docs/notes/faults.md#ctrl-c-mid-frame).
 
 fastmath stays off: the float32 arithmetic is then exactly IEEE, so the CPU image
 is bit-identical to the CUDA kernel run under numba's simulator, and the tests

@@ -18,12 +18,12 @@ from .program import _hit_from, _may_hit, _prepare_one, _primary_ray, _read, _re
 # The cull loops index the spheres with unsigned integers: a signed index
 # carries Python's negative-index wraparound, a select per lane that LLVM
 # turns into gathers, which slowed the cull (step 5 of
-# docs/floors.md#each-version-against-the-floor). The CUDA fast kernel does the
+# docs/notes/floors.md#each-version-against-the-floor). The CUDA fast kernel does the
 # same for the same reason.
 _U = np.uint64
 # Spheres per cull group in the fast kernels: a group's cull test is one
 # loop that LLVM turns into SIMD. 32 measured fastest: 16 and 64 were slower,
-# and 48 did not vectorise (steps 3 and 4 of docs/floors.md#each-version-against-the-floor).
+# and 48 did not vectorise (steps 3 and 4 of docs/notes/floors.md#each-version-against-the-floor).
 GROUP = 32
 # Rays side by side in the AVX-512 kernel: one 16-lane register of float32.
 WIDE = 16
@@ -133,7 +133,7 @@ def _wide_band(first_row, end_row, width, height, basis, spheres, relative, coun
                         # Most spheres of a group that passed are still missed by
                         # all 16 rays: one SIMD test across the rays first keeps
                         # the scalar loop for the spheres some ray may hit
-                        # (step 5 of docs/floors.md#each-version-against-the-floor).
+                        # (step 5 of docs/notes/floors.md#each-version-against-the-floor).
                         some = False
                         for k in range(WIDE):
                             some |= _may_hit(ex[i], ey[i], ez[i], es[i], dx[k], dy[k], dz[k])
@@ -162,5 +162,5 @@ def _has_avx512() -> bool:
 # Which loop vectorises best depends on the register width: with AVX-512 the
 # wide kernel (16 rays side by side) took half the pairs kernel's time, with
 # AVX2 the pairs kernel was the faster (step 4 of
-# docs/floors.md#each-version-against-the-floor).
+# docs/notes/floors.md#each-version-against-the-floor).
 _fast_band = _wide_band if _has_avx512() else _pairs_band

@@ -100,7 +100,7 @@ def _whitted_rows_packets(first_row, end_row, width, height, basis, spheres, cou
 # or not, or taken from a tuple, with an atomic add and subtract on the
 # array's shared count (NRT_incref, NRT_decref): in the pixel program, whose
 # functions pass the frame's arrays down, those took much of a frame's
-# CPU time (perf: docs/whitted.md), and as the threads share the arrays,
+# CPU time (perf: docs/notes/whitted.md), and as the threads share the arrays,
 # each such add moves a cache line between the cores. These functions
 # allocate nothing and keep no array: _whitted_rows_packets, which holds the
 # scratch, calls them.

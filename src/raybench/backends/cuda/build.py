@@ -85,7 +85,7 @@ THREADS = 32 if _SIM else 256
 # leaf order, so any subtree can be stored as one leaf of them all.
 #   "lbvh": every subtree of at most LEAF_SIZE spheres is a leaf (the first
 #           GPU tree; the leaf-size sweep found 2 and 4 alike:
-#           docs/gpu-build.md#measured-on-the-h200-leases-x2-and-x4).
+#           docs/notes/gpu-build.md#measured-on-the-h200).
 #   "sah":  a subtree of at most bvh.LEAF_MAX spheres is a leaf where its
 #           SAH cost as a leaf is no more than as a row with the best cut
 #           below it (the host's builder weighs the same, greedily), decided

@@ -4,11 +4,11 @@ with the same arguments.
 numba-cuda converts every argument of every launch in Python, some
 microseconds a device array, so a kernel of many arrays costs far more to
 launch than with its arguments converted beforehand (`benchmarks/archive/launch_overhead.py`
-measures it; docs/startup.md#a-launchs-arguments-converted-once-leases-y3-and-y4).
+measures it; docs/notes/startup.md#a-launchs-arguments-converted-once).
 The GPU builder launches 20 kernels a build, each on the same arrays build
 after build, so below a few hundred thousand spheres the host's conversions
 were most of a build
-(docs/gpu-build.md#the-trees-quality-raised-on-the-gpu-sah-leaves-and-treelets).
+(docs/notes/gpu-build.md#the-trees-quality-raised-on-the-gpu-sah-leaves-and-treelets).
 
 `Launches` keeps the prepared launches of a Tracer or a Builder by their
 arguments, so each is converted once; its owner clears it when it replaces

@@ -21,7 +21,7 @@ from ..options import RAYS_PER_THREAD, STAGED, TRIP
 # an SM on the GPUs measured): the packets cost more node visits than a ray
 # at a time and save fetches, so they pay once the tree is fetched from L2;
 # measured, the two crossed as the tree outgrew L1
-# (docs/bvh-walk.md#packets-of-rays-on-the-gpu-leases-g-to-i-kept).
+# (docs/notes/bvh-walk.md#packets-of-rays-on-the-gpu-kept).
 PACKET_TREE_BYTES = 256 * 1024
 
 
@@ -143,7 +143,7 @@ def _bvh_packet_kernel(width, height, first, end, basis, nodes, links, ordered, 
     and every branch are the same in all the block's threads: one node fetch
     serves them all, and they never diverge. The children are taken in the
     order of their centres along the block's central ray (faster than voting
-    on the order: docs/bvh-walk.md#packets-of-rays-on-the-gpu-leases-g-to-i-kept).
+    on the order: docs/notes/bvh-walk.md#packets-of-rays-on-the-gpu-kept).
     The votes are the block's
     barriers (syncthreads_or), which the CUDA simulator has too, so the
     tests run this very code; in a one-warp block (8x4, the default) they
@@ -183,7 +183,7 @@ def _bvh_packet_kernel(width, height, first, end, basis, nodes, links, ordered, 
         # central ray: an order the same in every thread without a vote
         # (guarding an empty child's case with a branch, or clamping its
         # planes, cost more than the builder storing them finite:
-        # docs/bvh-walk.md). The
+        # docs/notes/bvh-walk.md). The
         # barriers take int32 predicates on a GPU.
         b_first = _centre(nodes, node, _U(CHILD_BOX[1]), ox, oy, oz, cdx, cdy, cdz) < _centre(
             nodes, node, _U(CHILD_BOX[0]), ox, oy, oz, cdx, cdy, cdz
@@ -301,7 +301,7 @@ def fast_kernel(rays: int = RAYS_PER_THREAD, staged: int = STAGED, trip: int = T
             hit[j] = -1
             hit_d[j] = ZERO
         # Unsigned indices: a signed one makes every shared-memory read check
-        # for Python's negative indexing (step 4 of docs/floors.md#each-version-against-the-floor).
+        # for Python's negative indexing (step 4 of docs/notes/floors.md#each-version-against-the-floor).
         me = _U(cuda.threadIdx.y * bw + cuda.threadIdx.x)
         total = _U(count)
         for base in range(_U(0), total, _U(staged)):
@@ -321,7 +321,7 @@ def fast_kernel(rays: int = RAYS_PER_THREAD, staged: int = STAGED, trip: int = T
             while k < n:
                 # `trip` spheres a trip, one branch for all on the farthest v
                 # of all the thread's rays: the loop is then mostly arithmetic
-                # (docs/floors.md#each-version-against-the-floor has what each
+                # (docs/notes/floors.md#each-version-against-the-floor has what each
                 # step bought).
                 while k < n:
                     for q in range(trip):
@@ -336,7 +336,7 @@ def fast_kernel(rays: int = RAYS_PER_THREAD, staged: int = STAGED, trip: int = T
                 # the primitive's hit_from on its row seen from the eye (as the
                 # cpu's fast kernels): that reads four words a sphere where this
                 # reads one, which slowed small scenes
-                # (docs/floors.md#the-fast-kernels-exact-test)
+                # (docs/notes/floors.md#the-fast-kernels-exact-test)
                 for i in range(k, min(k + _U(trip), n)):
                     nearer(
                         base + i, sx[i], sy[i], sz[i], ss[i], spheres[RADIUS, base + i], dx, dy, dz, closest, hit, hit_d

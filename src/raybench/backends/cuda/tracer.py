@@ -95,7 +95,7 @@ class Tracer(TracerBase):
         # a frame's launches with their arguments converted once: numba-cuda's
         # conversion of a BVH kernel's arrays, every launch, fell inside the
         # kernel's timed span (cuda.launch;
-        # docs/startup.md#a-launchs-arguments-converted-once-leases-y3-and-y4)
+        # docs/notes/startup.md#a-launchs-arguments-converted-once)
         self._launches = Launches(64)
         self.d_spheres = cuda.to_device(spheres if self.count else np.zeros((7, 1), np.float32))
         self.d_image = cuda.device_array((height, width, 3), dtype=np.uint8)

@@ -27,7 +27,7 @@ GRID_PER_SM blocks a multiprocessor, more than it holds at once, each
 thread looping over its share (persistent threads). A grid of a thread a
 ray measured slower: most of its blocks find their wave's queue short of
 them and exit, a launch's worth of blocks for nothing, at every stage
-(docs/whitted.md).
+(docs/notes/whitted.md).
 """
 
 from __future__ import annotations
@@ -119,7 +119,7 @@ assert NODE_FLOATS == 16 and CHILD_BOX == (0, 6) and REF == 12 and COUNT == 14
 # passes its nodes as float64), not 16, and a leaf's sphere in 2, not 4
 # (the primitive's read_leaf through _words, the spheres a row each, from
 # sphere_rows): the walk is bound by issue, and
-# a load is an instruction (docs/whitted.md)
+# a load is an instruction (docs/notes/whitted.md)
 _k = kernels.make(cuda.jit(device=True), read_row=_read_row64, words=_words)
 # module globals, which is how kernels can see them: the stages through the
 # tree and by brute force (only extend and the shadow test search)
@@ -208,7 +208,7 @@ def _primary(rays_f, rays_i, counts, first_pixel, pixels, width, height, basis):
 
 
 # Registers capped: more blocks resident on a multiprocessor hide more of the
-# walk's latency, which bounds it (docs/whitted.md#the-wavefront-issue-27)
+# walk's latency, which bounds it (docs/notes/whitted.md#the-wavefront-issue-27)
 @compiled.cuda_jit(max_registers=56)
 def _extend(rays_f, rays_i, counts, wave, capacity, spheres, count, nodes, links, ordered, order, hit_i, hit_t,
             hit_d, hits, width, rays):  # fmt: skip

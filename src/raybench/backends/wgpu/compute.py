@@ -32,7 +32,7 @@ UNIFORM_BYTES = 80  # shader's struct Frame: four vec4s, four u32s
 # The packet walk's votes are subgroup operations (packet.wgsl). It is no
 # default: on the one GPU measured through Vulkan it was slower than a ray at
 # a time at every size, where cuda's packets are faster on large trees
-# (docs/bvh-walk.md#tried-packets-on-wgpu-leases-r-and-s-kept-as-an-option-not-the-default);
+# (docs/notes/bvh-walk.md#tried-packets-on-wgpu-kept-as-an-option-not-the-default);
 # walk="packet" measures it on another GPU.
 PACKET_FEATURE = "subgroup"
 RAY_KINDS = len(layout.KINDS)

@@ -3,7 +3,7 @@
 The trace pass writes an RGBA texture, which the viewer draws as it is.
 trace() needs (H, W, 3) bytes on the host: picking RGB out of RGBA rows there
 took several times as long as the straight copy out of the mapped buffer
-(docs/wgpu.md#the-wgpu-frames-readback-lease-x1-and-x4). Packed on the GPU,
+(docs/notes/wgpu.md#the-wgpu-frames-readback). Packed on the GPU,
 the readback is one straight copy of the frame's own bytes.
 """
 

@@ -8,7 +8,7 @@
 // its int32 `links` view, the children's refs and counts. A struct reads
 // each part as its own type, with no bitcast; the boxes as three vec4s, so
 // that a row is four wide loads, not sixteen (the walk is bound by issue:
-// docs/whitted.md).
+// docs/notes/whitted.md).
 struct Node {
     box: array<vec4<f32>, 3>,
     links: vec4<i32>,   // ref 0, ref 1, count 0, count 1

@@ -36,7 +36,7 @@ GROUP = 64  # wavefront.wgsl's WF_GROUP
 # of the queue. wgpu does not say how many multiprocessors a GPU has, so a
 # number that fills large ones several times over: the more invocations a
 # stage has in flight, the less the GPU waits on the slowest at its end
-# (measured: docs/whitted.md#the-wavefronts-grid-issue-27-leases-e6-and-e7).
+# (measured: docs/notes/whitted.md#the-wavefronts-grid-issue-27).
 GROUPS = 16384
 RAYS_A_PIXEL = 1
 SHADOWS_A_PIXEL = 2

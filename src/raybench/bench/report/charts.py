@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import io
 import math
+import textwrap
 
 from .numbers import fmt_ms, fmt_r2, fmt_x
 from .series import DEVICE_NAMES
@@ -125,7 +126,9 @@ def plot_test7(label: str, series: list[dict]) -> bytes:
         ax.set_ylabel("frame time (ms)")
         ax.set_ylim(bottom=0)
         ax.legend(fontsize=8)
-    fig.suptitle(f"{label}: test 7, one frame per sphere count (first frame left out)", fontsize=10)
+    # wrapped to the figure: one series' figure is narrower than the title
+    title = f"{label}: test 7, one frame per sphere count (first frame left out)"
+    fig.suptitle(textwrap.fill(title, int(fig.get_figwidth() * 11)), fontsize=10)
     return _png(fig)
 
 

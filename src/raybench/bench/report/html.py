@@ -14,11 +14,13 @@ from __future__ import annotations
 
 import html as html_text
 import json
+import re
 
 import jinja2
 
 from .. import headline
-from .series import machine_of, speedups, thesis_series
+from . import answer
+from .series import speedups, thesis_series
 from .verdicts import CLAIMS, RULES, verdicts, with_reference_gpus
 
 _ENV = jinja2.Environment(
@@ -126,27 +128,26 @@ def _charts(machines: dict[str, list[dict]], table: list[dict]) -> list[dict]:
     return charts
 
 
-def render(sources, machines: dict[str, list[dict]], notes: list[str], references: list[dict] | None) -> str:
-    """The page's text, for the machines (report columns) of the thesis's suites."""
+def _details(lines: list[str]) -> str:
+    """report.md's details (from its first machine's section on) as HTML: the same sections, so
+    the page and report.md never differ in what they hold. Their text from a results file went
+    through escape() (character references: no tag, link or image); a chart, drawn as a PNG
+    beside report.md, is linked rather than shown, so the page fetches nothing."""
+    import markdown
+
+    text = "\n".join(_CHART.sub(r"[chart: \1](\2)", line) for line in lines)
+    return markdown.markdown(text, extensions=["tables"], output_format="html")
+
+
+_CHART = re.compile(r"^!\[([^\]]*)\]\(([^)\s]+)\)$")
+
+
+def render(sources, machines: dict[str, list[dict]], references, table, measured, details: list[str]) -> str:
+    """The page's text: the answer (headline and verdicts), the machines, the rules and the
+    references, in the template; then report.md's details, rendered."""
     from plotly.offline import get_plotlyjs
 
-    mine = [r for records in machines.values() for r in records]
-    table = headline.rows(mine, references or [])
     judged = {column: verdicts(records) for column, records in machines.items()}
-    described = []
-    for column, records in machines.items():
-        m = machine_of(records)
-        run = records[0]["run"]
-        described.append(
-            {
-                "column": column,
-                "cpu": (m.get("cpu") or {}).get("model") or "?",
-                "cores": (m.get("cpu") or {}).get("physical_cores") or "?",
-                "gpu": ", ".join(str(g.get("name")) for g in m.get("gpus") or []) or "no CUDA GPU",
-                "commit": run.get("git_commit") or "not recorded",
-                "date": run.get("date") or "?",
-            }
-        )
     points = [
         {
             "column": column,
@@ -163,14 +164,18 @@ def render(sources, machines: dict[str, list[dict]], notes: list[str], reference
         claims=CLAIMS,
         rules=RULES,
         judged=judged,
-        machines=described,
+        columns=list(machines),
+        machines=answer.machine_rows(measured),
         headline=headline,
         table=table,
+        ratio_header=answer.ratio_header(table),
+        ratio_note=answer.RATIO_NOTE,
+        unscored=headline.unscored(references or []),
+        fmt_interval=answer.fmt_interval,
         references=references is not None,
         with_references=with_reference_gpus(machines, references) if references else [],
         charts=[{"id": c["id"], "json": _script_json(c["figure"])} for c in _charts(machines, table)],
         points=points,
-        sources=[str(s) for s in sources],
-        notes=notes,
+        details=_details(details),
         plotly_js=get_plotlyjs(),
     )

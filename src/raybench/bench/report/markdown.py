@@ -9,18 +9,19 @@ thesis_sections and beyond_sections the sections of each suite."""
 
 from __future__ import annotations
 
+import os
 import re
 from pathlib import Path
+from urllib.parse import quote
 
 from ... import references as raybench_references
 from ...errors import RaybenchError
 from ...files import folder_atomic, write_atomic
 from .. import headline
 from ..suites import REGISTRY
-from . import html
+from . import answer, html
 from .beyond_sections import _section_dynamic, _section_multi_gpu, _section_parts, _section_scaling, _section_secondary
-from .markdown_blocks import _machine_lines, _table, _Writer, escape
-from .numbers import fmt_num, fmt_x
+from .markdown_blocks import _table, _Writer, escape
 from .records import load
 from .thesis_sections import _section_constant, _section_speedup, _section_test7, _section_thesis, _section_tuning
 from .verdicts import CLAIMS, RULES, THESIS_CPU, THESIS_GPU, verdicts, with_reference_gpus
@@ -51,28 +52,14 @@ def _claims_table(machines: dict[str, list[dict]]) -> tuple[str, dict[str, list[
 def _section_references(w: _Writer, machines: dict[str, list[dict]], references: list[dict]) -> None:
     """The headline beside the reference machines, and the claims that need a GPU judged,
     where a machine here has none, with each reference GPU: always named as another machine."""
-    mine = [r for records in machines.values() for r in records]
     w("## Beside the reference machines", "")
     w(
         "raybench ships results measured on other machines (benchmarks/make_references.py makes them from the "
         "records under benchmarks/results/). They are **not** this run's machines: each is named, with the "
-        "commit it was measured at. `raybench report --no-references` leaves this section out.",
+        "commit it was measured at; their headlines are in the table at the top. "
+        "`raybench report --no-references` leaves them out.",
         "",
     )
-    table = headline.rows(mine, references)
-    if table:
-        w(f"The {escape(headline.DEFINITION)} (raybench.bench.headline):", "")
-        rows = [
-            [
-                escape(r["label"]) + (" (reference: another machine)" if r["reference"] else ""),
-                escape(r["name"]),
-                fmt_num(r["value"]),
-                fmt_x(r["cpu_ratio"]) if r["cpu_ratio"] else "–",
-                escape(r["commit"] or "not recorded"),
-            ]
-            for r in table
-        ]
-        w(_table(["machine", "device", "million rays/s", "x this run's CPU", "commit"], rows), "")
     for pair in with_reference_gpus(machines, references):
         label, ref, gpu_name, judged = pair["label"], pair["ref"], pair["gpu"], pair["judged"]
         w(
@@ -109,8 +96,17 @@ def write_report(paths: list, out_dir, references: bool = True) -> Path:
     machines = {k: v for k, v in ((k, [r for r in v if r["suite"] not in beyond]) for k, v in machines.items()) if v}
     # built aside and renamed into place: never a half-made report under out_dir's name
     with folder_atomic(out_dir, _ours) as staged:
-        _write(sources, machines, notes, beyond, _Writer(staged), raybench_references.load() if references else None)
+        w = _Writer(staged)
+        w.final_dir = out_dir
+        _write(sources, machines, notes, beyond, w, raybench_references.load() if references else None)
     return out_dir / "report.md"
+
+
+def _link(source, report_dir: Path) -> str:
+    """A results file as a link from the report's folder: its path relative to the report,
+    percent-encoded, so that no character of a file's name can end the link or add markup."""
+    relative = os.path.relpath(Path(source).resolve(), Path(report_dir).resolve())
+    return quote(Path(relative).as_posix(), safe="/")
 
 
 def _ours(entry: Path) -> bool:
@@ -125,7 +121,7 @@ def _ours(entry: Path) -> bool:
 def _write(sources, machines, notes, beyond, w: _Writer, references: list[dict] | None) -> None:
     scaling, secondary = beyond["scaling"], beyond["secondary"]
     multi_gpu, dynamic, parts = beyond["multi-gpu"], beyond["dynamic"], beyond["parts"]
-    names = ", ".join(
+    labels = list(
         dict.fromkeys(
             [records[0]["run"]["label"] for records in machines.values() if records]
             + list(scaling)
@@ -135,29 +131,39 @@ def _write(sources, machines, notes, beyond, w: _Writer, references: list[dict] 
             + list(parts)
         )
     )
-    w(f"# raybench: the 2010 GPU ray-tracing thesis, measured again on {escape(names)}", "")
+    on = ", ".join(labels) if len(labels) <= 3 else f"{len(labels)} machines and runs (listed under Machines)"
+    w(f"# raybench: the 2010 GPU ray-tracing thesis, measured again on {escape(on)}", "")
     w(
         "Persson and Udd (2010) rendered spheres with one brute-force ray tracer (one primary ray per pixel, "
         f"tested against every sphere) on an {THESIS_CPU} and on a {THESIS_GPU} with a DirectX 11 compute "
-        "shader. raybench runs the same algorithm, written once, on this machine's CPU (Numba) and GPU "
-        "(numba-cuda), repeats the thesis's tests, and checks each of its claims below. Times are medians "
-        "over many frames; every number comes from the results files listed at the end.",
+        "shader. raybench runs the same algorithm, written once, on each device here, repeats the thesis's "
+        "tests, and checks each of its claims. The answer comes first; the details follow, grouped by "
+        "machine and suite, and the results files they come from are listed at the end.",
         "",
     )
+    mine = [r for records in machines.values() for r in records]
+    table = answer.headline_rows(mine, references)
+    w("## The answer", "")
+    if table:
+        w(f"The {escape(headline.DEFINITION)} (raybench.bench.headline):", "")
+        w(answer.headline_table(table), "")
+        w(*[f"- {escape(line)}" for line in headline.unscored(references or [])], "", answer.RATIO_NOTE, "")
+    w("### The thesis's claims", "")
+    claims, judged = _claims_table(machines)
+    w(claims, "")
     w("## Machines", "")
-    for label, records in machines.items():
-        w(*_machine_lines(label, records), "")
-    w("## The thesis's claims", "")
-    table, judged = _claims_table(machines)
-    w(table, "", "How the verdicts are decided:", "")
+    measured = [(column, records) for column, records in machines.items()]
+    measured += [(f"{label}, {suite}", records) for suite, found in beyond.items() for label, records in found.items()]
+    w(*answer.machines_markdown(measured))
+    w("## How the verdicts are decided", "")
     w(*[f"- {rule}" for rule in RULES], "")
     if references:
         _section_references(w, machines, references)
+    opening = len(w.lines)
     taken: set = set()
     for label, records in machines.items():
         slug = _slug(label, taken)
         w(f"## {escape(label)}", "")
-        w(*_machine_lines(label, records), "")
         for section in (_section_thesis, _section_speedup, _section_test7, _section_tuning, _section_constant):
             section(w, label, slug, records)
     if scaling:
@@ -183,9 +189,11 @@ def _write(sources, machines, notes, beyond, w: _Writer, references: list[dict] 
             _section_parts(w, label, records)
     w("## Sources", "")
     # a file's name is the user's text like any other: escaped, never a code span it could end
-    w(*[f"- {escape(p)}" for p in sources], "")
+    w(*[f"- [{escape(p)}]({_link(p, w.final_dir)})" for p in sources], "")
     if notes:
         w("## Notes", "")
         w(*[f"- {escape(n)}" for n in notes], "")
     write_atomic(w.out_dir / "report.md", "\n".join(w.lines).encode("utf-8"))
-    write_atomic(w.out_dir / "report.html", html.render(sources, machines, notes, references).encode("utf-8"))
+    details = w.lines[opening:]
+    page = html.render(sources, machines, references, table, measured, details)
+    write_atomic(w.out_dir / "report.html", page.encode("utf-8"))

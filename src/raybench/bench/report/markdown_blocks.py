@@ -105,6 +105,7 @@ class _Writer:
 
     def __init__(self, out_dir: Path):
         self.out_dir = out_dir
+        self.final_dir = out_dir  # where the report will be once renamed into place: links are relative to it
         self.lines: list[str] = []
         self.pngs: list[Path] = []
 

@@ -26,3 +26,23 @@ def fmt_x(x) -> str:
 
 def fmt_r2(x) -> str:
     return "nan (flat)" if x is None or math.isnan(x) else f"{x:.4f}"
+
+
+def fmt_compile_s(x) -> str:
+    """A compile time in s. Under a millisecond the kernels came from the disk cache: the figure
+    is the cache's lookup, finer than anything a compile could mean, so it is said so."""
+    if x is None:
+        return "–"
+    return "< 0.001 (from the cache)" if x < 1e-3 else fmt_num(x)
+
+
+def fmt_slope(slope, spheres) -> str:
+    """A fit's slope in ms a sphere. Where the whole series' range of spheres moves the frame by
+    less than a microsecond, the slope is flat within what a frame's timing can tell, and the
+    digits of its size would be noise: it reads as flat."""
+    if slope is None:
+        return "–"
+    span = max(spheres) - min(spheres) if len(spheres) else 0
+    if abs(slope) * span < 1e-3:
+        return "flat (< 1 µs over the series)"
+    return fmt_num(slope)

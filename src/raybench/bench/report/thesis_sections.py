@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from . import charts
 from .markdown_blocks import _adapter_name, _table, _Writer, escape
-from .numbers import fmt_ms, fmt_num, fmt_r2, fmt_x
+from .numbers import fmt_compile_s, fmt_ms, fmt_num, fmt_r2, fmt_slope, fmt_x
 from .series import (
     DEVICE_NAMES,
     constant_vs_runtime,
@@ -105,15 +105,15 @@ def _section_thesis(w: _Writer, label: str, slug: str, records: list[dict]) -> N
             row = [
                 f"{s['width']}x{s['height']}",
                 escape(s["test"] or "–"),
-                fmt_num(f["slope"]) if f else "–",
+                fmt_slope(f["slope"], s["spheres"]) if f else "–",
                 fmt_num(f["intercept"]) if f else "–",
                 fmt_r2(f["r2"]) if f else "–",
             ]
-            row += [fmt_ms(at[n]) if n in at else "" for n in counts]
+            row += [fmt_ms(at[n]) if n in at else "–" for n in counts]
             if kernel:
                 row += [
                     fmt_ms(s["kernel"][-1]) if s["kernel"] else "–",
-                    fmt_num(s["kernel_fit"]["slope"]) if s["kernel_fit"] else "–",
+                    fmt_slope(s["kernel_fit"]["slope"], s["spheres"]) if s["kernel_fit"] else "–",
                 ]
             tps = s["tests_per_s"][-1]
             row.append(f"{fmt_num(tps / 1e9)} G" if tps else "–")
@@ -172,11 +172,11 @@ def _section_test7(w: _Writer, label: str, slug: str, records: list[dict]) -> No
                 escape(DEVICE_NAMES.get(s["device"], s["device"])),
                 f"{s['width']}x{s['height']}",
                 len(s["spheres"]),
-                fmt_num(f["slope"]) if f else "–",
+                fmt_slope(f["slope"], s["spheres"]) if f else "–",
                 fmt_num(f["intercept"]) if f else "–",
                 fmt_r2(f["r2"]) if f else "–",
                 fmt_ms(s["first_frame_s"] * 1e3) if s["first_frame_s"] is not None else "–",
-                fmt_num(s["compile_s"]) if s["compile_s"] is not None else "–",
+                fmt_compile_s(s["compile_s"]),
             ]
         )
     w(

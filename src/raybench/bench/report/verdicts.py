@@ -110,7 +110,7 @@ def _claim1(records):
     slower = [p for p in sp if p["speedup"] <= 1]
     text = (
         f"min {fmt_x(low['speedup'])} ({_where(low)}), median {fmt_x(statistics.median(values))}, "
-        f"max {fmt_x(max(values))} over {len(sp)} matched points"
+        f"max {fmt_x(max(values))} over {len(sp)} matched points (CPU median frame time / GPU's, point by point)"
     )
     if slower:
         text += f"; the GPU is not faster at {len(slower)} of them"
@@ -237,7 +237,7 @@ def _claim6(records):
     return (HOLDS if ok else FAILS), f"GPU: {listing(gpu)}{info}", values
 
 
-# --- beyond the thesis: secondary rays (docs/whitted.md) -----------------------------
+# --- beyond the thesis: secondary rays (docs/notes/whitted.md) -----------------------------
 
 SECONDARY_QUESTION = "Does the GPU's lead over the CPU hold for secondary rays?"
 # Fixed before any data was taken: the GPU keeps at least this share of its

@@ -1,12 +1,12 @@
 #!/bin/bash
-# The sessions of the run in docs/mutation.md: a copy of the tree outside any
+# The sessions of the run in docs/notes/mutation.md: a copy of the tree outside any
 # git worktree (/tmp/mut-tree), one cosmic-ray session per module (/tmp/cr),
 # the operators that cannot apply filtered out, then the seeded sample
 # (sample.py). Then drive.sh runs them, one mutant at a time.
 set -e
 here=$(cd "$(dirname "$0")" && pwd)
 mkdir -p /tmp/mut-tree /tmp/cr/sel
-git -C "$here/../.." archive HEAD | tar -x -C /tmp/mut-tree
+git -C "$here/../../.." archive HEAD | tar -x -C /tmp/mut-tree
 cp "$here"/*.txt /tmp/cr/sel/ && cp "$here"/runsel.sh /tmp/cr/
 for m in kernels/intersect kernels/shade kernels/trace kernels/traverse kernels/whitted backends/cpu backends/cuda \
          backends/cuda_build backends/limits backends/contract backends/walks scene; do

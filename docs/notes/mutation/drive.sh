@@ -1,5 +1,5 @@
 #!/bin/bash
-# Every session of the run in docs/mutation.md in turn, one mutant at a time (touch /tmp/cr/STOP to stop before the next module).
+# Every session of the run in docs/notes/mutation.md in turn, one mutant at a time (touch /tmp/cr/STOP to stop before the next module).
 cd /tmp/mut-tree || exit 1
 find . -name __pycache__ -prune -exec rm -rf {} +
 for n in kernels_intersect kernels_trace kernels_shade kernels_traverse backends_cpu scene backends_limits backends_walks backends_contract kernels_whitted backends_cuda backends_cuda_build; do

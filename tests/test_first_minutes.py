@@ -1,0 +1,283 @@
+"""What a new user meets in the first minutes: ./run.sh's arguments (the default main job at 2 s
+a point, --full one flag away), progress as plain lines when the output is not a terminal, the
+headline's interval and the loaded-machine warning, and Whitted shading that says what it lacks.
+The end-to-end run (lines in a real bench, the interval printed) is test_bench's quick run."""
+
+import os
+import subprocess
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import raybench
+from raybench.bench import headline, load, progress
+from raybench.bench.suites import Point
+from raybench.cli.options import shading_notes
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+# --- ./run.sh -------------------------------------------------------------------------
+
+
+@pytest.fixture
+def fake_checkout(tmp_path):
+    """run.sh in a folder whose .venv's python and raybench only print their arguments."""
+    (tmp_path / "run.sh").write_text((ROOT / "run.sh").read_text())
+    bin_ = tmp_path / ".venv" / "bin"
+    bin_.mkdir(parents=True)
+    for name in ("python", "raybench"):
+        (bin_ / name).write_text(f'#!/bin/sh\necho "{name} $*"\n')
+        (bin_ / name).chmod(0o755)
+    return tmp_path
+
+
+@pytest.mark.parametrize(
+    "args, bench",
+    [
+        ([], "raybench bench --duration 2"),
+        (["--full"], "raybench bench"),
+        (["--full", "--suite", "all"], "raybench bench --suite all"),
+        (["--quick"], "raybench bench --quick"),
+        (["--duration", "5", "--device", "cpu"], "raybench bench --duration 5 --device cpu"),
+        (["--suite", "secondary"], "raybench bench --duration 2 --suite secondary"),
+    ],
+)
+def test_run_sh_is_the_short_job_and_full_is_one_flag_away(fake_checkout, args, bench):
+    done = subprocess.run(["bash", "run.sh", *args], cwd=fake_checkout, capture_output=True, text=True, check=True)
+    lines = done.stdout.splitlines()
+    assert lines[-2:] == ["raybench info", bench]
+    assert "setting up .venv" not in done.stdout  # there already: no first-run line
+
+
+# --- progress as lines ---------------------------------------------------------------
+
+
+class Clock:
+    def __init__(self):
+        self.t = 100.0
+
+    def __call__(self):
+        return self.t
+
+
+def _points():
+    thesis = [Point("thesis", "cpu", 800, 600, n, {"accel": "none"}, test=4) for n in (100, 500)]
+    return [*thesis, Point("test7", "cpu", 800, 600, 30, {"accel": "none"}, test=7, ramp=(10, 20, 30))]
+
+
+def test_a_line_per_suite_and_point_with_what_is_left():
+    said, clock = [], Clock()
+    points = _points()
+    lines = progress.Lines(said.append, points, [3.0, 3.0, 6.0], now=clock)
+    try:
+        lines.point(0, points[0])
+        clock.t += 6.0  # the first point took twice its nominal 3 s (a compile): the rest at that pace
+        lines.done(0)
+        lines.point(1, points[1])
+        lines.done(1)
+        clock.t += 6.0
+        lines.point(2, points[2])
+    finally:
+        lines.close()
+    assert said == [
+        "suite thesis: 2 points",
+        "[1/3] thesis test 4 cpu 800x600 100 spheres accel=none  (0:00 so far, about 0:12 left)",
+        "[2/3] thesis test 4 cpu 800x600 500 spheres accel=none  (0:06 so far, about 0:18 left)",
+        "suite test7: 1 point",
+        "[3/3] test7 cpu 800x600 test 7 ramp 10..30 accel=none  (0:12 so far, about 0:12 left)",
+    ]
+
+
+def test_a_long_point_is_never_silent(monkeypatch):
+    monkeypatch.setattr(progress, "HEARTBEAT_S", 0.0)
+    said, seen = [], threading.Event()
+
+    def echo(line):
+        said.append(line)
+        if line.startswith("  still on"):
+            seen.set()
+
+    points = _points()
+    lines = progress.Lines(echo, points, [1.0, 1.0, 1.0])
+    try:
+        lines.point(0, points[0])
+        assert seen.wait(10), said
+    finally:
+        lines.close()
+    assert said[2].startswith("  still on thesis test 4 cpu 800x600 100 spheres accel=none: 0:0")
+
+
+def test_clock():
+    assert [progress.clock(s) for s in (0, 59.4, 61, 3600)] == ["0:00", "0:59", "1:01", "60:00"]
+
+
+# --- the headline's interval, and a loaded machine -------------------------------------
+
+
+def _records(samples: dict[int, list[float]]) -> list[dict]:
+    run = {"label": "here", "settings": {"seed": 0}, "machine": {"cpu": {"model": "a CPU", "physical_cores": 2}}}
+    return [
+        {
+            "suite": "thesis",
+            "device": "cpu",
+            "width": 800,
+            "height": 600,
+            "spheres": n,
+            "options": {"kernel": "fast", "accel": "none"},
+            "frame_ms": {"median": float(np.median(s))},
+            "samples_ms": s,
+            "run": run,
+        }
+        for n, s in samples.items()
+    ]
+
+
+def test_the_interval_of_steady_frames_is_the_headline_itself():
+    records = _records({100: [10.0] * 50, 500: [40.0] * 50, 1000: [80.0] * 50})
+    # by hand: 480,000 rays at 10, 40 and 80 ms, in millions a second, geometric mean
+    expected = (48.0 * 12.0 * 6.0) ** (1 / 3)
+    assert headline.score(records, "cpu") == pytest.approx(expected)
+    low, high = headline.interval(records, "cpu")
+    assert low == pytest.approx(expected) and high == pytest.approx(expected)
+
+
+def test_the_interval_holds_the_headline_and_widens_with_noise():
+    rng = np.random.default_rng(1)
+    base = {100: 10.0, 500: 40.0, 1000: 80.0}
+    widths = []
+    for noise in (0.02, 0.2):
+        records = _records({n: list(ms * (1 + noise * rng.standard_normal(200))) for n, ms in base.items()})
+        low, high = headline.interval(records, "cpu")
+        assert low < headline.score(records, "cpu") < high
+        widths.append((high - low) / headline.score(records, "cpu"))
+    assert widths[1] > 4 * widths[0]
+
+
+def test_no_interval_without_kept_frames():
+    records = _records({100: [10.0] * 50, 500: [40.0] * 50, 1000: [80.0] * 2})
+    assert headline.interval(records, "cpu") is None
+
+
+def test_a_loose_interval_is_flagged_in_the_summary():
+    # half of each point's frames slowed by a half (a neighbour's burst of work): the median is
+    # either, depending on which stretch the resampled blocks come from
+    base = {100: 10.0, 500: 40.0, 1000: 80.0}
+    noisy = _records({n: [ms] * 50 + [1.5 * ms] * 50 for n, ms in base.items()})
+    out = headline.summary(noisy, [])
+    assert "95% interval" in out[1] and out[2].startswith("  warning: the interval of")
+    steady = headline.summary(_records({100: [10.0] * 50, 500: [40.0] * 50, 1000: [80.0] * 50}), [])
+    assert not any("warning" in line for line in steady)
+
+
+def test_other_processes_share_of_the_machine(monkeypatch):
+    """Other processes' share: the machine's busy time less this process tree's, over wall time
+    and cores (psutil's readings replaced by made-up ones, worked by hand)."""
+    from types import SimpleNamespace
+
+    readings = {"wall": 10.0, "busy": 100.0, "own": 5.0}
+    monkeypatch.setattr(load.time, "monotonic", lambda: readings["wall"])
+    monkeypatch.setattr(load, "_busy", lambda times: readings["busy"])
+    monkeypatch.setattr(load, "_own", lambda process: readings["own"])
+    monkeypatch.setattr(load.psutil, "cpu_count", lambda: 2)
+    monkeypatch.setattr(load.psutil, "cpu_times", lambda: SimpleNamespace())
+    watch = load.Load()
+    # 20 s of wall on 2 cores = 40 core-seconds; the machine was busy 30 of them, 18 of them ours
+    readings.update(wall=30.0, busy=130.0, own=23.0)
+    assert watch.others() == pytest.approx(12 / 40)
+    readings.update(own=40.0)  # ours more than the machine's (readings at different instants): none
+    assert watch.others() == 0.0
+    assert load.warning(0.05) is None and load.warning(load.LOADED) is None
+    assert "other processes took 30% of its CPU time" in load.warning(0.3)
+
+
+def test_a_real_reading_is_a_share():
+    watch = load.Load()
+    time.sleep(0.2)
+    assert 0.0 <= watch.others() <= 1.0
+
+
+# --- Whitted shading says what it lacks ------------------------------------------------
+
+
+def _shaded(depth=None, samples=None):
+    return {"shading": "whitted", "depth": depth, "shadow_samples": samples}
+
+
+def test_whitted_without_lights_says_so_and_what_it_drew():
+    plain = raybench.random_spheres(20)
+    (note,) = shading_notes(plain, _shaded())
+    assert "no lights" in note and "the thesis's picture" in note and "--materials" in note
+    assert shading_notes(plain, {"shading": "thesis", "depth": None, "shadow_samples": None}) == []
+    idle = shading_notes(plain, _shaded(depth=3, samples=2))
+    assert idle[1] == "note: --depth has no effect: the scene has no mirrors or glass to bounce from"
+    assert idle[2].startswith("note: --shadow-samples has no effect")
+
+
+def test_whitted_with_lights_and_materials_has_nothing_to_say():
+    assert shading_notes(raybench.random_spheres(20, materials=True), _shaded(depth=3, samples=2)) == []
+
+
+def test_whitted_with_lights_but_only_matte_spheres_says_there_are_no_bounces():
+    scene = raybench.random_spheres(5)
+    lit = raybench.Scene(scene.centers, scene.radii, scene.colors, lights=[raybench.Light(position=(0, 5, 0))])
+    notes = shading_notes(lit, _shaded(samples=4))
+    assert "no sphere has a mirror or glass material" in notes[0]
+    assert notes[1].startswith("note: --shadow-samples has no effect: the scene has no area light")
+
+
+@pytest.mark.slow  # its first run compiles the CPU's Whitted kernels
+def test_render_says_what_whitted_lacked_and_draws_what_it_said(capsys, tmp_path):
+    from PIL import Image
+
+    from raybench.cli import run
+
+    out_png = tmp_path / "w.png"
+    argv = ["render", "--spheres", "20", "--size", "24x16", "--device", "cpu", "--shading", "whitted", "-o"]
+    assert run([*argv, str(out_png)]) == 0
+    out, err = capsys.readouterr()
+    assert err == "" and "note: --shading whitted: the scene has no lights" in out
+    # what the note says it drew: the thesis's picture, bit for bit
+    thesis = raybench.render(raybench.random_spheres(20), width=24, height=16, device="cpu").image
+    assert np.array_equal(np.asarray(Image.open(out_png)), thesis)
+
+
+@pytest.mark.parametrize(
+    "settings, kernels_given, said",
+    [
+        ({"accels": ["bvh"], "devices": [], "kernels": ["simple"], "builds": []}, True, ["--kernel has no effect"]),
+        ({"accels": ["none"], "devices": ["wgpu"], "kernels": ["fast"], "builds": []}, True, ["--kernel fast has no"]),
+        ({"accels": ["none"], "devices": ["cuda"], "kernels": ["fast"], "builds": ["gpu"]}, False, ["--build has no"]),
+        ({"accels": ["bvh", "none"], "devices": [], "kernels": ["fast"], "builds": ["gpu"]}, True, []),
+    ],
+)
+def test_bench_says_which_options_change_nothing(settings, kernels_given, said):
+    from raybench.cli.bench import idle_options
+
+    notes = idle_options(settings, kernels_given)
+    assert len(notes) == len(said) and all(n.startswith(f"note: {s}") for n, s in zip(notes, said))
+
+
+def test_run_sh_first_install_prints_a_line_a_package(fake_checkout):
+    """No .venv yet: run.sh says it is setting one up, and pip lists its packages as it goes
+    rather than staying quiet for the minute or two a first install takes."""
+    import shutil
+
+    shutil.rmtree(fake_checkout / ".venv")
+    stub = fake_checkout / "bin"
+    stub.mkdir()
+    # python3 -m venv .venv: a .venv whose programs print their arguments
+    (stub / "python3").write_text(
+        "#!/bin/sh\nmkdir -p .venv/bin\nfor n in python raybench; do\n"
+        '  printf \'#!/bin/sh\\necho "%s $*"\\n\' "$n" > .venv/bin/$n; chmod +x .venv/bin/$n\ndone\n'
+    )
+    (stub / "python3").chmod(0o755)
+    env = {**os.environ, "PATH": f"{stub}:{os.environ['PATH']}"}
+    done = subprocess.run(["bash", "run.sh"], cwd=fake_checkout, capture_output=True, text=True, check=True, env=env)
+    lines = done.stdout.splitlines()
+    assert lines[0].startswith("setting up .venv: about 640 MiB")
+    assert lines[1] == "python -m pip install --progress-bar off --disable-pip-version-check -e ."
+    assert lines[-1] == "raybench bench --duration 2"
