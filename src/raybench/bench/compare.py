@@ -129,7 +129,7 @@ def _times(record: dict) -> dict:
 
 
 def _frames(record: dict) -> int:
-    return int(record.get("samples") if record["suite"] == "parts" else record.get("frames") or 0)
+    return int((record.get("samples") if record["suite"] == "parts" else record.get("frames")) or 0)
 
 
 def _summary_interval(old: dict, new: dict) -> tuple[float, float] | None:
@@ -390,7 +390,7 @@ def _pct(x: float) -> str:
 
 def _interval(c: Change) -> str:
     if not (math.isfinite(c.low) and math.isfinite(c.high)):
-        return "none (one frame)"
+        return "none"
     text = f"{_pct((c.low - 1) * 100)} to {_pct((c.high - 1) * 100)}"
     return text + " (from summaries)" if c.method == "summary" else text
 

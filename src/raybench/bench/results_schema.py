@@ -174,7 +174,7 @@ def _compile(spec, named: dict | None = None, rest=None):
                     raise bad.at(key) from None
             elif not optional:
                 raise _Bad("present", "nothing").at(key)
-        if rest is not None and len(value) > len(fields):
+        if rest is not None:  # (optional fields make the count of value's keys no guide to the names)
             for key, item in value.items():
                 if key not in spec and key + "?" not in spec:
                     try:
