@@ -1,12 +1,15 @@
 """Issue 39's items that have no test file of their own: a report's folder
-checked before the work, parts records without samples compared. Each test
-failed before its fix."""
+checked before the work, parts records without samples compared, the API's
+options checked for type at its edge. Each test failed before its fix."""
 
 import json
 
+import numpy as np
 import pytest
 from test_compare import point
 
+import raybench
+from raybench import RaybenchError
 from raybench.bench import compare, results
 from raybench.cli import run
 
@@ -45,3 +48,36 @@ def test_parts_without_samples_are_compared_without_a_traceback(tmp_path, capsys
     assert c.verdict == compare.TOO_FEW and c.ratio == 1.5
     assert run(["compare", str(old), str(new)]) == 0
     assert "parts bvh-build cpu" in capsys.readouterr().out
+
+
+API_TYPES = [
+    ({"kernel": "simple", "accel": "none", "constant_count": "no"}, "constant_count: must be True or False, got 'no'"),
+    ({"kernel": "simple", "accel": "none", "constant_count": 1}, "constant_count: must be True or False, got 1"),
+    ({"tree_width": 2.0}, "tree_width: must be one of 2, 4, got 2.0"),
+    ({"tree_width": np.array(2)}, "tree_width: must be one of 2, 4, got 2"),
+    ({"tree_width": np.array([2, 4])}, "tree_width: must be one of 2, 4, got [2, 4]"),
+    ({"accel": np.array(["bvh"])}, "accel: must be one of bvh, none, got ['bvh']"),
+    ({"accel": "none", "kernel": np.array(["fast"])}, "kernel: must be one of fast, simple, got ['fast']"),
+    ({"device": np.array([1.0, 2.0])}, "device: must be one of"),
+    ({"shading": np.array([1.0, 2.0])}, "shading: must be one of"),
+    ({"threads": np.array([2])}, "threads: must be an integer from 1"),
+]
+
+
+@pytest.mark.parametrize("given, message", API_TYPES, ids=[str(i) for i in range(len(API_TYPES))])
+def test_api_options_are_checked_for_type_at_the_edge(given, message):
+    """ "no" was truthy and taken, 2.0 and an array passed `in (2, 4)`, and an
+    array of two raised NumPy's ValueError from deep inside: each is now the
+    CLI's one line, naming the parameter, before any work."""
+    scene = raybench.random_spheres(5, seed=1)
+    with pytest.raises(RaybenchError) as caught:
+        raybench.render(scene, width=8, height=8, **{"device": "cpu", **given})
+    assert str(caught.value).startswith(message), str(caught.value)
+    assert "\n" not in str(caught.value)
+
+
+def test_a_true_flag_is_still_taken():
+    from raybench.backends import options
+
+    for flag in (True, np.bool_(True)):
+        assert options.checked("cpu", {"accel": "none", "kernel": "simple", "constant_count": flag}).constant_count
