@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import psutil
 import pytest
+from conftest import sigint_default
 from PIL import Image
 
 import raybench
@@ -690,7 +691,9 @@ def interrupted_when(argv, ready):
     bounded; a child still there is killed before its pipe is read."""
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
     with tempfile.TemporaryFile() as errors:
-        proc = subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL, stderr=errors, start_new_session=True)
+        proc = subprocess.Popen(
+            argv, env=env, stdout=subprocess.DEVNULL, stderr=errors, start_new_session=True, preexec_fn=sigint_default
+        )
         family = []
         try:
             deadline = time.monotonic() + 120

@@ -8,6 +8,13 @@ class RaybenchError(ValueError):
     was wrong and what is allowed. The CLI prints it and exits with code 2."""
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (kill, a job scheduler, a container stopping), raised in the
+    main thread as Ctrl-C is (cli.entry sets the handler): every cleanup that
+    Ctrl-C runs (a half-made folder removed, a pool of processes closed, the
+    points finished kept) runs for it too, and the process ends in one line."""
+
+
 # The libraries that drive the devices: an exception raised from one of them
 # in the middle of a run (a GPU lost, out of memory, a driver reset) is the
 # device failing, not raybench's bug, and is told in one line (cli.run).
