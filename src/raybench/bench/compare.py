@@ -132,6 +132,12 @@ def _frames(record: dict) -> int:
     return int((record.get("samples") if record["suite"] == "parts" else record.get("frames")) or 0)
 
 
+def _kept(record: dict) -> int:
+    """How many frame times the record keeps (a list, or an array: results.read(compact=True))."""
+    samples = record.get("samples_ms")
+    return 0 if samples is None else len(samples)
+
+
 def _summary_interval(old: dict, new: dict) -> tuple[float, float] | None:
     """The interval of log(new median / old median) from the summaries alone
     (the normal approximation above), or None where a side has under 2 frames."""
@@ -254,7 +260,7 @@ def change(
         ratio, low, high = paired_ratio(old["series"]["frame_ms"], new["series"]["frame_ms"], rng)
         method = "paired"
         old_ms, new_ms = sum(old["series"]["frame_ms"]), sum(new["series"]["frame_ms"])
-    elif len(old.get("samples_ms") or ()) >= 2 and len(new.get("samples_ms") or ()) >= 2:
+    elif _kept(old) >= 2 and _kept(new) >= 2:
         ratio, low, high = bootstrap_ratio(old["samples_ms"], new["samples_ms"], rng, ranks=ranks)
         method = "bootstrap"
     else:

@@ -43,7 +43,8 @@ def compare_cmd(old, new, noise_pct, fail_pct):
         raise RaybenchError(f"--fail-slower: must be from 0 to 1000 percent, got {fail_pct:g}")
     progress = Progress("compare: points")
     try:
-        comparison = compare.compare(results.read(old), results.read(new), noise_pct, progress=progress)
+        runs = results.read(old, compact=True), results.read(new, compact=True)
+        comparison = compare.compare(*runs, noise_pct, progress=progress)
     finally:
         progress.end()
     if fail_pct is not None and not comparison.changes:
