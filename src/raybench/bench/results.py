@@ -167,12 +167,12 @@ def read(path, compact: bool = False) -> list[dict]:
 def parse_records(text: str, path, compact: bool = False) -> list[dict]:
     """The records of a results file's text (read()), path naming it in messages."""
     check_nesting(text, str(path), lines=True)
-    lines = text.split("\n")
     # The last line holding anything: only it may be cut short. Found once, so reading is linear.
-    last = max((i for i, line in enumerate(lines, 1) if line.strip()), default=0)
+    end = len(text.rstrip())
+    last = text.count("\n", 0, end) + 1 if end else 0
     records: list[dict] = []
     runs: list[str] = []  # (as JSON text: _same_run)
-    for number, line in enumerate(lines, 1):
+    for number, line in enumerate(_lines(text), 1):
         if not line.strip():
             continue
         where = f"{path}: line {number}"
@@ -199,6 +199,16 @@ def parse_records(text: str, path, compact: bool = False) -> list[dict]:
     if not records:
         raise RaybenchError(f"{path}: holds no results")
     return records
+
+
+def _lines(text: str):
+    """text.split("\n"), a line at a time: a list of every line would double a large file's memory."""
+    start = 0
+    while start <= len(text):
+        end = text.find("\n", start)
+        end = len(text) if end < 0 else end
+        yield text[start:end]
+        start = end + 1
 
 
 # Every record starts so: as the writer makes it (json.dumps of format, version, then
