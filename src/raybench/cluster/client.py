@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import logging
 import os
+import stat
 import threading
 
 from ..backends.limits import check_connect_timeout, check_worker_count
@@ -224,8 +225,78 @@ def connect(address: str, timeout: float = CONNECT_TIMEOUT_S, security=None):
             f"scheduler {address}: a tls:// address needs this client's TLS credentials: give --tls-ca, "
             "--tls-cert and --tls-key (Cluster(security=...)), or set Dask's distributed.comm.tls config"
         )
+    if address.startswith("tls://"):
+        check_tls(security.tls_ca_file, security.tls_client_cert, security.tls_client_key)
+    _answers(address, timeout, security)
     try:
         return Client(address, timeout=timeout, security=security)
     except (OSError, TimeoutError, ValueError) as exc:
         reason = " ".join(str(exc).split()) or type(exc).__name__
         raise RaybenchError(f"scheduler {address}: unreachable within {timeout:g} s ({reason})") from None
+
+
+def _answers(address: str, timeout: float, security) -> None:
+    """One line unless a Dask scheduler at address answers within timeout
+    seconds: Client's own wait had no deadline once a connection was
+    accepted, and a process that accepted and never answered held it forever."""
+    import asyncio
+
+    from distributed.comm import connect as comm_connect
+
+    async def identity():
+        comm = await comm_connect(address, timeout=timeout, **security.get_connection_args("client"))
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            await comm.read()
+        finally:
+            comm.abort()
+
+    try:
+        asyncio.run(asyncio.wait_for(identity(), timeout))
+    except TimeoutError:
+        raise RaybenchError(
+            f"scheduler {address}: did not answer within {timeout:g} s (something accepted the connection, "
+            "but no Dask scheduler answered it)"
+        ) from None
+    except (OSError, ValueError, EOFError) as exc:  # refused, a name not found, TLS refused
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        raise RaybenchError(f"scheduler {address}: unreachable within {timeout:g} s ({reason})") from None
+
+
+# Where Dask's Security takes the credentials themselves rather than their files.
+_PEM = "-----BEGIN"
+
+
+def check_tls(ca, cert, key=None, names=("tls_ca_file", "tls_client_cert", "tls_client_key")) -> None:
+    """The TLS credentials' files named for what is wrong with them, before
+    any connection: missing, not a regular file (opening a FIFO waits for a
+    writer, forever), unreadable, or not a PEM CA, certificate or key. They
+    were all told as "scheduler unreachable". names: the options' (the CLI's
+    --tls-ca, --tls-cert, --tls-key) or Security's attributes."""
+    import ssl
+
+    files = [(name, path) for name, path in zip(names, (ca, cert, key)) if path and not str(path).startswith(_PEM)]
+    for name, path in files:
+        try:
+            info = os.stat(path)
+        except OSError as exc:
+            raise RaybenchError(f"{name} {path}: cannot be read ({exc.strerror or exc})") from None
+        if not stat.S_ISREG(info.st_mode):
+            raise RaybenchError(f"{name} {path}: not a regular file (a FIFO, a device or a folder); give a PEM file")
+        try:
+            with open(path, "rb") as f:
+                f.read(1)
+        except OSError as exc:
+            raise RaybenchError(f"{name} {path}: cannot be read ({exc.strerror or exc})") from None
+    if len(files) < 2 + bool(key) or any(str(p).startswith(_PEM) for p in (ca, cert, key) if p):
+        return  # credentials given inline: Dask reads them
+    context = ssl.SSLContext(ssl.PROTOCOL_TLS_CLIENT)
+    try:
+        context.load_verify_locations(cafile=ca)
+    except (ssl.SSLError, ValueError) as exc:
+        raise RaybenchError(f"{names[0]} {ca}: not a PEM CA certificate ({exc.reason or exc})") from None
+    try:
+        context.load_cert_chain(cert, key)
+    except (ssl.SSLError, ValueError) as exc:
+        which = f"{names[1]} {cert}" + (f" and {names[2]} {key}" if key else "")
+        raise RaybenchError(f"{which}: not a PEM certificate and its private key ({exc.reason or exc})") from None
