@@ -655,6 +655,38 @@ def test_a_scheduler_that_accepts_and_never_answers_is_one_line_within_the_timeo
     assert err.count("\n") == 1
 
 
+SHORT_FRAMES = {
+    # Dask's frames: 8 bytes of length, then a count of frames and their lengths; this says 5, holds none
+    "a short frame": b"\x08" + b"\x00" * 7 + b"\x05" + b"\x00" * 7,
+    "not msgpack": b"\x10" + b"\x00" * 7 + b"\x01" + b"\x00" * 7 + b"\x04" + b"\x00" * 7 + b"abcd",
+}
+
+
+@pytest.mark.parametrize("name", SHORT_FRAMES)
+def test_a_peer_that_answers_nonsense_is_one_line(name, capsys):
+    """A short Dask frame raised struct.error with a traceback (and bytes that
+    are not msgpack, Dask's CRITICAL log with one): now one line, and no log."""
+    import threading
+
+    with socket.socket() as peer:
+        peer.bind(("127.0.0.1", 0))
+        peer.listen(8)
+        address = f"tcp://127.0.0.1:{peer.getsockname()[1]}"
+
+        def answer():
+            with contextlib.suppress(OSError):
+                while True:
+                    conn, _ = peer.accept()
+                    conn.sendall(SHORT_FRAMES[name])
+                    conn.close()
+
+        threading.Thread(target=answer, daemon=True).start()
+        code = run(["render", "--spheres", "3", "--size", "16x8", "--scheduler", address, "--connect-timeout", "5"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith(f"raybench: error: scheduler {address}: "), err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+
+
 @pytest.mark.parametrize("fault", ["fifo", "folder", "not PEM", "key of another", "CA not PEM"])
 def test_bad_tls_files_are_named_for_what_they_are(fault, credentials, tmp_path, capsys, monkeypatch):
     """A FIFO as --tls-ca hung in its open (waiting for a writer); a folder, a

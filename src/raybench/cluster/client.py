@@ -251,6 +251,9 @@ def _answers(address: str, timeout: float, security) -> None:
         finally:
             comm.abort()
 
+    # What the peer sends is Dask's to decode, which logs its failures (a traceback) before raising them.
+    protocol = logging.getLogger("distributed.protocol")
+    level, protocol.level = protocol.level, logging.CRITICAL + 1
     try:
         asyncio.run(asyncio.wait_for(identity(), timeout))
     except TimeoutError:
@@ -258,9 +261,14 @@ def _answers(address: str, timeout: float, security) -> None:
             f"scheduler {address}: did not answer within {timeout:g} s (something accepted the connection, "
             "but no Dask scheduler answered it)"
         ) from None
-    except (OSError, ValueError, EOFError) as exc:  # refused, a name not found, TLS refused
+    except (OSError, EOFError) as exc:  # refused, a name not found, closed, TLS refused
         reason = " ".join(str(exc).split()) or type(exc).__name__
         raise RaybenchError(f"scheduler {address}: unreachable within {timeout:g} s ({reason})") from None
+    except Exception as exc:  # noqa: BLE001 -- a peer's bytes, any decoding error of Dask's (struct.error, msgpack's)
+        reason = " ".join(str(exc).split())[:200] or type(exc).__name__
+        raise RaybenchError(f"scheduler {address}: answered, but not as a Dask scheduler does ({reason})") from None
+    finally:
+        protocol.level = level
 
 
 # Where Dask's Security takes the credentials themselves rather than their files.
