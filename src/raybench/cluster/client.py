@@ -22,8 +22,10 @@ raybench's workers take one task at a time, without that variable.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
+import signal
 import stat
 import threading
 
@@ -121,6 +123,27 @@ def dask_setup(worker) -> None:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
+@contextlib.contextmanager
+def _ctrl_c_after():
+    """Ctrl-C held while an embedded cluster starts, then raised, where the
+    cluster is closed: raised inside Dask's start, it left a cluster half made
+    for Dask's exit hook to fail on, with a traceback. (The workers still
+    importing get the terminal's Ctrl-C too, and may print theirs: a spawned
+    process starts with no signal blocked, and ignoring it here meanwhile
+    would lose the user's Ctrl-C.)"""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = []
+    handler = signal.signal(signal.SIGINT, lambda signum, frame: held.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, handler)
+        if held and handler is signal.default_int_handler:
+            raise KeyboardInterrupt
+
+
 def default_workers(device: str) -> int:
     return max(1, gpu_count()) if device == "cuda" else 1
 
@@ -178,17 +201,20 @@ class Cluster:
             security = embedded_security()
         scheduler_options = {"host": HOST, "port": 0, "dashboard_address": f"{HOST}:0",
                              "protocol": _protocol(security), "security": security}  # fmt: skip
-        with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}):
-            self.cluster = SpecCluster(
-                scheduler={"cls": Scheduler, "options": scheduler_options},
-                workers=worker_specs(device, workers, security),
-                security=security,
-                silence_logs=DASK_LOGS,
-            )
         try:
-            self.client = Client(self.cluster)
-        except BaseException:
-            self.cluster.close()
+            with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}), _ctrl_c_after():
+                self.cluster = SpecCluster(
+                    scheduler={"cls": Scheduler, "options": scheduler_options},
+                    workers=worker_specs(device, workers, security),
+                    security=security,
+                    silence_logs=DASK_LOGS,
+                )
+                self.client = Client(self.cluster)
+        except BaseException:  # Ctrl-C held until now among them: nothing started is left running
+            if getattr(self, "client", None) is not None:
+                self.client.close()
+            if self.cluster is not None:
+                self.cluster.close()
             raise
 
     @property
