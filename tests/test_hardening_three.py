@@ -187,3 +187,21 @@ def test_ctrl_c_while_a_cluster_starts_is_raised_once_it_is_whole(sigint_handled
             os.kill(os.getpid(), signal.SIGINT)
             reached.append("the start went on to its end")
     assert reached and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_the_compile_spinner_says_ctrl_c_waits_for_the_compile(tmp_path, monkeypatch):
+    """Ctrl-C during Numba's first compile waits for LLVM to return (seconds to a
+    minute), which looked like a hang: the terminal's spinner says so plainly."""
+    import io
+
+    from rich.console import Console
+
+    from raybench import compiled
+    from raybench.cli import compiling
+
+    monkeypatch.setattr(compiled, "CACHE_DIR", tmp_path)
+    out = io.StringIO()
+    with compiling.announced(Console(file=out, force_terminal=True, width=80)):  # one line on a plain terminal
+        compiled.on_compile()  # what a cache miss calls
+    shown = " ".join(out.getvalue().split())
+    assert "(Ctrl-C waits for it)" in shown, shown
