@@ -336,3 +336,20 @@ def test_kept_samples_are_bounded_and_strided(rng):
     results.check_record({"format": results.FORMAT, "version": results.VERSION, **record}, "record")
     # an even stride of a shuffled run: its median within a few standard errors (about 1%) of the whole's
     assert np.isclose(np.median(kept), np.median(many), rtol=0.05)
+
+
+def test_a_noisy_point_is_marked_and_noted(rng):
+    """A loaded machine's run: frames that vary by 30% leave an interval far
+    wider than the noise floor, and "within noise" there would claim more than
+    it knows: the verdict is marked noisy and a note says why (issue 40)."""
+    base = medians(rng, 3)
+    quiet = compare.compare(run_of(rng, base), run_of(rng, base))
+    assert not any(c.noisy for c in quiet.changes) and not any("noise is high" in n for n in quiet.notes)
+    loud = [point(frames(rng, m, 8) * rng.lognormal(0, 0.3, 8), s) for s, m in base.items()]
+    noisy = compare.compare(run_of(rng, base), loud)
+    marked = [c for c in noisy.changes if c.noisy]
+    assert marked and all(c.verdict == compare.NOISE for c in marked)
+    shown = compare.lines(noisy, "old", "new")
+    assert sum(line.endswith("within noise (noisy)") for line in shown) == len(marked)
+    assert any(line.startswith(f"noise is high: at {len(marked)} of 3 points") for line in shown), shown
+    assert shown[2] == "" and shown[3].split()[:6] == ["point", "before", "ms", "after", "ms", "change"]

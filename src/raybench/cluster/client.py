@@ -283,6 +283,8 @@ def _answers(address: str, timeout: float, security) -> None:
     try:
         asyncio.run(asyncio.wait_for(identity(), timeout))
     except TimeoutError:
+        if not _accepts(address):  # refused all along: Dask's connect retries until the deadline
+            raise RaybenchError(f"scheduler {address}: unreachable within {timeout:g} s") from None
         raise RaybenchError(
             f"scheduler {address}: did not answer within {timeout:g} s (something accepted the connection, "
             "but no Dask scheduler answered it)"
@@ -295,6 +297,20 @@ def _answers(address: str, timeout: float, security) -> None:
         raise RaybenchError(f"scheduler {address}: answered, but not as a Dask scheduler does ({reason})") from None
     finally:
         protocol.level = level
+
+
+def _accepts(address: str) -> bool:
+    """Whether something accepts a TCP connection at address (tcp:// or tls://), within a second."""
+    import socket
+
+    from distributed.comm import parse_address, parse_host_port
+
+    try:
+        host, port = parse_host_port(parse_address(address)[1])
+        with socket.create_connection((host, port), timeout=1.0):
+            return True
+    except (OSError, ValueError, TypeError):
+        return False
 
 
 # Where Dask's Security takes the credentials themselves rather than their files.
