@@ -38,6 +38,11 @@ HOST = "127.0.0.1"  # every process of an embedded cluster listens here only
 SCHEDULER_ENV = "RAYBENCH_SCHEDULER"
 # How long to try a scheduler's address before saying it is unreachable.
 CONNECT_TIMEOUT_S = 10.0
+# An embedded worker silent this long (stopped, SIGSTOP, or hung) is let go, and its tasks go
+# to the others or end in one line; Dask's default, 5 minutes, held a render past 8 minutes.
+# A worker tracing or compiling still answers: its kernels release the GIL, and Numba's
+# compiler lets the worker's event loop run between its steps.
+WORKER_TTL_S = 60.0
 # What an embedded cluster's Dask logs to the terminal (the nannies set it in this process too):
 # critical failures only. What it logs as errors (a lost worker's scattered scene, the tasks
 # forgotten with it; a restarted worker's warnings) raybench handles, or says in one line.
@@ -202,7 +207,9 @@ class Cluster:
         scheduler_options = {"host": HOST, "port": 0, "dashboard_address": f"{HOST}:0",
                              "protocol": _protocol(security), "security": security}  # fmt: skip
         try:
-            with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}), _ctrl_c_after():
+            ttl = f"{WORKER_TTL_S}s"
+            config = {"distributed.nanny.pre-spawn-environ": environ, "distributed.scheduler.worker-ttl": ttl}
+            with dask.config.set(config), _ctrl_c_after():
                 self.cluster = SpecCluster(
                     scheduler={"cls": Scheduler, "options": scheduler_options},
                     workers=worker_specs(device, workers, security),
