@@ -1,6 +1,7 @@
 import gc
 import os
 import shutil
+import signal
 
 import numpy as np
 import pytest
@@ -10,6 +11,25 @@ import pytest
 # is first imported.
 if "NUMBA_ENABLE_CUDASIM" not in os.environ:
     os.environ["NUMBA_ENABLE_CUDASIM"] = "0" if shutil.which("nvidia-smi") else "1"
+
+
+def sigint_default() -> None:
+    """Popen's preexec_fn for a child that a test sends SIGINT: its default
+    action. A shell that starts the tests in the background (or nohup, or a
+    script's `&`) starts them with SIGINT ignored, which every child inherits
+    through exec, and Python then never raises KeyboardInterrupt in it."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+@pytest.fixture
+def sigint_handled():
+    """Python's own SIGINT handler (KeyboardInterrupt) in this process for one
+    test, whatever the run inherited (sigint_default says why it may be
+    ignored); what was there before is put back after."""
+    before = signal.getsignal(signal.SIGINT)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, before)
 
 
 @pytest.fixture

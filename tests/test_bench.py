@@ -10,6 +10,7 @@ import time
 
 import numpy as np
 import pytest
+from conftest import sigint_default
 
 from raybench import RaybenchError, lighting
 from raybench.bench import report, results, results_schema, runner, stats, suites
@@ -149,7 +150,7 @@ def _bench_subprocess(out, *extra):
         stderr=subprocess.PIPE,
         text=True,
         env=env,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+        preexec_fn=sigint_default,
     )
 
 
@@ -167,8 +168,11 @@ def _wait_for_lines(folder, n, proc, timeout=600):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGKILL])
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGKILL])
 def test_interrupted_run_keeps_every_finished_point(tmp_path, sig):
+    """SIGTERM as Ctrl-C: one line, every finished point kept, nothing else
+    left (its default action had left a report's half-made folder and a
+    "leaked semaphore" warning)."""
     proc = _bench_subprocess(tmp_path, "--suite", "thesis", "--duration", "0.5")
     path = _wait_for_lines(tmp_path, 2, proc)
     proc.send_signal(sig)
@@ -176,6 +180,10 @@ def test_interrupted_run_keeps_every_finished_point(tmp_path, sig):
     if sig == signal.SIGINT:
         assert proc.returncode == 130, (out, err)
         assert "interrupted" in err and "Traceback" not in err, err
+    elif sig == signal.SIGTERM:
+        assert proc.returncode == 143, (out, err)
+        assert err.startswith("raybench: terminated (SIGTERM); the ") and err.count("\n") == 1, err
+        assert [p.name for p in tmp_path.iterdir()] == [path.name]
     else:
         assert proc.returncode == -signal.SIGKILL
     records = results.read(path)  # every line whole: no warning, no error

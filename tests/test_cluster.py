@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import psutil
 import pytest
+from conftest import sigint_default
 from PIL import Image
 
 import raybench
@@ -623,7 +624,10 @@ def test_a_tls_scheduler_without_credentials_is_one_line(running, capsys, monkey
         (["--tls-ca", "{ca}"], "--tls-ca: apply to --scheduler tls://... only"),
         (["--scheduler", "tcp://127.0.0.1:1", "--tls-ca", "{ca}"], "the scheduler's address must be tls://"),
         (["--scheduler", "tls://127.0.0.1:1", "--tls-ca", "{ca}"], "give --tls-ca and --tls-cert"),
-        (["--scheduler", "tls://127.0.0.1:1", "--tls-ca", "no-such-file"], "'no-such-file' does not exist"),
+        (
+            ["--scheduler", "tls://127.0.0.1:1", "--tls-ca", "no-such-file", "--tls-cert", "{ca}"],
+            "--tls-ca no-such-file: cannot be read (No such file or directory)",
+        ),
     ],
 )
 def test_bad_tls_options_are_one_line(argv, message, credentials, capsys, monkeypatch):
@@ -632,6 +636,87 @@ def test_bad_tls_options_are_one_line(argv, message, credentials, capsys, monkey
     assert run(["render", "--spheres", "3", *argv]) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
+
+
+def test_a_scheduler_that_accepts_and_never_answers_is_one_line_within_the_timeout(capsys):
+    """A tcp:// address where something accepts the connection and says
+    nothing held render --scheduler past --connect-timeout, forever."""
+    with socket.socket() as silent:
+        silent.bind(("127.0.0.1", 0))
+        silent.listen(8)  # the kernel accepts; nothing ever answers
+        address = f"tcp://127.0.0.1:{silent.getsockname()[1]}"
+        start = time.perf_counter()
+        with pytest.raises(RaybenchError, match=f"scheduler {address}: did not answer within 1 s"):
+            cluster.Cluster(scheduler=address, timeout=1)
+        assert time.perf_counter() - start < 30  # a hang guard, not a timing: the deadline is 1 s
+        code = run(["render", "--spheres", "3", "--size", "16x8", "--scheduler", address, "--connect-timeout", "0.5"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith(f"raybench: error: scheduler {address}: did not answer within 0.5 s")
+    assert err.count("\n") == 1
+
+
+SHORT_FRAMES = {
+    # Dask's frames: 8 bytes of length, then a count of frames and their lengths; this says 5, holds none
+    "a short frame": b"\x08" + b"\x00" * 7 + b"\x05" + b"\x00" * 7,
+    "not msgpack": b"\x10" + b"\x00" * 7 + b"\x01" + b"\x00" * 7 + b"\x04" + b"\x00" * 7 + b"abcd",
+}
+
+
+@pytest.mark.parametrize("name", SHORT_FRAMES)
+def test_a_peer_that_answers_nonsense_is_one_line(name, capsys):
+    """A short Dask frame raised struct.error with a traceback (and bytes that
+    are not msgpack, Dask's CRITICAL log with one): now one line, and no log."""
+    import threading
+
+    with socket.socket() as peer:
+        peer.bind(("127.0.0.1", 0))
+        peer.listen(8)
+        address = f"tcp://127.0.0.1:{peer.getsockname()[1]}"
+
+        def answer():
+            with contextlib.suppress(OSError):
+                while True:
+                    conn, _ = peer.accept()
+                    conn.sendall(SHORT_FRAMES[name])
+                    conn.close()
+
+        threading.Thread(target=answer, daemon=True).start()
+        code = run(["render", "--spheres", "3", "--size", "16x8", "--scheduler", address, "--connect-timeout", "5"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith(f"raybench: error: scheduler {address}: "), err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+
+
+@pytest.mark.parametrize("fault", ["fifo", "folder", "not PEM", "key of another", "CA not PEM"])
+def test_bad_tls_files_are_named_for_what_they_are(fault, credentials, tmp_path, capsys, monkeypatch):
+    """A FIFO as --tls-ca hung in its open (waiting for a writer); a folder, a
+    file that is not PEM or a key that is not the certificate's were told as
+    'scheduler unreachable'. Each is now one line naming the option and what
+    is wrong, before any connection."""
+    monkeypatch.delenv("RAYBENCH_SCHEDULER", raising=False)
+    files = dict(credentials)
+    bad = tmp_path / "bad.pem"
+    if fault == "fifo":
+        os.mkfifo(bad)
+        files["--tls-ca"], expected = str(bad), f"--tls-ca {bad}: not a regular file"
+    elif fault == "folder":
+        bad.mkdir()
+        files["--tls-cert"], expected = str(bad), "is a directory"  # click's own check, by name
+    elif fault == "not PEM":
+        bad.write_text("hello\n")
+        files["--tls-cert"], expected = str(bad), "not a PEM certificate and its private key"
+    elif fault == "CA not PEM":
+        bad.write_text("-----BEGIN CERTIFICATE-----\nnot base64\n-----END CERTIFICATE-----\n")
+        files["--tls-ca"], expected = str(bad), f"--tls-ca {bad}: not a PEM CA certificate"
+    else:
+        from distributed.security import Security
+
+        (bad).write_text(Security.temporary().tls_client_key)
+        files["--tls-key"], expected = str(bad), "not a PEM certificate and its private key"
+    argv = ["render", "--spheres", "3", "--scheduler", "tls://127.0.0.1:1", *tls_args(files)]
+    assert run(argv) == 2
+    err = capsys.readouterr().err
+    assert expected in err and err.count("\n") == 1 and "unreachable" not in err, err
 
 
 def test_help_says_a_scheduler_is_trusted_with_code_execution(capsys):
@@ -690,7 +775,9 @@ def interrupted_when(argv, ready):
     bounded; a child still there is killed before its pipe is read."""
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
     with tempfile.TemporaryFile() as errors:
-        proc = subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL, stderr=errors, start_new_session=True)
+        proc = subprocess.Popen(
+            argv, env=env, stdout=subprocess.DEVNULL, stderr=errors, start_new_session=True, preexec_fn=sigint_default
+        )
         family = []
         try:
             deadline = time.monotonic() + 120

@@ -8,6 +8,7 @@ FutureCancelledError.
 Every wait here is bounded: the job runs on a daemon thread joined with a
 timeout, and the killer polls with a deadline."""
 
+import contextlib
 import os
 import signal
 import threading
@@ -154,3 +155,34 @@ def test_the_only_worker_killed_mid_measurement_is_one_line(lone, rng):
     with pytest.raises(RaybenchError, match="^cluster: frames were lost with their workers mid-measurement"):
         finished(job)
     lone.client.wait_for_workers(1, timeout=60)
+
+
+def test_a_stopped_worker_ends_the_render_in_time(monkeypatch, rng):
+    """A worker stopped with SIGSTOP (its connections open, silent) held a
+    render forever (past 8 minutes under Dask's 5-minute worker TTL): an
+    embedded cluster lets a worker go once silent for WORKER_TTL_S (3 s here),
+    and the frame then ends, whole or in one line."""
+    from raybench.cluster import client as cluster_client
+
+    monkeypatch.setattr(cluster_client, "WORKER_TTL_S", 3.0)
+    scene = raybench.random_spheres(400, seed=int(rng.integers(2**31)))
+    with cluster.Cluster(workers=1, device="cpu") as c:
+        c.client.wait_for_workers(1, timeout=120)
+        pid = worker_pid(c.client)
+        try:
+            job = in_background(lambda: cluster.render(c.client, scene, width=320, height=240, device="cpu", **OPTIONS))
+            deadline = time.monotonic() + 60
+            while job["thread"].is_alive() and time.monotonic() < deadline:
+                if any("_tile" in str(key) for keys in c.client.processing().values() for key in keys):
+                    break
+                time.sleep(0.02)
+            os.kill(pid, signal.SIGSTOP)
+            job["thread"].join(JOB_S)
+            assert not job["thread"].is_alive(), "the render did not end after its only worker was stopped"
+            if "error" in job:
+                assert isinstance(job["error"], RaybenchError) and "\n" not in str(job["error"]), job["error"]
+            else:
+                assert job["result"].image.shape == (240, 320, 3)
+        finally:
+            with contextlib.suppress(ProcessLookupError):  # its nanny may have restarted it already
+                os.kill(pid, signal.SIGKILL)  # (a stopped process takes SIGKILL): the cluster closes at once

@@ -17,6 +17,7 @@ import textwrap
 import time
 
 import pytest
+from conftest import sigint_default
 
 DTYPES = ["float32", "float64", "int32", "int64", "uint8", "int16", "uint16", "int8"]
 
@@ -184,7 +185,7 @@ def test_ctrl_c_with_the_builders_compile_under_way_ends_the_process(tmp_path, w
     args = ["render", "--device", "cpu", "--spheres", "300", "--size", "64x48", "-o", "x.png"]
     proc = subprocess.Popen(
         [sys.executable, "-m", "raybench", *args], env=env, cwd=tmp_path, text=True,
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True,
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True, preexec_fn=sigint_default,
     )  # fmt: skip
     children = []
     try:

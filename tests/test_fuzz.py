@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 from collections import Counter
 from pathlib import Path
@@ -351,6 +352,76 @@ def test_fuzz_results_files(capsys, folder):
     one()
     print(f"results files: {dict(seen)}")
     assert seen["reported"] >= 0.2 * seen["tried"] and seen["refused"] >= 0.2 * seen["tried"], seen
+
+
+# What a hand-edited or hostile record may hold where text goes: the terminal's controls, a
+# forged line, half a UTF-16 pair, markup.
+HOSTILE_TEXT = st.sampled_from(
+    ["\x1b[2J", "\x1b]0;owned\x07", "a\nOLD forged", "\r\x1b[K", "\x00", "\ud800", "<b>", "x" * 400]
+) | st.text(max_size=10)
+
+
+@st.composite
+def compare_docs(draw):
+    """results_docs, with more points measured in both, and now and then hostile text
+    in an option's name or value, a skipped point's reason, or a frame count of one."""
+    records = draw(results_docs())
+    for r in records:
+        if not isinstance(r, dict):
+            continue
+        choice = draw(st.integers(0, 5))
+        if choice == 0 and isinstance(r.get("options"), dict):
+            r["options"][draw(HOSTILE_TEXT)] = draw(HOSTILE_TEXT | st.integers(0, 9))
+        elif choice == 1 and r.get("suite") in ("scaling", "secondary"):
+            for key in ("frames", "frame_ms", "kernel_ms", "samples_ms", "rays_per_s", "tests_per_s"):
+                r.pop(key, None)
+            r["skipped"] = draw(HOSTILE_TEXT)
+        elif choice == 2 and isinstance(r.get("frame_ms"), dict):
+            r["frames"] = 1
+            r.pop("samples_ms", None)
+    return records
+
+
+def results_text(records) -> bytes:
+    return b"".join(
+        json.dumps({"format": "raybench-results", "version": 1, **r} if isinstance(r, dict) else r).encode() + b"\n"
+        for r in records
+    )
+
+
+def test_fuzz_compare(capsys, folder):
+    """Two generated results files compared: a table (exit 0), or one line
+    (exit 2); never a traceback, and never a control character of a record's on
+    stdout (its ESC, BEL or newline shown escaped). Fast: no kernel, no chart."""
+    seen = Counter()
+    controls = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f]")
+
+    @budget(60)
+    @given(data=st.data())
+    def one(data):
+        old, new = data.draw(compare_docs()), data.draw(compare_docs())
+        clear(folder)
+        (folder / "old.jsonl").write_bytes(results_text(old))
+        (folder / "new.jsonl").write_bytes(results_text(new))
+        gate = data.draw(st.sampled_from([[], ["--fail-slower", "0"], ["--noise", "0"]]))
+        code, out, err = cli(capsys, ["compare", "old.jsonl", "new.jsonl", *gate])
+        seen["tried"] += 1
+        assert files_in(folder) == {"old.jsonl", "new.jsonl"}  # compare writes nothing
+        if code == 2:
+            refused_in_one_line(code, err)
+            seen["refused"] += 1
+            return
+        assert code in (0, 1), (code, err)
+        assert not controls.search(out), out
+        lines = out.splitlines()
+        assert lines[0].startswith("OLD old.jsonl") and lines[1].startswith("NEW new.jsonl"), out
+        # every line is compare's own: a table row, a listed point, a count or a note; none forged
+        assert not any(line.startswith(("OLD ", "NEW ")) and " forged" in line.split(":")[0] for line in lines), out
+        seen["compared"] += 1
+
+    one()
+    print(f"compare: {dict(seen)}")
+    assert seen["compared"] >= 0.2 * seen["tried"] and seen["refused"] >= 0.2 * seen["tried"], seen
 
 
 # --- command lines ----------------------------------------------------------------------------

@@ -184,7 +184,7 @@ def test_replacing_keeps_the_mode_and_a_new_file_gets_the_umask(tmp_path):
 
 
 @pytest.mark.parametrize("when", ["just after the temporary file is made", "while the data goes to disk"])
-def test_ctrl_c_during_a_write_writes_the_file_whole_then_interrupts(tmp_path, monkeypatch, when):
+def test_ctrl_c_during_a_write_writes_the_file_whole_then_interrupts(tmp_path, monkeypatch, when, sigint_handled):
     """SIGINT at the worst moments of an atomic write: the file is written
     whole, no temporary file is left, then KeyboardInterrupt. (Raised right
     after mkstemp, the interrupt left its file behind: the sequence's Ctrl-C

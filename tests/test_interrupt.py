@@ -19,6 +19,7 @@ import time
 
 import psutil
 import pytest
+from conftest import sigint_default
 
 import raybench
 
@@ -47,7 +48,9 @@ def tracing(proc: subprocess.Popen) -> bool:
 def start(argv: list[str], errors) -> subprocess.Popen:
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
     # stderr to a file, not a pipe: read once the child ended, it never waits on a process still holding it
-    return subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL, stderr=errors, start_new_session=True)
+    return subprocess.Popen(
+        argv, env=env, stdout=subprocess.DEVNULL, stderr=errors, start_new_session=True, preexec_fn=sigint_default
+    )
 
 
 def wait_until_tracing(proc: subprocess.Popen) -> None:
@@ -129,7 +132,7 @@ def test_an_interrupted_renderer_raises_and_traces_its_next_frame_whole(rng):
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
     seed = str(int(rng.integers(2**31)))
     proc = subprocess.Popen([sys.executable, "-c", CHILD, seed], env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, start_new_session=True)  # fmt: skip
+                            stderr=subprocess.PIPE, start_new_session=True, preexec_fn=sigint_default)  # fmt: skip
     try:
         out, err = proc.communicate(timeout=START_S + BOUND_S)
     except subprocess.TimeoutExpired:

@@ -456,7 +456,7 @@ def two_machines(rng, tmp_path):
 
     kw = {"label": "beta", "mach": machine(gpu_gflops=None)}
     beta = thesis(rng, **kw) + [ramp(rng, "cpu", kink=True, **kw)]
-    beta[1]["frame_ms"]["median"] = 2 * beta[0]["frame_ms"]["median"]  # the GPU slower at one point
+    beta[1]["frame_ms"] = ms(2 * beta[0]["frame_ms"]["median"])  # the GPU slower at one point (a whole summary)
     frame[BLOCKS.index([32, 32])] = np.delete(frame, BLOCKS.index([32, 32])).min() * 1.1
     times = cpu_times(rng)
     del times["one per row"]

@@ -4,6 +4,8 @@ link, image or table cell."""
 
 import re
 
+import pytest
+
 from raybench.bench import report
 from raybench.bench.results import ResultsWriter
 
@@ -71,3 +73,22 @@ def test_hostile_text_in_a_results_file_comes_out_inert(tmp_path):
     for line in text.splitlines():
         if re.match(r"\| [1-6] \|", line):
             assert line.count(" | ") == header.count(" | "), line
+
+
+@pytest.mark.filterwarnings("error:Glyph")  # a chart drawing ESC or BEL (matplotlib has no glyph for them)
+def test_control_characters_are_shown_not_kept(tmp_path):
+    """ESC and NUL from a results file were written raw into report.md (a
+    terminal that cats it obeys them); now as their escapes, in report.md
+    and report.html alike."""
+    assert report.escape("a\x1b[2Jb\x00c\x07") == "a&#92;x1b&#91;2Jb&#92;x00c&#92;x07"
+    path = tmp_path / "r.jsonl"
+    with ResultsWriter(path) as w:
+        for r in records("Evil\x1b]0;owned\x07 CPU\x00"):
+            w.write(r)
+    md = report.write_report([path], tmp_path / "rep")
+    for page in (md, md.with_suffix(".html")):
+        text = page.read_text(encoding="utf-8")
+        # (report.html inlines plotly.js, whose own source holds control characters: the record's are looked for)
+        assert "\x1b]0;owned" not in text and "owned\x07" not in text and "CPU\x00" not in text, page.name
+        assert "x1b" in text and "owned" in text, page.name  # shown, as written
+    assert "Evil&#92;x1b&#93;0;owned&#92;x07 CPU&#92;x00" in md.read_text(encoding="utf-8")

@@ -1,9 +1,18 @@
 """The one exception type raybench raises for input a user can fix."""
 
+import re
+
 
 class RaybenchError(ValueError):
     """Bad input or an unusable device: the message is one line that says what
     was wrong and what is allowed. The CLI prints it and exits with code 2."""
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (kill, a job scheduler, a container stopping), raised in the
+    main thread as Ctrl-C is (cli.entry sets the handler): every cleanup that
+    Ctrl-C runs (a half-made folder removed, a pool of processes closed, the
+    points finished kept) runs for it too, and the process ends in one line."""
 
 
 # The libraries that drive the devices: an exception raised from one of them
@@ -39,3 +48,14 @@ def one_line(text: str) -> str:
     return, a line separator) written as its escape: what the CLI prints is
     then one line, whatever a file name or a hand-edited key holds."""
     return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
+
+
+# C0 and C1 control characters but tab and newline: what a terminal or a viewer may obey.
+_CONTROLS = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f]")
+
+
+def controls_shown(text: str) -> str:
+    """text with every control character (ESC, NUL, BEL, a carriage return)
+    written as its escape, \\x1b: shown, never obeyed. Tabs and newlines stay,
+    for the formats (Markdown, HTML) whose own rules deal with them."""
+    return _CONTROLS.sub(lambda m: repr(m.group())[1:-1], text)

@@ -292,6 +292,6 @@ def check_shadow_samples(samples) -> int:
 
 
 def check_shading(shading) -> str:
-    if shading not in SHADINGS:
+    if not isinstance(shading, str) or shading not in SHADINGS:  # (an array's `in` is element-wise)
         raise RaybenchError(f"shading: must be one of {', '.join(SHADINGS)}, got {shading!r}")
     return shading

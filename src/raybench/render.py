@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import sys
+import threading
 import weakref
 from dataclasses import dataclass
 from pathlib import Path
@@ -142,7 +143,12 @@ class Renderer:
     device, shading, depth, shadow_samples and the device's options are
     render()'s (below); shading may also be a lighting.Shading made ahead
     (Shading.of(scene, ...)), which is Whitted shading with its arrays. For
-    spheres that move, update(spheres) moves them between frames."""
+    spheres that move, update(spheres) moves them between frames.
+
+    One Renderer may be shared by threads: its calls take turns (a lock), so
+    each frame is its own camera's. They do not run at once: the device's
+    buffers are one frame's. A thread that wants frames in parallel makes a
+    Renderer of its own."""
 
     def __init__(
         self,
@@ -169,6 +175,8 @@ class Renderer:
         self.scene, self.width, self.height, self.shading = scene, width, height, shading
         self.tracer = backends.tracer(device, scene.spheres, width, height, **options)
         self._images, self._hits = _Lent(), _Lent()
+        # The tracer's arrays, its camera and its lent arrays are one frame's: one call at a time.
+        self._turn = threading.RLock()
 
     @property
     def device(self) -> str:
@@ -178,7 +186,8 @@ class Renderer:
         """Compile the kernel (or load it from the cache) and build what the
         first frame needs, ahead of it; the seconds that took. render() does
         it by itself when it has not been done."""
-        return self._open().compile()
+        with self._turn:
+            return self._open().compile()
 
     def update(self, spheres: np.ndarray) -> str | None:
         """Move the spheres (a (7, N) float32 array of the scene's N spheres,
@@ -187,7 +196,8 @@ class Renderer:
         was rebuilt, None for brute force. They are checked as a scene file's
         spheres are (one line naming the first that is not a sphere), and
         copied: the caller may change its array afterwards."""
-        return self._open().update(spheres)
+        with self._turn:
+            return self._open().update(spheres)
 
     def render(
         self,
@@ -206,6 +216,10 @@ class Renderer:
         devices that trace rows (cpu and cuda). count: only the scene's first
         count spheres (the thesis's test 7 ramps it), without a new tree or
         upload where the device allows."""
+        with self._turn:
+            return self._render(camera, hits, rows, count)
+
+    def _render(self, camera, hits, rows, count) -> Frame:
         tracer = self._open()
         _check_camera(camera)
         camera = camera or self.scene.camera or Camera()
@@ -251,10 +265,11 @@ class Renderer:
         return self.tracer
 
     def close(self) -> None:
-        if self.tracer is not None:
-            self.tracer.close()
-            self.tracer = None
-            self._images, self._hits = _Lent(), _Lent()  # the free arrays go (cuda's are page-locked)
+        with self._turn:
+            if self.tracer is not None:
+                self.tracer.close()
+                self.tracer = None
+                self._images, self._hits = _Lent(), _Lent()  # the free arrays go (cuda's are page-locked)
 
     def __enter__(self) -> Renderer:
         return self

@@ -12,7 +12,7 @@ import importlib
 import os
 import sys
 
-from ..errors import RaybenchError
+from ..errors import RaybenchError, shown
 from .options import NAMES, checked
 
 DEVICES = ("cpu", "cuda", "wgpu")
@@ -76,6 +76,8 @@ def resolve(device: str, adapter: str | None = None) -> str:
     wgpu where there is none is an error, never a silent fallback; asking for
     cuda under NUMBA_ENABLE_CUDASIM=1 runs the simulator. adapter: the wgpu
     adapter's name, if one is named (a CPU driver is used only then)."""
+    if not isinstance(device, str):  # (an array's == is element-wise: a ValueError from NumPy)
+        raise RaybenchError(f"device: must be one of {', '.join(CHOICES)}, got {shown(device)}")
     if device == "auto":
         if cuda_available():
             return "cuda"
@@ -108,7 +110,7 @@ def tracer(device: str, spheres, width: int, height: int, shading=None, **option
     accel, "bvh" (the default) or "none", and brute force's kernel), checked
     there in one place. shading: the lighting.Shading of a Whitted frame,
     None for the thesis's shading."""
-    name = resolve(device, options.get("adapter") if device == "wgpu" else None)
+    name = resolve(device, options.get("adapter") if isinstance(device, str) and device == "wgpu" else None)
     if shading is not None:
         import numpy as np
 

@@ -118,9 +118,19 @@ def _pair(name: str, value) -> tuple[int, int]:
 
 
 def _one_of(name: str, value, choices: tuple) -> str:
-    if value not in choices:
+    # a str first: an array's `in` compares it element-wise (accepted, or a ValueError from NumPy)
+    if not isinstance(value, str) or value not in choices:
         raise RaybenchError(f"{name}: must be one of {', '.join(choices)}, got {shown(value)}")
-    return value
+    return str(value)
+
+
+def _flag(name: str, value) -> bool:
+    """True or False (NumPy's too); None, not given, is False. "no" or 1 is refused, not taken as truthy."""
+    if value is None:
+        return False
+    if not isinstance(value, (bool, np.bool_)):
+        raise RaybenchError(f"{name}: must be True or False, got {shown(value)}")
+    return bool(value)
 
 
 def _method(device: str, accel, kernel, brute_only: dict, shading) -> tuple[str, str | None]:
@@ -247,13 +257,15 @@ class CpuOptions:
     def check(cls, given: dict, shading=None) -> CpuOptions:
         """The options from render()'s keyword arguments for the cpu (checked's)."""
         g = _given(cls, given)
-        accel, kernel = _method("cpu", g.accel, g.kernel, {"constant_count": g.constant_count}, shading)
+        accel, kernel = _method(
+            "cpu", g.accel, g.kernel, {"constant_count": _flag("constant_count", g.constant_count)}, shading
+        )
         tree_width, threads = g.tree_width, g.threads
         if tree_width is None:
             tree_width = TREE_WIDTH
         elif accel != "bvh":
             raise RaybenchError("tree_width: applies to the BVH's packets only (accel='bvh')")
-        elif tree_width not in TREE_WIDTHS:
+        elif not is_integer(tree_width) or tree_width not in TREE_WIDTHS:
             raise RaybenchError(f"tree_width: must be one of 2, 4, got {shown(tree_width)}")
         threads = usable_cores() if threads is None else _integer("threads", threads, 1, MAX_THREADS)
         return cls(accel, kernel, bool(g.constant_count), threads, int(tree_width))
@@ -293,7 +305,13 @@ class CudaOptions:
         """The options from render()'s keyword arguments for cuda (checked's)."""
         g = _given(cls, given)
         fast_only = {"rays": g.rays is not None, "staged": g.staged is not None, "trip": g.trip is not None}
-        accel, kernel = _method("cuda", g.accel, g.kernel, {"constant_count": g.constant_count, **fast_only}, shading)
+        accel, kernel = _method(
+            "cuda",
+            g.accel,
+            g.kernel,
+            {"constant_count": _flag("constant_count", g.constant_count), **fast_only},
+            shading,
+        )
         walk = _walk(g.walk, accel, shading)
         build = _build(g.build, accel)
         quality, treelet_passes, refit_limit = _gpu_build(build, "cuda", g.quality, g.treelet_passes, g.refit_limit)

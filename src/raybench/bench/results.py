@@ -71,9 +71,13 @@ A record (format "raybench-results", version 1):
 from __future__ import annotations
 
 import json
+import math
 import os
+import re
 import warnings
 from pathlib import Path
+
+import numpy as np
 
 from ..errors import RaybenchError, shown
 from ..files import Appended, check_nesting, check_writable, parse, read_text
@@ -150,33 +154,38 @@ class ResultsWriter:
         self.close()
 
 
-def read(path) -> list[dict]:
+def read(path, compact: bool = False) -> list[dict]:
     """All records of one results file, each checked against the schema
     below. A half-written last line is skipped with a warning; a file that is
-    not ours, or damaged before its end, is an error naming the line."""
+    not ours, or damaged before its end, is an error naming the line.
+    compact: each record's samples_ms as a NumPy array once checked (a
+    quarter of the list's memory: compare holds two files of them)."""
     path = Path(path)
-    return parse_records(read_text(path, "results file"), path)
+    return parse_records(read_text(path, "results file"), path, compact)
 
 
-def parse_records(text: str, path) -> list[dict]:
+def parse_records(text: str, path, compact: bool = False) -> list[dict]:
     """The records of a results file's text (read()), path naming it in messages."""
     check_nesting(text, str(path), lines=True)
-    lines = text.split("\n")
     # The last line holding anything: only it may be cut short. Found once, so reading is linear.
-    last = max((i for i, line in enumerate(lines, 1) if line.strip()), default=0)
+    end = len(text.rstrip())
+    last = text.count("\n", 0, end) + 1 if end else 0
     records: list[dict] = []
-    runs: list[dict] = []
-    for number, line in enumerate(lines, 1):
+    runs: list[str] = []  # (as JSON text: _same_run)
+    for number, line in enumerate(_lines(text), 1):
         if not line.strip():
             continue
         where = f"{path}: line {number}"
         try:
             record = parse(line, where)
         except RaybenchError:
-            if number == last and not text.endswith("\n"):
+            # Only the writer's own line, cut: any other text is an error wherever it stands.
+            if number == last and not text.endswith("\n") and _cut_record(line):
                 warnings.warn(f"{path}: line {number} is cut short (an interrupted run?); skipped it", stacklevel=2)
                 continue
             raise
+        if _SURROGATE.search(line):
+            _check_characters(record, where)
         if not isinstance(record, dict) or record.get("format") != FORMAT:
             raise RaybenchError(f"{where} is not a raybench result (format {FORMAT!r} expected)")
         if record.get("version") != VERSION or isinstance(record.get("version"), bool):
@@ -184,17 +193,88 @@ def parse_records(text: str, path) -> list[dict]:
                 f"{where} has results version {shown(record.get('version'))}; this raybench reads version {VERSION}"
             )
         check_record(record, where, runs)
+        if compact and "samples_ms" in record:
+            record["samples_ms"] = np.asarray(record["samples_ms"], dtype=np.float64)
         records.append(record)
     if not records:
         raise RaybenchError(f"{path}: holds no results")
     return records
 
 
+def _lines(text: str):
+    """text.split("\n"), a line at a time: a list of every line would double a large file's memory."""
+    start = 0
+    while start <= len(text):
+        end = text.find("\n", start)
+        end = len(text) if end < 0 else end
+        yield text[start:end]
+        start = end + 1
+
+
+# Every record starts so: as the writer makes it (json.dumps of format, version, then
+# the rest), or with json.dumps's default spacing (a script's own writer).
+_STARTS = tuple(
+    json.dumps({"format": FORMAT, "version": VERSION}, separators=seps)[:-1] + seps[0]
+    for seps in ((",", ":"), (", ", ": "))
+)
+# A JSON escape of a UTF-16 surrogate: paired, it is one character; alone, it is none.
+_SURROGATE = re.compile(r"\\u[dD][89a-fA-F][0-9a-fA-F]{2}")
+
+
+def _cut_record(line: str) -> bool:
+    """Whether line can be the start of a record the writer wrote, cut short."""
+    return any(line.startswith(start) or start.startswith(line) for start in _STARTS)
+
+
+def _check_characters(record, where: str) -> None:
+    """A lone surrogate (an escape like \\ud800 with no pair) is no character:
+    no terminal, file or chart can show it. Refused here, with its place."""
+    try:
+        json.dumps(record, ensure_ascii=False).encode("utf-8")
+    except UnicodeEncodeError as exc:
+        lone = exc.object[exc.start : exc.end].encode("unicode_escape", "backslashreplace").decode("ascii")
+        raise RaybenchError(f"{where}: holds {lone}, half of a UTF-16 pair: not a character") from None
+
+
+def _same_run(run, runs: list) -> bool:
+    """Whether run is one already checked, compared as written: == would take
+    4.0 for 4 and true for 1, and let an unchecked value through."""
+    text = json.dumps(run, sort_keys=True)
+    return any(text == seen for seen in runs)
+
+
+def _ordered(times: dict, where: str) -> None:
+    """A summary's figures in their order: min <= p5 <= median <= p95 <= max,
+    and the mean between min and max (np.percentile's are exactly so)."""
+    order = [times[k] for k in ("min", "p5", "median", "p95", "max") if k in times]
+    if any(a > b for a, b in zip(order, order[1:])):
+        raise _Bad("in order: min <= p5 <= median <= p95 <= max", times).at(where)
+    if "mean" in times and not times.get("min", 0) <= times["mean"] <= times.get("max", math.inf) * (1 + 1e-12):
+        raise _Bad("between min and max", times["mean"]).at(where + ".mean")
+
+
+# Kept samples carry 5 significant digits (stats.kept_samples): within this of the summary's.
+_KEPT = 1e-4
+
+
+def _agrees(times: dict, samples: list, count: int | None, where: str) -> None:
+    """The kept samples agree with the summary: each between its min and max,
+    and, where every sample was kept, their median is the summary's."""
+    a = np.asarray(samples, dtype=np.float64)
+    low, high = float(a.min()), float(a.max())
+    if low < times.get("min", 0) * (1 - _KEPT) or high > times.get("max", math.inf) * (1 + _KEPT):
+        raise _Bad(f"within {where}'s min and max", [low, high]).at("samples_ms")
+    if count == len(samples):
+        median = float(np.median(a))
+        if abs(median - times["median"]) > _KEPT * times["median"]:
+            raise _Bad(f"of median {where}.median", median).at("samples_ms")
+
+
 def check_record(record: dict, where: str, runs: list | None = None) -> None:
     """Every field the report reads, checked for type and range, so a
     hand-edited file fails with one line naming the field, never a traceback
     or a silently wrong report: `where: run.machine.cpu: must be an object`.
-    runs: the run objects already checked; every record of a run repeats
+    runs: the runs already checked, as JSON text; every record of a run repeats
     its run, which is then compared (at C speed) rather than checked again."""
     try:
         if record.get("suite") == "parts":
@@ -203,14 +283,17 @@ def check_record(record: dict, where: str, runs: list | None = None) -> None:
             POINT(record)
         if "run" not in record:
             raise _Bad("present", "nothing").at("run")
-        if runs is None or record["run"] not in runs:
+        if runs is None or not _same_run(record["run"], runs):
             try:
                 RUN(record["run"])
             except _Bad as bad:
                 raise bad.at("run") from None
             if runs is not None and len(runs) < 16:
-                runs.append(record["run"])
+                runs.append(json.dumps(record["run"], sort_keys=True))
         if record["suite"] == "parts":
+            _ordered(record["time_ms"], "time_ms")
+            if record.get("samples_ms"):
+                _agrees(record["time_ms"], record["samples_ms"], record.get("samples"), "time_ms")
             return
         if "skipped" in record:
             SKIPPED(record)
@@ -218,6 +301,11 @@ def check_record(record: dict, where: str, runs: list | None = None) -> None:
                 raise _Bad(f"absent outside the {' and '.join(CAPPED)} suites", record["skipped"]).at("skipped")
             return
         MEASURED(record)
+        for key in ("frame_ms", "kernel_ms", "update_ms"):
+            if record.get(key) is not None:
+                _ordered(record[key], key)
+        if record.get("samples_ms"):
+            _agrees(record["frame_ms"], record["samples_ms"], record.get("frames"), "frame_ms")
         if record["suite"] == "test7":
             SERIES(record)
             series = record["series"]
@@ -251,8 +339,13 @@ def check_settings(settings: dict) -> None:
 def schema() -> dict:
     """The results record as JSON Schema (draft 2020-12): the rules check_record
     applies, from the same checkers; one line of a results file is one record.
-    The two rules JSON Schema cannot state: a test-7 series' lists are equally
-    long, and a record's version is the one this raybench reads."""
+    The rules JSON Schema cannot state: a test-7 series' lists are equally
+    long; a record's version is the one this raybench reads; a summary's
+    figures are in order (min <= p5 <= median <= p95 <= max, the mean
+    between), its kept samples within its min and max, and of its median
+    where all were kept; no text holds half a UTF-16 pair; and a whole
+    number is written as one (800, not the 800.0 that JSON Schema's integer
+    also takes)."""
     measured = {"allOf": [MEASURED.json, {"if": {"properties": {"suite": {"const": "test7"}}}, "then": SERIES.json}]}
     skipped = {"allOf": [SKIPPED.json, {"properties": {"suite": {"enum": list(CAPPED)}}}]}
     return {

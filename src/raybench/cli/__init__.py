@@ -13,7 +13,7 @@ import sys
 import click
 
 from .. import __version__
-from ..errors import RaybenchError, device_failure, one_line
+from ..errors import RaybenchError, Terminated, device_failure, one_line
 from . import bench, compare, info, render, report, schema, view, warmup
 from .options import device_options, parse_pair, parse_size
 
@@ -39,14 +39,18 @@ for _command in (
     main.add_command(_command)
 
 
-def _interrupted() -> int:
-    """Ctrl-C: one line, exit 130, and a child compiling the builder for later
-    runs (bvh.one_shot) stopped rather than awaited."""
+def _interrupted(what: str = "interrupted", code: int = 130) -> int:
+    """Ctrl-C (or SIGTERM, Terminated): one line, exit 130 (143), and a child
+    compiling the builder for later runs (bvh.one_shot) stopped rather than awaited."""
     oneshot = sys.modules.get("raybench.bvh.oneshot")  # not imported: no child was started
     if oneshot is not None:
         oneshot.stop_compiling_elsewhere()
-    click.echo("raybench: interrupted", err=True)
-    return 130
+    click.echo(f"raybench: {what}", err=True)
+    return code
+
+
+def _terminate(signum, frame):
+    raise Terminated
 
 
 OUT_OF_MEMORY = (
@@ -83,7 +87,10 @@ def run(argv=None) -> int:
     except click.ClickException as exc:
         click.echo(f"raybench: error: {one_line(exc.format_message())}", err=True)
         return exc.exit_code
-    except (click.exceptions.Abort, KeyboardInterrupt):
+    except (click.exceptions.Abort, KeyboardInterrupt) as exc:
+        # click turns a KeyboardInterrupt inside a command into Abort, raised from it
+        if isinstance(exc, Terminated) or isinstance(exc.__cause__, Terminated):
+            return _interrupted("terminated (SIGTERM)", 143)
         return _interrupted()
     except MemoryError:
         # Checked before the large allocations (limits.host_available_bytes);
@@ -105,9 +112,14 @@ def run(argv=None) -> int:
 
 
 def entry() -> None:
+    import signal
+
+    # SIGTERM ends the process as Ctrl-C does, its cleanups run (errors.Terminated);
+    # its default action left a report's half-made folder and leaked semaphores.
+    signal.signal(signal.SIGTERM, _terminate)
     try:
         code = run()
-        if code == 130:
+        if code in (130, 143):
             _ignore_ctrl_c()
         # A one-shot picture may have started a child that compiles the builder
         # for later runs (bvh.one_shot): it is awaited here, where Ctrl-C is caught,
@@ -115,8 +127,8 @@ def entry() -> None:
         oneshot = sys.modules.get("raybench.bvh.oneshot")  # not imported: no child was started
         if oneshot is not None:
             oneshot.wait_for_compiling_elsewhere()  # Ctrl-C meanwhile stops the child, quietly
-    except KeyboardInterrupt:  # Ctrl-C between run's own handlers and the wait
-        code = _interrupted()
+    except KeyboardInterrupt as exc:  # Ctrl-C (or SIGTERM) between run's own handlers and the wait
+        code = _interrupted("terminated (SIGTERM)", 143) if isinstance(exc, Terminated) else _interrupted()
         _ignore_ctrl_c()
     sys.exit(code)
 
@@ -128,3 +140,4 @@ def _ignore_ctrl_c() -> None:
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)

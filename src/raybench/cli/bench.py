@@ -11,7 +11,7 @@ import click
 
 from ..backends.options import ACCELS, KERNELS
 from ..bench.suites import CAPPED, REGISTRY
-from ..errors import RaybenchError, device_failure, one_line
+from ..errors import RaybenchError, Terminated, device_failure, one_line
 from .options import (
     adapter_option,
     build_option,
@@ -233,12 +233,13 @@ def _bench_into(writer, results_path, measure) -> None:
             else "no point had finished; no results were written"
         )
         raise RaybenchError(f"{failure}; {kept}") from None
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
+        what = "terminated (SIGTERM)" if isinstance(exc, Terminated) else "interrupted"
         click.echo(
-            f"raybench: interrupted; the {writer.count} finished points are in {results_path} "
+            f"raybench: {what}; the {writer.count} finished points are in {results_path} "
             f"(report them with: raybench report {results_path})"
             if writer.count
-            else "raybench: interrupted before the first point finished; no results were written",
+            else f"raybench: {what} before the first point finished; no results were written",
             err=True,
         )
-        raise SystemExit(130) from None
+        raise SystemExit(143 if isinstance(exc, Terminated) else 130) from None

@@ -10,7 +10,9 @@ import threading
 
 from .. import compiled
 
-MESSAGE = "compiling kernels for this machine, first run only"
+# Numba's compiler (LLVM) runs to its end before Python sees a Ctrl-C: said plainly, so that
+# a Ctrl-C that waits is not taken for a hang (docs/notes/faults.md#where-it-stands).
+MESSAGE = "compiling kernels for this machine, first run only (Ctrl-C waits for it)"
 
 
 @contextlib.contextmanager

@@ -15,7 +15,9 @@ def info(as_json):
 
     desc = describe()
     if as_json:
-        click.echo(json.dumps(desc, indent=2))
+        from .out import echo
+
+        echo(json.dumps(desc, indent=2))
         return
     c = desc["cpu"]
     click.echo(f"OS        {desc['os']}")

@@ -296,7 +296,7 @@ def scheduler_option(what: str):
 
 def tls_options():
     """--tls-ca, --tls-cert, --tls-key: this client's credentials for a tls:// scheduler."""
-    readable = click.Path(exists=True, dir_okay=False, readable=True)
+    readable = click.Path(dir_okay=False)  # checked by cluster.client.check_tls, a FIFO included
     config = "(default: Dask's config, distributed.comm.tls."
     return stacked(
         click.option("--tls-ca", type=readable,
@@ -325,6 +325,9 @@ def scheduler_security(scheduler, tls_ca, tls_cert, tls_key):
                             "certificate's file holds the key) together")  # fmt: skip
     from distributed.security import Security
 
+    from ..cluster.client import check_tls
+
+    check_tls(tls_ca, tls_cert, tls_key, names=("--tls-ca", "--tls-cert", "--tls-key"))
     return Security(require_encryption=True, tls_ca_file=tls_ca, tls_client_cert=tls_cert, tls_client_key=tls_key)
 
 

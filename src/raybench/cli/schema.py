@@ -14,5 +14,6 @@ def schema_cmd():
     A results file that a pull request adds under benchmarks/results/ must
     pass it (docs/results-schema.json is the same schema)."""
     from ..bench import results
+    from .out import echo
 
-    click.echo(json.dumps(results.schema(), indent=2))
+    echo(json.dumps(results.schema(), indent=2))

@@ -22,8 +22,11 @@ raybench's workers take one task at a time, without that variable.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
+import signal
+import stat
 import threading
 
 from ..backends.limits import check_connect_timeout, check_worker_count
@@ -35,6 +38,11 @@ HOST = "127.0.0.1"  # every process of an embedded cluster listens here only
 SCHEDULER_ENV = "RAYBENCH_SCHEDULER"
 # How long to try a scheduler's address before saying it is unreachable.
 CONNECT_TIMEOUT_S = 10.0
+# An embedded worker silent this long (stopped, SIGSTOP, or hung) is let go, and its tasks go
+# to the others or end in one line; Dask's default, 5 minutes, held a render past 8 minutes.
+# A worker tracing or compiling still answers: its kernels release the GIL, and Numba's
+# compiler lets the worker's event loop run between its steps.
+WORKER_TTL_S = 60.0
 # What an embedded cluster's Dask logs to the terminal (the nannies set it in this process too):
 # critical failures only. What it logs as errors (a lost worker's scattered scene, the tasks
 # forgotten with it; a restarted worker's warnings) raybench handles, or says in one line.
@@ -120,6 +128,27 @@ def dask_setup(worker) -> None:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
+@contextlib.contextmanager
+def _ctrl_c_after():
+    """Ctrl-C held while an embedded cluster starts, then raised, where the
+    cluster is closed: raised inside Dask's start, it left a cluster half made
+    for Dask's exit hook to fail on, with a traceback. (The workers still
+    importing get the terminal's Ctrl-C too, and may print theirs: a spawned
+    process starts with no signal blocked, and ignoring it here meanwhile
+    would lose the user's Ctrl-C.)"""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = []
+    handler = signal.signal(signal.SIGINT, lambda signum, frame: held.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, handler)
+        if held and handler is signal.default_int_handler:
+            raise KeyboardInterrupt
+
+
 def default_workers(device: str) -> int:
     return max(1, gpu_count()) if device == "cuda" else 1
 
@@ -177,17 +206,22 @@ class Cluster:
             security = embedded_security()
         scheduler_options = {"host": HOST, "port": 0, "dashboard_address": f"{HOST}:0",
                              "protocol": _protocol(security), "security": security}  # fmt: skip
-        with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}):
-            self.cluster = SpecCluster(
-                scheduler={"cls": Scheduler, "options": scheduler_options},
-                workers=worker_specs(device, workers, security),
-                security=security,
-                silence_logs=DASK_LOGS,
-            )
         try:
-            self.client = Client(self.cluster)
-        except BaseException:
-            self.cluster.close()
+            ttl = f"{WORKER_TTL_S}s"
+            config = {"distributed.nanny.pre-spawn-environ": environ, "distributed.scheduler.worker-ttl": ttl}
+            with dask.config.set(config), _ctrl_c_after():
+                self.cluster = SpecCluster(
+                    scheduler={"cls": Scheduler, "options": scheduler_options},
+                    workers=worker_specs(device, workers, security),
+                    security=security,
+                    silence_logs=DASK_LOGS,
+                )
+                self.client = Client(self.cluster)
+        except BaseException:  # Ctrl-C held until now among them: nothing started is left running
+            if getattr(self, "client", None) is not None:
+                self.client.close()
+            if self.cluster is not None:
+                self.cluster.close()
             raise
 
     @property
@@ -224,8 +258,102 @@ def connect(address: str, timeout: float = CONNECT_TIMEOUT_S, security=None):
             f"scheduler {address}: a tls:// address needs this client's TLS credentials: give --tls-ca, "
             "--tls-cert and --tls-key (Cluster(security=...)), or set Dask's distributed.comm.tls config"
         )
+    if address.startswith("tls://"):
+        check_tls(security.tls_ca_file, security.tls_client_cert, security.tls_client_key)
+    _answers(address, timeout, security)
     try:
         return Client(address, timeout=timeout, security=security)
     except (OSError, TimeoutError, ValueError) as exc:
         reason = " ".join(str(exc).split()) or type(exc).__name__
         raise RaybenchError(f"scheduler {address}: unreachable within {timeout:g} s ({reason})") from None
+
+
+def _answers(address: str, timeout: float, security) -> None:
+    """One line unless a Dask scheduler at address answers within timeout
+    seconds: Client's own wait had no deadline once a connection was
+    accepted, and a process that accepted and never answered held it forever."""
+    import asyncio
+
+    from distributed.comm import connect as comm_connect
+
+    async def identity():
+        comm = await comm_connect(address, timeout=timeout, **security.get_connection_args("client"))
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            await comm.read()
+        finally:
+            comm.abort()
+
+    # What the peer sends is Dask's to decode, which logs its failures (a traceback) before raising them.
+    protocol = logging.getLogger("distributed.protocol")
+    level, protocol.level = protocol.level, logging.CRITICAL + 1
+    try:
+        asyncio.run(asyncio.wait_for(identity(), timeout))
+    except TimeoutError:
+        if not _accepts(address):  # refused all along: Dask's connect retries until the deadline
+            raise RaybenchError(f"scheduler {address}: unreachable within {timeout:g} s") from None
+        raise RaybenchError(
+            f"scheduler {address}: did not answer within {timeout:g} s (something accepted the connection, "
+            "but no Dask scheduler answered it)"
+        ) from None
+    except (OSError, EOFError) as exc:  # refused, a name not found, closed, TLS refused
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        raise RaybenchError(f"scheduler {address}: unreachable within {timeout:g} s ({reason})") from None
+    except Exception as exc:  # noqa: BLE001 -- a peer's bytes, any decoding error of Dask's (struct.error, msgpack's)
+        reason = " ".join(str(exc).split())[:200] or type(exc).__name__
+        raise RaybenchError(f"scheduler {address}: answered, but not as a Dask scheduler does ({reason})") from None
+    finally:
+        protocol.level = level
+
+
+def _accepts(address: str) -> bool:
+    """Whether something accepts a TCP connection at address (tcp:// or tls://), within a second."""
+    import socket
+
+    from distributed.comm import parse_address, parse_host_port
+
+    try:
+        host, port = parse_host_port(parse_address(address)[1])
+        with socket.create_connection((host, port), timeout=1.0):
+            return True
+    except (OSError, ValueError, TypeError):
+        return False
+
+
+# Where Dask's Security takes the credentials themselves rather than their files.
+_PEM = "-----BEGIN"
+
+
+def check_tls(ca, cert, key=None, names=("tls_ca_file", "tls_client_cert", "tls_client_key")) -> None:
+    """The TLS credentials' files named for what is wrong with them, before
+    any connection: missing, not a regular file (opening a FIFO waits for a
+    writer, forever), unreadable, or not a PEM CA, certificate or key. They
+    were all told as "scheduler unreachable". names: the options' (the CLI's
+    --tls-ca, --tls-cert, --tls-key) or Security's attributes."""
+    import ssl
+
+    files = [(name, path) for name, path in zip(names, (ca, cert, key)) if path and not str(path).startswith(_PEM)]
+    for name, path in files:
+        try:
+            info = os.stat(path)
+        except OSError as exc:
+            raise RaybenchError(f"{name} {path}: cannot be read ({exc.strerror or exc})") from None
+        if not stat.S_ISREG(info.st_mode):
+            raise RaybenchError(f"{name} {path}: not a regular file (a FIFO, a device or a folder); give a PEM file")
+        try:
+            with open(path, "rb") as f:
+                f.read(1)
+        except OSError as exc:
+            raise RaybenchError(f"{name} {path}: cannot be read ({exc.strerror or exc})") from None
+    if len(files) < 2 + bool(key) or any(str(p).startswith(_PEM) for p in (ca, cert, key) if p):
+        return  # credentials given inline: Dask reads them
+    context = ssl.SSLContext(ssl.PROTOCOL_TLS_CLIENT)
+    try:
+        context.load_verify_locations(cafile=ca)
+    except (ssl.SSLError, ValueError) as exc:
+        raise RaybenchError(f"{names[0]} {ca}: not a PEM CA certificate ({exc.reason or exc})") from None
+    try:
+        context.load_cert_chain(cert, key)
+    except (ssl.SSLError, ValueError) as exc:
+        which = f"{names[1]} {cert}" + (f" and {names[2]} {key}" if key else "")
+        raise RaybenchError(f"{which}: not a PEM certificate and its private key ({exc.reason or exc})") from None

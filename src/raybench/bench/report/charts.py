@@ -8,6 +8,7 @@ import io
 import math
 import textwrap
 
+from ...errors import controls_shown
 from .numbers import fmt_ms, fmt_r2, fmt_x
 from .series import DEVICE_NAMES
 from .verdicts import THESIS_SPEEDUP
@@ -26,6 +27,11 @@ def _figure(ncols: int = 1, width: float = 7.5, height: float = 4.6):
 
 
 def _png(fig) -> bytes:
+    from matplotlib.text import Text
+
+    # a record's control characters (a label, a GPU's name) drawn as their escapes, as in report.md
+    for text in fig.findobj(Text):
+        text.set_text(controls_shown(text.get_text()))
     buf = io.BytesIO()
     fig.savefig(buf, format="png")
     return buf.getvalue()

@@ -5,7 +5,7 @@ table; the headline beside the reference machines, and the claims a missing
 GPU leaves open judged with theirs, which a checkbox hides.
 
 Text from a results file reaches the page only through Jinja2's autoescaping
-(in the HTML) or as JSON inside a <script type="application/json"> element
+(in the HTML, its control characters written as escapes) or as JSON inside a <script type="application/json"> element
 with <, > and & written as \\u escapes (the charts' data), and plotly draws
 it as text: it is shown as written and runs nothing.
 """
@@ -18,6 +18,7 @@ import re
 
 import jinja2
 
+from ...errors import controls_shown
 from .. import headline
 from . import answer
 from .series import speedups, thesis_series
@@ -29,6 +30,8 @@ _ENV = jinja2.Environment(
     undefined=jinja2.StrictUndefined,
     trim_blocks=True,
     lstrip_blocks=True,
+    # a record's control characters shown as their escapes (Markup, the page's own HTML, is left whole)
+    finalize=lambda value: controls_shown(value) if type(value) is str else value,
 )
 
 

@@ -82,6 +82,13 @@ def write_report(paths: list, out_dir, references: bool = True) -> Path:
     references: place the machines against raybench's reference machines
     (raybench.references), and judge the claims a missing GPU leaves open with theirs."""
     out_dir = Path(out_dir)
+    # Checked before any work: the folder is made aside and renamed into place, which
+    # "." (or "", which Path reads as "."), ".." and "/" name no folder to do to.
+    if out_dir.name in ("", ".", ".."):
+        raise RaybenchError(
+            f"{str(out_dir) or repr('')}: name a new or empty folder for the report (it is made whole, then renamed "
+            "into place), e.g. raybench-report"
+        )
     if out_dir.exists() and not out_dir.is_dir():
         raise RaybenchError(f"{out_dir}: is a file, not a folder for the report")
     sources: list = []

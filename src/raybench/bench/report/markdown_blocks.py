@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from ...errors import controls_shown
 from ...files import write_atomic
 from .records import fmt_opt
 from .series import machine_of
@@ -34,8 +35,9 @@ _INERT = str.maketrans(
 def escape(text) -> str:
     """Text from a results file (a label, a CPU model, a setting, a note) as
     inert Markdown: it shows as written and adds no HTML, link, image, code,
-    emphasis or table cell. Every such text enters the report through here."""
-    return str(text).translate(_INERT)
+    emphasis or table cell, and no control character (ESC, NUL: shown as
+    \\x1b, \\x00). Every such text enters the report through here."""
+    return controls_shown(str(text)).translate(_INERT)
 
 
 def _cell(text) -> str:
