@@ -572,13 +572,17 @@ def rounds_as_the_cpu(device, request) -> bool:
 
 
 def assert_same_frame(pixel, wave, exact):
-    """Bit for bit where the device rounds as the CPU does (the wavefront
-    sums as integers what the pixel program sums as floats, to the same
-    bytes at this scale); on a GPU within a step but at a few pixels, as the
-    CPU against the GPU."""
+    """Where the device rounds as the CPU does, the same hits and rays, and
+    the same bytes but where a sum rounds to the other side of a step: the
+    wavefront sums a pixel's light as integers (fixed point), the pixel
+    program as floats, and a sum within an ulp of a half step can round
+    either way (a CI seed found one pixel of 384 a step apart, on d5928b9
+    too). On a GPU within a step but at a few pixels, as the CPU against the
+    GPU."""
     if exact:
-        assert np.array_equal(pixel.image, wave.image) and np.array_equal(pixel.hits, wave.hits)
-        assert pixel.rays == wave.rays
+        assert np.array_equal(pixel.hits, wave.hits) and pixel.rays == wave.rays
+        steps = np.abs(pixel.image.astype(int) - wave.image.astype(int)).max(axis=2)
+        assert steps.max() <= 1 and (steps > 0).mean() <= 0.01, (steps.max(), (steps > 0).sum())
     else:
         steps = np.abs(pixel.image.astype(int) - wave.image.astype(int)).max(axis=2)
         assert (steps > 1).mean() <= 0.01 and (pixel.hits != wave.hits).mean() <= 0.005
