@@ -9,10 +9,10 @@ both the primitive module's own (kernels/primitives). Its work arrays p are
 (x, y, z, h, idx): each primitive's box centre, the largest of its half
 sizes and its index in the scene, moved together as the ranges are split.
 One half size, not three: a sphere's box is a cube, and two more arrays to
-move cost the build a fifth of its time
-(docs/notes/gpu-build.md#the-host-builder-on-a-primitives-extent); a primitive
-whose box is not a cube is built over the cube around it, correct but
-looser."""
+bin and move slowed every build
+(docs/notes/gpu-build.md#the-host-builder-on-a-primitives-extent); a
+primitive whose box is not a cube is built over the cube around it, correct
+but looser."""
 
 from __future__ import annotations
 
