@@ -105,6 +105,14 @@ baselines() {  # baselines STEP SECONDS LABEL COMMAND...: COMMAND under each ver
         i=$((i + 1))
     done
 }
+side_by_side() {  # side_by_side NAME SECONDS COMMAND...: with BASELINE, each of its versions then this
+    # one, two rounds; without, this one once; steps NAME-<version>-<round> and NAME-<round>
+    local name=$1 limit=$2 round; shift 2
+    for round in $([ -n "${BASELINE:-}" ] && echo 1 2 || echo 1); do
+        baselines "$name-%s-$round" "$limit" "$name" "$@"
+        step "$name-$round" "$limit" "$@" --label "$name"
+    done
+}
 for s in $STEPS; do
     case $s in
     info)
@@ -115,15 +123,9 @@ for s in $STEPS; do
         # PYTEST_ARGS is read as shell words, so that a marker expression can be quoted in it
         eval "pytest_args=(${PYTEST_ARGS:--m \"not window\"})"
         step pytest "${PYTEST_S:-300}" python3 -m pytest -q -p no:cacheprovider "${pytest_args[@]}" ;;
-    kernels)  # with BASELINE: each version of it then this one, two rounds, side by side
-        for round in $([ -n "${BASELINE:-}" ] && echo 1 2 || echo 1); do
-            # shellcheck disable=SC2086
-            baselines "kernels-%s-$round" "${KERNELS_S:-80}" kernels python3 benchmarks/kernels.py \
-                --out "$W/kernels.jsonl" --frames 7 ${KERNELS_ARGS:-}
-            # shellcheck disable=SC2086
-            step "kernels-$round" "${KERNELS_S:-80}" python3 benchmarks/kernels.py --label kernels \
-                --out "$W/kernels.jsonl" --frames 7 ${KERNELS_ARGS:-}
-        done ;;
+    # shellcheck disable=SC2086
+    kernels) side_by_side kernels "${KERNELS_S:-80}" python3 benchmarks/kernels.py --out "$W/kernels.jsonl" \
+        --frames 7 ${KERNELS_ARGS:-} ;;
     trip) step trip "${TRIP_S:-120}" python3 benchmarks/kernels.py --out "$W/trip.jsonl" --frames 7 --skip-peak \
             --sweep-trip ;;
     scaling)
@@ -188,24 +190,12 @@ for s in $STEPS; do
         # shellcheck disable=SC2086
         step startup "${STARTUP_S:-240}" ${STARTUP_CPUS:+taskset -c $STARTUP_CPUS} \
             python3 benchmarks/startup.py ${STARTUP_ARGS:---device cpu --frames 2} ;;
-    gpubuild)  # with BASELINE: each version of it then this one, two rounds, side by side
-        for round in $([ -n "${BASELINE:-}" ] && echo 1 2 || echo 1); do
-            # shellcheck disable=SC2086
-            baselines "gpubuild-%s-$round" "${GPUBUILD_S:-420}" gpubuild python3 benchmarks/gpu_build.py \
-                --out "$W/gpu-build.jsonl" ${GPUBUILD_ARGS:-}
-            # shellcheck disable=SC2086
-            step "gpubuild-$round" "${GPUBUILD_S:-420}" python3 benchmarks/gpu_build.py --label gpubuild \
-                --out "$W/gpu-build.jsonl" ${GPUBUILD_ARGS:-}
-        done ;;
-    wgpubuild)  # with BASELINE: each version of it then this one, two rounds, side by side
-        for round in $([ -n "${BASELINE:-}" ] && echo 1 2 || echo 1); do
-            # shellcheck disable=SC2086
-            baselines "wgpubuild-%s-$round" "${WGPUBUILD_S:-420}" wgpubuild python3 benchmarks/wgpu_build.py \
-                --out "$W/wgpu-build.jsonl" ${WGPUBUILD_ARGS:-}
-            # shellcheck disable=SC2086
-            step "wgpubuild-$round" "${WGPUBUILD_S:-420}" python3 benchmarks/wgpu_build.py --label wgpubuild \
-                --out "$W/wgpu-build.jsonl" ${WGPUBUILD_ARGS:-}
-        done ;;
+    # shellcheck disable=SC2086
+    gpubuild) side_by_side gpubuild "${GPUBUILD_S:-420}" python3 benchmarks/gpu_build.py \
+        --out "$W/gpu-build.jsonl" ${GPUBUILD_ARGS:-} ;;
+    # shellcheck disable=SC2086
+    wgpubuild) side_by_side wgpubuild "${WGPUBUILD_S:-420}" python3 benchmarks/wgpu_build.py \
+        --out "$W/wgpu-build.jsonl" ${WGPUBUILD_ARGS:-} ;;
     *) echo "unknown step $s" | tee -a "$W/steps.log" ;;
     esac
 done
