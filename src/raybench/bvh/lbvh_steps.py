@@ -461,6 +461,7 @@ def make(jit, target, load_f, load_i, arrive, primitive) -> types.SimpleNamespac
         cost[0] = c / a if a > 0 else np.float32(0)
 
     return types.SimpleNamespace(
+        extent=extent,
         climb=climb,
         delta=delta,
         hierarchy_row=hierarchy_row,

@@ -21,9 +21,9 @@ from .sah_steps import (
     BINS,
     _best_plane,
     _clear_bins,
-    _copy_leaf,
     _empty_children,
     _grow,
+    _leaves,
     _log2ceil,
     _median_split,
     _open_row,
@@ -261,8 +261,7 @@ def _grow_subtrees(items, p, q, nodes, links, tasks, base, ends, depths, ordered
                 _copy(q, i, p, i)
         _push(stack, 0, parent, slot, s, e, d)
         ends[t], depths[t] = _grow(p, nodes, links, stack, 1, base + s)
-        for i in range(s, e):
-            _copy_leaf(items, idx[i], ordered, i)
+        _leaves(items, idx, s, e, ordered)
 
 
 @compiled.njit(nogil=True, inline="always")

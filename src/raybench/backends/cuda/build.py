@@ -126,11 +126,6 @@ def _reduce_box(lo, hi, t, size):
     cuda.syncthreads()
 
 
-# The builder sees a primitive through its extent (its box's centre: the
-# Morton codes' point) and, in the climb and reorder, lbvh_steps' answers.
-_extent = sphere.make(cuda.jit(device=True)).extent
-
-
 @compiled.cuda_jit()
 def _bounds_parts(spheres, n, parts):
     """parts[b] (lo x, y, z, hi x, y, z): the box of the centres block b's
@@ -348,6 +343,9 @@ _target = lbvh_steps.cpu_target(lambda f: f) if _SIM else cuda
 _steps = lbvh_steps.make(cuda.jit(device=True), _target, _load_f, _load_i, _arrive, sphere)
 _hierarchy_row = _steps.hierarchy_row
 _reorder_one = _steps.reorder_one
+# The primitive's extent as lbvh_steps compiled it: its box's centre is the
+# Morton codes' point (_bounds_parts, _morton).
+_extent = _steps.extent
 _climb = _steps.climb
 
 
