@@ -576,9 +576,9 @@ def assert_same_frame(pixel, wave, exact):
     the same bytes but where a sum rounds to the other side of a step: the
     wavefront sums a pixel's light as integers (fixed point), the pixel
     program as floats, and a sum within an ulp of a half step can round
-    either way (a CI seed found one pixel of 384 a step apart, on d5928b9
-    too). On a GPU within a step but at a few pixels, as the CPU against the
-    GPU."""
+    either way (a CI seed found such a pixel, in the code before the
+    primitive seam too). On a GPU within a step but at a few pixels, as the
+    CPU against the GPU."""
     if exact:
         assert np.array_equal(pixel.hits, wave.hits) and pixel.rays == wave.rays
         steps = np.abs(pixel.image.astype(int) - wave.image.astype(int)).max(axis=2)
