@@ -366,12 +366,16 @@ def folder_atomic(path, replaceable=lambda entry: False):
                 f"{path}: holds {shown_name(foreign[0])}{f' and {len(foreign) - 1} more' if len(foreign) > 1 else ''}, "
                 "which this would replace; choose a new or empty output folder"
             )
+    staged = None
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        staged = Path(tempfile.mkdtemp(prefix=f".{path.name[:100]}.", suffix=".partial", dir=path.parent))
-    except OSError as exc:
-        raise RaybenchError(f"{path}: cannot create the folder ({exc.strerror or exc})") from None
-    try:
+        # made with the signals held, inside the try that removes it: a
+        # SIGTERM or Ctrl-C just after mkdtemp left it behind
+        with _ctrl_c_held():
+            try:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                staged = Path(tempfile.mkdtemp(prefix=f".{path.name[:100]}.", suffix=".partial", dir=path.parent))
+            except OSError as exc:
+                raise RaybenchError(f"{path}: cannot create the folder ({exc.strerror or exc})") from None
         yield staged
         with _ctrl_c_held():
             os.chmod(staged, 0o777 & ~_umask())  # mkdtemp's is 0700
@@ -383,6 +387,8 @@ def folder_atomic(path, replaceable=lambda entry: False):
             if old is not None:
                 shutil.rmtree(old, ignore_errors=True)
     except BaseException as exc:
+        if staged is None:  # not made: the error is the making's own
+            raise
         shutil.rmtree(staged, ignore_errors=True)
         if isinstance(exc, OSError):
             raise RaybenchError(f"{path}: cannot write ({exc.strerror or exc}); nothing was changed") from None
@@ -398,7 +404,8 @@ def shown_name(name: str) -> str:
 
 @contextlib.contextmanager
 def _ctrl_c_held():
-    """Ctrl-C (SIGINT) held back until the block is done, then raised: a
+    """Ctrl-C (SIGINT), and SIGTERM where Python handles it, held back until
+    the block is done, then raised (the first to come): a
     KeyboardInterrupt between mkstemp and the try that removes its file, or
     inside that removal, left a temporary file behind (1 run in about 10 of
     the test of Ctrl-C during a sequence). Only the main thread can set a
@@ -407,14 +414,24 @@ def _ctrl_c_held():
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    if signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+    # SIGINT where Python's own handler raises KeyboardInterrupt; SIGTERM
+    # where a Python handler is set (the CLI's raises errors.Terminated)
+    saved = {}
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        saved[signal.SIGINT] = signal.default_int_handler
+    if callable(signal.getsignal(signal.SIGTERM)):
+        saved[signal.SIGTERM] = signal.getsignal(signal.SIGTERM)
+    if not saved:
         yield
         return
     held = []
-    signal.signal(signal.SIGINT, lambda signum, frame: held.append(signum))
+    for signum in saved:
+        signal.signal(signum, lambda number, frame: held.append((number, frame)))
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-        if held:  # Ctrl-C wins over whatever else the block raised
-            raise KeyboardInterrupt
+        for signum, handler in saved.items():
+            signal.signal(signum, handler)
+        if held:  # the signal wins over whatever else the block raised
+            number, frame = held[0]
+            saved[number](number, frame)
