@@ -75,7 +75,7 @@ def python_twins():
     """The Python functions, by their WGSL twin's name."""
     prim = sphere.make(PLAIN)
     walks = traverse.make(PLAIN, prim)
-    inverse, ray_axes, children = walks[1], walks[2], walks[3]
+    inverse, ray_axes, children = walks.inverse, walks.ray_axes, walks.children
     shade_hit = shade.make(PLAIN)[0]
     return {
         "prim": prim,

@@ -15,7 +15,7 @@ from .constants import FAR, HALF, ONE, ZERO
 from .primitives import sphere
 
 
-def make(jit, call=None, shadows=None, packets_search=None, read_row=None, words=None, primitive=sphere):
+def make(jit, call=None, shadows=None, packets_search=None, read_row=None, words=None, primitive=sphere, vote=None):
     """The algorithm compiled with `jit`; a namespace of its functions.
     call: the decorator of Whitted shading's search for a ray's hit (default
     jit), which the CPU compiles as one function called from both of its call
@@ -29,11 +29,13 @@ def make(jit, call=None, shadows=None, packets_search=None, read_row=None, words
     walks read a node's row (traverse.make); words: how they read a leaf's
     primitives from a backend's packed copy (the primitive's make).
     primitive: the kind of primitive the program traces, a module of
-    kernels/primitives (its KINDS)."""
+    kernels/primitives (its KINDS). vote: traverse.make's, for a backend
+    whose rays walk in groups (packet_walk)."""
     call = call or jit
     prim = primitive.make(jit, words)
     shade_hit, shade_miss, to_byte = shade.make(jit)
-    nearest_hit_bvh, inverse, ray_axes, children, leaf_hits, centre_along, walk = traverse.make(jit, prim, read_row)
+    walks = traverse.make(jit, prim, read_row, vote)
+    nearest_hit_bvh, inverse, walk = walks.nearest_hit_bvh, walks.inverse, walks.walk
     hit_closest, hit_ahead, meets_own, rim, prepare_at = (
         prim.hit,
         prim.hit_ahead,
@@ -200,10 +202,6 @@ def make(jit, call=None, shadows=None, packets_search=None, read_row=None, words
         render_pixel_bvh=render_pixel_bvh,
         nearest_hit_bvh=nearest_hit_bvh,
         inverse=inverse,
-        ray_axes=ray_axes,
-        children=children,
-        leaf_hits=leaf_hits,
-        centre_along=centre_along,
         shade_hit=shade_hit,
         shade_miss=shade_miss,
         to_byte=to_byte,
@@ -212,5 +210,6 @@ def make(jit, call=None, shadows=None, packets_search=None, read_row=None, words
         render_pixel_whitted=render_pixel_whitted,
         whitted_wavefront=whitted_wavefront,
         walk=walk,
+        packet_walk=walks.packet_walk,
         intersect_ahead=prim.intersect_ahead,
     )

@@ -20,6 +20,8 @@ overflows to NaN: direction components under TINY are replaced by +-TINY,
 so 1/d stays finite and (plane - origin) * (1/d) cannot be inf * 0.
 """
 
+from types import SimpleNamespace
+
 import numpy as np
 
 from ..layout import CHILD_BOX, COUNT, INNER, PAD, REF
@@ -35,13 +37,16 @@ TINY = np.float32(1e-20)
 _U = np.uint64
 
 
-def make(jit, prim, read_row=None):
+def make(jit, prim, read_row=None, vote=None):
     """The walks over `jit`, for the primitive whose compiled functions are
     `prim` (a primitive module's make: kernels/primitives); the leaf test
     is the only part that asks it anything. read_row(nodes, links, row): a
     node's row as its 16 values; by default the arrays are read a value at
     a time, and a backend's own may read them in fewer, wider loads from a
-    layout of its own (cuda's wavefront)."""
+    layout of its own (cuda's wavefront). vote(p): whether p holds for any
+    ray of a group that walks as one packet (a CUDA block's barrier); given,
+    the walk is also compiled voted (_walk_body), as packet_walk. A
+    namespace of the walks and the parts the WGSL twins are held to."""
     if read_row is None:
 
         @jit
@@ -162,13 +167,11 @@ def make(jit, prim, read_row=None):
                 hit_d = d
         return closest, hit, hit_d
 
-    @jit
-    def leaf_hits(ox, oy, oz, dx, dy, dz, ordered, order, first, count, closest, hit, hit_d):
-        """leaf_test for the thesis's primary rays."""
-        return leaf_test(ox, oy, oz, dx, dy, dz, ordered, order, first, count, closest, hit, hit_d, False, -1, False)
+    walk = _walk_body(jit, ray_axes, children, centre_along, leaf_test, None)
+    voted = None if vote is None else _walk_body(jit, ray_axes, children, centre_along, leaf_test, vote)
 
     @jit
-    def walk(
+    def walk_ray(
         ox, oy, oz, dx, dy, dz, t_max, any_hit, ahead, own, own_inside, nodes, links, ordered, order, stack_row, stack_t
     ):
         """The one BVH walk for any ray: (original index of the nearest primitive
@@ -177,6 +180,62 @@ def make(jit, prim, read_row=None):
         ahead, own, own_inside: the secondary rays' test (leaf_test).
         stack_row / stack_t: the walk's stack, layout.STACK entries, given by
         the backend (a CUDA thread's local array, a CPU thread's own)."""
+        return walk(ox, oy, oz, dx, dy, dz, dx, dy, dz, t_max, any_hit, ahead, own, own_inside, nodes, links,
+                    ordered, order, stack_row, stack_t)  # fmt: skip
+
+    @jit
+    def nearest_hit_bvh(ox, oy, oz, dx, dy, dz, nodes, links, ordered, order, stack_row, stack_t):
+        """(original index of the nearest primitive with t > 0 or -1, its
+        hit's datum): walk() for the thesis's primary rays."""
+        hit, _t, hit_d = walk_ray(
+            ox, oy, oz, dx, dy, dz, FAR, False, False, -1, False, nodes, links, ordered, order, stack_row, stack_t
+        )
+        return hit, hit_d
+
+    return SimpleNamespace(
+        nearest_hit_bvh=nearest_hit_bvh,
+        inverse=inverse,
+        ray_axes=ray_axes,
+        children=children,
+        walk=walk_ray,
+        packet_walk=voted,
+    )
+
+
+# What a voted walk pushes as the entry distance of a child its ray does not
+# enter: beyond any closest hit, so it never votes to visit that child.
+_MISS = np.float32(np.inf)
+
+
+def _walk_body(jit, ray_axes, children, centre_along, leaf_test, vote):
+    """The BVH walk, one source for a ray alone (vote None) and for a group
+    of rays that walk as one packet (vote given: a CUDA block's rays).
+
+    Alone, the ray takes a node's nearer child first, skips a box it enters
+    no nearer than its closest hit, and with any_hit stops at the first
+    primitive found. Voted, the packet visits a child if any of its rays
+    enters it (vote), and each ray tests only the leaves it enters itself, so
+    the node, the stack's rows and every branch are the same for all the
+    group's rays: one node fetch serves them all, and they never diverge.
+    The children are then taken in the order of their centres along the
+    group's central ray (cdx, cdy, cdz), the same for every ray without a
+    vote (faster than voting on the order:
+    docs/notes/bvh-walk.md#packets-of-rays-on-the-gpu-kept). Every ray takes
+    part in every vote, so a voted walk takes no any_hit. Same hits either
+    way: a ray's hit is in a box it enters, and the packet enters every box
+    one of its rays does (or, off the stack, one it entered nearer than its
+    closest hit). `voted` is a constant of each compile: the other branches
+    are not compiled into it."""
+    voted = vote is not None
+    if vote is None:
+
+        @jit
+        def vote(p):
+            return p
+
+    @jit
+    def walk(ox, oy, oz, dx, dy, dz, cdx, cdy, cdz, t_max, any_hit, ahead, own, own_inside, nodes, links, ordered,
+             order, stack_row, stack_t):  # fmt: skip
         ix, iy, iz, lx, ly, lz, hx, hy, hz = ray_axes(ox, oy, oz, dx, dy, dz)
         closest = t_max
         hit = np.int32(-1)  # the primitives' original indices are int32: compared in one step, not two
@@ -184,88 +243,55 @@ def make(jit, prim, read_row=None):
         row = 0
         top = _U(0)
         while row >= 0:
+            node = _U(row)
             a_near, a_far, b_near, b_far, a_ref, b_ref, a_count, b_count = children(
-                nodes, links, _U(row), ix, iy, iz, lx, ly, lz, hx, hy, hz
+                nodes, links, node, ix, iy, iz, lx, ly, lz, hx, hy, hz
             )
-            # near child first: its hits can rule the far one out (and a
-            # shadow ray meets a blocker sooner: the tree's order measured
-            # slower on the GPU, docs/notes/whitted.md)
-            if b_near < a_near:
-                a_near, a_far, a_ref, a_count, b_near, b_far, b_ref, b_count = (
-                    b_near,
-                    b_far,
-                    b_ref,
-                    b_count,
-                    a_near,
-                    a_far,
-                    a_ref,
-                    a_count,
+            # the nearer child first: its hits can rule the far one out (and
+            # a shadow ray meets a blocker sooner: the tree's order measured
+            # slower on the GPU, docs/notes/whitted.md); voted, the one whose
+            # centre lies nearer along the central ray (guarding an empty
+            # child's case with a branch, or clamping its planes, cost more
+            # than the builder storing them finite: docs/notes/bvh-walk.md)
+            if voted:
+                b_first = centre_along(nodes, node, _U(CHILD_BOX[1]), ox, oy, oz, cdx, cdy, cdz) < centre_along(
+                    nodes, node, _U(CHILD_BOX[0]), ox, oy, oz, cdx, cdy, cdz
                 )
+            else:
+                b_first = b_near < a_near
+            if b_first:
+                a_near, a_far, a_ref, a_count, b_near, b_far, b_ref, b_count = (
+                    b_near, b_far, b_ref, b_count, a_near, a_far, a_ref, a_count
+                )  # fmt: skip
             row = -1
-            if a_near <= a_far and a_far > ZERO and a_near <= closest:
+            a_in = a_near <= a_far and a_far > ZERO and a_near <= closest
+            if vote(a_in):
                 if a_count == INNER:
                     row = a_ref
-                else:
-                    closest, hit, hit_d = leaf_test(
-                        ox,
-                        oy,
-                        oz,
-                        dx,
-                        dy,
-                        dz,
-                        ordered,
-                        order,
-                        a_ref,
-                        a_count,
-                        closest,
-                        hit,
-                        hit_d,
-                        ahead,
-                        own,
-                        own_inside,
-                    )
-            if b_near <= b_far and b_far > ZERO and b_near <= closest:
+                elif a_in:
+                    closest, hit, hit_d = leaf_test(ox, oy, oz, dx, dy, dz, ordered, order, a_ref, a_count, closest,
+                                                    hit, hit_d, ahead, own, own_inside)  # fmt: skip
+            b_in = b_near <= b_far and b_far > ZERO and b_near <= closest
+            if vote(b_in):
                 if b_count != INNER:
-                    closest, hit, hit_d = leaf_test(
-                        ox,
-                        oy,
-                        oz,
-                        dx,
-                        dy,
-                        dz,
-                        ordered,
-                        order,
-                        b_ref,
-                        b_count,
-                        closest,
-                        hit,
-                        hit_d,
-                        ahead,
-                        own,
-                        own_inside,
-                    )
+                    if b_in:
+                        closest, hit, hit_d = leaf_test(ox, oy, oz, dx, dy, dz, ordered, order, b_ref, b_count,
+                                                        closest, hit, hit_d, ahead, own, own_inside)  # fmt: skip
                 elif row < 0:
                     row = b_ref
                 else:
                     stack_row[top] = b_ref
-                    if not any_hit:  # a shadow ray's t_max never shrinks: nothing pushed can fall behind it
+                    if voted:
+                        stack_t[top] = b_near if b_in else _MISS
+                    elif not any_hit:  # a shadow ray's t_max never shrinks: nothing pushed can fall behind it
                         stack_t[top] = b_near
                     top += _U(1)
             if any_hit and hit >= 0:
                 return hit, closest, hit_d
             while row < 0 and top > _U(0):
                 top -= _U(1)
-                if any_hit or stack_t[top] <= closest:
+                if any_hit or vote(stack_t[top] <= closest):
                     row = stack_row[top]
         return hit, closest, hit_d
 
-    @jit
-    def nearest_hit_bvh(ox, oy, oz, dx, dy, dz, nodes, links, ordered, order, stack_row, stack_t):
-        """(original index of the nearest primitive with t > 0 or -1, its
-        hit's datum): walk() for the thesis's primary rays."""
-        hit, _t, hit_d = walk(
-            ox, oy, oz, dx, dy, dz, FAR, False, False, -1, False, nodes, links, ordered, order, stack_row, stack_t
-        )
-        return hit, hit_d
-
-    return nearest_hit_bvh, inverse, ray_axes, children, leaf_hits, centre_along, walk
+    return walk

@@ -14,7 +14,7 @@ from numba import cuda
 from ... import compiled, kernels
 from ...kernels.constants import FAR, ZERO
 from ...kernels.whitted import RAY_FLOATS, RAY_INTS, RAY_STACK
-from ...layout import CHILD_BOX, INNER, NODE_BYTES, RADIUS, STACK
+from ...layout import NODE_BYTES, RADIUS, STACK
 from ..options import RAYS_PER_THREAD, STAGED, TRIP
 
 # The walk by default: packets once the tree outgrows the L1 cache (256 KiB
@@ -30,12 +30,19 @@ def choose_walk(nodes: int) -> str:
     return "packet" if nodes * NODE_BYTES > PACKET_TREE_BYTES else "ray"
 
 
-_k = kernels.make(cuda.jit(device=True))
+@cuda.jit(device=True)
+def _any_in_block(p):
+    """Whether p holds in any thread of the block: the packet walk's vote
+    (a barrier, which takes an int32 predicate on a GPU)."""
+    return cuda.syncthreads_or(np.int32(p)) != 0
+
+
+_k = kernels.make(cuda.jit(device=True), vote=_any_in_block)
 # module globals, which is how kernels can see them
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
 _prepare_one, _may_hit, _along, _intersect_relative = _k.prepare, _k.may_hit, _k.along, _k.intersect_relative
 _render_pixel_bvh = _k.render_pixel_bvh
-_ray_axes, _children, _leaf_hits, _centre = _k.ray_axes, _k.children, _k.leaf_hits, _k.centre_along
+_packet_walk = _k.packet_walk
 
 _U = np.uint64
 
@@ -130,29 +137,15 @@ def _zero_rays(rays):
     rays[cuda.threadIdx.x] = 0
 
 
-# What a thread pushes as the entry distance of a child its ray does not
-# enter: beyond any closest hit, so it never votes to visit that child.
-_MISS = np.float32(np.inf)
-
-
 @compiled.cuda_jit()
 def _bvh_packet_kernel(width, height, first, end, basis, nodes, links, ordered, order, spheres, image, hits):
-    """The BVH walk with the block's rays as one packet, as the CPU walks its
-    packets: the packet visits a node if any of its rays enters it, and each
-    ray tests only the leaves it enters itself, so the node, the stack's rows
-    and every branch are the same in all the block's threads: one node fetch
-    serves them all, and they never diverge. The children are taken in the
-    order of their centres along the block's central ray (faster than voting
-    on the order: docs/notes/bvh-walk.md#packets-of-rays-on-the-gpu-kept).
-    The votes are the block's
-    barriers (syncthreads_or), which the CUDA simulator has too, so the
-    tests run this very code; in a one-warp block (8x4, the default) they
-    cost what warp votes do (measured). Every thread takes part in every
-    vote: those off the image trace a copy of its last row or column,
-    unstored. Same pixels as the ray-at-a-time walk:
-    a ray's hit is in a box it enters, and the packet enters every box one
-    of its rays does (or, off the stack, one it entered nearer than its
-    closest hit)."""
+    """The BVH walk with the block's rays as one packet (traverse's walk,
+    voted by the block's barriers, _any_in_block), the children taken in
+    the order of their centres along the block's central ray. The barriers
+    are in numba's CUDA simulator too, so the tests run this very code; in
+    a one-warp block (8x4, the default) they cost what warp votes do
+    (measured). Every thread takes part in every vote: those off the image
+    trace a copy of its last row or column, unstored."""
     x, y = cuda.grid(2)
     y += first
     dx, dy, dz = _primary_ray(min(x, width - 1), min(y, end - 1), width, height, basis)
@@ -163,70 +156,10 @@ def _bvh_packet_kernel(width, height, first, end, basis, nodes, links, ordered, 
         height,
         basis,
     )
-    ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
-    ix, iy, iz, lx, ly, lz, hx, hy, hz = _ray_axes(ox, oy, oz, dx, dy, dz)
     stack_row = cuda.local.array(STACK, np.int32)  # the same in every thread
     stack_t = cuda.local.array(STACK, np.float32)  # where this thread's ray enters the node
-    closest = FAR
-    hit = -1
-    hit_d = ZERO
-    row = 0
-    top = _U(0)
-    while row >= 0:
-        node = _U(row)
-        a_near, a_far, b_near, b_far, a_ref, b_ref, a_count, b_count = _children(
-            nodes, links, node, ix, iy, iz, lx, ly, lz, hx, hy, hz
-        )
-        a_in = a_near <= a_far and a_far > ZERO and a_near <= closest
-        b_in = b_near <= b_far and b_far > ZERO and b_near <= closest
-        # first the child whose box centre lies nearer along the block's
-        # central ray: an order the same in every thread without a vote
-        # (guarding an empty child's case with a branch, or clamping its
-        # planes, cost more than the builder storing them finite:
-        # docs/notes/bvh-walk.md). The
-        # barriers take int32 predicates on a GPU.
-        b_first = _centre(nodes, node, _U(CHILD_BOX[1]), ox, oy, oz, cdx, cdy, cdz) < _centre(
-            nodes, node, _U(CHILD_BOX[0]), ox, oy, oz, cdx, cdy, cdz
-        )
-        any_a = cuda.syncthreads_or(np.int32(a_in)) != 0
-        any_b = cuda.syncthreads_or(np.int32(b_in)) != 0
-        if b_first:
-            a_near, a_ref, a_count, a_in, any_a, b_near, b_ref, b_count, b_in, any_b = (
-                b_near,
-                b_ref,
-                b_count,
-                b_in,
-                any_b,
-                a_near,
-                a_ref,
-                a_count,
-                a_in,
-                any_a,
-            )
-        row = -1
-        if any_a:
-            if a_count == INNER:
-                row = a_ref
-            elif a_in:
-                closest, hit, hit_d = _leaf_hits(
-                    ox, oy, oz, dx, dy, dz, ordered, order, a_ref, a_count, closest, hit, hit_d
-                )
-        if any_b:
-            if b_count != INNER:
-                if b_in and b_near <= closest:
-                    closest, hit, hit_d = _leaf_hits(
-                        ox, oy, oz, dx, dy, dz, ordered, order, b_ref, b_count, closest, hit, hit_d
-                    )
-            elif row < 0:
-                row = b_ref
-            else:
-                stack_row[top] = b_ref
-                stack_t[top] = b_near if b_in else _MISS
-                top += _U(1)
-        while row < 0 and top > _U(0):
-            top -= _U(1)
-            if cuda.syncthreads_or(np.int32(stack_t[top] <= closest)) != 0:
-                row = stack_row[top]
+    hit, _t, hit_d = _packet_walk(basis[0, 0], basis[0, 1], basis[0, 2], dx, dy, dz, cdx, cdy, cdz, FAR, False,
+                                  False, -1, False, nodes, links, ordered, order, stack_row, stack_t)  # fmt: skip
     if x < width and y < end:
         _store_pixel(x, y, hit, hit_d, spheres, image, hits)
 
