@@ -93,17 +93,15 @@ def make(jit, whitted, primary_ray, shade_hit):
         return np.float32(np.float64(total) / np.float64(FIXED))
 
     @jit
+    def put(queue, k, values):
+        """A record's values (a tuple of one type) into column k of a
+        queue's array, one row each: the queues are structures of arrays."""
+        for row in range(len(values)):
+            queue[row, k] = values[row]
+
+    @jit
     def put_ray(rays_f, rays_i, slot, ox, oy, oz, dx, dy, dz, wr, wg, wb, slack, pixel, depth, kind, own, inside):
-        rays_f[0, slot] = ox
-        rays_f[1, slot] = oy
-        rays_f[2, slot] = oz
-        rays_f[3, slot] = dx
-        rays_f[4, slot] = dy
-        rays_f[5, slot] = dz
-        rays_f[6, slot] = wr
-        rays_f[7, slot] = wg
-        rays_f[8, slot] = wb
-        rays_f[9, slot] = slack
+        put(rays_f, slot, (ox, oy, oz, dx, dy, dz, wr, wg, wb, slack))
         rays_i[R_PIXEL, slot] = pixel
         rays_i[R_DEPTH, slot] = depth
         rays_i[R_KIND, slot] = kind
@@ -217,16 +215,10 @@ def make(jit, whitted, primary_ray, shade_hit):
                     continue
                 if k < capacity:
                     g = glint(ks, shininess, facing, nx, ny, nz, -dx, -dy, -dz, lx, ly, lz)
-                    shadows_f[0, k] = px
-                    shadows_f[1, k] = py
-                    shadows_f[2, k] = pz
-                    shadows_f[3, k] = lx
-                    shadows_f[4, k] = ly
-                    shadows_f[5, k] = lz
-                    shadows_f[6, k] = dist
-                    shadows_f[7, k] = wr * (cr * kdr * facing + cr * g)
-                    shadows_f[8, k] = wg * (cg * kdg * facing + cg * g)
-                    shadows_f[9, k] = wb * (cb * kdb * facing + cb * g)
+                    light_r = wr * (cr * kdr * facing + cr * g)
+                    light_g = wg * (cg * kdg * facing + cg * g)
+                    light_b = wb * (cb * kdb * facing + cb * g)
+                    put(shadows_f, k, (px, py, pz, lx, ly, lz, dist, light_r, light_g, light_b))
                     shadows_i[0, k] = pixel
                     shadows_i[1, k] = i
                     shadows_i[2, k] = 1 if inside else 0

@@ -174,22 +174,16 @@ def make(jit, call, search, prim, shade_hit, shade_miss, shadows=per_ray, name="
         rest equally (the module's docstring)."""
         mr = wmax * kr
         mt = wmax * kt
-        drop_r = False
-        drop_t = False
-        if mt <= mr:
-            if mt <= slack:
-                drop_t = True
-                slack -= mt
-            if mr <= slack:
-                drop_r = True
-                slack -= mr
-        else:
-            if mr <= slack:
-                drop_r = True
-                slack -= mr
-            if mt <= slack:
-                drop_t = True
-                slack -= mt
+        t_first = mt <= mr  # on a tie, the refraction first
+        lighter, heavier = (mt, mr) if t_first else (mr, mt)
+        drop_lighter = lighter <= slack
+        if drop_lighter:
+            slack -= lighter
+        drop_heavier = heavier <= slack
+        if drop_heavier:
+            slack -= heavier
+        drop_t = drop_lighter if t_first else drop_heavier
+        drop_r = drop_heavier if t_first else drop_lighter
         if not drop_r and not drop_t:
             slack *= np.float32(0.5)
         return not drop_r, slack, not drop_t, slack
