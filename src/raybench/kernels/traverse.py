@@ -167,7 +167,7 @@ def make(jit, prim, read_row=None, vote=None):
                 hit_d = d
         return closest, hit, hit_d
 
-    walk = _walk_body(jit, ray_axes, children, centre_along, leaf_test, None)
+    walk_from = _walk_body(jit, ray_axes, children, centre_along, leaf_test, None)
     voted = None if vote is None else _walk_body(jit, ray_axes, children, centre_along, leaf_test, vote)
 
     @jit
@@ -180,7 +180,7 @@ def make(jit, prim, read_row=None, vote=None):
         ahead, own, own_inside: the secondary rays' test (leaf_test).
         stack_row / stack_t: the walk's stack, layout.STACK entries, given by
         the backend (a CUDA thread's local array, a CPU thread's own)."""
-        return walk(ox, oy, oz, dx, dy, dz, dx, dy, dz, t_max, any_hit, ahead, own, own_inside, nodes, links,
+        return walk_from(ox, oy, oz, dx, dy, dz, dx, dy, dz, t_max, any_hit, ahead, own, own_inside, nodes, links,
                     ordered, order, stack_row, stack_t)  # fmt: skip
 
     @jit
@@ -208,8 +208,9 @@ _MISS = np.float32(np.inf)
 
 
 def _walk_body(jit, ray_axes, children, centre_along, leaf_test, vote):
-    """The BVH walk, one source for a ray alone (vote None) and for a group
-    of rays that walk as one packet (vote given: a CUDA block's rays).
+    """walk_from, the BVH walk (traverse.wgsl's twin of the name): one source
+    for a ray alone (vote None) and for a group of rays that walk as one
+    packet (vote given: a CUDA block's rays; in WGSL, a subgroup's).
 
     Alone, the ray takes a node's nearer child first, skips a box it enters
     no nearer than its closest hit, and with any_hit stops at the first
@@ -234,8 +235,8 @@ def _walk_body(jit, ray_axes, children, centre_along, leaf_test, vote):
             return p
 
     @jit
-    def walk(ox, oy, oz, dx, dy, dz, cdx, cdy, cdz, t_max, any_hit, ahead, own, own_inside, nodes, links, ordered,
-             order, stack_row, stack_t):  # fmt: skip
+    def walk_from(ox, oy, oz, dx, dy, dz, cdx, cdy, cdz, t_max, any_hit, ahead, own, own_inside, nodes, links,
+                  ordered, order, stack_row, stack_t):  # fmt: skip
         ix, iy, iz, lx, ly, lz, hx, hy, hz = ray_axes(ox, oy, oz, dx, dy, dz)
         closest = t_max
         hit = np.int32(-1)  # the primitives' original indices are int32: compared in one step, not two
@@ -294,4 +295,4 @@ def _walk_body(jit, ray_axes, children, centre_along, leaf_test, vote):
                     row = stack_row[top]
         return hit, closest, hit_d
 
-    return walk
+    return walk_from

@@ -7,8 +7,9 @@ that reads a sphere's geometry), shade.wgsl (kernels/shade.py), trace.wgsl
 (kernels/trace.py's primary ray and pixel, the entry point), and one
 nearest_hit per acceleration structure: brute.wgsl, the thesis's loop over
 every sphere (trace.py's scan), and traverse.wgsl, the BVH walk of
-kernels/traverse.py with its own bindings and the one slab test, and for the
-packet walk packet.wgsl after it, with its own entry point. Whitted shading
+kernels/traverse.py with its own bindings and the one slab test and walk,
+with ray.wgsl beside it for a ray alone or packet.wgsl (its own entry point)
+for a subgroup's rays voting as one packet. Whitted shading
 adds whitted.wgsl (kernels/whitted.py), and its wavefront wavefront.wgsl
 (kernels/wavefront.py). WGSL has no include: each piece uses the others'
 functions, and the host concatenates them (source). tests/test_wgsl_parity.py
@@ -76,12 +77,13 @@ def source(workgroup: tuple[int, int], accel: str, walk: str = "ray") -> str:
     and BVH walk, or "whitted" for Whitted shading (ENTRY's keys: its entry
     point)."""
     extra = []
-    if walk == "packet" and accel == "bvh":
-        extra = [_piece("packet.wgsl")]
-    elif walk == "whitted":
-        extra = [_piece("whitted.wgsl")]
+    if accel == "bvh":
+        # how the walk votes: a subgroup's rays together, or each ray alone
+        extra = [_piece("packet.wgsl" if walk == "packet" else "ray.wgsl")]
+    if walk == "whitted":
+        extra += [_piece("whitted.wgsl")]
     elif walk == "wavefront":
-        extra = [_piece("whitted.wgsl"), _piece("wavefront.wgsl")]
+        extra += [_piece("whitted.wgsl"), _piece("wavefront.wgsl")]
     text = "\n".join([_piece(p) for p in PIECES] + [_piece(ACCELS[accel])] + extra)
     text = text.replace("WORKGROUP_X", f"{workgroup[0]}u").replace("WORKGROUP_Y", f"{workgroup[1]}u")
     for name, value in {**BVH_CONSTANTS, **WHITTED_CONSTANTS, **WAVEFRONT_CONSTANTS}.items():

@@ -144,41 +144,71 @@ fn leaf_test(o: vec3<f32>, dir: vec3<f32>, first: i32, count: i32, so_far: Neare
     return best;
 }
 
-// walk: the one walk for any ray, the nearest sphere with 0 < t < t_max,
-// or with any_hit the first found.
-fn walk(o: vec3<f32>, dir: vec3<f32>, t_max: f32, any_hit: bool, ahead: bool, own: i32, own_inside: bool) -> Found {
+// What a voted walk pushes for a child its ray does not enter: beyond any
+// closest hit (FAR at most), so it never votes to pop that child.
+const MISS: f32 = 3.4e38;
+
+// How far along c from the origin the centre of the child box at column col
+// lies: the order in which a voted walk takes a node's children, the same
+// for all its rays (kernels/traverse.py's centre_along).
+fn centre_along(row: i32, col: u32, o: vec3<f32>, c: vec3<f32>) -> f32 {
+    return (0.5 * (plane(row, col) + plane(row, col + 3u)) - o.x) * c.x
+        + (0.5 * (plane(row, col + 1u) + plane(row, col + 4u)) - o.y) * c.y
+        + (0.5 * (plane(row, col + 2u) + plane(row, col + 5u)) - o.z) * c.z;
+}
+
+// walk_from: kernels/traverse.py's one walk, for a ray alone or, voted, for
+// a subgroup's rays as one packet (VOTED and vote: ray.wgsl or packet.wgsl,
+// which the host puts beside this piece). Alone: the nearer child first, the
+// nearest sphere with 0 < t < t_max, or with any_hit the first found. Voted:
+// a child visited if any ray enters it, the children in the order of their
+// centres along the central ray `centre`; every invocation takes part in
+// every vote, so a voted walk takes no any_hit.
+fn walk_from(o: vec3<f32>, dir: vec3<f32>, centre: vec3<f32>, t_max: f32, any_hit: bool, ahead: bool, own: i32,
+             own_inside: bool) -> Found {
     let axes = ray_axes(o, dir);
     var best = Nearest(t_max, -1, 0.0);
-    var stack_row: array<i32, STACK>;
-    var stack_t: array<f32, STACK>;
+    var stack_row: array<i32, STACK>;   // voted, the same in every invocation
+    var stack_t: array<f32, STACK>;     // where this invocation's ray enters the node
     var row = 0;
     var top = 0u;
     while (row >= 0) {
         let pair = children(row, axes);
         var a = pair.a;
         var b = pair.b;
-        // near child first: its hits can rule the far one out
-        if (b.near < a.near) {
+        // the nearer child first: its hits can rule the far one out; voted,
+        // the one whose centre lies nearer along the central ray
+        var b_first = b.near < a.near;
+        if (VOTED) {
+            b_first = centre_along(row, 6u, o, centre) < centre_along(row, 0u, o, centre);
+        }
+        if (b_first) {
             let swap = a;
             a = b;
             b = swap;
         }
         row = -1;
-        if (a.near <= a.far && a.far > 0.0 && a.near <= best.closest) {
+        let a_in = a.near <= a.far && a.far > 0.0 && a.near <= best.closest;
+        if (vote(a_in)) {
             if (a.count == INNER) {
                 row = a.link;
-            } else {
+            } else if (a_in) {
                 best = leaf_test(o, dir, a.link, a.count, best, ahead, own, own_inside);
             }
         }
-        if (b.near <= b.far && b.far > 0.0 && b.near <= best.closest) {
+        let b_in = b.near <= b.far && b.far > 0.0 && b.near <= best.closest;
+        if (vote(b_in)) {
             if (b.count != INNER) {
-                best = leaf_test(o, dir, b.link, b.count, best, ahead, own, own_inside);
+                if (b_in) {
+                    best = leaf_test(o, dir, b.link, b.count, best, ahead, own, own_inside);
+                }
             } else if (row < 0) {
                 row = b.link;
             } else {
                 stack_row[top] = b.link;
-                if (!any_hit) {  // a shadow ray's t_max never shrinks: nothing pushed falls behind it
+                if (VOTED) {
+                    stack_t[top] = select(MISS, b.near, b_in);
+                } else if (!any_hit) {  // a shadow ray's t_max never shrinks: nothing pushed falls behind it
                     stack_t[top] = b.near;
                 }
                 top = top + 1u;
@@ -189,12 +219,17 @@ fn walk(o: vec3<f32>, dir: vec3<f32>, t_max: f32, any_hit: bool, ahead: bool, ow
         }
         while (row < 0 && top > 0u) {
             top = top - 1u;
-            if (any_hit || stack_t[top] <= best.closest) {
+            if (any_hit || vote(stack_t[top] <= best.closest)) {
                 row = stack_row[top];
             }
         }
     }
     return Found(best.hit, best.closest, best.d);
+}
+
+// walk: the one walk for any ray alone.
+fn walk(o: vec3<f32>, dir: vec3<f32>, t_max: f32, any_hit: bool, ahead: bool, own: i32, own_inside: bool) -> Found {
+    return walk_from(o, dir, dir, t_max, any_hit, ahead, own, own_inside);
 }
 
 // leaf_hits: leaf_test for the thesis's primary rays.
