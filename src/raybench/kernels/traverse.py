@@ -264,16 +264,24 @@ def _walk_body(jit, ray_axes, children, centre_along, leaf_test, vote):
                 a_near, a_far, a_ref, a_count, b_near, b_far, b_ref, b_count = (
                     b_near, b_far, b_ref, b_count, a_near, a_far, a_ref, a_count
                 )  # fmt: skip
-            row = -1
             a_in = a_near <= a_far and a_far > ZERO and a_near <= closest
-            if vote(a_in):
+            b_in = b_near <= b_far and b_far > ZERO and b_near <= closest
+            # voted, both votes at once, before either child's leaf is tested
+            # (the second after the first child's leaf test measured slower:
+            # docs/notes/bvh-walk.md#one-walk-for-a-ray-and-a-packet)
+            any_a = vote(a_in)
+            any_b = vote(b_in)
+            row = -1
+            if any_a:
                 if a_count == INNER:
                     row = a_ref
                 elif a_in:
                     closest, hit, hit_d = leaf_test(ox, oy, oz, dx, dy, dz, ordered, order, a_ref, a_count, closest,
                                                     hit, hit_d, ahead, own, own_inside)  # fmt: skip
-            b_in = b_near <= b_far and b_far > ZERO and b_near <= closest
-            if vote(b_in):
+            b_in = b_in and b_near <= closest  # the first child's hits can rule the second out
+            if not voted:
+                any_b = b_in
+            if any_b:
                 if b_count != INNER:
                     if b_in:
                         closest, hit, hit_d = leaf_test(ox, oy, oz, dx, dy, dz, ordered, order, b_ref, b_count,

@@ -187,17 +187,24 @@ fn walk_from(o: vec3<f32>, dir: vec3<f32>, centre: vec3<f32>, t_max: f32, any_hi
             a = b;
             b = swap;
         }
-        row = -1;
         let a_in = a.near <= a.far && a.far > 0.0 && a.near <= best.closest;
-        if (vote(a_in)) {
+        var b_in = b.near <= b.far && b.far > 0.0 && b.near <= best.closest;
+        // voted, both votes at once, before either child's leaf is tested (traverse.py says why)
+        let any_a = vote(a_in);
+        var any_b = vote(b_in);
+        row = -1;
+        if (any_a) {
             if (a.count == INNER) {
                 row = a.link;
             } else if (a_in) {
                 best = leaf_test(o, dir, a.link, a.count, best, ahead, own, own_inside);
             }
         }
-        let b_in = b.near <= b.far && b.far > 0.0 && b.near <= best.closest;
-        if (vote(b_in)) {
+        b_in = b_in && b.near <= best.closest;  // the first child's hits can rule the second out
+        if (!VOTED) {
+            any_b = b_in;
+        }
+        if (any_b) {
             if (b.count != INNER) {
                 if (b_in) {
                     best = leaf_test(o, dir, b.link, b.count, best, ahead, own, own_inside);
