@@ -109,10 +109,6 @@ def device_name(machine: dict, device: str) -> str:
     return {"cuda": "GPU (cuda)", "wgpu": "GPU (wgpu)"}.get(device, device)
 
 
-def machine_of(records: list[dict], label: str) -> dict:
-    return next((r["run"]["machine"] for r in records if r["run"]["label"] == label), {})
-
-
 def _fmt(x: float) -> str:
     return f"{x:,.0f}" if x >= 100 else f"{x:.3g}"
 
@@ -128,9 +124,11 @@ def rows(records: list[dict], references: list[dict]) -> list[dict]:
     for table, reference in ((own, False), (refs, True)):
         for label, devices in table.items():
             source = references if reference else records
-            machine = machine_of(source, label)
-            commit = next((r["run"].get("git_commit") for r in source if r["run"]["label"] == label), None)
             for device, value in devices.items():
+                # the machine and commit of the records counted: one label may hold runs of other
+                # commits and settings (the 2-core EPYC's simple-kernel run beside its fast one)
+                counted = next(r["run"] for r in source if r["run"]["label"] == label and _counts(r, device))
+                machine, commit = counted.get("machine") or {}, counted.get("git_commit")
                 out.append(
                     {
                         "label": label,
