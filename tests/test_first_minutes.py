@@ -173,6 +173,43 @@ def test_a_loose_interval_is_flagged_in_the_summary():
     assert not any("warning" in line for line in steady)
 
 
+def test_the_interval_holds_the_true_headline_within_a_run():
+    """What the interval claims: frames drawn independently about known medians (a quiet run),
+    the 95% interval holds the headline those medians give, worked by hand, in about 95% of runs."""
+    rng = np.random.default_rng(7)
+    true = {100: 10.0, 500: 40.0, 1000: 80.0}
+    expected = float(np.prod([0.48 / (ms / 1e3) for ms in true.values()]) ** (1 / 3))
+    held = 0
+    for _ in range(60):
+        low, high = headline.interval(
+            _records({n: list(ms * (1 + 0.05 * rng.standard_normal(60))) for n, ms in true.items()}), "cpu", rounds=500
+        )
+        held += low <= expected <= high
+    assert 51 <= held <= 60  # 95% of 60 is 57; a binomial's 99.9% band reaches down to 51
+
+
+def test_an_interval_is_of_its_own_run_and_the_summary_says_so():
+    """Two runs of one machine, the second under a neighbour's load through all of it (every
+    frame 1.5 times as long, as the EPYC's second back-to-back run was 3.4 times): each interval
+    holds its own headline and not the other's, which no resampling of one run's frames can
+    mend, so the summary says what the interval covers and points to the page that explains it."""
+    rng = np.random.default_rng(3)
+    base = {100: 10.0, 500: 40.0, 1000: 80.0}
+    quiet = _records({n: list(ms * (1 + 0.02 * rng.standard_normal(60))) for n, ms in base.items()})
+    loaded = _records({n: list(1.5 * ms * (1 + 0.02 * rng.standard_normal(60))) for n, ms in base.items()})
+    (ql, qh), (ll, lh) = headline.interval(quiet, "cpu"), headline.interval(loaded, "cpu")
+    assert ql <= headline.score(quiet, "cpu") <= qh and ll <= headline.score(loaded, "cpu") <= lh
+    assert not ql <= headline.score(loaded, "cpu") <= qh and not ll <= headline.score(quiet, "cpu") <= lh
+    for lines in (headline.summary(quiet, []), headline.summary(loaded, [])):
+        (note,) = [x for x in lines if "own run's frames only" in x]
+        assert note.endswith("(docs/thesis.md#the-headlines-interval-one-runs-frames)")
+    page = (ROOT / "docs" / "thesis.md").read_text()
+    assert "\n## The headline's interval: one run's frames\n" in page
+    # no interval (frames not kept): nothing to qualify
+    few = _records({100: [10.0] * 2, 500: [40.0] * 2, 1000: [80.0] * 2})
+    assert not any("own run's frames" in x for x in headline.summary(few, []))
+
+
 def test_other_processes_share_of_the_machine(monkeypatch):
     """Other processes' share: the machine's busy time less this process tree's, over wall time
     and cores (psutil's readings replaced by made-up ones, worked by hand)."""

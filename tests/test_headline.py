@@ -8,6 +8,7 @@ the report."""
 
 import gzip
 import importlib.util
+import json
 import math
 from pathlib import Path
 
@@ -17,6 +18,7 @@ from test_report import machine, rec, write
 
 from raybench import references
 from raybench.bench import headline, report
+from raybench.bench.report import answer
 from raybench.cli import run
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -51,9 +53,60 @@ def test_each_reference_machine_is_described_with_its_commit():
         assert all(r["run"]["machine"]["cpu"]["model"] for r in records)
     assert by["h200"][0]["run"]["machine"]["gpus"][0]["name"] == "NVIDIA H200"
     assert not by["epyc-2c-cpu-only"][0]["run"]["machine"]["gpus"]
-    # the references' headlines, from the definition: H200 and H100 measured the fast kernel
+    # the references' headlines, from the definition: every machine measured the fast kernel
     scores = headline.scores(references.load())
-    assert set(scores) == {"h200", "h100"} and all(s["cuda"] > 10 * s["cpu"] for s in scores.values())
+    assert set(scores) == {"h200", "h100", "epyc-2c-cpu-only"} and set(scores["epyc-2c-cpu-only"]) == {"cpu"}
+    assert all(s["cuda"] > 10 * s["cpu"] for label, s in scores.items() if label != "epyc-2c-cpu-only")
+
+
+EPYC = ROOT / "benchmarks" / "results" / "epyc-2c-cpu-only" / "headline" / "main-job-20261203-112326.jsonl"
+
+
+def _epyc_by_hand() -> tuple[float, str]:
+    """The 2-core EPYC's headline worked out from its committed file with json alone (not
+    raybench's reader or headline.score): 800x600 / median frame time at the three sphere
+    counts, brute force by the fast kernel, geometric mean; and the commit it was measured at."""
+    rates, commits = {}, set()
+    for line in EPYC.read_text().splitlines():
+        r = json.loads(line)
+        key = (r["suite"], r["width"], r["height"], r["options"].get("accel"), r["options"].get("kernel"))
+        if key == ("thesis", 800, 600, "none", "fast") and r["spheres"] in (100, 500, 1000):
+            rates[r["spheres"]] = 800 * 600 / (r["frame_ms"]["median"] / 1e3) / 1e6
+            commits.add(r["run"]["git_commit"])
+    assert sorted(rates) == [100, 500, 1000] and len(commits) == 1
+    return (rates[100] * rates[500] * rates[1000]) ** (1 / 3), commits.pop()
+
+
+def test_the_2_core_epyc_reference_is_in_the_headline_table(rng):
+    """The EPYC's older thesis records are the simple kernel's (measured before the fast one
+    existed) and come first under its label: its row must take the fast run's figure and commit."""
+    expected, commit = _epyc_by_hand()
+    mine = points(rng)
+    (row,) = [r for r in headline.rows(mine, references.load()) if r["label"] == "epyc-2c-cpu-only"]
+    assert row["reference"] and row["device"] == "cpu" and row["name"] == "AMD EPYC, 2 cores"
+    assert math.isclose(row["value"], expected, rel_tol=1e-12)
+    assert row["commit"] == commit != "ca4274070b05"  # not the simple-kernel run's, listed first
+    assert math.isclose(row["cpu_ratio"], expected / headline.score(mine, "cpu"), rel_tol=1e-12)
+    lines = headline.summary(mine, references.load())
+    assert any(x.startswith("  epyc-2c-cpu-only ") and "AMD EPYC, 2 cores" in x for x in lines)
+    assert not headline.unscored(references.load())
+    # the report's table holds it too, with its interval over its kept frames
+    (shown,) = [r for r in answer.headline_rows(mine, references.load()) if r["label"] == "epyc-2c-cpu-only"]
+    low, high = shown["interval"]
+    assert low <= expected <= high
+
+
+def test_the_epyc_row_goes_when_its_records_lose_the_kernel():
+    """The kernel taken off the EPYC's records: they read as the simple kernel's (the only one
+    before the fast kernel), the row goes and the reason is said. (Its accel is checked above:
+    the figure by hand reads only records that say accel none.)"""
+    shipped = references.load()
+    for r in shipped:
+        if r["run"]["label"] == "epyc-2c-cpu-only":
+            r["options"].pop("kernel", None)
+    assert "epyc-2c-cpu-only" not in {r["label"] for r in headline.rows([], shipped)}
+    (line,) = headline.unscored(shipped)
+    assert line.startswith("epyc-2c-cpu-only: no headline v1: its thesis records are the simple kernel's")
 
 
 def points(rng, device="cpu", kernel="fast", spheres=headline.SPHERES, size=headline.SIZE, **kw):

@@ -109,9 +109,16 @@ def test_a_reference_without_a_headline_says_why():
     from raybench import references
     from raybench.bench import headline
 
-    (line,) = headline.unscored(references.load())
+    assert not headline.unscored(references.load())  # every reference machine has a headline
+    # the 2-core EPYC as it shipped before its fast-kernel run: its simple kernel's records alone
+    shipped = [
+        r
+        for r in references.load()
+        if r["run"]["label"] != "epyc-2c-cpu-only" or (r["options"] or {}).get("kernel", "simple") != "fast"
+    ]
+    (line,) = headline.unscored(shipped)
     assert line.startswith("epyc-2c-cpu-only: no headline v1: its thesis records are the simple kernel's")
-    assert any(line in x for x in headline.summary(_records(np.random.default_rng(0)), references.load()))
+    assert any(line in x for x in headline.summary(_records(np.random.default_rng(0)), shipped))
 
 
 def test_the_raw_data_is_linked_from_the_report(tmp_path, rng):

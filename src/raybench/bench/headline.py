@@ -58,6 +58,14 @@ def score(records: list[dict], device: str) -> float | None:
 # resampled medians together as it moved the run. Blocks of a tenth of the frames; fixed seed.
 ROUNDS = 2000
 SPREAD_WARN = 0.10  # an interval wider than this either side of the headline is too loose to quote alone
+# The interval resamples one run's frames, so a load or a clock that held through a whole point
+# moves every frame and its resamples together: two runs on a shared machine fell outside each
+# other's (docs/thesis.md#the-headlines-interval-one-runs-frames). It is stated as what it is,
+# not widened by a guessed between-run term: one run holds no measure of the next.
+WITHIN_RUN = (
+    "each interval is over its own run's frames only: a load or a clock that held through a whole point "
+    "moves all its frames together, and another run can fall outside it"
+)
 
 
 def _block_medians(samples: np.ndarray, rng: np.random.Generator, rounds: int) -> np.ndarray:
@@ -71,7 +79,9 @@ def _block_medians(samples: np.ndarray, rng: np.random.Generator, rounds: int) -
 def interval(records: list[dict], device: str, rounds: int = ROUNDS) -> tuple[float, float] | None:
     """The 95% interval of device's headline from one machine's records: the frames of each of
     its three points resampled in blocks, the geometric mean taken each round. None where a
-    point is missing or kept too few frames (records from before samples_ms)."""
+    point is missing or kept too few frames (records from before samples_ms). It is the spread
+    within one run (WITHIN_RUN): what stayed the same through a point's frames, a neighbour's
+    load or the clock, it cannot see."""
     found = {r["spheres"]: r.get("samples_ms") or [] for r in records if _counts(r, device)}
     if set(found) != set(SPHERES) or any(len(s) < 5 for s in found.values()):
         return None
@@ -109,10 +119,6 @@ def device_name(machine: dict, device: str) -> str:
     return {"cuda": "GPU (cuda)", "wgpu": "GPU (wgpu)"}.get(device, device)
 
 
-def machine_of(records: list[dict], label: str) -> dict:
-    return next((r["run"]["machine"] for r in records if r["run"]["label"] == label), {})
-
-
 def _fmt(x: float) -> str:
     return f"{x:,.0f}" if x >= 100 else f"{x:.3g}"
 
@@ -128,9 +134,11 @@ def rows(records: list[dict], references: list[dict]) -> list[dict]:
     for table, reference in ((own, False), (refs, True)):
         for label, devices in table.items():
             source = references if reference else records
-            machine = machine_of(source, label)
-            commit = next((r["run"].get("git_commit") for r in source if r["run"]["label"] == label), None)
             for device, value in devices.items():
+                # the machine and commit of the records counted: one label may hold runs of other
+                # commits and settings (the 2-core EPYC's simple-kernel run beside its fast one)
+                counted = next(r["run"] for r in source if r["run"]["label"] == label and _counts(r, device))
+                machine, commit = counted.get("machine") or {}, counted.get("git_commit")
                 out.append(
                     {
                         "label": label,
@@ -171,30 +179,34 @@ def summary(records: list[dict], references: list[dict]) -> list[str]:
     if not mine:
         return [f"{DEFINITION}: not measured in this run (it needs the thesis suite)"]
     out = [f"{DEFINITION}:"]
-    loose = []
+    loose, spans = [], 0
+    width = max([14] + [len(r["label"]) for r in table if r["reference"]])  # the figures in one column
     for r in mine:
         extra = ""
         if r["device"] != "cpu" and r["cpu_ratio"]:
             extra = f"  ({r['cpu_ratio']:.3g}x this machine's CPU)"
         span = interval([x for x in records if x["run"]["label"] == r["label"]], r["device"])
         if span is not None:
+            spans += 1
             extra = f"  (95% interval {_fmt(span[0])} to {_fmt(span[1])}){extra}"
             if span[1] - span[0] > 2 * SPREAD_WARN * r["value"]:
                 loose.append(r["name"])
         else:
             extra = f"  (too few frames for an interval: a longer --duration gives one){extra}"
-        out.append(f"  this machine   {r['name']:<40} {_fmt(r['value']):>9}{extra}")
+        out.append(f"  {'this machine':<{width}} {r['name']:<40} {_fmt(r['value']):>9}{extra}")
     if loose:
         out.append(
             f"  warning: the interval of {', '.join(loose)} is wider than +-{SPREAD_WARN:.0%}: its frames varied "
             "(another program's load, a clock that changed); run again on a quiet machine to quote it"
         )
+    if spans:
+        out.append(f"  {WITHIN_RUN} (docs/thesis.md#the-headlines-interval-one-runs-frames)")
     others = [r for r in table if r["reference"]]
     if others:
         out.append("  reference machines (measured elsewhere, shipped with raybench; not this machine):")
         for r in others:
             ratio = f"  ({r['cpu_ratio']:.3g}x this CPU)" if r["cpu_ratio"] else ""
-            out.append(f"  {r['label']:<14} {r['name']:<40} {_fmt(r['value']):>9}{ratio}")
+            out.append(f"  {r['label']:<{width}} {r['name']:<40} {_fmt(r['value']):>9}{ratio}")
         out += [f"  {line}" for line in unscored(references)]
     has_gpu = any(r["device"] != "cpu" for r in mine)
     base = next((r for r in mine if r["device"] == "cpu"), None)

@@ -173,6 +173,7 @@ def render(sources, machines: dict[str, list[dict]], references, table, measured
         table=table,
         ratio_header=answer.ratio_header(table),
         ratio_note=answer.RATIO_NOTE,
+        interval_note=answer.INTERVAL_NOTE,
         unscored=headline.unscored(references or []),
         fmt_interval=answer.fmt_interval,
         references=references is not None,

@@ -154,7 +154,14 @@ def _write(sources, machines, notes, beyond, w: _Writer, references: list[dict] 
     if table:
         w(f"The {escape(headline.DEFINITION)} (raybench.bench.headline):", "")
         w(answer.headline_table(table), "")
-        w(*[f"- {escape(line)}" for line in headline.unscored(references or [])], "", answer.RATIO_NOTE, "")
+        w(
+            *[f"- {escape(line)}" for line in headline.unscored(references or [])],
+            "",
+            answer.RATIO_NOTE,
+            "",
+            answer.INTERVAL_NOTE,
+            "",
+        )
     w("### The thesis's claims", "")
     claims, judged = _claims_table(machines)
     w(claims, "")
