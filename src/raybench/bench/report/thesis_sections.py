@@ -57,6 +57,13 @@ def _rates_text(machine: dict) -> str:
     )
 
 
+def _fit_cells(fit: dict | None, spheres: list[int]) -> list[str]:
+    """Slope, intercept and R² of a fitted line, as table cells: tests 1-6 and test 7 show the same fit."""
+    if not fit:
+        return ["–", "–", "–"]
+    return [fmt_slope(fit["slope"], spheres), fmt_num(fit["intercept"]), fmt_r2(fit["r2"])]
+
+
 def _section_thesis(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
     w("### Tests 1-6: frame time against sphere count", "")
     series = thesis_series(records)
@@ -100,14 +107,11 @@ def _section_thesis(w: _Writer, label: str, slug: str, records: list[dict]) -> N
         header += ["ray-sphere tests/s at max count"]
         rows = []
         for s in ds:
-            f = s["fit"]
             at = dict(zip(s["spheres"], s["median"]))
             row = [
                 f"{s['width']}x{s['height']}",
                 escape(s["test"] or "–"),
-                fmt_slope(f["slope"], s["spheres"]) if f else "–",
-                fmt_num(f["intercept"]) if f else "–",
-                fmt_r2(f["r2"]) if f else "–",
+                *_fit_cells(s["fit"], s["spheres"]),
             ]
             row += [fmt_ms(at[n]) if n in at else "–" for n in counts]
             if kernel:
@@ -166,15 +170,12 @@ def _section_test7(w: _Writer, label: str, slug: str, records: list[dict]) -> No
     w.image(f"{slug}-test7.png", charts.plot_test7(label, series), f"{label}: test 7 frame time against spheres")
     rows = []
     for s in series:
-        f = s["fit"]
         rows.append(
             [
                 escape(DEVICE_NAMES.get(s["device"], s["device"])),
                 f"{s['width']}x{s['height']}",
                 len(s["spheres"]),
-                fmt_slope(f["slope"], s["spheres"]) if f else "–",
-                fmt_num(f["intercept"]) if f else "–",
-                fmt_r2(f["r2"]) if f else "–",
+                *_fit_cells(s["fit"], s["spheres"]),
                 fmt_ms(s["first_frame_s"] * 1e3) if s["first_frame_s"] is not None else "–",
                 fmt_compile_s(s["compile_s"]),
             ]
@@ -232,45 +233,35 @@ def _section_tuning(w: _Writer, label: str, slug: str, records: list[dict]) -> N
     else:
         w("CPU tuning: not measured.", "")
     if gpu:
-        fastest = min(r["ms"] for r in gpu)
-        timing = "kernel" if all(r["kernel_ms"] is not None for r in gpu) else "frame"
-        w(
-            _table(
-                ["GPU block", "median frame ms", "median kernel ms", f"relative to fastest ({timing})"],
-                [
-                    [
-                        escape(r["label"]),
-                        fmt_ms(r["frame_ms"]),
-                        fmt_ms(r["kernel_ms"]) if r["kernel_ms"] is not None else "–",
-                        fmt_x(r["ms"] / fastest),
-                    ]
-                    for r in gpu
-                ],
-            ),
-            "",
-        )
+        w(_gpu_tuning_table("GPU block", gpu), "")
     else:
         w("GPU tuning: not measured.", "")
     if portable:
-        fastest = min(r["ms"] for r in portable)
-        timing = "kernel" if all(r["kernel_ms"] is not None for r in portable) else "frame"
         w(
             f"wgpu workgroups, on {escape(_adapter_name(records))}:",
             "",
-            _table(
-                ["wgpu workgroup", "median frame ms", "median kernel ms", f"relative to fastest ({timing})"],
-                [
-                    [
-                        escape(r["label"]),
-                        fmt_ms(r["frame_ms"]),
-                        fmt_ms(r["kernel_ms"]) if r["kernel_ms"] is not None else "–",
-                        fmt_x(r["ms"] / fastest),
-                    ]
-                    for r in portable
-                ],
-            ),
+            _gpu_tuning_table("wgpu workgroup", portable),
             "",
         )
+
+
+def _gpu_tuning_table(first: str, rows: list[dict]) -> str:
+    """One table for CUDA blocks and wgpu workgroups: both are a launch shape timed by frame and, where the
+    device reports it, by kernel; the ratio uses the kernel time only when every row has one."""
+    fastest = min(r["ms"] for r in rows)
+    timing = "kernel" if all(r["kernel_ms"] is not None for r in rows) else "frame"
+    return _table(
+        [first, "median frame ms", "median kernel ms", f"relative to fastest ({timing})"],
+        [
+            [
+                escape(r["label"]),
+                fmt_ms(r["frame_ms"]),
+                fmt_ms(r["kernel_ms"]) if r["kernel_ms"] is not None else "–",
+                fmt_x(r["ms"] / fastest),
+            ]
+            for r in rows
+        ],
+    )
 
 
 def _section_constant(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
