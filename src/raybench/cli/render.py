@@ -17,15 +17,12 @@ from .options import (
     check_output,
     cluster_options,
     device_option,
-    device_options,
-    load_scene,
     open_cluster,
     parse_size,
     scene_options,
     scheduler_security,
     shading_notes,
     shading_option_group,
-    shading_options,
     size_option,
     tracer_options,
 )
@@ -101,23 +98,12 @@ class ClusterSpec:
 )
 @cluster_options()
 def render(
-    scene_file,
-    spheres,
-    seed,
-    materials,
+    scene_args,
     layout,
     size,
     device,
-    threads,
-    block,
-    workgroup,
-    adapter,
-    accel,
-    kernel,
-    build,
+    tracer,
     shading,
-    depth,
-    shadow_samples,
     output,
     camera_path,
     frames,
@@ -139,14 +125,12 @@ def render(
     from ..render import render as render_frame
     from .compiling import announced
 
-    scene = load_scene(scene_file, spheres, seed, materials, layout)
+    scene = scene_args.load(layout)
     width, height = parse_size(size)
-    shaded = shading_options(shading, depth, shadow_samples)
+    shaded = shading.checked()
     for note in shading_notes(scene, shaded):
         click.echo(note)
-    options = device_options(
-        threads=threads, block=block, workgroup=workgroup, adapter=adapter, kernel=kernel, accel=accel, build=build
-    )
+    options = tracer.options()
     scheduler = scheduler or os.environ.get("RAYBENCH_SCHEDULER") or None
     if workers is not None and scheduler is not None:
         raise RaybenchError("give --workers (an embedded cluster) or --scheduler (a running one), not both")
@@ -172,7 +156,7 @@ def render(
         return _render_tiles(RenderJob(scene, width, height, device, shaded, options, output, level), on, tile)
     if tile is not None:
         raise RaybenchError("--tile applies across a cluster: give --workers N or --scheduler ADDR")
-    device = resolve(device, adapter)
+    device = resolve(device, tracer.adapter)
     start = time.perf_counter()
     with announced():
         frame = render_frame(scene, width=width, height=height, device=device, **shaded, **options)
