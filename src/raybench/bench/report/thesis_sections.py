@@ -57,6 +57,20 @@ def _rates_text(machine: dict) -> str:
     )
 
 
+def _opening(w: _Writer, title: str, measured, missing: str) -> bool:
+    """A section's heading, then, where nothing was measured, the line that
+    says so (missing) in place of the section: whether anything was."""
+    w(f"### {title}", "")
+    if not measured:
+        w(missing, "")
+    return bool(measured)
+
+
+def _no_suite(suite: str) -> str:
+    """What a section says where the results hold none of its suite's records."""
+    return f"Not measured: these results hold no `{suite}` suite (`raybench bench --suite {suite}`)."
+
+
 def _fit_cells(fit: dict | None, spheres: list[int]) -> list[str]:
     """Slope, intercept and R² of a fitted line, as table cells: tests 1-6 and test 7 show the same fit."""
     if not fit:
@@ -65,10 +79,8 @@ def _fit_cells(fit: dict | None, spheres: list[int]) -> list[str]:
 
 
 def _section_thesis(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
-    w("### Tests 1-6: frame time against sphere count", "")
     series = thesis_series(records)
-    if not series:
-        w("Not measured: these results hold no `thesis` suite (`raybench bench --suite thesis`).", "")
+    if not _opening(w, "Tests 1-6: frame time against sphere count", series, _no_suite("thesis")):
         return
     w(
         "Each chart shows one processor: the median time to render one frame (dots, solid line) for 100 to "
@@ -155,10 +167,9 @@ def _section_speedup(w: _Writer, label: str, slug: str, records: list[dict]) -> 
 
 
 def _section_test7(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
-    w("### Test 7: adding ten spheres every frame", "")
     series = test7_series(records)
-    if not series:
-        w("Not measured: these results hold no test 7 (it runs with `--suite thesis`).", "")
+    missing = "Not measured: these results hold no test 7 (it runs with `--suite thesis`)."
+    if not _opening(w, "Test 7: adding ten spheres every frame", series, missing):
         return
     w(
         "As in the thesis, the scene starts with 10 spheres and gets 10 more every frame up to 1000; each dot "
@@ -199,10 +210,8 @@ def _section_test7(w: _Writer, label: str, slug: str, records: list[dict]) -> No
 
 
 def _section_tuning(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
-    w("### Tuning: CPU threads and GPU block shapes", "")
     cpu, gpu, portable = cpu_tuning(records), gpu_tuning(records), gpu_tuning(records, "wgpu")
-    if not cpu and not gpu and not portable:
-        w("Not measured: these results hold no `tuning` suite (`raybench bench --suite tuning`).", "")
+    if not _opening(w, "Tuning: CPU threads and GPU block shapes", cpu or gpu or portable, _no_suite("tuning")):
         return
     w(
         "The same frame rendered with different ways of splitting the work. On the CPU the rows of the picture "
@@ -265,14 +274,9 @@ def _gpu_tuning_table(first: str, rows: list[dict]) -> str:
 
 
 def _section_constant(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
-    w("### Sphere count: compile-time constant or runtime variable", "")
     rows = {d: constant_vs_runtime(records, d) for d in ("cuda", "cpu")}
-    if not any(rows.values()):
-        w(
-            "Not measured: these results hold no `constant-vs-runtime` suite "
-            "(`raybench bench --suite constant-vs-runtime`).",
-            "",
-        )
+    title = "Sphere count: compile-time constant or runtime variable"
+    if not _opening(w, title, any(rows.values()), _no_suite("constant-vs-runtime")):
         return
     w(
         "The thesis's test 7 passed the sphere count to the shader at run time and blamed that for slower "
