@@ -298,30 +298,42 @@ def tracer_options(adapter_whose: str = "wgpu"):
         ),
         click.option("--workgroup", help="wgpu: workgroup shape XxY (default 16x16)"),
         adapter_option(adapter_whose),
-        click.option(
-            "--accel",
-            type=click.Choice(ACCELS),
-            help="bvh: walk a bounding volume hierarchy (the default); none: brute force, every sphere for "
+        choice_option(
+            "accel",
+            ACCELS,
+            "bvh: walk a bounding volume hierarchy (the default); none: brute force, every sphere for "
             "every ray (the thesis's algorithm; the default where --kernel is given). Same picture",
         ),
-        click.option(
-            "--kernel",
-            type=click.Choice(KERNELS),
-            help="brute force only: simple, the thesis's loop, a pixel at a time; fast (its default on cpu and "
+        choice_option(
+            "kernel",
+            KERNELS,
+            "brute force only: simple, the thesis's loop, a pixel at a time; fast (its default on cpu and "
             "cuda), rays grouped and certain misses skipped, the same picture; wgpu has simple only",
         ),
         build_option(),
     )
 
 
+def choice_option(name: str, choices, help_text: str, multiple: bool = False):
+    """--name, one of choices: given once (render and view trace one way), or
+    with multiple, repeated for each value wanted, handed on in the plural
+    (bench measures each)."""
+    dest = f"{name}s" if multiple else name
+    return click.option(f"--{name}", dest, multiple=multiple, type=click.Choice(choices), help=help_text)
+
+
+def path_option(*decls: str, help_text: str, **attrs):
+    """An option that names a file or folder to write, handed on as a Path."""
+    return click.option(*decls, type=click.Path(path_type=Path), help=help_text, **attrs)
+
+
 def build_option(multiple: bool = False):
-    return click.option(
-        "--build",
-        "builds" if multiple else "build",
-        multiple=multiple,
-        type=click.Choice(BUILDS),
-        help="cuda and wgpu, with the BVH: where its tree is built: host (the CPU's binned SAH tree, uploaded; the "
+    return choice_option(
+        "build",
+        BUILDS,
+        "cuda and wgpu, with the BVH: where its tree is built: host (the CPU's binned SAH tree, uploaded; the "
         "default) or gpu (an LBVH built on the GPU, where it is walked)" + ("; repeat for both" if multiple else ""),
+        multiple,
     )
 
 

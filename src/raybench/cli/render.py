@@ -19,6 +19,7 @@ from .options import (
     device_option,
     open_cluster,
     parse_size,
+    path_option,
     scene_options,
     scheduler_security,
     shading_notes,
@@ -71,11 +72,8 @@ class ClusterSpec:
 @device_option()
 @tracer_options()
 @shading_option_group()
-@click.option(
-    "-o",
-    "--output",
-    type=click.Path(path_type=Path),
-    help="PNG file to write (default render.png); with --path, the folder of the frames",
+@path_option(
+    "-o", "--output", help_text="PNG file to write (default render.png); with --path, the folder of the frames"
 )
 @click.option(
     "--path",
@@ -90,11 +88,10 @@ class ClusterSpec:
     help="zlib's level of the PNGs, 0 (none) to 9 (smallest); default 1, which encodes faster than 6 in files "
     "a little larger",
 )
-@click.option(
+@path_option(
     "--gif",
-    type=click.Path(path_type=Path),
-    help="--path: also the whole sequence as one animated GIF at this path, 25 frames a second (Pillow, a palette a "
-    "frame)",
+    help_text="--path: also the whole sequence as one animated GIF at this path, 25 frames a second (Pillow, a "
+    "palette a frame)",
 )
 @cluster_options()
 def render(

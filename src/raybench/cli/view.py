@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import click
 
 from ..errors import RaybenchError
@@ -12,6 +10,7 @@ from .options import (
     device_option,
     options_by_device,
     parse_size,
+    path_option,
     scene_options,
     shading_notes,
     shading_option_group,
@@ -47,11 +46,7 @@ def _view_help() -> str:
     "its update (refit or build) and the trace apart",
 )
 @click.option("--frames", type=click.IntRange(min=1), help="close after N traced frames are shown")
-@click.option(
-    "--screenshot",
-    type=click.Path(path_type=Path),
-    help="with --frames: save the last frame, as drawn in the window, to this PNG file",
-)
+@path_option("--screenshot", help_text="with --frames: save the last frame, as drawn in the window, to this PNG file")
 def view(
     scene_args,
     size,
