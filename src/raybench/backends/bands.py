@@ -85,7 +85,7 @@ class Queues:
     frames: regrow them after a frame that overflowed them. A backend's
     Wavefront plans them (_plan(rows, rays, shadows), with plan()), makes
     them (_allocate(plan), which keeps plan, ray_capacity and
-    shadow_capacity) and reads the last frame's counts back (_counts(): a
+    shadow_capacity) and reads the last frame's counts back (_read_counts(): a
     row a band, as regrown() takes them, at shadow_base and overflow)."""
 
     depth: int
@@ -102,7 +102,7 @@ class Queues:
             return self._plan(self.plan.rows, rays, shadows)  # as many rows a band, if they fit
 
         capacity = self.ray_capacity, self.shadow_capacity
-        plan = regrown(self._counts(), self.depth, self.shadow_base, self.overflow, *capacity, replan)
+        plan = regrown(self._read_counts(), self.depth, self.shadow_base, self.overflow, *capacity, replan)
         if plan is None:
             return False
         self._allocate(plan)

@@ -431,7 +431,7 @@ class Wavefront(bands.Queues):
         """The stages' kernels by name (Tracer.kernels)."""
         return {"extend": _extend, "shade": _shade, "shadow": _shadow}
 
-    def _counts(self) -> np.ndarray:
+    def _read_counts(self) -> np.ndarray:
         """The last frame's bands' queue counts (bands.Queues.overflowed), waiting for it."""
         return self.d_counts.copy_to_host()[: self._bands]
 

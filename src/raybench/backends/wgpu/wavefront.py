@@ -218,7 +218,7 @@ class Wavefront(bands.Queues):
             run("main_wf_advance", 1)
         run("main_wf_finish", groups)
 
-    def _counts(self) -> np.ndarray:
+    def _read_counts(self) -> np.ndarray:
         """The last frame's bands' states, their queue counts (bands.Queues.overflowed), waiting for it."""
         import wgpu
 
