@@ -2,12 +2,12 @@
 machine.
 
 Each sphere orbits on a circle through its starting centre, in a plane of
-its own (random orientation), of radius AMPLITUDE times its own radius, at
-an angular speed of one turn in PERIOD_S[0] to PERIOD_S[1] seconds. At time
-0 the spheres are the scene's own; radii and colours never change. The
-motion is small against the scene (each sphere stays within 2 * AMPLITUDE
-radii of its start), so a tree refitted to it degrades slowly, as the
-spheres of a real dynamic scene move between frames.
+its own (random orientation), AMPLITUDE times its own size (scene.sizes)
+from the circle's centre, at an angular speed of one turn in PERIOD_S[0] to
+PERIOD_S[1] seconds. At time 0 the spheres are the scene's own; only their
+centres move. The motion is small against the scene (each sphere stays
+within 2 * AMPLITUDE of its sizes of its start), so a tree refitted to it
+degrades slowly, as the spheres of a real dynamic scene move between frames.
 """
 
 from __future__ import annotations
@@ -15,7 +15,8 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import RaybenchError, shown
-from .layout import CX, CZ, RADIUS
+from .layout import CX, CZ
+from .scene import sizes
 
 AMPLITUDE = 1.5
 PERIOD_S = (2.0, 8.0)
@@ -40,7 +41,7 @@ class Orbits:
         self.u, self.v = u, np.cross(axis, u)
         self.omega = 2 * np.pi / rng.uniform(*PERIOD_S, n)
         self.phase = rng.uniform(0, 2 * np.pi, n)
-        self.amplitude = AMPLITUDE * spheres[RADIUS].astype(np.float64)
+        self.amplitude = AMPLITUDE * sizes(spheres)
         self.start = spheres[CX : CZ + 1].astype(np.float64)
 
     def at(self, t: float) -> np.ndarray:

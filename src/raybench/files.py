@@ -191,6 +191,18 @@ def _umask() -> int:
     return mask
 
 
+def lstat_or_none(path, cannot) -> os.stat_result | None:
+    """What is at path, a symlink itself and not its target, or None where
+    nothing is; a place that cannot be looked into is refused in one line,
+    cannot(why) (why: the system's reason)."""
+    try:
+        return os.lstat(path)
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        raise RaybenchError(cannot(exc.strerror or exc)) from None
+
+
 def output_mode(path, what: str = "") -> int | None:
     """What an output path holds, checked before anything is written there:
     the mode of the regular file there (a write keeps it), or None where there
@@ -200,13 +212,8 @@ def output_mode(path, what: str = "") -> int | None:
     name the file system cannot hold (over 255 bytes) or a place that cannot
     be looked into. `what` names the output in the message ("-o", "--gif")."""
     label = f"{what} {path}" if what else str(path)
-    try:
-        info = os.lstat(path)
-    except FileNotFoundError:
-        return None
-    except OSError as exc:
-        raise RaybenchError(f"{label}: cannot write there ({exc.strerror or exc}); choose another path") from None
-    if stat.S_ISLNK(info.st_mode):
+    info = lstat_or_none(path, lambda why: f"{label}: cannot write there ({why}); choose another path")
+    if info is None or stat.S_ISLNK(info.st_mode):
         return None
     if not stat.S_ISREG(info.st_mode):
         raise RaybenchError(

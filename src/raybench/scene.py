@@ -298,6 +298,13 @@ def _plain(values):
     return listed if np.ndim(values) else listed[0]
 
 
+def sizes(spheres: np.ndarray) -> np.ndarray:
+    """Each sphere's size in a (7, n) sphere array, (n,) float64: the length
+    that what is done to a sphere is scaled by (raybench.animate's orbits),
+    so that nothing outside the scene reads the radius row."""
+    return spheres[RADIUS].astype(np.float64)
+
+
 def check_spheres(spheres: np.ndarray, where: str = "") -> None:
     """check_values of a (7, n) sphere array, as Scene.spheres holds them
     (raybench.layout's rows)."""

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import RaybenchError
-from .files import file_kind, output_mode, read_json, unix_flags, write_atomic
+from .files import file_kind, lstat_or_none, output_mode, read_json, unix_flags, write_atomic
 
 MARKER = ".raybench-sequence.json"
 FORMAT = "raybench-sequence"
@@ -113,12 +113,9 @@ def prepare(out_dir, marker: dict, option: str = "") -> list[int]:
 def _frame_there(path: Path, where: str, width: int, height: int) -> bool:
     """Whether frame `path` is there, checked to be one of this run's
     size; False where nothing is."""
-    try:
-        info = os.lstat(path)
-    except FileNotFoundError:
+    info = lstat_or_none(path, lambda why: f"{where}: cannot look at {path.name} ({why})")
+    if info is None:
         return False
-    except OSError as exc:
-        raise RaybenchError(f"{where}: cannot look at {path.name} ({exc.strerror or exc})") from None
     fix = "remove it, and the frame is traced again"
     if not stat.S_ISREG(info.st_mode):
         kind = "symlink" if stat.S_ISLNK(info.st_mode) else file_kind(info.st_mode)

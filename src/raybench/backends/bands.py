@@ -80,6 +80,36 @@ def regrown(counts, depth: int, shadow_base: int, overflow: int, rays: int, shad
         return replan(need_rays, need_shadows)
 
 
+class Queues:
+    """What both GPU backends' wavefronts do with their queues between
+    frames: regrow them after a frame that overflowed them. A backend's
+    Wavefront plans them (_plan(rows, rays, shadows), with plan()), makes
+    them (_allocate(plan), which keeps plan, ray_capacity and
+    shadow_capacity) and reads the last frame's counts back (_read_counts(): a
+    row a band, as regrown() takes them, at shadow_base and overflow)."""
+
+    depth: int
+    shadow_base: int
+    overflow: int
+    retraced: int  # frames traced again with longer queues
+
+    def overflowed(self) -> bool:
+        """Whether the last frame's queues were too short (waits for it);
+        if so they are made long enough for it (longer, or as long for
+        fewer rows a band), to trace it again."""
+
+        def replan(rays: int, shadows: int) -> Plan:
+            return self._plan(self.plan.rows, rays, shadows)  # as many rows a band, if they fit
+
+        capacity = self.ray_capacity, self.shadow_capacity
+        plan = regrown(self._read_counts(), self.depth, self.shadow_base, self.overflow, *capacity, replan)
+        if plan is None:
+            return False
+        self._allocate(plan)
+        self.retraced += 1
+        return True
+
+
 def plan(
     width: int, rows: int, rays: int, shadows: int, buffers: list[Buffer], limit: int, least: int, holds: str
 ) -> Plan:

@@ -1,7 +1,11 @@
 """What every backend's Tracer does: the contract that render(), the bench,
 the viewer and the tests rely on, written down once.
 
-A Tracer is made for one scene at one size; it keeps what a frame needs
+A Tracer is made for one scene at one size, as Tracer(spheres, width,
+height, options=None, shading=None): spheres the scene's (7, N) float32
+array, options the device's as backends.options.checked made them (None:
+its defaults), shading the Shading of a Whitted frame (None: the thesis's
+shading). It keeps what a frame needs
 (the tree, the buffers, the compiled kernel) between frames, and traces a
 frame on each call into its host arrays `image` and `hits`, the same ones
 frame after frame unless its caller hands it others: a Renderer gives each
@@ -15,6 +19,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from ..errors import RaybenchError
+from .options import checked
 
 
 @runtime_checkable
@@ -96,6 +101,10 @@ class TracerBase:
 
     def describe(self) -> dict | None:
         return None
+
+    def _options(self, options, shading):
+        """The constructor's options: those given, or for None the device's defaults under this shading."""
+        return checked(self.name, {}, shading) if options is None else options
 
     def host_array(self, shape: tuple, dtype) -> np.ndarray:
         return np.empty(shape, dtype)

@@ -15,8 +15,10 @@ from ..errors import RaybenchError, Terminated, device_failure, one_line
 from .options import (
     adapter_option,
     build_option,
+    choice_option,
     connect_timeout_option,
     open_cluster,
+    path_option,
     scheduler_option,
     scheduler_security,
     tls_options,
@@ -40,30 +42,28 @@ from .options import (
 @click.option(
     "--duration", type=float, help="seconds of timed frames per point, after warm-up (default 10; 0.5 with --quick)"
 )
-@click.option(
-    "--kernel",
-    "kernels",
-    multiple=True,
-    type=click.Choice(KERNELS),
-    help="kernels for the thesis and tuning suites; repeat for both (default fast; "
+@choice_option(
+    "kernel",
+    KERNELS,
+    "kernels for the thesis and tuning suites; repeat for both (default fast; "
     "constant-vs-runtime always uses simple, the only one with a compile-time count, "
     "and so does secondary's brute force, the only one Whitted shading has)",
-)
-@click.option(
-    "--accel",
-    "accels",
     multiple=True,
-    type=click.Choice(ACCELS),
-    help="bvh, none (brute force), or both repeated (the default): the thesis, tuning, scaling and "
+)
+@choice_option(
+    "accel",
+    ACCELS,
+    "bvh, none (brute force), or both repeated (the default): the thesis, tuning, scaling and "
     "secondary suites measure each; constant-vs-runtime and test 7 are brute force only",
+    multiple=True,
 )
 @build_option(multiple=True)
 @click.option("--quick", is_flag=True, help="a reduced set of points: about a minute on a 2-core laptop")
-@click.option(
+@path_option(
     "--out",
     "out_dir",
-    type=click.Path(path_type=Path),
-    help="folder for the results and the report (default: raybench-results/<machine>, or /cluster with --scheduler)",
+    help_text="folder for the results and the report (default: raybench-results/<machine>, or /cluster with "
+    "--scheduler)",
 )
 @click.option(
     "--label",

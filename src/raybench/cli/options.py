@@ -3,8 +3,10 @@ what render(), the viewer and the backends take."""
 
 from __future__ import annotations
 
+import functools
 import os
 import re
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import click
@@ -159,9 +161,70 @@ def stacked(*decorators):
     return apply
 
 
+def handed_on(name: str, record, *decorators):
+    """stacked(*decorators), whose values the command's function takes as one
+    argument, name=record(**their values): a group of options travels as a
+    record, not as one parameter each in every command that shows it."""
+    probe = stacked(*decorators)(lambda: None)
+    names = [param.name for param in probe.__click_params__]
+
+    def apply(f):
+        @functools.wraps(f)  # click's options already on f (its __dict__) stay the command's
+        def command(*args, **kwargs):
+            kwargs[name] = record(**{n: kwargs.pop(n) for n in names})
+            return f(*args, **kwargs)
+
+        return stacked(*decorators)(command)
+
+    return apply
+
+
+@dataclass(frozen=True)
+class SceneArgs:
+    """--scene, --spheres, --seed, --materials as given; load() checks them."""
+
+    scene_file: str | None
+    spheres: int | None
+    seed: int | None
+    materials: bool
+
+    def load(self, layout=None):
+        return load_scene(self.scene_file, self.spheres, self.seed, self.materials, layout)
+
+
+@dataclass(frozen=True)
+class ShadingArgs:
+    """--shading, --depth, --shadow-samples as given; checked() is render()'s shading arguments."""
+
+    shading: str
+    depth: int | None
+    shadow_samples: int | None
+
+    def checked(self) -> dict:
+        return shading_options(self.shading, self.depth, self.shadow_samples)
+
+
+@dataclass(frozen=True)
+class TracerArgs:
+    """The device options as given (tracer_options); options() parses them, as device_options()."""
+
+    threads: int | None
+    block: str | None
+    workgroup: str | None
+    adapter: str | None
+    accel: str | None
+    kernel: str | None
+    build: str | None
+
+    def options(self) -> dict:
+        return device_options(**asdict(self))
+
+
 def scene_options(verb: str):
-    """--scene, --spheres, --seed, --materials: the scene to render or show."""
-    return stacked(
+    """--scene, --spheres, --seed, --materials: the scene to render or show, handed on as scene_args, a SceneArgs."""
+    return handed_on(
+        "scene_args",
+        SceneArgs,
         click.option(
             "--scene",
             "scene_file",
@@ -179,8 +242,10 @@ def scene_options(verb: str):
 
 
 def shading_option_group():
-    """--shading, --depth, --shadow-samples."""
-    return stacked(
+    """--shading, --depth, --shadow-samples, handed on as shading, a ShadingArgs."""
+    return handed_on(
+        "shading",
+        ShadingArgs,
         click.option(
             "--shading",
             type=click.Choice(SHADINGS),
@@ -219,8 +284,10 @@ def adapter_option(whose: str = "wgpu"):
 
 
 def tracer_options(adapter_whose: str = "wgpu"):
-    """The options device_options() takes: how to trace, on each device."""
-    return stacked(
+    """The options device_options() takes: how to trace, on each device; handed on as tracer, a TracerArgs."""
+    return handed_on(
+        "tracer",
+        TracerArgs,
         click.option("--threads", type=int, help="cpu: number of threads (default: all cores)"),
         click.option(
             "--block",
@@ -231,30 +298,42 @@ def tracer_options(adapter_whose: str = "wgpu"):
         ),
         click.option("--workgroup", help="wgpu: workgroup shape XxY (default 16x16)"),
         adapter_option(adapter_whose),
-        click.option(
-            "--accel",
-            type=click.Choice(ACCELS),
-            help="bvh: walk a bounding volume hierarchy (the default); none: brute force, every sphere for "
+        choice_option(
+            "accel",
+            ACCELS,
+            "bvh: walk a bounding volume hierarchy (the default); none: brute force, every sphere for "
             "every ray (the thesis's algorithm; the default where --kernel is given). Same picture",
         ),
-        click.option(
-            "--kernel",
-            type=click.Choice(KERNELS),
-            help="brute force only: simple, the thesis's loop, a pixel at a time; fast (its default on cpu and "
+        choice_option(
+            "kernel",
+            KERNELS,
+            "brute force only: simple, the thesis's loop, a pixel at a time; fast (its default on cpu and "
             "cuda), rays grouped and certain misses skipped, the same picture; wgpu has simple only",
         ),
         build_option(),
     )
 
 
+def choice_option(name: str, choices, help_text: str, multiple: bool = False):
+    """--name, one of choices: given once (render and view trace one way), or
+    with multiple, repeated for each value wanted, handed on in the plural
+    (bench measures each)."""
+    dest = f"{name}s" if multiple else name
+    return click.option(f"--{name}", dest, multiple=multiple, type=click.Choice(choices), help=help_text)
+
+
+def path_option(*decls: str, help_text: str, **attrs):
+    """An option that names a file or folder to write, handed on as a Path."""
+    return click.option(*decls, type=click.Path(path_type=Path), help=help_text, **attrs)
+
+
 def build_option(multiple: bool = False):
-    return click.option(
-        "--build",
-        "builds" if multiple else "build",
-        multiple=multiple,
-        type=click.Choice(BUILDS),
-        help="cuda and wgpu, with the BVH: where its tree is built: host (the CPU's binned SAH tree, uploaded; the "
+    return choice_option(
+        "build",
+        BUILDS,
+        "cuda and wgpu, with the BVH: where its tree is built: host (the CPU's binned SAH tree, uploaded; the "
         "default) or gpu (an LBVH built on the GPU, where it is walked)" + ("; repeat for both" if multiple else ""),
+        multiple,
     )
 
 

@@ -17,15 +17,13 @@ from .options import (
     check_output,
     cluster_options,
     device_option,
-    device_options,
-    load_scene,
     open_cluster,
     parse_size,
+    path_option,
     scene_options,
     scheduler_security,
     shading_notes,
     shading_option_group,
-    shading_options,
     size_option,
     tracer_options,
 )
@@ -74,11 +72,8 @@ class ClusterSpec:
 @device_option()
 @tracer_options()
 @shading_option_group()
-@click.option(
-    "-o",
-    "--output",
-    type=click.Path(path_type=Path),
-    help="PNG file to write (default render.png); with --path, the folder of the frames",
+@path_option(
+    "-o", "--output", help_text="PNG file to write (default render.png); with --path, the folder of the frames"
 )
 @click.option(
     "--path",
@@ -93,31 +88,19 @@ class ClusterSpec:
     help="zlib's level of the PNGs, 0 (none) to 9 (smallest); default 1, which encodes faster than 6 in files "
     "a little larger",
 )
-@click.option(
+@path_option(
     "--gif",
-    type=click.Path(path_type=Path),
-    help="--path: also the whole sequence as one animated GIF at this path, 25 frames a second (Pillow, a palette a "
-    "frame)",
+    help_text="--path: also the whole sequence as one animated GIF at this path, 25 frames a second (Pillow, a "
+    "palette a frame)",
 )
 @cluster_options()
 def render(
-    scene_file,
-    spheres,
-    seed,
-    materials,
+    scene_args,
     layout,
     size,
     device,
-    threads,
-    block,
-    workgroup,
-    adapter,
-    accel,
-    kernel,
-    build,
+    tracer,
     shading,
-    depth,
-    shadow_samples,
     output,
     camera_path,
     frames,
@@ -139,14 +122,12 @@ def render(
     from ..render import render as render_frame
     from .compiling import announced
 
-    scene = load_scene(scene_file, spheres, seed, materials, layout)
+    scene = scene_args.load(layout)
     width, height = parse_size(size)
-    shaded = shading_options(shading, depth, shadow_samples)
+    shaded = shading.checked()
     for note in shading_notes(scene, shaded):
         click.echo(note)
-    options = device_options(
-        threads=threads, block=block, workgroup=workgroup, adapter=adapter, kernel=kernel, accel=accel, build=build
-    )
+    options = tracer.options()
     scheduler = scheduler or os.environ.get("RAYBENCH_SCHEDULER") or None
     if workers is not None and scheduler is not None:
         raise RaybenchError("give --workers (an embedded cluster) or --scheduler (a running one), not both")
@@ -172,7 +153,7 @@ def render(
         return _render_tiles(RenderJob(scene, width, height, device, shaded, options, output, level), on, tile)
     if tile is not None:
         raise RaybenchError("--tile applies across a cluster: give --workers N or --scheduler ADDR")
-    device = resolve(device, adapter)
+    device = resolve(device, tracer.adapter)
     start = time.perf_counter()
     with announced():
         frame = render_frame(scene, width=width, height=height, device=device, **shaded, **options)

@@ -7,18 +7,18 @@ from pathlib import Path
 import click
 
 from ..errors import one_line
+from .options import path_option
 
 
 @click.command(name="report")
 @click.argument("results", nargs=-1, required=True, type=click.Path(path_type=Path))
-@click.option(
+@path_option(
     "-o",
     "--out",
     "out_dir",
-    type=click.Path(path_type=Path),
     default=Path("raybench-report"),
     show_default=True,
-    help="folder for report.md and its plots",
+    help_text="folder for report.md and its plots",
 )
 @click.option(
     "--references/--no-references",

@@ -2,22 +2,18 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import click
 
 from ..errors import RaybenchError
 from .options import (
     check_output,
     device_option,
-    device_options,
-    load_scene,
     options_by_device,
     parse_size,
+    path_option,
     scene_options,
     shading_notes,
     shading_option_group,
-    shading_options,
     size_option,
     tracer_options,
 )
@@ -50,28 +46,13 @@ def _view_help() -> str:
     "its update (refit or build) and the trace apart",
 )
 @click.option("--frames", type=click.IntRange(min=1), help="close after N traced frames are shown")
-@click.option(
-    "--screenshot",
-    type=click.Path(path_type=Path),
-    help="with --frames: save the last frame, as drawn in the window, to this PNG file",
-)
+@path_option("--screenshot", help_text="with --frames: save the last frame, as drawn in the window, to this PNG file")
 def view(
-    scene_file,
-    spheres,
-    seed,
-    materials,
+    scene_args,
     size,
     device,
-    threads,
-    block,
-    workgroup,
-    adapter,
-    accel,
-    kernel,
-    build,
+    tracer,
     shading,
-    depth,
-    shadow_samples,
     animate,
     frames,
     screenshot,
@@ -82,26 +63,24 @@ def view(
     from ..viewer import view as open_viewer
     from ..viewer.state import ViewerState
 
-    scene = load_scene(scene_file, spheres, seed, materials)
+    scene = scene_args.load()
     width, height = parse_size(size)
-    shaded = shading_options(shading, depth, shadow_samples)
+    shaded = shading.checked()
     for note in shading_notes(scene, shaded):
         click.echo(note)
     # checked here, before the window opens: a Whitted frame of no spheres
-    lit = Shading.of(Scene([], [], []), depth, shadow_samples) if shading == "whitted" else None
+    lit = None
+    if shaded["shading"] == "whitted":
+        lit = Shading.of(Scene([], [], []), shaded["depth"], shaded["shadow_samples"])
     if screenshot is not None:
         if frames is None:
             raise RaybenchError(
                 "--screenshot needs --frames N (the frame to save); in the window, P saves a screenshot"
             )
         check_output(screenshot, "--screenshot")
-    device = backends.resolve(device, adapter)
+    device = backends.resolve(device, tracer.adapter)
     # render's options, through render's path, then each device's share of them
-    options = options_by_device(
-        device_options(
-            threads=threads, block=block, workgroup=workgroup, adapter=adapter, kernel=kernel, accel=accel, build=build
-        )
-    )
+    options = options_by_device(tracer.options())
     # Bad options are refused before the window opens, on each device they would
     # reach: the first one, the cpu, cuda where there is one (a switch to it says
     # so otherwise), and wgpu where it is the first or was given its own options
@@ -115,7 +94,7 @@ def view(
             except RaybenchError:
                 continue
         _check_options(name, given, lit)
-    seed = None if scene_file is not None else (0 if seed is None else seed)
+    seed = None if scene_args.scene_file is not None else (0 if scene_args.seed is None else scene_args.seed)
     state = ViewerState(scene, device=device, seed=seed, options=options, animate=animate, **shaded)
     window = open_viewer(state, (width, height), frames=frames, screenshot=screenshot)
     if frames is not None and window.state.frames_shown < frames:

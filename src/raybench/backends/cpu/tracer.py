@@ -20,7 +20,7 @@ from ...layout import (
 from ...lighting import Shading
 from ..contract import TracerBase, check_moved
 from ..limits import HOST_PIXEL_BYTES, check_bvh_fits, check_count, check_fits, check_rows
-from ..options import CpuOptions, checked
+from ..options import CpuOptions
 from .brute import _constant_band, _fast_band, _prepare, _render_band
 from .program import _bvh_rows
 from .whitted_rows import WHITTED_ROWS
@@ -71,11 +71,7 @@ class Tracer(TracerBase):
         options: CpuOptions | None = None,
         shading: Shading | None = None,
     ):
-        """options: the device's (backends.options.checked("cpu", ...); None
-        for the defaults); shading: the Shading of a Whitted frame, None for
-        the thesis's shading."""
-        if options is None:
-            options = checked("cpu", {}, shading)
+        options = self._options(options, shading)
         self.options = options
         self.accel, self.kernel = options.accel, options.kernel
         # the threads' stacks counted: under ulimit -v they take address space the frame then lacks

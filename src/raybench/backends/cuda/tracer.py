@@ -24,7 +24,7 @@ from ..limits import (
     check_fits,
     check_rows,
 )
-from ..options import DEFAULT_BLOCK, CudaOptions, checked
+from ..options import DEFAULT_BLOCK, CudaOptions
 from . import build as cuda_build
 from .device import require, simulated
 from .launch import Launches
@@ -58,12 +58,8 @@ class Tracer(TracerBase):
         options: CudaOptions | None = None,
         shading: Shading | None = None,
     ):
-        """options: the device's (backends.options.checked("cuda", ...); None
-        for the defaults); shading: the Shading of a Whitted frame, None for
-        the thesis's shading."""
         require()
-        if options is None:
-            options = checked("cuda", {}, shading)
+        options = self._options(options, shading)
         self.options = options
         self.accel, self.kernel, self.build = options.accel, options.kernel, options.build
         walk = options.walk

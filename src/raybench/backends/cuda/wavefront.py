@@ -321,13 +321,15 @@ def _finish(accum, first_pixel, pixels, width, image):
             accum[c, pixel] = 0
 
 
-class Wavefront:
+class Wavefront(bands.Queues):
     """The queues of a cuda Tracer's Whitted frames, kept between frames,
     and the launches of one frame. grid: the blocks a stage runs on (None:
     as many as its queue's capacity needs, a thread a ray). mark: None, or
     a function called with a stage's name after each launch (each wave's
     extend, shade and shadow, and "start" and "finish"), for a benchmark to
     record a CUDA event there (benchmarks/archive/wavefront_stages.py)."""
+
+    shadow_base, overflow = SHADOW_BASE, OVERFLOW  # the columns of d_counts
 
     def __init__(self, width: int, height: int, depth: int, grid: int | None = None):
         self.width, self.height, self.depth = width, height, depth
@@ -429,18 +431,9 @@ class Wavefront:
         """The stages' kernels by name (Tracer.kernels)."""
         return {"extend": _extend, "shade": _shade, "shadow": _shadow}
 
-    def overflowed(self) -> bool:
-        """Whether the last frame's queues were too short (waits for it);
-        if so they are made long enough for it (longer, or as long for
-        fewer rows a band), to trace it again."""
-        counts = self.d_counts.copy_to_host()[: self._bands]
-        plan = bands.regrown(counts, self.depth, SHADOW_BASE, OVERFLOW, self.ray_capacity, self.shadow_capacity,
-                             lambda rays, shadows: self._plan(self.plan.rows, rays, shadows))  # fmt: skip
-        if plan is None:
-            return False
-        self._allocate(plan)
-        self.retraced += 1
-        return True
+    def _read_counts(self) -> np.ndarray:
+        """The last frame's bands' queue counts (bands.Queues.overflowed), waiting for it."""
+        return self.d_counts.copy_to_host()[: self._bands]
 
 
 def _default_grid() -> int:

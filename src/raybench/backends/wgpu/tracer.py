@@ -14,7 +14,7 @@ from ...host import host_available_bytes
 from ...lighting import Shading
 from ..contract import TracerBase, check_moved
 from ..limits import HOST_PIXEL_BYTES, check_count, check_fits, check_size
-from ..options import WgpuOptions, checked
+from ..options import WgpuOptions
 from . import adapters
 from .compute import RAY_KINDS, Compute
 from .pack import Packer, packed_bytes
@@ -47,13 +47,9 @@ class Tracer(TracerBase):
         options: WgpuOptions | None = None,
         shading: Shading | None = None,
     ):
-        """options: the device's (backends.options.checked("wgpu", ...); None
-        for the defaults); shading: the Shading of a Whitted frame, None for
-        the thesis's shading."""
         import wgpu
 
-        if options is None:
-            options = checked("wgpu", {}, shading)
+        options = self._options(options, shading)
         check_size(width, height)
         self.adapter = adapters.choose(options.adapter)
         self.device = adapters.request_device(self.adapter)

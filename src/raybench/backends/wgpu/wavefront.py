@@ -58,9 +58,11 @@ ENTRIES = ("main_wf_start", "main_wf_primary", "main_wf_extend", "main_wf_shade"
            "main_wf_advance", "main_wf_finish")  # fmt: skip
 
 
-class Wavefront:
+class Wavefront(bands.Queues):
     """The wavefront's pipelines, queues and sums for one Compute (its
     device, spheres, tree, shading, texture and hits)."""
+
+    shadow_base, overflow = SHADOW_BASE, OVERFLOW  # the columns of a band's state
 
     def __init__(self, compute, depth: int):
         import wgpu
@@ -216,24 +218,15 @@ class Wavefront:
             run("main_wf_advance", 1)
         run("main_wf_finish", groups)
 
-    def overflowed(self) -> bool:
-        """Whether the last frame's queues were too short (waits for it); if
-        so they are made long enough for it (longer, or as long for fewer
-        rows a band), to trace it again."""
+    def _read_counts(self) -> np.ndarray:
+        """The last frame's bands' states, their queue counts (bands.Queues.overflowed), waiting for it."""
         import wgpu
 
         self.state_read.map_sync(wgpu.MapMode.READ)
         try:
-            state = np.frombuffer(self.state_read.read_mapped(), np.uint32).reshape(-1, STATE).copy()
+            return np.frombuffer(self.state_read.read_mapped(), np.uint32).reshape(-1, STATE).copy()
         finally:
             self.state_read.unmap()
-        plan = bands.regrown(state, self.depth, SHADOW_BASE, OVERFLOW, self.ray_capacity, self.shadow_capacity,
-                             lambda rays, shadows: self._plan(self.plan.rows, rays, shadows))  # fmt: skip
-        if plan is None:
-            return False
-        self._allocate(plan)
-        self.retraced += 1
-        return True
 
 
 def _groups(pixels: int) -> int:

@@ -171,8 +171,8 @@ def _section_secondary(w: _Writer, label: str, slug: str, records: list[dict], d
         )
 
 
-def _section_dynamic(w: _Writer, label: str, records: list[dict]) -> None:
-    """The dynamic suite on one machine: a table of frames a second."""
+def _section_dynamic(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
+    """The dynamic suite on one machine: a table of frames a second (no chart: slug is unused)."""
     points = dynamic_points(records)
     if not points:
         return
@@ -206,9 +206,9 @@ def _section_dynamic(w: _Writer, label: str, records: list[dict]) -> None:
     w(_table(header, rows), "")
 
 
-def _section_parts(w: _Writer, label: str, records: list[dict]) -> None:
+def _section_parts(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
     """The parts suite of one run: what a benchmark script timed that is no suite's frame (a build, a
-    start-up, a launch, a part of a frame), a row each, as measured."""
+    start-up, a launch, a part of a frame), a row each, as measured (no chart: slug is unused)."""
     rows = parts_rows(records)
     w(f"### {escape(label)}: parts timed apart", "")
     header = ["quantity", "device", "spheres", "size", "options", "median ms", "p5-p95 ms", "samples", "figures"]

@@ -37,6 +37,14 @@ def _png(fig) -> bytes:
     return buf.getvalue()
 
 
+def _name(ax, title: str, xlabel: str, ylabel: str | None = None) -> None:
+    """A panel's title and the names of its axes; every panel's title is set in the one size."""
+    ax.set_title(title, fontsize=10)
+    ax.set_xlabel(xlabel)
+    if ylabel is not None:
+        ax.set_ylabel(ylabel)
+
+
 def _linear_or_log(ax, values) -> None:
     values = [v for v in values if v and v > 0 and math.isfinite(v)]
     if values and max(values) / min(values) > 30:
@@ -75,9 +83,8 @@ def plot_thesis(label: str, device: str, series: list[dict], device_name: str) -
     what = f"tests {min(tests)}-{max(tests)}" if tests else "thesis tests"
     # device_name is a results file's text: a "$" in it would start matplotlib's mathematics
     plain = str(device_name).replace("$", r"\$")
-    ax.set_title(f"{label}: {DEVICE_NAMES.get(device, device)} {what}, {plain}", fontsize=10)
-    ax.set_xlabel("spheres in the scene")
-    ax.set_ylabel("median frame time (ms)")
+    title = f"{label}: {DEVICE_NAMES.get(device, device)} {what}, {plain}"
+    _name(ax, title, "spheres in the scene", "median frame time (ms)")
     ax.set_ylim(bottom=0)
     ax.set_xlim(left=0)
     return _png(fig)
@@ -101,9 +108,8 @@ def plot_speedup(label: str, sp: list[dict], ratio: float | None) -> bytes:
         ax.axhline(ratio, color="C3", linestyle="--", label=f"theoretical FP32 ratio: {fmt_x(ratio)}")
     ax.axhline(1, color="black", linewidth=0.8, label="1x (no gain)")
     _linear_or_log(ax, [p["speedup"] for p in sp] + list(THESIS_SPEEDUP) + ([ratio] if ratio else []) + [1])
-    ax.set_title(f"{label}: GPU speedup over the CPU (CPU frame time / GPU frame time)", fontsize=10)
-    ax.set_xlabel("spheres in the scene")
-    ax.set_ylabel("speedup (x)")
+    title = f"{label}: GPU speedup over the CPU (CPU frame time / GPU frame time)"
+    _name(ax, title, "spheres in the scene", "speedup (x)")
     ax.set_xlim(left=0)
     ax.legend(fontsize=8)
     return _png(fig)
@@ -127,9 +133,8 @@ def plot_test7(label: str, series: list[dict]) -> bytes:
                 linewidth=1,
                 label=f"least squares (R² {fmt_r2(s['fit']['r2'])})",
             )
-        ax.set_title(f"{DEVICE_NAMES.get(s['device'], s['device'])}, {s['width']}x{s['height']}", fontsize=10)
-        ax.set_xlabel("spheres in the scene (10 more each frame)")
-        ax.set_ylabel("frame time (ms)")
+        panel = f"{DEVICE_NAMES.get(s['device'], s['device'])}, {s['width']}x{s['height']}"
+        _name(ax, panel, "spheres in the scene (10 more each frame)", "frame time (ms)")
         ax.set_ylim(bottom=0)
         ax.legend(fontsize=8)
     # wrapped to the figure: one series' figure is narrower than the title
@@ -199,9 +204,8 @@ def plot_constant(label: str, rows_by_device: dict[str, list[dict]]) -> bytes:
             f"median {timing} time (ms)",
             best=False,
         )
-        ax.set_xlabel("spheres in the scene")
         where = f", {rows[0]['width']}x{rows[0]['height']}" if len(sizes) == 1 else ""
-        ax.set_title(f"{DEVICE_NAMES.get(device, device)}{where}", fontsize=10)
+        _name(ax, f"{DEVICE_NAMES.get(device, device)}{where}", "spheres in the scene")  # _bars named y
     fig.suptitle(f"{label}: sphere count as a compile-time constant or a runtime variable", fontsize=10)
     return _png(fig)
 
@@ -224,9 +228,8 @@ def plot_scaling(label: str, series: list[dict]) -> bytes:
             ax.axvline(cut[0]["spheres"], color=f"C{i}", linewidth=0.6, alpha=0.5)
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_xlabel("spheres in the scene")
-    ax.set_ylabel("median frame time (ms); dotted: kernel only")
-    ax.set_title(f"{label}: frame time against sphere count (thin line: brute force stopped)", fontsize=10)
+    title = f"{label}: frame time against sphere count (thin line: brute force stopped)"
+    _name(ax, title, "spheres in the scene", "median frame time (ms); dotted: kernel only")
     ax.legend(fontsize=7)
     return _png(fig)
 
@@ -257,9 +260,7 @@ def _secondary_panels(points: list[dict], value, ylabel: str, title: str, styles
                         ax.plot(xs, ys, style, color=color, marker=marker, markersize=4, linewidth=1.2)
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.set_xlabel("spheres in the scene")
-        ax.set_ylabel(ylabel)
-        ax.set_title(way, fontsize=10)
+        _name(ax, way, "spheres in the scene", ylabel)
     handles = [Line2D([], [], color=_DEVICE_COLORS.get(d, "C3"), linewidth=3) for d in devices]
     labels = [DEVICE_NAMES.get(d, d) for d in devices]
     handles += [Line2D([], [], color="gray", linestyle="none", marker=m) for m in _SIZE_MARKERS[: len(sizes)]]
@@ -314,11 +315,10 @@ def plot_multi_gpu(label: str, series: list[dict]) -> bytes:
             ax.plot(xs, [p["frames_per_s"] for p in s["points"]], "o-", color=color, label=what)
             if s["one"]:
                 ax.plot(xs, [s["one"] * n for n in xs], "--", color=color, linewidth=1, label=f"{what}, linear")
-        ax.set_xlabel("workers (one device each)")
-        ax.set_ylabel("frames per second")
+        title = "one frame in tiles" if job == "frame" else "a sequence of frames"
+        _name(ax, title, "workers (one device each)", "frames per second")
         ax.set_ylim(bottom=0)
         ax.set_xticks(sorted({p["workers"] for s in series for p in s["points"]}))
-        ax.set_title("one frame in tiles" if job == "frame" else "a sequence of frames", fontsize=10)
         ax.legend(fontsize=7)
     fig.suptitle(f"{label}: throughput against workers, linear dashed", fontsize=10)
     return _png(fig)

@@ -125,19 +125,20 @@ def _ours(entry: Path) -> bool:
     )
 
 
+# The parts beyond the thesis, in the report's order: the suite whose records a part reads, its heading,
+# and the section that writes one run of it. A section of its own for a new suite is one line here.
+_BEYOND = (
+    ("scaling", "scaling with a BVH", _section_scaling),
+    ("secondary", "secondary rays", _section_secondary),
+    ("multi-gpu", "across GPUs and workers", _section_multi_gpu),
+    ("dynamic", "spheres that move", _section_dynamic),
+    ("parts", "parts timed apart", _section_parts),
+)
+
+
 def _write(sources, machines, notes, beyond, w: _Writer, references: list[dict] | None) -> None:
-    scaling, secondary = beyond["scaling"], beyond["secondary"]
-    multi_gpu, dynamic, parts = beyond["multi-gpu"], beyond["dynamic"], beyond["parts"]
-    labels = list(
-        dict.fromkeys(
-            [records[0]["run"]["label"] for records in machines.values() if records]
-            + list(scaling)
-            + list(secondary)
-            + list(multi_gpu)
-            + list(dynamic)
-            + list(parts)
-        )
-    )
+    thesis_labels = [records[0]["run"]["label"] for records in machines.values() if records]
+    labels = list(dict.fromkeys(thesis_labels + [label for suite, _, _ in _BEYOND for label in beyond[suite]]))
     on = ", ".join(labels) if len(labels) <= 3 else f"{len(labels)} machines and runs (listed under Machines)"
     w(f"# raybench: the 2010 GPU ray-tracing thesis, measured again on {escape(on)}", "")
     w(
@@ -180,27 +181,15 @@ def _write(sources, machines, notes, beyond, w: _Writer, references: list[dict] 
         w(f"## {escape(label)}", "")
         for section in (_section_thesis, _section_speedup, _section_test7, _section_tuning, _section_constant):
             section(w, label, slug, records)
-    if scaling:
-        w("## Beyond the thesis: scaling with a BVH", "")
-        for label, records in scaling.items():
-            _section_scaling(w, label, _slug(f"{label}-scaling", taken), records)
-    if secondary:
-        w("## Beyond the thesis: secondary rays", "")
-        for label, records in secondary.items():
-            described = any(rs[0]["run"]["label"] == label for rs in machines.values())
-            _section_secondary(w, label, _slug(f"{label}-secondary", taken), records, describe=not described)
-    if multi_gpu:
-        w("## Beyond the thesis: across GPUs and workers", "")
-        for label, records in multi_gpu.items():
-            _section_multi_gpu(w, label, _slug(f"{label}-multi-gpu", taken), records)
-    if dynamic:
-        w("## Beyond the thesis: spheres that move", "")
-        for label, records in dynamic.items():
-            _section_dynamic(w, label, records)
-    if parts:
-        w("## Beyond the thesis: parts timed apart", "")
-        for label, records in parts.items():
-            _section_parts(w, label, records)
+    for suite, title, section in _BEYOND:
+        if beyond[suite]:
+            w(f"## Beyond the thesis: {title}", "")
+        for label, records in beyond[suite].items():
+            slug = _slug(f"{label}-{suite}", taken)
+            if section is _section_secondary:  # it describes the machine of a run with no thesis section
+                section(w, label, slug, records, describe=label not in thesis_labels)
+            else:
+                section(w, label, slug, records)
     w("## Sources", "")
     # a file's name is the user's text like any other: escaped, never a code span it could end
     w(*[f"- [{escape(p)}]({_link(p, w.final_dir)})" for p in sources], "")

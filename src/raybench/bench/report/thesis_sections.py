@@ -57,11 +57,30 @@ def _rates_text(machine: dict) -> str:
     )
 
 
+def _opening(w: _Writer, title: str, measured, missing: str) -> bool:
+    """A section's heading, then, where nothing was measured, the line that
+    says so (missing) in place of the section: whether anything was."""
+    w(f"### {title}", "")
+    if not measured:
+        w(missing, "")
+    return bool(measured)
+
+
+def _no_suite(suite: str) -> str:
+    """What a section says where the results hold none of its suite's records."""
+    return f"Not measured: these results hold no `{suite}` suite (`raybench bench --suite {suite}`)."
+
+
+def _fit_cells(fit: dict | None, spheres: list[int]) -> list[str]:
+    """Slope, intercept and R² of a fitted line, as table cells: tests 1-6 and test 7 show the same fit."""
+    if not fit:
+        return ["–", "–", "–"]
+    return [fmt_slope(fit["slope"], spheres), fmt_num(fit["intercept"]), fmt_r2(fit["r2"])]
+
+
 def _section_thesis(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
-    w("### Tests 1-6: frame time against sphere count", "")
     series = thesis_series(records)
-    if not series:
-        w("Not measured: these results hold no `thesis` suite (`raybench bench --suite thesis`).", "")
+    if not _opening(w, "Tests 1-6: frame time against sphere count", series, _no_suite("thesis")):
         return
     w(
         "Each chart shows one processor: the median time to render one frame (dots, solid line) for 100 to "
@@ -100,14 +119,11 @@ def _section_thesis(w: _Writer, label: str, slug: str, records: list[dict]) -> N
         header += ["ray-sphere tests/s at max count"]
         rows = []
         for s in ds:
-            f = s["fit"]
             at = dict(zip(s["spheres"], s["median"]))
             row = [
                 f"{s['width']}x{s['height']}",
                 escape(s["test"] or "–"),
-                fmt_slope(f["slope"], s["spheres"]) if f else "–",
-                fmt_num(f["intercept"]) if f else "–",
-                fmt_r2(f["r2"]) if f else "–",
+                *_fit_cells(s["fit"], s["spheres"]),
             ]
             row += [fmt_ms(at[n]) if n in at else "–" for n in counts]
             if kernel:
@@ -151,10 +167,9 @@ def _section_speedup(w: _Writer, label: str, slug: str, records: list[dict]) -> 
 
 
 def _section_test7(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
-    w("### Test 7: adding ten spheres every frame", "")
     series = test7_series(records)
-    if not series:
-        w("Not measured: these results hold no test 7 (it runs with `--suite thesis`).", "")
+    missing = "Not measured: these results hold no test 7 (it runs with `--suite thesis`)."
+    if not _opening(w, "Test 7: adding ten spheres every frame", series, missing):
         return
     w(
         "As in the thesis, the scene starts with 10 spheres and gets 10 more every frame up to 1000; each dot "
@@ -166,15 +181,12 @@ def _section_test7(w: _Writer, label: str, slug: str, records: list[dict]) -> No
     w.image(f"{slug}-test7.png", charts.plot_test7(label, series), f"{label}: test 7 frame time against spheres")
     rows = []
     for s in series:
-        f = s["fit"]
         rows.append(
             [
                 escape(DEVICE_NAMES.get(s["device"], s["device"])),
                 f"{s['width']}x{s['height']}",
                 len(s["spheres"]),
-                fmt_slope(f["slope"], s["spheres"]) if f else "–",
-                fmt_num(f["intercept"]) if f else "–",
-                fmt_r2(f["r2"]) if f else "–",
+                *_fit_cells(s["fit"], s["spheres"]),
                 fmt_ms(s["first_frame_s"] * 1e3) if s["first_frame_s"] is not None else "–",
                 fmt_compile_s(s["compile_s"]),
             ]
@@ -198,10 +210,8 @@ def _section_test7(w: _Writer, label: str, slug: str, records: list[dict]) -> No
 
 
 def _section_tuning(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
-    w("### Tuning: CPU threads and GPU block shapes", "")
     cpu, gpu, portable = cpu_tuning(records), gpu_tuning(records), gpu_tuning(records, "wgpu")
-    if not cpu and not gpu and not portable:
-        w("Not measured: these results hold no `tuning` suite (`raybench bench --suite tuning`).", "")
+    if not _opening(w, "Tuning: CPU threads and GPU block shapes", cpu or gpu or portable, _no_suite("tuning")):
         return
     w(
         "The same frame rendered with different ways of splitting the work. On the CPU the rows of the picture "
@@ -232,56 +242,41 @@ def _section_tuning(w: _Writer, label: str, slug: str, records: list[dict]) -> N
     else:
         w("CPU tuning: not measured.", "")
     if gpu:
-        fastest = min(r["ms"] for r in gpu)
-        timing = "kernel" if all(r["kernel_ms"] is not None for r in gpu) else "frame"
-        w(
-            _table(
-                ["GPU block", "median frame ms", "median kernel ms", f"relative to fastest ({timing})"],
-                [
-                    [
-                        escape(r["label"]),
-                        fmt_ms(r["frame_ms"]),
-                        fmt_ms(r["kernel_ms"]) if r["kernel_ms"] is not None else "–",
-                        fmt_x(r["ms"] / fastest),
-                    ]
-                    for r in gpu
-                ],
-            ),
-            "",
-        )
+        w(_gpu_tuning_table("GPU block", gpu), "")
     else:
         w("GPU tuning: not measured.", "")
     if portable:
-        fastest = min(r["ms"] for r in portable)
-        timing = "kernel" if all(r["kernel_ms"] is not None for r in portable) else "frame"
         w(
             f"wgpu workgroups, on {escape(_adapter_name(records))}:",
             "",
-            _table(
-                ["wgpu workgroup", "median frame ms", "median kernel ms", f"relative to fastest ({timing})"],
-                [
-                    [
-                        escape(r["label"]),
-                        fmt_ms(r["frame_ms"]),
-                        fmt_ms(r["kernel_ms"]) if r["kernel_ms"] is not None else "–",
-                        fmt_x(r["ms"] / fastest),
-                    ]
-                    for r in portable
-                ],
-            ),
+            _gpu_tuning_table("wgpu workgroup", portable),
             "",
         )
+
+
+def _gpu_tuning_table(first: str, rows: list[dict]) -> str:
+    """One table for CUDA blocks and wgpu workgroups: both are a launch shape timed by frame and, where the
+    device reports it, by kernel; the ratio uses the kernel time only when every row has one."""
+    fastest = min(r["ms"] for r in rows)
+    timing = "kernel" if all(r["kernel_ms"] is not None for r in rows) else "frame"
+    return _table(
+        [first, "median frame ms", "median kernel ms", f"relative to fastest ({timing})"],
+        [
+            [
+                escape(r["label"]),
+                fmt_ms(r["frame_ms"]),
+                fmt_ms(r["kernel_ms"]) if r["kernel_ms"] is not None else "–",
+                fmt_x(r["ms"] / fastest),
+            ]
+            for r in rows
+        ],
+    )
 
 
 def _section_constant(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
-    w("### Sphere count: compile-time constant or runtime variable", "")
     rows = {d: constant_vs_runtime(records, d) for d in ("cuda", "cpu")}
-    if not any(rows.values()):
-        w(
-            "Not measured: these results hold no `constant-vs-runtime` suite "
-            "(`raybench bench --suite constant-vs-runtime`).",
-            "",
-        )
+    title = "Sphere count: compile-time constant or runtime variable"
+    if not _opening(w, title, any(rows.values()), _no_suite("constant-vs-runtime")):
         return
     w(
         "The thesis's test 7 passed the sphere count to the shader at run time and blamed that for slower "
