@@ -193,12 +193,6 @@ def make(jit, call=None, shadows=None, packets_search=None, read_row=None, words
         store_pixel=store_pixel,
         prim=prim,
         prepare=prepare,
-        may_hit=prim.may_hit,
-        along=prim.along,
-        read=prim.read,
-        seen_from=prim.seen_from,
-        hit_from=prim.hit_from,
-        intersect_relative=prim.intersect_relative,
         render_pixel_bvh=render_pixel_bvh,
         nearest_hit_bvh=nearest_hit_bvh,
         inverse=inverse,
@@ -211,5 +205,4 @@ def make(jit, call=None, shadows=None, packets_search=None, read_row=None, words
         whitted_wavefront=whitted_wavefront,
         walk=walk,
         packet_walk=walks.packet_walk,
-        intersect_ahead=prim.intersect_ahead,
     )

@@ -35,8 +35,9 @@ _k = kernels.make(
 )
 # module globals, which is how jitted code can see them
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
-_prepare_one, _may_hit = _k.prepare, _k.may_hit
-_read, _seen_from, _hit_from = _k.read, _k.seen_from, _k.hit_from
+# the primitive's own answers (kernels/primitives), as the kernels call them
+_prepare_one, _may_hit = _k.prepare, _k.prim.may_hit
+_read, _seen_from, _hit_from = _k.prim.read, _k.prim.seen_from, _k.prim.hit_from
 _render_pixel_bvh = _k.render_pixel_bvh
 
 

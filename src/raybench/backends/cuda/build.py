@@ -112,6 +112,15 @@ def _blocks(n: int, per: int) -> int:
 
 
 @cuda.jit(device=True)
+def _empty_box(lo, hi, t):
+    """Thread t's box in the block's shared lo, hi: empty, so that the
+    first point it takes in is its box."""
+    for a in range(3):
+        lo[a, t] = np.float32(np.inf)
+        hi[a, t] = np.float32(-np.inf)
+
+
+@cuda.jit(device=True)
 def _reduce_box(lo, hi, t, size):
     """The block's boxes lo[:, 0:size], hi[:, 0:size] (shared) united into
     lo[:, 0], hi[:, 0] by a tree of minima and maxima (size a power of 2)."""
@@ -133,9 +142,7 @@ def _bounds_parts(spheres, n, parts):
     t = cuda.threadIdx.x
     lo = cuda.shared.array((3, THREADS), np.float32)
     hi = cuda.shared.array((3, THREADS), np.float32)
-    for a in range(3):
-        lo[a, t] = np.float32(np.inf)
-        hi[a, t] = np.float32(-np.inf)
+    _empty_box(lo, hi, t)
     for i in range(cuda.blockIdx.x * THREADS + t, n, cuda.gridDim.x * THREADS):
         cx, cy, cz, _, _, _ = _extent(spheres, i)
         lo[0, t], lo[1, t], lo[2, t] = min(lo[0, t], cx), min(lo[1, t], cy), min(lo[2, t], cz)
@@ -152,9 +159,7 @@ def _bounds_merge(parts, count, bounds):
     t = cuda.threadIdx.x
     lo = cuda.shared.array((3, ONE_BLOCK), np.float32)
     hi = cuda.shared.array((3, ONE_BLOCK), np.float32)
-    for a in range(3):
-        lo[a, t] = np.float32(np.inf)
-        hi[a, t] = np.float32(-np.inf)
+    _empty_box(lo, hi, t)
     for k in range(t, count, ONE_BLOCK):
         for a in range(3):
             lo[a, t] = min(lo[a, t], parts[k, a])

@@ -40,7 +40,12 @@ def _any_in_block(p):
 _k = kernels.make(cuda.jit(device=True), vote=_any_in_block)
 # module globals, which is how kernels can see them
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
-_prepare_one, _may_hit, _along, _intersect_relative = _k.prepare, _k.may_hit, _k.along, _k.intersect_relative
+_prepare_one, _may_hit, _along, _intersect_relative = (
+    _k.prepare,
+    _k.prim.may_hit,
+    _k.prim.along,
+    _k.prim.intersect_relative,
+)
 _render_pixel_bvh = _k.render_pixel_bvh
 _packet_walk = _k.packet_walk
 
