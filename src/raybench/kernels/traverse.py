@@ -222,7 +222,8 @@ def _walk_body(jit, ray_axes, children, centre_along, leaf_test, vote):
     group's central ray (cdx, cdy, cdz), the same for every ray without a
     vote (faster than voting on the order:
     docs/notes/bvh-walk.md#packets-of-rays-on-the-gpu-kept). Every ray takes
-    part in every vote, so a voted walk takes no any_hit. Same hits either
+    part in every vote, so a voted walk takes no any_hit: it walks the
+    thesis's primary rays (any_hit and ahead False). Same hits either
     way: a ray's hit is in a box it enters, and the packet enters every box
     one of its rays does (or, off the stack, one it entered nearer than its
     closest hit). `voted` is a constant of each compile: the other branches
@@ -237,6 +238,11 @@ def _walk_body(jit, ray_axes, children, centre_along, leaf_test, vote):
     @jit
     def walk_from(ox, oy, oz, dx, dy, dz, cdx, cdy, cdz, t_max, any_hit, ahead, own, own_inside, nodes, links,
                   ordered, order, stack_row, stack_t):  # fmt: skip
+        if voted:
+            # a packet's primary rays: the flags made constants of this compile,
+            # so that the thesis's test alone is compiled into its leaves
+            any_hit = False
+            ahead = False
         ix, iy, iz, lx, ly, lz, hx, hy, hz = ray_axes(ox, oy, oz, dx, dy, dz)
         closest = t_max
         hit = np.int32(-1)  # the primitives' original indices are int32: compared in one step, not two
