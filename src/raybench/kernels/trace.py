@@ -15,7 +15,17 @@ from .constants import FAR, HALF, ONE, ZERO
 from .primitives import sphere
 
 
-def make(jit, call=None, shadows=None, packets_search=None, read_row=None, words=None, primitive=sphere, vote=None):
+def make(
+    jit,
+    call=None,
+    shadows=None,
+    packets_search=None,
+    read_row=None,
+    words=None,
+    primitive=sphere,
+    vote=None,
+    voted_jit=None,
+):
     """The algorithm compiled with `jit`; a namespace of its functions.
     call: the decorator of Whitted shading's search for a ray's hit (default
     jit), which the CPU compiles as one function called from both of its call
@@ -29,12 +39,12 @@ def make(jit, call=None, shadows=None, packets_search=None, read_row=None, words
     walks read a node's row (traverse.make); words: how they read a leaf's
     primitives from a backend's packed copy (the primitive's make).
     primitive: the kind of primitive the program traces, a module of
-    kernels/primitives (its KINDS). vote: traverse.make's, for a backend
-    whose rays walk in groups (packet_walk)."""
+    kernels/primitives (its KINDS). vote, voted_jit: traverse.make's, for
+    a backend whose rays walk in groups (packet_walk)."""
     call = call or jit
     prim = primitive.make(jit, words)
     shade_hit, shade_miss, to_byte = shade.make(jit)
-    walks = traverse.make(jit, prim, read_row, vote)
+    walks = traverse.make(jit, prim, read_row, vote, voted_jit)
     nearest_hit_bvh, inverse, walk = walks.nearest_hit_bvh, walks.inverse, walks.walk
     hit_closest, hit_ahead, meets_own, rim, prepare_at = (
         prim.hit,

@@ -37,7 +37,7 @@ TINY = np.float32(1e-20)
 _U = np.uint64
 
 
-def make(jit, prim, read_row=None, vote=None):
+def make(jit, prim, read_row=None, vote=None, voted_jit=None):
     """The walks over `jit`, for the primitive whose compiled functions are
     `prim` (a primitive module's make: kernels/primitives); the leaf test
     is the only part that asks it anything. read_row(nodes, links, row): a
@@ -45,8 +45,9 @@ def make(jit, prim, read_row=None, vote=None):
     a time, and a backend's own may read them in fewer, wider loads from a
     layout of its own (cuda's wavefront). vote(p): whether p holds for any
     ray of a group that walks as one packet (a CUDA block's barrier); given,
-    the walk is also compiled voted (_walk_body), as packet_walk. A
-    namespace of the walks and the parts the WGSL twins are held to."""
+    the walk is also compiled voted (_walk_body), as packet_walk, with
+    voted_jit (default jit). A namespace of the walks and the parts the
+    WGSL twins are held to."""
     if read_row is None:
 
         @jit
@@ -168,7 +169,7 @@ def make(jit, prim, read_row=None, vote=None):
         return closest, hit, hit_d
 
     walk_from = _walk_body(jit, ray_axes, children, centre_along, leaf_test, None)
-    voted = None if vote is None else _walk_body(jit, ray_axes, children, centre_along, leaf_test, vote)
+    voted = None if vote is None else _walk_body(voted_jit or jit, ray_axes, children, centre_along, leaf_test, vote)
 
     @jit
     def walk_ray(

@@ -37,7 +37,11 @@ def _any_in_block(p):
     return cuda.syncthreads_or(np.int32(p)) != 0
 
 
-_k = kernels.make(cuda.jit(device=True), vote=_any_in_block)
+# The voted walk is forced inline into its kernel, as its loop was written
+# there before it was traverse's: called, it reached the kernel's local
+# stack through generic addresses, and measured slower
+# (docs/notes/bvh-walk.md#one-walk-for-a-ray-and-a-packet).
+_k = kernels.make(cuda.jit(device=True), vote=_any_in_block, voted_jit=cuda.jit(device=True, forceinline=True))
 # module globals, which is how kernels can see them
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
 _prepare_one, _may_hit, _along, _intersect_relative = (
