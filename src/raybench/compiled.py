@@ -162,6 +162,16 @@ def cuda_jit(**options):
     return _in_cache(cuda.jit(cache=True, **options))
 
 
+def cuda_device(**options):
+    """numba.cuda.jit(device=True, **options) (numba's simulator, which
+    compiles nothing, takes it without NVVM's forceinline)."""
+    from numba import cuda
+
+    if numba.config.ENABLE_CUDASIM:
+        options.pop("forceinline", None)
+    return cuda.jit(device=True, **options)
+
+
 def is_ready(name: str) -> bool:
     """Whether mark_ready(name) was said in this cache: the functions it
     names are compiled and saved here."""

@@ -41,7 +41,7 @@ def _any_in_block(p):
 # there before it was traverse's: called, it reached the kernel's local
 # stack through generic addresses, and measured slower
 # (docs/notes/bvh-walk.md#one-walk-for-a-ray-and-a-packet).
-_k = kernels.make(cuda.jit(device=True), vote=_any_in_block, voted_jit=cuda.jit(device=True, forceinline=True))
+_k = kernels.make(cuda.jit(device=True), vote=_any_in_block, voted_jit=compiled.cuda_device(forceinline=True))
 # module globals, which is how kernels can see them
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
 _prepare_one, _may_hit, _along, _intersect_relative = (
