@@ -217,16 +217,11 @@ def make(jit, call, search, prim, shade_hit, shade_miss, shadows=per_ray, name="
 
     @jit
     def push(rays_f, rays_i, top, ox, oy, oz, dx, dy, dz, wr, wg, wb, slack, depth, kind, own, inside):
-        rays_f[top, 0] = ox
-        rays_f[top, 1] = oy
-        rays_f[top, 2] = oz
-        rays_f[top, 3] = dx
-        rays_f[top, 4] = dy
-        rays_f[top, 5] = dz
-        rays_f[top, 6] = wr
-        rays_f[top, 7] = wg
-        rays_f[top, 8] = wb
-        rays_f[top, 9] = slack
+        """A pending ray onto the pixel's stack, row top of rays_f and
+        rays_i: the new top."""
+        floats = (ox, oy, oz, dx, dy, dz, wr, wg, wb, slack)
+        for c in range(len(floats)):
+            rays_f[top, c] = floats[c]
         rays_i[top, 0] = depth
         rays_i[top, 1] = kind
         rays_i[top, 2] = own

@@ -29,13 +29,21 @@ GROUP = 32
 WIDE = 16
 
 
-@compiled.njit(nogil=True)
-def _render_band(first_row, end_row, width, height, basis, spheres, count, image, hits, stop):
+@numba.njit(inline="always")
+def _band(first_row, end_row, width, height, basis, spheres, count, image, hits, stop):
+    """The thesis's rows first_row..end_row, a pixel at a time; the stop
+    flag read before each row. Inlined (numba's inlining, before typing),
+    so a count frozen by the caller is a constant of its compile."""
     for y in range(first_row, end_row):
         if stop[0]:
             return
         for x in range(width):
             _render_pixel(x, y, width, height, basis, spheres, count, image, hits)
+
+
+@compiled.njit(nogil=True)
+def _render_band(first_row, end_row, width, height, basis, spheres, count, image, hits, stop):
+    _band(first_row, end_row, width, height, basis, spheres, count, image, hits, stop)
 
 
 @functools.cache
@@ -45,11 +53,7 @@ def _constant_band(count: int):
 
     @numba.njit(nogil=True)
     def render_band(first_row, end_row, width, height, basis, spheres, _count, image, hits, stop):
-        for y in range(first_row, end_row):
-            if stop[0]:
-                return
-            for x in range(width):
-                _render_pixel(x, y, width, height, basis, spheres, count, image, hits)
+        _band(first_row, end_row, width, height, basis, spheres, count, image, hits, stop)
 
     return render_band
 

@@ -130,6 +130,26 @@ _emit_primary, _missed, _shade_ray = _tree.emit_primary, _tree.missed, _tree.sha
 _put_shadows, _put_children = _tree.put_shadows, _tree.put_children
 _fixed, _resolve, _to_byte = _tree.fixed, _tree.resolve, _k.to_byte
 
+
+@cuda.jit(device=True)
+def _extend_ray(rays_f, rays_i, i, spheres, count, nodes, links, ordered, order, stack_row, stack_t):
+    """The nearest hit of queued ray i: through the tree, or every sphere
+    where the frame has none (the same choice in every thread)."""
+    tree = (nodes, links, ordered, order)
+    if nodes.shape[0] > 0:
+        return _extend_tree(rays_f, rays_i, i, spheres, count, tree, stack_row, stack_t)
+    return _extend_every(rays_f, rays_i, i, spheres, count, tree, stack_row, stack_t)
+
+
+@cuda.jit(device=True)
+def _unblocked_ray(shadows_f, shadows_i, i, spheres, count, nodes, links, ordered, order, stack_row, stack_t):
+    """Whether queued shadow ray i reaches its light, as _extend_ray walks."""
+    tree = (nodes, links, ordered, order)
+    if nodes.shape[0] > 0:
+        return _unblocked_tree(shadows_f, shadows_i, i, spheres, count, tree, stack_row, stack_t)
+    return _unblocked_every(shadows_f, shadows_i, i, spheres, count, tree, stack_row, stack_t)
+
+
 BLOCK = 128
 GRID_PER_SM = 32
 # Queues start at this many rays a pixel traced (the rays of a wave; the
@@ -222,13 +242,9 @@ def _extend(rays_f, rays_i, counts, wave, capacity, spheres, count, nodes, links
     n = min(counts[wave], capacity)
     stack_row = cuda.local.array(STACK, np.int32)
     stack_t = cuda.local.array(STACK, np.float32)
-    tree = (nodes, links, ordered, order)
     i = cuda.grid(1)
     while i < n:
-        if nodes.shape[0] > 0:
-            h, t, d = _extend_tree(rays_f, rays_i, i, spheres, count, tree, stack_row, stack_t)
-        else:
-            h, t, d = _extend_every(rays_f, rays_i, i, spheres, count, tree, stack_row, stack_t)
+        h, t, d = _extend_ray(rays_f, rays_i, i, spheres, count, nodes, links, ordered, order, stack_row, stack_t)
         hit_i[i] = h
         hit_t[i] = t
         hit_d[i] = d
@@ -295,13 +311,10 @@ def _shadow(shadows_f, shadows_i, counts, wave, capacity, spheres, count, nodes,
         cuda.atomic.add(rays, 1, np.int64(n))
     stack_row = cuda.local.array(STACK, np.int32)
     stack_t = cuda.local.array(STACK, np.float32)
-    tree = (nodes, links, ordered, order)
     i = cuda.grid(1)
     while i < n:
-        if nodes.shape[0] > 0:
-            free = _unblocked_tree(shadows_f, shadows_i, i, spheres, count, tree, stack_row, stack_t)
-        else:
-            free = _unblocked_every(shadows_f, shadows_i, i, spheres, count, tree, stack_row, stack_t)
+        free = _unblocked_ray(shadows_f, shadows_i, i, spheres, count, nodes, links, ordered, order, stack_row,
+                              stack_t)  # fmt: skip
         if free:
             _add(accum, shadows_i[0, i], shadows_f[7, i], shadows_f[8, i], shadows_f[9, i])
         i += cuda.gridsize(1)
