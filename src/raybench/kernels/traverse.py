@@ -261,23 +261,23 @@ def _walk_body(jit, ray_axes, children, centre_along, leaf_test, vote):
             # centre lies nearer along the central ray (guarding an empty
             # child's case with a branch, or clamping its planes, cost more
             # than the builder storing them finite: docs/notes/bvh-walk.md)
+            a_in = a_near <= a_far and a_far > ZERO and a_near <= closest
+            b_in = b_near <= b_far and b_far > ZERO and b_near <= closest
             if voted:
                 b_first = centre_along(nodes, node, _U(CHILD_BOX[1]), ox, oy, oz, cdx, cdy, cdz) < centre_along(
                     nodes, node, _U(CHILD_BOX[0]), ox, oy, oz, cdx, cdy, cdz
                 )
             else:
                 b_first = b_near < a_near
-            if b_first:
-                a_near, a_far, a_ref, a_count, b_near, b_far, b_ref, b_count = (
-                    b_near, b_far, b_ref, b_count, a_near, a_far, a_ref, a_count
-                )  # fmt: skip
-            a_in = a_near <= a_far and a_far > ZERO and a_near <= closest
-            b_in = b_near <= b_far and b_far > ZERO and b_near <= closest
             # voted, both votes at once, before either child's leaf is tested
             # (the second after the first child's leaf test measured slower:
             # docs/notes/bvh-walk.md#one-walk-for-a-ray-and-a-packet)
             any_a = vote(a_in)
             any_b = vote(b_in)
+            if b_first:
+                a_near, a_ref, a_count, a_in, any_a, b_near, b_ref, b_count, b_in, any_b = (
+                    b_near, b_ref, b_count, b_in, any_b, a_near, a_ref, a_count, a_in, any_a
+                )  # fmt: skip
             row = -1
             if any_a:
                 if a_count == INNER:
