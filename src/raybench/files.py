@@ -311,7 +311,7 @@ def write_atomic(path, data: bytes, what: str = "") -> None:
     mode = output_mode(path, what)
     if mode is None:
         mode = 0o666 & ~_umask()
-    with _ctrl_c_held():
+    with signals_held():
         try:
             # The name is cut so that a long file name still leaves room for the suffix.
             fd, tmp = tempfile.mkstemp(prefix=f".{path.name[:100]}.", suffix=".tmp", dir=folder)
@@ -406,14 +406,14 @@ def folder_atomic(path, replaceable=lambda entry: False):
     try:
         # made with the signals held, inside the try that removes it: a
         # SIGTERM or Ctrl-C just after mkdtemp left it behind
-        with _ctrl_c_held():
+        with signals_held():
             try:
                 path.parent.mkdir(parents=True, exist_ok=True)
                 staged = Path(tempfile.mkdtemp(prefix=f".{path.name[:100]}.", suffix=".partial", dir=path.parent))
             except OSError as exc:
                 raise RaybenchError(f"{path}: cannot create the folder ({exc.strerror or exc})") from None
         yield staged
-        with _ctrl_c_held():
+        with signals_held():
             os.chmod(staged, 0o777 & ~_umask())  # mkdtemp's is 0700
             old = None
             if path.exists():
@@ -439,7 +439,7 @@ def shown_name(name: str) -> str:
 
 
 @contextlib.contextmanager
-def _ctrl_c_held():
+def signals_held():
     """Ctrl-C (SIGINT), and SIGTERM where Python handles it, held back until
     the block is done, then raised (the first to come): a
     KeyboardInterrupt between mkstemp and the try that removes its file, or
