@@ -174,12 +174,14 @@ def _fast(text: str):
         return _REFERENCE
     if b"0" * 19 in data.translate(_DIGIT_RUNS) or (b"\\" in data and _ESCAPED_COLON.search(data)):
         return _REFERENCE
+    colons = data.count(b":")
     try:
         value = orjson.loads(data)
-        colons = orjson.dumps(value).count(b":")
+        del data  # (a large document's bytes gone before its value is written out again)
+        written = orjson.dumps(value).count(b":")
     except (orjson.JSONDecodeError, orjson.JSONEncodeError):
         return _REFERENCE
-    return value if colons == data.count(b":") else _REFERENCE
+    return value if written == colons else _REFERENCE
 
 
 def parse(text: str, where: str):
