@@ -360,15 +360,19 @@ class Appended:
                 return
             self._fd = self._open()
         size = os.fstat(self._fd).st_size
-        try:
-            view = memoryview(data)
-            while view:
-                view = view[os.write(self._fd, view) :]
-            os.fsync(self._fd)
-        except BaseException:
-            with contextlib.suppress(OSError):
-                os.ftruncate(self._fd, size)
-            raise
+        # Ctrl-C and SIGTERM held while a piece is written: one that came as a
+        # whole piece was synced (Python raises it as fsync returns) cut it off
+        # again, a finished point the file had shown. Now raised once it is on disk.
+        with signals_held():
+            try:
+                view = memoryview(data)
+                while view:
+                    view = view[os.write(self._fd, view) :]
+                os.fsync(self._fd)
+            except BaseException:
+                with contextlib.suppress(OSError):
+                    os.ftruncate(self._fd, size)
+                raise
 
     def _open(self) -> int:
         fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | unix_flags("O_NOFOLLOW", "O_NONBLOCK", "O_CLOEXEC"))

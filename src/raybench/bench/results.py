@@ -80,7 +80,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import RaybenchError, shown
-from ..files import Appended, check_nesting, check_writable, parse, read_text
+from ..files import Appended, check_nesting, check_writable, parse, read_text, signals_held
 from .results_schema import MAX_NUMBER as MAX_NUMBER  # cli.bench imports it from here
 from .results_schema import (
     MEASURED,
@@ -134,19 +134,21 @@ class ResultsWriter:
             self._file = Appended(self.path, "results")
         # One record a piece, on disk before the next point starts; one that
         # fails part way is cut off, and the first makes the file whole or not
-        # at all (files.Appended): a full disk leaves no empty file.
-        try:
-            self._file.append((line + "\n").encode("utf-8"))
-        except RaybenchError:
-            if not self.count:  # no file was made: nor are the folders made for it left
-                self._remove_made_folders()
-            raise
-        except OSError as exc:  # (the first record's failure is write_atomic's one line: nothing was changed)
-            raise RaybenchError(
-                f"{self.path}: cannot write results ({exc.strerror or exc}); the {self.count} records before this one "
-                "are kept"
-            ) from None
-        self.count += 1
+        # at all (files.Appended): a full disk leaves no empty file. Ctrl-C or
+        # SIGTERM meanwhile is raised once the record is written and counted.
+        with signals_held():
+            try:
+                self._file.append((line + "\n").encode("utf-8"))
+            except RaybenchError:
+                if not self.count:  # no file was made: nor are the folders made for it left
+                    self._remove_made_folders()
+                raise
+            except OSError as exc:  # (the first record's failure is write_atomic's one line: nothing was changed)
+                raise RaybenchError(
+                    f"{self.path}: cannot write results ({exc.strerror or exc}); the {self.count} records before "
+                    "this one are kept"
+                ) from None
+            self.count += 1
 
     def close(self) -> None:
         if self._file is not None:
