@@ -1,7 +1,8 @@
 """`raybench compare` at scale: two results files of --points points each (every point with
 --samples kept frame times, a share --unmatched measured with other options in the second file),
-compared by a fresh `python -m raybench compare` process --rounds times; each round's wall time
-and the process's peak resident memory. Issue 39's target: 10,000 points against 10,000 in under
+compared by a fresh `python -m raybench compare` process --rounds times; each round's wall time,
+the process's CPU time (user + system: on a shared machine, what the wall time is not) and peak
+resident memory, and the load average as each round starts. Issue 39's target: 10,000 points against 10,000 in under
 10 s and under 500 MB on the 2-vCPU machine.
 
     PYTHONPATH=src python benchmarks/compare_scale.py --points 10000 --samples 100 --rounds 3
@@ -42,8 +43,9 @@ def records(n: int, samples: int, unmatched: float, slowdown: float, rng):
         )  # fmt: skip
 
 
-def one_compare(old: Path, new: Path) -> tuple[float, float, str]:
-    """The wall time (ms) and peak resident memory (MB) of one `raybench compare`, and its last line."""
+def one_compare(old: Path, new: Path) -> tuple[float, float, float, str]:
+    """The wall time (ms), CPU time (s) and peak resident memory (MB) of one `raybench compare`,
+    and its last line."""
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
         start = time.perf_counter()
         argv = [sys.executable, "-m", "raybench", "compare", str(old), str(new)]
@@ -55,7 +57,8 @@ def one_compare(old: Path, new: Path) -> tuple[float, float, str]:
         err.seek(0)
         if proc.returncode != 0:
             raise SystemExit(f"compare failed ({proc.returncode}): {err.read().decode()[-500:]}")
-        return wall_ms, usage.ru_maxrss / 1024, out.read().decode().strip().splitlines()[-1]
+        cpu_s = usage.ru_utime + usage.ru_stime
+        return wall_ms, cpu_s, usage.ru_maxrss / 1024, out.read().decode().strip().splitlines()[-1]
 
 
 def main() -> None:
@@ -75,14 +78,18 @@ def main() -> None:
                 for r in records(args.points, args.samples, args.unmatched, slowdown, rng):
                     f.write(json.dumps(r) + "\n")
             paths.append(path)
-        walls, peaks = [], []
+        walls, cpus, peaks, loads = [], [], [], []
         for _ in range(args.rounds):
-            wall, peak, last = one_compare(*paths)
+            loads.append(os.getloadavg()[0])
+            wall, cpu, peak, last = one_compare(*paths)
             walls.append(wall)
+            cpus.append(cpu)
             peaks.append(peak)
-            print(f"compare: {wall / 1e3:.2f} s, peak {peak:.0f} MB; {last}", file=sys.stderr)
+            print(f"compare: {wall / 1e3:.2f} s, CPU {cpu:.2f} s, peak {peak:.0f} MB, load {loads[-1]:.2f}; {last}",
+                  file=sys.stderr)  # fmt: skip
         values = {"points": args.points, "samples": args.samples, "peak_rss_mb": max(peaks),
-                  "file_mb": paths[0].stat().st_size / 1e6}  # fmt: skip
+                  "file_mb": paths[0].stat().st_size / 1e6, "cpu_s_min": min(cpus), "cpu_s_max": max(cpus),
+                  "load_1m_min": min(loads), "load_1m_max": max(loads)}  # fmt: skip
         out.write(_harness.part("compare", "cpu", walls, options={"label": f"{args.points} points"}, values=values))
 
 

@@ -2,7 +2,9 @@
 checked before the work, parts records without samples compared, the API's
 options checked for type at its edge. Each test failed before its fix."""
 
+import contextlib
 import json
+import time
 
 import numpy as np
 import pytest
@@ -205,3 +207,68 @@ def test_the_compile_spinner_says_ctrl_c_waits_for_the_compile(tmp_path, monkeyp
         compiled.on_compile()  # what a cache miss calls
     shown = " ".join(out.getvalue().split())
     assert "(Ctrl-C waits for it)" in shown, shown
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("delay", [0.1, 0.4])
+def test_ctrl_c_while_the_workers_start_is_one_line(tmp_path, delay):
+    """Ctrl-C at a terminal reaches the whole process group: the embedded
+    cluster's workers, spawned and still importing, raised their own
+    KeyboardInterrupt before any handler of theirs was set, and printed 2 or
+    3 tracebacks (each of these delays did, on the 2-vCPU machine). They now
+    start with it blocked (cluster.client._ctrl_c_after)."""
+    import sys
+
+    import psutil
+    from test_cluster import blocks, interrupted_when
+
+    from raybench import sequence
+    from raybench.cluster import sharedframe
+
+    out = tmp_path / "frames"
+    argv = [sys.executable, "-m", "raybench", "render", "--spheres", "200", "--size", "64x48", "--device", "cpu",
+            "--workers", "2", "--path", "orbit", "--frames", "50", "-o", str(out)]  # fmt: skip
+
+    def workers_spawned(proc) -> bool:  # both workers' processes are there, importing, `delay` s ago
+        spawned = 0
+        for child in psutil.Process(proc.pid).children(recursive=True):
+            with contextlib.suppress(psutil.Error):
+                spawned += "spawn_main" in " ".join(child.cmdline())
+        if spawned < 2:
+            return False
+        time.sleep(delay)
+        return True
+
+    with interrupted_when(argv, workers_spawned) as (proc, family, err):
+        named = f"{sharedframe.PREFIX}{proc.pid}-"
+    assert proc.returncode == 130 and err.strip() == "raybench: interrupted" and "Traceback" not in err, err
+    _, alive = psutil.wait_procs(family, timeout=20)
+    assert not alive, f"stray processes: {alive}"
+    assert not any(name.startswith(named) for name in blocks())
+    # (the folder's marker, written before the cluster starts, is what a run resumes by)
+    assert not out.exists() or {p.name for p in out.iterdir()} <= {sequence.MARKER}, sorted(out.iterdir())
+
+
+def test_ctrl_c_as_a_record_is_synced_keeps_it(tmp_path, monkeypatch, sigint_handled):
+    """Ctrl-C or SIGTERM that came while a whole record was being synced to
+    disk cut it off again: a finished point the file had shown was lost (a
+    bench stopped by SIGTERM kept 1 of the 2 records seen, once, on a loaded
+    machine). It is now raised once the record is on disk, and counted."""
+    import os
+    import signal
+
+    record = {k: v for k, v in point([1.0, 2.0, 3.0], 3).items() if k not in ("format", "version")}
+    writer = results.ResultsWriter(tmp_path / "r.jsonl")
+    writer.write(record)
+    synced = os.fsync
+
+    def synced_then_ctrl_c(fd):
+        synced(fd)
+        os.kill(os.getpid(), signal.SIGINT)  # Python raises it as fsync returns
+
+    monkeypatch.setattr(os, "fsync", synced_then_ctrl_c)
+    with pytest.raises(KeyboardInterrupt):
+        writer.write(record)
+    monkeypatch.undo()
+    writer.close()
+    assert len(results.read(tmp_path / "r.jsonl")) == writer.count == 2

@@ -47,7 +47,10 @@ def one_line(text: str) -> str:
     """text with every character that is not printable (a newline, a carriage
     return, a line separator) written as its escape: what the CLI prints is
     then one line, whatever a file name or a hand-edited key holds."""
-    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
+    text = str(text)
+    if text.isprintable():  # (nearly always: checked at C speed, where the escapes go a character at a time)
+        return text
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
 # C0 and C1 control characters but tab and newline: what a terminal or a viewer may obey.

@@ -21,6 +21,7 @@ import threading
 from pathlib import Path
 
 import numpy as np
+import orjson
 
 from .errors import RaybenchError
 
@@ -110,7 +111,8 @@ def _unique_keys(pairs: list) -> dict:
 
 _ESCAPED = re.compile(r"\\.", re.DOTALL)
 _STRING = re.compile(r'"[^"]*"')
-_NOT_BRACKET = re.compile(r"[^\[\]{}\n]+")
+# Every byte but the brackets and the newline: bytes.translate drops them faster than a regex.
+_NOT_BRACKET = bytes(set(range(256)) - set(b"[]{}\n"))
 _STEP = np.zeros(256, np.int8)
 _STEP[[ord("["), ord("{")]] = 1
 _STEP[[ord("]"), ord("}")]] = -1
@@ -124,10 +126,11 @@ def json_depth(text: str, lines: bool = False) -> tuple[int, int]:
     # An escaped character (\" among them) says nothing about depth; once they
     # are gone, the quotes of valid JSON pair up and the strings can go. JSON
     # strings hold no raw newline, so the newlines that remain end lines.
-    kept = _NOT_BRACKET.sub("", _STRING.sub("", _ESCAPED.sub("", text)))
+    stripped = _STRING.sub("", _ESCAPED.sub("", text))
+    kept = stripped.encode("utf-8", "surrogatepass").translate(None, _NOT_BRACKET)
     if not kept:
         return 0, 1
-    chars = np.frombuffer(kept.encode("ascii"), np.uint8)
+    chars = np.frombuffer(kept, np.uint8)
     levels = np.cumsum(_STEP[chars], dtype=np.int32)
     newline = chars == ord("\n")
     if lines and newline.any():
@@ -149,10 +152,45 @@ def check_nesting(text: str, where: str, lines: bool = False) -> None:
         raise RaybenchError(f"{where}{at}: JSON nested {depth} deep, more than the {MAX_JSON_DEPTH} allowed")
 
 
+# The standard library's parser is the reference: its values, its messages. orjson's is
+# taken where it gives the same value, for speed (a results file holds millions of frame
+# times). It differs from the reference in three ways, each sent to the reference:
+# - an integer past 64 bits becomes a float: any run of 19 digits goes to the reference;
+# - a key twice in one object is dropped silently: its value is taken only where it holds
+#   every ':' of the text (a key's, or one inside a string; a dropped key takes at least its
+#   own), counted in the value written out again. A ':' written as \u003a would count in the
+#   value and not in the text, so text holding one goes to the reference;
+# - what it refuses and the reference reads (NaN, 1e400, a lone surrogate) it raises on.
+_DIGIT_RUNS = bytes(ord("0") if chr(i).isdigit() and i < 128 else ord(" ") for i in range(256))
+_ESCAPED_COLON = re.compile(rb"\\u003[aA]")
+_REFERENCE = object()
+
+
+def _fast(text: str):
+    """text's value by orjson, or _REFERENCE where only the reference parser can say."""
+    try:
+        data = text.encode("utf-8")
+    except UnicodeEncodeError:  # a lone surrogate in the text itself
+        return _REFERENCE
+    if b"0" * 19 in data.translate(_DIGIT_RUNS) or (b"\\" in data and _ESCAPED_COLON.search(data)):
+        return _REFERENCE
+    colons = data.count(b":")
+    try:
+        value = orjson.loads(data)
+        del data  # (a large document's bytes gone before its value is written out again)
+        written = orjson.dumps(value).count(b":")
+    except (orjson.JSONDecodeError, orjson.JSONEncodeError):
+        return _REFERENCE
+    return value if written == colons else _REFERENCE
+
+
 def parse(text: str, where: str):
     """The JSON document text, with no key twice in an object, its depth
     already checked (check_nesting). Any fault is one RaybenchError starting
     with `where` (a file's path, or "path: line N")."""
+    value = _fast(text)
+    if value is not _REFERENCE:
+        return value
     try:
         return _DECODER.decode(text)
     except json.JSONDecodeError as exc:
@@ -282,7 +320,7 @@ def write_atomic(path, data: bytes, what: str = "") -> None:
     mode = output_mode(path, what)
     if mode is None:
         mode = 0o666 & ~_umask()
-    with _ctrl_c_held():
+    with signals_held():
         try:
             # The name is cut so that a long file name still leaves room for the suffix.
             fd, tmp = tempfile.mkstemp(prefix=f".{path.name[:100]}.", suffix=".tmp", dir=folder)
@@ -329,15 +367,19 @@ class Appended:
                 return
             self._fd = self._open()
         size = os.fstat(self._fd).st_size
-        try:
-            view = memoryview(data)
-            while view:
-                view = view[os.write(self._fd, view) :]
-            os.fsync(self._fd)
-        except BaseException:
-            with contextlib.suppress(OSError):
-                os.ftruncate(self._fd, size)
-            raise
+        # Ctrl-C and SIGTERM held while a piece is written: one that came as a
+        # whole piece was synced (Python raises it as fsync returns) cut it off
+        # again, a finished point the file had shown. Now raised once it is on disk.
+        with signals_held():
+            try:
+                view = memoryview(data)
+                while view:
+                    view = view[os.write(self._fd, view) :]
+                os.fsync(self._fd)
+            except BaseException:
+                with contextlib.suppress(OSError):
+                    os.ftruncate(self._fd, size)
+                raise
 
     def _open(self) -> int:
         fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | unix_flags("O_NOFOLLOW", "O_NONBLOCK", "O_CLOEXEC"))
@@ -377,14 +419,14 @@ def folder_atomic(path, replaceable=lambda entry: False):
     try:
         # made with the signals held, inside the try that removes it: a
         # SIGTERM or Ctrl-C just after mkdtemp left it behind
-        with _ctrl_c_held():
+        with signals_held():
             try:
                 path.parent.mkdir(parents=True, exist_ok=True)
                 staged = Path(tempfile.mkdtemp(prefix=f".{path.name[:100]}.", suffix=".partial", dir=path.parent))
             except OSError as exc:
                 raise RaybenchError(f"{path}: cannot create the folder ({exc.strerror or exc})") from None
         yield staged
-        with _ctrl_c_held():
+        with signals_held():
             os.chmod(staged, 0o777 & ~_umask())  # mkdtemp's is 0700
             old = None
             if path.exists():
@@ -410,7 +452,7 @@ def shown_name(name: str) -> str:
 
 
 @contextlib.contextmanager
-def _ctrl_c_held():
+def signals_held():
     """Ctrl-C (SIGINT), and SIGTERM where Python handles it, held back until
     the block is done, then raised (the first to come): a
     KeyboardInterrupt between mkstemp and the try that removes its file, or

@@ -80,9 +80,23 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import RaybenchError, shown
-from ..files import Appended, check_nesting, check_writable, parse, read_text
+from ..files import Appended, check_nesting, check_writable, parse, read_text, signals_held
 from .results_schema import MAX_NUMBER as MAX_NUMBER  # cli.bench imports it from here
-from .results_schema import MEASURED, PART, PLAIN, POINT, RUN, SERIES, SKIPPED, _Bad, _name, _object_of, _plain
+from .results_schema import (
+    MEASURED,
+    PART,
+    PLAIN,
+    POINT,
+    RUN,
+    SERIES,
+    SKIPPED,
+    _Bad,
+    _name,
+    _object_of,
+    _plain,
+    forget_times,
+    times_array,
+)
 from .results_schema import NAME as NAME  # benchmarks/_harness.py reads it from here
 from .suites import CAPPED
 
@@ -120,19 +134,21 @@ class ResultsWriter:
             self._file = Appended(self.path, "results")
         # One record a piece, on disk before the next point starts; one that
         # fails part way is cut off, and the first makes the file whole or not
-        # at all (files.Appended): a full disk leaves no empty file.
-        try:
-            self._file.append((line + "\n").encode("utf-8"))
-        except RaybenchError:
-            if not self.count:  # no file was made: nor are the folders made for it left
-                self._remove_made_folders()
-            raise
-        except OSError as exc:  # (the first record's failure is write_atomic's one line: nothing was changed)
-            raise RaybenchError(
-                f"{self.path}: cannot write results ({exc.strerror or exc}); the {self.count} records before this one "
-                "are kept"
-            ) from None
-        self.count += 1
+        # at all (files.Appended): a full disk leaves no empty file. Ctrl-C or
+        # SIGTERM meanwhile is raised once the record is written and counted.
+        with signals_held():
+            try:
+                self._file.append((line + "\n").encode("utf-8"))
+            except RaybenchError:
+                if not self.count:  # no file was made: nor are the folders made for it left
+                    self._remove_made_folders()
+                raise
+            except OSError as exc:  # (the first record's failure is write_atomic's one line: nothing was changed)
+                raise RaybenchError(
+                    f"{self.path}: cannot write results ({exc.strerror or exc}); the {self.count} records before "
+                    "this one are kept"
+                ) from None
+            self.count += 1
 
     def close(self) -> None:
         if self._file is not None:
@@ -194,7 +210,7 @@ def parse_records(text: str, path, compact: bool = False) -> list[dict]:
             )
         check_record(record, where, runs)
         if compact and "samples_ms" in record:
-            record["samples_ms"] = np.asarray(record["samples_ms"], dtype=np.float64)
+            record["samples_ms"] = times_array(record["samples_ms"])
         records.append(record)
     if not records:
         raise RaybenchError(f"{path}: holds no results")
@@ -260,12 +276,16 @@ _KEPT = 1e-4
 def _agrees(times: dict, samples: list, count: int | None, where: str) -> None:
     """The kept samples agree with the summary: each between its min and max,
     and, where every sample was kept, their median is the summary's."""
-    a = np.asarray(samples, dtype=np.float64)
+    a = times_array(samples)
     low, high = float(a.min()), float(a.max())
     if low < times.get("min", 0) * (1 - _KEPT) or high > times.get("max", math.inf) * (1 + _KEPT):
         raise _Bad(f"within {where}'s min and max", [low, high]).at("samples_ms")
     if count == len(samples):
-        median = float(np.median(a))
+        # np.median's value, without its overhead (a record at a time): the middle two of a
+        # partition, averaged (the same one twice for an odd count; the times are finite)
+        n = len(a)
+        middle = np.partition(a, ((n - 1) // 2, n // 2))
+        median = float((middle[(n - 1) // 2] + middle[n // 2]) / 2)
         if abs(median - times["median"]) > _KEPT * times["median"]:
             raise _Bad(f"of median {where}.median", median).at("samples_ms")
 
@@ -276,6 +296,7 @@ def check_record(record: dict, where: str, runs: list | None = None) -> None:
     or a silently wrong report: `where: run.machine.cpu: must be an object`.
     runs: the runs already checked, as JSON text; every record of a run repeats
     its run, which is then compared (at C speed) rather than checked again."""
+    forget_times()
     try:
         if record.get("suite") == "parts":
             PART(record)

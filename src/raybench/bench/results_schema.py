@@ -106,10 +106,30 @@ def _times_all_fine(values: list) -> bool:
         a = np.asarray(values, dtype=np.float64)
     except OverflowError:
         return False
-    return bool(((a >= MIN_NUMBER) & (a <= MAX_NUMBER)).all())
+    fine = bool(((a >= MIN_NUMBER) & (a <= MAX_NUMBER)).all())
+    if fine:
+        global _last_times
+        _last_times = (values, a)
+    return fine
 
 
 _time.many = _times_all_fine
+# The last list _times_all_fine passed, and its array: the reader compares a record's
+# samples with its summary, then keeps them as an array (compact): one conversion of
+# a record's thousand times, not three. Held with the list, so the identity is its own;
+# forgotten before each record's checks, so a list changed in place since is converted anew.
+_last_times: tuple = (None, None)
+
+
+def forget_times() -> None:
+    global _last_times
+    _last_times = (None, None)
+
+
+def times_array(values) -> np.ndarray:
+    """values (a list of times) as a float64 array, converted once where just checked."""
+    checked, a = _last_times
+    return a if checked is values else np.asarray(values, dtype=np.float64)
 
 
 def _one_of(*choices):

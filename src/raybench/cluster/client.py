@@ -31,6 +31,7 @@ import threading
 
 from ..backends.limits import check_connect_timeout, check_worker_count
 from ..errors import RaybenchError
+from ..files import signals_held
 from ..host import usable_cores
 from .work import release
 
@@ -117,36 +118,57 @@ def embedded_security():
     return Security.temporary()
 
 
+# Ctrl-C, and SIGTERM: blocked while an embedded cluster's workers are started (_ctrl_c_after).
+_STOPS = {signal.SIGINT, signal.SIGTERM}
+_MASKS = hasattr(signal, "pthread_sigmask")  # (not on Windows)
+
+
 def dask_setup(worker) -> None:
     """Dask's hook as each embedded worker starts (worker_specs preloads this
     module there): Ctrl-C at a terminal reaches the whole process group, and
     each worker printed its own KeyboardInterrupt's tracebacks; the client
-    handles it and ends the cluster, workers included, so they ignore it."""
-    import signal
-
+    handles it and ends the cluster, workers included, so they ignore it.
+    The worker started with Ctrl-C and SIGTERM blocked (_ctrl_c_after): with
+    its handler set, it takes them again; a Ctrl-C that came meanwhile is
+    pending, and is ignored now."""
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if _MASKS:
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOPS)
 
 
 @contextlib.contextmanager
 def _ctrl_c_after():
-    """Ctrl-C held while an embedded cluster starts, then raised, where the
-    cluster is closed: raised inside Dask's start, it left a cluster half made
-    for Dask's exit hook to fail on, with a traceback. (The workers still
-    importing get the terminal's Ctrl-C too, and may print theirs: a spawned
-    process starts with no signal blocked, and ignoring it here meanwhile
-    would lose the user's Ctrl-C.)"""
+    """Ctrl-C and SIGTERM held while an embedded cluster starts, then raised,
+    where the cluster is closed: raised inside Dask's start, Ctrl-C left a
+    cluster half made for Dask's exit hook to fail on, with a traceback.
+    Held twice over:
+    - blocked in this thread (pthread_sigmask), and so in the threads Dask
+      starts meanwhile and in the worker processes they spawn, which inherit
+      the mask through fork and exec: a worker still importing took the
+      terminal's Ctrl-C and printed its traceback, before any handler of its
+      own was set. Each unblocks them once it is set (dask_setup). Here they
+      wait, pending, and are delivered as the mask is put back: ignored
+      meanwhile instead, the user's Ctrl-C would be lost;
+    - caught by a Python handler (files' hold), for a signal that a thread
+      started before, and not blocking it, takes for the process.
+    multiprocessing starts its resource tracker with the first spawned
+    process, blocking these signals for it and then unblocking them, ours
+    with them: it is started first, here."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    held = []
-    handler = signal.signal(signal.SIGINT, lambda signum, frame: held.append(signum))
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, handler)
-        if held and handler is signal.default_int_handler:
-            raise KeyboardInterrupt
+    if _MASKS:
+        from multiprocessing import resource_tracker
+
+        resource_tracker.ensure_running()
+    with signals_held():
+        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, _STOPS) if _MASKS else None
+        try:
+            yield
+        finally:
+            if _MASKS:
+                signal.pthread_sigmask(signal.SIG_SETMASK, blocked)  # what came meanwhile is delivered here
 
 
 def default_workers(device: str) -> int:
