@@ -34,12 +34,16 @@ float64 too: the coordinates may reach the scene's 1e15 (camera.MAX_MAGNITUDE),
 whose cubes overflow float32; t is rounded to float32 once.
 
 A miss is (-1, 0), as sphere.py gives it; t <= 0 is behind the origin, which
-the walks drop as they drop the sphere's. A triangle whose float32 edges
-B - A and C - A are parallel (zero area, as float32 sees it: a point, a
-segment, a repeated vertex) is never hit; the loader keeps such triangles.
+the walks drop as they drop the sphere's. A triangle of zero area (a point,
+a segment, a repeated vertex: its edges B - A and C - A parallel, decided on
+its own vertices, not on their differences from a ray's origin, which would
+round a segment into a sliver; `normal` says when that is exact) is never
+hit; the loader keeps such triangles.
 
-A hit's datum (the second value of every test): cos = |N.D| / |N|, the
-cosine between the ray and the plane's normal. rim is 1, so the thesis's
+A hit's datum (the second value of every test): cos = |n.D|, n the plane's
+unit normal (float32): the cosine between the ray and the normal, worked
+out only for a ray the edges let through (a packet's from_origin works n
+out once a leaf). rim is 1, so the thesis's
 shading, colour - (rim - datum) / rim (shade.shade_hit), is colour -
 (1 - cos): the very form it gives a sphere, whose half-chord over radius is
 the same cosine at its near hit. Smooth normals do not change it; `surface`
@@ -159,8 +163,9 @@ def make(jit, words=None):
         a1, a2, a3 = permute(ax, ay, az, kz)
         b1, b2, b3 = permute(bx, by, bz, kz)
         c1, c2, c3 = permute(cx, cy, cz, kz)
-        # the vertices sheared so that the ray runs along z (float32, as each
-        # vertex's values must be the same in every triangle that shares it)
+        # the vertices sheared so that the ray runs along z: float32, the
+        # same values for a vertex in every triangle that shares it (a
+        # compiler that fuses a - s * b fuses it alike for every vertex)
         a_x = a1 - sx * a3
         a_y = a2 - sy * a3
         b_x = b1 - sx * b3
@@ -179,39 +184,48 @@ def make(jit, words=None):
         return u, v, w, t, det
 
     @jit
-    def cosine(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz):
-        """|N.D| / |N| for N = (B - A) x (C - A): the datum; 0 where the
-        float32 edges are parallel (a triangle of zero area). float64 from
-        the float32 edges, so that |N|^2 cannot overflow."""
-        e1x, e1y, e1z = _F64(bx - ax), _F64(by - ay), _F64(bz - az)
-        e2x, e2y, e2z = _F64(cx - ax), _F64(cy - ay), _F64(cz - az)
+    def normal(ax, ay, az, bx, by, bz, cx, cy, cz):
+        """The plane's unit normal, N / |N| for N = (B - A) x (C - A), as
+        float32; (0, 0, 0) for a triangle of zero area. The absolute
+        vertices, so that a ray's origin cannot round a segment into a
+        sliver; in float64, where the edges (differences of float32 values)
+        are exact, so exactly parallel edges make the two products of each
+        component the same real number, rounded alike: N is exactly 0 for
+        any repeated vertex and for collinear vertices (whose coordinates on
+        an axis are 0 or within a factor 2^28 of each other); and |N|^2 cannot
+        overflow."""
+        e1x, e1y, e1z = _F64(bx) - _F64(ax), _F64(by) - _F64(ay), _F64(bz) - _F64(az)
+        e2x, e2y, e2z = _F64(cx) - _F64(ax), _F64(cy) - _F64(ay), _F64(cz) - _F64(az)
         nx = e1y * e2z - e1z * e2y
         ny = e1z * e2x - e1x * e2z
         nz = e1x * e2y - e1y * e2x
         nn = nx * nx + ny * ny + nz * nz
         if nn == _F64(0.0):
-            return ZERO
-        return _F32(abs(nx * _F64(dx) + ny * _F64(dy) + nz * _F64(dz)) / math.sqrt(nn))
+            return ZERO, ZERO, ZERO
+        inv = _F64(1.0) / math.sqrt(nn)
+        return _F32(nx * inv), _F32(ny * inv), _F32(nz * inv)
 
     @jit
-    def intersect_relative(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz):
-        """The ray from the origin along the unit (dx, dy, dz) against the
-        triangle A, B, C relative to that origin: (t, cos); (-1, 0) on a
-        miss and for a triangle of zero area."""
-        u, v, w, t, det = woop(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz)
-        if det == _F64(0.0):
+    def finish(t, det, nx, ny, nz, dx, dy, dz):
+        """A test's answer from woop's t and det and the plane's unit normal:
+        (t, cos) with cos = |n.D|, or (-1, 0) where the ray misses or the
+        triangle has zero area."""
+        if det == _F64(0.0) or (nx == ZERO and ny == ZERO and nz == ZERO):
             return MISS, ZERO
-        cos = cosine(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz)
-        if cos == ZERO:
-            return MISS, ZERO
-        return _F32(t / det), cos
+        return _F32(t / det), abs(nx * dx + ny * dy + nz * dz)
 
     @jit
     def intersect(ox, oy, oz, dx, dy, dz, ax, ay, az, bx, by, bz, cx, cy, cz):
-        """intersect_relative for a ray from (ox, oy, oz)."""
-        return intersect_relative(
+        """The ray from (ox, oy, oz) along the unit (dx, dy, dz) against the
+        triangle A, B, C: (t, cos); (-1, 0) on a miss and for a triangle of
+        zero area. The normal only where the edges let the ray through."""
+        _, _, _, t, det = woop(
             ax - ox, ay - oy, az - oz, bx - ox, by - oy, bz - oz, cx - ox, cy - oy, cz - oz, dx, dy, dz
         )
+        if det == _F64(0.0):
+            return MISS, ZERO
+        nx, ny, nz = normal(ax, ay, az, bx, by, bz, cx, cy, cz)
+        return finish(t, det, nx, ny, nz, dx, dy, dz)
 
     def tests(read):
         """hit and hit_ahead on a buffer that `read` reads."""
@@ -240,10 +254,12 @@ def make(jit, words=None):
     @jit
     def seen_from(row, ox, oy, oz):
         """A leaf's row (read_leaf's) as rays from (ox, oy, oz) see it: its
-        vertices relative to that origin, worked out once for a packet of
-        rays that share it (hit_from's and hit_ahead_from's first argument)."""
+        vertices relative to that origin and its plane's unit normal, worked
+        out once for a packet of rays that share it (hit_from's and
+        hit_ahead_from's first argument)."""
         ax, ay, az, bx, by, bz, cx, cy, cz = row
-        return ax - ox, ay - oy, az - oz, bx - ox, by - oy, bz - oz, cx - ox, cy - oy, cz - oz
+        nx, ny, nz = normal(ax, ay, az, bx, by, bz, cx, cy, cz)
+        return ax - ox, ay - oy, az - oz, bx - ox, by - oy, bz - oz, cx - ox, cy - oy, cz - oz, nx, ny, nz
 
     @jit
     def from_origin(buffer, k, ox, oy, oz):
@@ -254,8 +270,9 @@ def make(jit, words=None):
     def hit_from(seen, dx, dy, dz):
         """leaf_hit for one ray of the packet whose origin `seen` is from:
         the very values hit computes (the same subtractions)."""
-        ax, ay, az, bx, by, bz, cx, cy, cz = seen
-        return intersect_relative(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz)
+        ax, ay, az, bx, by, bz, cx, cy, cz, nx, ny, nz = seen
+        _, _, _, t, det = woop(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz)
+        return finish(t, det, nx, ny, nz, dx, dy, dz)
 
     @jit
     def hit_ahead_from(seen, dx, dy, dz, is_own):
@@ -336,15 +353,7 @@ def make(jit, words=None):
         py = oy + t * dy
         pz = oz + t * dz
         ax, ay, az, bx, by, bz, cx, cy, cz = read(triangles, i)
-        e1x, e1y, e1z = bx - ax, by - ay, bz - az
-        e2x, e2y, e2z = cx - ax, cy - ay, cz - az
-        gx = e1y * e2z - e1z * e2y
-        gy = e1z * e2x - e1x * e2z
-        gz = e1x * e2y - e1y * e2x
-        inv_g = ONE / _F32(math.sqrt(_F64(gx) * _F64(gx) + _F64(gy) * _F64(gy) + _F64(gz) * _F64(gz)))
-        gx *= inv_g
-        gy *= inv_g
-        gz *= inv_g
+        gx, gy, gz = normal(ax, ay, az, bx, by, bz, cx, cy, cz)
         cos_g = -(gx * dx + gy * dy + gz * dz)
         inside = cos_g < ZERO  # the ray meets the back face
         if inside:
@@ -385,8 +394,8 @@ def make(jit, words=None):
         read_leaf=read_leaf,
         permute=permute,
         woop=woop,
-        cosine=cosine,
-        intersect_relative=intersect_relative,
+        normal=normal,
+        finish=finish,
         intersect=intersect,
         hit=hit,
         hit_ahead=hit_ahead,
