@@ -313,3 +313,28 @@ def test_surface_flat_and_smooth():
     blend = unit(corners.astype(np.float64).T @ reference(smooth[:9], np.zeros((1, 3)), np.float32([[0, 0, 1]]))[1][0])
     assert inside and np.allclose((nx, ny, nz), -blend, atol=1e-6) and cos_i > 0
     assert PLAIN.rim(smooth, 0) == 1
+
+
+def test_every_answer_compiles(rng, jitted):
+    """Every answer compiles with numba.njit (as the backends will compile
+    them) and gives the plain build's values: the boxes, the packet's test,
+    the leaf copy, and the surface, flat and smooth."""
+    prim, _ = jitted
+    buffer, o, d = random_pairs(rng, 50)
+    smooth = np.concatenate([buffer, np.repeat(unit(rng.normal(size=(1, 9)).reshape(3, 3)).reshape(9, 1), 50, 1)])
+    copies = np.zeros((9, 50), F32), np.zeros((9, 50), F32)
+    for k in range(50):
+        args = (*o[k], *d[k])
+        assert prim.extent(buffer, k) == PLAIN.extent(buffer, k)
+        assert prim.bounds(buffer, k) == PLAIN.bounds(buffer, k)
+        seen = tuple(map(F32, prim.from_origin(buffer, k, *o[k])))  # float32 again, as compiled callers keep it
+        assert prim.hit_ahead_from(seen, *d[k], False) == PLAIN.hit(buffer, k, *args)
+        assert prim.leaf_hit_ahead(buffer, k, *args, False) == PLAIN.hit(buffer, k, *args)
+        prim.copy_leaf(buffer, k, copies[0], k)
+        PLAIN.copy_leaf(buffer, k, copies[1], k)
+        t, _ = PLAIN.hit(buffer, k, *args)
+        if t > 0:
+            for scene in (buffer, smooth):
+                assert prim.surface(*args, t, k, scene) == PLAIN.surface(*args, t, k, scene)
+    assert (copies[0] == copies[1]).all() and (copies[0] == buffer).all()
+    assert prim.rim(buffer, 0) == 1 and not prim.meets_own(True)
