@@ -19,8 +19,9 @@ them names a sphere.
 The kinds: sphere.py (the thesis's), and triangle.py (a mesh's triangles:
 the watertight test of Woop, Benthin and Wald, nine rows of vertices a leaf,
 the cosine to the plane's normal as a hit's datum, so rim is 1; no
-prepare_at or may_hit). A backend compiles a kind's programs when a scene
-holds it; the triangle's are not yet compiled by any backend.
+prepare_at or may_hit; its WGSL twin backends/wgpu/triangle.wgsl). A
+backend compiles a kind's programs when a scene holds it; the triangle's are
+not yet compiled by any backend.
 
 Adding a kind: a module beside sphere.py with the same answers, its WGSL
 twins in backends/wgpu/ (sphere.wgsl for the walks and the shading,
