@@ -183,25 +183,29 @@ def edge_targets(mesh, rng, n):
     return np.concatenate([v, v[e].mean(1), on_edges]).astype(F32)
 
 
-def test_watertight_icosphere(jitted):
+@pytest.mark.parametrize("centre, radius", [((0, 0, 0), 1.0), ((1000, -2000, 500), 0.01)])
+def test_watertight_icosphere(jitted, centre, radius):
     """Every ray from inside a subdivided icosphere hits it: random ones, and
     ones aimed at its vertices and along its shared edges, from random points
-    inside and from the centre."""
+    inside and from the centre; at the origin, and small and far from it
+    (where the float32 vertices are coarse against the sphere's size)."""
     prim, nearest = jitted
     rng = np.random.default_rng(37)
-    mesh = trimesh.creation.icosphere(subdivisions=3, radius=1.0)
+    mesh = trimesh.creation.icosphere(subdivisions=3, radius=radius)
+    mesh.apply_translation(centre)
     buffer = leaves(mesh.vertices, mesh.faces)
     targets = edge_targets(mesh, rng, 2000)
     inside = rng.normal(size=(len(targets), 3))
-    inside *= rng.uniform(0, 0.9, (len(targets), 1)) / np.linalg.norm(inside, axis=1, keepdims=True)
+    inside *= rng.uniform(0, 0.9 * radius, (len(targets), 1)) / np.linalg.norm(inside, axis=1, keepdims=True)
+    inside += centre
     o1, d1 = rays_at(inside, targets)
-    o2, d2 = rays_at(np.zeros((len(targets), 3)), targets)
+    o2, d2 = rays_at(np.tile(np.float64(centre), (len(targets), 1)), targets)
     o3 = inside.astype(F32)
     d3 = unit(rng.normal(size=(len(targets), 3)))
     for o, d in ((o1, d1), (o2, d2), (o3, d3)):
         hits, ts = nearest(buffer, o, d)
         assert (hits >= 0).all(), f"{(hits < 0).sum()} of {len(hits)} rays slipped through"
-        assert (ts < 2.1).all()
+        assert (ts < 2.1 * radius).all()
 
 
 def test_watertight_cube(jitted):
