@@ -24,7 +24,7 @@ hit. Watertight because:
   orientation and a neighbour computing the shared edge the other way round
   gets exactly its negation (the paper computes them in float32 and redoes
   them in float64 where one is zero, which is as exact only where nothing
-  fuses a product into the subtraction: cuda's compiler does);
+  fuses a product into the subtraction, as a GPU compiler may);
 - a zero edge function counts as inside, so a ray through an edge or a
   vertex is claimed by every triangle around it. No ray from inside a closed
   mesh slips between its triangles (tests/test_triangle.py holds it to that).
@@ -43,10 +43,10 @@ hit; the loader keeps such triangles.
 A hit's datum (the second value of every test): cos = |n.D|, n the plane's
 unit normal (float32): the cosine between the ray and the normal, worked
 out only for a ray the edges let through (a packet's from_origin works n
-out once a leaf). rim is 1, so the thesis's
-shading, colour - (rim - datum) / rim (shade.shade_hit), is colour -
-(1 - cos): the very form it gives a sphere, whose half-chord over radius is
-the same cosine at its near hit. Smooth normals do not change it; `surface`
+out once a leaf). rim is 1, so the thesis's shading, colour - (rim -
+datum) / rim (shade.shade_hit), is colour - (1 - cos): the very form it
+gives a sphere, whose half-chord over radius is the same cosine at its near
+hit. Smooth normals do not change it; `surface`
 works out the hit's barycentrics again and interpolates them for Whitted.
 
 Why the builders' padding holds a hit (traverse.py's "same answer because"):
@@ -57,11 +57,13 @@ float32 epsilons of |vertex - origin|, on every axis, whatever the angle.
 pad is 2^-16 (layout.PAD, 128 epsilons) of the box's |centre|_1 plus its
 half sizes, and the walks add the same of |origin|_1.
 
-Left out, with sphere.py's reasons not holding: prepare_at and may_hit (the
-brute-force fast kernels' cull: a sphere's cheap v > s test has no
-triangle twin of the same cost; a box test would be the walk's) and rim's
-division (rim is 1). meets_own is False: a ray leaving a triangle never
+Left out: prepare_at and may_hit, the brute-force fast kernels' cull (a
+sphere's cheap v > s test has no triangle twin of the same cost; a box test
+would be the walk's). meets_own is False: a ray leaving a triangle never
 meets that same planar triangle again.
+
+Its WGSL twin, backends/wgpu/triangle.wgsl, has no float64: its header says
+how it keeps the edge functions' signs exact in float32 and what differs.
 """
 
 import math
