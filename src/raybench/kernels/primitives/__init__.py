@@ -12,17 +12,25 @@ leaf buffer (leaf_hit, leaf_hit_ahead, read_leaf), and seen from an origin
 that a packet of rays shares (from_origin, hit_from, hit_ahead_from; seen_from
 and box_of work from a row read once), bounds, surface (point and
 normal at a hit), rim (what the thesis's shading divides by), and for the
-brute-force fast kernels prepare_at and may_hit. The walks, the pixel programs
-and the CPU's packets take that namespace; none of them names a sphere.
+brute-force fast kernels prepare_at and may_hit (the sphere's alone). The
+walks, the pixel programs and the CPU's packets take that namespace; none of
+them names a sphere.
+
+The kinds: sphere.py (the thesis's), and triangle.py (a mesh's triangles:
+the watertight test of Woop, Benthin and Wald, nine rows of vertices a leaf,
+the cosine to the plane's normal as a hit's datum, so rim is 1; no
+prepare_at or may_hit; its WGSL twin backends/wgpu/triangle.wgsl). A
+backend compiles a kind's programs when a scene holds it; the triangle's are
+not yet compiled by any backend.
 
 Adding a kind: a module beside sphere.py with the same answers, its WGSL
 twins in backends/wgpu/ (sphere.wgsl for the walks and the shading,
 sphere_build.wgsl for the GPU build), and a line in KINDS.
 """
 
-from . import sphere
+from . import sphere, triangle
 
 # name: module. A scene's primitives are of these kinds.
-KINDS = {"sphere": sphere}
+KINDS = {"sphere": sphere, "triangle": triangle}
 
-__all__ = ["KINDS", "sphere"]
+__all__ = ["KINDS", "sphere", "triangle"]

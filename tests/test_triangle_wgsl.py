@@ -1,0 +1,215 @@
+"""triangle.wgsl against its Python twin (kernels/primitives/triangle.py),
+function by function, on a CPU adapter (lavapipe), in the manner of
+test_wgsl_parity.py: the WGSL piece on its own, an entry point a function
+that reads each lane's arguments from a buffer and writes its results.
+
+WGSL has no float64, where the Python works out the edge functions, det, T
+and the normal (triangle.wgsl's header). What is held:
+- hit or miss: the same on every lane (the edge functions' signs are exact
+  in both, from the same float32 sheared vertices), degenerate triangles
+  and rays aimed at vertices and edges included;
+- t within 4 float32 ulps of the Python's, and the cosine within 4 epsilons
+  (float32 det, T and normal where the Python rounds once from float64);
+- the sheared set-up (permute), the boxes, meets_own and rim: the very bits.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from importlib import resources
+
+import numpy as np
+import pytest
+
+from raybench.backends.wgpu import adapters, shader
+from raybench.kernels.primitives import triangle
+
+pytestmark = pytest.mark.gpu
+
+F32 = np.float32
+PLAIN = triangle.make(lambda f: f)
+LANES = 64
+N = 2048
+IN, OUT = 20, 21
+HARNESS = """
+@group(0) @binding(IN) var<storage, read> parity_in: array<f32>;
+@group(0) @binding(OUT) var<storage, read_write> parity_out: array<f32>;
+const PARITY_N: u32 = COUNTu;
+fn arg(j: u32, i: u32) -> f32 {
+    return parity_in[j * PARITY_N + i];
+}
+fn put(j: u32, i: u32, value: f32) {
+    parity_out[j * PARITY_N + i] = value;
+}
+fn v3(j: u32, i: u32) -> vec3<f32> {
+    return vec3<f32>(arg(j, i), arg(j + 1u, i), arg(j + 2u, i));
+}
+"""
+ENTRY = """
+@compute @workgroup_size(LANES)
+fn parity_NAME(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = id.x;
+    if (i >= PARITY_N) {
+        return;
+    }
+    let k = i32(i);
+    BODY
+}
+"""
+# name: (WGSL body; the lane's arguments are o (0-2) and d (3-5); triangle k is lane k's)
+CASES = {
+    "hit": "let r = hit(k, v3(0u, i), v3(3u, i)); put(0u, i, r.x); put(1u, i, r.y);",
+    "leaf_hit": "let r = leaf_hit(k, v3(0u, i), v3(3u, i)); put(0u, i, r.x); put(1u, i, r.y);",
+    "hit_ahead": "let r = hit_ahead(k, v3(0u, i), v3(3u, i), false); put(0u, i, r.x); put(1u, i, r.y);"
+    " let s = hit_ahead(k, v3(0u, i), v3(3u, i), true); put(2u, i, s.x);",
+    "hit_from": "let r = hit_ahead_from(from_origin(k, v3(0u, i)), v3(3u, i), false);"
+    " put(0u, i, r.x); put(1u, i, r.y);",
+    "permute": "let p = permute(v3(0u, i), k % 3); put(0u, i, p.x); put(1u, i, p.y); put(2u, i, p.z);",
+    "bounds": "let b = bounds(k); put(0u, i, b[0].x); put(1u, i, b[0].y); put(2u, i, b[0].z);"
+    " put(3u, i, b[1].x); put(4u, i, b[1].y); put(5u, i, b[1].z);",
+    "meets_own": "put(0u, i, select(0.0, 1.0, meets_own(true) || meets_own(false))); put(1u, i, rim(k));",
+    # brute force: the nearest of every triangle of the scene's buffer, for the watertight test
+    "nearest": "var best = -1.0; for (var j = 0; j < i32(arrayLength(&triangles) / 9u); j++) {"
+    " let r = hit(j, v3(0u, i), v3(3u, i)); if (r.x > 0.0 && (best < 0.0 || r.x < best)) { best = r.x; } }"
+    " put(0u, i, best);",
+}
+
+
+@pytest.fixture(scope="module")
+def device(adapter):
+    cpus = [a for a in adapters.found() if a.type == "CPU"]
+    if not cpus:
+        pytest.skip(f"no CPU adapter (found: {adapters.listing(adapters.found())}): parity is a CPU adapter's claim")
+    return adapters.request_device(cpus[0])
+
+
+@pytest.fixture(scope="module")
+def module(device):
+    text = resources.files("raybench.backends.wgpu").joinpath("triangle.wgsl").read_text(encoding="utf-8")
+    for name, value in shader.BVH_CONSTANTS.items():
+        text = text.replace(name, value)
+    harness = HARNESS.replace("IN", str(IN)).replace("OUT", str(OUT)).replace("COUNT", str(N))
+    entries = [
+        ENTRY.replace("LANES", str(LANES)).replace("NAME", name).replace("BODY", body) for name, body in CASES.items()
+    ]
+    return device.create_shader_module(code=text + harness + "".join(entries))
+
+
+def run(device, module, name, lanes, buffer, results):
+    """WGSL function case `name` on each lane: (results, N) float32."""
+    import wgpu
+
+    storage = wgpu.BufferUsage.STORAGE
+    out = device.create_buffer(size=results * N * 4, usage=storage | wgpu.BufferUsage.COPY_SRC)
+    rows = np.ascontiguousarray(buffer.T, F32)  # triangle k's nine values at 9k
+    body = CASES[name]
+    given = {IN: np.ascontiguousarray(lanes, F32), 1: rows, 5: rows}
+    scene = re.search(r"(?<![\w])hit(_ahead)?\(", body) is not None  # read_triangle's binding
+    leaves = any(f in body for f in ("leaf_hit(", "from_origin(", "bounds("))  # read_leaf's
+    uses = [b for b, used in ((IN, "arg(" in body or "v3(" in body), (1, scene), (5, leaves)) if used]
+    entries = [{"binding": OUT, "resource": {"buffer": out}}]
+    for binding in uses:
+        data = device.create_buffer_with_data(data=given[binding].tobytes(), usage=storage)
+        entries.append({"binding": binding, "resource": {"buffer": data}})
+    entry = {"module": module, "entry_point": f"parity_{name}"}
+    pipeline = device.create_compute_pipeline(layout="auto", compute=entry)
+    group = device.create_bind_group(layout=pipeline.get_bind_group_layout(0), entries=entries)
+    encoder = device.create_command_encoder()
+    compute_pass = encoder.begin_compute_pass()
+    compute_pass.set_pipeline(pipeline)
+    compute_pass.set_bind_group(0, group)
+    compute_pass.dispatch_workgroups(math.ceil(N / LANES), 1, 1)
+    compute_pass.end()
+    device.queue.submit([encoder.finish()])
+    return np.frombuffer(device.queue.read_buffer(out), F32).reshape(results, N)
+
+
+def unit(v):
+    v = np.asarray(v, np.float64)
+    return (v / np.linalg.norm(v, axis=-1, keepdims=True)).astype(F32)
+
+
+def inputs(seed=41):
+    """(buffer (9, N), lanes (6, N)): random triangles, each lane's ray aimed
+    near its triangle; an eighth aimed exactly at a vertex or an edge's
+    midpoint, an eighth degenerate (repeated or collinear grid vertices),
+    some rays axis-aligned."""
+    rng = np.random.default_rng(seed)
+    centre = rng.uniform(-20, 20, (N, 1, 3))
+    verts = centre + rng.uniform(-1, 1, (N, 3, 3)) * rng.uniform(0.01, 3, (N, 1, 1))
+    e = N // 8
+    grid = np.round(rng.uniform(-8, 8, (e, 1, 3)) * 4) / 4
+    step = np.round(rng.uniform(-2, 2, (e, 1, 3)) * 4) / 4
+    verts[e : 2 * e] = grid + step * np.array([0.0, 1.0, 3.0])[None, :, None]  # collinear
+    verts[2 * e : 2 * e + e // 2, 1] = verts[2 * e : 2 * e + e // 2, 0]  # a repeated vertex
+    verts = verts.astype(F32)
+    w = rng.uniform(-0.3, 1.0, (N, 3))
+    target = (w[:, :, None] * verts).sum(1) / w.sum(1, keepdims=True)
+    target[:e] = verts[:e, 0]  # at a vertex
+    target[3 * e : 4 * e] = (verts[3 * e : 4 * e, 0].astype(np.float64) + verts[3 * e : 4 * e, 1]) / 2
+    o = (target + rng.normal(size=(N, 3)) * rng.uniform(0.5, 30, (N, 1))).astype(F32)
+    d = unit(target - o)
+    axis = slice(4 * e, 4 * e + e // 2)  # axis-aligned rays, aimed at the plane's point straight ahead
+    d[axis] = 0
+    d[axis, 2] = np.where(target[axis, 2] > o[axis, 2], 1, -1)
+    buffer = np.ascontiguousarray(verts.reshape(N, 9).T)
+    return buffer, np.ascontiguousarray(np.concatenate([o, d], 1).T)
+
+
+def python(fn, lanes, buffer):
+    return np.array([fn(buffer, k, *lanes[:, k]) for k in range(N)], np.float64).T
+
+
+def test_hits_and_misses_agree(device, module):
+    """Every hit test: the same hit or miss on every lane as the Python; t
+    within 4 ulps, cos within 4 epsilons; and enough of each kind."""
+    buffer, lanes = inputs()
+    want = python(PLAIN.hit, lanes, buffer)
+    assert (want[0] > 0).sum() > N // 4 and (want[0] <= 0).sum() > N // 4
+    for name in ("hit", "leaf_hit", "hit_ahead", "hit_from"):
+        got = run(device, module, name, lanes, buffer, 3 if name == "hit_ahead" else 2).astype(np.float64)
+        hit = want[0] > 0
+        assert ((got[0] > 0) == hit).all(), (name, np.flatnonzero((got[0] > 0) != hit)[:5])
+        ulp = np.spacing(np.abs(want[0][hit]).astype(F32)).astype(np.float64)
+        assert (np.abs(got[0][hit] - want[0][hit]) <= 4 * ulp).all(), name
+        assert (np.abs(got[1][hit] - want[1][hit]) <= 4 * np.finfo(F32).eps).all(), name
+        assert (got[0][~hit] == -1).all() and (got[1][~hit] == 0).all()
+        if name == "hit_ahead":
+            assert (got[2] == -1).all()  # the ray's own triangle: a miss
+
+
+def test_bits_agree(device, module):
+    """permute, the padded boxes, meets_own and rim: the very bits."""
+    buffer, lanes = inputs(42)
+    got = run(device, module, "permute", lanes, buffer, 3)
+    want = np.array([PLAIN.permute(*lanes[:3, k], k % 3) for k in range(N)], F32).T
+    assert (got == want).all()
+    got = run(device, module, "bounds", lanes, buffer, 6)
+    want = np.array([PLAIN.bounds(buffer, k) for k in range(N)], F32).T
+    assert (got == want).all()
+    got = run(device, module, "meets_own", lanes, buffer, 2)
+    assert (got[0] == 0).all() and (got[1] == 1).all()
+
+
+def test_watertight_icosphere(device, module):
+    """Every ray from inside a subdivided icosphere hits it in WGSL too: rays
+    from random points inside aimed at its vertices, its edges' midpoints
+    and points along its edges, and rays from its centre."""
+    trimesh = pytest.importorskip("trimesh")
+    rng = np.random.default_rng(43)
+    mesh = trimesh.creation.icosphere(subdivisions=3, radius=1.0)
+    v = np.asarray(mesh.vertices, np.float64)
+    edges = np.asarray(mesh.edges_unique)
+    along = rng.uniform(0, 1, (N, 1))
+    pick = rng.integers(0, len(edges), N)
+    targets = np.concatenate([v, v[edges].mean(1), v[edges[pick, 0]] * (1 - along) + v[edges[pick, 1]] * along])
+    targets = targets[:N].astype(F32)
+    inside = rng.normal(size=(N, 3))
+    inside *= rng.uniform(0, 0.9, (N, 1)) / np.linalg.norm(inside, axis=1, keepdims=True)
+    inside[: N // 4] = 0.0  # from the centre
+    o = inside.astype(F32)
+    d = unit(targets.astype(np.float64) - o)
+    buffer = np.ascontiguousarray(np.asarray(v, F32)[mesh.faces].reshape(len(mesh.faces), 9).T)
+    got = run(device, module, "nearest", np.ascontiguousarray(np.concatenate([o, d], 1).T), buffer, 1)
+    assert (got[0] > 0).all(), f"{(got[0] <= 0).sum()} of {N} rays slipped through"
