@@ -271,7 +271,7 @@ def _walk_body(jit, ray_axes, children, centre_along, leaf_test, vote):
                 b_first = b_near < a_near
             # voted, both votes at once, before either child's leaf is tested
             # (the second after the first child's leaf test measured slower:
-            # docs/notes/bvh-walk.md#one-walk-for-a-ray-and-a-packet)
+            # docs/notes/one-source.md#one-walk-for-a-ray-and-a-packet)
             any_a = vote(a_in)
             any_b = vote(b_in)
             if b_first:
