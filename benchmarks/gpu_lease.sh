@@ -55,7 +55,7 @@
 #       RAYBENCH_GIT_COMMIT=<commit> PYTHONPATH=/tmp/site:$PWD/src:$PWD/benchmarks \
 #       python3 benchmarks/archive/wgpu_readback.py
 #
-# Carries .whl (NumPy 2.4: the machine's 2.5 breaks numba 0.68.0; wgpu, cffi,
+# Carries .whl (NumPy 2.4: the machine's 2.5 breaks numba 0.68.0; orjson, which the results reader imports; wgpu, cffi,
 # pycparser, rendercanvas, glfw) and .gl (the Vulkan and GL loaders as Debian
 # packages; with them wgpu finds the GPU through NVIDIA's Vulkan driver):
 #   RAYBENCH_GIT_COMMIT=<commit> LABEL=h200 STEPS="info pytest kernels" bash benchmarks/gpu_lease.sh
