@@ -580,3 +580,84 @@ def test_paths_and_replaced():
     doc = {"a": [1, {"b": 2}]}
     assert list(paths(doc)) == [(), ("a",), ("a", 0), ("a", 1), ("a", 1, "b")]
     assert replaced(doc, ("a", 1, "b"), 3) == {"a": [1, {"b": 3}]} and doc["a"][1]["b"] == 2
+
+
+# --- mesh files (raybench.meshes) ------------------------------------------------------------
+
+
+@st.composite
+def obj_texts(draw):
+    """OBJ text: a good triangle's lines, with lines of every kind put among
+    them: vertices (finite, non-finite or huge), faces (in range, out of
+    range, negative, short), normals and stray text."""
+    coordinate = st.one_of(
+        st.floats(-1e3, 1e3, width=32),
+        st.sampled_from(["nan", "inf", "-inf", "1e40", "x", ""]),
+    )
+    lines = ["v 0 0 0", "v 1 0 0", "v 0 1 0", "f 1 2 3"]
+    for _ in range(draw(st.integers(0, 6))):
+        kind = draw(st.sampled_from(["v", "f", "vn", "junk"]))
+        if kind == "v":
+            line = "v " + " ".join(str(draw(coordinate)) for _ in range(draw(st.integers(2, 4))))
+        elif kind == "vn":
+            line = "vn " + " ".join(str(draw(coordinate)) for _ in range(3))
+        elif kind == "f":
+            line = "f " + " ".join(str(draw(st.integers(-5, 12))) for _ in range(draw(st.integers(2, 5))))
+        else:
+            line = draw(st.text(max_size=12))
+        lines.insert(draw(st.integers(0, len(lines))), line)
+    return "\n".join(lines)
+
+
+@st.composite
+def mesh_files(draw):
+    """(suffix, bytes): an OBJ text, an ASCII PLY whose header and body may
+    disagree, or bytes of any kind under a mesh suffix."""
+    choice = draw(st.sampled_from(["obj", "obj", "ply", "bytes"]))
+    if choice == "obj":
+        return ".obj", draw(obj_texts()).encode("utf-8", "surrogatepass")
+    if choice == "ply":
+        vertices = [" ".join(str(draw(st.floats(-10, 10, width=32))) for _ in range(3)) for _ in range(3)]
+        faces = ["3 0 1 2"] + [
+            " ".join(["3"] + [str(draw(st.integers(-1, 5))) for _ in range(3)]) for _ in range(draw(st.integers(0, 2)))
+        ]
+        nv = draw(st.sampled_from([len(vertices), 0, 2, 4]))
+        nf = draw(st.sampled_from([len(faces), 0, len(faces) + 1]))
+        header = ["ply", "format ascii 1.0", f"element vertex {nv}", "property float x", "property float y"]
+        header += ["property float z", f"element face {nf}", "property list uchar int vertex_indices", "end_header"]
+        return ".ply", "\n".join(header + vertices + faces).encode()
+    return draw(st.sampled_from([".obj", ".ply", ".stl", ".glb", ".gltf"])), draw(st.binary(max_size=200))
+
+
+def test_fuzz_mesh_files(folder):
+    """A generated mesh file loaded (meshes.load_mesh): a mesh whose faces
+    all index its vertices, every coordinate finite and float32, or one
+    line naming the file (RaybenchError); never another exception."""
+    from raybench import RaybenchError
+    from raybench.meshes import load_mesh
+
+    seen = Counter()
+
+    @budget(80)
+    @given(mesh_files())
+    def one(case):
+        suffix, raw = case
+        clear(folder)
+        path = folder / f"model{suffix}"
+        path.write_bytes(raw)
+        try:
+            mesh = load_mesh(path)
+        except RaybenchError as exc:
+            message = str(exc)
+            assert "\n" not in message and "model" in message, message
+            seen["refused"] += 1
+            return
+        assert mesh.vertices.dtype == np.float32 and mesh.vertices.shape[1] == 3
+        assert mesh.faces.dtype == np.int32 and mesh.faces.shape[1] == 3 and len(mesh.faces) > 0
+        assert np.isfinite(mesh.vertices).all()
+        assert mesh.faces.min() >= 0 and mesh.faces.max() < len(mesh.vertices)
+        seen["loaded"] += 1
+
+    one()
+    print(f"meshes: {dict(seen)}")
+    assert seen["loaded"] > 0 and seen["refused"] > 0, seen

@@ -135,6 +135,13 @@ def _checked(path, parts) -> Mesh:
         raise RaybenchError(f"{path}: no faces (a mesh needs at least one triangle)")
     vertices, faces, normals, base = [], [], [], 0
     for v, f, n in parts:
+        # trimesh's OBJ reader takes the first vertex line's count of
+        # coordinates for them all: "v 0 0" first gives points in a plane
+        if np.ndim(v) != 2 or np.shape(v)[1] != 3 or np.ndim(f) != 2 or np.shape(f)[1] != 3:
+            raise RaybenchError(
+                f"{path}: a vertex needs x, y and z and a face three corners"
+                f" (read vertices {np.shape(v)} and faces {np.shape(f)})"
+            )
         bad = np.flatnonzero((f < 0).any(axis=1) | (f >= len(v)).any(axis=1))
         if len(bad):
             raise RaybenchError(
