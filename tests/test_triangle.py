@@ -342,3 +342,30 @@ def test_every_answer_compiles(rng, jitted):
                 assert prim.surface(*args, t, k, scene) == PLAIN.surface(*args, t, k, scene)
     assert (copies[0] == copies[1]).all() and (copies[0] == buffer).all()
     assert prim.rim(buffer, 0) == 1 and not prim.meets_own(True)
+
+
+def test_the_program_compiles_for_the_triangle(rng):
+    """kernels.make takes the triangle as it takes the sphere (the seam):
+    its brute-force search over a mesh's triangles gives, for every ray, the
+    triangle of the smallest positive t in the float64 reference, and the
+    fast kernels' cull, which a triangle has not, is left out."""
+    from raybench import kernels
+
+    program = kernels.make(lambda f: f, primitive=triangle)
+    assert program.prepare is None
+    n = 24
+    buffer, o, d = random_pairs(rng, n)
+    far = np.float32(3e38)
+    judged = 0
+    for k in range(n):
+        hit, t, _cos = program.scan(*o[k], *d[k], far, False, False, -1, False, buffer, n)
+        ts, bary, _ = reference(buffer, np.repeat(o[k : k + 1], n, 0), np.repeat(d[k : k + 1], n, 0))
+        inside = (bary > 1e-4).all(1) & (ts > 1e-4)
+        if not inside.any():
+            continue  # only rays that meet some triangle clearly inside it are judged
+        best = int(np.argmin(np.where(inside, ts, np.inf)))
+        grazing = (np.abs(bary) < 1e-4).any(1) & (ts > 0)  # a near-edge rival could win on rounding
+        if not grazing.any():
+            assert hit == best and abs(t - ts[best]) <= 1e-4 * max(1.0, ts[best]), (k, hit, best)
+            judged += 1
+    assert judged >= n // 4, judged

@@ -46,13 +46,11 @@ def make(
     shade_hit, shade_miss, to_byte = shade.make(jit)
     walks = traverse.make(jit, prim, read_row, vote, voted_jit)
     nearest_hit_bvh, inverse, walk = walks.nearest_hit_bvh, walks.inverse, walks.walk
-    hit_closest, hit_ahead, meets_own, rim, prepare_at = (
-        prim.hit,
-        prim.hit_ahead,
-        prim.meets_own,
-        prim.rim,
-        prim.prepare_at,
-    )
+    hit_closest, hit_ahead, meets_own, rim = prim.hit, prim.hit_ahead, prim.meets_own, prim.rim
+    # the brute-force fast kernels' cull (prepare): a primitive that has one
+    # (the sphere's EO and threshold); a triangle has none, and runs the
+    # simple kernels alone
+    prepare_at = getattr(prim, "prepare_at", None)
 
     @jit
     def primary_ray(x, y, width, height, basis):
@@ -187,15 +185,18 @@ def make(
     if shadows is not None:
         render_pixel_whitted["packets"] = whitted_program(packets_search or search_tree, shadows)
 
-    @jit
-    def prepare(i, basis, spheres, relative):
-        """Fast kernels, once per frame and sphere i: relative[:, i] = EO and the
-        cull threshold (the primitive's prepare)."""
-        ex, ey, ez, s = prepare_at(spheres, i, basis[0, 0], basis[0, 1], basis[0, 2])
-        relative[0, i] = ex
-        relative[1, i] = ey
-        relative[2, i] = ez
-        relative[3, i] = s
+    prepare = None
+    if prepare_at is not None:
+
+        @jit
+        def prepare(i, basis, spheres, relative):
+            """Fast kernels, once per frame and primitive i: relative[:, i] =
+            EO and the cull threshold (the primitive's prepare_at)."""
+            ex, ey, ez, s = prepare_at(spheres, i, basis[0, 0], basis[0, 1], basis[0, 2])
+            relative[0, i] = ex
+            relative[1, i] = ey
+            relative[2, i] = ez
+            relative[3, i] = s
 
     return SimpleNamespace(
         render_pixel=render_pixel,
