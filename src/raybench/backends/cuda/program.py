@@ -39,7 +39,7 @@ def _any_in_block(p):
 
 # The voted walk is forced inline into its kernel, where its loop was
 # written before it was traverse's, so that the kernel's stack stays its
-# own local memory: the form measured within 3% of that kernel (inlining
+# own local memory: the form measured as fast as that kernel (inlining
 # alone was not what the earlier forms lacked:
 # docs/notes/one-source.md#one-walk-for-a-ray-and-a-packet).
 _k = kernels.make(cuda.jit(device=True), vote=_any_in_block, voted_jit=compiled.cuda_device(forceinline=True))
