@@ -182,7 +182,7 @@ def make(jit, prim, read_row=None, vote=None, voted_jit=None):
         stack_row / stack_t: the walk's stack, layout.STACK entries, given by
         the backend (a CUDA thread's local array, a CPU thread's own)."""
         return walk_from(ox, oy, oz, dx, dy, dz, dx, dy, dz, t_max, any_hit, ahead, own, own_inside, nodes, links,
-                    ordered, order, stack_row, stack_t)  # fmt: skip
+                         ordered, order, stack_row, stack_t)  # fmt: skip
 
     @jit
     def nearest_hit_bvh(ox, oy, oz, dx, dy, dz, nodes, links, ordered, order, stack_row, stack_t):

@@ -239,11 +239,6 @@ fn walk(o: vec3<f32>, dir: vec3<f32>, t_max: f32, any_hit: bool, ahead: bool, ow
     return walk_from(o, dir, dir, t_max, any_hit, ahead, own, own_inside);
 }
 
-// leaf_hits: leaf_test for the thesis's primary rays.
-fn leaf_hits(o: vec3<f32>, dir: vec3<f32>, first: i32, count: i32, so_far: Nearest) -> Nearest {
-    return leaf_test(o, dir, first, count, so_far, false, -1, false);
-}
-
 // nearest_hit_bvh: walk for the thesis's primary rays.
 fn nearest_hit_bvh(o: vec3<f32>, dir: vec3<f32>) -> Hit {
     let found = walk(o, dir, FAR, false, false, -1, false);
