@@ -40,8 +40,8 @@ def test_cull_never_rejects_a_hit(rng):
         t, d = K.prim.intersect_relative(ex, ey, ez, r, dx, dy, dz)
         if t > f32(0.0):  # the exact test found the sphere in front of the ray: a hit the kernels keep
             exact_hits += 1
-            assert K.may_hit(ex, ey, ez, q, dx, dy, dz), (dx, dy, dz, cx, cy, cz, r)
-        elif not K.may_hit(ex, ey, ez, q, dx, dy, dz):
+            assert K.prim.may_hit(ex, ey, ez, q, dx, dy, dz), (dx, dy, dz, cx, cy, cz, r)
+        elif not K.prim.may_hit(ex, ey, ez, q, dx, dy, dz):
             culled += 1
     # not vacuous: both sides of the boundary were exercised
     assert exact_hits > 2000 and culled > 200, (exact_hits, culled)
@@ -69,7 +69,7 @@ def test_cull_skips_most_spheres_of_a_real_scene():
             dx, dy, dz = K.primary_ray(x, y, 40, 25, basis)
             for i in range(300):
                 total += 1
-                kept += bool(K.may_hit(*relative[:3, i], relative[3, i], dx, dy, dz))
+                kept += bool(K.prim.may_hit(*relative[:3, i], relative[3, i], dx, dy, dz))
     assert kept / total < 0.05, kept / total
 
 
