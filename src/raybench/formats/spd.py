@@ -1,0 +1,182 @@
+"""Eric Haines's Standard Procedural Databases (SPD, 1987), generated in Python.
+
+Written from the algorithms that the SPD's C programs and their headers
+describe (erich666/StandardProceduralDatabases, CC0), as NumPy arrays a level
+at a time rather than the C's recursion; each gives the NFF that program
+writes with its default output (OUTPUT_CURVES: spheres, polygons, cones):
+the same view, background, lights, fills and primitives, in the same order.
+
+- balls (the sphereflake): a sphere of radius 1/2, and on each sphere nine
+  of a third of its radius, size_factor levels deep, over a square floor;
+  sum of 9**k for k = 0..size_factor spheres (balls.c's header: 10, 91, 820,
+  7381 at 1 to 4) and one polygon.
+- tetra: a tetrahedron of tetrahedra, 4**size_factor triangles (tetra.c's
+  header: 4, 16, 64 at 1 to 3, 4096 at 6).
+
+generate(name, size) gives the NFF; SCENES names what there is, with each
+one's default size factor (the C's).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..errors import RaybenchError, shown
+from .nff import NFF, Fill, Polygon, View
+
+# The SPD's "UNC sky blue", the background of balls and tetra.
+SKY = (0.078, 0.361, 0.753)
+# The largest size factor generated: balls at 7 would be 5.4 M spheres,
+# tetra at 11 4 M triangles; the SPD's own tables stop well below.
+MAX_SIZE = {"balls": 7, "tetra": 11}
+
+
+def phong_power(angle_deg: float) -> float:
+    """The SPD's fills give a highlight's half-width angle; NFF's Shine is the
+    Phong power whose cosine lobe falls to a half at that angle (lib's
+    conversion: 0 degrees is a very sharp 100000, 90 or more a flat 1)."""
+    a = math.radians(angle_deg)
+    if a <= 0.0:
+        return 100000.0
+    if a >= math.pi / 2:
+        return 1.0
+    return math.log(0.5) / math.log(math.cos(a))
+
+
+def _fill(colour, kd, ks, angle_deg, kt, ior) -> Fill:
+    return Fill(tuple(colour), kd, ks, phong_power(angle_deg), kt, ior)
+
+
+def _rotation(axis, angle) -> np.ndarray:
+    """Rotation matrices by angle about unit axis (Rodrigues), for column
+    vectors: axis (n, 3), angle (n,) give (n, 3, 3)."""
+    axis = np.asarray(axis, np.float64).reshape(-1, 3)
+    angle = np.asarray(angle, np.float64).reshape(-1)
+    x, y, z = axis.T
+    c, s = np.cos(angle), np.sin(angle)
+    t = 1.0 - c
+    return np.stack(
+        [
+            np.stack([t * x * x + c, t * x * y - s * z, t * x * z + s * y], -1),
+            np.stack([t * x * y + s * z, t * y * y + c, t * y * z - s * x], -1),
+            np.stack([t * x * z - s * y, t * y * z + s * x, t * z * z + c], -1),
+        ],
+        -2,
+    )
+
+
+def _flake_directions() -> np.ndarray:
+    """The nine unit directions of a sphere's children about +z: three
+    directions at right angles to each other, (1, 1, 0), (1, 0, -1) and (0,
+    1, -1) over sqrt 2, tipped about (1, -1, 0) by asin(2 / sqrt 6) so that
+    their sum points along +z, then turned about z by 0, 120 and 240
+    degrees: three trios, each around the parent's upper half."""
+    d = 1.0 / math.sqrt(2.0)
+    trio = np.array([[d, d, 0.0], [d, 0.0, -d], [0.0, d, -d]])
+    tip = _rotation(np.array([1.0, -1.0, 0.0]) / math.sqrt(2.0), math.asin(2.0 / math.sqrt(6.0)))[0]
+    trio = trio @ tip.T
+    turns = _rotation(np.tile([0.0, 0.0, 1.0], (3, 1)), np.arange(3) * 2.0 * math.pi / 3.0)
+    return np.concatenate([trio @ turn.T for turn in turns])
+
+
+def _onto(directions: np.ndarray) -> np.ndarray:
+    """(n, 3, 3) rotations taking +z to each unit direction: none where it is
+    (nearly) +z, half a turn about y where it is (nearly) -z, else about
+    z x direction by the angle between them; "nearly" within 1e-4 of a
+    cosine, as the C tests it, since a child's direction is a unit vector
+    only to rounding."""
+    n = len(directions)
+    dz = directions[:, 2]
+    axis = np.stack([-directions[:, 1], directions[:, 0], np.zeros(n)], -1)
+    length = np.linalg.norm(axis, axis=1)
+    safe = np.where(length > 0, length, 1.0)
+    out = _rotation(axis / safe[:, None], np.arccos(np.clip(dz, -1.0, 1.0)))
+    out[dz >= 0.9999] = np.eye(3)
+    out[dz <= -0.9999] = _rotation(np.array([0.0, 1.0, 0.0]), math.pi)[0]
+    return out
+
+
+def flake(size: int) -> np.ndarray:
+    """The sphereflake's spheres, (N, 4) x, y, z, radius, in the order
+    balls.c writes them: each sphere, then its nine children's flakes."""
+    children = _flake_directions()
+    centers = np.zeros((1, 3))
+    radii = np.array([0.5])
+    directions = np.array([[0.0, 0.0, 1.0]])
+    # depth-first position of each sphere: a level's spheres are in their
+    # parents' order, each parent's nine together, so a child's place is its
+    # parent's, plus one, plus the subtrees of its elder siblings
+    place = np.zeros(1, np.int64)
+    levels = [(centers, radii, place)]
+    for level in range(size):
+        subtree = sum(9**k for k in range(size - level))  # the spheres under and including a child
+        offsets = np.einsum("nij,kj->nki", _onto(directions), children)  # (n, 9, 3)
+        scale = radii * (1.0 + 1.0 / 3.0)
+        centers = (centers[:, None, :] + offsets * scale[:, None, None]).reshape(-1, 3)
+        radii = np.repeat(radii / 3.0, 9)
+        directions = offsets.reshape(-1, 3)
+        place = (place[:, None] + 1 + np.arange(9)[None, :] * subtree).reshape(-1)
+        levels.append((centers, radii, place))
+    total = sum(len(r) for _, r, _ in levels)
+    out = np.empty((total, 4))
+    for c, r, p in levels:
+        out[p, :3] = c
+        out[p, 3] = r
+    return out
+
+
+def balls(size: int = 4) -> NFF:
+    """SPD balls: the sphereflake on a beige floor, three lights."""
+    floor = _fill((1.0, 0.75, 0.33), 0.8, 0.0, 0.0, 0.0, 1.0)
+    mirror = _fill((1.0, 0.9, 0.7), 0.5, 0.5, 37.0, 0.0, 1.0)
+    view = View((2.1, 1.3, 1.7), (0.0, 0.0, 0.0), (0.0, 0.0, 1.0), 45.0, 0.01, (512, 512))
+    lights = [((4.0, 3.0, 2.0), None), ((1.0, -4.0, 4.0), None), ((-3.0, 1.0, 5.0), None)]
+    # the floor: a square 24 on a side, half the flake's radius under its centre
+    square = np.array([[12.0, 12.0, -0.5], [-12.0, 12.0, -0.5], [-12.0, -12.0, -0.5], [12.0, -12.0, -0.5]])
+    spheres = flake(size)
+    return NFF(view=view, background=SKY, lights=lights, fills=[floor, mirror], spheres=spheres,
+               sphere_fill=np.ones(len(spheres), np.int32), polygons=[Polygon(square, None, 0)])  # fmt: skip
+
+
+# The four corners of a cube that make a tetrahedron (x * y * z = 1), in the
+# order tetra.c visits them (x, then y, then z from -1 to 1).
+_CORNERS = np.array([[-1.0, -1.0, 1.0], [-1.0, 1.0, -1.0], [1.0, -1.0, -1.0], [1.0, 1.0, 1.0]])
+# Each face's corners, counter-clockwise from outside: face f takes corners
+# f, f + 1, f + 2 (mod 4), the first and last swapped on odd faces.
+_FACES = ((0, 1, 2), (3, 2, 1), (2, 3, 0), (1, 0, 3))
+
+
+def tetra(size: int = 6) -> NFF:
+    """SPD tetra: a tetrahedron split into four half its size, size - 1
+    times, one light; each smallest tetrahedron's four faces are triangles."""
+    centers = np.zeros((1, 3))
+    half = 1.0
+    for _ in range(size - 1):
+        half /= 2.0
+        centers = (centers[:, None, :] + _CORNERS[None, :, :] * half).reshape(-1, 3)
+    fill = _fill((1.0, 0.2, 0.2), 1.0, 0.0, 0.0, 0.0, 0.0)
+    polygons = []
+    for c in centers:
+        corners = c + _CORNERS * half
+        polygons += [Polygon(corners[list(face)], None, 0) for face in _FACES]
+    view = View((1.022846, -3.177154, -2.174512), (-0.004103, -0.004103, 0.216539), (-0.816497, -0.816497, 0.816497),
+                45.0, 1.0, (512, 512))  # fmt: skip
+    return NFF(view=view, background=SKY, lights=[((2.0, -18.0, -5.0), None)], fills=[fill], polygons=polygons)
+
+
+# name: (generator, default size factor, the C's)
+SCENES = {"balls": (balls, 4), "tetra": (tetra, 6)}
+
+
+def generate(name: str, size: int | None = None) -> NFF:
+    """The SPD scene `name` at size factor `size` (its default where None)."""
+    if name not in SCENES:
+        raise RaybenchError(f"SPD scene: one of {', '.join(SCENES)}, got {shown(name)}")
+    make, default = SCENES[name]
+    size = default if size is None else size
+    if isinstance(size, bool) or not isinstance(size, int) or not 1 <= size <= MAX_SIZE[name]:
+        raise RaybenchError(f"--size: {name}'s size factor is a whole number from 1 to {MAX_SIZE[name]}, "
+                            f"got {shown(size)}")  # fmt: skip
+    return make(size)
