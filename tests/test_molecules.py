@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from test_cli import assert_user_error, cli
 
 from raybench.errors import RaybenchError
 from raybench.formats import molecule
@@ -110,3 +111,13 @@ def test_a_file_without_atoms_is_one_line(tmp_path):
         molecule.load(path)
     with pytest.raises(RaybenchError, match="no such molecule file"):
         molecule.load(tmp_path / "absent.cif")
+
+
+def test_render_a_molecule(capsys, tmp_path):
+    path = write_pdb(tmp_path / "tiny.pdb")
+    code, out, err = cli(capsys, "render", "--scene", path, "--no-hydrogens", "--size", "40x30", "--device", "cpu",
+                         "--threads", 1, "-o", tmp_path / "tiny.png")  # fmt: skip
+    assert code == 0, err
+    assert "7 spheres" in out and (tmp_path / "tiny.png").exists()
+    code, out, err = cli(capsys, "render", "--spheres", 5, "--waters", "-o", tmp_path / "x.png")
+    assert_user_error(code, out, err, "--waters apply to a molecule file")

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from test_cli import assert_user_error, cli
 
 from raybench import Camera, Light, Material, Scene
 from raybench.errors import RaybenchError
@@ -174,3 +175,34 @@ def test_a_malformed_line_is_named(text, line, needle):
     message = str(caught.value)
     assert message.startswith(f"bad.nff: line {line}: "), message
     assert needle in message and "\n" not in message
+
+
+def test_render_an_nff_notes_what_it_does_not_draw(capsys, tmp_path):
+    path = tmp_path / "every.nff"
+    path.write_text(EVERY)
+    code, out, err = cli(capsys, "render", "--scene", path, "--size", "40x30", "--device", "cpu", "--threads", 1,
+                         "-o", tmp_path / "every.png")  # fmt: skip
+    assert code == 0, err
+    lines = out.splitlines()
+    assert lines[0].startswith("note: read 1 polygon and 1 patch and 1 cone, which raybench does not render yet")
+    assert "2 spheres" in lines[-1] and (tmp_path / "every.png").exists()
+
+
+def test_a_malformed_nff_is_one_line_and_exit_2(capsys, tmp_path):
+    path = tmp_path / "bad.nff"
+    path.write_text("s 0 0 0 1\nf 1 1\n")
+    code, out, err = cli(capsys, "render", "--scene", path, "--size", "40x30", "-o", tmp_path / "x.png")
+    assert_user_error(code, out, err, "bad.nff: line 2: f (fill")
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_export_on_the_command_line(capsys, tmp_path):
+    source = tmp_path / "scene.json"
+    _scene().save(source)
+    target = tmp_path / "scene.nff"
+    code, out, err = cli(capsys, "scene", "nff", "--scene", source, "-o", target)
+    assert code == 0, err
+    assert out.startswith(f"wrote {target}: 40 spheres from {source}: 40 spheres")
+    assert np.array_equal(nff.load(target).scene().spheres, _scene().spheres)
+    code, out, err = cli(capsys, "scene", "nff", "--scene", source, "-o", tmp_path / "scene.txt")
+    assert_user_error(code, out, err, "must be a .nff file")

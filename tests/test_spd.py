@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 from reference import check_frame, trace
+from test_cli import assert_user_error, cli
 
 import raybench
 from raybench.errors import RaybenchError
@@ -106,3 +107,15 @@ def test_a_sphereflake_renders_as_the_float64_reference():
     ref = trace(scene, scene.camera, 40, 30)
     assert (ref.hits >= 0).mean() > 0.15 and len(np.unique(ref.hits)) > 20  # not a vacuous picture
     check_frame(frame, ref, context="balls size 2")
+
+
+def test_scene_spd_on_the_command_line(capsys, tmp_path):
+    target = tmp_path / "balls.nff"
+    code, out, err = cli(capsys, "scene", "spd", "balls", "--size", 3, "-o", target)
+    assert code == 0, err
+    assert out == f"wrote {target}: SPD balls at size factor 3: 820 spheres, 1 polygon\n"
+    assert nff.load(target).counts()["spheres"] == 820
+    code, out, err = cli(capsys, "scene", "spd", "balls", "--size", 9, "-o", target)
+    assert_user_error(code, out, err, "--size", "from 1 to 7")
+    code, out, err = cli(capsys, "scene", "spd", "tetra", "-o", tmp_path / "tetra.png")
+    assert_user_error(code, out, err, "must be a .nff file")
