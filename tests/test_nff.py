@@ -63,6 +63,11 @@ def test_every_entity_is_read():
     assert len(notes) == 1 and "1 polygon and 1 patch and 1 cone" in notes[0] and "2 spheres" in notes[0]
 
 
+def test_a_cone_on_one_line_as_the_spd_writes_it():
+    got = nff.read("c 0 0 0 1 0 0 2 0.5\nc\n1 1 1 1\n1 1 3 0.5\n")
+    assert got.cones.tolist() == [[0, 0, 0, 1, 0, 0, 2, 0.5], [1, 1, 1, 1, 1, 1, 3, 0.5]]
+
+
 def test_the_scene_of_an_nff():
     scene = nff.read(EVERY).scene()
     assert len(scene) == 2
@@ -159,6 +164,7 @@ def test_a_file_without_a_view_gets_a_camera_that_sees_it():
         ("pp 3\n0 0 0 0 0 1\n1 0 0 0 0 1\n0 1 0 0 1\n", 4, "pp (polygon patch) vertex 3"),
         ("p three\n", 1, "vertex count"),
         ("c\n0 0 0 1\n", 1, "before the cone's apex line"),
+        ("c 0 0 0 1\n0 0 1 1\n", 1, "or all 8 numbers"),
         ("f 1 1 1 1 0 0 0\n", 1, "expected 8 numbers"),
         ("b 2 0 0\n", 1, "in [0, 1]"),
         ("l 1 2\n", 1, "expected 3 or 6 numbers"),

@@ -119,3 +119,41 @@ def test_scene_spd_on_the_command_line(capsys, tmp_path):
     assert_user_error(code, out, err, "--size", "from 1 to 7")
     code, out, err = cli(capsys, "scene", "spd", "tetra", "-o", tmp_path / "tetra.png")
     assert_user_error(code, out, err, "must be a .nff file")
+
+
+# rings.c's header ("formula for # of spheres or cylinders = 5*SF*(SF+1)*(2*SF+1)":
+# 30, 150, 420 at 1 to 3, 4200 at 7), the README's 8401 primitives at 7.
+RINGS = {1: 30, 2: 150, 3: 420, 7: 4200}
+
+
+@pytest.mark.parametrize("size", sorted(RINGS))
+def test_rings_counts_and_bounds(size):
+    scene = spd.generate("rings", size)
+    assert scene.counts() == {"spheres": RINGS[size], "polygons": 1, "patches": 0, "cones": RINGS[size]}
+    assert sum(scene.counts().values()) == RINGS[size] * 2 + 1
+    # each object's 30 points lie on one sphere, of radius 1 / (1 + the tubes' radius)
+    points = spd._dodecahedron_rings(spd.RING_RADIUS)
+    assert np.linalg.norm(points, axis=1) * (1 + spd.RING_RADIUS) == pytest.approx(np.ones(30))
+    edges = np.linalg.norm(points - np.roll(points.reshape(6, 5, 3), 1, axis=1).reshape(30, 3), axis=1)
+    assert edges == pytest.approx(np.full(30, edges[0]))  # six regular pentagons of one size
+    # a cylinder joins each sphere to the one before it on its ring
+    assert np.array_equal(scene.cones[:, :4], scene.spheres)
+    wall = scene.polygons[0].vertices
+    assert (scene.spheres[:, 1] + spd.RING_RADIUS < wall[:, 1].min()).all()
+
+
+def test_rings_is_haines_rings():
+    scene = spd.rings(2)
+    spread = 1 / math.sin(math.pi / 8)
+    assert scene.view.position == (-1.0, -spread, 0.5) and scene.view.angle == 45.0
+    assert scene.spheres[0] == pytest.approx((0.930995, 2.61313, 0, 0.07412), abs=6e-6)
+    assert scene.cones[0, 4:] == pytest.approx((0.287693, 1.7277, 0, 0.07412), abs=6e-6)
+    assert scene.polygons[0].vertices[0] == pytest.approx((3.37286, 7.83938, 4.87286), abs=6e-5)
+    colours = [scene.fills[i].color for i in scene.sphere_fill[:30:5]]
+    assert colours == [(1, 0, 0), (0, 1, 0), (0, 0, 1), (0, 1, 1), (1, 0, 1), (1, 1, 0)]
+
+
+def test_the_command_line_names_every_generator():
+    from raybench.cli.scene import SPD_NAMES
+
+    assert SPD_NAMES == tuple(spd.SCENES)

@@ -14,6 +14,13 @@ import click
 
 from .options import check_output, path_option
 
+# formats.spd.SCENES's names, here so that the command line starts without NumPy
+SPD_NAMES = ("balls", "tetra", "rings")
+SPD_SIZE_HELP = (
+    "the SPD's size factor (default: the generator's own: 4 for balls, 6 for tetra, 7 for rings); "
+    "balls has 10, 91, 820, 7,381, 66,430 and 597,871 spheres at 1 to 6"
+)
+
 
 @click.group(name="scene")
 def scene_cmd():
@@ -30,9 +37,8 @@ def _written(nff, output: Path, what: str) -> None:
 
 
 @scene_cmd.command(name="spd")
-@click.argument("name", type=click.Choice(["balls", "tetra"]))
-@click.option("--size", "size", type=int, help="the SPD's size factor (default: the generator's own, 4 for balls, "
-              "6 for tetra); balls has 10, 91, 820, 7,381, 66,430 and 597,871 spheres at 1 to 6")  # fmt: skip
+@click.argument("name", type=click.Choice(SPD_NAMES))
+@click.option("--size", "size", type=int, help=SPD_SIZE_HELP)
 @path_option("-o", "--output", help_text="the NFF file to write (default NAME.nff)")
 def spd_cmd(name, size, output):
     """One of Eric Haines's Standard Procedural Databases, generated as his

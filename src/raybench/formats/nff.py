@@ -468,9 +468,15 @@ class _Reader:
         self.nff.polygons.append(Polygon(rows[:, :3], normals, self.fill_index()))
 
     def cone(self, rest):
+        """NFF.TXT's `c` and its base and apex lines; or all eight numbers on
+        the `c` line, as the SPD's own programs write it."""
         start = self.i
+        if len(rest) == 8:
+            self.cones.append(self.numbers(rest, 8, "c (cone: base x y z radius apex x y z radius)"))
+            self.cone_fill.append(self.fill_index())
+            return
         if rest:
-            self.fail("c: expected nothing after c (its two lines follow)")
+            self.fail("c: expected nothing after c (its base and apex lines follow), or all 8 numbers")
         ends = []
         for what in ("base", "apex"):
             words = self.next()

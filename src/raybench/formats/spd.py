@@ -12,6 +12,10 @@ the same view, background, lights, fills and primitives, in the same order.
   7381 at 1 to 4) and one polygon.
 - tetra: a tetrahedron of tetrahedra, 4**size_factor triangles (tetra.c's
   header: 4, 16, 64 at 1 to 3, 4096 at 6).
+- rings: a pyramid of objects of six pentagonal rings of cylinders and
+  spheres before a wall; 5 SF (SF + 1) (2 SF + 1) spheres and as many
+  cylinders (rings.c's header: 30, 150, 420 at 1 to 3, 4200 at 7) and one
+  polygon.
 
 generate(name, size) gives the NFF; SCENES names what there is, with each
 one's default size factor (the C's).
@@ -29,8 +33,9 @@ from .nff import NFF, Fill, Polygon, View
 # The SPD's "UNC sky blue", the background of balls and tetra.
 SKY = (0.078, 0.361, 0.753)
 # The largest size factor generated: balls at 7 would be 5.4 M spheres,
-# tetra at 11 4 M triangles; the SPD's own tables stop well below.
-MAX_SIZE = {"balls": 7, "tetra": 11}
+# tetra at 11 4 M triangles, rings at 60 2.2 M spheres and as many
+# cylinders; the SPD's own tables stop well below.
+MAX_SIZE = {"balls": 7, "tetra": 11, "rings": 60}
 
 
 def phong_power(angle_deg: float) -> float:
@@ -166,8 +171,67 @@ def tetra(size: int = 6) -> NFF:
     return NFF(view=view, background=SKY, lights=[((2.0, -18.0, -5.0), None)], fills=[fill], polygons=polygons)
 
 
+def _dodecahedron_rings(minor: float) -> np.ndarray:
+    """The 30 points of rings: the midpoints of a dodecahedron's edges, as
+    six pentagons of five, on a sphere of radius 1 / (1 + minor), minor
+    being the tubes' radius (rings.c's scale "to fit in a sphere of radius 1"). The first pentagon lies in the xy
+    plane from +x; each other is it turned about x by twice the angle whose
+    cosine is cos 60 / sin 36 degrees, then about z by an odd number of
+    tenths of a turn (1, 3, 5, 7, 9)."""
+    scale = 1.0 / (1.0 + minor)
+    k = np.arange(5) * 2.0 * math.pi / 5.0
+    first = np.stack([scale * np.cos(k), scale * np.sin(k), np.zeros(5)], -1)
+    tilt = _rotation(np.array([1.0, 0.0, 0.0]), 2.0 * math.acos(math.cos(math.pi / 3) / math.sin(math.pi / 5)))[0]
+    out = [first]
+    for p in range(1, 6):
+        turn = _rotation(np.array([0.0, 0.0, 1.0]), math.pi * (2.0 * (p - 1) + 1.0) / 5.0)[0]
+        out.append(first @ tilt.T @ turn.T)
+    return np.concatenate(out)
+
+
+# rings' tube radius (rings.c: "no derivation given") and ring colours, RGB and complements
+RING_RADIUS = 0.07412
+RING_COLOURS = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0), (0.0, 1.0, 1.0), (1.0, 0.0, 1.0), (1.0, 1.0, 0.0))
+
+
+def rings(size: int = 7) -> NFF:
+    """SPD rings: a pyramid of objects, 1, 4, 9, ... size**2 of them a layer
+    going away from the eye, each six pentagonal rings (five cylinders and
+    five spheres each) of six colours; a white wall behind, three lights.
+    5 * size * (size + 1) * (2 size + 1) spheres and as many cylinders."""
+    spread = 1.0 / math.sin(math.pi / 8.0)  # a layer's distance from the next: the 45-degree view's
+    eye = np.array([-1.0, -spread, 0.5])
+    view = View(tuple(eye.tolist()), (-1.0, 1.0 - spread, 0.5), (0.0, 0.0, 1.0), 45.0, 1.0, (512, 512))
+    lights = [((3.0, -spread, 3.0), None), ((-4.0, -spread, 1.0), None), ((2.0, -spread, -4.0), None)]
+    # the wall just spans the view, 1% to spare, one layer behind the last
+    far = spread * (size + 1)
+    half = 1.01 * (far - eye[1]) * math.tan(math.pi / 8.0)
+    corners = np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]]) * half
+    wall = np.stack([eye[0] + corners[:, 0], np.full(4, far), eye[2] + corners[:, 1]], -1)
+    fills = [_fill((1.0, 1.0, 1.0), 1.0, 0.0, 0.0, 0.0, 0.0)]
+    fills += [_fill(c, 0.5, 0.2, 37.0, 0.0, 0.0) for c in RING_COLOURS]
+    points = _dodecahedron_rings(RING_RADIUS)
+    # each of the 30 points starts a cylinder to the point before it on its ring
+    previous = np.array([i + 4 if i % 5 == 0 else i - 1 for i in range(30)])
+    offsets = [
+        (2.0 * x - depth, spread * (depth + 1), 2.0 * z - depth)
+        for depth in range(size)
+        for z in range(depth + 1)
+        for x in range(depth + 1)
+    ]
+    offsets = np.array(offsets)[:, None, :]
+    base = (points[None] + offsets).reshape(-1, 3)
+    apex = (points[previous][None] + offsets).reshape(-1, 3)
+    n = len(base)
+    r = np.full((n, 1), RING_RADIUS)
+    which = np.tile(1 + np.arange(30) // 5, len(offsets)).astype(np.int32)
+    return NFF(view=view, background=SKY, lights=lights, fills=fills, spheres=np.hstack([base, r]),
+               sphere_fill=which, polygons=[Polygon(wall, None, 0)], cones=np.hstack([base, r, apex, r]),
+               cone_fill=which)  # fmt: skip
+
+
 # name: (generator, default size factor, the C's)
-SCENES = {"balls": (balls, 4), "tetra": (tetra, 6)}
+SCENES = {"balls": (balls, 4), "tetra": (tetra, 6), "rings": (rings, 7)}
 
 
 def generate(name: str, size: int | None = None) -> NFF:
