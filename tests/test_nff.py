@@ -192,6 +192,12 @@ def test_render_an_nff_notes_what_it_does_not_draw(capsys, tmp_path):
     lines = out.splitlines()
     assert lines[0].startswith("note: read 1 polygon and 1 patch and 1 cone, which raybench does not render yet")
     assert "2 spheres" in lines[-1] and (tmp_path / "every.png").exists()
+    assert ": 40x30, " in lines[-1]
+    # without --size, the view's own resolution
+    code, out, err = cli(capsys, "render", "--scene", path, "--device", "cpu", "--threads", 1, "-o",
+                         tmp_path / "own.png")  # fmt: skip
+    assert code == 0, err
+    assert ": 64x48, " in out.splitlines()[-1]
 
 
 def test_a_malformed_nff_is_one_line_and_exit_2(capsys, tmp_path):

@@ -17,7 +17,7 @@ from ..errors import RaybenchError
 from ..files import check_writable
 from ..lighting import SHADINGS
 
-SIZE_HELP = "image size as WIDTHxHEIGHT, e.g. 1680x1050"
+SIZE_HELP = "image size as WIDTHxHEIGHT, e.g. 1680x1050; an NFF scene's own resolution where not given"
 
 
 def parse_pair(text: str, option: str, example: str) -> tuple[int, int]:
@@ -231,6 +231,25 @@ class SceneArgs:
     def load(self, layout=None):
         molecule = MoleculeArgs(hydrogens=not self.no_hydrogens, waters=self.waters)
         return load_scene(self.scene_file, self.spheres, self.seed, self.materials, layout, molecule)
+
+
+def frame_size(scene_args: SceneArgs, size: str) -> tuple[int, int]:
+    """--size, parsed; where it was left at its default and the scene is an
+    NFF file with a view, the view's resolution (NFF's own size of the picture)."""
+    from click.core import ParameterSource
+
+    context = click.get_current_context(silent=True)
+    default = context is not None and context.get_parameter_source("size") is ParameterSource.DEFAULT
+    if default and scene_args.scene_file is not None:
+        from .. import formats
+
+        if formats.kind(scene_args.scene_file) == "nff" and Path(scene_args.scene_file).exists():
+            from ..formats import nff
+
+            view = nff.load_view(scene_args.scene_file)
+            if view is not None:
+                return parse_size("{}x{}".format(*view.resolution))
+    return parse_size(size)
 
 
 @dataclass(frozen=True)

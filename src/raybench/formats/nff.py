@@ -352,6 +352,18 @@ def load(path) -> NFF:
     return read(read_text(path, "NFF file", MAX_NFF_BYTES), str(path))
 
 
+def load_view(path) -> View | None:
+    """The view of an NFF file, or None where it has none: read up to it
+    only (NFF.TXT puts it before any object), for its resolution."""
+    path = Path(path)
+    reader = _Reader(read_text(path, "NFF file", MAX_NFF_BYTES), str(path))
+    while (words := reader.next()) is not None:
+        if words[0] == "v":
+            reader.view(words[1:])
+            return reader.nff.view
+    return None
+
+
 def read(text: str, name: str = "NFF") -> NFF:
     """The NFF in text; a malformed line is one RaybenchError, "name: line N: why"."""
     return _Reader(text, name).read()
