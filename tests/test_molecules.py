@@ -109,6 +109,9 @@ def test_a_file_without_atoms_is_one_line(tmp_path):
     write_pdb(path, [a for a in ATOMS if a[3] == "HOH"])
     with pytest.raises(RaybenchError, match=r"no atoms in its first model \(after leaving out waters\)"):
         molecule.load(path)
+    (tmp_path / "empty.pdb").write_text("HEADER    NOTHING\nEND\n")
+    with pytest.raises(RaybenchError, match="empty.pdb: no atoms"):
+        molecule.load(tmp_path / "empty.pdb")
     with pytest.raises(RaybenchError, match="no such molecule file"):
         molecule.load(tmp_path / "absent.cif")
 

@@ -83,8 +83,8 @@ def atoms(path, hydrogens: bool = True, waters: bool = False) -> tuple[np.ndarra
     except (RuntimeError, ValueError, OSError) as exc:
         text = " ".join(str(exc).split())[:200]
         raise RaybenchError(f"{path}: cannot read it as PDB or mmCIF: {text}") from None
-    if len(structure) == 0:
-        raise RaybenchError(f"{path}: no models (no ATOM or HETATM records)")
+    if len(structure) == 0 or structure[0].count_atom_sites() == 0:
+        raise RaybenchError(f"{path}: no atoms (no ATOM or HETATM records in a first model)")
     structure.remove_alternative_conformations()
     if not hydrogens:
         structure.remove_hydrogens()
