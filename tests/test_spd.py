@@ -157,3 +157,31 @@ def test_the_command_line_names_every_generator():
     from raybench.cli.scene import SPD_NAMES
 
     assert SPD_NAMES == tuple(spd.SCENES)
+
+
+# tree.c's header ("Total objects = 2**(SF+1)-1 cones and spheres + 1 square
+# polygon": 3, 7, 15 at 1 to 3, 4095 at 11); the README's 8191 primitives at 11.
+TREE = {1: 3, 2: 7, 3: 15, 11: 4095}
+
+
+@pytest.mark.parametrize("size", sorted(TREE))
+def test_tree_counts_and_bounds(size):
+    scene = spd.generate("tree", size)
+    assert scene.counts() == {"spheres": TREE[size], "polygons": 1, "patches": 0, "cones": TREE[size]}
+    assert sum(scene.counts().values()) == 2 ** (size + 2) - 1
+    # every branch grows from the tip of another (the trunk from the ground), tips carry the spheres
+    tips = {tuple(np.round(c, 9)) for c in scene.cones[:, 4:7]}
+    assert all(tuple(np.round(b, 9)) in tips for b in scene.cones[1:, :3])
+    assert np.array_equal(scene.spheres, scene.cones[:, 4:])
+    assert scene.cones[:, 2].min() == 0 and (scene.cones[:, [2, 6]] >= 0).all()  # above the field
+
+
+def test_tree_is_haines_tree():
+    scene = spd.tree(3)
+    assert scene.view == nff.View((4.5, 0.4, 2.0), (0, 0, 1.5), (0, 0, 1), 45.0, 1.0, (512, 512))
+    assert len(scene.lights) == 7
+    from_c = [(0, 0, 0, 0.15, 0, 0, 1, 0.1005), (0, 0, 1, 0.1005, 0.417812, 0, 1.49793, 0.067335),
+              (0.625853, 0.271578, 1.74586, 0.0451145, 0.594216, 0.406804, 1.98278, 0.0302267),
+              (0.625853, 0.271578, 1.74586, 0.0451145, 0.864379, 0.382326, 1.88117, 0.0302267)]  # fmt: skip
+    for i, row in zip((0, 1, 3, 4), from_c):
+        assert scene.cones[i] == pytest.approx(row, abs=6e-6), i

@@ -16,6 +16,9 @@ the same view, background, lights, fills and primitives, in the same order.
   spheres before a wall; 5 SF (SF + 1) (2 SF + 1) spheres and as many
   cylinders (rings.c's header: 30, 150, 420 at 1 to 3, 4200 at 7) and one
   polygon.
+- tree: Aono and Kunii's tree, 2**(size_factor + 1) - 1 cones and as many
+  spheres (tree.c's header: 3, 7, 15 at 1 to 3, 4095 at 11) over one field
+  polygon.
 
 generate(name, size) gives the NFF; SCENES names what there is, with each
 one's default size factor (the C's).
@@ -34,8 +37,8 @@ from .nff import NFF, Fill, Polygon, View
 SKY = (0.078, 0.361, 0.753)
 # The largest size factor generated: balls at 7 would be 5.4 M spheres,
 # tetra at 11 4 M triangles, rings at 60 2.2 M spheres and as many
-# cylinders; the SPD's own tables stop well below.
-MAX_SIZE = {"balls": 7, "tetra": 11, "rings": 60}
+# cylinders, tree at 20 2 M of each; the SPD's own tables stop well below.
+MAX_SIZE = {"balls": 7, "tetra": 11, "rings": 60, "tree": 20}
 
 
 def phong_power(angle_deg: float) -> float:
@@ -230,8 +233,66 @@ def rings(size: int = 7) -> NFF:
                cone_fill=which)  # fmt: skip
 
 
+# tree's shape (tree.c's constants): each branch's two children, turned
+# from it about x by their branching angles (degrees) and about its axis by
+# 90 and 90 + 140 degrees, are shorter by their contractions; radii shrink by
+# BRANCH_DIAMETER a generation and along each branch, which is
+# BRANCH_WIDTH of its generation's scale wide at its base.
+BRANCH_ANGLES = (40.0, 25.0)
+BRANCH_TURNS = (90.0, 90.0 + 140.0)
+BRANCH_CONTRACTIONS = (0.65, 0.70)
+BRANCH_DIAMETER = 0.67
+BRANCH_WIDTH = 0.15
+
+
+def _tree_step(k: int) -> np.ndarray:
+    """The 4x4 matrix, for row vectors (p' = p M), from child k's own frame
+    to its parent's: turned about x, then about z, then shrunk and moved to
+    the parent's tip, z = 1."""
+    rx = _rotation(np.array([1.0, 0.0, 0.0]), math.radians(BRANCH_ANGLES[k]))[0]
+    rz = _rotation(np.array([0.0, 0.0, 1.0]), math.radians(BRANCH_TURNS[k]))[0]
+    out = np.eye(4)
+    out[:3, :3] = (rz @ rx).T * BRANCH_CONTRACTIONS[k]
+    out[3, 2] = 1.0
+    return out
+
+
+def tree(size: int = 11) -> NFF:
+    """SPD tree (Aono and Kunii's method): a trunk, each branch a cone with
+    a sphere at its tip and two branches from there, size generations below
+    the trunk; on a green field, seven lights. 2**(size + 1) - 1 cones and as
+    many spheres."""
+    steps = np.stack([_tree_step(0), _tree_step(1)])
+    frames = np.eye(4)[None]  # each branch's frame to the world's, row vectors
+    scale = 1.0
+    place = np.zeros(1, np.int64)  # depth-first position, as tree.c writes them
+    parts = []
+    for level in range(size + 1):
+        base = frames[:, 3, :3]  # (0, 0, 0) in the branch's frame
+        apex = frames[:, 2, :3] + frames[:, 3, :3]  # (0, 0, 1)
+        r_base = scale * BRANCH_WIDTH
+        parts.append((place, base, apex, r_base, r_base * BRANCH_DIAMETER))
+        subtree = 2 ** (size - level) - 1  # the branches under and including a child
+        frames = np.einsum("kij,njl->nkil", steps, frames).reshape(-1, 4, 4)
+        place = (place[:, None] + 1 + np.arange(2)[None, :] * subtree).reshape(-1)
+        scale *= BRANCH_DIAMETER
+    total = 2 ** (size + 1) - 1
+    cones, spheres = np.empty((total, 8)), np.empty((total, 4))
+    for where, base, apex, r0, r1 in parts:
+        cones[where, :3], cones[where, 3], cones[where, 4:7], cones[where, 7] = base, r0, apex, r1
+        spheres[where, :3], spheres[where, 3] = apex, r1
+    field = np.array([[50.0, 50.0, 0.0], [-50.0, 50.0, 0.0], [-50.0, -50.0, 0.0], [50.0, -50.0, 0.0]])
+    fills = [_fill((0.2, 0.7, 0.2), 1.0, 0.0, 0.0, 0.0, 0.0), _fill((0.55, 0.4, 0.2), 1.0, 0.0, 0.0, 0.0, 0.0)]
+    lights = [(p, None) for p in ((-5.0, 5.0, 50.0), (30.0, -30.0, 30.0), (-40.0, -30.0, 20.0), (10.0, 30.0, 40.0),
+                                  (-30.0, 40.0, 10.0), (50.0, 25.0, 20.0), (-10.0, -60.0, 30.0))]  # fmt: skip
+    view = View((4.5, 0.4, 2.0), (0.0, 0.0, 1.5), (0.0, 0.0, 1.0), 45.0, 1.0, (512, 512))
+    which = np.ones(total, np.int32)
+    return NFF(view=view, background=SKY, lights=lights, fills=fills, spheres=spheres, sphere_fill=which,
+               polygons=[Polygon(field, None, 0)], cones=cones, cone_fill=which)  # fmt: skip
+
+
 # name: (generator, default size factor, the C's)
-SCENES = {"balls": (balls, 4), "tetra": (tetra, 6), "rings": (rings, 7)}
+SCENES = {"balls": (balls, 4), "tetra": (tetra, 6), "rings": (rings, 7), "tree": (tree, 11)}
 
 
 def generate(name: str, size: int | None = None) -> NFF:
