@@ -185,3 +185,32 @@ def test_tree_is_haines_tree():
               (0.625853, 0.271578, 1.74586, 0.0451145, 0.864379, 0.382326, 1.88117, 0.0302267)]  # fmt: skip
     for i, row in zip((0, 1, 3, 4), from_c):
         assert scene.cones[i] == pytest.approx(row, abs=6e-6), i
+
+
+# gears.c's header ("Total gears = SF**3: concave polygons = 2 * SF**3,
+# rectangles = 4*TEETH * SF**3": 2, 16, 54, 128 faces and 144, 1152, 3888,
+# 9216 rectangles at 1 to 4), and the ground; the README's 9345 at 4.
+GEARS = {1: (2, 144), 2: (16, 1152), 3: (54, 3888), 4: (128, 9216)}
+
+
+@pytest.mark.parametrize("size", sorted(GEARS))
+def test_gears_counts_and_bounds(size):
+    scene = spd.generate("gears", size)
+    faces, rectangles = GEARS[size]
+    sides = [len(p.vertices) for p in scene.polygons]
+    assert sides.count(144) == faces and sides.count(4) == rectangles + 1 and len(sides) == faces + rectangles + 1
+    points = np.concatenate([p.vertices for p in scene.polygons[1:]])
+    assert np.abs(points[:, :2]).max() < 1.0 and points[:, 2].max() == 1.0 and points[:, 2].min() > 0.0
+    glass = [f for f in scene.fills if f.t > 0]
+    assert len(glass) == sum((x * 4 + y * 2 + z) % 5 == 0 for x in range(size) for y in range(size)
+                             for z in range(size))  # fmt: skip
+    assert all(max(f.color) == 1.0 for f in scene.fills[1:])
+
+
+def test_gears_is_haines_gears():
+    scene = spd.gears(2)
+    assert scene.view == nff.View((-1.1, -2.1, 2.6), (0, 0, 0), (0, 0, 1), 45.0, 1.0, (512, 512))
+    assert len(scene.lights) == 5
+    assert scene.fills[0].color == (1.0, 0.85, 0.7) and scene.fills[0].ks == 0.6
+    # the first gear's first tooth tip, as gears.c writes it at size 2
+    assert scene.polygons[1].vertices[0] == pytest.approx((0.0227964, -0.504097, 1.0), abs=6e-7)

@@ -19,6 +19,9 @@ the same view, background, lights, fills and primitives, in the same order.
 - tree: Aono and Kunii's tree, 2**(size_factor + 1) - 1 cones and as many
   spheres (tree.c's header: 3, 7, 15 at 1 to 3, 4095 at 11) over one field
   polygon.
+- gears: size_factor**3 gears, each two faces of 4 * 36 vertices and 144
+  side rectangles (gears.c's header: 2, 16, 54, 128 faces and 144, 1152,
+  3888, 9216 rectangles at 1 to 4), and one ground polygon.
 
 generate(name, size) gives the NFF; SCENES names what there is, with each
 one's default size factor (the C's).
@@ -37,8 +40,9 @@ from .nff import NFF, Fill, Polygon, View
 SKY = (0.078, 0.361, 0.753)
 # The largest size factor generated: balls at 7 would be 5.4 M spheres,
 # tetra at 11 4 M triangles, rings at 60 2.2 M spheres and as many
-# cylinders, tree at 20 2 M of each; the SPD's own tables stop well below.
-MAX_SIZE = {"balls": 7, "tetra": 11, "rings": 60, "tree": 20}
+# cylinders, tree at 20 2 M of each, gears at 20 1.2 M polygons; the SPD's
+# own tables stop well below.
+MAX_SIZE = {"balls": 7, "tetra": 11, "rings": 60, "tree": 20, "gears": 20}
 
 
 def phong_power(angle_deg: float) -> float:
@@ -291,8 +295,68 @@ def tree(size: int = 11) -> NFF:
                polygons=[Polygon(field, None, 0)], cones=cones, cone_fill=which)  # fmt: skip
 
 
+# gears' shape (gears.c's constants): teeth a gear (a multiple of 4); the
+# teeth's tips a little inside the gear's radius, so that meshing gears
+# never share a surface; the teeth's roots; the thickness to the width.
+TEETH = 36
+OUTER_EDGE = 0.995
+INNER_EDGE = 0.9
+DEPTH_RATIO = 0.1
+
+
+def _gear_face(centre, turn: float, outer: float, inner: float, z: float, sense: float) -> np.ndarray:
+    """A gear face's 4 TEETH points: each tooth's two tip corners (at
+    -0.19 and +0.19 of a tooth's angle, radius `outer`) and two root
+    corners (+0.3, +0.7, radius `inner`), the teeth going round by `sense`
+    (+1 anticlockwise for the top face, -1 for the bottom) from `turn`."""
+    tooth = sense * 2.0 * math.pi / TEETH
+    start = turn + sense * 2.0 * math.pi * np.arange(TEETH) / TEETH
+    angles = (start[:, None] + tooth * np.array([-0.19, 0.19, 0.3, 0.7])[None, :]).reshape(-1)
+    radii = np.tile([outer, outer, inner, inner], TEETH)
+    return np.stack([centre[0] + radii * np.cos(angles), centre[1] + radii * np.sin(angles),
+                     np.full(len(angles), centre[2] + z)], -1)  # fmt: skip
+
+
+def gears(size: int = 4) -> NFF:
+    """SPD gears: size**3 gears in a cube, meshing, each a top and a bottom
+    face of 144 vertices (concave) and 144 rectangles round its side; every
+    fifth gear glass; on a reflective ground square, five lights."""
+    fills = [_fill((1.0, 0.85, 0.7), 0.3, 0.6, 37.0, 0.0, 0.0)]
+    ground = np.array([[2.0, 2.0, 0.0], [-2.0, 2.0, 0.0], [-2.0, -2.0, 0.0], [2.0, -2.0, 0.0]])
+    polygons = [Polygon(ground, None, 0)]
+    edge = 1.0 - INNER_EDGE
+    radius = 1.0 / (size - (size - 1) * edge / 2.0)
+    first = -1.0 + radius
+    step = radius * (2.0 - edge)
+    thickness = min(DEPTH_RATIO, 1.0 / (2.0 * size))
+    for iz in range(size):
+        for iy in range(size):
+            for ix in range(size):
+                centre = (first + ix * step, first + iy * step, 1.0 - iz / size)
+                # a colour from the gear's place, brightest channel 1
+                rgb = [0.01 + (k * f) % 1.0 for k, f in ((ix * 3 + iy * 2 + iz + 1, 5 / 7),
+                       (iy * 3 + iz * 2 + ix + 1, 3 / 7), (iz * 3 + ix * 2 + iy + 1, 2 / 7))]  # fmt: skip
+                rgb = tuple(c / max(rgb) for c in rgb)
+                glass = (ix * 4 + iy * 2 + iz) % 5 == 0
+                fills.append(_fill(rgb, 0.2, 0.0, 0.0, 0.8, 1.1) if glass else _fill(rgb, 1.0, 0.0, 0.0, 0.0, 0.0))
+                fill = len(fills) - 1
+                turn = math.pi * ((ix + iy + iz) % 2) / TEETH  # neighbours' teeth between each other's
+                outer, inner = OUTER_EDGE * radius, (1.0 - edge) * radius
+                top = _gear_face(centre, turn, outer, inner, 0.0, 1.0)
+                polygons.append(Polygon(top, None, fill))
+                below = top - [0.0, 0.0, thickness]
+                after = np.roll(np.arange(len(top)), -1)
+                sides = np.stack([top, below, below[after], top[after]], axis=1)
+                polygons += [Polygon(side, None, fill) for side in sides]
+                polygons.append(Polygon(_gear_face(centre, turn, outer, inner, -thickness, -1.0), None, fill))
+    lights = [(p, None) for p in ((2.0, 4.0, 4.0), (-2.0, 4.0, 3.0), (2.0, -2.5, 2.5), (-1.0, -4.0, 2.0),
+                                  (-1.111, -2.121, 2.626))]  # fmt: skip
+    view = View((-1.1, -2.1, 2.6), (0.0, 0.0, 0.0), (0.0, 0.0, 1.0), 45.0, 1.0, (512, 512))
+    return NFF(view=view, background=SKY, lights=lights, fills=fills, polygons=polygons)
+
+
 # name: (generator, default size factor, the C's)
-SCENES = {"balls": (balls, 4), "tetra": (tetra, 6), "rings": (rings, 7), "tree": (tree, 11)}
+SCENES = {"balls": (balls, 4), "tetra": (tetra, 6), "rings": (rings, 7), "tree": (tree, 11), "gears": (gears, 4)}
 
 
 def generate(name: str, size: int | None = None) -> NFF:
