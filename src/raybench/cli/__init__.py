@@ -1,4 +1,4 @@
-"""The command line: raybench render | view | info | bench | warmup | report | compare | schema.
+"""The command line: raybench render | view | info | bench | warmup | report | compare | schema | scene.
 
 One module a command (render.py, view.py, ...), the options they share
 written once (options.py); this module gathers them under one group, and
@@ -14,7 +14,7 @@ import click
 
 from .. import __version__
 from ..errors import RaybenchError, Terminated, device_failure, one_line
-from . import bench, compare, info, render, report, schema, view, warmup
+from . import bench, compare, info, render, report, scene, schema, view, warmup
 from .options import device_options, parse_pair, parse_size
 
 __all__ = ["device_options", "entry", "main", "parse_pair", "parse_size", "run"]
@@ -35,6 +35,7 @@ for _command in (
     report.report_cmd,
     compare.compare_cmd,
     schema.schema_cmd,
+    scene.scene_cmd,
 ):
     main.add_command(_command)
 

@@ -17,7 +17,7 @@ from ..errors import RaybenchError
 from ..files import check_writable
 from ..lighting import SHADINGS
 
-SIZE_HELP = "image size as WIDTHxHEIGHT, e.g. 1680x1050"
+SIZE_HELP = "image size as WIDTHxHEIGHT, e.g. 1680x1050; an NFF scene's own resolution where not given"
 
 
 def parse_pair(text: str, option: str, example: str) -> tuple[int, int]:
@@ -90,9 +90,11 @@ def check_output(path: Path, option: str = "-o", suffix: str = ".png") -> None:
     check_writable(path, option)
 
 
-def load_scene(scene_file, spheres, seed, materials=False, layout=None):
+def load_scene(scene_file, spheres, seed, materials=False, layout=None, molecule=None):
     """The scene of --scene (a file, or an example's name: raybench.examples)
-    or --spheres N (--seed, --materials, --layout)."""
+    or --spheres N (--seed, --materials, --layout). A file is read by its
+    suffix: NFF (.nff), a molecule (.pdb, .ent, .cif, .mmcif, gzipped or
+    not; molecule: its MoleculeArgs), else a JSON scene file."""
     from .. import examples
     from ..scene import Scene, random_spheres
 
@@ -104,8 +106,44 @@ def load_scene(scene_file, spheres, seed, materials=False, layout=None):
             raise RaybenchError(f"{'--seed' if seed is not None else given[0]} applies to --spheres only")
         if scene_file in examples.NAMES and not Path(scene_file).exists():
             return Scene.load(examples.path(scene_file))
-        return Scene.load(scene_file)
+        return _scene_file(scene_file, molecule or MoleculeArgs())
+    if molecule is not None and molecule != MoleculeArgs():
+        raise RaybenchError(MOLECULE_ONLY)
     return random_spheres(spheres, 0 if seed is None else seed, materials=materials, layout=layout or "even")
+
+
+MOLECULE_ONLY = "--no-hydrogens and --waters apply to a molecule file (--scene FILE.pdb or .cif) only"
+
+
+@dataclass(frozen=True)
+class MoleculeArgs:
+    """--no-hydrogens, --waters: which atoms of a molecule file become spheres."""
+
+    hydrogens: bool = True
+    waters: bool = False
+
+
+def _scene_file(scene_file, molecule: MoleculeArgs):
+    """The Scene of a file by its suffix; an NFF's primitives that are read
+    but not rendered (polygons, patches, cones) are told in a note line."""
+    from .. import formats
+    from ..scene import Scene
+
+    kind = formats.kind(scene_file)
+    if kind != "molecule" and molecule != MoleculeArgs():
+        raise RaybenchError(MOLECULE_ONLY)
+    if kind == "nff":
+        from ..formats import nff
+
+        loaded = nff.load(scene_file)
+        for note in loaded.notes():
+            click.echo(note)
+        return loaded.scene()
+    if kind == "molecule":
+        from ..formats import molecule as molecules
+
+        return molecules.load(scene_file, hydrogens=molecule.hydrogens, waters=molecule.waters)
+    return Scene.load(scene_file)
 
 
 def shading_options(shading, depth, shadow_samples) -> dict:
@@ -187,9 +225,31 @@ class SceneArgs:
     spheres: int | None
     seed: int | None
     materials: bool
+    no_hydrogens: bool = False
+    waters: bool = False
 
     def load(self, layout=None):
-        return load_scene(self.scene_file, self.spheres, self.seed, self.materials, layout)
+        molecule = MoleculeArgs(hydrogens=not self.no_hydrogens, waters=self.waters)
+        return load_scene(self.scene_file, self.spheres, self.seed, self.materials, layout, molecule)
+
+
+def frame_size(scene_args: SceneArgs, size: str) -> tuple[int, int]:
+    """--size, parsed; where it was left at its default and the scene is an
+    NFF file with a view, the view's resolution (NFF's own size of the picture)."""
+    from click.core import ParameterSource
+
+    context = click.get_current_context(silent=True)
+    default = context is not None and context.get_parameter_source("size") is ParameterSource.DEFAULT
+    if default and scene_args.scene_file is not None:
+        from .. import formats
+
+        if formats.kind(scene_args.scene_file) == "nff" and Path(scene_args.scene_file).exists():
+            from ..formats import nff
+
+            view = nff.load_view(scene_args.scene_file)
+            if view is not None:
+                return parse_size("{}x{}".format(*view.resolution))
+    return parse_size(size)
 
 
 @dataclass(frozen=True)
@@ -221,7 +281,8 @@ class TracerArgs:
 
 
 def scene_options(verb: str):
-    """--scene, --spheres, --seed, --materials: the scene to render or show, handed on as scene_args, a SceneArgs."""
+    """--scene, --spheres, --seed, --materials, --no-hydrogens, --waters: the scene to render or show, handed on
+    as scene_args, a SceneArgs."""
     return handed_on(
         "scene_args",
         SceneArgs,
@@ -229,7 +290,8 @@ def scene_options(verb: str):
             "--scene",
             "scene_file",
             type=click.Path(dir_okay=False),
-            help=f"scene JSON file to {verb}, or the name of an example: whitted",
+            help=f"scene file to {verb}: JSON, NFF (.nff), a molecule (.pdb, .cif, gzipped or not); or the name "
+            "of an example: whitted",
         ),
         click.option("--spheres", type=int, help=f"{verb} N random spheres instead of a scene file"),
         click.option("--seed", type=int, help="seed of the random spheres (default 0)"),
@@ -238,6 +300,8 @@ def scene_options(verb: str):
             is_flag=True,
             help="the random spheres with mixed materials (plastic, mirrors, glass) and an area light",
         ),
+        click.option("--no-hydrogens", is_flag=True, help="a molecule file: leave out its hydrogen atoms"),
+        click.option("--waters", is_flag=True, help="a molecule file: draw its waters too (left out by default)"),
     )
 
 

@@ -17,8 +17,8 @@ from .options import (
     check_output,
     cluster_options,
     device_option,
+    frame_size,
     open_cluster,
-    parse_size,
     path_option,
     scene_options,
     scheduler_security,
@@ -123,7 +123,7 @@ def render(
     from .compiling import announced
 
     scene = scene_args.load(layout)
-    width, height = parse_size(size)
+    width, height = frame_size(scene_args, size)
     shaded = shading.checked()
     for note in shading_notes(scene, shaded):
         click.echo(note)

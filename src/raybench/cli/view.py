@@ -8,8 +8,8 @@ from ..errors import RaybenchError
 from .options import (
     check_output,
     device_option,
+    frame_size,
     options_by_device,
-    parse_size,
     path_option,
     scene_options,
     shading_notes,
@@ -35,7 +35,7 @@ def _view_help() -> str:
 
 @click.command(help=_view_help())
 @scene_options("show")
-@size_option("window size as WIDTHxHEIGHT, e.g. 1680x1050")
+@size_option("window size as WIDTHxHEIGHT, e.g. 1680x1050; an NFF scene's own resolution where not given")
 @device_option("where to trace first (switch live with Tab)")
 @tracer_options(adapter_whose="wgpu, and the window")
 @shading_option_group()
@@ -64,7 +64,7 @@ def view(
     from ..viewer.state import ViewerState
 
     scene = scene_args.load()
-    width, height = parse_size(size)
+    width, height = frame_size(scene_args, size)
     shaded = shading.checked()
     for note in shading_notes(scene, shaded):
         click.echo(note)
