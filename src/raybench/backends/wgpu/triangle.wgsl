@@ -60,21 +60,20 @@ struct Seen {
 // reads only the leaves does not bind the scene's buffer.
 fn read_triangle(k: i32) -> Triangle {
     let i = 9 * k;
-    return Triangle(
-        vec3<f32>(triangles[i], triangles[i + 1], triangles[i + 2]),
-        vec3<f32>(triangles[i + 3], triangles[i + 4], triangles[i + 5]),
-        vec3<f32>(triangles[i + 6], triangles[i + 7], triangles[i + 8]),
-    );
+    return corners(array<f32, 9>(triangles[i], triangles[i + 1], triangles[i + 2], triangles[i + 3],
+        triangles[i + 4], triangles[i + 5], triangles[i + 6], triangles[i + 7], triangles[i + 8]));
 }
 
 // read_leaf: triangle k of the tree's leaf buffer.
 fn read_leaf(k: i32) -> Triangle {
     let i = 9 * k;
-    return Triangle(
-        vec3<f32>(ordered[i], ordered[i + 1], ordered[i + 2]),
-        vec3<f32>(ordered[i + 3], ordered[i + 4], ordered[i + 5]),
-        vec3<f32>(ordered[i + 6], ordered[i + 7], ordered[i + 8]),
-    );
+    return corners(array<f32, 9>(ordered[i], ordered[i + 1], ordered[i + 2], ordered[i + 3], ordered[i + 4],
+        ordered[i + 5], ordered[i + 6], ordered[i + 7], ordered[i + 8]));
+}
+
+// corners: a buffer's nine values of a triangle (A, B, C) as its three corners.
+fn corners(v: array<f32, 9>) -> Triangle {
+    return Triangle(vec3<f32>(v[0], v[1], v[2]), vec3<f32>(v[3], v[4], v[5]), vec3<f32>(v[6], v[7], v[8]));
 }
 
 // permute: axis kz last, the other two in cyclic order.
@@ -178,11 +177,10 @@ fn hit(k: i32, o: vec3<f32>, d: vec3<f32>) -> vec2<f32> {
     return intersect(o, d, read_triangle(k));
 }
 
+// A ray never meets the plane it leaves again: its own triangle is a miss
+// (select: the test's answer is dropped, not skipped, in a function this short).
 fn hit_ahead(k: i32, o: vec3<f32>, d: vec3<f32>, is_own: bool) -> vec2<f32> {
-    if (is_own) {
-        return TRI_MISS;
-    }
-    return hit(k, o, d);
+    return select(hit(k, o, d), TRI_MISS, is_own);
 }
 
 fn leaf_hit(k: i32, o: vec3<f32>, d: vec3<f32>) -> vec2<f32> {
@@ -190,10 +188,7 @@ fn leaf_hit(k: i32, o: vec3<f32>, d: vec3<f32>) -> vec2<f32> {
 }
 
 fn leaf_hit_ahead(k: i32, o: vec3<f32>, d: vec3<f32>, is_own: bool) -> vec2<f32> {
-    if (is_own) {
-        return TRI_MISS;
-    }
-    return leaf_hit(k, o, d);
+    return select(leaf_hit(k, o, d), TRI_MISS, is_own);
 }
 
 fn seen_from(row: Triangle, o: vec3<f32>) -> Seen {

@@ -1,5 +1,8 @@
 """The kinds of primitive, one module each, and the one registration of each.
 
+The answers every kind gives are listed once, in answers.ANSWERS; a kind's
+make returns them through answers.answers, which names any it lacks.
+
 Every primitive module gives the same answers (kernels/primitives/sphere.py
 is the model): LEAF_ROWS, the rows of its leaf buffer; pad(...), the
 builders' padding; centres(buffer), its boxes' centres on the host; and

@@ -21,12 +21,12 @@ that lets the fast kernels skip most spheres without changing a pixel.
 """
 
 import math
-from types import SimpleNamespace
 
 import numpy as np
 
 from ...layout import CX, CY, CZ, PAD, RADIUS
 from ..constants import ONE, ZERO
+from .answers import answers
 
 # Rows of the leaf buffer (bvh's `ordered`): centre x, y, z and radius.
 LEAF_ROWS = 4
@@ -287,31 +287,8 @@ def make(jit, words=None):
         prepare): one dot product and a compare."""
         return along(ex, ey, ez, dx, dy, dz) > s
 
-    return SimpleNamespace(
-        read=read,
-        read_leaf=read_leaf,
-        along=along,
-        chord=chord,
-        intersect_relative=intersect_relative,
-        intersect_ahead=intersect_ahead,
-        intersect=intersect,
-        hit=hit,
-        hit_ahead=hit_ahead,
-        leaf_hit=leaf_hit,
-        leaf_hit_ahead=leaf_hit_ahead,
-        meets_own=meets_own,
-        from_origin=from_origin,
-        seen_from=seen_from,
-        hit_from=hit_from,
-        hit_ahead_from=hit_ahead_from,
-        pad=padding,
-        bounds=bounds,
-        extent=extent,
-        copy_leaf=copy_leaf,
-        box_of=box_of,
-        surface=surface,
-        rim=rim,
-        prepare=prepare,
-        prepare_at=prepare_at,
-        may_hit=may_hit,
+    return answers(
+        "sphere",
+        {**locals(), "pad": padding},  # the module's pad, compiled
+        ("along", "chord", "intersect_relative", "intersect_ahead", "prepare", "prepare_at", "may_hit"),
     )

@@ -67,12 +67,12 @@ how it keeps the edge functions' signs exact in float32 and what differs.
 """
 
 import math
-from types import SimpleNamespace
 
 import numpy as np
 
 from ...layout import PAD, TRI_A, TRI_B, TRI_C, TRI_NA, TRI_NB, TRI_NC, TRI_ROWS, TRI_SMOOTH_ROWS
 from ..constants import HALF, ONE, ZERO
+from .answers import answers
 
 # Rows of the leaf buffer (bvh's `ordered`): the three vertices.
 LEAF_ROWS = TRI_ROWS
@@ -391,29 +391,5 @@ def make(jit, words=None):
         1, so its colour - (rim - datum) / rim is colour - (1 - cos)."""
         return ONE
 
-    return SimpleNamespace(
-        read=read,
-        read_leaf=read_leaf,
-        permute=permute,
-        woop=woop,
-        normal=normal,
-        finish=finish,
-        intersect=intersect,
-        hit=hit,
-        hit_ahead=hit_ahead,
-        leaf_hit=leaf_hit,
-        leaf_hit_ahead=leaf_hit_ahead,
-        meets_own=meets_own,
-        from_origin=from_origin,
-        seen_from=seen_from,
-        hit_from=hit_from,
-        hit_ahead_from=hit_ahead_from,
-        pad=padding,
-        box=box,
-        bounds=bounds,
-        extent=extent,
-        copy_leaf=copy_leaf,
-        box_of=box_of,
-        surface=surface,
-        rim=rim,
-    )
+    # pad: the module's pad, compiled
+    return answers("triangle", {**locals(), "pad": padding}, ("permute", "woop", "normal", "finish", "box"))
