@@ -15,12 +15,12 @@ and the normal (triangle.wgsl's header). What is held:
 
 from __future__ import annotations
 
-import math
 import re
 from importlib import resources
 
 import numpy as np
 import pytest
+from wgsl_harness import IN, cpu_adapter, dispatch, entry_points
 
 from raybench.backends.wgpu import adapters, shader
 from raybench.kernels.primitives import triangle
@@ -29,34 +29,7 @@ pytestmark = pytest.mark.gpu
 
 F32 = np.float32
 PLAIN = triangle.make(lambda f: f)
-LANES = 64
 N = 2048
-IN, OUT = 20, 21
-HARNESS = """
-@group(0) @binding(IN) var<storage, read> parity_in: array<f32>;
-@group(0) @binding(OUT) var<storage, read_write> parity_out: array<f32>;
-const PARITY_N: u32 = COUNTu;
-fn arg(j: u32, i: u32) -> f32 {
-    return parity_in[j * PARITY_N + i];
-}
-fn put(j: u32, i: u32, value: f32) {
-    parity_out[j * PARITY_N + i] = value;
-}
-fn v3(j: u32, i: u32) -> vec3<f32> {
-    return vec3<f32>(arg(j, i), arg(j + 1u, i), arg(j + 2u, i));
-}
-"""
-ENTRY = """
-@compute @workgroup_size(LANES)
-fn parity_NAME(@builtin(global_invocation_id) id: vec3<u32>) {
-    let i = id.x;
-    if (i >= PARITY_N) {
-        return;
-    }
-    let k = i32(i);
-    BODY
-}
-"""
 # name: (WGSL body; the lane's arguments are o (0-2) and d (3-5); triangle k is lane k's)
 CASES = {
     "hit": "let r = hit(k, v3(0u, i), v3(3u, i)); put(0u, i, r.x); put(1u, i, r.y);",
@@ -78,10 +51,7 @@ CASES = {
 
 @pytest.fixture(scope="module")
 def device(adapter):
-    cpus = [a for a in adapters.found() if a.type == "CPU"]
-    if not cpus:
-        pytest.skip(f"no CPU adapter (found: {adapters.listing(adapters.found())}): parity is a CPU adapter's claim")
-    return adapters.request_device(cpus[0])
+    return adapters.request_device(cpu_adapter())
 
 
 @pytest.fixture(scope="module")
@@ -89,40 +59,18 @@ def module(device):
     text = resources.files("raybench.backends.wgpu").joinpath("triangle.wgsl").read_text(encoding="utf-8")
     for name, value in shader.BVH_CONSTANTS.items():
         text = text.replace(name, value)
-    harness = HARNESS.replace("IN", str(IN)).replace("OUT", str(OUT)).replace("COUNT", str(N))
-    entries = [
-        ENTRY.replace("LANES", str(LANES)).replace("NAME", name).replace("BODY", body) for name, body in CASES.items()
-    ]
-    return device.create_shader_module(code=text + harness + "".join(entries))
+    return device.create_shader_module(code=text + entry_points(CASES, N))
 
 
 def run(device, module, name, lanes, buffer, results):
     """WGSL function case `name` on each lane: (results, N) float32."""
-    import wgpu
-
-    storage = wgpu.BufferUsage.STORAGE
-    out = device.create_buffer(size=results * N * 4, usage=storage | wgpu.BufferUsage.COPY_SRC)
     rows = np.ascontiguousarray(buffer.T, F32)  # triangle k's nine values at 9k
     body = CASES[name]
     given = {IN: np.ascontiguousarray(lanes, F32), 1: rows, 5: rows}
     scene = re.search(r"(?<![\w])hit(_ahead)?\(", body) is not None  # read_triangle's binding
     leaves = any(f in body for f in ("leaf_hit(", "from_origin(", "bounds("))  # read_leaf's
     uses = [b for b, used in ((IN, "arg(" in body or "v3(" in body), (1, scene), (5, leaves)) if used]
-    entries = [{"binding": OUT, "resource": {"buffer": out}}]
-    for binding in uses:
-        data = device.create_buffer_with_data(data=given[binding].tobytes(), usage=storage)
-        entries.append({"binding": binding, "resource": {"buffer": data}})
-    entry = {"module": module, "entry_point": f"parity_{name}"}
-    pipeline = device.create_compute_pipeline(layout="auto", compute=entry)
-    group = device.create_bind_group(layout=pipeline.get_bind_group_layout(0), entries=entries)
-    encoder = device.create_command_encoder()
-    compute_pass = encoder.begin_compute_pass()
-    compute_pass.set_pipeline(pipeline)
-    compute_pass.set_bind_group(0, group)
-    compute_pass.dispatch_workgroups(math.ceil(N / LANES), 1, 1)
-    compute_pass.end()
-    device.queue.submit([encoder.finish()])
-    return np.frombuffer(device.queue.read_buffer(out), F32).reshape(results, N)
+    return dispatch(device, module, name, {b: given[b] for b in uses}, results, N)
 
 
 def unit(v):

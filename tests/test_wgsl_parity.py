@@ -27,10 +27,10 @@ under RAYBENCH_REQUIRE_WGPU=1 (conftest's adapter fixture).
 from __future__ import annotations
 
 import inspect
-import math
 
 import numpy as np
 import pytest
+from wgsl_harness import IN, cpu_adapter, dispatch, entry_points
 
 from raybench import layout
 from raybench.backends.wgpu import adapters, compute, shader
@@ -41,34 +41,6 @@ pytestmark = pytest.mark.gpu
 
 PLAIN = lambda f: f  # noqa: E731 - build(PLAIN): the kernels as plain Python
 F32 = np.float32
-LANES = 64  # the parity entry points' workgroup size
-# The bindings of the parity entry points: after the tracer's (0 to 13).
-IN, OUT = 20, 21
-HARNESS = """
-@group(0) @binding(IN) var<storage, read> parity_in: array<f32>;
-@group(0) @binding(OUT) var<storage, read_write> parity_out: array<f32>;
-const PARITY_N: u32 = COUNTu;
-fn arg(j: u32, i: u32) -> f32 {
-    return parity_in[j * PARITY_N + i];
-}
-fn put(j: u32, i: u32, value: f32) {
-    parity_out[j * PARITY_N + i] = value;
-}
-fn flag(b: bool) -> f32 {
-    return select(0.0, 1.0, b);
-}
-"""
-ENTRY = """
-@compute @workgroup_size(LANES)
-fn parity_NAME(@builtin(global_invocation_id) id: vec3<u32>) {
-    let i = id.x;
-    if (i >= PARITY_N) {
-        return;
-    }
-    let k = i32(i);
-    BODY
-}
-"""
 
 
 def python_twins():
@@ -226,63 +198,28 @@ CASES = {
 
 
 @pytest.fixture(scope="module")
-def cpu_adapter(adapter):
-    """A CPU adapter (lavapipe): one that rounds every operation to float32,
-    where parity is bit for bit (the module's docstring says why not on a GPU)."""
-    cpus = [a for a in adapters.found() if a.type == "CPU"]
-    if not cpus:
-        pytest.skip(f"no CPU adapter (found: {adapters.listing(adapters.found())}): parity is a CPU adapter's claim")
-    return cpus[0]
-
-
-@pytest.fixture(scope="module")
-def gpu(cpu_adapter):
-    return adapters.request_device(cpu_adapter)
+def gpu(adapter):
+    return adapters.request_device(cpu_adapter())
 
 
 def wgsl_source(count):
     """The tracer's whole shader (both walks' functions, the sphere, the
     shading) and an entry point a case."""
     text = shader.source((1, 1), "bvh", "ray")
-    harness = HARNESS.replace("IN", str(IN)).replace("OUT", str(OUT)).replace("COUNT", str(count))
-    entries = [
-        ENTRY.replace("LANES", str(LANES)).replace("NAME", name).replace("BODY", body)
-        for name, (body, _uses, _twin) in CASES.items()
-    ]
-    return text + harness + "".join(entries)
+    return text + entry_points({name: body for name, (body, _uses, _twin) in CASES.items()}, count)
 
 
 def run_wgsl(device, module, name, lanes, spheres, ordered, results):
     """The WGSL function `name` on each lane's arguments (lanes: (n_args,
     N) float32): its results, (results, N) float32."""
-    import wgpu
-
     body, uses, _twin = CASES[name]
-    n = lanes.shape[1]
-    storage = wgpu.BufferUsage.STORAGE
-    out = device.create_buffer(size=results * n * 4, usage=storage | wgpu.BufferUsage.COPY_SRC)
-    entries = [{"binding": OUT, "resource": {"buffer": out}}]
     given = {
         "in": (IN, np.ascontiguousarray(lanes, F32)),
         "spheres": (1, compute.sphere_rows(spheres)),
         "ordered": (5, np.ascontiguousarray(ordered.T)),
     }
-    # the automatic layout holds only the bindings that an entry point reads
-    for use in uses + (("in",) if "arg(" in body else ()):
-        binding, rows = given[use]
-        buffer = device.create_buffer_with_data(data=rows.tobytes(), usage=storage)
-        entries.append({"binding": binding, "resource": {"buffer": buffer}})
-    entry = f"parity_{name}"
-    pipeline = device.create_compute_pipeline(layout="auto", compute={"module": module, "entry_point": entry})
-    group = device.create_bind_group(layout=pipeline.get_bind_group_layout(0), entries=entries)
-    encoder = device.create_command_encoder()
-    compute_pass = encoder.begin_compute_pass()
-    compute_pass.set_pipeline(pipeline)
-    compute_pass.set_bind_group(0, group)
-    compute_pass.dispatch_workgroups(math.ceil(n / LANES), 1, 1)
-    compute_pass.end()
-    device.queue.submit([encoder.finish()])
-    return np.frombuffer(device.queue.read_buffer(out), F32).reshape(results, n)
+    bound = dict(given[use] for use in uses + (("in",) if "arg(" in body else ()))
+    return dispatch(device, module, name, bound, results, lanes.shape[1])
 
 
 def run_python(name, lanes, spheres, ordered):
