@@ -424,8 +424,8 @@ def test_fuzz_compare(capsys, folder):
     print(f"compare: {dict(seen)}")
     # Both outcomes must be drawn often. Hypothesis mixes constants from the
     # modules a process has loaded into its draws, so even derandomized the
-    # mix moves with which tests ran before in the process: 10 to 24 of 60
-    # compared were seen, so the floor is a tenth, not a fifth
+    # mix moves with which tests ran before in the process: the floor is a
+    # tenth, under the fewest compared in any order tried, not a fifth
     assert seen["compared"] >= 0.1 * seen["tried"] and seen["refused"] >= 0.1 * seen["tried"], seen
 
 
