@@ -322,64 +322,112 @@ def _wide_planes(wide, row, c, ox, oy, oz, margin):
     )
 
 
+def packet_walk(enter, leaf, any_hit):
+    """The CPU's walk of a packet of rays from one origin through the 4-wide
+    tree, for the closest hit (the thesis's and Whitted's primary rays,
+    _packet_walk_wide) or any hit (shadow rays, shadow_packets): one source,
+    compiled for each with its own rays. walk(wide, wide_links, ox, oy, oz,
+    margin, cdx, cdy, cdz, spread, stack_row, stack_count, along, chosen,
+    rays): a node's four boxes go through the packet's interval test
+    together (_wide_mask, on spread), then each box it leaves through the
+    rays' own test (enter(lx, ly, lz, hx, hy, hz, rays)); the entered
+    children are ordered nearest first by where their centres lie along
+    (cdx, cdy, cdz). Closest hit: leaves up to the nearest inner child are
+    tested at once (leaf(ox, oy, oz, margin, spread, ref, count, rays)), that
+    child is walked next and everything farther pushed, leaves too, so that
+    a near inner child's hits can rule out a farther leaf's primitives. Any
+    hit: every entered leaf is tested at once, nearest first, and the inner
+    children pushed, the nearest on top, since a blocker near the origin
+    (the commonest: a neighbour) ends the walk soonest; leaf returns True
+    once every ray is answered, which ends the walk. Inlined where it is
+    called, with the caller's error model (_kb's note)."""
+
+    @numba.njit(inline="always", error_model="numpy")
+    def walk(wide, wide_links, ox, oy, oz, margin, cdx, cdy, cdz, spread, stack_row, stack_count, along, chosen,
+             rays):  # fmt: skip
+        row = 0
+        top = 0
+        while row >= 0:
+            mask = _wide_mask(wide, row, ox, oy, oz, margin, spread)
+            entered = 0
+            for c in range(WIDTH):
+                if not (mask >> c) & 1:
+                    continue
+                lx, ly, lz, hx, hy, hz = _wide_planes(wide, row, c, ox, oy, oz, margin)
+                if not enter(lx, ly, lz, hx, hy, hz, rays):
+                    continue
+                # where the box's centre lies along the middle ray: insertion
+                # into chosen[:entered], nearest first
+                along[c] = (lx + hx) * cdx + (ly + hy) * cdy + (lz + hz) * cdz
+                j = entered
+                while j > 0 and along[chosen[j - 1]] > along[c]:
+                    chosen[j] = chosen[j - 1]
+                    j -= 1
+                chosen[j] = c
+                entered += 1
+            node = row
+            row = -1
+            first = entered  # the nearest inner child's place in chosen
+            for j in range(entered):
+                c = chosen[j]
+                ref, count = wide_links[node, W_REF + c], wide_links[node, W_COUNT + c]
+                if count != INNER:
+                    if leaf(ox, oy, oz, margin, spread, ref, count, rays):
+                        return
+                elif first == entered:
+                    first = j
+                    if not any_hit:
+                        break
+            # pushed farthest first, the nearest on top: for the closest hit
+            # everything from the nearest inner child on, for any hit the
+            # inner children
+            for i in range(entered - 1, first - 1, -1):
+                c = chosen[i]
+                count = wide_links[node, W_COUNT + c]
+                if not any_hit or count == INNER:
+                    stack_row[top] = wide_links[node, W_REF + c]
+                    stack_count[top] = count
+                    top += 1
+            while row < 0 and top > 0:
+                top -= 1
+                if any_hit or stack_count[top] == INNER:
+                    row = stack_row[top]
+                elif leaf(ox, oy, oz, margin, spread, stack_row[top], stack_count[top], rays):
+                    return
+
+    return walk
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _closest_leaf(ox, oy, oz, margin, spread, ref, count, rays):
+    """packet_walk's leaf for the closest hit: _packet_leaf on the rays of
+    _packet_walk_wide; never ends the walk."""
+    ordered, order, dx, dy, dz, _ix, _iy, _iz, closest, hit, hit_d, closest_bits, spread_bits, ahead = rays
+    _packet_leaf(ox, oy, oz, margin, dx, dy, dz, ordered, order, ref, count, spread, closest, hit, hit_d,
+                 closest_bits, spread_bits, ahead)  # fmt: skip
+    return False
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _closest_enter(lx, ly, lz, hx, hy, hz, rays):
+    """packet_walk's box test for the closest hit (_rows_enter)."""
+    return _rows_enter(lx, ly, lz, hx, hy, hz, rays[5], rays[6], rays[7], rays[8])
+
+
+_walk_closest = packet_walk(_closest_enter, _closest_leaf, any_hit=False)
+
+
 @numba.njit(inline="always", error_model="numpy")
 def _packet_walk_wide(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest, hit,
                       hit_d, spread, closest_bits, spread_bits, stack_row, stack_count, along, chosen,
                       ahead):  # fmt: skip
-    """The walk of _bvh_packets_wide's packet (started by _start_packet):
-    closest, hit and hit_d of every ray; ahead: _packet_leaf's, for
-    Whitted's primary rays. A wide node's four boxes go through the
-    packet's interval test together (_wide_mask), then each box it leaves
-    through the rays' own test (_rows_enter); the entered children are
-    visited nearest first along the packet's middle ray, leaves at once,
-    the nearest inner child next and the others pushed."""
-    cdx, cdy, cdz = dx[_MIDDLE], dy[_MIDDLE], dz[_MIDDLE]
-    row = 0
-    top = 0
-    while row >= 0:
-        mask = _wide_mask(wide, row, ox, oy, oz, margin, spread)
-        entered = 0
-        for c in range(WIDTH):
-            if not (mask >> c) & 1:
-                continue
-            lx, ly, lz, hx, hy, hz = _wide_planes(wide, row, c, ox, oy, oz, margin)
-            if not _rows_enter(lx, ly, lz, hx, hy, hz, ix, iy, iz, closest):
-                continue
-            # where the box's centre lies along the middle ray: insertion
-            # into chosen[:entered], nearest first
-            along[c] = (lx + hx) * cdx + (ly + hy) * cdy + (lz + hz) * cdz
-            j = entered
-            while j > 0 and along[chosen[j - 1]] > along[c]:
-                chosen[j] = chosen[j - 1]
-                j -= 1
-            chosen[j] = c
-            entered += 1
-        # nearest first: leaves up to the nearest inner child tested
-        # now, that child walked next, everything farther pushed (the
-        # farthest first), leaves too, so that a near inner child's
-        # hits can rule out a farther leaf's spheres
-        node = row
-        row = -1
-        for j in range(entered):
-            c = chosen[j]
-            ref, count = wide_links[node, W_REF + c], wide_links[node, W_COUNT + c]
-            if row < 0 and count != INNER:
-                _packet_leaf(ox, oy, oz, margin, dx, dy, dz, ordered, order, ref, count, spread, closest,
-                             hit, hit_d, closest_bits, spread_bits, ahead)  # fmt: skip
-            elif row < 0:
-                row = ref
-                for i in range(entered - 1, j, -1):
-                    stack_row[top] = wide_links[node, W_REF + chosen[i]]
-                    stack_count[top] = wide_links[node, W_COUNT + chosen[i]]
-                    top += 1
-                break
-        while row < 0 and top > 0:
-            top -= 1
-            if stack_count[top] == INNER:
-                row = stack_row[top]
-            else:
-                _packet_leaf(ox, oy, oz, margin, dx, dy, dz, ordered, order, stack_row[top], stack_count[top],
-                             spread, closest, hit, hit_d, closest_bits, spread_bits, ahead)  # fmt: skip
+    """The closest hit of every ray of _bvh_packets_wide's packet (started
+    by _start_packet): closest, hit and hit_d; ahead: _packet_leaf's, for
+    Whitted's primary rays. packet_walk's, its children ordered along the
+    packet's middle ray."""
+    rays = (ordered, order, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, closest_bits, spread_bits, ahead)
+    _walk_closest(wide, wide_links, ox, oy, oz, margin, dx[_MIDDLE], dy[_MIDDLE], dz[_MIDDLE], spread, stack_row,
+                  stack_count, along, chosen, rays)  # fmt: skip
 
 
 @compiled.njit(nogil=True, error_model="numpy")

@@ -10,13 +10,7 @@ import numba
 import numpy as np
 
 from .. import compiled
-from ..layout import (
-    INNER,
-    PAD,
-    W_COUNT,
-    W_REF,
-    WIDTH,
-)
+from ..layout import PAD
 from ..lighting import MAX_LIGHTS
 from .constants import ZERO
 from .packets import (
@@ -26,8 +20,7 @@ from .packets import (
     _meets_own,
     _read_leaf,
     _seen_from,
-    _wide_mask,
-    _wide_planes,
+    packet_walk,
 )
 
 # A hit's shadow rays to one light, traced together: its samples,
@@ -91,9 +84,7 @@ def _packet_shadows(jit, find, toward):
                     rays[_DX, k] = rays[_DX, lead]
                     rays[_DY, k] = rays[_DY, lead]
                     rays[_DZ, k] = rays[_DZ, lead]
-            batch |= _shadow_packet(px, py, pz, rays, tree.spread, tree.stack, tree.wide,
-                                    tree.wide_links, tree.ordered, tree.order, own, own_inside, live, blockers,
-                                    slot) << np.int64(first)  # fmt: skip
+            batch |= _shadow_packet(px, py, pz, rays, tree, own, own_inside, live, slot) << np.int64(first)
         return batch
 
     @jit
@@ -106,14 +97,15 @@ def _packet_shadows(jit, find, toward):
 # The packets program's tree and a thread's scratch, the `tree` that its
 # pixel program passes down (backends/cpu/whitted_rows.py makes one a
 # thread): the binary tree's four arrays first (trace.search_tree reads them
-# by position), the wide tree's two, the shadow packets' rays, spread and
-# stack (_packet_shadows), the tile's primary hits, t and data
+# by position), the wide tree's two, the shadow packets' rays, spread, stack
+# (refs and counts) and children's order (_shadow_packet), the tile's primary hits, t and data
 # (_tile_primaries), the lane of the pixel being shaded, the single-ray
 # walk's stack (refs, counts, entry distances), and the last blockers (rows
 # of `ordered`, -1 for none) by primitive and light (_last_blocker).
 PacketsTree = namedtuple(
     "PacketsTree",
-    "nodes links ordered order wide wide_links rays spread stack hit closest hit_d lane s_ref s_count s_t blockers",
+    "nodes links ordered order wide wide_links rays spread stack stack_count along chosen hit closest hit_d lane s_ref "
+    "s_count s_t blockers",
 )
 
 
@@ -207,27 +199,48 @@ def _reach(rays):
     return reach
 
 
+@numba.njit(inline="always", error_model="numpy")
+def _shadow_enter(lx, ly, lz, hx, hy, hz, rays):
+    """packet_walk's box test for a shadow packet (_lanes_enter)."""
+    return _lanes_enter(lx, ly, lz, hx, hy, hz, rays[0])
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _shadow_leaf(ox, oy, oz, margin, spread, ref, count, rays):
+    """packet_walk's leaf for a shadow packet: _lanes_leaf, then the packet's
+    reach shortened to its longest ray left; True once every ray is blocked,
+    which ends the walk."""
+    lanes, ordered, order, own, own_inside, blockers, slot = rays
+    if count > 0 and _lanes_leaf(ox, oy, oz, margin, lanes, spread, ordered, order, ref, count, own, own_inside,
+                                 blockers, slot):  # fmt: skip
+        reach = _reach(lanes)
+        if reach == _DEAD:
+            return True
+        spread[6] = reach
+    return False
+
+
+_walk_any = packet_walk(_shadow_enter, _shadow_leaf, any_hit=True)
+
+
 # Inlined into the pixel program (a call of its own measured slower,
 # docs/notes/whitted-cpu.md#cpu-shadow-rays-as-packets-issue-27): compiled there with the
 # program's error model, which leaves its loops over the rays SIMD (they
 # divide by nothing).
 @numba.njit(inline="always", error_model="numpy")
-def _shadow_packet(
-    ox, oy, oz, rays, spread, stack, wide, wide_links, ordered, order, own, own_inside, live, blockers, slot
-):
+def _shadow_packet(ox, oy, oz, rays, tree, own, own_inside, live, slot):
     """Any hit of each of a shadow packet's rays from (ox, oy, oz) through
-    the 4-wide tree: the bits of the rays blocked, of those in `live`.
+    the 4-wide tree (packet_walk's, its children ordered along the first
+    ray): the bits of the rays blocked, of those in `live`.
     rays[_DX:_DZ + 1]: the unit directions; rays[_LEN]: each ray's length,
     _DEAD where no ray is cast or it is blocked already (_last_blocker)
-    (rays[_IX:_IZ + 1]: their inverses, written here); spread (7 + WIDTH)
-    and stack (layout.WIDE_STACK): scratch. A ray is blocked where some sphere has 0 < t < its length, which no order
+    (rays[_IX:_IZ + 1]: their inverses, written here); tree: the
+    PacketsTree, whose spread, stack and order scratch the walk uses. A ray
+    is blocked where some primitive has 0 < t < its length, which no order
     of the walk changes: the answer of traverse.walk's any hit, ray by ray.
-    A node's children are tested as _bvh_packets_wide tests them
-    (_wide_mask, then the rays' own test), the leaves at once, the inner
-    children pushed nearest on top along the first ray (spread[7:] holds
-    where each lies); a blocked ray enters nothing more, and the walk ends
-    once every ray is blocked. blockers[slot]: set to the last sphere
-    that blocked a ray (_lanes_leaf)."""
+    tree.blockers[slot]: set to the last primitive that blocked a ray
+    (_lanes_leaf)."""
+    spread = tree.spread
     for k in range(LANES):
         rays[_IX, k] = _inverse(rays[_DX, k])
         rays[_IY, k] = _inverse(rays[_DY, k])
@@ -241,43 +254,9 @@ def _shadow_packet(
         spread[2 * a + 1] = hi
     spread[6] = _reach(rays)
     margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
-    row = 0
-    top = 0
-    cdx, cdy, cdz = rays[_DX, 0], rays[_DY, 0], rays[_DZ, 0]
-    while row >= 0:
-        mask = _wide_mask(wide, row, ox, oy, oz, margin, spread)
-        node = row
-        row = -1
-        base = top
-        for c in range(WIDTH):
-            if not (mask >> c) & 1:
-                continue
-            lx, ly, lz, hx, hy, hz = _wide_planes(wide, node, c, ox, oy, oz, margin)
-            if not _lanes_enter(lx, ly, lz, hx, hy, hz, rays):
-                continue
-            ref, count = wide_links[node, W_REF + c], wide_links[node, W_COUNT + c]
-            if count == INNER:
-                # pushed in order of where the box's centre lies along the
-                # first ray, the nearest on top: a blocker near the origin
-                # (the commonest: a neighbour) ends the walk soonest
-                along = (lx + hx) * cdx + (ly + hy) * cdy + (lz + hz) * cdz
-                j = top
-                while j > base and spread[7 + j - base - 1] < along:
-                    stack[j] = stack[j - 1]
-                    spread[7 + j - base] = spread[7 + j - base - 1]
-                    j -= 1
-                stack[j] = ref
-                spread[7 + j - base] = along
-                top += 1
-            elif count > 0 and _lanes_leaf(ox, oy, oz, margin, rays, spread, ordered, order, ref, count, own,
-                                           own_inside, blockers, slot):  # fmt: skip
-                reach = _reach(rays)
-                if reach == _DEAD:  # every ray blocked
-                    return live
-                spread[6] = reach
-        if top > 0:
-            top -= 1
-            row = stack[top]
+    state = (rays, tree.ordered, tree.order, own, own_inside, tree.blockers, slot)
+    _walk_any(tree.wide, tree.wide_links, ox, oy, oz, margin, rays[_DX, 0], rays[_DY, 0], rays[_DZ, 0], spread,
+              tree.stack, tree.stack_count, tree.along, tree.chosen, state)  # fmt: skip
     bits = np.int64(0)  # the rays blocked: those whose length was made _DEAD (a live ray's is positive)
     for k in range(LANES):
         if rays[_LEN, k] == _DEAD:
