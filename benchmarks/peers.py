@@ -2,13 +2,14 @@
 (issues 16 and 38): one subcommand a peer.
 
     peers.py pymol  [--molecules 1hpv il2 1tii 1tii*2 ...]   PyMOL's `ray` on molecules
+    peers.py povray [--scenes balls:3 balls:4 ...]           POV-Ray 3.7 on the SPD's scenes
     peers.py embree [--spheres ...]                          Mitsuba 3 on Embree, the same primary rays
 
 Each side is timed warm (its first frames left out), in --rounds rounds of --frames frames, the
 sides alternating which goes first each round, each side's turn after --settle seconds idle, so
 that a neighbour's load falls on both; medians over every frame of a side. Records of the results
 schema's "parts" suite: raybench's frames (quantity "frame", option "peer") and the peer's
-("pymol-ray", "embree-intersect"), the peer's with its time over raybench's.
+("pymol-ray", "povray-render", "embree-intersect"), the peer's with its time over raybench's.
 
 pymol: the peer runs in a process of its own (_pymol_worker.py, by the Python that has PyMOL:
 Debian's `pymol` package, /usr/bin/python3), given the molecule file raybench reads, shown as
@@ -24,6 +25,15 @@ frame walks a tree built once (its build is recorded beside it).
 A molecule is a name from PyMOL's data (pymol-data's demo and tut folders) or a path, with
 `*K` for K copies of it side by side (written by gemmi into a temporary PDB file that both
 sides read): PyMOL's data has no molecule of 10,000 atoms.
+
+povray: each SPD scene at a size factor (raybench.formats.spd), written as a .pov file by
+raybench.formats.pov (the same camera, lights, materials, depth), rendered by `povray` at
+--size with -A (no antialiasing) and +WT (its threads, raybench's), no file written while
+timed; its time is the process's wall time (parse, bounding, trace), and POV-Ray's own parse,
+bounding and trace times are recorded beside it. POV-Ray renders each scene twice: whole, and
+with its spheres only, since raybench renders spheres only until triangles reach its
+renderers (a scene's polygons are counted in the record, never dropped unsaid); raybench's
+frame is set against each. The spheres-only pictures are compared as PyMOL's are.
 """
 
 from __future__ import annotations
@@ -31,6 +41,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import subprocess
 import sys
 import tempfile
@@ -253,6 +264,119 @@ def pymol_run(args) -> int:
     return 0
 
 
+def povray_times(stderr: str) -> dict:
+    """POV-Ray's own seconds of parse, bounding and trace, from its statistics."""
+    found = {}
+    for key in ("Parse", "Bounding", "Trace"):
+        m = re.search(rf"{key} Time:.*?\(([0-9.]+) seconds\)", stderr)
+        found[f"{key.lower()}_s"] = float(m[1]) if m else None
+    return found
+
+
+def povray_one(spec, folder, width, height, threads, args) -> list[dict]:
+    """raybench's frames and POV-Ray's renders (whole, and spheres only) of one SPD scene."""
+    from PIL import Image
+
+    from raybench.formats import pov, spd
+
+    name, _, size = spec.partition(":")
+    nff = spd.generate(name, int(size) if size else None)
+    scene, mesh = nff.scene(), pov.mesh_of(nff)
+    label = f"{name} {size or spd.SCENES[name][1]}"
+    counts = nff.counts()
+    variants = {"spheres": folder / f"{name}{size}-spheres.pov"}
+    pov.save(variants["spheres"], pov.text(scene, width, height, args.depth))
+    if mesh is not None or counts["cones"]:
+        variants["whole"] = folder / f"{name}{size}.pov"
+        pov.save(variants["whole"], pov.text(scene, width, height, args.depth, mesh))
+    picture = folder / "povray.png"
+
+    def render(path, out=None):
+        argv = pov.command(path, width, height, threads) + ([f"+O{out}"] if out else ["-F"])
+        start = time.perf_counter()
+        done = subprocess.run(argv, capture_output=True, text=True, cwd=folder)
+        elapsed = (time.perf_counter() - start) * 1e3
+        if done.returncode != 0:
+            raise SystemExit(f"povray: {path.name}: exit {done.returncode}: {done.stderr.strip().splitlines()[-1:]}")
+        return elapsed, povray_times(done.stderr)
+
+    own = {key: [] for key in variants}
+    renderer = Renderer(scene, width, height, device="cpu", shading="whitted", depth=args.depth, threads=threads)
+    try:
+        compile_s = renderer.compile()
+        start = time.perf_counter()
+        frame = renderer.render()
+        our_first = time.perf_counter() - start
+        render(variants["spheres"], picture)
+        theirs_image = np.asarray(Image.open(picture).convert("RGB"))
+        shown = (theirs_image != np.round(np.asarray(scene.background) * 255)).any(axis=2)
+        diff = np.abs(frame.image.astype(np.int16) - theirs_image.astype(np.int16))
+        alike = {"silhouette_agree": float(np.mean(shown == (frame.hits >= 0))), "mean_abs_diff": float(diff.mean())}
+        if args.pictures:
+            side_by_side(Path(args.pictures) / f"{name}-{size}.png", frame.image, theirs_image)
+        if "whole" in variants and args.pictures:
+            render(variants["whole"], picture)
+            whole = np.asarray(Image.open(picture).convert("RGB"))
+            side_by_side(Path(args.pictures) / f"{name}-{size}-whole.png", frame.image, whole)
+
+        def theirs(key):
+            def run(frames):
+                out = []
+                for _ in range(frames):
+                    elapsed, parts = render(variants[key])
+                    out.append(elapsed)
+                    own[key].append(parts)
+                return out
+
+            return run
+
+        def ours(frames):
+            return _harness.timings(lambda: renderer.render(hits=False), frames)
+
+        sides = {"raybench": lambda: turn(args.settle, ours, args.frames)}
+        for key in variants:
+            sides[key] = lambda key=key: turn(args.settle, theirs(key), args.frames)
+        times = _harness.paired(sides, args.rounds)
+        build_s = renderer.tracer.build_s
+    finally:
+        renderer.close()
+    ours_median = _harness.median(times["raybench"])
+    rays = frame.rays or {}
+    options = {"peer": "povray", "scene": label, "content": "spheres", "accel": "bvh", "threads": threads,
+               "shading": "whitted", "depth": args.depth}  # fmt: skip
+    ours_values = {"build_s": build_s, "compile_s": compile_s, "first_frame_s": our_first,
+                   "rays_per_frame": float(sum(rays.values())) if rays else None,
+                   "triangles_not_rendered": float(len(mesh) if mesh is not None else 0),
+                   "cones_not_rendered": float(counts["cones"])}  # fmt: skip
+    records = [_harness.part("frame", "cpu", times["raybench"], spheres=len(scene), width=width, height=height,
+                             options=options, values=ours_values)]  # fmt: skip
+    for key in variants:
+        parts = {k: _harness.median([p[k] for p in own[key] if p[k] is not None] or [math.nan]) for k in own[key][0]}
+        values = {"over_raybench": _harness.median(times[key]) / ours_median,
+                  "trace_over_raybench": parts["trace_s"] * 1e3 / ours_median, **parts,
+                  "triangles": float(len(mesh) if key == "whole" and mesh is not None else 0)}  # fmt: skip
+        if key == "spheres":
+            values.update(alike)
+        their_options = {"scene": label, "content": "spheres and polygons" if key == "whole" else "spheres",
+                         "threads": threads, "antialias": 0, "max_trace_level": args.depth + 1}  # fmt: skip
+        records.append(_harness.part("povray-render", "cpu", times[key], spheres=len(scene), width=width,
+                                     height=height, options=their_options, values=values))  # fmt: skip
+    return records
+
+
+def povray_run(args) -> int:
+    width, height = (int(v) for v in args.size.split("x"))
+    threads = args.threads or default_threads()
+    version = subprocess.run(["povray", "--version"], capture_output=True, text=True).stderr
+    version = next((line for line in version.splitlines() if line.startswith("POV-Ray")), "unknown")
+    settings = {"peer": "povray", "note": args.note, "settle_s": args.settle, "povray": version}
+    with tempfile.TemporaryDirectory() as tmp, _harness.Records("peers", args, settings) as out:
+        for spec in args.scenes:
+            for record in povray_one(spec, Path(tmp), width, height, threads, args):
+                out.write(record)
+    return 0
+
+
 def common(p, frames: int, rounds: int) -> None:
     _harness.add_common(p, frames=frames, rounds=rounds)
     p.add_argument("--note", default="", help="a note kept in the run's settings, e.g. the machine's state")
@@ -272,13 +396,21 @@ def main():
     pymol.add_argument("--settle", type=float, default=0.3, help="seconds idle before each side's turn")
     pymol.add_argument("--pictures", help="a folder for each molecule's two pictures side by side (PNG)")
     common(pymol, frames=2, rounds=5)
+    povray = peers.add_parser("povray", help="POV-Ray 3.7 on the SPD's scenes")
+    povray.add_argument("--scenes", nargs="+", default=["balls:3", "balls:4"], help="SPD NAME:SIZE, e.g. balls:4")
+    povray.add_argument("--size", default="1680x1050")
+    povray.add_argument("--depth", type=int, default=5, help="Whitted's bounces (POV-Ray's max_trace_level - 1)")
+    povray.add_argument("--threads", type=int, help="raybench's threads and POV-Ray's +WT (default: every core)")
+    povray.add_argument("--settle", type=float, default=0.3, help="seconds idle before each side's turn")
+    povray.add_argument("--pictures", help="a folder for each scene's two pictures side by side (PNG)")
+    common(povray, frames=1, rounds=5)
     args = parser.parse_args()
     _harness.check_common(parser, args)
     if args.label is None:
         args.label = f"peers-{args.peer}"
     if args.peer == "embree":
         return _embree.run(args)
-    return pymol_run(args)
+    return pymol_run(args) if args.peer == "pymol" else povray_run(args)
 
 
 if __name__ == "__main__":
