@@ -13,7 +13,8 @@ schema's "parts" suite: raybench's frames (quantity "frame", option "peer") and 
 
 pymol: the peer runs in a process of its own (_pymol_worker.py, by the Python that has PyMOL:
 Debian's `pymol` package, /usr/bin/python3), given the molecule file raybench reads, shown as
-spheres with raybench's radii and colours, the view set to raybench's fitted camera (the same
+spheres with raybench's radii and colours, the view set to raybench's fitted camera (--zoom:
+that many times nearer, the molecule then filling more of the frame; the same
 eye, look-at point, up and vertical field of view: pymol_view), one light with shadows in
 the direction of raybench's point light, no head-on light, no specular, no depth cue or fog,
 antialias off, a black background (raybench's too, in place of its gradient), max_threads
@@ -52,7 +53,7 @@ import _embree
 import _harness
 import numpy as np
 
-from raybench import Renderer
+from raybench import Camera, Renderer
 from raybench.backends.cpu import default_threads
 from raybench.scene import Scene
 
@@ -143,9 +144,16 @@ class PyMOL:
         self.process.wait()
 
 
-def black(scene: Scene) -> Scene:
-    """The scene on black, PyMOL's background (raybench's molecule has the thesis's gradient)."""
-    return Scene(scene.centers, scene.radii, scene.colors, scene.camera, materials=scene.materials,
+def black(scene: Scene, zoom: float = 1.0) -> Scene:
+    """The scene on black, PyMOL's background (raybench's molecule has the thesis's gradient),
+    its eye zoom times nearer the look-at point (raybench's fitted view leaves most of the frame
+    empty; a PyMOL user zooms in)."""
+    camera = scene.camera
+    if zoom != 1.0:
+        eye, at = np.array(camera.position), np.array(camera.look_at)
+        camera = Camera(position=tuple((at + (eye - at) / zoom).tolist()), look_at=camera.look_at, up=camera.up,
+                        fov_deg=camera.fov_deg)  # fmt: skip
+    return Scene(scene.centers, scene.radii, scene.colors, camera, materials=scene.materials,
                  lights=scene.lights, ambient=scene.ambient, background=(0.0, 0.0, 0.0))  # fmt: skip
 
 
@@ -187,7 +195,7 @@ def pymol_one(spec, folder, width, height, threads, args, pymol) -> list[dict]:
     from raybench.formats import molecule
 
     name, path = molecule_file(spec, folder)
-    scene = black(molecule.load(path))
+    scene = black(molecule.load(path), args.zoom)
     n = len(scene)
     view, rotation = pymol_view(scene.camera, scene.centers, scene.radii)
     at = np.array(scene.camera.look_at)
@@ -216,7 +224,8 @@ def pymol_one(spec, folder, width, height, threads, args, pymol) -> list[dict]:
         theirs_image = np.asarray(Image.open(picture).convert("RGB"))
         alike = agreement(frame.image, frame.hits, theirs_image)
         if args.pictures:
-            side_by_side(Path(args.pictures) / f"{name.replace(' ', '-')}.png", frame.image, theirs_image)
+            shown = f"{name.replace(' ', '-')}" + (f"-zoom{args.zoom:g}" if args.zoom != 1.0 else "")
+            side_by_side(Path(args.pictures) / f"{shown}.png", frame.image, theirs_image)
         for _ in range(args.warmup):
             renderer.render(hits=False)
             pymol.ask(ray=[width, height], times=1)
@@ -234,16 +243,17 @@ def pymol_one(spec, folder, width, height, threads, args, pymol) -> list[dict]:
     finally:
         renderer.close()
     options = {"peer": "pymol", "scene": name, "accel": "bvh", "threads": threads, "shading": "whitted",
-               "depth": 5, "shadow_samples": 1}  # fmt: skip
+               "depth": 5, "shadow_samples": 1, "zoom": args.zoom}  # fmt: skip
     rays = frame.rays or {}
     ours_values = {"build_s": build_s, "compile_s": compile_s, "first_frame_s": our_first,
                    "rays_per_frame": float(sum(rays.values())) if rays else None}  # fmt: skip
     ours_record = _harness.part("frame", "cpu", times["raybench"], spheres=n, width=width, height=height,
                                 options=options, values=ours_values)  # fmt: skip
     over = _harness.median(times["pymol"]) / _harness.median(times["raybench"])
-    theirs_values = {"over_raybench": over, "first_ray_s": their_first, **alike}
+    covered = float(np.mean(frame.hits >= 0))
+    theirs_values = {"over_raybench": over, "first_ray_s": their_first, "covered": covered, **alike}
     theirs_options = {"scene": name, "max_threads": threads, "pymol": loaded["pymol"], "shadows": True,
-                      "antialias": 0}  # fmt: skip
+                      "antialias": 0, "zoom": args.zoom}  # fmt: skip
     theirs_record = _harness.part("pymol-ray", "cpu", times["pymol"], spheres=n, width=width, height=height,
                                   options=theirs_options, values=theirs_values)  # fmt: skip
     return [ours_record, theirs_record]
@@ -395,6 +405,7 @@ def main():
     pymol.add_argument("--warmup", type=int, default=1, help="frames a side after the first, untimed")
     pymol.add_argument("--settle", type=float, default=0.3, help="seconds idle before each side's turn")
     pymol.add_argument("--pictures", help="a folder for each molecule's two pictures side by side (PNG)")
+    pymol.add_argument("--zoom", type=float, default=1.0, help="the eye that many times nearer than raybench's fit")
     common(pymol, frames=2, rounds=5)
     povray = peers.add_parser("povray", help="POV-Ray 3.7 on the SPD's scenes")
     povray.add_argument("--scenes", nargs="+", default=["balls:3", "balls:4"], help="SPD NAME:SIZE, e.g. balls:4")
@@ -406,6 +417,8 @@ def main():
     common(povray, frames=1, rounds=5)
     args = parser.parse_args()
     _harness.check_common(parser, args)
+    if getattr(args, "zoom", 1.0) <= 0:
+        parser.error(f"--zoom: must be above 0, got {args.zoom}")
     if args.label is None:
         args.label = f"peers-{args.peer}"
     if args.peer == "embree":

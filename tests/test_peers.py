@@ -76,3 +76,14 @@ Render Time:
 """
     assert peers.povray_times(stats) == {"parse_s": 1.234, "bounding_s": 0.056, "trace_s": 2.5}
     assert peers.povray_times("no statistics") == {"parse_s": None, "bounding_s": None, "trace_s": None}
+
+
+def test_the_zoomed_view_keeps_its_direction_and_halves_the_distance(peers, tmp_path):
+    write_pdb(tmp_path / "m.pdb")
+    scene = molecule.load(tmp_path / "m.pdb")
+    zoomed = peers.black(scene, 2.0)
+    at = np.array(scene.camera.look_at)
+    before, after = np.array(scene.camera.position) - at, np.array(zoomed.camera.position) - at
+    assert np.allclose(after, before / 2) and zoomed.camera.fov_deg == scene.camera.fov_deg
+    assert zoomed.background == (0.0, 0.0, 0.0) and zoomed.lights == scene.lights
+    assert peers.black(scene).camera == scene.camera
