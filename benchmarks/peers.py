@@ -13,9 +13,9 @@ schema's "parts" suite: raybench's frames (quantity "frame", option "peer") and 
 
 pymol: the peer runs in a process of its own (_pymol_worker.py, by the Python that has PyMOL:
 Debian's `pymol` package, /usr/bin/python3), given the molecule file raybench reads, shown as
-spheres with raybench's radii and colours, the view set to raybench's fitted camera (--zoom:
-that many times nearer, the molecule then filling more of the frame; the same
-eye, look-at point, up and vertical field of view: pymol_view), one light with shadows in
+spheres with raybench's radii and colours, the view set to raybench's fitted camera (the same
+eye, look-at point, up and vertical field of view: pymol_view; --zoom brings both eyes that many
+times nearer, the molecule then filling more of the frame), one light with shadows in
 the direction of raybench's point light, no head-on light, no specular, no depth cue or fog,
 antialias off, a black background (raybench's too, in place of its gradient), max_threads
 equal to raybench's threads. What the two pictures share is measured and recorded: the
@@ -34,7 +34,8 @@ timed; its time is the process's wall time (parse, bounding, trace), and POV-Ray
 bounding and trace times are recorded beside it. POV-Ray renders each scene twice: whole, and
 with its spheres only, since raybench renders spheres only until triangles reach its
 renderers (a scene's polygons are counted in the record, never dropped unsaid); raybench's
-frame is set against each. The spheres-only pictures are compared as PyMOL's are.
+frame is set against each. The spheres-only pictures are compared: the silhouette, and the
+mean difference of the colours over the whole picture.
 """
 
 from __future__ import annotations
