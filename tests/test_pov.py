@@ -82,7 +82,7 @@ def test_the_command_writes_a_pov_file(capsys, tmp_path):
     spd.balls(1).save(nff_path)
     code, stdout, _ = cli(capsys, "scene", "pov", "--scene", nff_path, "-o", out, "--size", "320x200")
     assert code == 0 and "10 spheres and 2 triangles" in stdout and "320x200, depth 5" in stdout
-    assert "+W320 +H200" in out.read_text()
+    assert "// povray +Ib.pov +W320 +H200 -A" in out.read_text()
     # no --size: the NFF's own resolution
     cli(capsys, "scene", "pov", "--scene", nff_path, "-o", out)
     assert "+W512 +H512" in out.read_text()

@@ -111,6 +111,6 @@ def pov_cmd(scene_file, size, depth, output):
         scene, mesh = read.scene(), pov.mesh_of(read)
     else:
         scene = load_scene(scene_file, None, None)
-    pov.save(output, pov.text(scene, width, height, depth, mesh))
+    pov.save(output, pov.text(scene, width, height, depth, mesh, name=output.name))
     triangles = f" and {len(mesh):,} triangles" if mesh is not None else ""
     echo(f"wrote {output}: {len(scene):,} spheres{triangles} from {scene_file}, for {width}x{height}, depth {depth}")

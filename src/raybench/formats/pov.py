@@ -127,14 +127,15 @@ def _looks(scene: Scene) -> tuple[list, np.ndarray]:
 
 
 def text(scene: Scene, width: int, height: int, depth: int = lighting.DEFAULT_DEPTH, mesh: Mesh | None = None,
-         camera: Camera | None = None) -> str:  # fmt: skip
+         camera: Camera | None = None, name: str = "FILE.pov") -> str:  # fmt: skip
     """The .pov text of scene (its spheres, and mesh's triangles) seen by camera (default the
-    scene's, else Camera()) at width x height, Whitted shading to depth bounces."""
+    scene's, else Camera()) at width x height, Whitted shading to depth bounces; name: the
+    file's, in the command its first lines give."""
     depth = lighting.check_depth(depth)
     camera = camera or scene.camera or Camera()
     out = [
         "// raybench's scene for POV-Ray 3.7 (raybench.formats.pov); render it with",
-        "// " + " ".join(command("THIS.pov", width, height)),
+        "// " + " ".join(command(name, width, height)),
         "#version 3.7;",
         f"global_settings {{ assumed_gamma 1.0 ambient_light rgb 1 max_trace_level {depth + 1} "
         f"adc_bailout {_n(BAILOUT)} }}",
