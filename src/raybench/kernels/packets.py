@@ -336,10 +336,11 @@ def packet_walk(enter, leaf, any_hit):
     tested at once (leaf(ox, oy, oz, margin, spread, ref, count, rays)), that
     child is walked next and everything farther pushed, leaves too, so that
     a near inner child's hits can rule out a farther leaf's primitives. Any
-    hit: every entered leaf is tested at once, nearest first, and the inner
-    children pushed, the nearest on top, since a blocker near the origin
-    (the commonest: a neighbour) ends the walk soonest; leaf returns True
-    once every ray is answered, which ends the walk. Inlined where it is
+    hit: a leaf is tested as soon as the rays enter it, so that the rays it
+    blocks enter none of the node's later children, and the inner children
+    are pushed, the nearest on top, since a blocker near the origin (the
+    commonest: a neighbour) ends the walk soonest; leaf returns True once
+    every ray is answered, which ends the walk. Inlined where it is
     called, with the caller's error model (_kb's note)."""
 
     @numba.njit(inline="always", error_model="numpy")
@@ -356,6 +357,14 @@ def packet_walk(enter, leaf, any_hit):
                 lx, ly, lz, hx, hy, hz = _wide_planes(wide, row, c, ox, oy, oz, margin)
                 if not enter(lx, ly, lz, hx, hy, hz, rays):
                     continue
+                if any_hit:
+                    # a leaf at once: the rays it blocks enter none of the
+                    # node's later children
+                    count = wide_links[row, W_COUNT + c]
+                    if count != INNER:
+                        if leaf(ox, oy, oz, margin, spread, wide_links[row, W_REF + c], count, rays):
+                            return
+                        continue
                 # where the box's centre lies along the middle ray: insertion
                 # into chosen[:entered], nearest first
                 along[c] = (lx + hx) * cdx + (ly + hy) * cdy + (lz + hz) * cdz
