@@ -44,6 +44,8 @@ def programs(kind: str) -> SimpleNamespace:
         spaces = {module.__name__.rsplit(".", 1)[-1]: module for module in MODULES}
     else:
         spaces = compiled.rebound(MODULES, primitive)
+        if compiled.on_compile is not None:  # the copies compile at their first frame: say so where it is listened to
+            compiled.on_compile()
     culls = primitive is sphere
     return SimpleNamespace(
         packets=spaces["packets"]._bvh_packets_wide,
