@@ -10,16 +10,15 @@ packet's shared origin.
 fastmath stays off (backends/cpu): the float32 arithmetic is exactly IEEE.
 """
 
+import functools
+
 import numba
 import numpy as np
 
 from .. import compiled
 from ..layout import (
-    BLUE,
-    GREEN,
     INNER,
     PAD,
-    RED,
     W_COUNT,
     W_HI,
     W_LO,
@@ -28,7 +27,9 @@ from ..layout import (
     WIDTH,
 )
 from .constants import FAR, ZERO
+from .primitives import sphere
 from .trace import make
+
 
 # The packets' own compile of the algorithm (kernels.make), with NumPy's
 # error model, where backends/cpu/program.py's has Python's: float division
@@ -37,7 +38,15 @@ from .trace import make
 # component raised to at least TINY), so the result is the same IEEE
 # quotient, and LLVM can make the loops over a packet's rays SIMD, which the
 # check's branch prevents (vdivps, vsqrtps in the assembly).
-_kb = make(numba.njit(inline="always", error_model="numpy"))
+# Made for a primitive, the sphere's at import; compiled.rebound compiles
+# this module again for another kind (backends/cpu/kinds.py).
+@functools.cache
+def _made(primitive=sphere):
+    """kernels.make for the packets, with NumPy's error model, for one kind of primitive."""
+    return make(numba.njit(inline="always", error_model="numpy"), primitive=primitive)
+
+
+_kb = _made()
 _primary_ray_v, _inverse = _kb.primary_ray, _kb.inverse
 _shade_hit_v, _shade_miss_v, _to_byte_v = _kb.shade_hit, _kb.shade_miss, _kb.to_byte
 # The primitive's functions (kernels/primitives): a leaf's row, its box and
@@ -51,7 +60,7 @@ _read_leaf, _box_of, _seen_from, _hit_from, _hit_ahead_from = (
     _prim.hit_from,
     _prim.hit_ahead_from,
 )
-_leaf_hit_ahead, _meets_own, _rim = _prim.leaf_hit_ahead, _prim.meets_own, _prim.rim
+_leaf_hit_ahead, _meets_own, _rim, _colour = _prim.leaf_hit_ahead, _prim.meets_own, _prim.rim, _prim.colour
 
 # Pixels and arrays are indexed with unsigned integers: a signed index
 # carries Python's negative-index wraparound, a select per lane that LLVM
@@ -192,15 +201,14 @@ def _packet_leaf(
 @numba.njit(inline="always", error_model="numpy")
 def _colour_packet(x0, y0, spheres, hit, hit_d, rgb, paint):
     """rgb[c, k]: the bytes store_pixel writes for ray k of the packet, for
-    every ray at once: first the hit spheres' colours and rims gathered
-    (a miss reads sphere 0's and drops them), then shaded in a loop without
-    branches (each ray's hit and miss colours both computed, one kept),
-    which LLVM makes SIMD. spheres must hold a sphere (Tracer.shaded)."""
+    every ray at once: first the hit primitives' colours and rims gathered
+    (the primitive's colour and rim; a miss reads primitive 0's and drops
+    them), then shaded in a loop without branches (each ray's hit and miss
+    colours both computed, one kept), which LLVM makes SIMD. spheres must
+    hold a primitive (Tracer.shaded)."""
     for k in range(PACKET):
         j = max(hit[k], 0)
-        paint[0, k] = spheres[RED, j]
-        paint[1, k] = spheres[GREEN, j]
-        paint[2, k] = spheres[BLUE, j]
+        paint[0, k], paint[1, k], paint[2, k] = _colour(spheres, j)
         paint[3, k] = _rim(spheres, j)
     for k in range(PACKET):
         hr, hg, hb = _shade_hit_v(paint[0, k], paint[1, k], paint[2, k], paint[3, k], hit_d[k])
