@@ -221,7 +221,8 @@ def rebound(modules, primitive) -> dict[str, types.SimpleNamespace]:
     module's `_made()` (its functions, namespaces of them, dicts of them) is
     the same-named part of the copied `_made(primitive)`. Numba reads a
     function's callees from its globals as it compiles it, so the copies
-    compile the very source for the other primitive, and two kinds live in
+    compile the very source for the other primitive (a closure's cells are
+    swapped as its globals are), and two kinds live in
     one process, neither calling the other's functions. A part the other
     primitive lacks becomes None, so code that calls it fails to compile
     rather than run the sphere's. The copies are not cached: Numba's cache
@@ -230,8 +231,14 @@ def rebound(modules, primitive) -> dict[str, types.SimpleNamespace]:
     swap: dict[int, object] = {}
     spaces = {module.__name__: {} for module in modules}
 
+    cells: list = []  # the copies' closures' cells, their contents swapped by fill() as the globals are
+
     def copy(f, space):
-        return types.FunctionType(f.__code__, space, f.__name__, f.__defaults__, f.__closure__)
+        closure = None
+        if f.__closure__:  # a function a factory made at import (packets.packet_walk's walks)
+            closure = tuple(types.CellType(cell.cell_contents) for cell in f.__closure__)
+            cells.extend(closure)
+        return types.FunctionType(f.__code__, space, f.__name__, f.__defaults__, closure)
 
     for module in modules:
         space = spaces[module.__name__]
@@ -255,6 +262,8 @@ def rebound(modules, primitive) -> dict[str, types.SimpleNamespace]:
     def fill():
         for module in modules:
             spaces[module.__name__].update({name: swapped(value) for name, value in vars(module).items()})
+        for cell in cells:
+            cell.cell_contents = swapped(cell.cell_contents)
 
     fill()
     for module in modules:
