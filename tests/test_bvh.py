@@ -520,3 +520,43 @@ def test_bvh_too_large_for_memory_is_one_line(monkeypatch):
         f"bvh: 10,000 spheres need {need / 2**20:.1f} MiB for the BVH and the frame, "
         f"more than the {available / 2**20:.1f} MiB available on the cpu; use fewer spheres or a smaller size"
     )
+
+
+@pytest.mark.slow
+def test_the_builder_takes_the_triangle_beside_the_sphere():
+    """The host builder over a mesh's triangles (its own compiled copy of
+    the steps, compiled.rebound): every triangle in one leaf, each leaf's box
+    holding its triangles' padded boxes, on one thread and sliced over two;
+    and the sphere's trees, built before and after in the same process, the
+    same to the bit (the kinds do not share a switch)."""
+    import trimesh
+
+    from raybench.kernels.primitives import triangle
+    from raybench.meshes import Mesh, mesh_leaves
+
+    scene = raybench.random_spheres(3000, seed=4)
+    before = bvh.build(scene.spheres, threads=2)
+    shape = trimesh.creation.icosphere(subdivisions=3)
+    leaves = mesh_leaves(Mesh(np.float32(shape.vertices), np.int32(shape.faces)))
+    plain = triangle.make(lambda f: f)
+    for wide in (bvh.WIDE, 256):
+        tree = bvh.build(leaves, threads=2, primitive=triangle, _wide=wide)
+        assert sorted(tree.order.tolist()) == list(range(leaves.shape[1]))
+        assert (tree.ordered == leaves[:9, tree.order]).all()
+        stack, seen = [0], 0
+        while stack:
+            row = stack.pop()
+            for c in range(2):
+                ref, count = tree.links[row, layout.REF + c], tree.links[row, layout.COUNT + c]
+                lo = tree.nodes[row, layout.CHILD_BOX[c] : layout.CHILD_BOX[c] + 3]
+                hi = tree.nodes[row, layout.CHILD_BOX[c] + 3 : layout.CHILD_BOX[c] + 6]
+                if count == layout.INNER:
+                    stack.append(ref)
+                    continue
+                for j in range(ref, ref + count):
+                    box = np.float32(plain.bounds(tree.ordered, j))
+                    assert (lo <= box[:3]).all() and (box[3:] <= hi).all()
+                seen += count
+        assert seen == leaves.shape[1]
+    after = bvh.build(scene.spheres, threads=2)
+    assert (before.nodes.view(np.int32) == after.nodes.view(np.int32)).all() and (before.order == after.order).all()

@@ -255,3 +255,35 @@ def test_piped_stderr_stays_clean(monkeypatch, capsys):
     with compiling.announced():
         assert compiled.on_compile is None  # nothing listens, nothing is shown
     assert capsys.readouterr().err == ""
+
+
+def test_rebound_copies_call_no_original_kernel():
+    """compiled.rebound's copies for the triangle reach none of the sphere's
+    compiled functions, through their globals or a closure's cells (a walk a
+    factory made at import, packets.packet_walk's): every callee a copy
+    names is itself a copy, so no triangle frame runs a sphere's leaf test."""
+    import numba
+
+    from raybench import compiled
+    from raybench.backends.cpu import kinds
+    from raybench.kernels.primitives import triangle
+
+    originals = {
+        id(value)
+        for module in kinds.MODULES
+        for value in vars(module).values()
+        if isinstance(value, numba.core.dispatcher.Dispatcher)
+    }
+    spaces = compiled.rebound(kinds.MODULES, triangle)
+    checked = 0
+    for space in spaces.values():
+        for name, value in vars(space).items():
+            if not isinstance(value, numba.core.dispatcher.Dispatcher) or id(value) in originals:
+                continue
+            f = value.py_func
+            reached = [f.__globals__.get(n) for n in f.__code__.co_names]
+            reached += [cell.cell_contents for cell in f.__closure__ or ()]
+            stale = [getattr(r, "__name__", r) for r in reached if id(r) in originals]
+            assert not stale, f"{name} still calls the sphere's {stale}"
+            checked += 1
+    assert checked > 20  # the modules' kernels were copied at all

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from raybench import RaybenchError, meshes
-from raybench.layout import TRI_A, TRI_B, TRI_C, TRI_NA, TRI_ROWS, TRI_SMOOTH_ROWS
-from raybench.meshes import Mesh, load_mesh, mesh_leaves
+from raybench.layout import TRI_A, TRI_B, TRI_C, TRI_NA, TRI_NC, TRI_RED, TRI_SHADED_ROWS, TRI_SMOOTH_ROWS
+from raybench.meshes import MESH_COLOUR, Mesh, load_mesh, mesh_leaves
 
 trimesh = pytest.importorskip("trimesh")
 
@@ -87,18 +87,22 @@ def test_gltf_with_its_buffers_and_node_transform(tmp_path):
 
 
 def test_leaves_rows():
-    """mesh_leaves: each face's A, B and C in the TRI_ rows, and the corner
-    normals after them only where the mesh has normals."""
+    """mesh_leaves: each face's A, B and C in the TRI_ rows, its colour (the
+    default, or the one given), and the corner normals after them only where
+    the mesh has normals."""
     vertices = np.float32([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
     faces = np.int32([[0, 1, 2], [3, 2, 1]])
     flat = mesh_leaves(Mesh(vertices, faces))
-    assert flat.shape == (TRI_ROWS, 2) and flat.dtype == np.float32
+    assert flat.shape == (TRI_SHADED_ROWS, 2) and flat.dtype == np.float32
+    assert (flat[TRI_RED : TRI_RED + 3].T == np.float32(MESH_COLOUR)).all()
+    assert (mesh_leaves(Mesh(vertices, faces), (0.25, 0.5, 1))[TRI_RED : TRI_RED + 3].T == [0.25, 0.5, 1]).all()
     for row, corner in ((TRI_A, 0), (TRI_B, 1), (TRI_C, 2)):
         assert (flat[row : row + 3].T == vertices[faces[:, corner]]).all()
     normals = np.float32([[0, 0, 1], [0, 1, 0], [1, 0, 0], [0, 0, -1]])
     smooth = mesh_leaves(Mesh(vertices, faces, normals))
-    assert smooth.shape == (TRI_SMOOTH_ROWS, 2) and (smooth[:TRI_ROWS] == flat).all()
+    assert smooth.shape == (TRI_SMOOTH_ROWS, 2) and (smooth[:TRI_SHADED_ROWS] == flat).all()
     assert (smooth[TRI_NA : TRI_NA + 3].T == normals[faces[:, 0]]).all()
+    assert (smooth[TRI_NC : TRI_NC + 3].T == normals[faces[:, 2]]).all()
 
 
 def test_degenerate_triangles_load(tmp_path):

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from raybench.kernels.primitives import KINDS, triangle
-from raybench.layout import PAD, TRI_ROWS, TRI_SMOOTH_ROWS
+from raybench.layout import PAD, TRI_NA, TRI_ROWS, TRI_SMOOTH_ROWS
 
 trimesh = pytest.importorskip("trimesh")
 
@@ -307,7 +307,7 @@ def test_surface_flat_and_smooth():
     corners = unit([[0.3, 0, 1], [0, 0.3, 1], [-0.3, -0.3, 1]])
     smooth = np.zeros((TRI_SMOOTH_ROWS, 1), F32)
     smooth[:9, 0] = tri.reshape(9)
-    smooth[9:, 0] = corners.reshape(9)
+    smooth[TRI_NA:, 0] = corners.reshape(9)
     for v, n in zip(tri, corners):
         o = (v + F32([0, 0, 10])).astype(F32)
         *_, nx, ny, nz, cos_i, inside = PLAIN.surface(*o, z, z, F32(-1), F32(10), 0, smooth)
@@ -325,7 +325,10 @@ def test_every_answer_compiles(rng, jitted):
     the leaf copy, and the surface, flat and smooth."""
     prim, _ = jitted
     buffer, o, d = random_pairs(rng, 50)
-    smooth = np.concatenate([buffer, np.repeat(unit(rng.normal(size=(1, 9)).reshape(3, 3)).reshape(9, 1), 50, 1)])
+    colours = rng.uniform(0, 1, (3, 50)).astype(F32)
+    normals = np.repeat(unit(rng.normal(size=(1, 9)).reshape(3, 3)).reshape(9, 1), 50, 1)
+    smooth = np.concatenate([buffer, colours, normals]).astype(F32)
+    assert smooth.shape[0] == TRI_SMOOTH_ROWS
     copies = np.zeros((9, 50), F32), np.zeros((9, 50), F32)
     for k in range(50):
         args = (*o[k], *d[k])
@@ -342,6 +345,7 @@ def test_every_answer_compiles(rng, jitted):
                 assert prim.surface(*args, t, k, scene) == PLAIN.surface(*args, t, k, scene)
     assert (copies[0] == copies[1]).all() and (copies[0] == buffer).all()
     assert prim.rim(buffer, 0) == 1 and not prim.meets_own(True)
+    assert all(prim.colour(smooth, k) == tuple(colours[:, k]) for k in range(50))
 
 
 def test_the_program_compiles_for_the_triangle(rng):

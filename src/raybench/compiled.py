@@ -14,6 +14,7 @@ platform's cache folder, cache_dir()).
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import os
 import threading
@@ -206,3 +207,81 @@ def as_python(module, **plain) -> types.SimpleNamespace:
             space[name] = types.FunctionType(f.__code__, space, f.__name__, f.__defaults__, f.__closure__)
     space.update(plain)
     return types.SimpleNamespace(**space)
+
+
+def rebound(modules, primitive) -> dict[str, types.SimpleNamespace]:
+    """The modules' compiled functions compiled again for another primitive
+    (a module of kernels/primitives), each calling the others' copies.
+
+    A module whose program depends on the primitive makes it in `_made`
+    (functools.cache'd, its primitive an argument, the sphere by default:
+    `_made()` is the module's own program). Each compiled function of the
+    modules is copied from its Python over new globals, in which every
+    compiled function of the modules is its copy and every part of a
+    module's `_made()` (its functions, namespaces of them, dicts of them) is
+    the same-named part of the copied `_made(primitive)`. Numba reads a
+    function's callees from its globals as it compiles it, so the copies
+    compile the very source for the other primitive (a closure's cells are
+    swapped as its globals are), and two kinds live in
+    one process, neither calling the other's functions. A part the other
+    primitive lacks becomes None, so code that calls it fails to compile
+    rather than run the sphere's. The copies are not cached: Numba's cache
+    keys a function by its file and name, which a copy shares with the
+    original. Returns each module's new globals, by its last name."""
+    swap: dict[int, object] = {}
+    spaces = {module.__name__: {} for module in modules}
+
+    cells: list = []  # the copies' closures' cells, their contents swapped by fill() as the globals are
+
+    def copy(f, space):
+        closure = None
+        if f.__closure__:  # a function a factory made at import (packets.packet_walk's walks)
+            closure = tuple(types.CellType(cell.cell_contents) for cell in f.__closure__)
+            cells.extend(closure)
+        return types.FunctionType(f.__code__, space, f.__name__, f.__defaults__, closure)
+
+    for module in modules:
+        space = spaces[module.__name__]
+        for value in vars(module).values():
+            if id(value) in swap:
+                continue
+            if isinstance(value, numba.core.dispatcher.Dispatcher) and value.py_func.__module__ in spaces:
+                options = {k: v for k, v in value.targetoptions.items() if k != "nopython"}
+                swap[id(value)] = numba.njit(**options)(copy(value.py_func, spaces[value.py_func.__module__]))
+            elif isinstance(value, types.FunctionType) and value.__module__ == module.__name__:
+                swap[id(value)] = copy(value, space)
+            elif hasattr(value, "cache_clear") and getattr(value, "__module__", None) == module.__name__:
+                swap[id(value)] = functools.cache(copy(value.__wrapped__, space))
+
+    def swapped(value):
+        if isinstance(value, dict):
+            new = {k: swapped(v) for k, v in value.items()}
+            return value if all(new[k] is v for k, v in value.items()) else new
+        return swap.get(id(value), value)
+
+    def fill():
+        for module in modules:
+            spaces[module.__name__].update({name: swapped(value) for name, value in vars(module).items()})
+        for cell in cells:
+            cell.cell_contents = swapped(cell.cell_contents)
+
+    fill()
+    for module in modules:
+        if hasattr(module, "_made"):
+            _pair(module._made(), spaces[module.__name__]["_made"](primitive), swap)
+            fill()
+    return {module.__name__.rsplit(".", 1)[-1]: types.SimpleNamespace(**spaces[module.__name__]) for module in modules}
+
+
+def _pair(old, new, swap: dict) -> None:
+    """swap[id(part)] = the same-named part of `new` (None where it has
+    none) for `old` and every function, namespace and dict in it."""
+    if isinstance(old, types.SimpleNamespace):
+        for name, value in vars(old).items():
+            _pair(value, getattr(new, name, None), swap)
+    elif isinstance(old, dict):
+        for key, value in old.items():
+            _pair(value, None if new is None else new.get(key), swap)
+    elif not callable(old):
+        return
+    swap.setdefault(id(old), new)

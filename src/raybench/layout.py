@@ -18,15 +18,19 @@ SPHERE_ROWS = 7
 
 # ---------------------------------------------------------------- triangles
 # A mesh's triangles (meshes.mesh_leaves; kernels/primitives/triangle.py):
-# (TRI_ROWS, F) float32, a column a triangle: the x, y, z rows of vertex A,
-# then B's, then C's, in the leaf buffer and in the scene's buffer alike;
-# where the mesh has vertex normals, the scene's buffer has TRI_SMOOTH_ROWS,
-# the three corners' normals after them (NA's x, y, z, then NB's, NC's),
-# which only the shading reads: the walks' leaves stay nine rows.
+# a column a triangle, float32. The leaf buffer (the tree's `ordered`) is
+# TRI_ROWS rows: the x, y, z rows of vertex A, then B's, then C's. The
+# scene's buffer has the same nine, then the triangle's colour (TRI_RED,
+# TRI_GREEN, TRI_BLUE: TRI_SHADED_ROWS in all), and where the mesh has
+# vertex normals the three corners' normals after it (NA's x, y, z, then
+# NB's, NC's: TRI_SMOOTH_ROWS), which only the shading reads: the walks'
+# leaves stay nine rows.
 TRI_A, TRI_B, TRI_C = 0, 3, 6
 TRI_ROWS = 9
-TRI_NA, TRI_NB, TRI_NC = 9, 12, 15
-TRI_SMOOTH_ROWS = 18
+TRI_RED, TRI_GREEN, TRI_BLUE = 9, 10, 11
+TRI_SHADED_ROWS = 12
+TRI_NA, TRI_NB, TRI_NC = 12, 15, 18
+TRI_SMOOTH_ROWS = 21
 
 # ---------------------------------------------------------------- materials
 # Scene.materials: (MATERIAL_ROWS, N) float32, beside the spheres (whose

@@ -8,8 +8,9 @@ file and what is wrong: no such file, a file over MAX_MESH_BYTES, an unknown
 format, a file trimesh cannot read, a face index out of range, a non-finite
 or too large coordinate, no faces. Degenerate triangles (zero area) load as
 they are: the triangle's test never hits them (kernels/primitives/triangle.py).
-mesh_leaves(mesh) lays a mesh out as the triangle primitive's scene buffer
-(layout's TRI_ rows).
+mesh_leaves(mesh, colour) lays a mesh out as the triangle primitive's scene
+buffer (layout's TRI_ rows), every triangle of one colour (default
+MESH_COLOUR).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ import numpy as np
 
 from .camera import MAX_MAGNITUDE
 from .errors import RaybenchError
-from .layout import TRI_ROWS, TRI_SMOOTH_ROWS
+from .layout import TRI_RED, TRI_ROWS, TRI_SHADED_ROWS, TRI_SMOOTH_ROWS
 
 # The largest mesh file read, in bytes (1 GiB): a binary PLY of about 40 M
 # triangles, an OBJ of about 10 M. trimesh holds a file's text or bytes and
@@ -31,6 +32,10 @@ from .layout import TRI_ROWS, TRI_SMOOTH_ROWS
 MAX_MESH_BYTES = 2**30
 # File suffix: trimesh's name for the format.
 FORMATS = {".obj": "obj", ".ply": "ply", ".stl": "stl", ".gltf": "gltf", ".glb": "glb"}
+# A mesh's colour where none is given: a light grey, which the thesis's
+# shading darkens by 1 - cos towards the silhouettes and keeps visible where
+# the faces turn away.
+MESH_COLOUR = (0.8, 0.8, 0.8)
 
 
 @dataclass(frozen=True)
@@ -175,16 +180,18 @@ def _checked(path, parts) -> Mesh:
     return Mesh(vertices.astype(np.float32), faces.astype(np.int32), smooth)
 
 
-def mesh_leaves(mesh: Mesh) -> np.ndarray:
-    """The mesh as the triangle primitive's scene buffer, (TRI_ROWS, F)
-    float32 (layout's TRI_A, TRI_B, TRI_C rows: each face's three vertices),
+def mesh_leaves(mesh: Mesh, colour=MESH_COLOUR) -> np.ndarray:
+    """The mesh as the triangle primitive's scene buffer: (TRI_SHADED_ROWS,
+    F) float32, layout's TRI_A, TRI_B, TRI_C rows (each face's three
+    vertices) and its colour rows (TRI_RED..TRI_BLUE, every face `colour`),
     or (TRI_SMOOTH_ROWS, F) with the corners' normals after them where the
     mesh has vertex normals."""
     n = len(mesh.faces)
-    rows = TRI_ROWS if mesh.normals is None else TRI_SMOOTH_ROWS
+    rows = TRI_SHADED_ROWS if mesh.normals is None else TRI_SMOOTH_ROWS
     out = np.empty((rows, n), np.float32)
     # (F, 3 corners, 3 axes) read a face at a time: A's x, y, z, then B's, C's
     out[:TRI_ROWS] = mesh.vertices[mesh.faces].reshape(n, TRI_ROWS).T
+    out[TRI_RED : TRI_RED + 3] = np.asarray(colour, np.float32).reshape(3, 1)
     if mesh.normals is not None:
-        out[TRI_ROWS:] = mesh.normals[mesh.faces].reshape(n, TRI_SMOOTH_ROWS - TRI_ROWS).T
+        out[TRI_SHADED_ROWS:] = mesh.normals[mesh.faces].reshape(n, TRI_SMOOTH_ROWS - TRI_SHADED_ROWS).T
     return out

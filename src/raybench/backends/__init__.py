@@ -102,15 +102,22 @@ def present() -> list[str]:
     return ["cpu"] + (["cuda"] if cuda_available() else []) + (["wgpu"] if wgpu_gpu_available() else [])
 
 
-def tracer(device: str, spheres, width: int, height: int, shading=None, **options):
-    """A Tracer of the (resolved) device for this scene and size. options:
+def tracer(device: str, spheres, width: int, height: int, shading=None, primitive: str = "sphere", **options):
+    """A Tracer of the (resolved) device for this scene and size. primitive:
+    the kind of primitive the columns of `spheres` are (kernels/primitives'
+    KINDS): "sphere", Scene.spheres; "triangle", meshes.mesh_leaves' buffer,
+    traced on the cpu only so far ("auto" picks it). options:
     the device's own (backends/options.py: cpu's threads and tree_width;
     cuda's block, rays, staged, trip, walk, build and the GPU build's
     variants; wgpu's workgroup, adapter, walk and build; on every device
     accel, "bvh" (the default) or "none", and brute force's kernel), checked
     there in one place. shading: the lighting.Shading of a Whitted frame,
     None for the thesis's shading."""
+    if primitive != "sphere" and isinstance(device, str) and device == "auto":
+        device = "cpu"  # auto: the best device that traces the kind, and only the cpu traces another yet
     name = resolve(device, options.get("adapter") if isinstance(device, str) and device == "wgpu" else None)
+    if primitive != "sphere":
+        _check_kind(name, spheres, primitive)
     if shading is not None:
         import numpy as np
 
@@ -119,4 +126,32 @@ def tracer(device: str, spheres, width: int, height: int, shading=None, **option
         if not isinstance(shading, Shading):
             raise RaybenchError(f"shading: must be a raybench.lighting.Shading, got {type(shading).__name__}")
         shading.check(np.shape(spheres)[-1])
+    if primitive != "sphere":
+        return module(name).Tracer(spheres, width, height, checked(name, options, shading), shading, primitive)
     return module(name).Tracer(spheres, width, height, checked(name, options, shading), shading)
+
+
+def _check_kind(device: str, buffer, primitive: str) -> None:
+    """Refuse, in one line, a kind of primitive other than the sphere on a
+    device that cannot trace it yet, or a buffer without the rows its
+    shading reads."""
+    import numpy as np
+
+    from ..kernels.primitives import KINDS
+
+    if primitive not in KINDS:
+        raise RaybenchError(f"primitive: must be one of {', '.join(KINDS)}, got {shown(primitive)}")
+    if device != "cpu":
+        raise RaybenchError(f"device {device}: {primitive}s are traced on cpu only so far; use --device cpu")
+    rows = KINDS[primitive].SCENE_ROWS
+    if not (
+        isinstance(buffer, np.ndarray)
+        and buffer.dtype == np.float32
+        and buffer.ndim == 2
+        and buffer.shape[0] >= rows
+        and buffer.flags.c_contiguous
+    ):
+        got = f"{buffer.shape} {buffer.dtype}" if isinstance(buffer, np.ndarray) else type(buffer).__name__
+        raise RaybenchError(
+            f"{primitive}s: a C-contiguous float32 buffer of at least {rows} rows (meshes.mesh_leaves), got {got}"
+        )

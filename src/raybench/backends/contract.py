@@ -5,7 +5,9 @@ A Tracer is made for one scene at one size, as Tracer(spheres, width,
 height, options=None, shading=None): spheres the scene's (7, N) float32
 array, options the device's as backends.options.checked made them (None:
 its defaults), shading the Shading of a Whitted frame (None: the thesis's
-shading). It keeps what a frame needs
+shading); the cpu's takes primitive too (a name of kernels/primitives'
+KINDS: its "triangle" traces meshes.mesh_leaves' buffer in place of
+spheres; backends.tracer refuses it elsewhere). It keeps what a frame needs
 (the tree, the buffers, the compiled kernel) between frames, and traces a
 frame on each call into its host arrays `image` and `hits`, the same ones
 frame after frame unless its caller hands it others: a Renderer gives each

@@ -18,9 +18,11 @@ all coincide are split by count too.
 
 from __future__ import annotations
 
+import functools
 import threading
 import time
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numba
 import numpy as np
@@ -51,7 +53,7 @@ _ONE_BUILD = threading.Lock()
 class Bvh:
     nodes: np.ndarray  # (M, 16) float32
     links: np.ndarray  # (M, 16) int32 view of nodes; columns REF, COUNT used
-    ordered: np.ndarray  # (4, N) float32: cx, cy, cz, r in leaf order
+    ordered: np.ndarray  # (LEAF_ROWS, N) float32: the primitive's leaf rows (a sphere's cx, cy, cz, r) in leaf order
     order: np.ndarray  # (N,) int32: original index of each ordered sphere
     depth: int  # deepest node (root = 1)
     build_s: float  # seconds the build took (compiled code only, unless interpreted)
@@ -106,10 +108,38 @@ def _python_steps():
     return compiled.as_python(sah_steps, _extent=answers.extent, _copy_leaf=answers.copy_leaf)
 
 
+@functools.cache
+def _steps(primitive) -> SimpleNamespace:
+    """The builder's compiled steps for a kind of primitive (a module of
+    kernels/primitives), by module: sah_steps and sah_wide themselves for
+    the sphere, compiled at import; for another kind their copies compiled
+    over its extent and copy_leaf (compiled.rebound), so each kind has its
+    own and none is switched."""
+    if primitive is sphere:
+        return SimpleNamespace(sah_steps=sah_steps, sah_wide=sah_wide)
+    return SimpleNamespace(**compiled.rebound((sah_steps, sah_wide), primitive))
+
+
+def _compile_kind(items, primitive, wide: bool) -> None:
+    """Compile a kind's steps other than the sphere's (compile_builder's
+    work) by building over a few of its own primitives, untimed."""
+    few = np.ascontiguousarray(items[:, : min(items.shape[1], 9)])
+    build(few, threads=1, _timed=False, primitive=primitive)
+    if wide:
+        build(few, threads=1, _timed=False, _wide=2, primitive=primitive)
+
+
 def build(
-    spheres: np.ndarray, threads: int | None = None, device: str = "cpu", _timed: bool = True, _wide: int = WIDE
+    spheres: np.ndarray,
+    threads: int | None = None,
+    device: str = "cpu",
+    _timed: bool = True,
+    _wide: int = WIDE,
+    primitive=sphere,
 ) -> Bvh:
-    """The BVH of a (7, N) float32 sphere array (Scene.spheres), built on
+    """The BVH of a (7, N) float32 sphere array (Scene.spheres), or of
+    another primitive's scene buffer (primitive: its module of
+    kernels/primitives, meshes.mesh_leaves' for the triangle), built on
     `threads` threads (default: all cores). Up to `_wide` spheres, on one
     thread; above, the top of the tree is split by all threads together, the
     subtrees below on one thread each. The tree is the same on any number of
@@ -120,13 +150,18 @@ def build(
     if n > MAX_SPHERES:
         raise RaybenchError(f"bvh: at most {MAX_SPHERES:,} spheres, got {n:,}")
     threads = threads or usable_cores()
-    interpret, elsewhere = oneshot.in_python(n, _wide, device) if _timed else (False, False)
+    home = primitive is sphere  # the one-shot ways (plain Python, a child compiling) are the sphere's
+    interpret, elsewhere = oneshot.in_python(n, _wide, device) if _timed and home else (False, False)
     oneshot.note_build(interpret)
+    items = np.ascontiguousarray(spheres)
     if elsewhere:
         oneshot.compile_elsewhere()
     elif _timed and not interpret:
-        compile_builder(wide=n > _wide)
-    items = np.ascontiguousarray(spheres)
+        if home:
+            compile_builder(wide=n > _wide)
+        else:
+            _compile_kind(items, primitive, n > _wide)
+    steps = _steps(primitive)
     start = time.perf_counter()
     if n > _wide:
         # Numba's threads are at most its pool's (the cores); the slicing into
@@ -136,12 +171,12 @@ def build(
             before = numba.get_num_threads()
             numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
             try:
-                nodes, ordered, order, depth = sah_wide._build_wide(items, sphere.LEAF_ROWS, threads, _wide)
+                nodes, ordered, order, depth = steps.sah_wide._build_wide(items, primitive.LEAF_ROWS, threads, _wide)
             finally:
                 numba.set_num_threads(before)
     else:
-        code = _python_steps() if interpret else sah_steps
-        nodes, ordered, order, depth = _build_narrow(code, items, sphere.LEAF_ROWS)
+        code = _python_steps() if interpret else steps.sah_steps
+        nodes, ordered, order, depth = _build_narrow(code, items, primitive.LEAF_ROWS)
     build_s = time.perf_counter() - start
     return Bvh(
         nodes=nodes,

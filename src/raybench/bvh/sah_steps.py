@@ -16,6 +16,8 @@ but looser."""
 
 from __future__ import annotations
 
+import functools
+
 import numba
 import numpy as np
 
@@ -52,8 +54,15 @@ WIDE = 4096
 
 
 # The primitive's answers to the builder, compiled into its steps (module
-# globals, which is how compiled code sees them).
-_primitive = sphere.make(numba.njit(inline="always"))
+# globals, which is how compiled code sees them): the sphere's at import;
+# compiled.rebound compiles the steps again for another kind (bvh/sah.py).
+@functools.cache
+def _made(primitive=sphere):
+    """The answers of one kind of primitive, compiled to be inlined into the steps."""
+    return primitive.make(numba.njit(inline="always"))
+
+
+_primitive = _made()
 _extent, _copy_leaf = _primitive.extent, _primitive.copy_leaf
 
 

@@ -13,13 +13,15 @@ from .. import compiled
 # Numba's compiler (LLVM) runs to its end before Python sees a Ctrl-C: said plainly, so that
 # a Ctrl-C that waits is not taken for a hang (docs/notes/faults.md#where-it-stands).
 MESSAGE = "compiling kernels for this machine, first run only (Ctrl-C waits for it)"
+# A kind of primitive other than the sphere: its kernels are compiled in each process (backends/cpu/kinds.py).
+KIND_MESSAGE = "compiling the cpu's kernels for triangles, each run: they are not cached yet (Ctrl-C waits for it)"
 
 
 @contextlib.contextmanager
-def announced(console=None):
-    """While the block runs, a spinner with MESSAGE on stderr from the first
-    cache miss (compiled.on_compile) until the block ends; nothing when stderr
-    is no terminal (console: rich's, for the tests)."""
+def announced(console=None, message: str = MESSAGE):
+    """While the block runs, a spinner with the message on stderr from the
+    first cache miss (compiled.on_compile) until the block ends; nothing when
+    stderr is no terminal (console: rich's, for the tests)."""
     if console is None:
         if not sys.stderr.isatty():
             yield
@@ -34,7 +36,7 @@ def announced(console=None):
         nonlocal status
         with lock:
             if status is None:
-                status = console.status(MESSAGE)
+                status = console.status(message)
                 status.start()
 
     compiled.on_compile = start

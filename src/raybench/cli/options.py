@@ -90,11 +90,13 @@ def check_output(path: Path, option: str = "-o", suffix: str = ".png") -> None:
     check_writable(path, option)
 
 
-def load_scene(scene_file, spheres, seed, materials=False, layout=None, molecule=None):
+def load_scene(scene_file, spheres, seed, materials=False, layout=None, molecule=None, meshes=False):
     """The scene of --scene (a file, or an example's name: raybench.examples)
     or --spheres N (--seed, --materials, --layout). A file is read by its
     suffix: NFF (.nff), a molecule (.pdb, .ent, .cif, .mmcif, gzipped or
-    not; molecule: its MoleculeArgs), else a JSON scene file."""
+    not; molecule: its MoleculeArgs), a triangle mesh (.obj, .ply, .stl,
+    .gltf, .glb: a mesh_render.MeshScene, where the command draws meshes:
+    meshes), else a JSON scene file."""
     from .. import examples
     from ..scene import Scene, random_spheres
 
@@ -106,7 +108,7 @@ def load_scene(scene_file, spheres, seed, materials=False, layout=None, molecule
             raise RaybenchError(f"{'--seed' if seed is not None else given[0]} applies to --spheres only")
         if scene_file in examples.NAMES and not Path(scene_file).exists():
             return Scene.load(examples.path(scene_file))
-        return _scene_file(scene_file, molecule or MoleculeArgs())
+        return _scene_file(scene_file, molecule or MoleculeArgs(), meshes)
     if molecule is not None and molecule != MoleculeArgs():
         raise RaybenchError(MOLECULE_ONLY)
     return random_spheres(spheres, 0 if seed is None else seed, materials=materials, layout=layout or "even")
@@ -123,15 +125,23 @@ class MoleculeArgs:
     waters: bool = False
 
 
-def _scene_file(scene_file, molecule: MoleculeArgs):
+def _scene_file(scene_file, molecule: MoleculeArgs, meshes: bool = False):
     """The Scene of a file by its suffix; an NFF's primitives that are read
-    but not rendered (polygons, patches, cones) are told in a note line."""
+    but not rendered (polygons, patches, cones) are told in a note line; a
+    mesh's MeshScene where meshes, else one line."""
     from .. import formats
     from ..scene import Scene
 
     kind = formats.kind(scene_file)
     if kind != "molecule" and molecule != MoleculeArgs():
         raise RaybenchError(MOLECULE_ONLY)
+    if kind == "mesh":
+        if not meshes:
+            raise RaybenchError(f"--scene {scene_file}: a mesh file is drawn by raybench render only so far")
+        from ..mesh_render import mesh_scene
+        from ..meshes import load_mesh
+
+        return mesh_scene(load_mesh(scene_file))
     if kind == "nff":
         from ..formats import nff
 
@@ -228,9 +238,9 @@ class SceneArgs:
     no_hydrogens: bool = False
     waters: bool = False
 
-    def load(self, layout=None):
+    def load(self, layout=None, meshes=False):
         molecule = MoleculeArgs(hydrogens=not self.no_hydrogens, waters=self.waters)
-        return load_scene(self.scene_file, self.spheres, self.seed, self.materials, layout, molecule)
+        return load_scene(self.scene_file, self.spheres, self.seed, self.materials, layout, molecule, meshes)
 
 
 def frame_size(scene_args: SceneArgs, size: str) -> tuple[int, int]:
@@ -290,8 +300,8 @@ def scene_options(verb: str):
             "--scene",
             "scene_file",
             type=click.Path(dir_okay=False),
-            help=f"scene file to {verb}: JSON, NFF (.nff), a molecule (.pdb, .cif, gzipped or not); or the name "
-            "of an example: whitted",
+            help=f"scene file to {verb}: JSON, NFF (.nff), a molecule (.pdb, .cif, gzipped or not), a triangle "
+            "mesh (.obj, .ply, .stl, .gltf, .glb; render only, on the cpu); or the name of an example: whitted",
         ),
         click.option("--spheres", type=int, help=f"{verb} N random spheres instead of a scene file"),
         click.option("--seed", type=int, help="seed of the random spheres (default 0)"),

@@ -5,7 +5,9 @@ spheres, materials and lights.
 - nff: Eric Haines's Neutral File Format, read and written;
 - spd: the Standard Procedural Databases' generators, written from their
   algorithms, giving NFF;
-- molecule: PDB and mmCIF files through gemmi, one sphere per atom.
+- molecule: PDB and mmCIF files through gemmi, one sphere per atom;
+- mesh: OBJ, PLY, STL and glTF triangle meshes (raybench.meshes), which are
+  no Scene of spheres: mesh_render.MeshScene.
 
 kind(path) names the reader a file's suffix picks; fit_camera frames
 spheres where a file gives no view.
@@ -18,14 +20,17 @@ from pathlib import Path
 
 import numpy as np
 
+from ..meshes import FORMATS
+
 # suffix: the reader's module (imported on use: gemmi only for molecules)
 NFF_SUFFIXES = (".nff",)
 MOLECULE_SUFFIXES = (".pdb", ".ent", ".cif", ".mmcif")
 
 
 def kind(path) -> str | None:
-    """'nff', 'molecule' or None (a JSON scene file) by the path's suffix,
-    a compressed molecule's (.pdb.gz, .cif.gz) included."""
+    """'nff', 'molecule', 'mesh' (meshes.FORMATS: a triangle mesh) or None
+    (a JSON scene file) by the path's suffix, a compressed molecule's
+    (.pdb.gz, .cif.gz) included."""
     name = Path(path).name.lower()
     if name.endswith(".gz"):
         name = name[:-3]
@@ -34,6 +39,8 @@ def kind(path) -> str | None:
         return "nff"
     if suffix in MOLECULE_SUFFIXES:
         return "molecule"
+    if suffix in FORMATS:
+        return "mesh"
     return None
 
 

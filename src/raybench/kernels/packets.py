@@ -10,16 +10,15 @@ packet's shared origin.
 fastmath stays off (backends/cpu): the float32 arithmetic is exactly IEEE.
 """
 
+import functools
+
 import numba
 import numpy as np
 
 from .. import compiled
 from ..layout import (
-    BLUE,
-    GREEN,
     INNER,
     PAD,
-    RED,
     W_COUNT,
     W_HI,
     W_LO,
@@ -28,7 +27,9 @@ from ..layout import (
     WIDTH,
 )
 from .constants import FAR, ZERO
+from .primitives import sphere
 from .trace import make
+
 
 # The packets' own compile of the algorithm (kernels.make), with NumPy's
 # error model, where backends/cpu/program.py's has Python's: float division
@@ -37,7 +38,15 @@ from .trace import make
 # component raised to at least TINY), so the result is the same IEEE
 # quotient, and LLVM can make the loops over a packet's rays SIMD, which the
 # check's branch prevents (vdivps, vsqrtps in the assembly).
-_kb = make(numba.njit(inline="always", error_model="numpy"))
+# Made for a primitive, the sphere's at import; compiled.rebound compiles
+# this module again for another kind (backends/cpu/kinds.py).
+@functools.cache
+def _made(primitive=sphere):
+    """kernels.make for the packets, with NumPy's error model, for one kind of primitive."""
+    return make(numba.njit(inline="always", error_model="numpy"), primitive=primitive)
+
+
+_kb = _made()
 _primary_ray_v, _inverse = _kb.primary_ray, _kb.inverse
 _shade_hit_v, _shade_miss_v, _to_byte_v = _kb.shade_hit, _kb.shade_miss, _kb.to_byte
 # The primitive's functions (kernels/primitives): a leaf's row, its box and
@@ -51,7 +60,7 @@ _read_leaf, _box_of, _seen_from, _hit_from, _hit_ahead_from = (
     _prim.hit_from,
     _prim.hit_ahead_from,
 )
-_leaf_hit_ahead, _meets_own, _rim = _prim.leaf_hit_ahead, _prim.meets_own, _prim.rim
+_leaf_hit_ahead, _meets_own, _rim, _colour = _prim.leaf_hit_ahead, _prim.meets_own, _prim.rim, _prim.colour
 
 # Pixels and arrays are indexed with unsigned integers: a signed index
 # carries Python's negative-index wraparound, a select per lane that LLVM
@@ -192,15 +201,14 @@ def _packet_leaf(
 @numba.njit(inline="always", error_model="numpy")
 def _colour_packet(x0, y0, spheres, hit, hit_d, rgb, paint):
     """rgb[c, k]: the bytes store_pixel writes for ray k of the packet, for
-    every ray at once: first the hit spheres' colours and rims gathered
-    (a miss reads sphere 0's and drops them), then shaded in a loop without
-    branches (each ray's hit and miss colours both computed, one kept),
-    which LLVM makes SIMD. spheres must hold a sphere (Tracer.shaded)."""
+    every ray at once: first the hit primitives' colours and rims gathered
+    (the primitive's colour and rim; a miss reads primitive 0's and drops
+    them), then shaded in a loop without branches (each ray's hit and miss
+    colours both computed, one kept), which LLVM makes SIMD. spheres must
+    hold a primitive (Tracer.shaded)."""
     for k in range(PACKET):
         j = max(hit[k], 0)
-        paint[0, k] = spheres[RED, j]
-        paint[1, k] = spheres[GREEN, j]
-        paint[2, k] = spheres[BLUE, j]
+        paint[0, k], paint[1, k], paint[2, k] = _colour(spheres, j)
         paint[3, k] = _rim(spheres, j)
     for k in range(PACKET):
         hr, hg, hb = _shade_hit_v(paint[0, k], paint[1, k], paint[2, k], paint[3, k], hit_d[k])
@@ -327,67 +335,56 @@ def packet_walk(enter, leaf, any_hit):
     tree, for the closest hit (the thesis's and Whitted's primary rays,
     _packet_walk_wide) or any hit (shadow rays, shadow_packets): one source,
     compiled for each with its own rays. walk(wide, wide_links, ox, oy, oz,
-    margin, cdx, cdy, cdz, spread, stack_row, stack_count, along, chosen,
-    rays): a node's four boxes go through the packet's interval test
-    together (_wide_mask, on spread), then each box it leaves through the
-    rays' own test (enter(lx, ly, lz, hx, hy, hz, rays)); the entered
-    children are ordered nearest first by where their centres lie along
-    (cdx, cdy, cdz). Closest hit: leaves up to the nearest inner child are
-    tested at once (leaf(ox, oy, oz, margin, spread, ref, count, rays)), that
-    child is walked next and everything farther pushed, leaves too, so that
-    a near inner child's hits can rule out a farther leaf's primitives. Any
-    hit: every entered leaf is tested at once, nearest first, and the inner
-    children pushed, the nearest on top, since a blocker near the origin
-    (the commonest: a neighbour) ends the walk soonest; leaf returns True
-    once every ray is answered, which ends the walk. Inlined where it is
-    called, with the caller's error model (_kb's note)."""
+    margin, cdx, cdy, cdz, spread, stack_row, stack_count, along, rays): a
+    node's four boxes go through the packet's interval test together
+    (_wide_mask, on spread), then each box it leaves through the rays' own
+    test (enter(lx, ly, lz, hx, hy, hz, rays)); the children entered are
+    pushed in order of where their centres lie along (cdx, cdy, cdz), the
+    nearest on top, and popped until an inner child is, which is walked
+    next: a leaf popped is tested then (leaf(ox, oy, oz, margin, spread, ref,
+    count, rays)), so the leaves nearer than the nearest inner child are
+    tested at once and the farther ones wait, where a near inner child's
+    hits can rule out their primitives. Any hit tests a leaf as soon as the
+    rays enter it instead, so that the rays it blocks enter none of the
+    node's later children, and pushes only inner children (a blocker near
+    the origin, the commonest being a neighbour, ends the walk soonest);
+    there leaf returns True once every ray is blocked, which ends the walk.
+    along: scratch for the node's children's places (layout.WIDTH). Inlined
+    where it is called, with the caller's error model (_kb's note)."""
 
     @numba.njit(inline="always", error_model="numpy")
-    def walk(wide, wide_links, ox, oy, oz, margin, cdx, cdy, cdz, spread, stack_row, stack_count, along, chosen,
-             rays):  # fmt: skip
+    def walk(wide, wide_links, ox, oy, oz, margin, cdx, cdy, cdz, spread, stack_row, stack_count, along, rays):
         row = 0
         top = 0
         while row >= 0:
             mask = _wide_mask(wide, row, ox, oy, oz, margin, spread)
-            entered = 0
+            base = top
             for c in range(WIDTH):
                 if not (mask >> c) & 1:
                     continue
                 lx, ly, lz, hx, hy, hz = _wide_planes(wide, row, c, ox, oy, oz, margin)
                 if not enter(lx, ly, lz, hx, hy, hz, rays):
                     continue
-                # where the box's centre lies along the middle ray: insertion
-                # into chosen[:entered], nearest first
-                along[c] = (lx + hx) * cdx + (ly + hy) * cdy + (lz + hz) * cdz
-                j = entered
-                while j > 0 and along[chosen[j - 1]] > along[c]:
-                    chosen[j] = chosen[j - 1]
-                    j -= 1
-                chosen[j] = c
-                entered += 1
-            node = row
-            row = -1
-            first = entered  # the nearest inner child's place in chosen
-            for j in range(entered):
-                c = chosen[j]
-                ref, count = wide_links[node, W_REF + c], wide_links[node, W_COUNT + c]
-                if count != INNER:
+                ref, count = wide_links[row, W_REF + c], wide_links[row, W_COUNT + c]
+                if any_hit and count != INNER:
                     if leaf(ox, oy, oz, margin, spread, ref, count, rays):
                         return
-                elif first == entered:
-                    first = j
-                    if not any_hit:
-                        break
-            # pushed farthest first, the nearest on top: for the closest hit
-            # everything from the nearest inner child on, for any hit the
-            # inner children
-            for i in range(entered - 1, first - 1, -1):
-                c = chosen[i]
-                count = wide_links[node, W_COUNT + c]
-                if not any_hit or count == INNER:
-                    stack_row[top] = wide_links[node, W_REF + c]
-                    stack_count[top] = count
-                    top += 1
+                    continue
+                # insertion among this node's children, the nearest on top
+                place = (lx + hx) * cdx + (ly + hy) * cdy + (lz + hz) * cdz
+                j = top
+                while j > base and along[j - base - 1] < place:
+                    stack_row[j] = stack_row[j - 1]
+                    if not any_hit:  # any hit pushes inner children alone
+                        stack_count[j] = stack_count[j - 1]
+                    along[j - base] = along[j - base - 1]
+                    j -= 1
+                stack_row[j] = ref
+                if not any_hit:
+                    stack_count[j] = count
+                along[j - base] = place
+                top += 1
+            row = -1
             while row < 0 and top > 0:
                 top -= 1
                 if any_hit or stack_count[top] == INNER:
@@ -419,15 +416,14 @@ _walk_closest = packet_walk(_closest_enter, _closest_leaf, any_hit=False)
 
 @numba.njit(inline="always", error_model="numpy")
 def _packet_walk_wide(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest, hit,
-                      hit_d, spread, closest_bits, spread_bits, stack_row, stack_count, along, chosen,
-                      ahead):  # fmt: skip
+                      hit_d, spread, closest_bits, spread_bits, stack_row, stack_count, along, ahead):  # fmt: skip
     """The closest hit of every ray of _bvh_packets_wide's packet (started
     by _start_packet): closest, hit and hit_d; ahead: _packet_leaf's, for
     Whitted's primary rays. packet_walk's, its children ordered along the
     packet's middle ray."""
     rays = (ordered, order, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, closest_bits, spread_bits, ahead)
     _walk_closest(wide, wide_links, ox, oy, oz, margin, dx[_MIDDLE], dy[_MIDDLE], dz[_MIDDLE], spread, stack_row,
-                  stack_count, along, chosen, rays)  # fmt: skip
+                  stack_count, along, rays)  # fmt: skip
 
 
 @compiled.njit(nogil=True, error_model="numpy")
@@ -457,7 +453,6 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
     rgb = np.empty((3, PACKET), np.uint8)
     paint = np.empty((4, PACKET), np.float32)
     along = np.empty(WIDTH, np.float32)
-    chosen = np.empty(WIDTH, np.int64)
     ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
     margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
     for y0 in range(first_row, end_row, PACKET_H):
@@ -466,6 +461,6 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
         for x0 in range(0, width, PACKET_W):
             _start_packet(x0, y0, end_row, width, height, basis, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, spread)
             _packet_walk_wide(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest,
-                              hit, hit_d, spread, closest_bits, spread_bits, stack_row, stack_count, along, chosen,
+                              hit, hit_d, spread, closest_bits, spread_bits, stack_row, stack_count, along,
                               False)  # fmt: skip
             _store_packet(x0, y0, end_row, width, spheres, hit, hit_d, rgb, paint, image, hits)

@@ -104,7 +104,7 @@ def _packet_shadows(jit, find, toward):
 # of `ordered`, -1 for none) by primitive and light (_last_blocker).
 PacketsTree = namedtuple(
     "PacketsTree",
-    "nodes links ordered order wide wide_links rays spread stack stack_count along chosen hit closest hit_d lane s_ref "
+    "nodes links ordered order wide wide_links rays spread stack stack_count along hit closest hit_d lane s_ref "
     "s_count s_t blockers",
 )
 
@@ -256,7 +256,7 @@ def _shadow_packet(ox, oy, oz, rays, tree, own, own_inside, live, slot):
     margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
     state = (rays, tree.ordered, tree.order, own, own_inside, tree.blockers, slot)
     _walk_any(tree.wide, tree.wide_links, ox, oy, oz, margin, rays[_DX, 0], rays[_DY, 0], rays[_DZ, 0], spread,
-              tree.stack, tree.stack_count, tree.along, tree.chosen, state)  # fmt: skip
+              tree.stack, tree.stack_count, tree.along, state)  # fmt: skip
     bits = np.int64(0)  # the rays blocked: those whose length was made _DEAD (a live ray's is positive)
     for k in range(LANES):
         if rays[_LEN, k] == _DEAD:

@@ -9,7 +9,6 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ..layout import BLUE, GREEN, RED
 from . import shade, traverse, wavefront, whitted
 from .constants import FAR, HALF, ONE, ZERO
 from .primitives import sphere
@@ -46,7 +45,7 @@ def make(
     shade_hit, shade_miss, to_byte = shade.make(jit)
     walks = traverse.make(jit, prim, read_row, vote, voted_jit)
     nearest_hit_bvh, inverse, walk = walks.nearest_hit_bvh, walks.inverse, walks.walk
-    hit_closest, hit_ahead, meets_own, rim = prim.hit, prim.hit_ahead, prim.meets_own, prim.rim
+    hit_closest, hit_ahead, meets_own, rim, colour = prim.hit, prim.hit_ahead, prim.meets_own, prim.rim, prim.colour
     # the brute-force fast kernels' cull (prepare): a primitive that has one
     # (the sphere's EO and threshold); a triangle has none, and runs the
     # simple kernels alone
@@ -102,9 +101,8 @@ def make(
     def store_pixel(x, y, hit, d, spheres, image, hits):
         """Shade pixel (x, y) from its nearest hit (-1: none) and store it."""
         if hit >= 0:
-            red, green, blue = shade_hit(
-                spheres[RED, hit], spheres[GREEN, hit], spheres[BLUE, hit], rim(spheres, hit), d
-            )
+            red, green, blue = colour(spheres, hit)
+            red, green, blue = shade_hit(red, green, blue, rim(spheres, hit), d)
         else:
             red, green, blue = shade_miss(np.float32(x), np.float32(y))
         image[y, x, 0] = to_byte(red)

@@ -37,13 +37,10 @@ from types import SimpleNamespace
 import numpy as np
 
 from ..layout import (
-    BLUE,
-    GREEN,
     IOR,
     P_AMBIENT,
     P_LIGHTS,
     PRIMARY,
-    RED,
     REFLECT,
     REFLECTION,
     REFRACTION,
@@ -75,6 +72,7 @@ def make(jit, whitted, primary_ray, shade_hit):
     find = whitted.find
     surface = whitted.surface
     rim = whitted.rim
+    colour = whitted.colour
     shows = whitted.shows
     toward = whitted.toward
     glint = whitted.glint
@@ -165,9 +163,10 @@ def make(jit, whitted, primary_ray, shade_hit):
         n_shadows = 0
         if params[P_LIGHTS] > ZERO:
             if shows(i, keep, spheres, materials):
-                red = wr * (keep * (params[P_AMBIENT] * spheres[RED, i]))
-                green = wg * (keep * (params[P_AMBIENT + 1] * spheres[GREEN, i]))
-                blue = wb * (keep * (params[P_AMBIENT + 2] * spheres[BLUE, i]))
+                ar, ag, ab = colour(spheres, i)
+                red = wr * (keep * (params[P_AMBIENT] * ar))
+                green = wg * (keep * (params[P_AMBIENT + 1] * ag))
+                blue = wb * (keep * (params[P_AMBIENT + 2] * ab))
                 for light in range(np.int32(params[P_LIGHTS])):
                     samples, share = light_samples(light, lights, params)
                     for s in range(samples):
@@ -175,7 +174,8 @@ def make(jit, whitted, primary_ray, shade_hit):
                         if facing > ZERO:
                             n_shadows += 1
         else:
-            lr, lg, lb = shade_hit(spheres[RED, i], spheres[GREEN, i], spheres[BLUE, i], rim(spheres, i), d)
+            lr, lg, lb = colour(spheres, i)
+            lr, lg, lb = shade_hit(lr, lg, lb, rim(spheres, i), d)
             red = wr * (keep * lr)
             green = wg * (keep * lg)
             blue = wb * (keep * lb)
@@ -203,7 +203,8 @@ def make(jit, whitted, primary_ray, shade_hit):
         dx, dy, dz = rays_f[3, slot], rays_f[4, slot], rays_f[5, slot]
         wr, wg, wb = rays_f[6, slot], rays_f[7, slot], rays_f[8, slot]
         pixel = rays_i[R_PIXEL, slot]
-        kdr, kdg, kdb = keep * spheres[RED, i], keep * spheres[GREEN, i], keep * spheres[BLUE, i]
+        kdr, kdg, kdb = colour(spheres, i)
+        kdr, kdg, kdb = keep * kdr, keep * kdg, keep * kdb
         ks = materials[SPECULAR, i]
         shininess = materials[SHININESS, i]
         k = base

@@ -48,8 +48,6 @@ from types import SimpleNamespace
 import numpy as np
 
 from ..layout import (
-    BLUE,
-    GREEN,
     IOR,
     LBLUE,
     LGREEN,
@@ -66,7 +64,6 @@ from ..layout import (
     P_LIGHTS,
     P_SAMPLES,
     PRIMARY,
-    RED,
     REFLECT,
     REFLECTION,
     REFRACTION,
@@ -208,12 +205,14 @@ def make(jit, call, search, prim, shade_hit, shade_miss, shadows=per_ray, name="
         cast_r, slack_r, cast_t, slack_t = prune(wmax, kr, kt, slack)
         return kr, kt, tx, ty, tz, cast_r, slack_r, cast_t, slack_t
 
+    surface, rim, colour = prim.surface, prim.rim, prim.colour
+
     @jit
     def shows(i, keep, spheres, materials):
-        """Whether sphere i's own light can reach the picture: some weight
+        """Whether primitive i's own light can reach the picture: some weight
         left for its colour, or a glint. Only then are its shadow rays cast."""
-        colour = max(spheres[RED, i], max(spheres[GREEN, i], spheres[BLUE, i]))
-        return materials[SPECULAR, i] > ZERO or keep * colour > ZERO
+        red, green, blue = colour(spheres, i)
+        return materials[SPECULAR, i] > ZERO or keep * max(red, max(green, blue)) > ZERO
 
     @jit
     def push(rays_f, rays_i, top, ox, oy, oz, dx, dy, dz, wr, wg, wb, slack, depth, kind, own, inside):
@@ -234,8 +233,6 @@ def make(jit, call, search, prim, shade_hit, shade_miss, shadows=per_ray, name="
         if params[P_GRADIENT] > ZERO:
             return shade_miss(fx, fy)
         return params[P_BACKGROUND], params[P_BACKGROUND + 1], params[P_BACKGROUND + 2]
-
-    surface, rim = prim.surface, prim.rim
 
     @jit
     def light_samples(light, lights, params):
@@ -285,7 +282,7 @@ def make(jit, call, search, prim, shade_hit, shade_miss, shadows=per_ray, name="
         each an rgb triple, with a shadow ray to every light sample; and the
         number of shadow rays cast. (nx, ny, nz): the unit normal on the
         viewer's side; (vx, vy, vz): the unit direction towards the viewer."""
-        kr, kg, kb = spheres[RED, i], spheres[GREEN, i], spheres[BLUE, i]
+        kr, kg, kb = colour(spheres, i)
         dr = params[P_AMBIENT] * kr
         dg = params[P_AMBIENT + 1] * kg
         db = params[P_AMBIENT + 2] * kb
@@ -371,7 +368,8 @@ def make(jit, call, search, prim, shade_hit, shade_miss, shadows=per_ray, name="
                     green += wg * (keep * lg + sg)
                     blue += wb * (keep * lb + sb)
             else:
-                lr, lg, lb = shade_hit(spheres[RED, i], spheres[GREEN, i], spheres[BLUE, i], rim(spheres, i), d)
+                lr, lg, lb = colour(spheres, i)
+                lr, lg, lb = shade_hit(lr, lg, lb, rim(spheres, i), d)
                 red += wr * (keep * lr)
                 green += wg * (keep * lg)
                 blue += wb * (keep * lb)
@@ -399,6 +397,7 @@ def make(jit, call, search, prim, shade_hit, shade_miss, shadows=per_ray, name="
         background=background,
         surface=surface,
         rim=rim,
+        colour=colour,
         shows=shows,
         light_samples=light_samples,
         toward=toward,

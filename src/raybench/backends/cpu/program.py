@@ -1,10 +1,13 @@
 """The CPU's pixel programs: kernels.make compiled for this backend, with
 the CPU's packets of shadow rays and its search of the 4-wide tree."""
 
+import functools
+
 import numba
 import numpy as np
 
 from ... import compiled, kernels
+from ...kernels.primitives import sphere
 from ...kernels.shadow_packets import _packet_shadows
 from ...kernels.wide_walk import _walk_wide
 from ...layout import STACK
@@ -27,12 +30,21 @@ def _search_wide(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, sphere
 # brute force, is compiled without the runtime's reference counting
 # (_nrt=False; _whitted_tiles says why): it allocates nothing and keeps no
 # array. The packets program inlines its find (trace.make).
-_k = kernels.make(
-    numba.njit(inline="always"),
-    call=numba.njit(nogil=True, _nrt=False),
-    shadows=_packet_shadows,
-    packets_search=_search_wide,
-)
+# Made for a primitive, the sphere's at import; compiled.rebound compiles
+# this module again for another kind (backends/cpu/kinds.py).
+@functools.cache
+def _made(primitive=sphere):
+    """kernels.make for this backend, for one kind of primitive."""
+    return kernels.make(
+        numba.njit(inline="always"),
+        call=numba.njit(nogil=True, _nrt=False),
+        shadows=_packet_shadows,
+        packets_search=_search_wide,
+        primitive=primitive,
+    )
+
+
+_k = _made()
 # module globals, which is how jitted code can see them
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
 # the primitive's own answers (kernels/primitives), as the kernels call them

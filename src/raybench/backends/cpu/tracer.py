@@ -12,8 +12,9 @@ import numpy as np
 
 from ... import bvh as bvh_mod
 from ... import layout
+from ...errors import RaybenchError
 from ...host import host_available_bytes, usable_cores
-from ...kernels.packets import PACKET_H, _bvh_packets_wide
+from ...kernels.packets import PACKET_H
 from ...layout import (
     NODE_FLOATS,
 )
@@ -21,9 +22,7 @@ from ...lighting import Shading
 from ..contract import TracerBase, check_moved
 from ..limits import HOST_PIXEL_BYTES, check_bvh_fits, check_count, check_fits, check_rows
 from ..options import CpuOptions
-from .brute import _constant_band, _fast_band, _prepare, _render_band
-from .program import _bvh_rows
-from .whitted_rows import WHITTED_ROWS
+from .kinds import primitive_of, programs
 
 # Chunks of rows per thread for the BVH: enough that the last chunk to finish
 # leaves the others little time idle, few enough that the calls cost little.
@@ -70,10 +69,20 @@ class Tracer(TracerBase):
         height: int,
         options: CpuOptions | None = None,
         shading: Shading | None = None,
+        primitive: str = "sphere",
     ):
         options = self._options(options, shading)
         self.options = options
         self.accel, self.kernel = options.accel, options.kernel
+        # the kind of primitive spheres' columns are (kernels/primitives' KINDS), and its kernels
+        self.primitive = primitive
+        self._kind = primitive_of(primitive)
+        self._programs = programs(primitive)
+        if self.accel == "none" and self.kernel == "fast" and self._programs.fast_band is None:
+            raise RaybenchError(
+                f"kernel 'fast': its cull is the sphere's; a {primitive}'s brute force is the simple kernel "
+                "(kernel='simple', --kernel simple)"
+            )
         # the threads' stacks counted: under ulimit -v they take address space the frame then lacks
         check_fits("cpu", width, height, spheres.shape[1], host_available_bytes(options.threads), HOST_PIXEL_BYTES)
         if self.accel == "bvh":
@@ -105,7 +114,7 @@ class Tracer(TracerBase):
                 # tree, the bounces through it alone (_whitted_rows_packets); 2:
                 # every ray alone through the binary tree
                 self.tree_width = options.tree_width
-            self._kernel = WHITTED_ROWS["packets" if self.tree_width == 4 else self.accel]
+            self._kernel = self._programs.whitted["packets" if self.tree_width == 4 else self.accel]
             self._row_rays = np.zeros((height, len(layout.KINDS)), np.int64)
             self.ray_counts = np.zeros(len(layout.KINDS), np.int64)
             self._none = np.zeros((0, NODE_FLOATS), np.float32)
@@ -115,41 +124,49 @@ class Tracer(TracerBase):
             # what the packets shade from: the spheres, or with none a
             # stand-in that every pixel misses (_colour_packet reads sphere
             # 0 for a miss), as the cuda backend uploads
-            self.shaded = spheres if self.count else np.zeros((7, 1), np.float32)
+            self.shaded = spheres if self.count else self._stand_in()
             self.bands = chunks(height, self.threads)
             workers = min(self.threads, len(self.bands))
             self.tree_width = options.tree_width
-            self._kernel = _bvh_packets_wide if self.tree_width == 4 else _bvh_rows
+            self._kernel = self._programs.packets if self.tree_width == 4 else self._programs.rows
             self._build(self.count)
         else:
             self.bands = bands(height, self.threads)
             workers = len(self.bands)
             if self.kernel == "fast":
-                self._kernel = _fast_band
+                self._kernel = self._programs.fast_band
                 self.relative = np.zeros((4, self.count), np.float32)
             else:
-                self._kernel = _constant_band(self.count) if self.constant_count else _render_band
+                brute = self._programs
+                self._kernel = brute.constant_band(self.count) if self.constant_count else brute.render_band
         # Every band is traced on the pool's threads, a single one too: the
         # main thread only waits, so that Ctrl-C reaches it mid-frame (trace).
         self._pool = ThreadPoolExecutor(workers)
         self._workers = workers
         self._stop = np.zeros(1, np.uint8)  # set: every kernel returns at its next row (trace)
 
+    def _stand_in(self) -> np.ndarray:
+        """A buffer of one primitive of the kind, for a frame of none."""
+        return np.zeros((self._kind.SCENE_ROWS, 1), np.float32)
+
     def update(self, spheres: np.ndarray) -> str | None:
         """The spheres moved: the next frames trace them, through a tree
         rebuilt on the host (the contract's update)."""
+        if self.primitive != "sphere":
+            raise RaybenchError(f"update: moves spheres; a scene of {self.primitive}s is traced as it was given")
         self.spheres = check_moved(spheres, self.spheres)
         if self.accel != "bvh":
             return None
         if self.shading is None:
-            self.shaded = self.spheres if self.count else np.zeros((7, 1), np.float32)
+            self.shaded = self.spheres if self.count else self._stand_in()
         self._build(self.bvh.count)
         return "build"
 
     def _build(self, count: int) -> None:
         """The BVH of the first `count` spheres; its build time in build_s
         (with the collapse into 4-wide nodes, where the packets walk those)."""
-        self.bvh = bvh_mod.build(self.spheres[:, :count], threads=min(self.threads, default_threads()))
+        threads = min(self.threads, default_threads())
+        self.bvh = bvh_mod.build(self.spheres[:, :count], threads=threads, primitive=self._kind)
         self.build_s = self.bvh.build_s
         if self.tree_width == 4:
             if not bvh_mod.collapse_in_python(self.bvh):
@@ -195,7 +212,7 @@ class Tracer(TracerBase):
                 self.hits,
             )
         if self.kernel == "fast":
-            _prepare(basis, self.spheres, count, self.relative)
+            self._programs.prepare(basis, self.spheres, count, self.relative)
             return (self.width, self.height, basis, self.spheres, self.relative, count, self.image, self.hits)
         return (self.width, self.height, basis, self.spheres, count, self.image, self.hits)
 

@@ -83,14 +83,14 @@ def _whitted_rows_packets(first_row, end_row, width, height, basis, spheres, cou
     hit = np.empty(PACKET, np.int32)
     own = PacketsTree(nodes, links, ordered, order, wide, wide_links, np.empty((7, LANES), np.float32),
                       np.empty(7, np.float32), np.empty(WIDE_STACK, np.int32), np.empty(WIDE_STACK, np.int32),
-                      np.empty(WIDTH, np.float32), np.empty(WIDTH, np.int64), hit, lanes[6],
+                      np.empty(WIDTH, np.float32), hit, lanes[6],
                       np.empty(PACKET, np.float32), np.zeros(1, np.int64), np.empty(WIDE_STACK, np.int32),
                       np.empty(WIDE_STACK, np.int32), np.empty(WIDE_STACK, np.float32),
                       np.full(BLOCKER_SLOTS, -1, np.int32))  # fmt: skip
     _whitted_tiles(
         first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern, params, own, lanes,
         np.empty(7, np.float32), np.empty(WIDE_STACK, np.int32), np.empty(WIDE_STACK, np.int32),
-        np.empty(WIDTH, np.float32), np.empty(WIDTH, np.int64), np.empty(STACK, np.int32),
+        np.empty(WIDTH, np.float32), np.empty(STACK, np.int32),
         np.empty(STACK, np.float32), np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_FLOATS), np.float32),
         np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_INTS), np.int32), image, hits, counts, stop,
     )  # fmt: skip
@@ -107,7 +107,7 @@ def _whitted_rows_packets(first_row, end_row, width, height, basis, spheres, cou
 # scratch, calls them.
 @compiled.njit(nogil=True, error_model="numpy", _nrt=False)
 def _tile_primaries(x0, y0, end_row, width, height, basis, wide, wide_links, ordered, order, lanes, hit, hit_d, spread,
-                    stack_row, stack_count, along, chosen):  # fmt: skip
+                    stack_row, stack_count, along):  # fmt: skip
     """The primary rays of the Whitted frame's PACKET_W x PACKET_H tile at
     (x0, y0) as one packet through the 4-wide tree (_bvh_packets_wide's
     walk, with the Whitted rays' test): lanes[6] (their t, FAR where none),
@@ -121,12 +121,12 @@ def _tile_primaries(x0, y0, end_row, width, height, basis, wide, wide_links, ord
     margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
     _packet_walk_wide(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest, hit,
                       hit_d, spread, closest.view(np.int32), spread.view(np.int32), stack_row, stack_count, along,
-                      chosen, True)  # fmt: skip
+                      True)  # fmt: skip
 
 
 @compiled.njit(nogil=True, _nrt=False)
 def _whitted_tiles(first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern, params, tree,
-                   lanes, spread, packet_row, packet_count, along, chosen, stack_row, stack_t, rays_f, rays_i, image,
+                   lanes, spread, packet_row, packet_count, along, stack_row, stack_t, rays_f, rays_i, image,
                    hits, counts, stop):  # fmt: skip
     """_whitted_rows_packets' work, a tile of PACKET_W x PACKET_H pixels at
     a time: the tile's primary rays as one packet (_tile_primaries), then
@@ -144,7 +144,7 @@ def _whitted_tiles(first_row, end_row, width, height, basis, spheres, count, mat
                 counts[y, kind] = 0
         for x0 in range(0, width, PACKET_W):
             _tile_primaries(x0, y0, end_row, width, height, basis, wide, wide_links, ordered, order, lanes, hit, hit_d,
-                            spread, packet_row, packet_count, along, chosen)  # fmt: skip
+                            spread, packet_row, packet_count, along)  # fmt: skip
             for line in range(lines):
                 y = y0 + line
                 for i in range(min(PACKET_W, width - x0)):

@@ -4,7 +4,8 @@ The answers every kind gives are listed once, in answers.ANSWERS; a kind's
 make returns them through answers.answers, which names any it lacks.
 
 Every primitive module gives the same answers (kernels/primitives/sphere.py
-is the model): LEAF_ROWS, the rows of its leaf buffer; pad(...), the
+is the model): LEAF_ROWS, the rows of its leaf buffer; SCENE_ROWS, the
+rows of its scene buffer that the shading reads; pad(...), the
 builders' padding; centres(buffer), its boxes' centres on the host; and
 make(jit), its functions compiled for one target: for the builders (host
 SAH, cuda and the model's LBVH) extent (its padded box as a centre and half
@@ -14,7 +15,8 @@ and the rule for the primitive a ray leaves), the same tests on the tree's
 leaf buffer (leaf_hit, leaf_hit_ahead, read_leaf), and seen from an origin
 that a packet of rays shares (from_origin, hit_from, hit_ahead_from; seen_from
 and box_of work from a row read once), bounds, surface (point and
-normal at a hit), rim (what the thesis's shading divides by), and for the
+normal at a hit), rim (what the thesis's shading divides by), colour (its
+red, green and blue), and for the
 brute-force fast kernels prepare_at and may_hit (the sphere's alone). The
 walks, the pixel programs and the CPU's packets take that namespace; none of
 them names a sphere.
@@ -22,9 +24,9 @@ them names a sphere.
 The kinds: sphere.py (the thesis's), and triangle.py (a mesh's triangles:
 the watertight test of Woop, Benthin and Wald, nine rows of vertices a leaf,
 the cosine to the plane's normal as a hit's datum, so rim is 1; no
-prepare_at or may_hit; its WGSL twin backends/wgpu/triangle.wgsl). A
-backend compiles a kind's programs when a scene holds it; the triangle's are
-not yet compiled by any backend.
+prepare_at or may_hit; its WGSL twin backends/wgpu/triangle.wgsl). The
+cpu compiles a kind's programs when a scene holds it (backends/cpu/kinds.py);
+cuda and wgpu trace spheres only so far.
 
 Adding a kind: a module beside sphere.py with the same answers, its WGSL
 twins in backends/wgpu/ (sphere.wgsl for the walks and the shading,

@@ -29,6 +29,7 @@ ANSWERS = (
     "box_of",
     "surface",
     "rim",
+    "colour",
 )
 
 

@@ -24,12 +24,14 @@ import math
 
 import numpy as np
 
-from ...layout import CX, CY, CZ, PAD, RADIUS
+from ...layout import BLUE, CX, CY, CZ, GREEN, PAD, RADIUS, RED, SPHERE_ROWS
 from ..constants import ONE, ZERO
 from .answers import answers
 
 # Rows of the leaf buffer (bvh's `ordered`): centre x, y, z and radius.
 LEAF_ROWS = 4
+# Rows of the scene's buffer (Scene.spheres) that the shading reads: with the colour.
+SCENE_ROWS = SPHERE_ROWS
 # The cull test's slack, relative to |EO|^2 + r^2: 64 float32 epsilons, several
 # times the rounding of either discriminant (derivation in prepare).
 CULL_SLACK = np.float32(64.0 * 2.0**-24)
@@ -241,6 +243,12 @@ def make(jit, words=None):
         if inside:
             nx, ny, nz, cos_i = -nx, -ny, -nz, -cos_i
         return px, py, pz, nx, ny, nz, cos_i, inside
+
+    @jit
+    def colour(spheres, i):
+        """Sphere i's colour (red, green, blue): what the thesis's shading
+        darkens towards the rim, and Whitted's diffuse colour."""
+        return spheres[RED, i], spheres[GREEN, i], spheres[BLUE, i]
 
     @jit
     def rim(spheres, i):

@@ -6,8 +6,9 @@ rows; the walks take these functions from make(jit).
 
 Its buffers (layout's TRI_ rows, a column a triangle): the leaf buffer is
 the nine rows of vertices A, B and C (x, y, z each); the scene's buffer
-(meshes.mesh_leaves) is the same nine rows, and where the mesh has vertex
-normals nine more, the corners' normals, which only `surface` reads. The
+(meshes.mesh_leaves) is the same nine rows, then three of its colour
+(which `colour` reads), and where the mesh has vertex normals nine more,
+the corners' normals, which only `surface` reads. The
 builders' copy_leaf copies the nine, so the tree's leaves never carry the
 normals. make(jit, words) reads a packed leaf copy of PACKED_WORDS float64
 a triangle (its nine float32 and one of padding).
@@ -70,12 +71,28 @@ import math
 
 import numpy as np
 
-from ...layout import PAD, TRI_A, TRI_B, TRI_C, TRI_NA, TRI_NB, TRI_NC, TRI_ROWS, TRI_SMOOTH_ROWS
+from ...layout import (
+    PAD,
+    TRI_A,
+    TRI_B,
+    TRI_BLUE,
+    TRI_C,
+    TRI_GREEN,
+    TRI_NA,
+    TRI_NB,
+    TRI_NC,
+    TRI_RED,
+    TRI_ROWS,
+    TRI_SHADED_ROWS,
+    TRI_SMOOTH_ROWS,
+)
 from ..constants import HALF, ONE, ZERO
 from .answers import answers
 
 # Rows of the leaf buffer (bvh's `ordered`): the three vertices.
 LEAF_ROWS = TRI_ROWS
+# Rows of the scene's buffer that the shading reads at least: with the colour.
+SCENE_ROWS = TRI_SHADED_ROWS
 # A packed leaf copy (make's words): float64 words a triangle, nine float32 and one unused.
 PACKED_WORDS = 5
 # What every test returns for a miss: sphere.py's (-1, 0).
@@ -384,6 +401,12 @@ def make(jit, words=None):
         if cos_i <= ZERO:
             return px, py, pz, gx, gy, gz, cos_g, inside
         return px, py, pz, nx, ny, nz, cos_i, inside
+
+    @jit
+    def colour(triangles, i):
+        """Triangle i's colour (red, green, blue), the scene's buffer's
+        TRI_RED..TRI_BLUE rows (meshes.mesh_leaves writes them)."""
+        return triangles[TRI_RED, i], triangles[TRI_GREEN, i], triangles[TRI_BLUE, i]
 
     @jit
     def rim(triangles, i):
