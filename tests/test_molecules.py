@@ -124,3 +124,26 @@ def test_render_a_molecule(capsys, tmp_path):
     assert "7 spheres" in out and (tmp_path / "tiny.png").exists()
     code, out, err = cli(capsys, "render", "--spheres", 5, "--waters", "-o", tmp_path / "x.png")
     assert_user_error(code, out, err, "--waters apply to a molecule file")
+
+
+def test_a_pdb_file_of_the_old_format_reads_its_elements_from_the_atom_names(tmp_path):
+    """Before 1996 columns 73-80 held the entry's code and the line's number (PyMOL's own
+    1hpv.pdb): gemmi refuses them as an element and a charge; raybench reads to column 72."""
+    lines = []
+    for serial, atom in enumerate(ATOMS[:4] + ATOMS[7:8], 1):
+        line = pdb_line(serial, *atom)[:66]
+        lines.append(f"{line:<72}1ABC{180 + serial:>4}")
+    path = tmp_path / "old.pdb"
+    path.write_text("\n".join(lines) + "\nEND\n")
+    positions, elements = molecule.atoms(path)
+    assert elements == ["N", "C", "C", "O", "S"]
+    assert positions[0].tolist() == [11.104, 6.134, -6.504]
+
+
+def test_an_mmcif_file_is_not_retried_as_an_old_pdb(tmp_path):
+    """The retry is for PDB files only: the same old lines named .cif are refused, in one line."""
+    lines = [f"{pdb_line(1, *ATOMS[0])[:66]:<72}1ABC 181"]
+    path = tmp_path / "old.cif"
+    path.write_text("\n".join(lines) + "\nEND\n")
+    with pytest.raises(RaybenchError, match="cannot read it as PDB or mmCIF"):
+        molecule.atoms(path)

@@ -1,5 +1,5 @@
 """What a CPU frame costs before its walk: every pixel's ray made, its packet's root test, its
-colour and its stores. The same Tracer traces the view benchmarks/embree_side_by_side.py traces
+colour and its stores. The same Tracer traces the view benchmarks/peers.py embree traces
 and the same camera turned round, away from every sphere (each ray misses the root's boxes), in
 turn, round after round; the second is the frame's fixed part, the floor of any frame of that
 size on this machine. Two records of the results schema's "parts" suite a layout and sphere
@@ -37,7 +37,7 @@ def main(argv=None) -> int:
         for n in args.spheres or [1000]:
             for layout in args.layout or SPREADS:
                 scene = raybench.random_spheres(n, seed=0, layout=layout)
-                # The view benchmarks/embree_side_by_side.py traces, and the same camera turned round.
+                # The view benchmarks/peers.py embree traces, and the same camera turned round.
                 views = {"frame": Camera(), "fixed": Camera(look_at=(0.0, 0.0, -1.0))}
                 views = {name: camera.basis(width, height) for name, camera in views.items()}
                 tracer = backends.tracer("cpu", scene.spheres, width, height, accel="bvh")

@@ -5,7 +5,7 @@ every point it finished.
 A record (format "raybench-results", version 1):
 
     suite        "thesis" | "test7" | "constant-vs-runtime" | "tuning" | "scaling" | "secondary" |
-                 "multi-gpu" | "dynamic" | "parts" (below)
+                 "multi-gpu" | "dynamic" | "scenes" | "parts" (below)
     test         the thesis's test number (1-3 GPU, 4-6 CPU by resolution; 7 the ramp), else null
     device       "cpu" | "cuda"
     width, height, spheres
@@ -28,7 +28,9 @@ A record (format "raybench-results", version 1):
                  tiles), "counts" or "png" (an orbit's frames);
                  "build": "host" | "gpu" where
                  cuda's tree is built (cuda's BVH points, when asked for; always in dynamic);
-                 dynamic's points carry "motion": "orbits" (raybench.animate.Orbits)
+                 dynamic's points carry "motion": "orbits" (raybench.animate.Orbits);
+                 scenes' points "scene" (an SPD scene and its size factor, "balls 4") and
+                 "unrendered" (what it holds that raybench does not draw yet)
     frames       how many timed frames
     frame_ms     {mean, median, p5, p95, min, max}: whole frame (kernel, and on the GPU the copy to the host);
                  multi-gpu's: a run of the job's wall time over its frames, on all its workers

@@ -49,8 +49,9 @@ def tracer_options(point: Point) -> dict:
 
 
 def whitted(point: Point) -> bool:
-    """Whether a point traces Whitted frames (the secondary suite's), of the
-    materials scene; every other point is the thesis's shading."""
+    """Whether a point traces Whitted frames: the secondary suite's, of the
+    materials scene, and the scenes suite's, of their own; every other point
+    is the thesis's shading."""
     return point.options.get("shading") == "whitted"
 
 
@@ -147,8 +148,14 @@ def measure(point: Point, scenes: Scenes, duration: float) -> dict:
     them (every frame of a point casts the same: scene, camera and the area
     light's sample pattern are fixed)."""
     shaded = whitted(point)
-    scene = scenes.get(point.spheres, materials=shaded, layout=point.options.get("layout", "even"))
-    basis = Camera().basis(point.width, point.height)
+    if "scene" in point.options:  # the scenes suite's: a scene of its own, seen from its own view
+        from . import scenes as real
+
+        scene = real.scene(point.options["scene"])
+        basis = (scene.camera or Camera()).basis(point.width, point.height)
+    else:
+        scene = scenes.get(point.spheres, materials=shaded, layout=point.options.get("layout", "even"))
+        basis = Camera().basis(point.width, point.height)
     # made as a program makes it (raybench.Renderer); its tracer is timed, the
     # frame's kernel and readback without Renderer.render's copies
     renderer = Renderer(

@@ -77,6 +77,7 @@ from ..backends.options import BUILDS, FAST_MAX_THREADS
 from ..errors import RaybenchError
 from ..host import usable_cores
 from ..scene import RAMP
+from . import scenes
 
 ACCELS = ("bvh", "none")
 THESIS_SIZES = ((800, 600), (1280, 800), (1680, 1050))
@@ -379,6 +380,24 @@ def _multi_gpu(plan: Plan) -> list[Point]:
     return out
 
 
+def _scenes(plan: Plan) -> list[Point]:
+    """The SPD's sphere scenes at their size factors (bench/scenes.py), each saying what it holds
+    and raybench does not draw yet."""
+    sizes = scenes.QUICK_SCENES_SIZES if plan.quick else scenes.SCENES_SIZES
+    w, h = scenes.QUICK_SCENES_SIZE if plan.quick else scenes.SCENES_SIZE
+    out = []
+    for way, device in _runs([{"accel": "bvh"}], plan.devices, plan.wgpu, plan.builds):
+        for kind, factors in sizes.items():
+            for size in factors:
+                name = f"{kind} {size}"
+                options = {**way, "scene": name, "shading": "whitted", "depth": scenes.SCENES_DEPTH,
+                           "shadow_samples": 1}  # fmt: skip
+                if scenes.unrendered(name):
+                    options["unrendered"] = scenes.unrendered(name)
+                out.append(Point("scenes", device, w, h, scenes.nff(name).counts()["spheres"], options))
+    return out
+
+
 def _dynamic(plan: Plan) -> list[Point]:
     counts = QUICK_DYNAMIC_COUNTS if plan.quick else DYNAMIC_COUNTS
     w, h = QUICK_DYNAMIC_SIZE if plan.quick else DYNAMIC_SIZE
@@ -410,10 +429,16 @@ DYNAMIC = Suite(
     measure="dynamic",
     section=True,
 )
+SCENES = Suite(
+    "scenes",
+    "scenes (the SPD's sphere scenes at their size factors, Whitted as each defines it)",
+    _scenes,
+    section=True,
+)
 
 # Every suite, in run order: `bench --suite`'s choices and `--suite all`, the
 # runner's dispatch, the record suites the schema takes and the report's sections.
-REGISTRY = (THESIS, CONSTANT_VS_RUNTIME, TUNING, SCALING, SECONDARY, MULTI_GPU_SUITE, DYNAMIC)
+REGISTRY = (THESIS, CONSTANT_VS_RUNTIME, TUNING, SCALING, SECONDARY, MULTI_GPU_SUITE, DYNAMIC, SCENES)
 _BY_NAME = {s.name: s for s in REGISTRY}
 _BY_RECORD = {r: s for s in REGISTRY for r in s.writes}
 SUITES = tuple(_BY_NAME)

@@ -3,7 +3,10 @@
 - `scene spd NAME --size N -o FILE.nff`: one of Haines's Standard
   Procedural Databases (raybench.formats.spd) as NFF;
 - `scene nff --scene FILE -o FILE.nff`: a scene raybench reads (JSON, NFF,
-  PDB, mmCIF) as NFF, its spheres, materials, lights and camera.
+  PDB, mmCIF) as NFF, its spheres, materials, lights and camera;
+- `scene pov --scene FILE -o FILE.pov`: the same as a POV-Ray 3.7 scene
+  (raybench.formats.pov), an NFF's polygons too, for the size and depth
+  raybench would render it at.
 """
 
 from __future__ import annotations
@@ -12,7 +15,7 @@ from pathlib import Path
 
 import click
 
-from .options import check_output, path_option
+from .options import SIZE_HELP, check_output, path_option
 
 # formats.spd.SCENES's names, here so that the command line starts without NumPy
 SPD_NAMES = ("balls", "tetra", "rings", "tree", "gears")
@@ -74,3 +77,40 @@ def nff_cmd(scene_file, resolution, output):
         raise RaybenchError(f"--resolution: both numbers must be at least 1, got {resolution}")
     scene = load_scene(scene_file, None, None)
     _written(nff.from_scene(scene, (width, height)), output, f"{len(scene):,} spheres from {scene_file}")
+
+
+@scene_cmd.command(name="pov")
+@click.option("--scene", "scene_file", required=True, type=click.Path(dir_okay=False),
+              help="the scene to export: JSON, NFF, PDB or mmCIF, or an example's name")  # fmt: skip
+@click.option("--size", default="800x600", show_default=True, help=SIZE_HELP)
+@click.option("--depth", type=int, default=5, show_default=True,
+              help="Whitted's bounces (POV-Ray's max_trace_level - 1)")  # fmt: skip
+@path_option("-o", "--output", help_text="the .pov file to write")
+def pov_cmd(scene_file, size, depth, output):
+    """A raybench scene as a POV-Ray 3.7 scene: the picture raybench's
+    Whitted shading renders at --size, for `povray +W.. +H.. -A
+    File_Gamma=1.0` (the file's first lines give the command). An NFF's
+    polygons and patches are written as triangles."""
+    from .. import formats
+    from ..errors import RaybenchError
+    from ..formats import pov
+    from ..lighting import check_depth
+    from .options import SceneArgs, frame_size, load_scene
+    from .out import echo
+
+    if output is None:
+        raise RaybenchError("-o: give the .pov file to write")
+    check_output(output, "-o", ".pov")
+    check_depth(depth)
+    width, height = frame_size(SceneArgs(scene_file, None, None, False), size)
+    mesh = None
+    if formats.kind(scene_file) == "nff" and Path(scene_file).exists():
+        from ..formats import nff
+
+        read = nff.load(scene_file)
+        scene, mesh = read.scene(), pov.mesh_of(read)
+    else:
+        scene = load_scene(scene_file, None, None)
+    pov.save(output, pov.text(scene, width, height, depth, mesh, name=output.name))
+    triangles = f" and {len(mesh):,} triangles" if mesh is not None else ""
+    echo(f"wrote {output}: {len(scene):,} spheres{triangles} from {scene_file}, for {width}x{height}, depth {depth}")

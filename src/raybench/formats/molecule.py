@@ -81,8 +81,10 @@ def atoms(path, hydrogens: bool = True, waters: bool = False) -> tuple[np.ndarra
     try:
         structure = gemmi.read_structure(str(path))
     except (RuntimeError, ValueError, OSError) as exc:
-        text = " ".join(str(exc).split())[:200]
-        raise RaybenchError(f"{path}: cannot read it as PDB or mmCIF: {text}") from None
+        structure = _old_pdb(gemmi, path)
+        if structure is None:
+            text = " ".join(str(exc).split())[:200]
+            raise RaybenchError(f"{path}: cannot read it as PDB or mmCIF: {text}") from None
     if len(structure) == 0 or structure[0].count_atom_sites() == 0:
         raise RaybenchError(f"{path}: no atoms (no ATOM or HETATM records in a first model)")
     structure.remove_alternative_conformations()
@@ -102,6 +104,25 @@ def atoms(path, hydrogens: bool = True, waters: bool = False) -> tuple[np.ndarra
         left = f" (after leaving out {' and '.join(left)})" if left else ""
         raise RaybenchError(f"{path}: no atoms in its first model{left}")
     return np.array(positions, np.float64), elements
+
+
+def _old_pdb(gemmi, path: Path):
+    """A PDB file of the format before 1996 (PyMOL's own 1hpv.pdb): its columns 73-80 held the
+    entry's code and the line's number, where the present format has the element and charge,
+    which gemmi then refuses. Read to column 72, the elements taken from the atoms' names; None
+    where that fails too or the file is no PDB."""
+    if kind_of(path) != "pdb":
+        return None
+    try:
+        return gemmi.read_pdb(str(path), max_line_length=72)
+    except (RuntimeError, ValueError, OSError):
+        return None
+
+
+def kind_of(path: Path) -> str:
+    """'cif' for an mmCIF file's suffix (gzipped or not), else 'pdb'."""
+    name = path.name.lower().removesuffix(".gz")
+    return "cif" if name.endswith((".cif", ".mmcif")) else "pdb"
 
 
 def load(path, hydrogens: bool = True, waters: bool = False) -> Scene:

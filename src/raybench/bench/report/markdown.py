@@ -23,6 +23,7 @@ from . import answer, html
 from .beyond_sections import _section_dynamic, _section_multi_gpu, _section_parts, _section_scaling, _section_secondary
 from .markdown_blocks import _table, _Writer, escape
 from .records import load
+from .scenes_section import _section_scenes
 from .thesis_sections import _section_constant, _section_speedup, _section_test7, _section_thesis, _section_tuning
 from .verdicts import CLAIMS, RULES, THESIS_CPU, THESIS_GPU, verdicts, with_reference_gpus
 
@@ -132,6 +133,7 @@ _BEYOND = (
     ("secondary", "secondary rays", _section_secondary),
     ("multi-gpu", "across GPUs and workers", _section_multi_gpu),
     ("dynamic", "spheres that move", _section_dynamic),
+    ("scenes", "real scenes", _section_scenes),
     ("parts", "parts timed apart", _section_parts),
 )
 

@@ -1,5 +1,6 @@
-"""raybench's CPU BVH walk against Mitsuba 3 on Embree, side by side, on the
-same rays (issue 16, item 6).
+"""`peers.py embree`: raybench's CPU BVH walk against Mitsuba 3 on Embree, side by side, on the
+same rays (issue 16, item 6). Until 2026-12-03 this was benchmarks/embree_side_by_side.py, with the
+same flags; docs/notes/embree.md's commands name it so.
 
 Mitsuba is no raybench dependency: run this with a Python that has both,
 for example a venv of its own with raybench's pinned numpy and numba:
@@ -7,7 +8,7 @@ for example a venv of its own with raybench's pinned numpy and numba:
     python3 -m venv /work/venv-mitsuba
     /work/venv-mitsuba/bin/pip install mitsuba numpy==2.4.6 numba==0.68.1 \\
         psutil py-cpuinfo click rich pillow
-    PYTHONPATH=src /work/venv-mitsuba/bin/python benchmarks/embree_side_by_side.py --out embree.jsonl
+    PYTHONPATH=src /work/venv-mitsuba/bin/python benchmarks/peers.py embree --out embree.jsonl
 
 What each side does, a frame:
 - raybench: a whole frame of the CPU backend through its BVH (Tracer.trace:
@@ -50,8 +51,6 @@ share of hits that agree, Mitsuba over raybench, and its scene's load and first 
 
 from __future__ import annotations
 
-import argparse
-import sys
 import time
 
 import _harness
@@ -187,8 +186,8 @@ def compare(layout, n, shape, width, height, args, mi, dr) -> list[dict]:
     return [ours_record, theirs_record]
 
 
-def main():
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def add_arguments(p) -> None:
+    """The embree subcommand's flags (peers.py adds --frames, --rounds, --label and --out)."""
     p.add_argument("--spheres", type=int, nargs="+", default=[1000, 10_000, 100_000])
     p.add_argument("--layouts", nargs="+", default=list(SPREADS), choices=SPREADS)
     p.add_argument("--size", default="1680x1050")
@@ -211,17 +210,18 @@ def main():
         "--both-at", type=int, nargs="*", default=[10_000], help="sphere counts measured with both Mitsuba shapes"
     )
     p.add_argument("--note", default="", help="a note kept in the run's settings, e.g. the machine's state")
-    _harness.add_common(p, frames=3, rounds=7)
-    args = p.parse_args()
-    _harness.check_common(p, args)
+
+
+def run(args) -> int:
     width, height = (int(v) for v in args.size.split("x"))
 
     import drjit as dr
     import mitsuba as mi
 
     mi.set_variant("llvm_ad_rgb")
-    settings = {"mitsuba": mi.__version__, "drjit": dr.__version__, "note": args.note, "settle_s": args.settle}
-    with _harness.Records("embree_side_by_side", args, settings) as out:
+    settings = {"peer": "embree", "mitsuba": mi.__version__, "drjit": dr.__version__, "note": args.note,
+                "settle_s": args.settle}  # fmt: skip
+    with _harness.Records("peers", args, settings) as out:
         for n in args.spheres:
             for layout in args.layouts:
                 shapes = ["sphere"] if n <= args.max_shapes else ["ellipsoids"]
@@ -231,7 +231,3 @@ def main():
                     for record in compare(layout, n, shape, width, height, args, mi, dr):
                         out.write(record)
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

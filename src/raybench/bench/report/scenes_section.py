@@ -1,0 +1,83 @@
+"""report.md's section of the scenes suite (bench/scenes.py): each SPD scene's frames by device,
+and its verdicts: how a frame's cost grows with the sphere count on a structured scene, and
+what a GPU buys there."""
+
+from __future__ import annotations
+
+import math
+import statistics
+
+from ..scenes import POLYGONS_ONLY, SCENES_DEPTH
+from .markdown_blocks import _table, _Writer, escape
+from .numbers import fmt_ms, fmt_num, fmt_x
+from .series import DEVICE_NAMES
+
+GPUS = ("cuda", "wgpu")
+
+
+def slope(points: list[tuple[int, float]]) -> float | None:
+    """The least-squares slope of log(ms) against log(spheres): the power of the sphere count
+    a frame's time grows as (1: linear, 0: flat); None under two counts."""
+    points = [(n, ms) for n, ms in points if n > 0 and ms > 0]
+    if len({n for n, _ in points}) < 2:
+        return None
+    xs = [math.log(n) for n, _ in points]
+    ys = [math.log(ms) for _, ms in points]
+    mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
+    return sum((x - mx) * (y - my) for x, y in zip(xs, ys)) / sum((x - mx) ** 2 for x in xs)
+
+
+def _section_scenes(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
+    measured = [r for r in records if r["suite"] == "scenes" and "frame_ms" in r]
+    if not measured:
+        return
+    measured.sort(key=lambda r: (r["device"], r["options"]["scene"].split()[0], r["spheres"]))
+    w(f"### {escape(label)}: real scenes", "")
+    w(
+        f"Haines's Standard Procedural Databases at their size factors, each with its own view, lights and fills, "
+        f"Whitted shading to {SCENES_DEPTH} bounces, through the BVH. raybench renders spheres only until triangles "
+        f"reach its renderers: what a scene holds and is not drawn yet is listed beside it, and "
+        f"{' and '.join(POLYGONS_ONLY)}, polygons only, are measured once triangles land.",
+        "",
+    )
+    header = ["device", "scene", "spheres", "not drawn yet", "size", "median frame ms", "rays/s"]
+    rows = [
+        [escape(DEVICE_NAMES.get(r["device"], r["device"])), escape(r["options"]["scene"]), f"{r['spheres']:,}",
+         escape(r["options"].get("unrendered", "")), f"{r['width']}x{r['height']}", fmt_ms(r["frame_ms"]["median"]),
+         f"{fmt_num(r['rays_per_s'] / 1e6)} M" if r.get("rays_per_s") else "–"]
+        for r in measured
+    ]  # fmt: skip
+    w(_table(header, rows), "")
+    for line in verdicts(measured):
+        w(f"- {line}")
+    w("")
+
+
+def verdicts(measured: list[dict]) -> list[str]:
+    """The suite's verdicts: each device's growth with the sphere count on balls (the
+    sphereflake), and each GPU's lead over the cpu on the scenes both measured."""
+    out = []
+    for device in sorted({r["device"] for r in measured}):
+        balls = [(r["spheres"], r["frame_ms"]["median"]) for r in measured
+                 if r["device"] == device and r["options"]["scene"].startswith("balls ")]  # fmt: skip
+        k = slope(balls)
+        if k is not None:
+            name = DEVICE_NAMES.get(device, device)
+            out.append(
+                f"{escape(name)}: a balls frame's time grows as spheres^{k:.2f} from {min(balls)[0]:,} to "
+                f"{max(balls)[0]:,} spheres (brute force's: spheres^1)"
+            )
+    cpu = {(r["options"]["scene"], r["width"], r["height"]): r["frame_ms"]["median"] for r in measured
+           if r["device"] == "cpu"}  # fmt: skip
+    for gpu in GPUS:
+        leads = [cpu[key] / r["frame_ms"]["median"] for r in measured if r["device"] == gpu
+                 for key in [(r["options"]["scene"], r["width"], r["height"])] if key in cpu]  # fmt: skip
+        if leads:
+            leads.sort()
+            middle = statistics.median(leads)
+            out.append(
+                f"{escape(DEVICE_NAMES.get(gpu, gpu))} over the cpu on these scenes: median {fmt_x(middle)} "
+                f"({fmt_x(leads[0])} to {fmt_x(leads[-1])}, {len(leads)} scenes), beside its lead on random "
+                "spheres in the secondary rays' section"
+            )
+    return out

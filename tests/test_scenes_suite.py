@@ -1,0 +1,71 @@
+"""The scenes suite (raybench.bench.scenes): its points, a point measured through the runner
+with the scene's own view, and its report section's verdicts."""
+
+import pytest
+
+import raybench
+from raybench.bench import runner, suites
+from raybench.bench import scenes as real
+from raybench.bench.report.scenes_section import _section_scenes, slope, verdicts
+
+
+def test_the_quick_points_are_balls_at_small_sizes_saying_what_is_not_drawn():
+    points = suites.points(["scenes"], ["cpu"], quick=True, cores=2, accels=("bvh",))
+    assert [(p.options["scene"], p.spheres) for p in points] == [("balls 1", 10), ("balls 2", 91), ("balls 3", 820)]
+    for p in points:
+        assert p.suite == "scenes" and p.device == "cpu" and (p.width, p.height) == real.QUICK_SCENES_SIZE
+        assert p.options["shading"] == "whitted" and p.options["depth"] == real.SCENES_DEPTH
+        assert p.options["unrendered"] == "1 polygon"  # the floor, said, not dropped
+
+
+def test_the_full_points_on_every_device_asked_for():
+    points = suites.points(["scenes"], ["cpu", "cuda"], cores=2, accels=("bvh",))
+    on_cpu = {p.options["scene"]: p for p in points if p.device == "cpu"}
+    assert {p.device for p in points} == {"cpu", "cuda"} and len(points) == 2 * len(on_cpu)
+    assert on_cpu["balls 5"].spheres == 66_430 and on_cpu["balls 6"].spheres == 597_871
+    assert on_cpu["rings 7"].options["unrendered"] == "1 polygon and 4,200 cones"
+    assert not any(name.split()[0] in real.POLYGONS_ONLY for name in on_cpu)  # no sphere to draw: no point yet
+
+
+def test_a_point_is_measured_from_its_scenes_own_view():
+    point = suites.Point("scenes", "cpu", 48, 30, 10, {"accel": "bvh", "scene": "balls 1", "shading": "whitted",
+                                                      "depth": 5, "shadow_samples": 1})  # fmt: skip
+    record = runner.measure(point, runner.Scenes(0), 0.05)
+    assert record["spheres"] == 10 and record["frame_ms"]["median"] > 0 and record["options"]["scene"] == "balls 1"
+    scene = real.scene("balls 1")
+    frame = raybench.render(scene, width=48, height=30, device="cpu", shading="whitted", depth=5)
+    # the rays the runner's frames cast are those of a frame seen from the scene's view (not the default camera)
+    assert record["rays"] == frame.rays
+
+
+def test_the_growth_of_a_frame_with_the_sphere_count():
+    assert slope([(10, 1.0), (100, 10.0), (1000, 100.0)]) == pytest.approx(1.0)
+    assert slope([(10, 2.0), (1000, 20.0)]) == pytest.approx(0.5)
+    assert slope([(10, 2.0)]) is None
+
+
+def record(device, scene, spheres, ms):
+    return {"suite": "scenes", "device": device, "width": 320, "height": 200, "spheres": spheres,
+            "options": {"scene": scene, "unrendered": "1 polygon"}, "frame_ms": {"median": ms},
+            "rays_per_s": 1e6}  # fmt: skip
+
+
+def test_the_verdicts_give_the_growth_and_the_gpus_lead():
+    records = [record("cpu", "balls 1", 10, 10.0), record("cpu", "balls 3", 1000, 100.0),
+               record("cuda", "balls 1", 10, 1.0), record("cuda", "balls 3", 1000, 4.0)]  # fmt: skip
+    lines = verdicts(records)
+    assert any(line.startswith("CPU: a balls frame's time grows as spheres^0.50") for line in lines)
+    assert any("over the cpu on these scenes: median 17.5x (10.0x to 25.0x, 2 scenes)" in line for line in lines)
+
+
+def test_the_section_names_what_is_not_drawn(tmp_path):
+    out = []
+
+    class Writer:
+        def __call__(self, *lines):
+            out.extend(lines)
+
+    _section_scenes(Writer(), "probe", "probe", [record("cpu", "balls 1", 10, 10.0)])
+    text = "\n".join(out)
+    assert "| CPU | balls 1 | 10 | 1 polygon |" in text and "tetra and gears" in text
+    assert "measured once triangles land" in text
