@@ -385,12 +385,17 @@ def packet_walk(enter, leaf, any_hit):
                 along[j - base] = place
                 top += 1
             row = -1
-            while row < 0 and top > 0:
-                top -= 1
-                if any_hit or stack_count[top] == INNER:
+            if any_hit:  # the stack holds inner children alone
+                if top > 0:
+                    top -= 1
                     row = stack_row[top]
-                elif leaf(ox, oy, oz, margin, spread, stack_row[top], stack_count[top], rays):
-                    return
+            else:
+                while row < 0 and top > 0:
+                    top -= 1
+                    if stack_count[top] == INNER:
+                        row = stack_row[top]
+                    else:
+                        leaf(ox, oy, oz, margin, spread, stack_row[top], stack_count[top], rays)
 
     return walk
 
