@@ -385,7 +385,10 @@ def packet_walk(enter, leaf, any_hit):
                 along[j - base] = place
                 top += 1
             row = -1
-            if any_hit:  # the stack holds inner children alone
+            # any hit's stack holds inner children alone: the next one popped
+            # in one step (the closest hit's pop loop, shared, cost Whitted's
+            # frames: docs/notes/one-source.md#the-cpus-packet-walks-one-source)
+            if any_hit:
                 if top > 0:
                     top -= 1
                     row = stack_row[top]
