@@ -1,5 +1,5 @@
 """`peers.py embree`: raybench's CPU BVH walk against Mitsuba 3 on Embree, side by side, on the
-same rays (issue 16, item 6). Until 2026-12-03 this was benchmarks/embree_side_by_side.py, with the
+same rays. Until 2026-12-03 this was benchmarks/embree_side_by_side.py, with the
 same flags; docs/notes/embree.md's commands name it so.
 
 Mitsuba is no raybench dependency: run this with a Python that has both,

@@ -1,5 +1,5 @@
-"""raybench's CPU frames against other tracers on the same machine, in one run, side by side
-(issues 16 and 38): one subcommand a peer.
+"""raybench's CPU frames against other tracers on the same machine, in one run, side by side:
+one subcommand a peer.
 
     peers.py pymol  [--molecules 1hpv il2 1tii 1tii*2 ...]   PyMOL's `ray` on molecules
     peers.py povray [--scenes balls:3 balls:4 ...]           POV-Ray 3.7 on the SPD's scenes

@@ -1,4 +1,4 @@
-"""The scenes suite (issue 38): scenes that were not made to flatter a GPU. Haines's Standard
+"""The scenes suite: scenes that were not made to flatter a GPU. Haines's Standard
 Procedural Databases (raybench.formats.spd) at each size factor where a frame fits a point's
 time, each with its own view, lights and fills, under Whitted shading to SCENES_DEPTH bounces,
 through the BVH, on every device asked for, at the thesis's largest size.

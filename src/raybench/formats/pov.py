@@ -1,5 +1,5 @@
 """POV-Ray 3.7 scene files of raybench scenes: the same picture from POV-Ray,
-for timing it beside raybench (issue 38's peers) and for comparing the two.
+for timing it beside raybench (benchmarks/peers.py) and for comparing the two.
 
 text(scene, width, height, depth, mesh) writes the spheres, an NFF's
 polygons as triangles (one mesh2 a fill), the lights, the materials, the

@@ -98,13 +98,13 @@ def _packet_shadows(jit, find, toward):
 # pixel program passes down (backends/cpu/whitted_rows.py makes one a
 # thread): the binary tree's four arrays first (trace.search_tree reads them
 # by position), the wide tree's two, the shadow packets' rays, spread, stack
-# (refs and counts) and children's order (_shadow_packet), the tile's primary hits, t and data
-# (_tile_primaries), the lane of the pixel being shaded, the single-ray
+# and its entries' places along the first ray (_shadow_packet), the tile's
+# primary hits, t and data (_tile_primaries), the lane of the pixel being shaded, the single-ray
 # walk's stack (refs, counts, entry distances), and the last blockers (rows
 # of `ordered`, -1 for none) by primitive and light (_last_blocker).
 PacketsTree = namedtuple(
     "PacketsTree",
-    "nodes links ordered order wide wide_links rays spread stack stack_count along hit closest hit_d lane s_ref "
+    "nodes links ordered order wide wide_links rays spread stack along hit closest hit_d lane s_ref "
     "s_count s_t blockers",
 )
 
@@ -255,8 +255,9 @@ def _shadow_packet(ox, oy, oz, rays, tree, own, own_inside, live, slot):
     spread[6] = _reach(rays)
     margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
     state = (rays, tree.ordered, tree.order, own, own_inside, tree.blockers, slot)
+    # the stack again as the walk's counts: any hit pushes inner children alone, and keeps no counts
     _walk_any(tree.wide, tree.wide_links, ox, oy, oz, margin, rays[_DX, 0], rays[_DY, 0], rays[_DZ, 0], spread,
-              tree.stack, tree.stack_count, tree.along, state)  # fmt: skip
+              tree.stack, tree.stack, tree.along, state)  # fmt: skip
     bits = np.int64(0)  # the rays blocked: those whose length was made _DEAD (a live ray's is positive)
     for k in range(LANES):
         if rays[_LEN, k] == _DEAD:

@@ -82,9 +82,8 @@ def _whitted_rows_packets(first_row, end_row, width, height, basis, spheres, cou
     lanes = np.empty((7, PACKET), np.float32)
     hit = np.empty(PACKET, np.int32)
     own = PacketsTree(nodes, links, ordered, order, wide, wide_links, np.empty((7, LANES), np.float32),
-                      np.empty(7, np.float32), np.empty(WIDE_STACK, np.int32), np.empty(WIDE_STACK, np.int32),
-                      np.empty(WIDTH, np.float32), hit, lanes[6],
-                      np.empty(PACKET, np.float32), np.zeros(1, np.int64), np.empty(WIDE_STACK, np.int32),
+                      np.empty(7, np.float32), np.empty(WIDE_STACK, np.int32), np.empty(WIDTH, np.float32), hit,
+                      lanes[6], np.empty(PACKET, np.float32), np.zeros(1, np.int64), np.empty(WIDE_STACK, np.int32),
                       np.empty(WIDE_STACK, np.int32), np.empty(WIDE_STACK, np.float32),
                       np.full(BLOCKER_SLOTS, -1, np.int32))  # fmt: skip
     _whitted_tiles(
