@@ -240,7 +240,7 @@ BAD_DOCS = [
     ("wrong-format", _set(("format",), "raybench-scene-v2"), "format"),
     ("format-null", _set(("format",), None), "format"),
     ("missing-version", _del(("version",)), "version"),
-    ("wrong-version", _set(("version",), 3), "version"),
+    ("wrong-version", _set(("version",), 4), "version"),
     ("version-string", _set(("version",), "1"), "version"),
     ("version-bool", _set(("version",), True), "version"),
     ("unknown-top-key", _set(("lights",), []), "lights"),

@@ -327,7 +327,7 @@ def test_numpy_scalars_make_a_scene_that_saves(tmp_path, rng):
         (lambda d: d.update(ambient=[0.1, 0.1]), r"ambient: must be a list of 3 numbers"),
         (lambda d: d.update(background="blue"), r"background: must be a list of 3 numbers"),
         (lambda d: d.update(lights={}), r"lights: must be a list"),
-        (lambda d: d.update(version=3), r"version: this raybench reads versions 1 and 2, got 3"),
+        (lambda d: d.update(version=4), r"version: this raybench reads versions 1 to 3, got 4"),
     ],
 )
 def test_version_2_bad_fields_are_named(rng, edit, message):

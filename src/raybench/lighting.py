@@ -202,6 +202,11 @@ class Shading:
 
     @classmethod
     def of(cls, scene, depth=None, shadow_samples=None) -> Shading:
+        """The arrays of scene (a Scene: of what its tracer traces, its
+        spheres or its meshes' triangles; or anything with materials, one
+        per primitive, lights, ambient, background and a length)."""
+        if hasattr(scene, "traced"):
+            scene = scene.traced()
         depth = DEFAULT_DEPTH if depth is None else check_depth(depth)
         samples = DEFAULT_SHADOW_SAMPLES if shadow_samples is None else check_shadow_samples(shadow_samples)
         params = np.zeros(layout.PARAMS, np.float32)

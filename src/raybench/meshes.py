@@ -130,11 +130,13 @@ def load_mesh(path) -> Mesh:
         raise RaybenchError(f"{path}: a face's vertex index is out of range ({_line(exc)})") from None
     except Exception as exc:  # noqa: BLE001 - trimesh's readers raise many kinds for a bad file
         raise RaybenchError(f"{path}: cannot read it as {kind.upper()}: {_line(exc)}") from None
-    return _checked(path, parts)
+    return checked_mesh(path, parts)
 
 
-def _checked(path, parts) -> Mesh:
-    """One Mesh of the parts, or RaybenchError naming the first problem."""
+def checked_mesh(path, parts) -> Mesh:
+    """One Mesh of the parts ((vertices, faces, normals or None) each), or
+    RaybenchError naming the first problem after `path` (a file, or a scene
+    file's field: meshes[0])."""
     parts = [p for p in parts if len(p[1])]
     if not parts:
         raise RaybenchError(f"{path}: no faces (a mesh needs at least one triangle)")

@@ -19,15 +19,18 @@ import numpy as np
 from . import lighting
 from .camera import MAX_MAGNITUDE, Camera
 from .errors import RaybenchError, shown
+from .fields import no_unknown as _no_unknown
+from .fields import numbers as _numbers
 from .files import read_json, write_atomic
 from .host import host_available_bytes
 from .layout import BLUE, CX, CZ, RADIUS, RED
+from .scene_meshes import SceneMesh, Traced, merged, read_meshes, traced
 
 FORMAT = "raybench-scene"
-VERSION = 2
+VERSION = 3
 # Files without lights, materials, ambient or background are written as
-# version 1, which every raybench reads.
-VERSIONS = (1, 2)
+# version 1, which every raybench reads; only a scene with meshes needs 3.
+VERSIONS = (1, 2, 3)
 MAX_GENERATED = 100_000_000
 # random_spheres fills the view of a picture this wide, about this many times over.
 ASPECT = 16 / 10
@@ -46,13 +49,19 @@ _SPHERE_KEYS = {"center", "radius", "color"}
 # What version 2 adds.
 _TOP_KEYS_2 = _TOP_KEYS | {"lights", "ambient", "background"}
 _SPHERE_KEYS_2 = _SPHERE_KEYS | {"material"}
+# What version 3 adds: meshes (scene_meshes), beside the spheres or instead of them.
+_TOP_KEYS_3 = _TOP_KEYS_2 | {"meshes"}
 _CAMERA_KEYS = {"position", "look_at", "up", "fov_deg"}
 
 
 class Scene:
     """n spheres, and optionally the camera the scene was saved with; for
     Whitted shading, lights, a Material per sphere (None: all matte), the
-    ambient light and the background colour (None: the thesis's gradient)."""
+    ambient light and the background colour (None: the thesis's gradient);
+    meshes, scene_meshes.SceneMesh each (format version 3), held merged as
+    one triangle buffer (triangles, None without meshes) with a Material a
+    triangle (triangle_materials, None: all matte). len() counts the
+    spheres; traced() is what a tracer traces."""
 
     def __init__(
         self,
@@ -65,6 +74,7 @@ class Scene:
         lights=(),
         ambient=lighting.DEFAULT_AMBIENT,
         background=None,
+        meshes=(),
     ):
         if camera is not None and not isinstance(camera, Camera):
             raise RaybenchError(f"scene: camera must be a raybench.Camera or None, got {shown(camera)}")
@@ -95,12 +105,31 @@ class Scene:
                 raise RaybenchError(f"lights[{i}]: must be a raybench.Light, got {type(light).__name__}")
         self.ambient = lighting.check_colour(ambient, "ambient")
         self.background = None if background is None else lighting.check_colour(background, "background")
+        self.meshes = tuple(meshes)
+        for i, mesh in enumerate(self.meshes):
+            if not isinstance(mesh, SceneMesh):
+                raise RaybenchError(f"meshes[{i}]: must be a raybench.SceneMesh, got {type(mesh).__name__}")
+        self.triangles, self.triangle_materials = merged(self.meshes)
 
     def __len__(self) -> int:
         return self.spheres.shape[1]
 
     def __repr__(self) -> str:
-        return f"Scene({len(self)} spheres, camera={self.camera!r})"
+        return f"Scene({self.summary}, camera={self.camera!r})"
+
+    @property
+    def summary(self) -> str:
+        """What the scene holds, for a message: "12 spheres", "80 triangles" or both."""
+        parts = [f"{len(self):,} spheres"] if len(self) or self.triangles is None else []
+        if self.triangles is not None:
+            parts.append(f"{self.triangles.shape[1]:,} triangles")
+        return " and ".join(parts)
+
+    def traced(self) -> Traced:
+        """What a tracer traces of this scene: its spheres, or its meshes'
+        triangles where it has no spheres; both is refused in one line (one
+        tree of both kinds is not built yet)."""
+        return traced(self.spheres, self.triangles, self)
 
     @property
     def centers(self) -> np.ndarray:
@@ -116,8 +145,11 @@ class Scene:
 
     @property
     def version(self) -> int:
-        """The scene format version this scene needs: 1 unless it has lights,
-        materials, an ambient light or a background of its own."""
+        """The scene format version this scene needs: 3 where it has meshes,
+        else 1 unless it has lights, materials, an ambient light or a
+        background of its own."""
+        if self.meshes:
+            return 3
         plain = (
             self.materials is None
             and not self.lights
@@ -132,30 +164,24 @@ class Scene:
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 0 <= n <= len(self):
             raise RaybenchError(f"head: n must be an integer from 0 to {len(self)} (the spheres), got {shown(n)}")
         n = int(n)
-        return Scene(
-            self.centers[:n],
-            self.radii[:n],
-            self.colors[:n],
-            self.camera,
-            materials=None if self.materials is None else self.materials[:n],
-            lights=self.lights,
-            ambient=self.ambient,
-            background=self.background,
+        materials = None if self.materials is None else self.materials[:n]
+        return self.replaced(
+            centers=self.centers[:n], radii=self.radii[:n], colors=self.colors[:n], materials=materials
         )
 
     def with_lights(self, lights) -> Scene:
         """The scene with other lights: the spheres (the same float32 bits), camera,
         materials, ambient light and background as they are."""
-        return Scene(
-            self.centers,
-            self.radii,
-            self.colors,
-            self.camera,
-            materials=self.materials,
-            lights=lights,
-            ambient=self.ambient,
-            background=self.background,
-        )
+        return self.replaced(lights=lights)
+
+    def replaced(self, **changes) -> Scene:
+        """The scene with the Scene() arguments named changed, the rest as
+        they are (checked again, as Scene() checks them)."""
+        fields = {"centers": self.centers, "radii": self.radii, "colors": self.colors, "camera": self.camera,
+                  "materials": self.materials, "lights": self.lights, "ambient": self.ambient,
+                  "background": self.background, "meshes": self.meshes}  # fmt: skip
+        fields.update(changes)
+        return Scene(**fields)
 
     def to_dict(self) -> dict:
         doc = {"format": FORMAT, "version": self.version}
@@ -175,24 +201,30 @@ class Scene:
             for sphere, material in zip(doc["spheres"], self.materials):
                 if material != lighting.MATTE:
                     sphere["material"] = material.to_dict()
+        if self.meshes:
+            # placed and inline: a mesh file's path would not hold wherever the scene is saved
+            doc["meshes"] = [mesh.to_dict() for mesh in self.meshes]
         return doc
 
     def save(self, path) -> None:
         write_atomic(path, json.dumps(self.to_dict(), indent=1).encode())
 
     @classmethod
-    def from_dict(cls, doc) -> Scene:
+    def from_dict(cls, doc, base=None) -> Scene:
+        """The scene of a parsed scene file; base: the folder its meshes'
+        files are relative to (Scene.load: the scene file's; None: the
+        current folder)."""
         if not isinstance(doc, dict):
             raise RaybenchError(f'scene: must be a JSON object with "format": "{FORMAT}", got {type(doc).__name__}')
         if doc.get("format") != FORMAT:
             raise RaybenchError(f'format: must be "{FORMAT}", got {shown(doc.get("format"))}')
         version = doc.get("version")
         if version not in VERSIONS or isinstance(version, bool):
-            raise RaybenchError(f"version: this raybench reads versions 1 and 2, got {shown(version)}")
-        _no_unknown(doc, _TOP_KEYS_2 if version == 2 else _TOP_KEYS, "")
-        if "spheres" not in doc:
+            raise RaybenchError(f"version: this raybench reads versions 1 to 3, got {shown(version)}")
+        _no_unknown(doc, (_TOP_KEYS, _TOP_KEYS_2, _TOP_KEYS_3)[version - 1], "")
+        if "spheres" not in doc and not (version == 3 and "meshes" in doc):
             raise RaybenchError('spheres: missing (a list of {"center", "radius", "color"} objects)')
-        spheres = doc["spheres"]
+        spheres = doc.get("spheres", [])
         if not isinstance(spheres, list):
             raise RaybenchError('spheres: must be a list of {"center", "radius", "color"} objects')
         n = len(spheres)
@@ -204,7 +236,7 @@ class Scene:
             where = f"spheres[{i}]"
             if not isinstance(s, dict):
                 raise RaybenchError(f'{where}: must be an object with "center", "radius" and "color"')
-            _no_unknown(s, _SPHERE_KEYS_2 if version == 2 else _SPHERE_KEYS, where + ".")
+            _no_unknown(s, _SPHERE_KEYS_2 if version >= 2 else _SPHERE_KEYS, where + ".")
             if "material" in s:
                 materials[i] = lighting.Material.from_dict(s["material"], f"{where}.material")
             for key in ("center", "radius", "color"):
@@ -226,7 +258,7 @@ class Scene:
                 _numbers(cam["fov_deg"], None, "camera.fov_deg")
             camera = Camera(**cam)
         extra = {}
-        if version == 2:
+        if version >= 2:
             lights = doc.get("lights", [])
             if not isinstance(lights, list):
                 raise RaybenchError('lights: must be a list of {"position", "color", "intensity", "radius"} objects')
@@ -237,6 +269,8 @@ class Scene:
                 extra["ambient"] = _numbers(doc["ambient"], 3, "ambient")
             if "background" in doc:
                 extra["background"] = _numbers(doc["background"], 3, "background")
+        if version == 3:
+            extra["meshes"] = read_meshes(doc.get("meshes", []), None if base is None else Path(base))
         return cls(centers, radii, colors, camera, **extra)
 
     @classmethod
@@ -244,7 +278,7 @@ class Scene:
         path = Path(path)
         doc = read_json(path, "scene file")
         try:
-            return cls.from_dict(doc)
+            return cls.from_dict(doc, path.parent)
         except RaybenchError as exc:
             raise RaybenchError(f"{path}: {exc}") from None
 
@@ -330,35 +364,6 @@ def _array(values, columns: int | None, name: str) -> np.ndarray:
     if array.shape[1:] != (() if columns is None else (columns,)) or array.ndim != (1 if columns is None else 2):
         raise RaybenchError(f"scene: {name} must have shape {want}, got {array.shape}")
     return array.astype(np.float64)
-
-
-def _no_unknown(obj: dict, allowed: set, prefix: str) -> None:
-    unknown = sorted(set(obj) - allowed)
-    if unknown:
-        key = unknown[0] if unknown[0].isidentifier() else _short(json.dumps(unknown[0]))
-        raise RaybenchError(f"{prefix}{key}: unknown field (allowed: {', '.join(sorted(allowed))})")
-
-
-def _numbers(value, count, where):
-    """Check a JSON number (count None) or a list of count numbers; return floats."""
-    values = [value] if count is None else value
-    if count is not None and (not isinstance(value, list) or len(value) != count):
-        raise RaybenchError(f"{where}: must be a list of {count} numbers, got {_short(json.dumps(value))}")
-    for v in values:
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not _finite(v):
-            raise RaybenchError(f"{where}: must be a finite number, got {_short(json.dumps(v))}")
-    return values[0] if count is None else values
-
-
-def _finite(v) -> bool:
-    try:
-        return math.isfinite(v)
-    except OverflowError:  # a JSON integer too large for a float
-        return False
-
-
-def _short(text: str) -> str:
-    return text if len(text) <= 40 else text[:37] + "..."
 
 
 def random_spheres(n: int, seed: int = 0, materials: bool = False, layout: str = "even") -> Scene:
