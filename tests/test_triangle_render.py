@@ -13,11 +13,11 @@ import pytest
 import trimesh
 from PIL import Image
 
-from raybench import Camera, RaybenchError, backends
+from raybench import Camera, RaybenchError, backends, render
 from raybench.cli import run
 from raybench.layout import TRI_RED
 from raybench.lighting import DEFAULT_AMBIENT
-from raybench.mesh_render import MeshScene, mesh_scene, recoloured, render_mesh
+from raybench.mesh_render import mesh_scene, recoloured
 from raybench.meshes import Mesh
 
 W, H = 64, 48
@@ -112,7 +112,7 @@ def outside(request):
     """A mesh seen from the camera fitted to it, and the reference's answer."""
     scene = mesh_scene({"icosphere": icosphere, "box": box}[request.param]())
     origin, dirs = rays64(scene.camera)
-    index, _t, normal, margin = reference(scene.leaves, origin, dirs)
+    index, _t, normal, margin = reference(scene.triangles, origin, dirs)
     return scene, dirs, index, normal, margin
 
 
@@ -120,21 +120,21 @@ def test_thesis_frame_is_the_float64_reference(outside):
     """(a) The 4-wide packets through the tree: the reference's hits and
     colours."""
     scene, dirs, index, normal, margin = outside
-    frame = render_mesh(scene, W, H, threads=2)
+    frame = render(scene, None, W, H, device="cpu", threads=2)
     assert 0.2 < (frame.hits >= 0).mean() < 0.9  # the mesh is in the picture, and so is the background
-    check_against_reference(frame, scene.leaves, index, margin, thesis_image(scene.leaves, index, normal, dirs))
+    check_against_reference(frame, scene.triangles, index, margin, thesis_image(scene.triangles, index, normal, dirs))
 
 
 def test_no_ray_slips_through_a_closed_mesh(outside):
     """(b) Watertight: every ray the reference sees pass well inside the
     mesh's outline hits a triangle; from inside, every ray hits."""
     scene, _dirs, index, _normal, margin = outside
-    frame = render_mesh(scene, W, H, threads=2)
+    frame = render(scene, None, W, H, device="cpu", threads=2)
     well_inside = (index >= 0) & (margin > 1e-3)
     assert (frame.hits.ravel()[well_inside] >= 0).all()
     views = ((0.01, 0.02, -0.03), (0.3, 0.2, 1.0), 100.0), ((0, 0, 0), (1, 1, 1), 120.0)
     for camera in (Camera(position, look_at, fov_deg=fov) for position, look_at, fov in views):
-        inside = render_mesh(MeshScene(scene.leaves, camera), W, H, threads=2)
+        inside = render(scene, camera, W, H, device="cpu", threads=2)
         assert (inside.hits >= 0).all(), (inside.hits < 0).sum()
 
 
@@ -142,9 +142,9 @@ def test_both_cpu_walks_and_brute_force_give_one_frame(outside):
     """(c) The binary tree's walk a ray at a time (tree_width 2), the
     4-wide packets and the brute-force scan: the same hits and bytes."""
     scene = outside[0]
-    wide = render_mesh(scene, W, H, threads=2, tree_width=4)
-    binary = render_mesh(scene, W, H, threads=2, tree_width=2)
-    brute = render_mesh(scene, W, H, threads=2, accel="none", kernel="simple")
+    wide = render(scene, None, W, H, device="cpu", threads=2, tree_width=4)
+    binary = render(scene, None, W, H, device="cpu", threads=2, tree_width=2)
+    brute = render(scene, None, W, H, device="cpu", threads=2, accel="none", kernel="simple")
     for other in (binary, brute):
         assert (other.hits == wide.hits).all() and (other.image == wide.image).all()
 
@@ -157,18 +157,18 @@ def test_whitted_frame_is_the_float64_reference():
     viewer; the packets and the binary tree alike."""
     scene = recoloured(mesh_scene(icosphere()), (0.9, 0.6, 0.3))
     origin, dirs = rays64(scene.camera)
-    index, t, normal, margin = reference(scene.leaves, origin, dirs)
+    index, t, normal, margin = reference(scene.triangles, origin, dirs)
     point = origin + np.where(index >= 0, t, 0)[:, None] * dirs  # misses at the origin: unused, and finite
     n = normal * -np.sign(np.einsum("rk,rk->r", normal, dirs))[:, None]
     to_light = np.asarray(scene.lights[0].position) - point
     facing = np.maximum(np.einsum("rk,rk->r", n, to_light / np.linalg.norm(to_light, axis=1, keepdims=True)), 0)
-    colour = scene.leaves[TRI_RED : TRI_RED + 3, np.maximum(index, 0)].T.astype(np.float64)
+    colour = scene.triangles[TRI_RED : TRI_RED + 3, np.maximum(index, 0)].T.astype(np.float64)
     lit = colour * (np.asarray(DEFAULT_AMBIENT) + facing[:, None])
     xs, ys = np.meshgrid(np.arange(W), np.arange(H))
     miss = np.stack([xs.ravel() / 1024, ys.ravel() / 1024, xs.ravel() / 786], axis=1)
     expected = to_bytes(np.where((index >= 0)[:, None], lit, miss)).reshape(H, W, 3)
-    frames = [render_mesh(scene, W, H, shading="whitted", threads=2, tree_width=w) for w in (4, 2)]
-    check_against_reference(frames[0], scene.leaves, index, margin, expected)
+    frames = [render(scene, None, W, H, device="cpu", shading="whitted", threads=2, tree_width=w) for w in (4, 2)]
+    check_against_reference(frames[0], scene.triangles, index, margin, expected)
     assert (frames[0].image == frames[1].image).all() and (frames[0].hits == frames[1].hits).all()
     assert frames[0].rays["shadow"] > 0 and frames[0].rays["reflection"] == 0
 
@@ -176,7 +176,7 @@ def test_whitted_frame_is_the_float64_reference():
 def test_gpus_and_the_fast_kernel_refuse_triangles_in_one_line():
     """cuda and wgpu do not trace triangles yet; the fast brute-force kernel
     culls spheres only; a buffer without colour rows is not a mesh's."""
-    leaves = mesh_scene(icosphere()).leaves
+    leaves = mesh_scene(icosphere()).triangles
     for device in ("cuda", "wgpu"):
         with pytest.raises(RaybenchError, match="cpu only so far"):
             backends._check_kind(device, leaves, "triangle")
@@ -196,7 +196,7 @@ def cli(capsys, *args):
 
 def test_render_a_ply_file_end_to_end(capsys, tmp_path):
     """(e) raybench render --scene FILE.ply: a PNG of the mesh, the same
-    pixels as render_mesh's of the file's triangles in the --color given;
+    pixels as render()'s of the file's triangles in the --color given;
     Whitted's default light said in a note."""
     path = tmp_path / "ball.ply"
     trimesh.creation.icosphere(subdivisions=1).export(path)
@@ -208,7 +208,7 @@ def test_render_a_ply_file_end_to_end(capsys, tmp_path):
     image = np.asarray(Image.open(out).convert("RGB"))
     from raybench.meshes import load_mesh
 
-    expected = render_mesh(recoloured(mesh_scene(load_mesh(path)), (0.2, 0.5, 0.9)), W, H, threads=2)
+    expected = render(recoloured(mesh_scene(load_mesh(path)), (0.2, 0.5, 0.9)), None, W, H, device="cpu", threads=2)
     assert (image == expected.image).all()
     code, stdout, err = cli(capsys, "render", "--scene", path, "--size", f"{W}x{H}", "--shading", "whitted",
                             "-o", out)  # fmt: skip
@@ -239,5 +239,6 @@ def test_bad_mesh_files_and_options_are_one_line(capsys, tmp_path, name, content
 def test_other_commands_refuse_a_mesh_in_one_line(capsys, tmp_path):
     path = tmp_path / "tri.obj"
     path.write_bytes(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
-    code, _stdout, err = cli(capsys, "view", "--scene", path)
-    assert code == 2 and "raybench render only so far" in err and err.count("\n") == 1, err
+    code, _stdout, err = cli(capsys, "scene", "nff", "--scene", path, "-o", tmp_path / "tri.nff")
+    assert code == 2 and "render and view only so far" in err and err.count("\n") == 1, err
+    assert not (tmp_path / "tri.nff").exists()

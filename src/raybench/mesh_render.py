@@ -1,22 +1,19 @@
-"""A triangle mesh rendered on the cpu: the mesh's buffer (meshes.mesh_leaves,
-the triangle primitive's rows), a camera fitted to its vertices, and for
-Whitted shading, as a mesh file brings no lights or materials, one default
-light and every triangle matte (DEFAULT_LIGHT_NOTE says so in one line).
-
-MeshScene answers what lighting.Shading.of reads of a Scene (lights,
-materials, ambient, background, its length), so Whitted's arrays for a mesh
-are made as a sphere scene's are.
+"""A mesh file as a scene: `raybench render --scene model.ply` and
+`raybench view --scene model.obj`. A mesh file brings no camera, lights or
+materials, so mesh_scene gives it a camera fitted to its vertices and, for
+Whitted shading, one default light, every triangle matte
+(DEFAULT_LIGHT_NOTE says so in one line). The Scene it makes is traced as
+any other, through render.Renderer.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from .camera import Camera
-from .lighting import DEFAULT_AMBIENT, Light, Shading, check_colour, check_shading
-from .meshes import MESH_COLOUR, Mesh, mesh_leaves
+from .lighting import Light, check_colour
+from .meshes import MESH_COLOUR, Mesh
+from .scene import Scene
+from .scene_meshes import SceneMesh
 
 # What `raybench render` tells a user who asked for Whitted shading of a mesh.
 DEFAULT_LIGHT_NOTE = (
@@ -25,38 +22,7 @@ DEFAULT_LIGHT_NOTE = (
 )
 
 
-@dataclass(frozen=True)
-class MeshScene:
-    """A mesh as a scene: leaves, its triangle buffer (TRI_SHADED_ROWS or
-    TRI_SMOOTH_ROWS, F); the camera fitted to it; the lights of Whitted
-    shading; materials None (all matte), the default ambient light and the
-    thesis's gradient behind it."""
-
-    leaves: np.ndarray
-    camera: Camera
-    lights: tuple = ()
-    materials: None = None
-    ambient: tuple = DEFAULT_AMBIENT
-    background: None = None
-
-    def __len__(self) -> int:
-        """The number of triangles."""
-        return self.leaves.shape[1]
-
-
-def recoloured(scene: MeshScene, colour) -> MeshScene:
-    """The scene with every triangle of another colour (checked: three
-    numbers from 0 to 1)."""
-    from dataclasses import replace
-
-    from .layout import TRI_RED
-
-    leaves = scene.leaves.copy()
-    leaves[TRI_RED : TRI_RED + 3] = np.float32(check_colour(colour, "--color")).reshape(3, 1)
-    return replace(scene, leaves=leaves)
-
-
-def mesh_scene(mesh: Mesh, colour=MESH_COLOUR) -> MeshScene:
+def mesh_scene(mesh: Mesh, colour=MESH_COLOUR) -> Scene:
     """The mesh in one colour, seen by fit_camera's view of its vertices (the
     sphere that bounds them fills the field of view), lit for Whitted
     shading by one white point light above and behind the camera: where
@@ -70,42 +36,22 @@ def mesh_scene(mesh: Mesh, colour=MESH_COLOUR) -> MeshScene:
     reach = float(np.linalg.norm(vertices - middle, axis=1).max()) or 1.0
     eye = np.array(camera.position)
     light = Light(position=tuple((eye + np.array([-reach, 2.0 * reach, -reach])).tolist()))
-    return MeshScene(leaves=mesh_leaves(mesh, colour), camera=camera, lights=(light,))
+    return Scene([], [], [], camera, lights=(light,), meshes=[SceneMesh(mesh, colour)])
 
 
-def render_mesh(
-    scene: MeshScene,
-    width: int = 800,
-    height: int = 600,
-    device: str = "cpu",
-    shading: str = "thesis",
-    depth: int | None = None,
-    shadow_samples: int | None = None,
-    **options,
-):
-    """One frame of a MeshScene from its camera: a render.Frame. device:
-    "cpu", the one that traces triangles so far ("auto" picks it; another
-    is refused in one line); shading, depth and shadow_samples as
-    render.render's; options the cpu's (threads, tree_width, accel: "bvh" or
-    "none" with kernel="simple")."""
-    from . import backends
-    from .backends.limits import check_size
-    from .layout import KINDS
-    from .render import Frame
+def recoloured(scene: Scene, colour) -> Scene:
+    """The scene with every mesh in another colour (checked: three numbers
+    from 0 to 1)."""
+    from dataclasses import replace
 
-    width, height = check_size(width, height)
-    whitted = check_shading(shading) == "whitted"
-    shaded = Shading.of(scene, depth, shadow_samples) if whitted else None
-    tracer = backends.tracer(device, scene.leaves, width, height, shaded, primitive="triangle", **options)
-    try:
-        image, hits = tracer.trace(scene.camera.basis(width, height))
-        counts = tracer.ray_counts
-        return Frame(
-            image=image.copy(),
-            hits=hits.copy(),
-            device=tracer.name,
-            build_s=tracer.build_s,
-            rays=None if counts is None else dict(zip(KINDS, counts.tolist())),
-        )
-    finally:
-        tracer.close()
+    colour = check_colour(colour, "--color")
+    return scene.replaced(meshes=[replace(mesh, colour=colour) for mesh in scene.meshes])
+
+
+def render_mesh(scene: Scene, width: int = 800, height: int = 600, device: str = "cpu", **arguments):
+    """render.render of a mesh scene from its camera, device cpu unless
+    given: kept for the callers of the first mesh API (render() takes a mesh
+    scene itself, as every scene)."""
+    from .render import render
+
+    return render(scene, None, width, height, device, **arguments)

@@ -140,6 +140,8 @@ class Renderer:
             for camera in path:
                 renderer.render(camera).save(...)
 
+    scene: spheres, or meshes (format version 3, or a mesh file by
+    mesh_render.mesh_scene), whose triangles are traced, not both yet.
     device, shading, depth, shadow_samples and the device's options are
     render()'s (below); shading may also be a lighting.Shading made ahead
     (Shading.of(scene, ...)), which is Whitted shading with its arrays. For
@@ -164,16 +166,18 @@ class Renderer:
         if not isinstance(scene, Scene):
             raise RaybenchError(f"scene: must be a raybench.Scene, got {type(scene).__name__}")
         width, height = check_size(width, height)
+        # one kind of primitive a tracer: the spheres, or a mesh scene's triangles
+        traced = scene.traced()
         if isinstance(shading, Shading):
             if depth is not None or shadow_samples is not None:
                 raise RaybenchError("depth and shadow_samples: a Shading holds its own; give one or the other")
             options["shading"], shading = shading, "whitted"
         elif check_shading(shading) == "whitted":
-            options["shading"] = Shading.of(scene, depth, shadow_samples)
+            options["shading"] = Shading.of(traced, depth, shadow_samples)
         elif depth is not None or shadow_samples is not None:
             raise RaybenchError("depth and shadow_samples: apply to shading='whitted' only")
         self.scene, self.width, self.height, self.shading = scene, width, height, shading
-        self.tracer = backends.tracer(device, scene.spheres, width, height, **options)
+        self.tracer = backends.tracer(device, traced.leaves, width, height, primitive=traced.kind, **options)
         self._images, self._hits = _Lent(), _Lent()
         # The tracer's arrays, its camera and its lent arrays are one frame's: one call at a time.
         self._turn = threading.RLock()
@@ -214,8 +218,8 @@ class Renderer:
         tracer's), each pixel as the whole frame has it (a tile of
         raybench.cluster's render; first a multiple of 8 on the cpu), on
         devices that trace rows (cpu and cuda). count: only the scene's first
-        count spheres (the thesis's test 7 ramps it), without a new tree or
-        upload where the device allows."""
+        count spheres (the thesis's test 7 ramps it), or a mesh scene's first
+        count triangles, without a new tree or upload where the device allows."""
         with self._turn:
             return self._render(camera, hits, rows, count)
 

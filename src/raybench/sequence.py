@@ -48,7 +48,8 @@ def identity(scene, cameras, width: int, height: int, shading="thesis", depth=No
     """What names a sequence in its marker: every input that decides a frame's pixels."""
     from .lighting import Shading
 
-    digest = hashlib.sha256(np.ascontiguousarray(scene.spheres).tobytes())
+    # what is traced: the spheres (the bytes every earlier marker hashed), or a mesh scene's triangles
+    digest = hashlib.sha256(np.ascontiguousarray(scene.traced().leaves).tobytes())
     if isinstance(shading, Shading) or shading == "whitted":
         made = shading if isinstance(shading, Shading) else Shading.of(scene, depth, shadow_samples)
         for array in (made.materials, made.lights, made.pattern, made.params):

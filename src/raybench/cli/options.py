@@ -95,8 +95,9 @@ def load_scene(scene_file, spheres, seed, materials=False, layout=None, molecule
     or --spheres N (--seed, --materials, --layout). A file is read by its
     suffix: NFF (.nff), a molecule (.pdb, .ent, .cif, .mmcif, gzipped or
     not; molecule: its MoleculeArgs), a triangle mesh (.obj, .ply, .stl,
-    .gltf, .glb: a mesh_render.MeshScene, where the command draws meshes:
-    meshes), else a JSON scene file."""
+    .gltf, .glb: mesh_render.mesh_scene's Scene), else a JSON scene file.
+    A mesh, or a scene file with meshes, only where the command draws them
+    (meshes); elsewhere one line, so that no command drops them silently."""
     from .. import examples
     from ..scene import Scene, random_spheres
 
@@ -107,8 +108,12 @@ def load_scene(scene_file, spheres, seed, materials=False, layout=None, molecule
         if seed is not None or given:
             raise RaybenchError(f"{'--seed' if seed is not None else given[0]} applies to --spheres only")
         if scene_file in examples.NAMES and not Path(scene_file).exists():
-            return Scene.load(examples.path(scene_file))
-        return _scene_file(scene_file, molecule or MoleculeArgs(), meshes)
+            scene = Scene.load(examples.path(scene_file))
+        else:
+            scene = _scene_file(scene_file, molecule or MoleculeArgs())
+        if scene.meshes and not meshes:
+            raise RaybenchError(f"--scene {scene_file}: meshes are drawn by raybench render and view only so far")
+        return scene
     if molecule is not None and molecule != MoleculeArgs():
         raise RaybenchError(MOLECULE_ONLY)
     return random_spheres(spheres, 0 if seed is None else seed, materials=materials, layout=layout or "even")
@@ -125,10 +130,9 @@ class MoleculeArgs:
     waters: bool = False
 
 
-def _scene_file(scene_file, molecule: MoleculeArgs, meshes: bool = False):
+def _scene_file(scene_file, molecule: MoleculeArgs):
     """The Scene of a file by its suffix; an NFF's primitives that are read
-    but not rendered (polygons, patches, cones) are told in a note line; a
-    mesh's MeshScene where meshes, else one line."""
+    but not rendered (polygons, patches, cones) are told in a note line."""
     from .. import formats
     from ..scene import Scene
 
@@ -136,8 +140,6 @@ def _scene_file(scene_file, molecule: MoleculeArgs, meshes: bool = False):
     if kind != "molecule" and molecule != MoleculeArgs():
         raise RaybenchError(MOLECULE_ONLY)
     if kind == "mesh":
-        if not meshes:
-            raise RaybenchError(f"--scene {scene_file}: a mesh file is drawn by raybench render only so far")
         from ..mesh_render import mesh_scene
         from ..meshes import load_mesh
 
@@ -170,12 +172,13 @@ def shading_notes(scene, shaded: dict) -> list[str]:
     should not have to compare pixels to find out."""
     if shaded["shading"] != "whitted":
         return []
-    materials = scene.materials or ()
+    traced = scene.traced()  # (a scene of spheres and meshes is refused here, before any work)
+    materials = traced.materials or ()
     bounces = any(m.reflect > 0 or m.transmit > 0 for m in materials)
     notes = []
     if not scene.lights:
         did = (
-            "the thesis's picture, each sphere darkened towards its rim"
+            f"the thesis's picture, each {traced.kind} darkened towards its rim"
             if not bounces
             else "the thesis's shading at each surface, its mirrors and glass still reflecting and refracting it"
         )
@@ -185,7 +188,7 @@ def shading_notes(scene, shaded: dict) -> list[str]:
         )
     elif not bounces:
         notes.append(
-            "note: --shading whitted: no sphere has a mirror or glass material, so there are no bounces: "
+            f"note: --shading whitted: no {traced.kind} has a mirror or glass material, so there are no bounces: "
             "each light's diffuse light, highlights and shadows only"
         )
     if shaded.get("depth") is not None and not bounces:
@@ -193,6 +196,49 @@ def shading_notes(scene, shaded: dict) -> list[str]:
     if shaded.get("shadow_samples") is not None and not any(light.radius > 0 for light in scene.lights):
         notes.append("note: --shadow-samples has no effect: the scene has no area light (a light with a radius)")
     return notes
+
+
+def noted_scene(scene_args, scene, shaded: dict, colour: str | None = None):
+    """The scene, in --color where it is a mesh file's (and only there);
+    the shading's notes said, a mesh file's default light among them."""
+    from .. import formats
+    from ..mesh_render import DEFAULT_LIGHT_NOTE, recoloured
+
+    from_mesh = scene_args.scene_file is not None and formats.kind(scene_args.scene_file) == "mesh"
+    if colour is not None:
+        if not from_mesh:
+            raise RaybenchError("--color applies to a mesh file (--scene FILE.obj, .ply, .stl, .gltf or .glb) only")
+        scene = recoloured(scene, _colour(colour))
+    notes = shading_notes(scene, shaded)
+    if from_mesh and notes:
+        # mesh_scene gave it one default light and no mirrors: the first of
+        # shading_notes' lines is a scene file's "no bounces", said here for a mesh
+        notes = [DEFAULT_LIGHT_NOTE, *notes[1:]]
+    for note in notes:
+        click.echo(note)
+    return scene
+
+
+def scene_device(scene, device: str, adapter: str | None) -> str:
+    """The concrete device for this scene (backends.resolve): "auto" for a
+    mesh scene is the cpu, as backends.tracer picks it, the one device that
+    traces triangles so far."""
+    from ..backends import resolve
+
+    if device == "auto" and scene.triangles is not None:
+        device = "cpu"
+    return resolve(device, adapter)
+
+
+def _colour(text: str) -> tuple:
+    """--color R,G,B as three floats (their range is the mesh's check)."""
+    parts = text.split(",")
+    try:
+        if len(parts) != 3:
+            raise ValueError
+        return tuple(float(p) for p in parts)
+    except ValueError:
+        raise RaybenchError(f"--color: three numbers from 0 to 1 as R,G,B (0.8,0.5,0.2), got {text!r}") from None
 
 
 # --- options that render and view share, each written once ------------------------
@@ -301,7 +347,7 @@ def scene_options(verb: str):
             "scene_file",
             type=click.Path(dir_okay=False),
             help=f"scene file to {verb}: JSON, NFF (.nff), a molecule (.pdb, .cif, gzipped or not), a triangle "
-            "mesh (.obj, .ply, .stl, .gltf, .glb; render only, on the cpu); or the name of an example: whitted",
+            "mesh (.obj, .ply, .stl, .gltf, .glb: render and view); or the name of an example: whitted, meshes",
         ),
         click.option("--spheres", type=int, help=f"{verb} N random spheres instead of a scene file"),
         click.option("--seed", type=int, help="seed of the random spheres (default 0)"),

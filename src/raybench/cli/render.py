@@ -18,11 +18,12 @@ from .options import (
     cluster_options,
     device_option,
     frame_size,
+    noted_scene,
     open_cluster,
     path_option,
+    scene_device,
     scene_options,
     scheduler_security,
-    shading_notes,
     shading_option_group,
     size_option,
     tracer_options,
@@ -124,28 +125,14 @@ def render(
     """Trace one frame and save it as a PNG; or, with --path, a sequence of
     frames. With --workers or --scheduler, across a Dask cluster's workers:
     one frame in tiles of rows, a sequence in runs of frames."""
-    from ..backends import resolve
-    from ..mesh_render import MeshScene
     from ..render import PNG_LEVEL, check_png_level
     from ..render import render as render_frame
-    from .compiling import announced
+    from .compiling import KIND_MESSAGE, MESSAGE, announced
 
     scene = scene_args.load(layout, meshes=True)
     width, height = frame_size(scene_args, size)
     shaded = shading.checked()
-    if isinstance(scene, MeshScene):
-        extras = {"--path": camera_path, "--frames": frames, "--gif": gif, "--workers": workers}
-        extras.update({"--scheduler": scheduler, "--tile": tile})
-        given = [name for name, value in extras.items() if value is not None]
-        if given:
-            raise RaybenchError(f"{given[0]}: a mesh file renders one frame on this machine only so far")
-        level = PNG_LEVEL if png_level is None else check_png_level(png_level)
-        job = RenderJob(scene, width, height, device, shaded, tracer.options(), output or Path("render.png"), level)
-        return _render_mesh(job, colour)
-    if colour is not None:
-        raise RaybenchError("--color applies to a mesh file (--scene FILE.obj, .ply, .stl, .gltf or .glb) only")
-    for note in shading_notes(scene, shaded):
-        click.echo(note)
+    scene = noted_scene(scene_args, scene, shaded, colour)
     options = tracer.options()
     scheduler = scheduler or os.environ.get("RAYBENCH_SCHEDULER") or None
     if workers is not None and scheduler is not None:
@@ -172,9 +159,9 @@ def render(
         return _render_tiles(RenderJob(scene, width, height, device, shaded, options, output, level), on, tile)
     if tile is not None:
         raise RaybenchError("--tile applies across a cluster: give --workers N or --scheduler ADDR")
-    device = resolve(device, tracer.adapter)
+    device = scene_device(scene, device, tracer.adapter)
     start = time.perf_counter()
-    with announced():
+    with announced(message=MESSAGE if scene.triangles is None else KIND_MESSAGE):
         frame = render_frame(scene, width=width, height=height, device=device, **shaded, **options)
     elapsed = time.perf_counter() - start
     frame.save(output, level)
@@ -190,47 +177,9 @@ def render(
     if frame.rays is not None:
         rays = ", rays: " + ", ".join(f"{n:,} {kind}" for kind, n in frame.rays.items())
     click.echo(
-        f"wrote {output}: {width}x{height}, {len(scene):,} spheres, {frame.device}, "
+        f"wrote {output}: {width}x{height}, {scene.summary}, {frame.device}, "
         f"{elapsed:.2f} s including compilation{built}{rays}"
     )
-
-
-def _render_mesh(job: RenderJob, colour: str | None) -> None:
-    """render --scene FILE.obj (or .ply, .stl, .gltf, .glb): one frame of the
-    mesh on the cpu, from a camera fitted to it (mesh_render)."""
-    from ..mesh_render import DEFAULT_LIGHT_NOTE, recoloured, render_mesh
-    from .compiling import KIND_MESSAGE, announced
-
-    scene = job.scene
-    if colour is not None:
-        scene = recoloured(scene, _colour(colour))
-    check_output(job.output)
-    if job.shaded["shading"] == "whitted":
-        # a MeshScene has its one default light and no mirrors: the first of
-        # shading_notes' lines is the sphere scene's "no bounces", said here for a mesh
-        for note in [DEFAULT_LIGHT_NOTE, *shading_notes(scene, job.shaded)[1:]]:
-            click.echo(note)
-    start = time.perf_counter()
-    with announced(message=KIND_MESSAGE):
-        frame = render_mesh(scene, job.width, job.height, job.device, **job.shaded, **job.options)
-    elapsed = time.perf_counter() - start
-    frame.save(job.output, job.level)
-    built = f", BVH built in {frame.build_s * 1e3:.1f} ms" if frame.build_s is not None else ""
-    click.echo(
-        f"wrote {job.output}: {job.width}x{job.height}, {len(scene):,} triangles, {frame.device}, "
-        f"{elapsed:.2f} s including compilation{built}"
-    )
-
-
-def _colour(text: str) -> tuple:
-    """--color R,G,B as three floats (their range is the mesh's check)."""
-    parts = text.split(",")
-    try:
-        if len(parts) != 3:
-            raise ValueError
-        return tuple(float(p) for p in parts)
-    except ValueError:
-        raise RaybenchError(f"--color: three numbers from 0 to 1 as R,G,B (0.8,0.5,0.2), got {text!r}") from None
 
 
 def _render_tiles(job: RenderJob, on: ClusterSpec, tile: int | None) -> None:
@@ -246,7 +195,7 @@ def _render_tiles(job: RenderJob, on: ClusterSpec, tile: int | None) -> None:
         count = running.workers
     frame.save(output, job.level)
     click.echo(
-        f"wrote {output}: {width}x{height}, {len(scene):,} spheres, {frame.device}, in tiles on {count} workers, "
+        f"wrote {output}: {width}x{height}, {scene.summary}, {frame.device}, in tiles on {count} workers, "
         f"{time.perf_counter() - start:.2f} s including the cluster's start"
     )
 
@@ -285,7 +234,7 @@ def _render_sequence(job: RenderJob, on: ClusterSpec, spec, frames: int | None, 
     click.echo(
         f"wrote {len(todo)} frames to {output}/"
         + (f" (the other {len(cameras) - len(todo)} were there already)" if len(todo) < len(cameras) else "")
-        + f": {width}x{height}, {len(scene):,} spheres, "
+        + f": {width}x{height}, {scene.summary}, "
         f"{time.perf_counter() - start:.2f} s including the cluster's start"
     )
     if gif is not None:

@@ -9,10 +9,11 @@ from .options import (
     check_output,
     device_option,
     frame_size,
+    noted_scene,
     options_by_device,
     path_option,
+    scene_device,
     scene_options,
-    shading_notes,
     shading_option_group,
     size_option,
     tracer_options,
@@ -63,11 +64,12 @@ def view(
     from ..viewer import view as open_viewer
     from ..viewer.state import ViewerState
 
-    scene = scene_args.load()
+    scene = scene_args.load(meshes=True)
     width, height = frame_size(scene_args, size)
     shaded = shading.checked()
-    for note in shading_notes(scene, shaded):
-        click.echo(note)
+    scene = noted_scene(scene_args, scene, shaded)
+    if animate and scene.triangles is not None:
+        raise RaybenchError("--animate moves spheres; a mesh is drawn where it is")
     # checked here, before the window opens: a Whitted frame of no spheres
     lit = None
     if shaded["shading"] == "whitted":
@@ -78,7 +80,7 @@ def view(
                 "--screenshot needs --frames N (the frame to save); in the window, P saves a screenshot"
             )
         check_output(screenshot, "--screenshot")
-    device = backends.resolve(device, tracer.adapter)
+    device = scene_device(scene, device, tracer.adapter)
     # render's options, through render's path, then each device's share of them
     options = options_by_device(tracer.options())
     # Bad options are refused before the window opens, on each device they would
@@ -106,7 +108,8 @@ def view(
         shown = window.state.shown
         lit = "" if shown.request.shading is None else ", whitted"
         last = (
-            f"{shown.frame.width}x{shown.frame.height}, {shown.request.count:,} spheres, {shown.frame.device}{lit}, "
+            f"{shown.frame.width}x{shown.frame.height}, {shown.request.count:,} {scene.traced().noun}, "
+            f"{shown.frame.device}{lit}, "
             f"frame {frames} traced in {shown.trace_ms:.1f} ms"
         )
         click.echo(

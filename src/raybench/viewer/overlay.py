@@ -53,14 +53,15 @@ class Status(NamedTuple):
     shading: str | None = None
     rays_per_s: float | None = None
     update: tuple[str, float] | None = None
+    noun: str = "spheres"  # what the count counts: a mesh scene's "triangles"
 
 
 def status_line(status: Status) -> str:
     """The status: its device, sphere count, resolution; the update before
     the trace; the frame time and fps; the shading and its rays per second;
     then the ramp flag and the latest message."""
-    device, spheres, width, height, frame_ms, fps, ramp, message, shading, rays_per_s, update = status
-    parts = ["raybench", device, f"{spheres:,} spheres", f"{width}x{height}"]
+    device, spheres, width, height, frame_ms, fps, ramp, message, shading, rays_per_s, update, noun = status
+    parts = ["raybench", device, f"{spheres:,} {noun}", f"{width}x{height}"]
     if update is not None:
         # a refit takes a fraction of a ms: two decimals there
         parts.append(f"{update[0]} {update[1]:.2f} ms" if update[1] < 10 else f"{update[0]} {_ms(update[1])}")
@@ -74,12 +75,14 @@ def status_line(status: Status) -> str:
     return SEPARATOR.join(parts)
 
 
-def waiting_line(*, device: str, spheres: int, width: int, height: int, message: str | None = None) -> str:
+def waiting_line(
+    *, device: str, spheres: int, width: int, height: int, message: str | None = None, noun: str = "spheres"
+) -> str:
     """Before the first frame is on screen (the first frame compiles the kernel)."""
     parts = [
         "raybench",
         device,
-        f"{spheres:,} spheres",
+        f"{spheres:,} {noun}",
         f"{width}x{height}",
         "tracing the first frame (compiling the kernel)...",
     ]

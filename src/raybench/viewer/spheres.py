@@ -8,7 +8,8 @@ ramp costs no upload per frame):
   the very picture `raybench render --spheres N --seed S` draws. `-` hides the
   last 10; `+` shows them again, and past the end of the scene it becomes
   random_spheres(count + 10, seed), again what `raybench render` would draw;
-- a scene file: `-` and `+` move within the file's spheres;
+- a scene file: `-` and `+` move within the file's spheres (a mesh's:
+  its triangles, in the file's order);
 - the ramp (T): test 7's scene, random_spheres(1000, seed), from 10 spheres,
   10 more every frame up to 1000 (a file ramps over its own spheres).
 
@@ -31,7 +32,9 @@ class SphereSupply:
         self.seed = seed
         # A generated scene with materials came from random_spheres(..., materials=True): so do the next.
         self.materials = scene.materials is not None
-        self.count = len(scene)
+        self.traced = scene.traced()  # what is counted: the spheres, or a mesh scene's triangles
+        self.noun = self.traced.noun
+        self.count = len(self.traced)
         self.ramping = False
 
     @property
@@ -41,11 +44,12 @@ class SphereSupply:
     def more(self) -> str | None:
         """Ten more spheres; a message when there are none to add."""
         target = self.count + STEP
-        if target > len(self.scene):
+        if target > len(self.traced):
             if not self.generated:
-                self.count = len(self.scene)
-                return f"the scene file has {len(self.scene):,} spheres, all shown"
+                self.count = len(self.traced)
+                return f"the scene file has {len(self.traced):,} {self.noun}, all shown"
             self.scene = random_spheres(target, self.seed, materials=self.materials)
+            self.traced = self.scene.traced()
         self.count = target
         return None
 
@@ -56,13 +60,14 @@ class SphereSupply:
         """Start the ramp, or stop it where it is; the message to show."""
         if self.ramping:
             self.ramping = False
-            return f"ramp stopped at {self.count:,} spheres"
+            return f"ramp stopped at {self.count:,} {self.noun}"
         first, last, _ = RAMP
         if self.generated and len(self.scene) != last:
             self.scene = random_spheres(last, self.seed, materials=self.materials)
-        self.count = min(first, len(self.scene))
+            self.traced = self.scene.traced()
+        self.count = min(first, len(self.traced))
         self.ramping = True
-        return f"ramp: {self.count:,} to {len(self.scene):,} spheres, {STEP} more every frame"
+        return f"ramp: {self.count:,} to {len(self.traced):,} {self.noun}, {STEP} more every frame"
 
     def frame_count(self) -> tuple[Scene, int, str | None]:
         """The scene and sphere count of the next frame to trace; during the ramp
@@ -71,9 +76,9 @@ class SphereSupply:
         scene, count = self.scene, self.count
         message = None
         if self.ramping:
-            if count >= len(self.scene):
+            if count >= len(self.traced):
                 self.ramping = False
-                message = f"ramp done: {count:,} spheres"
+                message = f"ramp done: {count:,} {self.noun}"
             else:
-                self.count = min(count + STEP, len(self.scene))
+                self.count = min(count + STEP, len(self.traced))
         return scene, count, message

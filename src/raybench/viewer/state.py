@@ -56,7 +56,8 @@ class ViewerState:
         self.device = device  # where the next frame is traced
         self._working_device = device  # where frames last came from: the fallback for a failed switch
         self.options = {d: dict((options or {}).get(d, {})) for d in backends.DEVICES}
-        self.motion = Motion(travel_speed(scene.centers, self.home))
+        # rows 0 to 2 of any kind's buffer: a sphere's centre, a triangle's first corner
+        self.motion = Motion(travel_speed(self.supply.traced.leaves[0:3].T, self.home))
         self.lighting = ShadingControl(shading, depth, shadow_samples, step=self.motion.speed * LIGHT_STEP_S)
         self.stats = FrameStats()
         self.shown: TracedFrame | None = None
@@ -223,7 +224,12 @@ class ViewerState:
             request = self.last_request
             size = (request.width, request.height) if request else (0, 0)
             return waiting_line(
-                device=self.device, spheres=self.supply.count, width=size[0], height=size[1], message=message
+                device=self.device,
+                spheres=self.supply.count,
+                width=size[0],
+                height=size[1],
+                message=message,
+                noun=self.supply.noun,
             )
         shown = self.shown
         return status_line(
@@ -238,6 +244,7 @@ class ViewerState:
                 message=message,
                 shading=shading_label(shown),
                 rays_per_s=self.stats.rays_per_s(now),
+                noun=self.supply.noun,
                 update=(shown.update, shown.update_ms) if shown.update is not None else None,
             )
         )
