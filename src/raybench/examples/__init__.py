@@ -1,13 +1,15 @@
 """Example scenes shipped with raybench, loadable by name (`--scene whitted`)
 or as files: whitted.json, the classic scene of Whitted's paper made of
 spheres only (a huge sphere as the floor, a mirror, a glass ball, an area
-light)."""
+light); meshes.json, a scene format version 3 scene of meshes only, each
+inline (a floor that mirrors a little, a plastic icosahedron, a glass
+tetrahedron, placed by their transforms), traced as triangles."""
 
 from __future__ import annotations
 
 from importlib import resources
 
-NAMES = ("whitted",)
+NAMES = ("whitted", "meshes")
 
 
 def path(name: str):
