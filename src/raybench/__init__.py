@@ -6,6 +6,7 @@ from .errors import RaybenchError
 from .lighting import Light, Material
 from .render import Frame, Renderer, render
 from .scene import Scene, random_spheres
+from .scene_meshes import SceneMesh
 
 __version__ = "0.1.0"
 
@@ -17,6 +18,7 @@ __all__ = [
     "RaybenchError",
     "Renderer",
     "Scene",
+    "SceneMesh",
     "random_spheres",
     "render",
     "__version__",

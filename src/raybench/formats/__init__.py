@@ -6,8 +6,8 @@ spheres, materials and lights.
 - spd: the Standard Procedural Databases' generators, written from their
   algorithms, giving NFF;
 - molecule: PDB and mmCIF files through gemmi, one sphere per atom;
-- mesh: OBJ, PLY, STL and glTF triangle meshes (raybench.meshes), which are
-  no Scene of spheres: mesh_render.MeshScene.
+- mesh: OBJ, PLY, STL and glTF triangle meshes (raybench.meshes), a Scene
+  of meshes by mesh_render.mesh_scene.
 
 kind(path) names the reader a file's suffix picks; fit_camera frames
 spheres where a file gives no view.
