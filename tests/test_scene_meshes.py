@@ -98,6 +98,9 @@ def test_spheres_and_meshes_in_one_scene_are_refused_in_one_line(tmp_path, capsy
     assert run(["render", "--scene", write(tmp_path / "both.json", both.to_dict()), "-o", str(out)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and MIXED in err and not out.exists()
+    frames = tmp_path / "frames"
+    assert run(["render", "--scene", str(tmp_path / "both.json"), "--path", "orbit", "-o", str(frames)]) == 2
+    assert MIXED in capsys.readouterr().err and not frames.exists()
 
 
 NAN_VERTEX = '{"format": "raybench-scene", "version": 3, "meshes": [{"vertices": [[NaN, 0, 0], [1, 0, 0], [0, 1, 0]], "faces": [[0, 1, 2]]}]}'  # noqa: E501

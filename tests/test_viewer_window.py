@@ -289,6 +289,22 @@ def test_frames_without_screenshot_shows_n_frames_and_exits(display, capsys, tmp
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_mesh_file_in_the_window_equals_raybench_render(display, capsys, tmp_path, monkeypatch):
+    """`raybench view --scene box.obj`: the mesh from the camera fitted to
+    it, what `raybench render` draws of it (both in this process: the cpu's
+    triangle kernels, not in the disk cache, compile once)."""
+    import trimesh
+
+    monkeypatch.chdir(tmp_path)
+    trimesh.creation.box(extents=(2.0, 1.0, 1.0)).export(tmp_path / "box.obj")
+    args = ["--scene", "box.obj", "--size", "40x30", "--device", "cpu"]
+    code = run(["view", *args, "--frames", "1", "--screenshot", "view.png"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    assert "40x30, 12 triangles, cpu" in out
+    assert np.array_equal(read_png(tmp_path / "view.png"), render_png(tmp_path, "render.png", *args))
+
+
 def test_scene_file_camera_in_the_window_equals_raybench_render(display, tmp_path):
     """A scene file with its own camera, in a window of an odd size."""
     spheres = random_spheres(25, 8)

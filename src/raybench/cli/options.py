@@ -200,10 +200,13 @@ def shading_notes(scene, shaded: dict) -> list[str]:
 
 def noted_scene(scene_args, scene, shaded: dict, colour: str | None = None):
     """The scene, in --color where it is a mesh file's (and only there);
-    the shading's notes said, a mesh file's default light among them."""
+    the shading's notes said, a mesh file's default light among them. A
+    scene no tracer takes (spheres and meshes) is refused here, before any
+    output folder or cluster is made."""
     from .. import formats
     from ..mesh_render import DEFAULT_LIGHT_NOTE, recoloured
 
+    scene.traced()
     from_mesh = scene_args.scene_file is not None and formats.kind(scene_args.scene_file) == "mesh"
     if colour is not None:
         if not from_mesh:
