@@ -225,11 +225,18 @@ def rebound(modules, primitive) -> dict[str, types.SimpleNamespace]:
     swapped as its globals are), and two kinds live in
     one process, neither calling the other's functions. A part the other
     primitive lacks becomes None, so code that calls it fails to compile
-    rather than run the sphere's. The copies are not cached: Numba's cache
-    keys a function by its file and name, which a copy shares with the
-    original. Returns each module's new globals, by its last name."""
+    rather than run the sphere's. Each copy is named after its original and
+    the primitive (`_walk_triangle`), in its original's module: Numba's
+    cache keys a function by its file, name and code, never by the callees
+    in its globals, and names its machine code by module and name, so under
+    the original's name a copy would load, or link to, the sphere's code.
+    So named, the copies are cached in CACHE_DIR as the originals are.
+    Returns each module's new globals, by its last name."""
+    kind = primitive.__name__.rsplit(".", 1)[-1]
     swap: dict[int, object] = {}
-    spaces = {module.__name__: {} for module in modules}
+    # a function's module is its globals' __name__ as it is made (without one, Numba takes it
+    # for generated code and caches nothing)
+    spaces = {module.__name__: {"__name__": module.__name__} for module in modules}
 
     cells: list = []  # the copies' closures' cells, their contents swapped by fill() as the globals are
 
@@ -238,7 +245,9 @@ def rebound(modules, primitive) -> dict[str, types.SimpleNamespace]:
         if f.__closure__:  # a function a factory made at import (packets.packet_walk's walks)
             closure = tuple(types.CellType(cell.cell_contents) for cell in f.__closure__)
             cells.extend(closure)
-        return types.FunctionType(f.__code__, space, f.__name__, f.__defaults__, closure)
+        made = types.FunctionType(f.__code__, space, f.__name__, f.__defaults__, closure)
+        made.__qualname__ = f"{f.__qualname__}_{kind}"
+        return made
 
     for module in modules:
         space = spaces[module.__name__]
@@ -247,7 +256,7 @@ def rebound(modules, primitive) -> dict[str, types.SimpleNamespace]:
                 continue
             if isinstance(value, numba.core.dispatcher.Dispatcher) and value.py_func.__module__ in spaces:
                 options = {k: v for k, v in value.targetoptions.items() if k != "nopython"}
-                swap[id(value)] = numba.njit(**options)(copy(value.py_func, spaces[value.py_func.__module__]))
+                swap[id(value)] = njit(**options)(copy(value.py_func, spaces[value.py_func.__module__]))
             elif isinstance(value, types.FunctionType) and value.__module__ == module.__name__:
                 swap[id(value)] = copy(value, space)
             elif hasattr(value, "cache_clear") and getattr(value, "__module__", None) == module.__name__:
