@@ -242,14 +242,11 @@ fn rim(k: i32) -> f32 {
     return 1.0;
 }
 
-// surface's results: the hit point, the unit normal and cos_i on the side
-// the ray comes from, and whether it meets the back face (sphere.wgsl's).
-struct Surface {
-    p: vec3<f32>,
-    n: vec3<f32>,
-    cos_i: f32,
-    inside: bool,
-}
+// surface's results, as whitted.wgsl and wavefront.wgsl read them: the
+// struct sphere.wgsl declares for the sphere (the point, the unit normal and
+// cos_i on the ray's side, whether the ray meets the back face), declared
+// here too as a triangle's shader has no sphere.wgsl.
+struct Surface { p: vec3<f32>, n: vec3<f32>, cos_i: f32, inside: bool }
 
 // surface: the hit of a ray on triangle i at t: the plane's normal turned to
 // the ray's side, or where the row has its corners' normals their blend by
