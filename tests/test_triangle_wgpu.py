@@ -38,11 +38,20 @@ def wgpu(scene, adapter, **options):
     return render_mesh(scene, W, H, device="wgpu", adapter=adapter, **options)
 
 
-def same(frames):
-    """Every frame the first's hits and bytes."""
+def same(frames, adapter):
+    """Every frame the first's hits, bytes and rays cast, on a CPU adapter
+    (it rounds every operation alike wherever it is compiled); on a GPU,
+    whose compiler may fuse a product into a sum in one function and not in
+    another, which tips a ray on an edge, the hits on 99.5% of the pixels,
+    the colours within a step there, and the rays within 1%."""
     first = frames[0]
+    exact = adapters.choose(adapter).type == "CPU"
     for other in frames[1:]:
-        assert (other.hits == first.hits).all() and (other.image == first.image).all()
+        hits = other.hits == first.hits
+        close = (np.abs(other.image.astype(int) - first.image.astype(int)) <= (0 if exact else 1)).all(axis=2)
+        assert (hits.all() and close.all()) if exact else (hits.mean() >= 0.995 and close.mean() >= 0.995)
+        for kind, count in (first.rays or {}).items():
+            assert other.rays[kind] == count if exact else abs(other.rays[kind] - count) <= 0.01 * count
 
 
 @pytest.fixture(scope="module", params=["icosphere", "box"])
@@ -65,7 +74,7 @@ def test_thesis_frames_are_the_float64_reference(adapter, outside):
     assert frames[0].device == "wgpu" and 0.2 < (frames[0].hits >= 0).mean() < 0.9
     expected = cpu_tests.thesis_image(scene.leaves, index, normal, dirs)
     cpu_tests.check_against_reference(frames[0], scene.leaves, index, margin, expected)
-    same(frames)
+    same(frames, adapter)
 
 
 def test_no_ray_slips_through_a_closed_mesh(adapter):
@@ -110,9 +119,8 @@ def test_whitted_frames_are_the_float64_reference(adapter):
         wgpu(scene, adapter, shading="whitted", schedule="wavefront"),
     ]
     cpu_tests.check_against_reference(frames[0], scene.leaves, index, margin, expected)
-    same(frames)
+    same(frames, adapter)
     assert frames[0].rays["shadow"] > 0 and frames[0].rays["reflection"] == 0
-    assert all(frame.rays == frames[0].rays for frame in frames)
 
 
 def with_normals(mesh: Mesh) -> Mesh:
@@ -166,9 +174,8 @@ def test_mirrors_and_glass_trace_alike_every_way(adapter):
     scene = dataclasses.replace(scene, materials=materials)
     options = [{}, {"build": "gpu"}, {"schedule": "wavefront"}, {"accel": "none"}]
     frames = [wgpu(scene, adapter, shading="whitted", shadow_samples=4, **o) for o in options]
-    same(frames)
+    same(frames, adapter)
     assert frames[0].rays["reflection"] > 0 and frames[0].rays["refraction"] > 0
-    assert all(frame.rays == frames[0].rays for frame in frames)
 
 
 def test_a_mesh_past_the_storage_buffer_limit_is_refused_naming_it(adapter):

@@ -40,7 +40,7 @@ import numpy as np
 from ... import bvh as bvh_mod
 from ... import layout
 from ...bvh import lbvh
-from ...kernels.primitives import sphere
+from ...kernels.primitives import KINDS, sphere
 
 QUALITIES = ("sah", "lbvh")
 # A workgroup: WebGPU's default most invocations.
@@ -140,8 +140,6 @@ class Kernels:
     }
 
     def __init__(self, device, primitive: str = "sphere"):
-        from ...kernels.primitives import KINDS
-
         self.device = device
         self.primitive, self.leaf_rows = primitive, KINDS[primitive].LEAF_ROWS
         self.pipelines = {}

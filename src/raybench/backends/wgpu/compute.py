@@ -19,6 +19,7 @@ from ... import bvh as bvh_mod
 from ... import layout, lighting
 from ...errors import RaybenchError
 from ...host import host_available_bytes
+from ...kernels.primitives import KINDS
 from ...lighting import Shading
 from ..limits import HOST_PIXEL_BYTES, check_bvh_fits
 from ..options import WgpuOptions
@@ -166,8 +167,6 @@ class Compute:
         primitive: str = "sphere",
     ):
         import wgpu
-
-        from ...kernels.primitives import KINDS
 
         self.device = device
         self.primitive, self.kind = primitive, KINDS[primitive]
