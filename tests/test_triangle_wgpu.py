@@ -24,9 +24,11 @@ import pytest
 import test_triangle_render as cpu_tests
 from test_triangle_render import H, W, box, icosphere, rays64, reference, to_bytes
 
-from raybench import Camera, RaybenchError, backends
+from raybench import Camera, RaybenchError, backends, bvh, layout
 from raybench.backends.wgpu import adapters, compute
-from raybench.layout import TRI_NA, TRI_RED, TRI_SMOOTH_ROWS
+from raybench.backends.wgpu import build as gpu_build
+from raybench.kernels.primitives import triangle
+from raybench.layout import TRI_NA, TRI_RED, TRI_ROWS, TRI_SMOOTH_ROWS
 from raybench.lighting import DEFAULT_AMBIENT, Material
 from raybench.mesh_render import MeshScene, mesh_scene, recoloured, render_mesh
 from raybench.meshes import Mesh
@@ -75,6 +77,46 @@ def test_thesis_frames_are_the_float64_reference(adapter, outside):
     expected = cpu_tests.thesis_image(scene.leaves, index, normal, dirs)
     cpu_tests.check_against_reference(frames[0], scene.leaves, index, margin, expected)
     same(frames, adapter)
+
+
+@pytest.mark.parametrize("quality", gpu_build.QUALITIES)
+def test_gpu_tree_over_triangles_is_valid(adapter, quality):
+    """The GPU's tree over a mesh (triangle_build.wgsl: three half sizes a
+    triangle): every triangle in one leaf, its vertices in the leaf buffer in
+    leaf order, each leaf's box around its triangles' padded boxes (the
+    Python's extent), each child's inside its parent's."""
+    import wgpu
+
+    leaves = mesh_scene(box()).leaves
+    leaves = np.ascontiguousarray(np.concatenate([leaves, mesh_scene(icosphere()).leaves], axis=1))
+    n = leaves.shape[1]
+    device = adapters.request_device(adapters.choose(adapter))
+    rows = device.create_buffer_with_data(data=compute.triangle_rows(leaves).tobytes(), usage=wgpu.BufferUsage.STORAGE)
+    kernels = gpu_build.Kernels(device, "triangle")
+    builder = gpu_build.Builder(device, rows, n, quality=quality, kernels=kernels)
+    tree = builder.to_host(builder.run(builder.encode_build).depth)
+    assert sorted(tree.order.tolist()) == list(range(n))
+    assert np.array_equal(tree.ordered, leaves[:TRI_ROWS, tree.order])
+    extent = triangle.make(lambda f: f).extent
+    seen = np.zeros(n, int)
+    todo = [(0, None)]
+    while todo:
+        row, outer = todo.pop()
+        for slot in range(2):
+            lo, hi = tree.nodes[row, 6 * slot : 6 * slot + 3], tree.nodes[row, 6 * slot + 3 : 6 * slot + 6]
+            ref, count = tree.links[row, layout.REF + slot], tree.links[row, layout.COUNT + slot]
+            if outer is not None:
+                assert (lo >= outer[0]).all() and (hi <= outer[1]).all()
+            if count == layout.INNER:
+                todo.append((ref, (lo, hi)))
+                continue
+            assert 0 < count <= bvh.LEAF_MAX
+            for k in tree.order[ref : ref + count]:
+                seen[k] += 1
+                cx, cy, cz, hx, hy, hz = extent(leaves, k)
+                assert (lo <= np.float32([cx - hx, cy - hy, cz - hz])).all()
+                assert (hi >= np.float32([cx + hx, cy + hy, cz + hz])).all()
+    assert (seen == 1).all()
 
 
 def test_no_ray_slips_through_a_closed_mesh(adapter):
