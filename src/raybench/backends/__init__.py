@@ -106,7 +106,7 @@ def tracer(device: str, spheres, width: int, height: int, shading=None, primitiv
     """A Tracer of the (resolved) device for this scene and size. primitive:
     the kind of primitive the columns of `spheres` are (kernels/primitives'
     KINDS): "sphere", Scene.spheres; "triangle", meshes.mesh_leaves' buffer,
-    traced on the cpu only so far ("auto" picks it). options:
+    traced on the cpu and wgpu so far ("auto" picks the cpu). options:
     the device's own (backends/options.py: cpu's threads and tree_width;
     cuda's block, rays, staged, trip, walk, build and the GPU build's
     variants; wgpu's workgroup, adapter, walk and build; on every device
@@ -141,8 +141,8 @@ def _check_kind(device: str, buffer, primitive: str) -> None:
 
     if primitive not in KINDS:
         raise RaybenchError(f"primitive: must be one of {', '.join(KINDS)}, got {shown(primitive)}")
-    if device != "cpu":
-        raise RaybenchError(f"device {device}: {primitive}s are traced on cpu only so far; use --device cpu")
+    if device not in ("cpu", "wgpu"):
+        raise RaybenchError(f"device {device}: {primitive}s are traced on cpu and wgpu only so far; use --device cpu")
     rows = KINDS[primitive].SCENE_ROWS
     if not (
         isinstance(buffer, np.ndarray)
