@@ -211,7 +211,9 @@ def as_python(module, **plain) -> types.SimpleNamespace:
 
 def rebound(modules, primitive) -> dict[str, types.SimpleNamespace]:
     """The modules' compiled functions compiled again for another primitive
-    (a module of kernels/primitives), each calling the others' copies.
+    (a module of kernels/primitives), each calling the others' copies: the
+    cpu's (numba.njit) and cuda's (numba.cuda.jit, kernels and device
+    functions alike, each with its own options).
 
     A module whose program depends on the primitive makes it in `_made`
     (functools.cache'd, its primitive an argument, the sphere by default:
@@ -245,9 +247,9 @@ def rebound(modules, primitive) -> dict[str, types.SimpleNamespace]:
         for value in vars(module).values():
             if id(value) in swap:
                 continue
-            if isinstance(value, numba.core.dispatcher.Dispatcher) and value.py_func.__module__ in spaces:
-                options = {k: v for k, v in value.targetoptions.items() if k != "nopython"}
-                swap[id(value)] = numba.njit(**options)(copy(value.py_func, spaces[value.py_func.__module__]))
+            source, remake = _compiled_source(value)
+            if source is not None and source.__module__ in spaces:
+                swap[id(value)] = remake(copy(source, spaces[source.__module__]))
             elif isinstance(value, types.FunctionType) and value.__module__ == module.__name__:
                 swap[id(value)] = copy(value, space)
             elif hasattr(value, "cache_clear") and getattr(value, "__module__", None) == module.__name__:
@@ -271,6 +273,22 @@ def rebound(modules, primitive) -> dict[str, types.SimpleNamespace]:
             _pair(module._made(), spaces[module.__name__]["_made"](primitive), swap)
             fill()
     return {module.__name__.rsplit(".", 1)[-1]: types.SimpleNamespace(**spaces[module.__name__]) for module in modules}
+
+
+def _compiled_source(value):
+    """(the Python a compiled function was made from, how to compile a copy
+    of it as it was compiled), or (None, None) for anything else: numba.njit's
+    dispatchers, numba-cuda's (kernels and device functions, their options
+    kept) and, under numba's CUDA simulator, its stand-ins for them."""
+    if isinstance(value, numba.core.dispatcher.Dispatcher):
+        options = {k: v for k, v in value.targetoptions.items() if k != "nopython"}
+        return value.py_func, numba.njit(**options)
+    kind = type(value)
+    if kind.__name__ == "CUDADispatcher" and kind.__module__.startswith("numba.cuda"):
+        return value.py_func, lambda f: kind(f, targetoptions=dict(value.targetoptions))
+    if kind.__name__ == "FakeCUDAKernel" and kind.__module__.startswith("numba.cuda"):
+        return value.fn, lambda f: kind(f, value._device, value._fastmath, value.extensions, value._debug)
+    return None, None
 
 
 def _pair(old, new, swap: dict) -> None:
