@@ -275,6 +275,19 @@ def rebound(modules, primitive) -> dict[str, types.SimpleNamespace]:
     return {module.__name__.rsplit(".", 1)[-1]: types.SimpleNamespace(**spaces[module.__name__]) for module in modules}
 
 
+def per_kind(modules, primitive, home) -> dict:
+    """Each module's namespace by its last name, for one kind of primitive:
+    the modules themselves for `home`, the kind they were compiled for at
+    import, else rebound's copies for `primitive` (said to on_compile where
+    it is listened to: the copies compile at their first call)."""
+    if primitive is home:
+        return {module.__name__.rsplit(".", 1)[-1]: module for module in modules}
+    spaces = rebound(modules, primitive)
+    if on_compile is not None:
+        on_compile()
+    return spaces
+
+
 def _compiled_source(value):
     """(the Python a compiled function was made from, how to compile a copy
     of it as it was compiled), or (None, None) for anything else: numba.njit's

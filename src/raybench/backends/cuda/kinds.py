@@ -33,12 +33,7 @@ def programs(kind: str) -> SimpleNamespace:
     and _made), `build` (Builder's kind: its kernels and the primitive) and
     `primitive`, the kind's module."""
     primitive = KINDS[kind]
-    if primitive is sphere:
-        spaces = {module.__name__.rsplit(".", 1)[-1]: module for module in MODULES}
-    else:
-        spaces = compiled.rebound(MODULES, primitive)
-        if compiled.on_compile is not None:  # the copies compile at their first frame: say so where it is listened to
-            compiled.on_compile()
+    spaces = compiled.per_kind(MODULES, primitive, sphere)
     kernels = spaces["build"]._kernels()
     kernels.primitive = primitive  # a copy's module names the sphere's: the kind is this one
     return SimpleNamespace(
