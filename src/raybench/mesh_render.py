@@ -1,4 +1,4 @@
-"""A triangle mesh rendered on the cpu or wgpu: the mesh's buffer (meshes.mesh_leaves,
+"""A triangle mesh rendered on any device: the mesh's buffer (meshes.mesh_leaves,
 the triangle primitive's rows), a camera fitted to its vertices, and for
 Whitted shading, as a mesh file brings no lights or materials, one default
 light and every triangle matte (DEFAULT_LIGHT_NOTE says so in one line).
@@ -84,11 +84,11 @@ def render_mesh(
     **options,
 ):
     """One frame of a MeshScene from its camera: a render.Frame. device:
-    "cpu" or "wgpu", those that trace triangles so far ("auto" picks the
-    cpu; another is refused in one line); shading, depth and shadow_samples
-    as render.render's; options the device's (the cpu's threads, tree_width,
-    accel: "bvh" or "none" with kernel="simple"; wgpu's adapter, build, walk,
-    schedule, accel)."""
+    "cpu", "cuda" or "wgpu" ("auto" picks the cpu); shading, depth and
+    shadow_samples as render.render's; options the device's (the cpu's
+    threads, tree_width; cuda's block, walk, build, quality, schedule;
+    wgpu's adapter, build, walk, schedule; accel: "bvh" or "none" with
+    kernel="simple")."""
     from . import backends
     from .backends.limits import check_size
     from .layout import KINDS

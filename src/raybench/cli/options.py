@@ -301,7 +301,7 @@ def scene_options(verb: str):
             "scene_file",
             type=click.Path(dir_okay=False),
             help=f"scene file to {verb}: JSON, NFF (.nff), a molecule (.pdb, .cif, gzipped or not), a triangle "
-            "mesh (.obj, .ply, .stl, .gltf, .glb; render only, on the cpu or wgpu); or the name of an example: whitted",
+            "mesh (.obj, .ply, .stl, .gltf, .glb; render only); or the name of an example: whitted",
         ),
         click.option("--spheres", type=int, help=f"{verb} N random spheres instead of a scene file"),
         click.option("--seed", type=int, help="seed of the random spheres (default 0)"),

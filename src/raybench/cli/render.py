@@ -197,7 +197,7 @@ def render(
 
 def _render_mesh(job: RenderJob, colour: str | None) -> None:
     """render --scene FILE.obj (or .ply, .stl, .gltf, .glb): one frame of the
-    mesh on the cpu or wgpu, from a camera fitted to it (mesh_render)."""
+    mesh on any device, from a camera fitted to it (mesh_render)."""
     from ..mesh_render import DEFAULT_LIGHT_NOTE, recoloured, render_mesh
     from .compiling import KIND_MESSAGE, announced
 

@@ -41,10 +41,7 @@ def programs(kind: str) -> SimpleNamespace:
     constant_band, fast_band and prepare (the last two the sphere's only:
     None for a kind without a cull)."""
     primitive = primitive_of(kind)
-    if primitive is sphere:
-        spaces = {module.__name__.rsplit(".", 1)[-1]: module for module in MODULES}
-    else:
-        spaces = compiled.rebound(MODULES, primitive)
+    spaces = compiled.per_kind(MODULES, primitive, sphere, cached=True)
     culls = primitive is sphere
     return SimpleNamespace(
         packets=spaces["packets"]._bvh_packets_wide,
