@@ -221,3 +221,24 @@ def test_only_a_cut_record_may_end_a_file_without_a_newline(rng):
             results.parse_records(text + garbage, "r.jsonl")
         with pytest.raises(RaybenchError, match="line 2"):
             results.parse_records(text + garbage + "\n", "r.jsonl")
+
+
+def test_a_repeat_is_folded_into_its_point(tmp_path, rng):
+    """Bench writes each repeat of a headline point as a line of its own, as it is timed; the
+    reader folds it into its point's record (its "repeats"), so every reader sees one record a
+    point, and refuses a repeat of a point that no earlier line holds."""
+    first = point(frames(rng, 10.0, 20), 100, options={"accel": "none", "kernel": "fast"})
+    other = point(frames(rng, 40.0, 20), 500, options={"accel": "none", "kernel": "fast"})
+    again = {**point(frames(rng, 11.0, 30), 100, options={"accel": "none", "kernel": "fast"}), "repeat": 1}
+    path = tmp_path / "r.jsonl"
+    path.write_text("".join(json.dumps(full(r)) + "\n" for r in (first, other, again)))
+    for r in (first, other, again):
+        assert VALIDATOR.is_valid(full(r))
+    got = results.read(path)
+    assert len(got) == 2 and "repeat" not in got[0]
+    (kept,) = got[0]["repeats"]
+    assert kept["frames"] == 30 and kept["samples_ms"] == again["samples_ms"]
+    assert VALIDATOR.is_valid(full(got[0]))  # a folded record is a valid record too (a file written from it)
+    path.write_text("".join(json.dumps(full(r)) + "\n" for r in (other, again)))
+    with pytest.raises(RaybenchError, match=r"line 2: repeat 1 of a point that no line before it holds"):
+        results.read(path)

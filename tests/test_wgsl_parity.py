@@ -5,7 +5,10 @@ its set-up (kernels/traverse.py, traverse.wgsl), the thesis's shading
 function only through the pixels it changes; here each runs on its own, on
 random float32 inputs and on the edges (misses, tangent rays, an origin
 inside or at the centre, far_only, zero direction components, the empty
-child's inverted box), and must give its twin's very bits.
+child's inverted box), and must give its twin's very bits. The triangle's
+twins (triangle.wgsl, triangle_box.wgsl, triangle_build.wgsl: the tests,
+surface, the boxes, extent and leaf_row) are held to theirs in
+test_triangle_wgsl.py, within stated ulps where the Python works in float64.
 
 The WGSL is the real shader (shader.source: the pieces as the tracer
 assembles them), with one small entry point a function appended, which reads

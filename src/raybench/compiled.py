@@ -211,7 +211,9 @@ def as_python(module, **plain) -> types.SimpleNamespace:
 
 def rebound(modules, primitive) -> dict[str, types.SimpleNamespace]:
     """The modules' compiled functions compiled again for another primitive
-    (a module of kernels/primitives), each calling the others' copies.
+    (a module of kernels/primitives), each calling the others' copies: the
+    cpu's (numba.njit) and cuda's (numba.cuda.jit, kernels and device
+    functions alike, each with its own options).
 
     A module whose program depends on the primitive makes it in `_made`
     (functools.cache'd, its primitive an argument, the sphere by default:
@@ -225,11 +227,19 @@ def rebound(modules, primitive) -> dict[str, types.SimpleNamespace]:
     swapped as its globals are), and two kinds live in
     one process, neither calling the other's functions. A part the other
     primitive lacks becomes None, so code that calls it fails to compile
-    rather than run the sphere's. The copies are not cached: Numba's cache
-    keys a function by its file and name, which a copy shares with the
-    original. Returns each module's new globals, by its last name."""
+    rather than run the sphere's. Each copy is named after its original and
+    the primitive (`_walk_triangle`), in its original's module: Numba's
+    cache keys a function by its file, name and code, never by the callees
+    in its globals, and names its machine code by module and name, so under
+    the original's name a copy would load, or link to, the sphere's code.
+    So named, the cpu's copies are cached in CACHE_DIR as the originals are
+    (cuda's are compiled in each process). Returns each module's new
+    globals, by its last name."""
+    kind = primitive.__name__.rsplit(".", 1)[-1]
     swap: dict[int, object] = {}
-    spaces = {module.__name__: {} for module in modules}
+    # a function's module is its globals' __name__ as it is made (without one, Numba takes it
+    # for generated code and caches nothing)
+    spaces = {module.__name__: {"__name__": module.__name__} for module in modules}
 
     cells: list = []  # the copies' closures' cells, their contents swapped by fill() as the globals are
 
@@ -238,16 +248,18 @@ def rebound(modules, primitive) -> dict[str, types.SimpleNamespace]:
         if f.__closure__:  # a function a factory made at import (packets.packet_walk's walks)
             closure = tuple(types.CellType(cell.cell_contents) for cell in f.__closure__)
             cells.extend(closure)
-        return types.FunctionType(f.__code__, space, f.__name__, f.__defaults__, closure)
+        made = types.FunctionType(f.__code__, space, f.__name__, f.__defaults__, closure)
+        made.__qualname__ = f"{f.__qualname__}_{kind}"
+        return made
 
     for module in modules:
         space = spaces[module.__name__]
         for value in vars(module).values():
             if id(value) in swap:
                 continue
-            if isinstance(value, numba.core.dispatcher.Dispatcher) and value.py_func.__module__ in spaces:
-                options = {k: v for k, v in value.targetoptions.items() if k != "nopython"}
-                swap[id(value)] = numba.njit(**options)(copy(value.py_func, spaces[value.py_func.__module__]))
+            source, remake = _compiled_source(value)
+            if source is not None and source.__module__ in spaces:
+                swap[id(value)] = remake(copy(source, spaces[source.__module__]))
             elif isinstance(value, types.FunctionType) and value.__module__ == module.__name__:
                 swap[id(value)] = copy(value, space)
             elif hasattr(value, "cache_clear") and getattr(value, "__module__", None) == module.__name__:
@@ -271,6 +283,36 @@ def rebound(modules, primitive) -> dict[str, types.SimpleNamespace]:
             _pair(module._made(), spaces[module.__name__]["_made"](primitive), swap)
             fill()
     return {module.__name__.rsplit(".", 1)[-1]: types.SimpleNamespace(**spaces[module.__name__]) for module in modules}
+
+
+def per_kind(modules, primitive, home, cached: bool = False) -> dict:
+    """Each module's namespace by its last name, for one kind of primitive:
+    the modules themselves for `home`, the kind they were compiled for at
+    import, else rebound's copies for `primitive`. cached: the copies are in
+    the disk cache (the cpu's), whose misses tell on_compile themselves;
+    else they compile at their first call, said to on_compile here."""
+    if primitive is home:
+        return {module.__name__.rsplit(".", 1)[-1]: module for module in modules}
+    spaces = rebound(modules, primitive)
+    if on_compile is not None and not cached:
+        on_compile()
+    return spaces
+
+
+def _compiled_source(value):
+    """(the Python a compiled function was made from, how to compile a copy
+    of it as it was compiled), or (None, None) for anything else: numba.njit's
+    dispatchers, numba-cuda's (kernels and device functions, their options
+    kept) and, under numba's CUDA simulator, its stand-ins for them."""
+    if isinstance(value, numba.core.dispatcher.Dispatcher):
+        options = {k: v for k, v in value.targetoptions.items() if k != "nopython"}
+        return value.py_func, njit(**options)  # raybench's: cached
+    kind = type(value)
+    if kind.__name__ == "CUDADispatcher" and kind.__module__.startswith("numba.cuda"):
+        return value.py_func, lambda f: kind(f, targetoptions=dict(value.targetoptions))
+    if kind.__name__ == "FakeCUDAKernel" and kind.__module__.startswith("numba.cuda"):
+        return value.fn, lambda f: kind(f, value._device, value._fastmath, value.extensions, value._debug)
+    return None, None
 
 
 def _pair(old, new, swap: dict) -> None:

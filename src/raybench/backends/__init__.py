@@ -106,7 +106,7 @@ def tracer(device: str, spheres, width: int, height: int, shading=None, primitiv
     """A Tracer of the (resolved) device for this scene and size. primitive:
     the kind of primitive the columns of `spheres` are (kernels/primitives'
     KINDS): "sphere", Scene.spheres; "triangle", meshes.mesh_leaves' buffer,
-    traced on the cpu only so far ("auto" picks it). options:
+    traced on every device ("auto" picks the cpu). options:
     the device's own (backends/options.py: cpu's threads and tree_width;
     cuda's block, rays, staged, trip, walk, build and the GPU build's
     variants; wgpu's workgroup, adapter, walk and build; on every device
@@ -131,6 +131,10 @@ def tracer(device: str, spheres, width: int, height: int, shading=None, primitiv
     return module(name).Tracer(spheres, width, height, checked(name, options, shading), shading)
 
 
+# The devices that trace a kind of primitive other than the sphere.
+KIND_DEVICES = ("cpu", "cuda", "wgpu")
+
+
 def _check_kind(device: str, buffer, primitive: str) -> None:
     """Refuse, in one line, a kind of primitive other than the sphere on a
     device that cannot trace it yet, or a buffer without the rows its
@@ -141,8 +145,8 @@ def _check_kind(device: str, buffer, primitive: str) -> None:
 
     if primitive not in KINDS:
         raise RaybenchError(f"primitive: must be one of {', '.join(KINDS)}, got {shown(primitive)}")
-    if device != "cpu":
-        raise RaybenchError(f"device {device}: {primitive}s are traced on cpu only so far; use --device cpu")
+    if device not in KIND_DEVICES:
+        raise RaybenchError(f"device {device}: {primitive}s are traced on {', '.join(KIND_DEVICES)} only so far")
     rows = KINDS[primitive].SCENE_ROWS
     if not (
         isinstance(buffer, np.ndarray)

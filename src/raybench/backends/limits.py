@@ -70,15 +70,18 @@ def check_count(count, loaded: int, constant: bool = False) -> int:
     return int(count)
 
 
-def check_bvh_fits(device: str, spheres: int, available: float, per_sphere: int, pixel_bytes_needed: int = 0) -> None:
+def check_bvh_fits(
+    device: str, spheres: int, available: float, per_sphere: int, pixel_bytes_needed: int = 0, noun: str = "spheres"
+) -> None:
     """A BVH of `spheres` spheres (per_sphere bytes each, at most) and the
-    frame must fit in what the device has free."""
+    frame must fit in what the device has free. noun: what the primitives
+    are called (a mesh's "triangles")."""
     need = max(spheres, 1) * per_sphere + pixel_bytes_needed
     if need > available:
         raise RaybenchError(
-            f"bvh: {spheres:,} spheres need {_bytes(need)} for the BVH and the frame, "
+            f"bvh: {spheres:,} {noun} need {_bytes(need)} for the BVH and the frame, "
             f"more than the {_bytes(available)} available on the {device}; "
-            "use fewer spheres or a smaller size"
+            f"use fewer {noun} or a smaller size"
         )
 
 

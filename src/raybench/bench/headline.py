@@ -28,43 +28,77 @@ DEFINITION = (
 )
 
 
-def _counts(record: dict, device: str) -> bool:
-    options = record.get("options") or {}
-    seed = ((record["run"].get("settings") or {}).get("seed")) or 0
+def counts_point(suite: str, device: str, size: tuple, spheres: int, options: dict) -> bool:
+    """Whether a point of a suite is one of the headline's on its device."""
     return (
-        record["suite"] == "thesis"
-        and record["device"] == device
-        and "skipped" not in record
-        and (record["width"], record["height"]) == SIZE
-        and record["spheres"] in SPHERES
+        suite == "thesis"
+        and device in KERNELS
+        and tuple(size) == SIZE
+        and spheres in SPHERES
         and options.get("accel", "none") == "none"
         # records from before the fast kernel carry none, and were the simple one's
         and options.get("kernel", "simple") == KERNELS[device]
-        and seed == 0
     )
+
+
+def _counts(record: dict, device: str) -> bool:
+    seed = ((record["run"].get("settings") or {}).get("seed")) or 0
+    return (
+        record["device"] == device
+        and "skipped" not in record
+        and seed == 0
+        and counts_point(
+            record["suite"], device, (record["width"], record["height"]), record["spheres"], record.get("options") or {}
+        )
+    )
+
+
+def _passes(record: dict) -> list[list[float]]:
+    """A headline point's kept frame times, pass by pass: its own, then each of its repeats'
+    (bench times the headline's points again later in the run: suites.HEADLINE_REPEATS)."""
+    return [list(record.get("samples_ms") or [])] + [list(r.get("samples_ms") or []) for r in record.get("repeats", ())]
+
+
+def _median_ms(record: dict) -> float:
+    """A point's median frame time: over every pass's frames where it was timed again."""
+    if record.get("repeats"):
+        return float(np.median(np.concatenate([np.asarray(p, dtype=np.float64) for p in _passes(record)])))
+    return record["frame_ms"]["median"]
+
+
+def _rate(ms):
+    return SIZE[0] * SIZE[1] / (np.asarray(ms, dtype=np.float64) / 1e3) / 1e6
 
 
 def score(records: list[dict], device: str) -> float | None:
     """The headline of device from one machine's records, or None where a point is missing."""
-    found = {r["spheres"]: r["frame_ms"]["median"] for r in records if _counts(r, device)}
+    found = {r["spheres"]: _median_ms(r) for r in records if _counts(r, device)}
     if set(found) != set(SPHERES):
         return None
-    rates = [SIZE[0] * SIZE[1] / (found[n] / 1e3) / 1e6 for n in SPHERES]
+    rates = [float(_rate(found[n])) for n in SPHERES]
     return math.exp(sum(map(math.log, rates)) / len(rates))
 
 
-# The headline's interval: a moving-block bootstrap over each point's kept frames (in the order
-# they were timed), so that a stretch of slow frames, a neighbour's burst of work, moves the
-# resampled medians together as it moved the run. Blocks of a tenth of the frames; fixed seed.
+# The headline's interval, from two sources, the wider taken:
+# - within the run: a moving-block bootstrap over each point's kept frames (in the order they
+#   were timed), so that a stretch of slow frames moves the resampled medians together as it
+#   moved the run. Blocks of a tenth of the frames; fixed seed.
+# - between passes: bench times the headline's points again, later in the run, afresh
+#   (suites.HEADLINE_REPEATS), and the passes' headlines give a Student's t interval. A drift
+#   that held through one pass's frames, the clock or a neighbour over minutes, moves one pass
+#   and not the others; frames alone cannot see it (docs/thesis.md#the-headlines-interval).
 ROUNDS = 2000
 SPREAD_WARN = 0.10  # an interval wider than this either side of the headline is too loose to quote alone
-# The interval resamples one run's frames, so a load or a clock that held through a whole point
-# moves every frame and its resamples together: two runs on a shared machine fell outside each
-# other's (docs/thesis.md#the-headlines-interval-one-runs-frames). It is stated as what it is,
-# not widened by a guessed between-run term: one run holds no measure of the next.
-WITHIN_RUN = (
-    "each interval is over its own run's frames only: a load or a clock that held through a whole point "
-    "moves all its frames together, and another run can fall outside it"
+# Student's t at 97.5% by degrees of freedom (passes less one): numpy has no t quantile
+T_975 = {1: 12.706, 2: 4.303, 3: 3.182, 4: 2.776, 5: 2.571, 6: 2.447, 7: 2.365, 8: 2.306}
+PAGE = "docs/thesis.md#the-headlines-interval"
+SPANS = (
+    "each interval spans its run's passes over the headline's points (the first, and the repeats "
+    "later in the run): a load that held through the whole run moves them all, and another run can fall outside it"
+)
+SPANS_FRAMES = (
+    "this interval is over one pass's frames only (its records have no repeats): a load or a clock that held "
+    "through a whole point moves all its frames together, and another run can fall outside it"
 )
 
 
@@ -76,21 +110,41 @@ def _block_medians(samples: np.ndarray, rng: np.random.Generator, rounds: int) -
     return np.median(samples[picked], axis=1)
 
 
+def _headline_records(records: list[dict], device: str) -> dict[int, list[list[float]]] | None:
+    found = {r["spheres"]: _passes(r) for r in records if _counts(r, device)}
+    if set(found) != set(SPHERES) or any(len(p[0]) < 5 for p in found.values()):
+        return None
+    return found
+
+
+def passes(records: list[dict], device: str) -> int:
+    """How many passes over the headline's points the records hold whole (each point timed in
+    each): 1 for records without repeats, 0 where there is no interval at all."""
+    found = _headline_records(records, device)
+    if found is None:
+        return 0
+    return min(sum(1 for p in ps if len(p) >= 5) for ps in found.values())
+
+
 def interval(records: list[dict], device: str, rounds: int = ROUNDS) -> tuple[float, float] | None:
-    """The 95% interval of device's headline from one machine's records: the frames of each of
-    its three points resampled in blocks, the geometric mean taken each round. None where a
-    point is missing or kept too few frames (records from before samples_ms). It is the spread
-    within one run (WITHIN_RUN): what stayed the same through a point's frames, a neighbour's
-    load or the clock, it cannot see."""
-    found = {r["spheres"]: r.get("samples_ms") or [] for r in records if _counts(r, device)}
-    if set(found) != set(SPHERES) or any(len(s) < 5 for s in found.values()):
+    """The 95% interval of device's headline from one machine's records: the wider of the
+    bootstrap over each point's frames (every pass's, pooled) and Student's t over the passes'
+    headlines where the points were timed again. None where a point is missing or kept too
+    few frames (records from before samples_ms)."""
+    found = _headline_records(records, device)
+    if found is None:
         return None
     rng = np.random.default_rng(0)
-    logs = sum(
-        np.log(SIZE[0] * SIZE[1] / (_block_medians(np.asarray(found[n], dtype=np.float64), rng, rounds) / 1e3) / 1e6)
-        for n in SPHERES
-    )
+    pooled = {n: np.concatenate([np.asarray(p, dtype=np.float64) for p in ps]) for n, ps in found.items()}
+    logs = sum(np.log(_rate(_block_medians(pooled[n], rng, rounds))) for n in SPHERES)
     low, high = np.percentile(np.exp(logs / len(SPHERES)), [2.5, 97.5])
+    count = passes(records, device)
+    if count >= 2:
+        each = np.array(
+            [sum(np.log(_rate(np.median(found[n][k]))) for n in SPHERES) / len(SPHERES) for k in range(count)]
+        )
+        half = T_975[min(count - 1, max(T_975))] * each.std(ddof=1) / math.sqrt(count)
+        low, high = min(low, math.exp(each.mean() - half)), max(high, math.exp(each.mean() + half))
     return float(low), float(high)
 
 
@@ -179,7 +233,7 @@ def summary(records: list[dict], references: list[dict]) -> list[str]:
     if not mine:
         return [f"{DEFINITION}: not measured in this run (it needs the thesis suite)"]
     out = [f"{DEFINITION}:"]
-    loose, spans = [], 0
+    loose, spans, whole = [], 0, True
     width = max([14] + [len(r["label"]) for r in table if r["reference"]])  # the figures in one column
     for r in mine:
         extra = ""
@@ -188,6 +242,7 @@ def summary(records: list[dict], references: list[dict]) -> list[str]:
         span = interval([x for x in records if x["run"]["label"] == r["label"]], r["device"])
         if span is not None:
             spans += 1
+            whole &= passes([x for x in records if x["run"]["label"] == r["label"]], r["device"]) >= 2
             extra = f"  (95% interval {_fmt(span[0])} to {_fmt(span[1])}){extra}"
             if span[1] - span[0] > 2 * SPREAD_WARN * r["value"]:
                 loose.append(r["name"])
@@ -200,7 +255,7 @@ def summary(records: list[dict], references: list[dict]) -> list[str]:
             "(another program's load, a clock that changed); run again on a quiet machine to quote it"
         )
     if spans:
-        out.append(f"  {WITHIN_RUN} (docs/thesis.md#the-headlines-interval-one-runs-frames)")
+        out.append(f"  {SPANS if whole else SPANS_FRAMES} ({PAGE})")
     others = [r for r in table if r["reference"]]
     if others:
         out.append("  reference machines (measured elsewhere, shipped with raybench; not this machine):")

@@ -213,10 +213,29 @@ def parse_records(text: str, path, compact: bool = False) -> list[dict]:
         check_record(record, where, runs)
         if compact and "samples_ms" in record:
             record["samples_ms"] = times_array(record["samples_ms"])
+        if "repeat" in record:
+            _fold(records, record, where)
+            continue
         records.append(record)
     if not records:
         raise RaybenchError(f"{path}: holds no results")
     return records
+
+
+_POINT_KEYS = ("suite", "test", "device", "width", "height", "spheres", "options")
+
+
+def _fold(records: list[dict], again: dict, where: str) -> None:
+    """A repeat of a point (bench times the headline's points again later in the run) goes into
+    its point's record, as one of its "repeats": every reader then sees one record a point, and
+    the headline's interval reads the passes from there."""
+    key = [again.get(k) for k in _POINT_KEYS]
+    for record in reversed(records):
+        if record["run"] == again["run"] and [record.get(k) for k in _POINT_KEYS] == key and "skipped" not in record:
+            kept = {k: again[k] for k in ("frames", "frame_ms", "samples_ms") if k in again}
+            record.setdefault("repeats", []).append(kept)
+            return
+    raise RaybenchError(f"{where}: repeat {again['repeat']} of a point that no line before it holds")
 
 
 def _lines(text: str):

@@ -368,6 +368,8 @@ POINT = _compile(
         "options?": OPTIONS,
         "adapter?": _object_of(_or_null(_plain)),
         "walk?": _or_null(_text),
+        # the k-th time this point was timed again in its run (the headline's points)
+        "repeat?": _whole(1, 64),
     }
 )
 MEASURED = _compile(
@@ -376,6 +378,8 @@ MEASURED = _compile(
         "frame_ms": TIMES,
         # the frames' own times (at most stats.MAX_SAMPLES, evenly strided): compare's bootstrap
         "samples_ms?": _list(_time, 100_000),
+        # its repeats' frames, folded in as results.read reads them
+        "repeats?": _list({"frames?": _count, "frame_ms": TIMES, "samples_ms?": _list(_time, 100_000)}, 64),
         "kernel_ms?": _or_null(TIMES),
         "first_frame_s?": _or_null(_number),
         "compile_s?": _or_null(_number),

@@ -250,6 +250,7 @@ def _identity(point: Point) -> dict:
         "height": point.height,
         "spheres": point.spheres,
         "options": point.options,
+        **({"repeat": point.repeat} if point.repeat else {}),
     }
 
 

@@ -13,8 +13,9 @@ from .. import compiled
 # Numba's compiler (LLVM) runs to its end before Python sees a Ctrl-C: said plainly, so that
 # a Ctrl-C that waits is not taken for a hang (docs/notes/faults.md#where-it-stands).
 MESSAGE = "compiling kernels for this machine, first run only (Ctrl-C waits for it)"
-# A kind of primitive other than the sphere: its kernels are compiled in each process (backends/cpu/kinds.py).
-KIND_MESSAGE = "compiling the cpu's kernels for triangles, each run: they are not cached yet (Ctrl-C waits for it)"
+# A kind of primitive other than the sphere: its own copies of the kernels (backends/cpu/kinds.py,
+# backends/cuda/kinds.py; the cpu's are cached, cuda's compile in each process).
+KIND_MESSAGE = "compiling the kernels for triangles (Ctrl-C waits for it)"
 
 
 @contextlib.contextmanager

@@ -34,14 +34,6 @@ def wgpu_tracer_here(state: ViewerState, device, adapter, named: str | None):
     from .zero_copy import InWindowTracer
 
     described = describe_raw(adapter)
-    kind = state.supply.traced.kind
-    if kind != "sphere":
-        # the in-window tracer draws spheres; a mesh's frames come from the tracing thread's Renderer
-        reason = f"device wgpu: the window's own wgpu tracer draws spheres only, not {kind}s"
-        if state.device == "wgpu":
-            raise RaybenchError(reason)
-        state.unavailable["wgpu"] = reason
-        return None
     if named is None and not described.is_gpu:
         reason = (
             f"device wgpu: the window's adapter, {described.label()}, is not a GPU; name it to trace on "

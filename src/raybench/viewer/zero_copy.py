@@ -61,14 +61,16 @@ class InWindowTracer:
         import wgpu
 
         # checked as the Tracer's are; a frame of another sphere count (+, -, the ramp) gets its tree in encode()
+        traced = request.scene.traced()  # the spheres, or a mesh scene's triangles
         compute = Compute(
             self.device,
-            request.scene.spheres,
+            traced.leaves,
             request.width,
             request.height,
             checked("wgpu", options, request.shading),
             request.shading,
             extra_texture_usage=wgpu.TextureUsage.TEXTURE_BINDING,
+            primitive=traced.kind,
         )
         compile_s = compute.compile()
         if request.shading is not None and self._rays_read is None:

@@ -5,8 +5,9 @@ they are imported. Another kind's are the same modules compiled again over
 its answers (compiled.rebound): the packets, the shadow packets, the
 4-wide single-ray walk, the pixel programs, brute force and Whitted's rows,
 each calling the others' copies, so a process can hold a sphere scene's
-kernels and a mesh's side by side. They are not in Numba's disk cache: a
-mesh's first frame in each process compiles them.
+kernels and a mesh's side by side. They are in raybench's disk cache, filed
+under the kind's name as well (compiled.rebound): the first mesh a machine
+traces compiles them, and later processes load them.
 """
 
 from __future__ import annotations
@@ -40,12 +41,7 @@ def programs(kind: str) -> SimpleNamespace:
     constant_band, fast_band and prepare (the last two the sphere's only:
     None for a kind without a cull)."""
     primitive = primitive_of(kind)
-    if primitive is sphere:
-        spaces = {module.__name__.rsplit(".", 1)[-1]: module for module in MODULES}
-    else:
-        spaces = compiled.rebound(MODULES, primitive)
-        if compiled.on_compile is not None:  # the copies compile at their first frame: say so where it is listened to
-            compiled.on_compile()
+    spaces = compiled.per_kind(MODULES, primitive, sphere, cached=True)
     culls = primitive is sphere
     return SimpleNamespace(
         packets=spaces["packets"]._bvh_packets_wide,

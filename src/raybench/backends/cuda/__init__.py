@@ -14,6 +14,8 @@ numba's simulator, which is how the tests check it on machines without a GPU.
   tracer   the Tracer and its kernels
   build    the LBVH built on the GPU (build="gpu")
   launch   launches with their arguments converted once
+  kinds    the kernels of another kind of primitive (a mesh's triangles):
+           these modules compiled again over its answers
 """
 
 from __future__ import annotations

@@ -41,9 +41,11 @@ row) is uploaded.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 from numba import config, cuda
@@ -345,7 +347,15 @@ def _arrive(arrived, row):
 # for the numba.cuda a function names in its globals only, the CPU's (the
 # same answers: np.empty and a count of leading zeros).
 _target = lbvh_steps.cpu_target(lambda f: f) if _SIM else cuda
-_steps = lbvh_steps.make(cuda.jit(device=True), _target, _load_f, _load_i, _arrive, sphere)
+
+
+@functools.cache
+def _made(primitive=sphere):
+    """lbvh_steps for the GPU, for one kind of primitive (another's in a copy: cuda/kinds.py)."""
+    return lbvh_steps.make(cuda.jit(device=True), _target, _load_f, _load_i, _arrive, primitive)
+
+
+_steps = _made()
 _hierarchy_row = _steps.hierarchy_row
 _reorder_one = _steps.reorder_one
 # The primitive's extent as lbvh_steps compiled it: its box's centre is the
@@ -376,6 +386,13 @@ def _bounds_up(
             spheres, k, order, leaf_up, up, span, nodes, links, below, costs, kid, arrived, ordered, stats, cost,
             leaf_max, sah, restructure,
         )  # fmt: skip
+
+
+def _kernels() -> SimpleNamespace:
+    """The build's kernels that read a primitive, and its module: this module's, or
+    a copy's for another kind (compiled.rebound; backends/cuda/kinds.py sets it)."""
+    return SimpleNamespace(primitive=sphere, bounds_parts=_bounds_parts, morton=_morton, reorder=_reorder,
+                           bounds_up=_bounds_up)  # fmt: skip
 
 
 @dataclass
@@ -419,10 +436,11 @@ class Builder:
     "lbvh" makes every subtree of up to leaf_size spheres (default
     LEAF_SIZE) a leaf, the first GPU tree, kept to be measured against.
     treelet_passes: the bottom-up passes of treelets of "treelet" (default
-    lbvh.TREELET_PASSES)."""
+    lbvh.TREELET_PASSES). kind: a kind of primitive's _kernels (default the sphere's)."""
 
     def __init__(self, n: int, leaf_size: int | None = None, quality: str | None = None,
-                 treelet_passes: int | None = None):  # fmt: skip
+                 treelet_passes: int | None = None, kind: SimpleNamespace | None = None):  # fmt: skip
+        self.kind = k = _kernels() if kind is None else kind
         quality = QUALITY if quality is None else quality
         if quality not in QUALITIES:
             raise ValueError(f"quality: must be one of {', '.join(QUALITIES)}, got {quality!r}")
@@ -449,7 +467,7 @@ class Builder:
         self.costs = cuda.device_array(2 * m, np.float32)
         self.kid = cuda.device_array(2 * m, np.int32)
         self.arrived = cuda.to_device(np.zeros(m, np.int32))  # each pass leaves it zero
-        self.ordered = cuda.device_array((sphere.LEAF_ROWS, max(n, 1)), np.float32)
+        self.ordered = cuda.device_array((k.primitive.LEAF_ROWS, max(n, 1)), np.float32)
         self.stats = cuda.device_array(2, np.int32)  # the root's height and the rows a walk reaches
         self.cost = cuda.device_array(1, np.float32)
         # the sorted values end in the buffer of the last pass: the order
@@ -481,9 +499,10 @@ class Builder:
         """Steps 1 and 2: the centres' bounds, then each one's Morton code."""
         parts = min(_blocks(self.n, THREADS), BOUNDS_BLOCKS)
         launch = self._on(spheres)
-        launch(_bounds_parts, parts, THREADS, spheres, self.n, self.bound_parts)
+        launch(self.kind.bounds_parts, parts, THREADS, spheres, self.n, self.bound_parts)
         launch(_bounds_merge, 1, ONE_BLOCK, self.bound_parts, parts, self.bounds)
-        launch(_morton, _blocks(self.n, THREADS), THREADS, spheres, self.n, self.bounds, self.keys[0], self.values[0])
+        launch(self.kind.morton, _blocks(self.n, THREADS), THREADS, spheres, self.n, self.bounds, self.keys[0],
+               self.values[0])  # fmt: skip
 
     def launch_sort(self) -> None:
         """Step 3: the (code, index) pairs sorted by code, stably."""
@@ -512,8 +531,8 @@ class Builder:
             for _ in range(self.treelet_passes - 1):  # the treelets of the tree the last pass left
                 self._up(spheres, self.sorted, self.sorted_up, self.leaf_size)
             self._on(spheres)(
-                _reorder, _blocks(self.n, THREADS), THREADS, spheres, self.n, self.sorted, self.sorted_up, self.up,
-                self.links, self.kid, self.span, self.order, self.leaf_up, self.ordered,
+                self.kind.reorder, _blocks(self.n, THREADS), THREADS, spheres, self.n, self.sorted, self.sorted_up,
+                self.up, self.links, self.kid, self.span, self.order, self.leaf_up, self.ordered,
             )  # fmt: skip
 
     def launch_refit(self, spheres) -> None:
@@ -523,7 +542,7 @@ class Builder:
 
     def _up(self, spheres, order, leaf_up, leaf_max: int) -> None:
         self._on(spheres)(
-            _bounds_up, _blocks(self.n, THREADS), THREADS, spheres, self.n, order, leaf_up, self.up, self.span,
+            self.kind.bounds_up, _blocks(self.n, THREADS), THREADS, spheres, self.n, order, leaf_up, self.up, self.span,
             self.nodes, self.links, self.below, self.costs, self.kid, self.arrived, self.ordered, self.stats,
             self.cost, leaf_max, int(self.quality != "lbvh"), int(self.quality == "treelet"),
         )  # fmt: skip
@@ -552,7 +571,7 @@ def upload(b: bvh_mod.Bvh) -> GpuTree:
     return GpuTree(
         nodes,
         nodes.view(np.int32),
-        cuda.to_device(b.ordered if b.count else np.zeros((sphere.LEAF_ROWS, 1), np.float32)),
+        cuda.to_device(b.ordered if b.count else np.zeros((b.ordered.shape[0], 1), np.float32)),
         cuda.to_device(b.order if b.count else np.zeros(1, np.int32)),
         b.count,
         b.depth,
@@ -561,18 +580,21 @@ def upload(b: bvh_mod.Bvh) -> GpuTree:
     )
 
 
-def build(spheres: np.ndarray, d_spheres, builder: Builder | None = None, max_depth: int = MAX_DEPTH) -> GpuTree:
+def build(spheres: np.ndarray, d_spheres, builder: Builder | None = None, max_depth: int = MAX_DEPTH,
+          kind: SimpleNamespace | None = None) -> GpuTree:  # fmt: skip
     """The tree of the (7, N) spheres, whose copy on the device is d_spheres,
     built on the GPU (with `builder`'s arrays if given, for N spheres), or on
     the host where the GPU has nothing to build (N < 2) or its tree is deeper
-    than max_depth. build_s: from the first launch to the tree ready to walk."""
+    than max_depth. build_s: from the first launch to the tree ready to walk.
+    kind: Builder's, for another kind's buffer (builder's, if given)."""
+    kind = builder.kind if builder is not None else (_kernels() if kind is None else kind)
     n = spheres.shape[1]
     if n < 2:
-        return upload(bvh_mod.build(spheres, device="cuda"))
+        return upload(bvh_mod.build(spheres, device="cuda", primitive=kind.primitive))
     start = time.perf_counter()
-    builder = builder if builder is not None and builder.n == n else Builder(n)
+    builder = builder if builder is not None and builder.n == n else Builder(n, kind=kind)
     builder.launch_build(d_spheres)
     depth = builder.read_depth()
     if depth > max_depth:
-        return upload(bvh_mod.build(spheres, device="cuda"))
+        return upload(bvh_mod.build(spheres, device="cuda", primitive=kind.primitive))
     return builder.tree(depth, time.perf_counter() - start)

@@ -13,6 +13,7 @@ from numba import cuda
 
 from ... import compiled, kernels
 from ...kernels.constants import FAR, ZERO
+from ...kernels.primitives import sphere
 from ...kernels.whitted import RAY_FLOATS, RAY_INTS, RAY_STACK
 from ...layout import NODE_BYTES, RADIUS, STACK
 from ..options import RAYS_PER_THREAD, STAGED, TRIP
@@ -42,7 +43,20 @@ def _any_in_block(p):
 # own local memory: the form measured as fast as that kernel (inlining
 # alone was not what the earlier forms lacked:
 # docs/notes/one-source.md#one-walk-for-a-ray-and-a-packet).
-_k = kernels.make(cuda.jit(device=True), vote=_any_in_block, voted_jit=compiled.cuda_device(forceinline=True))
+# Made for a primitive, the sphere's at import; compiled.rebound compiles
+# this module's kernels again for another kind (backends/cuda/kinds.py).
+@functools.cache
+def _made(primitive=sphere):
+    """kernels.make for this backend, for one kind of primitive."""
+    return kernels.make(
+        cuda.jit(device=True),
+        vote=_any_in_block,
+        voted_jit=compiled.cuda_device(forceinline=True),
+        primitive=primitive,
+    )
+
+
+_k = _made()
 # module globals, which is how kernels can see them
 _render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
 _prepare_one, _may_hit, _along, _intersect_relative = (

@@ -12,7 +12,9 @@ from numba import cuda
 from numba.cuda.core.errors import NumbaPerformanceWarning
 
 from ... import bvh as bvh_mod
+from ...errors import RaybenchError
 from ...host import host_available_bytes
+from ...kernels.primitives import sphere
 from ...layout import KINDS, NODE_FLOATS
 from ...lighting import Shading
 from ..contract import TracerBase, check_moved
@@ -27,19 +29,10 @@ from ..limits import (
 from ..options import DEFAULT_BLOCK, CudaOptions
 from . import build as cuda_build
 from .device import require, simulated
+from .kinds import programs
 from .launch import Launches
-from .program import (
-    _bvh_kernel,
-    _bvh_packet_kernel,
-    _constant_kernel,
-    _prepare_kernel,
-    _render_kernel,
-    _whitted_kernel,
-    _zero_rays,
-    choose_walk,
-    fast_kernel,
-)
-from .wavefront import SPHERE_ROW_BYTES, Wavefront, sphere_rows
+from .program import _zero_rays, choose_walk
+from .wavefront import Wavefront, row_bytes
 
 
 class Tracer(TracerBase):
@@ -57,33 +50,49 @@ class Tracer(TracerBase):
         height: int,
         options: CudaOptions | None = None,
         shading: Shading | None = None,
+        primitive: str = "sphere",
     ):
         require()
         options = self._options(options, shading)
         self.options = options
         self.accel, self.kernel, self.build = options.accel, options.kernel, options.build
+        # the kind of primitive spheres' columns are (kernels/primitives' KINDS), and its kernels
+        self.primitive = primitive
+        self._programs = k = programs(primitive)
+        self._kind = k.primitive
+        if self.accel == "none" and self.kernel == "fast" and k.primitive is not sphere:
+            raise RaybenchError(
+                f"kernel 'fast': its cull is the sphere's; a {primitive}'s brute force is the simple kernel "
+                "(kernel='simple', --kernel simple)"
+            )
         walk = options.walk
         # for a walk the tree chooses, replaced below once it has chosen
         self.block = options.block or DEFAULT_BLOCK[self.kernel or walk or "ray"]
         self.rays, self.staged, self.trip = options.rays, options.staged, options.trip
         free, _total = cuda.current_context().get_memory_info()
-        check_fits("cuda GPU", width, height, spheres.shape[1], free)
+        if k.primitive is sphere:
+            check_fits("cuda GPU", width, height, spheres.shape[1], free)
+        else:  # a mesh's buffer, its tree and the frame, in one line where they do not fit
+            check_fits("cuda GPU", width, height, 0, free)
+            check_bvh_fits("cuda GPU", spheres.shape[1], free, self._device_bytes(spheres.shape[0]),
+                           width * height * PIXEL_BYTES, f"{primitive}s")  # fmt: skip
         check_fits("host", width, height, 0, host_available_bytes(), HOST_PIXEL_BYTES)
         if self.accel == "bvh":
-            check_bvh_fits(
-                "cuda GPU",
-                spheres.shape[1],
-                free - spheres.shape[1] * 7 * 4,
-                (cuda_build.DEVICE_SPHERE_BYTES if self.build == "gpu" else bvh_mod.DEVICE_SPHERE_BYTES)
-                + (SPHERE_ROW_BYTES if options.schedule == "wavefront" else 0),  # the wavefront's copy of the spheres
-                width * height * PIXEL_BYTES,
-            )
+            if k.primitive is sphere:
+                check_bvh_fits(
+                    "cuda GPU",
+                    spheres.shape[1],
+                    free - spheres.shape[1] * 7 * 4,
+                    self._device_bytes(0),
+                    width * height * PIXEL_BYTES,
+                )
             check_bvh_fits(
                 "host",
                 spheres.shape[1],
                 host_available_bytes(),
                 bvh_mod.BUILD_SPHERE_BYTES,
                 width * height * HOST_PIXEL_BYTES,
+                f"{primitive}s",
             )
         self.spheres = spheres
         self.width, self.height = width, height
@@ -93,7 +102,7 @@ class Tracer(TracerBase):
         # kernel's timed span (cuda.launch;
         # docs/notes/startup.md#a-launchs-arguments-converted-once)
         self._launches = Launches(64)
-        self.d_spheres = cuda.to_device(spheres if self.count else np.zeros((7, 1), np.float32))
+        self.d_spheres = cuda.to_device(spheres if self.count else np.zeros((spheres.shape[0], 1), np.float32))
         self.d_image = cuda.device_array((height, width, 3), dtype=np.uint8)
         self.d_hits = cuda.device_array((height, width), dtype=np.int32)
         self.image = self.host_array((height, width, 3), np.uint8)
@@ -110,9 +119,9 @@ class Tracer(TracerBase):
         self._wavefront = None  # the wavefront's queues and launches (schedule "wavefront")
         self.ray_counts = None
         if shading is not None:
-            self._kernel = _whitted_kernel
+            self._kernel = k.program._whitted_kernel
             if self.schedule == "wavefront":
-                self._wavefront = Wavefront(width, height, shading.depth, options.wave_grid)
+                self._wavefront = Wavefront(width, height, shading.depth, options.wave_grid, k.stages)
             if self.accel == "bvh":
                 self._build(self.count)
                 self.walk = "ray"
@@ -121,7 +130,7 @@ class Tracer(TracerBase):
                 self.d_links = cuda.device_array((0, NODE_FLOATS), np.int32)
                 self.d_nodes64 = self.d_nodes.view(np.float64)
                 self.d_sphere_rows = cuda.device_array((1, 2), np.float64)  # read by no walk: there is no tree
-                self.d_ordered = cuda.device_array((4, 1), np.float32)
+                self.d_ordered = cuda.device_array((k.primitive.LEAF_ROWS, 1), np.float32)
                 self.d_order = cuda.device_array(1, np.int32)
             self.d_materials = cuda.to_device(shading.materials if self.count else np.ones((5, 1), np.float32))
             self.d_lights = cuda.to_device(shading.lights)
@@ -132,16 +141,27 @@ class Tracer(TracerBase):
         elif self.accel == "bvh":
             self._build(self.count)
             self.walk = choose_walk(self._rows_walked()) if walk is None else walk
-            self._kernel = _bvh_packet_kernel if self.walk == "packet" else _bvh_kernel
+            self._kernel = k.program._bvh_packet_kernel if self.walk == "packet" else k.program._bvh_kernel
             if options.block is None:
                 self.block = DEFAULT_BLOCK[self.walk]
         elif self.kernel == "fast":
-            self._kernel = fast_kernel(self.rays, self.staged, self.trip)
+            self._kernel = k.program.fast_kernel(self.rays, self.staged, self.trip)
             self.d_relative = cuda.device_array((4, max(self.count, 1)), dtype=np.float32)
         else:
-            self._kernel = _constant_kernel(self.count) if self.constant_count else _render_kernel
+            self._kernel = k.program._constant_kernel(self.count) if self.constant_count else k.program._render_kernel
         self.grid = (math.ceil(width / self.block[0]), math.ceil(height / (self.block[1] * self.rays)))
         self._rows = None  # the rows the last launch traced, None for all
+
+    def _device_bytes(self, rows: int) -> int:
+        """Device bytes a primitive: its `rows` float32 of the scene's buffer
+        (0: counted apart), its tree's (the GPU builder's arrays, or a host
+        tree's rows, its leaf buffer and order) and the wavefront's packed
+        copy of its leaf."""
+        leaf = 4 * self._kind.LEAF_ROWS
+        # the sphere's figures count its leaf's four float32: 16 bytes
+        tree = (cuda_build.DEVICE_SPHERE_BYTES if self.build == "gpu" else bvh_mod.DEVICE_SPHERE_BYTES) - 16 + leaf
+        packed = row_bytes(self._kind) if self.options.schedule == "wavefront" else 0
+        return 4 * rows + (tree + packed if self.accel == "bvh" else 0)
 
     def _build(self, count: int) -> None:
         """The BVH of the first `count` spheres, on the device: built on the
@@ -152,15 +172,21 @@ class Tracer(TracerBase):
         if self.build == "gpu":
             if self._builder is None or self._builder.n != count:
                 self._builder = (
-                    cuda_build.Builder(count, quality=self.options.quality, treelet_passes=self.options.treelet_passes)
+                    cuda_build.Builder(
+                        count,
+                        quality=self.options.quality,
+                        treelet_passes=self.options.treelet_passes,
+                        kind=self._programs.build,
+                    )
                     if count >= 2
                     else None
                 )
-            self.bvh = cuda_build.build(self.spheres[:, :count], self.d_spheres, self._builder)
+            kind = self._programs.build
+            self.bvh = cuda_build.build(self.spheres[:, :count], self.d_spheres, self._builder, kind=kind)
             # the fresh tree's SAH cost: what update()'s refits are held to
             self._fresh_cost = self._builder.read_cost() if self.bvh.built_on == "gpu" else None
         else:
-            self.bvh = cuda_build.upload(bvh_mod.build(self.spheres[:, :count], device="cuda"))
+            self.bvh = cuda_build.upload(bvh_mod.build(self.spheres[:, :count], device="cuda", primitive=self._kind))
         self._launches.clear()  # they hold the old tree's arrays
         self.build_s = self.bvh.build_s
         self.d_nodes, self.d_links = self.bvh.nodes, self.bvh.links  # the same bytes: one row holds both
@@ -172,7 +198,8 @@ class Tracer(TracerBase):
         """The ordered spheres a row each, as the wavefront's walks read them
         (wavefront.sphere_rows), after each build or refit of the tree; None
         where no wavefront walks it."""
-        self.d_sphere_rows = sphere_rows(self.d_ordered) if self._wavefront is not None else None
+        packed = self._programs.wavefront.sphere_rows
+        self.d_sphere_rows = packed(self.d_ordered, self._kind.PACKED_WORDS) if self._wavefront is not None else None
 
     def _rows_walked(self) -> int:
         """The rows of the tree a walk can reach: all of a host-built tree's;
@@ -190,7 +217,9 @@ class Tracer(TracerBase):
         within options.refit_limit of its fresh cost, else rebuilt; with
         build "host" rebuilt on the host. Returns "refit" or "build" (None
         for brute force, which has no tree); build_s is what it took, the
-        tree ready to walk."""
+        tree ready to walk. A mesh is traced as it was given."""
+        if self.primitive != "sphere":
+            raise RaybenchError(f"update: moves spheres; a scene of {self.primitive}s is traced as it was given")
         self.spheres = check_moved(spheres, self.spheres)
         if self.count:
             self.d_spheres.copy_to_device(self.spheres)
@@ -247,8 +276,8 @@ class Tracer(TracerBase):
                 )  # fmt: skip
             elif self.kernel == "fast":
                 # EO and the cull bound for this frame's camera, on the GPU, before the frame
-                launch(_prepare_kernel, max(1, math.ceil(count / 256)), 256, self.d_basis, self.d_spheres, count,
-                       self.d_relative)  # fmt: skip
+                launch(self._programs.program._prepare_kernel, max(1, math.ceil(count / 256)), 256, self.d_basis,
+                       self.d_spheres, count, self.d_relative)  # fmt: skip
                 launch(
                     self._kernel, grid, self.block, width, height, first, end, self.d_basis, self.d_spheres,
                     self.d_relative, count, self.d_image, self.d_hits,

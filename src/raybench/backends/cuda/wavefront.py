@@ -32,14 +32,16 @@ them and exit, a launch's worth of blocks for nothing, at every stage
 
 from __future__ import annotations
 
+import functools
 import math
+from types import SimpleNamespace
 
 import numpy as np
 from numba import cuda
 from numba.cuda import libdevice
 
 from ... import compiled, kernels
-from ...kernels.primitives.sphere import LEAF_ROWS
+from ...kernels.primitives import sphere
 from ...kernels.wavefront import R_KIND, R_PIXEL, RAY_IDS, RAY_ROWS, SHADOW_IDS, SHADOW_ROWS
 from ...layout import CHILD_BOX, COUNT, KINDS, NODE_FLOATS, PRIMARY, REF, STACK
 from .. import bands
@@ -93,34 +95,50 @@ def _read_row64(nodes64, _links, row):
 @compiled.cuda_jit()
 def _sphere_rows(ordered, rows):
     """bvh.ordered (a row a field) as a row a primitive, the layout that the
-    primitive's leaf tests read through _words (kernels/primitives)."""
+    primitive's leaf tests read through _words (kernels/primitives): the
+    primitive's pack_leaf."""
     k = cuda.grid(1)
     if k < ordered.shape[1]:
-        for c in range(LEAF_ROWS):
-            rows[k, c] = ordered[c, k]
+        _pack_leaf(ordered, k, rows)
 
 
-# Device bytes a primitive of sphere_rows' copy.
-SPHERE_ROW_BYTES = 4 * LEAF_ROWS
+def row_bytes(primitive=sphere) -> int:
+    """Device bytes a primitive of sphere_rows' copy: its PACKED_WORDS float64."""
+    return 8 * primitive.PACKED_WORDS
 
 
-def sphere_rows(d_ordered):
-    """The ordered spheres as the wavefront's walks read them (_sphere_rows),
-    seen as float64 pairs, made on the device after each build or refit."""
+# Device bytes a sphere of sphere_rows' copy.
+SPHERE_ROW_BYTES = row_bytes()
+
+
+def sphere_rows(d_ordered, words: int = sphere.PACKED_WORDS):
+    """The ordered primitives as the wavefront's walks read them
+    (_sphere_rows), `words` float64 a primitive (its PACKED_WORDS), made on
+    the device after each build or refit."""
     n = d_ordered.shape[1]
-    rows = cuda.device_array((n, LEAF_ROWS), np.float32)
+    rows = cuda.device_array((n, 2 * words), np.float32)
     _sphere_rows[max(1, math.ceil(n / BLOCK)), BLOCK](d_ordered, rows)
     return rows.view(np.float64)
 
 
 # _read_row64's words are layout's columns in this order
 assert NODE_FLOATS == 16 and CHILD_BOX == (0, 6) and REF == 12 and COUNT == 14
+
+
 # the wavefront's walks read a row in 8 wide loads (_read_row64; the Tracer
 # passes its nodes as float64), not 16, and a leaf's sphere in 2, not 4
 # (the primitive's read_leaf through _words, the spheres a row each, from
 # sphere_rows): the walk is bound by issue, and
 # a load is an instruction (docs/notes/whitted.md)
-_k = kernels.make(cuda.jit(device=True), read_row=_read_row64, words=_words)
+# Made for a primitive, the sphere's at import; compiled.rebound compiles
+# this module's kernels again for another kind (backends/cuda/kinds.py).
+@functools.cache
+def _made(primitive=sphere):
+    """kernels.make for the wavefront, for one kind of primitive."""
+    return kernels.make(cuda.jit(device=True), read_row=_read_row64, words=_words, primitive=primitive)
+
+
+_k = _made()
 # module globals, which is how kernels can see them: the stages through the
 # tree and by brute force (only extend and the shadow test search)
 _tree, _every = _k.whitted_wavefront["bvh"], _k.whitted_wavefront["none"]
@@ -129,6 +147,7 @@ _unblocked_tree, _unblocked_every = _tree.unblocked, _every.unblocked
 _emit_primary, _missed, _shade_ray = _tree.emit_primary, _tree.missed, _tree.shade
 _put_shadows, _put_children = _tree.put_shadows, _tree.put_children
 _fixed, _resolve, _to_byte = _tree.fixed, _tree.resolve, _k.to_byte
+_pack_leaf = _k.prim.pack_leaf
 
 
 @cuda.jit(device=True)
@@ -334,18 +353,28 @@ def _finish(accum, first_pixel, pixels, width, image):
             accum[c, pixel] = 0
 
 
+def _stages() -> SimpleNamespace:
+    """A frame's kernels: this module's, or in a copy for another kind of
+    primitive (compiled.rebound) the copy's own."""
+    return SimpleNamespace(start=_start, primary=_primary, extend=_extend, shade=_shade, shadow=_shadow,
+                           finish=_finish)  # fmt: skip
+
+
 class Wavefront(bands.Queues):
     """The queues of a cuda Tracer's Whitted frames, kept between frames,
     and the launches of one frame. grid: the blocks a stage runs on (None:
     as many as its queue's capacity needs, a thread a ray). mark: None, or
     a function called with a stage's name after each launch (each wave's
     extend, shade and shadow, and "start" and "finish"), for a benchmark to
-    record a CUDA event there (benchmarks/archive/wavefront_stages.py)."""
+    record a CUDA event there (benchmarks/archive/wavefront_stages.py).
+    stages: the kernels of a kind of primitive (_stages of its copy of this
+    module: backends/cuda/kinds.py), by default the sphere's."""
 
     shadow_base, overflow = SHADOW_BASE, OVERFLOW  # the columns of d_counts
 
-    def __init__(self, width: int, height: int, depth: int, grid: int | None = None):
+    def __init__(self, width: int, height: int, depth: int, grid: int | None = None, stages=None):
         self.width, self.height, self.depth = width, height, depth
+        self.stages = _stages() if stages is None else stages
         self.grid = _default_grid() if grid is None else grid
         pixels = width * height
         self.d_accum = cuda.to_device(np.zeros((3, max(pixels, 1)), np.int64))
@@ -408,12 +437,12 @@ class Wavefront(bands.Queues):
     def _launch_band(self, tracer, count: int, first: int, end: int, counts, tally: bool) -> None:
         """Every launch of rows first..end, its queues' counts in `counts`;
         the frame's ray tally zeroed first where `tally`."""
-        launch = self._launches
+        launch, k = self._launches, self.stages
         width = self.width
         first_pixel, pixels = first * width, (end - first) * width
-        launch(_start, 1, COUNTS, counts, tracer.d_rays, tally)
+        launch(k.start, 1, COUNTS, counts, tracer.d_rays, tally)
         rays_f, rays_i = self.queues[0]
-        launch(_primary, max(1, math.ceil(pixels / BLOCK)), BLOCK, rays_f, rays_i, counts, first_pixel, pixels,
+        launch(k.primary, max(1, math.ceil(pixels / BLOCK)), BLOCK, rays_f, rays_i, counts, first_pixel, pixels,
                width, self.height, tracer.d_basis)  # fmt: skip
         mark = self.mark or _unmarked
         mark("start")
@@ -423,26 +452,25 @@ class Wavefront(bands.Queues):
         for wave in range(self.depth + 1):
             rays_f, rays_i = self.queues[wave % 2]
             next_f, next_i = self.queues[(wave + 1) % 2]
-            launch(_extend, ray_blocks, BLOCK, rays_f, rays_i, counts, wave, self.ray_capacity,
+            launch(k.extend, ray_blocks, BLOCK, rays_f, rays_i, counts, wave, self.ray_capacity,
                    tracer.d_spheres, count, *tree, self.d_hit_i, self.d_hit_t, self.d_hit_d, tracer.d_hits, width,
                    tracer.d_rays)  # fmt: skip
             mark("extend")
-            launch(_shade, ray_blocks, BLOCK, rays_f, rays_i, counts, wave, self.ray_capacity, self.d_hit_i,
+            launch(k.shade, ray_blocks, BLOCK, rays_f, rays_i, counts, wave, self.ray_capacity, self.d_hit_i,
                    self.d_hit_t, self.d_hit_d, next_f, next_i, self.ray_capacity, self.d_shadows_f,
                    self.d_shadows_i, self.shadow_capacity, tracer.d_spheres, tracer.d_materials, tracer.d_lights,
                    tracer.d_pattern, tracer.d_params, width, self.depth, self.d_accum)  # fmt: skip
             mark("shade")
-            launch(_shadow, shadow_blocks, BLOCK, self.d_shadows_f, self.d_shadows_i, counts, wave,
+            launch(k.shadow, shadow_blocks, BLOCK, self.d_shadows_f, self.d_shadows_i, counts, wave,
                    self.shadow_capacity, tracer.d_spheres, count, *tree, self.d_accum, tracer.d_rays)  # fmt: skip
             mark("shadow")
-        launch(_finish, max(1, math.ceil(pixels / BLOCK)), BLOCK, self.d_accum, first_pixel, pixels, width,
+        launch(k.finish, max(1, math.ceil(pixels / BLOCK)), BLOCK, self.d_accum, first_pixel, pixels, width,
                tracer.d_image)  # fmt: skip
         mark("finish")
 
-    @staticmethod
-    def kernels() -> dict:
+    def kernels(self) -> dict:
         """The stages' kernels by name (Tracer.kernels)."""
-        return {"extend": _extend, "shade": _shade, "shadow": _shadow}
+        return {"extend": self.stages.extend, "shade": self.stages.shade, "shadow": self.stages.shadow}
 
     def _read_counts(self) -> np.ndarray:
         """The last frame's bands' queue counts (bands.Queues.overflowed), waiting for it."""

@@ -40,6 +40,7 @@ import numpy as np
 from ... import bvh as bvh_mod
 from ... import layout
 from ...bvh import lbvh
+from ...kernels.primitives import KINDS, sphere
 
 QUALITIES = ("sah", "lbvh")
 # A workgroup: WebGPU's default most invocations.
@@ -99,17 +100,25 @@ def constants() -> str:
 
 # The steps that read the primitives' buffer (binding 1, which the sort binds to its keys).
 READS_PRIMITIVES = ("build_codes.wgsl", "build_tree.wgsl")
+# Each kind's answers to the builders (extent, leaf_row and the Leaf they
+# write), and the constants those pieces take from Python: the triangle's
+# box is the walks' (triangle_box.wgsl), over compute.py's rows.
+KIND_PIECES = {"sphere": ("sphere_build.wgsl",), "triangle": ("triangle_box.wgsl", "triangle_build.wgsl")}
+KIND_CONSTANTS = {"BVH_PAD": repr(float(layout.PAD)), "TRI_SCENE_WORDS": f"{layout.TRI_SMOOTH_ROWS}u"}
 
 
 @functools.cache
-def source(step: str) -> str:
+def source(step: str, primitive: str = "sphere") -> str:
     """The WGSL of one step's module: the constants, the common piece, the
     primitive's answers to the builders where the step reads primitives
     (the sort reads only codes), the step's."""
-    primitive = ("sphere_build.wgsl",) if step in READS_PRIMITIVES else ()
-    names = ("build_common.wgsl", *primitive, step)
+    answers = KIND_PIECES[primitive] if step in READS_PRIMITIVES else ()
+    names = ("build_common.wgsl", *answers, step)
     pieces = [resources.files(__package__).joinpath(p).read_text(encoding="utf-8") for p in names]
-    return constants() + "\n".join(pieces)
+    text = constants() + "\n".join(pieces)
+    for name, value in KIND_CONSTANTS.items():
+        text = text.replace(name, value)
+    return text
 
 
 def grid(groups: int) -> tuple[int, int]:
@@ -120,7 +129,9 @@ def grid(groups: int) -> tuple[int, int]:
 
 
 class Kernels:
-    """The build's pipelines on one device, compiled once."""
+    """The build's pipelines on one device for a kind of primitive
+    (KIND_PIECES' keys), compiled once; leaf_rows: the float32 of a row of
+    the tree's leaf buffer that they write (the kind's LEAF_ROWS)."""
 
     ENTRIES = {
         "build_codes.wgsl": ("bounds_parts", "bounds_merge", "morton"),
@@ -128,11 +139,12 @@ class Kernels:
         "build_tree.wgsl": ("hierarchy", "reset", "bounds_up"),
     }
 
-    def __init__(self, device):
+    def __init__(self, device, primitive: str = "sphere"):
         self.device = device
+        self.primitive, self.leaf_rows = primitive, KINDS[primitive].LEAF_ROWS
         self.pipelines = {}
         for step, entries in self.ENTRIES.items():
-            module = device.create_shader_module(code=source(step))
+            module = device.create_shader_module(code=source(step, primitive))
             for entry in entries:
                 self.pipelines[entry] = device.create_compute_pipeline(
                     layout="auto", compute={"module": module, "entry_point": entry}
@@ -165,9 +177,10 @@ class Stats:
 
 class Builder:
     """Builds (and refits) trees of the first n spheres of a device's sphere
-    buffer (compute.py's rows of 8 floats), its buffers and bind groups made
-    once and reused by every build and refit: the dynamic case builds every
-    frame. quality and leaf_size as cuda_build.Builder's."""
+    buffer (compute.py's rows of 8 floats), or of the primitives of the kind
+    its kernels are for (compute.py's rows of that kind), its buffers and
+    bind groups made once and reused by every build and refit: the dynamic
+    case builds every frame. quality and leaf_size as cuda_build.Builder's."""
 
     def __init__(self, device, spheres, n: int, leaf_size: int | None = None, quality: str | None = None,
                  kernels: Kernels | None = None):  # fmt: skip
@@ -198,7 +211,7 @@ class Builder:
         self.nodes = buffer(layout.NODE_BYTES * m)
         self.links = buffer(4 * (m + n + 2 * m))  # up, leaf_up, span
         self.scratch = device.create_buffer_with_data(data=np.zeros(7 * m, np.uint32).tobytes(), usage=storage)
-        self.ordered = buffer(16 * n)
+        self.ordered = buffer(4 * self.kernels.leaf_rows * n)
         self.stats = buffer(STATS_BYTES)
         self.stats_read = device.create_buffer(
             size=STATS_BYTES, usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ
@@ -293,7 +306,7 @@ class Builder:
     def to_host(self, depth: int, build_s: float = 0.0) -> bvh_mod.Bvh:
         """The tree copied to the host, as raybench.bvh's Bvh."""
         nodes = self.read(self.nodes, np.float32, (self.n - 1, layout.NODE_FLOATS))
-        ordered = self.read(self.ordered, np.float32, (self.n, 4))
+        ordered = self.read(self.ordered, np.float32, (self.n, self.kernels.leaf_rows))
         return bvh_mod.Bvh(
             nodes=nodes,
             links=nodes.view(np.int32),
@@ -323,7 +336,7 @@ def upload(device, b: bvh_mod.Bvh) -> Tree:
     import wgpu
 
     usage = wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC
-    ordered = np.zeros((max(b.count, 1), 4), np.float32)
+    ordered = np.zeros((max(b.count, 1), b.ordered.shape[0]), np.float32)
     ordered[: b.count] = b.ordered.T
     order = b.order if b.count else np.zeros(1, np.int32)
     return Tree(
@@ -337,19 +350,22 @@ def upload(device, b: bvh_mod.Bvh) -> Tree:
     )
 
 
-def build(device, spheres: np.ndarray, builder: Builder | None, max_depth: int = layout.MAX_DEPTH) -> Tree:
+def build(device, spheres: np.ndarray, builder: Builder | None, max_depth: int = layout.MAX_DEPTH,
+          primitive=sphere) -> Tree:  # fmt: skip
     """The tree of the (7, N) spheres, whose rows are builder's sphere
     buffer, built on the GPU by builder (for N spheres), or on the host where
     there is none (N < 2) or its tree is deeper than max_depth. build_s: from
-    the submission to the tree ready to walk (its depth read back)."""
+    the submission to the tree ready to walk (its depth read back).
+    primitive: the kind's module (kernels/primitives) the columns are, for the
+    host's build."""
     n = spheres.shape[1]
     if builder is None or n < 2:
-        return upload(device, bvh_mod.build(spheres, device="wgpu"))
+        return upload(device, bvh_mod.build(spheres, device="wgpu", primitive=primitive))
     if builder.n != n:
         raise ValueError(f"builder: built for {builder.n} spheres, given {n}")
     start = time.perf_counter()
     stats = builder.run(builder.encode_build)
     if stats.depth > max_depth:
-        return upload(device, bvh_mod.build(spheres, device="wgpu"))
+        return upload(device, bvh_mod.build(spheres, device="wgpu", primitive=primitive))
     seconds = time.perf_counter() - start
     return Tree(builder.nodes, builder.ordered, builder.order, n, stats.depth, seconds, "gpu", stats.cost)

@@ -19,6 +19,7 @@ from ... import bvh as bvh_mod
 from ... import layout, lighting
 from ...errors import RaybenchError
 from ...host import host_available_bytes
+from ...kernels.primitives import KINDS
 from ...lighting import Shading
 from ..limits import HOST_PIXEL_BYTES, check_bvh_fits
 from ..options import WgpuOptions
@@ -28,6 +29,8 @@ from .wavefront import Wavefront
 
 FRAME_FORMAT = "rgba8unorm"
 SPHERE_FLOATS = 8  # shader's struct Sphere: the 7 columns and a pad
+# triangle.wgsl's struct Facet: the vertices, the colour, the corners' normals
+TRIANGLE_FLOATS = layout.TRI_SMOOTH_ROWS
 UNIFORM_BYTES = 80  # shader's struct Frame: four vec4s, four u32s
 # The packet walk's votes are subgroup operations (packet.wgsl). It is no
 # default: on the one GPU measured through Vulkan it was slower than a ray at
@@ -51,7 +54,13 @@ def check_workgroup(workgroup: tuple[int, int], limits: dict) -> tuple[int, int]
     return x, y
 
 
-def check_frame_fits(width: int, height: int, spheres: int, workgroup, limits: dict, accel: str = "none") -> None:
+def check_frame_fits(
+    width: int, height: int, spheres: int, workgroup, limits: dict, accel: str = "none", primitive: str = "sphere"
+) -> None:
+    """The frame, the scene's buffer (spheres: how many primitives of the kind)
+    and the tree's largest buffer within this adapter's limits (the device's
+    own, as adapters.request_device asked for them), or one line naming the
+    limit that is passed."""
     side = limits["max-texture-dimension-2d"]
     if width > side or height > side:
         raise RaybenchError(
@@ -63,15 +72,18 @@ def check_frame_fits(width: int, height: int, spheres: int, workgroup, limits: d
             f"workgroup: {width}x{height} in workgroups of {workgroup[0]}x{workgroup[1]} needs more "
             f"than this adapter's {groups} workgroups per side; use a larger workgroup"
         )
-    largest = min(limits["max-storage-buffer-binding-size"], limits["max-buffer-size"])
-    needs = [("the hit indices", width * height * 4), ("the spheres", spheres * SPHERE_FLOATS * 4)]
-    if accel == "bvh":  # at most one node per sphere: the largest of the tree's buffers
+    binding, buffer = limits["max-storage-buffer-binding-size"], limits["max-buffer-size"]
+    largest = min(binding, buffer)
+    named = "max-storage-buffer-binding-size" if largest == binding else "max-buffer-size"  # the limit's own name
+    needs = [("the hit indices", width * height * 4), (f"the {primitive}s", spheres * ROW_FLOATS[primitive] * 4)]
+    if accel == "bvh":  # at most one node per primitive: with the rows above, the largest of the tree's buffers
         needs.append(("the BVH's nodes", max(spheres, 1) * layout.NODE_BYTES))
     for what, need in needs:
         if need > largest:
+            fewer = "fewer spheres" if primitive == "sphere" else f"a mesh of fewer {primitive}s"
             raise RaybenchError(
                 f"size: {what} need {need / 2**20:.0f} MiB, more than this adapter's largest "
-                f"storage buffer ({largest / 2**20:.0f} MiB); choose a smaller size or fewer spheres"
+                f"storage buffer ({named}: {largest / 2**20:.0f} MiB); choose a smaller size or {fewer}"
             )
 
 
@@ -87,6 +99,23 @@ def sphere_rows(spheres: np.ndarray) -> np.ndarray:
     rows = np.zeros((max(spheres.shape[1], 1), SPHERE_FLOATS), np.float32)
     rows[: spheres.shape[1], :7] = spheres.T
     return rows
+
+
+def triangle_rows(triangles: np.ndarray) -> np.ndarray:
+    """A mesh's buffer (meshes.mesh_leaves: TRI_SHADED_ROWS or TRI_SMOOTH_ROWS,
+    F) -> (F, TRIANGLE_FLOATS) rows, triangle.wgsl's struct Facet: its
+    corners' normals zeros where the mesh has none, which surface answers with
+    the plane's normal, as the Python does without those rows (one row at
+    least: a binding cannot be empty)."""
+    rows = np.zeros((max(triangles.shape[1], 1), TRIANGLE_FLOATS), np.float32)
+    have = min(triangles.shape[0], TRIANGLE_FLOATS)
+    rows[: triangles.shape[1], :have] = triangles[:have].T
+    return rows
+
+
+# Each kind's scene rows as its WGSL reads them (common.wgsl's `spheres`), and their floats.
+SCENE_ROWS = {"sphere": sphere_rows, "triangle": triangle_rows}
+ROW_FLOATS = {"sphere": SPHERE_FLOATS, "triangle": TRIANGLE_FLOATS}
 
 
 def material_rows(materials: np.ndarray) -> np.ndarray:
@@ -122,7 +151,9 @@ class Compute:
     pass into a command encoder; texture and hits hold the result. With the
     BVH, build_s is the last build's seconds (the build alone, as on cuda),
     build where it was built ("host" or "gpu", as on cuda), and walk how the
-    pass walks it: "ray" (the default) or "packet"."""
+    pass walks it: "ray" (the default) or "packet". primitive: the kind the
+    columns of `spheres` are (shader.KIND_PIECES' keys: "sphere", or
+    "triangle" for meshes.mesh_leaves' buffer)."""
 
     def __init__(
         self,
@@ -133,10 +164,12 @@ class Compute:
         options: WgpuOptions,
         shading: Shading | None = None,
         extra_texture_usage: int = 0,
+        primitive: str = "sphere",
     ):
         import wgpu
 
         self.device = device
+        self.primitive, self.kind = primitive, KINDS[primitive]
         limits = dict(device.limits)
         self.options = options
         self.accel, self.build, self.walk = options.accel, options.build, options.walk
@@ -152,7 +185,7 @@ class Compute:
             )
         self.workgroup = check_workgroup(options.workgroup, limits)
         self.count = spheres.shape[1]
-        check_frame_fits(width, height, self.count, self.workgroup, limits, self.accel)
+        check_frame_fits(width, height, self.count, self.workgroup, limits, self.accel, primitive)
         if self.accel == "bvh":
             check_bvh_fits(
                 "host",
@@ -166,7 +199,7 @@ class Compute:
             size=UNIFORM_BYTES, usage=wgpu.BufferUsage.UNIFORM | wgpu.BufferUsage.COPY_DST
         )
         self.spheres = device.create_buffer_with_data(
-            data=sphere_rows(spheres).tobytes(), usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_DST
+            data=SCENE_ROWS[primitive](spheres).tobytes(), usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_DST
         )
         self.texture = device.create_texture(
             size=(width, height, 1),
@@ -218,7 +251,8 @@ class Compute:
             self.wavefront.compile()
             self.pipeline = self.wavefront  # compiled: its pipelines
             return time.perf_counter() - start
-        module = self.device.create_shader_module(code=shader.source(self.workgroup, self.accel, self.program))
+        code = shader.source(self.workgroup, self.accel, self.program, self.primitive)
+        module = self.device.create_shader_module(code=code)
         self.pipeline = self.device.create_compute_pipeline(
             layout="auto", compute={"module": module, "entry_point": shader.ENTRY[self.program]}
         )
@@ -255,7 +289,7 @@ class Compute:
         the GPU while its SAH cost stays within options.refit_limit of its fresh
         cost, else rebuilt; with build "host" rebuilt on the host. "refit" or
         "build", or None for brute force."""
-        self.device.queue.write_buffer(self.spheres, 0, sphere_rows(spheres).tobytes())
+        self.device.queue.write_buffer(self.spheres, 0, SCENE_ROWS[self.primitive](spheres).tobytes())
         self.scene_spheres = spheres
         if self.tree is None:
             return None
@@ -280,13 +314,13 @@ class Compute:
         spheres = self.scene_spheres[:, :count]
         if self.build == "gpu" and count >= 2:
             if self.builder is None or self.builder.n != count:
-                self.kernels = self.kernels or gpu_build.Kernels(self.device)
+                self.kernels = self.kernels or gpu_build.Kernels(self.device, self.primitive)
                 self.builder = gpu_build.Builder(
                     self.device, self.spheres, count, quality=self.options.quality, kernels=self.kernels
                 )
-            tree = gpu_build.build(self.device, spheres, self.builder)
+            tree = gpu_build.build(self.device, spheres, self.builder, primitive=self.kind)
         else:
-            tree = gpu_build.upload(self.device, bvh_mod.build(spheres, device="wgpu"))
+            tree = gpu_build.upload(self.device, bvh_mod.build(spheres, device="wgpu", primitive=self.kind))
         self.nodes, self.ordered, self.order = tree.nodes, tree.ordered, tree.order
         self.tree, self.build_s = tree, tree.build_s
         if self.pipeline is not None:

@@ -26,6 +26,10 @@ from ...kernels import traverse, wavefront, whitted
 
 ACCELS = {"bvh": "traverse.wgsl", "none": "brute.wgsl"}
 PIECES = ("common.wgsl", "sphere.wgsl", "shade.wgsl", "trace.wgsl")
+# What takes sphere.wgsl's place in PIECES for each kind of primitive
+# (kernels/primitives' KINDS): everything the walks and the shading read of
+# it. The walks, the shading and Whitted's pieces are the same for every kind.
+KIND_PIECES = {"sphere": ("sphere.wgsl",), "triangle": ("triangle_box.wgsl", "triangle.wgsl")}
 # The walk's constants, taken from their Python definitions rather than
 # written again in WGSL: float32 values whose repr is exact, so the WGSL
 # literal converts to the very float32 the CPU uses.
@@ -71,11 +75,11 @@ WAVEFRONT_CONSTANTS = {
 ENTRY = {"ray": "main", "packet": "main_packet", "whitted": "main_whitted"}
 
 
-def source(workgroup: tuple[int, int], accel: str, walk: str = "ray") -> str:
+def source(workgroup: tuple[int, int], accel: str, walk: str = "ray", primitive: str = "sphere") -> str:
     """The whole shader for one workgroup shape (a compile-time constant in
     WGSL), acceleration structure ("bvh" or "none", checked by the caller)
     and BVH walk, or "whitted" for Whitted shading (ENTRY's keys: its entry
-    point)."""
+    point), for a kind of primitive (KIND_PIECES' keys)."""
     extra = []
     if accel == "bvh":
         # how the walk votes: a subgroup's rays together, or each ray alone
@@ -84,7 +88,8 @@ def source(workgroup: tuple[int, int], accel: str, walk: str = "ray") -> str:
         extra += [_piece("whitted.wgsl")]
     elif walk == "wavefront":
         extra += [_piece("whitted.wgsl"), _piece("wavefront.wgsl")]
-    text = "\n".join([_piece(p) for p in PIECES] + [_piece(ACCELS[accel])] + extra)
+    pieces = [q for p in PIECES for q in (KIND_PIECES[primitive] if p == "sphere.wgsl" else (p,))]
+    text = "\n".join([_piece(p) for p in pieces] + [_piece(ACCELS[accel])] + extra)
     text = text.replace("WORKGROUP_X", f"{workgroup[0]}u").replace("WORKGROUP_Y", f"{workgroup[1]}u")
     for name, value in {**BVH_CONSTANTS, **WHITTED_CONSTANTS, **WAVEFRONT_CONSTANTS}.items():
         text = text.replace(name, value)

@@ -10,6 +10,7 @@ import time
 
 import numpy as np
 
+from ...errors import RaybenchError
 from ...host import host_available_bytes
 from ...lighting import Shading
 from ..contract import TracerBase, check_moved
@@ -46,16 +47,26 @@ class Tracer(TracerBase):
         height: int,
         options: WgpuOptions | None = None,
         shading: Shading | None = None,
+        primitive: str = "sphere",
     ):
         import wgpu
 
         options = self._options(options, shading)
+        # the kind of primitive spheres' columns are (kernels/primitives' KINDS), checked by backends.tracer
+        self.primitive = primitive
         check_size(width, height)
         self.adapter = adapters.choose(options.adapter)
         self.device = adapters.request_device(self.adapter)
         check_fits("host", width, height, 0, host_available_bytes(), HOST_PIXEL_BYTES)
         self.compute = Compute(
-            self.device, spheres, width, height, options, shading, extra_texture_usage=wgpu.TextureUsage.TEXTURE_BINDING
+            self.device,
+            spheres,
+            width,
+            height,
+            options,
+            shading,
+            extra_texture_usage=wgpu.TextureUsage.TEXTURE_BINDING,
+            primitive=primitive,
         )
         self.packer = Packer(self.device, self.compute.texture, width, height)
         self.options = options
@@ -99,6 +110,8 @@ class Tracer(TracerBase):
     def update(self, spheres: np.ndarray) -> str | None:
         """The spheres moved: the contract's update (Compute.update: a refit
         or a build on the GPU with build "gpu", a build on the host else)."""
+        if self.primitive != "sphere":
+            raise RaybenchError(f"update: moves spheres; a scene of {self.primitive}s is traced as it was given")
         return self.compute.update(check_moved(spheres, self.compute.scene_spheres))
 
     def _count(self, count) -> int:

@@ -1,8 +1,8 @@
 // kernels/primitives/triangle.py's WGSL twin: the watertight ray/triangle
-// test (Woop, Benthin and Wald 2013) and the answers the walks read. Each
-// function bears its Python twin's name. Not yet assembled into the tracer
-// (shader.PIECES): a triangle shader will take it in sphere.wgsl's place;
-// tests/test_triangle_wgsl.py runs it on its own.
+// test (Woop, Benthin and Wald 2013) and the answers the walks and the
+// shading read. Each function bears its Python twin's name. shader.py puts it
+// (after triangle_box.wgsl: pad and box) in sphere.wgsl's place for a
+// triangle's shader; tests/test_triangle_wgsl.py runs it on its own.
 //
 // WGSL has no float64, where the Python works out the edge functions, det,
 // T and the normal. So:
@@ -23,11 +23,25 @@
 //   each other on each axis).
 
 // The leaf buffer: triangle k's nine values (A, B, C; x, y, z each) at
-// 9k ... 9k + 8 (bvh.ordered transposed); the scene's buffer likewise.
+// 9k ... 9k + 8 (bvh.ordered transposed).
 @group(0) @binding(5) var<storage, read> ordered: array<f32>;
-@group(0) @binding(1) var<storage, read> triangles: array<f32>;
 
-const TRI_PAD: f32 = BVH_PAD;
+// A triangle of the scene's buffer (meshes.mesh_leaves' column, as
+// compute.py's triangle rows lay it out): its vertices, its colour, and its
+// corners' normals, zeros where the mesh has none. common.wgsl binds the
+// scene's buffer as `spheres: array<Sphere>`, and the shading (trace.wgsl,
+// whitted.wgsl, wavefront.wgsl) reads a hit's colour as spheres[i].red,
+// green and blue: the triangle's row answers to those names, so that those
+// pieces, and with them every sphere shader, stay as they are.
+struct Facet {
+    v: array<f32, 9>,
+    red: f32,
+    green: f32,
+    blue: f32,
+    n: array<f32, 9>,
+}
+alias Sphere = Facet;
+
 const TRI_MISS: vec2<f32> = vec2<f32>(-1.0, 0.0);
 // Dekker's splitter for float32's 24-bit significand: 2^12 + 1.
 const TRI_SPLIT: f32 = 4097.0;
@@ -59,9 +73,7 @@ struct Seen {
 // WGSL's access mode). Each reader names one binding, so that a shader that
 // reads only the leaves does not bind the scene's buffer.
 fn read_triangle(k: i32) -> Triangle {
-    let i = 9 * k;
-    return corners(array<f32, 9>(triangles[i], triangles[i + 1], triangles[i + 2], triangles[i + 3],
-        triangles[i + 4], triangles[i + 5], triangles[i + 6], triangles[i + 7], triangles[i + 8]));
+    return corners(spheres[k].v);
 }
 
 // read_leaf: triangle k of the tree's leaf buffer.
@@ -215,20 +227,10 @@ fn meets_own(own_inside: bool) -> bool {
     return false;
 }
 
-// pad: (|centre|_1 + hx + hy + hz) * PAD, as the Python's.
-fn pad(m: vec3<f32>, h: vec3<f32>) -> f32 {
-    return ((abs(m.x) + abs(m.y) + abs(m.z)) + (h.x + h.y + h.z)) * TRI_PAD;
-}
-
-// box_of: a leaf row's padded box, lo then hi.
+// box_of: a leaf row's padded box, lo then hi (triangle_box.wgsl's padded).
 fn box_of(row: Triangle) -> array<vec3<f32>, 2> {
-    let lo = min(min(row.a, row.b), row.c);
-    let hi = max(max(row.a, row.b), row.c);
-    let m = (lo + hi) * 0.5;
-    let h = max(m - lo, hi - m);
-    let p = pad(m, h);
-    let hp = h + vec3<f32>(p, p, p);
-    return array<vec3<f32>, 2>(m - hp, m + hp);
+    let e = padded(row.a, row.b, row.c);
+    return array<vec3<f32>, 2>(e.centre - e.half_size, e.centre + e.half_size);
 }
 
 fn bounds(k: i32) -> array<vec3<f32>, 2> {
@@ -238,4 +240,65 @@ fn bounds(k: i32) -> array<vec3<f32>, 2> {
 // rim: what the thesis's shading divides the datum (the cosine) by.
 fn rim(k: i32) -> f32 {
     return 1.0;
+}
+
+// surface's results, as whitted.wgsl and wavefront.wgsl read them: the
+// struct sphere.wgsl declares for the sphere (the point, the unit normal and
+// cos_i on the ray's side, whether the ray meets the back face), declared
+// here too as a triangle's shader has no sphere.wgsl.
+struct Surface { p: vec3<f32>, n: vec3<f32>, cos_i: f32, inside: bool }
+
+// surface: the hit of a ray on triangle i at t: the plane's normal turned to
+// the ray's side, or where the row has its corners' normals their blend by
+// the hit's barycentrics (woop run again on the same ray), turned as the
+// plane's is, unless that leaves it facing away from the ray. A row of zero
+// normals (a mesh without them) gives the plane's, as the Python's buffer
+// without those rows does: the blend is then 0, which the Python also
+// answers with the plane's normal.
+fn surface(o: vec3<f32>, d: vec3<f32>, t: f32, i: i32) -> Surface {
+    let p = vec3<f32>(o.x + t * d.x, o.y + t * d.y, o.z + t * d.z);
+    let tri = read_triangle(i);
+    var g = normal(tri.a, tri.b, tri.c);
+    var cos_g = -(g.x * d.x + g.y * d.y + g.z * d.z);
+    let inside = cos_g < 0.0;  // the ray meets the back face
+    if (inside) {
+        g = -g;
+        cos_g = -cos_g;
+    }
+    let flat = Surface(p, g, cos_g, inside);
+    let c = spheres[i].n;
+    let na = vec3<f32>(c[0], c[1], c[2]);
+    let nb = vec3<f32>(c[3], c[4], c[5]);
+    let nc = vec3<f32>(c[6], c[7], c[8]);
+    if (all(na == vec3<f32>(0.0)) && all(nb == vec3<f32>(0.0)) && all(nc == vec3<f32>(0.0))) {
+        return flat;  // no corners' normals: not worth the test again
+    }
+    let r = woop(tri.a - o, tri.b - o, tri.c - o, d);
+    if (r.det == 0.0) {
+        return flat;
+    }
+    let wa = r.u / r.det;
+    let wb = r.v / r.det;
+    let wc = r.w / r.det;
+    var nx = wa * na.x + wb * nb.x + wc * nc.x;
+    var ny = wa * na.y + wb * nb.y + wc * nc.y;
+    var nz = wa * na.z + wb * nb.z + wc * nc.z;
+    let nn = nx * nx + ny * ny + nz * nz;
+    if (!(nn > 0.0)) {
+        return flat;
+    }
+    let inv_n = 1.0 / sqrt(nn);
+    nx = nx * inv_n;
+    ny = ny * inv_n;
+    nz = nz * inv_n;
+    if (nx * g.x + ny * g.y + nz * g.z < 0.0) {
+        nx = -nx;
+        ny = -ny;
+        nz = -nz;
+    }
+    let cos_i = -(nx * d.x + ny * d.y + nz * d.z);
+    if (cos_i <= 0.0) {
+        return flat;
+    }
+    return Surface(p, vec3<f32>(nx, ny, nz), cos_i, inside);
 }

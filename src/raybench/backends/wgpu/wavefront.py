@@ -147,7 +147,8 @@ class Wavefront(bands.Queues):
         compute = self.compute
         self.layout = self._layout()
         pipeline_layout = self.device.create_pipeline_layout(bind_group_layouts=[self.layout])
-        module = self.device.create_shader_module(code=shader.source(compute.workgroup, compute.accel, "wavefront"))
+        code = shader.source(compute.workgroup, compute.accel, "wavefront", compute.primitive)
+        module = self.device.create_shader_module(code=code)
         self.pipelines = {
             entry: self.device.create_compute_pipeline(
                 layout=pipeline_layout, compute={"module": module, "entry_point": entry}

@@ -28,7 +28,12 @@ RATIO_NOTE = (
     "tests 1-6, up to 1680x1050 and 1000 spheres, where a GPU has more work to fill it: its median is "
     "larger than the headline's ratio, and both are right."
 )
-INTERVAL_NOTE = f"The 95% interval: {headline.WITHIN_RUN} (docs/thesis.md, the headline's interval)."
+INTERVAL_NOTE = (
+    "The 95% interval: the wider of the spread between the run's passes over the headline's points (the "
+    "first, and the repeats later in the run) and the bootstrap over their frames; records without repeats "
+    "carry the latter only. A load that held through the whole run moves every pass, and another run can "
+    "fall outside it (docs/thesis.md, the headline's interval)."
+)
 
 
 def headline_rows(records: list[dict], references: list[dict] | None) -> list[dict]:

@@ -25,8 +25,10 @@ The kinds: sphere.py (the thesis's), and triangle.py (a mesh's triangles:
 the watertight test of Woop, Benthin and Wald, nine rows of vertices a leaf,
 the cosine to the plane's normal as a hit's datum, so rim is 1; no
 prepare_at or may_hit; its WGSL twin backends/wgpu/triangle.wgsl). The
-cpu compiles a kind's programs when a scene holds it (backends/cpu/kinds.py);
-cuda and wgpu trace spheres only so far.
+cpu and cuda compile a kind's programs when a scene holds it
+(backends/cpu/kinds.py, backends/cuda/kinds.py; cuda's wavefront reads the
+leaves from a packed copy, PACKED_WORDS float64 a primitive, that
+pack_leaf writes); wgpu traces spheres only so far.
 
 Adding a kind: a module beside sphere.py with the same answers, its WGSL
 twins in backends/wgpu/ (sphere.wgsl for the walks and the shading,

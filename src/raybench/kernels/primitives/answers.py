@@ -26,6 +26,7 @@ ANSWERS = (
     "bounds",
     "extent",
     "copy_leaf",
+    "pack_leaf",
     "box_of",
     "surface",
     "rim",

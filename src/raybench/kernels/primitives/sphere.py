@@ -32,6 +32,8 @@ from .answers import answers
 LEAF_ROWS = 4
 # Rows of the scene's buffer (Scene.spheres) that the shading reads: with the colour.
 SCENE_ROWS = SPHERE_ROWS
+# A packed leaf copy (make's words, pack_leaf): float64 words a sphere, its four float32.
+PACKED_WORDS = 2
 # The cull test's slack, relative to |EO|^2 + r^2: 64 float32 epsilons, several
 # times the rounding of either discriminant (derivation in prepare).
 CULL_SLACK = np.float32(64.0 * 2.0**-24)
@@ -220,6 +222,14 @@ def make(jit, words=None):
         leaves[1, at] = cy
         leaves[2, at] = cz
         leaves[3, at] = r
+
+    @jit
+    def pack_leaf(leaves, k, rows):
+        """Sphere k of the tree's leaf buffer into its row of a packed copy
+        (rows: float32, 2 * PACKED_WORDS columns, which read_leaf reads
+        through `words`): its LEAF_ROWS values, as they are."""
+        for c in range(LEAF_ROWS):
+            rows[k, c] = leaves[c, k]
 
     @jit
     def surface(ox, oy, oz, dx, dy, dz, t, i, spheres):

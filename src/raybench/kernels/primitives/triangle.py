@@ -358,6 +358,14 @@ def make(jit, words=None):
             leaves[row, at] = buffer[row, k]
 
     @jit
+    def pack_leaf(leaves, k, rows):
+        """Triangle k of the tree's leaf buffer into its row of a packed copy
+        (rows: float32, 2 * PACKED_WORDS columns, which read_leaf reads
+        through `words`): its nine vertex values; the tenth word is unused."""
+        for c in range(LEAF_ROWS):
+            rows[k, c] = leaves[c, k]
+
+    @jit
     def surface(ox, oy, oz, dx, dy, dz, t, i, triangles):
         """The hit of a ray on triangle i at t: (point, unit normal on the
         ray's side, cos_i on that side, whether the ray meets the back face:
