@@ -20,8 +20,11 @@ from raybench.cli import run
 
 def test_thesis_points_cover_tests_1_to_7():
     pts = suites.points(["thesis"], ["cpu", "cuda"])
-    thesis = [p for p in pts if p.suite == "thesis"]
+    thesis = [p for p in pts if p.suite == "thesis" and not p.repeat]
     assert len(thesis) == 2 * 3 * 10
+    # and each device's three headline points timed twice more (its interval's passes)
+    again = [(p.device, p.width, p.spheres, p.repeat) for p in pts if p.repeat]
+    assert sorted(again) == sorted((d, 800, n, k) for d in ("cpu", "cuda") for n in (100, 500, 1000) for k in (1, 2))
     assert {p.test for p in thesis if p.device == "cuda"} == {1, 2, 3}
     assert {p.test for p in thesis if p.device == "cpu"} == {4, 5, 6}
     assert {(p.width, p.height) for p in thesis} == {(800, 600), (1280, 800), (1680, 1050)}
@@ -57,14 +60,18 @@ def test_kernels_multiply_the_thesis_and_tuning_suites():
     one = suites.points(["thesis", "tuning"], ["cpu"], cores=4)
     both = suites.points(["thesis", "tuning"], ["cpu"], cores=4, kernels=("fast", "simple"))
     assert {p.options["kernel"] for p in one} == {"fast"}
-    assert len(both) == 2 * len(one)
+    firsts = [p for p in one if not p.repeat]
+    assert len([p for p in both if not p.repeat]) == 2 * len(firsts)
     assert sorted(p.describe() for p in both if p.options["kernel"] == "simple") == sorted(
-        p.describe().replace("kernel=fast", "kernel=simple") for p in one
+        p.describe().replace("kernel=fast", "kernel=simple") for p in firsts
     )
+    # the headline counts the fast kernel's brute force: only its points are timed again
+    assert {p.options["kernel"] for p in both if p.repeat} == {"fast"}
 
 
 def test_quick_is_smaller_and_unknown_suite_refused():
-    assert len(suites.points(suites.SUITES, ["cpu"], quick=True)) < len(suites.points(suites.SUITES, ["cpu"])) / 3
+    quick, full = ([p for p in suites.points(suites.SUITES, ["cpu"], quick=q) if not p.repeat] for q in (True, False))
+    assert len(quick) < len(full) / 3
     with pytest.raises(RaybenchError, match="unknown suite"):
         suites.points(["thesys"], ["cpu"])
 
@@ -216,8 +223,13 @@ def test_quick_run_end_to_end(tmp_path, capsys):
     assert code == 0, out
     (path,) = tmp_path.glob("results-*.jsonl")
     records = results.read(path)
-    expected = suites.points(suites.SUITES, ["cpu"], quick=True, accels=suites.ACCELS)  # the CLI's default: both
+    planned = suites.points(suites.SUITES, ["cpu"], quick=True, accels=suites.ACCELS)  # the CLI's default: both
+    # a repeat of a headline point is written as a line of its own, and read back into its point's record
+    expected = [p for p in planned if not p.repeat]
     assert len(records) == len(expected)
+    again = [r for r in records if r.get("repeats")]
+    assert sorted(r["spheres"] for r in again) == [100, 500, 1000]
+    assert all(len(r["repeats"]) == 2 and r["repeats"][0]["samples_ms"] for r in again)
     for rec, point in zip(records, expected):
         assert (rec["suite"], rec["device"], rec["width"], rec["height"], rec["spheres"]) == (
             point.suite,
@@ -245,7 +257,7 @@ def test_quick_run_end_to_end(tmp_path, capsys):
     assert "report:" in out
     # piped (capsys is no terminal): a line as each suite starts and one a point, with what is left
     progress = [line for line in out.splitlines() if line.startswith("[")]
-    assert len(progress) == len(records) and progress[0].startswith(f"[1/{len(records)}] ")
+    assert len(progress) == len(planned) and progress[0].startswith(f"[1/{len(planned)}] ")
     assert all(line.endswith(" left)") for line in progress)
     started = {line.split()[1].rstrip(":") for line in out.splitlines() if line.startswith("suite ")}
     assert started == {p.suite for p in expected}
