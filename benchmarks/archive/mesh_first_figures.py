@@ -88,7 +88,7 @@ def measure(scene: Scene, device: str, shading: str, build: str, args) -> dict:
     rays = sum(counts) if counts else width * height
     return {
         "device": device,
-        "triangles": len(scene),
+        "triangles": scene.triangles.shape[1],
         "shading": shading,
         "build": build,
         "width": width,
@@ -132,7 +132,7 @@ def main() -> int:
                     try:
                         record = measure(scene, device, shading, build, args)
                     except Exception as exc:  # noqa: BLE001 - a refusal or a failure on one device is a finding too
-                        record = {"device": device, "triangles": len(scene), "shading": shading, "build": build,
+                        record = {"device": device, "triangles": scene.triangles.shape[1], "shading": shading, "build": build,
                                   "error": f"{type(exc).__name__}: {exc}"}  # fmt: skip
                     line = json.dumps({**record, "run": run})
                     print(line, flush=True)
