@@ -132,8 +132,8 @@ def main() -> int:
                     try:
                         record = measure(scene, device, shading, build, args)
                     except Exception as exc:  # noqa: BLE001 - a refusal or a failure on one device is a finding too
-                        record = {"device": device, "triangles": scene.triangles.shape[1], "shading": shading, "build": build,
-                                  "error": f"{type(exc).__name__}: {exc}"}  # fmt: skip
+                        record = {"device": device, "triangles": scene.triangles.shape[1], "shading": shading,
+                                  "build": build, "error": f"{type(exc).__name__}: {exc}"}  # fmt: skip
                     line = json.dumps({**record, "run": run})
                     print(line, flush=True)
                     if args.out:
