@@ -19,36 +19,25 @@ the host included, as every whole frame in raybench is). One JSON line a point, 
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import trimesh
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # _harness, beside benchmarks/archive
+import _harness
 
 from raybench import backends
 from raybench.camera import Camera
 from raybench.layout import KINDS as RAY_KINDS
 from raybench.lighting import Light, Shading
-from raybench.machine import describe
 from raybench.meshes import Mesh
 from raybench.scene import Scene
 from raybench.scene_meshes import SceneMesh
 
 SIZE = (1680, 1050)
-
-
-def commit() -> str | None:
-    found = os.environ.get("RAYBENCH_GIT_COMMIT")
-    if found:
-        return found
-    try:
-        return subprocess.run(["git", "describe", "--always", "--dirty", "--abbrev=12"], capture_output=True,
-                              text=True, check=True).stdout.strip()  # fmt: skip
-    except (OSError, subprocess.CalledProcessError):
-        return None
 
 
 def icosphere(subdivisions: int) -> Scene:
@@ -86,24 +75,24 @@ def measure(scene: Scene, device: str, shading: str, build: str, args) -> dict:
         tracer.close()
     median = float(np.median(frames))
     rays = sum(counts) if counts else width * height
-    return {
-        "device": device,
-        "triangles": scene.triangles.shape[1],
-        "shading": shading,
-        "build": build,
-        "width": width,
-        "height": height,
-        "frames_ms": frames,
-        "median_ms": median,
+    values = {
         "rays_per_frame": rays,
-        "rays": dict(zip(RAY_KINDS, counts)) if counts else None,
         "rays_per_s": rays / (median / 1e3),
         "hit_share": hit_share,
         "build_s": build_s,
-        "tracer_made_s": made_s,
+        "tracer_s": made_s,
         "compile_s": compile_s,
         "first_frame_s": first_s,
+        **({f"{kind}_rays": count for kind, count in zip(RAY_KINDS, counts)} if counts else {}),
     }
+    return as_part(device, scene.triangles.shape[1], shading, build, frames, values)
+
+
+def as_part(device: str, triangles: int, shading: str, build: str, frames_ms: list, values: dict) -> dict:
+    """One point as a record of the results schema's "parts" suite."""
+    options = {"primitive": "triangle", "triangles": triangles, "shading": shading, "build": build}
+    return _harness.part("mesh-frame", device, frames_ms, width=SIZE[0], height=SIZE[1], options=options,
+                         values=values)  # fmt: skip
 
 
 def main() -> int:
@@ -112,33 +101,19 @@ def main() -> int:
     parser.add_argument("--subdivisions", action="append", type=int, help="icosphere subdivisions (default 6 and 8)")
     parser.add_argument("--shading", action="append", choices=("thesis", "whitted"), help="default both")
     parser.add_argument("--build", action="append", choices=("host", "gpu"), help="GPUs' trees (default host)")
-    parser.add_argument("--frames", type=int, default=9)
     parser.add_argument("--warm", type=int, default=2)
     parser.add_argument("--depth", type=int, default=5)
     parser.add_argument("--shadow-samples", type=int, default=4)
-    parser.add_argument("--out")
+    _harness.add_common(parser, frames=9)
     args = parser.parse_args()
-    run = {
-        "commit": commit(),
-        "argv": sys.argv,
-        "machine": describe(),
-        "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-    }
-    for subdivisions in args.subdivisions or [6, 8]:
-        scene = icosphere(subdivisions)
-        for device in args.device or ["cpu"]:
-            for shading in args.shading or ["thesis", "whitted"]:
-                for build in (args.build or ["host"]) if device != "cpu" else ["host"]:
-                    try:
-                        record = measure(scene, device, shading, build, args)
-                    except Exception as exc:  # noqa: BLE001 - a refusal or a failure on one device is a finding too
-                        record = {"device": device, "triangles": scene.triangles.shape[1], "shading": shading,
-                                  "build": build, "error": f"{type(exc).__name__}: {exc}"}  # fmt: skip
-                    line = json.dumps({**record, "run": run})
-                    print(line, flush=True)
-                    if args.out:
-                        with open(args.out, "a") as f:
-                            f.write(line + "\n")
+    _harness.check_common(parser, args)
+    with _harness.Records("archive/mesh_first_figures", args, {"warm": args.warm}) as out:
+        for subdivisions in args.subdivisions or [6, 8]:
+            scene = icosphere(subdivisions)
+            for device in args.device or ["cpu"]:
+                for shading in args.shading or ["thesis", "whitted"]:
+                    for build in (args.build or ["host"]) if device != "cpu" else ["host"]:
+                        out.write(measure(scene, device, shading, build, args))
     return 0
 
 
