@@ -105,7 +105,7 @@ def compare(subdivisions: int, threads: int, width: int, height: int, args) -> l
     finally:
         tracer.close()
         pool.shutdown()
-    shape = {"primitive": "triangle", "triangles": n, "eye_z": args.distance}
+    shape = {"primitive": "triangle", "triangles": n, "eye_distance": abs(args.distance)}
     mine = {"first_frame_s": our_first, "tracer_s": make_s, "build_s": tracer.build_s}
     options = {**shape, "peer": "embreex", "threads": default_threads()}
     ours_record = _harness.part("frame", "cpu", times["raybench"], width=width, height=height, options=options,
