@@ -56,13 +56,8 @@ def same(frames, adapter):
             assert other.rays[kind] == count if exact else abs(other.rays[kind] - count) <= 0.01 * count
 
 
-@pytest.fixture(scope="module", params=["icosphere", "box"])
-def outside(request):
-    """A mesh seen from the camera fitted to it, and the reference's answer."""
-    scene = mesh_scene({"icosphere": icosphere, "box": box}[request.param]())
-    origin, dirs = rays64(scene.camera)
-    index, _t, normal, margin = reference(scene.triangles, origin, dirs)
-    return scene, dirs, index, normal, margin
+# the cpu tests' meshes and their float64 answers, one fixture for both files (pytest finds it by this name)
+outside = cpu_tests.outside
 
 
 def test_thesis_frames_are_the_float64_reference(adapter, outside):
