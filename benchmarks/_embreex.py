@@ -8,8 +8,8 @@ cp312 PyPI has Embree 2's only), for example into a folder of its own:
     PYTHONPATH=/tmp/embreex-site:src python benchmarks/peers.py embreex --out embreex.jsonl
 
 The mesh: `trimesh.creation.icosphere` of radius 1 at each --subdivisions, seen from (0, 0,
---distance) looking at its centre, a 60 degree field of view, at --size (issue 37's setup on the
-2-vCPU machine: the eye at -3, 18% of the rays hitting).
+--distance) looking at its centre, a 60 degree field of view, at --size (the triangle issue's setup
+on the 2-vCPU machine, eye at -3).
 
 What each side does, a frame:
 - raybench: a whole frame of the cpu backend through its BVH (Tracer.trace with the triangle

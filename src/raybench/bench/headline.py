@@ -121,9 +121,12 @@ def passes(records: list[dict], device: str) -> int:
     """How many passes over the headline's points the records hold whole (each point timed in
     each): 1 for records without repeats, 0 where there is no interval at all."""
     found = _headline_records(records, device)
-    if found is None:
-        return 0
-    return min(sum(1 for p in ps if len(p) >= 5) for ps in found.values())
+    return 0 if found is None else len(_whole(found))
+
+
+def _whole(found: dict[int, list[list[float]]]) -> list[int]:
+    """The passes in which every headline point kept enough frames (five) to count."""
+    return [k for k in range(min(map(len, found.values()))) if all(len(ps[k]) >= 5 for ps in found.values())]
 
 
 def interval(records: list[dict], device: str, rounds: int = ROUNDS) -> tuple[float, float] | None:
@@ -138,12 +141,10 @@ def interval(records: list[dict], device: str, rounds: int = ROUNDS) -> tuple[fl
     pooled = {n: np.concatenate([np.asarray(p, dtype=np.float64) for p in ps]) for n, ps in found.items()}
     logs = sum(np.log(_rate(_block_medians(pooled[n], rng, rounds))) for n in SPHERES)
     low, high = np.percentile(np.exp(logs / len(SPHERES)), [2.5, 97.5])
-    count = passes(records, device)
-    if count >= 2:
-        each = np.array(
-            [sum(np.log(_rate(np.median(found[n][k]))) for n in SPHERES) / len(SPHERES) for k in range(count)]
-        )
-        half = T_975[min(count - 1, max(T_975))] * each.std(ddof=1) / math.sqrt(count)
+    whole = _whole(found)
+    if len(whole) >= 2:
+        each = np.array([sum(np.log(_rate(np.median(found[n][k]))) for n in SPHERES) / len(SPHERES) for k in whole])
+        half = T_975[min(len(whole) - 1, max(T_975))] * each.std(ddof=1) / math.sqrt(len(whole))
         low, high = min(low, math.exp(each.mean() - half)), max(high, math.exp(each.mean() + half))
     return float(low), float(high)
 
