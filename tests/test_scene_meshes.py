@@ -176,6 +176,14 @@ def test_a_version_3_file_renders_as_its_meshes_placed_by_hand(tmp_path, capsys)
     assert "12 triangles" in capsys.readouterr().out
     middle = np.asarray(Image.open(out).convert("RGB"))[10:14, 10:14]
     assert (middle > 100).all()  # the light grey box, not the dark gradient behind it
+    # the file named without --scene (`raybench render model.obj`) is the same frame; both is refused
+    plain = tmp_path / "plain.png"
+    assert run(["render", str(obj), "--size", "24x24", "--device", "cpu", "-o", str(plain)]) == 0
+    assert (np.asarray(Image.open(plain)) == np.asarray(Image.open(out))).all()
+    capsys.readouterr()
+    assert run(["render", str(obj), "--scene", str(obj), "--size", "24x24", "-o", str(tmp_path / "no.png")]) == 2
+    assert "give the scene once" in capsys.readouterr().err
+    assert not (tmp_path / "no.png").exists()
 
 
 def test_the_viewer_counts_a_mesh_scenes_triangles(tmp_path, capsys):

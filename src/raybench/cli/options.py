@@ -287,6 +287,15 @@ class SceneArgs:
     no_hydrogens: bool = False
     waters: bool = False
 
+    @classmethod
+    def given(cls, scene_path=None, scene_file=None, **options) -> SceneArgs:
+        """The record of the options as typed: SCENE (the positional argument,
+        `raybench render model.ply`) and --scene are one option given two
+        ways, so giving both is refused."""
+        if scene_path is not None and scene_file is not None:
+            raise RaybenchError(f"give the scene once: {scene_path} or --scene {scene_file}, not both")
+        return cls(scene_file=scene_path if scene_path is not None else scene_file, **options)
+
     def load(self, layout=None, meshes=False):
         molecule = MoleculeArgs(hydrogens=not self.no_hydrogens, waters=self.waters)
         return load_scene(self.scene_file, self.spheres, self.seed, self.materials, layout, molecule, meshes)
@@ -340,11 +349,12 @@ class TracerArgs:
 
 
 def scene_options(verb: str):
-    """--scene, --spheres, --seed, --materials, --no-hydrogens, --waters: the scene to render or show, handed on
-    as scene_args, a SceneArgs."""
+    """[SCENE], --scene, --spheres, --seed, --materials, --no-hydrogens, --waters: the scene to render or
+    show, handed on as scene_args, a SceneArgs (SCENE is --scene without its name: `raybench view model.obj`)."""
     return handed_on(
         "scene_args",
-        SceneArgs,
+        SceneArgs.given,
+        click.argument("scene_path", metavar="[SCENE]", required=False, type=click.Path(dir_okay=False)),
         click.option(
             "--scene",
             "scene_file",
