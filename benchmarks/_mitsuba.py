@@ -67,8 +67,6 @@ from raybench.meshes import MESH_COLOUR, mesh_leaves
 
 VARIANTS = ("llvm_ad_rgb", "cuda_ad_rgb")
 FOV = 60.0
-# Mitsuba's plugins that this script loads, and so what mitsuba_wheel.sh keeps.
-PLUGINS = ("ply", "perspective", "hdrfilm", "box", "stratified", "aov")
 
 
 def mitsuba_scene(mi, path: Path, eye: tuple, width: int, height: int):
@@ -186,7 +184,8 @@ def compare(subdivisions: int, width: int, height: int, args, mi, dr, folder: Pa
     peer = f"mitsuba-{args.variant}"
     ours_values = {"first_frame_s": our_first, "tracer_s": make_s, "build_s": tracer.build_s,
                    "rays_per_s": rays / (ours_ms / 1e3), "kernel_ms": our_kernel}  # fmt: skip
-    ours_options = {**shape, "peer": peer, "threads": default_threads() if args.device == "cpu" else None}
+    ours_options = {**shape, "peer": peer, "threads": default_threads() if args.device == "cpu" else None,
+                    "walk": tracer.walk, "build": getattr(tracer.options, "build", None)}  # fmt: skip
     records = [_harness.part("frame", args.device, times["raybench"], width=width, height=height,
                              options=ours_options, values=ours_values)]  # fmt: skip
     if kernels:
