@@ -21,9 +21,14 @@
 #   each variant links libmitsuba, which links Embree (on OptiX too) and OpenEXR.
 # - Dr.Jit: no headers, CMake files or type stubs.
 set -euo pipefail
-cd "$(dirname "$0")/.."
-FOLDER=${1:-/tmp/whl_mi}
-OUTDIR=${MI_OUT:-.mi}
+FOLDER=$(realpath -m "${1:-/tmp/whl_mi}")
+OUTDIR=$(realpath -m "${MI_OUT:-$(dirname "$0")/../.mi}")
+for name in mitsuba drjit; do
+    if [ "$(compgen -G "$FOLDER/$name-*.whl" | wc -l)" != 1 ]; then
+        echo "mitsuba_wheel.sh: $FOLDER: needs one $name-*.whl" >&2
+        exit 2
+    fi
+done
 mkdir -p "$OUTDIR"
 MI_VARIANTS=${MI_VARIANTS:-cuda_ad_rgb} \
 MI_PLUGINS=${MI_PLUGINS:-aov box diffuse hdrfilm merge perspective ply stratified uniform} \
@@ -84,6 +89,10 @@ for wheel in sorted(glob.glob(os.path.join(folder, "mitsuba-*.whl")) + glob.glob
     print(f"{os.path.basename(out)}: {os.path.getsize(wheel) / 2**20:.1f} MiB -> {os.path.getsize(out) / 2**20:.1f} MiB "
           f"({dropped / 2**20:.0f} MiB unpacked dropped)")
 EOF
-# raybench's pin (pyproject.toml); pure Python, NumPy its one dependency
-python3 -m pip download -q --no-deps --only-binary=:all: -d "$OUTDIR" 'trimesh==4.12.2'
+# trimesh at raybench's pin (pyproject.toml), pure Python, NumPy its one dependency: FOLDER's, else PyPI's
+if compgen -G "$FOLDER/trimesh-4.12.2-*.whl" > /dev/null; then
+    cp "$FOLDER"/trimesh-4.12.2-*.whl "$OUTDIR"/
+else
+    python3 -m pip download -q --no-deps --only-binary=:all: -d "$OUTDIR" 'trimesh==4.12.2'
+fi
 du -ch "$OUTDIR"/*.whl | tail -1
