@@ -79,7 +79,7 @@ def mitsuba_scene(mi, path: Path, eye: tuple, width: int, height: int):
         "fov_axis": "y",
         "to_world": mi.ScalarTransform4f().look_at(origin=list(eye), target=[0, 0, 0], up=[0, 1, 0]),
         "film": {"type": "hdrfilm", "width": width, "height": height, "rfilter": {"type": "box"},
-                 "pixel_format": "luminance", "sample_border": False},
+                 "sample_border": False},
         "sampler": {"type": "stratified", "sample_count": 1, "jitter": False},
     }  # fmt: skip
     return mi.load_dict({
@@ -99,8 +99,8 @@ def loaded_alike(mesh, shape) -> bool:
 
 
 def kernel_times(dr, call, times: int) -> list[float]:
-    """The milliseconds of Dr.Jit's own kernels (its kernel history: the device's clock) that each
-    of `times` calls launched, summed a call."""
+    """The milliseconds of the kernels that each of `times` calls launched, summed a call, as
+    Dr.Jit's kernel history times them (on CUDA, the GPU's own clock)."""
     dr.set_flag(dr.JitFlag.KernelHistory, True)
     try:
         dr.kernel_history()  # emptied
