@@ -72,11 +72,17 @@ def events_ms(marks) -> list[float]:
     return [a.elapsed_time(b) for a, b in zip(marks, marks[1:])]
 
 
-def gpu_build(spheres: np.ndarray, repeats: int, quality: str, passes: int) -> tuple[dict, dict]:
-    """({quantity: ms of each build}, the tree's figures)."""
+def gpu_build(
+    spheres: np.ndarray, repeats: int, quality: str, passes: int, primitive: str = "sphere"
+) -> tuple[dict, dict]:
+    """({quantity: ms of each build}, the tree's figures); spheres: the scene's
+    buffer of that kind of primitive (benchmarks/mesh_build.py times triangles)."""
+    from raybench.backends.cuda import kinds
+
     n = spheres.shape[1]
     d_spheres = cuda.to_device(spheres)
-    builder = cuda_build.Builder(n, quality=quality, treelet_passes=passes)  # its default leaf size
+    kind = None if primitive == "sphere" else kinds.programs(primitive).build
+    builder = cuda_build.Builder(n, quality=quality, treelet_passes=passes, kind=kind)  # its default leaf size
     for _ in range(3):  # compiled (or loaded from the cache), warm
         builder.launch_build(d_spheres)
         builder.read_depth()

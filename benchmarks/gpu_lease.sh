@@ -45,6 +45,9 @@
 #   gpubuild benchmarks/gpu_build.py: the BVH built on the GPU against the host's binned SAH tree
 #            (build, refit, SAH cost, walks on both, leaf sizes), its records in gpu-build.json
 #            (GPUBUILD_ARGS to change, e.g. "--spheres 100000 --repeats 101")
+#   meshbuild benchmarks/mesh_build.py: the GPU builds over a mesh's triangles (cuda, wgpu, the host's beside
+#            them) and a 10M-triangle frame's peak memory beyond the mesh (cuda, cpu), its records in
+#            mesh-build.jsonl (MESHBUILD_ARGS to change)
 #   wgpubuild benchmarks/wgpu_build.py: the same BVH built in WGSL through wgpu (build by step,
 #            refit, SAH cost, the walk on both trees), its records in wgpu-build.json
 #            (WGPUBUILD_ARGS to change)
@@ -201,6 +204,9 @@ for s in $STEPS; do
     # shellcheck disable=SC2086
     wgpubuild) side_by_side wgpubuild "${WGPUBUILD_S:-420}" python3 benchmarks/wgpu_build.py \
         --out "$W/wgpu-build.jsonl" ${WGPUBUILD_ARGS:-} ;;
+    # shellcheck disable=SC2086
+    meshbuild) step meshbuild "${MESHBUILD_S:-300}" python3 benchmarks/mesh_build.py --out "$W/mesh-build.jsonl" \
+        ${MESHBUILD_ARGS:---device cuda --device wgpu --subdivisions 8 --random 1000000 --memory 10000000 --memory-device cuda --memory-device cpu} ;;
     mitsuba)
         mkdir -p "$W/mitsuba"
         python3 -m pip install -q --no-index --no-deps --no-cache-dir --upgrade --target /tmp/site-mi .mi/*.whl \

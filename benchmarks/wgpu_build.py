@@ -73,12 +73,15 @@ class Clock:
         return [float(end - begin) * self.period / 1e6 for begin, end in ticks]
 
 
-def gpu_build_times(device, spheres: np.ndarray, repeats: int, quality: str) -> dict:
+def gpu_build_times(device, spheres: np.ndarray, repeats: int, quality: str, primitive: str = "sphere") -> dict:
+    """spheres: the scene's buffer of that kind of primitive (benchmarks/mesh_build.py times triangles)."""
     import wgpu
 
     n = spheres.shape[1]
-    buffer = device.create_buffer_with_data(data=compute.sphere_rows(spheres).tobytes(), usage=wgpu.BufferUsage.STORAGE)
-    builder = gpu_build.Builder(device, buffer, n, quality=quality)
+    rows = compute.SCENE_ROWS[primitive](spheres)
+    buffer = device.create_buffer_with_data(data=rows.tobytes(), usage=wgpu.BufferUsage.STORAGE)
+    kernels = gpu_build.Kernels(device, primitive)
+    builder = gpu_build.Builder(device, buffer, n, quality=quality, kernels=kernels)
     for _ in range(3):  # the pipelines compiled by the driver, warm
         builder.run(builder.encode_build)
     steps = builder.steps()

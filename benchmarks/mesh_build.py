@@ -1,0 +1,213 @@
+"""Triangle meshes' trees built on the GPU, and the memory a large mesh's frame takes, as records
+of the results schema's "parts" suite (options primitive "triangle", triangles, mesh):
+
+- the GPU build over a mesh's triangles, on cuda (gpu_build.py's gpu_build: CUDA events around
+  its kernels, --repeats builds, and the wall time to the tree ready) and through wgpu
+  (wgpu_build.py's gpu_build_times: GPU timestamps), each quality in --quality, beside the host's
+  binned SAH build of the same triangles (quantity "bvh-build");
+- with --memory N, a frame of N random triangles (1680x1050, primary rays, the BVH) on each
+  --memory-device: the memory it takes beyond what the process held with the mesh already made
+  and the kernels compiled (a first frame of a small mesh), its peak polled every millisecond
+  through the tracer's making, its tree's build and a frame: on cuda the GPU's used memory (NVML),
+  on the cpu the process's resident set. Quantity "mesh-memory": the times are the frames';
+  values give the peak in bytes, the mesh's own bytes (its float32 vertices and int32 faces)
+  and their ratio.
+
+The meshes: trimesh.creation.icosphere(subdivisions, radius 1) at each --subdivisions
+(20 * 4^k triangles: 8 gives 1,310,720), and --random N triangles (random_triangles below).
+
+    PYTHONPATH=src python benchmarks/mesh_build.py --device cuda --device wgpu \\
+        --subdivisions 8 --random 1000000 --memory 10000000 --memory-device cuda --memory-device cpu --out b.jsonl
+"""
+
+from __future__ import annotations
+
+import argparse
+import ctypes
+import sys
+import threading
+import time
+
+import _harness
+import numpy as np
+import trimesh
+
+from raybench import backends, bvh
+from raybench.camera import Camera
+from raybench.meshes import MESH_COLOUR, Mesh, mesh_leaves
+
+SIZE = (1680, 1050)
+
+
+def icosphere(subdivisions: int) -> Mesh:
+    m = trimesh.creation.icosphere(subdivisions=subdivisions, radius=1.0)
+    return Mesh(np.asarray(m.vertices, np.float32), np.asarray(m.faces, np.int32), None)
+
+
+def random_triangles(n: int, seed: int = 0) -> Mesh:
+    """n triangles, each of its own three vertices: centres uniform in the cube [-1, 1]^3, each
+    corner within half an edge s of its centre on every axis, s = 2 / n^(1/3) (the cube's side
+    over the triangles a side), so that the triangles fill the cube about once whatever n."""
+    rng = np.random.default_rng(seed)
+    s = 2.0 / n ** (1.0 / 3.0)
+    centres = rng.uniform(-1.0, 1.0, (n, 1, 3)).astype(np.float32)
+    vertices = (centres + rng.uniform(-0.5 * s, 0.5 * s, (n, 3, 3)).astype(np.float32)).reshape(-1, 3)
+    return Mesh(vertices, np.arange(3 * n, dtype=np.int32).reshape(n, 3), None)
+
+
+def meshes(args):
+    for k in args.subdivisions or []:
+        yield f"icosphere {k}", icosphere(k)
+    for n in args.random or []:
+        yield f"random {n}", random_triangles(n)
+
+
+def options(name: str, n: int, **more) -> dict:
+    return {"primitive": "triangle", "triangles": n, "mesh": name, **more}
+
+
+def builds(name: str, mesh: Mesh, args) -> list[dict]:
+    leaves = mesh_leaves(mesh, MESH_COLOUR)
+    n = leaves.shape[1]
+    bvh.compile_builder()
+    times = [
+        bvh.build(leaves, device="cuda", primitive=_kind()).build_s * 1e3 for _ in range(max(3, args.repeats // 5))
+    ]
+    out = [_harness.part("bvh-build", "cpu", times, options=options(name, n))]
+    for device in args.device or ["cuda"]:
+        for quality in args.quality or ["sah"]:
+            try:
+                timings, figures = _gpu_build(device, leaves, args.repeats, quality)
+            except Exception as exc:  # noqa: BLE001 (a quality or device that fails is said, the others still measured)
+                print(f"{name}: {device} {quality}: {type(exc).__name__}: {exc}", file=sys.stderr)
+                continue
+            for quantity, ms in timings.items():
+                out.append(_harness.part(quantity, device, ms, options=options(name, n, quality=quality),
+                                         values=figures))  # fmt: skip
+    return out
+
+
+def _kind():
+    from raybench.kernels.primitives import triangle
+
+    return triangle
+
+
+def _gpu_build(device: str, leaves: np.ndarray, repeats: int, quality: str):
+    if device == "cuda":
+        import gpu_build
+
+        return gpu_build.gpu_build(leaves, repeats, quality, gpu_build.lbvh.TREELET_PASSES, primitive="triangle")
+    import wgpu_build
+
+    from raybench.backends.wgpu import adapters
+
+    device = adapters.request_device(adapters.choose(None))
+    return wgpu_build.gpu_build_times(device, leaves, repeats, quality, primitive="triangle")
+
+
+class _Nvml:
+    """The GPU's used memory in bytes, through NVML (the driver's library; no package needed)."""
+
+    class _Info(ctypes.Structure):
+        _fields_ = [("total", ctypes.c_ulonglong), ("free", ctypes.c_ulonglong), ("used", ctypes.c_ulonglong)]
+
+    def __init__(self):
+        self.lib = ctypes.CDLL("libnvidia-ml.so.1")
+        self.lib.nvmlInit_v2()
+        self.handle = ctypes.c_void_p()
+        self.lib.nvmlDeviceGetHandleByIndex_v2(0, ctypes.byref(self.handle))
+
+    def __call__(self) -> int:
+        info = self._Info()
+        self.lib.nvmlDeviceGetMemoryInfo(self.handle, ctypes.byref(info))
+        return int(info.used)
+
+
+def _rss() -> int:
+    import psutil
+
+    return psutil.Process().memory_info().rss
+
+
+class Peak:
+    """The largest reading of `used` while the block runs, polled every millisecond."""
+
+    def __init__(self, used):
+        self.used, self.peak, self._stop = used, 0, threading.Event()
+
+    def __enter__(self):
+        self.peak = self.used()
+        self._thread = threading.Thread(target=self._poll, daemon=True)
+        self._thread.start()
+        return self
+
+    def _poll(self):
+        while not self._stop.wait(0.001):
+            self.peak = max(self.peak, self.used())
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        self._thread.join(timeout=5.0)
+        self.peak = max(self.peak, self.used())
+
+
+def memory(n: int, device: str, frames: int) -> dict:
+    """A frame of n random triangles on device, with the memory it took beyond the mesh."""
+    width, height = SIZE
+    basis = Camera(position=(0.0, 0.0, -3.0), look_at=(0.0, 0.0, 0.0), fov_deg=60.0).basis(width, height)
+    small = mesh_leaves(random_triangles(1000), MESH_COLOUR)
+    with backends.tracer(device, small, width, height, primitive="triangle") as warm:
+        warm.compile()
+        warm.trace(basis)  # the kernels compiled or loaded, the device's context made
+    mesh = random_triangles(n)
+    own = mesh.vertices.nbytes + mesh.faces.nbytes
+    used = _Nvml() if device == "cuda" else _rss
+    before = used()
+    frames_ms = []
+    with Peak(used) as peak:
+        start = time.perf_counter()
+        leaves = mesh_leaves(mesh, MESH_COLOUR)
+        tracer = backends.tracer(device, leaves, width, height, primitive="triangle")
+        made_s = time.perf_counter() - start
+        try:
+            tracer.trace(basis)
+            for _ in range(frames):
+                start = time.perf_counter()
+                tracer.trace(basis)
+                frames_ms.append((time.perf_counter() - start) * 1e3)
+            build_s = tracer.build_s
+        finally:
+            tracer.close()
+    extra = peak.peak - before
+    values = {"peak_extra_bytes": extra, "mesh_bytes": own, "extra_over_mesh": round(extra / own, 3),
+              "leaf_buffer_bytes": leaves.nbytes, "build_s": build_s, "tracer_s": made_s}  # fmt: skip
+    return _harness.part("mesh-memory", device, frames_ms, width=width, height=height,
+                         options=options(f"random {n}", n, measured="nvml used" if device == "cuda" else "rss"),
+                         values=values)  # fmt: skip
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--device", action="append", choices=("cuda", "wgpu"), help="GPU builds (default cuda)")
+    parser.add_argument("--subdivisions", action="append", type=int, help="icosphere subdivisions")
+    parser.add_argument("--random", action="append", type=int, help="random triangles")
+    parser.add_argument("--quality", action="append", help="the GPU tree's quality (default sah)")
+    parser.add_argument("--repeats", type=int, default=21, help="timed GPU builds per mesh")
+    parser.add_argument("--memory", type=int, default=0, help="random triangles of the memory frame (0: none)")
+    parser.add_argument("--memory-device", action="append", choices=("cpu", "cuda"), help="default cuda")
+    _harness.add_common(parser, frames=5)
+    args = parser.parse_args()
+    _harness.check_common(parser, args)
+    with _harness.Records("mesh_build", args, {}) as out:
+        for name, mesh in meshes(args):
+            for record in builds(name, mesh, args):
+                out.write(record)
+        if args.memory:
+            for device in args.memory_device or ["cuda"]:
+                out.write(memory(args.memory, device, args.frames))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
