@@ -77,6 +77,22 @@ def primary_rays(basis: np.ndarray, width: int, height: int):
     return [np.ascontiguousarray((c * inv).astype(f32).ravel()) for c in d]
 
 
+def mitsuba_rays(mi, dr, basis: np.ndarray, width: int, height: int):
+    """raybench's primary rays (primary_rays) as a Mitsuba Ray3f of the variant set, evaluated
+    and waited for: held in the variant's memory (a GPU's for cuda) before any frame is timed."""
+    rays = width * height
+    dx, dy, dz = primary_rays(basis, width, height)
+    o = basis[0]
+    ray = mi.Ray3f(
+        mi.Point3f(mi.Float(np.full(rays, o[0], np.float32)), mi.Float(np.full(rays, o[1], np.float32)),
+                   mi.Float(np.full(rays, o[2], np.float32))),
+        mi.Vector3f(mi.Float(dx), mi.Float(dy), mi.Float(dz)),
+    )  # fmt: skip
+    dr.eval(ray)
+    dr.sync_thread()
+    return ray
+
+
 def mitsuba_scene(mi, spheres: np.ndarray, shape: str):
     """The spheres as a Mitsuba scene: one `sphere` shape each (keys in index
     order, so a hit's shape_index is the sphere's index) or one `ellipsoids`
@@ -122,15 +138,7 @@ def compare(layout, n, shape, width, height, args, mi, dr) -> list[dict]:
     start = time.perf_counter()
     ms = mitsuba_scene(mi, scene.spheres, shape)
     load_s = time.perf_counter() - start
-    dx, dy, dz = primary_rays(basis, width, height)
-    o = basis[0]
-    ray = mi.Ray3f(
-        mi.Point3f(mi.Float(np.full(rays, o[0], np.float32)), mi.Float(np.full(rays, o[1], np.float32)),
-                   mi.Float(np.full(rays, o[2], np.float32))),
-        mi.Vector3f(mi.Float(dx), mi.Float(dy), mi.Float(dz)),
-    )  # fmt: skip
-    dr.eval(ray)
-    dr.sync_thread()
+    ray = mitsuba_rays(mi, dr, basis, width, height)
 
     def ours():
         tracer.trace(basis)

@@ -51,6 +51,11 @@
 #   wgpubuild benchmarks/wgpu_build.py: the same BVH built in WGSL through wgpu (build by step,
 #            refit, SAH cost, the walk on both trees), its records in wgpu-build.json
 #            (WGPUBUILD_ARGS to change)
+#   mitsuba  benchmarks/peers.py mitsuba --variant cuda_ad_rgb --device cuda: raybench's cuda frames of
+#            an icosphere against Mitsuba 3 on OptiX, the same rays, side by side; needs .mi (the pruned
+#            wheels of benchmarks/mitsuba_wheel.sh), installed into /tmp/site-mi; its records and log in
+#            $W/mitsuba/ (MITSUBA_ARGS added after those flags, e.g. "--subdivisions 8 --rounds 3";
+#            MITSUBA_S its limit, 240 s)
 #
 # An archived script (benchmarks/archive/, its README) has no step: STEPS="" installs the wheels into
 # /tmp/site, then run it by hand with benchmarks/ on PYTHONPATH for _harness, e.g.
@@ -202,6 +207,14 @@ for s in $STEPS; do
     # shellcheck disable=SC2086
     meshbuild) step meshbuild "${MESHBUILD_S:-300}" python3 benchmarks/mesh_build.py --out "$W/mesh-build.jsonl" \
         ${MESHBUILD_ARGS:---device cuda --device wgpu --subdivisions 8 --random 1000000 --memory 10000000 --memory-device cuda --memory-device cpu} ;;
+    mitsuba)
+        mkdir -p "$W/mitsuba"
+        python3 -m pip install -q --no-index --no-deps --no-cache-dir --upgrade --target /tmp/site-mi .mi/*.whl \
+            > "$W/mitsuba/install.log" 2>&1 || echo "mitsuba: .mi/*.whl did not install (install.log)" | tee -a "$W/steps.log"
+        # shellcheck disable=SC2086
+        step mitsuba/mitsuba "${MITSUBA_S:-240}" env PYTHONPATH="/tmp/site-mi:$PYTHONPATH" python3 benchmarks/peers.py \
+            mitsuba --variant cuda_ad_rgb --device cuda --label "$LABEL" --out "$W/mitsuba/mitsuba.jsonl" \
+            ${MITSUBA_ARGS:-} ;;
     *) echo "unknown step $s" | tee -a "$W/steps.log" ;;
     esac
 done

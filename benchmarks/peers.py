@@ -5,13 +5,14 @@ one subcommand a peer.
     peers.py povray [--scenes balls:3 balls:4 ...]           POV-Ray 3.7 on the SPD's scenes
     peers.py embree [--spheres ...]                          Mitsuba 3 on Embree, the same primary rays
     peers.py embreex [--subdivisions ...]                    Embree 4 through embreex on a triangle mesh, the same rays
+    peers.py mitsuba [--variant ... --device ...]            Mitsuba 3 (Embree, OptiX) on a triangle mesh, the same rays
 
 Each side is timed warm (its first frames left out), in --rounds rounds of --frames frames, the
 sides alternating which goes first each round, each side's turn after --settle seconds idle, so
 that a neighbour's load falls on both; medians over every frame of a side. Records of the results
 schema's "parts" suite: raybench's frames (quantity "frame", option "peer") and the peer's
-("pymol-ray", "povray-render", "embree-intersect", "embreex-intersect"), the peer's with its time over
-raybench's.
+("pymol-ray", "povray-render", "embree-intersect", "embreex-intersect", "mitsuba-intersect" and
+"mitsuba-frame"), the peer's with its time over raybench's.
 
 pymol: the peer runs in a process of its own (_pymol_worker.py, by the Python that has PyMOL:
 Debian's `pymol` package, /usr/bin/python3), given the molecule file raybench reads, shown as
@@ -55,6 +56,7 @@ from pathlib import Path
 import _embree
 import _embreex
 import _harness
+import _mitsuba
 import numpy as np
 
 from raybench import Camera, Renderer
@@ -405,6 +407,9 @@ def main():
     embreex = peers.add_parser("embreex", help="Embree 4 through embreex: a triangle mesh, the same primary rays")
     _embreex.add_arguments(embreex)
     _harness.add_common(embreex, frames=3, rounds=5)
+    mitsuba = peers.add_parser("mitsuba", help="Mitsuba 3 (LLVM: Embree; cuda: OptiX): a triangle mesh, the same rays")
+    _mitsuba.add_arguments(mitsuba)
+    _harness.add_common(mitsuba, frames=5, rounds=5)
     pymol = peers.add_parser("pymol", help="PyMOL's ray on molecules")
     pymol.add_argument("--molecules", nargs="+", default=MOLECULES, help="names in PyMOL's data or paths, *K: K copies")
     pymol.add_argument("--size", default="1680x1050")
@@ -432,6 +437,8 @@ def main():
         return _embree.run(args)
     if args.peer == "embreex":
         return _embreex.run(args)
+    if args.peer == "mitsuba":
+        return _mitsuba.run(args)
     return pymol_run(args) if args.peer == "pymol" else povray_run(args)
 
 
