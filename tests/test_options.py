@@ -51,7 +51,9 @@ def test_an_option_of_another_device_is_named_with_the_devices_own(device):
 
 def test_the_defaults_are_filled_in():
     cpu = options.checked("cpu", {})
-    assert (cpu.accel, cpu.kernel, cpu.threads, cpu.tree_width) == ("bvh", None, usable_cores(), options.TREE_WIDTH)
+    # the tree's width is left to the tracer, which takes its kind of primitive's
+    assert (cpu.accel, cpu.kernel, cpu.threads, cpu.tree_width) == ("bvh", None, usable_cores(), None)
+    assert options.KIND_TREE_WIDTH == {"sphere": 4, "triangle": 2}
     assert options.checked("cpu", {"accel": "none"}).kernel == "fast"
     cuda = options.checked("cuda", {"kernel": "fast"})
     assert (cuda.accel, cuda.rays, cuda.staged, cuda.trip, cuda.block) == (

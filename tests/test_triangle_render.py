@@ -147,6 +147,9 @@ def test_both_cpu_walks_and_brute_force_give_one_frame(outside):
     brute = render(scene, None, W, H, device="cpu", threads=2, accel="none", kernel="simple")
     for other in (binary, brute):
         assert (other.hits == wide.hits).all() and (other.image == wide.image).all()
+    # a mesh's rays walk the binary tree alone unless told (options.KIND_TREE_WIDTH)
+    with backends.tracer("cpu", scene.triangles, W, H, primitive="triangle", threads=2) as tracer:
+        assert tracer.tree_width == 2
 
 
 @pytest.mark.slow

@@ -49,11 +49,15 @@ SCHEDULES = ("wavefront", "pixel")
 # --- cpu ---------------------------------------------------------------------------
 
 MAX_THREADS = 4096
-# The cpu's tree by default (tree_width): 2, the binary SAH tree (bvh.build),
-# every ray walking it alone by the GPUs' own walk (kernels/traverse.py); 4,
-# the same tree collapsed into 4-wide nodes (bvh.collapse), which the cpu's
-# packets walk (kernels/packets.py).
+# The cpu's tree by default (tree_width), by kind of primitive: 2, the binary
+# SAH tree (bvh.build), every ray walking it alone by the GPUs' own walk
+# (kernels/traverse.py); 4, the same tree collapsed into 4-wide nodes
+# (bvh.collapse), which the cpu's packets walk (kernels/packets.py). A mesh's
+# triangles are walked alone: they are small beside a packet's footprint, so
+# a packet enters leaves that most of its rays miss
+# (docs/triangles.md#the-cpus-walk-rays-alone).
 TREE_WIDTH = 4
+KIND_TREE_WIDTH = {"sphere": TREE_WIDTH, "triangle": 2}
 TREE_WIDTHS = (2, 4)
 
 # --- cuda --------------------------------------------------------------------------
@@ -245,13 +249,14 @@ class CpuOptions:
     ("simple" or "fast"; None with the BVH); constant_count: the simple
     kernel compiled for one sphere count; threads: Numba's threads (default
     every usable core); tree_width: the tree the BVH's rays walk (2: each
-    ray alone, as the GPUs do; 4: the cpu's packets)."""
+    ray alone, as the GPUs do; 4: the cpu's packets; None: the kind of
+    primitive's, KIND_TREE_WIDTH)."""
 
     accel: str
     kernel: str | None
     constant_count: bool
     threads: int
-    tree_width: int
+    tree_width: int | None
 
     @classmethod
     def check(cls, given: dict, shading=None) -> CpuOptions:
@@ -262,13 +267,13 @@ class CpuOptions:
         )
         tree_width, threads = g.tree_width, g.threads
         if tree_width is None:
-            tree_width = TREE_WIDTH
+            pass  # the Tracer's kind of primitive chooses (KIND_TREE_WIDTH)
         elif accel != "bvh":
             raise RaybenchError("tree_width: applies to the BVH's packets only (accel='bvh')")
         elif not is_integer(tree_width) or tree_width not in TREE_WIDTHS:
             raise RaybenchError(f"tree_width: must be one of 2, 4, got {shown(tree_width)}")
         threads = usable_cores() if threads is None else _integer("threads", threads, 1, MAX_THREADS)
-        return cls(accel, kernel, bool(g.constant_count), threads, int(tree_width))
+        return cls(accel, kernel, bool(g.constant_count), threads, None if tree_width is None else int(tree_width))
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ from ...layout import (
 from ...lighting import Shading
 from ..contract import TracerBase, check_moved
 from ..limits import HOST_PIXEL_BYTES, check_bvh_fits, check_count, check_fits, check_rows
-from ..options import CpuOptions
+from ..options import KIND_TREE_WIDTH, CpuOptions
 from .kinds import primitive_of, programs
 
 # Chunks of rows per thread for the BVH: enough that the last chunk to finish
@@ -113,7 +113,7 @@ class Tracer(TracerBase):
                 # 4: the primary and shadow rays as packets through the 4-wide
                 # tree, the bounces through it alone (_whitted_rows_packets); 2:
                 # every ray alone through the binary tree
-                self.tree_width = options.tree_width
+                self.tree_width = options.tree_width or KIND_TREE_WIDTH[primitive]
             self._kernel = self._programs.whitted["packets" if self.tree_width == 4 else self.accel]
             self._row_rays = np.zeros((height, len(layout.KINDS)), np.int64)
             self.ray_counts = np.zeros(len(layout.KINDS), np.int64)
@@ -127,7 +127,7 @@ class Tracer(TracerBase):
             self.shaded = spheres if self.count else self._stand_in()
             self.bands = chunks(height, self.threads)
             workers = min(self.threads, len(self.bands))
-            self.tree_width = options.tree_width
+            self.tree_width = options.tree_width or KIND_TREE_WIDTH[primitive]
             self._kernel = self._programs.packets if self.tree_width == 4 else self._programs.rows
             self._build(self.count)
         else:
