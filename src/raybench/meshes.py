@@ -86,7 +86,8 @@ def _parts(loaded):
         normals = np.asarray(cache["vertex_normals"], np.float64) if "vertex_normals" in cache else None
         linear = transform[:3, :3]
         if not np.array_equal(transform, np.eye(4)):
-            vertices = vertices @ linear.T + transform[:3, 3]
+            with np.errstate(invalid="ignore", over="ignore"):  # non-finite vertices: checked_mesh's refusal
+                vertices = vertices @ linear.T + transform[:3, 3]
             if normals is not None:
                 normals = normals @ np.linalg.inv(linear)
         yield vertices, faces, normals
