@@ -22,6 +22,7 @@ from ..suites import REGISTRY
 from . import answer, html
 from .beyond_sections import _section_dynamic, _section_multi_gpu, _section_parts, _section_scaling, _section_secondary
 from .markdown_blocks import _table, _Writer, escape
+from .meshes_section import _section_meshes
 from .records import load
 from .scenes_section import _section_scenes
 from .thesis_sections import _section_constant, _section_speedup, _section_test7, _section_thesis, _section_tuning
@@ -134,6 +135,7 @@ _BEYOND = (
     ("multi-gpu", "across GPUs and workers", _section_multi_gpu),
     ("dynamic", "spheres that move", _section_dynamic),
     ("scenes", "real scenes", _section_scenes),
+    ("meshes", "triangles", _section_meshes),
     ("parts", "parts timed apart", _section_parts),
 )
 
