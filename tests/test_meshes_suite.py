@@ -177,6 +177,19 @@ def test_a_quick_run_on_the_cpu_and_its_report(tmp_path, capsys):
             assert line.endswith(": holds" if k <= POWER_MAX else ": does not hold")
     verdict = "holds" if max(powers) <= POWER_MAX else "does not hold"
     assert f"triangle count?** **{verdict}**" in text
+    # Embree's figure on the suite's own rays (peers.py embreex's record, the same label) beside the cpu's
+    ours = next(r for r in records if (r["options"]["mesh"], r["options"]["shading"]) == ("icosphere", "thesis"))
+    n, theirs_ms = ours["options"]["triangles"], 2.5 * ours["frame_ms"]["median"]
+    part = {"format": "raybench-results", "version": 1, "suite": "parts", "quantity": "embreex-intersect",
+            "device": "cpu", "width": w, "height": h, "samples": 3, "time_ms": stats.summarize([theirs_ms]),
+            "options": {"primitive": "triangle", "triangles": n, "eye_distance": 2.0, "threads": 2},
+            "values": {"rays_per_s": w * h / (theirs_ms / 1e3)}, "run": ours["run"]}  # fmt: skip
+    far = {**part, "options": {**part["options"], "eye_distance": 3.0}}  # other rays: not set beside
+    (tmp_path / "embreex.jsonl").write_text("".join(json.dumps(r) + "\n" for r in (part, far)))
+    assert run(["report", str(tmp_path), "-o", str(tmp_path / "both")]) == 0
+    text = (tmp_path / "both" / "report.md").read_text()
+    (line,) = [line for line in text.splitlines() if line.startswith("- Embree 4 (embreex")]
+    assert f"{n:,} triangles at {w}x{h}" in line and line.endswith(": raybench 2.50x (for information)"), line
 
 
 def _record(device, mesh, triangles, shading, ms, **options):

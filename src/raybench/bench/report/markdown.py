@@ -192,6 +192,8 @@ def _write(sources, machines, notes, beyond, w: _Writer, references: list[dict] 
             slug = _slug(f"{label}-{suite}", taken)
             if section is _section_secondary:  # it describes the machine of a run with no thesis section
                 section(w, label, slug, records, describe=label not in thesis_labels)
+            elif section is _section_meshes:  # Embree's figures of the same label (parts) beside its cpu's
+                section(w, label, slug, records + beyond["parts"].get(label, []))
             else:
                 section(w, label, slug, records)
     w("## Sources", "")

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 import statistics
 
-from ..meshes import DEPTH, LIGHT, LIGHT_RADIUS, SHADOW_SAMPLES
+from ..meshes import DEPTH, EYE, LIGHT, LIGHT_RADIUS, SHADOW_SAMPLES
 from .beyond_sections import _rays_text
 from .markdown_blocks import _adapter_name, _table, _Writer, escape
 from .numbers import fmt_ms, fmt_num, fmt_r2, fmt_x
@@ -167,8 +167,37 @@ def lead_verdict(records: list[dict], gpu: str = "cuda") -> dict:
     return {"verdict": FAILS if slower else HOLDS, "measured": text, "points": matched}
 
 
+def beside_embree(records: list[dict]) -> list[str]:
+    """A line for each Embree figure among records (benchmarks/peers.py embreex: parts of quantity
+    "embreex-intersect") taken on the suite's own rays (its icosphere, triangle count, size and
+    eye distance) beside this suite's cpu frame there (thesis shading): rays/s each, and the
+    ratio. Embree is information: no verdict reads it."""
+    ours = {}
+    for p in mesh_points(records):
+        if p["device"] == "cpu" and p["mesh"] == "icosphere" and p["shading"] == "thesis" and p["rays_per_s"]:
+            ours[(p["triangles"], p["width"], p["height"])] = p
+    out = []
+    for r in records:
+        opts, values = r.get("options") or {}, r.get("values") or {}
+        if r["suite"] != "parts" or r.get("quantity") != "embreex-intersect" or not values.get("rays_per_s"):
+            continue
+        mine = ours.get((opts.get("triangles"), r.get("width"), r.get("height")))
+        if mine is None or opts.get("eye_distance") != abs(EYE[2]):
+            continue
+        threads = opts.get("threads")
+        out.append(
+            f"Embree 4 (embreex, closest hits only, {threads if isinstance(threads, int) else '?'} threads) on the "
+            f"same rays, {mine['triangles']:,} triangles at {mine['width']}x{mine['height']}: "
+            f"{_rays_text(values['rays_per_s'])} rays/s against raybench's cpu frame, "
+            f"{_rays_text(mine['rays_per_s'])}: "
+            f"raybench {fmt_x(mine['rays_per_s'] / values['rays_per_s'])} (for information)"
+        )
+    return out
+
+
 def _section_meshes(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
-    """The meshes suite on one machine: a table of its points and its verdicts (no chart: slug is unused)."""
+    """The meshes suite on one machine: a table of its points and its verdicts (no chart: slug is
+    unused); records may hold the same run's parts too, for Embree's figures beside the cpu's."""
     points = mesh_points(records)
     if not points:
         return
@@ -196,6 +225,9 @@ def _section_meshes(w: _Writer, label: str, slug: str, records: list[dict]) -> N
         info = lead_verdict(records, "wgpu")
         w(f"wgpu on {escape(_adapter_name(records))}, for information: {escape(info['measured'])}", "")
     w(f"The rule: {LEAD_RULE}", "")
+    embree = beside_embree(records)
+    if embree:
+        w(*[f"- {escape(line)}" for line in embree], "")
     if lead["points"]:
         w("The GPU's lead at each point both devices measured (CPU median frame ms / GPU's):", "")
         rows = [[escape(p["way"]), escape(p["mesh"]), f"{p['triangles']:,}", escape(p["shading"]),
