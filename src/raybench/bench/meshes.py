@@ -50,14 +50,13 @@ CAP_S = 20.0
 QUICK_CAP_S = 2.0
 # The random triangles' corners spread RANDOM_EDGE * sqrt(RANDOM_REFERENCE / n) about each
 # centre: the triangles' total area is the same at every count, so a ray crosses about as
-# many of them whatever n (about 70% of the primary rays hit one at every count: the count
-# grows, not the coverage).
+# many of them whatever n, and the share of rays that hit one stays put: the count grows, not
+# the coverage (docs/thesis.md#beyond-the-thesis has the share measured).
 RANDOM_EDGE = 0.12
 RANDOM_REFERENCE = 10_000
 # Host bytes a triangle takes at the peak of a point (the mesh made, its scene buffer, the
-# host builder's arrays and the tree): measured at most 1.6 KB a triangle (1,000,000 random
-# ones, a Whitted frame on the cpu, the compiler's own memory counted in), rounded up. A
-# point needing more than the host has free is skipped, not started.
+# host builder's arrays and the tree), above the peak measured (docs/thesis.md#beyond-the-thesis):
+# a point needing more than the host has free is skipped, not started.
 HOST_TRIANGLE_BYTES = 2048
 
 
