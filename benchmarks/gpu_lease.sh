@@ -39,6 +39,8 @@
 #            records, for raybench report's section across workers
 #   dynamic  the dynamic suite: moving spheres, the tree's update and the frame, cuda (both builds),
 #            cpu and wgpu (DYNAMIC_ARGS to change)
+#   meshes   the meshes suite: an icosphere and random triangles, 10 thousand to 10 million, primary
+#            and Whitted rays, cuda, cpu and wgpu (MESHES_ARGS to change, e.g. one device a lease)
 #   startup  benchmarks/startup.py: the time to the first picture, cold and warm, each version of
 #            BASELINE (with its commit, BASELINE_COMMITS in the same order) then this one, on the
 #            cores STARTUP_CPUS (taskset -c; e.g. 0,1 for two) where set (STARTUP_ARGS to change)
@@ -146,6 +148,8 @@ for s in $STEPS; do
     # shellcheck disable=SC2086
     secondary) bench secondary "${SECONDARY_S:-300}" ${SECONDARY_ARGS:---suite secondary --device cuda --device cpu --accel bvh} ;;
     tuning) bench tuning "${TUNING_S:-50}" --suite tuning --accel bvh --device cuda ;;
+    # shellcheck disable=SC2086
+    meshes) bench meshes "${MESHES_S:-480}" ${MESHES_ARGS:---suite meshes --device cuda --device cpu --device wgpu} ;;
     walks)
         for round in 1 2; do
             # shellcheck disable=SC2086

@@ -56,6 +56,8 @@ HOSTILE = {
     "label as a list": set_at(["options", "label"], ["a"]),
     "threads as text": set_at(["options", "threads"], "many"),
     "tree width 3": set_at(["options", "tree_width"], 3),
+    "a mesh no suite makes": set_at(["options", "mesh"], "teapot"),
+    "triangles as a fraction": set_at(["options", "triangles"], 2.5),
     "block of one side": set_at(["options", "block"], [16]),
     "a denormal time": set_at(["frame_ms", "median"], 5e-324),
     "a denormal rate": set_at(["rays_per_s"], 5e-324),

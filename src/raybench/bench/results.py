@@ -5,7 +5,7 @@ every point it finished.
 A record (format "raybench-results", version 1):
 
     suite        "thesis" | "test7" | "constant-vs-runtime" | "tuning" | "scaling" | "secondary" |
-                 "multi-gpu" | "dynamic" | "scenes" | "parts" (below)
+                 "multi-gpu" | "dynamic" | "scenes" | "meshes" | "parts" (below)
     test         the thesis's test number (1-3 GPU, 4-6 CPU by resolution; 7 the ramp), else null
     device       "cpu" | "cuda"
     width, height, spheres
@@ -30,7 +30,9 @@ A record (format "raybench-results", version 1):
                  cuda's tree is built (cuda's BVH points, when asked for; always in dynamic);
                  dynamic's points carry "motion": "orbits" (raybench.animate.Orbits);
                  scenes' points "scene" (an SPD scene and its size factor, "balls 4") and
-                 "unrendered" (what it holds that raybench does not draw yet)
+                 "unrendered" (what it holds that raybench does not draw yet);
+                 meshes' points "mesh" ("icosphere" or "random": bench/meshes.py) and
+                 "triangles" (its count; spheres is 0), "shading" as secondary's, "cap_s"
     frames       how many timed frames
     frame_ms     {mean, median, p5, p95, min, max}: whole frame (kernel, and on the GPU the copy to the host);
                  multi-gpu's: a run of the job's wall time over its frames, on all its workers
@@ -63,8 +65,9 @@ A record (format "raybench-results", version 1):
         values       other figures measured with it, by name (an SAH cost, a depth, bytes),
                      numbers or null
     skipped      instead of frames, frame_ms, ...: why the point was not measured (the
-                 scaling and secondary suites' brute force), e.g.
-                 "predicted 4.2 s a frame, over the 1 s cap", with predicted_ms
+                 scaling and secondary suites' brute force, the meshes suite's points), e.g.
+                 "predicted 4.2 s a frame, over the 1 s cap", with predicted_ms; a mesh that
+                 would not fit: "does not fit: ..." (the refusal's line), predicted_ms null
     Every field's rule is in the schema (bench.results_schema), also published as JSON Schema
     (schema(): `raybench schema`, docs/results-schema.json).
     run          {"id", "date", "git_commit", "label", "argv", "settings", "machine": raybench.machine.describe()}

@@ -286,6 +286,9 @@ OPTIONS = _compile(
         "walk?": _option_text,
         "delivery?": _option_text,
         "version?": _option_text,
+        # the meshes suite's: which generated mesh (bench/meshes.py) and its triangle count
+        "mesh?": _one_of("icosphere", "random"),
+        "triangles?": _count,
     },
     rest=_option,
 )

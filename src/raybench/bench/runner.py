@@ -16,7 +16,7 @@ from ..layout import KINDS
 from ..machine import describe, git_commit
 from ..render import Renderer
 from ..scene import random_spheres
-from . import multi, suites
+from . import meshes, multi, suites
 from .results import ResultsWriter
 from .stats import kept_samples, summarize
 from .suites import DYNAMIC_DT, Point
@@ -153,16 +153,29 @@ def measure(point: Point, scenes: Scenes, duration: float) -> dict:
 
         scene = real.scene(point.options["scene"])
         basis = (scene.camera or Camera()).basis(point.width, point.height)
+    elif "mesh" in point.options:  # the meshes suite's: triangles, where they fit
+        why = meshes.too_large(point.options["triangles"])
+        if why is not None:
+            return unfit(point, why)
+        scene = meshes.mesh_scene(point.options["mesh"], point.options["triangles"], scenes.seed)
+        basis = scene.camera.basis(point.width, point.height)
     else:
         scene = scenes.get(point.spheres, materials=shaded, layout=point.options.get("layout", "even"))
         basis = Camera().basis(point.width, point.height)
     # made as a program makes it (raybench.Renderer); its tracer is timed, the
     # frame's kernel and readback without Renderer.render's copies
-    renderer = Renderer(
-        scene, point.width, point.height, point.device, "whitted" if shaded else "thesis",
-        point.options.get("depth") if shaded else None, point.options.get("shadow_samples") if shaded else None,
-        **tracer_options(point),
-    )  # fmt: skip
+    try:
+        renderer = Renderer(
+            scene, point.width, point.height, point.device, "whitted" if shaded else "thesis",
+            point.options.get("depth") if shaded else None, point.options.get("shadow_samples") if shaded else None,
+            **tracer_options(point),
+        )  # fmt: skip
+    except RaybenchError as exc:
+        # a mesh the device cannot hold (its memory, a storage-buffer limit) is refused in one
+        # line before anything is allocated: the suite's point skipped with it, the run going on
+        if "mesh" not in point.options:
+            raise
+        return unfit(point, str(exc))
     tracer = renderer.tracer
     try:
         build_s = tracer.build_s
@@ -226,8 +239,8 @@ def measure(point: Point, scenes: Scenes, duration: float) -> dict:
 
 def _series(point: Point) -> tuple:
     """The points a capped point predicts its frame time from: the same
-    suite, device and way of tracing, any size and count."""
-    opts = {k: v for k, v in point.options.items() if k != "cap_s"}
+    suite, device and way of tracing, any size and count (of spheres, or a mesh's triangles)."""
+    opts = {k: v for k, v in point.options.items() if k not in ("cap_s", "triangles")}
     return point.suite, point.device, json.dumps(opts, sort_keys=True)
 
 
@@ -238,6 +251,19 @@ def predicted_ms(point: Point, last: tuple | None) -> float | None:
         return None
     pixels, spheres, ms = last
     return ms * (point.width * point.height / pixels) * (max(point.spheres, 1) / max(spheres, 1))
+
+
+def _count(point: Point) -> int:
+    """What a point's frame time is predicted to grow with: its triangles, else its spheres."""
+    return point.options.get("triangles", point.spheres)
+
+
+def _predicted(point: Point, series: list[tuple]) -> float | None:
+    """A capped point's frame predicted from its series' points measured before it: a mesh's
+    by the growth they showed (meshes.predicted_ms), any other's linear from the last."""
+    if "triangles" in point.options:
+        return meshes.predicted_ms(point.width * point.height, _count(point), series)
+    return predicted_ms(point, series[-1] if series else None)
 
 
 def _identity(point: Point) -> dict:
@@ -261,6 +287,12 @@ def skipped(point: Point, predicted: float, cap_s: float) -> dict:
         "skipped": f"predicted {predicted / 1e3:.3g} s a frame, over the {cap_s:g} s cap",
         "predicted_ms": predicted,
     }
+
+
+def unfit(point: Point, why: str) -> dict:
+    """The record of a point not measured: it would not fit in memory (the meshes suite's)."""
+    text = " ".join(f"does not fit: {why}".split())
+    return {**_identity(point), "skipped": text if len(text) <= 300 else text[:297] + "...", "predicted_ms": None}
 
 
 def machine_label(machine: dict) -> str:
@@ -370,7 +402,7 @@ def run(
     from .progress import Lines
 
     scenes = Scenes(seed)
-    last: dict[tuple, tuple] = {}
+    last: dict[tuple, list] = {}  # each series' (pixels, count, median ms), in order
     weights = [duration + WARMUP_S + (duration if p.ramp else 0) for p in points]
     columns = [
         TextColumn("{task.description}"),
@@ -400,7 +432,8 @@ def _measure_all(points, weights, writer, run, duration, scenes, last, clusters,
         if plain is not None:
             plain.point(i, point)
         cap_s = point.options.get("cap_s")
-        guess = predicted_ms(point, last.get(_series(point))) if cap_s else None
+        series = last.setdefault(_series(point), [])
+        guess = _predicted(point, series) if cap_s else None
         if guess is not None and guess > cap_s * 1e3:
             writer.write({**skipped(point, guess, cap_s), "run": run})
         else:
@@ -409,7 +442,8 @@ def _measure_all(points, weights, writer, run, duration, scenes, last, clusters,
             except BaseException:
                 clusters.close()
                 raise
-            last[_series(point)] = (point.width * point.height, point.spheres, record["frame_ms"]["median"])
+            if "skipped" not in record:  # (a mesh that did not fit: nothing to predict from)
+                series.append((point.width * point.height, _count(point), record["frame_ms"]["median"]))
             writer.write({**record, "run": run})
         bar.update(task, advance=weight, done=i + 1)
         if plain is not None:

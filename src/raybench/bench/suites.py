@@ -55,6 +55,12 @@ on a GPU, uploaded) plus the frame. At 10,000, 100,000 and 1,000,000 spheres at
 1680x1050, through the BVH (brute force has no tree to update), cuda and
 wgpu once per build (both by default, or those --build names).
 
+The meshes suite (bench/meshes.py) traces triangles: an icosphere and random triangles
+from about 10 thousand to 10 million, each with the thesis's shading and Whitted's, through
+the BVH on every device asked for. Every point carries a cap: one whose frame is predicted
+(by the growth its series has shown so far) past it is recorded as skipped, and so is one
+that would not fit in the host's or the device's memory.
+
 `--suite all` includes the secondary suite: all means every suite, and the cap keeps the
 suite's brute force within minutes a point, as the scaling suite's keeps
 its own; what a 2-core machine spends on it is mostly its BVH frames.
@@ -77,7 +83,7 @@ from ..backends.options import BUILDS, FAST_MAX_THREADS
 from ..errors import RaybenchError
 from ..host import usable_cores
 from ..scene import RAMP
-from . import headline, scenes
+from . import headline, meshes, scenes
 
 ACCELS = ("bvh", "none")
 THESIS_SIZES = ((800, 600), (1280, 800), (1680, 1050))
@@ -158,9 +164,11 @@ class Point:
     repeat: int = 0
 
     def describe(self) -> str:
-        extra = "".join(f" {k}={_fmt(v)}" for k, v in self.options.items() if k != "label")
+        extra = "".join(f" {k}={_fmt(v)}" for k, v in self.options.items() if k not in ("label", "triangles"))
         label = f" ({self.options['label']})" if "label" in self.options else ""
         what = f"test 7 ramp {self.ramp[0]}..{self.ramp[-1]}" if self.ramp else f"{self.spheres} spheres"
+        if "triangles" in self.options:  # the meshes suite's: triangles, not spheres
+            what = f"{self.options['triangles']:,} triangles"
         test = f"test {self.test} " if self.test and not self.ramp else ""
         again = f", again ({self.repeat} of {HEADLINE_REPEATS})" if self.repeat else ""
         return f"{self.suite} {test}{self.device} {self.width}x{self.height} {what}{extra}{label}{again}"
@@ -266,7 +274,8 @@ class Suite:
     # how the runner times a point: "frame" (runner.measure), "dynamic"
     # (runner.measure_dynamic: the spheres move), "workers" (bench.multi.measure)
     measure: str = "frame"
-    # its brute-force points carry cap_s, and one predicted past it is recorded as skipped
+    # its brute-force points (the meshes suite: every point) carry cap_s, and one predicted
+    # past it is recorded as skipped (the meshes suite's also where it would not fit)
     capped: bool = False
     # why it runs on one machine only (not across a cluster with --scheduler); empty: it runs anywhere
     one_machine: str = ""
@@ -427,6 +436,20 @@ def _scenes(plan: Plan) -> list[Point]:
     return out
 
 
+def _meshes(plan: Plan) -> list[Point]:
+    """Triangles (bench/meshes.py): each mesh at its counts, the thesis's shading then Whitted's,
+    through the BVH, on every device asked for; a point past the cap or the memory is skipped."""
+    w, h = meshes.QUICK_SIZE if plan.quick else meshes.SIZE
+    cap = meshes.QUICK_CAP_S if plan.quick else meshes.CAP_S
+    out = []
+    for way, device in _runs([{"accel": "bvh"}], plan.devices, plan.wgpu, plan.builds):
+        for kind in meshes.KINDS:
+            for n in meshes.counts(kind, plan.quick):
+                mesh = {"mesh": kind, "triangles": n}
+                out += [Point("meshes", device, w, h, 0, {**way, **mesh, **s, "cap_s": cap}) for s in meshes.shadings()]
+    return out
+
+
 def _dynamic(plan: Plan) -> list[Point]:
     counts = QUICK_DYNAMIC_COUNTS if plan.quick else DYNAMIC_COUNTS
     w, h = QUICK_DYNAMIC_SIZE if plan.quick else DYNAMIC_SIZE
@@ -464,10 +487,17 @@ SCENES = Suite(
     _scenes,
     section=True,
 )
+MESHES = Suite(
+    "meshes",
+    "meshes (triangles: an icosphere and random triangles, 10 thousand to 10 million, primary and Whitted rays)",
+    _meshes,
+    capped=True,
+    section=True,
+)
 
 # Every suite, in run order: `bench --suite`'s choices and `--suite all`, the
 # runner's dispatch, the record suites the schema takes and the report's sections.
-REGISTRY = (THESIS, CONSTANT_VS_RUNTIME, TUNING, SCALING, SECONDARY, MULTI_GPU_SUITE, DYNAMIC, SCENES)
+REGISTRY = (THESIS, CONSTANT_VS_RUNTIME, TUNING, SCALING, SECONDARY, MULTI_GPU_SUITE, DYNAMIC, SCENES, MESHES)
 _BY_NAME = {s.name: s for s in REGISTRY}
 _BY_RECORD = {r: s for s in REGISTRY for r in s.writes}
 SUITES = tuple(_BY_NAME)

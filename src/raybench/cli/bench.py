@@ -32,8 +32,8 @@ from .options import (
     multiple=True,
     default=("thesis",),
     show_default=True,
-    help=f"{', '.join(s.help for s in REGISTRY)}, or all (every one; brute force past a frame-time cap is "
-    f"skipped in {' and '.join(CAPPED)}); repeat for several",
+    help=f"{', '.join(s.help for s in REGISTRY)}, or all (every one; a point predicted past a frame-time cap is "
+    f"skipped in {', '.join(CAPPED)}: brute force's, and every mesh's); repeat for several",
 )
 @click.option(
     "--device", "devices", multiple=True, help="cpu, cuda or wgpu; repeat for several (default: every device present)"

@@ -22,6 +22,7 @@ from ..suites import REGISTRY
 from . import answer, html
 from .beyond_sections import _section_dynamic, _section_multi_gpu, _section_parts, _section_scaling, _section_secondary
 from .markdown_blocks import _table, _Writer, escape
+from .meshes_section import _section_meshes
 from .records import load
 from .scenes_section import _section_scenes
 from .thesis_sections import _section_constant, _section_speedup, _section_test7, _section_thesis, _section_tuning
@@ -134,6 +135,7 @@ _BEYOND = (
     ("multi-gpu", "across GPUs and workers", _section_multi_gpu),
     ("dynamic", "spheres that move", _section_dynamic),
     ("scenes", "real scenes", _section_scenes),
+    ("meshes", "triangles", _section_meshes),
     ("parts", "parts timed apart", _section_parts),
 )
 
@@ -190,6 +192,8 @@ def _write(sources, machines, notes, beyond, w: _Writer, references: list[dict] 
             slug = _slug(f"{label}-{suite}", taken)
             if section is _section_secondary:  # it describes the machine of a run with no thesis section
                 section(w, label, slug, records, describe=label not in thesis_labels)
+            elif section is _section_meshes:  # Embree's figures of the same label (parts) beside its cpu's
+                section(w, label, slug, records + beyond["parts"].get(label, []))
             else:
                 section(w, label, slug, records)
     w("## Sources", "")
