@@ -35,9 +35,10 @@ twins in backends/wgpu/ (sphere.wgsl for the walks and the shading,
 sphere_build.wgsl for the GPU build), and a line in KINDS.
 """
 
-from . import sphere, triangle
+from . import mixed, sphere, triangle
 
-# name: module. A scene's primitives are of these kinds.
-KINDS = {"sphere": sphere, "triangle": triangle}
+# name: module. A scene's primitives are of these kinds; "mixed" is a scene
+# of spheres and triangles, one tree of both (each leaf tagged with its kind).
+KINDS = {"sphere": sphere, "triangle": triangle, "mixed": mixed}
 
-__all__ = ["KINDS", "sphere", "triangle"]
+__all__ = ["KINDS", "mixed", "sphere", "triangle"]
