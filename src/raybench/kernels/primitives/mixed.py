@@ -9,9 +9,8 @@ one tree without a line of their own. Why one tree with typed leaves and
 not a tree per kind: docs/notes/mixed-scenes.md (measured).
 
 Its buffers (layout's MIX_ rows, a column a primitive): a primitive's own
-kind's rows from row 0, the sphere's below the triangle's (zeros after a
-sphere's), and its tag in the buffer's last row: MIX_SPHERE or
-MIX_TRIANGLE. The scene's buffer (scene_meshes.mixed_leaves) is at least
+kind's rows from row 0 (zeros after a sphere's), and its tag in the
+buffer's last row: MIX_SPHERE or MIX_TRIANGLE. The scene's buffer (scene_meshes.mixed_leaves) is at least
 MIX_SCENE_ROWS rows: a triangle's shaded rows, its corners' normals where a
 mesh has them (triangle.surface reads the buffer's height to know), then the
 tag; the tree's leaf buffer MIX_LEAF_ROWS: the nine rows a triangle's test
@@ -57,26 +56,12 @@ def centres(buffer):
 
 def make(jit, words=None):
     """The mixed kind's functions compiled with `jit`, each calling the
-    sphere's or the triangle's of the same make(jit, words)."""
-    s = sphere.make(jit, words)
-    t = triangle.make(jit, words)
+    sphere's or the triangle's of the same make(jit, words). Compiled code
+    calls the functions it closes over (never a namespace's attributes), so
+    each kind's answer is handed to the factories below by name."""
+    sph = sphere.make(jit, words)
+    tri = triangle.make(jit, words)
     padding = jit(pad)
-    # each kind's answers as plain names, a pair a line: compiled code calls
-    # the functions it closes over, never a namespace's attributes
-    s_box_of, t_box_of = s.box_of, t.box_of
-    s_colour, t_colour = s.colour, t.colour
-    s_copy_leaf, t_copy_leaf = s.copy_leaf, t.copy_leaf
-    s_extent, t_extent = s.extent, t.extent
-    s_hit, t_hit = s.hit, t.hit
-    s_hit_ahead, t_hit_ahead = s.hit_ahead, t.hit_ahead
-    s_hit_ahead_from, t_hit_ahead_from = s.hit_ahead_from, t.hit_ahead_from
-    s_hit_from, t_hit_from = s.hit_from, t.hit_from
-    s_intersect, t_intersect = s.intersect, t.intersect
-    s_leaf_hit, t_leaf_hit = s.leaf_hit, t.leaf_hit
-    s_leaf_hit_ahead, t_leaf_hit_ahead = s.leaf_hit_ahead, t.leaf_hit_ahead
-    s_rim, t_rim = s.rim, t.rim
-    s_seen_from, t_seen_from = s.seen_from, t.seen_from
-    s_surface, t_surface = s.surface, t.surface
     last = np.uint64(PACKED_WORDS - 1)
 
     @jit
@@ -84,18 +69,51 @@ def make(jit, words=None):
         """Primitive k's tag, the last row of the scene's buffer or the tree's."""
         return buffer[buffer.shape[0] - 1, k]
 
-    @jit
-    def read(buffer, k):
-        """Primitive k of the scene's buffer or the tree's: (tag, its nine first rows)."""
-        return (
-            tag_of(buffer, k),
-            buffer[0, k], buffer[1, k], buffer[2, k], buffer[3, k], buffer[4, k],
-            buffer[5, k], buffer[6, k], buffer[7, k], buffer[8, k],
-        )  # fmt: skip
+    def rows(tag, nine):
+        """read (or read_leaf): (the tag that `tag` reads, the nine rows that
+        `nine`, the triangle's reader of the same buffer, reads)."""
 
+        @jit
+        def read(buffer, k):
+            r0, r1, r2, r3, r4, r5, r6, r7, r8 = nine(buffer, k)
+            return tag(buffer, k), r0, r1, r2, r3, r4, r5, r6, r7, r8
+
+        return read
+
+    def by_tag(tag, on_sphere, on_triangle):
+        """An answer of (buffer, k): the sphere's on a sphere, the triangle's
+        on a triangle, by the tag that `tag` reads."""
+
+        @jit
+        def either(buffer, k):
+            if tag(buffer, k) == MIX_SPHERE:
+                return on_sphere(buffer, k)
+            return on_triangle(buffer, k)
+
+        return either
+
+    def tests(tag, s_hit, s_ahead, t_hit, t_ahead):
+        """hit and hit_ahead on the buffer whose tags `tag` reads: each kind's own."""
+
+        @jit
+        def hit(buffer, k, ox, oy, oz, dx, dy, dz):
+            if tag(buffer, k) == MIX_SPHERE:
+                return s_hit(buffer, k, ox, oy, oz, dx, dy, dz)
+            return t_hit(buffer, k, ox, oy, oz, dx, dy, dz)
+
+        @jit
+        def hit_ahead(buffer, k, ox, oy, oz, dx, dy, dz, is_own):
+            if tag(buffer, k) == MIX_SPHERE:
+                return s_ahead(buffer, k, ox, oy, oz, dx, dy, dz, is_own)
+            return t_ahead(buffer, k, ox, oy, oz, dx, dy, dz, is_own)
+
+        return hit, hit_ahead
+
+    # on the scene's buffer (by original index), and on the tree's leaves
+    read = rows(tag_of, tri.read)
+    hit, hit_ahead = tests(tag_of, sph.hit, sph.hit_ahead, tri.hit, tri.hit_ahead)
     if words is None:
-        read_leaf = read
-        leaf_tag = tag_of
+        leaf_tag, read_leaf, leaf_hit, leaf_hit_ahead = tag_of, read, hit, hit_ahead
     else:
 
         @jit
@@ -104,52 +122,33 @@ def make(jit, words=None):
             _, tag = words(buffer[k, last])
             return tag
 
-        @jit
-        def read_leaf(buffer, k):
-            """Primitive k of the packed copy, in five float64 loads."""
-            r0, r1 = words(buffer[k, np.uint64(0)])
-            r2, r3 = words(buffer[k, np.uint64(1)])
-            r4, r5 = words(buffer[k, np.uint64(2)])
-            r6, r7 = words(buffer[k, np.uint64(3)])
-            r8, tag = words(buffer[k, last])
-            return tag, r0, r1, r2, r3, r4, r5, r6, r7, r8
+        read_leaf = rows(leaf_tag, tri.read_leaf)
+        leaf_hit, leaf_hit_ahead = tests(leaf_tag, sph.leaf_hit, sph.leaf_hit_ahead, tri.leaf_hit, tri.leaf_hit_ahead)
+    extent = by_tag(tag_of, sph.extent, tri.extent)
+    colour = by_tag(tag_of, sph.colour, tri.colour)
+    rim = by_tag(tag_of, sph.rim, tri.rim)
+    s_intersect, t_intersect = sph.intersect, tri.intersect
+    s_seen_from, t_seen_from = sph.seen_from, tri.seen_from
+    s_hit_from, t_hit_from = sph.hit_from, tri.hit_from
+    s_ahead_from, t_ahead_from = sph.hit_ahead_from, tri.hit_ahead_from
+    s_box_of, t_box_of = sph.box_of, tri.box_of
+    s_copy_leaf, t_copy_leaf = sph.copy_leaf, tri.copy_leaf
+    s_surface, t_surface = sph.surface, tri.surface
+
+    @jit
+    def split(row):
+        """A row of read's as (tag, the sphere's row, the triangle's row)."""
+        tag, r0, r1, r2, r3, r4, r5, r6, r7, r8 = row
+        return tag, (r0, r1, r2, r3), (r0, r1, r2, r3, r4, r5, r6, r7, r8)
 
     @jit
     def intersect(ox, oy, oz, dx, dy, dz, row):
         """The ray from (ox, oy, oz) along the unit (dx, dy, dz) against a
         row of read's: the kind's own intersect. (t, datum)."""
-        tag, r0, r1, r2, r3, r4, r5, r6, r7, r8 = row
+        tag, (cx, cy, cz, r), (ax, ay, az, bx, by, bz, qx, qy, qz) = split(row)
         if tag == MIX_SPHERE:
-            return s_intersect(ox, oy, oz, dx, dy, dz, r0, r1, r2, r3)
-        return t_intersect(ox, oy, oz, dx, dy, dz, r0, r1, r2, r3, r4, r5, r6, r7, r8)
-
-    @jit
-    def hit(buffer, k, ox, oy, oz, dx, dy, dz):
-        """The kind's closest-hit test of primitive k of the scene's buffer."""
-        if tag_of(buffer, k) == MIX_SPHERE:
-            return s_hit(buffer, k, ox, oy, oz, dx, dy, dz)
-        return t_hit(buffer, k, ox, oy, oz, dx, dy, dz)
-
-    @jit
-    def hit_ahead(buffer, k, ox, oy, oz, dx, dy, dz, is_own):
-        """The kind's secondary rays' test of primitive k of the scene's buffer."""
-        if tag_of(buffer, k) == MIX_SPHERE:
-            return s_hit_ahead(buffer, k, ox, oy, oz, dx, dy, dz, is_own)
-        return t_hit_ahead(buffer, k, ox, oy, oz, dx, dy, dz, is_own)
-
-    @jit
-    def leaf_hit(buffer, k, ox, oy, oz, dx, dy, dz):
-        """hit on the tree's leaf buffer."""
-        if leaf_tag(buffer, k) == MIX_SPHERE:
-            return s_leaf_hit(buffer, k, ox, oy, oz, dx, dy, dz)
-        return t_leaf_hit(buffer, k, ox, oy, oz, dx, dy, dz)
-
-    @jit
-    def leaf_hit_ahead(buffer, k, ox, oy, oz, dx, dy, dz, is_own):
-        """hit_ahead on the tree's leaf buffer."""
-        if leaf_tag(buffer, k) == MIX_SPHERE:
-            return s_leaf_hit_ahead(buffer, k, ox, oy, oz, dx, dy, dz, is_own)
-        return t_leaf_hit_ahead(buffer, k, ox, oy, oz, dx, dy, dz, is_own)
+            return s_intersect(ox, oy, oz, dx, dy, dz, cx, cy, cz, r)
+        return t_intersect(ox, oy, oz, dx, dy, dz, ax, ay, az, bx, by, bz, qx, qy, qz)
 
     @jit
     def meets_own(own_inside):
@@ -161,11 +160,11 @@ def make(jit, words=None):
     def seen_from(row, ox, oy, oz):
         """A row of read's as rays from (ox, oy, oz) see it: (tag, the kind's
         seen_from), a sphere's four values followed by zeros."""
-        tag, r0, r1, r2, r3, r4, r5, r6, r7, r8 = row
+        tag, a_sphere, a_triangle = split(row)
         if tag == MIX_SPHERE:
-            ex, ey, ez, r = s_seen_from((r0, r1, r2, r3), ox, oy, oz)
+            ex, ey, ez, r = s_seen_from(a_sphere, ox, oy, oz)
             return tag, ex, ey, ez, r, ZERO, ZERO, ZERO, ZERO, ZERO, ZERO, ZERO, ZERO
-        ax, ay, az, bx, by, bz, cx, cy, cz, nx, ny, nz = t_seen_from((r0, r1, r2, r3, r4, r5, r6, r7, r8), ox, oy, oz)
+        ax, ay, az, bx, by, bz, cx, cy, cz, nx, ny, nz = t_seen_from(a_triangle, ox, oy, oz)
         return tag, ax, ay, az, bx, by, bz, cx, cy, cz, nx, ny, nz
 
     @jit
@@ -174,40 +173,35 @@ def make(jit, words=None):
         return seen_from(read_leaf(buffer, k), ox, oy, oz)
 
     @jit
+    def seen_split(seen):
+        """A seen_from's answer as (tag, the sphere's, the triangle's)."""
+        tag, a, b, c, d, e, f, g, h, i, j, k, m = seen
+        return tag, (a, b, c, d), (a, b, c, d, e, f, g, h, i, j, k, m)
+
+    @jit
     def hit_from(seen, dx, dy, dz):
         """The kind's hit_from for one ray of the packet whose origin `seen` is from."""
-        tag, a, b, c, d, e, f, g, h, i, j, k, m = seen
-        if tag == MIX_SPHERE:
-            return s_hit_from((a, b, c, d), dx, dy, dz)
-        return t_hit_from((a, b, c, d, e, f, g, h, i, j, k, m), dx, dy, dz)
+        tag, by_sphere, by_triangle = seen_split(seen)
+        return s_hit_from(by_sphere, dx, dy, dz) if tag == MIX_SPHERE else t_hit_from(by_triangle, dx, dy, dz)
 
     @jit
     def hit_ahead_from(seen, dx, dy, dz, is_own):
         """The kind's hit_ahead_from for one ray of the packet whose origin `seen` is from."""
-        tag, a, b, c, d, e, f, g, h, i, j, k, m = seen
+        tag, by_sphere, by_triangle = seen_split(seen)
         if tag == MIX_SPHERE:
-            return s_hit_ahead_from((a, b, c, d), dx, dy, dz, is_own)
-        return t_hit_ahead_from((a, b, c, d, e, f, g, h, i, j, k, m), dx, dy, dz, is_own)
+            return s_ahead_from(by_sphere, dx, dy, dz, is_own)
+        return t_ahead_from(by_triangle, dx, dy, dz, is_own)
 
     @jit
     def box_of(row):
         """A row of read's padded box, the kind's: (lo x, y, z, hi x, y, z)."""
-        tag, r0, r1, r2, r3, r4, r5, r6, r7, r8 = row
-        if tag == MIX_SPHERE:
-            return s_box_of((r0, r1, r2, r3))
-        return t_box_of((r0, r1, r2, r3, r4, r5, r6, r7, r8))
+        tag, a_sphere, a_triangle = split(row)
+        return s_box_of(a_sphere) if tag == MIX_SPHERE else t_box_of(a_triangle)
 
     @jit
     def bounds(buffer, k):
         """Primitive k's padded box: box_of its row of the tree's leaf buffer."""
         return box_of(read_leaf(buffer, k))
-
-    @jit
-    def extent(buffer, k):
-        """The kind's extent of primitive k of the scene's buffer."""
-        if tag_of(buffer, k) == MIX_SPHERE:
-            return s_extent(buffer, k)
-        return t_extent(buffer, k)
 
     @jit
     def copy_leaf(buffer, k, leaves, at):
@@ -223,31 +217,17 @@ def make(jit, words=None):
         leaves[LEAF_ROWS - 1, at] = tag
 
     @jit
-    def pack_leaf(leaves, k, rows):
+    def pack_leaf(leaves, k, packed):
         """Primitive k of the tree's leaf buffer into its row of a packed copy
         (float32, 2 * PACKED_WORDS columns): its ten values, the tag last."""
         for c in range(LEAF_ROWS):
-            rows[k, c] = leaves[c, k]
+            packed[k, c] = leaves[c, k]
 
     @jit
-    def surface(ox, oy, oz, dx, dy, dz, t_hit, i, buffer):
+    def surface(ox, oy, oz, dx, dy, dz, t, i, buffer):
         """The kind's surface at a hit on primitive i of the scene's buffer."""
         if tag_of(buffer, i) == MIX_SPHERE:
-            return s_surface(ox, oy, oz, dx, dy, dz, t_hit, i, buffer)
-        return t_surface(ox, oy, oz, dx, dy, dz, t_hit, i, buffer)
-
-    @jit
-    def colour(buffer, i):
-        """The kind's colour of primitive i (each kind's own rows)."""
-        if tag_of(buffer, i) == MIX_SPHERE:
-            return s_colour(buffer, i)
-        return t_colour(buffer, i)
-
-    @jit
-    def rim(buffer, i):
-        """The kind's rim: a sphere's radius, a triangle's 1."""
-        if tag_of(buffer, i) == MIX_SPHERE:
-            return s_rim(buffer, i)
-        return t_rim(buffer, i)
+            return s_surface(ox, oy, oz, dx, dy, dz, t, i, buffer)
+        return t_surface(ox, oy, oz, dx, dy, dz, t, i, buffer)
 
     return answers("mixed", {**locals(), "pad": padding}, ("tag_of", "leaf_tag"))
