@@ -221,3 +221,16 @@ def test_render_a_version_3_file_of_both_kinds_end_to_end(tmp_path, capsys, adap
     code = run(["render", "--scene", str(path), "-o", str(refused), "--device", "wgpu", "--adapter", adapter])
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "traced on cpu, cuda only" in err and not refused.exists()
+
+
+def test_the_clusters_tiles_are_the_single_process_frame(thesis):
+    """raybench.cluster's workers trace a scene of both kinds in tiles of
+    rows: the single process's frame, bit for bit (the workers load the
+    kernels the thesis fixture compiled into the disk cache)."""
+    pytest.importorskip("distributed")
+    from raybench import cluster
+
+    with cluster.Cluster(workers=1, device="cpu") as running:
+        running.client.wait_for_workers(1, timeout=120)
+        frame = cluster.render(running.client, scenes()[0], None, W, H, device="cpu", rows=8)
+    assert np.array_equal(frame.image, thesis[0].image) and np.array_equal(frame.hits, thesis[0].hits)

@@ -199,3 +199,19 @@ def test_the_viewer_counts_a_mesh_scenes_triangles(tmp_path, capsys):
     box.export(tmp_path / "box.obj")
     assert run(["view", "--scene", str(tmp_path / "box.obj"), "--animate"]) == 2
     assert capsys.readouterr().err.count("\n") == 1
+
+
+def test_the_viewer_counts_a_mixed_scenes_primitives(capsys):
+    """The viewer's logic without a window or a trace: the example of
+    spheres and meshes (--scene mixed) is traced whole, its title counts its
+    spheres and triangles together as primitives, and --animate is refused."""
+    from raybench import examples
+    from raybench.viewer.state import ViewerState
+
+    scene = Scene.load(examples.path("mixed"))
+    total = len(scene) + scene.triangles.shape[1]
+    assert len(scene) == 3 and scene.traced().kind == "mixed" and len(scene.traced()) == total
+    state = ViewerState(scene, device="cpu", seed=None, clock=lambda: 0.0)
+    assert state.next_request(16, 8).count == total and f"{total} primitives" in state.title()
+    assert run(["view", "--scene", "mixed", "--animate"]) == 2
+    assert capsys.readouterr().err.count("\n") == 1
