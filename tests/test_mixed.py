@@ -165,6 +165,7 @@ def test_thesis_frame_is_the_one_kind_renders_where_one_kind_is_seen(thesis):
         assert (other.hits == both.hits).all() and (other.image == both.image).all(), options
 
 
+@pytest.mark.slow
 def test_a_spheres_shadow_falls_on_the_triangle_floor():
     """Whitted, one point light above and behind a sphere over the floor: a
     floor pixel is darker than the floor alone's wherever the float64
@@ -223,6 +224,7 @@ def test_render_a_version_3_file_of_both_kinds_end_to_end(tmp_path, capsys, adap
     assert code == 2 and err.count("\n") == 1 and "traced on cpu, cuda only" in err and not refused.exists()
 
 
+@pytest.mark.slow
 def test_the_clusters_tiles_are_the_single_process_frame(thesis):
     """raybench.cluster's workers trace a scene of both kinds in tiles of
     rows: the single process's frame, bit for bit (the workers load the

@@ -43,14 +43,16 @@ def test_thesis_frames_hit_the_float64_reference_on_both_trees():
         frames_alike(SimpleNamespace(image=image, hits=hits), host)
 
 
-def test_packet_walk_and_brute_force_give_the_ray_walks_frame():
+@pytest.mark.parametrize("options", [{"walk": "packet"}, {"accel": "none", "kernel": "simple"}])
+def test_packet_walk_and_brute_force_give_the_ray_walks_frame(options):
+    """A block's rays walking as one packet, and brute force: the ray walk's frame."""
     both = scenes()[0]
     width, height = PACKET_SIZE
     ray = render(both, None, width, height, device="cuda", walk="ray")
-    frames_alike(render(both, None, width, height, device="cuda", walk="packet"), ray)
-    frames_alike(render(both, None, width, height, device="cuda", accel="none", kernel="simple"), ray)
+    frames_alike(render(both, None, width, height, device="cuda", **options), ray)
 
 
+@pytest.mark.slow
 def test_whitted_wavefront_is_the_pixel_program():
     """A mirror sphere and a glass one over a triangle floor, one light: the
     wavefront's frame (its walks read the typed leaves from its packed copy)
