@@ -15,10 +15,10 @@ import pytest
 import trimesh
 from PIL import Image
 
-from raybench import Material, RaybenchError, Renderer, Scene, render
+from raybench import Material, Renderer, Scene, render
 from raybench.cli import run
 from raybench.meshes import Mesh
-from raybench.scene_meshes import MIXED, SceneMesh, Transform
+from raybench.scene_meshes import SceneMesh, Transform
 
 TRIANGLE = {"vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "faces": [[0, 1, 2]]}
 
@@ -89,18 +89,20 @@ def test_versions_1_and_2_are_as_before_and_smooth_normals_mix_with_flat():
     assert scene.triangles[12:15, 0].tolist() == [0, 0, 1]  # made unit length
 
 
-def test_spheres_and_meshes_in_one_scene_are_refused_in_one_line(tmp_path, capsys):
-    both = Scene.from_dict(doc(TRIANGLE, spheres=[{"center": [0, 0, 5], "radius": 1, "color": [1, 1, 1]}]))
+def test_spheres_and_meshes_in_one_scene_are_traced_as_the_mixed_kind():
+    """A scene of both is traced as one buffer of both kinds (test_mixed.py
+    renders it): the spheres' columns, then the triangles', and their
+    materials in that order, matte where a kind gives none."""
+    glass = Material(transmit=0.9, ior=1.5)
+    sphere = {"center": [0, 0, 5], "radius": 1, "color": [1, 1, 1], "material": glass.to_dict()}
+    both = Scene.from_dict({**doc(TRIANGLE), "version": 3, "spheres": [sphere]})
     assert both.summary == "1 spheres and 1 triangles"
-    with pytest.raises(RaybenchError, match="spheres and meshes in one scene are not traced yet"):
-        Renderer(both, 8, 8, device="cpu")
-    out = tmp_path / "x.png"
-    assert run(["render", "--scene", write(tmp_path / "both.json", both.to_dict()), "-o", str(out)]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and MIXED in err and not out.exists()
-    frames = tmp_path / "frames"
-    assert run(["render", "--scene", str(tmp_path / "both.json"), "--path", "orbit", "-o", str(frames)]) == 2
-    assert MIXED in capsys.readouterr().err and not frames.exists()
+    traced = both.traced()
+    assert traced.kind == "mixed" and len(traced) == 2 and traced.noun == "primitives"
+    assert traced.leaves[:7, 0].tolist() == both.spheres[:, 0].tolist()
+    assert traced.leaves[:12, 1].tolist() == both.triangles[:, 0].tolist()
+    assert traced.leaves[-1].tolist() == [0, 1]  # the tags: a sphere, a triangle
+    assert traced.materials[0] == glass and traced.materials[1] == Material()
 
 
 NAN_VERTEX = '{"format": "raybench-scene", "version": 3, "meshes": [{"vertices": [[NaN, 0, 0], [1, 0, 0], [0, 1, 0]], "faces": [[0, 1, 2]]}]}'  # noqa: E501
@@ -204,4 +206,20 @@ def test_the_viewer_counts_a_mesh_scenes_triangles(tmp_path, capsys):
     assert state.supply.more() is None and state.supply.more() == "the scene file has 12 triangles, all shown"
     box.export(tmp_path / "box.obj")
     assert run(["view", "--scene", str(tmp_path / "box.obj"), "--animate"]) == 2
+    assert capsys.readouterr().err.count("\n") == 1
+
+
+def test_the_viewer_counts_a_mixed_scenes_primitives(capsys):
+    """The viewer's logic without a window or a trace: the example of
+    spheres and meshes (--scene mixed) is traced whole, its title counts its
+    spheres and triangles together as primitives, and --animate is refused."""
+    from raybench import examples
+    from raybench.viewer.state import ViewerState
+
+    scene = Scene.load(examples.path("mixed"))
+    total = len(scene) + scene.triangles.shape[1]
+    assert len(scene) == 3 and scene.traced().kind == "mixed" and len(scene.traced()) == total
+    state = ViewerState(scene, device="cpu", seed=None, clock=lambda: 0.0)
+    assert state.next_request(16, 8).count == total and f"{total} primitives" in state.title()
+    assert run(["view", "--scene", "mixed", "--animate"]) == 2
     assert capsys.readouterr().err.count("\n") == 1

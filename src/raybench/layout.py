@@ -32,6 +32,17 @@ TRI_SHADED_ROWS = 12
 TRI_NA, TRI_NB, TRI_NC = 12, 15, 18
 TRI_SMOOTH_ROWS = 21
 
+# ---------------------------------------------------------------- spheres and triangles in one tree
+# A scene of both kinds (kernels/primitives/mixed.py, typed leaves): a column
+# a primitive, its own kind's rows from row 0 (a sphere's SPHERE_ROWS, a
+# triangle's TRI_SHADED_ROWS or TRI_SMOOTH_ROWS; zeros below a sphere's), and
+# in the buffer's last row its tag, MIX_SPHERE or MIX_TRIANGLE. The tree's
+# leaf buffer: the TRI_ROWS rows (a sphere's four, then zeros) and the tag.
+MIX_SPHERE = np.float32(0.0)
+MIX_TRIANGLE = np.float32(1.0)
+MIX_LEAF_ROWS = TRI_ROWS + 1
+MIX_SCENE_ROWS = TRI_SHADED_ROWS + 1
+
 # ---------------------------------------------------------------- materials
 # Scene.materials: (MATERIAL_ROWS, N) float32, beside the spheres (whose
 # colour rows are the diffuse colour). Only Whitted shading reads them.

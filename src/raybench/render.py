@@ -140,8 +140,9 @@ class Renderer:
             for camera in path:
                 renderer.render(camera).save(...)
 
-    scene: spheres, or meshes (format version 3, or a mesh file by
-    mesh_render.mesh_scene), whose triangles are traced, not both yet.
+    scene: spheres, meshes (format version 3, or a mesh file by
+    mesh_render.mesh_scene), whose triangles are traced, or both (one tree
+    of both kinds, kernels/primitives/mixed.py: cpu and cuda so far).
     device, shading, depth, shadow_samples and the device's options are
     render()'s (below); shading may also be a lighting.Shading made ahead
     (Shading.of(scene, ...)), which is Whitted shading with its arrays. For
@@ -166,7 +167,7 @@ class Renderer:
         if not isinstance(scene, Scene):
             raise RaybenchError(f"scene: must be a raybench.Scene, got {type(scene).__name__}")
         width, height = check_size(width, height)
-        # one kind of primitive a tracer: the spheres, or a mesh scene's triangles
+        # one kind of primitive a tracer: the spheres, a mesh scene's triangles, or both (mixed)
         traced = scene.traced()
         if isinstance(shading, Shading):
             if depth is not None or shadow_samples is not None:

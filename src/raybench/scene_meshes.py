@@ -10,8 +10,9 @@ handed), then translates: the one order, so that a file says one thing.
 The mesh is stored placed (its vertices in the scene's coordinates): what
 is traced and what Scene.save writes, inline, with no transform left.
 
-traced(scene) is what a tracer is given: one kind of primitive, its buffer,
-and what lighting.Shading.of reads of it (the materials, one per primitive).
+traced(scene) is what a tracer is given: one kind of primitive (the
+spheres, the triangles, or both as the mixed kind), its buffer, and what
+lighting.Shading.of reads of it (the materials, one per primitive).
 """
 
 from __future__ import annotations
@@ -26,13 +27,11 @@ from . import lighting
 from .camera import MAX_MAGNITUDE
 from .errors import RaybenchError, shown
 from .fields import no_unknown, numbers
-from .layout import TRI_SHADED_ROWS, TRI_SMOOTH_ROWS
+from .layout import MIX_SPHERE, MIX_TRIANGLE, SPHERE_ROWS, TRI_SHADED_ROWS, TRI_SMOOTH_ROWS
 from .meshes import MESH_COLOUR, Mesh, checked_mesh, load_mesh, mesh_leaves
 
 MESH_KEYS = {"file", "vertices", "faces", "normals", "transform", "color", "material"}
 TRANSFORM_KEYS = {"translate", "scale", "rotate"}
-# What a mixed scene is told until one tree traces both kinds.
-MIXED = "scene: spheres and meshes in one scene are not traced yet; give a scene of spheres only or of meshes only"
 
 
 @dataclass(frozen=True)
@@ -82,8 +81,9 @@ class Traced:
 
     @property
     def noun(self) -> str:
-        """What a message calls its primitives: spheres, triangles."""
-        return f"{self.kind}s"
+        """What a message calls its primitives: spheres, triangles, or
+        primitives (spheres and triangles)."""
+        return "primitives" if self.kind == "mixed" else f"{self.kind}s"
 
 
 def merged(meshes) -> tuple[np.ndarray | None, tuple | None]:
@@ -106,6 +106,22 @@ def merged(meshes) -> tuple[np.ndarray | None, tuple | None]:
     if any(m.material != lighting.MATTE for m in meshes):
         materials = tuple(m.material for m in meshes for _ in range(len(m.mesh)))
     return np.ascontiguousarray(np.concatenate(parts, axis=1)), materials
+
+
+def mixed_leaves(spheres: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """The scene's buffer of spheres and triangles together (kernels/
+    primitives/mixed.py; layout's MIX_ rows): the spheres' columns, then the
+    triangles', each its own kind's rows from row 0 (zeros below a
+    sphere's), and the tag in the last row. As tall as the triangles' buffer
+    and one more, so a mesh's corners' normals keep their rows."""
+    n, f = spheres.shape[1], triangles.shape[1]
+    rows = triangles.shape[0]
+    out = np.zeros((rows + 1, n + f), np.float32)
+    out[:SPHERE_ROWS, :n] = spheres
+    out[:rows, n:] = triangles
+    out[rows, :n] = MIX_SPHERE
+    out[rows, n:] = MIX_TRIANGLE
+    return out
 
 
 def read_meshes(value, base: Path | None) -> list[SceneMesh]:
@@ -245,11 +261,18 @@ def transformed(mesh: Mesh, transform: Transform, where: str) -> Mesh:
 
 
 def traced(spheres: np.ndarray, triangles: np.ndarray | None, scene) -> Traced:
-    """The one kind a scene's tracer traces: its triangles where it has
-    meshes and no spheres, else its spheres (none at all: a scene of no
-    spheres); both is refused in one line (MIXED)."""
+    """The one kind a scene's tracer traces: its spheres where it has no
+    meshes (none at all: a scene of no spheres), its triangles where it has
+    meshes and no spheres, and where it has both the mixed kind (one tree of
+    typed leaves, kernels/primitives/mixed.py): the spheres' columns, then
+    the triangles' (mixed_leaves), their materials in that order."""
     if triangles is None:
         return Traced("sphere", spheres, scene.materials, scene.lights, scene.ambient, scene.background)
-    if spheres.shape[1]:
-        raise RaybenchError(MIXED)
-    return Traced("triangle", triangles, scene.triangle_materials, scene.lights, scene.ambient, scene.background)
+    if not spheres.shape[1]:
+        return Traced("triangle", triangles, scene.triangle_materials, scene.lights, scene.ambient, scene.background)
+    materials = None
+    if scene.materials is not None or scene.triangle_materials is not None:
+        ours = scene.materials or (lighting.MATTE,) * spheres.shape[1]
+        theirs = scene.triangle_materials or (lighting.MATTE,) * triangles.shape[1]
+        materials = tuple(ours) + tuple(theirs)
+    return Traced("mixed", mixed_leaves(spheres, triangles), materials, scene.lights, scene.ambient, scene.background)

@@ -106,7 +106,9 @@ def tracer(device: str, spheres, width: int, height: int, shading=None, primitiv
     """A Tracer of the (resolved) device for this scene and size. primitive:
     the kind of primitive the columns of `spheres` are (kernels/primitives'
     KINDS): "sphere", Scene.spheres; "triangle", meshes.mesh_leaves' buffer,
-    traced on every device ("auto" picks the cpu). options:
+    traced on every device; "mixed", spheres and triangles in one buffer
+    (scene_meshes.mixed_leaves), traced on the cpu and cuda ("auto" picks the
+    cpu for both). options:
     the device's own (backends/options.py: cpu's threads and tree_width;
     cuda's block, rays, staged, trip, walk, build and the GPU build's
     variants; wgpu's workgroup, adapter, walk and build; on every device
@@ -114,7 +116,7 @@ def tracer(device: str, spheres, width: int, height: int, shading=None, primitiv
     there in one place. shading: the lighting.Shading of a Whitted frame,
     None for the thesis's shading."""
     if primitive != "sphere" and isinstance(device, str) and device == "auto":
-        device = "cpu"  # auto: the best device that traces the kind, and only the cpu traces another yet
+        device = "cpu"  # auto: the cpu traces every kind
     name = resolve(device, options.get("adapter") if isinstance(device, str) and device == "wgpu" else None)
     if primitive != "sphere":
         _check_kind(name, spheres, primitive)
@@ -131,8 +133,8 @@ def tracer(device: str, spheres, width: int, height: int, shading=None, primitiv
     return module(name).Tracer(spheres, width, height, checked(name, options, shading), shading)
 
 
-# The devices that trace a kind of primitive other than the sphere.
-KIND_DEVICES = ("cpu", "cuda", "wgpu")
+# The devices that trace each kind of primitive other than the sphere.
+KIND_DEVICES = {"triangle": ("cpu", "cuda", "wgpu"), "mixed": ("cpu", "cuda")}
 
 
 def _check_kind(device: str, buffer, primitive: str) -> None:
@@ -145,8 +147,9 @@ def _check_kind(device: str, buffer, primitive: str) -> None:
 
     if primitive not in KINDS:
         raise RaybenchError(f"primitive: must be one of {', '.join(KINDS)}, got {shown(primitive)}")
-    if device not in KIND_DEVICES:
-        raise RaybenchError(f"device {device}: {primitive}s are traced on {', '.join(KIND_DEVICES)} only so far")
+    if device not in KIND_DEVICES[primitive]:
+        what = "scenes of spheres and meshes together are" if primitive == "mixed" else f"{primitive}s are"
+        raise RaybenchError(f"device {device}: {what} traced on {', '.join(KIND_DEVICES[primitive])} only so far")
     rows = KINDS[primitive].SCENE_ROWS
     if not (
         isinstance(buffer, np.ndarray)

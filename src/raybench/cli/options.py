@@ -172,7 +172,7 @@ def shading_notes(scene, shaded: dict) -> list[str]:
     should not have to compare pixels to find out."""
     if shaded["shading"] != "whitted":
         return []
-    traced = scene.traced()  # (a scene of spheres and meshes is refused here, before any work)
+    traced = scene.traced()
     materials = traced.materials or ()
     bounces = any(m.reflect > 0 or m.transmit > 0 for m in materials)
     notes = []
@@ -360,7 +360,7 @@ def scene_options(verb: str):
             "scene_file",
             type=click.Path(dir_okay=False),
             help=f"scene file to {verb}: JSON, NFF (.nff), a molecule (.pdb, .cif, gzipped or not), a triangle "
-            "mesh (.obj, .ply, .stl, .gltf, .glb: render and view); or the name of an example: whitted, meshes",
+            "mesh (.obj, .ply, .stl, .gltf, .glb: render and view); or the name of an example: whitted, meshes, mixed",
         ),
         click.option("--spheres", type=int, help=f"{verb} N random spheres instead of a scene file"),
         click.option("--seed", type=int, help="seed of the random spheres (default 0)"),

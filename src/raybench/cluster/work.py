@@ -125,7 +125,6 @@ def _scatter(client, scene: Scene, fresh: bool = False):
 
     if not isinstance(scene, Scene):
         raise RaybenchError(f"scene: must be a raybench.Scene, got {type(scene).__name__}")
-    scene.traced()  # a scene the workers' Renderers would refuse (spheres and meshes) is refused here, once
     held = (id(client), f"Scene-{tokenize(scene)}")
     future = _scattered.get(held)
     if future is None or future.client is not client or future.status != "finished":

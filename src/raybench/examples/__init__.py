@@ -3,13 +3,16 @@ or as files: whitted.json, the classic scene of Whitted's paper made of
 spheres only (a huge sphere as the floor, a mirror, a glass ball, an area
 light); meshes.json, a scene format version 3 scene of meshes only, each
 inline (a floor that mirrors a little, a plastic icosahedron, a glass
-tetrahedron, placed by their transforms), traced as triangles."""
+tetrahedron, placed by their transforms), traced as triangles; mixed.json,
+spheres and meshes in one scene (the same floor and icosahedron, a mirror
+ball, a glass ball and a blue one), traced as one tree of both (on cpu
+and cuda so far)."""
 
 from __future__ import annotations
 
 from importlib import resources
 
-NAMES = ("whitted", "meshes")
+NAMES = ("whitted", "meshes", "mixed")
 
 
 def path(name: str):

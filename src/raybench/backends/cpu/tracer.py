@@ -80,7 +80,7 @@ class Tracer(TracerBase):
         self._programs = programs(primitive)
         if self.accel == "none" and self.kernel == "fast" and self._programs.fast_band is None:
             raise RaybenchError(
-                f"kernel 'fast': its cull is the sphere's; a {primitive}'s brute force is the simple kernel "
+                f"kernel 'fast': its cull is the sphere's; brute force over {self._kind.NOUN} is the simple kernel "
                 "(kernel='simple', --kernel simple)"
             )
         # the threads' stacks counted: under ulimit -v they take address space the frame then lacks
@@ -92,6 +92,7 @@ class Tracer(TracerBase):
                 host_available_bytes(),
                 bvh_mod.BUILD_SPHERE_BYTES,
                 width * height * HOST_PIXEL_BYTES,
+                self._kind.NOUN,
             )
         self.threads = options.threads
         self.spheres = spheres
@@ -153,7 +154,7 @@ class Tracer(TracerBase):
         """The spheres moved: the next frames trace them, through a tree
         rebuilt on the host (the contract's update)."""
         if self.primitive != "sphere":
-            raise RaybenchError(f"update: moves spheres; a scene of {self.primitive}s is traced as it was given")
+            raise RaybenchError(f"update: moves spheres; a scene of {self._kind.NOUN} is traced as it was given")
         self.spheres = check_moved(spheres, self.spheres)
         if self.accel != "bvh":
             return None

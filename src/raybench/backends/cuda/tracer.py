@@ -62,7 +62,7 @@ class Tracer(TracerBase):
         self._kind = k.primitive
         if self.accel == "none" and self.kernel == "fast" and k.primitive is not sphere:
             raise RaybenchError(
-                f"kernel 'fast': its cull is the sphere's; a {primitive}'s brute force is the simple kernel "
+                f"kernel 'fast': its cull is the sphere's; brute force over {k.primitive.NOUN} is the simple kernel "
                 "(kernel='simple', --kernel simple)"
             )
         walk = options.walk
@@ -75,7 +75,7 @@ class Tracer(TracerBase):
         else:  # a mesh's buffer, its tree and the frame, in one line where they do not fit
             check_fits("cuda GPU", width, height, 0, free)
             check_bvh_fits("cuda GPU", spheres.shape[1], free, self._device_bytes(spheres.shape[0]),
-                           width * height * PIXEL_BYTES, f"{primitive}s")  # fmt: skip
+                           width * height * PIXEL_BYTES, k.primitive.NOUN)  # fmt: skip
         check_fits("host", width, height, 0, host_available_bytes(), HOST_PIXEL_BYTES)
         if self.accel == "bvh":
             if k.primitive is sphere:
@@ -92,7 +92,7 @@ class Tracer(TracerBase):
                 host_available_bytes(),
                 bvh_mod.BUILD_SPHERE_BYTES,
                 width * height * HOST_PIXEL_BYTES,
-                f"{primitive}s",
+                k.primitive.NOUN,
             )
         self.spheres = spheres
         self.width, self.height = width, height
@@ -219,7 +219,7 @@ class Tracer(TracerBase):
         for brute force, which has no tree); build_s is what it took, the
         tree ready to walk. A mesh is traced as it was given."""
         if self.primitive != "sphere":
-            raise RaybenchError(f"update: moves spheres; a scene of {self.primitive}s is traced as it was given")
+            raise RaybenchError(f"update: moves spheres; a scene of {self._kind.NOUN} is traced as it was given")
         self.spheres = check_moved(spheres, self.spheres)
         if self.count:
             self.d_spheres.copy_to_device(self.spheres)

@@ -12,6 +12,7 @@ import numpy as np
 
 from ...errors import RaybenchError
 from ...host import host_available_bytes
+from ...kernels.primitives import KINDS
 from ...lighting import Shading
 from ..contract import TracerBase, check_moved
 from ..limits import HOST_PIXEL_BYTES, check_count, check_fits, check_size
@@ -111,7 +112,8 @@ class Tracer(TracerBase):
         """The spheres moved: the contract's update (Compute.update: a refit
         or a build on the GPU with build "gpu", a build on the host else)."""
         if self.primitive != "sphere":
-            raise RaybenchError(f"update: moves spheres; a scene of {self.primitive}s is traced as it was given")
+            noun = KINDS[self.primitive].NOUN
+            raise RaybenchError(f"update: moves spheres; a scene of {noun} is traced as it was given")
         return self.compute.update(check_moved(spheres, self.compute.scene_spheres))
 
     def _count(self, count) -> int:

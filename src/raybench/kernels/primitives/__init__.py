@@ -24,20 +24,24 @@ them names a sphere.
 The kinds: sphere.py (the thesis's), and triangle.py (a mesh's triangles:
 the watertight test of Woop, Benthin and Wald, nine rows of vertices a leaf,
 the cosine to the plane's normal as a hit's datum, so rim is 1; no
-prepare_at or may_hit; its WGSL twin backends/wgpu/triangle.wgsl). The
-cpu and cuda compile a kind's programs when a scene holds it
-(backends/cpu/kinds.py, backends/cuda/kinds.py; cuda's wavefront reads the
-leaves from a packed copy, PACKED_WORDS float64 a primitive, that
-pack_leaf writes); wgpu traces spheres only so far.
+prepare_at or may_hit; its WGSL twin backends/wgpu/triangle.wgsl), and
+mixed.py (a scene of both: each leaf tagged with its kind, every answer the
+sphere's or the triangle's own; no WGSL twin yet). The cpu and cuda compile
+a kind's programs when a scene holds it (backends/cpu/kinds.py,
+backends/cuda/kinds.py; cuda's wavefront reads the leaves from a packed
+copy, PACKED_WORDS float64 a primitive, that pack_leaf writes); wgpu
+assembles a kind's shader from its WGSL pieces (backends/wgpu/shader.py),
+for the sphere and the triangle.
 
 Adding a kind: a module beside sphere.py with the same answers, its WGSL
 twins in backends/wgpu/ (sphere.wgsl for the walks and the shading,
 sphere_build.wgsl for the GPU build), and a line in KINDS.
 """
 
-from . import sphere, triangle
+from . import mixed, sphere, triangle
 
-# name: module. A scene's primitives are of these kinds.
-KINDS = {"sphere": sphere, "triangle": triangle}
+# name: module. A scene's primitives are of these kinds; "mixed" is a scene
+# of spheres and triangles, one tree of both (each leaf tagged with its kind).
+KINDS = {"sphere": sphere, "triangle": triangle, "mixed": mixed}
 
-__all__ = ["KINDS", "sphere", "triangle"]
+__all__ = ["KINDS", "mixed", "sphere", "triangle"]

@@ -28,6 +28,8 @@ from ...layout import BLUE, CX, CY, CZ, GREEN, PAD, RADIUS, RED, SPHERE_ROWS
 from ..constants import ONE, ZERO
 from .answers import answers
 
+# What a message calls a scene's primitives of this kind.
+NOUN = "spheres"
 # Rows of the leaf buffer (bvh's `ordered`): centre x, y, z and radius.
 LEAF_ROWS = 4
 # Rows of the scene's buffer (Scene.spheres) that the shading reads: with the colour.

@@ -89,6 +89,8 @@ from ...layout import (
 from ..constants import HALF, ONE, ZERO
 from .answers import answers
 
+# What a message calls a scene's primitives of this kind.
+NOUN = "triangles"
 # Rows of the leaf buffer (bvh's `ordered`): the three vertices.
 LEAF_ROWS = TRI_ROWS
 # Rows of the scene's buffer that the shading reads at least: with the colour.
