@@ -12,6 +12,7 @@ from raybench import backends
 from raybench.backends import options
 from raybench.errors import RaybenchError
 from raybench.host import usable_cores
+from raybench.kernels.primitives import KINDS
 from raybench.lighting import Shading
 
 # Every integer option, with its bounds and what else it needs to apply.
@@ -53,7 +54,8 @@ def test_the_defaults_are_filled_in():
     cpu = options.checked("cpu", {})
     # the tree's width is left to the tracer, which takes its kind of primitive's
     assert (cpu.accel, cpu.kernel, cpu.threads, cpu.tree_width) == ("bvh", None, usable_cores(), None)
-    assert options.KIND_TREE_WIDTH == {"sphere": 4, "triangle": 2}
+    assert options.KIND_TREE_WIDTH == {"sphere": 4, "triangle": 2, "mixed": 2}
+    assert set(options.KIND_TREE_WIDTH) == set(KINDS)  # every kind has its default
     assert options.checked("cpu", {"accel": "none"}).kernel == "fast"
     cuda = options.checked("cuda", {"kernel": "fast"})
     assert (cuda.accel, cuda.rays, cuda.staged, cuda.trip, cuda.block) == (

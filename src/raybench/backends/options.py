@@ -55,9 +55,9 @@ MAX_THREADS = 4096
 # (bvh.collapse), which the cpu's packets walk (kernels/packets.py). A mesh's
 # triangles are walked alone: they are small beside a packet's footprint, so
 # a packet enters leaves that most of its rays miss
-# (docs/triangles.md#the-cpus-walk-rays-alone).
+# (docs/triangles.md#the-cpus-walk-rays-alone); a scene of both kinds too.
 TREE_WIDTH = 4
-KIND_TREE_WIDTH = {"sphere": TREE_WIDTH, "triangle": 2}
+KIND_TREE_WIDTH = {"sphere": TREE_WIDTH, "triangle": 2, "mixed": 2}
 TREE_WIDTHS = (2, 4)
 
 # --- cuda --------------------------------------------------------------------------
