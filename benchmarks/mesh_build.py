@@ -63,7 +63,7 @@ def meshes(args):
 
 
 def options(name: str, n: int, **more) -> dict:
-    return {"primitive": "triangle", "triangles": n, "mesh": name, **more}
+    return {"primitive": "triangle", "triangles": n, "mesh": name.split()[0], **more}
 
 
 def builds(name: str, mesh: Mesh, args) -> list[dict]:
