@@ -1,5 +1,5 @@
 """The meshes suite: what a frame of triangles costs as their count grows, and what a GPU buys
-over the CPU on them (issue 37's item 7).
+over the CPU on them.
 
 Two generated meshes, each at counts from about 10 thousand to about 10 million triangles:
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from ...layout import KINDS
 from . import charts
-from .markdown_blocks import _adapter_name, _machine_lines, _table, _Writer, escape
+from .markdown_blocks import _machine_lines, _table, _Writer, escape, write_verdict
 from .numbers import fmt_ms, fmt_num, fmt_x
 from .records import fmt_opt
 from .series import DEVICE_NAMES, dynamic_points, multi_gpu_series, parts_rows, scaling_series, secondary_points
@@ -114,12 +114,7 @@ def _section_secondary(w: _Writer, label: str, slug: str, records: list[dict], d
         "stops there or before, while a GPU's runs on. The BVH runs every point.",
         "",
     )
-    judged = secondary_verdict(records)
-    w(f"**{SECONDARY_QUESTION}** **{judged['verdict']}**: {escape(judged['measured'])}", "")
-    if any(p["device"] == "wgpu" for p in points):
-        info = secondary_verdict(records, "wgpu")
-        w(f"wgpu on {escape(_adapter_name(records))}, for information: {escape(info['measured'])}", "")
-    w(f"The rule: {SECONDARY_RULE}", "")
+    judged = write_verdict(w, SECONDARY_QUESTION, secondary_verdict, SECONDARY_RULE, records, points)
     w.image(f"{slug}-rays.png", charts.plot_secondary_rays(label, points), f"{label}: rays per second")
     w.image(f"{slug}-frames.png", charts.plot_secondary_frames(label, points), f"{label}: Whitted frame time")
     header = ["device", "way", "size", "spheres", "frame ms", "kernel ms", "rays a frame: primary"]

@@ -63,6 +63,19 @@ def _adapter_name(records: list[dict]) -> str:
     return ", ".join(names) or "unknown adapter"
 
 
+def write_verdict(w, question: str, judge, rule: str, records: list[dict], points: list[dict]) -> dict:
+    """A suite's verdict as the report writes every one: the question and judge(records)'s answer,
+    wgpu's answer for information where wgpu measured (judge(records, "wgpu")), then the rule;
+    returns judge(records), whose points the section may tabulate."""
+    judged = judge(records)
+    w(f"**{question}** **{judged['verdict']}**: {escape(judged['measured'])}", "")
+    if any(p["device"] == "wgpu" for p in points):
+        info = judge(records, "wgpu")
+        w(f"wgpu on {escape(_adapter_name(records))}, for information: {escape(info['measured'])}", "")
+    w(f"The rule: {rule}", "")
+    return judged
+
+
 def _machine_lines(label: str, records: list[dict]) -> list[str]:
     # every value below is the results file's text: escaped where it is read
     m = machine_of(records)

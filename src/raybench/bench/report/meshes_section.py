@@ -11,7 +11,7 @@ import statistics
 
 from ..meshes import DEPTH, EYE, LIGHT, LIGHT_RADIUS, SHADOW_SAMPLES
 from .beyond_sections import _rays_text
-from .markdown_blocks import _adapter_name, _table, _Writer, escape
+from .markdown_blocks import _table, _Writer, escape, write_verdict
 from .numbers import fmt_ms, fmt_num, fmt_r2, fmt_x
 from .series import DEVICE_NAMES, _fit, shading_of, way_of
 from .verdicts import FAILS, HOLDS, NOT_MEASURED
@@ -219,12 +219,7 @@ def _section_meshes(w: _Writer, label: str, slug: str, records: list[dict]) -> N
     w(f"**{GROWTH_QUESTION}** **{judged['verdict']}**", "")
     w(*[f"- {line}" for line in judged["measured"]], "")
     w(f"The rule: {GROWTH_RULE}", "")
-    lead = lead_verdict(records)
-    w(f"**{LEAD_QUESTION}** **{lead['verdict']}**: {escape(lead['measured'])}", "")
-    if any(p["device"] == "wgpu" for p in points):
-        info = lead_verdict(records, "wgpu")
-        w(f"wgpu on {escape(_adapter_name(records))}, for information: {escape(info['measured'])}", "")
-    w(f"The rule: {LEAD_RULE}", "")
+    lead = write_verdict(w, LEAD_QUESTION, lead_verdict, LEAD_RULE, records, points)
     embree = beside_embree(records)
     if embree:
         w(*[f"- {escape(line)}" for line in embree], "")
