@@ -39,18 +39,18 @@ from concurrent.futures import ThreadPoolExecutor
 
 import _harness
 import numpy as np
-import trimesh
 from _embree import primary_rays
 
 from raybench import backends
 from raybench.backends.cpu import default_threads
+from raybench.bench import meshes as suite_meshes
 from raybench.camera import Camera
 from raybench.meshes import MESH_COLOUR, Mesh, mesh_leaves
 
 
 def icosphere(subdivisions: int) -> Mesh:
-    m = trimesh.creation.icosphere(subdivisions=subdivisions, radius=1.0)
-    return Mesh(np.asarray(m.vertices, np.float32), np.asarray(m.faces, np.int32), None)
+    """The meshes suite's icosphere of radius 1 at that many subdivisions."""
+    return suite_meshes.icosphere(20 * 4**subdivisions)
 
 
 def compare(subdivisions: int, threads: int, width: int, height: int, args) -> list[dict]:

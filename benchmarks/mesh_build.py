@@ -30,18 +30,13 @@ import time
 
 import _harness
 import numpy as np
-import trimesh
+from _embreex import icosphere
 
 from raybench import backends, bvh
 from raybench.camera import Camera
 from raybench.meshes import MESH_COLOUR, Mesh, mesh_leaves
 
 SIZE = (1680, 1050)
-
-
-def icosphere(subdivisions: int) -> Mesh:
-    m = trimesh.creation.icosphere(subdivisions=subdivisions, radius=1.0)
-    return Mesh(np.asarray(m.vertices, np.float32), np.asarray(m.faces, np.int32), None)
 
 
 def random_triangles(n: int, seed: int = 0) -> Mesh:
