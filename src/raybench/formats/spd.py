@@ -22,6 +22,8 @@ the same view, background, lights, fills and primitives, in the same order.
 - gears: size_factor**3 gears, each two faces of 4 * 36 vertices and 144
   side rectangles (gears.c's header: 2, 16, 54, 128 faces and 144, 1152,
   3888, 9216 rectangles at 1 to 4), and one ground polygon.
+- mount (spd_mount): a fractal mountain of 2 * 4**size_factor triangles
+  (mount.c's header: 8, 32, 128 at 1 to 3, 8192 at 6) and four glass spheres.
 
 generate(name, size) gives the NFF; SCENES names what there is, with each
 one's default size factor (the C's).
@@ -36,13 +38,13 @@ import numpy as np
 from ..errors import RaybenchError, shown
 from .nff import NFF, Fill, Polygon, View
 
-# The SPD's "UNC sky blue", the background of balls and tetra.
+# The SPD's "UNC sky blue", the background of every one of its scenes.
 SKY = (0.078, 0.361, 0.753)
 # The largest size factor generated: balls at 7 would be 5.4 M spheres,
 # tetra at 11 4 M triangles, rings at 60 2.2 M spheres and as many
-# cylinders, tree at 20 2 M of each, gears at 20 1.2 M polygons; the SPD's
-# own tables stop well below.
-MAX_SIZE = {"balls": 7, "tetra": 11, "rings": 60, "tree": 20, "gears": 20}
+# cylinders, tree at 20 2 M of each, gears at 20 1.2 M polygons, mount at 10
+# 2 M triangles; the SPD's own tables stop well below.
+MAX_SIZE = {"balls": 7, "tetra": 11, "rings": 60, "tree": 20, "gears": 20, "mount": 10}
 
 
 def phong_power(angle_deg: float) -> float:
@@ -356,7 +358,16 @@ def gears(size: int = 4) -> NFF:
 
 
 # name: (generator, default size factor, the C's)
-SCENES = {"balls": (balls, 4), "tetra": (tetra, 6), "rings": (rings, 7), "tree": (tree, 11), "gears": (gears, 4)}
+def mount(size: int = 6) -> NFF:
+    """SPD mount (raybench.formats.spd_mount, imported here on call: it
+    imports this module's helpers)."""
+    from .spd_mount import mount as make
+
+    return make(size)
+
+
+SCENES = {"balls": (balls, 4), "tetra": (tetra, 6), "rings": (rings, 7), "tree": (tree, 11), "gears": (gears, 4),
+          "mount": (mount, 6)}  # fmt: skip
 
 
 def generate(name: str, size: int | None = None) -> NFF:
