@@ -1,18 +1,19 @@
-"""The SPD's mount generator (raybench.formats.spd_mount): primitive
-counts against the figures in the SPD's own documentation, bounds and
-shape, and spot values from the output of Haines's C program.
+"""The SPD's mount and teapot generators (raybench.formats.spd_mount,
+spd_teapot): primitive counts against the figures in the SPD's own
+documentation, bounds and shape, and spot values from the output of
+Haines's C programs.
 
-The values "from C" below are lines of the NFF that mount.c
+The values "from C" below are lines of the NFF that mount.c and teapot.c
 (erich666/StandardProceduralDatabases at 5c860e2, compiled with gcc 12.2 on
-x86-64 Linux, run as `mount -s N`) writes, to its 6 significant digits
-(%g); a geometry line is x y z."""
+x86-64 Linux, run as `mount -s N` and `teapot -s N`) write, to their 6
+significant digits (%g); a geometry line is x y z (and a patch's normal)."""
 
 import numpy as np
 import pytest
-from test_cli import cli
+from test_cli import assert_user_error, cli
 
 from raybench.errors import RaybenchError
-from raybench.formats import nff, spd, spd_mount
+from raybench.formats import nff, spd, spd_mount, spd_teapot
 
 
 def from_c(line: str) -> list[float]:
@@ -107,8 +108,79 @@ def test_mount_hash_past_size_7():
     assert (spd_mount.grid_hash(a, b, 7) == (((a << 16) + (b << 8) + a) & 0xFFFF)).all()
 
 
+# teapot.c's header ("Total patches = 32*2*n*n - 8*n", "Total squares =
+# n*n": 56, 240, 552 patches and 1, 4, 9 squares at 1 to 3, 9120 and 144 at
+# 12); the README's table gives teapot 9264 primitives, which is size 12.
+TEAPOT = {1: (56, 1), 2: (240, 4), 3: (552, 9), 4: (992, 16), 6: (2256, 36), 12: (9120, 144)}
+
+
+@pytest.mark.parametrize("size", sorted(TEAPOT))
+def test_teapot_counts_and_bounds(size):
+    scene = spd.generate("teapot", size)
+    patches, squares = TEAPOT[size]
+    assert patches == 32 * 2 * size**2 - 8 * size
+    assert scene.counts() == {"spheres": 0, "polygons": squares, "patches": patches, "cones": 0}
+    board = [p for p in scene.polygons if p.normals is None]
+    assert [p.fill for p in board] == [0] * (squares // 2) + [1] * (squares - squares // 2)  # white, then grey
+    quads = np.array([p.vertices for p in board])
+    assert quads.shape == (squares, 4, 3) and (quads[..., 2] == 0).all()
+    assert np.abs(quads[..., :2]).max() == 4.0 and len(np.unique(quads[..., :2])) == size + 1
+    pots = [p for p in scene.polygons if p.normals is not None]
+    corners = np.array([p.vertices for p in pots])
+    normals = np.array([p.normals for p in pots])
+    assert corners.shape == normals.shape == (patches, 3, 3) and all(p.fill == 2 for p in pots)
+    # a Bezier patch lies within its control points' box; every normal a unit vector
+    lo, hi = spd_teapot.VERTICES.min(axis=0), spd_teapot.VERTICES.max(axis=0)
+    assert (corners >= lo - 1e-12).all() and (corners <= hi + 1e-12).all()
+    assert np.linalg.norm(normals, axis=-1) == pytest.approx(np.ones((patches, 3)))
+    # at most one corner of a triangle at a cusp, where the normal is straight up (lid) or down (bottom)
+    on_axis = (np.abs(corners[..., 0]) <= 1e-4) & (np.abs(corners[..., 1]) <= 1e-4)
+    assert on_axis.sum(axis=1).max() == 1 and on_axis.sum() == 8 * size
+    assert sorted({tuple(n) for n in normals[on_axis].tolist()}) == [(0, 0, -1), (0, 0, 1)]
+
+
+def test_teapot_body_faces_out():
+    """The body's eight patches' normals point away from the teapot's axis."""
+    points, normals = spd_teapot.surface(4)
+    radial = np.einsum("...i,...i->...", normals[4:12, ..., :2], points[4:12, ..., :2])
+    assert (radial > 1.0).all()
+
+
+def test_teapot_is_haines_teapot():
+    """The view, lights, fills and board teapot.c writes at size 2, and
+    patches of its output at sizes 2 (the first, and triangles at the lid's
+    and the bottom's cusp) and 12, in its order."""
+    scene = spd.teapot(2)
+    assert scene.view == nff.View((4.86, 7.2, 5.4), (0, 0, 0), (0, 0, 1), 45.0, 1.0, (512, 512))
+    assert [p for p, _ in scene.lights] == [(-3.1, 9.8, 12.1), (11.3, 5.1, 8.8)]
+    white, grey, orange = scene.fills
+    assert (white.color, grey.color, orange.color) == ((1, 1, 1), (0.5, 0.5, 0.5), (1, 0.5, 0.1))
+    assert (white.kd, white.ks, orange.kd, orange.ks) == (0.5, 0.5, 0.75, 0.25)
+    assert white.shine == pytest.approx(4.81884, abs=5e-6) and orange.shine == pytest.approx(3.0827, abs=5e-5)
+    # "p 4" after the white fill: its first square, then the grey's first
+    assert_as_c(scene.polygons[0].vertices, "-4 0 0 0 0 0 0 4 0 -4 4 0")
+    assert_as_c(scene.polygons[2].vertices, "-4 -4 0 0 -4 0 0 0 0 -4 0 0")
+    patches = {
+        (2, 0): ["1.4 0 2.4 -0.902861 -0 -0.429934", "0.994 -0.994 2.4 -0.637936 0.637936 -0.431366",
+                 "0.996219 -0.996219 2.49844 1.4538e-15 -1.67359e-15 1"],
+        (2, 160): ["0.231031 -0.231031 2.98125 0.550896 -0.550896 -0.626919",
+                   "0.325 0 2.98125 0.780869 0 -0.624695", "0 0 3.15 0 0 1"],
+        (2, 216): ["0.911906 0.911906 0.046875 0.0996006 0.0996006 -0.99003",
+                   "1.28438 0 0.046875 0.141421 0 -0.989949", "0 0 0 0 0 -1"],
+        (12, 5000): ["2.4679 0.369136 1.22016 0.627607 0.733748 -0.260237",
+                     "2.43673 0.403742 1.28186 0.450382 0.888095 -0.0918861",
+                     "2.51615 0.368795 1.42502 0.500852 0.865404 -0.0149303"],
+        (12, 9119): ["1.5 0 0.15 1 0 0", "1.48653 -0.205972 0.15 0.99137 -0.13109 -6.11468e-17",
+                     "1.48425 -0.205656 0.131293 0.952941 -0.126009 -0.275728"],
+    }  # fmt: skip
+    made = {size: spd_teapot.tessellate(size) for size in (2, 12)}
+    for (size, i), lines in patches.items():
+        corners, normals = made[size]
+        assert_as_c(np.concatenate([corners[i], normals[i]], axis=1), " ".join(lines), (size, i))
+
+
 def test_mount_and_teapot_read_back():
-    for scene in (spd.mount(2),):
+    for scene in (spd.mount(2), spd.teapot(3)):
         back = nff.read(scene.text())
         assert back.counts() == scene.counts() and back.view == scene.view
         ours = np.concatenate([p.vertices for p in scene.polygons])
@@ -116,7 +188,7 @@ def test_mount_and_teapot_read_back():
         assert len(back.triangles()) == sum(len(p.vertices) - 2 for p in scene.polygons)
 
 
-@pytest.mark.parametrize("name,size", [("mount", 0), ("mount", 11)])
+@pytest.mark.parametrize("name,size", [("mount", 0), ("mount", 11), ("teapot", 0), ("teapot", 101)])
 def test_mount_and_teapot_sizes_out_of_range_are_refused(name, size):
     with pytest.raises(RaybenchError):
         spd.generate(name, size)
@@ -127,9 +199,17 @@ def test_mount_and_teapot_on_the_command_line(capsys, tmp_path):
     code, out, err = cli(capsys, "scene", "spd", "mount", "--size", 2, "-o", target)
     assert code == 0, err
     assert out == f"wrote {target}: SPD mount at size factor 2: 4 spheres, 32 polygons\n"
+    target = tmp_path / "teapot.nff"
+    code, out, err = cli(capsys, "scene", "spd", "teapot", "--size", 2, "-o", target)
+    assert code == 0, err
+    assert out == f"wrote {target}: SPD teapot at size factor 2: 4 polygons, 240 patches\n"
+    assert nff.load(target).counts()["patches"] == 240
+    code, out, err = cli(capsys, "scene", "spd", "teapot", "--size", 101, "-o", target)
+    assert_user_error(code, out, err, "--size", "from 1 to 100")
 
 
 def test_the_default_sizes_are_the_programs():
-    """mount.c's own default size factor, 6."""
-    assert spd.SCENES["mount"][1] == 6
+    """mount.c's and teapot.c's own default size factor, 6 (teapot's README
+    figure, 9,264 primitives, is at 12)."""
+    assert spd.SCENES["mount"][1] == spd.SCENES["teapot"][1] == 6
     assert sum(spd.generate("mount").counts().values()) == 8196

@@ -18,9 +18,9 @@ import click
 from .options import SIZE_HELP, check_output, path_option
 
 # formats.spd.SCENES's names, here so that the command line starts without NumPy
-SPD_NAMES = ("balls", "tetra", "rings", "tree", "gears", "mount")
+SPD_NAMES = ("balls", "tetra", "rings", "tree", "gears", "mount", "teapot")
 SPD_SIZE_HELP = (
-    "the SPD's size factor (default: the generator's own: 4 for balls and gears, 6 for tetra and mount, "
+    "the SPD's size factor (default: the generator's own: 4 for balls and gears, 6 for tetra, mount and teapot, "
     "7 for rings, 11 for tree); "
     "balls has 10, 91, 820, 7,381, 66,430 and 597,871 spheres at 1 to 6"
 )

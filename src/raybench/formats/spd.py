@@ -24,6 +24,9 @@ the same view, background, lights, fills and primitives, in the same order.
   3888, 9216 rectangles at 1 to 4), and one ground polygon.
 - mount (spd_mount): a fractal mountain of 2 * 4**size_factor triangles
   (mount.c's header: 8, 32, 128 at 1 to 3, 8192 at 6) and four glass spheres.
+- teapot (spd_teapot): Newell's teapot, 32 * 2 n**2 - 8 n triangle patches
+  at size factor n (teapot.c's header: 56, 240, 552 at 1 to 3, 9120 at 12),
+  on a checkerboard of n**2 squares.
 
 generate(name, size) gives the NFF; SCENES names what there is, with each
 one's default size factor (the C's).
@@ -43,8 +46,9 @@ SKY = (0.078, 0.361, 0.753)
 # The largest size factor generated: balls at 7 would be 5.4 M spheres,
 # tetra at 11 4 M triangles, rings at 60 2.2 M spheres and as many
 # cylinders, tree at 20 2 M of each, gears at 20 1.2 M polygons, mount at 10
-# 2 M triangles; the SPD's own tables stop well below.
-MAX_SIZE = {"balls": 7, "tetra": 11, "rings": 60, "tree": 20, "gears": 20, "mount": 10}
+# 2 M triangles, teapot at 100 639,200 patches; the SPD's own tables stop
+# well below.
+MAX_SIZE = {"balls": 7, "tetra": 11, "rings": 60, "tree": 20, "gears": 20, "mount": 10, "teapot": 100}
 
 
 def phong_power(angle_deg: float) -> float:
@@ -366,8 +370,16 @@ def mount(size: int = 6) -> NFF:
     return make(size)
 
 
+def teapot(size: int = 6) -> NFF:
+    """SPD teapot (raybench.formats.spd_teapot, imported here on call: it
+    imports this module's helpers)."""
+    from .spd_teapot import teapot as make
+
+    return make(size)
+
+
 SCENES = {"balls": (balls, 4), "tetra": (tetra, 6), "rings": (rings, 7), "tree": (tree, 11), "gears": (gears, 4),
-          "mount": (mount, 6)}  # fmt: skip
+          "mount": (mount, 6), "teapot": (teapot, 6)}  # fmt: skip
 
 
 def generate(name: str, size: int | None = None) -> NFF:
