@@ -134,7 +134,7 @@ def tracer(device: str, spheres, width: int, height: int, shading=None, primitiv
 
 
 # The devices that trace each kind of primitive other than the sphere.
-KIND_DEVICES = {"triangle": ("cpu", "cuda", "wgpu"), "mixed": ("cpu", "cuda")}
+KIND_DEVICES = {"triangle": ("cpu", "cuda", "wgpu"), "mixed": ("cpu", "cuda", "wgpu")}
 
 
 def _check_kind(device: str, buffer, primitive: str) -> None:
