@@ -17,7 +17,7 @@ import pytest
 from wgsl_harness import IN, cpu_adapter, dispatch, entry_points
 
 from raybench import layout
-from raybench.backends.wgpu import adapters, compute, shader
+from raybench.backends.wgpu import adapters, compute, namespace, shader
 from raybench.backends.wgpu import build as gpu_build
 from raybench.kernels.primitives import mixed
 from raybench.scene_meshes import mixed_leaves
@@ -159,3 +159,30 @@ def test_builders_answers_are_the_pythons_bits(device):
     for k in range(n):
         PLAIN.copy_leaf(both, k, leaves, k)
     assert np.array_equal(got.view(np.uint32), leaves.view(np.uint32))
+
+
+def test_a_pieces_names_are_renamed_and_nothing_else():
+    """namespace.namespaced: a declaration and its uses renamed, not a member
+    of the same name, a longer name or a comment; kept as it is, dropped
+    with its comment and its uses left, replaced with its uses renamed; a
+    name the piece does not declare, or code outside a declaration, refused."""
+    piece = (
+        "// a header\n\n"
+        "struct Hit { hit: f32 }\n"
+        "// reads the buffer\n"
+        "fn read(k: i32) -> f32 {\n    return buffer[k];\n}\n"
+        "@group(0) @binding(5) var<storage, read> buffer: array<f32>;\n"
+        "fn hit(k: i32) -> Hit {  // hit's own comment\n"
+        "    let hits = read(k);\n    return Hit(hits + Hit(1.0).hit);\n}\n"
+    )
+    got = namespace.namespaced(piece, "s_", kept=("Hit",), dropped=("buffer",), replaced=("read",))
+    assert got == (
+        "// a header\n\n"
+        "struct Hit { hit: f32 }\n"
+        "fn s_hit(k: i32) -> Hit {  // hit's own comment\n"
+        "    let hits = s_read(k);\n    return Hit(hits + Hit(1.0).hit);\n}\n"
+    )
+    with pytest.raises(ValueError, match="not declared in the piece: nothing"):
+        namespace.namespaced(piece, "s_", kept=("nothing",))
+    with pytest.raises(ValueError, match="not a top-level declaration"):
+        namespace.namespaced(piece + "let stray = 1;\n", "s_")

@@ -119,18 +119,21 @@ RENAMED = {
 }
 
 
+# The float32 of a scene's row as compute.py lays it out for the tracer and
+# the build alike (its TRIANGLE_FLOATS and MIXED_FLOATS, which import this
+# module): a triangle's, and a mixed primitive's, a triangle's and the tag.
+SCENE_WORDS = {"triangle": layout.TRI_SMOOTH_ROWS, "mixed": layout.TRI_SMOOTH_ROWS + 1}
+
+
 def kind_constants(primitive: str) -> dict[str, str]:
     """The constants the kinds' pieces take from Python: the triangle's box
-    is the walks' (triangle_box.wgsl), over compute.py's rows of the kind,
-    whose stride the triangle's readers take (a mixed row is a triangle's
-    and the tag)."""
-    from .compute import MIXED_FLOATS, TRIANGLE_FLOATS  # compute imports this module
-
-    words = MIXED_FLOATS if primitive == "mixed" else TRIANGLE_FLOATS
+    is the walks' (triangle_box.wgsl), over the kind's rows (SCENE_WORDS),
+    whose stride the triangle's readers take."""
+    words = SCENE_WORDS["mixed" if primitive == "mixed" else "triangle"]
     return {
         "BVH_PAD": repr(float(layout.PAD)),
         "TRI_SCENE_WORDS": f"{words}u",
-        "MIXED_SCENE_WORDS": f"{MIXED_FLOATS}u",
+        "MIXED_SCENE_WORDS": f"{SCENE_WORDS['mixed']}u",
         "MIXED_SPHERE_TAG": repr(float(layout.MIX_SPHERE)),
         "MIXED_LEAF_WORDS": f"{layout.MIX_LEAF_ROWS}",
     }

@@ -30,9 +30,9 @@ from .wavefront import Wavefront
 FRAME_FORMAT = "rgba8unorm"
 SPHERE_FLOATS = 8  # shader's struct Sphere: the 7 columns and a pad
 # triangle.wgsl's struct Facet: the vertices, the colour, the corners' normals
-TRIANGLE_FLOATS = layout.TRI_SMOOTH_ROWS
+TRIANGLE_FLOATS = gpu_build.SCENE_WORDS["triangle"]
 # mixed.wgsl's struct Tagged: a Facet and the tag
-MIXED_FLOATS = TRIANGLE_FLOATS + 1
+MIXED_FLOATS = gpu_build.SCENE_WORDS["mixed"]
 UNIFORM_BYTES = 80  # shader's struct Frame: four vec4s, four u32s
 # The packet walk's votes are subgroup operations (packet.wgsl). It is no
 # default: on the one GPU measured through Vulkan it was slower than a ray at

@@ -18,8 +18,9 @@ piece's code too), or by the caller's choice:
   name once for both kinds: the scene's row, the leaf buffer's binding);
 - replaced: removed, its uses renamed (the caller declares prefix + name:
   a reader of a buffer whose layout is the mixed kind's).
-Comments are left as they are; the comment lines right above a removed
-declaration go with it.
+A struct's members, and members read (s.name), keep their names. Comments
+are left as they are; the comment lines right above a removed declaration
+go with it.
 """
 
 from __future__ import annotations
@@ -27,17 +28,18 @@ from __future__ import annotations
 import re
 
 # A top-level declaration's first line: its attributes, its keyword, its name.
-DECLARATION = re.compile(r"^(?:@\S+\s+)*(?:fn|struct|const|alias|override|var(?:<[^>]*>)?)\s+(\w+)")
+DECLARATION = re.compile(r"^(?:@\S+\s+)*(fn|struct|const|alias|override|var(?:<[^>]*>)?)\s+(\w+)")
 
 
-def declarations(text: str) -> list[tuple[str | None, list[str]]]:
-    """The piece as (name, lines) in order: a declaration with the comment
-    lines right above it, or (None, lines) for the lines between (blank lines
-    and comments above a blank one). A line of code outside a declaration is
-    an error: the piece is not one this module can rename."""
-    parts: list[tuple[str | None, list[str]]] = []
+def declarations(text: str) -> list[tuple[str | None, str | None, list[str]]]:
+    """The piece as (name, keyword, lines) in order: a declaration with the
+    comment lines right above it, or (None, None, lines) for the lines
+    between (blank lines and comments above a blank one). A line of code
+    outside a declaration is an error: the piece is not one this module can
+    rename."""
+    parts: list[tuple[str | None, str | None, list[str]]] = []
     loose: list[str] = []  # blank and comment lines not yet given to a declaration
-    name, lines, depth, opened = None, [], 0, False
+    name, keyword, lines, depth, opened = None, None, [], 0, False
     for line in text.splitlines(keepends=True):
         code = line.split("//", 1)[0]
         if name is None:
@@ -52,19 +54,19 @@ def declarations(text: str) -> list[tuple[str | None, list[str]]]:
             while mine > 0 and loose[mine - 1].strip().startswith("//"):
                 mine -= 1
             if mine:
-                parts.append((None, loose[:mine]))
-            name, lines, depth, opened = found.group(1), loose[mine:], 0, False
+                parts.append((None, None, loose[:mine]))
+            keyword, name, lines, depth, opened = found.group(1), found.group(2), loose[mine:], 0, False
             loose = []
         lines.append(line)
         depth += code.count("{") - code.count("}")
         opened = opened or "{" in code
         if depth == 0 and (opened or code.rstrip().endswith(";")):
-            parts.append((name, lines))
+            parts.append((name, keyword, lines))
             name = None
     if name is not None:
         raise ValueError(f"{name}: its declaration does not end")
     if loose:
-        parts.append((None, loose))
+        parts.append((None, None, loose))
     return parts
 
 
@@ -73,21 +75,25 @@ def namespaced(text: str, prefix: str, kept=(), dropped=(), replaced=()) -> str:
     kept (as they are), dropped and replaced (removed; uses of a replaced one
     renamed, of a dropped one not): the module's docstring says why each."""
     parts = declarations(text)
-    names = {name for name, _ in parts if name is not None}
+    names = {name for name, _, _ in parts if name is not None}
     unknown = (set(kept) | set(dropped) | set(replaced)) - names
     if unknown:
         raise ValueError(f"not declared in the piece: {', '.join(sorted(unknown))}")
     renamed = (names - set(kept) - set(dropped)) | set(replaced)
-    # a name used, not a member (.name) or part of a longer name
-    use = re.compile(r"(?<![\w.])(" + "|".join(sorted(renamed, key=len, reverse=True)) + r")(?!\w)")
+    # a name used, not a member (.name) or part of a longer name; in a
+    # struct's body, not a member's declaration (name: type) either
+    names = "(" + "|".join(sorted(renamed, key=len, reverse=True)) + ")"
+    use = re.compile(r"(?<![\w.])" + names + r"(?!\w)")
+    in_struct = re.compile(r"(?<![\w.])" + names + r"(?!\w|\s*:)")
 
-    def rename(line: str) -> str:
+    def rename(line: str, pattern) -> str:
         code, sep, comment = line.partition("//")
-        return use.sub(lambda m: prefix + m.group(1), code) + sep + comment
+        return pattern.sub(lambda m: prefix + m.group(1), code) + sep + comment
 
     out = []
-    for name, lines in parts:
+    for name, keyword, lines in parts:
         if name in dropped or name in replaced:
             continue
-        out += [rename(line) for line in lines] if renamed else lines
+        pattern = in_struct if keyword == "struct" else use
+        out += [rename(line, pattern) for line in lines] if renamed else lines
     return "".join(out)
