@@ -142,7 +142,7 @@ class Renderer:
 
     scene: spheres, meshes (format version 3, or a mesh file by
     mesh_render.mesh_scene), whose triangles are traced, or both (one tree
-    of both kinds, kernels/primitives/mixed.py: cpu and cuda so far).
+    of both kinds, kernels/primitives/mixed.py: on every device).
     device, shading, depth, shadow_samples and the device's options are
     render()'s (below); shading may also be a lighting.Shading made ahead
     (Shading.of(scene, ...)), which is Whitted shading with its arrays. For

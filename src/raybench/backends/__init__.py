@@ -107,7 +107,7 @@ def tracer(device: str, spheres, width: int, height: int, shading=None, primitiv
     the kind of primitive the columns of `spheres` are (kernels/primitives'
     KINDS): "sphere", Scene.spheres; "triangle", meshes.mesh_leaves' buffer,
     traced on every device; "mixed", spheres and triangles in one buffer
-    (scene_meshes.mixed_leaves), traced on the cpu and cuda ("auto" picks the
+    (scene_meshes.mixed_leaves), traced on every device too ("auto" picks the
     cpu for both). options:
     the device's own (backends/options.py: cpu's threads and tree_width;
     cuda's block, rays, staged, trip, walk, build and the GPU build's
@@ -134,7 +134,7 @@ def tracer(device: str, spheres, width: int, height: int, shading=None, primitiv
 
 
 # The devices that trace each kind of primitive other than the sphere.
-KIND_DEVICES = {"triangle": ("cpu", "cuda", "wgpu"), "mixed": ("cpu", "cuda")}
+KIND_DEVICES = {"triangle": ("cpu", "cuda", "wgpu"), "mixed": ("cpu", "cuda", "wgpu")}
 
 
 def _check_kind(device: str, buffer, primitive: str) -> None:

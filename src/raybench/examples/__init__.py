@@ -5,8 +5,7 @@ light); meshes.json, a scene format version 3 scene of meshes only, each
 inline (a floor that mirrors a little, a plastic icosahedron, a glass
 tetrahedron, placed by their transforms), traced as triangles; mixed.json,
 spheres and meshes in one scene (the same floor and icosahedron, a mirror
-ball, a glass ball and a blue one), traced as one tree of both (on cpu
-and cuda so far)."""
+ball, a glass ball and a blue one), traced as one tree of both."""
 
 from __future__ import annotations
 

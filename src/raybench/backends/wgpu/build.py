@@ -41,6 +41,7 @@ from ... import bvh as bvh_mod
 from ... import layout
 from ...bvh import lbvh
 from ...kernels.primitives import KINDS, sphere
+from . import namespace
 
 QUALITIES = ("sah", "lbvh")
 # A workgroup: WebGPU's default most invocations.
@@ -103,8 +104,47 @@ READS_PRIMITIVES = ("build_codes.wgsl", "build_tree.wgsl")
 # Each kind's answers to the builders (extent, leaf_row and the Leaf they
 # write), and the constants those pieces take from Python: the triangle's
 # box is the walks' (triangle_box.wgsl), over compute.py's rows.
-KIND_PIECES = {"sphere": ("sphere_build.wgsl",), "triangle": ("triangle_box.wgsl", "triangle_build.wgsl")}
-KIND_CONSTANTS = {"BVH_PAD": repr(float(layout.PAD)), "TRI_SCENE_WORDS": f"{layout.TRI_SMOOTH_ROWS}u"}
+KIND_PIECES = {
+    "sphere": ("sphere_build.wgsl",),
+    "triangle": ("triangle_box.wgsl", "triangle_build.wgsl"),
+    "mixed": ("triangle_box.wgsl", "sphere_build.wgsl", "triangle_build.wgsl", "mixed_build.wgsl"),
+}
+# In the mixed kind's build, the sphere's and the triangle's pieces under
+# prefixes, as shader.RENAMED in its tracer: mixed_build.wgsl declares the
+# scene's buffer for both kinds and the sphere's reader of it; the box is
+# triangle_box.wgsl's struct Extent, the very one the sphere's declares.
+RENAMED = {
+    "sphere_build.wgsl": {"prefix": "sphere_", "dropped": ("items", "Extent"), "replaced": ("read_sphere",)},
+    "triangle_build.wgsl": {"prefix": "triangle_", "dropped": ("items",)},
+}
+
+
+# The float32 of a scene's row as compute.py lays it out for the tracer and
+# the build alike (its TRIANGLE_FLOATS and MIXED_FLOATS, which import this
+# module): a triangle's, and a mixed primitive's, a triangle's and the tag.
+SCENE_WORDS = {"triangle": layout.TRI_SMOOTH_ROWS, "mixed": layout.TRI_SMOOTH_ROWS + 1}
+
+
+def kind_constants(primitive: str) -> dict[str, str]:
+    """The constants the kinds' pieces take from Python: the triangle's box
+    is the walks' (triangle_box.wgsl), over the kind's rows (SCENE_WORDS),
+    whose stride the triangle's readers take."""
+    words = SCENE_WORDS["mixed" if primitive == "mixed" else "triangle"]
+    return {
+        "BVH_PAD": repr(float(layout.PAD)),
+        "TRI_SCENE_WORDS": f"{words}u",
+        "MIXED_SCENE_WORDS": f"{SCENE_WORDS['mixed']}u",
+        "MIXED_SPHERE_TAG": repr(float(layout.MIX_SPHERE)),
+        "MIXED_LEAF_WORDS": f"{layout.MIX_LEAF_ROWS}",
+    }
+
+
+def piece(name: str, primitive: str) -> str:
+    """A piece's text as a kind's build takes it (RENAMED for the mixed kind's)."""
+    text = resources.files(__package__).joinpath(name).read_text(encoding="utf-8")
+    if primitive == "mixed" and name in RENAMED:
+        return namespace.namespaced(text, **RENAMED[name])
+    return text
 
 
 @functools.cache
@@ -114,9 +154,8 @@ def source(step: str, primitive: str = "sphere") -> str:
     (the sort reads only codes), the step's."""
     answers = KIND_PIECES[primitive] if step in READS_PRIMITIVES else ()
     names = ("build_common.wgsl", *answers, step)
-    pieces = [resources.files(__package__).joinpath(p).read_text(encoding="utf-8") for p in names]
-    text = constants() + "\n".join(pieces)
-    for name, value in KIND_CONSTANTS.items():
+    text = constants() + "\n".join(piece(p, primitive) for p in names)
+    for name, value in kind_constants(primitive).items():
         text = text.replace(name, value)
     return text
 

@@ -30,7 +30,9 @@ from .wavefront import Wavefront
 FRAME_FORMAT = "rgba8unorm"
 SPHERE_FLOATS = 8  # shader's struct Sphere: the 7 columns and a pad
 # triangle.wgsl's struct Facet: the vertices, the colour, the corners' normals
-TRIANGLE_FLOATS = layout.TRI_SMOOTH_ROWS
+TRIANGLE_FLOATS = gpu_build.SCENE_WORDS["triangle"]
+# mixed.wgsl's struct Tagged: a Facet and the tag
+MIXED_FLOATS = gpu_build.SCENE_WORDS["mixed"]
 UNIFORM_BYTES = 80  # shader's struct Frame: four vec4s, four u32s
 # The packet walk's votes are subgroup operations (packet.wgsl). It is no
 # default: on the one GPU measured through Vulkan it was slower than a ray at
@@ -75,12 +77,13 @@ def check_frame_fits(
     binding, buffer = limits["max-storage-buffer-binding-size"], limits["max-buffer-size"]
     largest = min(binding, buffer)
     named = "max-storage-buffer-binding-size" if largest == binding else "max-buffer-size"  # the limit's own name
-    needs = [("the hit indices", width * height * 4), (f"the {primitive}s", spheres * ROW_FLOATS[primitive] * 4)]
+    noun = KINDS[primitive].NOUN
+    needs = [("the hit indices", width * height * 4), (f"the {noun}", spheres * ROW_FLOATS[primitive] * 4)]
     if accel == "bvh":  # at most one node per primitive: with the rows above, the largest of the tree's buffers
         needs.append(("the BVH's nodes", max(spheres, 1) * layout.NODE_BYTES))
     for what, need in needs:
         if need > largest:
-            fewer = "fewer spheres" if primitive == "sphere" else f"a mesh of fewer {primitive}s"
+            fewer = {"sphere": "fewer spheres", "triangle": "a mesh of fewer triangles"}.get(primitive, f"fewer {noun}")
             raise RaybenchError(
                 f"size: {what} need {need / 2**20:.0f} MiB, more than this adapter's largest "
                 f"storage buffer ({named}: {largest / 2**20:.0f} MiB); choose a smaller size or {fewer}"
@@ -113,9 +116,28 @@ def triangle_rows(triangles: np.ndarray) -> np.ndarray:
     return rows
 
 
+def mixed_rows(buffer: np.ndarray) -> np.ndarray:
+    """A buffer of both kinds (scene_meshes.mixed_leaves: a kind's rows from
+    row 0, the tag last) -> (N, MIXED_FLOATS) rows, mixed.wgsl's struct
+    Tagged: a triangle's as triangle_rows lays it out; a sphere's centre and
+    radius first, its colour moved into the colour's fields (where the
+    shading reads either kind's), zeros elsewhere; the tag last (one row at
+    least: a binding cannot be empty)."""
+    n = buffer.shape[1]
+    tag = buffer[buffer.shape[0] - 1]
+    rows = np.zeros((max(n, 1), MIXED_FLOATS), np.float32)
+    rows[:, :TRIANGLE_FLOATS] = triangle_rows(buffer[: buffer.shape[0] - 1])
+    spheres = np.flatnonzero(tag == layout.MIX_SPHERE)
+    rows[spheres, : layout.TRI_RED] = 0.0
+    rows[spheres, : layout.RADIUS + 1] = buffer[: layout.RADIUS + 1, spheres].T
+    rows[spheres, layout.TRI_RED : layout.TRI_BLUE + 1] = buffer[layout.RED : layout.BLUE + 1, spheres].T
+    rows[:n, MIXED_FLOATS - 1] = tag
+    return rows
+
+
 # Each kind's scene rows as its WGSL reads them (common.wgsl's `spheres`), and their floats.
-SCENE_ROWS = {"sphere": sphere_rows, "triangle": triangle_rows}
-ROW_FLOATS = {"sphere": SPHERE_FLOATS, "triangle": TRIANGLE_FLOATS}
+SCENE_ROWS = {"sphere": sphere_rows, "triangle": triangle_rows, "mixed": mixed_rows}
+ROW_FLOATS = {"sphere": SPHERE_FLOATS, "triangle": TRIANGLE_FLOATS, "mixed": MIXED_FLOATS}
 
 
 def material_rows(materials: np.ndarray) -> np.ndarray:
@@ -152,8 +174,9 @@ class Compute:
     BVH, build_s is the last build's seconds (the build alone, as on cuda),
     build where it was built ("host" or "gpu", as on cuda), and walk how the
     pass walks it: "ray" (the default) or "packet". primitive: the kind the
-    columns of `spheres` are (shader.KIND_PIECES' keys: "sphere", or
-    "triangle" for meshes.mesh_leaves' buffer)."""
+    columns of `spheres` are (shader.KIND_PIECES' keys: "sphere",
+    "triangle" for meshes.mesh_leaves' buffer, or "mixed" for
+    scene_meshes.mixed_leaves')."""
 
     def __init__(
         self,

@@ -12,7 +12,9 @@ with ray.wgsl beside it for a ray alone or packet.wgsl (its own entry point)
 for a subgroup's rays voting as one packet. Whitted shading
 adds whitted.wgsl (kernels/whitted.py), and its wavefront wavefront.wgsl
 (kernels/wavefront.py). WGSL has no include: each piece uses the others'
-functions, and the host concatenates them (source). tests/test_wgsl_parity.py
+functions, and the host concatenates them (source). A scene of both kinds
+(mixed.wgsl) takes the sphere's and the triangle's pieces together, their
+names given a prefix as they are put in (namespace.py). tests/test_wgsl_parity.py
 runs the twins on the same inputs.
 """
 
@@ -23,13 +25,31 @@ from importlib import resources
 
 from ... import layout, lighting
 from ...kernels import traverse, wavefront, whitted
+from . import namespace
 
 ACCELS = {"bvh": "traverse.wgsl", "none": "brute.wgsl"}
 PIECES = ("common.wgsl", "sphere.wgsl", "shade.wgsl", "trace.wgsl")
 # What takes sphere.wgsl's place in PIECES for each kind of primitive
 # (kernels/primitives' KINDS): everything the walks and the shading read of
 # it. The walks, the shading and Whitted's pieces are the same for every kind.
-KIND_PIECES = {"sphere": ("sphere.wgsl",), "triangle": ("triangle_box.wgsl", "triangle.wgsl")}
+KIND_PIECES = {
+    "sphere": ("sphere.wgsl",),
+    "triangle": ("triangle_box.wgsl", "triangle.wgsl"),
+    "mixed": ("triangle_box.wgsl", "sphere.wgsl", "triangle.wgsl", "mixed.wgsl"),
+}
+# In the mixed kind's shader, the sphere's and the triangle's pieces under
+# prefixes (namespace.namespaced's arguments): mixed.wgsl answers to the
+# walks' names, declares the scene's row and the leaf buffer for both kinds
+# (dropped here), and the kinds' readers of those buffers (replaced); one
+# struct Surface, the sphere's, is the hit's of either.
+RENAMED = {
+    "sphere.wgsl": {"prefix": "sphere_", "kept": ("Surface",), "dropped": ("Sphere", "ordered"),
+                    "replaced": ("read_sphere", "read_leaf")},
+    "triangle.wgsl": {"prefix": "triangle_", "dropped": ("Facet", "Sphere", "ordered", "Surface"),
+                      "replaced": ("read_leaf",)},
+}  # fmt: skip
+# mixed.wgsl's constants: the tag of a sphere and the floats of a leaf (layout's MIX_ values).
+MIXED_CONSTANTS = {"MIXED_SPHERE_TAG": repr(float(layout.MIX_SPHERE)), "MIXED_LEAF_WORDS": f"{layout.MIX_LEAF_ROWS}"}
 # The walk's constants, taken from their Python definitions rather than
 # written again in WGSL: float32 values whose repr is exact, so the WGSL
 # literal converts to the very float32 the CPU uses.
@@ -44,6 +64,14 @@ BVH_CONSTANTS = {
 @functools.cache
 def _piece(name: str) -> str:
     return resources.files(__package__).joinpath(name).read_text(encoding="utf-8")
+
+
+def kind_piece(name: str, primitive: str) -> str:
+    """A piece's text as a kind's shader takes it: the mixed kind's renames
+    the sphere's and the triangle's (RENAMED); every other piece as it is."""
+    if primitive == "mixed" and name in RENAMED:
+        return namespace.namespaced(_piece(name), **RENAMED[name])
+    return _piece(name)
 
 
 # Whitted shading's constants, likewise; the lights and samples a frame's
@@ -89,8 +117,8 @@ def source(workgroup: tuple[int, int], accel: str, walk: str = "ray", primitive:
     elif walk == "wavefront":
         extra += [_piece("whitted.wgsl"), _piece("wavefront.wgsl")]
     pieces = [q for p in PIECES for q in (KIND_PIECES[primitive] if p == "sphere.wgsl" else (p,))]
-    text = "\n".join([_piece(p) for p in pieces] + [_piece(ACCELS[accel])] + extra)
+    text = "\n".join([kind_piece(p, primitive) for p in pieces] + [_piece(ACCELS[accel])] + extra)
     text = text.replace("WORKGROUP_X", f"{workgroup[0]}u").replace("WORKGROUP_Y", f"{workgroup[1]}u")
-    for name, value in {**BVH_CONSTANTS, **WHITTED_CONSTANTS, **WAVEFRONT_CONSTANTS}.items():
+    for name, value in {**BVH_CONSTANTS, **WHITTED_CONSTANTS, **WAVEFRONT_CONSTANTS, **MIXED_CONSTANTS}.items():
         text = text.replace(name, value)
     return text

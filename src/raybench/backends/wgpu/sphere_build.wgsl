@@ -22,9 +22,16 @@ fn pad(cx: f32, cy: f32, cz: f32, r: f32) -> f32 {
     return (r + (abs(cx) + abs(cy) + abs(cz))) * PAD;
 }
 
+// read_sphere: the Python's read, sphere k of the scene's buffer, (cx, cy,
+// cz, r), which extent and leaf_row read it through, as the Python's do:
+// the mixed kind's build gives it a reader of its own rows (mixed_build.wgsl).
+fn read_sphere(k: u32) -> vec4<f32> {
+    return items[2u * k];
+}
+
 // extent: sphere k's padded box, centred on the sphere's centre.
 fn extent(k: u32) -> Extent {
-    let s = items[2u * k];
+    let s = read_sphere(k);
     let pr = s.w + pad(s.x, s.y, s.z, s.w);
     return Extent(s.xyz, vec3<f32>(pr));
 }
@@ -32,5 +39,5 @@ fn extent(k: u32) -> Extent {
 // leaf_row: what copy_leaf copies, sphere k's row of the leaf buffer (the
 // scene's very values).
 fn leaf_row(k: u32) -> Leaf {
-    return items[2u * k];
+    return read_sphere(k);
 }

@@ -26,12 +26,12 @@ the watertight test of Woop, Benthin and Wald, nine rows of vertices a leaf,
 the cosine to the plane's normal as a hit's datum, so rim is 1; no
 prepare_at or may_hit; its WGSL twin backends/wgpu/triangle.wgsl), and
 mixed.py (a scene of both: each leaf tagged with its kind, every answer the
-sphere's or the triangle's own; no WGSL twin yet). The cpu and cuda compile
+sphere's or the triangle's own; its WGSL twin backends/wgpu/mixed.wgsl calls
+sphere.wgsl's and triangle.wgsl's, renamed by backends/wgpu/namespace.py). The cpu and cuda compile
 a kind's programs when a scene holds it (backends/cpu/kinds.py,
 backends/cuda/kinds.py; cuda's wavefront reads the leaves from a packed
 copy, PACKED_WORDS float64 a primitive, that pack_leaf writes); wgpu
-assembles a kind's shader from its WGSL pieces (backends/wgpu/shader.py),
-for the sphere and the triangle.
+assembles a kind's shader from its WGSL pieces (backends/wgpu/shader.py).
 
 Adding a kind: a module beside sphere.py with the same answers, its WGSL
 twins in backends/wgpu/ (sphere.wgsl for the walks and the shading,
