@@ -34,11 +34,10 @@ povray: each SPD scene at a size factor (raybench.formats.spd), written as a .po
 raybench.formats.pov (the same camera, lights, materials, depth), rendered by `povray` at
 --size with -A (no antialiasing) and +WT (its threads, raybench's), no file written while
 timed; its time is the process's wall time (parse, bounding, trace), and POV-Ray's own parse,
-bounding and trace times are recorded beside it. POV-Ray renders each scene twice: whole, and
-with its spheres only, since raybench renders spheres only until triangles reach its
-renderers (a scene's polygons are counted in the record, never dropped unsaid); raybench's
-frame is set against each. The spheres-only pictures are compared: the silhouette, and the
-mean difference of the colours over the whole picture.
+bounding and trace times are recorded beside it. Both render the whole scene: its polygons and
+patches as the same triangles, its cones as POV-Ray's own (raybench tessellates them,
+raybench.formats.polygons: the peer's best form of the scene). The pictures are compared: the
+silhouette, and the mean difference of the colours over the whole picture.
 """
 
 from __future__ import annotations
@@ -297,14 +296,11 @@ def povray_one(spec, folder, width, height, threads, args) -> list[dict]:
 
     name, _, size = spec.partition(":")
     nff = spd.generate(name, int(size) if size else None)
-    scene, mesh = nff.scene(), pov.mesh_of(nff)
+    scene = nff.scene()
     label = f"{name} {size or spd.SCENES[name][1]}"
     counts = nff.counts()
-    variants = {"spheres": folder / f"{name}{size}-spheres.pov"}
-    pov.save(variants["spheres"], pov.text(scene, width, height, args.depth))
-    if mesh is not None or counts["cones"]:
-        variants["whole"] = folder / f"{name}{size}.pov"
-        pov.save(variants["whole"], pov.text(scene, width, height, args.depth, mesh))
+    variants = {"whole": folder / f"{name}{size}.pov"}
+    pov.save(variants["whole"], pov.from_nff(nff, width, height, args.depth))
     picture = folder / "povray.png"
 
     def render(path, out=None):
@@ -323,17 +319,13 @@ def povray_one(spec, folder, width, height, threads, args) -> list[dict]:
         start = time.perf_counter()
         frame = renderer.render()
         our_first = time.perf_counter() - start
-        render(variants["spheres"], picture)
+        render(variants["whole"], picture)
         theirs_image = np.asarray(Image.open(picture).convert("RGB"))
         shown = (theirs_image != np.round(np.asarray(scene.background) * 255)).any(axis=2)
         diff = np.abs(frame.image.astype(np.int16) - theirs_image.astype(np.int16))
         alike = {"silhouette_agree": float(np.mean(shown == (frame.hits >= 0))), "mean_abs_diff": float(diff.mean())}
         if args.pictures:
             side_by_side(Path(args.pictures) / f"{name}-{size}.png", frame.image, theirs_image)
-        if "whole" in variants and args.pictures:
-            render(variants["whole"], picture)
-            whole = np.asarray(Image.open(picture).convert("RGB"))
-            side_by_side(Path(args.pictures) / f"{name}-{size}-whole.png", frame.image, whole)
 
         def theirs(key):
             def run(frames):
@@ -358,22 +350,23 @@ def povray_one(spec, folder, width, height, threads, args) -> list[dict]:
         renderer.close()
     ours_median = _harness.median(times["raybench"])
     rays = frame.rays or {}
-    options = {"peer": "povray", "scene": label, "content": "spheres", "accel": "bvh", "threads": threads,
+    options = {"peer": "povray", "scene": label, "content": "whole", "accel": "bvh", "threads": threads,
                "shading": "whitted", "depth": args.depth}  # fmt: skip
     ours_values = {"build_s": build_s, "compile_s": compile_s, "first_frame_s": our_first,
                    "rays_per_frame": float(sum(rays.values())) if rays else None,
-                   "triangles_not_rendered": float(len(mesh) if mesh is not None else 0),
-                   "cones_not_rendered": float(counts["cones"])}  # fmt: skip
+                   "triangles": float(0 if scene.triangles is None else scene.triangles.shape[1]),
+                   "cones_tessellated": float(counts["cones"])}  # fmt: skip
     records = [_harness.part("frame", "cpu", times["raybench"], spheres=len(scene), width=width, height=height,
                              options=options, values=ours_values)]  # fmt: skip
     for key in variants:
         parts = {k: _harness.median([p[k] for p in own[key] if p[k] is not None] or [math.nan]) for k in own[key][0]}
-        values = {"over_raybench": _harness.median(times[key]) / ours_median,
-                  "trace_over_raybench": parts["trace_s"] * 1e3 / ours_median, **parts,
-                  "triangles": float(len(mesh) if key == "whole" and mesh is not None else 0)}  # fmt: skip
-        if key == "spheres":
-            values.update(alike)
-        their_options = {"scene": label, "content": "spheres and polygons" if key == "whole" else "spheres",
+        values = {
+            "over_raybench": _harness.median(times[key]) / ours_median,
+            "trace_over_raybench": parts["trace_s"] * 1e3 / ours_median,
+            **parts,
+            **alike,
+        }
+        their_options = {"scene": label, "content": key,
                          "threads": threads, "antialias": 0, "max_trace_level": args.depth + 1}  # fmt: skip
         records.append(_harness.part("povray-render", "cpu", times[key], spheres=len(scene), width=width,
                                      height=height, options=their_options, values=values))  # fmt: skip

@@ -10,7 +10,7 @@ from test_cli import assert_user_error, cli
 
 from raybench import Camera, Light, Material, Scene
 from raybench.errors import RaybenchError
-from raybench.formats import nff
+from raybench.formats import nff, polygons
 
 EVERY = """\
 # every entity NFF has
@@ -53,14 +53,15 @@ def test_every_entity_is_read():
                          nff.Fill((1.0, 0.9, 0.7), 0.5, 0.5, 3.0827, 0.0, 1.0)]  # fmt: skip
     assert got.sphere_fill.tolist() == [1, 1] and got.cone_fill.tolist() == [1]
     assert got.cones.tolist() == [[0, 0, 0, 1, 0, 0, 2, 0.5]]
-    # the square is a fan of two triangles, the patch one, with its own normals
+    # the square is a fan of two triangles, the patch one, with its own normals, then the cone's
     tri = got.triangles()
-    assert len(tri) == 3 and tri.fill.tolist() == [0, 0, 1]
+    segments = polygons.CONE_SEGMENTS
+    assert len(tri) == 3 + 2 * segments and tri.fill.tolist() == [0, 0, 1] + [1] * 2 * segments
     assert tri.corners[1].tolist() == [[12, 12, -0.5], [-12, -12, -0.5], [12, -12, -0.5]]
-    assert np.allclose(tri.normals[0], [0, 0, 1])  # the polygon's, from its first two edges
+    assert np.allclose(tri.normals[0], [0, 0, 1])  # the polygon's own (Newell's)
     assert tri.normals[2].tolist() == [[0, 0, 1], [0, 0.6, 0.8], [0.6, 0, 0.8]]
-    notes = got.notes()
-    assert len(notes) == 1 and "1 polygon and 1 patch and 1 cone" in notes[0] and "2 spheres" in notes[0]
+    assert tri.smooth.tolist() == [False, False] + [True] * (1 + 2 * segments)
+    assert got.notes() == []  # everything is drawn
 
 
 def test_a_cone_on_one_line_as_the_spd_writes_it():
@@ -71,6 +72,11 @@ def test_a_cone_on_one_line_as_the_spd_writes_it():
 def test_the_scene_of_an_nff():
     scene = nff.read(EVERY).scene()
     assert len(scene) == 2
+    # the polygon (flat), then the patch and the cone (smooth, one fill: one run), in the file's order
+    assert [(len(m.mesh), m.mesh.normals is not None) for m in scene.meshes] == [(2, False), (1 + 64, True)]
+    assert scene.traced().kind == "mixed" and len(scene.traced()) == 2 + 3 + 64
+    floor_colour, floor_material = nff.Fill((1.0, 0.75, 0.33), 0.8, 0.0, 100000.0, 0.0, 1.0).material()
+    assert scene.meshes[0].colour == pytest.approx(floor_colour) and scene.meshes[0].material == floor_material
     # angle is raybench's fov_deg: the full vertical field of view
     assert scene.camera == Camera((2.1, 1.3, 1.7), (0, 0, 0), (0, 0, 1), 45.0)
     assert scene.background == (0.078, 0.361, 0.753)
@@ -183,15 +189,36 @@ def test_a_malformed_line_is_named(text, line, needle):
     assert needle in message and "\n" not in message
 
 
-def test_render_an_nff_notes_what_it_does_not_draw(capsys, tmp_path):
+def test_a_scene_with_meshes_exported_reads_back_the_same():
+    """Meshes go out as polygons of three vertices (patches where they have normals) and come
+    back as the same triangles in the same order, with their colours and materials."""
+    import trimesh
+
+    from raybench import SceneMesh
+    from raybench.meshes import Mesh
+
+    ball = trimesh.creation.icosphere(subdivisions=1)
+    smooth = Mesh(ball.vertices.astype(np.float32), ball.faces.astype(np.int32),
+                  ball.vertex_normals.astype(np.float32))  # fmt: skip
+    flat = Mesh(np.array([[-5, -1, -5], [5, -1, -5], [5, -1, 5], [-5, -1, 5]], np.float32),
+                np.array([[0, 1, 2], [0, 2, 3]], np.int32))  # fmt: skip
+    glass = Material(transmit=0.9, ior=1.5)
+    scene = _scene().replaced(meshes=[SceneMesh(flat, (0.8, 0.6, 0.2)), SceneMesh(smooth, (1.0, 1.0, 1.0), glass)])
+    back = nff.read(nff.from_scene(scene).text()).scene()
+    assert np.array_equal(back.spheres, scene.spheres)
+    assert np.array_equal(back.triangles, scene.triangles)  # corners, colours and normals: the same float32 bits
+    assert back.triangle_materials == scene.triangle_materials
+
+
+def test_render_an_nff_draws_all_of_it(capsys, tmp_path):
     path = tmp_path / "every.nff"
     path.write_text(EVERY)
     code, out, err = cli(capsys, "render", "--scene", path, "--size", "40x30", "--device", "cpu", "--threads", 1,
                          "-o", tmp_path / "every.png")  # fmt: skip
     assert code == 0, err
     lines = out.splitlines()
-    assert lines[0].startswith("note: read 1 polygon and 1 patch and 1 cone, which raybench does not render yet")
-    assert "2 spheres" in lines[-1] and (tmp_path / "every.png").exists()
+    assert not any(line.startswith("note: read") for line in lines)
+    assert "2 spheres and 67 triangles" in lines[-1] and (tmp_path / "every.png").exists()
     assert ": 40x30, " in lines[-1]
     # without --size, the view's own resolution
     code, out, err = cli(capsys, "render", "--scene", path, "--device", "cpu", "--threads", 1, "-o",

@@ -72,16 +72,26 @@ def test_the_balls_floor_is_two_triangles_and_its_spheres_are_all_there():
     assert len(re.findall(r"^light_source", text, flags=re.M)) == 3
 
 
-def test_a_scene_without_polygons_has_no_mesh():
-    assert pov.mesh_of(spd.generate("balls", 1)) is not None
+def test_a_scene_without_meshes_has_no_mesh2():
     assert "mesh2" not in pov.text(three_spheres(), 64, 40)
+
+
+def test_cones_are_povrays_own_and_concave_faces_are_cut():
+    rings = pov.from_nff(spd.rings(1), 320, 200)
+    assert len(re.findall(r"^cone \{ .* open texture", rings, flags=re.M)) == 30  # as NFF: no caps
+    assert "mesh2" in rings and rings.count("mesh2") == 1  # the wall
+    gears = pov.from_nff(spd.gears(1), 320, 200)
+    # two toothed faces of 144 vertices (142 triangles each however they are cut), 144 side
+    # rectangles and the ground square
+    faces = [int(n) for n in re.findall(r"face_indices \{ (\d+), ", gears)]
+    assert sum(faces) == 2 * 142 + 144 * 2 + 2
 
 
 def test_the_command_writes_a_pov_file(capsys, tmp_path):
     nff_path, out = tmp_path / "b.nff", tmp_path / "b.pov"
     spd.balls(1).save(nff_path)
     code, stdout, _ = cli(capsys, "scene", "pov", "--scene", nff_path, "-o", out, "--size", "320x200")
-    assert code == 0 and "10 spheres and 2 triangles" in stdout and "320x200, depth 5" in stdout
+    assert code == 0 and "10 spheres, 1 polygon from" in stdout and "320x200, depth 5" in stdout
     assert "// povray +Ib.pov +W320 +H200 -A" in out.read_text()
     # no --size: the NFF's own resolution
     cli(capsys, "scene", "pov", "--scene", nff_path, "-o", out)

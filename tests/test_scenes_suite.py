@@ -9,22 +9,29 @@ from raybench.bench import scenes as real
 from raybench.bench.report.scenes_section import _section_scenes, slope, verdicts
 
 
-def test_the_quick_points_are_balls_at_small_sizes_saying_what_is_not_drawn():
+def test_the_quick_points_are_small_scenes_with_their_counts():
     points = suites.points(["scenes"], ["cpu"], quick=True, cores=2, accels=("bvh",))
-    assert [(p.options["scene"], p.spheres) for p in points] == [("balls 1", 10), ("balls 2", 91), ("balls 3", 820)]
+    assert [(p.options["scene"], p.spheres) for p in points] == [
+        ("balls 1", 10), ("balls 2", 91), ("balls 3", 820), ("tetra 3", 0), ("gears 1", 0)]  # fmt: skip
     for p in points:
         assert p.suite == "scenes" and p.device == "cpu" and (p.width, p.height) == real.QUICK_SCENES_SIZE
         assert p.options["shading"] == "whitted" and p.options["depth"] == real.SCENES_DEPTH
-        assert p.options["unrendered"] == "1 polygon"  # the floor, said, not dropped
+    by_name = {p.options["scene"]: p.options for p in points}
+    # Haines's counts (balls: the spheres and the floor) and the triangles raybench traces
+    assert (by_name["balls 3"]["primitives"], by_name["balls 3"]["triangles"]) == (821, 2)
+    assert (by_name["tetra 3"]["primitives"], by_name["tetra 3"]["triangles"]) == (64, 64)
+    # 2 faces of 144 vertices, 144 rectangles and the ground square: 2 * 142 + 144 * 2 + 2
+    assert (by_name["gears 1"]["primitives"], by_name["gears 1"]["triangles"]) == (147, 574)
 
 
 def test_the_full_points_on_every_device_asked_for():
     points = suites.points(["scenes"], ["cpu", "cuda"], cores=2, accels=("bvh",))
     on_cpu = {p.options["scene"]: p for p in points if p.device == "cpu"}
     assert {p.device for p in points} == {"cpu", "cuda"} and len(points) == 2 * len(on_cpu)
+    assert set(on_cpu) == {f"{name} {k}" for name in real.SCENES_NAMES for k in range(1, 7)}
     assert on_cpu["balls 5"].spheres == 66_430 and on_cpu["balls 6"].spheres == 597_871
-    assert on_cpu["rings 7"].options["unrendered"] == "1 polygon and 4,200 cones"
-    assert not any(name.split()[0] in real.POLYGONS_ONLY for name in on_cpu)  # no sphere to draw: no point yet
+    # 2,730 cylinders of 32 quads and the wall
+    assert on_cpu["rings 6"].options["triangles"] == 2_730 * 64 + 2
 
 
 def test_a_point_is_measured_from_its_scenes_own_view():
@@ -46,7 +53,7 @@ def test_the_growth_of_a_frame_with_the_sphere_count():
 
 def record(device, scene, spheres, ms):
     return {"suite": "scenes", "device": device, "width": 320, "height": 200, "spheres": spheres,
-            "options": {"scene": scene, "unrendered": "1 polygon"}, "frame_ms": {"median": ms},
+            "options": {"scene": scene, "primitives": spheres + 1, "triangles": 2}, "frame_ms": {"median": ms},
             "rays_per_s": 1e6}  # fmt: skip
 
 
@@ -54,18 +61,21 @@ def test_the_verdicts_give_the_growth_and_the_gpus_lead():
     records = [record("cpu", "balls 1", 10, 10.0), record("cpu", "balls 3", 1000, 100.0),
                record("cuda", "balls 1", 10, 1.0), record("cuda", "balls 3", 1000, 4.0)]  # fmt: skip
     lines = verdicts(records)
-    assert any(line.startswith("CPU: a balls frame's time grows as spheres^0.50") for line in lines)
+    assert any(line.startswith("CPU: a frame's time grows as primitives^k") and "balls ^0.51 (11 to 1,001)" in line
+               for line in lines)  # fmt: skip
     assert any("over the cpu on these scenes: median 17.5x (10.0x to 25.0x, 2 scenes)" in line for line in lines)
 
 
-def test_the_section_names_what_is_not_drawn(tmp_path):
+def test_the_section_gives_the_counts_and_names_old_records(tmp_path):
     out = []
 
     class Writer:
         def __call__(self, *lines):
             out.extend(lines)
 
-    _section_scenes(Writer(), "probe", "probe", [record("cpu", "balls 1", 10, 10.0)])
+    old = record("cpu", "balls 2", 91, 20.0)
+    old["options"] = {"scene": "balls 2", "unrendered": "1 polygon"}  # before triangles were drawn
+    _section_scenes(Writer(), "probe", "probe", [record("cpu", "balls 1", 10, 10.0), old])
     text = "\n".join(out)
-    assert "| CPU | balls 1 | 10 | 1 polygon |" in text and "tetra and gears" in text
-    assert "measured once triangles land" in text
+    assert "| CPU | balls 1 | 11 | 10 | 2 |" in text and "| CPU | balls 2 | 91 | 91 | – |" in text
+    assert "Records from before triangles were drawn (balls 2) traced the spheres alone." in text

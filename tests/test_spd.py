@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from reference import check_frame, trace
 from test_cli import assert_user_error, cli
+from test_mixed import both_reference
 
 import raybench
 from raybench.errors import RaybenchError
@@ -101,12 +102,19 @@ def test_the_phong_power_of_a_highlight_angle():
 
 def test_a_sphereflake_renders_as_the_float64_reference():
     """balls at size 2 (91 spheres) traced on the CPU, its own view at 40x30,
-    agrees with the independent float64 model pixel for pixel."""
-    scene = spd.balls(2).scene()
+    agrees with the independent float64 model pixel for pixel; and with its
+    floor, every pixel clear of an outline hits the float64 nearest of both
+    kinds."""
+    whole = spd.balls(2).scene()
+    scene = whole.replaced(meshes=())
     frame = raybench.render(scene, scene.camera, 40, 30, device="cpu")
     ref = trace(scene, scene.camera, 40, 30)
     assert (ref.hits >= 0).mean() > 0.15 and len(np.unique(ref.hits)) > 20  # not a vacuous picture
     check_frame(frame, ref, context="balls size 2")
+    frame = raybench.render(whole, whole.camera, 40, 30, device="cpu")
+    index, _t, clear, _o, _d = both_reference(whole, 40, 30)
+    assert clear.mean() > 0.9 and (index[clear] >= len(whole)).sum() > 100  # the floor is seen
+    assert np.array_equal(frame.hits.ravel()[clear], index[clear])
 
 
 def test_scene_spd_on_the_command_line(capsys, tmp_path):

@@ -29,8 +29,10 @@ A record (format "raybench-results", version 1):
                  "build": "host" | "gpu" where
                  cuda's tree is built (cuda's BVH points, when asked for; always in dynamic);
                  dynamic's points carry "motion": "orbits" (raybench.animate.Orbits);
-                 scenes' points "scene" (an SPD scene and its size factor, "balls 4") and
-                 "unrendered" (what it holds that raybench does not draw yet);
+                 scenes' points "scene" (an SPD scene and its size factor, "balls 4"),
+                 "primitives" (Haines's count: spheres, polygons, patches, cones) and
+                 "triangles" (what raybench traces for its polygons and cones; earlier
+                 records, from before triangles were drawn, have "unrendered" instead);
                  meshes' points "mesh" ("icosphere" or "random": bench/meshes.py) and
                  "triangles" (its count; spheres is 0), "shading" as secondary's, "cap_s"
     frames       how many timed frames

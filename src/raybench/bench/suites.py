@@ -419,8 +419,8 @@ def _multi_gpu(plan: Plan) -> list[Point]:
 
 
 def _scenes(plan: Plan) -> list[Point]:
-    """The SPD's sphere scenes at their size factors (bench/scenes.py), each saying what it holds
-    and raybench does not draw yet."""
+    """The SPD's scenes at their size factors (bench/scenes.py), each with Haines's count of its
+    primitives and the triangles raybench traces for its polygons and cones."""
     sizes = scenes.QUICK_SCENES_SIZES if plan.quick else scenes.SCENES_SIZES
     w, h = scenes.QUICK_SCENES_SIZE if plan.quick else scenes.SCENES_SIZE
     out = []
@@ -429,9 +429,8 @@ def _scenes(plan: Plan) -> list[Point]:
             for size in factors:
                 name = f"{kind} {size}"
                 options = {**way, "scene": name, "shading": "whitted", "depth": scenes.SCENES_DEPTH,
-                           "shadow_samples": 1}  # fmt: skip
-                if scenes.unrendered(name):
-                    options["unrendered"] = scenes.unrendered(name)
+                           "shadow_samples": 1, "primitives": scenes.primitives(name),
+                           "triangles": scenes.triangles(name)}  # fmt: skip
                 out.append(Point("scenes", device, w, h, scenes.nff(name).counts()["spheres"], options))
     return out
 

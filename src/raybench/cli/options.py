@@ -131,8 +131,8 @@ class MoleculeArgs:
 
 
 def _scene_file(scene_file, molecule: MoleculeArgs):
-    """The Scene of a file by its suffix; an NFF's primitives that are read
-    but not rendered (polygons, patches, cones) are told in a note line."""
+    """The Scene of a file by its suffix; what an NFF draws other than it
+    says (a sphere of negative radius) is told in a note line."""
     from .. import formats
     from ..scene import Scene
 
@@ -187,8 +187,9 @@ def shading_notes(scene, shaded: dict) -> list[str]:
             '(add "lights" to the scene file, or use --spheres N --materials)'
         )
     elif not bounces:
+        kind = "sphere or triangle" if traced.kind == "mixed" else traced.kind
         notes.append(
-            f"note: --shading whitted: no {traced.kind} has a mirror or glass material, so there are no bounces: "
+            f"note: --shading whitted: no {kind} has a mirror or glass material, so there are no bounces: "
             "each light's diffuse light, highlights and shadows only"
         )
     if shaded.get("depth") is not None and not bounces:

@@ -89,8 +89,8 @@ def nff_cmd(scene_file, resolution, output):
 def pov_cmd(scene_file, size, depth, output):
     """A raybench scene as a POV-Ray 3.7 scene: the picture raybench's
     Whitted shading renders at --size, for `povray +W.. +H.. -A
-    File_Gamma=1.0` (the file's first lines give the command). An NFF's
-    polygons and patches are written as triangles."""
+    File_Gamma=1.0` (the file's first lines give the command). Meshes are
+    written as mesh2 triangles, an NFF's cones as POV-Ray's own cones."""
     from .. import formats
     from ..errors import RaybenchError
     from ..formats import pov
@@ -103,14 +103,14 @@ def pov_cmd(scene_file, size, depth, output):
     check_output(output, "-o", ".pov")
     check_depth(depth)
     width, height = frame_size(SceneArgs(scene_file, None, None, False), size)
-    mesh = None
     if formats.kind(scene_file) == "nff" and Path(scene_file).exists():
         from ..formats import nff
 
         read = nff.load(scene_file)
-        scene, mesh = read.scene(), pov.mesh_of(read)
+        pov.save(output, pov.from_nff(read, width, height, depth, name=output.name))
+        held = ", ".join(nff.counted(n, kind) for kind, n in read.counts().items() if n)
     else:
         scene = load_scene(scene_file, None, None)
-    pov.save(output, pov.text(scene, width, height, depth, mesh, name=output.name))
-    triangles = f" and {len(mesh):,} triangles" if mesh is not None else ""
-    echo(f"wrote {output}: {len(scene):,} spheres{triangles} from {scene_file}, for {width}x{height}, depth {depth}")
+        pov.save(output, pov.text(scene, width, height, depth, name=output.name))
+        held = scene.summary
+    echo(f"wrote {output}: {held} from {scene_file}, for {width}x{height}, depth {depth}")

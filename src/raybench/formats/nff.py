@@ -8,11 +8,10 @@ light), `f` (the fill: colour and shading of what follows), `s` (a sphere),
 (a cone or cylinder, two lines), and `#` comments.
 
 read(text) / load(path) give an NFF: every entity as the file gives it.
-NFF.scene() is the raybench Scene of its spheres, lights, camera and
+NFF.scene() is the raybench Scene of its spheres, polygons, patches and
+cones (the last three as triangles, formats.polygons), lights, camera and
 background, with the fills mapped to raybench's materials
-(docs/reference/nff.md gives the mapping and the reading of `angle`);
-NFF.triangles() its polygons and patches as fans of triangles, kept beside
-the Scene, which holds spheres only; its cones are kept and counted.
+(docs/reference/nff.md gives the mapping and the reading of `angle`).
 from_scene(scene) and NFF.text() write one. A malformed file is one
 RaybenchError naming the file and the line.
 """
@@ -120,21 +119,6 @@ class Polygon:
     fill: int
 
 
-@dataclass(frozen=True)
-class Triangles:
-    """Polygons and patches as fans of triangles (0, i, i + 1): corners
-    (F, 3, 3) and normals (F, 3, 3) float64, a triangle's three corners and
-    their normals (a patch's own; a polygon's, the normal of its first two
-    edges); fill (F,) int32, the index of each triangle's fill."""
-
-    corners: np.ndarray
-    normals: np.ndarray
-    fill: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.corners)
-
-
 @dataclass
 class NFF:
     """Everything an NFF file holds, as it holds it: spheres (N, 4) x, y, z,
@@ -162,63 +146,45 @@ class NFF:
                 "cones": len(self.cones)}  # fmt: skip
 
     def scene(self) -> Scene:
-        """The raybench Scene of the spheres, lights, camera and background
-        (the fills mapped by Fill.material; a file without `v` gets a camera
-        fitted to its spheres). Lights have no intensity in NFF: each gets
-        Haines's relative intensity sqrt(L) / (2 L) for L lights, and the
-        ambient light the same grey (the SPD's README, "Since the SPD
-        package is designed to test efficiency")."""
-        mapped = [f.material() for f in (self.fills or [WHITE])]
-        table = np.array([c for c, _ in mapped], np.float64).reshape(-1, 3)
+        """The raybench Scene: its spheres, and its polygons, patches and
+        cones as meshes of triangles (polygons.meshes), with the lights,
+        camera and background, the fills mapped by Fill.material; a file
+        without `v` gets a camera fitted to everything in it. Lights have no
+        intensity in NFF: each gets Haines's relative intensity
+        sqrt(L) / (2 L) for L lights, and the ambient light the same grey
+        (the SPD's README, "Since the SPD package is designed to test
+        efficiency")."""
+        from . import polygons
+
+        looks = [f.material() for f in (self.fills or [WHITE])]
+        table = np.array([c for c, _ in looks], np.float64).reshape(-1, 3)
         which = self.sphere_fill
         colours = table[which] if len(which) else np.zeros((0, 3))
-        materials = [mapped[i][1] for i in which.tolist()]
+        materials = [looks[i][1] for i in which.tolist()]
+        meshes = polygons.meshes(self, looks)
         share = relative_intensity(len(self.lights))
         lights = [_light(position, rgb, share) for position, rgb in self.lights]
         camera = self.view.camera() if self.view is not None else None
-        if camera is None and len(self.spheres):
+        if camera is None and (len(self.spheres) or meshes):
             from . import fit_camera
 
-            camera = fit_camera(self.spheres[:, :3], np.abs(self.spheres[:, 3]))
+            corners = [m.mesh.vertices for m in meshes]
+            centers = np.concatenate([self.spheres[:, :3], *corners])
+            radii = np.concatenate([np.abs(self.spheres[:, 3]), np.zeros(sum(map(len, corners)))])
+            camera = fit_camera(centers, radii)
         background = (0.0, 0.0, 0.0) if self.background is None else self.background  # NFF's default
         return Scene(self.spheres[:, :3], np.abs(self.spheres[:, 3]), colours, camera, materials=materials,
-                     lights=lights, ambient=(share,) * 3, background=background)  # fmt: skip
+                     lights=lights, ambient=(share,) * 3, background=background, meshes=meshes)  # fmt: skip
 
-    def triangles(self) -> Triangles:
-        """The polygons and patches, each a fan of triangles."""
-        corners, normals, fills = [], [], []
-        for poly in self.polygons:
-            v = poly.vertices
-            n = len(v) - 2
-            if n < 1:
-                continue
-            fan = np.stack([np.repeat(v[:1], n, 0), v[1:-1], v[2:]], axis=1)
-            if poly.normals is not None:
-                m = poly.normals
-                norms = np.stack([np.repeat(m[:1], n, 0), m[1:-1], m[2:]], axis=1)
-            else:
-                face = np.cross(v[1] - v[0], v[2] - v[1])
-                length = np.linalg.norm(face)
-                face = face / length if length > 0 else face
-                norms = np.broadcast_to(face, (n, 3, 3))
-            corners.append(fan)
-            normals.append(norms)
-            fills.append(np.full(n, poly.fill, np.int32))
-        if not corners:
-            return Triangles(np.zeros((0, 3, 3)), np.zeros((0, 3, 3)), np.zeros(0, np.int32))
-        return Triangles(np.concatenate(corners), np.concatenate(normals), np.concatenate(fills))
+    def triangles(self):
+        """The polygons' and patches' fans of triangles, then the cones' (polygons.triangles)."""
+        from . import polygons
+
+        return polygons.triangles(self)
 
     def notes(self) -> list[str]:
-        """One line for what raybench reads but does not render yet (the
-        Scene holds spheres only), each with its count; [] where nothing."""
-        c = self.counts()
+        """One line for what raybench draws other than the file says, [] where nothing."""
         notes = []
-        unrendered = [counted(c[k], k) for k in ("polygons", "patches", "cones") if c[k]]
-        if unrendered:
-            notes.append(
-                f"note: read {' and '.join(unrendered)}, which raybench does not render yet; "
-                f"the picture shows the {c['spheres']:,} spheres"
-            )
         if self.inside_out:
             notes.append(
                 f"note: {self.inside_out:,} spheres have a negative radius (NFF: only the inside is visible); "
@@ -320,8 +286,9 @@ def _nums(values) -> str:
 
 
 def from_scene(scene: Scene, resolution=SPD_RESOLUTION) -> NFF:
-    """The NFF of a raybench sphere Scene: camera (a fitted one where the
-    scene has none), background (black for the thesis's gradient, which NFF
+    """The NFF of a raybench Scene: its spheres, each mesh's triangles as
+    polygons of three vertices (patches, `pp`, where the mesh has vertex
+    normals), camera (a fitted one where the scene has none), background (black for the thesis's gradient, which NFF
     cannot say), lights (colour times intensity over Haines's relative
     intensity, so that reading it back gives the same light; an area light's
     radius is dropped), a fill per distinct (colour, material) by Fill.of."""
@@ -329,7 +296,10 @@ def from_scene(scene: Scene, resolution=SPD_RESOLUTION) -> NFF:
 
     camera = scene.camera
     if camera is None:
-        camera = fit_camera(scene.centers.astype(np.float64), scene.radii.astype(np.float64))
+        corners = [m.mesh.vertices.astype(np.float64) for m in scene.meshes]
+        centers = np.concatenate([scene.centers.astype(np.float64), *corners])
+        radii = np.concatenate([scene.radii.astype(np.float64), np.zeros(len(centers) - len(scene))])
+        camera = fit_camera(centers, radii) if len(centers) else Camera()
     view = View(camera.position, camera.look_at, camera.up, camera.fov_deg, 1.0, tuple(resolution))
     share = relative_intensity(len(scene.lights))
     lights = [(light.position, tuple(c * light.intensity / share for c in light.color)) for light in scene.lights]
@@ -343,8 +313,19 @@ def from_scene(scene: Scene, resolution=SPD_RESOLUTION) -> NFF:
             fills.append(Fill.of(colour, material))
         which[i] = index[key]
     spheres = np.concatenate([scene.centers, scene.radii[:, None]], axis=1).astype(np.float64)
+    polygons = []
+    for placed in scene.meshes:
+        key = (tuple(placed.colour), placed.material)
+        if key not in index:
+            index[key] = len(fills)
+            fills.append(Fill.of(*key))
+        mesh = placed.mesh
+        corners = mesh.vertices[mesh.faces].astype(np.float64)
+        normals = None if mesh.normals is None else mesh.normals[mesh.faces].astype(np.float64)
+        for k in range(len(corners)):
+            polygons.append(Polygon(corners[k], None if normals is None else normals[k], index[key]))
     return NFF(view=view, background=scene.background or (0.0, 0.0, 0.0), lights=lights, fills=fills,
-               spheres=spheres, sphere_fill=which)  # fmt: skip
+               spheres=spheres, sphere_fill=which, polygons=polygons)  # fmt: skip
 
 
 def load(path) -> NFF:

@@ -1,9 +1,9 @@
 """POV-Ray 3.7 scene files of raybench scenes: the same picture from POV-Ray,
 for timing it beside raybench (benchmarks/peers.py) and for comparing the two.
 
-text(scene, width, height, depth, mesh) writes the spheres, an NFF's
-polygons as triangles (one mesh2 a fill), the lights, the materials, the
-background and the camera, so that
+text(scene, width, height, depth) writes the spheres, the meshes (one
+mesh2 each), the lights, the materials, the background and the camera;
+from_nff(nff, ...) an NFF's scene, its cones as POV-Ray's own; so that
 
     povray +Iscene.pov +W1680 +H1050 -A +WT2 File_Gamma=1.0
 
@@ -37,7 +37,7 @@ the file gives the command. How each part is said (docs/reference/pov.md):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import replace
 
 import numpy as np
 
@@ -48,34 +48,6 @@ from ..scene import Scene
 
 # raybench's budget of light a pixel may drop (kernels/whitted.py's CUTOFF).
 BAILOUT = 0.5 / 255.0
-
-
-@dataclass(frozen=True)
-class Mesh:
-    """Triangles beside the spheres: corners (F, 3, 3); normals (F, 3, 3) at
-    the corners, or None for flat ones; looks, each (colour, Material); which
-    (F,), each triangle's look."""
-
-    corners: np.ndarray
-    normals: np.ndarray | None
-    looks: list
-    which: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.corners)
-
-
-def mesh_of(nff) -> Mesh | None:
-    """An NFF's polygons and patches as a Mesh (their fills mapped as the
-    spheres' are, Fill.material), or None where it has none."""
-    triangles = nff.triangles()
-    if not len(triangles):
-        return None
-    from .nff import WHITE
-
-    looks = [f.material() for f in (nff.fills or [WHITE])]
-    smooth = any(p.normals is not None for p in nff.polygons)
-    return Mesh(triangles.corners, triangles.normals if smooth else None, looks, triangles.fill)
 
 
 def horizontal_angle(fov_deg: float, width: int, height: int) -> float:
@@ -126,11 +98,12 @@ def _looks(scene: Scene) -> tuple[list, np.ndarray]:
     return keys, which
 
 
-def text(scene: Scene, width: int, height: int, depth: int = lighting.DEFAULT_DEPTH, mesh: Mesh | None = None,
+def text(scene: Scene, width: int, height: int, depth: int = lighting.DEFAULT_DEPTH, cones=None,
          camera: Camera | None = None, name: str = "FILE.pov") -> str:  # fmt: skip
-    """The .pov text of scene (its spheres, and mesh's triangles) seen by camera (default the
-    scene's, else Camera()) at width x height, Whitted shading to depth bounces; name: the
-    file's, in the command its first lines give."""
+    """The .pov text of scene (its spheres and meshes; cones, an NFF's, as
+    POV-Ray's own cones) seen by camera (default the scene's, else Camera())
+    at width x height, Whitted shading to depth bounces; name: the file's,
+    in the command its first lines give."""
     depth = lighting.check_depth(depth)
     camera = camera or scene.camera or Camera()
     out = [
@@ -157,34 +130,46 @@ def text(scene: Scene, width: int, height: int, depth: int = lighting.DEFAULT_DE
         out.append(f"#declare T{k} = {_texture(colour, material, scene.ambient)}")
     centres, radii = scene.centers, scene.radii
     out += [f"sphere {{ {_v(c)}, {_n(r)} texture {{ T{k} }} }}" for c, r, k in zip(centres, radii, which.tolist())]
-    if mesh is not None and len(mesh):
+    for mesh in scene.meshes:
         out += _mesh2(mesh, scene.ambient)
+    if cones is not None:
+        out += _cones(*cones, scene.ambient)
     return "\n".join(out) + "\n"
 
 
-def _mesh2(mesh: Mesh, ambient) -> list[str]:
-    """One mesh2 a look: its triangles' corners (and normals), each triangle its own three."""
-    out = []
-    for look in np.unique(mesh.which).tolist():
-        pick = mesh.which == look
-        corners = mesh.corners[pick].reshape(-1, 3)
-        f = len(corners) // 3
-        out.append("mesh2 {")
-        out.append(f"  vertex_vectors {{ {len(corners)}, " + ", ".join(_v(c) for c in corners) + " }")
-        if mesh.normals is not None:
-            normals = mesh.normals[pick].reshape(-1, 3)
-            out.append(f"  normal_vectors {{ {len(normals)}, " + ", ".join(_v(n) for n in normals) + " }")
-        faces = ", ".join(f"<{3 * i}, {3 * i + 1}, {3 * i + 2}>" for i in range(f))
-        out.append(f"  face_indices {{ {f}, {faces} }}")
-        colour, material = mesh.looks[look]
-        out.append(f"  {_texture(colour, material, ambient)}")
-        out.append("}")
+def _mesh2(placed, ambient) -> list[str]:
+    """A scene's mesh (scene_meshes.SceneMesh) as one mesh2, with its normals where it has them."""
+    mesh = placed.mesh
+    out = ["mesh2 {", f"  vertex_vectors {{ {len(mesh.vertices)}, " + ", ".join(map(_v, mesh.vertices)) + " }"]
+    if mesh.normals is not None:
+        out.append(f"  normal_vectors {{ {len(mesh.normals)}, " + ", ".join(map(_v, mesh.normals)) + " }")
+    faces = ", ".join(f"<{a}, {b}, {c}>" for a, b, c in mesh.faces.tolist())
+    out.append(f"  face_indices {{ {len(mesh.faces)}, {faces} }}")
+    out.append(f"  {_texture(placed.colour, placed.material, ambient)}")
+    out.append("}")
     return out
 
 
-def from_nff(nff, width: int, height: int, depth: int = lighting.DEFAULT_DEPTH) -> str:
-    """The .pov text of an NFF: its scene (Scene: spheres, lights, view, fills) and its polygons."""
-    return text(nff.scene(), width, height, depth, mesh_of(nff))
+def _cones(rows, looks, ambient) -> list[str]:
+    """NFF's cones (K, 8 rows: base, its radius, apex, its radius) as POV-Ray's
+    open cones (no caps, as NFF's), each with its (colour, Material)."""
+    out = []
+    for r, (colour, material) in zip(np.asarray(rows, np.float64).tolist(), looks):
+        out.append(f"cone {{ {_v(r[:3])}, {_n(abs(r[3]))}, {_v(r[4:7])}, {_n(abs(r[7]))} open "
+                   f"{_texture(colour, material, ambient)} }}")  # fmt: skip
+    return out
+
+
+def from_nff(nff, width: int, height: int, depth: int = lighting.DEFAULT_DEPTH, name: str = "FILE.pov") -> str:
+    """The .pov text of an NFF: its spheres, polygons and patches as raybench
+    draws them, and its cones as POV-Ray's own (raybench tessellates them:
+    formats.polygons), the peer's best form of the same scene."""
+    from .nff import WHITE
+
+    scene = replace(nff, cones=np.zeros((0, 8)), cone_fill=np.zeros(0, np.int32)).scene()
+    fills = [f.material() for f in (nff.fills or [WHITE])]
+    cones = (nff.cones, [fills[i] for i in nff.cone_fill.tolist()]) if len(nff.cones) else None
+    return text(scene, width, height, depth, cones, camera=scene.camera, name=name)
 
 
 def save(path, pov_text: str) -> None:

@@ -75,6 +75,7 @@ def make(jit, whitted, primary_ray, shade_hit):
     colour = whitted.colour
     shows = whitted.shows
     toward = whitted.toward
+    lifted = whitted.lifted
     glint = whitted.glint
     branches = whitted.branches
     light_samples = whitted.light_samples
@@ -164,13 +165,14 @@ def make(jit, whitted, primary_ray, shade_hit):
         if params[P_LIGHTS] > ZERO:
             if shows(i, keep, spheres, materials):
                 ar, ag, ab = colour(spheres, i)
+                sx, sy, sz = lifted(px, py, pz, nx, ny, nz)
                 red = wr * (keep * (params[P_AMBIENT] * ar))
                 green = wg * (keep * (params[P_AMBIENT + 1] * ag))
                 blue = wb * (keep * (params[P_AMBIENT + 2] * ab))
                 for light in range(np.int32(params[P_LIGHTS])):
                     samples, share = light_samples(light, lights, params)
                     for s in range(samples):
-                        facing = toward(px, py, pz, nx, ny, nz, light, s, share, lights, pattern)[4]
+                        facing = toward(sx, sy, sz, nx, ny, nz, light, s, share, lights, pattern)[4]
                         if facing > ZERO:
                             n_shadows += 1
         else:
@@ -207,6 +209,7 @@ def make(jit, whitted, primary_ray, shade_hit):
         kdr, kdg, kdb = keep * kdr, keep * kdg, keep * kdb
         ks = materials[SPECULAR, i]
         shininess = materials[SHININESS, i]
+        px, py, pz = lifted(px, py, pz, nx, ny, nz)  # where shade() counted them from
         k = base
         for light in range(np.int32(params[P_LIGHTS])):
             samples, share = light_samples(light, lights, params)

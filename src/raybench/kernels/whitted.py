@@ -266,6 +266,18 @@ def make(jit, call, search, prim, shade_hit, shade_miss, shadows=per_ray, name="
     cast, blocked = shadows(jit, find, toward)
 
     @jit
+    def lifted(px, py, pz, nx, ny, nz):
+        """Where a hit's shadow rays start: the hit point moved OFFSET of
+        its magnitude along the unit normal on the viewer's side, the side
+        every lit sample is on. Skipping the primitive a ray leaves is not
+        enough for triangles: a neighbour in (or nearly in) the same plane,
+        across an edge the hit point lies within rounding of, would
+        otherwise block the ray at t ~ 0 (a dark line along a floor's
+        diagonal)."""
+        offset = OFFSET * (abs(px) + abs(py) + abs(pz))
+        return px + offset * nx, py + offset * ny, pz + offset * nz
+
+    @jit
     def glint(ks, shininess, facing, nx, ny, nz, vx, vy, vz, lx, ly, lz):
         """Phong's highlight of one light sample: the light's mirror direction
         against the viewer's."""
@@ -283,6 +295,7 @@ def make(jit, call, search, prim, shade_hit, shade_miss, shadows=per_ray, name="
         number of shadow rays cast. (nx, ny, nz): the unit normal on the
         viewer's side; (vx, vy, vz): the unit direction towards the viewer."""
         kr, kg, kb = colour(spheres, i)
+        px, py, pz = lifted(px, py, pz, nx, ny, nz)
         dr = params[P_AMBIENT] * kr
         dg = params[P_AMBIENT + 1] * kg
         db = params[P_AMBIENT + 2] * kb
@@ -401,6 +414,7 @@ def make(jit, call, search, prim, shade_hit, shade_miss, shadows=per_ray, name="
         shows=shows,
         light_samples=light_samples,
         toward=toward,
+        lifted=lifted,
         glint=glint,
         branches=branches,
     )

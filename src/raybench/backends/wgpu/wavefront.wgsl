@@ -293,7 +293,7 @@ fn main_wf_shade(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocat
                             let samples = samples_of(light);
                             let share = 1.0 / f32(samples);
                             for (var k = 0u; k < samples; k = k + 1u) {
-                                if (toward(hit.p, hit.n, light, k, share).facing > 0.0) {
+                                if (toward(lifted(hit.p, hit.n), hit.n, light, k, share).facing > 0.0) {
                                     n_shadows = n_shadows + 1u;
                                 }
                             }
@@ -316,7 +316,7 @@ fn main_wf_shade(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocat
             let s = spheres[h];
             let m = materials[h];
             let kd = keep * vec3<f32>(s.red, s.green, s.blue);
-            let p = hit.p;
+            let p = lifted(hit.p, hit.n);
             let nrm = hit.n;
             let v = -ray.d;
             var k = first_shadow;

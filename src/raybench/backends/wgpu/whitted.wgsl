@@ -94,6 +94,13 @@ fn toward(p: vec3<f32>, n: vec3<f32>, light: u32, s: u32, share: f32) -> Toward 
     return Toward(vec3<f32>(lx, ly, lz), dist, facing, c);
 }
 
+// whitted.lifted: where a hit's shadow rays start, OFFSET of its magnitude
+// along the normal on the viewer's side (a coplanar neighbour triangle would
+// block them at t ~ 0 otherwise).
+fn lifted(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    return p + (OFFSET * (abs(p.x) + abs(p.y) + abs(p.z))) * n;
+}
+
 // whitted.glint: Phong's highlight of one light sample.
 fn glint(ks: f32, shininess: f32, facing: f32, n: vec3<f32>, v: vec3<f32>, l: vec3<f32>) -> f32 {
     if (ks > 0.0) {
@@ -105,7 +112,8 @@ fn glint(ks: f32, shininess: f32, facing: f32, n: vec3<f32>, v: vec3<f32>, l: ve
     return 0.0;
 }
 
-fn local_light(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, i: i32, inside: bool) -> Local {
+fn local_light(hit_p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, i: i32, inside: bool) -> Local {
+    let p = lifted(hit_p, n);
     let s = spheres[i];
     var dr = lighting.ambient.x * s.red;
     var dg = lighting.ambient.y * s.green;

@@ -1,13 +1,13 @@
 """report.md's section of the scenes suite (bench/scenes.py): each SPD scene's frames by device,
-and its verdicts: how a frame's cost grows with the sphere count on a structured scene, and
-what a GPU buys there."""
+and its verdicts: how a frame's cost grows with the primitive count on each structured scene,
+and what a GPU buys there."""
 
 from __future__ import annotations
 
 import math
 import statistics
 
-from ..scenes import POLYGONS_ONLY, SCENES_DEPTH
+from ..scenes import SCENES_DEPTH
 from .markdown_blocks import _table, _Writer, escape
 from .numbers import fmt_ms, fmt_num, fmt_x
 from .series import DEVICE_NAMES
@@ -16,7 +16,7 @@ GPUS = ("cuda", "wgpu")
 
 
 def slope(points: list[tuple[int, float]]) -> float | None:
-    """The least-squares slope of log(ms) against log(spheres): the power of the sphere count
+    """The least-squares slope of log(ms) against log(count): the power of the primitive count
     a frame's time grows as (1: linear, 0: flat); None under two counts."""
     points = [(n, ms) for n, ms in points if n > 0 and ms > 0]
     if len({n for n, _ in points}) < 2:
@@ -27,23 +27,33 @@ def slope(points: list[tuple[int, float]]) -> float | None:
     return sum((x - mx) * (y - my) for x, y in zip(xs, ys)) / sum((x - mx) ** 2 for x in xs)
 
 
+def primitives(r: dict) -> int:
+    """A record's primitive count as Haines counts them; a record from before triangles were
+    drawn traced its spheres only, and counts those."""
+    return r["options"].get("primitives", r["spheres"])
+
+
 def _section_scenes(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
     measured = [r for r in records if r["suite"] == "scenes" and "frame_ms" in r]
     if not measured:
         return
-    measured.sort(key=lambda r: (r["device"], r["options"]["scene"].split()[0], r["spheres"]))
+    measured.sort(key=lambda r: (r["device"], r["options"]["scene"].split()[0], primitives(r)))
     w(f"### {escape(label)}: real scenes", "")
     w(
         f"Haines's Standard Procedural Databases at their size factors, each with its own view, lights and fills, "
-        f"Whitted shading to {SCENES_DEPTH} bounces, through the BVH. raybench renders spheres only until triangles "
-        f"reach its renderers: what a scene holds and is not drawn yet is listed beside it, and "
-        f"{' and '.join(POLYGONS_ONLY)}, polygons only, are measured once triangles land.",
+        f"Whitted shading to {SCENES_DEPTH} bounces, through the BVH: spheres, and the polygons, patches and cones "
+        "as triangles, in one tree. Primitives are Haines's count of the scene; triangles, what raybench traces "
+        "for its polygons and cones.",
         "",
     )
-    header = ["device", "scene", "spheres", "not drawn yet", "size", "median frame ms", "rays/s"]
+    old = sorted({r["options"]["scene"] for r in measured if r["options"].get("unrendered")})
+    if old:
+        w(f"Records from before triangles were drawn ({escape(', '.join(old))}) traced the spheres alone.", "")
+    header = ["device", "scene", "primitives", "spheres", "triangles", "size", "median frame ms", "rays/s"]
     rows = [
-        [escape(DEVICE_NAMES.get(r["device"], r["device"])), escape(r["options"]["scene"]), f"{r['spheres']:,}",
-         escape(r["options"].get("unrendered", "")), f"{r['width']}x{r['height']}", fmt_ms(r["frame_ms"]["median"]),
+        [escape(DEVICE_NAMES.get(r["device"], r["device"])), escape(r["options"]["scene"]), f"{primitives(r):,}",
+         f"{r['spheres']:,}", f"{r['options']['triangles']:,}" if "triangles" in r["options"] else "–",
+         f"{r['width']}x{r['height']}", fmt_ms(r["frame_ms"]["median"]),
          f"{fmt_num(r['rays_per_s'] / 1e6)} M" if r.get("rays_per_s") else "–"]
         for r in measured
     ]  # fmt: skip
@@ -54,18 +64,22 @@ def _section_scenes(w: _Writer, label: str, slug: str, records: list[dict]) -> N
 
 
 def verdicts(measured: list[dict]) -> list[str]:
-    """The suite's verdicts: each device's growth with the sphere count on balls (the
-    sphereflake), and each GPU's lead over the cpu on the scenes both measured."""
+    """The suite's verdicts: each device's growth with the primitive count on each scene over
+    its size factors, and each GPU's lead over the cpu on the scenes both measured."""
     out = []
     for device in sorted({r["device"] for r in measured}):
-        balls = [(r["spheres"], r["frame_ms"]["median"]) for r in measured
-                 if r["device"] == device and r["options"]["scene"].startswith("balls ")]  # fmt: skip
-        k = slope(balls)
-        if k is not None:
-            name = DEVICE_NAMES.get(device, device)
+        growth = []
+        for kind in sorted({r["options"]["scene"].split()[0] for r in measured if r["device"] == device}):
+            points = [(primitives(r), r["frame_ms"]["median"]) for r in measured
+                      if r["device"] == device and r["options"]["scene"].split()[0] == kind]  # fmt: skip
+            k = slope(points)
+            if k is not None:
+                growth.append(f"{escape(kind)} ^{k:.2f} ({min(points)[0]:,} to {max(points)[0]:,})")
+        if growth:
+            name = escape(DEVICE_NAMES.get(device, device))
             out.append(
-                f"{escape(name)}: a balls frame's time grows as spheres^{k:.2f} from {min(balls)[0]:,} to "
-                f"{max(balls)[0]:,} spheres (brute force's: spheres^1)"
+                f"{name}: a frame's time grows as primitives^k over each scene's size factors: {'; '.join(growth)} "
+                "(brute force's: ^1)"
             )
     cpu = {(r["options"]["scene"], r["width"], r["height"]): r["frame_ms"]["median"] for r in measured
            if r["device"] == "cpu"}  # fmt: skip
