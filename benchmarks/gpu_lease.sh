@@ -41,6 +41,11 @@
 #            cpu and wgpu (DYNAMIC_ARGS to change)
 #   meshes   the meshes suite: an icosphere and random triangles, 10 thousand to 10 million, primary
 #            and Whitted rays, cuda, cpu and wgpu (MESHES_ARGS to change, e.g. one device a lease)
+#   scenes   the scenes suite: the SPD's scenes at size factors 1 to 6, Whitted, cuda, wgpu and cpu
+#            (SCENES_ARGS to change, e.g. one device a lease; SCENES_S its limit, 500 s)
+#   povray   benchmarks/peers.py povray: POV-Ray 3.7 on the host's cores against raybench on each of
+#            POVRAY_DEVICES (cpu cuda), the same SPD scenes; needs .pov (benchmarks/lease_wheels.sh
+#            --povray); records in povray-DEVICE.jsonl (POVRAY_ARGS to change the scenes and frames)
 #   startup  benchmarks/startup.py: the time to the first picture, cold and warm, each version of
 #            BASELINE (with its commit, BASELINE_COMMITS in the same order) then this one, on the
 #            cores STARTUP_CPUS (taskset -c; e.g. 0,1 for two) where set (STARTUP_ARGS to change)
@@ -150,6 +155,19 @@ for s in $STEPS; do
     tuning) bench tuning "${TUNING_S:-50}" --suite tuning --accel bvh --device cuda ;;
     # shellcheck disable=SC2086
     meshes) bench meshes "${MESHES_S:-480}" ${MESHES_ARGS:---suite meshes --device cuda --device cpu --device wgpu} ;;
+    # shellcheck disable=SC2086
+    scenes) bench scenes "${SCENES_S:-500}" ${SCENES_ARGS:---suite scenes --device cuda --device wgpu --device cpu} ;;
+    povray)
+        # POV-Ray 3.7 carried as .pov/povray.tar.xz (benchmarks/lease_wheels.sh --povray), its libraries
+        # seen by it alone (a wrapper): Python's own must stay the machine's
+        mkdir -p /tmp/pov/wrap && tar -C /tmp/pov -xJf .pov/povray.tar.xz &&
+            printf '#!/bin/sh\nLD_LIBRARY_PATH=/tmp/pov/lib exec /tmp/pov/bin/povray "$@"\n' > /tmp/pov/wrap/povray &&
+            chmod +x /tmp/pov/wrap/povray
+        for device in ${POVRAY_DEVICES:-cpu cuda}; do
+            # shellcheck disable=SC2086
+            step "povray-$device" "${POVRAY_S:-300}" env PATH="/tmp/pov/wrap:$PATH" python3 benchmarks/peers.py povray \
+                --device "$device" --out "$W/povray-$device.jsonl" ${POVRAY_ARGS:---scenes balls:4 balls:5 --frames 3 --rounds 2}
+        done ;;
     walks)
         for round in 1 2; do
             # shellcheck disable=SC2086

@@ -313,7 +313,9 @@ def povray_one(spec, folder, width, height, threads, args) -> list[dict]:
         return elapsed, povray_times(done.stderr)
 
     own = {key: [] for key in variants}
-    renderer = Renderer(scene, width, height, device="cpu", shading="whitted", depth=args.depth, threads=threads)
+    own_threads = threads if args.device == "cpu" else None  # POV-Ray's threads either way
+    renderer = Renderer(scene, width, height, device=args.device, shading="whitted", depth=args.depth,
+                        threads=own_threads)  # fmt: skip
     try:
         compile_s = renderer.compile()
         start = time.perf_counter()
@@ -350,13 +352,13 @@ def povray_one(spec, folder, width, height, threads, args) -> list[dict]:
         renderer.close()
     ours_median = _harness.median(times["raybench"])
     rays = frame.rays or {}
-    options = {"peer": "povray", "scene": label, "content": "whole", "accel": "bvh", "threads": threads,
-               "shading": "whitted", "depth": args.depth}  # fmt: skip
+    options = {"peer": "povray", "scene": label, "content": "whole", "accel": "bvh", "shading": "whitted",
+               "depth": args.depth, **({"threads": threads} if args.device == "cpu" else {})}  # fmt: skip
     ours_values = {"build_s": build_s, "compile_s": compile_s, "first_frame_s": our_first,
                    "rays_per_frame": float(sum(rays.values())) if rays else None,
                    "triangles": float(0 if scene.triangles is None else scene.triangles.shape[1]),
                    "cones_tessellated": float(counts["cones"])}  # fmt: skip
-    records = [_harness.part("frame", "cpu", times["raybench"], spheres=len(scene), width=width, height=height,
+    records = [_harness.part("frame", args.device, times["raybench"], spheres=len(scene), width=width, height=height,
                              options=options, values=ours_values)]  # fmt: skip
     for key in variants:
         parts = {k: _harness.median([p[k] for p in own[key] if p[k] is not None] or [math.nan]) for k in own[key][0]}
@@ -417,6 +419,8 @@ def main():
     povray.add_argument("--size", default="1680x1050")
     povray.add_argument("--depth", type=int, default=5, help="Whitted's bounces (POV-Ray's max_trace_level - 1)")
     povray.add_argument("--threads", type=int, help="raybench's threads and POV-Ray's +WT (default: every core)")
+    povray.add_argument("--device", choices=["cpu", "cuda", "wgpu"], default="cpu",
+                        help="raybench's device (default cpu); POV-Ray runs on the host's cores")  # fmt: skip
     povray.add_argument("--settle", type=float, default=0.3, help="seconds idle before each side's turn")
     povray.add_argument("--pictures", help="a folder for each scene's two pictures side by side (PNG)")
     common(povray, frames=1, rounds=5)

@@ -20,8 +20,9 @@ The camera orbits (camera_path.orbit: the viewer's home camera about the middle 
 a full turn over a point's frames, --orbit to change), so that every frame is new work, as a
 user turning the view makes it; --animate also moves the spheres as `raybench view --animate`
 does (the tree refit or rebuilt each frame). The scene is the issue's: random_spheres(n,
-materials=True), lit by its area light; Whitted's depth and shadow samples are the viewer's
-defaults unless given.
+materials=True), lit by its area light; or with --spd one of Haines's scenes (balls:5) with its
+own view, lights and fills, orbited about the middle of its spheres; Whitted's depth and shadow
+samples are the viewer's defaults unless given.
 
 One record of the results schema's "parts" suite (quantity "viewer-frame") per (device,
 spheres, shading): time_ms is the time between frames shown after the warm-up; values
@@ -99,8 +100,20 @@ def orbit(state: ViewerState, frames: int) -> list[Camera]:
     return camera_path.orbit(about, frames)
 
 
-def measure(gpu, device, spheres, width, height, shading, frames, warmup, turn, depth, samples, animate) -> Measured:
-    scene = raybench.random_spheres(spheres, seed=0, materials=True)
+def scene_of(what):
+    """(scene, its name or None): an int is random_spheres(n, materials=True), the issue's; "NAME:SIZE"
+    one of Haines's SPD scenes (raybench.formats.spd) with its own view, lights and fills."""
+    if isinstance(what, int):
+        return raybench.random_spheres(what, seed=0, materials=True), None
+    from raybench.formats import spd
+
+    name, _, size = what.partition(":")
+    return spd.generate(name, int(size) if size else None).scene(), f"{name} {size or spd.SCENES[name][1]}"
+
+
+def measure(gpu, device, what, width, height, shading, frames, warmup, turn, depth, samples, animate) -> Measured:
+    scene, named = scene_of(what)
+    spheres = len(scene)
     options = {"wgpu": {"adapter": gpu.named}} if gpu.named else {}
     state = ViewerState(
         scene,
@@ -152,7 +165,7 @@ def measure(gpu, device, spheres, width, height, shading, frames, warmup, turn, 
     wall = end - since
     draw_ms = [ms for before, ms in draws if before >= warmup]
     rays = [t.rays_cast for _, t in timed]
-    used = {"shading": shading}
+    used = {"shading": shading, **({"scene": named} if named else {})}
     request = timed[-1][1].request
     if request.shading is not None:
         used.update(depth=request.shading.depth, shadow_samples=request.shading.shadow_samples)
@@ -194,6 +207,9 @@ def main(argv=None, seen: list | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--device", action="append", choices=["cpu", "cuda", "wgpu"], help="repeat for more")
     parser.add_argument("--spheres", action="append", type=int, help="repeat for more (default 1000 and 10000)")
+    parser.add_argument("--spd", action="append", default=[],
+                        help="an SPD scene NAME:SIZE (e.g. balls:5), its own view and lights, instead of random "
+                        "spheres; repeat for more")  # fmt: skip
     parser.add_argument("--size", default=VIEWER_SIZE, help=f"the window's size (default {VIEWER_SIZE}, the viewer's)")
     parser.add_argument("--shading", action="append", choices=["whitted", "thesis"], help="repeat for both")
     parser.add_argument("--depth", type=int, help="whitted: bounces (default: the viewer's)")
@@ -229,7 +245,7 @@ def main(argv=None, seen: list | None = None) -> int:
         for _ in range(args.rounds):
             for shading in args.shading or ["whitted"]:
                 for device in args.device or ["cuda", "wgpu"]:
-                    for n in args.spheres or [1000, 10_000]:
+                    for n in args.spd or args.spheres or [1000, 10_000]:
                         try:
                             got = measure(
                                 gpu, device, n, width, height, shading, args.frames, args.warmup, args.orbit,
