@@ -185,6 +185,7 @@ def side_by_side(path: Path, left: np.ndarray, right: np.ndarray) -> None:
     out = Image.new("RGB", (halves[0].width * 2, halves[0].height))
     out.paste(halves[0], (0, 0))
     out.paste(halves[1], (halves[0].width, 0))
+    path.parent.mkdir(parents=True, exist_ok=True)
     out.save(path)
 
 
