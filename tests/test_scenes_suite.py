@@ -30,8 +30,8 @@ def test_the_full_points_on_every_device_asked_for():
     assert {p.device for p in points} == {"cpu", "cuda"} and len(points) == 2 * len(on_cpu)
     assert set(on_cpu) == {f"{name} {k}" for name in real.SCENES_NAMES for k in range(1, 7)}
     assert on_cpu["balls 5"].spheres == 66_430 and on_cpu["balls 6"].spheres == 597_871
-    # 2,730 cylinders of 32 quads and the wall
-    assert on_cpu["rings 6"].options["triangles"] == 2_730 * 64 + 2
+    # 2,730 cylinders 14.8 radii long: 8 bands of 32 quads each; and the wall
+    assert on_cpu["rings 6"].options["triangles"] == 2_730 * 8 * 64 + 2
 
 
 def test_a_point_is_measured_from_its_scenes_own_view():

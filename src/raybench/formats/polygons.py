@@ -29,6 +29,10 @@ import numpy as np
 # Quads around a cone's axis. Haines's programs leave the cone's tessellation
 # to the renderer; 32 keeps the silhouette within half a percent of the radius.
 CONE_SEGMENTS = 32
+# A band's length along the axis, in the cone's larger radius (bands()), and
+# the most bands a cone is cut into.
+BAND_LENGTH = 2.0
+MAX_BANDS = 64
 
 
 @dataclass(frozen=True)
@@ -116,13 +120,47 @@ def fans(polygons) -> Triangles:
     return Triangles(*(np.concatenate(x) for x in (corners, normals, fills, smooth)))
 
 
+def bands(rows: np.ndarray) -> np.ndarray:
+    """How many bands along its axis each cone (K, 8 rows) is cut into: one
+    for each BAND_LENGTH of its larger radius along it, so that a long thin
+    cylinder is not 2 x CONE_SEGMENTS slivers as long as itself, whose boxes
+    (a diagonal cylinder's as large as its own) the tree could not tell apart."""
+    rows = np.asarray(rows, np.float64).reshape(-1, 8)
+    height = np.linalg.norm(rows[:, 4:7] - rows[:, :3], axis=1)
+    widest = np.maximum(np.abs(rows[:, 3]), np.abs(rows[:, 7]))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        wanted = np.ceil(height / (BAND_LENGTH * widest))
+    return np.clip(np.nan_to_num(wanted, nan=1.0, posinf=MAX_BANDS), 1, MAX_BANDS).astype(np.int64)
+
+
 def cones(rows: np.ndarray, fill: np.ndarray, segments: int = CONE_SEGMENTS) -> Triangles:
     """Cones (K, 8): base x, y, z, radius, apex x, y, z, radius (NFF's `c`;
-    a negative radius is read as its size), each `segments` quads of two
-    triangles, counter-clockwise seen from outside, with the cone's normals."""
+    a negative radius is read as its size), each bands(rows) bands of
+    `segments` quads of two triangles, counter-clockwise seen from outside,
+    with the cone's normals; in the cones' order."""
     rows = np.asarray(rows, np.float64).reshape(-1, 8)
     if not len(rows):
         return Triangles.empty()
+    fill = np.asarray(fill, np.int32)
+    cut = bands(rows)
+    parts, owner = [], []
+    for m in np.unique(cut).tolist():
+        which = np.flatnonzero(cut == m)
+        corners, normals, keep = _banded(rows[which], m, segments)
+        parts.append((corners[keep], normals[keep]))
+        owner.append(np.repeat(which, keep.shape[1])[keep.reshape(-1)] if keep.ndim > 1 else which)
+    ids = np.concatenate(owner)
+    order = np.argsort(ids, kind="stable")
+    corners = np.concatenate([c for c, _ in parts])[order]
+    normals = np.concatenate([n for _, n in parts])[order]
+    return Triangles(corners, normals, fill[ids[order]], np.ones(len(ids), bool))
+
+
+def _banded(rows: np.ndarray, m: int, segments: int):
+    """Cones cut into m bands: corners and normals (K, T, 3, 3) with T = 2 m
+    segments triangles a cone, each band's lower triangles then its upper,
+    and keep (K, T): False for those of no area (two corners on a ring of
+    radius 0, a pointed cone's tip)."""
     base, base_r = rows[:, :3], np.abs(rows[:, 3])
     apex, apex_r = rows[:, 4:7], np.abs(rows[:, 7])
     axis = apex - base
@@ -137,27 +175,29 @@ def cones(rows: np.ndarray, fill: np.ndarray, segments: int = CONE_SEGMENTS) -> 
     theta = 2.0 * np.pi * np.arange(segments + 1) / segments
     # w (K, S + 1, 3): the outward unit vector at each angle, the last the first again
     w = np.cos(theta)[None, :, None] * u[:, None, :] + np.sin(theta)[None, :, None] * v[:, None, :]
-    low = base[:, None, :] + base_r[:, None, None] * w
-    high = apex[:, None, :] + apex_r[:, None, None] * w
+    t = np.arange(m + 1) / m
+    centre = base[:, None, :] + t[None, :, None] * axis[:, None, :]  # (K, m + 1, 3)
+    radius = base_r[:, None] + t[None, :] * (apex_r - base_r)[:, None]  # (K, m + 1)
+    ring = centre[:, :, None, :] + radius[:, :, None, None] * w[:, None, :, :]  # (K, m + 1, S + 1, 3)
     # the side's normal: at right angles to both the ring's tangent and the slant
     # (axis * height + w * (apex_r - base_r)), so w * height + a * (base_r - apex_r)
     n = w * height[:, None, None] + a[:, None, :] * (base_r - apex_r)[:, None, None]
-    n /= np.linalg.norm(n, axis=2, keepdims=True)
+    length = np.linalg.norm(n, axis=2, keepdims=True)
+    n = np.divide(n, length, out=np.zeros_like(n), where=length > 0)
     j, k = slice(0, segments), slice(1, segments + 1)
-    lower = np.stack([low[:, j], low[:, k], high[:, k]], axis=2)
-    upper = np.stack([low[:, j], high[:, k], high[:, j]], axis=2)
-    lower_n = np.stack([n[:, j], n[:, k], n[:, k]], axis=2)
-    upper_n = np.stack([n[:, j], n[:, k], n[:, j]], axis=2)
-    # (K, 2, S, 3, 3): a cone's lower triangles, then its upper ones; a ring of
-    # radius 0 makes the triangles with two corners on it of no area: left out
-    corners = np.stack([lower, upper], axis=1)
-    normals = np.stack([lower_n, upper_n], axis=1)
-    keep = np.stack([base_r > 0, apex_r > 0], axis=1)
-    keep = np.broadcast_to(keep[:, :, None], (len(rows), 2, segments)).reshape(-1)
-    count = 2 * segments
-    fills = np.repeat(np.asarray(fill, np.int32), count)
-    return Triangles(corners.reshape(-1, 3, 3)[keep], normals.reshape(-1, 3, 3)[keep], fills[keep],
-                     np.ones(int(keep.sum()), bool))  # fmt: skip
+    low, high = ring[:, :-1], ring[:, 1:]  # (K, m, S + 1, 3)
+    nn = np.broadcast_to(n[:, None], low.shape)
+    lower = np.stack([low[:, :, j], low[:, :, k], high[:, :, k]], axis=3)
+    upper = np.stack([low[:, :, j], high[:, :, k], high[:, :, j]], axis=3)
+    lower_n = np.stack([nn[:, :, j], nn[:, :, k], nn[:, :, k]], axis=3)
+    upper_n = np.stack([nn[:, :, j], nn[:, :, k], nn[:, :, j]], axis=3)
+    count = len(rows)
+    corners = np.stack([lower, upper], axis=2).reshape(count, -1, 3, 3)  # (K, m, 2, S, 3, 3) flattened
+    normals = np.stack([lower_n, upper_n], axis=2).reshape(count, -1, 3, 3)
+    keep = np.stack([radius[:, :-1] > 0, radius[:, 1:] > 0], axis=2)  # (K, m, 2)
+    keep &= (length[:, 0, 0] > 0)[:, None, None]  # no height and one radius: a circle, no surface
+    keep = np.broadcast_to(keep[:, :, :, None], (count, m, 2, segments)).reshape(count, -1)
+    return corners, normals, keep
 
 
 def triangles(nff) -> Triangles:
@@ -167,10 +207,17 @@ def triangles(nff) -> Triangles:
 
 def count(nff, segments: int = CONE_SEGMENTS) -> int:
     """len(triangles(nff)), without making them: a polygon of n vertices is n - 2 triangles
-    however it is cut."""
+    however it is cut, a cone's band 2 segments but where one of its rings has radius 0."""
     fans = sum(max(len(p.vertices) - 2, 0) for p in nff.polygons)
-    rings = int((nff.cones[:, 3] != 0).sum() + (nff.cones[:, 7] != 0).sum()) if len(nff.cones) else 0
-    return fans + segments * rings
+    if not len(nff.cones):
+        return fans
+    m = bands(nff.cones)
+    base, apex = nff.cones[:, 3] != 0, nff.cones[:, 7] != 0
+    flat = (np.linalg.norm(nff.cones[:, 4:7] - nff.cones[:, :3], axis=1) == 0) & (
+        np.abs(nff.cones[:, 3]) == np.abs(nff.cones[:, 7])
+    )
+    # every band has both rings of radius > 0 but the first's base and the last's apex
+    return fans + int((segments * (2 * m - ~base - ~apex) * ~flat).sum())
 
 
 def meshes(nff, looks) -> list:
