@@ -39,50 +39,17 @@ import math
 import numpy as np
 
 from ..errors import RaybenchError, shown
-from .nff import NFF, Fill, Polygon, View
+from .nff import NFF, Polygon, View
+from .spd_common import SKY, _fill, _rotation, phong_power  # noqa: F401 (phong_power: tested as spd's)
+from .spd_mount import mount
+from .spd_teapot import teapot
 
-# The SPD's "UNC sky blue", the background of every one of its scenes.
-SKY = (0.078, 0.361, 0.753)
 # The largest size factor generated: balls at 7 would be 5.4 M spheres,
 # tetra at 11 4 M triangles, rings at 60 2.2 M spheres and as many
 # cylinders, tree at 20 2 M of each, gears at 20 1.2 M polygons, mount at 10
 # 2 M triangles, teapot at 100 639,200 patches; the SPD's own tables stop
 # well below.
 MAX_SIZE = {"balls": 7, "tetra": 11, "rings": 60, "tree": 20, "gears": 20, "mount": 10, "teapot": 100}
-
-
-def phong_power(angle_deg: float) -> float:
-    """The SPD's fills give a highlight's half-width angle; NFF's Shine is the
-    Phong power whose cosine lobe falls to a half at that angle (lib's
-    conversion: 0 degrees is a very sharp 100000, 90 or more a flat 1)."""
-    a = math.radians(angle_deg)
-    if a <= 0.0:
-        return 100000.0
-    if a >= math.pi / 2:
-        return 1.0
-    return math.log(0.5) / math.log(math.cos(a))
-
-
-def _fill(colour, kd, ks, angle_deg, kt, ior) -> Fill:
-    return Fill(tuple(colour), kd, ks, phong_power(angle_deg), kt, ior)
-
-
-def _rotation(axis, angle) -> np.ndarray:
-    """Rotation matrices by angle about unit axis (Rodrigues), for column
-    vectors: axis (n, 3), angle (n,) give (n, 3, 3)."""
-    axis = np.asarray(axis, np.float64).reshape(-1, 3)
-    angle = np.asarray(angle, np.float64).reshape(-1)
-    x, y, z = axis.T
-    c, s = np.cos(angle), np.sin(angle)
-    t = 1.0 - c
-    return np.stack(
-        [
-            np.stack([t * x * x + c, t * x * y - s * z, t * x * z + s * y], -1),
-            np.stack([t * x * y + s * z, t * y * y + c, t * y * z - s * x], -1),
-            np.stack([t * x * z - s * y, t * y * z + s * x, t * z * z + c], -1),
-        ],
-        -2,
-    )
 
 
 def _flake_directions() -> np.ndarray:
@@ -362,22 +329,6 @@ def gears(size: int = 4) -> NFF:
 
 
 # name: (generator, default size factor, the C's)
-def mount(size: int = 6) -> NFF:
-    """SPD mount (raybench.formats.spd_mount, imported here on call: it
-    imports this module's helpers)."""
-    from .spd_mount import mount as make
-
-    return make(size)
-
-
-def teapot(size: int = 6) -> NFF:
-    """SPD teapot (raybench.formats.spd_teapot, imported here on call: it
-    imports this module's helpers)."""
-    from .spd_teapot import teapot as make
-
-    return make(size)
-
-
 SCENES = {"balls": (balls, 4), "tetra": (tetra, 6), "rings": (rings, 7), "tree": (tree, 11), "gears": (gears, 4),
           "mount": (mount, 6), "teapot": (teapot, 6)}  # fmt: skip
 

@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 from .nff import NFF, Polygon, View
-from .spd import SKY, _fill, _rotation
+from .spd_common import SKY, _fill, _rotation
 
 # mount.c's constants: the fractal dimension (between 2 and 3: the higher,
 # the rougher), and the number added to every seed ("change MOUNTAIN_NO to

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from .nff import NFF, Polygon, View
-from .spd import SKY, _fill
+from .spd_common import SKY, _fill
 from .spd_teapot_data import PATCHES, VERTICES
 
 # A vertex within this of the z axis, in x and in y, is at a cusp (teapot.c's tolerance).
