@@ -34,8 +34,10 @@ class MoleculeArgs:
         from ..formats import molecule
 
         style = molecule.check_style(self.style or "spacefill")
-        found = molecule.read(path, self.hydrogens, self.waters, self.assembly, self.copies or 1,
-                              bonded=style == "ball-and-stick")  # fmt: skip
+        copies = 1 if self.copies is None else self.copies
+        found = molecule.read(
+            path, self.hydrogens, self.waters, self.assembly, copies, bonded=style == "ball-and-stick"
+        )
         for note in found.notes():
             click.echo(note)
         return found.scene(style)
