@@ -123,7 +123,7 @@ def test_render_a_molecule(capsys, tmp_path):
     assert code == 0, err
     assert "7 spheres" in out and (tmp_path / "tiny.png").exists()
     code, out, err = cli(capsys, "render", "--spheres", 5, "--waters", "-o", tmp_path / "x.png")
-    assert_user_error(code, out, err, "--waters apply to a molecule file")
+    assert_user_error(code, out, err, "--waters, --style, --assembly and --copies apply to a molecule file")
 
 
 def test_a_pdb_file_of_the_old_format_reads_its_elements_from_the_atom_names(tmp_path):

@@ -6,17 +6,21 @@ import pytest
 import raybench
 from raybench.bench import runner, suites
 from raybench.bench import scenes as real
-from raybench.bench.report.scenes_section import _section_scenes, slope, verdicts
+from raybench.bench.report.scenes_section import _section_scenes, molecule_verdicts, slope, verdicts
 
 
 def test_the_quick_points_are_small_scenes_with_their_counts():
     points = suites.points(["scenes"], ["cpu"], quick=True, cores=2, accels=("bvh",))
-    assert [(p.options["scene"], p.spheres) for p in points] == [
-        ("balls 1", 10), ("balls 2", 91), ("balls 3", 820), ("tetra 3", 0), ("gears 1", 0)]  # fmt: skip
+    assert [(p.options.get("scene", p.options.get("molecule")), p.spheres) for p in points] == [
+        ("balls 1", 10), ("balls 2", 91), ("balls 3", 820), ("tetra 3", 0), ("gears 1", 0),
+        ("1tii", 5_469)]  # fmt: skip
     for p in points:
         assert p.suite == "scenes" and p.device == "cpu" and (p.width, p.height) == real.QUICK_SCENES_SIZE
         assert p.options["shading"] == "whitted" and p.options["depth"] == real.SCENES_DEPTH
-    by_name = {p.options["scene"]: p.options for p in points}
+    by_name = {p.options["scene"]: p.options for p in points if "scene" in p.options}
+    # the molecule alone, its copies and atoms named
+    assert {k: points[-1].options[k] for k in ("molecule", "copies", "atoms", "style")} == {
+        "molecule": "1tii", "copies": 1, "atoms": 5_469, "style": "spacefill"}  # fmt: skip
     # Haines's counts (balls: the spheres and the floor) and the triangles raybench traces
     assert (by_name["balls 3"]["primitives"], by_name["balls 3"]["triangles"]) == (821, 2)
     assert (by_name["tetra 3"]["primitives"], by_name["tetra 3"]["triangles"]) == (64, 64)
@@ -26,8 +30,13 @@ def test_the_quick_points_are_small_scenes_with_their_counts():
 
 def test_the_full_points_on_every_device_asked_for():
     points = suites.points(["scenes"], ["cpu", "cuda"], cores=2, accels=("bvh",))
-    on_cpu = {p.options["scene"]: p for p in points if p.device == "cpu"}
-    assert {p.device for p in points} == {"cpu", "cuda"} and len(points) == 2 * len(on_cpu)
+    on_cpu = {p.options["scene"]: p for p in points if p.device == "cpu" and "scene" in p.options}
+    molecules = [p for p in points if p.device == "cpu" and "molecule" in p.options]
+    assert {p.device for p in points} == {"cpu", "cuda"} and len(points) == 2 * (len(on_cpu) + len(molecules))
+    # hundreds of thousands to millions of atoms: the example and its copies, each counted
+    assert [(p.options["copies"], p.spheres) for p in molecules] == [
+        (1, 5_469), (2, 10_938), (18, 98_442), (183, 1_000_827), (914, 4_998_666)]  # fmt: skip
+    assert all(p.options["atoms"] == p.spheres for p in molecules)
     assert set(on_cpu) == {f"{name} {k}" for name in real.SCENES_NAMES for k in range(1, 7)}
     assert on_cpu["balls 5"].spheres == 66_430 and on_cpu["balls 6"].spheres == 597_871
     # 2,730 cylinders 14.8 radii long: 8 bands of 32 quads each; and the wall
@@ -79,3 +88,41 @@ def test_the_section_gives_the_counts_and_names_old_records(tmp_path):
     text = "\n".join(out)
     assert "| CPU | balls 1 | 11 | 10 | 2 |" in text and "| CPU | balls 2 | 91 | 91 | – |" in text
     assert "Records from before triangles were drawn (balls 2) traced the spheres alone." in text
+
+
+def test_a_molecule_point_is_measured_from_its_own_view():
+    point = suites.Point("scenes", "cpu", 32, 20, 10_938, {"accel": "bvh", "molecule": "1tii", "copies": 2,
+                         "atoms": 10_938, "style": "spacefill", "shading": "whitted", "depth": 5,
+                         "shadow_samples": 1})  # fmt: skip
+    record = runner.measure(point, runner.Scenes(0), 0.05)
+    assert record["spheres"] == 10_938 and record["options"]["copies"] == 2
+    scene = real.molecule_scene("1tii", 2)
+    frame = raybench.render(scene, width=32, height=20, device="cpu", shading="whitted", depth=5)
+    assert record["rays"] == frame.rays
+
+
+def molecule_record(device, copies, ms):
+    return {"suite": "scenes", "device": device, "width": 320, "height": 200, "spheres": 5_469 * copies,
+            "options": {"molecule": "1tii", "copies": copies, "atoms": 5_469 * copies, "style": "spacefill"},
+            "frame_ms": {"median": ms}, "rays_per_s": 1e6}  # fmt: skip
+
+
+def test_the_molecules_table_and_verdicts():
+    out = []
+
+    class Writer:
+        def __call__(self, *lines):
+            out.extend(lines)
+
+    records = [molecule_record("cpu", 1, 10.0), molecule_record("cpu", 100, 20.0),
+               molecule_record("cuda", 1, 2.0), molecule_record("cuda", 100, 2.0),
+               record("cpu", "balls 1", 10, 10.0)]  # fmt: skip
+    _section_scenes(Writer(), "probe", "probe", records)
+    text = "\n".join(out)
+    assert "### probe: molecules" in text and "| CPU | 1tii | 100 | 546,900 | 320x200 |" in text
+    assert "| CPU | balls 1 | 11 | 10 | 2 |" in text  # the SPD's table still there
+    lines = molecule_verdicts([r for r in records if "molecule" in r["options"]])
+    assert any("CPU: a molecule's frame grows as atoms^k over its copies: 1tii ^0.15 (5,469 to 546,900 atoms)" in line
+               for line in lines)  # fmt: skip
+    assert any("over the cpu on the molecules: median 7.50x (5.00x to 10.0x, 2 points; 10.0x at 546,900 atoms)" in line
+               for line in lines)  # fmt: skip

@@ -33,6 +33,9 @@ A record (format "raybench-results", version 1):
                  "primitives" (Haines's count: spheres, polygons, patches, cones) and
                  "triangles" (what raybench traces for its polygons and cones; earlier
                  records, from before triangles were drawn, have "unrendered" instead);
+                 its molecules' points "molecule" (an example's name, "1tii"), "copies"
+                 (of it side by side, 1 to 100,000), "atoms" (theirs; spheres the same)
+                 and "style" ("spacefill" or "ball-and-stick");
                  meshes' points "mesh" ("icosphere" or "random": bench/meshes.py) and
                  "triangles" (its count; spheres is 0), "shading" as secondary's, "cap_s"
     frames       how many timed frames

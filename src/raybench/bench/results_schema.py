@@ -289,6 +289,11 @@ OPTIONS = _compile(
         # the meshes suite's: which generated mesh (bench/meshes.py) and its triangle count
         "mesh?": _one_of("icosphere", "random"),
         "triangles?": _count,
+        # the scenes suite's molecules: which example, how many copies side by side, their atoms, the style
+        "molecule?": _option_text,
+        "copies?": _whole(1, 100_000),
+        "atoms?": _count,
+        "style?": _one_of("spacefill", "ball-and-stick"),
     },
     rest=_option,
 )

@@ -153,6 +153,11 @@ def measure(point: Point, scenes: Scenes, duration: float) -> dict:
 
         scene = real.scene(point.options["scene"])
         basis = (scene.camera or Camera()).basis(point.width, point.height)
+    elif "molecule" in point.options:  # the scenes suite's molecules: copies of one, its own camera and light
+        from . import scenes as real
+
+        scene = real.molecule_scene(point.options["molecule"], point.options["copies"])
+        basis = scene.camera.basis(point.width, point.height)
     elif "mesh" in point.options:  # the meshes suite's: triangles, where they fit
         why = meshes.too_large(point.options["triangles"])
         if why is not None:
@@ -171,9 +176,10 @@ def measure(point: Point, scenes: Scenes, duration: float) -> dict:
             **tracer_options(point),
         )  # fmt: skip
     except RaybenchError as exc:
-        # a mesh the device cannot hold (its memory, a storage-buffer limit) is refused in one
-        # line before anything is allocated: the suite's point skipped with it, the run going on
-        if "mesh" not in point.options:
+        # a mesh or a molecule of millions of atoms the device cannot hold (its memory, a
+        # storage-buffer limit) is refused in one line before anything is allocated: the
+        # suite's point skipped with it, the run going on
+        if "mesh" not in point.options and "molecule" not in point.options:
             raise
         return unfit(point, str(exc))
     tracer = renderer.tracer

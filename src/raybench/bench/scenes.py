@@ -8,6 +8,11 @@ Its points are made in suites.py (_scenes), from the sizes here; its section of 
 report/scenes_section.py. Its verdicts, in the thesis's style: how a frame's cost grows with
 the primitive count on each structured scene (the slope of log time against log primitives
 over its size factors), and what a GPU buys there beside the secondary suite's random spheres.
+
+Molecules too: the shipped example 1tii (raybench.examples: 5,469 atoms without its waters),
+spacefill, alone and repeated side by side (formats.assemblies: copies, which the record's
+options name with the atom count) to about 10 thousand, 100 thousand, 1 million and 5 million
+atoms, with the molecule's own camera and light; its verdict, how a frame grows with the atoms.
 """
 
 from __future__ import annotations
@@ -22,6 +27,12 @@ QUICK_SCENES_SIZES = {"balls": (1, 2, 3), "tetra": (3,), "gears": (1,)}
 SCENES_SIZE = (1680, 1050)
 QUICK_SCENES_SIZE = (320, 200)
 SCENES_DEPTH = 5
+# The molecule, and its copies: 1 (5,469 atoms), 2 (10,938), 18 (98,442), 183 (1,000,827)
+# and 914 (4,998,666); the quick set the molecule alone.
+MOLECULE = "1tii"
+MOLECULE_COPIES = (1, 2, 18, 183, 914)
+QUICK_MOLECULE_COPIES = (1,)
+MOLECULE_STYLE = "spacefill"
 
 
 @functools.lru_cache(maxsize=64)
@@ -48,3 +59,24 @@ def triangles(name: str) -> int:
     from ..formats import polygons
 
     return polygons.count(nff(name))
+
+
+@functools.lru_cache(maxsize=4)
+def molecule_atoms(name: str) -> int:
+    """The atoms of one copy of the example molecule `name` as drawn (its waters left out)."""
+    return len(_molecule(name, 1))
+
+
+def molecule_scene(name: str, copies: int):
+    """The Scene of `copies` of the example molecule `name` side by side, as the runner traces it."""
+    return _molecule(name, copies).scene(MOLECULE_STYLE)
+
+
+def _molecule(name: str, copies: int):
+    from importlib import resources
+
+    from .. import examples
+    from ..formats import molecule
+
+    with resources.as_file(examples.path(name)) as path:
+        return molecule.read(path, copies=copies)

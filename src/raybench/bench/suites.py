@@ -420,7 +420,8 @@ def _multi_gpu(plan: Plan) -> list[Point]:
 
 def _scenes(plan: Plan) -> list[Point]:
     """The SPD's scenes at their size factors (bench/scenes.py), each with Haines's count of its
-    primitives and the triangles raybench traces for its polygons and cones."""
+    primitives and the triangles raybench traces for its polygons and cones; then the example
+    molecule and its copies, each with its atom count."""
     sizes = scenes.QUICK_SCENES_SIZES if plan.quick else scenes.SCENES_SIZES
     w, h = scenes.QUICK_SCENES_SIZE if plan.quick else scenes.SCENES_SIZE
     out = []
@@ -432,6 +433,12 @@ def _scenes(plan: Plan) -> list[Point]:
                            "shadow_samples": 1, "primitives": scenes.primitives(name),
                            "triangles": scenes.triangles(name)}  # fmt: skip
                 out.append(Point("scenes", device, w, h, scenes.nff(name).counts()["spheres"], options))
+        copies = scenes.QUICK_MOLECULE_COPIES if plan.quick else scenes.MOLECULE_COPIES
+        for k in copies:
+            atoms = scenes.molecule_atoms(scenes.MOLECULE) * k
+            options = {**way, "molecule": scenes.MOLECULE, "copies": k, "atoms": atoms, "style": scenes.MOLECULE_STYLE,
+                       "shading": "whitted", "depth": scenes.SCENES_DEPTH, "shadow_samples": 1}  # fmt: skip
+            out.append(Point("scenes", device, w, h, atoms, options))
     return out
 
 
@@ -482,7 +489,8 @@ DYNAMIC = Suite(
 )
 SCENES = Suite(
     "scenes",
-    "scenes (the SPD's sphere scenes at their size factors, Whitted as each defines it)",
+    "scenes (the SPD's scenes at their size factors, Whitted as each defines it; a molecule, 5 thousand to 5 "
+    "million atoms)",
     _scenes,
     section=True,
 )

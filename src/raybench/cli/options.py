@@ -16,6 +16,7 @@ from ..backends.options import ACCELS, BUILDS, KERNELS
 from ..errors import RaybenchError
 from ..files import check_writable
 from ..lighting import SHADINGS
+from .molecule_options import MoleculeArgs, molecule_options, refuse_unless_molecule
 
 SIZE_HELP = "image size as WIDTHxHEIGHT, e.g. 1680x1050; an NFF scene's own resolution where not given"
 
@@ -99,7 +100,7 @@ def load_scene(scene_file, spheres, seed, materials=False, layout=None, molecule
     A mesh, or a scene file with meshes, only where the command draws them
     (meshes); elsewhere one line, so that no command drops them silently."""
     from .. import examples
-    from ..scene import Scene, random_spheres
+    from ..scene import random_spheres
 
     if (scene_file is None) == (spheres is None):
         raise RaybenchError("give exactly one of --scene FILE or --spheres N")
@@ -108,26 +109,18 @@ def load_scene(scene_file, spheres, seed, materials=False, layout=None, molecule
         if seed is not None or given:
             raise RaybenchError(f"{'--seed' if seed is not None else given[0]} applies to --spheres only")
         if scene_file in examples.NAMES and not Path(scene_file).exists():
-            scene = Scene.load(examples.path(scene_file))
+            from importlib import resources
+
+            # an example's file read where it lies, as a file of its kind (the molecule's, PDB)
+            with resources.as_file(examples.path(scene_file)) as found:
+                scene = _scene_file(str(found), molecule or MoleculeArgs())
         else:
             scene = _scene_file(scene_file, molecule or MoleculeArgs())
         if scene.meshes and not meshes:
             raise RaybenchError(f"--scene {scene_file}: meshes are drawn by raybench render and view only so far")
         return scene
-    if molecule is not None and molecule != MoleculeArgs():
-        raise RaybenchError(MOLECULE_ONLY)
+    refuse_unless_molecule(molecule)
     return random_spheres(spheres, 0 if seed is None else seed, materials=materials, layout=layout or "even")
-
-
-MOLECULE_ONLY = "--no-hydrogens and --waters apply to a molecule file (--scene FILE.pdb or .cif) only"
-
-
-@dataclass(frozen=True)
-class MoleculeArgs:
-    """--no-hydrogens, --waters: which atoms of a molecule file become spheres."""
-
-    hydrogens: bool = True
-    waters: bool = False
 
 
 def _scene_file(scene_file, molecule: MoleculeArgs):
@@ -137,8 +130,8 @@ def _scene_file(scene_file, molecule: MoleculeArgs):
     from ..scene import Scene
 
     kind = formats.kind(scene_file)
-    if kind != "molecule" and molecule != MoleculeArgs():
-        raise RaybenchError(MOLECULE_ONLY)
+    if kind != "molecule":
+        refuse_unless_molecule(molecule)
     if kind == "mesh":
         from ..mesh_render import mesh_scene
         from ..meshes import load_mesh
@@ -152,9 +145,7 @@ def _scene_file(scene_file, molecule: MoleculeArgs):
             click.echo(note)
         return loaded.scene()
     if kind == "molecule":
-        from ..formats import molecule as molecules
-
-        return molecules.load(scene_file, hydrogens=molecule.hydrogens, waters=molecule.waters)
+        return molecule.load(scene_file)
     return Scene.load(scene_file)
 
 
@@ -287,6 +278,9 @@ class SceneArgs:
     materials: bool
     no_hydrogens: bool = False
     waters: bool = False
+    style: str | None = None
+    assembly: str | None = None
+    copies: int | None = None
 
     @classmethod
     def given(cls, scene_path=None, scene_file=None, **options) -> SceneArgs:
@@ -298,7 +292,7 @@ class SceneArgs:
         return cls(scene_file=scene_path if scene_path is not None else scene_file, **options)
 
     def load(self, layout=None, meshes=False):
-        molecule = MoleculeArgs(hydrogens=not self.no_hydrogens, waters=self.waters)
+        molecule = MoleculeArgs(not self.no_hydrogens, self.waters, self.style, self.assembly, self.copies)
         return load_scene(self.scene_file, self.spheres, self.seed, self.materials, layout, molecule, meshes)
 
 
@@ -350,8 +344,9 @@ class TracerArgs:
 
 
 def scene_options(verb: str):
-    """[SCENE], --scene, --spheres, --seed, --materials, --no-hydrogens, --waters: the scene to render or
-    show, handed on as scene_args, a SceneArgs (SCENE is --scene without its name: `raybench view model.obj`)."""
+    """[SCENE], --scene, --spheres, --seed, --materials, and a molecule file's (molecule_options): the scene to
+    render or show, handed on as scene_args, a SceneArgs (SCENE is --scene without its name:
+    `raybench view model.obj`)."""
     return handed_on(
         "scene_args",
         SceneArgs.given,
@@ -361,7 +356,8 @@ def scene_options(verb: str):
             "scene_file",
             type=click.Path(dir_okay=False),
             help=f"scene file to {verb}: JSON, NFF (.nff), a molecule (.pdb, .cif, gzipped or not), a triangle "
-            "mesh (.obj, .ply, .stl, .gltf, .glb: render and view); or the name of an example: whitted, meshes, mixed",
+            "mesh (.obj, .ply, .stl, .gltf, .glb: render and view); or the name of an example: whitted, meshes, mixed, "
+            "1tii (a molecule)",
         ),
         click.option("--spheres", type=int, help=f"{verb} N random spheres instead of a scene file"),
         click.option("--seed", type=int, help="seed of the random spheres (default 0)"),
@@ -370,8 +366,7 @@ def scene_options(verb: str):
             is_flag=True,
             help="the random spheres with mixed materials (plastic, mirrors, glass) and an area light",
         ),
-        click.option("--no-hydrogens", is_flag=True, help="a molecule file: leave out its hydrogen atoms"),
-        click.option("--waters", is_flag=True, help="a molecule file: draw its waters too (left out by default)"),
+        *molecule_options(),
     )
 
 

@@ -1,6 +1,7 @@
 """report.md's section of the scenes suite (bench/scenes.py): each SPD scene's frames by device,
 and its verdicts: how a frame's cost grows with the primitive count on each structured scene,
-and what a GPU buys there."""
+and what a GPU buys there; then the molecule's frames at its copies, and their verdicts: how a
+frame grows with the atom count, and each GPU's lead."""
 
 from __future__ import annotations
 
@@ -34,7 +35,11 @@ def primitives(r: dict) -> int:
 
 
 def _section_scenes(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
-    measured = [r for r in records if r["suite"] == "scenes" and "frame_ms" in r]
+    done = [r for r in records if r["suite"] == "scenes" and "frame_ms" in r]
+    molecules = [r for r in done if "molecule" in r["options"]]
+    measured = [r for r in done if "scene" in r["options"]]
+    if molecules:
+        _molecules(w, label, molecules)
     if not measured:
         return
     measured.sort(key=lambda r: (r["device"], r["options"]["scene"].split()[0], primitives(r)))
@@ -95,3 +100,62 @@ def verdicts(measured: list[dict]) -> list[str]:
                 "spheres in the secondary rays' section"
             )
     return out
+
+
+def _molecules(w: _Writer, label: str, measured: list[dict]) -> None:
+    """The molecule's frames at its copies, and their verdicts."""
+    measured.sort(key=lambda r: (r["device"], r["options"]["molecule"], r["options"]["atoms"]))
+    w(f"### {escape(label)}: molecules", "")
+    w(
+        "A molecule (the Protein Data Bank's entry named) drawn spacefill, one sphere an atom, with its own camera "
+        f"and light, Whitted shading to {SCENES_DEPTH} bounces, through the BVH; alone, then copies of it side by "
+        "side in a grid to reach millions of atoms: repeated for size, not chemistry.",
+        "",
+    )
+    header = ["device", "molecule", "copies", "atoms", "size", "median frame ms", "rays/s"]
+    rows = [
+        [escape(DEVICE_NAMES.get(r["device"], r["device"])), escape(r["options"]["molecule"]),
+         f"{r['options'].get('copies', 1):,}", f"{r['options']['atoms']:,}", f"{r['width']}x{r['height']}",
+         fmt_ms(r["frame_ms"]["median"]), f"{fmt_num(r['rays_per_s'] / 1e6)} M" if r.get("rays_per_s") else "–"]
+        for r in measured
+    ]  # fmt: skip
+    w(_table(header, rows), "")
+    for line in molecule_verdicts(measured):
+        w(f"- {line}")
+    w("")
+
+
+def molecule_verdicts(measured: list[dict]) -> list[str]:
+    """Each device's growth of a frame's time with the atom count over the copies, and each
+    GPU's lead over the cpu on the points both measured."""
+    out = []
+    for device in sorted({r["device"] for r in measured}):
+        growth = []
+        for name in sorted({r["options"]["molecule"] for r in measured if r["device"] == device}):
+            points = [(r["options"]["atoms"], r["frame_ms"]["median"]) for r in measured
+                      if r["device"] == device and r["options"]["molecule"] == name]  # fmt: skip
+            k = slope(points)
+            if k is not None:
+                growth.append(f"{escape(name)} ^{k:.2f} ({min(points)[0]:,} to {max(points)[0]:,} atoms)")
+        if growth:
+            out.append(
+                f"{escape(DEVICE_NAMES.get(device, device))}: a molecule's frame grows as atoms^k over its copies: "
+                f"{'; '.join(growth)} (brute force's: ^1; a tree's, which grows as log atoms: near 0)"
+            )
+    cpu = {_key(r): r["frame_ms"]["median"] for r in measured if r["device"] == "cpu"}
+    for gpu in GPUS:
+        leads = sorted((cpu[_key(r)] / r["frame_ms"]["median"], r["options"]["atoms"]) for r in measured
+                       if r["device"] == gpu and _key(r) in cpu)  # fmt: skip
+        if leads:
+            ratio = [x for x, _ in leads]
+            at_most = max(leads, key=lambda lead: lead[1])
+            out.append(
+                f"{escape(DEVICE_NAMES.get(gpu, gpu))} over the cpu on the molecules: median "
+                f"{fmt_x(statistics.median(ratio))} ({fmt_x(ratio[0])} to {fmt_x(ratio[-1])}, {len(ratio)} points; "
+                f"{fmt_x(at_most[0])} at {at_most[1]:,} atoms)"
+            )
+    return out
+
+
+def _key(r: dict) -> tuple:
+    return (r["options"]["molecule"], r["options"]["atoms"], r["width"], r["height"])
