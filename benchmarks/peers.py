@@ -314,9 +314,8 @@ def povray_one(spec, folder, width, height, threads, args) -> list[dict]:
         return elapsed, povray_times(done.stderr)
 
     own = {key: [] for key in variants}
-    own_threads = threads if args.device == "cpu" else None  # POV-Ray's threads either way
-    renderer = Renderer(scene, width, height, device=args.device, shading="whitted", depth=args.depth,
-                        threads=own_threads)  # fmt: skip
+    own = {"threads": threads} if args.device == "cpu" else {}  # POV-Ray's threads either way
+    renderer = Renderer(scene, width, height, device=args.device, shading="whitted", depth=args.depth, **own)
     try:
         compile_s = renderer.compile()
         start = time.perf_counter()
