@@ -314,8 +314,8 @@ def povray_one(spec, folder, width, height, threads, args) -> list[dict]:
         return elapsed, povray_times(done.stderr)
 
     own = {key: [] for key in variants}
-    own = {"threads": threads} if args.device == "cpu" else {}  # POV-Ray's threads either way
-    renderer = Renderer(scene, width, height, device=args.device, shading="whitted", depth=args.depth, **own)
+    given = {"threads": threads} if args.device == "cpu" else {}  # POV-Ray's threads either way
+    renderer = Renderer(scene, width, height, device=args.device, shading="whitted", depth=args.depth, **given)
     try:
         compile_s = renderer.compile()
         start = time.perf_counter()

@@ -2,6 +2,7 @@
 copies of a molecule, POV-Ray's statistics read, and its refusals."""
 
 import importlib.util
+import os
 import sys
 from pathlib import Path
 
@@ -87,3 +88,29 @@ def test_the_zoomed_view_keeps_its_direction_and_halves_the_distance(peers, tmp_
     assert np.allclose(after, before / 2) and zoomed.camera.fov_deg == scene.camera.fov_deg
     assert zoomed.background == (0.0, 0.0, 0.0) and zoomed.lights == scene.lights
     assert peers.black(scene).camera == scene.camera
+
+
+@pytest.mark.slow
+def test_povray_side_by_side_end_to_end(tmp_path):
+    """peers.py povray on a small SPD scene of triangles: both sides render the same picture
+    (the silhouettes agree), and the records say which is which."""
+    import json
+    import shutil
+    import subprocess
+
+    if shutil.which("povray") is None:
+        if os.environ.get("RAYBENCH_REQUIRE_POVRAY") == "1":
+            pytest.fail("povray is not installed; RAYBENCH_REQUIRE_POVRAY=1 requires this test to run")
+        pytest.skip("povray is not installed (Debian: apt-get install povray)")
+    out = tmp_path / "povray.jsonl"
+    argv = [sys.executable, str(BENCHMARKS / "peers.py"), "povray", "--scenes", "tetra:2", "--size", "64x40",
+            "--frames", "1", "--rounds", "1", "--threads", "1", "--settle", "0", "--out", str(out),
+            "--pictures", str(tmp_path / "pictures")]  # fmt: skip
+    done = subprocess.run(argv, capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, done.stderr[-2000:]
+    records = [json.loads(line) for line in out.read_text().splitlines()]
+    assert [r["quantity"] for r in records] == ["frame", "povray-render"]
+    ours, theirs = records
+    assert ours["options"]["scene"] == "tetra 2" and ours["values"]["triangles"] > 0
+    assert theirs["values"]["silhouette_agree"] > 0.97
+    assert (tmp_path / "pictures" / "tetra-2.png").exists()
