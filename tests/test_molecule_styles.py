@@ -15,7 +15,7 @@ from test_mixed import both_reference
 from raybench import render
 from raybench.errors import RaybenchError
 from raybench.examples import path as example
-from raybench.formats import assemblies, bonds, molecule
+from raybench.formats import assemblies, bonds, molecule, polygons
 
 # Heavy-atom bonds within a residue of the standard amino acids (their chemistry, not the
 # distance rule): the backbone's, then the side chain's.
@@ -122,14 +122,17 @@ def test_a_ball_and_stick_scene(tmp_path):
     scene = molecule.load(path, style="ball-and-stick")
     spacefill = molecule.load(path)
     assert np.allclose(scene.radii, molecule.BALL_SCALE * spacefill.radii)
-    per_half = 2 * bonds.STICK_SEGMENTS
-    assert scene.triangles.shape[1] == 2 * len(found.bonds) * per_half
+    # each half a cylinder of STICK_SEGMENTS quads round, in bands along it (polygons.bands)
+    rows, owner = bonds.halves(found.positions, found.bonds)
+    per_half = 2 * bonds.STICK_SEGMENTS * polygons.bands(rows)
+    assert (per_half > 2 * bonds.STICK_SEGMENTS).all()  # a half bond is longer than a stick's diameter
+    assert scene.triangles.shape[1] == per_half.sum()
     assert scene.traced().kind == "mixed"
     # each element's sticks are one mesh in its colour, as many halves as its atoms' bonds
-    ends = found.elements[found.bonds.ravel()]
+    ends = found.elements[owner]
     for mesh in scene.meshes:
         element = next(e for e in set(ends.tolist()) if np.allclose(mesh.colour, molecule.colour(e)))
-        assert len(mesh.mesh) == (ends == element).sum() * per_half
+        assert len(mesh.mesh) == per_half[ends == element].sum()
 
 
 def test_a_ball_and_stick_frame_hits_the_float64_reference(tmp_path):
