@@ -126,10 +126,15 @@ def text(scene: Scene, width: int, height: int, depth: int = lighting.DEFAULT_DE
     for light in scene.lights:
         out.append(f"light_source {{ {_v(light.position)} color rgb {_v(np.asarray(light.color) * light.intensity)} }}")
     looks, which = _looks(scene)
+    worn = []  # each look as the spheres wear it: its texture, and its interior (an object's, not a texture's)
     for k, (colour, material) in enumerate(looks):
-        out.append(f"#declare T{k} = {_texture(colour, material, scene.ambient)}")
+        texture, _, interior = _texture(colour, material, scene.ambient).partition(" interior ")
+        out.append(f"#declare T{k} = {texture}")
+        if interior:
+            out.append(f"#declare I{k} = interior {interior}")
+        worn.append(f"texture {{ T{k} }}" + (f" interior {{ I{k} }}" if interior else ""))
     centres, radii = scene.centers, scene.radii
-    out += [f"sphere {{ {_v(c)}, {_n(r)} texture {{ T{k} }} }}" for c, r, k in zip(centres, radii, which.tolist())]
+    out += [f"sphere {{ {_v(c)}, {_n(r)} {worn[k]} }}" for c, r, k in zip(centres, radii, which.tolist())]
     for mesh in scene.meshes:
         out += _mesh2(mesh, scene.ambient)
     if cones is not None:
