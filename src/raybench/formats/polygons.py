@@ -11,8 +11,10 @@ or cylinders without caps (`c`). raybench traces spheres and triangles, so:
 - a cone is CONE_SEGMENTS quads around its axis, two triangles each, with
   the cone's own normal at every corner, so that its shading is a true
   cone's and only its silhouette is a polygon's (1 - cos(pi / 32), 0.5% of
-  the radius, at most). A ring of radius 0 (a pointed cone's apex) leaves
-  its side's triangles out rather than keep triangles of no area.
+  the radius, at most), cut into bands along its axis (bands()) so that a
+  long cylinder is not slivers as long as itself. A ring of radius 0 (a
+  pointed cone's apex) leaves its side's triangles out rather than keep
+  triangles of no area.
 
 meshes(nff) gives the Scene's meshes: one SceneMesh for each run of
 triangles of one fill, flat or smooth, in the file's order, so that an NFF
