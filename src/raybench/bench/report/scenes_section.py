@@ -28,6 +28,18 @@ def slope(points: list[tuple[int, float]]) -> float | None:
     return sum((x - mx) * (y - my) for x, y in zip(xs, ys)) / sum((x - mx) ** 2 for x in xs)
 
 
+def _growth(records: list[dict], group, count, unit: str = "") -> list[str]:
+    """For each group of one device's records (group(r): its name), the power of count(r) its
+    frame's time grows as, and the counts it spans: "balls ^0.10 (11 to 597,872)"."""
+    out = []
+    for name in sorted({group(r) for r in records}):
+        points = [(count(r), r["frame_ms"]["median"]) for r in records if group(r) == name]
+        k = slope(points)
+        if k is not None:
+            out.append(f"{escape(name)} ^{k:.2f} ({min(points)[0]:,} to {max(points)[0]:,}{unit})")
+    return out
+
+
 def primitives(r: dict) -> int:
     """A record's primitive count as Haines counts them; a record from before triangles were
     drawn traced its spheres only, and counts those."""
@@ -73,13 +85,8 @@ def verdicts(measured: list[dict]) -> list[str]:
     its size factors, and each GPU's lead over the cpu on the scenes both measured."""
     out = []
     for device in sorted({r["device"] for r in measured}):
-        growth = []
-        for kind in sorted({r["options"]["scene"].split()[0] for r in measured if r["device"] == device}):
-            points = [(primitives(r), r["frame_ms"]["median"]) for r in measured
-                      if r["device"] == device and r["options"]["scene"].split()[0] == kind]  # fmt: skip
-            k = slope(points)
-            if k is not None:
-                growth.append(f"{escape(kind)} ^{k:.2f} ({min(points)[0]:,} to {max(points)[0]:,})")
+        growth = _growth([r for r in measured if r["device"] == device], lambda r: r["options"]["scene"].split()[0],
+                         primitives)  # fmt: skip
         if growth:
             name = escape(DEVICE_NAMES.get(device, device))
             out.append(
@@ -130,13 +137,8 @@ def molecule_verdicts(measured: list[dict]) -> list[str]:
     GPU's lead over the cpu on the points both measured."""
     out = []
     for device in sorted({r["device"] for r in measured}):
-        growth = []
-        for name in sorted({r["options"]["molecule"] for r in measured if r["device"] == device}):
-            points = [(r["options"]["atoms"], r["frame_ms"]["median"]) for r in measured
-                      if r["device"] == device and r["options"]["molecule"] == name]  # fmt: skip
-            k = slope(points)
-            if k is not None:
-                growth.append(f"{escape(name)} ^{k:.2f} ({min(points)[0]:,} to {max(points)[0]:,} atoms)")
+        growth = _growth([r for r in measured if r["device"] == device], lambda r: r["options"]["molecule"],
+                         lambda r: r["options"]["atoms"], " atoms")  # fmt: skip
         if growth:
             out.append(
                 f"{escape(DEVICE_NAMES.get(device, device))}: a molecule's frame grows as atoms^k over its copies: "
