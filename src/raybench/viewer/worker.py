@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import compiled
 from ..camera import Camera
 from ..errors import RaybenchError
 from ..lighting import Shading
@@ -74,9 +75,21 @@ def to_rgba(image: np.ndarray) -> np.ndarray:
     """(H, W, 3) RGB -> (H, W, 4) RGBA with opaque alpha: textures have no 3-byte
     formats. Done here so the event loop only copies bytes to the GPU."""
     rgba = np.empty(image.shape[:2] + (4,), dtype=np.uint8)
-    rgba[..., :3] = image
-    rgba[..., 3] = 255
+    _pack_rgba(np.ascontiguousarray(image), rgba)
     return rgba
+
+
+@compiled.njit(nogil=True)
+def _pack_rgba(image, rgba):
+    # A loop, not NumPy's rgba[..., :3] = image: that strided copy took 8 ms of
+    # a 1680x1050 frame, as long as cuda traces one (docs/scenes.md#the-viewer).
+    height, width = image.shape[:2]
+    for y in range(height):
+        for x in range(width):
+            rgba[y, x, 0] = image[y, x, 0]
+            rgba[y, x, 1] = image[y, x, 1]
+            rgba[y, x, 2] = image[y, x, 2]
+            rgba[y, x, 3] = 255
 
 
 class TraceWorker:
