@@ -57,6 +57,15 @@ SURFACE_FORMATS = ("bgra8unorm-srgb", "bgra8unorm")
 WAIT_S = 600.0  # the longest a frame may take before the run is called stuck
 
 
+@dataclass(frozen=True)
+class Shown:
+    """What the record needs of a frame shown."""
+
+    trace_ms: float
+    rays_cast: int
+    update_ms: float | None
+
+
 @dataclass
 class Measured:
     record: dict
@@ -132,7 +141,11 @@ def measure(gpu, device, what, width, height, shading, frames, warmup, turn, dep
     view = target.create_view(format=gpu.format.view)
     cameras = orbit(state, turn or warmup + frames)
     total = warmup + frames
-    shown, draws = [], []  # (when, TracedFrame) of every frame shown; (frames shown before, ms) of every draw
+    # (when, Shown) of every frame shown; (frames shown before, ms) of every draw. Not the frames
+    # themselves: a loop that kept them all would hold every frame's arrays, as the window never does,
+    # and have the Renderer copy each new one out of its lent arrays (render.KEEP_LENT).
+    shown, draws = [], []
+    last = None
     try:
         wanted = True  # the window's first draw is asked for when it opens
         while state.frames_shown < total:
@@ -148,7 +161,8 @@ def measure(gpu, device, what, width, height, shading, frames, warmup, turn, dep
             start = time.perf_counter()
             traced = drawer.draw(view, width, height)
             if traced is not None:
-                shown.append((time.perf_counter(), traced))
+                shown.append((time.perf_counter(), Shown(traced.trace_ms, traced.rays_cast, traced.update_ms)))
+                last = traced
             if state.frames_shown < total:  # after the last frame, no next one is started
                 state.camera = cameras[state.requests_made % len(cameras)]
                 wanted = drawer.trace_next(width, height)
@@ -166,7 +180,7 @@ def measure(gpu, device, what, width, height, shading, frames, warmup, turn, dep
     draw_ms = [ms for before, ms in draws if before >= warmup]
     rays = [t.rays_cast for _, t in timed]
     used = {"shading": shading, **({"scene": named} if named else {})}
-    request = timed[-1][1].request
+    request = last.request
     if request.shading is not None:
         used.update(depth=request.shading.depth, shadow_samples=request.shading.shadow_samples)
     if gpu.named and device == "wgpu":
@@ -189,7 +203,7 @@ def measure(gpu, device, what, width, height, shading, frames, warmup, turn, dep
         "viewer-frame", device, [t * 1e3 for t in times], spheres=spheres, width=width, height=height,
         options=used, values=values,
     )  # fmt: skip
-    return Measured(record, timed[-1][1], drawn)
+    return Measured(record, last, drawn)
 
 
 def parse_size(parser, text: str) -> tuple[int, int]:
