@@ -1,12 +1,19 @@
 """The scenes suite (raybench.bench.scenes): its points, a point measured through the runner
 with the scene's own view, and its report section's verdicts."""
 
+import io
+
+import numpy as np
 import pytest
+from PIL import Image
 
 import raybench
-from raybench.bench import runner, suites
+from raybench import RaybenchError
+from raybench.bench import pictures, results, runner, suites
 from raybench.bench import scenes as real
 from raybench.bench.report.scenes_section import _section_scenes, molecule_verdicts, slope, verdicts
+
+RUN = {"label": "x", "machine": {}}
 
 
 def test_the_quick_points_are_small_scenes_with_their_counts():
@@ -52,6 +59,23 @@ def test_a_point_is_measured_from_its_scenes_own_view():
     frame = raybench.render(scene, width=48, height=30, device="cpu", shading="whitted", depth=5)
     # the rays the runner's frames cast are those of a frame seen from the scene's view (not the default camera)
     assert record["rays"] == frame.rays
+    # and its picture is that frame (a JPEG: within a few steps of it), which the record's rules take
+    shown = np.asarray(Image.open(io.BytesIO(pictures.jpeg(record["picture"]))).convert("RGB"))
+    assert shown.shape == frame.image.shape
+    off = np.abs(shown.astype(int) - frame.image).mean()
+    assert off < 8 and np.abs(shown.astype(int) - frame.image[::-1]).mean() > 2 * off  # not some other frame
+    results.check_record({**record, "run": RUN}, "probe")
+    with pytest.raises(RaybenchError, match="picture"):
+        results.check_record({**record, "picture": "data:image/png;base64,AAAA", "run": RUN}, "probe")
+
+
+def test_a_large_frame_is_made_small_for_its_record():
+    image = np.zeros((1050, 1680, 3), np.uint8)
+    image[:, 840:] = 200
+    shown = Image.open(io.BytesIO(pictures.jpeg(pictures.thumbnail(image))))
+    assert shown.size == (pictures.WIDTH, 200)
+    halves = np.asarray(shown.convert("RGB")).astype(int)
+    assert halves[:, :150].max() < 8 and halves[:, 170:].min() > 192
 
 
 def test_the_growth_of_a_frame_with_the_sphere_count():
@@ -126,3 +150,28 @@ def test_the_molecules_table_and_verdicts():
                for line in lines)  # fmt: skip
     assert any("over the cpu on the molecules: median 7.50x (5.00x to 10.0x, 2 points; 10.0x at 546,900 atoms)" in line
                for line in lines)  # fmt: skip
+
+
+def test_the_section_shows_each_scenes_largest_frame(tmp_path):
+    """One picture a scene and one a molecule, each its largest size's, a GPU's before the
+    cpu's: files beside report.md, inlined in report.html; records without one show none."""
+    from raybench.bench.report import html
+    from raybench.bench.report.markdown_blocks import _Writer
+
+    def drawn(r, level):
+        return {**r, "picture": pictures.thumbnail(np.full((20, 32, 3), level, np.uint8))}
+
+    records = [drawn(record("cpu", "balls 1", 10, 10.0), 10), drawn(record("cpu", "balls 3", 1000, 100.0), 20),
+               drawn(record("cuda", "balls 3", 1000, 4.0), 30), record("cuda", "tetra 2", 64, 1.0),
+               drawn(molecule_record("cuda", 2, 2.0), 40), drawn(molecule_record("cuda", 1, 2.0), 50)]  # fmt: skip
+    w = _Writer(tmp_path)
+    _section_scenes(w, "probe", "probe", records)
+    text = "\n".join(w.lines)
+    assert "![probe: balls 3, Whitted, on GPU](probe-scene-1.jpg)" in text and "probe-scene-2" not in text
+    assert "![probe: 1tii, 10,938 atoms, Whitted, on GPU](probe-molecule-1.jpg)" in text
+    levels = {
+        name: np.asarray(Image.open(tmp_path / name)).mean() for name in ("probe-scene-1.jpg", "probe-molecule-1.jpg")
+    }
+    assert abs(levels["probe-scene-1.jpg"] - 30) < 3 and abs(levels["probe-molecule-1.jpg"] - 40) < 3
+    page = html._details(w.lines, w.shown)
+    assert page.count('src="data:image/jpeg;base64,') == 2 and "probe-scene-1.jpg" not in page

@@ -54,6 +54,8 @@ A record (format "raybench-results", version 1):
                  or build, with any upload), a part of each frame_ms; updates: how many
                  frames refitted and rebuilt, {"refit"?: N, "build"?: N}; update_share:
                  the updates' time over the frames' (sums); frames_per_s from the median frame
+    picture      scenes only: the last frame traced, at most 320 pixels across, a JPEG as a data: URI
+                 (bench.pictures), which the report shows; absent in older records
     build_s      the BVH's build time (seconds, compiled code only), or null for brute force
     first_frame_s   the first frame of the point, never averaged in
     compile_s       compiling the kernel for the point, if it was not yet compiled, else 0

@@ -10,6 +10,7 @@ import re
 import numpy as np
 
 from ..backends.limits import MAX_SIDE
+from . import pictures
 from .suites import RECORDS
 
 # Every number a record holds is a count, a time or a rate far below this:
@@ -73,6 +74,12 @@ def _whole(low: int, high: float):
             raise _Bad(f"a whole number from {low:g} to {high:g}", value)
 
     return check
+
+
+@_rule({"type": "string", "maxLength": pictures.MAX_CHARS, "pattern": "^" + pictures.PATTERN.pattern + "$"})
+def _picture(value):
+    if not isinstance(value, str) or len(value) > pictures.MAX_CHARS or not pictures.PATTERN.fullmatch(value):
+        raise _Bad(f"a JPEG as a data: URI ({pictures.PREFIX}...), at most {pictures.MAX_CHARS:,} characters", value)
 
 
 _count = _whole(0, MAX_NUMBER)
@@ -404,6 +411,8 @@ MEASURED = _compile(
         "update_ms?": TIMES,
         "updates?": {"refit?": _count, "build?": _count},
         "update_share?": _number,
+        # the scenes suite's: the frame it traced, small (bench.pictures), for the report
+        "picture?": _picture,
     }
 )
 # suite "parts": a quantity timed apart from any suite's frames (benchmarks/_harness.part)

@@ -16,7 +16,7 @@ from ..layout import KINDS
 from ..machine import describe, git_commit
 from ..render import Renderer
 from ..scene import random_spheres
-from . import meshes, multi, suites
+from . import meshes, multi, pictures, suites
 from .results import ResultsWriter
 from .stats import kept_samples, summarize
 from .suites import DYNAMIC_DT, Point
@@ -202,6 +202,8 @@ def measure(point: Point, scenes: Scenes, duration: float) -> dict:
             while time.perf_counter() < end or len(frames) < MIN_FRAMES:
                 frames.append(_frame(tracer, basis))
         counts = None if tracer.ray_counts is None else [int(c) for c in tracer.ray_counts]
+        # a real scene's picture rides in its record: the report shows what was traced
+        picture = pictures.thumbnail(tracer.image) if point.suite == "scenes" else None
     finally:
         renderer.close()
     frame_ms = [f for f, _ in frames]
@@ -220,6 +222,8 @@ def measure(point: Point, scenes: Scenes, duration: float) -> dict:
         record["adapter"] = described
     if walk is not None:
         record["walk"] = walk
+    if picture is not None:
+        record["picture"] = picture
     if not point.ramp:  # a ramp's frames are its series, one per count
         record["samples_ms"] = kept_samples(frame_ms)
     if point.ramp:

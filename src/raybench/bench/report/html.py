@@ -12,6 +12,7 @@ it as text: it is shown as written and runs nothing.
 
 from __future__ import annotations
 
+import base64
 import html as html_text
 import json
 import re
@@ -20,6 +21,7 @@ import jinja2
 
 from ...errors import controls_shown
 from .. import headline
+from ..pictures import PREFIX
 from . import answer
 from .series import speedups, thesis_series
 from .verdicts import CLAIMS, RULES, verdicts, with_reference_gpus
@@ -131,21 +133,35 @@ def _charts(machines: dict[str, list[dict]], table: list[dict]) -> list[dict]:
     return charts
 
 
-def _details(lines: list[str]) -> str:
+def _details(lines: list[str], shown: dict[str, bytes] | None = None) -> str:
     """report.md's details (from its first machine's section on) as HTML: the same sections, so
     the page and report.md never differ in what they hold. Their text from a results file went
     through escape() (character references: no tag, link or image); a chart, drawn as a PNG
-    beside report.md, is linked rather than shown, so the page fetches nothing."""
+    beside report.md, is linked rather than shown, so the page fetches nothing; a traced frame
+    (shown: its JPEG by file name) is shown, inlined as a data: URI."""
     import markdown
 
-    text = "\n".join(_CHART.sub(r"[chart: \1](\2)", line) for line in lines)
+    shown = shown or {}
+
+    def line_of(line: str) -> str:
+        found = _CHART.match(line)
+        if found is None:
+            return line
+        alt, name = found.groups()
+        if name in shown:
+            return f"![{alt}]({PREFIX}{base64.b64encode(shown[name]).decode('ascii')})"
+        return f"[chart: {alt}]({name})"
+
+    text = "\n".join(line_of(line) for line in lines)
     return markdown.markdown(text, extensions=["tables"], output_format="html")
 
 
 _CHART = re.compile(r"^!\[([^\]]*)\]\(([^)\s]+)\)$")
 
 
-def render(sources, machines: dict[str, list[dict]], references, table, measured, details: list[str]) -> str:
+def render(
+    sources, machines: dict[str, list[dict]], references, table, measured, details: list[str], shown=None
+) -> str:
     """The page's text: the answer (headline and verdicts), the machines, the rules and the
     references, in the template; then report.md's details, rendered."""
     from plotly.offline import get_plotlyjs
@@ -180,6 +196,6 @@ def render(sources, machines: dict[str, list[dict]], references, table, measured
         with_references=with_reference_gpus(machines, references) if references else [],
         charts=[{"id": c["id"], "json": _script_json(c["figure"])} for c in _charts(machines, table)],
         points=points,
-        details=_details(details),
+        details=_details(details, shown),
         plotly_js=get_plotlyjs(),
     )

@@ -123,7 +123,7 @@ def _ours(entry: Path) -> bool:
     return (
         entry.is_file()
         and not entry.is_symlink()
-        and (entry.name in ("report.md", "report.html") or entry.suffix == ".png")
+        and (entry.name in ("report.md", "report.html") or entry.suffix in (".png", ".jpg"))
     )
 
 
@@ -204,5 +204,5 @@ def _write(sources, machines, notes, beyond, w: _Writer, references: list[dict] 
         w(*[f"- {escape(n)}" for n in notes], "")
     write_atomic(w.out_dir / "report.md", "\n".join(w.lines).encode("utf-8"))
     details = w.lines[opening:]
-    page = html.render(sources, machines, references, table, measured, details)
+    page = html.render(sources, machines, references, table, measured, details, w.shown)
     write_atomic(w.out_dir / "report.html", page.encode("utf-8"))

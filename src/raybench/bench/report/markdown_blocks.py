@@ -123,6 +123,7 @@ class _Writer:
         self.final_dir = out_dir  # where the report will be once renamed into place: links are relative to it
         self.lines: list[str] = []
         self.pngs: list[Path] = []
+        self.shown: dict[str, bytes] = {}  # pictures (JPEG) the HTML page shows inline, by file name
 
     def __call__(self, *lines: str) -> None:
         self.lines.extend(lines)
@@ -132,3 +133,8 @@ class _Writer:
         write_atomic(path, data)
         self.pngs.append(path)
         self(f"![{escape(alt)}]({name})", "")  # alt names the machine: the results file's text
+
+    def picture(self, name: str, jpeg: bytes, alt: str) -> None:
+        """A traced frame (JPEG): a file beside report.md, as a chart is, and shown inline in report.html."""
+        self.image(name, jpeg, alt)
+        self.shown[name] = jpeg

@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 import statistics
 
+from .. import pictures
 from ..scenes import SCENES_DEPTH
 from .markdown_blocks import _table, _Writer, escape
 from .numbers import fmt_ms, fmt_num, fmt_x
@@ -51,7 +52,7 @@ def _section_scenes(w: _Writer, label: str, slug: str, records: list[dict]) -> N
     molecules = [r for r in done if "molecule" in r["options"]]
     measured = [r for r in done if "scene" in r["options"]]
     if molecules:
-        _molecules(w, label, molecules)
+        _molecules(w, label, slug, molecules)
     if not measured:
         return
     measured.sort(key=lambda r: (r["device"], r["options"]["scene"].split()[0], primitives(r)))
@@ -78,6 +79,23 @@ def _section_scenes(w: _Writer, label: str, slug: str, records: list[dict]) -> N
     for line in verdicts(measured):
         w(f"- {line}")
     w("")
+    _pictures(w, label, f"{slug}-scene", measured, lambda r: r["options"]["scene"].split()[0], primitives)
+
+
+def _pictures(w: _Writer, label: str, stem: str, records: list[dict], group, count) -> None:
+    """Each group's frame at its largest count, as its record carries it (bench.pictures), a
+    GPU's before the cpu's (the same picture within a step): a file beside report.md, shown in
+    report.html. Records from before pictures were kept have none, and show none."""
+    drawn = [r for r in records if r.get("picture")]
+    names = sorted({group(r) for r in drawn})
+    if not names:
+        return
+    w("As traced, each at its largest size measured:", "")
+    for i, name in enumerate(names):
+        r = max((r for r in drawn if group(r) == name), key=lambda r: (count(r), r["device"] != "cpu"))
+        what = r["options"].get("scene") or f"{name}, {r['options']['atoms']:,} atoms"
+        device = DEVICE_NAMES.get(r["device"], r["device"])
+        w.picture(f"{stem}-{i + 1}.jpg", pictures.jpeg(r["picture"]), f"{label}: {what}, Whitted, on {device}")
 
 
 def verdicts(measured: list[dict]) -> list[str]:
@@ -109,7 +127,7 @@ def verdicts(measured: list[dict]) -> list[str]:
     return out
 
 
-def _molecules(w: _Writer, label: str, measured: list[dict]) -> None:
+def _molecules(w: _Writer, label: str, slug: str, measured: list[dict]) -> None:
     """The molecule's frames at its copies, and their verdicts."""
     measured.sort(key=lambda r: (r["device"], r["options"]["molecule"], r["options"]["atoms"]))
     w(f"### {escape(label)}: molecules", "")
@@ -130,6 +148,8 @@ def _molecules(w: _Writer, label: str, measured: list[dict]) -> None:
     for line in molecule_verdicts(measured):
         w(f"- {line}")
     w("")
+    atoms = lambda r: r["options"]["atoms"]  # noqa: E731
+    _pictures(w, label, f"{slug}-molecule", measured, lambda r: r["options"]["molecule"], atoms)
 
 
 def molecule_verdicts(measured: list[dict]) -> list[str]:
