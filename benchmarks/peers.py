@@ -20,7 +20,7 @@ spheres with raybench's radii and colours, the view set to raybench's fitted cam
 eye, look-at point, up and vertical field of view: pymol_view; --zoom brings both eyes that many
 times nearer, the molecule then filling more of the frame), one light with shadows in
 the direction of raybench's point light, no head-on light, no specular, no depth cue or fog,
-antialias off, a black background (raybench's too, in place of its gradient), max_threads
+antialias off, a black background (raybench's molecules are on black too), max_threads
 equal to raybench's threads. What the two pictures share is measured and recorded: the
 share of pixels where both or neither show an atom (the silhouette) and the mean difference
 of the colours where both do. PyMOL's `ray` sets up its primitives and its grid each call; raybench's
@@ -150,8 +150,8 @@ class PyMOL:
 
 
 def black(scene: Scene, zoom: float = 1.0) -> Scene:
-    """The scene on black, PyMOL's background (raybench's molecule has the thesis's gradient),
-    its eye zoom times nearer the look-at point (raybench's fitted view leaves most of the frame
+    """The scene on black, PyMOL's background (raybench's molecule is on black too; a scene of
+    another source may not be), its eye zoom times nearer the look-at point (raybench's fitted view leaves most of the frame
     empty; a PyMOL user zooms in)."""
     camera = scene.camera
     if zoom != 1.0:

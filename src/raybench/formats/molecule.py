@@ -64,6 +64,7 @@ BALL_SCALE = 0.25
 STYLES = ("spacefill", "ball-and-stick")
 # The light of a molecule: from above the camera, a little behind it.
 LIGHT_RAISE = 0.5
+BACKGROUND = (0.0, 0.0, 0.0)  # a molecule's background: PyMOL's
 
 
 def radius(element: str) -> float:
@@ -136,7 +137,8 @@ class Molecule:
         eye = np.array(camera.position)
         reach = np.linalg.norm(np.array(camera.look_at) - eye)
         light = lighting.Light(tuple((eye + np.array([0.0, LIGHT_RAISE * reach, 0.0])).tolist()))
-        return Scene(self.positions, radii, colours, camera, lights=[light], meshes=meshes)
+        # on black, as PyMOL draws them: the thesis's gradient saturates past 1024 pixels across
+        return Scene(self.positions, radii, colours, camera, lights=[light], meshes=meshes, background=BACKGROUND)
 
 
 def check_style(style) -> str:
