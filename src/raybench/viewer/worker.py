@@ -81,8 +81,8 @@ def to_rgba(image: np.ndarray) -> np.ndarray:
 
 @compiled.njit(nogil=True)
 def _pack_rgba(image, rgba):
-    # A loop, not NumPy's rgba[..., :3] = image: that strided copy took 8 ms of
-    # a 1680x1050 frame, as long as cuda traces one (docs/scenes.md#the-viewer).
+    # A loop, not NumPy's rgba[..., :3] = image: that strided copy took as long
+    # as cuda's trace of the frame (docs/scenes.md#the-viewer).
     height, width = image.shape[:2]
     for y in range(height):
         for x in range(width):

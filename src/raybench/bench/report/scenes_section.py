@@ -148,8 +148,8 @@ def _molecules(w: _Writer, label: str, slug: str, measured: list[dict]) -> None:
     for line in molecule_verdicts(measured):
         w(f"- {line}")
     w("")
-    atoms = lambda r: r["options"]["atoms"]  # noqa: E731
-    _pictures(w, label, f"{slug}-molecule", measured, lambda r: r["options"]["molecule"], atoms)
+    _pictures(w, label, f"{slug}-molecule", measured, lambda r: r["options"]["molecule"],
+              lambda r: r["options"]["atoms"])  # fmt: skip
 
 
 def molecule_verdicts(measured: list[dict]) -> list[str]:
