@@ -151,8 +151,8 @@ class PyMOL:
 
 def black(scene: Scene, zoom: float = 1.0) -> Scene:
     """The scene on black, PyMOL's background (raybench's molecule is on black too; a scene of
-    another source may not be), its eye zoom times nearer the look-at point (raybench's fitted view leaves most of the frame
-    empty; a PyMOL user zooms in)."""
+    another source may not be), its eye zoom times nearer the look-at point (raybench's fitted
+    view leaves most of the frame empty; a PyMOL user zooms in)."""
     camera = scene.camera
     if zoom != 1.0:
         eye, at = np.array(camera.position), np.array(camera.look_at)
