@@ -13,7 +13,7 @@ import numpy as np
 WIDTH = 320
 QUALITY = 85
 PREFIX = "data:image/jpeg;base64,"
-MAX_CHARS = 200_000  # a 320-pixel JPEG of a busy scene is about 30 KB of base64
+MAX_CHARS = 200_000  # far above any 320-pixel JPEG at QUALITY: a longer one was not made here
 PATTERN = re.compile(re.escape(PREFIX) + r"[A-Za-z0-9+/]+={0,2}")
 
 
@@ -26,7 +26,12 @@ def thumbnail(image: np.ndarray) -> str:
         picture = picture.resize((WIDTH, max(1, round(picture.height * WIDTH / picture.width))), Image.LANCZOS)
     buffer = io.BytesIO()
     picture.save(buffer, format="JPEG", quality=QUALITY, subsampling=0)  # 4:4:4: a small frame keeps its colours
-    return PREFIX + base64.b64encode(buffer.getvalue()).decode("ascii")
+    return uri(buffer.getvalue())
+
+
+def uri(jpeg_file: bytes) -> str:
+    """A JPEG file as a data: URI, as a record and report.html hold it."""
+    return PREFIX + base64.b64encode(jpeg_file).decode("ascii")
 
 
 def jpeg(uri: str) -> bytes:

@@ -151,7 +151,7 @@ class TraceWorker:
             compile_s = self._ensure_renderer(request)
             update_ms, update = self._moving.update(self._renderer, request)
             start = time.perf_counter()
-            # hits=False: the window never reads them, and a frame it holds keeps 7 MB less at 1680x1050
+            # hits=False: the window never reads them, so a frame it holds keeps none
             frame = self._renderer.render(request.camera, hits=False, count=request.count)
             trace_ms = (time.perf_counter() - start) * 1e3
             return TracedFrame(request, frame, to_rgba(frame.image), trace_ms, compile_s, update_ms, update)

@@ -12,7 +12,6 @@ it as text: it is shown as written and runs nothing.
 
 from __future__ import annotations
 
-import base64
 import html as html_text
 import json
 import re
@@ -20,8 +19,7 @@ import re
 import jinja2
 
 from ...errors import controls_shown
-from .. import headline
-from ..pictures import PREFIX
+from .. import headline, pictures
 from . import answer
 from .series import speedups, thesis_series
 from .verdicts import CLAIMS, RULES, verdicts, with_reference_gpus
@@ -149,7 +147,7 @@ def _details(lines: list[str], shown: dict[str, bytes] | None = None) -> str:
             return line
         alt, name = found.groups()
         if name in shown:
-            return f"![{alt}]({PREFIX}{base64.b64encode(shown[name]).decode('ascii')})"
+            return f"![{alt}]({pictures.uri(shown[name])})"
         return f"[chart: {alt}]({name})"
 
     text = "\n".join(line_of(line) for line in lines)
