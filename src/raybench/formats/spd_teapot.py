@@ -1,7 +1,7 @@
 """SPD teapot: Newell's teapot, tessellated, on a checkerboard.
 
 Written from what teapot.c describes (erich666/StandardProceduralDatabases,
-CC0): each of the teapot's 32 bicubic Bezier patches (spd_teapot_data) is
+CC0): each of the teapot's 32 bicubic Bezier patches (spd_teapot.txt) is
 cut into size_factor x size_factor quadrilaterals of equal steps in its two
 parameters, each quadrilateral two triangles written as polygon patches
 (`pp`), each vertex with the surface's normal there. At the lid's knob and
@@ -15,11 +15,12 @@ white squares then grey, both shiny; two lights.
 
 from __future__ import annotations
 
+from importlib import resources
+
 import numpy as np
 
 from .nff import NFF, Polygon, View
 from .spd_common import SKY, _fill
-from .spd_teapot_data import PATCHES, VERTICES
 
 # A vertex within this of the z axis, in x and in y, is at a cusp (teapot.c's tolerance).
 CUSP = 0.0001
@@ -27,6 +28,26 @@ CUSP = 0.0001
 CUSP_SPLIT = 1.5
 # The checkerboard's half width.
 BOARD = 4.0
+
+
+def _tables(name: str = "spd_teapot.txt") -> dict[str, list[str]]:
+    """The teapot's tables, data beside this module: each [section]'s
+    numbers as text, comment lines left out."""
+    tables: dict[str, list[str]] = {}
+    words: list[str] = []
+    for line in resources.files(__package__).joinpath(name).read_text(encoding="utf-8").splitlines():
+        if line.startswith("["):
+            words = tables.setdefault(line.strip("[] "), [])
+        elif not line.startswith("#"):
+            words += line.split()
+    return tables
+
+
+_TABLES = _tables()
+# Each patch's 4 x 4 control points, indices into VERTICES (row r, column c:
+# parameters s = r / 3, t = c / 3); the 290 control points, x y z.
+PATCHES = np.array(_TABLES["patches"], np.int64).reshape(32, 4, 4)
+VERTICES = np.array(_TABLES["vertices"], np.float64).reshape(290, 3)
 
 
 def _bernstein(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
