@@ -12,6 +12,8 @@ Python's extent and copy_leaf (kernels/primitives/mixed.py), bit for bit.
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from wgsl_harness import IN, cpu_adapter, dispatch, entry_points
@@ -186,3 +188,15 @@ def test_a_pieces_names_are_renamed_and_nothing_else():
         namespace.namespaced(piece, "s_", kept=("nothing",))
     with pytest.raises(ValueError, match="not a top-level declaration"):
         namespace.namespaced(piece + "let stray = 1;\n", "s_")
+    assert namespace.members(piece, "Hit") == "hit: f32"
+    with pytest.raises(ValueError, match="struct read: not declared"):
+        namespace.members(piece, "read")
+
+
+def test_the_mixed_row_is_a_facet_and_the_tag():
+    """mixed.wgsl's struct Tagged, as the shader has it: triangle.wgsl's
+    Facet's members, then the tag (compute.py's mixed rows)."""
+    text = shader.source((8, 8), "bvh", "ray", "mixed")
+    facet = namespace.members(shader.kind_piece("triangle.wgsl", "triangle"), "Facet")
+    tagged = re.search(r"struct Tagged \{(.*?)\}", text, re.S)
+    assert tagged is not None and tagged[1].split() == [*facet.split(), "tag:", "f32,"]

@@ -9,19 +9,16 @@
 // the walks' names, each dispatching on the tag as mixed.py's by_tag does.
 
 // A primitive of the scene's buffer (compute.py's mixed rows): a triangle's
-// struct Facet (its vertices, its colour, its corners' normals, zeros where
-// it has none) and the tag. A sphere's centre and radius are its first four
-// values and its colour is in the colour's fields, zeros elsewhere: the host
-// moves it there from the Python buffer's rows RED, GREEN and BLUE, so that
-// the shading (trace.wgsl, whitted.wgsl, wavefront.wgsl) reads
-// spheres[i].red, green and blue of either kind, where mixed.py's colour
-// asks the tag.
+// struct Facet's members (its vertices, its colour, its corners' normals,
+// zeros where it has none; the host puts triangle.wgsl's in, as
+// shader.py's MIXED_CONSTANTS say) and the tag. A sphere's centre and radius are
+// its first four values and its colour is in the colour's fields, zeros
+// elsewhere: the host moves it there from the Python buffer's rows RED,
+// GREEN and BLUE, so that the shading (trace.wgsl, whitted.wgsl,
+// wavefront.wgsl) reads spheres[i].red, green and blue of either kind, where
+// mixed.py's colour asks the tag.
 struct Tagged {
-    v: array<f32, 9>,
-    red: f32,
-    green: f32,
-    blue: f32,
-    n: array<f32, 9>,
+    FACET_MEMBERS
     tag: f32,
 }
 alias Sphere = Tagged;

@@ -97,3 +97,15 @@ def namespaced(text: str, prefix: str, kept=(), dropped=(), replaced=()) -> str:
         pattern = in_struct if keyword == "struct" else use
         out += [rename(line, pattern) for line in lines] if renamed else lines
     return "".join(out)
+
+
+def members(text: str, struct: str) -> str:
+    """The member lines of a piece's struct, as written between its braces:
+    for a struct that is another's members and more (mixed.wgsl's Tagged,
+    a triangle's Facet and the tag)."""
+    for name, keyword, lines in declarations(text):
+        if keyword == "struct" and name == struct:
+            first = next(i for i, line in enumerate(lines) if DECLARATION.match(line.split("//", 1)[0]))
+            body = "".join(lines[first:])
+            return body[body.index("{") + 1 : body.rindex("}")].strip()
+    raise ValueError(f"struct {struct}: not declared in the piece")

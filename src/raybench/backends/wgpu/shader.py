@@ -48,8 +48,6 @@ RENAMED = {
     "triangle.wgsl": {"prefix": "triangle_", "dropped": ("Facet", "Sphere", "ordered", "Surface"),
                       "replaced": ("read_leaf",)},
 }  # fmt: skip
-# mixed.wgsl's constants: the tag of a sphere and the floats of a leaf (layout's MIX_ values).
-MIXED_CONSTANTS = {"MIXED_SPHERE_TAG": repr(float(layout.MIX_SPHERE)), "MIXED_LEAF_WORDS": f"{layout.MIX_LEAF_ROWS}"}
 # The walk's constants, taken from their Python definitions rather than
 # written again in WGSL: float32 values whose repr is exact, so the WGSL
 # literal converts to the very float32 the CPU uses.
@@ -64,6 +62,16 @@ BVH_CONSTANTS = {
 @functools.cache
 def _piece(name: str) -> str:
     return resources.files(__package__).joinpath(name).read_text(encoding="utf-8")
+
+
+# mixed.wgsl's constants: the tag of a sphere and the floats of a leaf (layout's MIX_ values),
+# and its row's members before the tag, triangle.wgsl's struct Facet's (compute.py's mixed rows
+# are a triangle's and the tag).
+MIXED_CONSTANTS = {
+    "MIXED_SPHERE_TAG": repr(float(layout.MIX_SPHERE)),
+    "MIXED_LEAF_WORDS": f"{layout.MIX_LEAF_ROWS}",
+    "FACET_MEMBERS": namespace.members(_piece("triangle.wgsl"), "Facet"),
+}
 
 
 def kind_piece(name: str, primitive: str) -> str:
