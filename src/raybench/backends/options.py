@@ -258,23 +258,6 @@ class CpuOptions:
     threads: int
     tree_width: int | None
 
-    @classmethod
-    def check(cls, given: dict, shading=None) -> CpuOptions:
-        """The options from render()'s keyword arguments for the cpu (checked's)."""
-        g = _given(cls, given)
-        accel, kernel = _method(
-            "cpu", g.accel, g.kernel, {"constant_count": _flag("constant_count", g.constant_count)}, shading
-        )
-        tree_width, threads = g.tree_width, g.threads
-        if tree_width is None:
-            pass  # the Tracer's kind of primitive chooses (KIND_TREE_WIDTH)
-        elif accel != "bvh":
-            raise RaybenchError("tree_width: applies to the BVH's packets only (accel='bvh')")
-        elif not is_integer(tree_width) or tree_width not in TREE_WIDTHS:
-            raise RaybenchError(f"tree_width: must be one of 2, 4, got {shown(tree_width)}")
-        threads = usable_cores() if threads is None else _integer("threads", threads, 1, MAX_THREADS)
-        return cls(accel, kernel, bool(g.constant_count), threads, None if tree_width is None else int(tree_width))
-
 
 @dataclass(frozen=True)
 class CudaOptions:
@@ -305,48 +288,6 @@ class CudaOptions:
     schedule: str | None
     wave_grid: int | None
 
-    @classmethod
-    def check(cls, given: dict, shading=None) -> CudaOptions:
-        """The options from render()'s keyword arguments for cuda (checked's)."""
-        g = _given(cls, given)
-        fast_only = {"rays": g.rays is not None, "staged": g.staged is not None, "trip": g.trip is not None}
-        accel, kernel = _method(
-            "cuda",
-            g.accel,
-            g.kernel,
-            {"constant_count": _flag("constant_count", g.constant_count), **fast_only},
-            shading,
-        )
-        walk = _walk(g.walk, accel, shading)
-        build = _build(g.build, accel)
-        quality, treelet_passes, refit_limit = _gpu_build(build, "cuda", g.quality, g.treelet_passes, g.refit_limit)
-        schedule = _schedule(g.schedule, shading)
-        block, wave_grid = g.block, g.wave_grid
-        if wave_grid is not None:
-            if schedule != "wavefront":
-                raise RaybenchError("wave_grid: applies to the wavefront schedule only (Whitted shading)")
-            wave_grid = _integer("wave_grid", wave_grid, 1, MAX_WAVE_GRID)
-        if block is not None:
-            block = _pair("block", block)
-            shape = kernel or walk or "ray"
-            if block[0] * block[1] > 1024:
-                raise RaybenchError(f"block: x*y must be at most 1024 threads, got {block[0]}x{block[1]}")
-            if shape != "simple" and block[0] * block[1] > FAST_MAX_THREADS:
-                what = "the fast kernel" if shape == "fast" else "the BVH walk"
-                need = "its rays need" if shape == "fast" else "its stack and ray need"
-                hint = "; use a smaller block or --kernel simple" if shape == "fast" else "; use a smaller block"
-                raise RaybenchError(
-                    f"block: {what} takes at most {FAST_MAX_THREADS} threads per block ({need} the registers), "
-                    f"got {block[0]}x{block[1]}{hint}"
-                )
-        rays = _integer("rays", RAYS_PER_THREAD if g.rays is None else g.rays, 1, MAX_RAYS_PER_THREAD)
-        return cls(
-            accel, kernel, bool(g.constant_count), block, rays if kernel == "fast" else 1,
-            _integer("staged", STAGED if g.staged is None else g.staged, 1, MAX_STAGED),
-            _integer("trip", TRIP if g.trip is None else g.trip, 1, MAX_TRIP),
-            walk, build, quality, treelet_passes, refit_limit, schedule, wave_grid,
-        )  # fmt: skip
-
 
 @dataclass(frozen=True)
 class WgpuOptions:
@@ -367,24 +308,84 @@ class WgpuOptions:
     refit_limit: float
     schedule: str | None
 
-    @classmethod
-    def check(cls, given: dict, shading=None) -> WgpuOptions:
-        """The options from render()'s keyword arguments for wgpu (checked's)."""
-        g = _given(cls, given)
-        accel, kernel = _method("wgpu", g.accel, g.kernel, {}, shading)
-        walk = _walk(g.walk, accel, shading)
-        if accel == "bvh":
-            walk = walk or "ray"
-        workgroup = DEFAULT_WORKGROUP[walk or accel] if g.workgroup is None else _pair("workgroup", g.workgroup)
-        adapter = g.adapter
-        if adapter is not None and not isinstance(adapter, str):
-            raise RaybenchError(f"adapter: must be an adapter's name (text), got {shown(adapter)}")
-        build = _build(g.build, accel)
-        quality, _, refit_limit = _gpu_build(build, "wgpu", g.quality, None, g.refit_limit)
-        return cls(accel, kernel, workgroup, adapter, walk, build, quality, refit_limit, _schedule(g.schedule, shading))
+
+def _cpu(g: SimpleNamespace, shading=None) -> CpuOptions:
+    """The cpu's options from what a caller gave (g, as _given has it), checked."""
+    accel, kernel = _method(
+        "cpu", g.accel, g.kernel, {"constant_count": _flag("constant_count", g.constant_count)}, shading
+    )
+    tree_width, threads = g.tree_width, g.threads
+    if tree_width is None:
+        pass  # the Tracer's kind of primitive chooses (KIND_TREE_WIDTH)
+    elif accel != "bvh":
+        raise RaybenchError("tree_width: applies to the BVH's packets only (accel='bvh')")
+    elif not is_integer(tree_width) or tree_width not in TREE_WIDTHS:
+        raise RaybenchError(f"tree_width: must be one of 2, 4, got {shown(tree_width)}")
+    threads = usable_cores() if threads is None else _integer("threads", threads, 1, MAX_THREADS)
+    return CpuOptions(accel, kernel, bool(g.constant_count), threads, None if tree_width is None else int(tree_width))
+
+
+def _cuda(g: SimpleNamespace, shading=None) -> CudaOptions:
+    """cuda's options from what a caller gave (g, as _given has it), checked."""
+    fast_only = {"rays": g.rays is not None, "staged": g.staged is not None, "trip": g.trip is not None}
+    accel, kernel = _method(
+        "cuda",
+        g.accel,
+        g.kernel,
+        {"constant_count": _flag("constant_count", g.constant_count), **fast_only},
+        shading,
+    )
+    walk = _walk(g.walk, accel, shading)
+    build = _build(g.build, accel)
+    quality, treelet_passes, refit_limit = _gpu_build(build, "cuda", g.quality, g.treelet_passes, g.refit_limit)
+    schedule = _schedule(g.schedule, shading)
+    block, wave_grid = g.block, g.wave_grid
+    if wave_grid is not None:
+        if schedule != "wavefront":
+            raise RaybenchError("wave_grid: applies to the wavefront schedule only (Whitted shading)")
+        wave_grid = _integer("wave_grid", wave_grid, 1, MAX_WAVE_GRID)
+    if block is not None:
+        block = _pair("block", block)
+        shape = kernel or walk or "ray"
+        if block[0] * block[1] > 1024:
+            raise RaybenchError(f"block: x*y must be at most 1024 threads, got {block[0]}x{block[1]}")
+        if shape != "simple" and block[0] * block[1] > FAST_MAX_THREADS:
+            what = "the fast kernel" if shape == "fast" else "the BVH walk"
+            need = "its rays need" if shape == "fast" else "its stack and ray need"
+            hint = "; use a smaller block or --kernel simple" if shape == "fast" else "; use a smaller block"
+            raise RaybenchError(
+                f"block: {what} takes at most {FAST_MAX_THREADS} threads per block ({need} the registers), "
+                f"got {block[0]}x{block[1]}{hint}"
+            )
+    rays = _integer("rays", RAYS_PER_THREAD if g.rays is None else g.rays, 1, MAX_RAYS_PER_THREAD)
+    return CudaOptions(
+        accel, kernel, bool(g.constant_count), block, rays if kernel == "fast" else 1,
+        _integer("staged", STAGED if g.staged is None else g.staged, 1, MAX_STAGED),
+        _integer("trip", TRIP if g.trip is None else g.trip, 1, MAX_TRIP),
+        walk, build, quality, treelet_passes, refit_limit, schedule, wave_grid,
+    )  # fmt: skip
+
+
+def _wgpu(g: SimpleNamespace, shading=None) -> WgpuOptions:
+    """wgpu's options from what a caller gave (g, as _given has it), checked."""
+    accel, kernel = _method("wgpu", g.accel, g.kernel, {}, shading)
+    walk = _walk(g.walk, accel, shading)
+    if accel == "bvh":
+        walk = walk or "ray"
+    workgroup = DEFAULT_WORKGROUP[walk or accel] if g.workgroup is None else _pair("workgroup", g.workgroup)
+    adapter = g.adapter
+    if adapter is not None and not isinstance(adapter, str):
+        raise RaybenchError(f"adapter: must be an adapter's name (text), got {shown(adapter)}")
+    build = _build(g.build, accel)
+    quality, _, refit_limit = _gpu_build(build, "wgpu", g.quality, None, g.refit_limit)
+    return WgpuOptions(
+        accel, kernel, workgroup, adapter, walk, build, quality, refit_limit, _schedule(g.schedule, shading)
+    )
 
 
 KINDS = {"cpu": CpuOptions, "cuda": CudaOptions, "wgpu": WgpuOptions}
+# Each device's rules, which fill in its record from what a caller gave.
+CHECKS = {"cpu": _cpu, "cuda": _cuda, "wgpu": _wgpu}
 # What each device takes, by name (render()'s keyword arguments).
 NAMES = {device: tuple(f.name for f in fields(kind)) for device, kind in KINDS.items()}
 
@@ -398,4 +399,4 @@ def checked(device: str, given: dict, shading=None):
             raise RaybenchError(
                 f"option {key!r} does not apply to device {device} (its options: {', '.join(NAMES[device])})"
             )
-    return KINDS[device].check(given, shading)
+    return CHECKS[device](_given(KINDS[device], given), shading)
