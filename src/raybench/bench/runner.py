@@ -218,12 +218,8 @@ def measure(point: Point, scenes: Scenes, duration: float) -> dict:
         "build_s": build_s,
     }
     bvh = point.options.get("accel") == "bvh"
-    if described is not None:
-        record["adapter"] = described
-    if walk is not None:
-        record["walk"] = walk
-    if picture is not None:
-        record["picture"] = picture
+    # what only some records have: the adapter, the walk a tree chose, a real scene's picture
+    record.update({k: v for k, v in (("adapter", described), ("walk", walk), ("picture", picture)) if v is not None})
     if not point.ramp:  # a ramp's frames are its series, one per count
         record["samples_ms"] = kept_samples(frame_ms)
     if point.ramp:

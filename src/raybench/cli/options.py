@@ -47,22 +47,16 @@ def device_options(
     """The device options given on the command line (render's and view's),
     parsed: one that does not apply to the device is refused by the backend,
     in one line. Those not given are left to the backend's defaults."""
-    options = {}
-    if kernel is not None:
-        options["kernel"] = kernel
-    if accel is not None:
-        options["accel"] = accel
-    if build is not None:
-        options["build"] = build
-    if threads is not None:
-        options["threads"] = threads
-    if block is not None:
-        options["block"] = parse_block(block)
-    if workgroup is not None:
-        options["workgroup"] = parse_pair(workgroup, "--workgroup", "16x16")
-    if adapter is not None:
-        options["adapter"] = adapter
-    return options
+    parsed = {
+        "kernel": kernel,
+        "accel": accel,
+        "build": build,
+        "threads": threads,
+        "block": None if block is None else parse_block(block),
+        "workgroup": None if workgroup is None else parse_pair(workgroup, "--workgroup", "16x16"),
+        "adapter": adapter,
+    }
+    return {name: value for name, value in parsed.items() if value is not None}
 
 
 def options_by_device(options: dict) -> dict[str, dict]:
