@@ -75,11 +75,13 @@ def _section_scenes(w: _Writer, label: str, slug: str, records: list[dict]) -> N
          f"{fmt_num(r['rays_per_s'] / 1e6)} M" if r.get("rays_per_s") else "–"]
         for r in measured
     ]  # fmt: skip
-    w(_table(header, rows), "")
-    for line in verdicts(measured):
-        w(f"- {line}")
-    w("")
+    _findings(w, header, rows, verdicts(measured))
     _pictures(w, label, f"{slug}-scene", measured, lambda r: r["options"]["scene"].split()[0], primitives)
+
+
+def _findings(w: _Writer, header: list[str], rows: list[list], verdict_lines: list[str]) -> None:
+    """A part's table of frames, then its verdicts as a list."""
+    w(_table(header, rows), "", *(f"- {line}" for line in verdict_lines), "")
 
 
 def _pictures(w: _Writer, label: str, stem: str, records: list[dict], group, count) -> None:
@@ -144,10 +146,7 @@ def _molecules(w: _Writer, label: str, slug: str, measured: list[dict]) -> None:
          fmt_ms(r["frame_ms"]["median"]), f"{fmt_num(r['rays_per_s'] / 1e6)} M" if r.get("rays_per_s") else "–"]
         for r in measured
     ]  # fmt: skip
-    w(_table(header, rows), "")
-    for line in molecule_verdicts(measured):
-        w(f"- {line}")
-    w("")
+    _findings(w, header, rows, molecule_verdicts(measured))
     _pictures(w, label, f"{slug}-molecule", measured, lambda r: r["options"]["molecule"],
               lambda r: r["options"]["atoms"])  # fmt: skip
 

@@ -57,12 +57,11 @@ def _rates_text(machine: dict) -> str:
     )
 
 
-def _opening(w: _Writer, title: str, measured, missing: str) -> bool:
-    """A section's heading, then, where nothing was measured, the line that
-    says so (missing) in place of the section: whether anything was."""
-    w(f"### {title}", "")
-    if not measured:
-        w(missing, "")
+def _opening(w: _Writer, title: str, measured, missing: str, intro: str) -> bool:
+    """A section's heading, then what it shows (intro) or, where nothing was
+    measured, the line that says so (missing) in place of the section:
+    whether anything was."""
+    w(f"### {title}", "", intro if measured else missing, "")
     return bool(measured)
 
 
@@ -80,17 +79,19 @@ def _fit_cells(fit: dict | None, spheres: list[int]) -> list[str]:
 
 def _section_thesis(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
     series = thesis_series(records)
-    if not _opening(w, "Tests 1-6: frame time against sphere count", series, _no_suite("thesis")):
-        return
-    w(
+    if not _opening(
+        w,
+        "Tests 1-6: frame time against sphere count",
+        series,
+        _no_suite("thesis"),
         "Each chart shows one processor: the median time to render one frame (dots, solid line) for 100 to "
         "1000 spheres at each resolution, the spread of the frames from the 5th to the 95th percentile "
         "(shaded band, often thinner than the line), and the least-squares straight line (dashed). If the "
         "dots sit on the dashed line, frame time grows linearly with the number of spheres, as the thesis "
         "says. The slope is the cost of one more sphere for the whole picture; the intercept is the cost of "
         "a frame with no spheres (launch, copy, overhead). R² is 1 for a perfect line.",
-        "",
-    )
+    ):
+        return
     machine = machine_of(records)
     for device in ("cuda", "wgpu", "cpu"):
         ds = [s for s in series if s["device"] == device]
@@ -138,26 +139,22 @@ def _section_thesis(w: _Writer, label: str, slug: str, records: list[dict]) -> N
 
 
 def _section_speedup(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
-    w("### GPU over CPU speedup", "")
     sp = speedups(records)
     machine = machine_of(records)
     ratio = theoretical_ratio(machine)
-    if not sp:
-        w(
-            "Not measured: this needs tests 1-6 on both the CPU and the GPU at the same resolutions and sphere counts.",
-            "",
-            f"Theoretical rates: {_rates_text(machine)}",
-            "",
-        )
-        return
-    w(
+    measured = _opening(
+        w,
+        "GPU over CPU speedup",
+        sp,
+        "Not measured: this needs tests 1-6 on both the CPU and the GPU at the same resolutions and sphere counts.",
         "How many times faster the GPU renders the same frame than the CPU (CPU median frame time divided by "
         "GPU median frame time, whole frames including the GPU's copy back to the host). The grey band is the "
         "thesis's 58-60x; the red dashed line is what the two processors' peak FP32 rates would predict if both "
         "ran the ray tracer equally close to their peak.",
-        "",
     )
     w(f"Theoretical rates: {_rates_text(machine)}", "")
+    if not measured:
+        return
     w.image(f"{slug}-speedup.png", charts.plot_speedup(label, sp, ratio), f"{label}: GPU speedup over CPU")
     counts = sorted({p["spheres"] for p in sp})
     sizes = sorted({(p["width"], p["height"]) for p in sp}, key=lambda s: s[0] * s[1])
@@ -169,28 +166,29 @@ def _section_speedup(w: _Writer, label: str, slug: str, records: list[dict]) -> 
 def _section_test7(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
     series = test7_series(records)
     missing = "Not measured: these results hold no test 7 (it runs with `--suite thesis`)."
-    if not _opening(w, "Test 7: adding ten spheres every frame", series, missing):
-        return
-    w(
+    if not _opening(
+        w,
+        "Test 7: adding ten spheres every frame",
+        series,
+        missing,
         "As in the thesis, the scene starts with 10 spheres and gets 10 more every frame up to 1000; each dot "
         "is one frame, with the sphere count passed to the kernel at run time. The very first frame is left "
         "out of the chart and the fit, because it includes setting everything up (its time is given below). "
         "Single frames are noisier than the medians of tests 1-6.",
-        "",
-    )
+    ):
+        return
     w.image(f"{slug}-test7.png", charts.plot_test7(label, series), f"{label}: test 7 frame time against spheres")
-    rows = []
-    for s in series:
-        rows.append(
-            [
-                escape(DEVICE_NAMES.get(s["device"], s["device"])),
-                f"{s['width']}x{s['height']}",
-                len(s["spheres"]),
-                *_fit_cells(s["fit"], s["spheres"]),
-                fmt_ms(s["first_frame_s"] * 1e3) if s["first_frame_s"] is not None else "–",
-                fmt_compile_s(s["compile_s"]),
-            ]
-        )
+    rows = [
+        [
+            escape(DEVICE_NAMES.get(s["device"], s["device"])),
+            f"{s['width']}x{s['height']}",
+            len(s["spheres"]),
+            *_fit_cells(s["fit"], s["spheres"]),
+            fmt_ms(s["first_frame_s"] * 1e3) if s["first_frame_s"] is not None else "–",
+            fmt_compile_s(s["compile_s"]),
+        ]
+        for s in series
+    ]
     w(
         _table(
             [
@@ -211,16 +209,18 @@ def _section_test7(w: _Writer, label: str, slug: str, records: list[dict]) -> No
 
 def _section_tuning(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
     cpu, gpu, portable = cpu_tuning(records), gpu_tuning(records), gpu_tuning(records, "wgpu")
-    if not _opening(w, "Tuning: CPU threads and GPU block shapes", cpu or gpu or portable, _no_suite("tuning")):
-        return
-    w(
+    if not _opening(
+        w,
+        "Tuning: CPU threads and GPU block shapes",
+        cpu or gpu or portable,
+        _no_suite("tuning"),
         "The same frame rendered with different ways of splitting the work. On the CPU the rows of the picture "
         "are shared among a number of threads (the thesis found twice the cores best, and one thread per row "
         "worse than a single thread). On the GPU every pixel is one thread, and threads are grouped in blocks "
         "of the shape shown (the thesis found the largest, 32x32, best). Lower is faster; the fastest bar is "
         "outlined.",
-        "",
-    )
+    ):
+        return
     for device, _rows in (("cpu", cpu), ("cuda", gpu)):
         _, others = largest_group(records, "tuning", device)
         if others:
@@ -276,15 +276,17 @@ def _gpu_tuning_table(first: str, rows: list[dict]) -> str:
 def _section_constant(w: _Writer, label: str, slug: str, records: list[dict]) -> None:
     rows = {d: constant_vs_runtime(records, d) for d in ("cuda", "cpu")}
     title = "Sphere count: compile-time constant or runtime variable"
-    if not _opening(w, title, any(rows.values()), _no_suite("constant-vs-runtime")):
-        return
-    w(
+    if not _opening(
+        w,
+        title,
+        any(rows.values()),
+        _no_suite("constant-vs-runtime"),
         "The thesis's test 7 passed the sphere count to the shader at run time and blamed that for slower "
         "frames than a count fixed when the shader is compiled (which lets the compiler unroll the loop). "
         "Here the same kernel is compiled both ways and timed at each sphere count; a ratio above 1 means the "
         "runtime count is slower. On the GPU the kernel time is compared where it was measured.",
-        "",
-    )
+    ):
+        return
     w.image(f"{slug}-constant.png", charts.plot_constant(label, rows), f"{label}: constant vs runtime sphere count")
     table = []
     for device, rs in rows.items():
