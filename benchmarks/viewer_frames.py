@@ -48,6 +48,7 @@ from raybench.backends.wgpu.adapters import describe_raw
 from raybench.bench.stats import summarize
 from raybench.viewer.drawing import FrameDrawer, wgpu_tracer_here
 from raybench.viewer.gpu import TextureQuad, choose_target_format, request_device
+from raybench.viewer.shading import FirstShading
 from raybench.viewer.state import ViewerState
 from raybench.viewer.window import MAX_FPS
 
@@ -129,9 +130,7 @@ def measure(gpu, device, what, width, height, shading, frames, warmup, turn, dep
         device=device,
         seed=0,
         options=options,
-        shading=shading,
-        depth=depth,
-        shadow_samples=samples,
+        shading=FirstShading(shading, depth, samples),
         animate=animate,
     )
     tracer = wgpu_tracer_here(state, gpu.device, gpu.adapter, gpu.named) if device == "wgpu" else None

@@ -23,7 +23,7 @@ from raybench.lighting import Shading
 from raybench.scene import RAMP
 from raybench.viewer import bindings, controls, overlay
 from raybench.viewer.pacing import FrameStats, Handoff
-from raybench.viewer.shading import LIGHT_STEP_S, ShadingControl
+from raybench.viewer.shading import LIGHT_STEP_S, FirstShading, ShadingControl
 from raybench.viewer.spheres import SphereSupply
 from raybench.viewer.state import ViewerState
 from raybench.viewer.worker import TracedFrame, TraceFailed, TraceRequest, TraceWorker, to_rgba
@@ -501,7 +501,7 @@ def same_shading(a: Shading, b: Shading) -> bool:
 
 
 def test_g_toggles_the_shading_of_the_next_request():
-    state, _ = make_state(n=20, seed=3, depth=None)
+    state, _ = make_state(n=20, seed=3, shading=FirstShading(depth=None))
     scene = state.supply.scene
     assert state.next_request(8, 6).shading is None  # the thesis's shading by default
     assert state.handle_event(key("g")) == "toggle_shading"
@@ -513,7 +513,7 @@ def test_g_toggles_the_shading_of_the_next_request():
     assert state.next_request(8, 6).shading is None and "shading: thesis" in state.title()
     # --shading whitted --depth 2 --shadow-samples 3: the first request is render()'s Whitted frame.
     lit = random_spheres(15, 2, materials=True)
-    state = ViewerState(lit, device="cpu", seed=2, clock=Clock(), shading="whitted", depth=2, shadow_samples=3)
+    state = ViewerState(lit, device="cpu", seed=2, clock=Clock(), shading=FirstShading("whitted", 2, 3))
     request = state.next_request(8, 6)
     assert request.scene is lit and same_shading(request.shading, Shading.of(lit, 2, 3))
     state.handle_event(key("g"))
@@ -535,7 +535,7 @@ def test_whitted_without_lights_is_traced_and_the_light_keys_say_why_nothing_mov
 
 def test_light_keys_move_the_first_light_in_the_cameras_frame():
     scene = lit_file_scene()
-    state = ViewerState(scene, device="cpu", seed=None, clock=Clock(), shading="whitted")
+    state = ViewerState(scene, device="cpu", seed=None, clock=Clock(), shading=FirstShading("whitted"))
     step = state.motion.speed * LIGHT_STEP_S
     assert state.lighting.step == step > 0
     forward, right, up = controls.axes(scene.camera)  # forward is +x here, right -z, up +y
@@ -581,7 +581,7 @@ def test_the_light_moves_under_the_thesis_shading_and_shows_under_whitted():
 
 
 def test_the_light_moves_with_the_random_scene_past_its_end():
-    state, _ = make_state(n=20, seed=1, shading="whitted")
+    state, _ = make_state(n=20, seed=1, shading=FirstShading("whitted"))
     state.supply = SphereSupply(random_spheres(20, 1, materials=True), seed=1)
     state.handle_event(key("i"))
     state.handle_event(key("="))  # a new scene of 30 spheres: the light stays where it was moved
@@ -592,7 +592,7 @@ def test_the_light_moves_with_the_random_scene_past_its_end():
 
 
 def test_a_light_step_out_of_bounds_is_refused_in_the_title():
-    control = ShadingControl("whitted", step=2e15)
+    control = ShadingControl(FirstShading("whitted"), step=2e15)
     scene = lit_file_scene()
     message = control.move_light("light_up", scene, scene.camera)
     assert message.startswith("the light stays: ") and "position" in message
@@ -743,7 +743,7 @@ def test_worker_whitted_frames_are_what_render_draws_with_every_ray_counted():
     light moved, then a prefix of the spheres): render()'s pictures, hits and
     ray counts, on the CPU (its first Whitted frame compiles for a minute)."""
     scene = lit_file_scene()
-    state = ViewerState(scene, device="cpu", seed=None, clock=Clock(), shading="whitted", depth=2, shadow_samples=2)
+    state = ViewerState(scene, device="cpu", seed=None, clock=Clock(), shading=FirstShading("whitted", 2, 2))
     state.camera = Camera(position=(-10, 1, 15), look_at=(0, 0, 15))
     first = state.next_request(24, 16)
     state.handle_event(key("k"))

@@ -613,9 +613,13 @@ def test_whitted_keys_on_wgpu_in_the_window(display, vulkan_adapter):
     I moves the light up, G goes back. Every Whitted frame drawn is what
     raybench.render draws on the same adapter, with the same rays counted,
     and the title shows the rays per second, every kind counted."""
+    from raybench.viewer.shading import FirstShading
+
     name = vulkan_adapter.info["device"]
     scene = Scene.load(examples.path("whitted"))
-    state = state_for(scene, None, device="wgpu", options={"wgpu": {"adapter": name}}, depth=2, shadow_samples=2)
+    state = state_for(
+        scene, None, device="wgpu", options={"wgpu": {"adapter": name}}, shading=FirstShading(depth=2, shadow_samples=2)
+    )
     titles = []
 
     def title(window):

@@ -62,6 +62,7 @@ def view(
     from ..lighting import Shading
     from ..scene import Scene
     from ..viewer import view as open_viewer
+    from ..viewer.shading import FirstShading
     from ..viewer.state import ViewerState
 
     scene = scene_args.load(meshes=True)
@@ -97,7 +98,9 @@ def view(
                 continue
         _check_options(name, given, lit)
     seed = None if scene_args.scene_file is not None else (0 if scene_args.seed is None else scene_args.seed)
-    state = ViewerState(scene, device=device, seed=seed, options=options, animate=animate, **shaded)
+    state = ViewerState(
+        scene, device=device, seed=seed, options=options, animate=animate, shading=FirstShading(**shaded)
+    )
     window = open_viewer(state, (width, height), frames=frames, screenshot=screenshot)
     if frames is not None and window.state.frames_shown < frames:
         raise RaybenchError(

@@ -39,6 +39,17 @@ LIGHT_MOVES = {
 }
 
 
+@dataclasses.dataclass(frozen=True)
+class FirstShading:
+    """The first frame's shading, as render() takes it: "thesis" or
+    "whitted", and Whitted's depth and shadow samples (None: lighting's
+    defaults). The G key toggles it from there."""
+
+    shading: str = "thesis"
+    depth: int | None = None
+    shadow_samples: int | None = None
+
+
 def with_first_light_at(scene: Scene, position) -> Scene:
     """The scene with its first light moved to position; the spheres (the
     same float32 bits), materials and the other lights as they were."""
@@ -47,13 +58,13 @@ def with_first_light_at(scene: Scene, position) -> Scene:
 
 
 class ShadingControl:
-    def __init__(self, shading: str = "thesis", depth=None, shadow_samples=None, step: float = 1.0):
-        """shading: "thesis" or "whitted", the first frame's; depth and
-        shadow_samples: Whitted's (None: lighting's defaults); step: scene
+    def __init__(self, first: FirstShading | None = None, step: float = 1.0):
+        """first: the first frame's shading (None: the thesis's); step: scene
         units a light key moves the light."""
-        self.shading = check_shading(shading)
-        self.depth = None if depth is None else check_depth(depth)
-        self.shadow_samples = None if shadow_samples is None else check_shadow_samples(shadow_samples)
+        first = first or FirstShading()
+        self.shading = check_shading(first.shading)
+        self.depth = None if first.depth is None else check_depth(first.depth)
+        self.shadow_samples = None if first.shadow_samples is None else check_shadow_samples(first.shadow_samples)
         self.step = step
         self.offset = np.zeros(3)  # where the keys moved the first light from its place in the scene
         self._made = None  # (scene, offset, lit scene, Shading): the last ones made, kept for the next frames

@@ -17,7 +17,7 @@ from .bindings import binding_for
 from .controls import Motion, travel_speed
 from .overlay import Status, help_line, status_line, waiting_line
 from .pacing import FrameStats
-from .shading import LIGHT_MOVES, LIGHT_STEP_S, ShadingControl
+from .shading import LIGHT_MOVES, LIGHT_STEP_S, FirstShading, ShadingControl
 from .spheres import SphereSupply
 from .worker import TracedFrame, TraceFailed, TraceRequest
 
@@ -35,15 +35,13 @@ class ViewerState:
         options: dict | None = None,
         clock=time.perf_counter,
         devices=("cpu", "cuda"),
-        shading: str = "thesis",
-        depth: int | None = None,
-        shadow_samples: int | None = None,
+        shading: FirstShading | None = None,
         animate: bool = False,
     ):
         """device: "cpu", "cuda" or "wgpu" (already resolved); seed: that of a generated
         scene, None for a scene file; options: per device, e.g. {"cpu": {"threads": 4}};
         devices: those Tab cycles through (the window adds wgpu where it can trace on it);
-        shading, depth, shadow_samples: the first frame's shading, as render() takes them;
+        shading: the first frame's (None: the thesis's), as render() takes it;
         animate: the spheres move (viewer.moving), each request at the clock's time since now."""
         if device not in backends.DEVICES:
             raise ValueError(f"device must be one of {backends.DEVICES}, got {device!r}")
@@ -58,7 +56,7 @@ class ViewerState:
         self.options = {d: dict((options or {}).get(d, {})) for d in backends.DEVICES}
         # rows 0 to 2 of any kind's buffer: a sphere's centre, a triangle's first corner
         self.motion = Motion(travel_speed(self.supply.traced.leaves[0:3].T, self.home))
-        self.lighting = ShadingControl(shading, depth, shadow_samples, step=self.motion.speed * LIGHT_STEP_S)
+        self.lighting = ShadingControl(shading, step=self.motion.speed * LIGHT_STEP_S)
         self.stats = FrameStats()
         self.shown: TracedFrame | None = None
         self.frames_shown = 0
