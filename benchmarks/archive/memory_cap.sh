@@ -6,7 +6,7 @@
 # Needs root and the cgroup memory controller (v2: memory.max and memory.peak; or v1).
 # Issue 38's "renders on a 16 GiB CPU machine":
 #   raybench scene spd balls --size 6 -o balls6.nff
-#   bash benchmarks/memory_cap.sh 16 balls6.log raybench render balls6.nff --device cpu \
+#   bash benchmarks/archive/memory_cap.sh 16 balls6.log raybench render balls6.nff --device cpu \
 #       --size 1680x1050 --shading whitted -o balls6.png
 set -uo pipefail
 if [ $# -lt 3 ]; then echo "usage: memory_cap.sh GIB LOG COMMAND..." >&2; exit 2; fi

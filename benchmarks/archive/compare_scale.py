@@ -5,7 +5,7 @@ the process's CPU time (user + system: on a shared machine, what the wall time i
 resident memory, and the load average as each round starts. Issue 39's target: 10,000 points against 10,000 in under
 10 s and under 500 MB on the 2-vCPU machine.
 
-    PYTHONPATH=src python benchmarks/compare_scale.py --points 10000 --samples 100 --rounds 3
+    PYTHONPATH=src:benchmarks python benchmarks/archive/compare_scale.py --points 10000 --samples 100 --rounds 3
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@ against one tree per kind (the spheres' tree walked first, then the triangles' w
 first one's hit), on the same primary rays, one thread, the binary tree's walk
 (kernels/traverse.py) for both. Side by side in one process, alternating, medians.
 
-    PYTHONPATH=src python benchmarks/mixed_trees.py --repeats 9
+    PYTHONPATH=src python benchmarks/archive/mixed_trees.py --repeats 9
 
 Prints one line a scene and design, and checks that both designs find the same nearest hit
 on every ray (the same primitive, the same t). docs/notes/mixed-scenes.md has the figures.
