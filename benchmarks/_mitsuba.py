@@ -9,7 +9,7 @@ installed into a folder of their own beside raybench's environment:
     PYTHONPATH=/tmp/site-mi:src python benchmarks/peers.py mitsuba --out mitsuba.jsonl
     PYTHONPATH=/tmp/site-mi:src python benchmarks/peers.py mitsuba --variant cuda_ad_rgb --device cuda
 
-(benchmarks/mitsuba_wheel.sh prunes the two wheels to what this needs, for the GPU lease.)
+(`benchmarks/lease_wheels.sh mitsuba` prunes the two wheels to what this needs, for the GPU lease.)
 
 The mesh: `trimesh.creation.icosphere` of radius 1 at each --subdivisions (_embreex.icosphere),
 seen from (0, 0, -distance) looking at its centre, a 60 degree field of view, at --size. Mitsuba

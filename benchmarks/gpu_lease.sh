@@ -34,7 +34,7 @@
 #   multigpu benchmarks/multi_gpu.py: 1 and 2 cuda workers of raybench.cluster on a
 #            240-frame orbit at 1680x1050, an 8192x8192 frame in tiles, both at 100,000
 #            spheres, and the scaling model's terms (MULTIGPU_ARGS to change); needs the
-#            Dask wheels in .whl (benchmarks/dask_wheels.sh) and the machine kind nvidia-h200-x2
+#            Dask wheels in .whl (benchmarks/lease_wheels.sh dask) and the machine kind nvidia-h200-x2
 #   multibench raybench bench --suite multi-gpu on cuda: the same throughput as results
 #            records, for raybench report's section across workers
 #   dynamic  the dynamic suite: moving spheres, the tree's update and the frame, cuda (both builds),
@@ -60,7 +60,7 @@
 #            (WGPUBUILD_ARGS to change)
 #   mitsuba  benchmarks/peers.py mitsuba --variant cuda_ad_rgb --device cuda: raybench's cuda frames of
 #            an icosphere against Mitsuba 3 on OptiX, the same rays, side by side; needs .mi (the pruned
-#            wheels of benchmarks/mitsuba_wheel.sh), installed into /tmp/site-mi; its records and log in
+#            wheels of benchmarks/lease_wheels.sh mitsuba), installed into /tmp/site-mi; its records and log in
 #            $W/mitsuba/ (MITSUBA_ARGS added after those flags, e.g. "--subdivisions 8 --rounds 3";
 #            MITSUBA_S its limit, 240 s)
 #

@@ -1,4 +1,4 @@
-"""benchmarks/mitsuba_wheel.sh on small wheels of Mitsuba's and Dr.Jit's shape: what it keeps and
+"""`benchmarks/lease_wheels.sh mitsuba` on small wheels of Mitsuba's and Dr.Jit's shape: what it keeps and
 drops, a RECORD that lists every file left with its hash and size (checked here with hashlib), the
 variants config.py names, and its refusals. peers.py mitsuba's refusals of bad flags, without
 Mitsuba."""
@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-SCRIPT = ROOT / "benchmarks" / "mitsuba_wheel.sh"
+SCRIPT = ROOT / "benchmarks" / "lease_wheels.sh"
 TAG = "cp312-cp312-manylinux_2_28_x86_64"
 VARIANTS = ["scalar_rgb", "llvm_ad_rgb", "cuda_ad_rgb", "cuda_ad_spectral"]
 MITSUBA_FILES = [
@@ -48,7 +48,7 @@ def wheel(path: Path, files: list[str], extra: dict | None = None) -> None:
 
 
 def run(folder: Path, out: Path, **env) -> subprocess.CompletedProcess:
-    return subprocess.run(["bash", str(SCRIPT), str(folder)], capture_output=True, text=True,
+    return subprocess.run(["bash", str(SCRIPT), "mitsuba", str(folder)], capture_output=True, text=True,
                           env={**os.environ, "MI_OUT": str(out), **env})  # fmt: skip
 
 
@@ -111,7 +111,7 @@ def test_a_plugin_missing_from_the_wheel_or_no_wheel_is_refused(wheels, tmp_path
     assert not list((tmp_path / "out").glob("mitsuba-*"))  # nothing half written
     (wheels / f"drjit-1.5.0-{TAG}.whl").unlink()
     done = run(wheels, tmp_path / "out")
-    assert done.returncode == 2 and done.stderr.strip() == f"mitsuba_wheel.sh: {wheels}: needs one drjit-*.whl"
+    assert done.returncode == 2 and done.stderr.strip() == f"lease_wheels.sh mitsuba: {wheels}: needs one drjit-*.whl"
 
 
 @pytest.mark.parametrize(
