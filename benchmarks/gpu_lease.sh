@@ -63,6 +63,10 @@
 #            wheels of benchmarks/lease_wheels.sh mitsuba), installed into /tmp/site-mi; its records and log in
 #            $W/mitsuba/ (MITSUBA_ARGS added after those flags, e.g. "--subdivisions 8 --rounds 3";
 #            MITSUBA_S its limit, 240 s)
+#   embreex  benchmarks/peers.py embreex: raybench's cpu frames of an icosphere against Embree 4 through
+#            embreex on the host's cores, the same rays; needs .emb (lease_wheels.sh embreex), installed
+#            into /tmp/site-emb; records and log in $W/embreex/ (EMBREEX_ARGS, default
+#            "--subdivisions 6 8"; EMBREEX_S its limit, 300 s)
 #
 # An archived script (benchmarks/archive/, its README) has no step: STEPS="" installs the wheels into
 # /tmp/site, then run it by hand with benchmarks/ on PYTHONPATH for _harness, e.g.
@@ -237,6 +241,13 @@ for s in $STEPS; do
         step mitsuba/mitsuba "${MITSUBA_S:-240}" env PYTHONPATH="/tmp/site-mi:$PYTHONPATH" python3 benchmarks/peers.py \
             mitsuba --variant cuda_ad_rgb --device cuda --label "$LABEL" --out "$W/mitsuba/mitsuba.jsonl" \
             ${MITSUBA_ARGS:-} ;;
+    embreex)
+        mkdir -p "$W/embreex"
+        python3 -m pip install -q --no-index --no-deps --no-cache-dir --upgrade --target /tmp/site-emb .emb/*.whl \
+            > "$W/embreex/install.log" 2>&1 || echo "embreex: .emb/*.whl did not install (install.log)" | tee -a "$W/steps.log"
+        # shellcheck disable=SC2086
+        step embreex/embreex "${EMBREEX_S:-300}" env PYTHONPATH="/tmp/site-emb:$PYTHONPATH" python3 benchmarks/peers.py \
+            embreex --label "$LABEL" --out "$W/embreex/embreex.jsonl" ${EMBREEX_ARGS:---subdivisions 6 8} ;;
     *) echo "unknown step $s" | tee -a "$W/steps.log" ;;
     esac
 done

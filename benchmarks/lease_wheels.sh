@@ -6,6 +6,7 @@
 #
 #   bash benchmarks/lease_wheels.sh [wheels] [--povray] && du -sh .whl .gl .pov
 #   bash benchmarks/lease_wheels.sh dask && ls .whl
+#   bash benchmarks/lease_wheels.sh embreex && ls .emb
 #   bash benchmarks/lease_wheels.sh mitsuba [FOLDER]
 #
 # wheels (the default):
@@ -78,6 +79,13 @@ part_dask() {
         'pyyaml>=5.4.1' 'fsspec>=2021.9' 'jinja2>=2.10.3' 'markupsafe>=2' 'click>=8.1' 'psutil>=5.9' 'packaging>=20' \
         'xxhash>=4.1,<5'
     ls "$ROOT/.whl" | grep -iE 'dask|distributed|tornado|tblib|zict|partd|locket|cloudpickle|toolz|msgpack|yaml|fsspec|jinja|xxhash'
+}
+
+# embreex (Embree 4) for the `embreex` step (peers.py embreex on the GPU machine's host cores), into .emb/
+part_embreex() {
+    mkdir -p "$ROOT/.emb"
+    python3 -m pip download -q --only-binary=:all: --no-deps --python-version 3.12 \
+        --platform manylinux_2_28_x86_64 --implementation cp -d "$ROOT/.emb" 'embreex==4.4.0.post1'
 }
 
 part_mitsuba() {
@@ -160,7 +168,7 @@ EOF
 }
 
 usage() {
-    echo "usage: lease_wheels.sh [wheels] [--povray] | dask | mitsuba [FOLDER]" >&2
+    echo "usage: lease_wheels.sh [wheels] [--povray] | dask | embreex | mitsuba [FOLDER]" >&2
     exit 2
 }
 
@@ -168,6 +176,7 @@ case "$*" in
     "" | wheels) part_wheels ;;
     --povray | "wheels --povray") part_wheels && part_povray ;;
     dask) part_dask ;;
+    embreex) part_embreex ;;
     mitsuba | "mitsuba "*) shift; [ $# -le 1 ] || usage; part_mitsuba "$@" ;;
     *) usage ;;
 esac

@@ -43,7 +43,8 @@ def make(
     call = call or jit
     prim = primitive.make(jit, words)
     shade_hit, shade_miss, to_byte = shade.make(jit)
-    walks = traverse.make(jit, prim, read_row, vote, voted_jit)
+    kind = primitive.__name__.rsplit(".", 1)[-1]
+    walks = traverse.make(jit, prim, read_row, vote, voted_jit, leaf_jit=call, kind=kind)
     nearest_hit_bvh, inverse, walk = walks.nearest_hit_bvh, walks.inverse, walks.walk
     hit_closest, hit_ahead, meets_own, rim, colour = prim.hit, prim.hit_ahead, prim.meets_own, prim.rim, prim.colour
     # the brute-force fast kernels' cull (prepare): a primitive that has one
@@ -146,13 +147,13 @@ def make(
 
     def whitted_program(search, shadows=None):
         if shadows is None:
-            stages = whitted.make(jit, call, search, prim, shade_hit, shade_miss)
+            stages = whitted.make(jit, call, search, prim, shade_hit, shade_miss, name=f"_{kind}")
             wavefronts[search.__name__] = wavefront.make(jit, stages, primary_ray, shade_hit)
         else:
             # find inlined: this program's shadow rays call no find (its shadows trace
             # them), so the walk has one call site and is compiled once, and the call's
             # cost goes (measured: docs/notes/whitted.md, "CPU: the primary rays as packets")
-            stages = whitted.make(jit, jit, search, prim, shade_hit, shade_miss, shadows, name="_packets")
+            stages = whitted.make(jit, jit, search, prim, shade_hit, shade_miss, shadows, name=f"_packets_{kind}")
         whitted_pixel = stages.whitted_pixel
 
         @jit

@@ -37,10 +37,12 @@ TINY = np.float32(1e-20)
 _U = np.uint64
 
 
-def make(jit, prim, read_row=None, vote=None, voted_jit=None):
+def make(jit, prim, read_row=None, vote=None, voted_jit=None, leaf_jit=None, kind="sphere"):
     """The walks over `jit`, for the primitive whose compiled functions are
-    `prim` (a primitive module's make: kernels/primitives); the leaf test
-    is the only part that asks it anything. read_row(nodes, links, row): a
+    `prim` (a primitive module's make: kernels/primitives, its name `kind`);
+    the leaf test is the only part that asks it anything. leaf_jit: the
+    leaf test's decorator (default jit): the CPU compiles it as a function
+    that the walk calls, not inlined at the walk's two leaf sites. read_row(nodes, links, row): a
     node's row as its 16 values; by default the arrays are read a value at
     a time, and a backend's own may read them in fewer, wider loads from a
     layout of its own (cuda's wavefront). vote(p): whether p holds for any
@@ -139,7 +141,6 @@ def make(jit, prim, read_row=None, vote=None, voted_jit=None):
             + (half * (nodes[row, col + _U(2)] + nodes[row, col + _U(5)]) - oz) * cz
         )
 
-    @jit
     def leaf_test(ox, oy, oz, dx, dy, dz, ordered, order, first, count, closest, hit, hit_d, ahead, own, own_inside):
         """The exact test on a leaf's primitives; the nearest so far, ties to
         the smaller original index. ahead: a Whitted ray's test (the
@@ -167,6 +168,17 @@ def make(jit, prim, read_row=None, vote=None, voted_jit=None):
                 hit = original
                 hit_d = d
         return closest, hit, hit_d
+
+    # Inlined at both of the walk's leaf sites, each with the primitive's two
+    # tests, a triangle's walk took Numba minutes to compile on the CPU: as
+    # one called function it compiles once, and a call per leaf is little
+    # beside the primitives it tests (docs/notes/startup.md). Named after its
+    # kind: Numba names machine code by qualified name and a per-process
+    # counter, so two kinds' leaf tests compiled into the disk cache by two
+    # processes could carry one symbol (whitted.make's find says what that did).
+    leaf_test.__name__ = f"leaf_test_{kind}"
+    leaf_test.__qualname__ = leaf_test.__qualname__.replace("leaf_test", leaf_test.__name__)
+    leaf_test = (leaf_jit or jit)(leaf_test)
 
     walk_from = _walk_body(jit, ray_axes, children, centre_along, leaf_test, None)
     voted = None if vote is None else _walk_body(voted_jit or jit, ray_axes, children, centre_along, leaf_test, vote)
