@@ -560,3 +560,118 @@ def test_the_builder_takes_the_triangle_beside_the_sphere():
         assert seen == leaves.shape[1]
     after = bvh.build(scene.spheres, threads=2)
     assert (before.nodes.view(np.int32) == after.nodes.view(np.int32)).all() and (before.order == after.order).all()
+
+
+# --- trees over primitives whose boxes are not cubes: refitted to their leaves' boxes ----
+
+
+def _icosphere_leaves(subdivisions):
+    import trimesh
+
+    from raybench.meshes import Mesh, mesh_leaves
+
+    shape = trimesh.creation.icosphere(subdivisions=subdivisions)
+    return mesh_leaves(Mesh(np.float32(shape.vertices), np.int32(shape.faces)))
+
+
+def _mixed_leaves():
+    from raybench.scene_meshes import mixed_leaves
+
+    spheres = raybench.random_spheres(600, seed=5).spheres
+    return mixed_leaves(spheres, _icosphere_leaves(3))
+
+
+def _child_boxes(tree, plain):
+    """Each reachable child of the tree: (row, its box, the union of what it
+    holds: its inner node's two boxes, or its leaves' padded boxes)."""
+    out, stack = [], [0]
+    while stack:
+        row = stack.pop()
+        for c in range(2):
+            ref, count = tree.links[row, layout.REF + c], tree.links[row, layout.COUNT + c]
+            if count == 0:
+                continue
+            box = tree.nodes[row, layout.CHILD_BOX[c] : layout.CHILD_BOX[c] + 6]
+            if count == layout.INNER:
+                assert ref > row  # what the refit relies on: a row's inner children come after it
+                stack.append(ref)
+                held = np.stack([tree.nodes[ref, k : k + 6] for k in layout.CHILD_BOX])
+            else:
+                held = np.float32([plain.bounds(tree.ordered, j) for j in range(ref, ref + count)])
+            out.append((row, box, np.concatenate([held[:, :3].min(axis=0), held[:, 3:].max(axis=0)])))
+    return out
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", ["triangle", "mixed"])
+def test_a_tree_over_triangles_is_refit_to_its_leaves_boxes(kind, monkeypatch):
+    """The host builder bins one half size a primitive, the cube around its
+    box; for the triangle (and the mixed kind's triangles) the tree's boxes
+    are then refitted: every child box is exactly the union of the boxes it
+    holds (so it holds every leaf's padded box, and no more), inside the
+    box built over the cubes, and for a mesh alone a lower SAH cost (the
+    mixed kind's root shrinks too, which the cost divides by); on one thread
+    and sliced over two (the wide top's rows too)."""
+    from raybench.bvh import cost, sah
+    from raybench.kernels.primitives import KINDS
+
+    primitive = KINDS[kind]
+    leaves = _icosphere_leaves(3) if kind == "triangle" else _mixed_leaves()
+    plain = primitive.make(lambda f: f)
+    for wide in (bvh.WIDE, 256):
+        tree = bvh.build(leaves, threads=2, primitive=primitive, _wide=wide)
+        with monkeypatch.context() as m:
+            m.setattr(sah, "_tighten", lambda *a: None)
+            cubes = bvh.build(leaves, threads=2, primitive=primitive, _wide=wide)
+        assert (tree.links[:, layout.REF :] == cubes.links[:, layout.REF :]).all()  # the same tree, other boxes
+        assert (tree.order == cubes.order).all()
+        for row, box, held in _child_boxes(tree, plain):
+            assert (box == held).all(), (row, box, held)
+        for c in layout.CHILD_BOX:
+            assert (cubes.nodes[:, c : c + 3] <= tree.nodes[:, c : c + 3]).all()
+            assert (tree.nodes[:, c + 3 : c + 6] <= cubes.nodes[:, c + 3 : c + 6]).all()
+        if kind == "triangle":
+            assert cost.sah_cost(tree.nodes) < 0.97 * cost.sah_cost(cubes.nodes)
+
+
+@pytest.mark.slow
+def test_the_sphere_tree_is_not_refit_and_would_not_change(monkeypatch):
+    """A sphere's box is the cube the builder bins, so its tree is left as
+    built: the refit is never called for it, and run on its tree anyway it
+    changes no bit (the tree's hash the same), on one thread and sliced."""
+    import hashlib
+
+    spheres = raybench.random_spheres(5000, seed=6).spheres
+    for wide in (bvh.WIDE, 256):
+        tree = bvh.build(spheres, threads=2, _wide=wide)
+        digest = hashlib.sha256(tree.nodes.tobytes()).hexdigest()
+        refit = tree.nodes.copy()
+        sah_steps._refit(refit, refit.view(np.int32), tree.ordered)
+        assert hashlib.sha256(refit.tobytes()).hexdigest() == digest
+
+        def never(*args):
+            raise AssertionError("the sphere's tree was refitted")
+
+        with monkeypatch.context() as m:
+            m.setattr(sah_steps, "_refit", never)
+            again = bvh.build(spheres, threads=2, _wide=wide)
+        assert hashlib.sha256(again.nodes.tobytes()).hexdigest() == digest
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("tree_width", [2, 4])
+def test_a_refit_trees_frame_is_brute_forces(tree_width):
+    """An icosphere of more triangles than WIDE (the top split by every
+    thread) seen from (0, 0, -3): the refitted tree's walk, the binary tree
+    a ray at a time and the 4-wide packets, hits every pixel brute force hits."""
+    leaves = _icosphere_leaves(4)
+    camera = raybench.Camera(position=(0.0, 0.0, -3.0), look_at=(0.0, 0.0, 0.0), fov_deg=60.0)
+    basis = camera.basis(160, 100)
+    frames = []
+    for options in ({"tree_width": tree_width}, {"accel": "none", "kernel": "simple"}):
+        with raybench.backends.tracer("cpu", leaves, 160, 100, primitive="triangle", threads=2, **options) as tracer:
+            tracer.trace(basis)
+            frames.append((tracer.hits.copy(), tracer.image.copy()))
+    (hits, image), (brute_hits, brute_image) = frames
+    assert 0.1 < (hits >= 0).mean() < 0.5
+    assert (hits == brute_hits).all() and (image == brute_image).all()

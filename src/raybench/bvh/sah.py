@@ -14,6 +14,10 @@ by all of them at once, and smaller ranges are subtrees built one per thread.
 Depth is bounded by MAX_DEPTH whatever the input: where SAH splits would go
 deeper, the builder splits by count (object median), and spheres whose centres
 all coincide are split by count too.
+
+The steps bin one half size a primitive, the cube around its box; over a
+kind whose box is no cube (the triangle) the tree's boxes are then refitted
+to the primitives' own boxes (_tighten), so the walks test tight boxes.
 """
 
 from __future__ import annotations
@@ -105,7 +109,7 @@ def _python_steps():
     """sah_steps as the plain Python it was written in, the primitive's
     answers too: the same tree, compiling nothing (oneshot.one_shot)."""
     answers = sphere.make(lambda f: f)
-    return compiled.as_python(sah_steps, _extent=answers.extent, _copy_leaf=answers.copy_leaf)
+    return compiled.as_python(sah_steps, _extent=answers.extent, _copy_leaf=answers.copy_leaf, _bounds=answers.bounds)
 
 
 @functools.cache
@@ -118,6 +122,15 @@ def _steps(primitive) -> SimpleNamespace:
     if primitive is sphere:
         return SimpleNamespace(sah_steps=sah_steps, sah_wide=sah_wide)
     return SimpleNamespace(**compiled.rebound((sah_steps, sah_wide), primitive))
+
+
+def _tighten(steps, primitive, nodes, ordered) -> None:
+    """The tree's boxes refitted to its leaves' own boxes (sah_steps._refit),
+    for a kind whose boxes are not cubes: the steps bin and bound one half
+    size a primitive, the cube around its box. The sphere's box is that
+    cube, so its tree is left as built, to the bit."""
+    if primitive is not sphere:
+        steps.sah_steps._refit(nodes, nodes.view(np.int32), ordered)
 
 
 def _compile_kind(items, primitive, wide: bool) -> None:
@@ -177,6 +190,7 @@ def build(
     else:
         code = _python_steps() if interpret else steps.sah_steps
         nodes, ordered, order, depth = _build_narrow(code, items, primitive.LEAF_ROWS)
+    _tighten(steps, primitive, nodes, ordered)
     build_s = time.perf_counter() - start
     return Bvh(
         nodes=nodes,

@@ -327,8 +327,9 @@ def make(jit, words=None):
         """Triangle k of the scene's buffer as the builders see it: its
         padded box as a centre and half its size on each axis, (cx, cy, cz,
         hx, hy, hz). Three half sizes, a triangle's box being no cube; the
-        host SAH builder today keeps only the largest (bvh/sah_steps.py), a
-        cube that still holds the box."""
+        host SAH builder weighs its splits over the largest, the cube
+        around the box, then refits the tree's boxes to `bounds`
+        (bvh/sah_steps.py)."""
         ax, ay, az, bx, by, bz, cx, cy, cz = read(buffer, k)
         mx, my, mz, hx, hy, hz = box(ax, ay, az, bx, by, bz, cx, cy, cz)
         p = padding(mx, my, mz, hx, hy, hz)
