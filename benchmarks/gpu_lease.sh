@@ -101,8 +101,10 @@ echo "$RAYBENCH_GIT_COMMIT" > "$W/git_commit.txt"
 # STEPS unset: the steps below; STEPS="": none (the wheels installed, for commands of ones own after)
 STEPS=${STEPS-info pytest kernels scaling thesis wgpu tuning}
 step() {  # step NAME SECONDS COMMAND...: its output to $W/NAME.log, how it ended to steps.log
-    local name=$1 limit=$2; shift 2
+    local name=$1 limit=$2 n=2; shift 2
     local t0=$SECONDS
+    # a step named twice in STEPS (more rounds of one comparison) keeps each run's log: NAME.2, ...
+    if [ -e "$W/$name.log" ]; then while [ -e "$W/$name.$n.log" ]; do n=$((n + 1)); done; name=$name.$n; fi
     timeout -s INT "$limit" "$@" > "$W/$name.log" 2>&1
     echo "$name rc=$? $((SECONDS - t0)) s" | tee -a "$W/steps.log"
 }
