@@ -172,8 +172,8 @@ def make(jit, prim, read_row=None, vote=None, voted_jit=None, leaf_jit=None, kin
     # Inlined at both of the walk's leaf sites, each with the primitive's two
     # tests, a triangle's walk took Numba minutes to compile on the CPU: as
     # one called function it compiles once, and a call per leaf is little
-    # beside the primitives it tests (docs/notes/startup.md). Named after its
-    # kind: Numba names machine code by qualified name and a per-process
+    # beside the primitives it tests (docs/notes/startup.md, "A mesh's first
+    # picture"). Named after its kind: Numba names machine code by qualified name and a per-process
     # counter, so two kinds' leaf tests compiled into the disk cache by two
     # processes could carry one symbol (whitted.make's find says what that did).
     leaf_test.__name__ = f"leaf_test_{kind}"
