@@ -54,7 +54,11 @@ def test_the_defaults_are_filled_in():
     cpu = options.checked("cpu", {})
     # the tree's width is left to the tracer, which takes its kind of primitive's
     assert (cpu.accel, cpu.kernel, cpu.threads, cpu.tree_width) == ("bvh", None, usable_cores(), None)
-    assert options.KIND_TREE_WIDTH == {"sphere": 4, "triangle": 2, "mixed": 2}
+    assert options.KIND_TREE_WIDTH == {
+        "sphere": {"thesis": 4, "whitted": 4},
+        "triangle": {"thesis": 4, "whitted": 2},
+        "mixed": {"thesis": 2, "whitted": 2},
+    }
     assert set(options.KIND_TREE_WIDTH) == set(KINDS)  # every kind has its default
     assert options.checked("cpu", {"accel": "none"}).kernel == "fast"
     cuda = options.checked("cuda", {"kernel": "fast"})

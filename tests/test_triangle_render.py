@@ -13,7 +13,7 @@ import pytest
 import trimesh
 from PIL import Image
 
-from raybench import Camera, RaybenchError, backends, render
+from raybench import Camera, RaybenchError, Renderer, backends, render
 from raybench.cli import run
 from raybench.layout import TRI_RED
 from raybench.lighting import DEFAULT_AMBIENT
@@ -147,9 +147,12 @@ def test_both_cpu_walks_and_brute_force_give_one_frame(outside):
     brute = render(scene, None, W, H, device="cpu", threads=2, accel="none", kernel="simple")
     for other in (binary, brute):
         assert (other.hits == wide.hits).all() and (other.image == wide.image).all()
-    # a mesh's rays walk the binary tree alone unless told (options.KIND_TREE_WIDTH)
+    # unless told (options.KIND_TREE_WIDTH), a mesh's primary rays go as packets through the
+    # 4-wide tree, and under Whitted shading every ray walks the binary tree alone
     with backends.tracer("cpu", scene.triangles, W, H, primitive="triangle", threads=2) as tracer:
-        assert tracer.tree_width == 2
+        assert tracer.tree_width == 4
+    with Renderer(scene, W, H, device="cpu", shading="whitted", threads=2) as renderer:
+        assert renderer.tracer.tree_width == 2
 
 
 @pytest.mark.slow

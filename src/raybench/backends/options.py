@@ -49,15 +49,19 @@ SCHEDULES = ("wavefront", "pixel")
 # --- cpu ---------------------------------------------------------------------------
 
 MAX_THREADS = 4096
-# The cpu's tree by default (tree_width), by kind of primitive: 2, the binary
-# SAH tree (bvh.build), every ray walking it alone by the GPUs' own walk
-# (kernels/traverse.py); 4, the same tree collapsed into 4-wide nodes
+# The cpu's tree by default (tree_width), by kind of primitive and shading: 2,
+# the binary SAH tree (bvh.build), every ray walking it alone by the GPUs' own
+# walk (kernels/traverse.py); 4, the same tree collapsed into 4-wide nodes
 # (bvh.collapse), which the cpu's packets walk (kernels/packets.py). A mesh's
-# triangles are walked alone: they are small beside a packet's footprint, so
-# a packet enters leaves that most of its rays miss
-# (docs/triangles.md#the-cpus-walk-rays-alone); a scene of both kinds too.
+# primary rays go as packets, its Whitted rays alone: measured both ways
+# (docs/triangles.md#the-cpus-walk-packets-for-primary-rays-rays-alone-for-whitteds);
+# a scene of both kinds walks alone, as first measured.
 TREE_WIDTH = 4
-KIND_TREE_WIDTH = {"sphere": TREE_WIDTH, "triangle": 2, "mixed": 2}
+KIND_TREE_WIDTH = {
+    "sphere": {"thesis": TREE_WIDTH, "whitted": TREE_WIDTH},
+    "triangle": {"thesis": 4, "whitted": 2},
+    "mixed": {"thesis": 2, "whitted": 2},
+}
 TREE_WIDTHS = (2, 4)
 
 # --- cuda --------------------------------------------------------------------------

@@ -114,7 +114,7 @@ class Tracer(TracerBase):
                 # 4: the primary and shadow rays as packets through the 4-wide
                 # tree, the bounces through it alone (_whitted_rows_packets); 2:
                 # every ray alone through the binary tree
-                self.tree_width = options.tree_width or KIND_TREE_WIDTH[primitive]
+                self.tree_width = options.tree_width or KIND_TREE_WIDTH[primitive]["whitted"]
             self._kernel = self._programs.whitted["packets" if self.tree_width == 4 else self.accel]
             self._row_rays = np.zeros((height, len(layout.KINDS)), np.int64)
             self.ray_counts = np.zeros(len(layout.KINDS), np.int64)
@@ -128,7 +128,7 @@ class Tracer(TracerBase):
             self.shaded = spheres if self.count else self._stand_in()
             self.bands = chunks(height, self.threads)
             workers = min(self.threads, len(self.bands))
-            self.tree_width = options.tree_width or KIND_TREE_WIDTH[primitive]
+            self.tree_width = options.tree_width or KIND_TREE_WIDTH[primitive]["thesis"]
             self._kernel = self._programs.packets if self.tree_width == 4 else self._programs.rows
             self._build(self.count)
         else:
