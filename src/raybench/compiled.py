@@ -152,6 +152,28 @@ def njit(**options):
     return _in_cache(numba.njit(cache=True, **options))
 
 
+# The CPU walks' leaf tests over a primitive's test (leaf_test): inlined
+# where the kind says its test is short (its module's INLINE_TESTS, the
+# sphere's), called where it is long. The triangle's watertight test inlined
+# at every leaf of the packets, the shadow packets and the 4-wide walk made a
+# mesh's Whitted program compile for minutes
+# (docs/notes/startup.md#a-meshs-first-picture).
+_LEAF_TESTS: set = set()
+
+
+def leaf_test(**options):
+    """numba.njit(inline="always", **options) as the module compiles it (for
+    the sphere); rebound's copy for a kind whose INLINE_TESTS is False is a
+    function of its own, called, cached and without the runtime's reference
+    counting (a leaf test allocates nothing and keeps no array)."""
+
+    def mark(f):
+        _LEAF_TESTS.add(f)
+        return numba.njit(inline="always", **options)(f)
+
+    return mark
+
+
 def cuda_jit(**options):
     """numba.cuda.jit(cache=True, **options), cached in CACHE_DIR (numba's
     simulator, which compiles nothing, takes it as a plain cuda.jit)."""
@@ -227,7 +249,8 @@ def rebound(modules, primitive) -> dict[str, types.SimpleNamespace]:
     swapped as its globals are), and two kinds live in
     one process, neither calling the other's functions. A part the other
     primitive lacks becomes None, so code that calls it fails to compile
-    rather than run the sphere's. Each copy is named after its original and
+    rather than run the sphere's. A leaf test (leaf_test) is copied as a
+    called function for a kind whose INLINE_TESTS is False. Each copy is named after its original and
     the primitive (`_walk_triangle`), in its original's module: Numba's
     cache keys a function by its file, name and code, never by the callees
     in its globals, and names its machine code by module and name, so under
@@ -258,6 +281,9 @@ def rebound(modules, primitive) -> dict[str, types.SimpleNamespace]:
             if id(value) in swap:
                 continue
             source, remake = _compiled_source(value)
+            if source in _LEAF_TESTS and not primitive.INLINE_TESTS:
+                options = {k: v for k, v in value.targetoptions.items() if k not in ("nopython", "inline")}
+                remake = njit(**{**options, "nogil": True, "_nrt": False})
             if source is not None and source.__module__ in spaces:
                 swap[id(value)] = remake(copy(source, spaces[source.__module__]))
             elif isinstance(value, types.FunctionType) and value.__module__ == module.__name__:

@@ -159,6 +159,22 @@ def _rows_enter(lx, ly, lz, hx, hy, hz, ix, iy, iz, closest):
     return False
 
 
+@compiled.leaf_test(error_model="numpy")
+def _packet_rays(seen, original, dx, dy, dz, closest, hit, hit_d, ahead):
+    """One primitive (seen_from the packet's origin) against every ray of
+    the packet (_packet_leaf), the walk's tie rule."""
+    for k in range(PACKET):
+        if ahead:
+            t, d = _hit_ahead_from(seen, dx[k], dy[k], dz[k], False)
+        else:
+            t, d = _hit_from(seen, dx[k], dy[k], dz[k])
+        c = closest[k]
+        better = (t > ZERO) & ((t < c) | ((t == c) & (original < hit[k])))
+        closest[k] = t if better else c
+        hit[k] = original if better else hit[k]
+        hit_d[k] = d if better else hit_d[k]
+
+
 @numba.njit(inline="always", error_model="numpy")
 def _packet_leaf(
     ox, oy, oz, margin, dx, dy, dz, ordered, order, first, count, spread, closest, hit, hit_d, closest_bits,
@@ -178,17 +194,7 @@ def _packet_leaf(
         row = _read_leaf(ordered, j)  # read once, for the box test and the rays' tests
         if _leaf_missed(row, ox, oy, oz, margin, spread):
             continue
-        seen = _seen_from(row, ox, oy, oz)
-        for k in range(PACKET):
-            if ahead:
-                t, d = _hit_ahead_from(seen, dx[k], dy[k], dz[k], False)
-            else:
-                t, d = _hit_from(seen, dx[k], dy[k], dz[k])
-            c = closest[k]
-            better = (t > ZERO) & ((t < c) | ((t == c) & (original < hit[k])))
-            closest[k] = t if better else c
-            hit[k] = original if better else hit[k]
-            hit_d[k] = d if better else hit_d[k]
+        _packet_rays(_seen_from(row, ox, oy, oz), original, dx, dy, dz, closest, hit, hit_d, ahead)
     # spread[6] = the farthest closest hit: closest holds positive float32
     # only, whose bit patterns order as the floats do, so an integer maximum,
     # which LLVM makes SIMD (a float one it would not)

@@ -156,7 +156,7 @@ def _lanes_leaf(ox, oy, oz, margin, rays, spread, ordered, order, first, count, 
     return hits
 
 
-@numba.njit(inline="always", error_model="numpy")
+@compiled.leaf_test(error_model="numpy")
 def _lanes_hit(seen, rays, is_own):
     """One primitive, as seen from the rays' origin (the primitive's
     seen_from), against a shadow packet's rays: each ray it blocks (0 < t <

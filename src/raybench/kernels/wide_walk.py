@@ -6,6 +6,7 @@ four boxes are tested at once; the answer is traverse.walk's, ray by ray.
 import numba
 import numpy as np
 
+from .. import compiled
 from ..layout import (
     INNER,
     PAD,
@@ -49,6 +50,23 @@ def _ray_boxes(wide, row, lx, ly, lz, hx, hy, hz, ix, iy, iz, closest):
     return mask, (n0, n1, n2, n3)
 
 
+@compiled.leaf_test(error_model="numpy")
+def _wide_leaf(ordered, order, first, count, own, own_inside, ox, oy, oz, dx, dy, dz, hit, closest, hit_d):
+    """A leaf's primitives against one ray (_walk_wide): the nearer hit of
+    theirs and (hit, closest, hit_d), ties to the smaller original index,
+    the primitive `own` the ray leaves skipped unless it can meet it again."""
+    for j in range(_U(first), _U(first + count)):
+        original = order[j]
+        if original == own and not _meets_own(own_inside):
+            continue
+        t, d = _leaf_hit_ahead(ordered, j, ox, oy, oz, dx, dy, dz, original == own)
+        if t > ZERO and (t < closest or (t == closest and original < hit)):
+            closest = t
+            hit = np.int64(original)
+            hit_d = d
+    return hit, closest, hit_d
+
+
 @numba.njit(inline="always", error_model="numpy")
 def _walk_wide(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, wide, wide_links, ordered, order, s_ref,
                s_count, s_t):  # fmt: skip
@@ -78,15 +96,8 @@ def _walk_wide(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, wide, wi
             continue
         node = s_ref[top]
         if s_count[top] != INNER:
-            for j in range(_U(node), _U(node + s_count[top])):
-                original = order[j]
-                if original == own and not _meets_own(own_inside):
-                    continue
-                t, d = _leaf_hit_ahead(ordered, j, ox, oy, oz, dx, dy, dz, original == own)
-                if t > ZERO and (t < closest or (t == closest and original < hit)):
-                    closest = t
-                    hit = np.int64(original)
-                    hit_d = d
+            hit, closest, hit_d = _wide_leaf(ordered, order, node, s_count[top], own, own_inside, ox, oy, oz, dx, dy,
+                                             dz, hit, closest, hit_d)  # fmt: skip
             if any_hit and hit >= 0:
                 return hit, closest, hit_d
             continue

@@ -33,6 +33,8 @@ from ..constants import ZERO
 from . import sphere, triangle
 from .answers import answers
 
+# As the triangle's (compiled.leaf_test): its tests hold the triangle's.
+INLINE_TESTS = False
 # What a message calls a scene's primitives of this kind.
 NOUN = "spheres and triangles"
 # Rows of the leaf buffer (bvh's `ordered`): a triangle's nine, then the tag.

@@ -28,6 +28,9 @@ from ...layout import BLUE, CX, CY, CZ, GREEN, PAD, RADIUS, RED, SPHERE_ROWS
 from ..constants import ONE, ZERO
 from .answers import answers
 
+# The CPU walks inline this kind's tests at their leaves (compiled.leaf_test): a
+# few instructions, which a call would cost more than it saves in compile time.
+INLINE_TESTS = True
 # What a message calls a scene's primitives of this kind.
 NOUN = "spheres"
 # Rows of the leaf buffer (bvh's `ordered`): centre x, y, z and radius.

@@ -89,6 +89,10 @@ from ...layout import (
 from ..constants import HALF, ONE, ZERO
 from .answers import answers
 
+# The CPU walks call this kind's tests at their leaves rather than inline them
+# (compiled.leaf_test): the watertight test is long, and inlined at every leaf
+# site it made a mesh's first Whitted frame compile for minutes.
+INLINE_TESTS = False
 # What a message calls a scene's primitives of this kind.
 NOUN = "triangles"
 # Rows of the leaf buffer (bvh's `ordered`): the three vertices.
