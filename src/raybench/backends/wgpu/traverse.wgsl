@@ -188,10 +188,13 @@ fn walk_from(o: vec3<f32>, dir: vec3<f32>, centre: vec3<f32>, t_max: f32, any_hi
             b = swap;
         }
         let a_in = a.near <= a.far && a.far > 0.0 && a.near <= best.closest;
-        var b_in = b.near <= b.far && b.far > 0.0 && b.near <= best.closest;
+        // b's box alone here, its entry against the closest hit after a's leaf: as one test
+        // here and again after, the Whitted kernel took 1.2% longer on the H200
+        // (docs/notes/one-source.md#wgsls-walk-the-second-childs-test-after-the-first-childs-leaf)
+        let b_box = b.near <= b.far && b.far > 0.0;
         // voted, both votes at once, before either child's leaf is tested (traverse.py says why)
         let any_a = vote(a_in);
-        var any_b = vote(b_in);
+        var any_b = vote(b_box && b.near <= best.closest);
         row = -1;
         if (any_a) {
             if (a.count == INNER) {
@@ -200,7 +203,7 @@ fn walk_from(o: vec3<f32>, dir: vec3<f32>, centre: vec3<f32>, t_max: f32, any_hi
                 best = leaf_test(o, dir, a.link, a.count, best, ahead, own, own_inside);
             }
         }
-        b_in = b_in && b.near <= best.closest;  // the first child's hits can rule the second out
+        let b_in = b_box && b.near <= best.closest;  // the first child's hits can rule the second out
         if (!VOTED) {
             any_b = b_in;
         }
