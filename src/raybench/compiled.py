@@ -157,7 +157,7 @@ def njit(**options):
 # sphere's), called where it is long. The triangle's watertight test inlined
 # at every leaf of the packets, the shadow packets and the 4-wide walk made a
 # mesh's Whitted program compile for minutes
-# (docs/notes/startup.md#a-meshs-first-picture).
+# (docs/notes/startup.md#a-kinds-leaf-tests-in-the-packets-called-2026-12-04).
 _LEAF_TESTS: set = set()
 
 
