@@ -57,7 +57,7 @@ def test_the_defaults_are_filled_in():
     assert options.KIND_TREE_WIDTH == {
         "sphere": {"thesis": 4, "whitted": 4},
         "triangle": {"thesis": 4, "whitted": 2},
-        "mixed": {"thesis": 2, "whitted": 2},
+        "mixed": {"thesis": 4, "whitted": 2},
     }
     assert set(options.KIND_TREE_WIDTH) == set(KINDS)  # every kind has its default
     assert options.checked("cpu", {"accel": "none"}).kernel == "fast"

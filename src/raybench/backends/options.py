@@ -53,14 +53,14 @@ MAX_THREADS = 4096
 # the binary SAH tree (bvh.build), every ray walking it alone by the GPUs' own
 # walk (kernels/traverse.py); 4, the same tree collapsed into 4-wide nodes
 # (bvh.collapse), which the cpu's packets walk (kernels/packets.py). A mesh's
-# primary rays go as packets, its Whitted rays alone: measured both ways
-# (docs/triangles.md#the-cpus-walk-packets-for-primary-rays-rays-alone-for-whitteds);
-# a scene of both kinds walks alone, as first measured.
+# primary rays, and a scene's of both kinds, go as packets, their Whitted rays
+# alone: measured both ways
+# (docs/triangles.md#the-cpus-walk-packets-for-primary-rays-rays-alone-for-whitteds).
 TREE_WIDTH = 4
 KIND_TREE_WIDTH = {
     "sphere": {"thesis": TREE_WIDTH, "whitted": TREE_WIDTH},
     "triangle": {"thesis": 4, "whitted": 2},
-    "mixed": {"thesis": 2, "whitted": 2},
+    "mixed": {"thesis": 4, "whitted": 2},
 }
 TREE_WIDTHS = (2, 4)
 
