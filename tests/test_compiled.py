@@ -300,3 +300,21 @@ def test_rebound_copies_call_no_original_kernel():
             assert not stale, f"{name} still calls the sphere's {stale}"
             checked += 1
     assert checked > 20  # the modules' kernels were copied at all
+
+
+def test_a_kinds_long_test_is_called_at_the_cpus_leaves_and_a_short_one_inlined():
+    """compiled.leaf_test: the walks' leaf tests over the sphere's test are inlined
+    (sphere.INLINE_TESTS), and rebound's copies for the triangle are functions
+    of their own, called, without the runtime's reference counting."""
+    from raybench import compiled
+    from raybench.backends.cpu import kinds
+    from raybench.kernels import packets, shadow_packets, wide_walk
+    from raybench.kernels.primitives import sphere, triangle
+
+    assert sphere.INLINE_TESTS and not triangle.INLINE_TESTS
+    spaces = compiled.rebound(kinds.MODULES, triangle)
+    for module, name in ((packets, "_packet_rays"), (shadow_packets, "_lanes_hit"), (wide_walk, "_wide_leaf")):
+        assert getattr(module, name).targetoptions["inline"] == "always"
+        copy = getattr(spaces[module.__name__.rsplit(".", 1)[-1]], name)
+        assert "inline" not in copy.targetoptions and copy.targetoptions["_nrt"] is False, copy.targetoptions
+        assert copy.py_func.__qualname__ == f"{name}_triangle"
