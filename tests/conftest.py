@@ -2,6 +2,7 @@ import gc
 import os
 import shutil
 import signal
+import time
 
 import numpy as np
 import pytest
@@ -11,6 +12,34 @@ import pytest
 # is first imported.
 if "NUMBA_ENABLE_CUDASIM" not in os.environ:
     os.environ["NUMBA_ENABLE_CUDASIM"] = "0" if shutil.which("nvidia-smi") else "1"
+
+
+def _simulated_threads_yield() -> None:
+    """The simulator runs a block as a Python thread per CUDA thread, and its
+    BlockManager.run polls them (t.is_alive() for each, in a loop without a
+    wait: numba-cuda 0.30.4) until all end. That loop holds the GIL for
+    whole switch intervals, so the fewer threads are still running, the
+    larger its share of the time: a wavefront's frame took 3 to 4 times as
+    long as with the poll handing the GIL on. The poll now yields (sleep(0)
+    releases the GIL) once for as many threads as the block has, about once
+    a pass (a yield every poll was slower: a switch of thread each); what the
+    threads compute, and when they meet at syncthreads, is unchanged."""
+    from numba.cuda.simulator import kernel
+
+    alive = kernel.BlockThread.is_alive
+
+    def is_alive(thread) -> bool:
+        manager = thread._manager
+        manager.polls = getattr(manager, "polls", 0) + 1
+        if manager.polls % manager.block_state.size == 0:  # about once a pass over the block's threads
+            time.sleep(0)
+        return alive(thread)
+
+    kernel.BlockThread.is_alive = is_alive
+
+
+if os.environ["NUMBA_ENABLE_CUDASIM"] == "1":
+    _simulated_threads_yield()
 
 
 def sigint_default() -> None:
