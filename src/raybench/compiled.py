@@ -250,7 +250,9 @@ def rebound(modules, primitive) -> dict[str, types.SimpleNamespace]:
     one process, neither calling the other's functions. A part the other
     primitive lacks becomes None, so code that calls it fails to compile
     rather than run the sphere's. A leaf test (leaf_test) is copied as a
-    called function for a kind whose INLINE_TESTS is False. Each copy is named after its original and
+    called function for a kind whose INLINE_TESTS is False. A module's
+    constants that depend on the kind (its `_kind_constants(primitive)`,
+    a dict by name: the packets' shape) are the kind's in its copy. Each copy is named after its original and
     the primitive (`_walk_triangle`), in its original's module: Numba's
     cache keys a function by its file, name and code, never by the callees
     in its globals, and names its machine code by module and name, so under
@@ -308,6 +310,9 @@ def rebound(modules, primitive) -> dict[str, types.SimpleNamespace]:
         if hasattr(module, "_made"):
             _pair(module._made(), spaces[module.__name__]["_made"](primitive), swap)
             fill()
+    for module in modules:  # its constants that the kind decides (packets' shape)
+        if hasattr(module, "_kind_constants"):
+            spaces[module.__name__].update(module._kind_constants(primitive))
     return {module.__name__.rsplit(".", 1)[-1]: types.SimpleNamespace(**spaces[module.__name__]) for module in modules}
 
 

@@ -67,20 +67,36 @@ _leaf_hit_ahead, _meets_own, _rim, _colour = _prim.leaf_hit_ahead, _prim.meets_o
 # turns into gathers (docs/notes/floors.md#each-version-against-the-floor).
 _U = np.uint64
 
-# Rays walked through the BVH together: a 16x8 tile of
-# pixels, eight AVX-512 or sixteen AVX2 registers of float32 per ray
+
+def _kind_constants(primitive) -> dict:
+    """The packet's shape for a kind of primitive (its PACKET_SHAPE: width,
+    height) and what follows from it; compiled.rebound puts them into the
+    kind's copy of this module (and of whitted_rows, which tiles its frame by
+    them). A kind's packet height divides the sphere's, PACKET_H below: the
+    frame's bands and a cluster's tiles start on a multiple of it
+    (backends/cpu/tracer.py), so every kind's packets fall on the rows the
+    whole frame's would."""
+    width, height = primitive.PACKET_SHAPE
+    if sphere.PACKET_SHAPE[1] % height:
+        raise ValueError(f"a packet's height must divide {sphere.PACKET_SHAPE[1]}, got {height}")
+    return {"PACKET_W": width, "PACKET_H": height, "PACKET": width * height,
+            "_MIDDLE": (height // 2) * width + width // 2}  # fmt: skip
+
+
+# Rays walked through the BVH together: a tile of pixels, for the sphere
+# 16x8, eight AVX-512 or sixteen AVX2 registers of float32 per ray
 # component. Once the walk stopped reducing the packet's entry distances
 # (the children ordered along the middle ray instead), larger packets paid:
 # of 4x4 to 32x8, 16x8 was the fastest, ahead of 8x4, the shape before; 16x16
 # is as fast on one core and slower at 1,000 spheres on two threads
 # (docs/notes/bvh-walk.md#measured-cpu-only-machine-amd-epyc-2-vcpus-shared).
-PACKET_W, PACKET_H = 16, 8
-PACKET = PACKET_W * PACKET_H
+# Each kind says its own (PACKET_SHAPE): a mesh's are 8x4.
+_SHAPE = _kind_constants(sphere)
+PACKET_W, PACKET_H, PACKET, _MIDDLE = _SHAPE["PACKET_W"], _SHAPE["PACKET_H"], _SHAPE["PACKET"], _SHAPE["_MIDDLE"]
 # The wide rows' plane columns by axis (layout.W_LO, W_HI), as plain ints: read
 # as compile-time constants, as literal offsets were.
 LO_X, LO_Y, LO_Z = W_LO
 HI_X, HI_Y, HI_Z = W_HI
-_MIDDLE = (PACKET_H // 2) * PACKET_W + PACKET_W // 2
 
 
 @numba.njit(inline="always")

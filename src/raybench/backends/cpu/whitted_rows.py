@@ -7,7 +7,14 @@ import numpy as np
 
 from ... import compiled, layout
 from ...kernels import whitted as whitted_mod
-from ...kernels.packets import PACKET, PACKET_H, PACKET_W, _packet_walk_wide, _start_packet
+from ...kernels.packets import (
+    PACKET,
+    PACKET_H,
+    PACKET_W,
+    _kind_constants,  # noqa: F401 - a kind's copy tiles by its packets (compiled.rebound)
+    _packet_walk_wide,
+    _start_packet,
+)
 from ...kernels.shadow_packets import BLOCKER_SLOTS, LANES, PacketsTree
 from ...layout import (
     PAD,

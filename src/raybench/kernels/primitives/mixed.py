@@ -35,6 +35,8 @@ from .answers import answers
 
 # As the triangle's (compiled.leaf_test): its tests hold the triangle's.
 INLINE_TESTS = False
+# The cpu's packets of primary rays: the sphere's shape (the SPD's scenes were measured with it).
+PACKET_SHAPE = sphere.PACKET_SHAPE
 # What a message calls a scene's primitives of this kind.
 NOUN = "spheres and triangles"
 # Rows of the leaf buffer (bvh's `ordered`): a triangle's nine, then the tag.

@@ -31,6 +31,9 @@ from .answers import answers
 # The CPU walks inline this kind's tests at their leaves (compiled.leaf_test): a
 # few instructions, inlined as the packets were measured with them.
 INLINE_TESTS = True
+# The cpu's packets of primary rays (kernels/packets.py): 16x8 pixels, of 4x4 to
+# 32x8 the fastest on random spheres (docs/notes/bvh-walk.md).
+PACKET_SHAPE = (16, 8)
 # What a message calls a scene's primitives of this kind.
 NOUN = "spheres"
 # Rows of the leaf buffer (bvh's `ordered`): centre x, y, z and radius.
