@@ -93,11 +93,12 @@ from .answers import answers
 # (compiled.leaf_test): the watertight test is long, and inlined at every leaf
 # site it made a mesh's first Whitted frame compile for minutes.
 INLINE_TESTS = False
-# The cpu's packets of primary rays (kernels/packets.py): 8x4 pixels. A dense
-# mesh's triangles cover a pixel or two, and a 16x8 packet entered many leaves
-# that few of its rays meet: 8x4 took 1.47-1.65x less time a frame at 1.31 M
-# triangles, 8% more at 81,920 (docs/triangles.md#the-cpus-packets-8x4-for-triangles).
-PACKET_SHAPE = (8, 4)
+# The cpu's packets of primary rays (kernels/packets.py): 8x8 pixels. A dense
+# mesh's triangles cover a pixel or two, and a 16x8 packet enters many leaves
+# that few of its rays meet; 8x8 gave as fast a frame at 81,920 triangles and a
+# faster one at 1.31 M, 8x4 a faster one still there but a slower one at 81,920
+# (docs/triangles.md#the-cpus-packets-a-meshs-are-8x8).
+PACKET_SHAPE = (8, 8)
 # What a message calls a scene's primitives of this kind.
 NOUN = "triangles"
 # Rows of the leaf buffer (bvh's `ordered`): the three vertices.

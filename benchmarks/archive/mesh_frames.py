@@ -1,0 +1,43 @@
+"""A mesh's cpu frames for one version of raybench (its `src/` first on PYTHONPATH, with a compile
+cache of its own in RAYBENCH_CACHE_DIR): the meshes suite's icosphere at each subdivision, seen from
+(0, 0, -3) (the view of `peers.py embreex`), 1680x1050 on 2 threads, primary rays, the median of N
+warm frames of wall time, and hashes of the picture and the hits (the same in every version).
+
+    RAYBENCH_CACHE_DIR=/tmp/c-16x8 PYTHONPATH=v16x8/src python benchmarks/archive/mesh_frames.py 21 6 7 8
+
+Run in turn for versions that differ in one thing (the packets' shape: a copy of the source with
+PACKET_SHAPE in kernels/primitives/triangle.py changed). The figures: docs/triangles.md, "The cpu's
+packets: a mesh's are 8x8".
+"""
+
+import hashlib
+import json
+import statistics
+import sys
+import time
+
+import raybench
+from raybench import Camera
+from raybench.bench import meshes
+from raybench.mesh_render import mesh_scene
+
+
+def main(frames: int, subdivisions: list[int]) -> None:
+    out = {}
+    camera = Camera(position=(0.0, 0.0, -3.0), look_at=(0.0, 0.0, 0.0), fov_deg=60.0)
+    for k in subdivisions:
+        scene = mesh_scene(meshes.icosphere(20 * 4**k))
+        with raybench.Renderer(scene, 1680, 1050, device="cpu", threads=2) as renderer:
+            first = renderer.render(camera)
+            times = []
+            for _ in range(frames):
+                start = time.perf_counter()
+                renderer.render(camera)
+                times.append((time.perf_counter() - start) * 1e3)
+            image, hits = (hashlib.sha1(bytes(a)).hexdigest()[:12] for a in (first.image, first.hits))
+        out[20 * 4**k] = {"frame_ms": round(statistics.median(times), 2), "image": image, "hits": hits}
+    print(json.dumps({"raybench": raybench.__file__, "frames": out}))
+
+
+if __name__ == "__main__":
+    main(int(sys.argv[1]), [int(a) for a in sys.argv[2:]] or [6, 8])
