@@ -318,3 +318,29 @@ def test_a_kinds_long_test_is_called_at_the_cpus_leaves_and_a_short_one_inlined(
         copy = getattr(spaces[module.__name__.rsplit(".", 1)[-1]], name)
         assert "inline" not in copy.targetoptions and copy.targetoptions["_nrt"] is False, copy.targetoptions
         assert copy.py_func.__qualname__ == f"{name}_triangle"
+
+
+def test_a_kinds_copy_tiles_by_its_own_packets(rng):
+    """A kind's packet shape (PACKET_SHAPE) is its copy's: the packets' and
+    Whitted's rows' copies for the triangle read its width, height, size and
+    middle ray, the sphere's modules keep theirs; a shape whose height does
+    not divide the sphere's (the rows a band of the frame starts on) is
+    refused before anything compiles."""
+    from types import SimpleNamespace
+
+    from raybench import compiled
+    from raybench.backends.cpu import kinds
+    from raybench.kernels import packets
+    from raybench.kernels.primitives import sphere, triangle
+
+    spaces = compiled.rebound(kinds.MODULES, triangle)
+    width, height = triangle.PACKET_SHAPE
+    assert (width, height) != sphere.PACKET_SHAPE
+    for name in ("packets", "whitted_rows"):
+        space = spaces[name]
+        assert (space.PACKET_W, space.PACKET_H, space.PACKET) == (width, height, width * height), name
+    assert spaces["packets"]._MIDDLE == (height // 2) * width + width // 2
+    assert (packets.PACKET_W, packets.PACKET_H) == sphere.PACKET_SHAPE
+    odd = int(rng.choice([3, 5, 6, 7]))
+    with pytest.raises(ValueError, match="must divide"):
+        packets._kind_constants(SimpleNamespace(PACKET_SHAPE=(8, odd)))

@@ -90,7 +90,7 @@ def _kind_constants(primitive) -> dict:
 # of 4x4 to 32x8, 16x8 was the fastest, ahead of 8x4, the shape before; 16x16
 # is as fast on one core and slower at 1,000 spheres on two threads
 # (docs/notes/bvh-walk.md#measured-cpu-only-machine-amd-epyc-2-vcpus-shared).
-# Each kind says its own (PACKET_SHAPE): a mesh's are 8x4.
+# Each kind says its own (PACKET_SHAPE): a mesh's are 8x8.
 _SHAPE = _kind_constants(sphere)
 PACKET_W, PACKET_H, PACKET, _MIDDLE = _SHAPE["PACKET_W"], _SHAPE["PACKET_H"], _SHAPE["PACKET"], _SHAPE["_MIDDLE"]
 # The wide rows' plane columns by axis (layout.W_LO, W_HI), as plain ints: read
