@@ -28,34 +28,32 @@ SHADING = "shading" if "shading" in inspect.signature(backends.tracer).parameter
 def one(device, spheres, width, height, frames, accel, depth, samples, block=None, schedule=None, wave_grid=None,
         tree_width=None, mesh=False):  # fmt: skip
     options = {"cuda": {"block": block}, "wgpu": {"workgroup": block}}.get(device, {}) if block else {}
-    if mesh:
-        renderer, basis = _mesh_renderer(device, spheres, width, height, accel, depth, samples, options, schedule)
-        with renderer:
-            return _measured(renderer.tracer, basis, device, spheres, width, height, frames, accel, depth, samples,
-                             schedule, options, {"mesh": "icosphere", "triangles": spheres})  # fmt: skip
-    scene = raybench.random_spheres(spheres, seed=0, materials=True)
-    shading = lighting.Shading.of(scene, depth, samples)
-    basis = Camera().basis(width, height)
     if schedule is not None:
         options["schedule"] = schedule
     if wave_grid is not None and schedule == "wavefront" and device == "cuda":
         options["wave_grid"] = wave_grid
     if tree_width is not None:
         options["tree_width"] = tree_width
+    if mesh:
+        renderer, basis = _mesh_renderer(device, spheres, width, height, accel, depth, samples, options)
+        with renderer:
+            return _measured(renderer.tracer, basis, device, spheres, width, height, frames, accel, depth, samples,
+                             schedule, options, {"mesh": "icosphere", "triangles": spheres})  # fmt: skip
+    scene = raybench.random_spheres(spheres, seed=0, materials=True)
+    shading = lighting.Shading.of(scene, depth, samples)
+    basis = Camera().basis(width, height)
     options[SHADING] = shading
     with backends.tracer(device, scene.spheres, width, height, accel=accel, **options) as tracer:
         return _measured(tracer, basis, device, spheres, width, height, frames, accel, depth, samples, schedule,
                          options)  # fmt: skip
 
 
-def _mesh_renderer(device, triangles, width, height, accel, depth, samples, options, schedule):
-    """The meshes suite's icosphere point made as the suite makes it (raybench.Renderer), and its
-    camera's basis."""
+def _mesh_renderer(device, triangles, width, height, accel, depth, samples, options):
+    """The meshes suite's icosphere point made as the suite makes it (raybench.Renderer, with the
+    tracer's options), and its camera's basis."""
     from raybench.bench import meshes
 
     scene = meshes.mesh_scene("icosphere", triangles)
-    if schedule is not None:
-        options = {**options, "schedule": schedule}
     renderer = raybench.Renderer(scene, width, height, device, "whitted", depth, samples, accel=accel, **options)
     return renderer, scene.camera.basis(width, height)
 

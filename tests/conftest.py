@@ -19,8 +19,8 @@ def _simulated_threads_yield() -> None:
     BlockManager.run polls them (t.is_alive() for each, in a loop without a
     wait: numba-cuda 0.30.4) until all end. That loop holds the GIL for
     whole switch intervals, so the fewer threads are still running, the
-    larger its share of the time: cuda's wavefront cases took 4 to 15 times
-    as long as with the poll handing the GIL on. The poll now yields (sleep(0)
+    larger its share of the time: cuda's wavefront cases took several times
+    as long as with the poll handing the GIL on (the README's test command). The poll now yields (sleep(0)
     releases the GIL) once for as many threads as the block has, about once
     a pass (a yield every poll was slower: a switch of thread each); what the
     threads compute, and when they meet at syncthreads, is unchanged."""

@@ -251,10 +251,10 @@ def rebound(modules, primitive) -> dict[str, types.SimpleNamespace]:
     primitive lacks becomes None, so code that calls it fails to compile
     rather than run the sphere's. A leaf test (leaf_test) is copied as a
     called function for a kind whose INLINE_TESTS is False. A module's
-    constants that depend on the kind (its `_kind_constants(primitive)`,
-    a dict by name: the packets' shape) are the kind's in its copy. Each copy is named after its original and
-    the primitive (`_walk_triangle`), in its original's module: Numba's
-    cache keys a function by its file, name and code, never by the callees
+    constants that depend on the kind (its `_kind_constants(primitive)`, a
+    dict by name: the packets' shape) are the kind's in its copy. Each copy
+    is named after its original and the primitive (`_walk_triangle`), in
+    its original's module: Numba's cache keys a function by its file, name and code, never by the callees
     in its globals, and names its machine code by module and name, so under
     the original's name a copy would load, or link to, the sphere's code.
     So named, the cpu's copies are cached in CACHE_DIR as the originals are

@@ -95,8 +95,8 @@ from .answers import answers
 INLINE_TESTS = False
 # The cpu's packets of primary rays (kernels/packets.py): 8x8 pixels. A dense
 # mesh's triangles cover a pixel or two, and a 16x8 packet enters many leaves
-# that few of its rays meet; 8x8 gave as fast a frame at 81,920 triangles and a
-# faster one at 1.31 M, 8x4 a faster one still there but a slower one at 81,920
+# that few of its rays meet; 8x8 kept a coarse mesh's frame and sped a dense
+# one's, where 8x4 sped the dense one more but slowed the coarse one
 # (docs/triangles.md#the-cpus-packets-a-meshs-are-8x8).
 PACKET_SHAPE = (8, 8)
 # What a message calls a scene's primitives of this kind.
