@@ -52,6 +52,18 @@ def scene_and_camera(rng, n=None):
     return scene, camera
 
 
+def scene_with_hits_and_misses(rng, width, height, accel="bvh"):
+    """A random scene and camera whose frame has hits and misses both, so a
+    comparison covers both kinds of pixel (a few spheres near the camera can
+    fill the frame), with that single-process frame."""
+    for _ in range(20):
+        scene, camera = scene_and_camera(rng)
+        whole = raybench.render(scene, camera, width, height, device="cpu", accel=accel)
+        if (whole.hits >= 0).any() and (whole.hits < 0).any():
+            break
+    return scene, camera, whole
+
+
 def png(path) -> np.ndarray:
     return np.asarray(Image.open(path).convert("RGB"))
 
@@ -123,11 +135,7 @@ def test_workers_split_the_cores_and_go_without_dask_malloc_setting(running):
 def test_tiles_are_the_single_process_frame_bit_for_bit(running, rng, accel):
     width, height = SIZES[rng.integers(len(SIZES))]
     rows = 8 * int(rng.integers(1, 4))
-    for _ in range(20):  # a scene whose frame has hits and misses both: a few spheres near the camera can fill it
-        scene, camera = scene_and_camera(rng)
-        whole = raybench.render(scene, camera, width, height, device="cpu", accel=accel)
-        if (whole.hits >= 0).any() and (whole.hits < 0).any():
-            break
+    scene, camera, whole = scene_with_hits_and_misses(rng, width, height, accel)
     frame = cluster.render(running.client, scene, camera, width, height, device="cpu", rows=rows, accel=accel)
     assert frame.image.shape == (height, width, 3) and frame.device == "cpu"
     np.testing.assert_array_equal(frame.image, whole.image)
@@ -219,12 +227,11 @@ def test_shared_and_sent_tiles_are_the_single_process_frame(running, rng, monkey
         monkeypatch.setattr(
             sharedframe.Lease, "address", property(lambda b: (b.name + "-elsewhere", b.width, b.height))
         )
-    scene, camera = scene_and_camera(rng)
     width, height = SIZES[rng.integers(len(SIZES))]
+    scene, camera, whole = scene_with_hits_and_misses(rng, width, height)
     rows = 8 * int(rng.integers(1, 4))
     shared = path != "sent"
     frame = cluster.render(running.client, scene, camera, width, height, device="cpu", rows=rows, shared=shared)
-    whole = raybench.render(scene, camera, width, height, device="cpu")
     np.testing.assert_array_equal(frame.image, whole.image)
     np.testing.assert_array_equal(frame.hits, whole.hits)
     assert frame.image.flags.writeable and frame.hits.dtype == np.int32
