@@ -274,18 +274,20 @@ def test_rebound_copies_call_no_original_kernel():
     """compiled.rebound's copies for the triangle reach none of the sphere's
     compiled functions, through their globals or a closure's cells (a walk a
     factory made at import, packets.packet_walk's): every callee a copy
-    names is itself a copy, so no triangle frame runs a sphere's leaf test."""
+    names is itself a copy, so no triangle frame runs a sphere's leaf test.
+    kernels/footprint.py's functions, which know no primitive, are shared."""
     import numba
 
     from raybench import compiled
     from raybench.backends.cpu import kinds
+    from raybench.kernels import footprint
     from raybench.kernels.primitives import triangle
 
     originals = {
         id(value)
         for module in kinds.MODULES
         for value in vars(module).values()
-        if isinstance(value, numba.core.dispatcher.Dispatcher)
+        if isinstance(value, numba.core.dispatcher.Dispatcher) and value.py_func.__module__ != footprint.__name__
     }
     spaces = compiled.rebound(kinds.MODULES, triangle)
     checked = 0
@@ -321,26 +323,32 @@ def test_a_kinds_long_test_is_called_at_the_cpus_leaves_and_a_short_one_inlined(
 
 
 def test_a_kinds_copy_tiles_by_its_own_packets(rng):
-    """A kind's packet shape (PACKET_SHAPE) is its copy's: the packets' and
-    Whitted's rows' copies for the triangle read its width, height, size and
-    middle ray, the sphere's modules keep theirs; a shape whose height does
-    not divide the sphere's (the rows a band of the frame starts on) is
-    refused before anything compiles."""
-    from types import SimpleNamespace
+    """A kind's packet shape (PACKET_SHAPE) and footprint rule
+    (PACKET_FOOTPRINT) are its copy's: the packets' and Whitted's rows'
+    copies for a kind of another shape (the triangle's module with 8x4
+    packets) read its width, height, size and middle ray, the sphere's
+    modules keep theirs; a shape whose height does not divide the sphere's
+    (the rows a band of the frame starts on) is refused before anything
+    compiles."""
+    from types import ModuleType, SimpleNamespace
 
     from raybench import compiled
     from raybench.backends.cpu import kinds
     from raybench.kernels import packets
     from raybench.kernels.primitives import sphere, triangle
 
-    spaces = compiled.rebound(kinds.MODULES, triangle)
-    width, height = triangle.PACKET_SHAPE
+    other = ModuleType("triangle_8x4")
+    other.__dict__.update(vars(triangle))
+    other.PACKET_SHAPE = (8, 4)
+    spaces = compiled.rebound(kinds.MODULES, other)
+    width, height = other.PACKET_SHAPE
     assert (width, height) != sphere.PACKET_SHAPE
     for name in ("packets", "whitted_rows"):
         space = spaces[name]
         assert (space.PACKET_W, space.PACKET_H, space.PACKET) == (width, height, width * height), name
     assert spaces["packets"]._MIDDLE == (height // 2) * width + width // 2
-    assert (packets.PACKET_W, packets.PACKET_H) == sphere.PACKET_SHAPE
+    assert spaces["packets"].FOOTPRINT is True and compiled.rebound(kinds.MODULES, triangle)["packets"].FOOTPRINT
+    assert (packets.PACKET_W, packets.PACKET_H) == sphere.PACKET_SHAPE and packets.FOOTPRINT is False
     odd = int(rng.choice([3, 5, 6, 7]))
     with pytest.raises(ValueError, match="must divide"):
         packets._kind_constants(SimpleNamespace(PACKET_SHAPE=(8, odd)))

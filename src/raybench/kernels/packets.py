@@ -27,6 +27,7 @@ from ..layout import (
     WIDTH,
 )
 from .constants import FAR, ZERO
+from .footprint import OFF, frame_view, rays_of
 from .primitives import sphere
 from .trace import make
 
@@ -80,7 +81,7 @@ def _kind_constants(primitive) -> dict:
     if sphere.PACKET_SHAPE[1] % height:
         raise ValueError(f"a packet's height must divide {sphere.PACKET_SHAPE[1]}, got {height}")
     return {"PACKET_W": width, "PACKET_H": height, "PACKET": width * height,
-            "_MIDDLE": (height // 2) * width + width // 2}  # fmt: skip
+            "_MIDDLE": (height // 2) * width + width // 2, "FOOTPRINT": primitive.PACKET_FOOTPRINT}  # fmt: skip
 
 
 # Rays walked through the BVH together: a tile of pixels, for the sphere
@@ -90,9 +91,14 @@ def _kind_constants(primitive) -> dict:
 # of 4x4 to 32x8, 16x8 was the fastest, ahead of 8x4, the shape before; 16x16
 # is as fast on one core and slower at 1,000 spheres on two threads
 # (docs/notes/bvh-walk.md#measured-cpu-only-machine-amd-epyc-2-vcpus-shared).
-# Each kind says its own (PACKET_SHAPE): a mesh's are 8x8.
+# Each kind says its own (PACKET_SHAPE): a mesh's are the sphere's too, with
+# each triangle tested on the rows its footprint covers (FOOTPRINT below).
 _SHAPE = _kind_constants(sphere)
 PACKET_W, PACKET_H, PACKET, _MIDDLE = _SHAPE["PACKET_W"], _SHAPE["PACKET_H"], _SHAPE["PACKET"], _SHAPE["_MIDDLE"]
+# Whether a leaf's primitive is tested on the rows of rays its box's footprint
+# on the frame covers (kernels/footprint.py), not on all: each kind says (its
+# PACKET_FOOTPRINT); the sphere's are all.
+FOOTPRINT = _SHAPE["FOOTPRINT"]
 # The wide rows' plane columns by axis (layout.W_LO, W_HI), as plain ints: read
 # as compile-time constants, as literal offsets were.
 LO_X, LO_Y, LO_Z = W_LO
@@ -176,10 +182,13 @@ def _rows_enter(lx, ly, lz, hx, hy, hz, ix, iy, iz, closest):
 
 
 @compiled.leaf_test(error_model="numpy")
-def _packet_rays(seen, original, dx, dy, dz, closest, hit, hit_d, ahead):
-    """One primitive (seen_from the packet's origin) against every ray of
-    the packet (_packet_leaf), the walk's tie rule."""
-    for k in range(PACKET):
+def _packet_rays(seen, original, dx, dy, dz, closest, hit, hit_d, ahead, first, end):
+    """One primitive (seen_from the packet's origin) against the packet's
+    rays first..end (_packet_leaf), the walk's tie rule. first and end
+    unsigned where they are not constants (_U): from a signed start the
+    indices carry Python's negative-index wraparound, and LLVM left the loop
+    scalar."""
+    for k in range(first, end):
         if ahead:
             t, d = _hit_ahead_from(seen, dx[k], dy[k], dz[k], False)
         else:
@@ -194,7 +203,7 @@ def _packet_rays(seen, original, dx, dy, dz, closest, hit, hit_d, ahead):
 @numba.njit(inline="always", error_model="numpy")
 def _packet_leaf(
     ox, oy, oz, margin, dx, dy, dz, ordered, order, first, count, spread, closest, hit, hit_d, closest_bits,
-    spread_bits, ahead=False,
+    spread_bits, ahead, view, place,
 ):  # fmt: skip
     """The exact test of a leaf's primitives on every ray of the packet, seen
     from the packet's origin as the primitive's own test sees it
@@ -204,13 +213,23 @@ def _packet_leaf(
     camera inside it). A primitive whose own box (as the builder pads it,
     grown by margin as the walk grows boxes) no ray enters is skipped after
     one test for the packet (_missed_by_all)
-    (docs/notes/bvh-walk.md#measured-cpu-only-machine-amd-epyc-2-vcpus-shared)."""
+    (docs/notes/bvh-walk.md#measured-cpu-only-machine-amd-epyc-2-vcpus-shared);
+    with FOOTPRINT, one the box meets is tested on the rows of rays its
+    footprint covers (footprint.rays_of; view, place: the frame's and the
+    packet's, _packet_walk_wide's)."""
     for j in range(first, first + count):
         original = order[j]
         row = _read_leaf(ordered, j)  # read once, for the box test and the rays' tests
         if _leaf_missed(row, ox, oy, oz, margin, spread):
             continue
-        _packet_rays(_seen_from(row, ox, oy, oz), original, dx, dy, dz, closest, hit, hit_d, ahead)
+        if FOOTPRINT:
+            first_ray, end_ray = rays_of(view, place, PACKET_W, PACKET, _box_of(row), margin, ox, oy, oz)
+            if first_ray == end_ray:
+                continue
+            _packet_rays(_seen_from(row, ox, oy, oz), original, dx, dy, dz, closest, hit, hit_d, ahead,
+                         _U(first_ray), _U(end_ray))  # fmt: skip
+        else:
+            _packet_rays(_seen_from(row, ox, oy, oz), original, dx, dy, dz, closest, hit, hit_d, ahead, 0, PACKET)
     # spread[6] = the farthest closest hit: closest holds positive float32
     # only, whose bit patterns order as the floats do, so an integer maximum,
     # which LLVM makes SIMD (a float one it would not)
@@ -429,9 +448,9 @@ def packet_walk(enter, leaf, any_hit):
 def _closest_leaf(ox, oy, oz, margin, spread, ref, count, rays):
     """packet_walk's leaf for the closest hit: _packet_leaf on the rays of
     _packet_walk_wide; never ends the walk."""
-    ordered, order, dx, dy, dz, _ix, _iy, _iz, closest, hit, hit_d, closest_bits, spread_bits, ahead = rays
+    ordered, order, dx, dy, dz, _ix, _iy, _iz, closest, hit, hit_d, closest_bits, spread_bits, ahead, view, place = rays
     _packet_leaf(ox, oy, oz, margin, dx, dy, dz, ordered, order, ref, count, spread, closest, hit, hit_d,
-                 closest_bits, spread_bits, ahead)  # fmt: skip
+                 closest_bits, spread_bits, ahead, view, place)  # fmt: skip
     return False
 
 
@@ -446,14 +465,30 @@ _walk_closest = packet_walk(_closest_enter, _closest_leaf, any_hit=False)
 
 @numba.njit(inline="always", error_model="numpy")
 def _packet_walk_wide(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest, hit,
-                      hit_d, spread, closest_bits, spread_bits, stack_row, stack_count, along, ahead):  # fmt: skip
+                      hit_d, spread, closest_bits, spread_bits, stack_row, stack_count, along, ahead, view,
+                      place):  # fmt: skip
     """The closest hit of every ray of _bvh_packets_wide's packet (started
     by _start_packet): closest, hit and hit_d; ahead: _packet_leaf's, for
-    Whitted's primary rays. packet_walk's, its children ordered along the
-    packet's middle ray."""
-    rays = (ordered, order, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, closest_bits, spread_bits, ahead)
+    Whitted's primary rays; view, place: the frame's (_frame_view) and the
+    packet's (_place), for _packet_leaf. packet_walk's, its children
+    ordered along the packet's middle ray."""
+    rays = (ordered, order, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, closest_bits, spread_bits, ahead, view, place)
     _walk_closest(wide, wide_links, ox, oy, oz, margin, dx[_MIDDLE], dy[_MIDDLE], dz[_MIDDLE], spread, stack_row,
                   stack_count, along, rays)  # fmt: skip
+
+
+@numba.njit(inline="always")
+def _frame_view(basis, width, height):
+    """footprint.frame_view for a kind with FOOTPRINT, else footprint.OFF (unused)."""
+    if FOOTPRINT:
+        return frame_view(basis, width, height)
+    return OFF
+
+
+@numba.njit(inline="always")
+def _place(x0, y0, end_row, width):
+    """The packet at (x0, y0)'s first and last pixels' columns and rows, footprint.rays_of's place."""
+    return x0, y0, min(x0 + PACKET_W, width) - 1, min(y0 + PACKET_H, end_row) - 1
 
 
 @compiled.njit(nogil=True, error_model="numpy")
@@ -485,6 +520,7 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
     along = np.empty(WIDTH, np.float32)
     ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
     margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
+    view = _frame_view(basis, width, height)
     for y0 in range(first_row, end_row, PACKET_H):
         if stop[0]:
             return
@@ -492,5 +528,5 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
             _start_packet(x0, y0, end_row, width, height, basis, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, spread)
             _packet_walk_wide(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest,
                               hit, hit_d, spread, closest_bits, spread_bits, stack_row, stack_count, along,
-                              False)  # fmt: skip
+                              False, view, _place(x0, y0, end_row, width))  # fmt: skip
             _store_packet(x0, y0, end_row, width, spheres, hit, hit_d, rgb, paint, image, hits)

@@ -11,8 +11,10 @@ from ...kernels.packets import (
     PACKET,
     PACKET_H,
     PACKET_W,
+    _frame_view,
     _kind_constants,  # noqa: F401 - a kind's copy tiles by its packets (compiled.rebound)
     _packet_walk_wide,
+    _place,
     _start_packet,
 )
 from ...kernels.shadow_packets import BLOCKER_SLOTS, LANES, PacketsTree
@@ -127,7 +129,7 @@ def _tile_primaries(x0, y0, end_row, width, height, basis, wide, wide_links, ord
     margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
     _packet_walk_wide(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest, hit,
                       hit_d, spread, closest.view(np.int32), spread.view(np.int32), stack_row, stack_count, along,
-                      True)  # fmt: skip
+                      True, _frame_view(basis, width, height), _place(x0, y0, end_row, width))  # fmt: skip
 
 
 @compiled.njit(nogil=True, _nrt=False)

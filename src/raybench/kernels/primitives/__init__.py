@@ -8,7 +8,9 @@ is the model): LEAF_ROWS, the rows of its leaf buffer; INLINE_TESTS,
 whether the cpu's walks inline its tests at their leaves or call them
 (compiled.leaf_test: True for a test of a few instructions); PACKET_SHAPE,
 the pixels (width, height) of the cpu's packets of primary rays
-(kernels/packets.py); SCENE_ROWS, the
+(kernels/packets.py); PACKET_FOOTPRINT, whether those packets test a leaf's
+primitive on the rows of rays its box's footprint on the frame covers
+(kernels/footprint.py) rather than on all; SCENE_ROWS, the
 rows of its scene buffer that the shading reads; pad(...), the
 builders' padding; centres(buffer), its boxes' centres on the host; and
 make(jit), its functions compiled for one target: for the builders (host

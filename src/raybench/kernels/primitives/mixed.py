@@ -37,6 +37,9 @@ from .answers import answers
 INLINE_TESTS = False
 # The cpu's packets of primary rays: the sphere's shape (the SPD's scenes were measured with it).
 PACKET_SHAPE = sphere.PACKET_SHAPE
+# ... and, as the sphere's, each leaf primitive tested on all of a packet's rays
+# (the footprint, kernels/footprint.py, was measured on meshes alone).
+PACKET_FOOTPRINT = sphere.PACKET_FOOTPRINT
 # What a message calls a scene's primitives of this kind.
 NOUN = "spheres and triangles"
 # Rows of the leaf buffer (bvh's `ordered`): a triangle's nine, then the tag.

@@ -34,6 +34,9 @@ INLINE_TESTS = True
 # The cpu's packets of primary rays (kernels/packets.py): 16x8 pixels, of 4x4 to
 # 32x8 the fastest on random spheres (docs/notes/bvh-walk.md).
 PACKET_SHAPE = (16, 8)
+# Its packets test a leaf's sphere on all their rays: its box's footprint
+# (kernels/footprint.py) is for primitives that cover a few pixels.
+PACKET_FOOTPRINT = False
 # What a message calls a scene's primitives of this kind.
 NOUN = "spheres"
 # Rows of the leaf buffer (bvh's `ordered`): centre x, y, z and radius.

@@ -93,12 +93,14 @@ from .answers import answers
 # (compiled.leaf_test): the watertight test is long, and inlined at every leaf
 # site it made a mesh's first Whitted frame compile for minutes.
 INLINE_TESTS = False
-# The cpu's packets of primary rays (kernels/packets.py): 8x8 pixels. A dense
-# mesh's triangles cover a pixel or two, and a 16x8 packet enters many leaves
-# that few of its rays meet; 8x8 kept a coarse mesh's frame and sped a dense
-# one's, where 8x4 sped the dense one more but slowed the coarse one
-# (docs/triangles.md#the-cpus-packets-a-meshs-are-8x8).
-PACKET_SHAPE = (8, 8)
+# The cpu's packets of primary rays (kernels/packets.py): 16x8 pixels, the
+# sphere's, each leaf's triangle tested on the rows of rays that its box's
+# footprint on the frame covers (kernels/footprint.py): a dense mesh's
+# triangles cover a pixel or two, and tested on all 128 rays they made a
+# smaller packet pay (8x8 was the shape before the footprint;
+# docs/triangles.md#the-cpus-packets-a-triangle-meets-the-rows-it-covers).
+PACKET_SHAPE = (16, 8)
+PACKET_FOOTPRINT = True
 # What a message calls a scene's primitives of this kind.
 NOUN = "triangles"
 # Rows of the leaf buffer (bvh's `ordered`): the three vertices.

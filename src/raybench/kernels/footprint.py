@@ -1,0 +1,128 @@
+"""Which rays of a packet of primary rays a box can meet: the box (a leaf
+primitive's, grown as the walk grows it) projected through the pinhole
+camera onto the frame's pixels, so that the packet's leaf tests a primitive
+on the rows of rays its footprint covers, not on all (kernels/packets.py,
+for a kind whose PACKET_FOOTPRINT is True).
+
+Why: a dense mesh's triangles cover a pixel or two, and a packet's leaf
+tested each of them on all of its rays, of which a row or two can meet it.
+
+The same answer because: a primary ray's direction is Camera.basis's F + R'u
++ U'v for its pixel's (u, v), normalised (trace.primary_ray), computed in
+float32, so it is parallel to that sum plus an error e of at most 8 float32
+epsilons of |F_i| + |R'_i| + |U'_i| on each axis i. A point P of the box
+that the ray meets (the walks' premise: a primitive's test hits only within
+its padded box grown by the margin) is then s (F + R'u + U'v + e) for some s
+> 0, so the inverse of the matrix [F R' U'] gives P's coordinates (a, b, c)
+= s (1 + ea, u + eb, v + ec), with ea, eb, ec bounded by that matrix's rows
+times e: b / a is u within (eb + |u| ea) / (1 - ea), and c / a is v within
+the same with ec. Over the box, a, b and c each lie in an interval (the
+rows' dot products taken at the box's planes), and for a > 0 the quotients'
+extremes are at the intervals' ends. The bound is doubled, the float32
+rounding of u and v themselves added, and the range widened to whole
+pixels; a box that reaches to or behind the camera's plane (a <= 0) gets
+every row. The arithmetic is float64, whose rounding is far below the
+margin the walk adds to every box.
+"""
+
+import math
+
+import numba
+import numpy as np
+
+_F64 = np.float64
+# float32's unit roundoff
+_EPS = _F64(2.0**-24)
+# How far a ray's computed direction may stray from its pixel's exact sum, in
+# float32 epsilons of the basis's magnitudes on each axis: four roundings
+# making the sum, one normalising each component, and room to spare.
+_DIRECTION_EPS = _F64(8.0)
+# A frame view that culls nothing (a singular basis): width 0.
+OFF = (_F64(0.0),) * 13
+
+
+@numba.njit(inline="always")
+def frame_view(basis, width, height):
+    """What every packet of a frame shares: the rows of the inverse of [F R'
+    U'] (basis[1], basis[2], basis[3]) for a, b and c, the bounds on b / a
+    and c / a about u and v, the width and the height: 13 float64, or OFF."""
+    fx, fy, fz = _F64(basis[1, 0]), _F64(basis[1, 1]), _F64(basis[1, 2])
+    rx, ry, rz = _F64(basis[2, 0]), _F64(basis[2, 1]), _F64(basis[2, 2])
+    ux, uy, uz = _F64(basis[3, 0]), _F64(basis[3, 1]), _F64(basis[3, 2])
+    # the inverse's rows: R' x U', U' x F and F x R', over det = F . (R' x U')
+    ax, ay, az = ry * uz - rz * uy, rz * ux - rx * uz, rx * uy - ry * ux
+    bx, by, bz = uy * fz - uz * fy, uz * fx - ux * fz, ux * fy - uy * fx
+    cx, cy, cz = fy * rz - fz * ry, fz * rx - fx * rz, fx * ry - fy * rx
+    det = fx * ax + fy * ay + fz * az
+    if not (abs(det) > _F64(0.0) and math.isfinite(det)):
+        return OFF
+    ax, ay, az, bx, by, bz, cx, cy, cz = (ax / det, ay / det, az / det, bx / det, by / det, bz / det, cx / det,
+                                          cy / det, cz / det)  # fmt: skip
+    ex = _DIRECTION_EPS * _EPS * (abs(fx) + abs(rx) + abs(ux))
+    ey = _DIRECTION_EPS * _EPS * (abs(fy) + abs(ry) + abs(uy))
+    ez = _DIRECTION_EPS * _EPS * (abs(fz) + abs(rz) + abs(uz))
+    ea = abs(ax) * ex + abs(ay) * ey + abs(az) * ez
+    eb = abs(bx) * ex + abs(by) * ey + abs(bz) * ez
+    ec = abs(cx) * ex + abs(cy) * ey + abs(cz) * ez
+    if not ea < _F64(0.25):
+        return OFF
+    # |u|, |v| <= 1/2 for a pixel's centre; u's and v's own float32 rounding
+    pad_u = _F64(2.0) * (eb + _F64(0.5) * ea) / (_F64(1.0) - ea) + _F64(4.0) * _EPS
+    pad_v = _F64(2.0) * (ec + _F64(0.5) * ea) / (_F64(1.0) - ea) + _F64(4.0) * _EPS
+    return (ax, ay, az, bx, by, bz, cx, cy, cz, pad_u, pad_v, _F64(width), _F64(height))
+
+
+@numba.njit(inline="always")
+def _span(mx, my, mz, lx, ly, lz, hx, hy, hz):
+    """The interval of m . P over the box of planes (lx, ..., hz)."""
+    return (
+        min(mx * lx, mx * hx) + min(my * ly, my * hy) + min(mz * lz, mz * hz),
+        max(mx * lx, mx * hx) + max(my * ly, my * hy) + max(mz * lz, mz * hz),
+    )
+
+
+@numba.njit(inline="always")
+def _quotients(n_lo, n_hi, inv_lo, inv_hi):
+    """The interval of n / a for n in [n_lo, n_hi] and a in [a_lo, a_hi], a_lo > 0,
+    from inv_lo = 1 / a_lo and inv_hi = 1 / a_hi (a float64 rounding or two, far
+    inside the bounds' doubling)."""
+    return min(n_lo * inv_lo, n_lo * inv_hi), max(n_hi * inv_lo, n_hi * inv_hi)
+
+
+@numba.njit(inline="always")
+def rays_of(view, place, width_rays, count, box, margin, ox, oy, oz):
+    """The rays of the packet at place, (x0, y0, last_x, last_y): its pixels'
+    columns and rows (a row of width_rays rays each, count in all; rays past
+    the frame's edge copy its last pixels, unstored), that may meet box (lo
+    x, y, z, hi x, y, z) grown by margin, seen from the rays' origin (ox, oy,
+    oz): (first, end), whole rows of the packet; first == end where none
+    can. view: frame_view's."""
+    ax, ay, az, bx, by, bz, cx, cy, cz, pad_u, pad_v, width, height = view
+    if width == _F64(0.0):
+        return 0, count
+    x0, y0, last_x, last_y = place
+    m = _F64(margin)
+    lx, ly, lz = _F64(box[0]) - m - _F64(ox), _F64(box[1]) - m - _F64(oy), _F64(box[2]) - m - _F64(oz)
+    hx, hy, hz = _F64(box[3]) + m - _F64(ox), _F64(box[4]) + m - _F64(oy), _F64(box[5]) + m - _F64(oz)
+    a_lo, a_hi = _span(ax, ay, az, lx, ly, lz, hx, hy, hz)
+    if not a_lo > _F64(0.0):  # the box reaches the camera's plane, or behind it
+        return 0, count
+    inv_lo, inv_hi = _F64(1.0) / a_lo, _F64(1.0) / a_hi
+    n_lo, n_hi = _span(bx, by, bz, lx, ly, lz, hx, hy, hz)
+    b_lo, b_hi = _quotients(n_lo, n_hi, inv_lo, inv_hi)
+    n_lo, n_hi = _span(cx, cy, cz, lx, ly, lz, hx, hy, hz)
+    c_lo, c_hi = _quotients(n_lo, n_hi, inv_lo, inv_hi)
+    # pixel x = (u + 1/2) width - 1/2, y = (1/2 - v) height - 1/2
+    x_lo = (b_lo - pad_u + _F64(0.5)) * width - _F64(0.5)
+    x_hi = (b_hi + pad_u + _F64(0.5)) * width - _F64(0.5)
+    if not (x_hi >= _F64(x0) and x_lo <= _F64(last_x)):
+        return 0, 0
+    y_lo = (_F64(0.5) - c_hi - pad_v) * height - _F64(0.5)
+    y_hi = (_F64(0.5) - c_lo + pad_v) * height - _F64(0.5)
+    if not (y_hi >= _F64(y0) and y_lo <= _F64(last_y)):
+        return 0, 0
+    first = int(math.ceil(max(y_lo, _F64(y0)))) - y0
+    last = int(math.floor(min(y_hi, _F64(last_y)))) - y0
+    if last < first:
+        return 0, 0
+    return first * width_rays, (last + 1) * width_rays

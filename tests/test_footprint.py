@@ -1,0 +1,112 @@
+"""kernels/footprint.py: the rows of a packet of primary rays that a box can
+meet. Held to the rays the packets really cast (packets._primary_ray_v, in
+float32) and a float64 slab test of each against the box: every ray that
+meets it lies in the rows given, whatever the camera, and a box no ray
+meets is mostly ruled out whole."""
+
+import numpy as np
+import pytest
+
+from raybench import Camera
+from raybench.kernels import footprint, packets
+
+W, H = 16, 8  # a packet's pixels, the sphere's and the triangle's shape
+
+
+def meets(direction, lo, hi) -> bool:
+    """Whether the ray from the origin along direction (its float32 values,
+    taken as exact) meets the box [lo, hi] (relative to the origin) at t >
+    0: the slab test in float64, with 1/0 as infinity."""
+    d = direction.astype(np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / d
+        t1, t2 = lo * inv, hi * inv
+    t1 = np.where(np.isnan(t1), -np.inf, t1)  # 0 * inf: a ray along the slab's plane
+    t2 = np.where(np.isnan(t2), np.inf, t2)
+    near = np.max(np.minimum(t1, t2))
+    far = np.min(np.maximum(t1, t2))
+    return bool(near <= far and far > 0)
+
+
+def a_case(rng):
+    """A camera, a frame size, a packet in it and a box near one of its
+    rays (or anywhere), with the margin the walks would grow it by."""
+    fov = float(rng.choice([rng.uniform(0.5, 5.0), rng.uniform(20, 100), rng.uniform(140, 170)]))
+    scale = float(10.0 ** rng.uniform(-2, 4))
+    position = rng.normal(size=3) * scale
+    look_at = position + rng.normal(size=3)
+    camera = Camera(tuple(position), tuple(look_at), fov_deg=fov)
+    width, height = int(rng.integers(W, 3000)), int(rng.integers(H, 2000))
+    basis = camera.basis(width, height)
+    x0 = int(rng.integers(0, (width - 1) // W + 1)) * W
+    y0 = int(rng.integers(0, (height - 1) // H + 1)) * H
+    end_row = min(height, y0 + H * int(rng.integers(1, 3)))
+    origin = basis[0].astype(np.float64)
+    x, y = x0 + int(rng.integers(W)), y0 + int(rng.integers(H))
+    d = np.array(packets._primary_ray_v(np.int32(min(x, width - 1)), np.int32(min(y, end_row - 1)), width, height,
+                                        basis), np.float64)  # fmt: skip
+    centre = origin + d * scale * 10.0 ** rng.uniform(-3, 2) if rng.random() < 0.9 else origin + rng.normal(size=3)
+    if rng.random() < 0.1:
+        centre = origin - d * scale  # behind the camera
+    size = scale * 10.0 ** rng.uniform(-6, 0.5) * rng.uniform(0.1, 1.0, 3)
+    lo = (centre - size).astype(np.float32)
+    hi = (centre + size).astype(np.float32)
+    ox, oy, oz = (np.float32(v) for v in basis[0])
+    margin = (abs(ox) + abs(oy) + abs(oz)) * np.float32(2.0**-16)
+    return basis, width, height, x0, y0, end_row, lo, hi, margin
+
+
+@pytest.mark.parametrize("batch", range(4))
+def test_every_ray_that_meets_the_box_is_in_its_rows(rng, batch):
+    ruled_out = met = 0
+    for _ in range(500):
+        basis, width, height, x0, y0, end_row, lo, hi, margin = a_case(rng)
+        view = footprint.frame_view(basis, width, height)
+        place = (x0, y0, min(x0 + W, width) - 1, min(y0 + H, end_row) - 1)
+        ox, oy, oz = (np.float32(v) for v in basis[0])
+        box = tuple(np.float32(v) for v in (*lo, *hi))
+        first, end = footprint.rays_of(view, place, W, W * H, box, margin, ox, oy, oz)
+        assert 0 <= first <= end <= W * H and first % W == 0 and end % W == 0
+        origin = basis[0].astype(np.float64)
+        grown_lo = lo.astype(np.float64) - np.float64(margin) - origin
+        grown_hi = hi.astype(np.float64) + np.float64(margin) - origin
+        any_met = False
+        for k in range(W * H):
+            x, y = min(x0 + k % W, width - 1), min(y0 + k // W, end_row - 1)
+            if x != x0 + k % W or y != y0 + k // W:
+                continue  # a copy of the frame's last pixel, unstored
+            d = np.array(packets._primary_ray_v(np.int32(x), np.int32(y), width, height, basis))
+            if meets(d, grown_lo, grown_hi):
+                any_met = True
+                assert first <= k < end, (k, first, end, basis, width, height, x0, y0, lo, hi)
+        met += any_met
+        ruled_out += (not any_met) and first == end
+    assert met > 100  # most boxes lie across a ray of the packet: the rows were tested
+    assert ruled_out > 0  # and some that none meets were ruled out whole
+
+
+def test_a_box_beside_the_packet_or_across_one_row_is_cut_to_it():
+    """A straight-on camera, 160x80: a small box in front of another
+    packet's pixels meets none of this packet's rays; one in front of pixel
+    (5, 3) of the packet at (16, 8) meets its row 3 alone."""
+    width, height = 160, 80
+    basis = Camera((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), fov_deg=60.0).basis(width, height)
+    view = footprint.frame_view(basis, width, height)
+    zero = np.float32(0.0)
+
+    def box_at(x, y, half):
+        d = np.array(packets._primary_ray_v(np.int32(x), np.int32(y), width, height, basis), np.float64) * 5.0
+        return tuple(np.float32(v) for v in (*(d - half), *(d + half)))
+
+    tiny = 1e-4  # far less than a pixel (5 units away, a pixel is about 0.036 across)
+    place = (16, 8, 31, 15)
+    assert footprint.rays_of(view, place, W, W * H, box_at(60, 40, tiny), zero, zero, zero, zero) == (0, 0)
+    assert footprint.rays_of(view, place, W, W * H, box_at(21, 11, tiny), zero, zero, zero, zero) == (3 * W, 4 * W)
+
+
+def test_a_singular_view_culls_nothing():
+    basis = np.zeros((4, 3), np.float32)
+    view = footprint.frame_view(basis, 64, 32)
+    assert view == footprint.OFF
+    box = (np.float32(1.0),) * 3 + (np.float32(2.0),) * 3
+    assert footprint.rays_of(view, (0, 0, 15, 7), W, W * H, box, np.float32(0.0), *(np.float32(0.0),) * 3) == (0, W * H)
