@@ -214,21 +214,23 @@ def _packet_leaf(
     grown by margin as the walk grows boxes) no ray enters is skipped after
     one test for the packet (_missed_by_all)
     (docs/notes/bvh-walk.md#measured-cpu-only-machine-amd-epyc-2-vcpus-shared);
-    with FOOTPRINT, one the box meets is tested on the rows of rays its
-    footprint covers (footprint.rays_of; view, place: the frame's and the
-    packet's, _packet_walk_wide's)."""
+    with FOOTPRINT, a primitive is tested on the rows of rays its box's
+    footprint covers, instead (footprint.rays_of; view, place: the frame's
+    and the packet's, _packet_walk_wide's)."""
     for j in range(first, first + count):
         original = order[j]
         row = _read_leaf(ordered, j)  # read once, for the box test and the rays' tests
-        if _leaf_missed(row, ox, oy, oz, margin, spread):
-            continue
         if FOOTPRINT:
+            # the footprint stands in for the packet's interval test of the
+            # box: a dense mesh's triangles pass that test nine times in ten
             first_ray, end_ray = rays_of(view, place, PACKET_W, PACKET, _box_of(row), margin, ox, oy, oz)
             if first_ray == end_ray:
                 continue
             _packet_rays(_seen_from(row, ox, oy, oz), original, dx, dy, dz, closest, hit, hit_d, ahead,
                          _U(first_ray), _U(end_ray))  # fmt: skip
         else:
+            if _leaf_missed(row, ox, oy, oz, margin, spread):
+                continue
             _packet_rays(_seen_from(row, ox, oy, oz), original, dx, dy, dz, closest, hit, hit_d, ahead, 0, PACKET)
     # spread[6] = the farthest closest hit: closest holds positive float32
     # only, whose bit patterns order as the floats do, so an integer maximum,
