@@ -181,13 +181,15 @@ def _rows_enter(lx, ly, lz, hx, hy, hz, ix, iy, iz, closest):
     return False
 
 
-@compiled.leaf_test(error_model="numpy")
-def _packet_rays(seen, original, dx, dy, dz, closest, hit, hit_d, ahead, first, end):
+@numba.njit(inline="always", error_model="numpy")
+def _ray_tests(seen, original, dx, dy, dz, closest, hit, hit_d, ahead, first, end):
     """One primitive (seen_from the packet's origin) against the packet's
-    rays first..end (_packet_leaf), the walk's tie rule. first and end
+    rays first..end (packet_leaf), the walk's tie rule. first and end
     unsigned where they are not constants (_U): from a signed start the
     indices carry Python's negative-index wraparound, and LLVM left the loop
-    scalar."""
+    scalar. Inlined in the thesis's packets for every kind: a mesh's frames
+    took 12% less than with the call, for some 10 s more on its first
+    compile (docs/triangles.md#the-cpus-packets-a-triangle-meets-the-rows-it-covers)."""
     for k in range(first, end):
         if ahead:
             t, d = _hit_ahead_from(seen, dx[k], dy[k], dz[k], False)
@@ -200,14 +202,21 @@ def _packet_rays(seen, original, dx, dy, dz, closest, hit, hit_d, ahead, first, 
         hit_d[k] = d if better else hit_d[k]
 
 
-@numba.njit(inline="always", error_model="numpy")
-def _packet_leaf(
-    ox, oy, oz, margin, dx, dy, dz, ordered, order, first, count, spread, closest, hit, hit_d, closest_bits,
-    spread_bits, ahead, view, place,
-):  # fmt: skip
-    """The exact test of a leaf's primitives on every ray of the packet, seen
-    from the packet's origin as the primitive's own test sees it
-    (seen_from, on its row read once), the walk's tie rule; ahead: Whitted's primary rays' test
+@compiled.leaf_test(error_model="numpy")
+def _packet_rays(seen, original, dx, dy, dz, closest, hit, hit_d, ahead, first, end):
+    """_ray_tests for Whitted's primary packets (ahead): a call for a kind
+    whose INLINE_TESTS is False, as in the other walks, whose programs
+    compile long already."""
+    _ray_tests(seen, original, dx, dy, dz, closest, hit, hit_d, ahead, first, end)
+
+
+def packet_leaf(tests):
+    """packet_walk's leaf for the closest hit (it never ends the walk): the
+    exact test of a leaf's primitives on the packet's rays, seen from the
+    packet's origin as the primitive's own test sees it (seen_from, on its
+    row read once), by tests(seen, original, dx, dy, dz, closest, hit,
+    hit_d, ahead, first, end) on the rays first..end, the walk's tie rule;
+    the rays, _packet_walk_wide's. ahead: Whitted's primary rays' test
     (hit_ahead for a ray that leaves no primitive, as traverse.leaf_test
     makes it: for a sphere, the far root where the near one is behind, a
     camera inside it). A primitive whose own box (as the builder pads it,
@@ -216,29 +225,38 @@ def _packet_leaf(
     (docs/notes/bvh-walk.md#measured-cpu-only-machine-amd-epyc-2-vcpus-shared);
     with FOOTPRINT, a primitive is tested on the rows of rays its box's
     footprint covers, instead (footprint.rays_of; view, place: the frame's
-    and the packet's, _packet_walk_wide's)."""
-    for j in range(first, first + count):
-        original = order[j]
-        row = _read_leaf(ordered, j)  # read once, for the box test and the rays' tests
-        if FOOTPRINT:
-            # the footprint stands in for the packet's interval test of the
-            # box: a dense mesh's triangles pass that test nine times in ten
-            first_ray, end_ray = rays_of(view, place, PACKET_W, PACKET, _box_of(row), margin, ox, oy, oz)
-            if first_ray == end_ray:
-                continue
-            _packet_rays(_seen_from(row, ox, oy, oz), original, dx, dy, dz, closest, hit, hit_d, ahead,
-                         _U(first_ray), _U(end_ray))  # fmt: skip
-        else:
-            if _leaf_missed(row, ox, oy, oz, margin, spread):
-                continue
-            _packet_rays(_seen_from(row, ox, oy, oz), original, dx, dy, dz, closest, hit, hit_d, ahead, 0, PACKET)
-    # spread[6] = the farthest closest hit: closest holds positive float32
-    # only, whose bit patterns order as the floats do, so an integer maximum,
-    # which LLVM makes SIMD (a float one it would not)
-    m = closest_bits[0]
-    for k in range(1, PACKET):
-        m = max(m, closest_bits[k])
-    spread_bits[6] = m
+    and the packet's). One source for the thesis's packets, whose tests are
+    inlined (_ray_tests), and Whitted's (_packet_rays)."""
+
+    @numba.njit(inline="always", error_model="numpy")
+    def leaf(ox, oy, oz, margin, spread, first, count, rays):
+        ordered, order, dx, dy, dz, _ix, _iy, _iz, closest, hit, hit_d, closest_bits, spread_bits = rays[:13]
+        ahead, view, place = rays[13], rays[14], rays[15]
+        for j in range(first, first + count):
+            original = order[j]
+            row = _read_leaf(ordered, j)  # read once, for the box test and the rays' tests
+            if FOOTPRINT:
+                # the footprint stands in for the packet's interval test of the
+                # box: a dense mesh's triangles pass that test nine times in ten
+                first_ray, end_ray = rays_of(view, place, PACKET_W, PACKET, _box_of(row), margin, ox, oy, oz)
+                if first_ray == end_ray:
+                    continue
+                tests(_seen_from(row, ox, oy, oz), original, dx, dy, dz, closest, hit, hit_d, ahead, _U(first_ray),
+                      _U(end_ray))  # fmt: skip
+            else:
+                if _leaf_missed(row, ox, oy, oz, margin, spread):
+                    continue
+                tests(_seen_from(row, ox, oy, oz), original, dx, dy, dz, closest, hit, hit_d, ahead, 0, PACKET)
+        # spread[6] = the farthest closest hit: closest holds positive float32
+        # only, whose bit patterns order as the floats do, so an integer maximum,
+        # which LLVM makes SIMD (a float one it would not)
+        m = closest_bits[0]
+        for k in range(1, PACKET):
+            m = max(m, closest_bits[k])
+        spread_bits[6] = m
+        return False
+
+    return leaf
 
 
 @numba.njit(inline="always", error_model="numpy")
@@ -447,36 +465,39 @@ def packet_walk(enter, leaf, any_hit):
 
 
 @numba.njit(inline="always", error_model="numpy")
-def _closest_leaf(ox, oy, oz, margin, spread, ref, count, rays):
-    """packet_walk's leaf for the closest hit: _packet_leaf on the rays of
-    _packet_walk_wide; never ends the walk."""
-    ordered, order, dx, dy, dz, _ix, _iy, _iz, closest, hit, hit_d, closest_bits, spread_bits, ahead, view, place = rays
-    _packet_leaf(ox, oy, oz, margin, dx, dy, dz, ordered, order, ref, count, spread, closest, hit, hit_d,
-                 closest_bits, spread_bits, ahead, view, place)  # fmt: skip
-    return False
-
-
-@numba.njit(inline="always", error_model="numpy")
 def _closest_enter(lx, ly, lz, hx, hy, hz, rays):
     """packet_walk's box test for the closest hit (_rows_enter)."""
     return _rows_enter(lx, ly, lz, hx, hy, hz, rays[5], rays[6], rays[7], rays[8])
 
 
-_walk_closest = packet_walk(_closest_enter, _closest_leaf, any_hit=False)
-
-
-@numba.njit(inline="always", error_model="numpy")
-def _packet_walk_wide(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest, hit,
-                      hit_d, spread, closest_bits, spread_bits, stack_row, stack_count, along, ahead, view,
-                      place):  # fmt: skip
-    """The closest hit of every ray of _bvh_packets_wide's packet (started
-    by _start_packet): closest, hit and hit_d; ahead: _packet_leaf's, for
-    Whitted's primary rays; view, place: the frame's (_frame_view) and the
-    packet's (_place), for _packet_leaf. packet_walk's, its children
+def packet_walk_wide(walk, ahead):
+    """The closest hit of every ray of a packet (started by _start_packet)
+    through walk (packet_walk's): closest, hit and hit_d; ahead: the leaf's
+    test for Whitted's primary rays (packet_leaf); view, place: the frame's
+    (_frame_view) and the packet's (_place), for the leaf. Its children
     ordered along the packet's middle ray."""
-    rays = (ordered, order, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, closest_bits, spread_bits, ahead, view, place)
-    _walk_closest(wide, wide_links, ox, oy, oz, margin, dx[_MIDDLE], dy[_MIDDLE], dz[_MIDDLE], spread, stack_row,
-                  stack_count, along, rays)  # fmt: skip
+
+    @numba.njit(inline="always", error_model="numpy")
+    def walk_packet(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest, hit,
+                    hit_d, spread, closest_bits, spread_bits, stack_row, stack_count, along, view, place):  # fmt: skip
+        rays = (ordered, order, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, closest_bits, spread_bits, ahead, view,
+                place)  # fmt: skip
+        walk(wide, wide_links, ox, oy, oz, margin, dx[_MIDDLE], dy[_MIDDLE], dz[_MIDDLE], spread, stack_row,
+             stack_count, along, rays)  # fmt: skip
+
+    return walk_packet
+
+
+# Each a name of the module, so that compiled.rebound copies each for a kind
+# (it swaps what a closure holds as it swaps globals): the thesis's packets
+# (_bvh_packets_wide) and Whitted's primary ones (whitted_rows), which call
+# their leaf's test (_packet_rays) where the thesis's inline it.
+_leaf_thesis = packet_leaf(_ray_tests)
+_leaf_ahead = packet_leaf(_packet_rays)
+_walk_thesis = packet_walk(_closest_enter, _leaf_thesis, any_hit=False)
+_walk_ahead = packet_walk(_closest_enter, _leaf_ahead, any_hit=False)
+_packet_walk_wide = packet_walk_wide(_walk_thesis, False)
+_packet_walk_ahead = packet_walk_wide(_walk_ahead, True)
 
 
 @numba.njit(inline="always")
@@ -529,6 +550,6 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
         for x0 in range(0, width, PACKET_W):
             _start_packet(x0, y0, end_row, width, height, basis, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, spread)
             _packet_walk_wide(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest,
-                              hit, hit_d, spread, closest_bits, spread_bits, stack_row, stack_count, along,
-                              False, view, _place(x0, y0, end_row, width))  # fmt: skip
+                              hit, hit_d, spread, closest_bits, spread_bits, stack_row, stack_count, along, view,
+                              _place(x0, y0, end_row, width))  # fmt: skip
             _store_packet(x0, y0, end_row, width, spheres, hit, hit_d, rgb, paint, image, hits)

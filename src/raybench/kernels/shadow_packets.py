@@ -138,7 +138,7 @@ def _lanes_leaf(ox, oy, oz, margin, rays, spread, ordered, order, first, count, 
     _DEAD. The test of traverse.leaf_test, on the same float32 values: the
     primitive `own` the rays leave skipped unless the primitive says a ray
     can meet it again (meets_own). A primitive whose padded box no ray enters is
-    skipped after one test for the packet (_missed_by_all, as _packet_leaf
+    skipped after one test for the packet (_missed_by_all, as packets.packet_leaf
     does). The loop over the rays has no branch and no reduction but an OR:
     LLVM makes it SIMD. blockers[slot]: the last primitive found blocking a
     ray, tested first by the next packet of the slot (_last_blocker)."""

@@ -13,7 +13,7 @@ from ...kernels.packets import (
     PACKET_W,
     _frame_view,
     _kind_constants,  # noqa: F401 - a kind's copy tiles by its packets (compiled.rebound)
-    _packet_walk_wide,
+    _packet_walk_ahead,
     _place,
     _start_packet,
 )
@@ -127,9 +127,9 @@ def _tile_primaries(x0, y0, end_row, width, height, basis, wide, wide_links, ord
     _start_packet(x0, y0, end_row, width, height, basis, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, spread)
     ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
     margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
-    _packet_walk_wide(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest, hit,
-                      hit_d, spread, closest.view(np.int32), spread.view(np.int32), stack_row, stack_count, along,
-                      True, _frame_view(basis, width, height), _place(x0, y0, end_row, width))  # fmt: skip
+    _packet_walk_ahead(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest, hit,
+                       hit_d, spread, closest.view(np.int32), spread.view(np.int32), stack_row, stack_count, along,
+                       _frame_view(basis, width, height), _place(x0, y0, end_row, width))  # fmt: skip
 
 
 @compiled.njit(nogil=True, _nrt=False)
