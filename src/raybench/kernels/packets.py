@@ -188,8 +188,8 @@ def _ray_tests(seen, original, dx, dy, dz, closest, hit, hit_d, ahead, first, en
     unsigned where they are not constants (_U): from a signed start the
     indices carry Python's negative-index wraparound, and LLVM left the loop
     scalar. Inlined in the thesis's packets for every kind: a mesh's frames
-    took 12% less than with the call, for some 10 s more on its first
-    compile (docs/triangles.md#the-cpus-packets-a-triangle-meets-the-rows-it-covers)."""
+    are faster than through a call, for a longer first compile
+    (docs/triangles.md#the-cpus-packets-a-triangle-meets-the-rows-it-covers)."""
     for k in range(first, end):
         if ahead:
             t, d = _hit_ahead_from(seen, dx[k], dy[k], dz[k], False)
@@ -237,7 +237,7 @@ def packet_leaf(tests):
             row = _read_leaf(ordered, j)  # read once, for the box test and the rays' tests
             if FOOTPRINT:
                 # the footprint stands in for the packet's interval test of the
-                # box: a dense mesh's triangles pass that test nine times in ten
+                # box, which almost every triangle of a dense mesh passes
                 first_ray, end_ray = rays_of(view, place, PACKET_W, PACKET, _box_of(row), margin, ox, oy, oz)
                 if first_ray == end_ray:
                     continue
