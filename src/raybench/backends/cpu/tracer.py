@@ -3,6 +3,7 @@ running a compiled kernel with the GIL released (backends/cpu says how)."""
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from concurrent import futures
 from concurrent.futures import ThreadPoolExecutor
@@ -175,6 +176,10 @@ class Tracer(TracerBase):
             start = time.perf_counter()
             self.wide = bvh_mod.collapse(self.bvh)
             self.build_s += time.perf_counter() - start
+            # every walk of this width reads the 4-wide tree (the packets, Whitted's bounces and
+            # its shadow packets): the binary tree's nodes, about as large, are let go
+            none = np.zeros((0, NODE_FLOATS), np.float32)
+            self.bvh = dataclasses.replace(self.bvh, nodes=none, links=none.view(np.int32))
 
     def _tree(self, count):
         """The BVH's arrays for the walk; brute force's stand-in, with no node."""
