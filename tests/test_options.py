@@ -56,8 +56,8 @@ def test_the_defaults_are_filled_in():
     assert (cpu.accel, cpu.kernel, cpu.threads, cpu.tree_width) == ("bvh", None, usable_cores(), None)
     assert options.KIND_TREE_WIDTH == {
         "sphere": {"thesis": 4, "whitted": 4},
-        "triangle": {"thesis": 4, "whitted": 2},
-        "mixed": {"thesis": 4, "whitted": 2},
+        "triangle": {"thesis": 4, "whitted": 4},
+        "mixed": {"thesis": 4, "whitted": 4},
     }
     assert set(options.KIND_TREE_WIDTH) == set(KINDS)  # every kind has its default
     assert options.checked("cpu", {"accel": "none"}).kernel == "fast"

@@ -148,11 +148,11 @@ def test_both_cpu_walks_and_brute_force_give_one_frame(outside):
     for other in (binary, brute):
         assert (other.hits == wide.hits).all() and (other.image == wide.image).all()
     # unless told (options.KIND_TREE_WIDTH), a mesh's primary rays go as packets through the
-    # 4-wide tree, and under Whitted shading every ray walks the binary tree alone
+    # 4-wide tree, under Whitted shading too (its shadow rays and bounces through it alone)
     with backends.tracer("cpu", scene.triangles, W, H, primitive="triangle", threads=2) as tracer:
         assert tracer.tree_width == 4
     with Renderer(scene, W, H, device="cpu", shading="whitted", threads=2) as renderer:
-        assert renderer.tracer.tree_width == 2
+        assert renderer.tracer.tree_width == 4
 
 
 @pytest.mark.slow

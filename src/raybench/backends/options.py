@@ -52,15 +52,16 @@ MAX_THREADS = 4096
 # The cpu's tree by default (tree_width), by kind of primitive and shading: 2,
 # the binary SAH tree (bvh.build), every ray walking it alone by the GPUs' own
 # walk (kernels/traverse.py); 4, the same tree collapsed into 4-wide nodes
-# (bvh.collapse), which the cpu's packets walk (kernels/packets.py). A mesh's
-# primary rays, and a scene's of both kinds, go as packets, their Whitted rays
-# alone: measured both ways
+# (bvh.collapse), which the cpu's packets walk (kernels/packets.py), and
+# Whitted's other rays alone. Every kind's default is 4 since a mesh's Whitted
+# shadow rays go a ray at a time (its SHADOW_PACKETS); until then a mesh's
+# Whitted rays walked the binary tree alone: measured both ways
 # (docs/triangles.md#the-cpus-walk-packets-for-primary-rays-rays-alone-for-whitteds).
 TREE_WIDTH = 4
 KIND_TREE_WIDTH = {
     "sphere": {"thesis": TREE_WIDTH, "whitted": TREE_WIDTH},
-    "triangle": {"thesis": 4, "whitted": 2},
-    "mixed": {"thesis": 4, "whitted": 2},
+    "triangle": {"thesis": 4, "whitted": 4},
+    "mixed": {"thesis": 4, "whitted": 4},
 }
 TREE_WIDTHS = (2, 4)
 
