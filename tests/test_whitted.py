@@ -202,10 +202,14 @@ def test_brute_force_is_the_bvh_bit_for_bit(rng):
     sphere a ray leaves skipped or met at its far root alike: the same frame
     and the same rays, bit for bit, on a scene of mirrors and glass, where
     secondary rays meet the spheres from outside and from inside."""
-    scene = raybench.random_spheres(40, seed=int(rng.integers(2**31)), materials=True)
-    bvh = frame(scene, "cpu", 40, 25, accel="bvh", samples=2)
+    for _ in range(20):  # a scene whose frame has mirrors and glass enough that the check means something
+        scene = raybench.random_spheres(40, seed=int(rng.integers(2**31)), materials=True)
+        bvh = frame(scene, "cpu", 40, 25, accel="bvh", samples=2)
+        if bvh.rays["reflection"] > 100 and bvh.rays["refraction"] > 50:
+            break
+    else:
+        pytest.fail("20 random scenes in a row with too few reflected or refracted rays")
     none = frame(scene, "cpu", 40, 25, accel="none", samples=2)
-    assert bvh.rays["reflection"] > 100 and bvh.rays["refraction"] > 50  # not vacuous
     assert np.array_equal(bvh.hits, none.hits) and bvh.rays == none.rays
     assert np.array_equal(bvh.image, none.image), np.count_nonzero(bvh.image != none.image)
 
