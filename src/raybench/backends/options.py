@@ -53,8 +53,8 @@ MAX_THREADS = 4096
 # the binary SAH tree (bvh.build), every ray walking it alone by the GPUs' own
 # walk (kernels/traverse.py); 4, the same tree collapsed into 4-wide nodes
 # (bvh.collapse), which the cpu's packets walk (kernels/packets.py), and
-# Whitted's other rays alone. Every kind's default is 4 since a point light's
-# shadow ray walks alone (kernels/shadow_packets.py); until then a mesh's
+# Whitted's other rays alone. Every kind's default is 4 since a mesh's Whitted
+# shadow rays go a ray at a time (its SHADOW_PACKETS); until then a mesh's
 # Whitted rays walked the binary tree alone: measured both ways
 # (docs/triangles.md#the-cpus-walk-packets-for-primary-rays-rays-alone-for-whitteds).
 TREE_WIDTH = 4

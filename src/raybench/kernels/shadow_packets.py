@@ -52,12 +52,7 @@ def _packet_shadows(jit, find, toward):
     def cast(px, py, pz, nx, ny, nz, light, samples, share, own, own_inside, spheres, count, lights, pattern, tree,
              stack_row, stack_t):  # fmt: skip
         """Bit s set where sample s's ray is blocked; 0 for samples whose
-        ray is not cast (toward's facing 0); -1 for a light of one sample,
-        whose ray blocked walks alone."""
-        if samples < 2:
-            # a point light's one ray walks alone (blocked): a packet of one ray
-            # made a scene of several point lights twice as slow (docs/triangles.md)
-            return np.int64(-1)
+        ray is not cast (toward's facing 0)."""
         rays = tree.rays
         blockers = tree.blockers
         slot = (own * MAX_LIGHTS + light) % BLOCKER_SLOTS
@@ -94,10 +89,6 @@ def _packet_shadows(jit, find, toward):
 
     @jit
     def blocked(batch, s, px, py, pz, lx, ly, lz, dist, own, own_inside, spheres, count, tree, stack_row, stack_t):
-        if batch < 0:  # not cast as a packet: the ray's own walk, to its first blocker
-            blocker, _t, _d = find(px, py, pz, lx, ly, lz, dist, True, own, own_inside, spheres, count, tree,
-                                   stack_row, stack_t)  # fmt: skip
-            return blocker >= 0
         return (batch >> np.int64(s)) & np.int64(1) != 0
 
     return cast, blocked

@@ -31,7 +31,8 @@ def make(
     sites rather than as two inlined copies of the walk (whitted.make).
     shadows: a backend's own way to trace a hit's shadow rays to a light
     (whitted.make's `shadows`, the CPU's packets): then a third Whitted
-    program, render_pixel_whitted["packets"], through the tree with them.
+    program, render_pixel_whitted["packets"], through the tree with them,
+    or with each shadow ray alone for a kind whose SHADOW_PACKETS is False.
     packets_search: that program's search for the other rays (the CPU's
     walk of its 4-wide tree, search_tree's signature); default search_tree.
     That program's find is inlined (jit, not call). read_row: how the
@@ -150,9 +151,11 @@ def make(
             stages = whitted.make(jit, call, search, prim, shade_hit, shade_miss, name=f"_{kind}")
             wavefronts[search.__name__] = wavefront.make(jit, stages, primary_ray, shade_hit)
         else:
-            # find inlined, and the call's cost goes (measured: docs/notes/whitted.md, "CPU:
-            # the primary rays as packets"); the shadows call it too, for a point light's one
-            # ray, which compiles longer and runs faster than called (docs/triangles.md)
+            # find inlined: with the backend's shadow packets the walk has one call site
+            # and is compiled once, and the call's cost goes (measured: docs/notes/whitted.md,
+            # "CPU: the primary rays as packets"); a kind whose shadow rays go a ray at a time
+            # inlines it at both sites, which compiles longer and runs faster than called
+            # (docs/triangles.md)
             stages = whitted.make(jit, jit, search, prim, shade_hit, shade_miss, shadows, name=f"_packets_{kind}")
         whitted_pixel = stages.whitted_pixel
 
@@ -182,7 +185,10 @@ def make(
     render_pixel_whitted = {"bvh": whitted_program(search_tree), "none": whitted_program(search_all)}
     whitted_wavefront = {"bvh": wavefronts["search_tree"], "none": wavefronts["search_all"]}
     if shadows is not None:
-        render_pixel_whitted["packets"] = whitted_program(packets_search or search_tree, shadows)
+        # the kind's choice (its SHADOW_PACKETS): the backend's packets of shadow
+        # rays, or each shadow ray through that program's search, as a bounce's is
+        own_shadows = shadows if primitive.SHADOW_PACKETS else whitted.per_ray
+        render_pixel_whitted["packets"] = whitted_program(packets_search or search_tree, own_shadows)
 
     prepare = None
     if prepare_at is not None:

@@ -10,7 +10,9 @@ whether the cpu's walks inline its tests at their leaves or call them
 the pixels (width, height) of the cpu's packets of primary rays
 (kernels/packets.py); PACKET_FOOTPRINT, whether those packets test a leaf's
 primitive on the rows of rays its box's footprint on the frame covers
-(kernels/footprint.py) rather than on all; SCENE_ROWS, the
+(kernels/footprint.py) rather than on all; SHADOW_PACKETS, whether
+Whitted's packets program on the cpu traces a hit's shadow rays to a light
+as a packet (kernels/shadow_packets.py) or a ray at a time; SCENE_ROWS, the
 rows of its scene buffer that the shading reads; pad(...), the
 builders' padding; centres(buffer), its boxes' centres on the host; and
 make(jit), its functions compiled for one target: for the builders (host

@@ -40,6 +40,9 @@ PACKET_SHAPE = sphere.PACKET_SHAPE
 # ... and, as the sphere's, each leaf primitive tested on all of a packet's rays
 # (the footprint, kernels/footprint.py, was measured on meshes alone).
 PACKET_FOOTPRINT = sphere.PACKET_FOOTPRINT
+# Whitted's shadow rays as the triangle's, a ray at a time: the SPD's scenes of
+# both kinds were faster so (docs/triangles.md).
+SHADOW_PACKETS = triangle.SHADOW_PACKETS
 # What a message calls a scene's primitives of this kind.
 NOUN = "spheres and triangles"
 # Rows of the leaf buffer (bvh's `ordered`): a triangle's nine, then the tag.

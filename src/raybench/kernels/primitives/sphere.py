@@ -37,6 +37,10 @@ PACKET_SHAPE = (16, 8)
 # Its packets test a leaf's sphere on all their rays: its box's footprint
 # (kernels/footprint.py) is for primitives that cover a few pixels.
 PACKET_FOOTPRINT = False
+# Whitted's packets program on the cpu traces a hit's shadow rays to a light as
+# one packet through the 4-wide tree (kernels/shadow_packets.py), not a ray at a
+# time: for spheres the packet, with its last blocker tried first, is faster.
+SHADOW_PACKETS = True
 # What a message calls a scene's primitives of this kind.
 NOUN = "spheres"
 # Rows of the leaf buffer (bvh's `ordered`): centre x, y, z and radius.

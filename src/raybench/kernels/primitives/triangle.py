@@ -101,6 +101,11 @@ INLINE_TESTS = False
 # docs/triangles.md#the-cpus-packets-a-triangle-meets-the-rows-it-covers).
 PACKET_SHAPE = (16, 8)
 PACKET_FOOTPRINT = True
+# Whitted's shadow rays a ray at a time through the 4-wide tree, not as the
+# sphere's packets: on scenes of large polygons and several lights the packets
+# took twice as long, and on a dense mesh a ray at a time is within a quarter
+# (docs/triangles.md#whitted-on-the-cpu-the-4-wide-tree-shadow-rays-alone).
+SHADOW_PACKETS = False
 # What a message calls a scene's primitives of this kind.
 NOUN = "triangles"
 # Rows of the leaf buffer (bvh's `ordered`): the three vertices.
