@@ -171,9 +171,10 @@ def test_whitted_through_the_wide_tree_is_the_binary_trees_frame():
     packets, shadow rays and bounces alone: mixed.SHADOW_PACKETS is False),
     gives the binary tree's frame, every ray alone, bit for bit."""
     assert not mixed.SHADOW_PACKETS
-    scene = scenes(lights=(Light(position=(-3.0, 6.0, 2.0), radius=0.5),))[0]  # an area light: several samples
+    area, point = Light(position=(-3.0, 6.0, 2.0), radius=0.5), Light(position=(3.0, 4.0, 1.0))
+    scene = scenes(lights=(area, point))[0]
     frames = [render(scene, None, W, H, device="cpu", shading="whitted", threads=2, tree_width=w) for w in (4, 2)]
-    assert (frames[0].hits >= 0).mean() > 0.3 and frames[0].rays["shadow"] > (frames[0].hits >= 0).sum()
+    assert (frames[0].hits >= 0).mean() > 0.3 and frames[0].rays["shadow"] > 2 * (frames[0].hits >= 0).sum()
     assert (frames[0].hits == frames[1].hits).all() and (frames[0].image == frames[1].image).all()
 
 
