@@ -102,8 +102,8 @@ INLINE_TESTS = False
 PACKET_SHAPE = (16, 8)
 PACKET_FOOTPRINT = True
 # Whitted's shadow rays a ray at a time through the 4-wide tree, not as the
-# sphere's packets: on scenes of large polygons and several lights the packets
-# took twice as long, and on a dense mesh a ray at a time is within a quarter
+# sphere's packets: under point lights (a packet of one ray each) the packets
+# lost by far more than a ray at a time loses under a dense mesh's area light
 # (docs/triangles.md#whitted-on-the-cpu-the-4-wide-tree-shadow-rays-alone).
 SHADOW_PACKETS = False
 # What a message calls a scene's primitives of this kind.
