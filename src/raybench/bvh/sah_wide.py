@@ -346,7 +346,7 @@ def _reserve(rows: int) -> np.ndarray:
     fifths of it; NumPy asks Linux for huge pages for a large array, and a
     2 MiB page is made resident whole at its first write, so its reserve
     would cost the process every row it might have written, not those it
-    did (at 10 M triangles 610 MiB resident against 250)."""
+    did (docs/triangles.md#memory)."""
     pages = mmap.mmap(-1, max(rows, 1) * NODE_FLOATS * 4)
     if hasattr(mmap, "MADV_NOHUGEPAGE"):  # Linux's; elsewhere pages are small unless asked
         pages.madvise(mmap.MADV_NOHUGEPAGE)

@@ -107,6 +107,7 @@ class Tracer(TracerBase):
         self.shading = shading
         self.ray_counts = None
         self.tree_width = None  # the packets' tree: with the BVH
+        self._none = np.zeros((0, NODE_FLOATS), np.float32)  # no nodes: brute force's tree, a let-go binary tree
         if shading is not None:
             # rows take unequal time (mirrors and glass cost more): pulled in chunks, as the BVH's
             self.bands = chunks(height, self.threads)
@@ -119,7 +120,6 @@ class Tracer(TracerBase):
             self._kernel = self._programs.whitted["packets" if self.tree_width == 4 else self.accel]
             self._row_rays = np.zeros((height, len(layout.KINDS)), np.int64)
             self.ray_counts = np.zeros(len(layout.KINDS), np.int64)
-            self._none = np.zeros((0, NODE_FLOATS), np.float32)
             if self.accel == "bvh":
                 self._build(self.count)
         elif self.accel == "bvh":
@@ -178,8 +178,7 @@ class Tracer(TracerBase):
             self.build_s += time.perf_counter() - start
             # every walk of this width reads the 4-wide tree (the packets, Whitted's bounces and
             # its shadow packets): the binary tree's nodes, about as large, are let go
-            none = np.zeros((0, NODE_FLOATS), np.float32)
-            self.bvh = dataclasses.replace(self.bvh, nodes=none, links=none.view(np.int32))
+            self.bvh = dataclasses.replace(self.bvh, nodes=self._none, links=self._none.view(np.int32))
 
     def _tree(self, count):
         """The BVH's arrays for the walk; brute force's stand-in, with no node."""
