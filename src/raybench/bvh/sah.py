@@ -184,7 +184,9 @@ def build(
             before = numba.get_num_threads()
             numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
             try:
-                nodes, ordered, order, depth = steps.sah_wide._build_wide(items, primitive.LEAF_ROWS, threads, _wide)
+                nodes, order, depth = steps.sah_wide._build_wide(items, threads, _wide)
+                # made once the builder's arrays are gone, so that it never adds to their peak
+                ordered = steps.sah_wide.leaf_buffer(items, order, primitive.LEAF_ROWS, threads)
             finally:
                 numba.set_num_threads(before)
     else:

@@ -4,8 +4,6 @@ parallel regions, then the subtrees below grown one a thread and packed."""
 
 from __future__ import annotations
 
-import mmap
-
 import numba
 import numpy as np
 
@@ -19,6 +17,7 @@ from ..layout import (
     NODE_FLOATS,
     REF,
 )
+from .pages import reserve
 from .sah_steps import (
     BINS,
     _best_plane,
@@ -249,21 +248,33 @@ def _attach(level, m, mid, children, p, q, nodes, links, used, wide):
 
 
 @compiled.njit(nogil=True)
-def _grow_subtrees(items, p, q, nodes, links, tasks, base, ends, depths, ordered, first, step):
+def _gather_back(p, q, tasks, first, step):
+    """Bring the primitives of the subtrees tasks[first::step] back to the
+    builder's arrays p where the top's last split left them in the spare
+    ones q, so that q can go before the subtrees are grown."""
+    for t in range(first, tasks.shape[0], step):
+        if tasks[t, 5] == 1:
+            for i in range(tasks[t, 2], tasks[t, 3]):
+                _copy(q, i, p, i)
+
+
+@compiled.njit(nogil=True)
+def _grow_subtrees(p, nodes, links, tasks, base, ends, depths, first, step):
     """Build the subtrees tasks[first::step], each into its block of rows
-    from base + its first primitive, after bringing its primitives back to
-    the builder's arrays where they lie in the spare ones; then their
-    columns of the leaf buffer ordered (the scene's values, copy_leaf)."""
-    idx = p[4]
+    from base + its first primitive."""
     stack = _stack()
     for t in range(first, tasks.shape[0], step):
-        parent, slot, s, e, d, buf = tasks[t, 0], tasks[t, 1], tasks[t, 2], tasks[t, 3], tasks[t, 4], tasks[t, 5]
-        if buf == 1:
-            for i in range(s, e):
-                _copy(q, i, p, i)
+        parent, slot, s, e, d = tasks[t, 0], tasks[t, 1], tasks[t, 2], tasks[t, 3], tasks[t, 4]
         _push(stack, 0, parent, slot, s, e, d)
         ends[t], depths[t] = _grow(p, nodes, links, stack, 1, base + s)
-        _leaves(items, idx, s, e, ordered)
+
+
+@compiled.njit(nogil=True)
+def _leaves_slices(items, order, piece, ordered, first, step):
+    """The leaf buffer's columns in slices of `piece`, the j-th for j in first::step (_leaves)."""
+    n = order.shape[0]
+    for j in range(first, (n + piece - 1) // piece, step):
+        _leaves(items, order, j * piece, min(j * piece + piece, n), ordered)
 
 
 @compiled.njit(nogil=True, inline="always")
@@ -324,9 +335,21 @@ def _move_all(level, jobs, p, q, axis, lo, scale, mid, cut, left_at, right_at, p
 
 
 @compiled.njit(nogil=True, parallel=True)
-def _grow_all(items, p, q, nodes, links, tasks, base, ends, depths, ordered, parts):
+def _gather_all(p, q, tasks, parts):
     for w in numba.prange(parts):
-        _grow_subtrees(items, p, q, nodes, links, tasks, base, ends, depths, ordered, w, parts)
+        _gather_back(p, q, tasks, w, parts)
+
+
+@compiled.njit(nogil=True, parallel=True)
+def _grow_all(p, nodes, links, tasks, base, ends, depths, parts):
+    for w in numba.prange(parts):
+        _grow_subtrees(p, nodes, links, tasks, base, ends, depths, w, parts)
+
+
+@compiled.njit(nogil=True, parallel=True)
+def _leaves_all(items, order, piece, ordered, parts):
+    for w in numba.prange(parts):
+        _leaves_slices(items, order, piece, ordered, w, parts)
 
 
 @compiled.njit(nogil=True, parallel=True)
@@ -340,33 +363,20 @@ def _piece(primitives: int, threads: int) -> int:
     return min(SLICE, max(1024, primitives // (4 * threads)))
 
 
-def _reserve(rows: int) -> np.ndarray:
-    """(rows, NODE_FLOATS) float32 rows, unwritten, in small pages. The
-    subtrees' blocks are reserved at a row a primitive and fill about two
-    fifths of it; NumPy asks Linux for huge pages for a large array, and a
-    2 MiB page is made resident whole at its first write, so its reserve
-    would cost the process every row it might have written, not those it
-    did (docs/triangles.md#memory)."""
-    pages = mmap.mmap(-1, max(rows, 1) * NODE_FLOATS * 4)
-    if hasattr(mmap, "MADV_NOHUGEPAGE"):  # Linux's; elsewhere pages are small unless asked
-        pages.madvise(mmap.MADV_NOHUGEPAGE)
-    return np.frombuffer(pages, np.float32).reshape(-1, NODE_FLOATS)[:rows]
-
-
-def _build_wide(items, leaf_rows: int, threads: int, wide: int):
+def _build_wide(items, threads: int, wide: int):
     """The tree of the n > wide primitives of the scene's buffer items: its
     top level by level, each range of over `wide` primitives split by all
     threads, then the subtrees below on one thread each, each into its own
     block of rows, then the blocks packed after the top's rows. Returns
-    (nodes, ordered, order, deepest depth); ordered has leaf_rows rows."""
+    (nodes, order, deepest depth); leaf_buffer makes the leaf buffer after,
+    when the builder's arrays are gone."""
     n = items.shape[1]
     p = work_arrays(n)
     q = work_arrays(n)
     # the top's rows, then one block per subtree at the top's row count plus
     # its first primitive: a subtree of k primitives has fewer than k inner nodes
-    nodes = _reserve(2 * n)
+    nodes = reserve(2 * n, NODE_FLOATS)
     links = nodes.view(np.int32)
-    ordered = np.empty((leaf_rows, n), np.float32)
     piece = _piece(n, threads)
     parts = np.empty(((n + piece - 1) // piece, 12), np.float32)
     _prepare_all(items, p, piece, parts, threads)
@@ -403,19 +413,30 @@ def _build_wide(items, leaf_rows: int, threads: int, wide: int):
     tasks = np.concatenate(subtrees)
     tasks = tasks[np.argsort(tasks[:, 2] - tasks[:, 3], kind="stable")]  # largest first
     ends, depths = np.empty(len(tasks), np.int64), np.empty(len(tasks), np.int64)
+    # the spare arrays let go before the subtrees are grown: with the nodes those write,
+    # both sets were the build's peak (docs/triangles.md#memory)
+    _gather_all(p, q, tasks, threads)
+    del q
     # subtrees differ in cost: more parts than threads, handed out one at a time as threads come free
     chunk = numba.set_parallel_chunksize(1)
     try:
-        _grow_all(items, p, q, nodes, links, tasks, used, ends, depths, ordered, 4 * threads)
+        _grow_all(p, nodes, links, tasks, used, ends, depths, 4 * threads)
     finally:
         numba.set_parallel_chunksize(chunk)
     order = p[4]
-    # the work arrays but the order let go before the packed copy is made: they were
-    # the build's peak, beside the nodes, the leaf buffer and the scene's own buffer
-    del p, q
+    # the work arrays but the order let go before the packed copy is made
+    del p
     sizes = ends - (used + tasks[:, 2])
     starts = used + np.cumsum(sizes) - sizes
     packed = np.empty((used + int(sizes.sum()), NODE_FLOATS), np.float32)
     packed[:used] = nodes[:used]
     _pack_all(nodes, links, tasks, used, ends, starts, packed, packed.view(np.int32), threads)
-    return packed, ordered, order, max(depth, int(depths.max()))
+    return packed, order, max(depth, int(depths.max()))
+
+
+def leaf_buffer(items, order, leaf_rows: int, threads: int) -> np.ndarray:
+    """The tree's leaf buffer (leaf_rows, n): the primitives of the scene's
+    buffer items in the tree's order, copied by every thread."""
+    ordered = np.empty((leaf_rows, order.shape[0]), np.float32)
+    _leaves_all(items, order, _piece(order.shape[0], threads), ordered, threads)
+    return ordered

@@ -27,6 +27,7 @@ from ..layout import (
     WIDTH,
 )
 from . import oneshot
+from .pages import reserve
 from .sah import Bvh
 from .sah_steps import WIDE, _area
 
@@ -119,7 +120,9 @@ def collapse(tree: Bvh) -> np.ndarray:
     """The 4-wide rows (layout.WIDE_FLOATS float32 columns; the int32 view holds
     the links) of a binary tree, over the same ordered spheres (see
     collapse_in_python for the way it runs)."""
-    wide = np.empty((max(len(tree.nodes), 1), WIDE_FLOATS), np.float32)
+    wide = reserve(max(len(tree.nodes), 1), WIDE_FLOATS)
     code = compiled.as_python(sys.modules[__name__]) if collapse_in_python(tree) else sys.modules[__name__]
     used = code._collapse(tree.nodes, tree.links, wide, wide.view(np.int32))
-    return wide[: int(used)].copy()
+    # its first rows, not a copy: a copy beside the binary tree made the
+    # collapse the cpu's peak with a mesh (docs/triangles.md#memory)
+    return wide[: int(used)]
