@@ -23,7 +23,7 @@ import numpy as np
 
 from .camera import MAX_MAGNITUDE
 from .errors import RaybenchError
-from .layout import TRI_A, TRI_RED, TRI_SHADED_ROWS, TRI_SMOOTH_ROWS
+from .layout import TRI_A, TRI_B, TRI_C, TRI_NA, TRI_NB, TRI_NC, TRI_RED, TRI_SHADED_ROWS, TRI_SMOOTH_ROWS
 
 # The largest mesh file read, in bytes (1 GiB): a binary PLY of about 40 M
 # triangles, an OBJ of about 10 M. trimesh holds a file's text or bytes and
@@ -192,12 +192,12 @@ def mesh_leaves(mesh: Mesh, colour=MESH_COLOUR) -> np.ndarray:
     n = len(mesh.faces)
     rows = TRI_SHADED_ROWS if mesh.normals is None else TRI_SMOOTH_ROWS
     out = np.empty((rows, n), np.float32)
-    # a corner at a time (A's x, y, z rows, then B's, C's): the three at once
-    # made a copy of every vertex, 0.75x the mesh's bytes, beside the buffer
-    for corner in range(3):
+    # a corner at a time (its x, y, z rows): the three at once made a copy of
+    # every face's vertices beside the buffer (docs/triangles.md#memory)
+    for corner, (row, normal_row) in enumerate(((TRI_A, TRI_NA), (TRI_B, TRI_NB), (TRI_C, TRI_NC))):
         at = mesh.faces[:, corner]
-        out[TRI_A + 3 * corner : TRI_A + 3 * corner + 3] = mesh.vertices[at].T
+        out[row : row + 3] = mesh.vertices[at].T
         if mesh.normals is not None:
-            out[TRI_SHADED_ROWS + 3 * corner : TRI_SHADED_ROWS + 3 * corner + 3] = mesh.normals[at].T
+            out[normal_row : normal_row + 3] = mesh.normals[at].T
     out[TRI_RED : TRI_RED + 3] = np.asarray(colour, np.float32).reshape(3, 1)
     return out

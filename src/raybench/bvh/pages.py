@@ -5,8 +5,7 @@ import mmap
 import numpy as np
 
 # Below this a reserve is plain NumPy memory: its huge pages are few, and
-# faster to fault in than many small ones (the 4-wide collapse of 1 M
-# spheres took 24 ms so against 28 ms in small pages; docs/triangles.md#memory).
+# faster to fault in than many small ones (measured: docs/triangles.md#memory).
 SMALL_PAGES_FROM = 64 << 20
 
 
