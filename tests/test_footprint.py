@@ -1,8 +1,8 @@
-"""kernels/footprint.py: the rows of a packet of primary rays that a box can
-meet. Held to the rays the packets really cast (packets._primary_ray_v, in
-float32) and a float64 slab test of each against the box: every ray that
-meets it lies in the rows given, whatever the camera, and a box no ray
-meets is mostly ruled out whole."""
+"""kernels/footprint.py: the rows and columns of a packet of primary rays
+that a box can meet. Held to the rays the packets really cast
+(packets._primary_ray_v, in float32) and a float64 slab test of each against
+the box: every ray that meets it lies in the rows and columns given,
+whatever the camera, and a box no ray meets is mostly ruled out whole."""
 
 import numpy as np
 import pytest
@@ -57,7 +57,7 @@ def a_case(rng):
 
 
 @pytest.mark.parametrize("batch", range(4))
-def test_every_ray_that_meets_the_box_is_in_its_rows(rng, batch):
+def test_every_ray_that_meets_the_box_is_in_its_window(rng, batch):
     ruled_out = met = 0
     for _ in range(500):
         basis, width, height, x0, y0, end_row, lo, hi, margin = a_case(rng)
@@ -65,8 +65,9 @@ def test_every_ray_that_meets_the_box_is_in_its_rows(rng, batch):
         place = (x0, y0, min(x0 + W, width) - 1, min(y0 + H, end_row) - 1)
         ox, oy, oz = (np.float32(v) for v in basis[0])
         box = tuple(np.float32(v) for v in (*lo, *hi))
-        first, end = footprint.rays_of(view, place, W, W * H, box, margin, ox, oy, oz)
-        assert 0 <= first <= end <= W * H and first % W == 0 and end % W == 0
+        first, end, first_column, end_column = footprint.window_of(view, place, H, W, box, margin, ox, oy, oz)
+        assert 0 <= first <= end <= H
+        assert first == end or 0 <= first_column < end_column <= W
         origin = basis[0].astype(np.float64)
         grown_lo = lo.astype(np.float64) - np.float64(margin) - origin
         grown_hi = hi.astype(np.float64) + np.float64(margin) - origin
@@ -78,17 +79,30 @@ def test_every_ray_that_meets_the_box_is_in_its_rows(rng, batch):
             d = np.array(packets._primary_ray_v(np.int32(x), np.int32(y), width, height, basis))
             if meets(d, grown_lo, grown_hi):
                 any_met = True
-                assert first <= k < end, (k, first, end, basis, width, height, x0, y0, lo, hi)
+                assert first <= k // W < end and first_column <= k % W < end_column, (
+                    k,
+                    first,
+                    end,
+                    first_column,
+                    end_column,
+                    basis,
+                    width,
+                    height,
+                    x0,
+                    y0,
+                    lo,
+                    hi,
+                )
         met += any_met
         ruled_out += (not any_met) and first == end
     assert met > 100  # most boxes lie across a ray of the packet: the rows were tested
     assert ruled_out > 0  # and some that none meets were ruled out whole
 
 
-def test_a_box_beside_the_packet_or_across_one_row_is_cut_to_it():
+def test_a_box_beside_the_packet_or_before_one_pixel_is_cut_to_it():
     """A straight-on camera, 160x80: a small box in front of another
     packet's pixels meets none of this packet's rays; one in front of pixel
-    (5, 3) of the packet at (16, 8) meets its row 3 alone."""
+    (5, 3) of the packet at (16, 8) meets its row 3 and column 5 alone."""
     width, height = 160, 80
     basis = Camera((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), fov_deg=60.0).basis(width, height)
     view = footprint.frame_view(basis, width, height)
@@ -100,8 +114,8 @@ def test_a_box_beside_the_packet_or_across_one_row_is_cut_to_it():
 
     tiny = 1e-4  # far less than a pixel (5 units away, a pixel is about 0.036 across)
     place = (16, 8, 31, 15)
-    assert footprint.rays_of(view, place, W, W * H, box_at(60, 40, tiny), zero, zero, zero, zero) == (0, 0)
-    assert footprint.rays_of(view, place, W, W * H, box_at(21, 11, tiny), zero, zero, zero, zero) == (3 * W, 4 * W)
+    assert footprint.window_of(view, place, H, W, box_at(60, 40, tiny), zero, zero, zero, zero)[:2] == (0, 0)
+    assert footprint.window_of(view, place, H, W, box_at(21, 11, tiny), zero, zero, zero, zero) == (3, 4, 5, 6)
 
 
 def test_a_singular_view_culls_nothing():
@@ -109,4 +123,4 @@ def test_a_singular_view_culls_nothing():
     view = footprint.frame_view(basis, 64, 32)
     assert view == footprint.OFF
     box = (np.float32(1.0),) * 3 + (np.float32(2.0),) * 3
-    assert footprint.rays_of(view, (0, 0, 15, 7), W, W * H, box, np.float32(0.0), *(np.float32(0.0),) * 3) == (0, W * H)
+    assert footprint.window_of(view, (0, 0, 15, 7), H, W, box, np.float32(0.0), *(np.float32(0.0),) * 3) == (0, H, 0, W)

@@ -1,8 +1,8 @@
 """Which rays of a packet of primary rays a box can meet: the box (a leaf
 primitive's, grown as the walk grows it) projected through the pinhole
 camera onto the frame's pixels, so that the packet's leaf tests a primitive
-on the rows of rays its footprint covers, not on all (kernels/packets.py,
-for a kind whose PACKET_FOOTPRINT is True).
+on the rows and columns of rays its footprint covers, not on all
+(kernels/packets.py, for a kind whose PACKET_FOOTPRINT is True).
 
 Why: a dense mesh's triangles cover a pixel or two, and a packet's leaf
 tested each of them on all of its rays, of which a row or two can meet it.
@@ -21,7 +21,7 @@ rows' dot products taken at the box's planes), and for a > 0 the quotients'
 extremes are at the intervals' ends. The bound is doubled, the float32
 rounding of u and v themselves added, and the range widened to whole
 pixels; a box that reaches to or behind the camera's plane (a <= 0) gets
-every row. The arithmetic is float64, whose rounding is far below the
+every row and column. The arithmetic is float64, whose rounding is far below the
 margin the walk adds to every box.
 """
 
@@ -90,23 +90,24 @@ def _quotients(n_lo, n_hi, inv_lo, inv_hi):
 
 
 @numba.njit(inline="always")
-def rays_of(view, place, width_rays, count, box, margin, ox, oy, oz):
+def window_of(view, place, rows, columns, box, margin, ox, oy, oz):
     """The rays of the packet at place, (x0, y0, last_x, last_y): its pixels'
-    columns and rows (a row of width_rays rays each, count in all; rays past
-    the frame's edge copy its last pixels, unstored), that may meet box (lo
-    x, y, z, hi x, y, z) grown by margin, seen from the rays' origin (ox, oy,
-    oz): (first, end), whole rows of the packet; first == end where none
-    can. view: frame_view's."""
+    columns and rows (rows x columns rays, a row after another; rays past the
+    frame's edge copy its last pixels, unstored), that may meet box (lo x, y,
+    z, hi x, y, z) grown by margin, seen from the rays' origin (ox, oy, oz):
+    (first_row, end_row, first_column, end_column) of the packet, every ray
+    that can meet the box among them; first_row == end_row where none can.
+    view: frame_view's."""
     ax, ay, az, bx, by, bz, cx, cy, cz, pad_u, pad_v, width, height = view
     if width == _F64(0.0):
-        return 0, count
+        return 0, rows, 0, columns
     x0, y0, last_x, last_y = place
     m = _F64(margin)
     lx, ly, lz = _F64(box[0]) - m - _F64(ox), _F64(box[1]) - m - _F64(oy), _F64(box[2]) - m - _F64(oz)
     hx, hy, hz = _F64(box[3]) + m - _F64(ox), _F64(box[4]) + m - _F64(oy), _F64(box[5]) + m - _F64(oz)
     a_lo, a_hi = _span(ax, ay, az, lx, ly, lz, hx, hy, hz)
     if not a_lo > _F64(0.0):  # the box reaches the camera's plane, or behind it
-        return 0, count
+        return 0, rows, 0, columns
     inv_lo, inv_hi = _F64(1.0) / a_lo, _F64(1.0) / a_hi
     n_lo, n_hi = _span(bx, by, bz, lx, ly, lz, hx, hy, hz)
     b_lo, b_hi = _quotients(n_lo, n_hi, inv_lo, inv_hi)
@@ -116,13 +117,15 @@ def rays_of(view, place, width_rays, count, box, margin, ox, oy, oz):
     x_lo = (b_lo - pad_u + _F64(0.5)) * width - _F64(0.5)
     x_hi = (b_hi + pad_u + _F64(0.5)) * width - _F64(0.5)
     if not (x_hi >= _F64(x0) and x_lo <= _F64(last_x)):
-        return 0, 0
+        return 0, 0, 0, 0
     y_lo = (_F64(0.5) - c_hi - pad_v) * height - _F64(0.5)
     y_hi = (_F64(0.5) - c_lo + pad_v) * height - _F64(0.5)
     if not (y_hi >= _F64(y0) and y_lo <= _F64(last_y)):
-        return 0, 0
+        return 0, 0, 0, 0
     first = int(math.ceil(max(y_lo, _F64(y0)))) - y0
     last = int(math.floor(min(y_hi, _F64(last_y)))) - y0
-    if last < first:
-        return 0, 0
-    return first * width_rays, (last + 1) * width_rays
+    first_column = int(math.ceil(max(x_lo, _F64(x0)))) - x0
+    last_column = int(math.floor(min(x_hi, _F64(last_x)))) - x0
+    if last < first or last_column < first_column:
+        return 0, 0, 0, 0
+    return first, last + 1, first_column, last_column + 1

@@ -27,7 +27,7 @@ from ..layout import (
     WIDTH,
 )
 from .constants import FAR, ZERO
-from .footprint import OFF, frame_view, rays_of
+from .footprint import OFF, frame_view, window_of
 from .primitives import sphere
 from .trace import make
 
@@ -62,6 +62,10 @@ _read_leaf, _box_of, _seen_from, _hit_from, _hit_ahead_from = (
     _prim.hit_ahead_from,
 )
 _leaf_hit_ahead, _meets_own, _rim, _colour = _prim.leaf_hit_ahead, _prim.meets_own, _prim.rim, _prim.colour
+# A ray's own part of its test, worked out once a packet (aim), and a leaf's
+# primitive turned once for rays that share it (turned, hit_aimed): the
+# triangle's shear; another kind's are its hit_from (answers.unaimed).
+_aim, _turned, _hit_aimed = _prim.aim, _prim.turned, _prim.hit_aimed
 
 # Pixels and arrays are indexed with unsigned integers: a signed index
 # carries Python's negative-index wraparound, a select per lane that LLVM
@@ -99,6 +103,10 @@ PACKET_W, PACKET_H, PACKET, _MIDDLE = _SHAPE["PACKET_W"], _SHAPE["PACKET_H"], _S
 # on the frame covers (kernels/footprint.py), not on all: each kind says (its
 # PACKET_FOOTPRINT); the sphere's are all.
 FOOTPRINT = _SHAPE["FOOTPRINT"]
+# The rays a packet's loops take at once where LLVM makes them SIMD: 8 float64
+# lanes of an AVX-512 register, two of AVX2's (a leaf's tests are float64,
+# _aimed_tests).
+LANES = 8
 # The wide rows' plane columns by axis (layout.W_LO, W_HI), as plain ints: read
 # as compile-time constants, as literal offsets were.
 LO_X, LO_Y, LO_Z = W_LO
@@ -195,11 +203,59 @@ def _ray_tests(seen, original, dx, dy, dz, closest, hit, hit_d, ahead, first, en
             t, d = _hit_ahead_from(seen, dx[k], dy[k], dz[k], False)
         else:
             t, d = _hit_from(seen, dx[k], dy[k], dz[k])
-        c = closest[k]
-        better = (t > ZERO) & ((t < c) | ((t == c) & (original < hit[k])))
-        closest[k] = t if better else c
-        hit[k] = original if better else hit[k]
-        hit_d[k] = d if better else hit_d[k]
+        _better(t, d, k, original, closest, hit, hit_d)
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _better(t, d, k, original, closest, hit, hit_d):
+    """Ray k's closest hit, with t and d (its test of primitive `original`)
+    if nearer, ties to the smaller index: the walk's tie rule."""
+    c = closest[k]
+    better = (t > ZERO) & ((t < c) | ((t == c) & (original < hit[k])))
+    closest[k] = t if better else c
+    hit[k] = original if better else hit[k]
+    hit_d[k] = d if better else hit_d[k]
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _aimed_tests(seen, original, dx, dy, dz, closest, hit, hit_d, first_row, end_row, first, end, aimed):
+    """_ray_tests for the thesis's packets of a kind with FOOTPRINT: one
+    primitive (seen_from the packet's origin) against the rays of rows
+    first_row..end_row, columns first..end (unsigned, _U), through the
+    rays' aim (_aim_packet's aimed): where the packet's rays share their
+    kz, the primitive is turned for them once (_turned), not a ray at a
+    time. The very values hit_from computes (hit_aimed's), so the same
+    hits."""
+    kz = np.int64(aimed[3, PACKET])
+    if kz >= 0:
+        turned = _turned(seen, kz)
+        for r in range(first_row, end_row):
+            for k in range(r * _U(PACKET_W) + first, r * _U(PACKET_W) + end):
+                t, d = _hit_aimed(turned, aimed[0, k], aimed[1, k], aimed[2, k], dx[k], dy[k], dz[k])
+                _better(t, d, k, original, closest, hit, hit_d)
+    else:
+        for r in range(first_row, end_row):
+            for k in range(r * _U(PACKET_W) + first, r * _U(PACKET_W) + end):
+                turned = _turned(seen, np.int64(aimed[3, k]))
+                t, d = _hit_aimed(turned, aimed[0, k], aimed[1, k], aimed[2, k], dx[k], dy[k], dz[k])
+                _better(t, d, k, original, closest, hit, hit_d)
+
+
+@numba.njit(inline="always")
+def _aim_packet(dx, dy, dz, aimed):
+    """aimed[:3, k], aimed[3, k]: ray k's shear and kz (_aim); aimed[3,
+    PACKET]: the kz that every ray of the packet shares, -1 if they do not
+    (_aimed_tests). kz is stored as a float32 (0, 1 or 2, exact), so that
+    one array holds it all (a first version with an array each spent most
+    of the frame in Numba's reference counting, NRT_incref and NRT_decref,
+    by perf)."""
+    for k in range(PACKET):
+        kz, aimed[0, k], aimed[1, k], aimed[2, k] = _aim(dx[k], dy[k], dz[k])
+        aimed[3, k] = np.float32(kz)
+    shared = aimed[3, 0]
+    for k in range(1, PACKET):
+        shared = shared if aimed[3, k] == shared else np.float32(-1.0)
+    aimed[3, PACKET] = shared
 
 
 @compiled.leaf_test(error_model="numpy")
@@ -223,26 +279,41 @@ def packet_leaf(tests):
     grown by margin as the walk grows boxes) no ray enters is skipped after
     one test for the packet (_missed_by_all)
     (docs/notes/bvh-walk.md#measured-cpu-only-machine-amd-epyc-2-vcpus-shared);
-    with FOOTPRINT, a primitive is tested on the rows of rays its box's
-    footprint covers, instead (footprint.rays_of; view, place: the frame's
-    and the packet's). One source for the thesis's packets, whose tests are
-    inlined (_ray_tests), and Whitted's (_packet_rays)."""
+    with FOOTPRINT, a primitive is tested on the rows and columns of rays
+    its box's footprint covers, instead (footprint.window_of; view, place:
+    the frame's and the packet's), the thesis's rays through their aim
+    (_aimed_tests; aimed: _aim_packet's, which Whitted's primary packets do
+    not read). One source for the thesis's packets, whose tests are
+    inlined (_ray_tests, _aimed_tests), and Whitted's (_packet_rays)."""
 
     @numba.njit(inline="always", error_model="numpy")
     def leaf(ox, oy, oz, margin, spread, first, count, rays):
         ordered, order, dx, dy, dz, _ix, _iy, _iz, closest, hit, hit_d, closest_bits, spread_bits = rays[:13]
-        ahead, view, place = rays[13], rays[14], rays[15]
+        ahead, view, place, aimed = rays[13], rays[14], rays[15], rays[16]
         for j in range(first, first + count):
             original = order[j]
             row = _read_leaf(ordered, j)  # read once, for the box test and the rays' tests
             if FOOTPRINT:
                 # the footprint stands in for the packet's interval test of the
                 # box, which almost every triangle of a dense mesh passes
-                first_ray, end_ray = rays_of(view, place, PACKET_W, PACKET, _box_of(row), margin, ox, oy, oz)
-                if first_ray == end_ray:
+                first_row, end_row, first_column, end_column = window_of(
+                    view, place, PACKET_H, PACKET_W, _box_of(row), margin, ox, oy, oz
+                )
+                if first_row == end_row:
                     continue
-                tests(_seen_from(row, ox, oy, oz), original, dx, dy, dz, closest, hit, hit_d, ahead, _U(first_ray),
-                      _U(end_ray))  # fmt: skip
+                # the columns widened to whole groups of LANES, which the
+                # loops' SIMD code takes at once (a loop of fewer goes a ray
+                # at a time)
+                first_lane = _U(first_column) // _U(LANES) * _U(LANES)
+                end_lane = min((_U(end_column) + _U(LANES - 1)) // _U(LANES) * _U(LANES), _U(PACKET_W))
+                seen = _seen_from(row, ox, oy, oz)
+                if ahead:
+                    for r in range(_U(first_row), _U(end_row)):
+                        tests(seen, original, dx, dy, dz, closest, hit, hit_d, ahead, r * _U(PACKET_W) + first_lane,
+                              r * _U(PACKET_W) + end_lane)  # fmt: skip
+                else:
+                    _aimed_tests(seen, original, dx, dy, dz, closest, hit, hit_d, _U(first_row), _U(end_row),
+                                 first_lane, end_lane, aimed)  # fmt: skip
             else:
                 if _leaf_missed(row, ox, oy, oz, margin, spread):
                     continue
@@ -474,14 +545,16 @@ def packet_walk_wide(walk, ahead):
     """The closest hit of every ray of a packet (started by _start_packet)
     through walk (packet_walk's): closest, hit and hit_d; ahead: the leaf's
     test for Whitted's primary rays (packet_leaf); view, place: the frame's
-    (_frame_view) and the packet's (_place), for the leaf. Its children
-    ordered along the packet's middle ray."""
+    (_frame_view) and the packet's (_place), and aimed, the rays' aim
+    (_aim_packet), for the leaf. Its children ordered along the packet's
+    middle ray."""
 
     @numba.njit(inline="always", error_model="numpy")
     def walk_packet(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest, hit,
-                    hit_d, spread, closest_bits, spread_bits, stack_row, stack_count, along, view, place):  # fmt: skip
+                    hit_d, spread, closest_bits, spread_bits, stack_row, stack_count, along, view, place,
+                    aimed):  # fmt: skip
         rays = (ordered, order, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, closest_bits, spread_bits, ahead, view,
-                place)  # fmt: skip
+                place, aimed)  # fmt: skip
         walk(wide, wide_links, ox, oy, oz, margin, dx[_MIDDLE], dy[_MIDDLE], dz[_MIDDLE], spread, stack_row,
              stack_count, along, rays)  # fmt: skip
 
@@ -510,7 +583,7 @@ def _frame_view(basis, width, height):
 
 @numba.njit(inline="always")
 def _place(x0, y0, end_row, width):
-    """The packet at (x0, y0)'s first and last pixels' columns and rows, footprint.rays_of's place."""
+    """The packet at (x0, y0)'s first and last pixels' columns and rows, footprint.window_of's place."""
     return x0, y0, min(x0 + PACKET_W, width) - 1, min(y0 + PACKET_H, end_row) - 1
 
 
@@ -541,6 +614,7 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
     rgb = np.empty((3, PACKET), np.uint8)
     paint = np.empty((4, PACKET), np.float32)
     along = np.empty(WIDTH, np.float32)
+    aimed = np.empty((4, PACKET + 1), np.float32)
     ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
     margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
     view = _frame_view(basis, width, height)
@@ -549,7 +623,9 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
             return
         for x0 in range(0, width, PACKET_W):
             _start_packet(x0, y0, end_row, width, height, basis, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, spread)
+            if FOOTPRINT:
+                _aim_packet(dx, dy, dz, aimed)
             _packet_walk_wide(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest,
                               hit, hit_d, spread, closest_bits, spread_bits, stack_row, stack_count, along, view,
-                              _place(x0, y0, end_row, width))  # fmt: skip
+                              _place(x0, y0, end_row, width), aimed)  # fmt: skip
             _store_packet(x0, y0, end_row, width, spheres, hit, hit_d, rgb, paint, image, hits)

@@ -22,6 +22,9 @@ ANSWERS = (
     "seen_from",
     "hit_from",
     "hit_ahead_from",
+    "aim",
+    "turned",
+    "hit_aimed",
     "pad",
     "bounds",
     "extent",
@@ -41,3 +44,26 @@ def answers(kind: str, functions: dict, extra: tuple[str, ...] = ()) -> SimpleNa
     if missing:
         raise TypeError(f"the {kind} primitive does not answer {', '.join(missing)}")
     return SimpleNamespace(**{name: functions[name] for name in ANSWERS + extra})
+
+
+def unaimed(jit, hit_from):
+    """aim, turned and hit_aimed (a packet's rays' own part of a test,
+    worked out once a ray; the primitive turned once for rays that share
+    their kz) for a kind whose test has no part that is the ray's alone:
+    hit_aimed is hit_from, and the others give what it ignores. The cpu's
+    packets take them for a kind with PACKET_FOOTPRINT
+    (kernels/packets.py), whose test is the triangle's."""
+
+    @jit
+    def aim(dx, dy, dz):
+        return 0, dx, dy, dz
+
+    @jit
+    def turned(seen, kz):
+        return seen
+
+    @jit
+    def hit_aimed(seen, sx, sy, sz, dx, dy, dz):
+        return hit_from(seen, dx, dy, dz)
+
+    return aim, turned, hit_aimed

@@ -26,7 +26,7 @@ import numpy as np
 
 from ...layout import BLUE, CX, CY, CZ, GREEN, PAD, RADIUS, RED, SPHERE_ROWS
 from ..constants import ONE, ZERO
-from .answers import answers
+from .answers import answers, unaimed
 
 # The CPU walks inline this kind's tests at their leaves (compiled.leaf_test): a
 # few instructions, inlined as the packets were measured with them.
@@ -320,6 +320,7 @@ def make(jit, words=None):
         prepare): one dot product and a compare."""
         return along(ex, ey, ez, dx, dy, dz) > s
 
+    aim, turned, hit_aimed = unaimed(jit, hit_from)
     return answers(
         "sphere",
         {**locals(), "pad": padding},  # the module's pad, compiled

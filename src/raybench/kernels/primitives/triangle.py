@@ -184,23 +184,20 @@ def make(jit, words=None):
         return x, y, z
 
     @jit
-    def woop(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz):
-        """The watertight test of the ray from the origin along (dx, dy, dz)
-        against the triangle of vertices A, B, C relative to that origin:
-        (U, V, W, T) in float64, the barycentric weights of A, B and C and
-        the hit's distance, all times det = U + V + W; det is 0 where the
-        ray misses (outside an edge, or seeing the triangle edge on)."""
+    def aim(dx, dy, dz):
+        """What the watertight test needs of a ray alone: kz, the axis along
+        which it goes fastest (a function of the ray alone, so every
+        triangle sees one shear), and the shear (sx, sy, sz) that makes the
+        ray run along it. A packet works it out once a ray (hit_aimed)."""
         adx, ady, adz = abs(dx), abs(dy), abs(dz)
-        # the axis along which the ray goes fastest becomes z; a function of
-        # the ray alone, so every triangle sees one shear
         kz = 0 if (adx > ady and adx > adz) else (1 if ady > adz else 2)
         px, py, pz = permute(dx, dy, dz, kz)
-        sx = px / pz
-        sy = py / pz
-        sz = ONE / pz
-        a1, a2, a3 = permute(ax, ay, az, kz)
-        b1, b2, b3 = permute(bx, by, bz, kz)
-        c1, c2, c3 = permute(cx, cy, cz, kz)
+        return kz, px / pz, py / pz, ONE / pz
+
+    @jit
+    def sheared(a1, a2, a3, b1, b2, b3, c1, c2, c3, sx, sy, sz):
+        """woop's answer from the vertices turned by the ray's kz (permute)
+        and its shear (aim)."""
         # the vertices sheared so that the ray runs along z: float32, the
         # same values for a vertex in every triangle that shares it (a
         # compiler that fuses a - s * b fuses it alike for every vertex)
@@ -220,6 +217,19 @@ def make(jit, words=None):
         det = u + v + w
         t = u * _F64(sz * a3) + v * _F64(sz * b3) + w * _F64(sz * c3)
         return u, v, w, t, det
+
+    @jit
+    def woop(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz):
+        """The watertight test of the ray from the origin along (dx, dy, dz)
+        against the triangle of vertices A, B, C relative to that origin:
+        (U, V, W, T) in float64, the barycentric weights of A, B and C and
+        the hit's distance, all times det = U + V + W; det is 0 where the
+        ray misses (outside an edge, or seeing the triangle edge on)."""
+        kz, sx, sy, sz = aim(dx, dy, dz)
+        a1, a2, a3 = permute(ax, ay, az, kz)
+        b1, b2, b3 = permute(bx, by, bz, kz)
+        c1, c2, c3 = permute(cx, cy, cz, kz)
+        return sheared(a1, a2, a3, b1, b2, b3, c1, c2, c3, sx, sy, sz)
 
     @jit
     def normal(ax, ay, az, bx, by, bz, cx, cy, cz):
@@ -310,6 +320,24 @@ def make(jit, words=None):
         the very values hit computes (the same subtractions)."""
         ax, ay, az, bx, by, bz, cx, cy, cz, nx, ny, nz = seen
         _, _, _, t, det = woop(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz)
+        return finish(t, det, nx, ny, nz, dx, dy, dz)
+
+    @jit
+    def turned(seen, kz):
+        """seen_from's answer with its vertices turned by permute for rays
+        whose axis is kz (aim's): once for a packet whose rays share it."""
+        ax, ay, az, bx, by, bz, cx, cy, cz, nx, ny, nz = seen
+        a1, a2, a3 = permute(ax, ay, az, kz)
+        b1, b2, b3 = permute(bx, by, bz, kz)
+        c1, c2, c3 = permute(cx, cy, cz, kz)
+        return a1, a2, a3, b1, b2, b3, c1, c2, c3, nx, ny, nz
+
+    @jit
+    def hit_aimed(seen_turned, sx, sy, sz, dx, dy, dz):
+        """hit_from for a ray of the packet, from the triangle turned for its
+        kz (turned) and its shear (aim): the very values hit_from computes."""
+        a1, a2, a3, b1, b2, b3, c1, c2, c3, nx, ny, nz = seen_turned
+        _, _, _, t, det = sheared(a1, a2, a3, b1, b2, b3, c1, c2, c3, sx, sy, sz)
         return finish(t, det, nx, ny, nz, dx, dy, dz)
 
     @jit
@@ -443,4 +471,4 @@ def make(jit, words=None):
         return ONE
 
     # pad: the module's pad, compiled
-    return answers("triangle", {**locals(), "pad": padding}, ("permute", "woop", "normal", "finish", "box"))
+    return answers("triangle", {**locals(), "pad": padding}, ("permute", "sheared", "woop", "normal", "finish", "box"))
