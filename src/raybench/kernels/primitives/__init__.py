@@ -22,7 +22,10 @@ read, hit (closest hit), hit_ahead and meets_own (the secondary rays' test
 and the rule for the primitive a ray leaves), the same tests on the tree's
 leaf buffer (leaf_hit, leaf_hit_ahead, read_leaf), and seen from an origin
 that a packet of rays shares (from_origin, hit_from, hit_ahead_from; seen_from
-and box_of work from a row read once), bounds, surface (point and
+and box_of work from a row read once; aim, a ray's own part of the test,
+worked out once a packet, and turned and hit_aimed, the primitive turned
+once for rays that share their aim: the triangle's shear, and
+answers.unaimed's hit_from for the others), bounds, surface (point and
 normal at a hit), rim (what the thesis's shading divides by), colour (its
 red, green and blue), and for the
 brute-force fast kernels prepare_at and may_hit (the sphere's alone). The
