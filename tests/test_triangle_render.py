@@ -147,6 +147,12 @@ def test_both_cpu_walks_and_brute_force_give_one_frame(outside):
     brute = render(scene, None, W, H, device="cpu", threads=2, accel="none", kernel="simple")
     for other in (binary, brute):
         assert (other.hits == wide.hits).all() and (other.image == wide.image).all()
+    # seen along a diagonal, from inside: packets whose rays go fastest along different axes, which
+    # the packets' leaf tests turn a triangle for a ray at a time (packets._aimed_tests)
+    diagonal = Camera((0.01, 0.02, -0.03), (1.0, 1.0, 1.0), fov_deg=120.0)
+    wide = render(scene, diagonal, W, H, device="cpu", threads=2, tree_width=4)
+    binary = render(scene, diagonal, W, H, device="cpu", threads=2, tree_width=2)
+    assert (binary.hits == wide.hits).all() and (binary.image == wide.image).all()
     # unless told (options.KIND_TREE_WIDTH), a mesh's primary rays go as packets through the
     # 4-wide tree, under Whitted shading too (its shadow rays and bounces through it alone)
     with backends.tracer("cpu", scene.triangles, W, H, primitive="triangle", threads=2) as tracer:
