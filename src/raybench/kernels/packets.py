@@ -107,6 +107,13 @@ FOOTPRINT = _SHAPE["FOOTPRINT"]
 # lanes of an AVX-512 register, two of AVX2's (a leaf's tests are float64,
 # _aimed_tests).
 LANES = 8
+# A packet's scratch (SCRATCH rows of PACKET + 1 float32): rows 0-3 its rays'
+# aim (_aim_packet), rows WINDOW to WINDOW + 3 a leaf's primitives' windows
+# (packet_leaf), PACKET + 1 of them at a time. Float32 holds a kz and a
+# window's rows and columns exactly, and one array keeps Numba's reference
+# counting out of the walk (_aim_packet).
+WINDOW = 4
+SCRATCH = WINDOW + 4
 # The wide rows' plane columns by axis (layout.W_LO, W_HI), as plain ints: read
 # as compile-time constants, as literal offsets were.
 LO_X, LO_Y, LO_Z = W_LO
@@ -218,44 +225,44 @@ def _better(t, d, k, original, closest, hit, hit_d):
 
 
 @numba.njit(inline="always", error_model="numpy")
-def _aimed_tests(seen, original, dx, dy, dz, closest, hit, hit_d, first_row, end_row, first, end, aimed):
+def _aimed_tests(seen, original, dx, dy, dz, closest, hit, hit_d, first_row, end_row, first, end, scratch):
     """_ray_tests for the thesis's packets of a kind with FOOTPRINT: one
     primitive (seen_from the packet's origin) against the rays of rows
     first_row..end_row, columns first..end (unsigned, _U), through the
-    rays' aim (_aim_packet's aimed): where the packet's rays share their
+    rays' aim (_aim_packet's, in scratch): where the packet's rays share their
     kz, the primitive is turned for them once (_turned), not a ray at a
     time. The very values hit_from computes (hit_aimed's), so the same
     hits."""
-    kz = np.int64(aimed[3, PACKET])
+    kz = np.int64(scratch[3, PACKET])
     if kz >= 0:
         turned = _turned(seen, kz)
         for r in range(first_row, end_row):
             for k in range(r * _U(PACKET_W) + first, r * _U(PACKET_W) + end):
-                t, d = _hit_aimed(turned, aimed[0, k], aimed[1, k], aimed[2, k], dx[k], dy[k], dz[k])
+                t, d = _hit_aimed(turned, scratch[0, k], scratch[1, k], scratch[2, k], dx[k], dy[k], dz[k])
                 _better(t, d, k, original, closest, hit, hit_d)
     else:
         for r in range(first_row, end_row):
             for k in range(r * _U(PACKET_W) + first, r * _U(PACKET_W) + end):
-                turned = _turned(seen, np.int64(aimed[3, k]))
-                t, d = _hit_aimed(turned, aimed[0, k], aimed[1, k], aimed[2, k], dx[k], dy[k], dz[k])
+                turned = _turned(seen, np.int64(scratch[3, k]))
+                t, d = _hit_aimed(turned, scratch[0, k], scratch[1, k], scratch[2, k], dx[k], dy[k], dz[k])
                 _better(t, d, k, original, closest, hit, hit_d)
 
 
 @numba.njit(inline="always")
-def _aim_packet(dx, dy, dz, aimed):
-    """aimed[:3, k], aimed[3, k]: ray k's shear and kz (_aim); aimed[3,
-    PACKET]: the kz that every ray of the packet shares, -1 if they do not
-    (_aimed_tests). kz is stored as a float32 (0, 1 or 2, exact), so that
-    one array holds it all (a first version with an array each spent most
-    of the frame in Numba's reference counting, NRT_incref and NRT_decref,
-    by perf)."""
+def _aim_packet(dx, dy, dz, scratch):
+    """scratch[:3, k], scratch[3, k]: ray k's shear and kz (_aim);
+    scratch[3, PACKET]: the kz that every ray of the packet shares, -1 if
+    they do not (_aimed_tests). kz is stored as a float32 (0, 1 or 2,
+    exact), so that one array holds it all (a first version with an array
+    each spent most of the frame in Numba's reference counting, NRT_incref
+    and NRT_decref, by perf)."""
     for k in range(PACKET):
-        kz, aimed[0, k], aimed[1, k], aimed[2, k] = _aim(dx[k], dy[k], dz[k])
-        aimed[3, k] = np.float32(kz)
-    shared = aimed[3, 0]
+        kz, scratch[0, k], scratch[1, k], scratch[2, k] = _aim(dx[k], dy[k], dz[k])
+        scratch[3, k] = np.float32(kz)
+    shared = scratch[3, 0]
     for k in range(1, PACKET):
-        shared = shared if aimed[3, k] == shared else np.float32(-1.0)
-    aimed[3, PACKET] = shared
+        shared = shared if scratch[3, k] == shared else np.float32(-1.0)
+    scratch[3, PACKET] = shared
 
 
 @compiled.leaf_test(error_model="numpy")
@@ -282,42 +289,51 @@ def packet_leaf(tests):
     with FOOTPRINT, a primitive is tested on the rows and columns of rays
     its box's footprint covers, instead (footprint.window_of; view, place:
     the frame's and the packet's), the thesis's rays through their aim
-    (_aimed_tests; aimed: _aim_packet's, which Whitted's primary packets do
-    not read). One source for the thesis's packets, whose tests are
+    (_aimed_tests; scratch: the packet's, SCRATCH rows, whose aim Whitted's
+    primary packets do not read). One source for the thesis's packets, whose tests are
     inlined (_ray_tests, _aimed_tests), and Whitted's (_packet_rays)."""
 
     @numba.njit(inline="always", error_model="numpy")
     def leaf(ox, oy, oz, margin, spread, first, count, rays):
         ordered, order, dx, dy, dz, _ix, _iy, _iz, closest, hit, hit_d, closest_bits, spread_bits = rays[:13]
-        ahead, view, place, aimed = rays[13], rays[14], rays[15], rays[16]
-        for j in range(first, first + count):
-            original = order[j]
-            row = _read_leaf(ordered, j)  # read once, for the box test and the rays' tests
-            if FOOTPRINT:
-                # the footprint stands in for the packet's interval test of the
-                # box, which almost every triangle of a dense mesh passes
-                first_row, end_row, first_column, end_column = window_of(
-                    view, place, PACKET_H, PACKET_W, _box_of(row), margin, ox, oy, oz
-                )
-                if first_row == end_row:
-                    continue
-                # the columns widened to whole groups of LANES, which the
-                # loops' SIMD code takes at once (a loop of fewer goes a ray
-                # at a time)
-                first_lane = _U(first_column) // _U(LANES) * _U(LANES)
-                end_lane = min((_U(end_column) + _U(LANES - 1)) // _U(LANES) * _U(LANES), _U(PACKET_W))
-                seen = _seen_from(row, ox, oy, oz)
-                if ahead:
-                    for r in range(_U(first_row), _U(end_row)):
-                        tests(seen, original, dx, dy, dz, closest, hit, hit_d, ahead, r * _U(PACKET_W) + first_lane,
-                              r * _U(PACKET_W) + end_lane)  # fmt: skip
-                else:
-                    _aimed_tests(seen, original, dx, dy, dz, closest, hit, hit_d, _U(first_row), _U(end_row),
-                                 first_lane, end_lane, aimed)  # fmt: skip
-            else:
+        ahead, view, place, scratch = rays[13], rays[14], rays[15], rays[16]
+        if FOOTPRINT:
+            # every primitive's window first, then the tests of those that have
+            # one: faster than each window worked out beside its tests
+            # (docs/triangles.md#a-leafs-windows-first-2026-12-05)
+            for part in range(first, first + count, PACKET + 1):
+                end = min(part + PACKET + 1, first + count)
+                for j in range(part, end):
+                    # the footprint stands in for the packet's interval test of
+                    # the box, which almost every triangle of a dense mesh passes
+                    window = window_of(view, place, PACKET_H, PACKET_W, _box_of(_read_leaf(ordered, j)), margin, ox,
+                                       oy, oz)  # fmt: skip
+                    for w in range(4):
+                        scratch[WINDOW + w, j - part] = np.float32(window[w])
+                for j in range(part, end):
+                    first_row, end_row = _U(scratch[WINDOW, j - part]), _U(scratch[WINDOW + 1, j - part])
+                    if first_row == end_row:
+                        continue
+                    # the columns widened to whole groups of LANES, which the
+                    # loops' SIMD code takes at once (a loop of fewer goes a ray
+                    # at a time)
+                    first_lane = _U(scratch[WINDOW + 2, j - part]) // _U(LANES) * _U(LANES)
+                    end_lane = min((_U(scratch[WINDOW + 3, j - part]) + _U(LANES - 1)) // _U(LANES) * _U(LANES),
+                                   _U(PACKET_W))  # fmt: skip
+                    seen = _seen_from(_read_leaf(ordered, j), ox, oy, oz)
+                    if ahead:
+                        for r in range(first_row, end_row):
+                            tests(seen, order[j], dx, dy, dz, closest, hit, hit_d, ahead, r * _U(PACKET_W) + first_lane,
+                                  r * _U(PACKET_W) + end_lane)  # fmt: skip
+                    else:
+                        _aimed_tests(seen, order[j], dx, dy, dz, closest, hit, hit_d, first_row, end_row, first_lane,
+                                     end_lane, scratch)  # fmt: skip
+        else:
+            for j in range(first, first + count):
+                row = _read_leaf(ordered, j)  # read once, for the box test and the rays' tests
                 if _leaf_missed(row, ox, oy, oz, margin, spread):
                     continue
-                tests(_seen_from(row, ox, oy, oz), original, dx, dy, dz, closest, hit, hit_d, ahead, 0, PACKET)
+                tests(_seen_from(row, ox, oy, oz), order[j], dx, dy, dz, closest, hit, hit_d, ahead, 0, PACKET)
         # spread[6] = the farthest closest hit: closest holds positive float32
         # only, whose bit patterns order as the floats do, so an integer maximum,
         # which LLVM makes SIMD (a float one it would not)
@@ -545,16 +561,16 @@ def packet_walk_wide(walk, ahead):
     """The closest hit of every ray of a packet (started by _start_packet)
     through walk (packet_walk's): closest, hit and hit_d; ahead: the leaf's
     test for Whitted's primary rays (packet_leaf); view, place: the frame's
-    (_frame_view) and the packet's (_place), and aimed, the rays' aim
-    (_aim_packet), for the leaf. Its children ordered along the packet's
+    (_frame_view) and the packet's (_place), and its scratch (SCRATCH rows:
+    the rays' aim, _aim_packet, and a leaf's windows), for the leaf. Its children ordered along the packet's
     middle ray."""
 
     @numba.njit(inline="always", error_model="numpy")
     def walk_packet(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest, hit,
                     hit_d, spread, closest_bits, spread_bits, stack_row, stack_count, along, view, place,
-                    aimed):  # fmt: skip
+                    scratch):  # fmt: skip
         rays = (ordered, order, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, closest_bits, spread_bits, ahead, view,
-                place, aimed)  # fmt: skip
+                place, scratch)  # fmt: skip
         walk(wide, wide_links, ox, oy, oz, margin, dx[_MIDDLE], dy[_MIDDLE], dz[_MIDDLE], spread, stack_row,
              stack_count, along, rays)  # fmt: skip
 
@@ -614,7 +630,7 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
     rgb = np.empty((3, PACKET), np.uint8)
     paint = np.empty((4, PACKET), np.float32)
     along = np.empty(WIDTH, np.float32)
-    aimed = np.empty((4, PACKET + 1), np.float32)
+    scratch = np.empty((SCRATCH, PACKET + 1), np.float32)
     ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
     margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
     view = _frame_view(basis, width, height)
@@ -624,8 +640,8 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
         for x0 in range(0, width, PACKET_W):
             _start_packet(x0, y0, end_row, width, height, basis, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, spread)
             if FOOTPRINT:
-                _aim_packet(dx, dy, dz, aimed)
+                _aim_packet(dx, dy, dz, scratch)
             _packet_walk_wide(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest,
                               hit, hit_d, spread, closest_bits, spread_bits, stack_row, stack_count, along, view,
-                              _place(x0, y0, end_row, width), aimed)  # fmt: skip
+                              _place(x0, y0, end_row, width), scratch)  # fmt: skip
             _store_packet(x0, y0, end_row, width, spheres, hit, hit_d, rgb, paint, image, hits)
