@@ -13,7 +13,7 @@ from raybench import Scene, bvh, compiled, kernels, layout
 from raybench.backends import cuda as cuda_backend
 from raybench.backends import options as device_options
 from raybench.bvh import oneshot, sah_steps, sah_wide
-from raybench.kernels import packets
+from raybench.kernels import packet_boxes, packets
 from raybench.kernels.primitives import sphere
 
 # The algorithm as plain Python on NumPy float32 scalars, run without a compiler.
@@ -181,7 +181,7 @@ def packet_of_rays(rng):
 
 
 def test_one_test_for_a_packet_never_drops_a_ray_that_enters(rng):
-    """packets._missed_by_all, the CPU packets' interval test for all their rays at
+    """packet_boxes.missed_by_all, the CPU packets' interval test for all their rays at
     once, against each ray's own float32 box test (the row loop of
     packets._packet_box, in NumPy): on boxes placed to be barely entered or barely
     missed by one of the rays, it may only say "missed" where no ray enters."""
@@ -211,7 +211,7 @@ def test_one_test_for_a_packet_never_drops_a_ray_that_enters(rng):
             near = np.minimum(t_lo, t_hi).max(axis=1)
             far = np.maximum(t_lo, t_hi).min(axis=1)
             any_enters = bool(((near <= far) & (far > 0) & (near <= closest)).any())
-            missed = packets._missed_by_all(*lo, *hi, spread)
+            missed = packet_boxes.missed_by_all(*lo, *hi, spread)
             assert not (missed and any_enters), (o, d[k], lo, hi)
             rejected += missed
             entered += any_enters

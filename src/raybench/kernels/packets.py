@@ -20,14 +20,13 @@ from ..layout import (
     INNER,
     PAD,
     W_COUNT,
-    W_HI,
-    W_LO,
     W_REF,
     WIDE_STACK,
     WIDTH,
 )
 from .constants import FAR, ZERO
 from .footprint import OFF, frame_view, window_of
+from .packet_boxes import _U, missed_by_all, wide_mask, wide_planes
 from .primitives import sphere
 from .trace import make
 
@@ -66,11 +65,6 @@ _leaf_hit_ahead, _meets_own, _rim, _colour = _prim.leaf_hit_ahead, _prim.meets_o
 # primitive turned once for rays that share it (turned, hit_aimed): the
 # triangle's shear; another kind's are its hit_from (answers.unaimed).
 _aim, _turned, _hit_aimed = _prim.aim, _prim.turned, _prim.hit_aimed
-
-# Pixels and arrays are indexed with unsigned integers: a signed index
-# carries Python's negative-index wraparound, a select per lane that LLVM
-# turns into gathers (docs/notes/floors.md#each-version-against-the-floor).
-_U = np.uint64
 
 
 def _kind_constants(primitive) -> dict:
@@ -114,10 +108,6 @@ LANES = 8
 # counting out of the walk (_aim_packet).
 WINDOW = 4
 SCRATCH = WINDOW + 4
-# The wide rows' plane columns by axis (layout.W_LO, W_HI), as plain ints: read
-# as compile-time constants, as literal offsets were.
-LO_X, LO_Y, LO_Z = W_LO
-HI_X, HI_Y, HI_Z = W_HI
 
 
 @numba.njit(inline="always")
@@ -135,37 +125,13 @@ def _spread(ix, iy, iz, spread):
 
 
 @numba.njit(inline="always", error_model="numpy")
-def _missed_by_all(lx, ly, lz, hx, hy, hz, spread):
-    """Whether no ray of the packet enters the box (planes relative to the
-    rays' origin) nearer than its closest hit, by one test for them all
-    (interval arithmetic, as in Wald, Boulos and Shirley 2007): each ray's
-    inverse direction lies within spread's ranges, so its entry is no nearer,
-    and its exit no farther, than bounds taken at the ranges' ends
-    (min(l * i, h * i) is concave in i, max(l * i, h * i) convex). Rounding
-    is monotonic, so the bounds hold for the float32 products a ray's own
-    box test computes: True only where that test fails for every ray."""
-    x0, x1, y0, y1, z0, z1 = spread[0], spread[1], spread[2], spread[3], spread[4], spread[5]
-    near = max(
-        min(min(lx * x0, hx * x0), min(lx * x1, hx * x1)),
-        max(min(min(ly * y0, hy * y0), min(ly * y1, hy * y1)), min(min(lz * z0, hz * z0), min(lz * z1, hz * z1))),
-    )
-    far = min(
-        max(max(lx * x0, hx * x0), max(lx * x1, hx * x1)),
-        min(max(max(ly * y0, hy * y0), max(ly * y1, hy * y1)), max(max(lz * z0, hz * z0), max(lz * z1, hz * z1))),
-    )
-    # one branch where it is used, not three (`or` would branch on each, and
-    # they mispredict: docs/notes/bvh-walk.md)
-    return (near > far) | (far <= ZERO) | (near > spread[6])
-
-
-@numba.njit(inline="always", error_model="numpy")
 def _leaf_missed(row, ox, oy, oz, margin, spread):
     """Whether no ray of the packet from (ox, oy, oz) enters a leaf
     primitive's own box (row: its read_leaf), as the builder pads it, grown
     by margin as the walk grows boxes: one test for the packet
-    (_missed_by_all)."""
+    (packet_boxes.missed_by_all)."""
     lx, ly, lz, hx, hy, hz = _box_of(row)
-    return _missed_by_all(
+    return missed_by_all(
         lx - margin - ox,
         ly - margin - oy,
         lz - margin - oz,
@@ -284,7 +250,7 @@ def packet_leaf(tests):
     makes it: for a sphere, the far root where the near one is behind, a
     camera inside it). A primitive whose own box (as the builder pads it,
     grown by margin as the walk grows boxes) no ray enters is skipped after
-    one test for the packet (_missed_by_all)
+    one test for the packet (packet_boxes.missed_by_all)
     (docs/notes/bvh-walk.md#measured-cpu-only-machine-amd-epyc-2-vcpus-shared);
     with FOOTPRINT, a primitive is tested on the rows and columns of rays
     its box's footprint covers, instead (footprint.window_of; view, place:
@@ -423,61 +389,6 @@ def _store_packet(x0, y0, end_row, width, spheres, hit, hit_d, rgb, paint, image
                 _put_pixel(y, x, k, rgb, hit, image, hits)
 
 
-@numba.njit(inline="always", error_model="numpy")
-def _wide_mask(wide, row, ox, oy, oz, margin, spread):
-    """The interval test for the whole packet (_missed_by_all) on all WIDTH boxes of a wide node at
-    once: a bit set for each box that the interval test for the whole
-    packet (_missed_by_all's arithmetic) does not rule out. One loop over
-    the boxes, without branches, on planes stored side by side (layout.W_LO,
-    W_HI), that only reads memory and ORs the bits together: LLVM makes it
-    SIMD, the four boxes in one register (vminps, vmaxps on xmm). Storing
-    the planes or the outcomes to arrays in the loop kept it scalar (LLVM
-    will not check a loop of 4 for overlapping arrays at run time)."""
-    x0, x1, y0, y1, z0, z1, reach = spread[0], spread[1], spread[2], spread[3], spread[4], spread[5], spread[6]
-    w = wide[row]
-    mask = 0
-    for c in range(_U(WIDTH)):
-        lx = w[_U(LO_X) + c] - margin - ox
-        ly = w[_U(LO_Y) + c] - margin - oy
-        lz = w[_U(LO_Z) + c] - margin - oz
-        hx = w[_U(HI_X) + c] + margin - ox
-        hy = w[_U(HI_Y) + c] + margin - oy
-        hz = w[_U(HI_Z) + c] + margin - oz
-        near = max(
-            min(min(lx * x0, hx * x0), min(lx * x1, hx * x1)),
-            max(
-                min(min(ly * y0, hy * y0), min(ly * y1, hy * y1)),
-                min(min(lz * z0, hz * z0), min(lz * z1, hz * z1)),
-            ),
-        )
-        far = min(
-            max(max(lx * x0, hx * x0), max(lx * x1, hx * x1)),
-            min(
-                max(max(ly * y0, hy * y0), max(ly * y1, hy * y1)),
-                max(max(lz * z0, hz * z0), max(lz * z1, hz * z1)),
-            ),
-        )
-        kept = (near <= far) & (far > ZERO) & (near <= reach)
-        mask |= np.int64(kept) << np.int64(c)
-    return mask
-
-
-@numba.njit(inline="always", error_model="numpy")
-def _wide_planes(wide, row, c, ox, oy, oz, margin):
-    """The planes of child c of wide row `row`, its box grown by margin (as
-    in kernels.traverse), relative to the packet's shared origin: (lx, ly,
-    lz, hx, hy, hz), the packets' box tests' arguments (_rows_enter,
-    _lanes_enter)."""
-    return (
-        wide[row, LO_X + c] - margin - ox,
-        wide[row, LO_Y + c] - margin - oy,
-        wide[row, LO_Z + c] - margin - oz,
-        wide[row, HI_X + c] + margin - ox,
-        wide[row, HI_Y + c] + margin - oy,
-        wide[row, HI_Z + c] + margin - oz,
-    )
-
-
 def packet_walk(enter, leaf, any_hit):
     """The CPU's walk of a packet of rays from one origin through the 4-wide
     tree, for the closest hit (the thesis's and Whitted's primary rays,
@@ -485,7 +396,7 @@ def packet_walk(enter, leaf, any_hit):
     compiled for each with its own rays. walk(wide, wide_links, ox, oy, oz,
     margin, cdx, cdy, cdz, spread, stack_row, stack_count, along, rays): a
     node's four boxes go through the packet's interval test together
-    (_wide_mask, on spread), then each box it leaves through the rays' own
+    (packet_boxes.wide_mask, on spread), then each box it leaves through the rays' own
     test (enter(lx, ly, lz, hx, hy, hz, rays)); the children entered are
     pushed in order of where their centres lie along (cdx, cdy, cdz), the
     nearest on top, and popped until an inner child is, which is walked
@@ -505,12 +416,12 @@ def packet_walk(enter, leaf, any_hit):
         row = 0
         top = 0
         while row >= 0:
-            mask = _wide_mask(wide, row, ox, oy, oz, margin, spread)
+            mask = wide_mask(wide, row, ox, oy, oz, margin, spread)
             base = top
             for c in range(WIDTH):
                 if not (mask >> c) & 1:
                     continue
-                lx, ly, lz, hx, hy, hz = _wide_planes(wide, row, c, ox, oy, oz, margin)
+                lx, ly, lz, hx, hy, hz = wide_planes(wide, row, c, ox, oy, oz, margin)
                 if not enter(lx, ly, lz, hx, hy, hz, rays):
                     continue
                 ref, count = wide_links[row, W_REF + c], wide_links[row, W_COUNT + c]
@@ -609,7 +520,7 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
     """The rows first_row..end_row, a PACKET_W x PACKET_H packet of rays at
     a time through the 4-wide tree (bvh.collapse), each packet started
     (_start_packet), walked (_packet_walk_wide) and shaded (_store_packet): a wide node's four boxes put
-    through the packet's interval test together (_wide_mask), then each
+    through the packet's interval test together (packet_boxes.wide_mask), then each
     box it leaves through the rays' own test (_rows_enter); the entered
     children visited nearest first along the packet's middle ray, leaves at
     once, the nearest inner child next and the others pushed. Each ray gets

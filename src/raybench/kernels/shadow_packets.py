@@ -32,7 +32,7 @@ from .packets import (
 # loop over them, blocked reads the answer. LANES: the loops over a packet's
 # rays become SIMD only from 16 (LLVM's loop vectoriser leaves loops of fewer
 # iterations scalar: tried 4 and 8, also with the rays' bits ORed as
-# _wide_mask does), so a light of 4 samples fills a quarter of the lanes;
+# packet_boxes.wide_mask does), so a light of 4 samples fills a quarter of the lanes;
 # they cost little next to four rays' scalar walks
 # (docs/notes/whitted-cpu.md#cpu-shadow-rays-as-packets-issue-27).
 LANES = 16
@@ -138,7 +138,7 @@ def _lanes_leaf(ox, oy, oz, margin, rays, spread, ordered, order, first, count, 
     _DEAD. The test of traverse.leaf_test, on the same float32 values: the
     primitive `own` the rays leave skipped unless the primitive says a ray
     can meet it again (meets_own). A primitive whose padded box no ray enters is
-    skipped after one test for the packet (_missed_by_all, as packets.packet_leaf
+    skipped after one test for the packet (packet_boxes.missed_by_all, as packets.packet_leaf
     does). The loop over the rays has no branch and no reduction but an OR:
     LLVM makes it SIMD. blockers[slot]: the last primitive found blocking a
     ray, tested first by the next packet of the slot (_last_blocker)."""

@@ -15,7 +15,8 @@ from ..layout import (
     WIDTH,
 )
 from .constants import ZERO
-from .packets import _U, HI_X, HI_Y, HI_Z, LO_X, LO_Y, LO_Z, _inverse, _leaf_hit_ahead, _meets_own
+from .packet_boxes import _U, HI_X, HI_Y, HI_Z, LO_X, LO_Y, LO_Z
+from .packets import _inverse, _leaf_hit_ahead, _meets_own
 
 
 @numba.njit(inline="always", error_model="numpy")
