@@ -275,19 +275,21 @@ def test_rebound_copies_call_no_original_kernel():
     compiled functions, through their globals or a closure's cells (a walk a
     factory made at import, packets.packet_walk's): every callee a copy
     names is itself a copy, so no triangle frame runs a sphere's leaf test.
-    kernels/footprint.py's functions, which know no primitive, are shared."""
+    kernels/footprint.py's and kernels/packet_boxes.py's functions, which
+    know no primitive, are shared."""
     import numba
 
     from raybench import compiled
     from raybench.backends.cpu import kinds
-    from raybench.kernels import footprint
+    from raybench.kernels import footprint, packet_boxes
     from raybench.kernels.primitives import triangle
 
     originals = {
         id(value)
         for module in kinds.MODULES
         for value in vars(module).values()
-        if isinstance(value, numba.core.dispatcher.Dispatcher) and value.py_func.__module__ != footprint.__name__
+        if isinstance(value, numba.core.dispatcher.Dispatcher)
+        and value.py_func.__module__ not in (footprint.__name__, packet_boxes.__name__)
     }
     spaces = compiled.rebound(kinds.MODULES, triangle)
     checked = 0
