@@ -4,11 +4,13 @@ that a box can meet. Held to the rays the packets really cast
 the box: every ray that meets it lies in the rows and columns given,
 whatever the camera, and a box no ray meets is mostly ruled out whole."""
 
+import numba
 import numpy as np
 import pytest
 
 from raybench import Camera
 from raybench.kernels import footprint, packets
+from raybench.kernels.primitives import triangle
 
 W, H = 16, 8  # a packet's pixels, the sphere's and the triangle's shape
 
@@ -124,3 +126,57 @@ def test_a_singular_view_culls_nothing():
     assert view == footprint.OFF
     box = (np.float32(1.0),) * 3 + (np.float32(2.0),) * 3
     assert footprint.window_of(view, (0, 0, 15, 7), H, W, box, np.float32(0.0), *(np.float32(0.0),) * 3) == (0, H, 0, W)
+
+
+TRIANGLE = triangle.make(numba.njit)
+
+
+def a_triangle(rng, basis, width, height, x0, y0, end_row, lo, hi):
+    """A triangle for a_case's packet: inside the case's box, or with its
+    vertices on or beside the packet's own rays (an edge through a pixel's
+    centre, where the test's rounding decides), or reaching behind the
+    camera."""
+    origin = basis[0].astype(np.float64)
+    choice = rng.random()
+    if choice < 0.4:
+        return rng.uniform(lo, hi, (3, 3)).astype(np.float32)
+    vertices = np.empty((3, 3))
+    for i in range(3):
+        x, y = x0 + int(rng.integers(-1, W + 1)), y0 + int(rng.integers(-1, H + 1))
+        x, y = min(max(x, 0), width - 1), min(max(y, 0), end_row - 1)
+        d = np.array(packets._primary_ray_v(np.int32(x), np.int32(y), width, height, basis), np.float64)
+        distance = np.linalg.norm(hi.astype(np.float64) - lo) * rng.uniform(0.5, 2.0) + 1e-3
+        vertices[i] = origin + d * distance * (1.0 if choice < 0.9 or i else -0.3)
+    return vertices.astype(np.float32)
+
+
+@pytest.mark.parametrize("batch", range(4))
+def test_every_ray_that_hits_a_triangle_is_in_its_window(rng, batch):
+    """The triangle's window (its vertices' footprint, tighter than its
+    box's) holds every ray of the packet that the triangle's own test hits,
+    edges through pixels' centres among them."""
+    hits = ruled_out = 0
+    for _ in range(400):
+        basis, width, height, x0, y0, end_row, lo, hi, margin = a_case(rng)
+        view = footprint.frame_view(basis, width, height)
+        place = (x0, y0, min(x0 + W, width) - 1, min(y0 + H, end_row) - 1)
+        ox, oy, oz = (np.float32(v) for v in basis[0])
+        vertices = a_triangle(rng, basis, width, height, x0, y0, end_row, lo, hi)
+        row = tuple(np.float32(v) for v in vertices.ravel())
+        first, end, first_column, end_column = TRIANGLE.window(view, place, H, W, row, margin, ox, oy, oz)
+        assert 0 <= first <= end <= H
+        assert first == end or 0 <= first_column < end_column <= W
+        any_hit = False
+        for k in range(W * H):
+            x, y = min(x0 + k % W, width - 1), min(y0 + k // W, end_row - 1)
+            if x != x0 + k % W or y != y0 + k // W:
+                continue
+            dx, dy, dz = packets._primary_ray_v(np.int32(x), np.int32(y), width, height, basis)
+            t, _ = TRIANGLE.intersect(ox, oy, oz, dx, dy, dz, *row)
+            if t > 0:
+                any_hit = True
+                assert first <= k // W < end and first_column <= k % W < end_column, (k, row, basis, width, height)
+        hits += any_hit
+        ruled_out += (not any_hit) and first == end
+    assert hits > 100
+    assert ruled_out > 0

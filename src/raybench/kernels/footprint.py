@@ -1,8 +1,10 @@
-"""Which rays of a packet of primary rays a box can meet: the box (a leaf
-primitive's, grown as the walk grows it) projected through the pinhole
-camera onto the frame's pixels, so that the packet's leaf tests a primitive
-on the rows and columns of rays its footprint covers, not on all
-(kernels/packets.py, for a kind whose PACKET_FOOTPRINT is True).
+"""Which rays of a packet of primary rays a primitive can meet: its box (a
+leaf primitive's, grown as the walk grows it; window_of) or the corners
+whose hull holds it (the triangle's vertices; window_of_corners) projected
+through the pinhole camera onto the frame's pixels, so that the packet's
+leaf tests a primitive on the rows and columns of rays its footprint covers,
+not on all (kernels/packets.py, for a kind whose PACKET_FOOTPRINT is True;
+each kind's `window` answer says which).
 
 Why: a dense mesh's triangles cover a pixel or two, and a packet's leaf
 tested each of them on all of its rays, of which a row or two can meet it.
@@ -37,6 +39,12 @@ _EPS = _F64(2.0**-24)
 # float32 epsilons of the basis's magnitudes on each axis: four roundings
 # making the sum, one normalising each component, and room to spare.
 _DIRECTION_EPS = _F64(8.0)
+# How far a corner's test may move it (window_of_corners), in float32
+# epsilons of its greatest distance from the rays' origin on an axis: the
+# triangle's test moves a vertex by some five (its difference from the
+# origin rounded, its shear's two roundings and the shear factor's own);
+# three times that.
+_CORNER_EPS = _F64(16.0) * _EPS
 # A frame view that culls nothing (a singular basis): width 0.
 OFF = (_F64(0.0),) * 13
 
@@ -98,10 +106,9 @@ def window_of(view, place, rows, columns, box, margin, ox, oy, oz):
     (first_row, end_row, first_column, end_column) of the packet, every ray
     that can meet the box among them; first_row == end_row where none can.
     view: frame_view's."""
-    ax, ay, az, bx, by, bz, cx, cy, cz, pad_u, pad_v, width, height = view
-    if width == _F64(0.0):
+    ax, ay, az, bx, by, bz, cx, cy, cz = view[:9]
+    if view[11] == _F64(0.0):
         return 0, rows, 0, columns
-    x0, y0, last_x, last_y = place
     m = _F64(margin)
     lx, ly, lz = _F64(box[0]) - m - _F64(ox), _F64(box[1]) - m - _F64(oy), _F64(box[2]) - m - _F64(oz)
     hx, hy, hz = _F64(box[3]) + m - _F64(ox), _F64(box[4]) + m - _F64(oy), _F64(box[5]) + m - _F64(oz)
@@ -113,6 +120,16 @@ def window_of(view, place, rows, columns, box, margin, ox, oy, oz):
     b_lo, b_hi = _quotients(n_lo, n_hi, inv_lo, inv_hi)
     n_lo, n_hi = _span(cx, cy, cz, lx, ly, lz, hx, hy, hz)
     c_lo, c_hi = _quotients(n_lo, n_hi, inv_lo, inv_hi)
+    return _pixels(view, place, rows, columns, b_lo, b_hi, c_lo, c_hi)
+
+
+@numba.njit(inline="always")
+def _pixels(view, place, rows, columns, b_lo, b_hi, c_lo, c_hi):
+    """window_of's answer from the intervals of b / a and c / a that a ray
+    meeting the primitive has: the rays whose u and v lie within them, the
+    view's bounds on a ray's direction added."""
+    pad_u, pad_v, width, height = view[9], view[10], view[11], view[12]
+    x0, y0, last_x, last_y = place
     # pixel x = (u + 1/2) width - 1/2, y = (1/2 - v) height - 1/2
     x_lo = (b_lo - pad_u + _F64(0.5)) * width - _F64(0.5)
     x_hi = (b_hi + pad_u + _F64(0.5)) * width - _F64(0.5)
@@ -129,3 +146,37 @@ def window_of(view, place, rows, columns, box, margin, ox, oy, oz):
     if last < first or last_column < first_column:
         return 0, 0, 0, 0
     return first, last + 1, first_column, last_column + 1
+
+
+@numba.njit(inline="always")
+def window_of_corners(view, place, rows, columns, corners, ox, oy, oz):
+    """window_of for a primitive whose test hits only within the convex hull
+    of its corners ((x, y, z) each), each moved by at most CORNER_EPS float32
+    epsilons of its greatest distance from the rays' origin on an axis (the
+    triangle's test: its vertices relative to the origin, rounded, and
+    sheared in float32, kernels/primitives/triangle.py): the hull's own
+    footprint, tighter than its box's. A hit's point is a convex combination
+    of the moved corners, all in front of the camera's plane (a > 0), so its
+    b / a lies between the corners' (their weights times a, normalised, make
+    it a convex combination of them); a corner moved by d on each axis moves
+    a by at most na d (na: the row's absolute sum) and b / a by at most (nb +
+    |b / a| na) d / (a - na d), doubled where na d <= a / 2, so every
+    corner's quotient is taken with that bound."""
+    ax, ay, az, bx, by, bz, cx, cy, cz = view[:9]
+    if view[11] == _F64(0.0):
+        return 0, rows, 0, columns
+    na, nb, nc = abs(ax) + abs(ay) + abs(az), abs(bx) + abs(by) + abs(bz), abs(cx) + abs(cy) + abs(cz)
+    b_lo = c_lo = _F64(math.inf)
+    b_hi = c_hi = -_F64(math.inf)
+    for x, y, z in corners:
+        vx, vy, vz = _F64(x) - _F64(ox), _F64(y) - _F64(oy), _F64(z) - _F64(oz)
+        d = _CORNER_EPS * max(abs(vx), abs(vy), abs(vz))
+        a = ax * vx + ay * vy + az * vz
+        if not a > _F64(2.0) * na * d:  # at or behind the camera's plane, once moved
+            return 0, rows, 0, columns
+        inv = _F64(1.0) / a
+        qb, qc, s = (bx * vx + by * vy + bz * vz) * inv, (cx * vx + cy * vy + cz * vz) * inv, _F64(2.0) * d * inv
+        eb, ec = (nb + abs(qb) * na) * s, (nc + abs(qc) * na) * s
+        b_lo, b_hi = min(b_lo, qb - eb), max(b_hi, qb + eb)
+        c_lo, c_hi = min(c_lo, qc - ec), max(c_hi, qc + ec)
+    return _pixels(view, place, rows, columns, b_lo, b_hi, c_lo, c_hi)

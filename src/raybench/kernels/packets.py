@@ -25,7 +25,7 @@ from ..layout import (
     WIDTH,
 )
 from .constants import FAR, ZERO
-from .footprint import OFF, frame_view, window_of
+from .footprint import OFF, frame_view
 from .packet_boxes import _U, missed_by_all, wide_mask, wide_planes
 from .primitives import sphere
 from .trace import make
@@ -65,6 +65,9 @@ _leaf_hit_ahead, _meets_own, _rim, _colour = _prim.leaf_hit_ahead, _prim.meets_o
 # primitive turned once for rays that share it (turned, hit_aimed): the
 # triangle's shear; another kind's are its hit_from (answers.unaimed).
 _aim, _turned, _hit_aimed = _prim.aim, _prim.turned, _prim.hit_aimed
+# The rays of a packet that a leaf's primitive can meet, by its footprint on
+# the frame (kernels/footprint.py): the triangle's vertices', another kind's box's.
+_window = _prim.window
 
 
 def _kind_constants(primitive) -> dict:
@@ -253,8 +256,8 @@ def packet_leaf(tests):
     one test for the packet (packet_boxes.missed_by_all)
     (docs/notes/bvh-walk.md#measured-cpu-only-machine-amd-epyc-2-vcpus-shared);
     with FOOTPRINT, a primitive is tested on the rows and columns of rays
-    its box's footprint covers, instead (footprint.window_of; view, place:
-    the frame's and the packet's), the thesis's rays through their aim
+    its footprint covers, instead (its kind's window, footprint.py's; view,
+    place: the frame's and the packet's), the thesis's rays through their aim
     (_aimed_tests; scratch: the packet's, SCRATCH rows, whose aim Whitted's
     primary packets do not read). One source for the thesis's packets, whose tests are
     inlined (_ray_tests, _aimed_tests), and Whitted's (_packet_rays)."""
@@ -272,8 +275,7 @@ def packet_leaf(tests):
                 for j in range(part, end):
                     # the footprint stands in for the packet's interval test of
                     # the box, which almost every triangle of a dense mesh passes
-                    window = window_of(view, place, PACKET_H, PACKET_W, _box_of(_read_leaf(ordered, j)), margin, ox,
-                                       oy, oz)  # fmt: skip
+                    window = _window(view, place, PACKET_H, PACKET_W, _read_leaf(ordered, j), margin, ox, oy, oz)
                     for w in range(4):
                         scratch[WINDOW + w, j - part] = np.float32(window[w])
                 for j in range(part, end):

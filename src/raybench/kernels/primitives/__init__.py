@@ -25,7 +25,9 @@ that a packet of rays shares (from_origin, hit_from, hit_ahead_from; seen_from
 and box_of work from a row read once; aim, a ray's own part of the test,
 worked out once a packet, and turned and hit_aimed, the primitive turned
 once for rays that share their aim: the triangle's shear, and
-answers.unaimed's hit_from for the others), bounds, surface (point and
+answers.unaimed's hit_from for the others; window, the rays of such a
+packet it can meet, by its footprint on the frame: kernels/footprint.py),
+bounds, surface (point and
 normal at a hit), rim (what the thesis's shading divides by), colour (its
 red, green and blue), and for the
 brute-force fast kernels prepare_at and may_hit (the sphere's alone). The

@@ -9,6 +9,8 @@ in a compile.
 
 from types import SimpleNamespace
 
+from ..footprint import window_of
+
 ANSWERS = (
     "read",
     "read_leaf",
@@ -31,6 +33,7 @@ ANSWERS = (
     "copy_leaf",
     "pack_leaf",
     "box_of",
+    "window",
     "surface",
     "rim",
     "colour",
@@ -67,3 +70,15 @@ def unaimed(jit, hit_from):
         return hit_from(seen, dx, dy, dz)
 
     return aim, turned, hit_aimed
+
+
+def boxed_window(jit, box_of):
+    """window (the rays of a packet of primary rays that a leaf's primitive
+    can meet: kernels/footprint.py) for a kind whose test hits only within
+    its padded box (box_of): the box's footprint, footprint.window_of."""
+
+    @jit
+    def window(view, place, rows, columns, row, margin, ox, oy, oz):
+        return window_of(view, place, rows, columns, box_of(row), margin, ox, oy, oz)
+
+    return window

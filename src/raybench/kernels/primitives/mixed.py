@@ -31,7 +31,7 @@ import numpy as np
 from ...layout import MIX_LEAF_ROWS, MIX_SCENE_ROWS, MIX_SPHERE, TRI_ROWS
 from ..constants import ZERO
 from . import sphere, triangle
-from .answers import answers, unaimed
+from .answers import answers, boxed_window, unaimed
 
 # As the triangle's (compiled.leaf_test): its tests hold the triangle's.
 INLINE_TESTS = False
@@ -241,4 +241,5 @@ def make(jit, words=None):
         return t_surface(ox, oy, oz, dx, dy, dz, t, i, buffer)
 
     aim, turned, hit_aimed = unaimed(jit, hit_from)
+    window = boxed_window(jit, box_of)
     return answers("mixed", {**locals(), "pad": padding}, ("tag_of", "leaf_tag"))

@@ -26,7 +26,7 @@ import numpy as np
 
 from ...layout import BLUE, CX, CY, CZ, GREEN, PAD, RADIUS, RED, SPHERE_ROWS
 from ..constants import ONE, ZERO
-from .answers import answers, unaimed
+from .answers import answers, boxed_window, unaimed
 
 # The CPU walks inline this kind's tests at their leaves (compiled.leaf_test): a
 # few instructions, inlined as the packets were measured with them.
@@ -321,6 +321,7 @@ def make(jit, words=None):
         return along(ex, ey, ez, dx, dy, dz) > s
 
     aim, turned, hit_aimed = unaimed(jit, hit_from)
+    window = boxed_window(jit, box_of)
     return answers(
         "sphere",
         {**locals(), "pad": padding},  # the module's pad, compiled

@@ -87,6 +87,7 @@ from ...layout import (
     TRI_SMOOTH_ROWS,
 )
 from ..constants import HALF, ONE, ZERO
+from ..footprint import window_of_corners
 from .answers import answers
 
 # The CPU walks call this kind's tests at their leaves rather than inline them
@@ -94,8 +95,8 @@ from .answers import answers
 # site it made a mesh's first Whitted frame compile for minutes.
 INLINE_TESTS = False
 # The cpu's packets of primary rays (kernels/packets.py): 16x8 pixels, the
-# sphere's, each leaf's triangle tested on the rows of rays that its box's
-# footprint on the frame covers (kernels/footprint.py): a dense mesh's
+# sphere's, each leaf's triangle tested on the rows and columns of rays that
+# its vertices' footprint on the frame covers (window, kernels/footprint.py): a dense mesh's
 # triangles cover a pixel or two, and tested on all 128 rays they made a
 # smaller packet pay (8x8 was the shape before the footprint;
 # docs/triangles.md#the-cpus-packets-a-triangle-meets-the-rows-it-covers).
@@ -391,6 +392,18 @@ def make(jit, words=None):
         hy += p
         hz += p
         return mx - hx, my - hy, mz - hz, mx + hx, my + hy, mz + hz
+
+    @jit
+    def window(view, place, rows, columns, row, margin, ox, oy, oz):
+        """The rays of a packet of primary rays that the triangle of a
+        leaf's row can meet (kernels/footprint.py): its vertices' footprint
+        (footprint.window_of_corners), each vertex moved as far as the test's
+        rounding moves it (its difference from the origin and its shear, see
+        above), tighter than its box's, which holds more pixels' centres. The
+        origin's own rounding is in the vertices' differences, so margin,
+        which the box's footprint adds for it, is not used."""
+        ax, ay, az, bx, by, bz, cx, cy, cz = row
+        return window_of_corners(view, place, rows, columns, ((ax, ay, az), (bx, by, bz), (cx, cy, cz)), ox, oy, oz)
 
     @jit
     def bounds(buffer, k):
