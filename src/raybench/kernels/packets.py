@@ -146,14 +146,18 @@ def _leaf_missed(row, ox, oy, oz, margin, spread):
 
 
 @numba.njit(inline="always", error_model="numpy")
-def _rows_enter(lx, ly, lz, hx, hy, hz, ix, iy, iz, closest):
-    """Whether any ray of the packet enters the box of planes (lx, ..., hz)
-    relative to the rays' origin nearer than its closest hit: the rays a row
-    of the packet at a time (SIMD), stopping at the first row with a ray
-    that enters (_packet_walk_wide)."""
-    for first in range(0, PACKET, PACKET_W):
+def _rows_enter(lx, ly, lz, hx, hy, hz, ix, iy, iz, closest, start):
+    """The row of the packet in which a ray enters the box of planes (lx,
+    ..., hz) relative to the rays' origin nearer than its closest hit, or -1
+    where none does: the rays a row of the packet at a time (SIMD), from row
+    start on (round to the rows before it), stopping at the first row with a
+    ray that enters (_packet_walk_wide)."""
+    for i in range(_U(PACKET_H)):
+        r = _U(start) + i
+        r = r - _U(PACKET_H) if r >= _U(PACKET_H) else r
+        first = r * _U(PACKET_W)
         entered = False
-        for k in range(first, first + PACKET_W):
+        for k in range(first, first + _U(PACKET_W)):
             t1, t2 = lx * ix[k], hx * ix[k]
             t3, t4 = ly * iy[k], hy * iy[k]
             t5, t6 = lz * iz[k], hz * iz[k]
@@ -161,8 +165,8 @@ def _rows_enter(lx, ly, lz, hx, hy, hz, ix, iy, iz, closest):
             far = min(max(t1, t2), min(max(t3, t4), max(t5, t6)))
             entered |= (near <= far) & (far > ZERO) & (near <= closest[k])
         if entered:
-            return True
-    return False
+            return np.int64(r)
+    return np.int64(-1)
 
 
 @numba.njit(inline="always", error_model="numpy")
@@ -399,7 +403,9 @@ def packet_walk(enter, leaf, any_hit):
     margin, cdx, cdy, cdz, spread, stack_row, stack_count, along, rays): a
     node's four boxes go through the packet's interval test together
     (packet_boxes.wide_mask, on spread), then each box it leaves through the rays' own
-    test (enter(lx, ly, lz, hx, hy, hz, rays)); the children entered are
+    test (enter(lx, ly, lz, hx, hy, hz, rays, start): the row of the packet
+    in which a ray enters it, or -1; start, the row where the last box
+    entered was, is tested first); the children entered are
     pushed in order of where their centres lie along (cdx, cdy, cdz), the
     nearest on top, and popped until an inner child is, which is walked
     next: a leaf popped is tested then (leaf(ox, oy, oz, margin, spread, ref,
@@ -417,6 +423,10 @@ def packet_walk(enter, leaf, any_hit):
     def walk(wide, wide_links, ox, oy, oz, margin, cdx, cdy, cdz, spread, stack_row, stack_count, along, rays):
         row = 0
         top = 0
+        # the row of the packet where the last box entered was entered: the
+        # next box's test starts there (its neighbour in the walk, most often
+        # entered by the same rows)
+        hint = 0
         while row >= 0:
             mask = wide_mask(wide, row, ox, oy, oz, margin, spread)
             base = top
@@ -424,8 +434,10 @@ def packet_walk(enter, leaf, any_hit):
                 if not (mask >> c) & 1:
                     continue
                 lx, ly, lz, hx, hy, hz = wide_planes(wide, row, c, ox, oy, oz, margin)
-                if not enter(lx, ly, lz, hx, hy, hz, rays):
+                entered = enter(lx, ly, lz, hx, hy, hz, rays, hint)
+                if entered < 0:
                     continue
+                hint = entered
                 ref, count = wide_links[row, W_REF + c], wide_links[row, W_COUNT + c]
                 if any_hit and count != INNER:
                     if leaf(ox, oy, oz, margin, spread, ref, count, rays):
@@ -465,9 +477,9 @@ def packet_walk(enter, leaf, any_hit):
 
 
 @numba.njit(inline="always", error_model="numpy")
-def _closest_enter(lx, ly, lz, hx, hy, hz, rays):
+def _closest_enter(lx, ly, lz, hx, hy, hz, rays, start):
     """packet_walk's box test for the closest hit (_rows_enter)."""
-    return _rows_enter(lx, ly, lz, hx, hy, hz, rays[5], rays[6], rays[7], rays[8])
+    return _rows_enter(lx, ly, lz, hx, hy, hz, rays[5], rays[6], rays[7], rays[8], start)
 
 
 def packet_walk_wide(walk, ahead):

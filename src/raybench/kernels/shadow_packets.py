@@ -118,8 +118,9 @@ _DX, _DY, _DZ, _IX, _IY, _IZ, _LEN = range(7)
 
 @numba.njit(inline="always", error_model="numpy")
 def _lanes_enter(lx, ly, lz, hx, hy, hz, rays):
-    """_rows_enter for a shadow packet: whether any of its LANES rays enters
-    the box (planes relative to their origin) nearer than its length."""
+    """_rows_enter for a shadow packet: 0 where any of its LANES rays enters
+    the box (planes relative to their origin) nearer than its length, else -1
+    (its one row)."""
     entered = False
     for k in range(LANES):
         t1, t2 = lx * rays[_IX, k], hx * rays[_IX, k]
@@ -128,7 +129,7 @@ def _lanes_enter(lx, ly, lz, hx, hy, hz, rays):
         near = max(min(t1, t2), max(min(t3, t4), min(t5, t6)))
         far = min(max(t1, t2), min(max(t3, t4), max(t5, t6)))
         entered |= (near <= far) & (far > ZERO) & (near <= rays[_LEN, k])
-    return entered
+    return np.int64(0) if entered else np.int64(-1)
 
 
 @numba.njit(inline="always", error_model="numpy")
@@ -200,8 +201,9 @@ def _reach(rays):
 
 
 @numba.njit(inline="always", error_model="numpy")
-def _shadow_enter(lx, ly, lz, hx, hy, hz, rays):
-    """packet_walk's box test for a shadow packet (_lanes_enter)."""
+def _shadow_enter(lx, ly, lz, hx, hy, hz, rays, start):
+    """packet_walk's box test for a shadow packet (_lanes_enter; one row, so
+    no start)."""
     return _lanes_enter(lx, ly, lz, hx, hy, hz, rays[0])
 
 
