@@ -151,8 +151,8 @@ def _pixels(view, place, rows, columns, b_lo, b_hi, c_lo, c_hi):
 @numba.njit(inline="always")
 def window_of_corners(view, place, rows, columns, corners, ox, oy, oz):
     """window_of for a primitive whose test hits only within the convex hull
-    of its corners ((x, y, z) each), each moved by at most CORNER_EPS float32
-    epsilons of its greatest distance from the rays' origin on an axis (the
+    of its corners ((x, y, z) each), each moved by at most _CORNER_EPS (16
+    float32 epsilons) of its greatest distance from the rays' origin on an axis (the
     triangle's test: its vertices relative to the origin, rounded, and
     sheared in float32, kernels/primitives/triangle.py): the hull's own
     footprint, tighter than its box's. A hit's point is a convex combination
