@@ -58,28 +58,45 @@ def a_case(rng):
     return basis, width, height, x0, y0, end_row, lo, hi, margin
 
 
+def packet_rays(basis, width, height, x0, y0, end_row):
+    """The packet's rays that the frame stores, as the packets cast them
+    (packets._primary_ray_v, float32): (k, its direction) for each, rays
+    past the frame's edge (copies of its last pixels, unstored) left out."""
+    for k in range(W * H):
+        x, y = min(x0 + k % W, width - 1), min(y0 + k // W, end_row - 1)
+        if x != x0 + k % W or y != y0 + k // W:
+            continue  # a copy of the frame's last pixel, unstored
+        yield k, packets._primary_ray_v(np.int32(x), np.int32(y), width, height, basis)
+
+
+def place_of(width, x0, y0, end_row):
+    """The packet at (x0, y0)'s place: its first and last pixels' columns and rows."""
+    return (x0, y0, min(x0 + W, width) - 1, min(y0 + H, end_row) - 1)
+
+
+def assert_a_window(first, end, first_column, end_column):
+    """Rows and columns within the packet; columns given wherever rows are."""
+    assert 0 <= first <= end <= H
+    assert first == end or 0 <= first_column < end_column <= W
+
+
 @pytest.mark.parametrize("batch", range(4))
 def test_every_ray_that_meets_the_box_is_in_its_window(rng, batch):
     ruled_out = met = 0
     for _ in range(500):
         basis, width, height, x0, y0, end_row, lo, hi, margin = a_case(rng)
         view = footprint.frame_view(basis, width, height)
-        place = (x0, y0, min(x0 + W, width) - 1, min(y0 + H, end_row) - 1)
+        place = place_of(width, x0, y0, end_row)
         ox, oy, oz = (np.float32(v) for v in basis[0])
         box = tuple(np.float32(v) for v in (*lo, *hi))
         first, end, first_column, end_column = footprint.window_of(view, place, H, W, box, margin, ox, oy, oz)
-        assert 0 <= first <= end <= H
-        assert first == end or 0 <= first_column < end_column <= W
+        assert_a_window(first, end, first_column, end_column)
         origin = basis[0].astype(np.float64)
         grown_lo = lo.astype(np.float64) - np.float64(margin) - origin
         grown_hi = hi.astype(np.float64) + np.float64(margin) - origin
         any_met = False
-        for k in range(W * H):
-            x, y = min(x0 + k % W, width - 1), min(y0 + k // W, end_row - 1)
-            if x != x0 + k % W or y != y0 + k // W:
-                continue  # a copy of the frame's last pixel, unstored
-            d = np.array(packets._primary_ray_v(np.int32(x), np.int32(y), width, height, basis))
-            if meets(d, grown_lo, grown_hi):
+        for k, d in packet_rays(basis, width, height, x0, y0, end_row):
+            if meets(np.array(d), grown_lo, grown_hi):
                 any_met = True
                 assert first <= k // W < end and first_column <= k % W < end_column, (
                     k,
@@ -159,19 +176,14 @@ def test_every_ray_that_hits_a_triangle_is_in_its_window(rng, batch):
     for _ in range(400):
         basis, width, height, x0, y0, end_row, lo, hi, margin = a_case(rng)
         view = footprint.frame_view(basis, width, height)
-        place = (x0, y0, min(x0 + W, width) - 1, min(y0 + H, end_row) - 1)
+        place = place_of(width, x0, y0, end_row)
         ox, oy, oz = (np.float32(v) for v in basis[0])
         vertices = a_triangle(rng, basis, width, height, x0, y0, end_row, lo, hi)
         row = tuple(np.float32(v) for v in vertices.ravel())
         first, end, first_column, end_column = TRIANGLE.window(view, place, H, W, row, margin, ox, oy, oz)
-        assert 0 <= first <= end <= H
-        assert first == end or 0 <= first_column < end_column <= W
+        assert_a_window(first, end, first_column, end_column)
         any_hit = False
-        for k in range(W * H):
-            x, y = min(x0 + k % W, width - 1), min(y0 + k // W, end_row - 1)
-            if x != x0 + k % W or y != y0 + k // W:
-                continue
-            dx, dy, dz = packets._primary_ray_v(np.int32(x), np.int32(y), width, height, basis)
+        for k, (dx, dy, dz) in packet_rays(basis, width, height, x0, y0, end_row):
             t, _ = TRIANGLE.intersect(ox, oy, oz, dx, dy, dz, *row)
             if t > 0:
                 any_hit = True
