@@ -562,6 +562,38 @@ def test_the_builder_takes_the_triangle_beside_the_sphere():
     assert (before.nodes.view(np.int32) == after.nodes.view(np.int32)).all() and (before.order == after.order).all()
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", ["sphere", "triangle", "mixed"])
+def test_the_cpus_leaf_buffer_is_held_as_its_kind_says(kind):
+    """The host tree for the cpu holds its leaf buffer in the memory order
+    of the kind's CPU_LEAF_ORDER (a triangle's nine values side by side),
+    the GPUs' in rows; on one thread and sliced over two, both are the same
+    tree: the same nodes to the bit, the same order, the same values."""
+    from raybench.kernels.primitives import KINDS
+
+    primitive = KINDS[kind]
+    buffer = {
+        "sphere": lambda: raybench.random_spheres(3000, seed=4).spheres,
+        "triangle": lambda: _icosphere_leaves(3),
+        "mixed": _mixed_leaves,
+    }[kind]()
+    for wide in (bvh.WIDE, 256):
+        cpu = bvh.build(buffer, threads=2, primitive=primitive, _wide=wide)
+        gpu = bvh.build(buffer, threads=2, device="cuda", primitive=primitive, _wide=wide)
+        assert gpu.ordered.flags.c_contiguous
+        held = cpu.ordered.flags
+        assert held.f_contiguous if primitive.CPU_LEAF_ORDER == "F" else held.c_contiguous
+        assert (cpu.nodes.view(np.int32) == gpu.nodes.view(np.int32)).all() and (cpu.order == gpu.order).all()
+        assert (cpu.ordered == gpu.ordered).all()
+        expected = buffer[: primitive.LEAF_ROWS, cpu.order].copy()
+        if kind == "mixed":  # a triangle's nine rows, a sphere's four and zeros, then the tag
+            expected = buffer[: layout.TRI_ROWS + 1, cpu.order].copy()
+            expected[layout.TRI_ROWS] = buffer[-1, cpu.order]
+            expected[sphere.LEAF_ROWS : layout.TRI_ROWS, expected[layout.TRI_ROWS] == layout.MIX_SPHERE] = 0.0
+        assert (cpu.ordered == expected).all()
+    assert KINDS["triangle"].CPU_LEAF_ORDER == "F"  # what the measured frames were (docs/triangles.md)
+
+
 # --- trees over primitives whose boxes are not cubes: refitted to their leaves' boxes ----
 
 

@@ -20,7 +20,9 @@ names the columns):
   ordered (LEAF_ROWS, N) float32: the leaf buffer, each primitive's row
          (a sphere's centre and radius) in leaf order, the very float32
          values of the scene (the primitive's copy_leaf), so the exact
-         test's arithmetic is the brute-force path's.
+         test's arithmetic is the brute-force path's. A tree for the cpu
+         holds it in memory as the kind's CPU_LEAF_ORDER says (a
+         triangle's nine values side by side); the indices are the same.
   order  (N,) int32: the original index of each ordered sphere; hits report it.
 Node 0 is the root. Every box is the union of its spheres' boxes, each sphere's
 box padded by PAD (the primitive's pad) so a box never excludes a hit the exact

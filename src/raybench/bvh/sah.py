@@ -57,7 +57,9 @@ _ONE_BUILD = threading.Lock()
 class Bvh:
     nodes: np.ndarray  # (M, 16) float32
     links: np.ndarray  # (M, 16) int32 view of nodes; columns REF, COUNT used
-    ordered: np.ndarray  # (LEAF_ROWS, N) float32: the primitive's leaf rows (a sphere's cx, cy, cz, r) in leaf order
+    # (LEAF_ROWS, N) float32: the primitive's leaf rows (a sphere's cx, cy, cz, r) in leaf order; for
+    # the cpu, in the memory order of the kind's CPU_LEAF_ORDER (a triangle's nine values together)
+    ordered: np.ndarray
     order: np.ndarray  # (N,) int32: original index of each ordered sphere
     depth: int  # deepest node (root = 1)
     build_s: float  # seconds the build took (compiled code only, unless interpreted)
@@ -86,9 +88,10 @@ def compile_builder(wide: bool = True) -> None:
         build(spheres, threads=1, _timed=False, _wide=2)
 
 
-def _build_narrow(code, items, leaf_rows):
+def _build_narrow(code, items, leaf_rows, memory="C"):
     """The one-thread way's tree: (nodes, ordered, order, depth). code:
-    sah_steps, or sah_steps as plain Python (_python_steps) to run it uncompiled."""
+    sah_steps, or sah_steps as plain Python (_python_steps) to run it
+    uncompiled; memory: the leaf buffer's order in memory (leaf_buffer's)."""
     n = items.shape[1]
     p = sah_steps.work_arrays(n)
     order = p[4]
@@ -100,7 +103,7 @@ def _build_narrow(code, items, leaf_rows):
         links = nodes.view(np.int32)
         top = code._root(p, nodes, links, stack)
         used, depth = code._grow(p, nodes, links, stack, top, 1)
-        ordered = np.empty((leaf_rows, n), np.float32)
+        ordered = np.empty((leaf_rows, n), np.float32, order=memory)
         code._leaves(items, order, 0, n, ordered)
     return nodes[:used].copy(), ordered, order, depth
 
@@ -133,13 +136,14 @@ def _tighten(steps, primitive, nodes, ordered) -> None:
         steps.sah_steps._refit(nodes, nodes.view(np.int32), ordered)
 
 
-def _compile_kind(items, primitive, wide: bool) -> None:
+def _compile_kind(items, primitive, wide: bool, device: str) -> None:
     """Compile a kind's steps other than the sphere's (compile_builder's
-    work) by building over a few of its own primitives, untimed."""
+    work) by building over a few of its own primitives, untimed, for the
+    device's leaf buffer (its order in memory is part of the compiled type)."""
     few = np.ascontiguousarray(items[:, : min(items.shape[1], 9)])
-    build(few, threads=1, _timed=False, primitive=primitive)
+    build(few, threads=1, device=device, _timed=False, primitive=primitive)
     if wide:
-        build(few, threads=1, _timed=False, _wide=2, primitive=primitive)
+        build(few, threads=1, device=device, _timed=False, _wide=2, primitive=primitive)
 
 
 def build(
@@ -173,8 +177,9 @@ def build(
         if home:
             compile_builder(wide=n > _wide)
         else:
-            _compile_kind(items, primitive, n > _wide)
+            _compile_kind(items, primitive, n > _wide, device)
     steps = _steps(primitive)
+    memory = primitive.CPU_LEAF_ORDER if device == "cpu" else "C"
     start = time.perf_counter()
     if n > _wide:
         # Numba's threads are at most its pool's (the cores); the slicing into
@@ -186,12 +191,12 @@ def build(
             try:
                 nodes, order, depth = steps.sah_wide._build_wide(items, threads, _wide)
                 # made once the builder's arrays are gone, so that it never adds to their peak
-                ordered = steps.sah_wide.leaf_buffer(items, order, primitive.LEAF_ROWS, threads)
+                ordered = steps.sah_wide.leaf_buffer(items, order, primitive.LEAF_ROWS, threads, memory)
             finally:
                 numba.set_num_threads(before)
     else:
         code = _python_steps() if interpret else steps.sah_steps
-        nodes, ordered, order, depth = _build_narrow(code, items, primitive.LEAF_ROWS)
+        nodes, ordered, order, depth = _build_narrow(code, items, primitive.LEAF_ROWS, memory)
     _tighten(steps, primitive, nodes, ordered)
     build_s = time.perf_counter() - start
     return Bvh(

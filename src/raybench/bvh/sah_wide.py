@@ -434,9 +434,10 @@ def _build_wide(items, threads: int, wide: int):
     return packed, order, max(depth, int(depths.max()))
 
 
-def leaf_buffer(items, order, leaf_rows: int, threads: int) -> np.ndarray:
+def leaf_buffer(items, order, leaf_rows: int, threads: int, memory: str = "C") -> np.ndarray:
     """The tree's leaf buffer (leaf_rows, n): the primitives of the scene's
-    buffer items in the tree's order, copied by every thread."""
-    ordered = np.empty((leaf_rows, order.shape[0]), np.float32)
+    buffer items in the tree's order, copied by every thread; held in
+    memory "C" (a row a value) or "F" (a primitive's values together)."""
+    ordered = np.empty((leaf_rows, order.shape[0]), np.float32, order=memory)
     _leaves_all(items, order, _piece(order.shape[0], threads), ordered, threads)
     return ordered

@@ -47,6 +47,8 @@ SHADOW_PACKETS = triangle.SHADOW_PACKETS
 NOUN = "spheres and triangles"
 # Rows of the leaf buffer (bvh's `ordered`): a triangle's nine, then the tag.
 LEAF_ROWS = MIX_LEAF_ROWS
+# The cpu's leaf buffer column by column, as the triangle's: a primitive's ten values together.
+CPU_LEAF_ORDER = triangle.CPU_LEAF_ORDER
 # Rows of the scene's buffer that the shading reads at least: a triangle's shaded rows and the tag.
 SCENE_ROWS = MIX_SCENE_ROWS
 # A packed leaf copy: five float64 words, the ten float32 of a leaf's rows.

@@ -45,6 +45,10 @@ SHADOW_PACKETS = True
 NOUN = "spheres"
 # Rows of the leaf buffer (bvh's `ordered`): centre x, y, z and radius.
 LEAF_ROWS = 4
+# The cpu's leaf buffer in rows, a row a value ("C"): held column by column ("F", a sphere's four
+# values together) it was 0.7-1.3% slower on Whitted's rays and a tie on the thesis's (2026-12-05,
+# docs/triangles.md#a-triangles-nine-values-together-on-the-cpu-2026-12-05).
+CPU_LEAF_ORDER = "C"
 # Rows of the scene's buffer (Scene.spheres) that the shading reads: with the colour.
 SCENE_ROWS = SPHERE_ROWS
 # A packed leaf copy (make's words, pack_leaf): float64 words a sphere, its four float32.

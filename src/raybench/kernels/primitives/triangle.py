@@ -111,6 +111,11 @@ SHADOW_PACKETS = False
 NOUN = "triangles"
 # Rows of the leaf buffer (bvh's `ordered`): the three vertices.
 LEAF_ROWS = TRI_ROWS
+# The cpu's leaf buffer held column by column ("F": the same rows and indices, a triangle's nine
+# values side by side in memory, one or two cache lines, where in rows they are nine): its frames
+# 2-4% faster at 1.31 M triangles, primary and Whitted (docs/triangles.md, "A triangle's nine
+# values together on the cpu"). The GPUs' leaf buffers stay in rows, which a warp reads coalesced.
+CPU_LEAF_ORDER = "F"
 # Rows of the scene's buffer that the shading reads at least: with the colour.
 SCENE_ROWS = TRI_SHADED_ROWS
 # A packed leaf copy (make's words): float64 words a triangle, nine float32 and one unused.
