@@ -564,17 +564,19 @@ def test_the_builder_takes_the_triangle_beside_the_sphere():
 
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", ["sphere", "triangle", "mixed"])
-def test_the_cpus_leaf_buffer_is_held_as_its_kind_says(kind):
+def test_the_cpus_tree_is_cut_and_held_as_its_kind_says(kind):
     """The host tree for the cpu holds its leaf buffer in the memory order
     of the kind's CPU_LEAF_ORDER (a triangle's nine values side by side),
-    the GPUs' in rows; on one thread and sliced over two, both are the same
-    tree: the same nodes to the bit, the same order, the same values."""
+    the GPUs' in rows, each its primitives' leaf rows in its order; the
+    cpu's is cut with the kind's CPU_NODE_COST, the GPUs' with NODE_COST:
+    for the sphere and the mixed kind the same tree to the bit, for the
+    triangle fewer, larger leaves. On one thread and sliced over two."""
     from raybench.kernels.primitives import KINDS
 
     primitive = KINDS[kind]
     buffer = {
         "sphere": lambda: raybench.random_spheres(3000, seed=4).spheres,
-        "triangle": lambda: _icosphere_leaves(3),
+        "triangle": lambda: _icosphere_leaves(4),
         "mixed": _mixed_leaves,
     }[kind]()
     for wide in (bvh.WIDE, 256):
@@ -583,15 +585,35 @@ def test_the_cpus_leaf_buffer_is_held_as_its_kind_says(kind):
         assert gpu.ordered.flags.c_contiguous
         held = cpu.ordered.flags
         assert held.f_contiguous if primitive.CPU_LEAF_ORDER == "F" else held.c_contiguous
-        assert (cpu.nodes.view(np.int32) == gpu.nodes.view(np.int32)).all() and (cpu.order == gpu.order).all()
-        assert (cpu.ordered == gpu.ordered).all()
-        expected = buffer[: primitive.LEAF_ROWS, cpu.order].copy()
-        if kind == "mixed":  # a triangle's nine rows, a sphere's four and zeros, then the tag
-            expected = buffer[: layout.TRI_ROWS + 1, cpu.order].copy()
-            expected[layout.TRI_ROWS] = buffer[-1, cpu.order]
-            expected[sphere.LEAF_ROWS : layout.TRI_ROWS, expected[layout.TRI_ROWS] == layout.MIX_SPHERE] = 0.0
-        assert (cpu.ordered == expected).all()
+        for tree in (cpu, gpu):
+            expected = buffer[: primitive.LEAF_ROWS, tree.order].copy()
+            if kind == "mixed":  # a triangle's nine rows, a sphere's four and zeros, then the tag
+                expected = buffer[: layout.TRI_ROWS + 1, tree.order].copy()
+                expected[layout.TRI_ROWS] = buffer[-1, tree.order]
+                expected[sphere.LEAF_ROWS : layout.TRI_ROWS, expected[layout.TRI_ROWS] == layout.MIX_SPHERE] = 0.0
+            assert (tree.ordered == expected).all()
+        leaves = [_leaf_counts(tree) for tree in (cpu, gpu)]
+        assert all(max(c) <= bvh.LEAF_MAX and sum(c) == buffer.shape[1] for c in leaves)
+        if primitive.CPU_NODE_COST == bvh.NODE_COST:
+            assert (cpu.nodes.view(np.int32) == gpu.nodes.view(np.int32)).all() and (cpu.order == gpu.order).all()
+        else:  # the triangle's: fewer leaves, more triangles each
+            assert len(leaves[0]) < len(leaves[1]) and np.mean(leaves[0]) > np.mean(leaves[1])
     assert KINDS["triangle"].CPU_LEAF_ORDER == "F"  # what the measured frames were (docs/triangles.md)
+    assert KINDS["triangle"].CPU_NODE_COST > bvh.NODE_COST
+
+
+def _leaf_counts(tree) -> list[int]:
+    """The primitive count of every leaf of a binary tree, from the root."""
+    counts, stack = [], [0]
+    while stack:
+        row = stack.pop()
+        for c in range(2):
+            ref, count = tree.links[row, layout.REF + c], tree.links[row, layout.COUNT + c]
+            if count == layout.INNER:
+                stack.append(ref)
+            elif count > 0:
+                counts.append(int(count))
+    return counts
 
 
 # --- trees over primitives whose boxes are not cubes: refitted to their leaves' boxes ----

@@ -104,6 +104,10 @@ PAD = np.float32(2.0**-16)
 # The tree's depth is bounded whatever the input (the builder splits by
 # count where SAH would go deeper).
 MAX_DEPTH = 48
+# Expected cost of visiting a node (two box tests), in sphere tests; the SAH
+# weighs splitting against leaving the spheres in one leaf with it (bvh's
+# builders; a kind's CPU_NODE_COST for the cpu's tree).
+NODE_COST = np.float32(2.0)
 # Walk stack entries: one per level on the way down is the most a
 # near-first walk keeps (each level pushes at most its far child).
 STACK = MAX_DEPTH + 2

@@ -29,6 +29,7 @@ box padded by PAD (the primitive's pad) so a box never excludes a hit the exact
 float32 test reports.
 """
 
+from ..layout import NODE_COST
 from .oneshot import (
     GPU_PYTHON_MAX,
     compiling_elsewhere,
@@ -38,7 +39,7 @@ from .oneshot import (
     wait_for_compiling_elsewhere,
 )
 from .sah import BUILD_SPHERE_BYTES, DEVICE_SPHERE_BYTES, MAX_SPHERES, Bvh, build, compile_builder
-from .sah_steps import LEAF_MAX, NODE_COST, WIDE
+from .sah_steps import LEAF_MAX, WIDE
 from .wide import collapse, collapse_in_python, compile_collapse
 
 __all__ = [

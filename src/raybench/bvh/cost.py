@@ -19,8 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..layout import CHILD_BOX, COUNT, INNER, REF
-from .sah_steps import NODE_COST
+from ..layout import CHILD_BOX, COUNT, INNER, NODE_COST, REF
 
 
 def _half_area(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:

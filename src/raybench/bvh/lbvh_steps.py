@@ -18,8 +18,7 @@ import types
 
 import numpy as np
 
-from ..layout import BOX_FLOATS, COUNT, INNER, REF
-from .sah_steps import NODE_COST
+from ..layout import BOX_FLOATS, COUNT, INNER, NODE_COST, REF
 
 # A treelet's pieces. Its programme weighs 3^K / 2 splits a row, in local
 # arrays of 2^K entries (25 bytes each). The model of this build

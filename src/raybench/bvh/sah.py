@@ -37,6 +37,7 @@ from ..host import usable_cores
 from ..kernels.primitives import sphere
 from ..layout import (
     NODE_BYTES,
+    NODE_COST,
     NODE_FLOATS,
 )
 from . import oneshot, sah_steps, sah_wide
@@ -88,10 +89,11 @@ def compile_builder(wide: bool = True) -> None:
         build(spheres, threads=1, _timed=False, _wide=2)
 
 
-def _build_narrow(code, items, leaf_rows, memory="C"):
+def _build_narrow(code, items, leaf_rows, memory="C", node_cost=NODE_COST):
     """The one-thread way's tree: (nodes, ordered, order, depth). code:
     sah_steps, or sah_steps as plain Python (_python_steps) to run it
-    uncompiled; memory: the leaf buffer's order in memory (leaf_buffer's)."""
+    uncompiled; memory: the leaf buffer's order in memory (leaf_buffer's);
+    node_cost: _grow's."""
     n = items.shape[1]
     p = sah_steps.work_arrays(n)
     order = p[4]
@@ -102,7 +104,7 @@ def _build_narrow(code, items, leaf_rows, memory="C"):
         stack = code._stack()
         links = nodes.view(np.int32)
         top = code._root(p, nodes, links, stack)
-        used, depth = code._grow(p, nodes, links, stack, top, 1)
+        used, depth = code._grow(p, nodes, links, stack, top, 1, np.float32(node_cost))
         ordered = np.empty((leaf_rows, n), np.float32, order=memory)
         code._leaves(items, order, 0, n, ordered)
     return nodes[:used].copy(), ordered, order, depth
@@ -179,7 +181,8 @@ def build(
         else:
             _compile_kind(items, primitive, n > _wide, device)
     steps = _steps(primitive)
-    memory = primitive.CPU_LEAF_ORDER if device == "cpu" else "C"
+    # the cpu's tree as its walks of the kind read it best; the GPUs' as they always were
+    memory, node_cost = (primitive.CPU_LEAF_ORDER, primitive.CPU_NODE_COST) if device == "cpu" else ("C", NODE_COST)
     start = time.perf_counter()
     if n > _wide:
         # Numba's threads are at most its pool's (the cores); the slicing into
@@ -189,14 +192,14 @@ def build(
             before = numba.get_num_threads()
             numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
             try:
-                nodes, order, depth = steps.sah_wide._build_wide(items, threads, _wide)
+                nodes, order, depth = steps.sah_wide._build_wide(items, threads, _wide, node_cost)
                 # made once the builder's arrays are gone, so that it never adds to their peak
                 ordered = steps.sah_wide.leaf_buffer(items, order, primitive.LEAF_ROWS, threads, memory)
             finally:
                 numba.set_num_threads(before)
     else:
         code = _python_steps() if interpret else steps.sah_steps
-        nodes, ordered, order, depth = _build_narrow(code, items, primitive.LEAF_ROWS, memory)
+        nodes, ordered, order, depth = _build_narrow(code, items, primitive.LEAF_ROWS, memory, node_cost)
     _tighten(steps, primitive, nodes, ordered)
     build_s = time.perf_counter() - start
     return Bvh(

@@ -42,9 +42,6 @@ LEAF_MAX = 8
 # the split would seldom win (a node visit costs about NODE_COST sphere
 # tests) and weighing it is most of the build's time at the bottom of the tree.
 LEAF_ALWAYS = 3
-# Expected cost of visiting a node (two box tests), in sphere tests; the SAH
-# weighs splitting against leaving the spheres in one leaf with it.
-NODE_COST = np.float32(2.0)
 # Ranges of more spheres than WIDE are split by all the build's threads at
 # once, each binning and then moving a slice of at most SLICE spheres, so the
 # top of a large tree does not wait on one core (_grow_wide); smaller ones are
@@ -390,9 +387,12 @@ def _open_row(nodes, links, parent, slot, row):
 
 
 @compiled.njit(nogil=True)
-def _grow(p, nodes, links, stack, top, used):
-    """Build the subtrees of the tasks on stack, new rows from `used` on.
-    Returns (rows used, deepest depth)."""
+def _grow(p, nodes, links, stack, top, used, node_cost):
+    """Build the subtrees of the tasks on stack, new rows from `used` on; a
+    range of up to LEAF_MAX is left a leaf where the SAH finds no split
+    cheaper, a node's visit costing node_cost primitives' tests (float32:
+    NODE_COST, or the walk's own for a kind: build's node_cost). Returns
+    (rows used, deepest depth)."""
     box = np.empty(6, np.float32)
     cbox = np.empty(6, np.float32)
     counts = np.zeros((3, BINS), np.int64)
@@ -420,7 +420,7 @@ def _grow(p, nodes, links, stack, top, used):
             m = _median_split(p, s, e, cbox)
         else:
             m, rel = _sah_split(p, s, e, box, cbox, counts, bins, scale, left_area, left_count)
-            if count <= LEAF_MAX and (m == s or np.float32(count) <= NODE_COST + rel):
+            if count <= LEAF_MAX and (m == s or np.float32(count) <= node_cost + rel):
                 continue  # a leaf: cheaper than the best split
             if m == s or m == e:  # the centres coincide: split by count
                 m = _median_split(p, s, e, cbox)

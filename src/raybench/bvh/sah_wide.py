@@ -14,6 +14,7 @@ from ..layout import (
     COUNT,
     INNER,
     MAX_DEPTH,
+    NODE_COST,
     NODE_FLOATS,
     REF,
 )
@@ -259,14 +260,14 @@ def _gather_back(p, q, tasks, first, step):
 
 
 @compiled.njit(nogil=True)
-def _grow_subtrees(p, nodes, links, tasks, base, ends, depths, first, step):
+def _grow_subtrees(p, nodes, links, tasks, base, ends, depths, first, step, node_cost):
     """Build the subtrees tasks[first::step], each into its block of rows
-    from base + its first primitive."""
+    from base + its first primitive (_grow's node_cost)."""
     stack = _stack()
     for t in range(first, tasks.shape[0], step):
         parent, slot, s, e, d = tasks[t, 0], tasks[t, 1], tasks[t, 2], tasks[t, 3], tasks[t, 4]
         _push(stack, 0, parent, slot, s, e, d)
-        ends[t], depths[t] = _grow(p, nodes, links, stack, 1, base + s)
+        ends[t], depths[t] = _grow(p, nodes, links, stack, 1, base + s, node_cost)
 
 
 @compiled.njit(nogil=True)
@@ -341,9 +342,9 @@ def _gather_all(p, q, tasks, parts):
 
 
 @compiled.njit(nogil=True, parallel=True)
-def _grow_all(p, nodes, links, tasks, base, ends, depths, parts):
+def _grow_all(p, nodes, links, tasks, base, ends, depths, parts, node_cost):
     for w in numba.prange(parts):
-        _grow_subtrees(p, nodes, links, tasks, base, ends, depths, w, parts)
+        _grow_subtrees(p, nodes, links, tasks, base, ends, depths, w, parts, node_cost)
 
 
 @compiled.njit(nogil=True, parallel=True)
@@ -363,7 +364,7 @@ def _piece(primitives: int, threads: int) -> int:
     return min(SLICE, max(1024, primitives // (4 * threads)))
 
 
-def _build_wide(items, threads: int, wide: int):
+def _build_wide(items, threads: int, wide: int, node_cost=NODE_COST):
     """The tree of the n > wide primitives of the scene's buffer items: its
     top level by level, each range of over `wide` primitives split by all
     threads, then the subtrees below on one thread each, each into its own
@@ -420,7 +421,7 @@ def _build_wide(items, threads: int, wide: int):
     # subtrees differ in cost: more parts than threads, handed out one at a time as threads come free
     chunk = numba.set_parallel_chunksize(1)
     try:
-        _grow_all(p, nodes, links, tasks, used, ends, depths, 4 * threads)
+        _grow_all(p, nodes, links, tasks, used, ends, depths, 4 * threads, np.float32(node_cost))
     finally:
         numba.set_parallel_chunksize(chunk)
     order = p[4]
