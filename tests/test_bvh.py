@@ -564,13 +564,14 @@ def test_the_builder_takes_the_triangle_beside_the_sphere():
 
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", ["sphere", "triangle", "mixed"])
-def test_the_cpus_tree_is_cut_and_held_as_its_kind_says(kind):
+def test_the_cpus_tree_is_held_and_cut_as_its_kind_says(kind):
     """The host tree for the cpu holds its leaf buffer in the memory order
     of the kind's CPU_LEAF_ORDER (a triangle's nine values side by side),
-    the GPUs' in rows, each its primitives' leaf rows in its order; the
-    cpu's is cut with the kind's CPU_NODE_COST, the GPUs' with NODE_COST:
-    for the sphere and the mixed kind the same tree to the bit, for the
-    triangle fewer, larger leaves. On one thread and sliced over two."""
+    the GPUs' in rows, each its primitives' leaf rows in its order, and
+    otherwise the same tree to the bit; cut with the kind's
+    PACKETS_NODE_COST (the cpu's packets' tree), the triangle's has fewer,
+    larger leaves, the others' are the same tree. On one thread and sliced
+    over two."""
     from raybench.kernels.primitives import KINDS
 
     primitive = KINDS[kind]
@@ -582,24 +583,26 @@ def test_the_cpus_tree_is_cut_and_held_as_its_kind_says(kind):
     for wide in (bvh.WIDE, 256):
         cpu = bvh.build(buffer, threads=2, primitive=primitive, _wide=wide)
         gpu = bvh.build(buffer, threads=2, device="cuda", primitive=primitive, _wide=wide)
+        packets = bvh.build(buffer, threads=2, primitive=primitive, _wide=wide, node_cost=primitive.PACKETS_NODE_COST)
         assert gpu.ordered.flags.c_contiguous
-        held = cpu.ordered.flags
-        assert held.f_contiguous if primitive.CPU_LEAF_ORDER == "F" else held.c_contiguous
-        for tree in (cpu, gpu):
+        for held in (cpu.ordered.flags, packets.ordered.flags):
+            assert held.f_contiguous if primitive.CPU_LEAF_ORDER == "F" else held.c_contiguous
+        for tree in (cpu, gpu, packets):
             expected = buffer[: primitive.LEAF_ROWS, tree.order].copy()
             if kind == "mixed":  # a triangle's nine rows, a sphere's four and zeros, then the tag
                 expected = buffer[: layout.TRI_ROWS + 1, tree.order].copy()
                 expected[layout.TRI_ROWS] = buffer[-1, tree.order]
                 expected[sphere.LEAF_ROWS : layout.TRI_ROWS, expected[layout.TRI_ROWS] == layout.MIX_SPHERE] = 0.0
             assert (tree.ordered == expected).all()
-        leaves = [_leaf_counts(tree) for tree in (cpu, gpu)]
+        assert (cpu.nodes.view(np.int32) == gpu.nodes.view(np.int32)).all() and (cpu.order == gpu.order).all()
+        leaves = [_leaf_counts(tree) for tree in (packets, cpu)]
         assert all(max(c) <= bvh.LEAF_MAX and sum(c) == buffer.shape[1] for c in leaves)
-        if primitive.CPU_NODE_COST == bvh.NODE_COST:
-            assert (cpu.nodes.view(np.int32) == gpu.nodes.view(np.int32)).all() and (cpu.order == gpu.order).all()
+        if primitive.PACKETS_NODE_COST == bvh.NODE_COST:
+            assert (packets.nodes.view(np.int32) == cpu.nodes.view(np.int32)).all()
         else:  # the triangle's: fewer leaves, more triangles each
             assert len(leaves[0]) < len(leaves[1]) and np.mean(leaves[0]) > np.mean(leaves[1])
     assert KINDS["triangle"].CPU_LEAF_ORDER == "F"  # what the measured frames were (docs/triangles.md)
-    assert KINDS["triangle"].CPU_NODE_COST > bvh.NODE_COST
+    assert KINDS["triangle"].PACKETS_NODE_COST > bvh.NODE_COST
 
 
 def _leaf_counts(tree) -> list[int]:
@@ -729,3 +732,24 @@ def test_a_refit_trees_frame_is_brute_forces(tree_width):
     (hits, image), (brute_hits, brute_image) = frames
     assert 0.1 < (hits >= 0).mean() < 0.5
     assert (hits == brute_hits).all() and (image == brute_image).all()
+
+
+@pytest.mark.slow
+def test_the_cpu_cuts_a_meshs_tree_for_the_walk_that_reads_it():
+    """The cpu's tracer of a mesh under the thesis's shading (its packets of
+    primary rays alone) walks a tree cut with the triangle's
+    PACKETS_NODE_COST: fewer 4-wide rows than the tree that Whitted's
+    tracer walks (cut with NODE_COST, every ray of its own too), over the
+    same triangles, and the same picture of what both see first."""
+    from raybench.bench import meshes
+    from raybench.mesh_render import mesh_scene
+
+    scene = mesh_scene(meshes.icosphere(20 * 4**4))
+    with (
+        raybench.Renderer(scene, 96, 60, device="cpu", threads=2) as thesis,
+        raybench.Renderer(scene, 96, 60, device="cpu", threads=2, shading="whitted") as whitted,
+    ):
+        first, second = thesis.render(), whitted.render()
+        assert thesis.tracer.wide.shape[0] < whitted.tracer.wide.shape[0]
+        assert sorted(thesis.tracer.bvh.order.tolist()) == sorted(whitted.tracer.bvh.order.tolist())
+    assert (first.hits == second.hits).all()

@@ -106,7 +106,7 @@ PAD = np.float32(2.0**-16)
 MAX_DEPTH = 48
 # Expected cost of visiting a node (two box tests), in sphere tests; the SAH
 # weighs splitting against leaving the spheres in one leaf with it (bvh's
-# builders; a kind's CPU_NODE_COST for the cpu's tree).
+# builders; a kind's PACKETS_NODE_COST for the tree of the cpu's packets).
 NODE_COST = np.float32(2.0)
 # Walk stack entries: one per level on the way down is the most a
 # near-first walk keeps (each level pushes at most its far child).

@@ -155,6 +155,7 @@ def build(
     _timed: bool = True,
     _wide: int = WIDE,
     primitive=sphere,
+    node_cost=NODE_COST,
 ) -> Bvh:
     """The BVH of a (7, N) float32 sphere array (Scene.spheres), or of
     another primitive's scene buffer (primitive: its module of
@@ -164,7 +165,9 @@ def build(
     subtrees below on one thread each. The tree is the same on any number of
     threads. device: the one whose walks the tree is for ("cpu", "cuda",
     "wgpu"). Within oneshot.one_shot(), a scene of up to `_wide` spheres may be built
-    by the builder's uncompiled Python, the same tree (Bvh.interpreted)."""
+    by the builder's uncompiled Python, the same tree (Bvh.interpreted).
+    node_cost: what the SAH counts a node's visit, in primitives' tests
+    (a kind's PACKETS_NODE_COST for the cpu's packets' tree)."""
     n = spheres.shape[1]
     if n > MAX_SPHERES:
         raise RaybenchError(f"bvh: at most {MAX_SPHERES:,} spheres, got {n:,}")
@@ -181,8 +184,7 @@ def build(
         else:
             _compile_kind(items, primitive, n > _wide, device)
     steps = _steps(primitive)
-    # the cpu's tree as its walks of the kind read it best; the GPUs' as they always were
-    memory, node_cost = (primitive.CPU_LEAF_ORDER, primitive.CPU_NODE_COST) if device == "cpu" else ("C", NODE_COST)
+    memory = primitive.CPU_LEAF_ORDER if device == "cpu" else "C"  # as the device's walks read it best
     start = time.perf_counter()
     if n > _wide:
         # Numba's threads are at most its pool's (the cores); the slicing into

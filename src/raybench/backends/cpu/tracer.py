@@ -17,6 +17,7 @@ from ...errors import RaybenchError
 from ...host import host_available_bytes, usable_cores
 from ...kernels.packets import PACKET_H
 from ...layout import (
+    NODE_COST,
     NODE_FLOATS,
 )
 from ...lighting import Shading
@@ -168,7 +169,10 @@ class Tracer(TracerBase):
         """The BVH of the first `count` spheres; its build time in build_s
         (with the collapse into 4-wide nodes, where the packets walk those)."""
         threads = min(self.threads, default_threads())
-        self.bvh = bvh_mod.build(self.spheres[:, :count], threads=threads, primitive=self._kind)
+        # a tree that only the packets of primary rays walk is cut for them (the kind's PACKETS_NODE_COST)
+        packets_only = self.shading is None and self.tree_width == 4
+        node_cost = self._kind.PACKETS_NODE_COST if packets_only else NODE_COST
+        self.bvh = bvh_mod.build(self.spheres[:, :count], threads=threads, primitive=self._kind, node_cost=node_cost)
         self.build_s = self.bvh.build_s
         if self.tree_width == 4:
             if not bvh_mod.collapse_in_python(self.bvh):

@@ -7,9 +7,10 @@ Every primitive module gives the same answers (kernels/primitives/sphere.py
 is the model): LEAF_ROWS, the rows of its leaf buffer; CPU_LEAF_ORDER,
 how the host's tree for the cpu holds that buffer in memory (NumPy's "C",
 a row a value, or "F", a primitive's values together; the walks index it
-alike, and the GPUs' trees hold it in rows); CPU_NODE_COST, what the host
-SAH builder counts a node's visit in the cpu's tree, in the kind's tests
-(the GPUs' trees: bvh.NODE_COST); INLINE_TESTS,
+alike, and the GPUs' trees hold it in rows); PACKETS_NODE_COST, what the
+host SAH builder counts a node's visit, in the kind's tests, in a tree that
+only the cpu's packets of primary rays walk (the thesis's shading; every
+other tree: layout.NODE_COST); INLINE_TESTS,
 whether the cpu's walks inline its tests at their leaves or call them
 (compiled.leaf_test: True for a test of a few instructions); PACKET_SHAPE,
 the pixels (width, height) of the cpu's packets of primary rays

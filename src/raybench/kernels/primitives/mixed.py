@@ -49,9 +49,9 @@ NOUN = "spheres and triangles"
 LEAF_ROWS = MIX_LEAF_ROWS
 # The cpu's leaf buffer column by column, as the triangle's: a primitive's ten values together.
 CPU_LEAF_ORDER = triangle.CPU_LEAF_ORDER
-# A node's visit on the cpu's tree as every device's: layout.NODE_COST (the triangle's larger leaves
-# are not measured for a scene of both kinds).
-CPU_NODE_COST = sphere.CPU_NODE_COST
+# A node's visit in the cpu's packets' tree as in every tree: layout.NODE_COST (the triangle's larger
+# leaves are not measured for a scene of both kinds).
+PACKETS_NODE_COST = sphere.PACKETS_NODE_COST
 # Rows of the scene's buffer that the shading reads at least: a triangle's shaded rows and the tag.
 SCENE_ROWS = MIX_SCENE_ROWS
 # A packed leaf copy: five float64 words, the ten float32 of a leaf's rows.

@@ -49,9 +49,9 @@ LEAF_ROWS = 4
 # values together) it was 0.7-1.3% slower on Whitted's rays and a tie on the thesis's (2026-12-05,
 # docs/triangles.md#a-triangles-nine-values-together-on-the-cpu-2026-12-05).
 CPU_LEAF_ORDER = "C"
-# What the SAH counts a node's visit on the cpu's tree, in this kind's tests: layout.NODE_COST,
-# every device's.
-CPU_NODE_COST = NODE_COST
+# What the SAH counts a node's visit, in this kind's tests, in a tree that only the cpu's packets
+# of primary rays walk: layout.NODE_COST, every tree's.
+PACKETS_NODE_COST = NODE_COST
 # Rows of the scene's buffer (Scene.spheres) that the shading reads: with the colour.
 SCENE_ROWS = SPHERE_ROWS
 # A packed leaf copy (make's words, pack_leaf): float64 words a sphere, its four float32.

@@ -117,12 +117,13 @@ LEAF_ROWS = TRI_ROWS
 # 2-4% faster at 1.31 M triangles, primary and Whitted (docs/triangles.md, "A triangle's nine
 # values together on the cpu"). The GPUs' leaf buffers stay in rows, which a warp reads coalesced.
 CPU_LEAF_ORDER = "F"
-# What the SAH counts a node's visit on the cpu's tree, in triangles' tests: twice NODE_COST,
-# for leaves larger where the cut is close. A packet tests a leaf's triangle only on the rays of
-# its window, so a triangle costs its packets less than a node does: the frame of 1.31 M triangles
-# 8% faster than at NODE_COST, its tree smaller (docs/triangles.md, "Larger leaves for the cpu").
-# The GPUs' trees keep layout.NODE_COST.
-CPU_NODE_COST = np.float32(2.0 * NODE_COST)
+# What the SAH counts a node's visit, in triangles' tests, in a tree that only the cpu's packets of
+# primary rays walk (the thesis's shading): twice NODE_COST, for larger leaves where the cut is
+# close. A packet tests a leaf's triangle only on the rays of its window, so a triangle costs it
+# less than a node: the frame of 1.31 M triangles some 3% faster, the tree smaller
+# (docs/triangles.md, "Larger leaves for the cpu's packets"). Whitted's rays alone were slower
+# through it, and the GPUs' walks are not measured so: their trees keep layout.NODE_COST.
+PACKETS_NODE_COST = np.float32(2.0 * NODE_COST)
 # Rows of the scene's buffer that the shading reads at least: with the colour.
 SCENE_ROWS = TRI_SHADED_ROWS
 # A packed leaf copy (make's words): float64 words a triangle, nine float32 and one unused.
