@@ -114,7 +114,7 @@ NOUN = "triangles"
 LEAF_ROWS = TRI_ROWS
 # The cpu's leaf buffer held column by column ("F": the same rows and indices, a triangle's nine
 # values side by side in memory, one or two cache lines, where in rows they are nine): its frames
-# 2-4% faster at 1.31 M triangles, primary and Whitted (docs/triangles.md, "A triangle's nine
+# 2-3% faster at 1.31 M triangles, primary and Whitted (docs/triangles.md, "A triangle's nine
 # values together on the cpu"). The GPUs' leaf buffers stay in rows, which a warp reads coalesced.
 CPU_LEAF_ORDER = "F"
 # What the SAH counts a node's visit, in triangles' tests, in a tree that only the cpu's packets of
