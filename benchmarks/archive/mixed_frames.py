@@ -1,8 +1,9 @@
 """A scene of both kinds' cpu frames for one version of raybench (its `src/` first on PYTHONPATH,
 with a compile cache of its own in RAYBENCH_CACHE_DIR): an icosphere of 4^K * 20 triangles among
 random spheres, one tree with typed leaves (kernels/primitives/mixed.py), seen from (0, 0, -3),
-1680x1050 on 2 threads, primary rays and Whitted's, the median of N warm frames of wall time, and
-hashes of the picture and the hits (the same in every version).
+1680x1050 on 2 threads, primary rays and Whitted's (N and N / 3 warm frames), each timed by
+mesh_frames.timed: the median frame's wall time and hashes of the picture and the hits (the same
+in every version).
 
     RAYBENCH_CACHE_DIR=/tmp/c-a PYTHONPATH=a/src python benchmarks/archive/mixed_frames.py 9 6 8
 
@@ -10,14 +11,12 @@ Run in turn for versions that differ in one thing (the cpu's leaf buffer held in
 primitive's values together: docs/triangles.md, "A triangle's nine values together on the cpu").
 """
 
-import hashlib
 import json
-import statistics
 import sys
-import time
+
+from mesh_frames import timed  # this folder's: the same frames, view and hashes
 
 import raybench
-from raybench import Camera
 from raybench.bench import meshes
 from raybench.mesh_render import mesh_scene
 
@@ -33,20 +32,11 @@ def scene_of(k: int) -> raybench.Scene:
 
 def main(frames: int, subdivisions: list[int]) -> None:
     out = {}
-    camera = Camera(position=(0.0, 0.0, -3.0), look_at=(0.0, 0.0, 0.0), fov_deg=60.0)
     for k in subdivisions:
         scene = scene_of(k)
         for shading in ("thesis", "whitted"):
-            with raybench.Renderer(scene, 1680, 1050, device="cpu", threads=2, shading=shading) as renderer:
-                first = renderer.render(camera)
-                times = []
-                for _ in range(frames if shading == "thesis" else max(1, frames // 3)):
-                    start = time.perf_counter()
-                    renderer.render(camera)
-                    times.append((time.perf_counter() - start) * 1e3)
-                image, hits = (hashlib.sha1(bytes(a)).hexdigest()[:12] for a in (first.image, first.hits))
-            out[f"{20 * 4**k} {shading}"] = {"frame_ms": round(statistics.median(times), 2), "image": image,
-                                             "hits": hits}  # fmt: skip
+            count = frames if shading == "thesis" else max(1, frames // 3)
+            out[f"{20 * 4**k} {shading}"] = timed(scene, count, shading)
     print(json.dumps({"raybench": raybench.__file__, "frames": out}))
 
 
