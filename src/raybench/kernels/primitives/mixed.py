@@ -49,8 +49,9 @@ NOUN = "spheres and triangles"
 LEAF_ROWS = MIX_LEAF_ROWS
 # The cpu's leaf buffer column by column, as the triangle's: a primitive's ten values together.
 CPU_LEAF_ORDER = triangle.CPU_LEAF_ORDER
-# A node's visit in the cpu's packets' tree as in every tree: layout.NODE_COST (at 4, the
-# triangle's, a mesh among spheres was 1-5% slower: docs/triangles.md, "Larger leaves").
+# A node's visit in the cpu's packets' tree as in every tree: layout.NODE_COST (the triangle's
+# larger leaves made a mesh among spheres slower: docs/triangles.md, "Larger leaves for the cpu's
+# packets").
 PACKETS_NODE_COST = sphere.PACKETS_NODE_COST
 # Rows of the scene's buffer that the shading reads at least: a triangle's shaded rows and the tag.
 SCENE_ROWS = MIX_SCENE_ROWS

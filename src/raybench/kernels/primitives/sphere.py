@@ -45,13 +45,13 @@ SHADOW_PACKETS = True
 NOUN = "spheres"
 # Rows of the leaf buffer (bvh's `ordered`): centre x, y, z and radius.
 LEAF_ROWS = 4
-# The cpu's leaf buffer in rows, a row a value ("C"): held column by column ("F", a sphere's four
-# values together) it was 0.7-1.3% slower on Whitted's rays and a tie on the thesis's (2026-12-05,
-# docs/triangles.md#a-triangles-nine-values-together-on-the-cpu-2026-12-05).
+# The cpu's leaf buffer in rows, a row a value ("C"): a sphere's four values held together ("F")
+# gained nothing and cost Whitted's rays a little
+# (docs/triangles.md#a-triangles-nine-values-together-on-the-cpu-2026-12-05).
 CPU_LEAF_ORDER = "C"
 # What the SAH counts a node's visit, in this kind's tests, in a tree that only the cpu's packets
-# of primary rays walk: layout.NODE_COST, every tree's (at 4, the triangle's, the thesis's frames
-# were no faster: -2% to +5% at 1,000 to 100,000 spheres; docs/triangles.md, "Larger leaves").
+# of primary rays walk: layout.NODE_COST, every tree's (the triangle's larger leaves made the
+# thesis's frames no faster: docs/triangles.md, "Larger leaves for the cpu's packets").
 PACKETS_NODE_COST = NODE_COST
 # Rows of the scene's buffer (Scene.spheres) that the shading reads: with the colour.
 SCENE_ROWS = SPHERE_ROWS

@@ -113,15 +113,15 @@ NOUN = "triangles"
 # Rows of the leaf buffer (bvh's `ordered`): the three vertices.
 LEAF_ROWS = TRI_ROWS
 # The cpu's leaf buffer held column by column ("F": the same rows and indices, a triangle's nine
-# values side by side in memory, one or two cache lines, where in rows they are nine): its frames
-# 2-3% faster at 1.31 M triangles, primary and Whitted (docs/triangles.md, "A triangle's nine
-# values together on the cpu"). The GPUs' leaf buffers stay in rows, which a warp reads coalesced.
+# values side by side in memory, one or two cache lines, where in rows they are nine): a mesh's
+# frames faster, primary and Whitted (docs/triangles.md, "A triangle's nine values together on
+# the cpu"). The GPUs' leaf buffers stay in rows, which a warp reads coalesced.
 CPU_LEAF_ORDER = "F"
 # What the SAH counts a node's visit, in triangles' tests, in a tree that only the cpu's packets of
 # primary rays walk (the thesis's shading): twice NODE_COST, for larger leaves where the cut is
 # close. A packet tests a leaf's triangle only on the rays of its window, so a triangle costs it
-# less than a node: the frame of 1.31 M triangles some 3% faster, the tree smaller
-# (docs/triangles.md, "Larger leaves for the cpu's packets"). Whitted's rays alone were slower
+# less than a node: a dense mesh's frame faster, its tree smaller (docs/triangles.md, "Larger
+# leaves for the cpu's packets"). Whitted's rays alone were slower
 # through it, and the GPUs' walks are not measured so: their trees keep layout.NODE_COST.
 PACKETS_NODE_COST = np.float32(2.0 * NODE_COST)
 # Rows of the scene's buffer that the shading reads at least: with the colour.
