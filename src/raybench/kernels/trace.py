@@ -24,6 +24,7 @@ def make(
     primitive=sphere,
     vote=None,
     voted_jit=None,
+    positions=False,
 ):
     """The algorithm compiled with `jit`; a namespace of its functions.
     call: the decorator of Whitted shading's search for a ray's hit (default
@@ -40,12 +41,17 @@ def make(
     primitives from a backend's packed copy (the primitive's make).
     primitive: the kind of primitive the program traces, a module of
     kernels/primitives (its KINDS). vote, voted_jit: traverse.make's, for
-    a backend whose rays walk in groups (packet_walk)."""
+    a backend whose rays walk in groups (packet_walk). positions:
+    traverse.make's: the tree's walks answer a primitive's column of
+    `ordered`, which is then the scene's whole buffer in the tree's order
+    and the one the shading reads (the backend gives it as `spheres` with
+    the materials in that order too); the hits stored are the original
+    indices all the same (original)."""
     call = call or jit
     prim = primitive.make(jit, words)
     shade_hit, shade_miss, to_byte = shade.make(jit)
     kind = primitive.__name__.rsplit(".", 1)[-1]
-    walks = traverse.make(jit, prim, read_row, vote, voted_jit, leaf_jit=call, kind=kind)
+    walks = traverse.make(jit, prim, read_row, vote, voted_jit, leaf_jit=call, kind=kind, positions=positions)
     nearest_hit_bvh, inverse, walk = walks.nearest_hit_bvh, walks.inverse, walks.walk
     hit_closest, hit_ahead, meets_own, rim, colour = prim.hit, prim.hit_ahead, prim.meets_own, prim.rim, prim.colour
     # the brute-force fast kernels' cull (prepare): a primitive that has one
@@ -113,6 +119,28 @@ def make(
         hits[y, x] = hit
 
     @jit
+    def original(hit, order):
+        """The original index of a hit the tree's walks answered (-1: none)."""
+        if positions and hit >= 0:
+            return order[np.uint64(hit)]
+        return hit
+
+    if positions:
+
+        @jit
+        def store_walked(x, y, hit, d, spheres, order, image, hits):
+            """store_pixel for a hit a tree's walk answered: its original index stored."""
+            store_pixel(x, y, hit, d, spheres, image, hits)
+            hits[y, x] = original(hit, order)
+
+    else:
+
+        @jit
+        def store_walked(x, y, hit, d, spheres, order, image, hits):
+            """store_pixel for a hit a tree's walk answered (its original index)."""
+            store_pixel(x, y, hit, d, spheres, image, hits)
+
+    @jit
     def render_pixel(x, y, width, height, basis, spheres, count, image, hits):
         dx, dy, dz = primary_ray(x, y, width, height, basis)
         hit, d = nearest_hit(basis[0, 0], basis[0, 1], basis[0, 2], dx, dy, dz, spheres, count)
@@ -128,6 +156,8 @@ def make(
             basis[0, 0], basis[0, 1], basis[0, 2], dx, dy, dz, nodes, links, ordered, order, stack_row, stack_t
         )
         store_pixel(x, y, hit, d, spheres, image, hits)
+        if positions:  # a constant of the compile: nothing of it where False
+            hits[y, x] = original(hit, order)
 
     @jit
     def search_tree(ox, oy, oz, dx, dy, dz, t_max, any_hit, own, own_inside, spheres, count, tree, stack_row,
@@ -147,6 +177,9 @@ def make(
         return scan(ox, oy, oz, dx, dy, dz, t_max, any_hit, True, own, own_inside, spheres, count)
 
     def whitted_program(search, shadows=None):
+        # the tree's programs answer positions (`positions`); brute force's, original indices
+        map_hits = positions and search is not search_all
+
         if shadows is None:
             stages = whitted.make(jit, call, search, prim, shade_hit, shade_miss, name=f"_{kind}")
             wavefronts[search.__name__] = wavefront.make(jit, stages, primary_ray, shade_hit)
@@ -175,6 +208,8 @@ def make(
             image[y, x, 1] = to_byte(green)
             image[y, x, 2] = to_byte(blue)
             hits[y, x] = hit
+            if map_hits:  # a constant of the compile, as render_pixel_bvh's
+                hits[y, x] = original(hit, tree[3])
             return primary, shadow, reflection, refraction
 
         return render_pixel_whitted
@@ -207,6 +242,8 @@ def make(
         render_pixel=render_pixel,
         primary_ray=primary_ray,
         store_pixel=store_pixel,
+        original=original,
+        store_walked=store_walked,
         prim=prim,
         prepare=prepare,
         render_pixel_bvh=render_pixel_bvh,

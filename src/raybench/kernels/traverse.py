@@ -37,7 +37,7 @@ TINY = np.float32(1e-20)
 _U = np.uint64
 
 
-def make(jit, prim, read_row=None, vote=None, voted_jit=None, leaf_jit=None, kind="sphere"):
+def make(jit, prim, read_row=None, vote=None, voted_jit=None, leaf_jit=None, kind="sphere", positions=False):
     """The walks over `jit`, for the primitive whose compiled functions are
     `prim` (a primitive module's make: kernels/primitives, its name `kind`);
     the leaf test is the only part that asks it anything. leaf_jit: the
@@ -48,8 +48,14 @@ def make(jit, prim, read_row=None, vote=None, voted_jit=None, leaf_jit=None, kin
     layout of its own (cuda's wavefront). vote(p): whether p holds for any
     ray of a group that walks as one packet (a CUDA block's barrier); given,
     the walk is also compiled voted (_walk_body), as packet_walk, with
-    voted_jit (default jit). A namespace of the walks and the parts the
-    WGSL twins are held to."""
+    voted_jit (default jit). positions: the walks answer a primitive's
+    position in the tree's order (its column of `ordered`), not its original
+    index, for a backend whose `ordered` is the whole scene's buffer in the
+    tree's order, which its shading reads too (cuda's meshes: no second copy
+    of the triangles); the primitive a Whitted ray leaves (own) is given the
+    same way, and ties still go to the smaller original index (order's), so
+    the answer is the same primitive. A namespace of the walks and the parts
+    the WGSL twins are held to."""
     if read_row is None:
 
         @jit
@@ -156,6 +162,20 @@ def make(jit, prim, read_row=None, vote=None, voted_jit=None, leaf_jit=None, kin
         while j < end:
             k = j
             j = np.uint32(j + np.uint32(1))
+            if positions:
+                # the answer is k itself; its original index is read on a tie alone
+                at = np.int32(k)
+                if ahead and at == own and not meets_own(own_inside):
+                    continue
+                if ahead:
+                    t, d = hit_ahead(ordered, k, ox, oy, oz, dx, dy, dz, at == own)
+                else:
+                    t, d = hit_closest(ordered, k, ox, oy, oz, dx, dy, dz)
+                if t > ZERO and (t < closest or (t == closest and hit >= 0 and order[k] < order[_U(hit)])):
+                    closest = t
+                    hit = at
+                    hit_d = d
+                continue
             original = order[k]
             if ahead and original == own and not meets_own(own_inside):
                 continue
@@ -176,7 +196,7 @@ def make(jit, prim, read_row=None, vote=None, voted_jit=None, leaf_jit=None, kin
     # picture"). Named after its kind: Numba names machine code by qualified name and a per-process
     # counter, so two kinds' leaf tests compiled into the disk cache by two
     # processes could carry one symbol (whitted.make's find says what that did).
-    leaf_test.__name__ = f"leaf_test_{kind}"
+    leaf_test.__name__ = f"leaf_test_{kind}" + ("_at" if positions else "")
     leaf_test.__qualname__ = leaf_test.__qualname__.replace("leaf_test", leaf_test.__name__)
     leaf_test = (leaf_jit or jit)(leaf_test)
 

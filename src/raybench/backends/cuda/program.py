@@ -38,6 +38,16 @@ def _any_in_block(p):
     return cuda.syncthreads_or(np.int32(p)) != 0
 
 
+def in_tree_order(primitive) -> bool:
+    """Whether cuda traces a kind through the tree with its scene's buffer
+    put in the tree's order, as the leaves and as what the shading reads
+    (kernels.make's positions): every kind but the sphere, whose buffer is
+    updated in place as the spheres move and whose leaf is four of its seven
+    rows. A mesh's triangles are then on the device once, not twice
+    (docs/triangles.md#memory)."""
+    return primitive is not sphere
+
+
 # The voted walk is forced inline into its kernel, where its loop was
 # written before it was traverse's, so that the kernel's stack stays its
 # own local memory: the form measured as fast as that kernel (inlining
@@ -53,12 +63,18 @@ def _made(primitive=sphere):
         vote=_any_in_block,
         voted_jit=compiled.cuda_device(forceinline=True),
         primitive=primitive,
+        positions=in_tree_order(primitive),
     )
 
 
 _k = _made()
 # module globals, which is how kernels can see them
-_render_pixel, _primary_ray, _store_pixel = _k.render_pixel, _k.primary_ray, _k.store_pixel
+_render_pixel, _primary_ray, _store_pixel, _store_walked = (
+    _k.render_pixel,
+    _k.primary_ray,
+    _k.store_pixel,
+    _k.store_walked,
+)
 _prepare_one, _may_hit, _along, _intersect_relative = (
     _k.prepare,
     _k.prim.may_hit,
@@ -185,7 +201,7 @@ def _bvh_packet_kernel(width, height, first, end, basis, nodes, links, ordered, 
     hit, _t, hit_d = _packet_walk(basis[0, 0], basis[0, 1], basis[0, 2], dx, dy, dz, cdx, cdy, cdz, FAR, False,
                                   False, -1, False, nodes, links, ordered, order, stack_row, stack_t)  # fmt: skip
     if x < width and y < end:
-        _store_pixel(x, y, hit, hit_d, spheres, image, hits)
+        _store_walked(x, y, hit, hit_d, spheres, order, image, hits)
 
 
 @cuda.jit

@@ -3,6 +3,7 @@ kernels) and their buffers."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 import warnings
@@ -31,7 +32,8 @@ from . import build as cuda_build
 from .device import require, simulated
 from .kinds import programs
 from .launch import Launches
-from .program import _zero_rays, choose_walk
+from .program import _zero_rays, choose_walk, in_tree_order
+from .tree_order import in_tree_order as put_in_tree_order
 from .wavefront import Wavefront, row_bytes
 
 
@@ -102,7 +104,12 @@ class Tracer(TracerBase):
         # kernel's timed span (cuda.launch;
         # docs/notes/startup.md#a-launchs-arguments-converted-once)
         self._launches = Launches(64)
-        self.d_spheres = cuda.to_device(spheres if self.count else np.zeros((spheres.shape[0], 1), np.float32))
+        # a kind traced through its buffer in the tree's order (program.in_tree_order) has it on
+        # the device once, made by _build; with a tree built on the host nothing is uploaded before
+        self._in_order = self.accel == "bvh" and in_tree_order(k.primitive)
+        self.d_spheres = None
+        if not self._in_order or self.build == "gpu":
+            self.d_spheres = cuda.to_device(spheres if self.count else np.zeros((spheres.shape[0], 1), np.float32))
         self.d_image = cuda.device_array((height, width, 3), dtype=np.uint8)
         self.d_hits = cuda.device_array((height, width), dtype=np.int32)
         self.image = self.host_array((height, width, 3), np.uint8)
@@ -132,7 +139,8 @@ class Tracer(TracerBase):
                 self.d_sphere_rows = cuda.device_array((1, 2), np.float64)  # read by no walk: there is no tree
                 self.d_ordered = cuda.device_array((k.primitive.LEAF_ROWS, 1), np.float32)
                 self.d_order = cuda.device_array(1, np.int32)
-            self.d_materials = cuda.to_device(shading.materials if self.count else np.ones((5, 1), np.float32))
+            if not self._in_order:  # else _build put them in the tree's order
+                self.d_materials = cuda.to_device(shading.materials if self.count else np.ones((5, 1), np.float32))
             self.d_lights = cuda.to_device(shading.lights)
             self.d_pattern = cuda.to_device(shading.pattern)
             self.d_params = cuda.to_device(shading.params)
@@ -157,7 +165,8 @@ class Tracer(TracerBase):
         (0: counted apart), its tree's (the GPU builder's arrays, or a host
         tree's rows, its leaf buffer and order) and the wavefront's packed
         copy of its leaf."""
-        leaf = 4 * self._kind.LEAF_ROWS
+        # the leaf buffer is the scene's buffer itself, where the kind is traced in the tree's order
+        leaf = 0 if in_tree_order(self._kind) else 4 * self._kind.LEAF_ROWS
         # the sphere's figures count its leaf's four float32: 16 bytes
         tree = (cuda_build.DEVICE_SPHERE_BYTES if self.build == "gpu" else bvh_mod.DEVICE_SPHERE_BYTES) - 16 + leaf
         packed = row_bytes(self._kind) if self.options.schedule == "wavefront" else 0
@@ -182,9 +191,13 @@ class Tracer(TracerBase):
                     else None
                 )
             kind = self._programs.build
-            self.bvh = cuda_build.build(self.spheres[:, :count], self.d_spheres, self._builder, kind=kind)
+            self.bvh = cuda_build.build(self.spheres[:, :count], self._d_input(), self._builder, kind=kind)
             # the fresh tree's SAH cost: what update()'s refits are held to
             self._fresh_cost = self._builder.read_cost() if self.bvh.built_on == "gpu" else None
+        elif self._in_order:
+            host = bvh_mod.build(self.spheres[:, :count], device="cuda", primitive=self._kind)
+            # its nodes and order alone: the leaves are the scene's buffer, put in order below
+            self.bvh = cuda_build.upload(dataclasses.replace(host, ordered=np.zeros((1, 1), np.float32)))
         else:
             self.bvh = cuda_build.upload(bvh_mod.build(self.spheres[:, :count], device="cuda", primitive=self._kind))
         self._launches.clear()  # they hold the old tree's arrays
@@ -192,7 +205,31 @@ class Tracer(TracerBase):
         self.d_nodes, self.d_links = self.bvh.nodes, self.bvh.links  # the same bytes: one row holds both
         self.d_nodes64 = self.d_nodes.view(np.float64)  # the same again, as the wavefront reads a row
         self.d_ordered, self.d_order = self.bvh.ordered, self.bvh.order
+        if self._in_order:
+            self._put_in_order()
         self._sphere_rows()
+
+    def _d_input(self):
+        """The scene's buffer on the device in its own order, for the GPU's build."""
+        if self._in_order:  # d_spheres is the last tree's order: let go, then uploaded again
+            self.d_spheres = None
+            self.d_spheres = cuda.to_device(self.spheres if self.count else np.zeros((self.spheres.shape[0], 1),
+                                                                                      np.float32))  # fmt: skip
+        return self.d_spheres
+
+    def _put_in_order(self) -> None:
+        """The scene's buffer (and Whitted's materials) on the device in the
+        tree's order, which the walks read as their leaves and the shading as
+        the scene (program.in_tree_order); the buffer in its own order, which
+        the GPU's build read, let go."""
+        built_on_gpu = self.bvh.built_on == "gpu"
+        d_rows = self.d_spheres if built_on_gpu else None
+        self.d_spheres = None
+        count = self.bvh.count
+        self.d_spheres = put_in_tree_order(self.spheres, self.d_order, count, d_rows)
+        self.d_ordered = self.d_spheres
+        if self.shading is not None:
+            self.d_materials = put_in_tree_order(self.shading.materials, self.d_order, count)
 
     def _sphere_rows(self) -> None:
         """The ordered spheres a row each, as the wavefront's walks read them

@@ -47,6 +47,7 @@ from ...layout import CHILD_BOX, COUNT, KINDS, NODE_FLOATS, PRIMARY, REF, STACK
 from .. import bands
 from .device import simulated
 from .launch import Launches
+from .program import in_tree_order
 
 if simulated():  # numba's simulator runs these as Python, where libdevice's bit casts are stubs
 
@@ -135,7 +136,10 @@ assert NODE_FLOATS == 16 and CHILD_BOX == (0, 6) and REF == 12 and COUNT == 14
 @functools.cache
 def _made(primitive=sphere):
     """kernels.make for the wavefront, for one kind of primitive."""
-    return kernels.make(cuda.jit(device=True), read_row=_read_row64, words=_words, primitive=primitive)
+    return kernels.make(
+        cuda.jit(device=True), read_row=_read_row64, words=_words, primitive=primitive,
+        positions=in_tree_order(primitive),
+    )  # fmt: skip
 
 
 _k = _made()
@@ -146,7 +150,7 @@ _extend_tree, _extend_every = _tree.extend, _every.extend
 _unblocked_tree, _unblocked_every = _tree.unblocked, _every.unblocked
 _emit_primary, _missed, _shade_ray = _tree.emit_primary, _tree.missed, _tree.shade
 _put_shadows, _put_children = _tree.put_shadows, _tree.put_children
-_fixed, _resolve, _to_byte = _tree.fixed, _tree.resolve, _k.to_byte
+_fixed, _resolve, _to_byte, _original = _tree.fixed, _tree.resolve, _k.to_byte, _k.original
 _pack_leaf = _k.prim.pack_leaf
 
 
@@ -270,7 +274,7 @@ def _extend(rays_f, rays_i, counts, wave, capacity, spheres, count, nodes, links
         kind = rays_i[R_KIND, i]
         if kind == PRIMARY:
             pixel = rays_i[R_PIXEL, i]
-            hits[pixel // width, pixel % width] = h
+            hits[pixel // width, pixel % width] = _original(h, order) if nodes.shape[0] > 0 else h
         cuda.atomic.add(tally, kind, 1)
         i += cuda.gridsize(1)
     cuda.syncthreads()

@@ -234,10 +234,12 @@ def make(jit, words=None):
 
     @jit
     def pack_leaf(leaves, k, packed):
-        """Primitive k of the tree's leaf buffer into its row of a packed copy
-        (float32, 2 * PACKED_WORDS columns): its ten values, the tag last."""
-        for c in range(LEAF_ROWS):
+        """Primitive k of the tree's leaf buffer (or of the scene's, put in the
+        tree's order: cuda's) into its row of a packed copy (float32, 2 *
+        PACKED_WORDS columns): its nine values, then the tag, the buffer's last row."""
+        for c in range(TRI_ROWS):
             packed[k, c] = leaves[c, k]
+        packed[k, TRI_ROWS] = tag_of(leaves, k)
 
     @jit
     def surface(ox, oy, oz, dx, dy, dz, t, i, buffer):

@@ -1,0 +1,45 @@
+"""A scene's buffer put in its tree's order on the device, a row at a time:
+what cuda's walks read as their leaves and its shading reads as the scene,
+for a kind traced so (program.in_tree_order)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import cuda
+
+from ... import compiled
+
+BLOCK = 256
+
+
+@compiled.cuda_jit()
+def _gather_row(source, order, out, row):
+    """out[row, k] = source[order[k]]: a row of the buffer in the tree's order."""
+    k = cuda.grid(1)
+    if k < order.shape[0]:
+        out[row, k] = source[order[k]]
+
+
+def in_tree_order(rows: np.ndarray, d_order, count: int, d_rows=None):
+    """The first `count` columns of the (R, N) float32 buffer `rows` on the
+    device in the tree's order d_order (the original index of each of the
+    tree's count columns), made from d_rows (rows' copy on the device) where
+    given, else from rows copied up a row at a time: beside the result the
+    device then holds one row more, not the whole buffer again. With none,
+    a column of zeros, as the tracer's stand-ins."""
+    if count == 0:
+        return cuda.to_device(np.zeros((rows.shape[0], 1), np.float32))
+    out = cuda.device_array((rows.shape[0], count), np.float32)
+    grid = math.ceil(count / BLOCK)
+    one = None if d_rows is not None else cuda.device_array(count, np.float32)
+    for r in range(rows.shape[0]):
+        if d_rows is None:
+            one.copy_to_device(np.ascontiguousarray(rows[r, :count]))
+            source = one
+        else:
+            source = d_rows[r]
+        _gather_row[grid, BLOCK](source, d_order, out, r)
+    cuda.synchronize()
+    return out
