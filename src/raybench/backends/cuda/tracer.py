@@ -206,7 +206,10 @@ class Tracer(TracerBase):
         self.d_nodes64 = self.d_nodes.view(np.float64)  # the same again, as the wavefront reads a row
         self.d_ordered, self.d_order = self.bvh.ordered, self.bvh.order
         if self._in_order:
+            start = time.perf_counter()
             self._put_in_order()
+            if self.bvh.built_on == "gpu":  # part of the tree ready to walk; a host tree's is its upload
+                self.build_s += time.perf_counter() - start
         self._sphere_rows()
 
     def _d_input(self):
