@@ -21,8 +21,7 @@ from raybench.bench import meshes
 
 
 def _frames(scene, device, shading, frames):
-    options = {"depth": 5, "samples": 4} if shading == "whitted" else {}
-    with raybench.Renderer(scene, 1680, 1050, device=device, shading=shading, **options) as renderer:
+    with raybench.Renderer(scene, 1680, 1050, device, shading, 5, 4) as renderer:
         frame = renderer.render(scene.camera)
         kernels, whole = [], []
         for _ in range(frames):
