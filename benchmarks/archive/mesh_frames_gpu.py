@@ -21,7 +21,8 @@ from raybench.bench import meshes
 
 
 def _frames(scene, device, shading, frames):
-    with raybench.Renderer(scene, 1680, 1050, device, shading, 5, 4) as renderer:
+    whitted = (5, 4) if shading == "whitted" else ()  # depth, shadow samples
+    with raybench.Renderer(scene, 1680, 1050, device, shading, *whitted) as renderer:
         frame = renderer.render(scene.camera)
         kernels, whole = [], []
         for _ in range(frames):
