@@ -68,6 +68,8 @@ _aim, _turned, _hit_aimed = _prim.aim, _prim.turned, _prim.hit_aimed
 # The rays of a packet that a leaf's primitive can meet, by its footprint on
 # the frame (kernels/footprint.py): the triangle's vertices', another kind's box's.
 _window = _prim.window
+# Which primitives are tested so (a kind of both's triangles), and the others' test on all the rays.
+_footprinted, _hit_whole = _prim.footprinted, _prim.hit_whole
 
 
 def _kind_constants(primitive) -> dict:
@@ -105,12 +107,14 @@ FOOTPRINT = _SHAPE["FOOTPRINT"]
 # _aimed_tests).
 LANES = 8
 # A packet's scratch (SCRATCH rows of PACKET + 1 float32): rows 0-3 its rays'
-# aim (_aim_packet), rows WINDOW to WINDOW + 3 a leaf's primitives' windows
-# (packet_leaf), PACKET + 1 of them at a time. Float32 holds a kz and a
-# window's rows and columns exactly, and one array keeps Numba's reference
+# aim (_aim_packet), rows WINDOW to WINDOW + 4 a leaf's footprinted primitives'
+# windows and places in the leaf (packet_leaf), PACKET + 1 of them at a time.
+# Float32 holds a kz, a window and a place exactly, and one array keeps Numba's reference
 # counting out of the walk (_aim_packet).
 WINDOW = 4
-SCRATCH = WINDOW + 4
+SCRATCH = WINDOW + 5
+# scratch[3, PACKET] until a leaf first needs the rays' aim (_aim_packet): a packet that meets none pays nothing.
+UNAIMED = np.float32(-2.0)
 
 
 @numba.njit(inline="always")
@@ -221,6 +225,16 @@ def _aimed_tests(seen, original, dx, dy, dz, closest, hit, hit_d, first_row, end
                 _better(t, d, k, original, closest, hit, hit_d)
 
 
+@numba.njit(inline="always", error_model="numpy")
+def _whole_tests(seen, original, dx, dy, dz, closest, hit, hit_d):
+    """_ray_tests for the thesis's packets of a kind with FOOTPRINT: a primitive
+    that it does not footprint (a sphere of a kind of both) against every ray
+    of the packet, through its own kind's test (hit_whole)."""
+    for k in range(PACKET):
+        t, d = _hit_whole(seen, dx[k], dy[k], dz[k])
+        _better(t, d, k, original, closest, hit, hit_d)
+
+
 @numba.njit(inline="always")
 def _aim_packet(dx, dy, dz, scratch):
     """scratch[:3, k], scratch[3, k]: ray k's shear and kz (_aim);
@@ -271,26 +285,38 @@ def packet_leaf(tests):
         ordered, order, dx, dy, dz, _ix, _iy, _iz, closest, hit, hit_d, closest_bits, spread_bits = rays[:13]
         ahead, view, place, scratch = rays[13], rays[14], rays[15], rays[16]
         if FOOTPRINT:
-            # every primitive's window first, then the tests of those that have
-            # one: faster than each window worked out beside its tests
-            # (docs/triangles.md#a-leafs-windows-first-2026-12-05)
+            # the windows first, then the tests of those that have one: faster than each
+            # window worked out beside its tests (docs/triangles.md#a-leafs-windows-first-2026-12-05);
+            # a primitive not footprinted at once (docs/notes/mixed-scenes.md)
             for part in range(first, first + count, PACKET + 1):
                 end = min(part + PACKET + 1, first + count)
+                kept = 0
                 for j in range(part, end):
-                    # the footprint stands in for the packet's interval test of
-                    # the box, which almost every triangle of a dense mesh passes
-                    window = _window(view, place, PACKET_H, PACKET_W, _read_leaf(ordered, j), margin, ox, oy, oz)
-                    for w in range(4):
-                        scratch[WINDOW + w, j - part] = np.float32(window[w])
-                for j in range(part, end):
-                    first_row, end_row = _U(scratch[WINDOW, j - part]), _U(scratch[WINDOW + 1, j - part])
+                    row = _read_leaf(ordered, j)
+                    if _footprinted(row):
+                        # the footprint stands in for the packet's interval test of
+                        # the box, which almost every triangle of a dense mesh passes
+                        window = _window(view, place, PACKET_H, PACKET_W, row, margin, ox, oy, oz)
+                        for w in range(4):
+                            scratch[WINDOW + w, kept] = np.float32(window[w])
+                        scratch[WINDOW + 4, kept] = np.float32(j - part)
+                        kept += 1
+                    elif not _leaf_missed(row, ox, oy, oz, margin, spread):
+                        if ahead:
+                            tests(_seen_from(row, ox, oy, oz), order[j], dx, dy, dz, closest, hit, hit_d, ahead, 0,
+                                  PACKET)  # fmt: skip
+                        else:
+                            _whole_tests(_seen_from(row, ox, oy, oz), order[j], dx, dy, dz, closest, hit, hit_d)
+                for i in range(kept):
+                    first_row, end_row = _U(scratch[WINDOW, i]), _U(scratch[WINDOW + 1, i])
                     if first_row == end_row:
                         continue
+                    j = part + np.int64(scratch[WINDOW + 4, i])
                     # the columns widened to whole groups of LANES, which the
                     # loops' SIMD code takes at once (a loop of fewer goes a ray
                     # at a time)
-                    first_lane = _U(scratch[WINDOW + 2, j - part]) // _U(LANES) * _U(LANES)
-                    end_lane = min((_U(scratch[WINDOW + 3, j - part]) + _U(LANES - 1)) // _U(LANES) * _U(LANES),
+                    first_lane = _U(scratch[WINDOW + 2, i]) // _U(LANES) * _U(LANES)
+                    end_lane = min((_U(scratch[WINDOW + 3, i]) + _U(LANES - 1)) // _U(LANES) * _U(LANES),
                                    _U(PACKET_W))  # fmt: skip
                     seen = _seen_from(_read_leaf(ordered, j), ox, oy, oz)
                     if ahead:
@@ -298,6 +324,8 @@ def packet_leaf(tests):
                             tests(seen, order[j], dx, dy, dz, closest, hit, hit_d, ahead, r * _U(PACKET_W) + first_lane,
                                   r * _U(PACKET_W) + end_lane)  # fmt: skip
                     else:
+                        if scratch[3, PACKET] == UNAIMED:  # the packet's first test of its rays' aim
+                            _aim_packet(dx, dy, dz, scratch)
                         _aimed_tests(seen, order[j], dx, dy, dz, closest, hit, hit_d, first_row, end_row, first_lane,
                                      end_lane, scratch)  # fmt: skip
         else:
@@ -565,7 +593,7 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
         for x0 in range(0, width, PACKET_W):
             _start_packet(x0, y0, end_row, width, height, basis, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, spread)
             if FOOTPRINT:
-                _aim_packet(dx, dy, dz, scratch)
+                scratch[3, PACKET] = UNAIMED
             _packet_walk_wide(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest,
                               hit, hit_d, spread, closest_bits, spread_bits, stack_row, stack_count, along, view,
                               _place(x0, y0, end_row, width), scratch)  # fmt: skip

@@ -32,7 +32,9 @@ and box_of work from a row read once; aim, a ray's own part of the test,
 worked out once a packet, and turned and hit_aimed, the primitive turned
 once for rays that share their aim: the triangle's shear, and
 answers.unaimed's hit_from for the others; window, the rays of such a
-packet it can meet, by its footprint on the frame: kernels/footprint.py),
+packet it can meet, by its footprint on the frame: kernels/footprint.py;
+footprinted(row), whether those packets test it so, and hit_whole, their
+test of one they do not on all the rays: a kind of both's sphere),
 bounds, surface (point and
 normal at a hit), rim (what the thesis's shading divides by), colour (its
 red, green and blue), and for the

@@ -34,6 +34,8 @@ ANSWERS = (
     "pack_leaf",
     "box_of",
     "window",
+    "footprinted",
+    "hit_whole",
     "surface",
     "rim",
     "colour",
@@ -82,3 +84,15 @@ def boxed_window(jit, box_of):
         return window_of(view, place, rows, columns, box_of(row), margin, ox, oy, oz)
 
     return window
+
+
+def footprinted_always(jit, value: bool):
+    """footprinted for a kind whose every primitive is tested alike by the
+    cpu's packets (its PACKET_FOOTPRINT): on its window's rays (True), or on
+    all of a packet's rays once its box passes their interval test (False)."""
+
+    @jit
+    def footprinted(row):
+        return value
+
+    return footprinted

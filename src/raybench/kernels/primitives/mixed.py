@@ -31,15 +31,18 @@ import numpy as np
 from ...layout import MIX_LEAF_ROWS, MIX_SCENE_ROWS, MIX_SPHERE, TRI_ROWS
 from ..constants import ZERO
 from . import sphere, triangle
-from .answers import answers, boxed_window, unaimed
+from .answers import answers
 
 # As the triangle's (compiled.leaf_test): its tests hold the triangle's.
 INLINE_TESTS = False
 # The cpu's packets of primary rays: the sphere's shape (the SPD's scenes were measured with it).
 PACKET_SHAPE = sphere.PACKET_SHAPE
-# ... and, as the sphere's, each leaf primitive tested on all of a packet's rays
-# (the footprint, kernels/footprint.py, was measured on meshes alone).
-PACKET_FOOTPRINT = sphere.PACKET_FOOTPRINT
+# ... and each leaf primitive tested as its kind's are (footprinted): a triangle
+# on the rays of its window (kernels/footprint.py), a sphere on all that pass
+# its box's interval test. With every primitive tested as a sphere, the SPD's
+# scenes of meshes and spheres were 26-37% slower (docs/triangles.md, "A
+# scene of both kinds' packets").
+PACKET_FOOTPRINT = True
 # Whitted's shadow rays as the triangle's, a ray at a time: the SPD's scenes of
 # both kinds were faster so (docs/triangles.md).
 SHADOW_PACKETS = triangle.SHADOW_PACKETS
@@ -248,6 +251,31 @@ def make(jit, words=None):
             return s_surface(ox, oy, oz, dx, dy, dz, t, i, buffer)
         return t_surface(ox, oy, oz, dx, dy, dz, t, i, buffer)
 
-    aim, turned, hit_aimed = unaimed(jit, hit_from)
-    window = boxed_window(jit, box_of)
+    # The cpu's packets of primary rays (kernels/packets.py) read the tag once a
+    # leaf's primitive (footprinted), not once a ray: a triangle is then tested
+    # on its window's rays through the triangle's own aim, turned and
+    # hit_aimed, and a sphere on all the rays through the sphere's hit_from
+    # (hit_whole), each loop over the rays of one kind's test alone.
+    aim, t_turned, hit_aimed, t_window, s_hit_whole = tri.aim, tri.turned, tri.hit_aimed, tri.window, sph.hit_from
+
+    @jit
+    def footprinted(row):
+        """Whether a row of read_leaf's is a triangle's."""
+        return row[0] != MIX_SPHERE
+
+    @jit
+    def window(view, place, rows, columns, row, margin, ox, oy, oz):
+        """A triangle's row's window (footprinted): its vertices'."""
+        return t_window(view, place, rows, columns, split(row)[2], margin, ox, oy, oz)
+
+    @jit
+    def turned(seen, kz):
+        """A triangle's seen_from (footprinted) turned for rays whose axis is kz."""
+        return t_turned(seen_split(seen)[2], kz)
+
+    @jit
+    def hit_whole(seen, dx, dy, dz):
+        """A sphere's seen_from (not footprinted) against one ray: the sphere's hit_from."""
+        return s_hit_whole(seen_split(seen)[1], dx, dy, dz)
+
     return answers("mixed", {**locals(), "pad": padding}, ("tag_of", "leaf_tag"))

@@ -26,7 +26,7 @@ import numpy as np
 
 from ...layout import BLUE, CX, CY, CZ, GREEN, NODE_COST, PAD, RADIUS, RED, SPHERE_ROWS
 from ..constants import ONE, ZERO
-from .answers import answers, boxed_window, unaimed
+from .answers import answers, boxed_window, footprinted_always, unaimed
 
 # The CPU walks inline this kind's tests at their leaves (compiled.leaf_test): a
 # few instructions, inlined as the packets were measured with them.
@@ -330,6 +330,8 @@ def make(jit, words=None):
 
     aim, turned, hit_aimed = unaimed(jit, hit_from)
     window = boxed_window(jit, box_of)
+    footprinted = footprinted_always(jit, PACKET_FOOTPRINT)
+    hit_whole = hit_from  # what the packets test an unfootprinted primitive with
     return answers(
         "sphere",
         {**locals(), "pad": padding},  # the module's pad, compiled

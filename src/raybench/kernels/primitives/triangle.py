@@ -89,7 +89,7 @@ from ...layout import (
 )
 from ..constants import HALF, ONE, ZERO
 from ..footprint import window_of_corners
-from .answers import answers
+from .answers import answers, footprinted_always
 
 # The CPU walks call this kind's tests at their leaves rather than inline them
 # (compiled.leaf_test): the watertight test is long, and inlined at every leaf
@@ -497,4 +497,6 @@ def make(jit, words=None):
         return ONE
 
     # pad: the module's pad, compiled
+    footprinted = footprinted_always(jit, PACKET_FOOTPRINT)
+    hit_whole = hit_from  # what the packets test an unfootprinted primitive with
     return answers("triangle", {**locals(), "pad": padding}, ("permute", "sheared", "woop", "normal", "finish", "box"))
