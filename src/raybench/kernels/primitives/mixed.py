@@ -39,9 +39,8 @@ INLINE_TESTS = False
 PACKET_SHAPE = sphere.PACKET_SHAPE
 # ... and each leaf primitive tested as its kind's are (footprinted): a triangle
 # on the rays of its window (kernels/footprint.py), a sphere on all that pass
-# its box's interval test. With every primitive tested as a sphere, the SPD's
-# scenes of meshes and spheres were 26-37% slower (docs/triangles.md, "A
-# scene of both kinds' packets").
+# its box's interval test. Tested all as spheres, a scene of meshes among spheres
+# was slower by far (docs/notes/mixed-scenes.md, "The cpu's packets: each kind's own test").
 PACKET_FOOTPRINT = True
 # Whitted's shadow rays as the triangle's, a ray at a time: the SPD's scenes of
 # both kinds were faster so (docs/triangles.md).
