@@ -109,7 +109,7 @@ class Tracer(TracerBase):
         self._in_order = self.accel == "bvh" and in_tree_order(k.primitive)
         self.d_spheres = None
         if not self._in_order or self.build == "gpu":
-            self.d_spheres = cuda.to_device(spheres if self.count else np.zeros((spheres.shape[0], 1), np.float32))
+            self.d_spheres = self._scene_on_device()
         self.d_image = cuda.device_array((height, width, 3), dtype=np.uint8)
         self.d_hits = cuda.device_array((height, width), dtype=np.int32)
         self.image = self.host_array((height, width, 3), np.uint8)
@@ -216,9 +216,13 @@ class Tracer(TracerBase):
         """The scene's buffer on the device in its own order, for the GPU's build."""
         if self._in_order:  # d_spheres is the last tree's order: let go, then uploaded again
             self.d_spheres = None
-            self.d_spheres = cuda.to_device(self.spheres if self.count else np.zeros((self.spheres.shape[0], 1),
-                                                                                      np.float32))  # fmt: skip
+            self.d_spheres = self._scene_on_device()
         return self.d_spheres
+
+    def _scene_on_device(self):
+        """The scene's buffer copied to the device in its own order (a column of
+        zeros for a scene of none, which no kernel reads)."""
+        return cuda.to_device(self.spheres if self.count else np.zeros((self.spheres.shape[0], 1), np.float32))
 
     def _put_in_order(self) -> None:
         """The scene's buffer (and Whitted's materials) on the device in the
