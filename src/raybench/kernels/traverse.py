@@ -162,30 +162,20 @@ def make(jit, prim, read_row=None, vote=None, voted_jit=None, leaf_jit=None, kin
         while j < end:
             k = j
             j = np.uint32(j + np.uint32(1))
-            if positions:
-                # the answer is k itself; its original index is read on a tie alone
-                at = np.int32(k)
-                if ahead and at == own and not meets_own(own_inside):
-                    continue
-                if ahead:
-                    t, d = hit_ahead(ordered, k, ox, oy, oz, dx, dy, dz, at == own)
-                else:
-                    t, d = hit_closest(ordered, k, ox, oy, oz, dx, dy, dz)
-                if t > ZERO and (t < closest or (t == closest and hit >= 0 and order[k] < order[_U(hit)])):
-                    closest = t
-                    hit = at
-                    hit_d = d
-                continue
-            original = order[k]
-            if ahead and original == own and not meets_own(own_inside):
+            # where the walk answers positions its answer is k itself, and k's original index is read
+            # on a tie alone
+            at = np.int32(k) if positions else order[k]
+            if ahead and at == own and not meets_own(own_inside):
                 continue
             if ahead:
-                t, d = hit_ahead(ordered, k, ox, oy, oz, dx, dy, dz, original == own)
+                t, d = hit_ahead(ordered, k, ox, oy, oz, dx, dy, dz, at == own)
             else:
                 t, d = hit_closest(ordered, k, ox, oy, oz, dx, dy, dz)
-            if t > ZERO and (t < closest or (t == closest and original < hit)):
+            if t > ZERO and (
+                t < closest or (t == closest and ((hit >= 0 and order[k] < order[_U(hit)]) if positions else at < hit))
+            ):
                 closest = t
-                hit = original
+                hit = at
                 hit_d = d
         return closest, hit, hit_d
 

@@ -194,12 +194,12 @@ class Tracer(TracerBase):
             self.bvh = cuda_build.build(self.spheres[:, :count], self._d_input(), self._builder, kind=kind)
             # the fresh tree's SAH cost: what update()'s refits are held to
             self._fresh_cost = self._builder.read_cost() if self.bvh.built_on == "gpu" else None
-        elif self._in_order:
-            host = bvh_mod.build(self.spheres[:, :count], device="cuda", primitive=self._kind)
-            # its nodes and order alone: the leaves are the scene's buffer, put in order below
-            self.bvh = cuda_build.upload(dataclasses.replace(host, ordered=np.zeros((1, 1), np.float32)))
         else:
-            self.bvh = cuda_build.upload(bvh_mod.build(self.spheres[:, :count], device="cuda", primitive=self._kind))
+            cost = self._kind.CUDA_NODE_COST
+            host = bvh_mod.build(self.spheres[:, :count], device="cuda", primitive=self._kind, node_cost=cost)
+            if self._in_order:  # its nodes and order alone: the leaves are the scene's buffer, put in order below
+                host = dataclasses.replace(host, ordered=np.zeros((1, 1), np.float32))
+            self.bvh = cuda_build.upload(host)
         self._launches.clear()  # they hold the old tree's arrays
         self.build_s = self.bvh.build_s
         self.d_nodes, self.d_links = self.bvh.nodes, self.bvh.links  # the same bytes: one row holds both

@@ -55,6 +55,7 @@ CPU_LEAF_ORDER = triangle.CPU_LEAF_ORDER
 # larger leaves made a mesh among spheres slower: docs/triangles.md, "Larger leaves for the cpu's
 # packets").
 PACKETS_NODE_COST = sphere.PACKETS_NODE_COST
+CUDA_NODE_COST = sphere.CUDA_NODE_COST
 # Rows of the scene's buffer that the shading reads at least: a triangle's shaded rows and the tag.
 SCENE_ROWS = MIX_SCENE_ROWS
 # A packed leaf copy: five float64 words, the ten float32 of a leaf's rows.

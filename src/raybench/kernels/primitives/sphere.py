@@ -53,6 +53,8 @@ CPU_LEAF_ORDER = "C"
 # of primary rays walk: layout.NODE_COST, every tree's (the triangle's larger leaves made the
 # thesis's frames no faster: docs/triangles.md, "Larger leaves for the cpu's packets").
 PACKETS_NODE_COST = NODE_COST
+# And in the host's tree that cuda walks: every tree's.
+CUDA_NODE_COST = NODE_COST
 # Rows of the scene's buffer (Scene.spheres) that the shading reads: with the colour.
 SCENE_ROWS = SPHERE_ROWS
 # A packed leaf copy (make's words, pack_leaf): float64 words a sphere, its four float32.
