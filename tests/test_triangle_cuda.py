@@ -128,6 +128,24 @@ def test_packet_walk_and_brute_force_give_the_ray_walks_frame(ball):
     frames_alike(render_mesh(scene, width, height, device="cuda", accel="none", kernel="simple"), ray)
 
 
+def test_a_mesh_of_one_colour_keeps_its_colour_once(ball):
+    """In the tree's order on cuda, a mesh whose triangles share one colour
+    keeps its vertices' rows and that colour once, in a column after its
+    last triangle (a quarter of the buffer's bytes less); one of two colours
+    keeps every triangle's own. Both are the float64 reference's pictures,
+    each in its own colours."""
+    scene, _origin, dirs, index, _t, normal, margin = ball
+    n = scene.triangles.shape[1]
+    two = scene.triangles.copy()
+    two[layout.TRI_RED, ::2] = 0.25  # every other triangle less red
+    for leaves, kept in ((scene.triangles, (layout.TRI_ROWS, n + 1)), (two, (layout.TRI_SHADED_ROWS, n))):
+        with backends.tracer("cuda", leaves, W, H, primitive="triangle", walk="ray") as tracer:
+            image, hits = tracer.trace(scene.camera.basis(W, H))
+            assert tracer.d_spheres.shape == kept
+            frame = SimpleNamespace(image=image.copy(), hits=hits.copy())
+        check_against_reference(frame, leaves, index, margin, thesis_image(leaves, index, normal, dirs, W, H))
+
+
 def lambert(scene, origin, dirs, index, t, normal, plane):
     """Whitted's picture of a convex mesh under its one default light, in
     float64 (test_triangle_render's): colour times (ambient + max(n.L, 0)),

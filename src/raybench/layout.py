@@ -31,6 +31,9 @@ TRI_RED, TRI_GREEN, TRI_BLUE = 9, 10, 11
 TRI_SHADED_ROWS = 12
 TRI_NA, TRI_NB, TRI_NC = 12, 15, 18
 TRI_SMOOTH_ROWS = 21
+# On cuda, in the tree's order (backends/cuda/tree_order.py), the buffer of a mesh whose triangles
+# share one colour and have no corners' normals keeps the TRI_ROWS rows alone, and one column after
+# its last triangle whose first three rows hold that colour: a quarter of the buffer's bytes.
 
 # ---------------------------------------------------------------- spheres and triangles in one tree
 # A scene of both kinds (kernels/primitives/mixed.py, typed leaves): a column

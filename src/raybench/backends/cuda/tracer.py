@@ -233,7 +233,10 @@ class Tracer(TracerBase):
         d_rows = self.d_spheres if built_on_gpu else None
         self.d_spheres = None
         count = self.bvh.count
-        self.d_spheres = put_in_tree_order(self.spheres, self.d_order, count, d_rows)
+        # a mesh of one colour keeps its vertices' rows, and its colour once (layout's TRI_ROWS)
+        last = self._kind.shared_colour(self.spheres[:, :count])
+        kept = None if last is None else last.shape[0]
+        self.d_spheres = put_in_tree_order(self.spheres, self.d_order, count, d_rows, kept, last)
         self.d_ordered = self.d_spheres
         if self.shading is not None:
             self.d_materials = put_in_tree_order(self.shading.materials, self.d_order, count)

@@ -22,24 +22,37 @@ def _gather_row(source, order, out, row):
         out[row, k] = source[order[k]]
 
 
-def in_tree_order(rows: np.ndarray, d_order, count: int, d_rows=None):
+@compiled.cuda_jit()
+def _put_column(column, out, at):
+    """out[r, at] = column[r, 0] for every row r."""
+    r = cuda.grid(1)
+    if r < out.shape[0]:
+        out[r, at] = column[r, 0]
+
+
+def in_tree_order(rows: np.ndarray, d_order, count: int, d_rows=None, kept: int | None = None, last=None):
     """The first `count` columns of the (R, N) float32 buffer `rows` on the
     device in the tree's order d_order (the original index of each of the
     tree's count columns), made from d_rows (rows' copy on the device) where
     given, else from rows copied up a row at a time: beside the result the
-    device then holds one row more, not the whole buffer again. With none,
-    a column of zeros, as the tracer's stand-ins."""
+    device then holds one row more, not the whole buffer again. kept: its
+    first rows alone (default all); last: a column of as many float32 put
+    after the tree's columns (a mesh's one colour: the triangle's
+    shared_colour). With none, a column of zeros, as the tracer's stand-ins."""
+    kept = rows.shape[0] if kept is None else kept
     if count == 0:
-        return cuda.to_device(np.zeros((rows.shape[0], 1), np.float32))
-    out = cuda.device_array((rows.shape[0], count), np.float32)
+        return cuda.to_device(np.zeros((kept, 1), np.float32))
+    out = cuda.device_array((kept, count + (last is not None)), np.float32)
     grid = math.ceil(count / BLOCK)
     one = None if d_rows is not None else cuda.device_array(count, np.float32)
-    for r in range(rows.shape[0]):
+    for r in range(kept):
         if d_rows is None:
             one.copy_to_device(np.ascontiguousarray(rows[r, :count]))
             source = one
         else:
             source = d_rows[r]
         _gather_row[grid, BLOCK](source, d_order, out, r)
+    if last is not None:
+        _put_column[1, kept](cuda.to_device(np.ascontiguousarray(last, np.float32)), out, count)
     cuda.synchronize()
     return out

@@ -66,6 +66,12 @@ PACKED_WORDS = 5
 pad = triangle.pad
 
 
+def shared_colour(buffer):
+    """None: each of the kind's columns keeps its own colour (the triangle's
+    shared_colour says what a mesh of one colour keeps once)."""
+    return None
+
+
 def centres(buffer):
     """The centres of the boxes of a buffer's primitives, (3, N) float32,
     each kind's own centres (extent's)."""

@@ -75,6 +75,12 @@ def pad(cx, cy, cz, r):
     return (r + (abs(cx) + abs(cy) + abs(cz))) * PAD
 
 
+def shared_colour(buffer):
+    """None: each of the kind's columns keeps its own colour (the triangle's
+    shared_colour says what a mesh of one colour keeps once)."""
+    return None
+
+
 def centres(buffer):
     """The centres of the boxes of a buffer's spheres, (3, N): extent's
     centres, read on the host (the GPU builders' Morton codes)."""

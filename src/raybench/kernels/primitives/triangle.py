@@ -158,6 +158,22 @@ def centres(buffer):
     return out
 
 
+def shared_colour(buffer):
+    """The colour that every triangle of a scene's buffer has, where it has no
+    corners' normals: a column of TRI_ROWS float32, the colour in its first
+    three rows, which a buffer of the vertices' rows alone keeps after its
+    last triangle (layout's TRI_ROWS); None where the triangles' colours
+    differ or the buffer has more rows."""
+    if buffer.shape[0] != TRI_SHADED_ROWS or buffer.shape[1] == 0:
+        return None
+    rows = buffer[TRI_RED : TRI_BLUE + 1]
+    if not all((row == row[0]).all() for row in rows):
+        return None
+    column = np.zeros((TRI_ROWS, 1), np.float32)
+    column[:3, 0] = rows[:, 0]
+    return column
+
+
 def make(jit, words=None):
     """The triangle's functions compiled with `jit`: a namespace. words: a
     backend's bit cast of one float64 load into its two float32 words; with
@@ -490,7 +506,12 @@ def make(jit, words=None):
     @jit
     def colour(triangles, i):
         """Triangle i's colour (red, green, blue), the scene's buffer's
-        TRI_RED..TRI_BLUE rows (meshes.mesh_leaves writes them)."""
+        TRI_RED..TRI_BLUE rows (meshes.mesh_leaves writes them); of a buffer
+        of the vertices' rows alone, the one colour in its last column's first
+        three rows (shared_colour)."""
+        if triangles.shape[0] < TRI_SHADED_ROWS:
+            last = triangles.shape[1] - 1
+            return triangles[0, last], triangles[1, last], triangles[2, last]
         return triangles[TRI_RED, i], triangles[TRI_GREEN, i], triangles[TRI_BLUE, i]
 
     @jit
