@@ -130,7 +130,7 @@ def test_packet_walk_and_brute_force_give_the_ray_walks_frame(ball):
 
 def test_a_mesh_of_one_colour_keeps_its_colour_once(ball):
     """In the tree's order on cuda, a mesh whose triangles share one colour
-    keeps its vertices' rows and that colour once, in a column after its
+    keeps its vertices' rows and that colour once, in the columns after its
     last triangle (a quarter of the buffer's bytes less); one of two colours
     keeps every triangle's own. Both are the float64 reference's pictures,
     each in its own colours."""
@@ -138,7 +138,8 @@ def test_a_mesh_of_one_colour_keeps_its_colour_once(ball):
     n = scene.triangles.shape[1]
     two = scene.triangles.copy()
     two[layout.TRI_RED, ::2] = 0.25  # every other triangle less red
-    for leaves, kept in ((scene.triangles, (layout.TRI_ROWS, n + 1)), (two, (layout.TRI_SHADED_ROWS, n))):
+    one = (layout.TRI_ROWS, -(-(n + 1) // 32) * 32)  # the colour's columns after the triangles, to 128 bytes a row
+    for leaves, kept in ((scene.triangles, one), (two, (layout.TRI_SHADED_ROWS, n))):
         with backends.tracer("cuda", leaves, W, H, primitive="triangle", walk="ray") as tracer:
             image, hits = tracer.trace(scene.camera.basis(W, H))
             assert tracer.d_spheres.shape == kept

@@ -32,8 +32,9 @@ TRI_SHADED_ROWS = 12
 TRI_NA, TRI_NB, TRI_NC = 12, 15, 18
 TRI_SMOOTH_ROWS = 21
 # On cuda, in the tree's order (backends/cuda/tree_order.py), the buffer of a mesh whose triangles
-# share one colour and have no corners' normals keeps the TRI_ROWS rows alone, and one column after
-# its last triangle whose first three rows hold that colour: a quarter of the buffer's bytes.
+# share one colour and have no corners' normals keeps the TRI_ROWS rows alone, and after its last
+# triangle columns whose first three rows hold that colour, the buffer's last among them (its rows
+# rounded up to 128 bytes): a quarter of the buffer's bytes less.
 
 # ---------------------------------------------------------------- spheres and triangles in one tree
 # A scene of both kinds (kernels/primitives/mixed.py, typed leaves): a column
