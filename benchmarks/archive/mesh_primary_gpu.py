@@ -1,0 +1,40 @@
+"""The icosphere of 1.31 M triangles (bench.meshes.mesh_scene), primary rays on cuda at
+1680x1050, for one version of raybench (its src first on PYTHONPATH): the medians of N frames'
+kernels (timed_trace) and whole frames, the walk, the shape of the scene's buffer on the device,
+and the last picture and hits saved to OUT.npz for comparing two versions' frames pixel by pixel.
+
+    PYTHONPATH=<src> python benchmarks/archive/mesh_primary_gpu.py NAME OUT.npz 9
+
+Run in turn for the versions compared. The figures: benchmarks/results/h100/triangles/README.md.
+"""
+
+import json
+import statistics
+import sys
+import time
+
+import numpy as np
+
+import raybench
+from raybench.bench import meshes
+
+
+def main(name: str, out: str, frames: int) -> None:
+    scene = meshes.mesh_scene("icosphere", 1310720)
+    with raybench.Renderer(scene, 1680, 1050, "cuda", "thesis") as renderer:
+        frame = renderer.render(scene.camera)
+        kernels, whole = [], []
+        for _ in range(frames):
+            start = time.perf_counter()
+            frame = renderer.render(scene.camera)
+            whole.append((time.perf_counter() - start) * 1e3)
+            kernels.append(renderer.tracer.timed_trace(scene.camera.basis(1680, 1050)))
+        np.savez(out, image=frame.image, hits=frame.hits)
+        tracer = renderer.tracer
+        print(json.dumps({"version": name, "walk": tracer.walk, "rows": list(tracer.d_spheres.shape),
+                          "kernel_ms": round(statistics.median(kernels), 4),
+                          "whole_ms": round(statistics.median(whole), 4)}))  # fmt: skip
+
+
+if __name__ == "__main__":
+    main(sys.argv[1], sys.argv[2], int(sys.argv[3]))
