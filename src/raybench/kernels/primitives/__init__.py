@@ -20,7 +20,10 @@ primitive on the rows of rays its box's footprint on the frame covers
 Whitted's packets program on the cpu traces a hit's shadow rays to a light
 as a packet (kernels/shadow_packets.py) or a ray at a time; SCENE_ROWS, the
 rows of its scene buffer that the shading reads; pad(...), the
-builders' padding; centres(buffer), its boxes' centres on the host; and
+builders' padding; centres(buffer), its boxes' centres on the host;
+shared_colour(buffer), the colour all its primitives share where cuda
+keeps it once (a column; None: each keeps its own); CUDA_NODE_COST, what
+the host SAH counts a node's visit in the tree that cuda walks; and
 make(jit), its functions compiled for one target: for the builders (host
 SAH, cuda and the model's LBVH) extent (its padded box as a centre and half
 sizes) and copy_leaf (its row of the tree's leaf buffer); for the walks
