@@ -5,7 +5,8 @@ of the results schema's "parts" suite (options primitive "triangle", triangles, 
   its kernels, --repeats builds, and the wall time to the tree ready) and through wgpu
   (wgpu_build.py's gpu_build_times: GPU timestamps), each quality in --quality, beside the host's
   binned SAH build of the same triangles (quantity "bvh-build");
-- with --memory N, a frame of N random triangles (1680x1050, primary rays, the BVH) on each
+- with --memory N, a frame of N random triangles (or, with --memory-mesh icosphere, an icosphere
+  of N triangles, whose triangles share their vertices; 1680x1050, primary rays, the BVH) on each
   --memory-device: the memory it takes beyond what the process held with the mesh already made
   and the kernels compiled (a first frame of a small mesh, the builder's ways compiled too), its
   peak polled every millisecond through the tracer's making, its tree's build and a frame: on
@@ -24,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import ctypes
+import math
 import sys
 import threading
 import time
@@ -148,8 +150,9 @@ class Peak:
         self.peak = max(self.peak, self.used())
 
 
-def memory(n: int, device: str, frames: int) -> dict:
-    """A frame of n random triangles on device, with the memory it took beyond the mesh."""
+def memory(n: int, device: str, frames: int, kind: str = "random") -> dict:
+    """A frame of n triangles on device (random ones, or an icosphere's), with the memory it took
+    beyond the mesh."""
     width, height = SIZE
     basis = Camera(position=(0.0, 0.0, -3.0), look_at=(0.0, 0.0, 0.0), fov_deg=60.0).basis(width, height)
     # over sah_steps.WIDE triangles, so that the builder's way for many is compiled here too: its
@@ -158,7 +161,7 @@ def memory(n: int, device: str, frames: int) -> dict:
     with backends.tracer(device, small, width, height, primitive="triangle") as warm:
         warm.compile()
         warm.trace(basis)  # the kernels compiled or loaded, the device's context made
-    mesh = random_triangles(n)
+    mesh = random_triangles(n) if kind == "random" else icosphere(round(math.log(n / 20, 4)))
     own = mesh.vertices.nbytes + mesh.faces.nbytes
     used = _Nvml() if device == "cuda" else _rss
     before = used()
@@ -181,7 +184,7 @@ def memory(n: int, device: str, frames: int) -> dict:
     values = {"peak_extra_bytes": extra, "mesh_bytes": own, "extra_over_mesh": round(extra / own, 3),
               "leaf_buffer_bytes": leaves.nbytes, "build_s": build_s, "tracer_s": made_s}  # fmt: skip
     return _harness.part("mesh-memory", device, frames_ms, width=width, height=height,
-                         options=options(f"random {n}", n, measured="nvml used" if device == "cuda" else "rss"),
+                         options=options(f"{kind} {n}", n, measured="nvml used" if device == "cuda" else "rss"),
                          values=values)  # fmt: skip
 
 
@@ -192,18 +195,26 @@ def main() -> int:
     parser.add_argument("--random", action="append", type=int, help="random triangles")
     parser.add_argument("--quality", action="append", help="the GPU tree's quality (default sah)")
     parser.add_argument("--repeats", type=int, default=21, help="timed GPU builds per mesh")
-    parser.add_argument("--memory", type=int, default=0, help="random triangles of the memory frame (0: none)")
+    parser.add_argument("--memory", type=int, default=0, help="triangles of the memory frame (0: none)")
     parser.add_argument("--memory-device", action="append", choices=("cpu", "cuda"), help="default cuda")
+    parser.add_argument("--memory-mesh", choices=("random", "icosphere"), default="random",
+                        help="the memory frame's mesh (icosphere: N must be 20 x 4^k)")  # fmt: skip
     _harness.add_common(parser, frames=5)
     args = parser.parse_args()
     _harness.check_common(parser, args)
+    if (
+        args.memory
+        and args.memory_mesh == "icosphere"
+        and 20 * 4 ** round(math.log(args.memory / 20, 4)) != args.memory
+    ):
+        parser.error(f"--memory {args.memory}: an icosphere has 20 x 4^k triangles")
     with _harness.Records("mesh_build", args, {}) as out:
         for name, mesh in meshes(args):
             for record in builds(name, mesh, args):
                 out.write(record)
         if args.memory:
             for device in args.memory_device or ["cuda"]:
-                out.write(memory(args.memory, device, args.frames))
+                out.write(memory(args.memory, device, args.frames, args.memory_mesh))
     return 0
 
 
