@@ -20,24 +20,29 @@ import raybench
 from raybench.bench import meshes
 
 
+def timed(renderer, camera, frames):
+    """A warm Renderer's frames from camera: (the medians of `frames` kernels' own times, None
+    where the tracer times none, and of whole frames, in ms; the last frame)."""
+    width, height = renderer.width, renderer.height
+    frame = renderer.render(camera)
+    kernels, whole = [], []
+    for _ in range(frames):
+        start = time.perf_counter()
+        frame = renderer.render(camera)
+        whole.append((time.perf_counter() - start) * 1e3)
+        kernel = renderer.tracer.timed_trace(camera.basis(width, height))
+        if kernel is not None:
+            kernels.append(kernel)
+    kernel_ms = round(statistics.median(kernels), 4) if kernels else None
+    return kernel_ms, round(statistics.median(whole), 4), frame
+
+
 def _frames(scene, device, shading, frames):
     whitted = (5, 4) if shading == "whitted" else ()  # depth, shadow samples
     with raybench.Renderer(scene, 1680, 1050, device, shading, *whitted) as renderer:
-        frame = renderer.render(scene.camera)
-        kernels, whole = [], []
-        for _ in range(frames):
-            start = time.perf_counter()
-            frame = renderer.render(scene.camera)
-            whole.append((time.perf_counter() - start) * 1e3)
-            kernel = renderer.tracer.timed_trace(scene.camera.basis(1680, 1050))
-            if kernel is not None:
-                kernels.append(kernel)
+        kernel_ms, whole_ms, frame = timed(renderer, scene.camera, frames)
         digest = hashlib.sha256(frame.image.tobytes() + frame.hits.tobytes()).hexdigest()[:12]
-        return {
-            "kernel_ms": round(statistics.median(kernels), 4) if kernels else None,
-            "whole_ms": round(statistics.median(whole), 4),
-            "picture": digest,
-        }
+        return {"kernel_ms": kernel_ms, "whole_ms": whole_ms, "picture": digest}
 
 
 def main() -> None:

@@ -9,11 +9,10 @@ Run in turn for the versions compared. The figures: benchmarks/results/h100/tria
 """
 
 import json
-import statistics
 import sys
-import time
 
 import numpy as np
+from mesh_frames_gpu import timed
 
 import raybench
 from raybench.bench import meshes
@@ -22,18 +21,11 @@ from raybench.bench import meshes
 def main(name: str, out: str, frames: int) -> None:
     scene = meshes.mesh_scene("icosphere", 1310720)
     with raybench.Renderer(scene, 1680, 1050, "cuda", "thesis") as renderer:
-        frame = renderer.render(scene.camera)
-        kernels, whole = [], []
-        for _ in range(frames):
-            start = time.perf_counter()
-            frame = renderer.render(scene.camera)
-            whole.append((time.perf_counter() - start) * 1e3)
-            kernels.append(renderer.tracer.timed_trace(scene.camera.basis(1680, 1050)))
+        kernel_ms, whole_ms, frame = timed(renderer, scene.camera, frames)
         np.savez(out, image=frame.image, hits=frame.hits)
         tracer = renderer.tracer
         print(json.dumps({"version": name, "walk": tracer.walk, "rows": list(tracer.d_spheres.shape),
-                          "kernel_ms": round(statistics.median(kernels), 4),
-                          "whole_ms": round(statistics.median(whole), 4)}))  # fmt: skip
+                          "kernel_ms": kernel_ms, "whole_ms": whole_ms}))  # fmt: skip
 
 
 if __name__ == "__main__":

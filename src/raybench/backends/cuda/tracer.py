@@ -235,8 +235,7 @@ class Tracer(TracerBase):
         count = self.bvh.count
         # a mesh of one colour keeps its vertices' rows, and its colour once (layout's TRI_ROWS)
         last = self._kind.shared_colour(self.spheres[:, :count])
-        kept = None if last is None else last.shape[0]
-        self.d_spheres = put_in_tree_order(self.spheres, self.d_order, count, d_rows, kept, last)
+        self.d_spheres = put_in_tree_order(self.spheres, self.d_order, count, d_rows, last)
         self.d_ordered = self.d_spheres
         if self.shading is not None:
             self.d_materials = put_in_tree_order(self.shading.materials, self.d_order, count)

@@ -35,17 +35,17 @@ def _put_columns(column, out, first):
         out[r, first + c] = column[r, 0]
 
 
-def in_tree_order(rows: np.ndarray, d_order, count: int, d_rows=None, kept: int | None = None, last=None):
+def in_tree_order(rows: np.ndarray, d_order, count: int, d_rows=None, last=None):
     """The first `count` columns of the (R, N) float32 buffer `rows` on the
     device in the tree's order d_order (the original index of each of the
     tree's count columns), made from d_rows (rows' copy on the device) where
     given, else from rows copied up a row at a time: beside the result the
-    device then holds one row more, not the whole buffer again. kept: its
-    first rows alone (default all); last: a column of as many float32 put
-    after the tree's columns, in every column up to a whole ROW_COLUMNS (a
-    mesh's one colour, read from the last column: the triangle's
+    device then holds one row more, not the whole buffer again. last: a
+    column of float32 put after the tree's columns, in every column up to a
+    whole ROW_COLUMNS, with the buffer's first rows alone, as many as the
+    column's (a mesh's one colour, read from the last column: the triangle's
     shared_colour). With none, a column of zeros, as the tracer's stand-ins."""
-    kept = rows.shape[0] if kept is None else kept
+    kept = rows.shape[0] if last is None else last.shape[0]
     if count == 0:
         return cuda.to_device(np.zeros((kept, 1), np.float32))
     columns = count if last is None else -(-(count + 1) // ROW_COLUMNS) * ROW_COLUMNS

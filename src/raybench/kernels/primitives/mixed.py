@@ -64,12 +64,8 @@ PACKED_WORDS = 5
 # triangle's rule, which for a sphere's cube is at least the sphere's. No
 # builder calls it: extent pads each kind by its own.
 pad = triangle.pad
-
-
-def shared_colour(buffer):
-    """None: each of the kind's columns keeps its own colour (the triangle's
-    shared_colour says what a mesh of one colour keeps once)."""
-    return None
+# Each primitive keeps its own colour, as a sphere does.
+shared_colour = sphere.shared_colour
 
 
 def centres(buffer):
