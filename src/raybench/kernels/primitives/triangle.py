@@ -125,8 +125,8 @@ CPU_LEAF_ORDER = "F"
 # through it, and the GPUs' walks are not measured so: their trees keep layout.NODE_COST.
 PACKETS_NODE_COST = np.float32(2.0 * NODE_COST)
 # What the SAH counts a node's visit in the host's tree that cuda walks (its build "host"):
-# layout.NODE_COST. Larger leaves halved the tree's bytes but cost Whitted's rays a fifth and more
-# (docs/triangles.md#memory; benchmarks/archive/cuda_node_cost.py sweeps it).
+# layout.NODE_COST. Larger leaves made the tree smaller but Whitted's rays far slower
+# (docs/notes/mesh-memory.md; benchmarks/archive/cuda_node_cost.py sweeps it).
 CUDA_NODE_COST = NODE_COST
 # Rows of the scene's buffer that the shading reads at least: with the colour.
 SCENE_ROWS = TRI_SHADED_ROWS
