@@ -37,7 +37,7 @@ from _embreex import icosphere
 from raybench import backends, bvh
 from raybench.bvh.sah_steps import WIDE
 from raybench.camera import Camera
-from raybench.meshes import MESH_COLOUR, Mesh, mesh_leaves
+from raybench.meshes import MESH_COLOUR, Mesh, Painted, mesh_leaves
 
 SIZE = (1680, 1050)
 
@@ -157,7 +157,7 @@ def memory(n: int, device: str, frames: int, kind: str = "random") -> dict:
     basis = Camera(position=(0.0, 0.0, -3.0), look_at=(0.0, 0.0, 0.0), fov_deg=60.0).basis(width, height)
     # over sah_steps.WIDE triangles, so that the builder's way for many is compiled here too: its
     # compile's memory (LLVM's) was counted in the cpu's peak until 2026-12-05
-    small = mesh_leaves(random_triangles(2 * WIDE), MESH_COLOUR)
+    small = Painted(random_triangles(2 * WIDE), MESH_COLOUR)
     with backends.tracer(device, small, width, height, primitive="triangle") as warm:
         warm.compile()
         warm.trace(basis)  # the kernels compiled or loaded, the device's context made
@@ -168,8 +168,8 @@ def memory(n: int, device: str, frames: int, kind: str = "random") -> dict:
     frames_ms = []
     with Peak(used) as peak:
         start = time.perf_counter()
-        leaves = mesh_leaves(mesh, MESH_COLOUR)
-        tracer = backends.tracer(device, leaves, width, height, primitive="triangle")
+        # the mesh and its colour: each device makes what it traces from them (meshes.Painted)
+        tracer = backends.tracer(device, Painted(mesh, MESH_COLOUR), width, height, primitive="triangle")
         made_s = time.perf_counter() - start
         try:
             tracer.trace(basis)
@@ -182,7 +182,7 @@ def memory(n: int, device: str, frames: int, kind: str = "random") -> dict:
             tracer.close()
     extra = peak.peak - before
     values = {"peak_extra_bytes": extra, "mesh_bytes": own, "extra_over_mesh": round(extra / own, 3),
-              "leaf_buffer_bytes": leaves.nbytes, "build_s": build_s, "tracer_s": made_s}  # fmt: skip
+              "build_s": build_s, "tracer_s": made_s}  # fmt: skip
     return _harness.part("mesh-memory", device, frames_ms, width=width, height=height,
                          options=options(f"{kind} {n}", n, measured="nvml used" if device == "cuda" else "rss"),
                          values=values)  # fmt: skip

@@ -10,7 +10,9 @@ or too large coordinate, no faces. Degenerate triangles (zero area) load as
 they are: the triangle's test never hits them (kernels/primitives/triangle.py).
 mesh_leaves(mesh, colour) lays a mesh out as the triangle primitive's scene
 buffer (layout's TRI_ rows), every triangle of one colour (default
-MESH_COLOUR).
+MESH_COLOUR). A Painted mesh (a mesh and its one colour) is what a tracer
+may take in its place: the cpu builds the tree of its primary rays from the
+mesh's own arrays and makes no scene buffer (backends/cpu/tracer.py).
 """
 
 from __future__ import annotations
@@ -201,3 +203,28 @@ def mesh_leaves(mesh: Mesh, colour=MESH_COLOUR) -> np.ndarray:
             out[normal_row : normal_row + 3] = mesh.normals[at].T
     out[TRI_RED : TRI_RED + 3] = np.asarray(colour, np.float32).reshape(3, 1)
     return out
+
+
+@dataclass(frozen=True)
+class Painted:
+    """A mesh whose triangles share one colour, which a tracer of triangles takes in place of
+    its scene buffer (backends.tracer): each device makes that buffer (leaves()) where it
+    reads one, and the cpu's primary rays need none (docs/triangles.md#memory)."""
+
+    mesh: Mesh
+    colour: tuple = MESH_COLOUR
+
+    def __len__(self) -> int:
+        return len(self.mesh)
+
+    def leaves(self) -> np.ndarray:
+        """Its scene buffer: mesh_leaves(mesh, colour)."""
+        return mesh_leaves(self.mesh, self.colour)
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """(vertices, faces), float32 and int32, C-contiguous: what the host's builder reads
+        through kernels/primitives/triangle_mesh.py."""
+        return (
+            np.ascontiguousarray(self.mesh.vertices, np.float32),
+            np.ascontiguousarray(self.mesh.faces, np.int32),
+        )

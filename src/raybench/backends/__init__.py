@@ -105,7 +105,8 @@ def present() -> list[str]:
 def tracer(device: str, spheres, width: int, height: int, shading=None, primitive: str = "sphere", **options):
     """A Tracer of the (resolved) device for this scene and size. primitive:
     the kind of primitive the columns of `spheres` are (kernels/primitives'
-    KINDS): "sphere", Scene.spheres; "triangle", meshes.mesh_leaves' buffer,
+    KINDS): "sphere", Scene.spheres; "triangle", meshes.mesh_leaves' buffer
+    or a meshes.Painted mesh (its buffer made where a device reads one),
     traced on every device; "mixed", spheres and triangles in one buffer
     (scene_meshes.mixed_leaves), traced on every device too ("auto" picks the
     cpu for both). options:
@@ -118,6 +119,9 @@ def tracer(device: str, spheres, width: int, height: int, shading=None, primitiv
     if primitive != "sphere" and isinstance(device, str) and device == "auto":
         device = "cpu"  # auto: the cpu traces every kind
     name = resolve(device, options.get("adapter") if isinstance(device, str) and device == "wgpu" else None)
+    from ..meshes import Painted
+
+    painted = isinstance(spheres, Painted)
     if primitive != "sphere":
         _check_kind(name, spheres, primitive)
     if shading is not None:
@@ -127,7 +131,9 @@ def tracer(device: str, spheres, width: int, height: int, shading=None, primitiv
 
         if not isinstance(shading, Shading):
             raise RaybenchError(f"shading: must be a raybench.lighting.Shading, got {type(shading).__name__}")
-        shading.check(np.shape(spheres)[-1])
+        shading.check(len(spheres) if painted else np.shape(spheres)[-1])
+    if painted and name != "cpu":
+        spheres = spheres.leaves()  # the GPUs trace a scene buffer: made here
     if primitive != "sphere":
         return module(name).Tracer(spheres, width, height, checked(name, options, shading), shading, primitive)
     return module(name).Tracer(spheres, width, height, checked(name, options, shading), shading)
@@ -150,6 +156,12 @@ def _check_kind(device: str, buffer, primitive: str) -> None:
     if device not in KIND_DEVICES[primitive]:
         what = "scenes of spheres and meshes together are" if primitive == "mixed" else f"{primitive}s are"
         raise RaybenchError(f"device {device}: {what} traced on {', '.join(KIND_DEVICES[primitive])} only so far")
+    from ..meshes import Painted
+
+    if isinstance(buffer, Painted):
+        if primitive != "triangle":
+            raise RaybenchError(f"a painted mesh (meshes.Painted) is traced as primitive 'triangle', not {primitive!r}")
+        return
     rows = KINDS[primitive].SCENE_ROWS
     if not (
         isinstance(buffer, np.ndarray)

@@ -89,12 +89,11 @@ def compile_builder(wide: bool = True) -> None:
         build(spheres, threads=1, _timed=False, _wide=2)
 
 
-def _build_narrow(code, items, leaf_rows, memory="C", node_cost=NODE_COST):
-    """The one-thread way's tree: (nodes, ordered, order, depth). code:
-    sah_steps, or sah_steps as plain Python (_python_steps) to run it
+def _build_narrow(code, items, n, leaf_rows, memory="C", node_cost=NODE_COST):
+    """The one-thread way's tree of the n primitives of items: (nodes, ordered, order, depth).
+    code: sah_steps, or sah_steps as plain Python (_python_steps) to run it
     uncompiled; memory: the leaf buffer's order in memory (leaf_buffer's);
     node_cost: _grow's."""
-    n = items.shape[1]
     p = sah_steps.work_arrays(n)
     order = p[4]
     # IEEE arithmetic, as compiled code's: no NumPy warnings on inf or nan when uncompiled
@@ -138,11 +137,32 @@ def _tighten(steps, primitive, nodes, ordered) -> None:
         steps.sah_steps._refit(nodes, nodes.view(np.int32), ordered)
 
 
+def _items(primitives):
+    """What the builder's steps read through the kind's extent and copy_leaf: a scene buffer,
+    C-contiguous; or a mesh's (vertices, faces), C-contiguous each, which
+    kernels/primitives/triangle_mesh.py reads."""
+    if isinstance(primitives, tuple):
+        return tuple(np.ascontiguousarray(a) for a in primitives)
+    return np.ascontiguousarray(primitives)
+
+
+def _count(items) -> int:
+    """The primitives of _items' answer: a buffer's columns, a mesh's faces."""
+    return items[1].shape[0] if isinstance(items, tuple) else items.shape[1]
+
+
+def _first(items, n: int):
+    """The first n (at most) primitives of _items' answer, C-contiguous."""
+    if isinstance(items, tuple):
+        return items[0], np.ascontiguousarray(items[1][:n])
+    return np.ascontiguousarray(items[:, :n])
+
+
 def _compile_kind(items, primitive, wide: bool, device: str) -> None:
     """Compile a kind's steps other than the sphere's (compile_builder's
     work) by building over a few of its own primitives, untimed, for the
     device's leaf buffer (its order in memory is part of the compiled type)."""
-    few = np.ascontiguousarray(items[:, : min(items.shape[1], 9)])
+    few = _first(items, 9)
     build(few, threads=1, device=device, _timed=False, primitive=primitive)
     if wide:
         build(few, threads=1, device=device, _timed=False, _wide=2, primitive=primitive)
@@ -159,7 +179,8 @@ def build(
 ) -> Bvh:
     """The BVH of a (7, N) float32 sphere array (Scene.spheres), or of
     another primitive's scene buffer (primitive: its module of
-    kernels/primitives, meshes.mesh_leaves' for the triangle), built on
+    kernels/primitives, meshes.mesh_leaves' for the triangle), or of a
+    mesh's (vertices, faces) with primitive triangle_mesh, built on
     `threads` threads (default: all cores). Up to `_wide` spheres, on one
     thread; above, the top of the tree is split by all threads together, the
     subtrees below on one thread each. The tree is the same on any number of
@@ -168,14 +189,14 @@ def build(
     by the builder's uncompiled Python, the same tree (Bvh.interpreted).
     node_cost: what the SAH counts a node's visit, in primitives' tests
     (a kind's PACKETS_NODE_COST for the cpu's packets' tree)."""
-    n = spheres.shape[1]
+    items = _items(spheres)
+    n = _count(items)
     if n > MAX_SPHERES:
         raise RaybenchError(f"bvh: at most {MAX_SPHERES:,} spheres, got {n:,}")
     threads = threads or usable_cores()
     home = primitive is sphere  # the one-shot ways (plain Python, a child compiling) are the sphere's
     interpret, elsewhere = oneshot.in_python(n, _wide, device) if _timed and home else (False, False)
     oneshot.note_build(interpret)
-    items = np.ascontiguousarray(spheres)
     if elsewhere:
         oneshot.compile_elsewhere()
     elif _timed and not interpret:
@@ -194,14 +215,14 @@ def build(
             before = numba.get_num_threads()
             numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
             try:
-                nodes, order, depth = steps.sah_wide._build_wide(items, threads, _wide, node_cost)
+                nodes, order, depth = steps.sah_wide._build_wide(items, n, threads, _wide, node_cost)
                 # made once the builder's arrays are gone, so that it never adds to their peak
                 ordered = steps.sah_wide.leaf_buffer(items, order, primitive.LEAF_ROWS, threads, memory)
             finally:
                 numba.set_num_threads(before)
     else:
         code = _python_steps() if interpret else steps.sah_steps
-        nodes, ordered, order, depth = _build_narrow(code, items, primitive.LEAF_ROWS, memory, node_cost)
+        nodes, ordered, order, depth = _build_narrow(code, items, n, primitive.LEAF_ROWS, memory, node_cost)
     _tighten(steps, primitive, nodes, ordered)
     build_s = time.perf_counter() - start
     return Bvh(

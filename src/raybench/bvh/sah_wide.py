@@ -364,14 +364,13 @@ def _piece(primitives: int, threads: int) -> int:
     return min(SLICE, max(1024, primitives // (4 * threads)))
 
 
-def _build_wide(items, threads: int, wide: int, node_cost=NODE_COST):
-    """The tree of the n > wide primitives of the scene's buffer items: its
+def _build_wide(items, n: int, threads: int, wide: int, node_cost=NODE_COST):
+    """The tree of the n > wide primitives of items (a scene's buffer, or a mesh's pair): its
     top level by level, each range of over `wide` primitives split by all
     threads, then the subtrees below on one thread each, each into its own
     block of rows, then the blocks packed after the top's rows. Returns
     (nodes, order, deepest depth); leaf_buffer makes the leaf buffer after,
     when the builder's arrays are gone."""
-    n = items.shape[1]
     p = work_arrays(n)
     q = work_arrays(n)
     # the top's rows, then one block per subtree at the top's row count plus

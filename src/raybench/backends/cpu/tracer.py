@@ -20,7 +20,9 @@ from ...layout import (
     NODE_COST,
     NODE_FLOATS,
 )
+from ...kernels.primitives import triangle, triangle_mesh
 from ...lighting import Shading
+from ...meshes import Painted
 from ..contract import TracerBase, check_moved
 from ..limits import HOST_PIXEL_BYTES, check_bvh_fits, check_count, check_fits, check_rows
 from ..options import KIND_TREE_WIDTH, CpuOptions
@@ -76,6 +78,16 @@ class Tracer(TracerBase):
         options = self._options(options, shading)
         self.options = options
         self.accel, self.kernel = options.accel, options.kernel
+        # a painted mesh's primary rays through the tree read its leaf buffer and its one colour
+        # alone: the tree is built from the mesh's own arrays, and no scene buffer is made beside
+        # it (kernels/primitives/triangle_mesh.py); every other frame reads the scene buffer
+        self._source = None
+        if isinstance(spheres, Painted):
+            if self.accel == "bvh" and shading is None:
+                self._source, self._colour = spheres.arrays(), triangle.colour_column(spheres.colour)
+            else:
+                spheres = spheres.leaves()
+        count = len(spheres) if self._source is not None else spheres.shape[1]
         # the kind of primitive spheres' columns are (kernels/primitives' KINDS), and its kernels
         self.primitive = primitive
         self._kind = primitive_of(primitive)
@@ -86,19 +98,19 @@ class Tracer(TracerBase):
                 "(kernel='simple', --kernel simple)"
             )
         # the threads' stacks counted: under ulimit -v they take address space the frame then lacks
-        check_fits("cpu", width, height, spheres.shape[1], host_available_bytes(options.threads), HOST_PIXEL_BYTES)
+        check_fits("cpu", width, height, count, host_available_bytes(options.threads), HOST_PIXEL_BYTES)
         if self.accel == "bvh":
             check_bvh_fits(
                 "cpu",
-                spheres.shape[1],
+                count,
                 host_available_bytes(),
                 bvh_mod.BUILD_SPHERE_BYTES,
                 width * height * HOST_PIXEL_BYTES,
                 self._kind.NOUN,
             )
         self.threads = options.threads
-        self.spheres = spheres
-        self.count = spheres.shape[1]
+        self.spheres = spheres if self._source is None else None
+        self.count = count
         self.width, self.height = width, height
         self.image = np.empty((height, width, 3), dtype=np.uint8)
         self.hits = np.empty((height, width), dtype=np.int32)
@@ -124,10 +136,7 @@ class Tracer(TracerBase):
             if self.accel == "bvh":
                 self._build(self.count)
         elif self.accel == "bvh":
-            # what the packets shade from: the spheres, or with none a
-            # stand-in that every pixel misses (_colour_packet reads sphere
-            # 0 for a miss), as the cuda backend uploads
-            self.shaded = spheres if self.count else self._stand_in()
+            self.shaded = self._shaded()
             self.bands = chunks(height, self.threads)
             workers = min(self.threads, len(self.bands))
             self.tree_width = options.tree_width or KIND_TREE_WIDTH[primitive]["thesis"]
@@ -148,6 +157,14 @@ class Tracer(TracerBase):
         self._workers = workers
         self._stop = np.zeros(1, np.uint8)  # set: every kernel returns at its next row (trace)
 
+    def _shaded(self) -> np.ndarray:
+        """What the packets of primary rays shade from (_colour_packet): the scene buffer, or a
+        painted mesh's colour column; with no primitive, a stand-in that every pixel misses
+        (a miss reads primitive 0), as the cuda backend uploads."""
+        if self._source is not None:
+            return self._colour
+        return self.spheres if self.count else self._stand_in()
+
     def _stand_in(self) -> np.ndarray:
         """A buffer of one primitive of the kind, for a frame of none."""
         return np.zeros((self._kind.SCENE_ROWS, 1), np.float32)
@@ -161,7 +178,7 @@ class Tracer(TracerBase):
         if self.accel != "bvh":
             return None
         if self.shading is None:
-            self.shaded = self.spheres if self.count else self._stand_in()
+            self.shaded = self._shaded()
         self._build(self.bvh.count)
         return "build"
 
@@ -172,7 +189,11 @@ class Tracer(TracerBase):
         # a tree that only the packets of primary rays walk is cut for them (the kind's PACKETS_NODE_COST)
         packets_only = self.shading is None and self.tree_width == 4
         node_cost = self._kind.PACKETS_NODE_COST if packets_only else NODE_COST
-        self.bvh = bvh_mod.build(self.spheres[:, :count], threads=threads, primitive=self._kind, node_cost=node_cost)
+        if self._source is None:
+            items, kind = self.spheres[:, :count], self._kind
+        else:
+            items, kind = triangle_mesh.first(self._source, count), triangle_mesh
+        self.bvh = bvh_mod.build(items, threads=threads, primitive=kind, node_cost=node_cost)
         self.build_s = self.bvh.build_s
         if self.tree_width == 4:
             if not bvh_mod.collapse_in_python(self.bvh):

@@ -170,8 +170,15 @@ def shared_colour(buffer):
     rows = buffer[TRI_RED : TRI_BLUE + 1]
     if not all((row == row[0]).all() for row in rows):
         return None
+    return colour_column(rows[:, 0])
+
+
+def colour_column(colour):
+    """A column of TRI_ROWS float32, the colour (red, green, blue) in its first three rows: what
+    a buffer of the vertices' rows alone keeps after its last triangle, and alone, what the cpu's
+    packets shade a mesh of one colour from (`colour` reads its last column)."""
     column = np.zeros((TRI_ROWS, 1), np.float32)
-    column[:3, 0] = rows[:, 0]
+    column[:3, 0] = colour
     return column
 
 
@@ -409,7 +416,13 @@ def make(jit, words=None):
         host SAH builder weighs its splits over the largest, the cube
         around the box, then refits the tree's boxes to `bounds`
         (bvh/sah_steps.py)."""
-        ax, ay, az, bx, by, bz, cx, cy, cz = read(buffer, k)
+        return extent_of(read(buffer, k))
+
+    @jit
+    def extent_of(row):
+        """extent of a triangle's nine values as `read` gives them (a mesh's
+        vertices read through its faces too: kernels/primitives/triangle_mesh.py)."""
+        ax, ay, az, bx, by, bz, cx, cy, cz = row
         mx, my, mz, hx, hy, hz = box(ax, ay, az, bx, by, bz, cx, cy, cz)
         p = padding(mx, my, mz, hx, hy, hz)
         return mx, my, mz, hx + p, hy + p, hz + p
@@ -448,8 +461,13 @@ def make(jit, words=None):
         """Triangle k of the scene's buffer into the tree's leaf buffer (the
         builders' `ordered`) at column `at`: its nine vertex values, never
         the normals."""
-        for row in range(TRI_ROWS):
-            leaves[row, at] = buffer[row, k]
+        put_leaf(read(buffer, k), leaves, at)
+
+    @jit
+    def put_leaf(row, leaves, at):
+        """A triangle's nine values as `read` gives them into the tree's leaf buffer at column `at`."""
+        for r in range(TRI_ROWS):
+            leaves[r, at] = row[r]
 
     @jit
     def pack_leaf(leaves, k, rows):
@@ -524,4 +542,4 @@ def make(jit, words=None):
     # pad: the module's pad, compiled
     footprinted = footprinted_always(jit, PACKET_FOOTPRINT)
     hit_whole = hit_from  # what the packets test an unfootprinted primitive with
-    return answers("triangle", {**locals(), "pad": padding}, ("permute", "sheared", "woop", "normal", "finish", "box"))
+    return answers("triangle", {**locals(), "pad": padding}, ("permute", "sheared", "woop", "normal", "finish", "box", "extent_of", "put_leaf"))
