@@ -1,7 +1,8 @@
 """Where the cpu's memory peaks with a large mesh: the process's resident set polled every
 millisecond while a frame of random triangles is made (mesh_build.memory's frame), its peak and
-its last reading in each phase (the scene's buffer, the tree's build, its 4-wide collapse, the
-frame), over the mesh's own bytes.
+its last reading in each phase (the tracer's making, the tree's build, its 4-wide collapse, the
+frame), over the mesh's own bytes. The mesh is handed over painted (meshes.Painted), as
+mesh_build.memory hands it; before 2026-12-05 (later) the frame was made from its scene buffer.
 
     PYTHONPATH=src:benchmarks python benchmarks/archive/memory_phases.py 10000000
 """
@@ -18,7 +19,7 @@ from raybench import bvh as bvh_mod
 from raybench.backends.cpu import tracer as cpu_tracer
 from raybench.bvh.sah_steps import WIDE
 from raybench.camera import Camera
-from raybench.meshes import MESH_COLOUR, mesh_leaves
+from raybench.meshes import MESH_COLOUR, Painted
 
 marks = []
 
@@ -38,7 +39,7 @@ def main() -> None:
     cpu_tracer.bvh_mod = bvh_mod
     width, height = mesh_build.SIZE
     basis = Camera(position=(0.0, 0.0, -3.0), look_at=(0.0, 0.0, 0.0), fov_deg=60.0).basis(width, height)
-    small = mesh_leaves(mesh_build.random_triangles(2 * WIDE), MESH_COLOUR)
+    small = Painted(mesh_build.random_triangles(2 * WIDE), MESH_COLOUR)
     with backends.tracer("cpu", small, width, height, primitive="triangle") as warm:
         warm.compile()
         warm.trace(basis)
@@ -53,9 +54,8 @@ def main() -> None:
     before = process.memory_info().rss
     thread = threading.Thread(target=poll, daemon=True)
     thread.start()
-    marks.append((time.perf_counter(), "scene's buffer"))
-    leaves = mesh_leaves(mesh, MESH_COLOUR)
-    tracer = backends.tracer("cpu", leaves, width, height, primitive="triangle")
+    marks.append((time.perf_counter(), "tracer"))
+    tracer = backends.tracer("cpu", Painted(mesh, MESH_COLOUR), width, height, primitive="triangle")
     marks.append((time.perf_counter(), "frame"))
     tracer.trace(basis)
     marks.append((time.perf_counter(), "end"))

@@ -10,6 +10,7 @@ a material per sphere, the ambient light and the background
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from pathlib import Path
@@ -24,7 +25,7 @@ from .fields import numbers as _numbers
 from .files import read_json, write_atomic
 from .host import host_available_bytes
 from .layout import BLUE, CX, CZ, RADIUS, RED
-from .scene_meshes import SceneMesh, Traced, merged, read_meshes, traced
+from .scene_meshes import SceneMesh, Traced, merged, merged_materials, read_meshes, traced
 
 FORMAT = "raybench-scene"
 VERSION = 3
@@ -58,7 +59,7 @@ class Scene:
     """n spheres, and optionally the camera the scene was saved with; for
     Whitted shading, lights, a Material per sphere (None: all matte), the
     ambient light and the background colour (None: the thesis's gradient);
-    meshes, scene_meshes.SceneMesh each (format version 3), held merged as
+    meshes, scene_meshes.SceneMesh each (format version 3), merged as
     one triangle buffer (triangles, None without meshes) with a Material a
     triangle (triangle_materials, None: all matte). len() counts the
     spheres; traced() is what a tracer traces."""
@@ -109,10 +110,17 @@ class Scene:
         for i, mesh in enumerate(self.meshes):
             if not isinstance(mesh, SceneMesh):
                 raise RaybenchError(f"meshes[{i}]: must be a raybench.SceneMesh, got {type(mesh).__name__}")
-        self.triangles, self.triangle_materials = merged(self.meshes)
+        self.triangle_materials = merged_materials(self.meshes)
 
     def __len__(self) -> int:
         return self.spheres.shape[1]
+
+    @functools.cached_property
+    def triangles(self) -> np.ndarray | None:
+        """The meshes' triangles as one buffer (scene_meshes.merged), None without meshes: made
+        when first asked for, as a scene of one mesh is traced from the mesh itself
+        (scene_meshes.traced), which a large mesh's frame on the cpu needs no buffer of."""
+        return merged(self.meshes)
 
     def __repr__(self) -> str:
         return f"Scene({self.summary}, camera={self.camera!r})"
@@ -120,16 +128,16 @@ class Scene:
     @property
     def summary(self) -> str:
         """What the scene holds, for a message: "12 spheres", "80 triangles" or both."""
-        parts = [f"{len(self):,} spheres"] if len(self) or self.triangles is None else []
-        if self.triangles is not None:
-            parts.append(f"{self.triangles.shape[1]:,} triangles")
+        parts = [f"{len(self):,} spheres"] if len(self) or not self.meshes else []
+        if self.meshes:
+            parts.append(f"{sum(len(m.mesh) for m in self.meshes):,} triangles")
         return " and ".join(parts)
 
     def traced(self) -> Traced:
         """What a tracer traces of this scene: its spheres, or its meshes'
         triangles where it has no spheres; both is refused in one line (one
         tree of both kinds is not built yet)."""
-        return traced(self.spheres, self.triangles, self)
+        return traced(self)
 
     @property
     def centers(self) -> np.ndarray:

@@ -28,7 +28,7 @@ from .camera import MAX_MAGNITUDE
 from .errors import RaybenchError, shown
 from .fields import no_unknown, numbers
 from .layout import MIX_SPHERE, MIX_TRIANGLE, SPHERE_ROWS, TRI_SHADED_ROWS, TRI_SMOOTH_ROWS
-from .meshes import MESH_COLOUR, Mesh, checked_mesh, load_mesh, mesh_leaves
+from .meshes import MESH_COLOUR, Mesh, Painted, checked_mesh, load_mesh, mesh_leaves
 
 MESH_KEYS = {"file", "vertices", "faces", "normals", "transform", "color", "material"}
 TRANSFORM_KEYS = {"translate", "scale", "rotate"}
@@ -65,19 +65,24 @@ class SceneMesh:
 @dataclass(frozen=True)
 class Traced:
     """What one tracer traces: kind, a primitive kind of kernels/primitives'
-    KINDS; leaves, its scene buffer (Scene.spheres, or the triangles');
-    and what lighting.Shading.of reads: one material per primitive (None:
-    all matte), the lights, the ambient light, the background."""
+    KINDS; leaves, its scene buffer (Scene.spheres, or the triangles'), or
+    a scene of one mesh's Painted mesh, which backends.tracer takes in its
+    place; and what lighting.Shading.of reads: one material per primitive
+    (None: all matte), the lights, the ambient light, the background."""
 
     kind: str
-    leaves: np.ndarray
+    leaves: np.ndarray | Painted
     materials: tuple | None
     lights: tuple
     ambient: tuple
     background: tuple | None
 
     def __len__(self) -> int:
-        return self.leaves.shape[1]
+        return len(self.leaves) if isinstance(self.leaves, Painted) else self.leaves.shape[1]
+
+    def buffer(self) -> np.ndarray:
+        """Its scene buffer, made from a Painted mesh (Painted.leaves) where it holds one."""
+        return self.leaves.leaves() if isinstance(self.leaves, Painted) else self.leaves
 
     @property
     def noun(self) -> str:
@@ -86,15 +91,20 @@ class Traced:
         return "primitives" if self.kind == "mixed" else f"{self.kind}s"
 
 
-def merged(meshes) -> tuple[np.ndarray | None, tuple | None]:
-    """(buffer, materials) of the meshes as one triangle buffer: each
-    mesh's leaves (mesh_leaves, in its colour) side by side, with the
-    corners' normals where any mesh has them (zeros for one that has none:
-    the triangle's surface then takes its plane's normal, as flat shading
-    does); materials one a triangle, None where all are matte. (None, None)
-    for no meshes."""
+def merged_materials(meshes) -> tuple | None:
+    """The meshes' materials, one a triangle in merged's order; None where all are matte."""
+    if any(m.material != lighting.MATTE for m in meshes):
+        return tuple(m.material for m in meshes for _ in range(len(m.mesh)))
+    return None
+
+
+def merged(meshes) -> np.ndarray | None:
+    """The meshes as one triangle buffer: each mesh's leaves (mesh_leaves,
+    in its colour) side by side, with the corners' normals where any mesh
+    has them (zeros for one that has none: the triangle's surface then
+    takes its plane's normal, as flat shading does). None for no meshes."""
     if not meshes:
-        return None, None
+        return None
     smooth = any(m.mesh.normals is not None for m in meshes)
     parts = []
     for m in meshes:
@@ -102,10 +112,7 @@ def merged(meshes) -> tuple[np.ndarray | None, tuple | None]:
         if smooth and part.shape[0] < TRI_SMOOTH_ROWS:
             part = np.concatenate([part, np.zeros((TRI_SMOOTH_ROWS - TRI_SHADED_ROWS, part.shape[1]), np.float32)])
         parts.append(part)
-    materials = None
-    if any(m.material != lighting.MATTE for m in meshes):
-        materials = tuple(m.material for m in meshes for _ in range(len(m.mesh)))
-    return np.ascontiguousarray(np.concatenate(parts, axis=1)), materials
+    return np.ascontiguousarray(np.concatenate(parts, axis=1))
 
 
 def mixed_leaves(spheres: np.ndarray, triangles: np.ndarray) -> np.ndarray:
@@ -260,16 +267,22 @@ def transformed(mesh: Mesh, transform: Transform, where: str) -> Mesh:
         raise RaybenchError(f"{exc} (after its transform)") from None
 
 
-def traced(spheres: np.ndarray, triangles: np.ndarray | None, scene) -> Traced:
+def traced(scene) -> Traced:
     """The one kind a scene's tracer traces: its spheres where it has no
     meshes (none at all: a scene of no spheres), its triangles where it has
-    meshes and no spheres, and where it has both the mixed kind (one tree of
+    meshes and no spheres (one mesh: the mesh itself in its colour, Painted,
+    of which the cpu makes no scene buffer for primary rays; more: their
+    merged buffer), and where it has both the mixed kind (one tree of
     typed leaves, kernels/primitives/mixed.py): the spheres' columns, then
     the triangles' (mixed_leaves), their materials in that order."""
-    if triangles is None:
+    spheres = scene.spheres
+    if not scene.meshes:
         return Traced("sphere", spheres, scene.materials, scene.lights, scene.ambient, scene.background)
     if not spheres.shape[1]:
-        return Traced("triangle", triangles, scene.triangle_materials, scene.lights, scene.ambient, scene.background)
+        one = scene.meshes[0]
+        leaves = Painted(one.mesh, one.colour) if len(scene.meshes) == 1 else scene.triangles
+        return Traced("triangle", leaves, scene.triangle_materials, scene.lights, scene.ambient, scene.background)
+    triangles = scene.triangles
     materials = None
     if scene.materials is not None or scene.triangle_materials is not None:
         ours = scene.materials or (lighting.MATTE,) * spheres.shape[1]

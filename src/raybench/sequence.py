@@ -49,7 +49,7 @@ def identity(scene, cameras, width: int, height: int, shading="thesis", depth=No
     from .lighting import Shading
 
     # what is traced: the spheres (the bytes every earlier marker hashed), or a mesh scene's triangles
-    digest = hashlib.sha256(np.ascontiguousarray(scene.traced().leaves).tobytes())
+    digest = hashlib.sha256(np.ascontiguousarray(scene.traced().buffer()).tobytes())
     if isinstance(shading, Shading) or shading == "whitted":
         made = shading if isinstance(shading, Shading) else Shading.of(scene, depth, shadow_samples)
         for array in (made.materials, made.lights, made.pattern, made.params):

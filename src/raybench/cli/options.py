@@ -214,7 +214,7 @@ def scene_device(scene, device: str, adapter: str | None) -> str:
     traces triangles so far."""
     from ..backends import resolve
 
-    if device == "auto" and scene.triangles is not None:
+    if device == "auto" and scene.meshes:
         device = "cpu"
     return resolve(device, adapter)
 

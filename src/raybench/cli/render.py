@@ -161,7 +161,7 @@ def render(
         raise RaybenchError("--tile applies across a cluster: give --workers N or --scheduler ADDR")
     device = scene_device(scene, device, tracer.adapter)
     start = time.perf_counter()
-    with announced(message=MESSAGE if scene.triangles is None else KIND_MESSAGE):
+    with announced(message=MESSAGE if not scene.meshes else KIND_MESSAGE):
         frame = render_frame(scene, width=width, height=height, device=device, **shaded, **options)
     elapsed = time.perf_counter() - start
     frame.save(output, level)

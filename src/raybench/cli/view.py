@@ -69,7 +69,7 @@ def view(
     width, height = frame_size(scene_args, size)
     shaded = shading.checked()
     scene = noted_scene(scene_args, scene, shaded)
-    if animate and scene.triangles is not None:
+    if animate and scene.meshes:
         raise RaybenchError("--animate moves spheres; a mesh is drawn where it is")
     # checked here, before the window opens: a Whitted frame of no spheres
     lit = None

@@ -55,7 +55,7 @@ class ViewerState:
         self._working_device = device  # where frames last came from: the fallback for a failed switch
         self.options = {d: dict((options or {}).get(d, {})) for d in backends.DEVICES}
         # rows 0 to 2 of any kind's buffer: a sphere's centre, a triangle's first corner
-        self.motion = Motion(travel_speed(self.supply.traced.leaves[0:3].T, self.home))
+        self.motion = Motion(travel_speed(self.supply.traced.buffer()[0:3].T, self.home))
         self.lighting = ShadingControl(shading, step=self.motion.speed * LIGHT_STEP_S)
         self.stats = FrameStats()
         self.shown: TracedFrame | None = None

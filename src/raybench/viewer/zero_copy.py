@@ -64,7 +64,7 @@ class InWindowTracer:
         traced = request.scene.traced()  # the spheres, or a mesh scene's triangles
         compute = Compute(
             self.device,
-            traced.leaves,
+            traced.buffer(),
             request.width,
             request.height,
             checked("wgpu", options, request.shading),

@@ -16,11 +16,11 @@ from ... import layout
 from ...errors import RaybenchError
 from ...host import host_available_bytes, usable_cores
 from ...kernels.packets import PACKET_H
+from ...kernels.primitives import triangle, triangle_mesh
 from ...layout import (
     NODE_COST,
     NODE_FLOATS,
 )
-from ...kernels.primitives import triangle, triangle_mesh
 from ...lighting import Shading
 from ...meshes import Painted
 from ..contract import TracerBase, check_moved

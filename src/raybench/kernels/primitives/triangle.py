@@ -542,4 +542,5 @@ def make(jit, words=None):
     # pad: the module's pad, compiled
     footprinted = footprinted_always(jit, PACKET_FOOTPRINT)
     hit_whole = hit_from  # what the packets test an unfootprinted primitive with
-    return answers("triangle", {**locals(), "pad": padding}, ("permute", "sheared", "woop", "normal", "finish", "box", "extent_of", "put_leaf"))
+    extra = ("permute", "sheared", "woop", "normal", "finish", "box", "extent_of", "put_leaf")
+    return answers("triangle", {**locals(), "pad": padding}, extra)
