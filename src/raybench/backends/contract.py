@@ -5,9 +5,10 @@ A Tracer is made for one scene at one size, as Tracer(spheres, width,
 height, options=None, shading=None): spheres the scene's (7, N) float32
 array, options the device's as backends.options.checked made them (None:
 its defaults), shading the Shading of a Whitted frame (None: the thesis's
-shading); the cpu's takes primitive too (a name of kernels/primitives'
+shading); each takes primitive too (a name of kernels/primitives'
 KINDS: its "triangle" traces meshes.mesh_leaves' buffer in place of
-spheres; backends.tracer refuses it elsewhere). It keeps what a frame needs
+spheres, and the cpu's a meshes.Painted mesh too, of which backends.tracer
+makes that buffer for the others). It keeps what a frame needs
 (the tree, the buffers, the compiled kernel) between frames, and traces a
 frame on each call into its host arrays `image` and `hits`, the same ones
 frame after frame unless its caller hands it others: a Renderer gives each
