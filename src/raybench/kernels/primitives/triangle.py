@@ -461,13 +461,8 @@ def make(jit, words=None):
         """Triangle k of the scene's buffer into the tree's leaf buffer (the
         builders' `ordered`) at column `at`: its nine vertex values, never
         the normals."""
-        put_leaf(read(buffer, k), leaves, at)
-
-    @jit
-    def put_leaf(row, leaves, at):
-        """A triangle's nine values as `read` gives them into the tree's leaf buffer at column `at`."""
-        for r in range(TRI_ROWS):
-            leaves[r, at] = row[r]
+        for row in range(TRI_ROWS):
+            leaves[row, at] = buffer[row, k]
 
     @jit
     def pack_leaf(leaves, k, rows):
@@ -542,5 +537,5 @@ def make(jit, words=None):
     # pad: the module's pad, compiled
     footprinted = footprinted_always(jit, PACKET_FOOTPRINT)
     hit_whole = hit_from  # what the packets test an unfootprinted primitive with
-    extra = ("permute", "sheared", "woop", "normal", "finish", "box", "extent_of", "put_leaf")
+    extra = ("permute", "sheared", "woop", "normal", "finish", "box", "extent_of")
     return answers("triangle", {**locals(), "pad": padding}, extra)

@@ -8,15 +8,18 @@ scene buffer is made beside the tree's leaf buffer: that buffer is a mesh's
 triangles in the tree's order, which is all its packets read but the colour
 (docs/triangles.md#memory).
 
-Its extent and copy_leaf are the triangle's own, given the nine values
-that `read` takes from the mesh, which are the very float32 values that
-meshes.mesh_leaves copies into a scene buffer: the tree, its leaf buffer and
-its order are the scene buffer's to the bit (tests/test_triangle_mesh.py).
-bounds reads the tree's leaf buffer, which is the triangle's.
+Its extent is the triangle's own, given the nine values that `read` takes
+from the mesh, and copy_leaf copies those nine: the very float32 values
+that meshes.mesh_leaves copies into a scene buffer, so the tree, its leaf
+buffer and its order are the scene buffer's to the bit
+(tests/test_triangle_mesh.py). bounds reads the tree's leaf buffer, which is
+the triangle's. Compiled for the host alone: the GPUs build over the scene
+buffer.
 """
 
 from types import SimpleNamespace
 
+from ...layout import TRI_A, TRI_B, TRI_C
 from . import triangle
 
 # What bvh/sah.py asks of the kind whose tree it builds: the triangle's.
@@ -38,9 +41,9 @@ def first(mesh, n: int):
 
 def make(jit):
     """The builder's answers (extent, copy_leaf, bounds) compiled with `jit`, over a
-    (vertices, faces) pair."""
+    (vertices, faces) pair: the host's, so numba.njit's."""
     own = triangle.make(jit)
-    extent_of, put_leaf = own.extent_of, own.put_leaf
+    extent_of = own.extent_of
 
     @jit
     def read(mesh, k):
@@ -60,6 +63,13 @@ def make(jit):
 
     @jit
     def copy_leaf(mesh, k, leaves, at):
-        put_leaf(read(mesh, k), leaves, at)
+        """Triangle k into the tree's leaf buffer at column `at`: its corners' x, y, z into the
+        rows from layout's TRI_A, TRI_B and TRI_C, as triangle.copy_leaf copies a scene
+        buffer's."""
+        vertices, faces = mesh
+        for corner, row in enumerate((TRI_A, TRI_B, TRI_C)):
+            v = faces[k, corner]
+            for axis in range(3):
+                leaves[row + axis, at] = vertices[v, axis]
 
-    return SimpleNamespace(read=read, extent=extent, copy_leaf=copy_leaf, bounds=own.bounds, pad=own.pad)
+    return SimpleNamespace(read=read, extent=extent, copy_leaf=copy_leaf, bounds=own.bounds)
