@@ -134,9 +134,9 @@ class Scene:
         return " and ".join(parts)
 
     def traced(self) -> Traced:
-        """What a tracer traces of this scene: its spheres, or its meshes'
-        triangles where it has no spheres; both is refused in one line (one
-        tree of both kinds is not built yet)."""
+        """What a tracer traces of this scene: its spheres, its meshes'
+        triangles where it has no spheres (a scene of one mesh: the mesh
+        itself, painted), or both as the mixed kind (scene_meshes.traced)."""
         return traced(self)
 
     @property
