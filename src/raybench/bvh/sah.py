@@ -34,7 +34,7 @@ import numpy as np
 from .. import compiled
 from ..errors import RaybenchError
 from ..host import usable_cores
-from ..kernels.primitives import sphere
+from ..kernels.primitives import sphere, triangle_mesh
 from ..layout import (
     NODE_BYTES,
     NODE_COST,
@@ -148,14 +148,12 @@ def _items(primitives):
 
 def _count(items) -> int:
     """The primitives of _items' answer: a buffer's columns, a mesh's faces."""
-    return items[1].shape[0] if isinstance(items, tuple) else items.shape[1]
+    return triangle_mesh.count(items) if isinstance(items, tuple) else items.shape[1]
 
 
 def _first(items, n: int):
-    """The first n (at most) primitives of _items' answer, C-contiguous."""
-    if isinstance(items, tuple):
-        return items[0], np.ascontiguousarray(items[1][:n])
-    return np.ascontiguousarray(items[:, :n])
+    """The first n (at most) primitives of _items' answer (build makes them contiguous)."""
+    return triangle_mesh.first(items, n) if isinstance(items, tuple) else items[:, :n]
 
 
 def _compile_kind(items, primitive, wide: bool, device: str) -> None:
