@@ -21,12 +21,14 @@ from ..layout import (
     PAD,
     W_COUNT,
     W_REF,
+    WIDE_FLOATS,
     WIDE_STACK,
     WIDTH,
 )
 from .constants import FAR, ZERO
 from .footprint import OFF, frame_view
 from .packet_boxes import _U, missed_by_all, wide_mask, wide_planes
+from .prefetch import prefetch
 from .primitives import sphere
 from .trace import make
 
@@ -84,33 +86,29 @@ def _kind_constants(primitive) -> dict:
     if sphere.PACKET_SHAPE[1] % height:
         raise ValueError(f"a packet's height must divide {sphere.PACKET_SHAPE[1]}, got {height}")
     return {"PACKET_W": width, "PACKET_H": height, "PACKET": width * height,
-            "_MIDDLE": (height // 2) * width + width // 2, "FOOTPRINT": primitive.PACKET_FOOTPRINT}  # fmt: skip
+            "_MIDDLE": (height // 2) * width + width // 2, "FOOTPRINT": primitive.PACKET_FOOTPRINT,
+            "LEAF_TOGETHER": primitive.CPU_LEAF_ORDER == "F"}  # fmt: skip
 
 
 # Rays walked through the BVH together: a tile of pixels, for the sphere
 # 16x8, eight AVX-512 or sixteen AVX2 registers of float32 per ray
-# component. Once the walk stopped reducing the packet's entry distances
-# (the children ordered along the middle ray instead), larger packets paid:
-# of 4x4 to 32x8, 16x8 was the fastest, ahead of 8x4, the shape before; 16x16
-# is as fast on one core and slower at 1,000 spheres on two threads
-# (docs/notes/bvh-walk.md#measured-cpu-only-machine-amd-epyc-2-vcpus-shared).
-# Each kind says its own (PACKET_SHAPE): a mesh's are the sphere's too, with
-# each triangle tested on the rows its footprint covers (FOOTPRINT below).
+# component; of 4x4 to 32x8, 16x8 was the fastest once the children were
+# ordered along the middle ray (docs/notes/bvh-walk.md#measured-cpu-only-machine-amd-epyc-2-vcpus-shared).
+# Each kind says its own (PACKET_SHAPE): a mesh's are the sphere's too.
 _SHAPE = _kind_constants(sphere)
 PACKET_W, PACKET_H, PACKET, _MIDDLE = _SHAPE["PACKET_W"], _SHAPE["PACKET_H"], _SHAPE["PACKET"], _SHAPE["_MIDDLE"]
-# Whether a leaf's primitive is tested on the rows of rays its box's footprint
-# on the frame covers (kernels/footprint.py), not on all: each kind says (its
-# PACKET_FOOTPRINT); the sphere's are all.
+# Whether a leaf's primitive is tested on the rows of rays its footprint covers
+# (kernels/footprint.py), not on all: the kind's PACKET_FOOTPRINT.
 FOOTPRINT = _SHAPE["FOOTPRINT"]
+# Whether a leaf's values lie together (CPU_LEAF_ORDER "F"): the walk fetches its first lines ahead (prefetch.py).
+LEAF_TOGETHER = _SHAPE["LEAF_TOGETHER"]
 # The rays a packet's loops take at once where LLVM makes them SIMD: 8 float64
-# lanes of an AVX-512 register, two of AVX2's (a leaf's tests are float64,
-# _aimed_tests).
+# lanes of an AVX-512 register, two of AVX2's (_aimed_tests are float64).
 LANES = 8
 # A packet's scratch (SCRATCH rows of PACKET + 1 float32): rows 0-3 its rays'
 # aim (_aim_packet), rows WINDOW to WINDOW + 4 a leaf's footprinted primitives'
 # windows and places in the leaf (packet_leaf), PACKET + 1 of them at a time.
-# Float32 holds a kz, a window and a place exactly, and one array keeps Numba's reference
-# counting out of the walk (_aim_packet).
+# Float32 holds each exactly; one array keeps Numba's reference counting out of the walk.
 WINDOW = 4
 SCRATCH = WINDOW + 5
 # scratch[3, PACKET] until a leaf first needs the rays' aim (_aim_packet): a packet that meets none pays nothing.
@@ -227,9 +225,8 @@ def _aimed_tests(seen, original, dx, dy, dz, closest, hit, hit_d, first_row, end
 
 @numba.njit(inline="always", error_model="numpy")
 def _whole_tests(seen, original, dx, dy, dz, closest, hit, hit_d):
-    """_ray_tests for the thesis's packets of a kind with FOOTPRINT: a primitive
-    that it does not footprint (a sphere of a kind of both) against every ray
-    of the packet, through its own kind's test (hit_whole)."""
+    """_ray_tests for a primitive that a kind with FOOTPRINT does not footprint
+    (a sphere of a kind of both): every ray of the packet, by hit_whole."""
     for k in range(PACKET):
         t, d = _hit_whole(seen, dx[k], dy[k], dz[k])
         _better(t, d, k, original, closest, hit, hit_d)
@@ -426,26 +423,22 @@ def _store_packet(x0, y0, end_row, width, spheres, hit, hit_d, rgb, paint, image
 def packet_walk(enter, leaf, any_hit):
     """The CPU's walk of a packet of rays from one origin through the 4-wide
     tree, for the closest hit (the thesis's and Whitted's primary rays,
-    _packet_walk_wide) or any hit (shadow rays, shadow_packets): one source,
-    compiled for each with its own rays. walk(wide, wide_links, ox, oy, oz,
-    margin, cdx, cdy, cdz, spread, stack_row, stack_count, along, rays): a
-    node's four boxes go through the packet's interval test together
-    (packet_boxes.wide_mask, on spread), then each box it leaves through the rays' own
-    test (enter(lx, ly, lz, hx, hy, hz, rays, start): the row of the packet
-    in which a ray enters it, or -1; start, the row where the last box
-    entered was, is tested first); the children entered are
-    pushed in order of where their centres lie along (cdx, cdy, cdz), the
-    nearest on top, and popped until an inner child is, which is walked
-    next: a leaf popped is tested then (leaf(ox, oy, oz, margin, spread, ref,
-    count, rays)), so the leaves nearer than the nearest inner child are
-    tested at once and the farther ones wait, where a near inner child's
-    hits can rule out their primitives. Any hit tests a leaf as soon as the
-    rays enter it instead, so that the rays it blocks enter none of the
-    node's later children, and pushes only inner children (a blocker near
-    the origin, the commonest being a neighbour, ends the walk soonest);
-    there leaf returns True once every ray is blocked, which ends the walk.
-    along: scratch for the node's children's places (layout.WIDTH). Inlined
-    where it is called, with the caller's error model (_kb's note)."""
+    _packet_walk_wide) or any hit (shadow rays, shadow_packets): one source.
+    walk(wide, wide_links, ox, oy, oz, margin, cdx, cdy, cdz, spread,
+    stack_row, stack_count, along, rays): a node's four boxes go through the
+    packet's interval test together (packet_boxes.wide_mask), then each box
+    it leaves through the rays' own test (enter(lx, ly, lz, hx, hy, hz,
+    rays, start): the row in which a ray enters it, or -1, from row start,
+    the last box's); the children entered are pushed nearest on top along
+    (cdx, cdy, cdz) and popped until an inner child is, walked next: a leaf
+    popped is tested then (leaf(ox, oy, oz, margin, spread, ref, count,
+    rays)), so the farther leaves wait for a near inner child's hits. Any hit
+    tests a leaf as soon as the rays enter it, so that the rays it blocks
+    enter none of the node's later children, pushes inner children alone,
+    and ends once leaf returns True (every ray blocked). The closest hit asks
+    the caches for an entered child's first lines as it pushes it
+    (kernels/prefetch.py). along: scratch for the children's places.
+    Inlined where it is called, with the caller's error model (_kb's note)."""
 
     @numba.njit(inline="always", error_model="numpy")
     def walk(wide, wide_links, ox, oy, oz, margin, cdx, cdy, cdz, spread, stack_row, stack_count, along, rays):
@@ -467,6 +460,13 @@ def packet_walk(enter, leaf, any_hit):
                     continue
                 hint = entered
                 ref, count = wide_links[row, W_REF + c], wide_links[row, W_COUNT + c]
+                if not any_hit:  # what the child will read, asked for now (kernels/prefetch.py)
+                    if count == INNER:
+                        prefetch(wide, ref, 0)
+                        prefetch(wide, ref, WIDE_FLOATS // 2)
+                    elif LEAF_TOGETHER:
+                        prefetch(rays[0], 0, ref)
+                        prefetch(rays[0], 0, ref + 3)
                 if any_hit and count != INNER:
                     if leaf(ox, oy, oz, margin, spread, ref, count, rays):
                         return

@@ -1,0 +1,44 @@
+"""A hint to the processor to bring an array element's cache line in before
+it is read (LLVM's llvm.prefetch).
+
+Why: a packet of primary rays through a dense mesh spends much of its frame
+waiting for loads, a triangle's nine values and a node's two lines, that
+nothing asked for before the walk reached them. The closest-hit packet walk
+(kernels/packets.py) asks for what a child it has entered will read as it
+pushes the child: an inner child's node, a leaf's first lines where the
+kind's leaf values lie together (CPU_LEAF_ORDER "F"). The loads are then
+under way while the node's other boxes are tested and the nearer children
+walked. The figures: docs/notes/embree.md#the-walks-reads-asked-for-ahead-2026-12-05.
+
+Written inline in the walk: the same hints in a function of this module,
+inlined by Numba, made the frames slower than none.
+"""
+
+from llvmlite import ir
+from numba import types
+from numba.core import cgutils
+from numba.extending import intrinsic
+
+
+@intrinsic
+def prefetch(typingctx, array, i, j):
+    """Prefetch array[i, j] (a 2-D array) for a read, to be kept in every
+    cache level. No bounds check: a prefetch reads nothing and never
+    faults, so a line past the array's end is only a wasted hint."""
+    sig = types.void(array, i, j)
+
+    def codegen(context, builder, sig, args):
+        array_type = sig.args[0]
+        made = context.make_array(array_type)(context, builder, args[0])
+        index = [context.cast(builder, a, t, types.intp) for a, t in zip(args[1:], sig.args[1:])]
+        pointer = cgutils.get_item_pointer(context, builder, array_type, made, index, wraparound=False)
+        byte_pointer = ir.IntType(8).as_pointer()
+        i32 = ir.IntType(32)
+        function = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(ir.VoidType(), [byte_pointer, i32, i32, i32]), "llvm.prefetch.p0"
+        )
+        # (address, 0: a read, 3: keep in every level, 1: data)
+        builder.call(function, [builder.bitcast(pointer, byte_pointer), i32(0), i32(3), i32(1)])
+        return context.get_dummy_value()
+
+    return sig, codegen
