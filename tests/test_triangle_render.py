@@ -15,6 +15,7 @@ from PIL import Image
 
 from raybench import Camera, RaybenchError, Renderer, backends, render
 from raybench.cli import run
+from raybench.kernels import footprint
 from raybench.layout import TRI_RED
 from raybench.lighting import DEFAULT_AMBIENT
 from raybench.mesh_render import mesh_scene, recoloured
@@ -251,3 +252,36 @@ def test_other_commands_refuse_a_mesh_in_one_line(capsys, tmp_path):
     code, _stdout, err = cli(capsys, "scene", "nff", "--scene", path, "-o", tmp_path / "tri.nff")
     assert code == 2 and "render and view only so far" in err and err.count("\n") == 1, err
     assert not (tmp_path / "tri.nff").exists()
+
+
+def test_packets_outside_the_trees_footprint_are_the_background():
+    """The cpu's packets colour a packet outside the tree's footprint on the
+    frame (footprint.tree_window) the background's without making its rays:
+    the same bytes and hits as brute force, which makes every ray, for a
+    mesh in a corner of the frame, partly off it, behind the camera, and
+    round the camera; and the footprint of a mesh in a corner really is a
+    part of the frame, so the packets there are not made."""
+    scene = mesh_scene(icosphere())
+    views = (
+        ((0.0, 0.0, -6.0), (1.5, 1.0, 0.0), 40.0),  # the mesh in a corner
+        ((0.0, 0.0, -4.0), (2.2, 0.0, 0.0), 35.0),  # partly off the frame's edge
+        ((0.0, 0.0, -3.0), (0.0, 0.0, -6.0), 60.0),  # behind the camera
+        ((0.0, 0.0, 0.9), (0.0, 0.0, 5.0), 150.0),  # inside the box: the camera's plane cuts it
+    )
+    for position, look_at, fov in views:
+        camera = Camera(position, look_at, fov_deg=fov)
+        wide = render(scene, camera, W, H, device="cpu", threads=2, tree_width=4)
+        brute = render(scene, camera, W, H, device="cpu", threads=2, accel="none", kernel="simple")
+        assert (brute.hits == wide.hits).all() and (brute.image == wide.image).all(), (position, look_at)
+        if fov < 60:  # the mesh in part of the frame
+            assert 0 < (wide.hits >= 0).mean() < 0.5
+    corner = Camera(*views[0][:2], fov_deg=views[0][2])
+    with backends.tracer("cpu", scene.triangles, W, H, primitive="triangle", threads=2) as tracer:
+        basis = corner.basis(W, H)
+        ox, oy, oz = (np.float32(v) for v in basis[0])
+        margin = (abs(ox) + abs(oy) + abs(oz)) * np.float32(2.0**-16)
+        view = footprint.frame_view(basis, W, H)
+        rows = footprint.tree_window(view, tracer.wide, tracer.wide.view(np.int32), (0, 0, W - 1, H - 1), H, W,
+                                     margin, ox, oy, oz)  # fmt: skip
+    first, end, first_column, end_column = rows
+    assert 0 < (end - first) * (end_column - first_column) < W * H / 2, rows

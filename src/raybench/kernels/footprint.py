@@ -32,6 +32,8 @@ import math
 import numba
 import numpy as np
 
+from ..layout import W_COUNT, W_HI, W_LO, WIDTH
+
 _F64 = np.float64
 # float32's unit roundoff
 _EPS = _F64(2.0**-24)
@@ -180,3 +182,22 @@ def window_of_corners(view, place, rows, columns, corners, ox, oy, oz):
         b_lo, b_hi = min(b_lo, qb - eb), max(b_hi, qb + eb)
         c_lo, c_hi = min(c_lo, qc - ec), max(c_hi, qc + ec)
     return _pixels(view, place, rows, columns, b_lo, b_hi, c_lo, c_hi)
+
+
+@numba.njit(inline="always")
+def tree_window(view, wide, wide_links, place, rows, columns, margin, ox, oy, oz):
+    """window_of for the box around the 4-wide tree's root boxes (layout's
+    wide rows, row 0): the rays of the pixels at place that can meet any
+    primitive of the tree, since every hit the walk finds lies in a root box
+    grown by margin. Rays outside it hit nothing: the cpu's packets colour
+    such a packet the background's without making its rays
+    (packets._bvh_packets_wide). A root without a child: no ray."""
+    lx = ly = lz = np.float32(np.inf)
+    hx = hy = hz = -np.float32(np.inf)
+    for c in range(WIDTH):
+        if wide_links[0, W_COUNT + c] != 0:
+            lx, ly, lz = min(lx, wide[0, W_LO[0] + c]), min(ly, wide[0, W_LO[1] + c]), min(lz, wide[0, W_LO[2] + c])
+            hx, hy, hz = max(hx, wide[0, W_HI[0] + c]), max(hy, wide[0, W_HI[1] + c]), max(hz, wide[0, W_HI[2] + c])
+    if not lx <= hx:
+        return 0, 0, 0, 0
+    return window_of(view, place, rows, columns, (lx, ly, lz, hx, hy, hz), margin, ox, oy, oz)

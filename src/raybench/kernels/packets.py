@@ -26,7 +26,7 @@ from ..layout import (
     WIDTH,
 )
 from .constants import FAR, ZERO
-from .footprint import OFF, frame_view
+from .footprint import OFF, frame_view, tree_window
 from .packet_boxes import _U, missed_by_all, wide_mask, wide_planes
 from .prefetch import prefetch
 from .primitives import sphere
@@ -366,11 +366,9 @@ def _colour_packet(x0, y0, spheres, hit, hit_d, rgb, paint):
 
 @numba.njit(inline="always")
 def _put_pixel(y, x, k, rgb, hit, image, hits):
-    """Store ray k's bytes and hit index at pixel (x, y), each at least 0.
-    Unsigned indices (_U), as in the cull loops: a signed one carries
-    Python's negative-index wraparound, a shift, a mask and an add for each
-    of a pixel's four stores (what they cost:
-    docs/notes/embree.md#against-mitsuba-3-on-embree-side-by-side-2-vcpu-machine)."""
+    """Store ray k's bytes and hit index at pixel (x, y), each at least 0,
+    by unsigned indices (_U): a signed one costs Python's negative-index wraparound
+    each store (docs/notes/embree.md#against-mitsuba-3-on-embree-side-by-side-2-vcpu-machine)."""
     y, x, k = _U(y), _U(x), _U(k)
     image[y, x, _U(0)] = rgb[_U(0), k]
     image[y, x, _U(1)] = rgb[_U(1), k]
@@ -384,11 +382,9 @@ def _start_packet(x0, y0, end_row, width, height, basis, dx, dy, dz, ix, iy, iz,
     nothing hit yet, and their spread (_spread). Inlined into each packet
     walk; separate loops, each simple enough for LLVM to make SIMD."""
     for k in range(PACKET):
-        # rays off the chunk trace a copy of its last row or column, unstored;
-        # a pixel's coordinates as int32 (exact: a side is at most
-        # limits.MAX_SIDE), which AVX2 turns into float32 eight at a time,
-        # where an int64 takes a scalar conversion each
-        # (docs/notes/embree.md#against-mitsuba-3-on-embree-side-by-side-2-vcpu-machine)
+        # rays off the chunk trace a copy of its last row or column, unstored; a pixel's
+        # coordinates as int32 (exact: a side is at most limits.MAX_SIDE), which AVX2 turns into
+        # float32 eight at a time (docs/notes/embree.md#against-mitsuba-3-on-embree-side-by-side-2-vcpu-machine)
         x = np.int32(min(x0 + k % PACKET_W, width - 1))
         y = np.int32(min(y0 + k // PACKET_W, end_row - 1))
         dx[k], dy[k], dz[k] = _primary_ray_v(x, y, width, height, basis)
@@ -515,8 +511,7 @@ def packet_walk_wide(walk, ahead):
     through walk (packet_walk's): closest, hit and hit_d; ahead: the leaf's
     test for Whitted's primary rays (packet_leaf); view, place: the frame's
     (_frame_view) and the packet's (_place), and its scratch (SCRATCH rows:
-    the rays' aim, _aim_packet, and a leaf's windows), for the leaf. Its children ordered along the packet's
-    middle ray."""
+    the rays' aim and a leaf's windows), for the leaf."""
 
     @numba.njit(inline="always", error_model="numpy")
     def walk_packet(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest, hit,
@@ -545,9 +540,7 @@ _packet_walk_ahead = packet_walk_wide(_walk_ahead, True)
 @numba.njit(inline="always")
 def _frame_view(basis, width, height):
     """footprint.frame_view for a kind with FOOTPRINT, else footprint.OFF (unused)."""
-    if FOOTPRINT:
-        return frame_view(basis, width, height)
-    return OFF
+    return frame_view(basis, width, height) if FOOTPRINT else OFF
 
 
 @numba.njit(inline="always")
@@ -561,12 +554,10 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
                       hits, stop):  # fmt: skip
     """The rows first_row..end_row, a PACKET_W x PACKET_H packet of rays at
     a time through the 4-wide tree (bvh.collapse), each packet started
-    (_start_packet), walked (_packet_walk_wide) and shaded (_store_packet): a wide node's four boxes put
-    through the packet's interval test together (packet_boxes.wide_mask), then each
-    box it leaves through the rays' own test (_rows_enter); the entered
-    children visited nearest first along the packet's middle ray, leaves at
-    once, the nearest inner child next and the others pushed. Each ray gets
-    the nearest sphere of all it could hit, ties to the smaller index."""
+    (_start_packet), walked (_packet_walk_wide) and shaded (_store_packet);
+    one outside the tree's footprint (footprint.tree_window) only shaded, as
+    the background. Each ray gets the nearest primitive of all it could hit,
+    ties to the smaller index."""
     stack_row = np.empty(WIDE_STACK, np.int32)
     stack_count = np.empty(WIDE_STACK, np.int32)
     dx = np.empty(PACKET, np.float32)
@@ -587,14 +578,23 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
     ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
     margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
     view = _frame_view(basis, width, height)
+    # a packet outside the band's pixels whose rays can meet the tree is the background's, its rays
+    # never made (docs/notes/embree.md#packets-outside-the-trees-footprint-2026-12-06)
+    r0, r1, c0, c1 = tree_window(frame_view(basis, width, height), wide, wide_links, (0, first_row, width - 1,
+                                 end_row - 1), end_row - first_row, width, margin, ox, oy, oz)  # fmt: skip
     for y0 in range(first_row, end_row, PACKET_H):
         if stop[0]:
             return
         for x0 in range(0, width, PACKET_W):
-            _start_packet(x0, y0, end_row, width, height, basis, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, spread)
-            if FOOTPRINT:
-                scratch[3, PACKET] = UNAIMED
-            _packet_walk_wide(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest,
-                              hit, hit_d, spread, closest_bits, spread_bits, stack_row, stack_count, along, view,
-                              _place(x0, y0, end_row, width), scratch)  # fmt: skip
+            if y0 + PACKET_H <= first_row + r0 or y0 >= first_row + r1 or x0 + PACKET_W <= c0 or x0 >= c1:
+                hit[:] = -1
+                hit_d[:] = ZERO
+            else:
+                _start_packet(x0, y0, end_row, width, height, basis, dx, dy, dz, ix, iy, iz, closest, hit, hit_d,
+                              spread)  # fmt: skip
+                if FOOTPRINT:
+                    scratch[3, PACKET] = UNAIMED
+                _packet_walk_wide(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz,
+                                  closest, hit, hit_d, spread, closest_bits, spread_bits, stack_row, stack_count,
+                                  along, view, _place(x0, y0, end_row, width), scratch)  # fmt: skip
             _store_packet(x0, y0, end_row, width, spheres, hit, hit_d, rgb, paint, image, hits)
