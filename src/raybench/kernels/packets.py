@@ -117,8 +117,7 @@ UNAIMED = np.float32(-2.0)
 
 @numba.njit(inline="always")
 def _spread(ix, iy, iz, spread):
-    """spread[:6]: the packet's range of inverse directions on each axis (x
-    low, x high, y low, ...); spread[6]: its farthest closest hit, FAR."""
+    """spread[:6]: the packet's range of inverse directions (x low, x high, ...); spread[6]: FAR, its farthest hit."""
     for a, inv in enumerate((ix, iy, iz)):
         lo = hi = inv[0]
         for k in range(1, PACKET):
@@ -578,15 +577,16 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
     ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
     margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
     view = _frame_view(basis, width, height)
-    # a packet outside the band's pixels whose rays can meet the tree is the background's, its rays
-    # never made (docs/notes/embree.md#packets-outside-the-trees-footprint-2026-12-06)
-    r0, r1, c0, c1 = tree_window(frame_view(basis, width, height), wide, wide_links, (0, first_row, width - 1,
-                                 end_row - 1), end_row - first_row, width, margin, ox, oy, oz)  # fmt: skip
+    # with FOOTPRINT, a packet outside the band's pixels whose rays can meet the tree is the background's, its
+    # rays never made (docs/notes/embree.md#packets-outside-the-trees-footprint-2026-12-06)
+    r0, r1, c0, c1 = tree_window(view, wide, wide_links, (0, first_row, width - 1, end_row - 1), end_row - first_row,
+                                 width, margin, ox, oy, oz)  # fmt: skip
     for y0 in range(first_row, end_row, PACKET_H):
         if stop[0]:
             return
+        off_rows = y0 + PACKET_H <= first_row + r0 or y0 >= first_row + r1
         for x0 in range(0, width, PACKET_W):
-            if y0 + PACKET_H <= first_row + r0 or y0 >= first_row + r1 or x0 + PACKET_W <= c0 or x0 >= c1:
+            if FOOTPRINT and (off_rows or x0 + PACKET_W <= c0 or x0 >= c1):
                 hit[:] = -1
                 hit_d[:] = ZERO
             else:
