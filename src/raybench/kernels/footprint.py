@@ -189,9 +189,9 @@ def tree_window(view, wide, wide_links, place, rows, columns, margin, ox, oy, oz
     """window_of for the box around the 4-wide tree's root boxes (layout's
     wide rows, row 0): the rays of the pixels at place that can meet any
     primitive of the tree, since every hit the walk finds lies in a root box
-    grown by margin. Rays outside it hit nothing: the cpu's packets colour
-    such a packet the background's without making its rays
-    (packets._bvh_packets_wide). A root without a child: no ray."""
+    grown by margin. Rays outside it hit nothing: the cpu's packets of a kind
+    with PACKET_FOOTPRINT colour such a packet the background's without
+    making its rays (packets._bvh_packets_wide). A root without a child: no ray."""
     lx = ly = lz = np.float32(np.inf)
     hx = hy = hz = -np.float32(np.inf)
     for c in range(WIDTH):

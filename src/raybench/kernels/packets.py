@@ -554,9 +554,9 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
     """The rows first_row..end_row, a PACKET_W x PACKET_H packet of rays at
     a time through the 4-wide tree (bvh.collapse), each packet started
     (_start_packet), walked (_packet_walk_wide) and shaded (_store_packet);
-    one outside the tree's footprint (footprint.tree_window) only shaded, as
-    the background. Each ray gets the nearest primitive of all it could hit,
-    ties to the smaller index."""
+    with FOOTPRINT, one outside the tree's footprint (footprint.tree_window)
+    only shaded, as the background. Each ray gets the nearest primitive of
+    all it could hit, ties to the smaller index."""
     stack_row = np.empty(WIDE_STACK, np.int32)
     stack_count = np.empty(WIDE_STACK, np.int32)
     dx = np.empty(PACKET, np.float32)
