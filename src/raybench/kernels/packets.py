@@ -461,7 +461,7 @@ def packet_walk(enter, leaf, any_hit):
                         prefetch(wide, ref, WIDE_FLOATS // 2)
                     elif LEAF_TOGETHER:
                         prefetch(rays[0], 0, ref)
-                        prefetch(rays[0], 0, ref + 3)
+                        prefetch(rays[0], 0, ref + 3)  # a primitive is over half a line: the fourth a line or two on
                 if any_hit and count != INNER:
                     if leaf(ox, oy, oz, margin, spread, ref, count, rays):
                         return
