@@ -129,25 +129,25 @@ def window_of(view, place, rows, columns, box, margin, ox, oy, oz):
 def _pixels(view, place, rows, columns, b_lo, b_hi, c_lo, c_hi):
     """window_of's answer from the intervals of b / a and c / a that a ray
     meeting the primitive has: the rays whose u and v lie within them, the
-    view's bounds on a ray's direction added."""
+    view's bounds on a ray's direction added. Without a branch (every
+    value worked out, one answer chosen), so that a loop over a leaf's
+    primitives' windows is made SIMD (packets.packet_leaf)."""
     pad_u, pad_v, width, height = view[9], view[10], view[11], view[12]
     x0, y0, last_x, last_y = place
     # pixel x = (u + 1/2) width - 1/2, y = (1/2 - v) height - 1/2
     x_lo = (b_lo - pad_u + _F64(0.5)) * width - _F64(0.5)
     x_hi = (b_hi + pad_u + _F64(0.5)) * width - _F64(0.5)
-    if not (x_hi >= _F64(x0) and x_lo <= _F64(last_x)):
-        return 0, 0, 0, 0
     y_lo = (_F64(0.5) - c_hi - pad_v) * height - _F64(0.5)
     y_hi = (_F64(0.5) - c_lo + pad_v) * height - _F64(0.5)
-    if not (y_hi >= _F64(y0) and y_lo <= _F64(last_y)):
-        return 0, 0, 0, 0
-    first = int(math.ceil(max(y_lo, _F64(y0)))) - y0
-    last = int(math.floor(min(y_hi, _F64(last_y)))) - y0
-    first_column = int(math.ceil(max(x_lo, _F64(x0)))) - x0
-    last_column = int(math.floor(min(x_hi, _F64(last_x)))) - x0
-    if last < first or last_column < first_column:
-        return 0, 0, 0, 0
-    return first, last + 1, first_column, last_column + 1
+    met = (x_hi >= _F64(x0)) & (x_lo <= _F64(last_x)) & (y_hi >= _F64(y0)) & (y_lo <= _F64(last_y))
+    # clamped to the packet first, so that every conversion to an integer is in range
+    first = int(math.ceil(min(max(y_lo, _F64(y0)), _F64(last_y + 1)))) - y0
+    last = int(math.floor(max(min(y_hi, _F64(last_y)), _F64(y0 - 1)))) - y0
+    first_column = int(math.ceil(min(max(x_lo, _F64(x0)), _F64(last_x + 1)))) - x0
+    last_column = int(math.floor(max(min(x_hi, _F64(last_x)), _F64(x0 - 1)))) - x0
+    met = met & (last >= first) & (last_column >= first_column)
+    return (first if met else 0, last + 1 if met else 0, first_column if met else 0,
+            last_column + 1 if met else 0)  # fmt: skip
 
 
 @numba.njit(inline="always")
@@ -165,23 +165,25 @@ def window_of_corners(view, place, rows, columns, corners, ox, oy, oz):
     |b / a| na) d / (a - na d), doubled where na d <= a / 2, so every
     corner's quotient is taken with that bound."""
     ax, ay, az, bx, by, bz, cx, cy, cz = view[:9]
-    if view[11] == _F64(0.0):
-        return 0, rows, 0, columns
     na, nb, nc = abs(ax) + abs(ay) + abs(az), abs(bx) + abs(by) + abs(bz), abs(cx) + abs(cy) + abs(cz)
     b_lo = c_lo = _F64(math.inf)
     b_hi = c_hi = -_F64(math.inf)
+    # without a branch, as _pixels: a corner at or behind the camera's plane, once moved, or an OFF view
+    # (width 0) gives every row and column
+    every = view[11] == _F64(0.0)
     for x, y, z in corners:
         vx, vy, vz = _F64(x) - _F64(ox), _F64(y) - _F64(oy), _F64(z) - _F64(oz)
         d = _CORNER_EPS * max(abs(vx), abs(vy), abs(vz))
         a = ax * vx + ay * vy + az * vz
-        if not a > _F64(2.0) * na * d:  # at or behind the camera's plane, once moved
-            return 0, rows, 0, columns
+        every = every | (not a > _F64(2.0) * na * d)
         inv = _F64(1.0) / a
         qb, qc, s = (bx * vx + by * vy + bz * vz) * inv, (cx * vx + cy * vy + cz * vz) * inv, _F64(2.0) * d * inv
         eb, ec = (nb + abs(qb) * na) * s, (nc + abs(qc) * na) * s
         b_lo, b_hi = min(b_lo, qb - eb), max(b_hi, qb + eb)
         c_lo, c_hi = min(c_lo, qc - ec), max(c_hi, qc + ec)
-    return _pixels(view, place, rows, columns, b_lo, b_hi, c_lo, c_hi)
+    first, end, first_column, end_column = _pixels(view, place, rows, columns, b_lo, b_hi, c_lo, c_hi)
+    return (0 if every else first, rows if every else end, 0 if every else first_column,
+            columns if every else end_column)  # fmt: skip
 
 
 @numba.njit(inline="always")

@@ -87,7 +87,7 @@ def _kind_constants(primitive) -> dict:
         raise ValueError(f"a packet's height must divide {sphere.PACKET_SHAPE[1]}, got {height}")
     return {"PACKET_W": width, "PACKET_H": height, "PACKET": width * height,
             "_MIDDLE": (height // 2) * width + width // 2, "FOOTPRINT": primitive.PACKET_FOOTPRINT,
-            "LEAF_TOGETHER": primitive.CPU_LEAF_ORDER == "F"}  # fmt: skip
+            "LEAF_TOGETHER": primitive.CPU_LEAF_ORDER == "F", "LEAF_ROWS": primitive.LEAF_ROWS}  # fmt: skip
 
 
 # Rays walked through the BVH together: a tile of pixels, for the sphere
@@ -102,15 +102,19 @@ PACKET_W, PACKET_H, PACKET, _MIDDLE = _SHAPE["PACKET_W"], _SHAPE["PACKET_H"], _S
 FOOTPRINT = _SHAPE["FOOTPRINT"]
 # Whether a leaf's values lie together (CPU_LEAF_ORDER "F"): the walk fetches its first lines ahead (prefetch.py).
 LEAF_TOGETHER = _SHAPE["LEAF_TOGETHER"]
+# The rows of a leaf's primitive (the kind's LEAF_ROWS): packet_leaf copies a leaf's, LEAF_LANES at once.
+LEAF_ROWS = _SHAPE["LEAF_ROWS"]
 # The rays a packet's loops take at once where LLVM makes them SIMD: 8 float64
 # lanes of an AVX-512 register, two of AVX2's (_aimed_tests are float64).
 LANES = 8
-# A packet's scratch (SCRATCH rows of PACKET + 1 float32): rows 0-3 its rays'
-# aim (_aim_packet), rows WINDOW to WINDOW + 4 a leaf's footprinted primitives'
-# windows and places in the leaf (packet_leaf), PACKET + 1 of them at a time.
+# A leaf's primitives whose windows are worked out at once (packet_leaf): 8 float64 lanes of
+# AVX-512, two registers of AVX2's; a leaf of the packets' tree holds at most 8. Their `lanes`:
+# LEAF_ROWS rows of 2 * LEAF_LANES float32, the primitives' rows in the first LEAF_LANES
+# columns, their windows in the first four rows of the others (a kind's LEAF_ROWS is at least 4).
+LEAF_LANES = 8
+# A packet's scratch (SCRATCH rows of PACKET + 1 float32): its rays' aim (_aim_packet).
 # Float32 holds each exactly; one array keeps Numba's reference counting out of the walk.
-WINDOW = 4
-SCRATCH = WINDOW + 5
+SCRATCH = 4
 # scratch[3, PACKET] until a leaf first needs the rays' aim (_aim_packet): a packet that meets none pays nothing.
 UNAIMED = np.float32(-2.0)
 
@@ -279,42 +283,49 @@ def packet_leaf(tests):
     @numba.njit(inline="always", error_model="numpy")
     def leaf(ox, oy, oz, margin, spread, first, count, rays):
         ordered, order, dx, dy, dz, _ix, _iy, _iz, closest, hit, hit_d, closest_bits, spread_bits = rays[:13]
-        ahead, view, place, scratch = rays[13], rays[14], rays[15], rays[16]
+        ahead, view, place, scratch, lanes = rays[13], rays[14], rays[15], rays[16], rays[17]
         if FOOTPRINT:
             # the windows first, then the tests of those that have one: faster than each
             # window worked out beside its tests (docs/triangles.md#a-leafs-windows-first-2026-12-05);
             # a primitive not footprinted at once (docs/notes/mixed-scenes.md)
-            for part in range(first, first + count, PACKET + 1):
-                end = min(part + PACKET + 1, first + count)
-                kept = 0
+            for part in range(first, first + count, LEAF_LANES):
+                end = min(part + LEAF_LANES, first + count)
+                # the windows of LEAF_LANES primitives at once, in one loop without a branch which
+                # LLVM makes SIMD: their rows copied side by side into `lanes` (read from the
+                # buffer a primitive's values lie together: a lane's loads would be scattered),
+                # and their windows written beside them, in the same array, where LLVM sees
+                # that they meet no read (in another, it would check at run time, which it does
+                # not for so few). Lanes past the leaf's end hold an earlier leaf's, never read.
+                for i in range(end - part):
+                    for r in range(LEAF_ROWS):
+                        lanes[r, i] = ordered[r, part + i]
+                for i in range(LEAF_LANES):
+                    window = _window(view, place, PACKET_H, PACKET_W, _read_leaf(lanes, i), margin, ox, oy, oz)
+                    for w in range(4):
+                        lanes[w, LEAF_LANES + i] = np.float32(window[w])
                 for j in range(part, end):
                     row = _read_leaf(ordered, j)
-                    if _footprinted(row):
-                        # the footprint stands in for the packet's interval test of
-                        # the box, which almost every triangle of a dense mesh passes
-                        window = _window(view, place, PACKET_H, PACKET_W, row, margin, ox, oy, oz)
-                        for w in range(4):
-                            scratch[WINDOW + w, kept] = np.float32(window[w])
-                        scratch[WINDOW + 4, kept] = np.float32(j - part)
-                        kept += 1
-                    elif not _leaf_missed(row, ox, oy, oz, margin, spread):
-                        if ahead:
-                            tests(_seen_from(row, ox, oy, oz), order[j], dx, dy, dz, closest, hit, hit_d, ahead, 0,
-                                  PACKET)  # fmt: skip
-                        else:
-                            _whole_tests(_seen_from(row, ox, oy, oz), order[j], dx, dy, dz, closest, hit, hit_d)
-                for i in range(kept):
-                    first_row, end_row = _U(scratch[WINDOW, i]), _U(scratch[WINDOW + 1, i])
+                    if not _footprinted(row):  # a primitive not footprinted (docs/notes/mixed-scenes.md)
+                        if not _leaf_missed(row, ox, oy, oz, margin, spread):
+                            if ahead:
+                                tests(_seen_from(row, ox, oy, oz), order[j], dx, dy, dz, closest, hit, hit_d, ahead,
+                                      0, PACKET)  # fmt: skip
+                            else:
+                                _whole_tests(_seen_from(row, ox, oy, oz), order[j], dx, dy, dz, closest, hit, hit_d)
+                        continue
+                    # the footprint stands in for the packet's interval test of the
+                    # box, which almost every triangle of a dense mesh passes
+                    i = LEAF_LANES + j - part
+                    first_row, end_row = _U(lanes[0, i]), _U(lanes[1, i])
                     if first_row == end_row:
                         continue
-                    j = part + np.int64(scratch[WINDOW + 4, i])
                     # the columns widened to whole groups of LANES, which the
                     # loops' SIMD code takes at once (a loop of fewer goes a ray
                     # at a time)
-                    first_lane = _U(scratch[WINDOW + 2, i]) // _U(LANES) * _U(LANES)
-                    end_lane = min((_U(scratch[WINDOW + 3, i]) + _U(LANES - 1)) // _U(LANES) * _U(LANES),
+                    first_lane = _U(lanes[2, i]) // _U(LANES) * _U(LANES)
+                    end_lane = min((_U(lanes[3, i]) + _U(LANES - 1)) // _U(LANES) * _U(LANES),
                                    _U(PACKET_W))  # fmt: skip
-                    seen = _seen_from(_read_leaf(ordered, j), ox, oy, oz)
+                    seen = _seen_from(row, ox, oy, oz)
                     if ahead:
                         for r in range(first_row, end_row):
                             tests(seen, order[j], dx, dy, dz, closest, hit, hit_d, ahead, r * _U(PACKET_W) + first_lane,
@@ -515,9 +526,9 @@ def packet_walk_wide(walk, ahead):
     @numba.njit(inline="always", error_model="numpy")
     def walk_packet(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest, hit,
                     hit_d, spread, closest_bits, spread_bits, stack_row, stack_count, along, view, place,
-                    scratch):  # fmt: skip
+                    scratch, lanes):  # fmt: skip
         rays = (ordered, order, dx, dy, dz, ix, iy, iz, closest, hit, hit_d, closest_bits, spread_bits, ahead, view,
-                place, scratch)  # fmt: skip
+                place, scratch, lanes)  # fmt: skip
         walk(wide, wide_links, ox, oy, oz, margin, dx[_MIDDLE], dy[_MIDDLE], dz[_MIDDLE], spread, stack_row,
              stack_count, along, rays)  # fmt: skip
 
@@ -574,6 +585,7 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
     paint = np.empty((4, PACKET), np.float32)
     along = np.empty(WIDTH, np.float32)
     scratch = np.empty((SCRATCH, PACKET + 1), np.float32)
+    lanes = np.zeros((LEAF_ROWS, 2 * LEAF_LANES), np.float32)
     ox, oy, oz = basis[0, 0], basis[0, 1], basis[0, 2]
     margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
     view = _frame_view(basis, width, height)
@@ -596,5 +608,5 @@ def _bvh_packets_wide(first_row, end_row, width, height, basis, wide, wide_links
                     scratch[3, PACKET] = UNAIMED
                 _packet_walk_wide(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz,
                                   closest, hit, hit_d, spread, closest_bits, spread_bits, stack_row, stack_count,
-                                  along, view, _place(x0, y0, end_row, width), scratch)  # fmt: skip
+                                  along, view, _place(x0, y0, end_row, width), scratch, lanes)  # fmt: skip
             _store_packet(x0, y0, end_row, width, spheres, hit, hit_d, rgb, paint, image, hits)

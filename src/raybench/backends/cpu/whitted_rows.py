@@ -8,6 +8,8 @@ import numpy as np
 from ... import compiled, layout
 from ...kernels import whitted as whitted_mod
 from ...kernels.packets import (
+    LEAF_LANES,
+    LEAF_ROWS,
     PACKET,
     PACKET_H,
     PACKET_W,
@@ -99,7 +101,8 @@ def _whitted_rows_packets(first_row, end_row, width, height, basis, spheres, cou
     _whitted_tiles(
         first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern, params, own, lanes,
         np.empty(7, np.float32), np.empty(WIDE_STACK, np.int32), np.empty(WIDE_STACK, np.int32),
-        np.empty(WIDTH, np.float32), np.empty((SCRATCH, PACKET + 1), np.float32), np.empty(STACK, np.int32),
+        np.empty(WIDTH, np.float32), np.empty((SCRATCH, PACKET + 1), np.float32),
+        np.zeros((LEAF_ROWS, 2 * LEAF_LANES), np.float32), np.empty(STACK, np.int32),
         np.empty(STACK, np.float32), np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_FLOATS), np.float32),
         np.empty((whitted_mod.RAY_STACK, whitted_mod.RAY_INTS), np.int32), image, hits, counts, stop,
     )  # fmt: skip
@@ -116,13 +119,14 @@ def _whitted_rows_packets(first_row, end_row, width, height, basis, spheres, cou
 # scratch, calls them.
 @compiled.njit(nogil=True, error_model="numpy", _nrt=False)
 def _tile_primaries(x0, y0, end_row, width, height, basis, wide, wide_links, ordered, order, lanes, hit, hit_d, spread,
-                    stack_row, stack_count, along, scratch):  # fmt: skip
+                    stack_row, stack_count, along, scratch, leaf_lanes):  # fmt: skip
     """The primary rays of the Whitted frame's PACKET_W x PACKET_H tile at
     (x0, y0) as one packet through the 4-wide tree (_bvh_packets_wide's
     walk, with the Whitted rays' test): lanes[6] (their t, FAR where none),
     hit and hit_d, the answer of traverse.walk for each ray alone. lanes[:6]:
     directions and inverses; scratch: the packet's (packets.SCRATCH rows),
-    whose rays' aim these, tested with hit_ahead_from, leave alone. A call of its own, with
+    whose rays' aim these, tested with hit_ahead_from, leave alone;
+    leaf_lanes: a leaf's primitives side by side (packets.LEAF_LANES). A call of its own, with
     NumPy's error model, which leaves the packet's loops SIMD (_kb's
     note)."""
     closest = lanes[6]
@@ -132,13 +136,14 @@ def _tile_primaries(x0, y0, end_row, width, height, basis, wide, wide_links, ord
     margin = (abs(ox) + abs(oy) + abs(oz)) * PAD
     _packet_walk_ahead(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest, hit,
                        hit_d, spread, closest.view(np.int32), spread.view(np.int32), stack_row, stack_count, along,
-                       _frame_view(basis, width, height), _place(x0, y0, end_row, width), scratch)  # fmt: skip
+                       _frame_view(basis, width, height), _place(x0, y0, end_row, width), scratch,
+                       leaf_lanes)  # fmt: skip
 
 
 @compiled.njit(nogil=True, _nrt=False)
 def _whitted_tiles(first_row, end_row, width, height, basis, spheres, count, materials, lights, pattern, params, tree,
-                   lanes, spread, packet_row, packet_count, along, scratch, stack_row, stack_t, rays_f, rays_i, image,
-                   hits, counts, stop):  # fmt: skip
+                   lanes, spread, packet_row, packet_count, along, scratch, leaf_lanes, stack_row, stack_t, rays_f,
+                   rays_i, image, hits, counts, stop):  # fmt: skip
     """_whitted_rows_packets' work, a tile of PACKET_W x PACKET_H pixels at
     a time: the tile's primary rays as one packet (_tile_primaries), then
     each pixel's program, whose reflected and refracted rays walk the wide
@@ -155,7 +160,7 @@ def _whitted_tiles(first_row, end_row, width, height, basis, spheres, count, mat
                 counts[y, kind] = 0
         for x0 in range(0, width, PACKET_W):
             _tile_primaries(x0, y0, end_row, width, height, basis, wide, wide_links, ordered, order, lanes, hit, hit_d,
-                            spread, packet_row, packet_count, along, scratch)  # fmt: skip
+                            spread, packet_row, packet_count, along, scratch, leaf_lanes)  # fmt: skip
             for line in range(lines):
                 y = y0 + line
                 for i in range(min(PACKET_W, width - x0)):
