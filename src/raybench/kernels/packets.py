@@ -33,13 +33,11 @@ from .primitives import sphere
 from .trace import make
 
 
-# The packets' own compile of the algorithm (kernels.make), with NumPy's
-# error model, where backends/cpu/program.py's has Python's: float division
-# then has no check for a zero divisor (none can occur: the
-# divisors are the image size, a ray's length, a radius, a direction
-# component raised to at least TINY), so the result is the same IEEE
-# quotient, and LLVM can make the loops over a packet's rays SIMD, which the
-# check's branch prevents (vdivps, vsqrtps in the assembly).
+# The packets' own compile of the algorithm (kernels.make), with NumPy's error model, where
+# backends/cpu/program.py's has Python's: float division then has no check for a zero divisor (none
+# can occur: the divisors are the image size, a ray's length, a radius, a direction component raised
+# to at least TINY), so the result is the same IEEE quotient, and LLVM can make the loops over a
+# packet's rays SIMD, which the check's branch prevents (vdivps, vsqrtps in the assembly).
 # Made for a primitive, the sphere's at import; compiled.rebound compiles
 # this module again for another kind (backends/cpu/kinds.py).
 @functools.cache
@@ -55,13 +53,8 @@ _shade_hit_v, _shade_miss_v, _to_byte_v = _kb.shade_hit, _kb.shade_miss, _kb.to_
 # how the packet's shared origin sees it (the row read once for both), its
 # tests from there, and what the thesis's shading divides by.
 _prim = _kb.prim
-_read_leaf, _box_of, _seen_from, _hit_from, _hit_ahead_from = (
-    _prim.read_leaf,
-    _prim.box_of,
-    _prim.seen_from,
-    _prim.hit_from,
-    _prim.hit_ahead_from,
-)
+_read_leaf, _box_of, _seen_from = _prim.read_leaf, _prim.box_of, _prim.seen_from
+_hit_from, _hit_ahead_from = _prim.hit_from, _prim.hit_ahead_from
 _leaf_hit_ahead, _meets_own, _rim, _colour = _prim.leaf_hit_ahead, _prim.meets_own, _prim.rim, _prim.colour
 # A ray's own part of its test, worked out once a packet (aim), and a leaf's
 # primitive turned once for rays that share it (turned, hit_aimed): the
@@ -107,10 +100,9 @@ LEAF_ROWS = _SHAPE["LEAF_ROWS"]
 # The rays a packet's loops take at once where LLVM makes them SIMD: 8 float64
 # lanes of an AVX-512 register, two of AVX2's (_aimed_tests are float64).
 LANES = 8
-# A leaf's primitives whose windows are worked out at once (packet_leaf): 8 float64 lanes of
-# AVX-512, two registers of AVX2's; a leaf of the packets' tree holds at most 8. Their `lanes`:
-# LEAF_ROWS rows of 2 * LEAF_LANES float32, the primitives' rows in the first LEAF_LANES
-# columns, their windows in the first four rows of the others (a kind's LEAF_ROWS is at least 4).
+# A leaf's primitives whose windows are worked out at once (packet_leaf), in `lanes`: LEAF_ROWS rows
+# of 2 * LEAF_LANES float32, their rows in the first LEAF_LANES columns, their windows in the first
+# four rows of the others (a kind's LEAF_ROWS is at least 4). 8 float64 lanes of AVX-512, two of AVX2.
 LEAF_LANES = 8
 # A packet's scratch (SCRATCH rows of PACKET + 1 float32): its rays' aim (_aim_packet).
 # Float32 holds each exactly; one array keeps Numba's reference counting out of the walk.
@@ -271,13 +263,12 @@ def packet_leaf(tests):
     makes it: for a sphere, the far root where the near one is behind, a
     camera inside it). A primitive whose own box (as the builder pads it,
     grown by margin as the walk grows boxes) no ray enters is skipped after
-    one test for the packet (packet_boxes.missed_by_all)
-    (docs/notes/bvh-walk.md#measured-cpu-only-machine-amd-epyc-2-vcpus-shared);
-    with FOOTPRINT, a primitive is tested on the rows and columns of rays
-    its footprint covers, instead (its kind's window, footprint.py's; view,
-    place: the frame's and the packet's), the thesis's rays through their aim
-    (_aimed_tests; scratch: the packet's, SCRATCH rows, whose aim Whitted's
-    primary packets do not read). One source for the thesis's packets, whose tests are
+    one test for the packet (packet_boxes.missed_by_all); with FOOTPRINT, a
+    primitive is tested on the rows and columns of rays its footprint covers,
+    instead (its kind's window, footprint.py's; view, place: the frame's and
+    the packet's; lanes: LEAF_LANES'), the thesis's rays through their aim
+    (_aimed_tests; scratch: the packet's, whose aim Whitted's primary packets
+    do not read). One source for the thesis's packets, whose tests are
     inlined (_ray_tests, _aimed_tests), and Whitted's (_packet_rays)."""
 
     @numba.njit(inline="always", error_model="numpy")
@@ -285,17 +276,14 @@ def packet_leaf(tests):
         ordered, order, dx, dy, dz, _ix, _iy, _iz, closest, hit, hit_d, closest_bits, spread_bits = rays[:13]
         ahead, view, place, scratch, lanes = rays[13], rays[14], rays[15], rays[16], rays[17]
         if FOOTPRINT:
-            # the windows first, then the tests of those that have one: faster than each
-            # window worked out beside its tests (docs/triangles.md#a-leafs-windows-first-2026-12-05);
-            # a primitive not footprinted at once (docs/notes/mixed-scenes.md)
+            # the windows first, then the tests of those with one (docs/triangles.md#a-leafs-windows-first-2026-12-05)
             for part in range(first, first + count, LEAF_LANES):
                 end = min(part + LEAF_LANES, first + count)
-                # the windows of LEAF_LANES primitives at once, in one loop without a branch which
-                # LLVM makes SIMD: their rows copied side by side into `lanes` (read from the
-                # buffer a primitive's values lie together: a lane's loads would be scattered),
-                # and their windows written beside them, in the same array, where LLVM sees
-                # that they meet no read (in another, it would check at run time, which it does
-                # not for so few). Lanes past the leaf's end hold an earlier leaf's, never read.
+                # LEAF_LANES windows in one loop without a branch, which LLVM makes SIMD: the rows
+                # copied side by side (in the buffer a lane's loads would be scattered), the windows
+                # written beside them in the same array, where LLVM sees that they meet no read (in
+                # another it would check at run time, which it does not for so few). Lanes past the
+                # leaf's end hold an earlier leaf's, never read.
                 for i in range(end - part):
                     for r in range(LEAF_ROWS):
                         lanes[r, i] = ordered[r, part + i]
@@ -305,7 +293,7 @@ def packet_leaf(tests):
                         lanes[w, LEAF_LANES + i] = np.float32(window[w])
                 for j in range(part, end):
                     row = _read_leaf(ordered, j)
-                    if not _footprinted(row):  # a primitive not footprinted (docs/notes/mixed-scenes.md)
+                    if not _footprinted(row):  # tested at once (docs/notes/mixed-scenes.md)
                         if not _leaf_missed(row, ox, oy, oz, margin, spread):
                             if ahead:
                                 tests(_seen_from(row, ox, oy, oz), order[j], dx, dy, dz, closest, hit, hit_d, ahead,
