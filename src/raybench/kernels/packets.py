@@ -90,15 +90,13 @@ def _kind_constants(primitive) -> dict:
 # Each kind says its own (PACKET_SHAPE): a mesh's are the sphere's too.
 _SHAPE = _kind_constants(sphere)
 PACKET_W, PACKET_H, PACKET, _MIDDLE = _SHAPE["PACKET_W"], _SHAPE["PACKET_H"], _SHAPE["PACKET"], _SHAPE["_MIDDLE"]
-# Whether a leaf's primitive is tested on the rows of rays its footprint covers
-# (kernels/footprint.py), not on all: the kind's PACKET_FOOTPRINT.
+# Whether a leaf's primitive is tested on the rays its footprint covers (footprint.py): the kind's PACKET_FOOTPRINT.
 FOOTPRINT = _SHAPE["FOOTPRINT"]
 # Whether a leaf's values lie together (CPU_LEAF_ORDER "F"): the walk fetches its first lines ahead (prefetch.py).
 LEAF_TOGETHER = _SHAPE["LEAF_TOGETHER"]
 # The rows of a leaf's primitive (the kind's LEAF_ROWS): packet_leaf copies a leaf's, LEAF_LANES at once.
 LEAF_ROWS = _SHAPE["LEAF_ROWS"]
-# The rays a packet's loops take at once where LLVM makes them SIMD: 8 float64
-# lanes of an AVX-512 register, two of AVX2's (_aimed_tests are float64).
+# The rays a packet's loops take at once where SIMD: 8 float64 lanes of AVX-512, two of AVX2 (_aimed_tests).
 LANES = 8
 # A leaf's primitives whose windows are worked out at once (packet_leaf), in `lanes`: LEAF_ROWS rows
 # of 2 * LEAF_LANES float32, their rows in the first LEAF_LANES columns, their windows in the first
@@ -267,9 +265,8 @@ def packet_leaf(tests):
     primitive is tested on the rows and columns of rays its footprint covers,
     instead (its kind's window, footprint.py's; view, place: the frame's and
     the packet's; lanes: LEAF_LANES'), the thesis's rays through their aim
-    (_aimed_tests; scratch: the packet's, whose aim Whitted's primary packets
-    do not read). One source for the thesis's packets, whose tests are
-    inlined (_ray_tests, _aimed_tests), and Whitted's (_packet_rays)."""
+    (_aimed_tests; scratch: the packet's). One source for the thesis's
+    packets, whose tests are inlined, and Whitted's (_packet_rays)."""
 
     @numba.njit(inline="always", error_model="numpy")
     def leaf(ox, oy, oz, margin, spread, first, count, rays):
@@ -279,16 +276,19 @@ def packet_leaf(tests):
             # the windows first, then the tests of those with one (docs/triangles.md#a-leafs-windows-first-2026-12-05)
             for part in range(first, first + count, LEAF_LANES):
                 end = min(part + LEAF_LANES, first + count)
-                # LEAF_LANES windows in one loop without a branch, which LLVM makes SIMD: the rows
-                # copied side by side (in the buffer a lane's loads would be scattered), the windows
-                # written beside them in the same array, where LLVM sees that they meet no read (in
-                # another it would check at run time, which it does not for so few). Lanes past the
-                # leaf's end hold an earlier leaf's, never read.
-                for i in range(end - part):
-                    for r in range(LEAF_ROWS):
-                        lanes[r, i] = ordered[r, part + i]
-                for i in range(LEAF_LANES):
-                    window = _window(view, place, PACKET_H, PACKET_W, _read_leaf(lanes, i), margin, ox, oy, oz)
+                # the thesis's LEAF_LANES windows in one loop without a branch, which LLVM makes SIMD:
+                # the rows copied side by side (in the buffer a lane's loads would be scattered), the
+                # windows written beside them in the same array, where LLVM sees that they meet no read
+                # (in another it would check at run time, which it does not for so few); lanes past the
+                # leaf's end hold an earlier leaf's, never read. Whitted's frames were slower so: there
+                # a window at a time (docs/notes/embree.md#a-leafs-windows-eight-at-a-time-2026-12-06)
+                if not ahead:
+                    for i in range(end - part):
+                        for r in range(LEAF_ROWS):
+                            lanes[r, i] = ordered[r, part + i]
+                for i in range(end - part if ahead else LEAF_LANES):
+                    row = _read_leaf(ordered, part + i) if ahead else _read_leaf(lanes, i)
+                    window = _window(view, place, PACKET_H, PACKET_W, row, margin, ox, oy, oz)
                     for w in range(4):
                         lanes[w, LEAF_LANES + i] = np.float32(window[w])
                 for j in range(part, end):
