@@ -264,7 +264,7 @@ def packet_leaf(tests):
     one test for the packet (packet_boxes.missed_by_all); with FOOTPRINT, a
     primitive is tested on the rows and columns of rays its footprint covers,
     instead (its kind's window, footprint.py's; view, place: the frame's and
-    the packet's; lanes: LEAF_LANES'), the thesis's rays through their aim
+    the packet's; lanes: the windows' array), the thesis's rays through their aim
     (_aimed_tests; scratch: the packet's). One source for the thesis's
     packets, whose tests are inlined, and Whitted's (_packet_rays)."""
 
@@ -508,8 +508,8 @@ def packet_walk_wide(walk, ahead):
     """The closest hit of every ray of a packet (started by _start_packet)
     through walk (packet_walk's): closest, hit and hit_d; ahead: the leaf's
     test for Whitted's primary rays (packet_leaf); view, place: the frame's
-    (_frame_view) and the packet's (_place), and its scratch (SCRATCH rows:
-    the rays' aim and a leaf's windows), for the leaf."""
+    (_frame_view) and the packet's (_place), its scratch (the rays' aim) and
+    lanes (a leaf's primitives side by side, and their windows), for the leaf."""
 
     @numba.njit(inline="always", error_model="numpy")
     def walk_packet(wide, wide_links, ordered, order, ox, oy, oz, margin, dx, dy, dz, ix, iy, iz, closest, hit,
