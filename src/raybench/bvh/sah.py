@@ -89,11 +89,10 @@ def compile_builder(wide: bool = True) -> None:
         build(spheres, threads=1, _timed=False, _wide=2)
 
 
-def _build_narrow(code, items, n, leaf_rows, memory="C", node_cost=NODE_COST):
-    """The one-thread way's tree of the n primitives of items: (nodes, ordered, order, depth).
+def _build_narrow(code, items, n, node_cost=NODE_COST):
+    """The one-thread way's tree of the n primitives of items: (nodes, order, depth).
     code: sah_steps, or sah_steps as plain Python (_python_steps) to run it
-    uncompiled; memory: the leaf buffer's order in memory (leaf_buffer's);
-    node_cost: _grow's."""
+    uncompiled; node_cost: _grow's."""
     p = sah_steps.work_arrays(n)
     order = p[4]
     # IEEE arithmetic, as compiled code's: no NumPy warnings on inf or nan when uncompiled
@@ -104,9 +103,21 @@ def _build_narrow(code, items, n, leaf_rows, memory="C", node_cost=NODE_COST):
         links = nodes.view(np.int32)
         top = code._root(p, nodes, links, stack)
         used, depth = code._grow(p, nodes, links, stack, top, 1, np.float32(node_cost))
-        ordered = np.empty((leaf_rows, n), np.float32, order=memory)
-        code._leaves(items, order, 0, n, ordered)
-    return nodes[:used].copy(), ordered, order, depth
+    return nodes[:used].copy(), order, depth
+
+
+def _indexed(primitive, items, order):
+    """The tree's leaves where the kind reads its items through the tree's order, copying none
+    (kernels/primitives/triangle_mesh.py's leaves(), for a mesh that shares its vertices); else
+    None: a leaf buffer is copied."""
+    return primitive.leaves(items, order) if hasattr(primitive, "leaves") else None
+
+
+def _narrow_leaf_buffer(code, items, order, leaf_rows: int, memory: str) -> np.ndarray:
+    """The one-thread way's leaf buffer (sah_wide.leaf_buffer's, by code's _leaves)."""
+    ordered = np.empty((leaf_rows, order.shape[0]), np.float32, order=memory)
+    code._leaves(items, order, 0, order.shape[0], ordered)
+    return ordered
 
 
 def _python_steps():
@@ -160,7 +171,7 @@ def _compile_kind(items, primitive, wide: bool, device: str) -> None:
     """Compile a kind's steps other than the sphere's (compile_builder's
     work) by building over a few of its own primitives, untimed, for the
     device's leaf buffer (its order in memory is part of the compiled type)."""
-    few = _first(items, 9)
+    few = primitive.sample(items) if hasattr(primitive, "sample") else _first(items, 9)
     build(few, threads=1, device=device, _timed=False, primitive=primitive)
     if wide:
         build(few, threads=1, device=device, _timed=False, _wide=2, primitive=primitive)
@@ -215,12 +226,19 @@ def build(
             try:
                 nodes, order, depth = steps.sah_wide._build_wide(items, n, threads, _wide, node_cost)
                 # made once the builder's arrays are gone, so that it never adds to their peak
-                ordered = steps.sah_wide.leaf_buffer(items, order, primitive.LEAF_ROWS, threads, memory)
+                ordered = _indexed(primitive, items, order)
+                if ordered is None:
+                    ordered = steps.sah_wide.leaf_buffer(items, order, primitive.LEAF_ROWS, threads, memory)
             finally:
                 numba.set_num_threads(before)
     else:
         code = _python_steps() if interpret else steps.sah_steps
-        nodes, ordered, order, depth = _build_narrow(code, items, n, primitive.LEAF_ROWS, memory, node_cost)
+        nodes, order, depth = _build_narrow(code, items, n, node_cost)
+        ordered = _indexed(primitive, items, order)
+        if ordered is None:
+            ordered = _narrow_leaf_buffer(code, items, order, primitive.LEAF_ROWS, memory)
+    if isinstance(ordered, np.ndarray) and hasattr(primitive, "COPIED_AS"):  # the leaf buffer another kind's
+        primitive, steps = primitive.COPIED_AS, _steps(primitive.COPIED_AS)
     _tighten(steps, primitive, nodes, ordered)
     build_s = time.perf_counter() - start
     return Bvh(

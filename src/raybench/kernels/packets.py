@@ -31,6 +31,7 @@ from .packet_boxes import _U, missed_by_all, wide_mask, wide_planes
 from .prefetch import prefetch
 from .primitives import sphere
 from .trace import make
+from .tree_leaves import leaf_row, leaf_to_lanes
 
 
 # The packets' own compile of the algorithm (kernels.make), with NumPy's error model, where
@@ -284,15 +285,14 @@ def packet_leaf(tests):
                 # a window at a time (docs/notes/embree.md#a-leafs-windows-eight-at-a-time-2026-12-06)
                 if not ahead:
                     for i in range(end - part):
-                        for r in range(LEAF_ROWS):
-                            lanes[r, i] = ordered[r, part + i]
+                        leaf_to_lanes(ordered, part + i, lanes, i)
                 for i in range(end - part if ahead else LEAF_LANES):
-                    row = _read_leaf(ordered, part + i) if ahead else _read_leaf(lanes, i)
+                    row = leaf_row(ordered, part + i) if ahead else _read_leaf(lanes, i)
                     window = _window(view, place, PACKET_H, PACKET_W, row, margin, ox, oy, oz)
                     for w in range(4):
                         lanes[w, LEAF_LANES + i] = np.float32(window[w])
                 for j in range(part, end):
-                    row = _read_leaf(ordered, j)
+                    row = leaf_row(ordered, j) if ahead else _read_leaf(lanes, j - part)
                     if not _footprinted(row):  # tested at once (docs/notes/mixed-scenes.md)
                         if not _leaf_missed(row, ox, oy, oz, margin, spread):
                             if ahead:
@@ -325,7 +325,7 @@ def packet_leaf(tests):
                                      end_lane, scratch)  # fmt: skip
         else:
             for j in range(first, first + count):
-                row = _read_leaf(ordered, j)  # read once, for the box test and the rays' tests
+                row = leaf_row(ordered, j)  # read once, for the box test and the rays' tests
                 if _leaf_missed(row, ox, oy, oz, margin, spread):
                     continue
                 tests(_seen_from(row, ox, oy, oz), order[j], dx, dy, dz, closest, hit, hit_d, ahead, 0, PACKET)

@@ -29,8 +29,21 @@ def prefetch(typingctx, array, i, j):
 
     def codegen(context, builder, sig, args):
         array_type = sig.args[0]
-        made = context.make_array(array_type)(context, builder, args[0])
         index = [context.cast(builder, a, t, types.intp) for a, t in zip(args[1:], sig.args[1:])]
+        if isinstance(array_type, types.BaseTuple):
+            # a mesh's leaves read through the tree's order, (vertices, faces, order): the face of
+            # the tree's j-th triangle, whose order entry is read for it
+            faces_type, order_type = array_type[1], array_type[2]
+            faces = context.make_array(faces_type)(context, builder, builder.extract_value(args[0], 1))
+            order = context.make_array(order_type)(context, builder, builder.extract_value(args[0], 2))
+            # read, so kept within the order (a prefetch past an array's end is only a wasted hint)
+            last = builder.sub(cgutils.unpack_tuple(builder, order.shape, 1)[0], ir.Constant(index[1].type, 1))
+            j = builder.select(builder.icmp_signed("<", index[1], last), index[1], last)
+            at = cgutils.get_item_pointer(context, builder, order_type, order, [j], wraparound=False)
+            k = context.cast(builder, builder.load(at), order_type.dtype, types.intp)
+            array_type, made, index = faces_type, faces, [k, index[0]]
+        else:
+            made = context.make_array(array_type)(context, builder, args[0])
         pointer = cgutils.get_item_pointer(context, builder, array_type, made, index, wraparound=False)
         byte_pointer = ir.IntType(8).as_pointer()
         i32 = ir.IntType(32)

@@ -17,13 +17,13 @@ from types import SimpleNamespace
 
 from ... import compiled
 from ...errors import RaybenchError
-from ...kernels import packets, shadow_packets, wide_walk
+from ...kernels import packets, shadow_packets, tree_leaves, wide_walk
 from ...kernels.primitives import KINDS, sphere
 from . import brute, program, whitted_rows
 
 # In the order they import one another: each module's copy calls the copies
 # of those before it.
-MODULES = (packets, shadow_packets, wide_walk, program, brute, whitted_rows)
+MODULES = (tree_leaves, packets, shadow_packets, wide_walk, program, brute, whitted_rows)
 
 
 def primitive_of(kind: str):

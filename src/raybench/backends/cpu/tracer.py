@@ -78,12 +78,13 @@ class Tracer(TracerBase):
         options = self._options(options, shading)
         self.options = options
         self.accel, self.kernel = options.accel, options.kernel
-        # a painted mesh's primary rays through the tree read its leaf buffer and its one colour
-        # alone: the tree is built from the mesh's own arrays, and no scene buffer is made beside
-        # it (kernels/primitives/triangle_mesh.py); every other frame reads the scene buffer
+        # a painted mesh's packets of primary rays read its own arrays through the tree's order
+        # and its one colour alone: no scene buffer and no leaf buffer is made
+        # (kernels/primitives/triangle_mesh.py); every other frame reads the scene buffer
         self._source = None
         if isinstance(spheres, Painted):
-            if self.accel == "bvh" and shading is None:
+            packets = (options.tree_width or KIND_TREE_WIDTH.get(primitive, {}).get("thesis")) == 4
+            if self.accel == "bvh" and shading is None and packets:
                 self._source, self._colour = spheres.arrays(), triangle.colour_column(spheres.colour)
             else:
                 spheres = spheres.leaves()

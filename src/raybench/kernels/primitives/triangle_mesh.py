@@ -1,23 +1,23 @@
-"""The triangle as the host's builder reads it from a mesh's own arrays.
+"""The triangle as the cpu reads it from a mesh's own arrays.
 
 Not a kind of primitive that a scene holds (KINDS): the same triangles as
 triangle.py's, read through the mesh's faces, (vertices (V, 3) float32,
 faces (F, 3) int32) in place of its scene buffer. The cpu's tree for the
-thesis's shading is built from it (backends/cpu/tracer.py), so that no
-scene buffer is made beside the tree's leaf buffer: that buffer is a mesh's
-triangles in the tree's order, which is all its packets read but the colour
-(docs/triangles.md#memory).
+thesis's packets is built from it (backends/cpu/tracer.py), and its leaves
+are no copy of the triangles but the mesh read through the tree's order
+(leaves(), INDEXED_LEAVES): no scene buffer and no leaf buffer is made, so
+a mesh that shares its vertices is held once (docs/triangles.md#memory).
 
 Its extent is the triangle's own, given the nine values that `read` takes
-from the mesh, and copy_leaf copies those nine: the very float32 values
-that meshes.mesh_leaves copies into a scene buffer, so the tree, its leaf
-buffer and its order are the scene buffer's to the bit
-(tests/test_triangle_mesh.py). bounds reads the tree's leaf buffer, which is
-the triangle's. Compiled for the host alone: the GPUs build over the scene
-buffer.
+from the mesh: the very float32 values that meshes.mesh_leaves copies into
+a scene buffer, so the tree and its order are the scene buffer's to the bit,
+and read_leaf gives what its leaf buffer holds (tests/test_triangle_mesh.py).
+Compiled for the host alone: the GPUs build over the scene buffer.
 """
 
 from types import SimpleNamespace
+
+import numpy as np
 
 from ...layout import TRI_A, TRI_B, TRI_C
 from . import triangle
@@ -27,6 +27,9 @@ LEAF_ROWS = triangle.LEAF_ROWS
 CPU_LEAF_ORDER = triangle.CPU_LEAF_ORDER
 INLINE_TESTS = triangle.INLINE_TESTS
 NOUN = triangle.NOUN
+# Where the builder copies the triangles into a leaf buffer (leaves() is None), it is this kind's:
+# its boxes are refitted over it, and the walks read it, as the triangle's.
+COPIED_AS = triangle
 
 
 def count(mesh) -> int:
@@ -39,11 +42,31 @@ def first(mesh, n: int):
     return mesh[0], mesh[1][:n]
 
 
+def sample(mesh):
+    """A few of its triangles over the vertices they use alone, which share them as the mesh's
+    do: what the builder compiles its steps over (bvh/sah.py), for the leaves this mesh gets."""
+    vertices, faces = mesh
+    used, faces = np.unique(faces[:9], return_inverse=True)
+    return vertices[used], faces.reshape(-1, 3).astype(np.int32)
+
+
+def leaves(mesh, order):
+    """The tree's leaves over a (vertices, faces) pair, where its triangles share their vertices
+    (fewer than two vertices a triangle): the pair and the tree's order, through which
+    read_leaf reads the tree's j-th triangle, and nothing copied. None for a mesh whose
+    triangles each have their own vertices: the builder copies them into a leaf buffer
+    (copy_leaf), which is smaller than the mesh (36 bytes a triangle against 48) and which the
+    walks read faster where the faces are in no order in space (docs/triangles.md#memory)."""
+    vertices, faces = mesh
+    return (vertices, faces, order) if vertices.shape[0] < 2 * faces.shape[0] else None
+
+
 def make(jit):
-    """The builder's answers (extent, copy_leaf, bounds) compiled with `jit`, over a
-    (vertices, faces) pair: the host's, so numba.njit's."""
+    """The builder's answers (extent and copy_leaf over a (vertices, faces) pair, bounds over
+    its leaves()) and the packets' (read_leaf, copy_row over its leaves()), compiled with
+    `jit`: the host's, so numba.njit's."""
     own = triangle.make(jit)
-    extent_of = own.extent_of
+    extent_of, box_of = own.extent_of, own.box_of
 
     @jit
     def read(mesh, k):
@@ -72,4 +95,29 @@ def make(jit):
             for axis in range(3):
                 leaves[row + axis, at] = vertices[v, axis]
 
-    return SimpleNamespace(read=read, extent=extent, copy_leaf=copy_leaf, bounds=own.bounds)
+    @jit
+    def read_leaf(leaves, j):
+        """The tree's j-th triangle, of leaves(): triangle order[j] of the mesh, as
+        triangle.read_leaf gives it from a leaf buffer."""
+        vertices, faces, order = leaves
+        return read((vertices, faces), order[j])
+
+    @jit
+    def copy_row(leaves, j, to, at):
+        """The tree's j-th triangle, of leaves(), into column `at` of `to`: its corners' x, y, z
+        into the rows from layout's TRI_A, TRI_B and TRI_C, as a leaf buffer holds it."""
+        vertices, faces, order = leaves
+        k = order[j]
+        for corner, row in enumerate((TRI_A, TRI_B, TRI_C)):
+            v = faces[k, corner]
+            for axis in range(3):
+                to[row + axis, at] = vertices[v, axis]
+
+    @jit
+    def bounds(leaves, j):
+        """The tree's j-th triangle's padded box, as triangle.bounds gives it from a leaf buffer."""
+        return box_of(read_leaf(leaves, j))
+
+    return SimpleNamespace(
+        read=read, read_leaf=read_leaf, copy_row=copy_row, extent=extent, copy_leaf=copy_leaf, bounds=bounds
+    )
