@@ -36,7 +36,8 @@ def shuffled_icosphere(triangles: int) -> Mesh:
 
 @pytest.mark.parametrize("kind", ["icosphere", "random"])
 @pytest.mark.parametrize("many", [False, True], ids=["one thread's way", "every thread's way"])
-def test_the_tree_of_the_mesh_is_the_scene_buffers_to_the_bit(kind, many):
+def test_the_tree_of_the_mesh_is_the_scene_buffers_to_the_bit(kind, many, monkeypatch):
+    monkeypatch.setattr(triangle_mesh, "INDEXED_FROM", 0)  # a small mesh read through the order too
     n = 5120 if many else 320
     assert (n > WIDE) == many
     mesh = shuffled_icosphere(n) if kind == "icosphere" else random_triangles(n)
@@ -59,9 +60,23 @@ def test_the_tree_of_the_mesh_is_the_scene_buffers_to_the_bit(kind, many):
         assert ours.ordered[:, 7].tolist() == mesh.vertices[mesh.faces[k]].ravel().tolist()
 
 
+def test_a_large_mesh_that_shares_its_vertices_is_read_through_the_trees_order():
+    """The rule (triangle_mesh.read_through): shared vertices and at least INDEXED_FROM triangles;
+    the arrays' sizes alone count, so views of one row stand in for a large mesh."""
+    n = triangle_mesh.INDEXED_FROM
+    rows = np.zeros((1, 3), np.float32), np.zeros((1, 3), np.int32)
+    large = [np.broadcast_to(a, (m, 3)) for a, m in zip(rows, (n // 2, n))]
+    assert triangle_mesh.read_through(large)
+    assert not triangle_mesh.read_through((large[0][: n - 1], large[1][: n - 1]))  # fewer triangles
+    assert not triangle_mesh.read_through((np.broadcast_to(rows[0], (3 * n, 3)), large[1]))  # their own vertices
+    small = icosphere(1280)
+    assert not triangle_mesh.read_through((small.vertices, small.faces))
+
+
 @pytest.mark.parametrize("kind", ["icosphere", "random"])
 @pytest.mark.parametrize("tree_width", [4, 2])
-def test_a_painted_meshs_frames_are_its_scene_buffers(tree_width, kind):
+def test_a_painted_meshs_frames_are_its_scene_buffers(tree_width, kind, monkeypatch):
+    monkeypatch.setattr(triangle_mesh, "INDEXED_FROM", 0)
     mesh = shuffled_icosphere(5120) if kind == "icosphere" else random_triangles(3000)
     basis = camera().basis(W, H)
     options = {"tree_width": tree_width}

@@ -106,11 +106,17 @@ def _build_narrow(code, items, n, node_cost=NODE_COST):
     return nodes[:used].copy(), order, depth
 
 
+def _read_through(primitive, items) -> bool:
+    """Whether the kind reads these items through the tree's order, copying none: its
+    read_through (kernels/primitives/triangle_mesh.py's, for a large mesh that shares its
+    vertices)."""
+    return hasattr(primitive, "read_through") and primitive.read_through(items)
+
+
 def _indexed(primitive, items, order):
-    """The tree's leaves where the kind reads its items through the tree's order, copying none
-    (kernels/primitives/triangle_mesh.py's leaves(), for a mesh that shares its vertices); else
-    None: a leaf buffer is copied."""
-    return primitive.leaves(items, order) if hasattr(primitive, "leaves") else None
+    """The tree's leaves where the kind reads its items through the tree's order (its leaves());
+    else None: a leaf buffer is copied."""
+    return primitive.leaves(items, order) if _read_through(primitive, items) else None
 
 
 def _narrow_leaf_buffer(code, items, order, leaf_rows: int, memory: str) -> np.ndarray:
@@ -171,8 +177,11 @@ def _compile_kind(items, primitive, wide: bool, device: str) -> None:
     """Compile a kind's steps other than the sphere's (compile_builder's
     work) by building over a few of its own primitives, untimed, for the
     device's leaf buffer (its order in memory is part of the compiled type)."""
-    few = primitive.sample(items) if hasattr(primitive, "sample") else _first(items, 9)
-    build(few, threads=1, device=device, _timed=False, primitive=primitive)
+    few = _first(items, 9)
+    built = build(few, threads=1, device=device, _timed=False, primitive=primitive)
+    if _read_through(primitive, items):  # its boxes refitted over the mesh read through the order
+        nodes = built.nodes.copy()
+        _steps(primitive).sah_steps._refit(nodes, nodes.view(np.int32), primitive.leaves(few, built.order))
     if wide:
         build(few, threads=1, device=device, _timed=False, _wide=2, primitive=primitive)
 

@@ -24,7 +24,9 @@ from numba.extending import intrinsic
 def prefetch(typingctx, array, i, j):
     """Prefetch array[i, j] (a 2-D array) for a read, to be kept in every
     cache level. No bounds check: a prefetch reads nothing and never
-    faults, so a line past the array's end is only a wasted hint."""
+    faults, so a line past the array's end is only a wasted hint. `array`
+    may be a mesh's leaves read through the tree's order (kernels/tree_leaves.py):
+    then column i of the face of its j-th triangle, whose order entry is read."""
     sig = types.void(array, i, j)
 
     def codegen(context, builder, sig, args):
@@ -36,7 +38,7 @@ def prefetch(typingctx, array, i, j):
             faces_type, order_type = array_type[1], array_type[2]
             faces = context.make_array(faces_type)(context, builder, builder.extract_value(args[0], 1))
             order = context.make_array(order_type)(context, builder, builder.extract_value(args[0], 2))
-            # read, so kept within the order (a prefetch past an array's end is only a wasted hint)
+            # a real read, so kept within the order (j past a leaf's end falls on the last entry)
             last = builder.sub(cgutils.unpack_tuple(builder, order.shape, 1)[0], ir.Constant(index[1].type, 1))
             j = builder.select(builder.icmp_signed("<", index[1], last), index[1], last)
             at = cgutils.get_item_pointer(context, builder, order_type, order, [j], wraparound=False)

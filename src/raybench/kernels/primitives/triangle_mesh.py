@@ -17,8 +17,6 @@ Compiled for the host alone: the GPUs build over the scene buffer.
 
 from types import SimpleNamespace
 
-import numpy as np
-
 from ...layout import TRI_A, TRI_B, TRI_C
 from . import triangle
 
@@ -27,7 +25,7 @@ LEAF_ROWS = triangle.LEAF_ROWS
 CPU_LEAF_ORDER = triangle.CPU_LEAF_ORDER
 INLINE_TESTS = triangle.INLINE_TESTS
 NOUN = triangle.NOUN
-# Where the builder copies the triangles into a leaf buffer (leaves() is None), it is this kind's:
+# Where the builder copies the triangles into a leaf buffer (not read_through), it is this kind's:
 # its boxes are refitted over it, and the walks read it, as the triangle's.
 COPIED_AS = triangle
 
@@ -42,23 +40,26 @@ def first(mesh, n: int):
     return mesh[0], mesh[1][:n]
 
 
-def sample(mesh):
-    """A few of its triangles over the vertices they use alone, which share them as the mesh's
-    do: what the builder compiles its steps over (bvh/sah.py), for the leaves this mesh gets."""
+# The triangles from which a mesh that shares its vertices is read through the tree's order (leaves()):
+# its leaf buffer would be over 150 MB, and the frames cost little more so (1.5% at 5.24 M triangles
+# of an icosphere, 4-7% at 1.31 M and 81,920: docs/notes/mesh-memory.md).
+INDEXED_FROM = 1 << 22
+
+
+def read_through(mesh) -> bool:
+    """Whether the tree's leaves over a (vertices, faces) pair are the mesh read through the
+    tree's order (leaves()), nothing copied: at least INDEXED_FROM triangles that share their
+    vertices (fewer than two a triangle). Else the builder copies them into a leaf buffer
+    (copy_leaf), which the packets read faster, and which for triangles that each have their own
+    vertices is smaller than the mesh (36 bytes a triangle against 48; docs/triangles.md#memory)."""
     vertices, faces = mesh
-    used, faces = np.unique(faces[:9], return_inverse=True)
-    return vertices[used], faces.reshape(-1, 3).astype(np.int32)
+    return faces.shape[0] >= INDEXED_FROM and vertices.shape[0] < 2 * faces.shape[0]
 
 
 def leaves(mesh, order):
-    """The tree's leaves over a (vertices, faces) pair, where its triangles share their vertices
-    (fewer than two vertices a triangle): the pair and the tree's order, through which
-    read_leaf reads the tree's j-th triangle, and nothing copied. None for a mesh whose
-    triangles each have their own vertices: the builder copies them into a leaf buffer
-    (copy_leaf), which is smaller than the mesh (36 bytes a triangle against 48) and which the
-    walks read faster where the faces are in no order in space (docs/triangles.md#memory)."""
-    vertices, faces = mesh
-    return (vertices, faces, order) if vertices.shape[0] < 2 * faces.shape[0] else None
+    """The tree's leaves over a (vertices, faces) pair read through its order: the pair and the
+    order, through which read_leaf reads the tree's j-th triangle."""
+    return mesh[0], mesh[1], order
 
 
 def make(jit):
