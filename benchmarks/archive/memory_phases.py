@@ -5,8 +5,11 @@ frame), over the mesh's own bytes. The mesh is handed over painted (meshes.Paint
 mesh_build.memory hands it; before 2026-12-05 (later) the frame was made from its scene buffer.
 
     PYTHONPATH=src:benchmarks python benchmarks/archive/memory_phases.py 10000000
+    PYTHONPATH=src:benchmarks python benchmarks/archive/memory_phases.py 5242880 icosphere
 """
 
+import gc
+import math
 import sys
 import threading
 import time
@@ -19,6 +22,7 @@ from raybench import bvh as bvh_mod
 from raybench.backends.cpu import tracer as cpu_tracer
 from raybench.bvh.sah_steps import WIDE
 from raybench.camera import Camera
+from raybench.kernels.primitives import triangle_mesh
 from raybench.meshes import MESH_COLOUR, Painted
 
 marks = []
@@ -39,11 +43,16 @@ def main() -> None:
     cpu_tracer.bvh_mod = bvh_mod
     width, height = mesh_build.SIZE
     basis = Camera(position=(0.0, 0.0, -3.0), look_at=(0.0, 0.0, 0.0), fov_deg=60.0).basis(width, height)
-    small = Painted(mesh_build.random_triangles(2 * WIDE), MESH_COLOUR)
+    icosphere = len(sys.argv) > 2 and sys.argv[2] == "icosphere"
+    small = Painted(mesh_build.icosphere(5) if icosphere else mesh_build.random_triangles(2 * WIDE), MESH_COLOUR)
+    floor = triangle_mesh.INDEXED_FROM
+    triangle_mesh.INDEXED_FROM = 0 if icosphere else floor  # the small mesh read as the large one will be
     with backends.tracer("cpu", small, width, height, primitive="triangle") as warm:
         warm.compile()
         warm.trace(basis)
-    mesh = mesh_build.random_triangles(n)
+    triangle_mesh.INDEXED_FROM = floor
+    mesh = mesh_build.icosphere(round(math.log(n / 20, 4))) if icosphere else mesh_build.random_triangles(n)
+    gc.collect()  # trimesh's cycles let go now, not in the frame's making (mesh_build.memory)
     own = mesh.vertices.nbytes + mesh.faces.nbytes
     process, line, stop = psutil.Process(), [], threading.Event()
 
