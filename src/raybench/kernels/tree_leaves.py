@@ -1,9 +1,10 @@
 """A tree's leaves as the cpu's packets of primary rays read them: the tree's
 leaf buffer (bvh's `ordered`), or a mesh read through the tree's order,
 (vertices, faces, order): kernels/primitives/triangle_mesh.py's leaves(), the
-cpu's tree of a painted mesh whose triangles share their vertices, which
-copies none of them (docs/triangles.md#memory). Numba picks the read by the
-leaves' type as it compiles.
+cpu's tree of a large painted mesh whose triangles share their vertices
+(triangle_mesh.read_through), which copies none of them
+(docs/triangles.md#memory). Numba picks the read by the leaves' type as it
+compiles.
 
 Made for a kind of primitive, the sphere's at import; compiled.rebound
 compiles this module again for another kind (backends/cpu/kinds.py).
@@ -33,7 +34,8 @@ _mesh = triangle_mesh.make(numba.njit(inline="always", error_model="numpy"))
 _mesh_leaf, _mesh_row = _mesh.read_leaf, _mesh.copy_row
 
 
-# Not inlined by Numba, which then took the wrong branch of isinstance (Numba 0.68); LLVM inlines them.
+# Not inlined by Numba (inline="always"): inlined, the frames took the wrong branch of isinstance
+# (Numba 0.68), and every triangle was missed.
 @numba.njit(error_model="numpy")
 def leaf_row(ordered, j):
     """The tree's j-th primitive's row, as the kind's read_leaf reads it from a leaf buffer."""

@@ -78,9 +78,10 @@ class Tracer(TracerBase):
         options = self._options(options, shading)
         self.options = options
         self.accel, self.kernel = options.accel, options.kernel
-        # a painted mesh's packets of primary rays read its own arrays through the tree's order
-        # and its one colour alone: no scene buffer and no leaf buffer is made
-        # (kernels/primitives/triangle_mesh.py); every other frame reads the scene buffer
+        # a painted mesh's packets of primary rays read its tree, built from its own arrays, and
+        # its one colour alone: no scene buffer is made, and a large one that shares its vertices
+        # is read through the tree's order, no leaf buffer either (kernels/primitives/triangle_mesh.py);
+        # every other frame reads the scene buffer
         self._source = None
         if isinstance(spheres, Painted):
             packets = (options.tree_width or KIND_TREE_WIDTH.get(primitive, {}).get("thesis")) == 4

@@ -3,10 +3,10 @@
 Not a kind of primitive that a scene holds (KINDS): the same triangles as
 triangle.py's, read through the mesh's faces, (vertices (V, 3) float32,
 faces (F, 3) int32) in place of its scene buffer. The cpu's tree for the
-thesis's packets is built from it (backends/cpu/tracer.py), and its leaves
-are no copy of the triangles but the mesh read through the tree's order
-(leaves(), INDEXED_LEAVES): no scene buffer and no leaf buffer is made, so
-a mesh that shares its vertices is held once (docs/triangles.md#memory).
+thesis's packets is built from it (backends/cpu/tracer.py), so no scene
+buffer is made; and a large mesh that shares its vertices (read_through)
+has no leaf buffer either: its leaves are the mesh read through the tree's
+order (leaves()), so it is held once (docs/triangles.md#memory).
 
 Its extent is the triangle's own, given the nine values that `read` takes
 from the mesh: the very float32 values that meshes.mesh_leaves copies into
@@ -41,8 +41,8 @@ def first(mesh, n: int):
 
 
 # The triangles from which a mesh that shares its vertices is read through the tree's order (leaves()):
-# its leaf buffer would be over 150 MB, and the frames cost little more so (1.5% at 5.24 M triangles
-# of an icosphere, 4-7% at 1.31 M and 81,920: docs/notes/mesh-memory.md).
+# below, its leaf buffer costs a machine little, and the packets read it faster; above, the memory
+# it saves counts for more than the frame's few per cent (docs/notes/mesh-memory.md).
 INDEXED_FROM = 1 << 22
 
 
