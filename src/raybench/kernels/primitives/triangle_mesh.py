@@ -108,11 +108,7 @@ def make(jit):
         """The tree's j-th triangle, of leaves(), into column `at` of `to`: its corners' x, y, z
         into the rows from layout's TRI_A, TRI_B and TRI_C, as a leaf buffer holds it."""
         vertices, faces, order = leaves
-        k = order[j]
-        for corner, row in enumerate((TRI_A, TRI_B, TRI_C)):
-            v = faces[k, corner]
-            for axis in range(3):
-                to[row + axis, at] = vertices[v, axis]
+        copy_leaf((vertices, faces), order[j], to, at)
 
     @jit
     def bounds(leaves, j):
