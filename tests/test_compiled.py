@@ -276,20 +276,22 @@ def test_rebound_copies_call_no_original_kernel():
     factory made at import, packets.packet_walk's): every callee a copy
     names is itself a copy, so no triangle frame runs a sphere's leaf test.
     kernels/footprint.py's and kernels/packet_boxes.py's functions, which
-    know no primitive, are shared."""
+    know no primitive, are shared, and so are triangle_mesh.py's reads of a
+    mesh through the tree's order (kernels/tree_leaves.py), which know the
+    triangle alone, whatever kind the modules are copied for."""
     import numba
 
     from raybench import compiled
     from raybench.backends.cpu import kinds
     from raybench.kernels import footprint, packet_boxes
-    from raybench.kernels.primitives import triangle
+    from raybench.kernels.primitives import triangle, triangle_mesh
 
+    shared = (footprint.__name__, packet_boxes.__name__, triangle_mesh.__name__)
     originals = {
         id(value)
         for module in kinds.MODULES
         for value in vars(module).values()
-        if isinstance(value, numba.core.dispatcher.Dispatcher)
-        and value.py_func.__module__ not in (footprint.__name__, packet_boxes.__name__)
+        if isinstance(value, numba.core.dispatcher.Dispatcher) and value.py_func.__module__ not in shared
     }
     spaces = compiled.rebound(kinds.MODULES, triangle)
     checked = 0
