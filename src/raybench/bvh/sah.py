@@ -113,12 +113,6 @@ def _read_through(primitive, items) -> bool:
     return hasattr(primitive, "read_through") and primitive.read_through(items)
 
 
-def _indexed(primitive, items, order):
-    """The tree's leaves where the kind reads its items through the tree's order (its leaves());
-    else None: a leaf buffer is copied."""
-    return primitive.leaves(items, order) if _read_through(primitive, items) else None
-
-
 def _narrow_leaf_buffer(code, items, order, leaf_rows: int, memory: str) -> np.ndarray:
     """The one-thread way's leaf buffer (sah_wide.leaf_buffer's, by code's _leaves)."""
     ordered = np.empty((leaf_rows, order.shape[0]), np.float32, order=memory)
@@ -224,6 +218,7 @@ def build(
             _compile_kind(items, primitive, n > _wide, device)
     steps = _steps(primitive)
     memory = primitive.CPU_LEAF_ORDER if device == "cpu" else "C"  # as the device's walks read it best
+    through = _read_through(primitive, items)  # no leaf buffer: the items read through the tree's order
     start = time.perf_counter()
     if n > _wide:
         # Numba's threads are at most its pool's (the cores); the slicing into
@@ -235,18 +230,18 @@ def build(
             try:
                 nodes, order, depth = steps.sah_wide._build_wide(items, n, threads, _wide, node_cost)
                 # made once the builder's arrays are gone, so that it never adds to their peak
-                ordered = _indexed(primitive, items, order)
-                if ordered is None:
+                if not through:
                     ordered = steps.sah_wide.leaf_buffer(items, order, primitive.LEAF_ROWS, threads, memory)
             finally:
                 numba.set_num_threads(before)
     else:
         code = _python_steps() if interpret else steps.sah_steps
         nodes, order, depth = _build_narrow(code, items, n, node_cost)
-        ordered = _indexed(primitive, items, order)
-        if ordered is None:
+        if not through:
             ordered = _narrow_leaf_buffer(code, items, order, primitive.LEAF_ROWS, memory)
-    if isinstance(ordered, np.ndarray) and hasattr(primitive, "COPIED_AS"):  # the leaf buffer another kind's
+    if through:
+        ordered = primitive.leaves(items, order)
+    elif hasattr(primitive, "COPIED_AS"):  # the leaf buffer another kind's
         primitive, steps = primitive.COPIED_AS, _steps(primitive.COPIED_AS)
     _tighten(steps, primitive, nodes, ordered)
     build_s = time.perf_counter() - start
