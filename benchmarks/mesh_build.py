@@ -240,6 +240,8 @@ def main() -> int:
     _harness.add_common(parser, frames=5)
     args = parser.parse_args()
     _harness.check_common(parser, args)
+    if args.memory and "cpu" in (args.memory_device or []):
+        _harness.own_pages()  # the resident set counts every large array
     if (
         args.memory
         and args.memory_mesh == "icosphere"

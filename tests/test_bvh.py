@@ -12,7 +12,7 @@ import raybench
 from raybench import Scene, bvh, compiled, kernels, layout
 from raybench.backends import cuda as cuda_backend
 from raybench.backends import options as device_options
-from raybench.bvh import oneshot, sah_steps, sah_wide
+from raybench.bvh import oneshot, pages, sah_steps, sah_wide
 from raybench.kernels import packet_boxes, packets
 from raybench.kernels.primitives import sphere
 
@@ -352,6 +352,39 @@ def test_tree_split_by_all_threads(rng, kind, monkeypatch):
     check_tree(one, scene.spheres)
     many = bvh.build(scene.spheres, threads=int(rng.integers(2, 6)), _wide=wide)
     assert np.array_equal(many.links, one.links) and np.array_equal(many.order, one.order)
+
+
+@pytest.mark.parametrize("kind", sorted(SCENES))
+def test_tree_grown_in_runs_given_back(rng, kind, monkeypatch):
+    """A large tree's subtrees are grown and packed in runs along the primitives, each run's
+    part of the builder's arrays and of the reserved rows given back as it ends (pages.release),
+    where those are mapped pages. Mapped from any size (and the reserve from any size too), the
+    tree is the one built in NumPy's memory, bit for bit, on any number of threads."""
+    scene, _ = SCENES[kind](rng, int(rng.integers(200, 3000)))
+    wide = int(rng.integers(2, 64))
+    monkeypatch.setattr(sah_wide, "SLICE", int(rng.integers(1, 300)))
+    plain = bvh.build(scene.spheres, threads=1, _wide=wide)
+    monkeypatch.setattr(pages, "MAPPED_FROM", 0)
+    monkeypatch.setattr(pages, "SMALL_PAGES_FROM", 0)
+    monkeypatch.setattr(sah_wide, "RUNS", int(rng.integers(2, 9)))
+    given_back = bvh.build(scene.spheres, threads=int(rng.integers(1, 6)), _wide=wide)
+    check_tree(given_back, scene.spheres)
+    assert np.array_equal(given_back.links, plain.links) and np.array_equal(given_back.order, plain.order)
+
+
+def test_release_gives_back_whole_pages_only():
+    """pages.release: an array in NumPy's memory is left as it is; of a mapped one, what lies
+    outside the whole pages of the range given back keeps its values."""
+    plain = np.arange(100_000, dtype=np.float32)
+    pages.release(plain, 10, 90_000)
+    assert np.array_equal(plain, np.arange(100_000, dtype=np.float32))
+    mapped = pages.scratch(1 << 21, np.float32)
+    assert pages.mapped(mapped) and pages.mapped(mapped.view(np.int32)) and not pages.mapped(plain)
+    mapped[:] = 1.0
+    start, stop = 1000, (1 << 20) + 37  # not on pages' edges: the partial pages at both ends are kept
+    pages.release(mapped, start, stop)
+    page = pages.mmap.PAGESIZE // 4
+    assert (mapped[: -(-start // page) * page] == 1).all() and (mapped[stop // page * page :] == 1).all()
 
 
 @pytest.mark.parametrize("kind", [*sorted(SCENES), "chain"])

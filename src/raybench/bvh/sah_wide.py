@@ -18,7 +18,7 @@ from ..layout import (
     NODE_FLOATS,
     REF,
 )
-from .pages import reserve
+from .pages import mapped, release, reserve, scratch
 from .sah_steps import (
     BINS,
     _best_plane,
@@ -34,27 +34,35 @@ from .sah_steps import (
     _range_bounds,
     _stack,
     _widest,
-    work_arrays,
 )
 
 # A slice of a wide range (sah_steps.WIDE says why the top is sliced): at
 # most SLICE primitives, binned and moved by one thread.
 SLICE = 1 << 14
+# Below the top, a large tree's subtrees are grown, and then packed, in RUNS runs along the
+# primitives, and each run's part of what it no longer needs is given back as it ends (the
+# builder's arrays but the order, then the subtrees' rows once packed): held whole, either
+# with the nodes was a shared-vertex mesh's peak (docs/notes/mesh-memory.md).
+RUNS = 8
 
 # --- the top of a large tree: each split shared by all threads -----------------------
 #
 # A level of wide ranges is split in four steps: plan (which axis, how it is
 # sliced), bin the slices (threads), choose each range's plane and where each
-# slice's primitives go, move them (threads), then attach the children. A slice
-# moves its primitives between the two buffers (the builder's arrays and a spare
-# set), keeping their order: `buf` says which buffer holds a range now.
+# slice's primitives go, move them (threads), then attach the children. A
+# slice's primitives are moved in order, each side to its place, one of the
+# builder's five arrays at a time through one spare array, which then takes
+# that array's place: a spare set of all five was most of a shared-vertex
+# mesh's peak (docs/notes/mesh-memory.md). The indices move first, and each
+# primitive's side is marked for the others' moves (the array a range is
+# binned along moves with the rest).
 # The bins' minima, maxima and counts merge exactly, so a range gets the same
 # plane however many slices it was cut into.
 
 
 @compiled.njit(nogil=True)
-def _plan(level, bounds, p, q, piece, axis, lo, scale, mid, first_job):
-    """For each wide range of the level, row, s, e, depth, buf: the axis to
+def _plan(level, bounds, p, piece, axis, lo, scale, mid, first_job):
+    """For each wide range of the level, row, s, e, depth: the axis to
     bin (its centres' widest), its bin arithmetic, and mid: -1 for a SAH
     split, else the split point of a split by count (depth guard, or centres
     that coincide). The ranges cut in slices of at most `piece` primitives:
@@ -65,7 +73,7 @@ def _plan(level, bounds, p, q, piece, axis, lo, scale, mid, first_job):
     out = np.empty((jobs, 3), np.int64)
     j = 0
     for k in range(level.shape[0]):
-        s, e, d, buf = level[k, 1], level[k, 2], level[k, 3], level[k, 4]
+        s, e, d = level[k, 1], level[k, 2], level[k, 3]
         cbox = bounds[k, 6:]
         a = _widest(cbox)
         ext = cbox[3 + a] - cbox[a]
@@ -76,7 +84,7 @@ def _plan(level, bounds, p, q, piece, axis, lo, scale, mid, first_job):
         if ext == 0:
             mid[k] = s + (e - s) // 2
         elif d + _log2ceil(e - s) >= MAX_DEPTH:  # as _grow's guard, for a row at depth d
-            mid[k] = _median_split(p if buf == 0 else q, s, e, cbox)
+            mid[k] = _median_split(p, s, e, cbox)
         first_job[k] = j
         for a0 in range(s, e, piece):
             out[j, 0] = k
@@ -88,7 +96,7 @@ def _plan(level, bounds, p, q, piece, axis, lo, scale, mid, first_job):
 
 
 @compiled.njit(nogil=True)
-def _bin_jobs(level, jobs, p, q, axis, lo, scale, mid, counts, bins, first, step):
+def _bin_jobs(level, jobs, p, axis, lo, scale, mid, counts, bins, first, step):
     """Bin the slices jobs[first::step] of SAH ranges along their range's
     axis: counts[j]; bins[j]: each bin's box, then its centres' box."""
     last = BINS - 1
@@ -101,7 +109,7 @@ def _bin_jobs(level, jobs, p, q, axis, lo, scale, mid, counts, bins, first, step
         k = jobs[j, 0]
         if mid[k] >= 0:
             continue
-        x, y, z, ph, _ = p if level[k, 4] == 0 else q
+        x, y, z, ph, _ = p
         a = axis[k]
         key = x if a == 0 else (y if a == 1 else z)
         c, sa = lo[k], scale[k]
@@ -192,71 +200,79 @@ def _choose(level, jobs, first_job, axis, scale, mid, counts, bins, cut, left_at
 
 
 @compiled.njit(nogil=True)
-def _move_jobs(level, jobs, p, q, axis, lo, scale, mid, cut, left_at, right_at, first, step):
-    """Move the slices jobs[first::step] to the other buffer, in order: each
-    slice's left side from left_at[j] on, its right side from right_at[j] on."""
+def _mark_jobs(jobs, done, p, dst, axis, lo, scale, mid, cut, left, left_at, right_at, first, step):
+    """The first of a level's moves, the indices' (p's last array, into dst), as _move_jobs
+    moves the others, by each primitive's side, which it marks for them: left[i] is 1 where
+    primitive i of the slices jobs[first::step] goes to its range's left child."""
     last = BINS - 1
+    idx = p[4]
     for j in range(first, jobs.shape[0], step):
         k = jobs[j, 0]
-        src, dst = (p, q) if level[k, 4] == 0 else (q, p)
         a = axis[k]
-        key = src[0] if a == 0 else (src[1] if a == 1 else src[2])
+        key = p[0] if a == 0 else (p[1] if a == 1 else p[2])
         c, sa, kb, split = lo[k], scale[k], cut[k], mid[k]
         lt, rt = left_at[j], right_at[j]
         for i in range(jobs[j, 1], jobs[j, 2]):
-            if (i < split) if split >= 0 else (min(int((key[i] - c) * sa), last) <= kb):
-                t = lt
-                lt += 1
-            else:
-                t = rt
-                rt += 1
-            _copy(src, i, dst, t)
+            go = (i < split) if split >= 0 else (min(int((key[i] - c) * sa), last) <= kb)
+            left[i] = go
+            g = np.int64(go)  # no branch: a slice's sides mix, and mispredicted they were most of a move
+            dst[rt + g * (lt - rt)] = idx[i]
+            lt += g
+            rt += 1 - g
+    for t in range(first, done.shape[0], step):
+        dst[done[t, 0] : done[t, 1]] = idx[done[t, 0] : done[t, 1]]
 
 
 @compiled.njit(nogil=True)
-def _attach(level, m, mid, children, p, q, nodes, links, used, wide):
+def _move_jobs(jobs, done, src, dst, left, left_at, right_at, first, step):
+    """One of the builder's arrays, src, into dst: the slices jobs[first::step]
+    each moved in order, its left side from left_at[j] on, its right side from
+    right_at[j] on, each primitive to the side _mark_jobs marked; the ranges
+    done[first::step] (subtrees already set apart, rows s, e) copied where they are."""
+    for j in range(first, jobs.shape[0], step):
+        lt, rt = left_at[j], right_at[j]
+        for i in range(jobs[j, 1], jobs[j, 2]):
+            g = np.int64(left[i])  # no branch, as in _mark_jobs
+            dst[rt + g * (lt - rt)] = src[i]
+            lt += g
+            rt += 1 - g
+    for t in range(first, done.shape[0], step):
+        dst[done[t, 0] : done[t, 1]] = src[done[t, 0] : done[t, 1]]
+
+
+@compiled.njit(nogil=True)
+def _attach(level, m, mid, children, p, nodes, links, used, wide):
     """Store each range's two children in its row: ranges of over `wide`
     primitives get a row and go to the next level (returned with their bounds);
-    the others are subtree tasks (parent row, slot, s, e, depth, buf).
+    the others are subtree tasks (parent row, slot, s, e, depth).
     Returns (next level, its bounds, subtrees, rows used)."""
     n = level.shape[0]
-    nxt = np.empty((2 * n, 5), np.int64)
+    nxt = np.empty((2 * n, 4), np.int64)
     nxt_bounds = np.empty((2 * n, 12), np.float32)
-    subtrees = np.empty((2 * n, 6), np.int64)
+    subtrees = np.empty((2 * n, 5), np.int64)
     nn = 0
     ns = 0
     for k in range(n):
-        row, s, e, d, buf = level[k, 0], level[k, 1], level[k, 2], level[k, 3], level[k, 4]
+        row, s, e, d = level[k, 0], level[k, 1], level[k, 2], level[k, 3]
         for slot in range(2):
             cs, ce = (s, m[k]) if slot == 0 else (m[k], e)
             b = children[k, slot]
             if mid[k] >= 0:  # split by count: no bins gave the bounds
-                _range_bounds(q if buf == 0 else p, cs, ce, b[:6], b[6:])
+                _range_bounds(p, cs, ce, b[:6], b[6:])
             nodes[row, CHILD_BOX[slot] : CHILD_BOX[slot] + BOX_FLOATS] = b[:6]
             links[row, REF + slot] = cs
             links[row, COUNT + slot] = ce - cs
             if ce - cs > wide:
                 _open_row(nodes, links, row, slot, used)
-                nxt[nn, 0], nxt[nn, 1], nxt[nn, 2], nxt[nn, 3], nxt[nn, 4] = used, cs, ce, d + 1, 1 - buf
+                nxt[nn, 0], nxt[nn, 1], nxt[nn, 2], nxt[nn, 3] = used, cs, ce, d + 1
                 nxt_bounds[nn] = b
                 nn += 1
                 used += 1
             else:
                 subtrees[ns, 0], subtrees[ns, 1], subtrees[ns, 2] = row, slot, cs
-                subtrees[ns, 3], subtrees[ns, 4], subtrees[ns, 5] = ce, d, 1 - buf
+                subtrees[ns, 3], subtrees[ns, 4] = ce, d
                 ns += 1
     return nxt[:nn], nxt_bounds[:nn], subtrees[:ns], used
-
-
-@compiled.njit(nogil=True)
-def _gather_back(p, q, tasks, first, step):
-    """Bring the primitives of the subtrees tasks[first::step] back to the
-    builder's arrays p where the top's last split left them in the spare
-    ones q, so that q can go before the subtrees are grown."""
-    for t in range(first, tasks.shape[0], step):
-        if tasks[t, 5] == 1:
-            for i in range(tasks[t, 2], tasks[t, 3]):
-                _copy(q, i, p, i)
 
 
 @compiled.njit(nogil=True)
@@ -276,14 +292,6 @@ def _leaves_slices(items, order, piece, ordered, first, step):
     n = order.shape[0]
     for j in range(first, (n + piece - 1) // piece, step):
         _leaves(items, order, j * piece, min(j * piece + piece, n), ordered)
-
-
-@compiled.njit(nogil=True, inline="always")
-def _copy(src, i, dst, t):
-    """Entry i of the builder's arrays src to entry t of dst."""
-    sx, sy, sz, sh, si = src
-    dx, dy, dz, dh, di = dst
-    dx[t], dy[t], dz[t], dh[t], di[t] = sx[i], sy[i], sz[i], sh[i], si[i]
 
 
 @compiled.njit(nogil=True)
@@ -324,21 +332,21 @@ def _prepare_all(items, p, piece, bounds, parts):
 
 
 @compiled.njit(nogil=True, parallel=True)
-def _bin_all(level, jobs, p, q, axis, lo, scale, mid, counts, bins, parts):
+def _bin_all(level, jobs, p, axis, lo, scale, mid, counts, bins, parts):
     for w in numba.prange(parts):
-        _bin_jobs(level, jobs, p, q, axis, lo, scale, mid, counts, bins, w, parts)
+        _bin_jobs(level, jobs, p, axis, lo, scale, mid, counts, bins, w, parts)
 
 
 @compiled.njit(nogil=True, parallel=True)
-def _move_all(level, jobs, p, q, axis, lo, scale, mid, cut, left_at, right_at, parts):
+def _mark_all(jobs, done, p, dst, axis, lo, scale, mid, cut, left, left_at, right_at, parts):
     for w in numba.prange(parts):
-        _move_jobs(level, jobs, p, q, axis, lo, scale, mid, cut, left_at, right_at, w, parts)
+        _mark_jobs(jobs, done, p, dst, axis, lo, scale, mid, cut, left, left_at, right_at, w, parts)
 
 
 @compiled.njit(nogil=True, parallel=True)
-def _gather_all(p, q, tasks, parts):
+def _move_all(jobs, done, src, dst, left, left_at, right_at, parts):
     for w in numba.prange(parts):
-        _gather_back(p, q, tasks, w, parts)
+        _move_jobs(jobs, done, src, dst, left, left_at, right_at, w, parts)
 
 
 @compiled.njit(nogil=True, parallel=True)
@@ -371,8 +379,8 @@ def _build_wide(items, n: int, threads: int, wide: int, node_cost=NODE_COST):
     block of rows, then the blocks packed after the top's rows. Returns
     (nodes, order, deepest depth); leaf_buffer makes the leaf buffer after,
     when the builder's arrays are gone."""
-    p = work_arrays(n)
-    q = work_arrays(n)
+    p = tuple(scratch(n, t) for t in (np.float32,) * 4 + (np.int32,))  # sah_steps.work_arrays, mapped
+    spare, left = scratch(n, np.float32), scratch(n, np.uint8)
     # the top's rows, then one block per subtree at the top's row count plus
     # its first primitive: a subtree of k primitives has fewer than k inner nodes
     nodes = reserve(2 * n, NODE_FLOATS)
@@ -381,10 +389,10 @@ def _build_wide(items, n: int, threads: int, wide: int, node_cost=NODE_COST):
     parts = np.empty(((n + piece - 1) // piece, 12), np.float32)
     _prepare_all(items, p, piece, parts, threads)
     _empty_children(nodes, 0)
-    level = np.array([[0, 0, n, 1, 0]], np.int64)  # row, s, e, the row's depth, buf
+    level = np.array([[0, 0, n, 1]], np.int64)  # row, s, e, the row's depth
     bounds = parts[:1].copy()  # the slices' bounds merged: the root's
     _merge(bounds[0], parts)
-    used, depth, subtrees = 1, 1, []
+    used, depth, subtrees = 1, 1, [np.empty((0, 5), np.int64)]
     while len(level):
         k = len(level)
         axis, lo, scale = np.empty(k, np.int64), np.empty(k, np.float32), np.empty(k, np.float32)
@@ -393,7 +401,6 @@ def _build_wide(items, n: int, threads: int, wide: int, node_cost=NODE_COST):
             level,
             bounds,
             p,
-            q,
             _piece(int((level[:, 2] - level[:, 1]).sum()), threads),
             axis,
             lo,
@@ -402,36 +409,75 @@ def _build_wide(items, n: int, threads: int, wide: int, node_cost=NODE_COST):
             first_job,
         )
         counts, bins = np.empty((len(jobs), BINS), np.int64), np.empty((len(jobs), BINS, 12), np.float32)
-        _bin_all(level, jobs, p, q, axis, lo, scale, mid, counts, bins, threads)
+        _bin_all(level, jobs, p, axis, lo, scale, mid, counts, bins, threads)
         left_at, right_at = np.empty(len(jobs), np.int64), np.empty(len(jobs), np.int64)
         children = np.empty((k, 2, 12), np.float32)
         m = _choose(level, jobs, first_job, axis, scale, mid, counts, bins, cut, left_at, right_at, children)
-        _move_all(level, jobs, p, q, axis, lo, scale, mid, cut, left_at, right_at, threads)
+        done = np.ascontiguousarray(np.concatenate(subtrees)[:, 2:4])  # set apart: copied as they are
+        plan, sides = (axis, lo, scale, mid, cut), (left, left_at, right_at)
+        p, spare = _move(jobs, level[:, 1:3].copy(), done, p, spare, plan, sides, threads)
         depth = max(depth, int(level[:, 3].max()))
-        level, bounds, below, used = _attach(level, m, mid, children, p, q, nodes, links, used, wide)
+        level, bounds, below, used = _attach(level, m, mid, children, p, nodes, links, used, wide)
         subtrees.append(below)
-    tasks = np.concatenate(subtrees)
-    tasks = tasks[np.argsort(tasks[:, 2] - tasks[:, 3], kind="stable")]  # largest first
+    del spare, left
+    tasks, edges, ranks = _in_runs(np.concatenate(subtrees), n, RUNS if mapped(p[0]) else 1)
     ends, depths = np.empty(len(tasks), np.int64), np.empty(len(tasks), np.int64)
-    # the spare arrays let go before the subtrees are grown: with the nodes those write,
-    # both sets were the build's peak (docs/triangles.md#memory)
-    _gather_all(p, q, tasks, threads)
-    del q
     # subtrees differ in cost: more parts than threads, handed out one at a time as threads come free
     chunk = numba.set_parallel_chunksize(1)
     try:
-        _grow_all(p, nodes, links, tasks, used, ends, depths, 4 * threads, np.float32(node_cost))
+        for a, b in zip(edges, edges[1:]):
+            _grow_all(p, nodes, links, tasks[a:b], used, ends[a:b], depths[a:b], 4 * threads, np.float32(node_cost))
+            for array in p[:4]:
+                release(array, tasks[a:b, 2].min(), tasks[a:b, 3].max())
     finally:
         numba.set_parallel_chunksize(chunk)
     order = p[4]
     # the work arrays but the order let go before the packed copy is made
     del p
-    sizes = ends - (used + tasks[:, 2])
-    starts = used + np.cumsum(sizes) - sizes
+    sizes = np.empty_like(ends)
+    sizes[ranks] = ends - (used + tasks[:, 2])  # in the order the blocks are packed in
+    starts = (used + np.cumsum(sizes) - sizes)[ranks]
     packed = np.empty((used + int(sizes.sum()), NODE_FLOATS), np.float32)
     packed[:used] = nodes[:used]
-    _pack_all(nodes, links, tasks, used, ends, starts, packed, packed.view(np.int32), threads)
+    for a, b in zip(edges, edges[1:]):
+        run = tasks[a:b]
+        _pack_all(nodes, links, run, used, ends[a:b], starts[a:b], packed, packed.view(np.int32), threads)
+        release(nodes, used + run[:, 2].min(), used + run[:, 3].max())
     return packed, order, max(depth, int(depths.max()))
+
+
+def _move(jobs, ranges, done, p, spare, plan, sides, threads):
+    """The builder's arrays p each moved by the level's slices into the spare array, the
+    indices first (mark), and (the arrays, the spare left). Where more primitives are set
+    apart in subtrees (done) than the level's ranges hold, each array is moved and then its
+    ranges copied back; else the ranges done are copied across, and the spare takes the
+    array's place."""
+    back = int((ranges[:, 1] - ranges[:, 0]).sum()) < int((done[:, 1] - done[:, 0]).sum())
+    kept = done[:0] if back else done
+    for a in (4, 0, 1, 2, 3):
+        source = p[a]
+        into = spare.view(source.dtype)
+        if a == 4:
+            _mark_all(jobs, kept, p, into, *plan, *sides, threads)
+        else:
+            _move_all(jobs, kept, source, into, *sides, threads)
+        if back:
+            _move_all(jobs[:0], ranges, into, source, *sides, threads)
+        else:
+            p, spare = p[:a] + (into,) + p[a + 1 :], source.view(np.float32)
+    return p, spare
+
+
+def _in_runs(tasks, n: int, runs: int):
+    """The subtree tasks in runs along the primitives (RUNS), each run's largest first; where
+    each run starts in them (and the last ends); and each one's rank in the order their blocks
+    are packed in, the largest first (as they were grown until the runs). The runs, in order,
+    cover the primitives from the first to the last."""
+    tasks = tasks[np.argsort(tasks[:, 2] - tasks[:, 3], kind="stable")]
+    run = tasks[:, 2] * runs // n
+    ranks = np.argsort(run, kind="stable")
+    edges = np.searchsorted(run[ranks], np.arange(runs + 1))
+    return tasks[ranks], [int(e) for e in np.unique(edges)], ranks
 
 
 def leaf_buffer(items, order, leaf_rows: int, threads: int, memory: str = "C") -> np.ndarray:
