@@ -471,11 +471,11 @@ def _move(jobs, ranges, done, p, spare, plan, sides, threads):
 def _in_runs(tasks, n: int, runs: int):
     """The subtree tasks in runs along the primitives (RUNS), each run's largest first; where
     each run starts in them (and the last ends); and each one's rank in the order their blocks
-    are packed in, the largest first (as they were grown until the runs). The runs, in order,
-    cover the primitives from the first to the last."""
-    tasks = tasks[np.argsort(tasks[:, 2] - tasks[:, 3], kind="stable")]
+    are packed in, along the primitives, so that a run's blocks are packed side by side. The
+    runs, in order, cover the primitives from the first to the last."""
+    tasks = tasks[np.argsort(tasks[:, 2])]
     run = tasks[:, 2] * runs // n
-    ranks = np.argsort(run, kind="stable")
+    ranks = np.lexsort((tasks[:, 2] - tasks[:, 3], run))
     edges = np.searchsorted(run[ranks], np.arange(runs + 1))
     return tasks[ranks], [int(e) for e in np.unique(edges)], ranks
 
