@@ -59,8 +59,8 @@ def mapped(array: np.ndarray) -> bool:
 
 def release(array: np.ndarray, start: int, stop: int) -> None:
     """Give the OS back the whole pages of array[start:stop] (along its first axis, C-contiguous):
-    what they held is lost, and reads there give zeros. Nothing for an array in NumPy's memory
-    (reserve's and scratch's small ones)."""
+    what they held is lost (the builder reads none of it again). Nothing for an array in NumPy's
+    memory (reserve's and scratch's small ones)."""
     pages = _mapping(array)
     if pages is None or not hasattr(mmap, "MADV_DONTNEED") or stop <= start:
         return

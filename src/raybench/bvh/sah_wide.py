@@ -40,9 +40,9 @@ from .sah_steps import (
 # most SLICE primitives, binned and moved by one thread.
 SLICE = 1 << 14
 # Below the top, a large tree's subtrees are grown, and then packed, in RUNS runs along the
-# primitives, and each run's part of what it no longer needs is given back as it ends (the
-# builder's arrays but the order, then the subtrees' rows once packed): held whole, either
-# with the nodes was a shared-vertex mesh's peak (docs/notes/mesh-memory.md).
+# primitives, and each run gives back what it no longer needs as it ends: its part of the
+# builder's arrays but the order, then its subtrees' rows once packed. Held whole beside the
+# nodes, either was a shared-vertex mesh's peak (docs/notes/mesh-memory.md).
 RUNS = 8
 
 # --- the top of a large tree: each split shared by all threads -----------------------
@@ -201,9 +201,10 @@ def _choose(level, jobs, first_job, axis, scale, mid, counts, bins, cut, left_at
 
 @compiled.njit(nogil=True)
 def _mark_jobs(jobs, done, p, dst, axis, lo, scale, mid, cut, left, left_at, right_at, first, step):
-    """The first of a level's moves, the indices' (p's last array, into dst), as _move_jobs
-    moves the others, by each primitive's side, which it marks for them: left[i] is 1 where
-    primitive i of the slices jobs[first::step] goes to its range's left child."""
+    """The first of a level's moves: the indices (p's last array) into dst, as _move_jobs moves
+    the other arrays after it (the ranges done copied too), each primitive's side marked for
+    those moves: left[i] is 1 where primitive i of the slices jobs[first::step] goes to its
+    range's left child."""
     last = BINS - 1
     idx = p[4]
     for j in range(first, jobs.shape[0], step):
@@ -447,10 +448,11 @@ def _build_wide(items, n: int, threads: int, wide: int, node_cost=NODE_COST):
 
 
 def _move(jobs, ranges, done, p, spare, plan, sides, threads):
-    """The builder's arrays p each moved by the level's slices into the spare array, the
-    indices first (mark), and (the arrays, the spare left). Where more primitives are set
-    apart in subtrees (done) than the level's ranges hold, each array is moved and then its
-    ranges copied back; else the ranges done are copied across, and the spare takes the
+    """Move each of the builder's arrays p by the level's slices through the one spare array,
+    the indices first (_mark_all, which marks each primitive's side for the rest). Returns the
+    arrays and the spare array left over. Where more primitives are already set apart in
+    subtrees (done) than the level's ranges hold, each array's moved ranges are copied back
+    from the spare; else the ranges set apart are copied across, and the spare takes the
     array's place."""
     back = int((ranges[:, 1] - ranges[:, 0]).sum()) < int((done[:, 1] - done[:, 0]).sum())
     kept = done[:0] if back else done
