@@ -216,12 +216,8 @@ def _mark_jobs(jobs, done, p, dst, axis, lo, scale, mid, cut, left, left_at, rig
         for i in range(jobs[j, 1], jobs[j, 2]):
             go = (i < split) if split >= 0 else (min(int((key[i] - c) * sa), last) <= kb)
             left[i] = go
-            g = np.int64(go)  # no branch: a slice's sides mix, and mispredicted they were most of a move
-            dst[rt + g * (lt - rt)] = idx[i]
-            lt += g
-            rt += 1 - g
-    for t in range(first, done.shape[0], step):
-        dst[done[t, 0] : done[t, 1]] = idx[done[t, 0] : done[t, 1]]
+            lt, rt = _put(dst, idx[i], np.int64(go), lt, rt)
+    _copy_done(done, idx, dst, first, step)
 
 
 @compiled.njit(nogil=True)
@@ -229,14 +225,27 @@ def _move_jobs(jobs, done, src, dst, left, left_at, right_at, first, step):
     """One of the builder's arrays, src, into dst: the slices jobs[first::step]
     each moved in order, its left side from left_at[j] on, its right side from
     right_at[j] on, each primitive to the side _mark_jobs marked; the ranges
-    done[first::step] (subtrees already set apart, rows s, e) copied where they are."""
+    done[first::step] copied where they are."""
     for j in range(first, jobs.shape[0], step):
         lt, rt = left_at[j], right_at[j]
         for i in range(jobs[j, 1], jobs[j, 2]):
-            g = np.int64(left[i])  # no branch, as in _mark_jobs
-            dst[rt + g * (lt - rt)] = src[i]
-            lt += g
-            rt += 1 - g
+            lt, rt = _put(dst, src[i], np.int64(left[i]), lt, rt)
+    _copy_done(done, src, dst, first, step)
+
+
+@compiled.njit(nogil=True, inline="always")
+def _put(dst, value, go, lt, rt):
+    """value to dst's next place on its side (go: 1 for the left, where lt is, else 0 for the
+    right, where rt is), without a branch: a slice's sides mix, and mispredicted the branch was
+    most of a move. Returns the next places, lt and rt."""
+    dst[rt + go * (lt - rt)] = value
+    return lt + go, rt + 1 - go
+
+
+@compiled.njit(nogil=True)
+def _copy_done(done, src, dst, first, step):
+    """The ranges done[first::step] (subtrees already set apart: s, e) copied from src to dst
+    where they are."""
     for t in range(first, done.shape[0], step):
         dst[done[t, 0] : done[t, 1]] = src[done[t, 0] : done[t, 1]]
 
