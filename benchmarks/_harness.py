@@ -41,8 +41,9 @@ MMAP_THRESHOLD = "131072"
 
 def own_pages() -> None:
     """Run this script again, once, with glibc's mmap threshold fixed, so that the resident set
-    counts every large array a measurement makes. Without it the cpu's peak for an icosphere of
-    5.24 M triangles read 1.58x where its arrays came to 2.23x (docs/notes/mesh-memory.md)."""
+    counts every large array a measurement makes. Without it arrays under the threshold's ceiling
+    can be carved from memory the process already holds, and go uncounted
+    (docs/notes/mesh-memory.md)."""
     if sys.platform.startswith("linux") and os.environ.get("MALLOC_MMAP_THRESHOLD_") != MMAP_THRESHOLD:
         os.execve(sys.executable, [sys.executable, *sys.argv], {**os.environ, "MALLOC_MMAP_THRESHOLD_": MMAP_THRESHOLD})
 

@@ -175,16 +175,19 @@ class Peak:
             self.peak = max(self.peak, _high_water())
 
 
-def memory(n: int, device: str, frames: int, kind: str = "random") -> dict:
-    """A frame of n triangles on device (random ones, or an icosphere's), with the memory it took
-    beyond the mesh."""
+def memory_mesh(n: int, kind: str) -> Mesh:
+    """The memory frame's mesh: n random triangles, or the icosphere of n triangles."""
+    return random_triangles(n) if kind == "random" else icosphere(round(math.log(n / 20, 4)))
+
+
+def warm_up(device: str, kind: str, basis) -> None:
+    """A frame of a small mesh of the memory frame's kind, untimed, so that the kernels are compiled
+    or loaded (and a GPU's context made) before the peak is watched. Over sah_steps.WIDE triangles,
+    so that the builder's way for many is compiled too: its compile's memory (LLVM's) was counted
+    in the cpu's peak until 2026-12-05. Read as the large mesh will be (triangle_mesh.read_through:
+    the cpu reads a large icosphere through the tree's order): until 2026-12-06, later, the
+    icosphere's kernels were loaded in the peak."""
     width, height = SIZE
-    basis = Camera(position=(0.0, 0.0, -3.0), look_at=(0.0, 0.0, 0.0), fov_deg=60.0).basis(width, height)
-    # over sah_steps.WIDE triangles, so that the builder's way for many is compiled here too: its
-    # compile's memory (LLVM's) was counted in the cpu's peak until 2026-12-05; of the same kind,
-    # read as the large mesh will be (triangle_mesh.read_through: the cpu reads a large icosphere
-    # through the tree's order), so that those kernels too are compiled or loaded here (until
-    # 2026-12-06, later, the icosphere's were loaded in the peak)
     small = Painted(random_triangles(2 * WIDE) if kind == "random" else icosphere(5), MESH_COLOUR)
     floor = getattr(triangle_mesh, "INDEXED_FROM", None)  # a version without it reads no mesh so
     if floor is not None and kind != "random":
@@ -192,11 +195,19 @@ def memory(n: int, device: str, frames: int, kind: str = "random") -> dict:
     try:
         with backends.tracer(device, small, width, height, primitive="triangle") as warm:
             warm.compile()
-            warm.trace(basis)  # the kernels compiled or loaded, the device's context made
+            warm.trace(basis)
     finally:
         if floor is not None:
             triangle_mesh.INDEXED_FROM = floor
-    mesh = random_triangles(n) if kind == "random" else icosphere(round(math.log(n / 20, 4)))
+
+
+def memory(n: int, device: str, frames: int, kind: str = "random") -> dict:
+    """A frame of n triangles on device (random ones, or an icosphere's), with the memory it took
+    beyond the mesh."""
+    width, height = SIZE
+    basis = Camera(position=(0.0, 0.0, -3.0), look_at=(0.0, 0.0, 0.0), fov_deg=60.0).basis(width, height)
+    warm_up(device, kind, basis)
+    mesh = memory_mesh(n, kind)
     own = mesh.vertices.nbytes + mesh.faces.nbytes
     used = _Nvml() if device == "cuda" else _rss
     # what the mesh's making let go (trimesh's objects hold cycles) collected now, not in the

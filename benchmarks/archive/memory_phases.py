@@ -9,7 +9,6 @@ mesh_build.memory hands it; before 2026-12-05 (later) the frame was made from it
 """
 
 import gc
-import math
 import sys
 import threading
 import time
@@ -21,9 +20,7 @@ import psutil
 from raybench import backends
 from raybench import bvh as bvh_mod
 from raybench.backends.cpu import tracer as cpu_tracer
-from raybench.bvh.sah_steps import WIDE
 from raybench.camera import Camera
-from raybench.kernels.primitives import triangle_mesh
 from raybench.meshes import MESH_COLOUR, Painted
 
 marks = []
@@ -45,15 +42,9 @@ def main() -> None:
     cpu_tracer.bvh_mod = bvh_mod
     width, height = mesh_build.SIZE
     basis = Camera(position=(0.0, 0.0, -3.0), look_at=(0.0, 0.0, 0.0), fov_deg=60.0).basis(width, height)
-    icosphere = len(sys.argv) > 2 and sys.argv[2] == "icosphere"
-    small = Painted(mesh_build.icosphere(5) if icosphere else mesh_build.random_triangles(2 * WIDE), MESH_COLOUR)
-    floor = triangle_mesh.INDEXED_FROM
-    triangle_mesh.INDEXED_FROM = 0 if icosphere else floor  # the small mesh read as the large one will be
-    with backends.tracer("cpu", small, width, height, primitive="triangle") as warm:
-        warm.compile()
-        warm.trace(basis)
-    triangle_mesh.INDEXED_FROM = floor
-    mesh = mesh_build.icosphere(round(math.log(n / 20, 4))) if icosphere else mesh_build.random_triangles(n)
+    kind = "icosphere" if len(sys.argv) > 2 and sys.argv[2] == "icosphere" else "random"
+    mesh_build.warm_up("cpu", kind, basis)
+    mesh = mesh_build.memory_mesh(n, kind)
     gc.collect()  # trimesh's cycles let go now, not in the frame's making (mesh_build.memory)
     own = mesh.vertices.nbytes + mesh.faces.nbytes
     process, line, stop = psutil.Process(), [], threading.Event()

@@ -167,13 +167,14 @@ def _first(items, n: int):
     return triangle_mesh.first(items, n) if isinstance(items, tuple) else items[:, :n]
 
 
-def _compile_kind(items, primitive, wide: bool, device: str) -> None:
+def _compile_kind(items, primitive, wide: bool, device: str, through: bool) -> None:
     """Compile a kind's steps other than the sphere's (compile_builder's
     work) by building over a few of its own primitives, untimed, for the
-    device's leaf buffer (its order in memory is part of the compiled type)."""
+    device's leaf buffer (its order in memory is part of the compiled type);
+    through: the items are read through the tree's order (_read_through)."""
     few = _first(items, 9)
     built = build(few, threads=1, device=device, _timed=False, primitive=primitive)
-    if _read_through(primitive, items):  # its boxes refitted over the mesh read through the order
+    if through:  # its boxes refitted over the mesh read through the order
         nodes = built.nodes.copy()
         _steps(primitive).sah_steps._refit(nodes, nodes.view(np.int32), primitive.leaves(few, built.order))
     if wide:
@@ -206,6 +207,7 @@ def build(
     if n > MAX_SPHERES:
         raise RaybenchError(f"bvh: at most {MAX_SPHERES:,} spheres, got {n:,}")
     threads = threads or usable_cores()
+    through = _read_through(primitive, items)  # no leaf buffer: the items read through the tree's order
     home = primitive is sphere  # the one-shot ways (plain Python, a child compiling) are the sphere's
     interpret, elsewhere = oneshot.in_python(n, _wide, device) if _timed and home else (False, False)
     oneshot.note_build(interpret)
@@ -215,10 +217,9 @@ def build(
         if home:
             compile_builder(wide=n > _wide)
         else:
-            _compile_kind(items, primitive, n > _wide, device)
+            _compile_kind(items, primitive, n > _wide, device, through)
     steps = _steps(primitive)
     memory = primitive.CPU_LEAF_ORDER if device == "cpu" else "C"  # as the device's walks read it best
-    through = _read_through(primitive, items)  # no leaf buffer: the items read through the tree's order
     start = time.perf_counter()
     if n > _wide:
         # Numba's threads are at most its pool's (the cores); the slicing into

@@ -430,15 +430,15 @@ def _build_wide(items, n: int, threads: int, wide: int, node_cost=NODE_COST):
         level, bounds, below, used = _attach(level, m, mid, children, p, nodes, links, used, wide)
         subtrees.append(below)
     del spare, left
-    tasks, edges, ranks = _in_runs(np.concatenate(subtrees), n, RUNS if mapped(p[0]) else 1)
+    tasks, runs, ranks = _in_runs(np.concatenate(subtrees), n, RUNS if mapped(p[0]) else 1)
     ends, depths = np.empty(len(tasks), np.int64), np.empty(len(tasks), np.int64)
     # subtrees differ in cost: more parts than threads, handed out one at a time as threads come free
     chunk = numba.set_parallel_chunksize(1)
     try:
-        for a, b in zip(edges, edges[1:]):
+        for a, b, s, e in runs:
             _grow_all(p, nodes, links, tasks[a:b], used, ends[a:b], depths[a:b], 4 * threads, np.float32(node_cost))
             for array in p[:4]:
-                release(array, tasks[a:b, 2].min(), tasks[a:b, 3].max())
+                release(array, s, e)
     finally:
         numba.set_parallel_chunksize(chunk)
     order = p[4]
@@ -449,10 +449,9 @@ def _build_wide(items, n: int, threads: int, wide: int, node_cost=NODE_COST):
     starts = (used + np.cumsum(sizes) - sizes)[ranks]
     packed = np.empty((used + int(sizes.sum()), NODE_FLOATS), np.float32)
     packed[:used] = nodes[:used]
-    for a, b in zip(edges, edges[1:]):
-        run = tasks[a:b]
-        _pack_all(nodes, links, run, used, ends[a:b], starts[a:b], packed, packed.view(np.int32), threads)
-        release(nodes, used + run[:, 2].min(), used + run[:, 3].max())
+    for a, b, s, e in runs:
+        _pack_all(nodes, links, tasks[a:b], used, ends[a:b], starts[a:b], packed, packed.view(np.int32), threads)
+        release(nodes, used + s, used + e)
     return packed, order, max(depth, int(depths.max()))
 
 
@@ -480,15 +479,18 @@ def _move(jobs, ranges, done, p, spare, plan, sides, threads):
 
 
 def _in_runs(tasks, n: int, runs: int):
-    """The subtree tasks in runs along the primitives (RUNS), each run's largest first; where
-    each run starts in them (and the last ends); and each one's rank in the order their blocks
-    are packed in, along the primitives, so that a run's blocks are packed side by side. The
-    runs, in order, cover the primitives from the first to the last."""
+    """The subtree tasks in runs along the primitives (RUNS), each run's largest first; the runs,
+    each (its first task, the task after its last, its first primitive, the primitive after its
+    last), which in order cover the primitives from the first to the last; and each task's rank
+    in the order their blocks are packed in, along the primitives, so that a run's blocks are
+    packed side by side."""
     tasks = tasks[np.argsort(tasks[:, 2])]
     run = tasks[:, 2] * runs // n
     ranks = np.lexsort((tasks[:, 2] - tasks[:, 3], run))
-    edges = np.searchsorted(run[ranks], np.arange(runs + 1))
-    return tasks[ranks], [int(e) for e in np.unique(edges)], ranks
+    edges = [int(e) for e in np.unique(np.searchsorted(run[ranks], np.arange(runs + 1)))]
+    # tasks[edges] are the runs' first tasks in position order too: a run's first primitive
+    starts = [int(tasks[e, 2]) for e in edges[:-1]] + [n]
+    return tasks[ranks], list(zip(edges, edges[1:], starts, starts[1:])), ranks
 
 
 def leaf_buffer(items, order, leaf_rows: int, threads: int, memory: str = "C") -> np.ndarray:
